@@ -1,0 +1,45 @@
+"""All numba settings of gransim, in one place.
+
+Every kernel in the package is compiled through :func:`njit` (serial) or
+:func:`pjit` (``parallel=True``, for loops written with :data:`prange`).
+
+* ``cache=True``: compiled machine code is kept on disk (``NUMBA_CACHE_DIR``),
+  so only the first run after a change pays the compile time.
+* ``fastmath=False``: floating point follows IEEE order exactly. The DEM engine
+  is compared with LIGGGHTS bit for bit, which re-association would break.
+* ``error_model="numpy"``: division by zero gives inf/nan instead of raising
+  inside a kernel; the Python boundary checks results.
+
+Set ``NUMBA_DISABLE_JIT=1`` to run the kernels as plain Python (coverage,
+debugging); the test suite is expected to pass in that mode too (slowly).
+"""
+
+from __future__ import annotations
+
+import numba
+
+JIT_OPTIONS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
+
+prange = numba.prange
+
+
+def njit(*args, **kwargs):
+    """Serial ``numba.njit`` with the package-wide options (usable bare or with arguments)."""
+    opts = {**JIT_OPTIONS, **kwargs}
+    if args and callable(args[0]):
+        return numba.njit(**opts)(args[0])
+    return numba.njit(*args, **opts)
+
+
+def pjit(*args, **kwargs):
+    """``numba.njit(parallel=True)`` with the package-wide options."""
+    opts = {**JIT_OPTIONS, "parallel": True, **kwargs}
+    if args and callable(args[0]):
+        return numba.njit(**opts)(args[0])
+    return numba.njit(*args, **opts)
+
+
+def set_num_threads(n: int | None) -> None:
+    """Set the number of numba threads (``None`` leaves the default: all cores)."""
+    if n is not None:
+        numba.set_num_threads(int(n))

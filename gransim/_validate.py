@@ -1,0 +1,59 @@
+"""Input checks at the Python boundary (freud-style ``_convert_array``).
+
+Kernels assume contiguous float64/int64 arrays of the right shape; these helpers
+produce them or raise :class:`~gransim.errors.InputError` naming what is wrong.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InputError
+
+
+def as_array(value, name: str, shape: tuple, dtype=np.float64, finite: bool = True) -> np.ndarray:
+    """Convert ``value`` to a C-contiguous array of ``dtype`` with the given shape.
+
+    ``shape`` entries may be ``None`` (any length). Raises :class:`InputError` for a
+    wrong number of dimensions, a wrong length, a non-numeric dtype or (when
+    ``finite``) NaN/inf entries.
+    """
+    try:
+        arr = np.asarray(value)
+    except Exception as exc:  # pragma: no cover - exotic objects
+        raise InputError(f"{name}: cannot convert to an array ({exc})") from None
+    if arr.dtype.kind not in "biuf":
+        raise InputError(f"{name}: expected a numeric array, got dtype {arr.dtype}")
+    if np.issubdtype(np.dtype(dtype), np.integer) and arr.dtype.kind == "f":
+        if arr.size and not np.all(np.isfinite(arr) & (arr == np.round(arr))):
+            raise InputError(f"{name}: expected integer values")
+    want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
+    if arr.ndim != len(shape):
+        raise InputError(f"{name}: expected shape {want}, got {arr.shape}")
+    for got, exp in zip(arr.shape, shape):
+        if exp is not None and got != exp:
+            raise InputError(f"{name}: expected shape {want}, got {arr.shape}")
+    arr = np.ascontiguousarray(arr, dtype=dtype)
+    if finite and arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+        bad = np.argwhere(~np.isfinite(arr))[0]
+        raise InputError(f"{name}: contains NaN or inf (first at index {tuple(int(b) for b in bad)})")
+    return arr
+
+
+def as_positive_float(value, name: str, allow_zero: bool = False) -> float:
+    """A finite positive scalar (or non-negative with ``allow_zero``)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected a number, got {value!r}") from None
+    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        rel = ">= 0" if allow_zero else "> 0"
+        raise InputError(f"{name}: must be finite and {rel}, got {v!r}")
+    return v
+
+
+def check_choice(value: str, name: str, choices) -> str:
+    """``value`` must be one of ``choices``; the error lists them."""
+    if value not in choices:
+        raise InputError(f"unknown {name} {value!r}; choose one of: {', '.join(sorted(choices))}")
+    return value

@@ -1,0 +1,15 @@
+"""Helpers shared by the sub-command modules."""
+
+from __future__ import annotations
+
+import sys
+
+
+def progress(iterable=None, total=None, desc: str = "", **kw):
+    """A tqdm progress bar on a terminal; silent when stderr is not a TTY or CI is set."""
+    import os
+
+    from tqdm.auto import tqdm
+
+    disable = (not sys.stderr.isatty()) or bool(os.environ.get("CI"))
+    return tqdm(iterable, total=total, desc=desc, disable=disable, leave=False, **kw)

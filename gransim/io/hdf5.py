@@ -1,0 +1,144 @@
+"""HDF5 results files (schema in docs/schema.md), written atomically.
+
+Every file gransim writes has root attributes ``format = "gransim"``, ``schema_version``,
+``kind`` (what the file holds, e.g. "packing", "rve-study", "dem-run") and the provenance
+record of :func:`gransim.io.provenance.provenance`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from ..errors import ResultFileError
+from ..geometry import Packing
+from .provenance import provenance
+
+FORMAT = "gransim"
+SCHEMA_VERSION = 1
+
+
+@contextlib.contextmanager
+def atomic_path(path, suffix: str | None = None):
+    """Yield a temporary path next to ``path``; rename it onto ``path`` only on success.
+
+    A crash inside the block leaves no file at ``path`` (and removes the temporary),
+    so a half-written file never looks complete.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or ".tmp", dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_h5(path, kind: str, parameters: dict | None = None, seed=None, liggghts: bool = False):
+    """Open a new HDF5 file for writing, atomically; root attributes carry the provenance.
+
+    Usage::
+
+        with atomic_h5("out.h5", kind="packing", parameters={...}, seed=3) as f:
+            f.create_dataset(...)
+    """
+    with atomic_path(path, suffix=".h5.tmp") as tmp:
+        with h5py.File(tmp, "w") as f:
+            f.attrs["format"] = FORMAT
+            f.attrs["schema_version"] = SCHEMA_VERSION
+            f.attrs["kind"] = kind
+            for k, v in provenance(parameters, seed, liggghts).items():
+                f.attrs[k] = v
+            yield f
+
+
+def open_result(path, kind: str | None = None) -> h5py.File:
+    """Open a gransim results file for reading; checks that it is ours (and of ``kind``).
+
+    Raises :class:`ResultFileError` for a missing, unreadable or foreign file.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise ResultFileError(f"{path}: no such file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise ResultFileError(f"{path}: not a readable HDF5 file ({exc})") from None
+    if f.attrs.get("format") != FORMAT:
+        f.close()
+        raise ResultFileError(f"{path}: not a gransim results file (no format='gransim' attribute)")
+    if kind is not None and f.attrs.get("kind") != kind:
+        got = f.attrs.get("kind")
+        f.close()
+        raise ResultFileError(f"{path}: holds {got!r}, expected {kind!r}")
+    return f
+
+
+def write_packing_group(group: h5py.Group, packing: Packing) -> None:
+    """Store a packing in ``group``: datasets positions (N,2), radii (N,), cell (2,2); attrs."""
+    group.create_dataset("positions", data=packing.positions)
+    group.create_dataset("radii", data=packing.radii)
+    group.create_dataset("cell", data=packing.cell)
+    group.attrs["density"] = packing.density
+    group.attrs["metadata"] = json.dumps(dict(packing.metadata), sort_keys=True, default=str)
+    group.attrs["units"] = "m, kg/m^2 (density = mass per area)"
+
+
+def read_packing_group(group: h5py.Group) -> Packing:
+    """Inverse of :func:`write_packing_group`."""
+    missing = [k for k in ("positions", "radii", "cell") if k not in group]
+    if missing:
+        raise ResultFileError(f"{group.file.filename}:{group.name}: no packing here (missing {missing})")
+    return Packing(
+        positions=group["positions"][()],
+        radii=group["radii"][()],
+        cell=group["cell"][()],
+        density=float(group.attrs.get("density", 2650.0)),
+        metadata=json.loads(group.attrs.get("metadata", "{}")),
+    )
+
+
+def save_packing(path, packing: Packing, parameters: dict | None = None, seed=None) -> Path:
+    """Write one packing to ``path`` (group ``/packing``), atomically, with provenance."""
+    if parameters is None:
+        parameters = dict(packing.metadata)
+    if seed is None:
+        seed = packing.metadata.get("seed")
+    with atomic_h5(path, kind="packing", parameters=parameters, seed=seed) as f:
+        write_packing_group(f.create_group("packing"), packing)
+    return Path(path)
+
+
+def load_packing(path, group: str = "packing") -> Packing:
+    """Read a packing written by :func:`save_packing` (or any group holding one)."""
+    with open_result(path) as f:
+        if group not in f:
+            raise ResultFileError(f"{path}: no group {group!r} (has {sorted(f.keys())})")
+        return read_packing_group(f[group])
+
+
+def read_provenance(path) -> dict:
+    """Root attributes of a results file as a dict (JSON fields decoded)."""
+    with open_result(path) as f:
+        out = {}
+        for k, v in f.attrs.items():
+            if isinstance(v, bytes):
+                v = v.decode()
+            if k in ("parameters", "seed") and isinstance(v, str):
+                try:
+                    v = json.loads(v)
+                except json.JSONDecodeError:
+                    pass
+            out[k] = v.item() if isinstance(v, np.generic) else v
+        return out
