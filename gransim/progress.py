@@ -1,4 +1,4 @@
-"""Helpers shared by the sub-command modules."""
+"""Progress bars: tqdm on a terminal, quiet when stderr is not a TTY or when CI is set."""
 
 from __future__ import annotations
 
