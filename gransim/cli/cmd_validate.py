@@ -1,0 +1,23 @@
+"""``gransim validate``: native gransim against LIGGGHTS, case by case, and the HTML report."""
+
+from __future__ import annotations
+
+
+def register(sub) -> None:
+    p = sub.add_parser("validate", help="run the validation suite and write results/report/index.html",
+                       description="Run the validation cases (native gransim vs LIGGGHTS reference runs), "
+                                   "write results/validation.json, results/validation.h5 and "
+                                   "results/report/index.html. Exit status 1 when any case fails.")
+    p.add_argument("--suite", default="default", choices=["quick", "default", "full"],
+                   help="quick (< 2 min, used by tests), default (make run), full (more seeds, larger)")
+    p.add_argument("--jobs", type=int, default=1, help="parallel reference jobs (default 1)")
+    p.add_argument("--results", default="results", help="results directory (default ./results)")
+    p.add_argument("--case", action="append", default=None, help="run only this case (repeatable)")
+    p.set_defaults(func=_run)
+
+
+def _run(args) -> int:
+    from validation.runner import run_validation
+
+    ok, _ = run_validation(args.suite, args.results, args.jobs, only=args.case)
+    return 0 if ok else 1

@@ -1,0 +1,112 @@
+"""Writers of the validation outputs: JSON summary, HDF5 record table, plain HTML report."""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from gransim.io import atomic_h5, atomic_path
+
+from .core import CaseResult
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        if v == 0 or not np.isfinite(v):
+            return str(v)
+        return f"{v:.3e}" if (abs(v) < 1e-3 or abs(v) >= 1e5) else f"{v:.6g}"
+    return html.escape(str(v))
+
+
+def write_json(path: Path, results: list[CaseResult], header: dict) -> None:
+    records = [r.to_json() for res in results for r in res.records]
+    for res in results:
+        if res.error is not None:
+            records.append({"case": res.case, "quantity": "case", "metric": "ran", "value": 0.0,
+                            "tolerance": 1.0, "pass": False, "reason": f"case did not run: {res.error}"})
+    doc = {"header": header, "cases": {res.case: ("pass" if res.passed else "fail") for res in results},
+           "records": records}
+    with atomic_path(path, suffix=".json.tmp") as tmp:
+        Path(tmp).write_text(json.dumps(doc, indent=1, default=str))
+
+
+def write_h5(path: Path, results: list[CaseResult], header: dict) -> None:
+    rows = [r for res in results for r in res.records]
+    with atomic_h5(path, kind="validation", parameters=header, liggghts=True) as f:
+        str_dt = __import__("h5py").string_dtype()
+        f.create_dataset("case", data=np.array([r.case for r in rows], dtype=object), dtype=str_dt)
+        f.create_dataset("quantity", data=np.array([r.quantity for r in rows], dtype=object), dtype=str_dt)
+        f.create_dataset("metric", data=np.array([r.metric for r in rows], dtype=object), dtype=str_dt)
+        f.create_dataset("value", data=np.array([r.value for r in rows], float))
+        f.create_dataset("tolerance", data=np.array([r.tolerance for r in rows], float))
+        f.create_dataset("pass", data=np.array([r.passed for r in rows], bool))
+        f.create_dataset("reason", data=np.array([r.reason for r in rows], dtype=object), dtype=str_dt)
+
+
+_CSS = """
+body{font-family:sans-serif;max-width:1200px;margin:2em auto;color:#222}
+table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 7px;font-size:90%}
+th{background:#eee}.pass{color:#080;font-weight:bold}.fail{color:#b00;font-weight:bold}
+.banner{padding:0.7em;border:2px solid #b60;background:#fff4e0;margin:1em 0}
+img{max-width:100%;border:1px solid #ddd;margin:0.3em 0}figure{margin:1em 0}
+figcaption{font-size:90%;color:#444}code{background:#f4f4f4}
+"""
+
+
+def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Path:
+    report_dir.mkdir(parents=True, exist_ok=True)
+    out = [f"<!doctype html><html><head><meta charset='utf-8'><title>gransim validation</title>"
+           f"<style>{_CSS}</style></head><body>",
+           "<h1>gransim validation report</h1>"]
+    if not header.get("liggghts_available"):
+        out.append("<div class='banner'><b>LIGGGHTS is not installed on this machine.</b> Comparisons use "
+                   "the stored reference outputs in <code>reference_runs/stored/</code> only "
+                   "(install with <code>apt-get install liggghts</code>).</div>")
+    out.append("<table>")
+    for k, v in header.items():
+        out.append(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>")
+    out.append("</table><h2>Summary</h2><table><tr><th>case</th><th>title</th><th>records</th>"
+               "<th>result</th></tr>")
+    for res in results:
+        cls = "pass" if res.passed else "fail"
+        word = "PASS" if res.passed else ("NOT RUN" if res.error else "FAIL")
+        out.append(f"<tr><td><a href='#{res.case}'>{html.escape(res.case)}</a></td>"
+                   f"<td>{html.escape(res.title)}</td><td>{len(res.records)}</td>"
+                   f"<td class='{cls}'>{word}</td></tr>")
+    out.append("</table>")
+    for res in results:
+        out.append(f"<h2 id='{res.case}'>{html.escape(res.case)}: {html.escape(res.title)}</h2>")
+        out.append(f"<p>{res.description}</p>")
+        if res.error:
+            out.append(f"<p class='fail'>The case did not run: {html.escape(res.error)}</p>")
+        for note in res.notes:
+            out.append(f"<p>{note}</p>")
+        if res.records:
+            out.append("<table><tr><th>compared</th><th>quantity</th><th>metric</th><th>measured</th>"
+                       "<th>tolerance</th><th>result</th><th>why this tolerance</th></tr>")
+            for r in res.records:
+                cls = "pass" if r.passed else "fail"
+                out.append(f"<tr><td>{html.escape(r.case)}</td><td>{html.escape(r.quantity)}</td>"
+                           f"<td>{html.escape(r.metric)}</td><td>{_fmt(r.value)}</td>"
+                           f"<td>{_fmt(r.tolerance)}</td><td class='{cls}'>{'pass' if r.passed else 'FAIL'}"
+                           f"</td><td>{html.escape(r.reason)}</td></tr>")
+            out.append("</table>")
+        for caption, head, rows in res.tables:
+            out.append(f"<table><caption>{html.escape(caption)}</caption><tr>"
+                       + "".join(f"<th>{html.escape(str(h))}</th>" for h in head) + "</tr>")
+            for row in rows:
+                out.append("<tr>" + "".join(f"<td>{_fmt(c)}</td>" for c in row) + "</tr>")
+            out.append("</table>")
+        for path, caption in res.figures:
+            rel = os.path.relpath(path, report_dir)
+            out.append(f"<figure><img src='{html.escape(rel)}' alt='{html.escape(caption)}'>"
+                       f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+    out.append("</body></html>")
+    index = report_dir / "index.html"
+    with atomic_path(index, suffix=".html.tmp") as tmp:
+        Path(tmp).write_text("\n".join(out))
+    return index

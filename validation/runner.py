@@ -1,0 +1,66 @@
+"""Run a validation suite and write its outputs."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import platform
+import time
+import traceback
+from pathlib import Path
+
+from gransim import __version__
+from gransim.io import git_commit, liggghts_version
+
+from .core import SUITES, CaseResult, Context, liggghts_available, registered_cases
+from .report import write_h5, write_html, write_json
+
+
+def run_validation(suite: str = "default", results: Path | str = "results", jobs: int = 1,
+                   only: list[str] | None = None, log=print) -> tuple[bool, list[CaseResult]]:
+    """Run every case of ``suite``; write results/validation.{json,h5} and results/report/index.html.
+
+    Returns ``(all_passed, results)``. A case that raises is reported as not run (a failure),
+    with its error, and the other cases still run.
+    """
+    from gransim._validate import check_choice
+
+    check_choice(suite, "suite", SUITES)
+    ctx = Context(suite=suite, results=Path(results), jobs=int(jobs), liggghts=liggghts_available())
+    ctx.report_dir.mkdir(parents=True, exist_ok=True)
+    cases = registered_cases(suite)
+    if only:
+        known = {c.id for c in cases}
+        for o in only:
+            check_choice(o, "case", known)
+        cases = [c for c in cases if c.id in only]
+    out: list[CaseResult] = []
+    t_all = time.perf_counter()
+    for c in cases:
+        log(f"[validate] {c.id}: {c.title} ...")
+        t0 = time.perf_counter()
+        try:
+            res = c.func(ctx)
+        except Exception as exc:  # a broken case must not hide the others
+            res = CaseResult(c.id, c.title, "", error=f"{type(exc).__name__}: {exc}")
+            res.notes.append("<pre>" + traceback.format_exc()[-3000:] + "</pre>")
+        dt = time.perf_counter() - t0
+        res.notes.append(f"Wall time of this case: {dt:.1f} s.")
+        word = "pass" if res.passed else ("NOT RUN: " + res.error if res.error else "FAIL")
+        log(f"[validate] {c.id}: {word} ({len(res.records)} records, {dt:.1f} s)")
+        out.append(res)
+    header = {
+        "suite": suite,
+        "gransim_version": __version__,
+        "git_commit": git_commit(),
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "liggghts_available": ctx.liggghts,
+        "liggghts_version": liggghts_version() or "absent",
+        "machine": f"{platform.node()} ({platform.machine()}, {__import__('os').cpu_count()} cores)",
+        "wall_time_s": round(time.perf_counter() - t_all, 1),
+    }
+    write_json(ctx.results / "validation.json", out, header)
+    write_h5(ctx.results / "validation.h5", out, header)
+    index = write_html(ctx.report_dir, out, header)
+    ok = all(r.passed for r in out) and bool(out)
+    log(f"[validate] report: {index}  ({'all cases pass' if ok else 'SOME CASES FAIL'})")
+    return ok, out
