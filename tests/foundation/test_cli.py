@@ -1,0 +1,38 @@
+"""The command line: every sub-command has --help; bad input gives one line and a non-zero exit."""
+
+import subprocess
+import sys
+
+import pytest
+
+from gransim.cli import build_parser, main
+
+
+def _commands():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    return sorted(sub.choices)
+
+
+def test_top_level_help_is_fast_and_lists_commands():
+    out = subprocess.run([sys.executable, "-m", "gransim", "--help"], capture_output=True, text=True, check=True)
+    for name in _commands():
+        assert name in out.stdout
+
+
+@pytest.mark.parametrize("command", _commands())
+def test_every_command_has_help(command, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main([command, "--help"])
+    assert exc.value.code == 0
+    assert "usage: gransim" in capsys.readouterr().out
+
+
+def test_unknown_command_and_option_exit_nonzero(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["no-such-command"])
+    assert exc.value.code != 0
+    with pytest.raises(SystemExit) as exc:
+        main(["validate", "--suite", "nonsense"])
+    assert exc.value.code != 0
+    assert "invalid choice" in capsys.readouterr().err
