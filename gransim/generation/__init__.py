@@ -7,5 +7,7 @@
 """
 
 from .gsd import GrainSizeDistribution, distribution_names, get_distribution
+from .pack import STANDARD_PACKINGS, FireParameters, make_packing, packing_stats, rattlers, standard_packings
 
-__all__ = ["GrainSizeDistribution", "distribution_names", "get_distribution"]
+__all__ = ["STANDARD_PACKINGS", "FireParameters", "GrainSizeDistribution", "distribution_names",
+           "get_distribution", "make_packing", "packing_stats", "rattlers", "standard_packings"]
