@@ -149,7 +149,8 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
     Parameters
     ----------
     job_dir : directory of the job (created).
-    deck : the deck text, or a path to a deck file; written to ``job_dir/in.liggghts``.
+    deck : the deck text, or a path (Path, or a one-line str naming an existing file) to a deck;
+        written to ``job_dir/in.liggghts``.
     files : input files the deck reads, ``{name in job_dir: source}`` with source a path, str or
         bytes (copied/written into the job directory; part of the job's hash).
     np : MPI processes; > 1 runs under ``mpirun -np N`` (with ``--allow-run-as-root`` as root).
@@ -173,7 +174,10 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
         ``"status": "failed"`` (never ``"ok"``).
     """
     job_dir = Path(job_dir)
-    deck_text = Path(deck).read_text() if isinstance(deck, Path) else str(deck)
+    if isinstance(deck, Path) or (isinstance(deck, str) and "\n" not in deck and Path(deck).is_file()):
+        deck_text = Path(deck).read_text()
+    else:
+        deck_text = str(deck)
     blobs = {}
     for name, src in (files or {}).items():
         if isinstance(src, bytes):

@@ -158,3 +158,28 @@ def test_h5_roundtrip(tmp_path):
 
     with h5py.File(out) as f:
         assert "liggghts_version" in f.attrs and f.attrs["kind"] == "liggghts-output"
+
+
+def test_stress_series_sign_and_repeated_steps():
+    from reference_runs.convert import stress_series
+
+    log = parse_log("    Step    c_p[1]    c_p[2]    c_p[4]\n 0 1 2 3\n 5 4 5 6\nLoop time of 1\n"
+                    "    Step    c_p[1]    c_p[2]    c_p[4]\n 5 4 5 6\n 10 7 8 9\nLoop time of 1\n")
+    steps, sig = stress_series(log.runs)
+    assert steps.tolist() == [0, 5, 10]
+    # compression-positive pressure p = (1, 2, 3) is sigma = -[[1, 3], [3, 2]]
+    assert sig[0].tolist() == [[-1, -3], [-3, -2]] and sig[2, 1, 1] == -8
+
+
+def test_particle_series(tmp_path):
+    from reference_runs.convert import particle_series
+
+    p = tmp_path / "d.dump"
+    frame2 = DUMP.split("ITEM: TIMESTEP\n200")[0].replace("100\n", "300\n", 1)
+    p.write_text(DUMP.split("ITEM: TIMESTEP\n200")[0] + frame2)
+    frames = parse_dump_custom(p)
+    steps, ids, cols = particle_series(frames, ("x", "fx"))
+    assert steps.tolist() == [100, 300] and ids.tolist() == [1, 2, 3] and cols["x"].shape == (2, 3)
+    p.write_text(DUMP)
+    with pytest.raises(ResultFileError, match="other particles"):
+        particle_series(parse_dump_custom(p), ("x",))
