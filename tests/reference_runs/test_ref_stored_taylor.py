@@ -119,3 +119,16 @@ def test_stored_contacts_images_route_count_each_contact_once(stored):
         # central-central rows once, central-image rows twice (from both ends): weights 1 and 1/2
         weight = np.where(central == 2, 1.0, np.where(central == 1, 0.5, 0.0))
         assert weight.sum() == taylor_stress_numpy(packing, F, KN, cand).n_contacts
+
+
+@pytest.mark.liggghts
+def test_stored_output_reproduces(stored, tmp_path):
+    # regenerating the stored case with the installed binary gives the stored stresses (serial
+    # LIGGGHTS runs are deterministic; identical deck and data files)
+    from reference_runs.store import regenerate_taylor
+
+    packing, run, _ = stored
+    new = read_taylor_job(regenerate_taylor(tmp_path / "again"), packing)
+    assert (tmp_path / "again" / "in.liggghts").read_text() == (STORE / "in.liggghts").read_text()
+    for key, s in run.series.items():
+        assert np.array_equal(new.series[key].stress_atom_sum, s.stress_atom_sum), key
