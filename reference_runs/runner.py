@@ -98,7 +98,8 @@ def is_complete(job_dir, input_sha256: str | None = None) -> bool:
         return False
     if input_sha256 is not None and m.get("input_sha256") != input_sha256:
         return False
-    return all((Path(job_dir) / name).exists() for name in m.get("outputs", {}))
+    names = [LOG_NAME, *m.get("outputs", {})]
+    return all((Path(job_dir) / name).exists() for name in names)
 
 
 def _write_manifest(job_dir: Path, manifest: dict) -> None:
@@ -151,8 +152,9 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
     job_dir : directory of the job (created).
     deck : the deck text, or a path (Path, or a one-line str naming an existing file) to a deck;
         written to ``job_dir/in.liggghts``.
-    files : input files the deck reads, ``{name in job_dir: source}`` with source a path, str or
-        bytes (copied/written into the job directory; part of the job's hash).
+    files : input files the deck reads, ``{name in job_dir: source}``; a source is a path (Path, or
+        a one-line str naming an existing file: copied), bytes or text (written). They are part
+        of the job's hash.
     np : MPI processes; > 1 runs under ``mpirun -np N`` (with ``--allow-run-as-root`` as root).
     timeout : seconds before the job is killed (None: no limit).
     progress : show a progress bar of finished ``run`` commands (quiet off a terminal).
@@ -182,8 +184,8 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
     for name, src in (files or {}).items():
         if isinstance(src, bytes):
             blobs[name] = src
-        elif isinstance(src, Path):
-            blobs[name] = src.read_bytes()
+        elif isinstance(src, Path) or (isinstance(src, str) and "\n" not in src and Path(src).is_file()):
+            blobs[name] = Path(src).read_bytes()
         else:
             blobs[name] = str(src).encode()
     deck_sha = _sha256(deck_text.encode())

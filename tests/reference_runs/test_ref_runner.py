@@ -72,6 +72,11 @@ def test_ok_then_skipped_then_rerun_on_new_input(tmp_path, data):
     r2 = run_job(job, deck(), {"p.data": data}, progress=False)
     assert r2.skipped and r2.manifest == r1.manifest
     r3 = run_job(job, deck(), {"p.data": data.read_bytes() + b"\n"}, progress=False)
+    assert not r3.skipped
+    (job / "log.lammps").unlink()  # a complete job needs its log
+    assert not is_complete(job)
+    r4 = run_job(job, deck(), {"p.data": str(data)}, progress=False)  # str path: copied
+    assert not r4.skipped and r4.manifest["input_sha256"] == r1.manifest["input_sha256"]
     assert not r3.skipped and r3.manifest["input_sha256"] != r1.manifest["input_sha256"]
 
 
