@@ -103,8 +103,28 @@ def _taylor_demo(out_dir, np_procs=1, timeout=600.0, force=False, progress=True)
     return 0 if worst <= TAYLOR_RTOL else 1
 
 
+def standard_rves(packings_dir="results/packings") -> dict:
+    """The 15 RVEs of the study (rve-<N>-<seed>), generated or reused by gransim.generation."""
+    from gransim.generation import STANDARD_PACKINGS, standard_packings
+    from gransim.io import load_packing
+
+    names = [n for n in STANDARD_PACKINGS if n.startswith("rve-")]
+    paths = standard_packings(packings_dir, names=names)
+    return {name: load_packing(path) for name, path in paths.items()}
+
+
+def _taylor_rves(out_dir, np_procs=1, timeout=3600.0, force=False, progress=True) -> int:
+    _, worst = run_taylor_set(standard_rves(), out_dir, np_procs=np_procs, timeout=timeout, force=force,
+                              progress=progress)
+    print(f"taylor-rves: largest relative difference {worst:.3e} (tolerance {TAYLOR_RTOL:g})")
+    return 0 if worst <= TAYLOR_RTOL else 1
+
+
 _BUILTIN = [Case("taylor-demo", "Taylor states of 3 built-in 64-disk packings along the 4 study paths, "
-                 "both routes, checked against numpy", _taylor_demo)]
+                 "both routes, checked against numpy", _taylor_demo),
+            Case("taylor-rves", "Taylor states of the 15 study RVEs (results/packings, generated if "
+                 "missing) along the 4 study paths, 50 steps, both routes, checked against numpy",
+                 _taylor_rves)]
 
 
 def all_cases() -> dict:

@@ -30,6 +30,9 @@ def register(subparsers) -> None:
     pt.add_argument("--rves", default=None, metavar="DIR",
                     help="directory of RVE packing files (*.h5), e.g. the 15 RVEs of the study")
     pt.add_argument("--demo", action="store_true", help="use 3 built-in 64-disk packings")
+    pt.add_argument("--standard", action="store_true",
+                    help="use the 15 study RVEs (rve-<N>-<seed> in --packings-dir, generated if missing)")
+    pt.add_argument("--packings-dir", default="results/packings", help="where the standard RVEs live")
     pt.add_argument("--kn", type=float, default=None, help="normal stiffness E_n, N/m (default 2.8e7)")
     pt.add_argument("--n-steps", type=int, default=50, help="states per path after the reference (50)")
     pt.add_argument("--stride", type=int, default=1, help="run every STRIDE-th state (and the last)")
@@ -81,8 +84,12 @@ def _taylor(args) -> int:
         from reference_runs.demo_packings import perturbed_lattice
 
         packings.update({f"lattice-8x8-seed{s}": perturbed_lattice(8, 8, seed=s) for s in (1, 2, 3)})
+    if args.standard:
+        from reference_runs.cases import standard_rves
+
+        packings.update(standard_rves(args.packings_dir))
     if not packings:
-        raise InputError("no packings: give packing files, --rves DIR or --demo")
+        raise InputError("no packings: give packing files, --rves DIR, --standard or --demo")
     _, worst = run_taylor_set(packings, args.out, kn=args.kn or PAPER_KN, n_steps=args.n_steps,
                               stride=args.stride, max_strain=args.max_strain, contacts=args.contacts,
                               np_procs=args.np, timeout=args.timeout, force=args.force)

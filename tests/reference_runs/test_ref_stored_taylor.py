@@ -4,6 +4,7 @@ Runs without LIGGGHTS. Tolerance RTOL = 1e-10 relative to the largest stress com
 state (see conftest): both sides evaluate the same float64 forces, summed in different orders.
 """
 
+import hashlib
 import json
 
 import numpy as np
@@ -12,7 +13,8 @@ import pytest
 from gransim.io import load_packing
 from reference_runs.conventions import cauchy_from_pressure
 from reference_runs.parsers import parse_dump_local
-from reference_runs.store import STORED, TAYLOR_CASE, TAYLOR_PARAMS, stored_taylor_packing
+from reference_runs.decks.taylor import taylor_job
+from reference_runs.store import RVE_CASE, STORED, TAYLOR_CASE, TAYLOR_PARAMS, stored_taylor_packing
 from reference_runs.taylor import read_taylor_job
 from reference_runs.taylor_numpy import candidate_pairs, taylor_stress_numpy
 
@@ -44,8 +46,27 @@ def test_all_paths_and_routes_present(stored):
     assert np.allclose(s.F[:, 1, 0], np.linspace(0, 0.1, 6), rtol=0, atol=1e-15)
 
 
-def test_stored_stress_equals_numpy_taylor(stored):
-    packing, run, cand = stored
+@pytest.fixture(scope="module", params=[TAYLOR_CASE, RVE_CASE])
+def any_stored(request):
+    d = STORED / request.param
+    packing = load_packing(d / "packing.h5")
+    return d, packing, read_taylor_job(d, packing), candidate_pairs(packing, 0.85)
+
+
+def test_stored_inputs_regenerate_bit_for_bit(any_stored):
+    # the deck and every data file follow from packing.h5 and the parameters: same SHA-256 as run
+    d, packing, run, _ = any_stored
+    p = TAYLOR_PARAMS
+    deck, files, _ = taylor_job(packing, p["kn"], n_steps=p["n_steps"], stride=p["stride"],
+                                max_strain=p["max_strain"], contacts=(d.name == TAYLOR_CASE), name=d.name)
+    manifest = json.loads((d / "manifest.json").read_text())
+    assert manifest["status"] == "ok"
+    assert hashlib.sha256(deck.encode()).hexdigest() == manifest["deck_sha256"]
+    assert {k: hashlib.sha256(v).hexdigest() for k, v in files.items()} == manifest["inputs"]
+
+
+def test_stored_stress_equals_numpy_taylor(any_stored):
+    _, packing, run, cand = any_stored
     worst = 0.0
     for (path, route), s in run.series.items():
         for F, sig in zip(s.F, s.cauchy):
