@@ -122,3 +122,19 @@ def test_missing_output(tmp_path, data):
     with pytest.raises(ReferenceRunError, match="not written"):
         run_job(job, deck(), {"p.data": data}, outputs=["never.dump"], progress=False)
     assert not is_complete(job)
+
+
+def test_nonzero_exit_without_error_line(monkeypatch, tmp_path):
+    # a stand-in binary that crashes (as a segfault would): no ERROR line, exit status 139
+    bindir = tmp_path / "bin"
+    bindir.mkdir()
+    fake = bindir / "liggghts"
+    fake.write_text("#!/bin/sh\necho 'LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, stand-in)' > log.lammps\n"
+                    "echo 'Step Atoms' >> log.lammps\necho '0 36' >> log.lammps\n"
+                    "echo 'Signal: Segmentation fault (11)' >&2\nexit 139\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bindir}:/usr/bin:/bin")
+    job = tmp_path / "job"
+    with pytest.raises(ReferenceRunError) as exc:
+        run_job(job, "run 0\n", progress=False)
+    assert_failed(job, exc, "exited with status 139", "Segmentation fault", "0 36")
