@@ -48,3 +48,16 @@ def test_contacts_dumped(lattice_packing, tmp_path):
                      n_steps=2, stride=2, contacts=True, progress=False)
     fr = run.contacts("shear-12", "images", 2)
     assert len(fr) > lattice_packing.n and np.all(fr["delta"] > 0)
+
+
+def test_images_route_with_tilted_reference_cell(lattice_packing, tmp_path):
+    # the image construction does not need an orthogonal cell: shear the reference packing first
+    S = np.array([[1.0, 0.25], [0.0, 1.0]])
+    p = lattice_packing.deformed(S)
+    run = run_taylor(p, KN, tmp_path / "tilt", paths=("shear-21", "compression-22"), routes=("images",),
+                     stride=25, progress=False)
+    cand = candidate_pairs(p, 0.85)
+    for s in run.series.values():
+        for F, sig in zip(s.F, s.cauchy):
+            ref = taylor_stress_numpy(p, F, KN, cand).cauchy
+            assert np.abs(sig - ref).max() < RTOL * np.abs(ref).max()
