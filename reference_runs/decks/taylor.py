@@ -7,7 +7,8 @@ builds the neighbour list and evaluates the forces once, so the printed virial a
 ``compute pair/gran/local`` rows are the clean evaluation at the given positions (shared notes).
 
 Each state is read from its own data file, written by gransim at ``%.17g`` with centres
-x = F X exactly as numpy computes them; one job (one process) runs all states of a packing,
+x = F X exactly as numpy computes them (periodic route; the images route translates them by one
+constant vector so that the box starts at 0, which rounds them at 1e-16 of the box size); one job (one process) runs all states of a packing,
 separated by ``clear``. Measured (bench/liggghts_reference.py): a LIGGGHTS process costs
 about 0.47 s to start, while one job runs the 306 states of a 728-disk packing in 1.0 s (3 ms a
 state), so one process per state would be ~140 times slower; the ctypes library API is not needed.
@@ -102,7 +103,11 @@ def periodic_state_packing(packing: Packing, F) -> Packing:
         raise InputError("the periodic route needs a diagonal F and an orthogonal reference cell "
                          "(tilted boxes are broken in LIGGGHTS 3.8.0: use route 'images')")
     _, X = _wrapped_reference(packing)
-    return packing.replace(positions=X @ F.T, cell=F @ C)
+    x = X @ F.T
+    L = np.diag(F @ C)
+    if np.any(x < 0) or np.any(x > L):
+        raise InputError("periodic route: F must have positive diagonal entries")
+    return packing.replace(positions=x, cell=F @ C)
 
 
 def image_state_packing(packing: Packing, F, margin: float = 1e-9):
@@ -255,7 +260,8 @@ def taylor_job(packing: Packing, kn: float, paths=PATHS, routes=ROUTES, n_steps:
                         nt, n_atoms = 2, box.n
                         types = np.where(np.arange(box.n) < packing.n, 1, 2)
                     p = Path(tmp) / "state.data"
-                    write_data_file(p, box, types=types, wrap=(route == "periodic"))
+                    # no re-wrapping: it would round the centres again (they already lie in the box)
+                    write_data_file(p, box, types=types, wrap=False)
                     files[data_name] = p.read_bytes()
                     cfile = f"contacts/{path}/{route}_{k:04d}.dump" if contacts else None
                     st = TaylorState(index, path, route, k, tuple(map(tuple, F.tolist())), data_name, cfile,
