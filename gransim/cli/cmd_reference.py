@@ -1,0 +1,99 @@
+"""``gransim reference``: LIGGGHTS reference runs (list, run CASE, taylor)."""
+
+from __future__ import annotations
+
+DEFAULT_OUT = "results/reference"
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("reference", help="LIGGGHTS reference runs (needs the liggghts binary)",
+                              description="Run LIGGGHTS-PUBLIC 3.8.0 reference jobs and parse them.")
+    sub = p.add_subparsers(dest="reference_command", metavar="ACTION")
+    sub.required = True
+
+    pl = sub.add_parser("list", help="list the named reference cases")
+    pl.set_defaults(func=_list)
+
+    pr = sub.add_parser("run", help="run a named reference case")
+    pr.add_argument("case", help="case name (see `gransim reference list`)")
+    pr.add_argument("--out", default=None, help=f"output directory (default {DEFAULT_OUT}/CASE)")
+    _job_options(pr)
+    pr.set_defaults(func=_run)
+
+    pt = sub.add_parser("taylor", help="Taylor RVE states of packings along the study paths, vs numpy",
+                        description="Run the Taylor (affine) states of each packing along compression "
+                                    "11/22 (F11, F22 from 1 to 1 - max-strain) and simple shear 12/21 "
+                                    "(F12, F21 from 0 to max-strain) through LIGGGHTS, one job per "
+                                    "packing, and compare the stresses with an independent numpy Taylor "
+                                    "stress. Jobs already complete are skipped.")
+    pt.add_argument("packings", nargs="*", help="HDF5 files holding a /packing group (gransim save_packing)")
+    pt.add_argument("--rves", default=None, metavar="DIR",
+                    help="directory of RVE packing files (*.h5), e.g. the 15 RVEs of the study")
+    pt.add_argument("--demo", action="store_true", help="use 3 built-in 64-disk packings")
+    pt.add_argument("--standard", action="store_true",
+                    help="use the 15 study RVEs (rve-<N>-<seed> in --packings-dir, generated if missing)")
+    pt.add_argument("--packings-dir", default="results/packings", help="where the standard RVEs live")
+    pt.add_argument("--kn", type=float, default=None, help="normal stiffness E_n, N/m (default 2.8e7)")
+    pt.add_argument("--n-steps", type=int, default=50, help="states per path after the reference (50)")
+    pt.add_argument("--stride", type=int, default=1, help="run every STRIDE-th state (and the last)")
+    pt.add_argument("--max-strain", type=float, default=0.1, help="final |F - I| component (0.1)")
+    pt.add_argument("--contacts", action="store_true", help="also dump per-contact forces of every state")
+    pt.add_argument("--out", default=f"{DEFAULT_OUT}/taylor", help="output directory")
+    _job_options(pt)
+    pt.set_defaults(func=_taylor)
+
+
+def _job_options(p) -> None:
+    p.add_argument("--np", type=int, default=1, help="MPI processes (mpirun -np N)")
+    p.add_argument("--timeout", type=float, default=3600.0, help="seconds per LIGGGHTS job")
+    p.add_argument("--force", action="store_true", help="rerun jobs even if complete outputs exist")
+
+
+def _list(args) -> int:
+    from reference_runs.cases import all_cases
+
+    for name, case in sorted(all_cases().items()):
+        print(f"{name:20s} {case.description}")
+    return 0
+
+
+def _run(args) -> int:
+    from pathlib import Path
+
+    from reference_runs.cases import get_case
+
+    case = get_case(args.case)
+    out = Path(args.out or f"{DEFAULT_OUT}/{case.name}")
+    return case.run(out, np_procs=args.np, timeout=args.timeout, force=args.force, progress=True)
+
+
+def _taylor(args) -> int:
+    from pathlib import Path
+
+    from gransim.errors import InputError
+    from gransim.io import load_packing
+    from reference_runs.cases import PAPER_KN, TAYLOR_RTOL, run_taylor_set
+
+    files = [Path(p) for p in args.packings]
+    if args.rves:
+        files += sorted(Path(args.rves).glob("*.h5"))
+    packings = {}
+    for f in files:
+        packings[f.stem] = load_packing(f)
+    if args.demo:
+        from reference_runs.demo_packings import perturbed_lattice
+
+        packings.update({f"lattice-8x8-seed{s}": perturbed_lattice(8, 8, seed=s) for s in (1, 2, 3)})
+    if args.standard:
+        from reference_runs.cases import standard_rves
+
+        packings.update(standard_rves(args.packings_dir))
+    if not packings:
+        raise InputError("no packings: give packing files, --rves DIR, --standard or --demo")
+    _, worst = run_taylor_set(packings, args.out, kn=args.kn or PAPER_KN, n_steps=args.n_steps,
+                              stride=args.stride, max_strain=args.max_strain, contacts=args.contacts,
+                              np_procs=args.np, timeout=args.timeout, force=args.force)
+    ok = worst <= TAYLOR_RTOL
+    print(f"{len(packings)} packings: largest relative difference LIGGGHTS vs numpy Taylor stress = "
+          f"{worst:.3e} ({'PASS' if ok else 'FAIL'}, tolerance {TAYLOR_RTOL:g})")
+    return 0 if ok else 1

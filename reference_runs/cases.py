@@ -1,0 +1,149 @@
+"""Named reference cases for ``gransim reference run CASE`` and ``gransim reference list``.
+
+A case is a callable ``run(out_dir, np_procs, timeout, force, progress) -> int`` (exit status)
+with a one-line description. Cases defined here: the Taylor demo on built-in packings.
+Other modules add cases by defining ``CASES`` (a list of :class:`Case`) in a module of
+``reference_runs.decks`` (e.g. the biaxial deck), discovered at listing time.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from gransim.errors import InputError
+
+#: normal contact stiffness E_n of 000_6d950a6f5c65e7b0.txt (table of section 4), N/m
+PAPER_KN = 2.8e7
+#: tolerance of the Taylor comparison (relative to the largest stress component of the state):
+#: both sides sum the same float64 contact forces in different orders, ~1e-15 is expected
+TAYLOR_RTOL = 1e-10
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    description: str
+    run: Callable
+
+
+def compare_taylor(run, rtol: float = TAYLOR_RTOL) -> dict:
+    """Largest relative difference between a LIGGGHTS TaylorRun and the numpy Taylor stress.
+
+    For every state: max |sigma_liggghts - sigma_numpy| / max |sigma_numpy| (componentwise),
+    and the same for the periodic route's pressure column. Returns ``{(path, route): max}``.
+    """
+    import numpy as np
+
+    from .taylor_numpy import candidate_pairs, taylor_stress_numpy
+
+    s_min = min(float(np.linalg.svd(F, compute_uv=False).min()) for s in run.series.values() for F in s.F)
+    cand = candidate_pairs(run.packing, min(1.0, s_min))
+    out = {}
+    for key, s in sorted(run.series.items()):
+        worst = 0.0
+        for F, sig, sp in zip(s.F, s.cauchy, s.cauchy_pressure):
+            ref = taylor_stress_numpy(run.packing, F, run.kn, cand).cauchy
+            scale = np.abs(ref).max()
+            if scale == 0:
+                worst = max(worst, float(np.abs(sig).max()))
+                continue
+            worst = max(worst, float(np.abs(sig - ref).max() / scale))
+            if key[1] == "periodic":
+                worst = max(worst, float(np.abs(sp - ref).max() / scale))
+        out[key] = worst
+    return out
+
+
+def run_taylor_set(packings: dict, out_dir, kn: float = PAPER_KN, n_steps: int = 50, stride: int = 1,
+                   max_strain: float = 0.1, contacts: bool = False, np_procs: int = 1, timeout=3600.0,
+                   force: bool = False, progress: bool = True, h5_name: str = "taylor.h5", check: bool = True,
+                   echo=print) -> tuple:
+    """Run the Taylor states of several packings (one LIGGGHTS job each) and compare with numpy.
+
+    Returns ``(runs, worst)``: the TaylorRun objects and the largest relative difference.
+    """
+    from gransim.progress import progress as _progress
+
+    from .runner import MANIFEST_NAME
+    from .taylor import run_taylor, write_taylor_h5
+
+    out_dir = Path(out_dir)
+    runs, worst = [], 0.0
+    for name, packing in _progress(list(packings.items()), desc="packings"):
+        job = out_dir / "jobs" / name
+        if force:
+            (job / MANIFEST_NAME).unlink(missing_ok=True)
+        run = run_taylor(packing, kn, job, name=name, n_steps=n_steps, stride=stride, max_strain=max_strain,
+                         contacts=contacts, np_procs=np_procs, timeout=timeout, progress=progress)
+        runs.append(run)
+        if check:
+            diffs = compare_taylor(run)
+            w = max(diffs.values())
+            worst = max(worst, w)
+            echo(f"{name}: N = {packing.n}, {sum(len(s.k) for s in run.series.values())} states "
+                 f"({run.manifest.get('elapsed_s', 0):.2f} s), max rel. diff vs numpy Taylor = {w:.3e}")
+    h5 = write_taylor_h5(out_dir / h5_name, runs,
+                         parameters={"kn": kn, "n_steps": n_steps, "stride": stride, "max_strain": max_strain,
+                                     "packings": list(packings)})
+    echo(f"wrote {h5}")
+    return runs, worst
+
+
+def _taylor_demo(out_dir, np_procs=1, timeout=600.0, force=False, progress=True) -> int:
+    from .demo_packings import perturbed_lattice
+
+    packings = {f"lattice-8x8-seed{s}": perturbed_lattice(8, 8, seed=s) for s in (1, 2, 3)}
+    _, worst = run_taylor_set(packings, out_dir, np_procs=np_procs, timeout=timeout, force=force,
+                              progress=progress)
+    print(f"taylor-demo: largest relative difference {worst:.3e} (tolerance {TAYLOR_RTOL:g})")
+    return 0 if worst <= TAYLOR_RTOL else 1
+
+
+def standard_rves(packings_dir="results/packings") -> dict:
+    """The 15 RVEs of the study (rve-<N>-<seed>), generated or reused by gransim.generation."""
+    from gransim.generation import STANDARD_PACKINGS, standard_packings
+    from gransim.io import load_packing
+
+    names = [n for n in STANDARD_PACKINGS if n.startswith("rve-")]
+    paths = standard_packings(packings_dir, names=names)
+    return {name: load_packing(path) for name, path in paths.items()}
+
+
+def _taylor_rves(out_dir, np_procs=1, timeout=3600.0, force=False, progress=True) -> int:
+    _, worst = run_taylor_set(standard_rves(), out_dir, np_procs=np_procs, timeout=timeout, force=force,
+                              progress=progress)
+    print(f"taylor-rves: largest relative difference {worst:.3e} (tolerance {TAYLOR_RTOL:g})")
+    return 0 if worst <= TAYLOR_RTOL else 1
+
+
+_BUILTIN = [Case("taylor-demo", "Taylor states of 3 built-in 64-disk packings along the 4 study paths, "
+                 "both routes, checked against numpy", _taylor_demo),
+            Case("taylor-rves", "Taylor states of the 15 study RVEs (results/packings, generated if "
+                 "missing) along the 4 study paths, 50 steps, both routes, checked against numpy",
+                 _taylor_rves)]
+
+
+def all_cases() -> dict:
+    """Every known case by name (built-in plus ``CASES`` lists of reference_runs.decks modules)."""
+    cases = {c.name: c for c in _BUILTIN}
+    from . import decks
+
+    for info in pkgutil.iter_modules(decks.__path__):
+        try:
+            mod = importlib.import_module(f"{decks.__name__}.{info.name}")
+        except ImportError:
+            continue
+        for c in getattr(mod, "CASES", ()):
+            cases[c.name] = c
+    return cases
+
+
+def get_case(name: str) -> Case:
+    cases = all_cases()
+    if name not in cases:
+        raise InputError(f"unknown reference case {name!r}; choose one of: {', '.join(sorted(cases))}")
+    return cases[name]
