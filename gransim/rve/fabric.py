@@ -217,6 +217,7 @@ def plot_normal_densities(densities: Mapping, path, ncols: int = 5, title: str |
                     label=f"{deg}°")
         ax.plot(th, np.full(th.shape, 1 / (2 * np.pi)), ls="--", lw=0.6, color="grey")
         ax.set_title(f"{name}\nU20={d.ranking_uniformity:.3f} a={d.anisotropy:.3f}", fontsize=8)
+        ax.set_ylim(0.0, 1.05 * float(d.density.max()))
         ax.tick_params(labelsize=6)
         ax.set_yticklabels([])
     axes.ravel()[0].legend(fontsize=6, loc="lower left", bbox_to_anchor=(-0.35, -0.25))
