@@ -63,8 +63,13 @@ def homogenize_bruteforce(packing: Packing, F, normal_stiffness: float) -> dict:
             A += np.einsum("m,ik,mJ,mL->iJkL", b, I2, L, L)
     V = float(np.linalg.det(C))
     W, P, A = W / V, P / V, A / V
-    return {"energy": W, "piola": P, "tangent": A, "cauchy": P @ F.T / np.linalg.det(F),
-            "n_contacts": count}
+    return {
+        "energy": W,
+        "piola": P,
+        "tangent": A,
+        "cauchy": P @ F.T / np.linalg.det(F),
+        "n_contacts": count,
+    }
 
 
 def crosscheck(packings, normal_stiffness: float, deformations=None, seed: int = 0) -> list[dict]:
@@ -81,8 +86,13 @@ def crosscheck(packings, normal_stiffness: float, deformations=None, seed: int =
         packings = {"rve": packings}
     if deformations is None:
         rng = np.random.default_rng(seed)
-        base = [np.eye(2), np.diag([0.95, 1.0]), np.diag([1.0, 0.95]), np.array([[1, 0.05], [0, 1.0]]),
-                np.array([[1, 0], [0.05, 1.0]])]
+        base = [
+            np.eye(2),
+            np.diag([0.95, 1.0]),
+            np.diag([1.0, 0.95]),
+            np.array([[1, 0.05], [0, 1.0]]),
+            np.array([[1, 0], [0.05, 1.0]]),
+        ]
         base += [np.eye(2) + 0.1 * rng.uniform(-1, 1, (2, 2)) for _ in range(3)]
         deformations = np.array(base)
     out = []
@@ -91,12 +101,18 @@ def crosscheck(packings, normal_stiffness: float, deformations=None, seed: int =
         got = mat.evaluate(deformations)
         for k, F in enumerate(deformations):
             ref = homogenize_bruteforce(p, F, normal_stiffness)
-            rec = {"rve": name, "F": np.asarray(F).tolist(), "n_contacts": ref["n_contacts"],
-                   "contacts_equal": int(got.n_contacts[k]) == ref["n_contacts"]}
+            rec = {
+                "rve": name,
+                "F": np.asarray(F).tolist(),
+                "n_contacts": ref["n_contacts"],
+                "contacts_equal": int(got.n_contacts[k]) == ref["n_contacts"],
+            }
             for key, field in (("energy", "energy"), ("piola", "piola"), ("tangent", "tangent")):
                 a = np.asarray(getattr(got, field)[k])
                 b = np.asarray(ref[key])
                 scale = np.max(np.abs(b))
-                rec[f"rel_{key}"] = float(np.max(np.abs(a - b)) / scale) if scale > 0 else float(np.max(np.abs(a)))
+                rec[f"rel_{key}"] = (
+                    float(np.max(np.abs(a - b)) / scale) if scale > 0 else float(np.max(np.abs(a)))
+                )
             out.append(rec)
     return out

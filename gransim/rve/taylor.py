@@ -137,8 +137,12 @@ def _taylor_point(F, L, ri, rj, lo, hi, kn, inv_area, g, W, P, A, nc):
     P[g, 0, 1] = p01 * s
     P[g, 1, 0] = p10 * s
     P[g, 1, 1] = p11 * s
-    nn = ((m00_00, m00_01, m00_11), (m01_00, m01_01, m01_11), (m01_00, m01_01, m01_11),
-          (m11_00, m11_01, m11_11))
+    nn = (
+        (m00_00, m00_01, m00_11),
+        (m01_00, m01_01, m01_11),
+        (m01_00, m01_01, m01_11),
+        (m11_00, m11_01, m11_11),
+    )
     gg = (g00, g01, g11)
     for i in range(2):
         for k in range(2):
@@ -171,7 +175,7 @@ def _taylor_single(F, L, ri, rj, lo, hi, kn, inv_area):
 
 @pjit
 def _taylor_batch(F, set_of, starts, L, ri, rj, kn, inv_area, W, P, A, nc):
-    """All Gauss points g in parallel: point g uses candidate set set_of[g] (rows starts[s]:starts[s+1])."""
+    """All states g in parallel; state g uses set s = set_of[g], rows starts[s]:starts[s+1]."""
     for g in prange(F.shape[0]):
         s = set_of[g]
         _taylor_point(F[g], L, ri, rj, starts[s], starts[s + 1], kn, inv_area[s], g, W, P, A, nc)
@@ -233,8 +237,13 @@ class TaylorBatch:
         return self.energy.shape[0]
 
     def __getitem__(self, g: int) -> TaylorResult:
-        return TaylorResult(energy=float(self.energy[g]), piola=self.piola[g], tangent=self.tangent[g],
-                            cauchy=self.cauchy[g], n_contacts=int(self.n_contacts[g]))
+        return TaylorResult(
+            energy=float(self.energy[g]),
+            piola=self.piola[g],
+            tangent=self.tangent[g],
+            cauchy=self.cauchy[g],
+            n_contacts=int(self.n_contacts[g]),
+        )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -252,13 +261,15 @@ def check_deformation_gradients(F, name: str = "F") -> np.ndarray:
     if bad.size:
         g = int(bad[0])
         where = "" if arr.shape[0] == 1 else f" at index {g}"
-        raise InputError(f"{name}: det F must be > 0 (the map must keep orientation), "
-                         f"got det F = {det[g]:.6g}{where}")
+        raise InputError(
+            f"{name}: det F must be > 0 (the map must keep orientation), "
+            f"got det F = {det[g]:.6g}{where}"
+        )
     return arr
 
 
 def _check_single_F(F) -> np.ndarray:
-    """Fast check of one F (2, 2): finite, det > 0; falls back to the general check on anything odd."""
+    """Fast check of one F (2, 2): finite, det > 0; the general check handles anything else."""
     if type(F) is np.ndarray and F.shape == (2, 2) and F.dtype == np.float64:
         a, b, c, d = F.ravel().tolist()
         if math.isfinite(a + b + c + d) and a * d - b * c > 0:
@@ -300,8 +311,15 @@ class _RVE:
         """Candidate set anchored at F0: pairs with |F0 L| < r_i + r_j + skin."""
         nl = find_neighbours(self.X @ F0.T, self.r, F0 @ self.C, self.skin)
         L = self.X[nl.j] + nl.shift @ self.C.T - self.X[nl.i]
-        entry = (np.linalg.inv(F0), np.ascontiguousarray(L), self.r[nl.i].copy(), self.r[nl.j].copy(),
-                 nl.i, nl.j, nl.shift)
+        entry = (
+            np.linalg.inv(F0),
+            np.ascontiguousarray(L),
+            self.r[nl.i].copy(),
+            self.r[nl.j].copy(),
+            nl.i,
+            nl.j,
+            nl.shift,
+        )
         self.sets.append(entry)
 
     def prune(self):
@@ -329,8 +347,10 @@ def _as_packings(packings) -> tuple[list[str], list[Packing]]:
         items = list(packings)
         names = [f"rve-{k}" for k in range(len(items))]
     else:
-        raise InputError(f"packings: expected a Packing, a sequence or a mapping of Packings, "
-                         f"got {type(packings).__name__}")
+        raise InputError(
+            f"packings: expected a Packing, a sequence or a mapping of Packings, "
+            f"got {type(packings).__name__}"
+        )
     if not items:
         raise InputError("packings: at least one packing is needed")
     for name, p in zip(names, items):
@@ -357,7 +377,9 @@ class TaylorMaterial:
     when the validity rule fails; :attr:`n_builds` counts the builds.
     """
 
-    def __init__(self, packings, normal_stiffness: float, skin_fraction: float = DEFAULT_SKIN_FRACTION):
+    def __init__(
+        self, packings, normal_stiffness: float, skin_fraction: float = DEFAULT_SKIN_FRACTION
+    ):
         self.names, items = _as_packings(packings)
         self.normal_stiffness = as_positive_float(normal_stiffness, "normal_stiffness")
         self.skin_fraction = as_positive_float(skin_fraction, "skin_fraction")
@@ -388,9 +410,14 @@ class TaylorMaterial:
                 starts.append(starts[-1] + s[1].shape[0])
                 inv_area.append(1.0 / rve.area)
                 owner.append(k)
-        self._flat = (np.ascontiguousarray(np.concatenate(Ls).reshape(-1, 2)),
-                      np.concatenate(ris), np.concatenate(rjs), np.asarray(starts, np.int64),
-                      np.asarray(inv_area), np.asarray(owner))
+        self._flat = (
+            np.ascontiguousarray(np.concatenate(Ls).reshape(-1, 2)),
+            np.concatenate(ris),
+            np.concatenate(rjs),
+            np.asarray(starts, np.int64),
+            np.asarray(inv_area),
+            np.asarray(owner),
+        )
 
     def _assign(self, F: np.ndarray, rve: np.ndarray) -> np.ndarray:
         """Global candidate-set index for every state, building sets where none is valid."""
@@ -423,15 +450,18 @@ class TaylorMaterial:
         if rve is None:
             if self.n_rve == 1:
                 return np.zeros(G, np.int64)
-            raise InputError(f"rve: this material holds {self.n_rve} RVEs; pass an RVE index per state")
+            raise InputError(
+                f"rve: this material holds {self.n_rve} RVEs; pass an RVE index per state"
+            )
         if np.ndim(rve) == 0:
             rve = np.full(G, rve)
         idx = as_array(rve, "rve", (None,), dtype=np.int64)
         if idx.shape[0] != G:
             raise InputError(f"rve: expected shape ({G},) (one index per F), got {idx.shape}")
         if idx.size and (idx.min() < 0 or idx.max() >= self.n_rve):
-            raise InputError(f"rve: indices must lie in [0, {self.n_rve}), got range "
-                             f"[{idx.min()}, {idx.max()}]")
+            raise InputError(
+                f"rve: indices must lie in [0, {self.n_rve}), got range [{idx.min()}, {idx.max()}]"
+            )
         return idx
 
     # -- evaluation ---------------------------------------------------------------------------
@@ -463,8 +493,14 @@ class TaylorMaterial:
         else:
             sig = np.full((G, 2, 2), np.nan)
         ncand = starts[set_of + 1] - starts[set_of]
-        return TaylorBatch(energy=_ro(W), piola=_ro(P), tangent=_ro(A), cauchy=_ro(sig),
-                           n_contacts=_ro(nc), n_candidates=_ro(ncand))
+        return TaylorBatch(
+            energy=_ro(W),
+            piola=_ro(P),
+            tangent=_ro(A),
+            cauchy=_ro(sig),
+            n_contacts=_ro(nc),
+            n_candidates=_ro(ncand),
+        )
 
     def __call__(self, F, rve: int = 0) -> TaylorResult:
         """One state: F (2, 2) of RVE ``rve`` (serial kernel, no thread start-up).
@@ -480,10 +516,16 @@ class TaylorMaterial:
             s = int(self._assign(F[None], np.full(1, rve, np.int64))[0])
             self._last = {rve: s}
         L, ri, rj, starts, inv_area, _ = self._flat
-        W, P, A, nc, sig = _taylor_single(F, L, ri, rj, starts[s], starts[s + 1], self.normal_stiffness,
-                                          inv_area[s])
-        return TaylorResult(energy=float(W[0]), piola=_ro(P[0]), tangent=_ro(A[0]), cauchy=_ro(sig),
-                            n_contacts=int(nc[0]))
+        W, P, A, nc, sig = _taylor_single(
+            F, L, ri, rj, starts[s], starts[s + 1], self.normal_stiffness, inv_area[s]
+        )
+        return TaylorResult(
+            energy=float(W[0]),
+            piola=_ro(P[0]),
+            tangent=_ro(A[0]),
+            cauchy=_ro(sig),
+            n_contacts=int(nc[0]),
+        )
 
     def _still_valid(self, F, rve: int, s: int) -> bool:
         """Validity rule for global set index s (still of RVE rve) in scalar arithmetic."""
@@ -576,5 +618,12 @@ def contact_state(packing: Packing, F, normal_stiffness: float) -> ContactState:
     hit = d < ri + rj
     eps = (ri + rj - d)[hit]
     n = l[hit] / d[hit, None]
-    return ContactState(i=i[hit], j=j[hit], shift=shift[hit], branch=l[hit], reference_branch=L[hit],
-                        overlap=eps, force=-kn * eps[:, None] * n)
+    return ContactState(
+        i=i[hit],
+        j=j[hit],
+        shift=shift[hit],
+        branch=l[hit],
+        reference_branch=L[hit],
+        overlap=eps,
+        force=-kn * eps[:, None] * n,
+    )
