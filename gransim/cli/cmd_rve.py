@@ -93,7 +93,14 @@ def _packings(args) -> dict:
             "no --packings given and gransim.generation (the standard 15 RVEs) is not "
             "available; pass --packings FILE.h5 ..."
         ) from None
-    return load_packings(standard_packings(args.packing_dir))
+    return load_packings(standard_packings(args.packing_dir, names=standard_rve_names()))
+
+
+def standard_rve_names() -> list[str]:
+    """The 15 RVEs of the paper's section 4 among the standard packings (rve-70-1 .. rve-700-5)."""
+    from ..generation import STANDARD_PACKINGS
+
+    return [k for k in STANDARD_PACKINGS if k.startswith("rve-")]
 
 
 def _kn(args) -> float:
