@@ -27,20 +27,22 @@ Contact candidates (cache rule)
 -------------------------------
 Contacts are found in the deformed configuration, so the contact set changes with F. A
 candidate set is built once for an *anchor* F0 by the periodic cell list: all pairs with
-|F0 L| < r_i + r_j + s (skin s, m). Every pair outside the set has |F0 L| >= r_i + r_j + s,
-and for any F, with G = F F0^{-1},
+|F0 L| < (1 + f) (r_i + r_j), a skin proportional to each pair's contact distance
+(f = ``skin_fraction``; proportional rather than uniform, so that in a polydisperse packing
+the small pairs do not carry the skin the largest pair needs). Every pair outside the set
+has |F0 L| >= (1 + f)(r_i + r_j), and for any F, with G = F F0^{-1},
 
-    |F L| = |G F0 L| >= sigma_min(G) |F0 L| >= sigma_min(G) (r_i + r_j + s).
+    |F L| = |G F0 L| >= sigma_min(G) |F0 L| >= sigma_min(G) (1 + f) (r_i + r_j),
 
-Since c / (c + s) grows with c = r_i + r_j <= 2 r_max, no pair outside the set can touch
-at F when
+so no pair outside the set can touch at F when
 
-    sigma_min(F F0^{-1}) >= 2 r_max / (2 r_max + s)        (validity rule)
+    sigma_min(F F0^{-1}) >= 1 / (1 + f)                    (validity rule)
 
 (tested with a relative safety margin of 1e-12). The set is then reused; otherwise a new
-set anchored at F is built. Stretching never invalidates a set, only compression along
-some direction does. This is sharper than the |(F - I) L| <= s/2 displacement bound and
-implies it for F0 = I. ``skin_fraction`` sets s = skin_fraction * 2 r_max.
+set anchored at F is built (a state may use any cached set the rule accepts). Stretching
+never invalidates a set, only compression along some direction does. For F0 = I the rule
+implies the displacement bound |(F - I) L| <= f/(1 + f) |L| of every candidate-excluded
+pair, and it is sharper than bounding |(F - I) L| by the norm of F - I.
 """
 
 from __future__ import annotations
@@ -61,7 +63,7 @@ from ..geometry import Packing
 
 #: relative safety margin of the candidate validity rule (round-off in sigma_min)
 VALIDITY_MARGIN = 1e-12
-#: default skin as a fraction of the largest contact distance 2 r_max
+#: default skin as a fraction of each pair's contact distance r_i + r_j
 DEFAULT_SKIN_FRACTION = 0.1
 #: most candidate sets kept per RVE (oldest dropped first)
 MAX_SETS_PER_RVE = 32
@@ -302,23 +304,27 @@ class _RVE:
         self.C = np.ascontiguousarray(packing.cell)
         self.r = np.ascontiguousarray(packing.radii)
         self.area = float(np.linalg.det(self.C))
-        self.cmax = 2.0 * float(self.r.max())
-        self.skin = skin_fraction * self.cmax
-        self.threshold = self.cmax / (self.cmax + self.skin) * (1.0 + VALIDITY_MARGIN)
-        self.sets = []  # list of (F0inv (2,2), L, ri, rj)
+        self.f = skin_fraction
+        self.threshold = 1.0 / (1.0 + skin_fraction) * (1.0 + VALIDITY_MARGIN)
+        self.sets = []  # list of (F0inv (2,2), L, ri, rj, i, j, shift)
 
     def build(self, F0: np.ndarray):
-        """Candidate set anchored at F0: pairs with |F0 L| < r_i + r_j + skin."""
-        nl = find_neighbours(self.X @ F0.T, self.r, F0 @ self.C, self.skin)
-        L = self.X[nl.j] + nl.shift @ self.C.T - self.X[nl.i]
+        """Candidate set anchored at F0: pairs with |F0 L| < (1 + f)(r_i + r_j)."""
+        # the cell list takes one absolute skin: the largest pair's, then filter per pair
+        skin = self.f * 2.0 * float(self.r.max())
+        nl = find_neighbours(self.X @ F0.T, self.r, F0 @ self.C, skin)
+        c = (1.0 + self.f) * (self.r[nl.i] + self.r[nl.j])
+        keep = np.einsum("ij,ij->i", nl.branch, nl.branch) < c * c
+        i, j, shift = nl.i[keep], nl.j[keep], nl.shift[keep]
+        L = self.X[j] + shift @ self.C.T - self.X[i]
         entry = (
             np.linalg.inv(F0),
             np.ascontiguousarray(L),
-            self.r[nl.i].copy(),
-            self.r[nl.j].copy(),
-            nl.i,
-            nl.j,
-            nl.shift,
+            self.r[i].copy(),
+            self.r[j].copy(),
+            i,
+            j,
+            shift,
         )
         self.sets.append(entry)
 
@@ -369,8 +375,8 @@ class TaylorMaterial:
     normal_stiffness : float
         E_n of eq (4) (N/m), > 0.
     skin_fraction : float
-        Skin of the cached contact candidates as a fraction of 2 r_max (see the module
-        docstring for the reuse rule). Larger: fewer rebuilds, more candidates per call.
+        Skin of the cached contact candidates as a fraction of each pair's contact
+        distance r_i + r_j (see the module docstring for the reuse rule). Larger: fewer rebuilds, more candidates per call.
 
     Use :meth:`evaluate` for many states in one parallel call (G Gauss points, each with an
     RVE index), :meth:`__call__` for one state. Candidate sets are cached and rebuilt only
