@@ -307,6 +307,8 @@ class _RVE:
         self.f = skin_fraction
         self.threshold = 1.0 / (1.0 + skin_fraction) * (1.0 + VALIDITY_MARGIN)
         self.sets = []  # list of (F0inv (2,2), L, ri, rj, i, j, shift)
+        self.used = []  # call counter of each set's last use (least recently used are pruned)
+        self.clock = 0
 
     def build(self, F0: np.ndarray):
         """Candidate set anchored at F0: pairs with |F0 L| < (1 + f)(r_i + r_j)."""
@@ -327,13 +329,16 @@ class _RVE:
             shift,
         )
         self.sets.append(entry)
+        self.used.append(self.clock)
 
     def prune(self):
-        """Drop the oldest sets beyond MAX_SETS_PER_RVE (between calls, never during one)."""
-        if len(self.sets) > MAX_SETS_PER_RVE:
-            del self.sets[: len(self.sets) - MAX_SETS_PER_RVE // 2]
-            return True
-        return False
+        """Beyond MAX_SETS_PER_RVE sets keep the MAX/2 most recently used (between calls only)."""
+        if len(self.sets) <= MAX_SETS_PER_RVE:
+            return False
+        keep = np.sort(np.argsort(self.used, kind="stable")[-(MAX_SETS_PER_RVE // 2) :])
+        self.sets = [self.sets[k] for k in keep]
+        self.used = [self.used[k] for k in keep]
+        return True
 
     def valid(self, F: np.ndarray) -> np.ndarray:
         """(G, S) bool: set s covers F[g] by the validity rule."""
@@ -446,6 +451,9 @@ class TaylorMaterial:
                 ok = R.valid(Fk)
             # latest valid set (the most recently built covers the current neighbourhood best)
             local = ok.shape[1] - 1 - np.argmax(ok[:, ::-1], axis=1)
+            R.clock += 1
+            for q in np.unique(local):
+                R.used[q] = R.clock
             set_of[sel] = local + sum(len(r.sets) for r in self._rves[:k])
         if changed or self._flat is None:
             self._flatten()
@@ -544,7 +552,11 @@ class TaylorMaterial:
         s1 = g00 * g00 + g01 * g01 + g10 * g10 + g11 * g11
         det = g00 * g11 - g01 * g10
         disc = math.sqrt(max(s1 * s1 - 4.0 * det * det, 0.0))
-        return math.sqrt(2.0 * det * det / (s1 + disc)) >= R.threshold
+        if math.sqrt(2.0 * det * det / (s1 + disc)) < R.threshold:
+            return False
+        R.clock += 1
+        R.used[local] = R.clock
+        return True
 
     def stress_and_tangent(self, F, rve=None) -> tuple[np.ndarray, np.ndarray]:
         """(P (G, 2, 2), A (G, 2, 2, 2, 2)) for a finite-element solver."""

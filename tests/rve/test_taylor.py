@@ -315,7 +315,24 @@ def test_all_standard_rves_agree_with_bruteforce():
     if rves is None:
         pytest.skip("the 15 standard RVEs are not generated in results/packings")
     # three states per RVE keep this under ~15 s; ``gransim rve-check`` runs eight
-    Fs = np.array([[[0.95, 0.0], [0.0, 1.0]], [[1.0, 0.05], [0.0, 1.0]], [[1.08, -0.06], [0.09, 0.93]]])
+    Fs = np.array(
+        [[[0.95, 0.0], [0.0, 1.0]], [[1.0, 0.05], [0.0, 1.0]], [[1.08, -0.06], [0.09, 0.93]]]
+    )
     for rec in crosscheck(rves, 2.8e7, Fs):
         assert rec["contacts_equal"], rec
         assert max(rec["rel_energy"], rec["rel_piola"], rec["rel_tangent"]) < 1e-12, rec
+
+
+def test_pruning_keeps_the_sets_in_use():
+    """Sets used recently survive pruning: the identity-anchored set, used at every call, is kept
+    while many far states force builds; afterwards states near I need no new build."""
+    from gransim.rve import taylor
+
+    p = random_packing(30, seed=6, phi=0.8)
+    mat = TaylorMaterial(p, KN, skin_fraction=0.01)
+    for lam in 0.98 * 0.985 ** np.arange(taylor.MAX_SETS_PER_RVE + 8):  # each beyond the last skin
+        mat.evaluate(np.stack([np.eye(2), np.diag([lam, 1.0])]))
+    n = mat.n_builds
+    assert n > taylor.MAX_SETS_PER_RVE
+    mat(np.diag([1.0, 1.005]))
+    assert mat.n_builds == n
