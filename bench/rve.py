@@ -23,10 +23,10 @@ def _packing700():
 
     try:
         from gransim.generation import standard_packings
-
         from gransim.io import load_packing
 
-        return load_packing(standard_packings("results/packings", names=["rve-700-1"])["rve-700-1"]), "rve-700-1"
+        path = standard_packings("results/packings", names=["rve-700-1"])["rve-700-1"]
+        return load_packing(path), "rve-700-1"
     except Exception:  # noqa: BLE001 - generation not merged or not generated: use the stand-in
         rng = np.random.default_rng(700)
         r = rng.uniform(0.5, 1.5, 700) * 1e-4

@@ -381,7 +381,8 @@ class TaylorMaterial:
         E_n of eq (4) (N/m), > 0.
     skin_fraction : float
         Skin of the cached contact candidates as a fraction of each pair's contact
-        distance r_i + r_j (see the module docstring for the reuse rule). Larger: fewer rebuilds, more candidates per call.
+        distance r_i + r_j (see the module docstring for the reuse rule). Larger: fewer
+        rebuilds, more candidates per call.
 
     Use :meth:`evaluate` for many states in one parallel call (G Gauss points, each with an
     RVE index), :meth:`__call__` for one state. Candidate sets are cached and rebuilt only

@@ -297,9 +297,8 @@ def _standard_rves():
     except ImportError:
         return None
     d = Path("results/packings")
-    from gransim.rve.study import load_packings
-
     from gransim.cli.cmd_rve import standard_rve_names
+    from gransim.rve.study import load_packings
 
     names = standard_rve_names()
     if not all((d / f"{k}.h5").exists() for k in names):
