@@ -103,6 +103,8 @@ def _taylor_point(F, L, ri, rj, lo, hi, kn, inv_area, g, W, P, A, nc):
             continue
         d = np.sqrt(d2)
         eps = overlap(ri[m], rj[m], d)
+        if eps <= 0.0:  # d2 < c^2 but sqrt rounded up to c: not in contact (H(0) = 0)
+            continue
         fm = force_magnitude(eps, kn)
         k = stiffness(eps, kn)
         count += 1
