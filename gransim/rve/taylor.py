@@ -260,6 +260,8 @@ def check_deformation_gradients(F, name: str = "F") -> np.ndarray:
         arr = as_array(arr, name, (2, 2))[None]
     else:
         arr = as_array(arr, name, (None, 2, 2))
+    if arr.shape[0] == 0:
+        raise InputError(f"{name}: no deformation gradients (shape {arr.shape})")
     det = arr[:, 0, 0] * arr[:, 1, 1] - arr[:, 0, 1] * arr[:, 1, 0]
     bad = np.flatnonzero(~(det > 0))
     if bad.size:

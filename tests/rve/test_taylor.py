@@ -260,6 +260,8 @@ def test_bad_batch_and_stiffness(packings):
         mat.evaluate(np.stack([np.eye(2)] * 2), [0])
     with pytest.raises(InputError, match=r"\[0, 3\)"):
         mat.evaluate(np.eye(2), [5])
+    with pytest.raises(InputError, match="no deformation gradients"):
+        mat.evaluate(np.zeros((0, 2, 2)), [])
     with pytest.raises(InputError, match="pass an RVE index"):
         mat.evaluate(np.eye(2))
     for kn in (0.0, -1.0, np.nan, "x"):
