@@ -1,0 +1,16 @@
+"""Large-deformation finite elements on the macroscale (Meier, Steinmann & Kuhl section 5).
+
+mesh -> element (total-Lagrangian Q1) -> assembly -> constraints -> solver (Newton, load stepping)
+-> slope (the slope stability problem) -> output (VTU, PNG, tables, HDF5).
+"""
+
+from .assembly import Assembler
+from .constraints import DofMap, RigidBody
+from .element import Q1Geometry
+from .materials import MaterialResult, NeoHookean, StVenantKirchhoff, lame
+from .mesh import Mesh, SlopeGeometry, rectangle_mesh, slope_mesh
+from .solver import LoadPathResult, NewtonFailure, Problem, StepRecord, Timer, newton, run_load_steps
+
+__all__ = ["Assembler", "DofMap", "LoadPathResult", "MaterialResult", "Mesh", "NeoHookean",
+           "NewtonFailure", "Problem", "Q1Geometry", "RigidBody", "SlopeGeometry", "StVenantKirchhoff",
+           "StepRecord", "Timer", "lame", "newton", "rectangle_mesh", "run_load_steps", "slope_mesh"]

@@ -1,0 +1,266 @@
+"""Static equilibrium by Newton-Raphson with the relative energy norm, and load stepping with cutting.
+
+Residual in the reduced coordinates q (see :mod:`gransim.fem.constraints`) at load state
+(gravity factor lam_g, footing factor lam_f)::
+
+    r(q) = T^T (f_int(u(q)) - lam_g f_body) - lam_f Q_footing(q)
+
+Newton: K_q dq = -r, q <- q + dq. Convergence measure (Meier et al. Table 2): the relative energy
+norm e_k = |dq_k . r_k| / |dq_1 . r_1|, which falls quadratically (e_{k+1} ~ C e_k^2) near a regular
+solution. A step that does not converge (iteration limit, divergence, a singular tangent, det F <= 0)
+is cut in half, down to a minimum increment; then the solver stops and reports the limit.
+No regularisation is added to the tangent.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import GransimError
+from .assembly import Assembler
+from .constraints import DofMap
+from .element import Q1Geometry
+from .materials import MaterialResult
+from .mesh import Mesh
+
+
+@dataclass
+class Timer:
+    """Wall time (s) spent in material evaluation, assembly and the linear solve."""
+
+    material: float = 0.0
+    assembly: float = 0.0
+    solve: float = 0.0
+    iterations: int = 0
+
+    def as_dict(self) -> dict:
+        """The split as a plain dict."""
+        return {"material_s": self.material, "assembly_s": self.assembly, "solve_s": self.solve,
+                "newton_iterations": self.iterations}
+
+
+class NewtonFailure(GransimError):
+    """One Newton solve failed (the load stepper cuts the increment)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A static boundary value problem on a Q1 mesh.
+
+    Attributes
+    ----------
+    mesh : Mesh
+    material : object with ``evaluate(F) -> MaterialResult`` (batched over all Gauss points)
+    dofs : DofMap
+        Fixed dofs and the rigid footing.
+    body_force : (2,) float
+        Body force per reference volume at full dead load (N/m^3), e.g. (0, -rho g).
+    footing_force : (2,) float
+        Force on the rigid footing at full load (N per m of thickness), at its load point.
+    """
+
+    mesh: Mesh
+    material: object
+    dofs: DofMap
+    body_force: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    footing_force: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    geometry: Q1Geometry = None
+    assembler: Assembler = None
+    f_body: np.ndarray = None
+
+    def __post_init__(self):
+        geom = Q1Geometry.from_mesh(self.mesh)
+        asm = Assembler.from_elements(self.mesh.elements, self.mesh.n_nodes)
+        object.__setattr__(self, "geometry", geom)
+        object.__setattr__(self, "assembler", asm)
+        object.__setattr__(self, "body_force", np.asarray(self.body_force, dtype=float))
+        object.__setattr__(self, "footing_force", np.asarray(self.footing_force, dtype=float))
+        object.__setattr__(self, "f_body", asm.vector(geom.body_forces(self.body_force)))
+
+    # ------------------------------------------------------------------
+    def evaluate(self, q: np.ndarray, load: tuple[float, float], tangent: bool = True,
+                 timer: Timer | None = None):
+        """Residual r (n_red,), reduced tangent K_q (sparse or None) and the material result at q."""
+        timer = timer or Timer()
+        u = self.dofs.displacement(q)
+        F = self.geometry.deformation_gradient(u)
+        t0 = time.perf_counter()
+        mat: MaterialResult = self.material.evaluate(F)
+        t1 = time.perf_counter()
+        lam_g, lam_f = load
+        r_full = self.assembler.vector(self.geometry.internal_forces(mat.piola)) - lam_g * self.f_body
+        T = self.dofs.jacobian(q)
+        r = T.T @ r_full
+        K = None
+        if self.dofs.body is not None:
+            Q, dQ = self.dofs.point_load(q, self.footing_force)
+            r -= lam_f * Q
+        if tangent:
+            K = T.T @ self.assembler.matrix(self.geometry.stiffness(mat.tangent)) @ T
+            if self.dofs.body is not None:
+                nth = self.dofs.n_reduced - 1
+                extra = self.dofs.rotation_curvature(q, r_full) - lam_f * dQ[nth]
+                K = (K + sp.csr_matrix(([extra], ([nth], [nth])), shape=K.shape)).tocsc()
+            else:
+                K = K.tocsc()
+        timer.material += t1 - t0
+        timer.assembly += time.perf_counter() - t1
+        return r, K, mat, u, F
+
+
+@dataclass(frozen=True, eq=False)
+class NewtonResult:
+    """A converged Newton solve: state, the relative energy norms e_k (Table 2) and the residual norms."""
+
+    q: np.ndarray
+    u: np.ndarray
+    F: np.ndarray
+    material: MaterialResult
+    energy_norms: np.ndarray
+    residual_norms: np.ndarray
+
+
+def _solve(K, r, timer: Timer):
+    t0 = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            lu = spla.splu(K)
+            dq = -lu.solve(r)
+    except (RuntimeError, spla.MatrixRankWarning, RuntimeWarning) as exc:
+        raise NewtonFailure(f"singular tangent ({exc})") from None
+    finally:
+        timer.solve += time.perf_counter() - t0
+    if not np.all(np.isfinite(dq)):
+        raise NewtonFailure("singular tangent (non-finite increment)")
+    return dq
+
+
+def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: float = 1e-20,
+           max_iter: int = 15, timer: Timer | None = None) -> NewtonResult:
+    """Solve r(q) = 0 from q0; converged when the relative energy norm e_k <= tol.
+
+    Raises :class:`NewtonFailure` on a singular tangent, det F <= 0 at a Gauss point, a diverging
+    energy norm (e_k > 1e8) or when ``max_iter`` iterations do not reach ``tol``.
+    """
+    timer = timer or Timer()
+    q = np.array(q0, dtype=float)
+    enorms, rnorms = [], []
+    e0 = None
+    for _ in range(max_iter):
+        try:
+            r, K, _, _, _ = problem.evaluate(q, load, timer=timer)
+        except GransimError as exc:  # det F <= 0 inside the material
+            raise NewtonFailure(f"material evaluation failed: {exc}") from None
+        dq = _solve(K, r, timer)
+        timer.iterations += 1
+        e = abs(float(dq @ r))
+        if e0 is None:
+            e0 = e if e > 0 else 1.0
+        enorms.append(e / e0)
+        rnorms.append(float(np.linalg.norm(r)))
+        q = q + dq
+        if not np.isfinite(enorms[-1]) or enorms[-1] > 1e8:
+            raise NewtonFailure(f"diverged (relative energy norm {enorms[-1]:.3e})")
+        if enorms[-1] <= tol:
+            break
+    else:
+        raise NewtonFailure(f"no convergence in {max_iter} iterations (relative energy norm "
+                            f"{enorms[-1]:.3e} > {tol:.1e})")
+    try:
+        r, _, mat, u, F = problem.evaluate(q, load, tangent=False, timer=timer)
+    except GransimError as exc:
+        raise NewtonFailure(f"material evaluation failed: {exc}") from None
+    return NewtonResult(q, u, F, mat, np.array(enorms), np.array(rnorms))
+
+
+@dataclass(frozen=True, eq=False)
+class StepRecord:
+    """One converged load step: its target load, the converged state and the Newton history.
+
+    ``energy_norms`` is the history of the step's last Newton solve (the whole step when ``cuts`` is
+    0); ``substeps`` lists the load fractions of the step's converged sub-increments.
+    """
+
+    step: int
+    load: tuple[float, float]
+    solution: NewtonResult
+    cuts: int
+    substeps: tuple
+
+    @property
+    def energy_norms(self) -> np.ndarray:
+        """Relative energy norms of the (last) Newton solve of this step."""
+        return self.solution.energy_norms
+
+
+@dataclass(frozen=True, eq=False)
+class LoadPathResult:
+    """Every converged step, and why the path stopped (``limit`` is None when it reached the end)."""
+
+    steps: list
+    limit: dict | None
+    timer: Timer
+
+    @property
+    def completed(self) -> bool:
+        """True when every load step converged."""
+        return self.limit is None
+
+
+def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int = 15,
+                   min_fraction: float = 1.0 / 64, on_step=None, progress=None) -> LoadPathResult:
+    """Follow ``schedule`` (a list of (lam_g, lam_f) targets, one per step) from the unloaded state.
+
+    A step whose Newton solve fails is cut into halves (then quarters...) of its load increment;
+    after a converged sub-increment the increment doubles again (up to the rest of the step). When
+    the increment would fall below ``min_fraction`` of a step, the path stops: ``limit`` then holds
+    the failed step, the last converged load and the reason. ``on_step(record)`` is called after each
+    converged step (outputs are written there, so a stopped run keeps them).
+    """
+    timer = Timer()
+    q = np.zeros(problem.dofs.n_reduced)
+    prev = np.zeros(2)
+    steps = []
+    limit = None
+    for k, target in enumerate(schedule, start=1):
+        target = np.asarray(target, dtype=float)
+        done, h, cuts, sub = 0.0, 1.0, 0, []
+        last_failure = ""
+        sol = None
+        while done < 1.0 - 1e-12:
+            h = min(h, 1.0 - done)
+            load = prev + (done + h) * (target - prev)
+            try:
+                sol = newton(problem, q, tuple(load), tol=tol, max_iter=max_iter, timer=timer)
+            except NewtonFailure as exc:
+                last_failure = str(exc)
+                h *= 0.5
+                cuts += 1
+                if h < min_fraction * (1 - 1e-12):
+                    break
+                continue
+            q = sol.q
+            done += h
+            sub.append(done)
+            h *= 2.0
+        if done < 1.0 - 1e-12:
+            last_load = prev + done * (target - prev)
+            limit = {"step": k, "target": tuple(target), "last_converged_load": tuple(last_load),
+                     "fraction_of_step": done, "reason": last_failure, "min_fraction": min_fraction,
+                     "partial": sol if (sub and sol is not None) else None}
+            break
+        rec = StepRecord(k, tuple(target), sol, cuts, tuple(sub))
+        steps.append(rec)
+        if on_step is not None:
+            on_step(rec)
+        if progress is not None:
+            progress.update(1)
+        prev = target
+    return LoadPathResult(steps, limit, timer)
