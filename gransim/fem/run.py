@@ -1,0 +1,133 @@
+"""One slope case end to end: material, solve, per-step outputs, table, curve, HDF5, summary."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .materials import NeoHookean, lame
+from .output import (TABLE2_STEPS, convergence_table, gauss_fields, load_settlement, observed_orders,
+                     plot_load_settlement, render_png, write_h5, write_vtu)
+from .slope import NORMAL_STIFFNESS, gauss_points_of_interest, limit_message, run_slope, setup_for
+
+#: The continuum stand-in material (tests and runs without the RVE branch).
+NEO_HOOKEAN_E, NEO_HOOKEAN_NU = 3.0e7, 0.3
+
+
+def default_rve_packing():
+    """The most uniform of the five standard 700-particle quartz-sand RVEs (contact normal measure)."""
+    try:
+        from ..rve import most_uniform
+        from ..generation import standard_packings
+    except ImportError as exc:
+        raise InputError(f"the default RVE needs gransim.generation and gransim.rve ({exc}); "
+                         "pass --packing FILE.h5 or --material neo-hookean") from None
+    return most_uniform(standard_packings(700), NORMAL_STIFFNESS)
+
+
+def make_material(kind: str, packing=None):
+    """The material of a run: ``taylor`` (Taylor RVE, E_n = 2.8e7 N/m^2) or ``neo-hookean``."""
+    if kind == "neo-hookean":
+        return NeoHookean(*lame(NEO_HOOKEAN_E, NEO_HOOKEAN_NU))
+    if kind != "taylor":
+        raise InputError(f"unknown material {kind!r}; choose taylor or neo-hookean")
+    try:
+        from ..rve import TaylorMaterial
+    except ImportError as exc:
+        raise InputError(f"the Taylor material needs gransim.rve ({exc}); use --material neo-hookean") from None
+    if packing is None:
+        packing = default_rve_packing()
+    elif isinstance(packing, (str, Path)):
+        from ..io import load_packing
+
+        packing = load_packing(packing)
+    return TaylorMaterial(packing, NORMAL_STIFFNESS)
+
+
+def run_slope_case(protocol: str = "service", material="taylor", packing=None, out=None,
+                   figures: str = "all", tol: float = 1e-20, min_fraction: float = 1.0 / 64,
+                   geometry=None, verbose: bool = False) -> dict:
+    """Solve one protocol and write its outputs to ``out`` (None: no files).
+
+    Returns a summary dict: ``completed``, ``message``, ``report`` (markdown), ``timing``,
+    ``table`` (Table 2), ``load_settlement`` (rows force, settlement, rotation), ``steps``.
+    """
+    from ..progress import progress
+
+    setup = setup_for(protocol, geometry)
+    mat = make_material(material, packing) if isinstance(material, str) else material
+    out = Path(out) if out is not None else None
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+    state = {"problem": None, "interest": None}
+
+    def on_step(rec):
+        if out is None:
+            return
+        problem = state["problem"]
+        write_vtu(out / f"step_{rec.step:03d}.vtu", problem, rec.solution)
+        if figures == "all":
+            render_png(out / f"step_{rec.step:03d}.png", problem, rec.solution,
+                       f"{protocol} step {rec.step}, footing {rec.load[1]:.0%}", mat, state["interest"])
+
+    # build once to get the Gauss points of interest before the first step finishes
+    from .slope import slope_problem
+
+    state["problem"] = slope_problem(mat, setup)
+    state["interest"] = gauss_points_of_interest(state["problem"], setup)
+    t0 = time.perf_counter()
+    bar = progress(total=len(setup.schedule()), desc=f"slope {protocol}")
+    problem, result = run_slope(mat, setup, tol=tol, min_fraction=min_fraction, on_step=on_step, progress=bar)
+    bar.close()
+    wall = time.perf_counter() - t0
+    state["problem"] = problem
+    message = "" if result.completed else limit_message(problem, setup, result)
+    table = convergence_table(result, TABLE2_STEPS)
+    last = (result.limit["partial"] if (result.limit and result.limit["partial"] is not None)
+            else (result.steps[-1].solution if result.steps else None))
+    ls = load_settlement(problem, setup, result)
+    lines = [f"## Slope, protocol `{protocol}` (footing {setup.footing_force:.3g} N/m, material "
+             f"{type(mat).__name__})", ""]
+    lines.append(f"- status: {'completed all ' + str(len(setup.schedule())) + ' steps' if result.completed else message}")
+    t = result.timer
+    lines.append(f"- wall time {wall:.2f} s for {t.iterations} Newton iterations (material {t.material:.2f} s, "
+                 f"assembly {t.assembly:.2f} s, linear solve {t.solve:.2f} s; outputs are the rest)")
+    iters = [len(s.energy_norms) for s in result.steps]
+    lines.append(f"- Newton iterations per step: {iters}; cut steps: "
+                 f"{[s.step for s in result.steps if s.cuts]}")
+    if last is not None:
+        fl = gauss_fields(last)
+        nc = fl["n_contacts"]
+        lines.append(f"- final state: det F in [{fl['det_F'].min():.4f}, {fl['det_F'].max():.4f}], contacts per "
+                     f"Gauss point in [{nc.min()}, {nc.max()}], contact-free Gauss points {int((nc == 0).sum())}, "
+                     f"max von Mises {fl['von_mises'].max():.4g} Pa, settlement {ls[-1, 1]:.4g} m, "
+                     f"footing rotation {ls[-1, 2]:.3e} rad")
+    lines += ["", "Convergence (relative energy norm, Table 2):", "", table, ""]
+    orders = {s.step: observed_orders(s.energy_norms) for s in result.steps if len(s.energy_norms) >= 3}
+    lines.append("Observed orders log(e_k+1/e_k)/log(e_k/e_k-1) in the Table 2 steps: " + "; ".join(
+        f"step {k}: " + ", ".join(f"{o:.2f}" for o in orders[k]) for k in TABLE2_STEPS if k in orders))
+    lines += ["", "Load-settlement (footing force N/m, settlement m, rotation rad):", "",
+              "| force | settlement | rotation |", "|---|---|---|"]
+    lines += [f"| {r[0]:.4g} | {r[1]:.5g} | {r[2]:.4e} |" for r in ls]
+    report = "\n".join(lines)
+    if out is not None:
+        if last is not None and figures != "none":
+            tag = "final" if result.completed else "limit"
+            render_png(out / f"{tag}.png", problem, last, f"{protocol}: {tag} state, footing "
+                       f"{(result.limit['last_converged_load'][1] if result.limit else 1.0):.1%}", mat,
+                       state["interest"])
+        if result.limit and result.limit["partial"] is not None:
+            write_vtu(out / f"step_{result.limit['step']:03d}_partial.vtu", problem, result.limit["partial"])
+        plot_load_settlement(out / "load_settlement.png", problem, setup, result)
+        (out / "table2.md").write_text(table + "\n")
+        (out / "report.md").write_text(report + "\n")
+        params = {"protocol": protocol, "footing_force": setup.footing_force, "material": type(mat).__name__,
+                  "tol": tol, "min_fraction": min_fraction, "normal_stiffness": NORMAL_STIFFNESS,
+                  "density": setup.density, "gravity": setup.gravity}
+        write_h5(out / "slope.h5", problem, setup, result, params, message)
+    return {"completed": result.completed, "message": message, "report": report, "table": table,
+            "timing": {**result.timer.as_dict(), "wall_s": wall}, "load_settlement": ls,
+            "steps": result.steps, "result": result, "problem": problem}
