@@ -60,20 +60,36 @@ class DofMap:
     free: np.ndarray
     body: RigidBody | None
     X: np.ndarray
+    prescribed: np.ndarray
 
     @classmethod
-    def build(cls, nodes: np.ndarray, fixed_dofs, body: RigidBody | None = None) -> "DofMap":
-        """Free dofs = all dofs not fixed and not on the rigid body."""
+    def build(cls, nodes: np.ndarray, fixed_dofs, body: RigidBody | None = None,
+              values=None) -> "DofMap":
+        """Free dofs = all dofs not fixed and not on the rigid body.
+
+        ``values`` (same length as ``fixed_dofs``, m) are the prescribed displacements of the fixed
+        dofs (default 0); they are applied in full from the first iteration on.
+        """
         n_full = 2 * len(nodes)
+        fixed_dofs = np.asarray(fixed_dofs, dtype=np.int64)
+        if fixed_dofs.size and (fixed_dofs.min() < 0 or fixed_dofs.max() >= n_full):
+            raise InputError(f"fixed_dofs: indices must lie in [0, {n_full})")
+        prescribed = np.zeros(n_full)
+        if values is not None:
+            values = np.asarray(values, dtype=float)
+            if values.shape != fixed_dofs.shape:
+                raise InputError(f"values: expected shape {fixed_dofs.shape} (one per fixed dof), "
+                                 f"got {values.shape}")
+            prescribed[fixed_dofs] = values
         fixed = np.zeros(n_full, dtype=bool)
-        fixed[np.asarray(fixed_dofs, dtype=np.int64)] = True
+        fixed[fixed_dofs] = True
         if body is not None:
             slave = np.zeros(n_full, dtype=bool)
             slave[2 * body.nodes] = slave[2 * body.nodes + 1] = True
             if np.any(slave & fixed):
                 raise InputError("constraints: a rigid-body node also has a fixed dof")
             fixed |= slave
-        return cls(n_full, np.flatnonzero(~fixed), body, np.asarray(nodes, dtype=float))
+        return cls(n_full, np.flatnonzero(~fixed), body, np.asarray(nodes, dtype=float), prescribed)
 
     @property
     def n_reduced(self) -> int:
@@ -82,7 +98,7 @@ class DofMap:
 
     def displacement(self, q: np.ndarray) -> np.ndarray:
         """Nodal displacements u (Nn, 2) from q."""
-        u = np.zeros(self.n_full)
+        u = self.prescribed.copy()
         nf = self.free.size
         u[self.free] = q[:nf]
         u = u.reshape(-1, 2)
