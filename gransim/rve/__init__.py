@@ -1,0 +1,10 @@
+"""Taylor RVE homogenization, contact normal fabric and the RVE studies (Meier, Steinmann & Kuhl).
+
+Stresses are tension positive; ``A[i, J, k, L] = dP_iJ/dF_kL``. See :mod:`gransim.rve.taylor`.
+"""
+
+from .taylor import (ContactState, TaylorBatch, TaylorMaterial, TaylorResult, check_deformation_gradients,
+                     contact_state, homogenize, material_for)
+
+__all__ = ["ContactState", "TaylorBatch", "TaylorMaterial", "TaylorResult", "check_deformation_gradients",
+           "contact_state", "homogenize", "material_for"]

@@ -1,0 +1,536 @@
+"""Taylor (affine) homogenization of a periodic disk RVE: Meier, Steinmann & Kuhl, eqs (1)-(12).
+
+Every particle centre and the cell follow the macroscopic deformation gradient F (eq 1),
+x_i = F X_i, so a pair (i, j, image n) has the reference branch vector
+L_ij = X_j + C n - X_i and the current one l_ij = F L_ij (eq 2). With d = |l_ij|,
+n_ij = l_ij / d and the overlap eps_ij = r_i + r_j - d (eq 3), the normal law of
+:mod:`gransim.contacts.law` (eqs 4-5) gives, per reference area V_rve = det C_ref,
+
+* energy density (eqs 6-7)       W(F) = 1/V sum_pairs Phi(eps)                              (J/m^2)
+* first Piola stress (eqs 9-10)  P_iJ = 1/V sum_pairs f_i L_J,  f = -Phi'(eps) n            (N/m)
+* tangent (eqs 11-12)            A_iJkL = dP_iJ/dF_kL
+                                        = 1/V sum_pairs [a n_i n_k + b delta_ik] L_J L_L
+  with a = Phi''(eps) + Phi'(eps)/d (= E_n (r_i + r_j)/d, the "material" part) and
+  b = -Phi'(eps)/d (= -E_n eps/d, the "geometric" part);
+* Cauchy stress                  sigma = P F^T / det F                                       (N/m)
+
+Every pair is counted once (the paper's double sum with its factor 1/2). Units are those
+of a 2D model: E_n in N/m, so stresses are forces per length (N/m) and W is J/m^2.
+
+**Sign convention: tension positive** (continuum mechanics): a compressed RVE has negative
+normal stresses. LIGGGHTS' ``compute pressure`` is compression positive, p = -tr(sigma)/2.
+
+**Tangent index convention:** ``A[i, J, k, L] = dP[i, J] / dF[k, L]``; it has the major
+symmetry A_iJkL = A_kLiJ (it is the Hessian of W).
+
+Contact candidates (cache rule)
+-------------------------------
+Contacts are found in the deformed configuration, so the contact set changes with F. A
+candidate set is built once for an *anchor* F0 by the periodic cell list: all pairs with
+|F0 L| < r_i + r_j + s (skin s, m). Every pair outside the set has |F0 L| >= r_i + r_j + s,
+and for any F, with G = F F0^{-1},
+
+    |F L| = |G F0 L| >= sigma_min(G) |F0 L| >= sigma_min(G) (r_i + r_j + s).
+
+Since c / (c + s) grows with c = r_i + r_j <= 2 r_max, no pair outside the set can touch
+at F when
+
+    sigma_min(F F0^{-1}) >= 2 r_max / (2 r_max + s)        (validity rule)
+
+(tested with a relative safety margin of 1e-12). The set is then reused; otherwise a new
+set anchored at F is built. Stretching never invalidates a set, only compression along
+some direction does. This is sharper than the |(F - I) L| <= s/2 displacement bound and
+implies it for F0 = I. ``skin_fraction`` sets s = skin_fraction * 2 r_max.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._numba import njit, pjit, prange
+from .._validate import as_array, as_positive_float
+from ..contacts import find_neighbours
+from ..contacts.law import force_magnitude, overlap, potential, stiffness
+from ..errors import InputError
+from ..geometry import Packing
+
+#: relative safety margin of the candidate validity rule (round-off in sigma_min)
+VALIDITY_MARGIN = 1e-12
+#: default skin as a fraction of the largest contact distance 2 r_max
+DEFAULT_SKIN_FRACTION = 0.1
+#: most candidate sets kept per RVE (oldest dropped first)
+MAX_SETS_PER_RVE = 32
+
+
+# ----------------------------------------------------------------------------------------------
+# kernels
+# ----------------------------------------------------------------------------------------------
+@njit
+def _taylor_point(F, L, ri, rj, lo, hi, kn, inv_area, g, W, P, A, nc):
+    """W, P, A and the contact count of one deformation F (2, 2) over candidates lo:hi.
+
+    L (M, 2) reference branch vectors, ri/rj (M,) radii; results go to row g of
+    W (G,), P (G, 2, 2), A (G, 2, 2, 2, 2), nc (G,).
+    """
+    f00 = F[0, 0]
+    f01 = F[0, 1]
+    f10 = F[1, 0]
+    f11 = F[1, 1]
+    w = 0.0
+    p00 = p01 = p10 = p11 = 0.0
+    # material part: sum a (n n)_ik (L L)_JL, both symmetric -> 3 x 3 accumulators
+    m00_00 = m00_01 = m00_11 = 0.0
+    m01_00 = m01_01 = m01_11 = 0.0
+    m11_00 = m11_01 = m11_11 = 0.0
+    # geometric part: sum b (L L)_JL
+    g00 = g01 = g11 = 0.0
+    count = 0
+    for m in range(lo, hi):
+        L0 = L[m, 0]
+        L1 = L[m, 1]
+        l0 = f00 * L0 + f01 * L1
+        l1 = f10 * L0 + f11 * L1
+        d2 = l0 * l0 + l1 * l1
+        c = ri[m] + rj[m]
+        if d2 >= c * c:
+            continue
+        d = np.sqrt(d2)
+        eps = overlap(ri[m], rj[m], d)
+        fm = force_magnitude(eps, kn)
+        k = stiffness(eps, kn)
+        count += 1
+        n0 = l0 / d
+        n1 = l1 / d
+        w += potential(eps, kn)
+        p00 -= fm * n0 * L0
+        p01 -= fm * n0 * L1
+        p10 -= fm * n1 * L0
+        p11 -= fm * n1 * L1
+        a = k + fm / d
+        b = -fm / d
+        LL00 = L0 * L0
+        LL01 = L0 * L1
+        LL11 = L1 * L1
+        an00 = a * n0 * n0
+        an01 = a * n0 * n1
+        an11 = a * n1 * n1
+        m00_00 += an00 * LL00
+        m00_01 += an00 * LL01
+        m00_11 += an00 * LL11
+        m01_00 += an01 * LL00
+        m01_01 += an01 * LL01
+        m01_11 += an01 * LL11
+        m11_00 += an11 * LL00
+        m11_01 += an11 * LL01
+        m11_11 += an11 * LL11
+        g00 += b * LL00
+        g01 += b * LL01
+        g11 += b * LL11
+    s = inv_area
+    W[g] = w * s
+    P[g, 0, 0] = p00 * s
+    P[g, 0, 1] = p01 * s
+    P[g, 1, 0] = p10 * s
+    P[g, 1, 1] = p11 * s
+    nn = ((m00_00, m00_01, m00_11), (m01_00, m01_01, m01_11), (m01_00, m01_01, m01_11),
+          (m11_00, m11_01, m11_11))
+    gg = (g00, g01, g11)
+    for i in range(2):
+        for k in range(2):
+            row = nn[2 * i + k]
+            for J in range(2):
+                for Lx in range(2):
+                    q = J + Lx  # 0: (0,0), 1: (0,1)/(1,0), 2: (1,1)
+                    v = row[q]
+                    if i == k:
+                        v += gg[q]
+                    A[g, i, J, k, Lx] = v * s
+    nc[g] = count
+
+
+@pjit
+def _taylor_batch(F, set_of, starts, L, ri, rj, kn, inv_area, W, P, A, nc):
+    """All Gauss points g in parallel: point g uses candidate set set_of[g] (rows starts[s]:starts[s+1])."""
+    for g in prange(F.shape[0]):
+        s = set_of[g]
+        _taylor_point(F[g], L, ri, rj, starts[s], starts[s + 1], kn, inv_area[s], g, W, P, A, nc)
+
+
+# ----------------------------------------------------------------------------------------------
+# results
+# ----------------------------------------------------------------------------------------------
+def _ro(a):
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True)
+class TaylorResult:
+    """Homogenized response of one RVE at one F (tension positive).
+
+    Attributes
+    ----------
+    energy : float
+        W(F), energy per reference area (J/m^2), eqs (6)-(7).
+    piola : (2, 2) float64
+        First Piola stress P = dW/dF (N/m), eq (10).
+    tangent : (2, 2, 2, 2) float64
+        A[i, J, k, L] = dP_iJ/dF_kL (N/m), eqs (11)-(12).
+    cauchy : (2, 2) float64
+        sigma = P F^T / det F (N/m), symmetric.
+    n_contacts : int
+        Number of overlapping pairs (eps > 0) in the deformed configuration.
+    """
+
+    energy: float
+    piola: np.ndarray
+    tangent: np.ndarray
+    cauchy: np.ndarray
+    n_contacts: int
+
+
+@dataclass(frozen=True)
+class TaylorBatch:
+    """Homogenized response at G states; fields as :class:`TaylorResult` with a leading (G,) axis.
+
+    Attributes
+    ----------
+    energy : (G,)  piola : (G, 2, 2)  tangent : (G, 2, 2, 2, 2)  cauchy : (G, 2, 2)
+    n_contacts : (G,) int64
+    n_candidates : (G,) int64
+        Candidate pairs scanned for each state (the "contact evaluations").
+    """
+
+    energy: np.ndarray
+    piola: np.ndarray
+    tangent: np.ndarray
+    cauchy: np.ndarray
+    n_contacts: np.ndarray
+    n_candidates: np.ndarray
+
+    def __len__(self) -> int:
+        return self.energy.shape[0]
+
+    def __getitem__(self, g: int) -> TaylorResult:
+        return TaylorResult(energy=float(self.energy[g]), piola=self.piola[g], tangent=self.tangent[g],
+                            cauchy=self.cauchy[g], n_contacts=int(self.n_contacts[g]))
+
+
+# ----------------------------------------------------------------------------------------------
+# input checks
+# ----------------------------------------------------------------------------------------------
+def check_deformation_gradients(F, name: str = "F") -> np.ndarray:
+    """Validate F of shape (2, 2) or (G, 2, 2): finite with det F > 0. Returns (G, 2, 2) float64."""
+    arr = np.asarray(F) if not isinstance(F, np.ndarray) else F
+    if getattr(arr, "ndim", 0) == 2:
+        arr = as_array(arr, name, (2, 2))[None]
+    else:
+        arr = as_array(arr, name, (None, 2, 2))
+    det = arr[:, 0, 0] * arr[:, 1, 1] - arr[:, 0, 1] * arr[:, 1, 0]
+    bad = np.flatnonzero(~(det > 0))
+    if bad.size:
+        g = int(bad[0])
+        where = "" if arr.shape[0] == 1 else f" at index {g}"
+        raise InputError(f"{name}: det F must be > 0 (the map must keep orientation), "
+                         f"got det F = {det[g]:.6g}{where}")
+    return arr
+
+
+def _smallest_singular_value(G: np.ndarray) -> np.ndarray:
+    """sigma_min of 2x2 matrices (..., 2, 2), closed form."""
+    a, b, c, d = G[..., 0, 0], G[..., 0, 1], G[..., 1, 0], G[..., 1, 1]
+    s1 = a * a + b * b + c * c + d * d
+    det = a * d - b * c
+    disc = np.sqrt(np.maximum(s1 * s1 - 4.0 * det * det, 0.0))
+    # sigma_min^2 = (s1 - disc)/2 = 2 det^2 / (s1 + disc): the second form has no cancellation
+    return np.sqrt(2.0 * det * det / (s1 + disc))
+
+
+# ----------------------------------------------------------------------------------------------
+# the compute object
+# ----------------------------------------------------------------------------------------------
+class _RVE:
+    """Reference data and candidate sets of one packing."""
+
+    def __init__(self, packing: Packing, skin_fraction: float):
+        self.packing = packing
+        self.X = np.ascontiguousarray(packing.positions)
+        self.C = np.ascontiguousarray(packing.cell)
+        self.r = np.ascontiguousarray(packing.radii)
+        self.area = float(np.linalg.det(self.C))
+        self.cmax = 2.0 * float(self.r.max())
+        self.skin = skin_fraction * self.cmax
+        self.threshold = self.cmax / (self.cmax + self.skin) * (1.0 + VALIDITY_MARGIN)
+        self.sets = []  # list of (F0inv (2,2), L, ri, rj)
+
+    def build(self, F0: np.ndarray):
+        """Candidate set anchored at F0: pairs with |F0 L| < r_i + r_j + skin."""
+        nl = find_neighbours(self.X @ F0.T, self.r, F0 @ self.C, self.skin)
+        L = self.X[nl.j] + nl.shift @ self.C.T - self.X[nl.i]
+        entry = (np.linalg.inv(F0), np.ascontiguousarray(L), self.r[nl.i].copy(), self.r[nl.j].copy(),
+                 nl.i, nl.j, nl.shift)
+        self.sets.append(entry)
+
+    def prune(self):
+        """Drop the oldest sets beyond MAX_SETS_PER_RVE (between calls, never during one)."""
+        if len(self.sets) > MAX_SETS_PER_RVE:
+            del self.sets[: len(self.sets) - MAX_SETS_PER_RVE // 2]
+            return True
+        return False
+
+    def valid(self, F: np.ndarray) -> np.ndarray:
+        """(G, S) bool: set s covers F[g] by the validity rule."""
+        if not self.sets:
+            return np.zeros((F.shape[0], 0), bool)
+        F0inv = np.stack([s[0] for s in self.sets])  # (S, 2, 2)
+        G = np.einsum("gij,sjk->gsik", F, F0inv)
+        return _smallest_singular_value(G) >= self.threshold
+
+
+def _as_packings(packings) -> tuple[list[str], list[Packing]]:
+    if isinstance(packings, Packing):
+        return ["rve"], [packings]
+    if isinstance(packings, Mapping):
+        names, items = list(map(str, packings.keys())), list(packings.values())
+    elif isinstance(packings, Sequence):
+        items = list(packings)
+        names = [f"rve-{k}" for k in range(len(items))]
+    else:
+        raise InputError(f"packings: expected a Packing, a sequence or a mapping of Packings, "
+                         f"got {type(packings).__name__}")
+    if not items:
+        raise InputError("packings: at least one packing is needed")
+    for name, p in zip(names, items):
+        if not isinstance(p, Packing):
+            raise InputError(f"packings[{name!r}]: expected a Packing, got {type(p).__name__}")
+    return names, items
+
+
+class TaylorMaterial:
+    """Taylor-homogenized material law of one or several periodic RVEs (factory + compute object).
+
+    Parameters
+    ----------
+    packings : Packing, sequence of Packing or mapping name -> Packing
+        The RVEs in their reference configuration.
+    normal_stiffness : float
+        E_n of eq (4) (N/m), > 0.
+    skin_fraction : float
+        Skin of the cached contact candidates as a fraction of 2 r_max (see the module
+        docstring for the reuse rule). Larger: fewer rebuilds, more candidates per call.
+
+    Use :meth:`evaluate` for many states in one parallel call (G Gauss points, each with an
+    RVE index), :meth:`__call__` for one state. Candidate sets are cached and rebuilt only
+    when the validity rule fails; :attr:`n_builds` counts the builds.
+    """
+
+    def __init__(self, packings, normal_stiffness: float, skin_fraction: float = DEFAULT_SKIN_FRACTION):
+        self.names, items = _as_packings(packings)
+        self.normal_stiffness = as_positive_float(normal_stiffness, "normal_stiffness")
+        self.skin_fraction = as_positive_float(skin_fraction, "skin_fraction")
+        self._rves = [_RVE(p, self.skin_fraction) for p in items]
+        self.n_builds = 0
+        self._flat = None  # concatenated candidate arrays, rebuilt when a set is added
+        self._out = {}
+
+    # -- bookkeeping ------------------------------------------------------------------------
+    @property
+    def n_rve(self) -> int:
+        """Number of RVEs."""
+        return len(self._rves)
+
+    @property
+    def packings(self) -> list[Packing]:
+        """The reference packings, in RVE-index order."""
+        return [r.packing for r in self._rves]
+
+    def _flatten(self):
+        Ls, ris, rjs, starts, inv_area, owner = [], [], [], [0], [], []
+        for k, rve in enumerate(self._rves):
+            for s in rve.sets:
+                Ls.append(s[1])
+                ris.append(s[2])
+                rjs.append(s[3])
+                starts.append(starts[-1] + s[1].shape[0])
+                inv_area.append(1.0 / rve.area)
+                owner.append(k)
+        self._flat = (np.ascontiguousarray(np.concatenate(Ls).reshape(-1, 2)),
+                      np.concatenate(ris), np.concatenate(rjs), np.asarray(starts, np.int64),
+                      np.asarray(inv_area), np.asarray(owner))
+
+    def _assign(self, F: np.ndarray, rve: np.ndarray) -> np.ndarray:
+        """Global candidate-set index for every state, building sets where none is valid."""
+        set_of = np.empty(F.shape[0], np.int64)
+        changed = False
+        for R in self._rves:
+            changed |= R.prune()
+        for k in np.unique(rve):
+            sel = np.flatnonzero(rve == k)
+            R = self._rves[k]
+            Fk = F[sel]
+            ok = R.valid(Fk)
+            while True:
+                missing = np.flatnonzero(~ok.any(axis=1)) if ok.shape[1] else np.arange(sel.size)
+                if missing.size == 0:
+                    break
+                R.build(Fk[missing[0]])
+                self.n_builds += 1
+                changed = True
+                ok = R.valid(Fk)
+            # latest valid set (the most recently built covers the current neighbourhood best)
+            local = ok.shape[1] - 1 - np.argmax(ok[:, ::-1], axis=1)
+            set_of[sel] = local + sum(len(r.sets) for r in self._rves[:k])
+        if changed or self._flat is None:
+            self._flatten()
+        return set_of
+
+    def _check_rve_index(self, rve, G: int) -> np.ndarray:
+        if rve is None:
+            if self.n_rve == 1:
+                return np.zeros(G, np.int64)
+            raise InputError(f"rve: this material holds {self.n_rve} RVEs; pass an RVE index per state")
+        if np.ndim(rve) == 0:
+            rve = np.full(G, rve)
+        idx = as_array(rve, "rve", (None,), dtype=np.int64)
+        if idx.shape[0] != G:
+            raise InputError(f"rve: expected shape ({G},) (one index per F), got {idx.shape}")
+        if idx.size and (idx.min() < 0 or idx.max() >= self.n_rve):
+            raise InputError(f"rve: indices must lie in [0, {self.n_rve}), got range "
+                             f"[{idx.min()}, {idx.max()}]")
+        return idx
+
+    # -- evaluation ---------------------------------------------------------------------------
+    def evaluate(self, F, rve=None, cauchy: bool = True) -> TaylorBatch:
+        """W, P, A, sigma at many states in one parallel kernel call.
+
+        Parameters
+        ----------
+        F : (G, 2, 2) or (2, 2) array
+            Deformation gradients, det F > 0.
+        rve : None, int or (G,) int array
+            RVE index of every state (None allowed with one RVE).
+        cauchy : bool
+            Also compute sigma = P F^T / det F.
+        """
+        F = check_deformation_gradients(F)
+        G = F.shape[0]
+        idx = self._check_rve_index(rve, G)
+        set_of = self._assign(F, idx)
+        L, ri, rj, starts, inv_area, _ = self._flat
+        W = np.empty(G)
+        P = np.empty((G, 2, 2))
+        A = np.empty((G, 2, 2, 2, 2))
+        nc = np.empty(G, np.int64)
+        _taylor_batch(F, set_of, starts, L, ri, rj, self.normal_stiffness, inv_area, W, P, A, nc)
+        if cauchy:
+            J = F[:, 0, 0] * F[:, 1, 1] - F[:, 0, 1] * F[:, 1, 0]
+            sig = np.einsum("giJ,gkJ->gik", P, F) / J[:, None, None]
+        else:
+            sig = np.full((G, 2, 2), np.nan)
+        ncand = starts[set_of + 1] - starts[set_of]
+        return TaylorBatch(energy=_ro(W), piola=_ro(P), tangent=_ro(A), cauchy=_ro(sig),
+                           n_contacts=_ro(nc), n_candidates=_ro(ncand))
+
+    def __call__(self, F, rve: int = 0) -> TaylorResult:
+        """One state: F (2, 2) of RVE ``rve`` (serial kernel, no thread start-up)."""
+        F = check_deformation_gradients(F)
+        if F.shape[0] != 1:
+            raise InputError(f"F: expected shape (2, 2) for one state, got {F.shape[1:]} x {F.shape[0]}")
+        idx = self._check_rve_index(rve, 1)
+        s = int(self._assign(F, idx)[0])
+        L, ri, rj, starts, inv_area, _ = self._flat
+        W = np.empty(1)
+        P = np.empty((1, 2, 2))
+        A = np.empty((1, 2, 2, 2, 2))
+        nc = np.empty(1, np.int64)
+        _taylor_point(F[0], L, ri, rj, starts[s], starts[s + 1], self.normal_stiffness, inv_area[s], 0,
+                      W, P, A, nc)
+        F0 = F[0]
+        J = F0[0, 0] * F0[1, 1] - F0[0, 1] * F0[1, 0]
+        return TaylorResult(energy=float(W[0]), piola=_ro(P[0]), tangent=_ro(A[0]),
+                            cauchy=_ro(P[0] @ F0.T / J), n_contacts=int(nc[0]))
+
+    def stress_and_tangent(self, F, rve=None) -> tuple[np.ndarray, np.ndarray]:
+        """(P (G, 2, 2), A (G, 2, 2, 2, 2)) for a finite-element solver."""
+        b = self.evaluate(F, rve, cauchy=False)
+        return b.piola, b.tangent
+
+
+# ----------------------------------------------------------------------------------------------
+# functional front end
+# ----------------------------------------------------------------------------------------------
+_MATERIALS: "weakref.WeakKeyDictionary[Packing, dict]" = weakref.WeakKeyDictionary()
+
+
+def material_for(packing: Packing, normal_stiffness: float) -> TaylorMaterial:
+    """The cached :class:`TaylorMaterial` of one packing (kept while the packing lives)."""
+    if not isinstance(packing, Packing):
+        raise InputError(f"packing: expected a gransim.Packing, got {type(packing).__name__}")
+    kn = as_positive_float(normal_stiffness, "normal_stiffness")
+    per = _MATERIALS.setdefault(packing, {})
+    mat = per.get(kn)
+    if mat is None:
+        mat = per[kn] = TaylorMaterial(packing, kn)
+    return mat
+
+
+def homogenize(packing: Packing, F, normal_stiffness: float) -> TaylorResult:
+    """W, P, A, sigma and the contact count of ``packing`` deformed affinely by F (2, 2).
+
+    Contact candidates are cached per packing (see the module docstring), so repeated
+    calls on one packing cost only the kernel. Eqs (6)-(12) of Meier, Steinmann & Kuhl.
+    """
+    return material_for(packing, normal_stiffness)(F)
+
+
+@dataclass(frozen=True)
+class ContactState:
+    """Contacts of an affinely deformed RVE (for per-contact comparisons and plots).
+
+    Attributes
+    ----------
+    i, j : (M,) int64 particle indices; shift : (M, 2) int64 image of j.
+    branch : (M, 2) current branch vectors l_ij = F L_ij (m).
+    reference_branch : (M, 2) L_ij (m).
+    overlap : (M,) eps_ij > 0 (m).
+    force : (M, 2) force on particle i, f_ij = -E_n eps n_ij (N), eq (5).
+    """
+
+    i: np.ndarray
+    j: np.ndarray
+    shift: np.ndarray
+    branch: np.ndarray
+    reference_branch: np.ndarray
+    overlap: np.ndarray
+    force: np.ndarray
+
+    def __len__(self) -> int:
+        return self.i.shape[0]
+
+    @property
+    def normals(self) -> np.ndarray:
+        """Unit contact normals n_ij (M, 2), from i to j."""
+        return self.branch / np.linalg.norm(self.branch, axis=1)[:, None]
+
+
+def contact_state(packing: Packing, F, normal_stiffness: float) -> ContactState:
+    """The active contacts (eps > 0) of ``packing`` at x = F X, with their forces (eq 5)."""
+    F = check_deformation_gradients(F)
+    if F.shape[0] != 1:
+        raise InputError("F: expected shape (2, 2)")
+    F = F[0]
+    kn = as_positive_float(normal_stiffness, "normal_stiffness")
+    mat = material_for(packing, kn)
+    s = int(mat._assign(F[None], np.zeros(1, np.int64))[0])
+    _, L, ri, rj, i, j, shift = mat._rves[0].sets[s]
+    l = L @ F.T
+    d = np.linalg.norm(l, axis=1)
+    hit = d < ri + rj
+    eps = (ri + rj - d)[hit]
+    n = l[hit] / d[hit, None]
+    return ContactState(i=i[hit], j=j[hit], shift=shift[hit], branch=l[hit], reference_branch=L[hit],
+                        overlap=eps, force=-kn * eps[:, None] * n)

@@ -1,0 +1,251 @@
+"""Physics checks of the Taylor homogenization (eqs 6-12 of Meier, Steinmann & Kuhl)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import lattice_packing, random_packing
+
+from gransim import InputError, Packing
+from gransim.rve import TaylorMaterial, contact_state, homogenize
+from gransim.rve.reference import crosscheck, homogenize_bruteforce
+
+KN = 1.0e7  # N/m
+
+
+def _random_F(rng, amplitude):
+    """F = R(theta) U with U = I + sym noise: positive det, 'near' (small amplitude) or 'far'."""
+    while True:
+        F = np.eye(2) + amplitude * rng.uniform(-1, 1, (2, 2))
+        if np.linalg.det(F) > 0.3:
+            return F
+
+
+def _rel(a, b):
+    return np.max(np.abs(np.asarray(a) - np.asarray(b))) / np.max(np.abs(b))
+
+
+@pytest.mark.parametrize("name", ["lattice", "sheared", "random"])
+@pytest.mark.parametrize("amplitude", [0.02, 0.25])
+def test_stress_and_tangent_are_derivatives(packings, name, amplitude):
+    """P = dW/dF and A = dP/dF by central differences, to 1e-6 (norm-relative).
+
+    Step h = 1e-7 |F|: truncation O(h^2) ~ 1e-14 relative for the smooth piecewise-quadratic
+    W, round-off ~ 1e-16/h ~ 1e-9; a contact opening inside +-h would break smoothness, which
+    the fixed seeds avoid (checked by equal contact counts at F +- h).
+    """
+    p = packings[name]
+    mat = TaylorMaterial(p, KN)
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        F = _random_F(rng, amplitude)
+        res = mat(F)
+        h = 1e-7
+        Pfd = np.zeros((2, 2))
+        Afd = np.zeros((2, 2, 2, 2))
+        for k in range(2):
+            for L in range(2):
+                dF = np.zeros((2, 2))
+                dF[k, L] = h
+                plus, minus = mat(F + dF), mat(F - dF)
+                assert plus.n_contacts == minus.n_contacts == res.n_contacts
+                Pfd[k, L] = (plus.energy - minus.energy) / (2 * h)
+                Afd[:, :, k, L] = (plus.piola - minus.piola) / (2 * h)
+        assert res.n_contacts > 20
+        assert _rel(Pfd, res.piola) < 1e-6
+        assert _rel(Afd, res.tangent) < 1e-6
+
+
+def test_major_symmetry_and_cauchy_symmetry(packings):
+    rng = np.random.default_rng(5)
+    for p in packings.values():
+        res = homogenize(p, _random_F(rng, 0.2), KN)
+        A = res.tangent
+        assert np.max(np.abs(A - A.transpose(2, 3, 0, 1))) <= 1e-14 * np.max(np.abs(A))
+        assert abs(res.cauchy[0, 1] - res.cauchy[1, 0]) <= 1e-14 * np.max(np.abs(res.cauchy))
+
+
+def test_objectivity(packings):
+    """W(QF) = W(F), P(QF) = Q P(F), A(QF)_iJkL = Q_ia Q_kb A(F)_aJbL for rotations Q."""
+    rng = np.random.default_rng(7)
+    for p in packings.values():
+        F = _random_F(rng, 0.15)
+        for theta in (0.3, 2.0, -1.1):
+            Q = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+            a, b = homogenize(p, F, KN), homogenize(p, Q @ F, KN)
+            assert a.n_contacts == b.n_contacts
+            assert abs(b.energy - a.energy) <= 1e-13 * a.energy
+            assert _rel(b.piola, Q @ a.piola) < 1e-13
+            assert _rel(b.tangent, np.einsum("ia,kb,aJbL->iJkL", Q, Q, a.tangent)) < 1e-13
+            assert _rel(b.cauchy, Q @ a.cauchy @ Q.T) < 1e-13
+
+
+def test_square_lattice_exact():
+    """Disks on a square lattice (spacing a, radius R, a < 2R < a sqrt 2), F = diag(l1, l2).
+
+    Only the axial neighbours touch: eps_k = 2R - l_k a, W = kn (eps_1^2 + eps_2^2) / (2 a^2),
+    P = diag(-kn eps_1 / a, -kn eps_2 / a); the tangent entries are derived in the comments.
+    """
+    a, R = 1e-3, 0.52e-3
+    p = Packing(positions=[[0.0, 0.0], [a, 0.0]], radii=[R, R], cell=[[2 * a, 0], [0, a]])
+    l1, l2 = 0.99, 1.01
+    res = homogenize(p, np.diag([l1, l2]), KN)
+    e1, e2 = 2 * R - l1 * a, 2 * R - l2 * a
+    assert res.n_contacts == 4
+    assert res.energy == pytest.approx(KN * (e1**2 + e2**2) / (2 * a**2), rel=1e-14)
+    np.testing.assert_allclose(res.piola, np.diag([-KN * e1 / a, -KN * e2 / a]), rtol=1e-14)
+    # pair along 1: n = e1, L = a e1, d = l1 a: A_1111 += kn 2R/d a^2 - kn e1/d a^2 = kn a,
+    # A_2121 += -kn eps_1 / d * a^2 (geometric); per area a^2
+    A = res.tangent
+    assert A[0, 0, 0, 0] == pytest.approx(KN, rel=1e-14)
+    assert A[1, 1, 1, 1] == pytest.approx(KN, rel=1e-14)
+    assert A[1, 0, 1, 0] == pytest.approx(-KN * e1 / (l1 * a), rel=1e-13)
+    assert A[0, 1, 0, 1] == pytest.approx(-KN * e2 / (l2 * a), rel=1e-13)
+    assert A[0, 0, 1, 1] == 0.0 and A[0, 1, 1, 0] == 0.0
+    np.testing.assert_allclose(res.cauchy, res.piola @ np.diag([l1, l2]) / (l1 * l2), rtol=1e-15)
+
+
+def test_zero_without_overlaps():
+    """Disks that do not overlap (even after moderate deformation): W = 0, P = 0, A = 0."""
+    p = lattice_packing(6, 6, seed=2, swell=0.8, spread=0.05)
+    for F in (np.eye(2), np.array([[1.05, 0.1], [0.0, 1.1]])):
+        res = homogenize(p, F, KN)
+        assert res.n_contacts == 0
+        assert res.energy == 0.0
+        assert not np.any(res.piola) and not np.any(res.tangent) and not np.any(res.cauchy)
+
+
+def test_stress_continuous_as_contacts_open_and_close(packings):
+    """Along a compression path the contact set changes, yet P has no jump: the largest change
+    between neighbouring states shrinks in proportion to the step (Lipschitz), while contacts
+    open/close inside the path."""
+    p = packings["random"]
+    mat = TaylorMaterial(p, KN)
+    jumps = []
+    for steps in (400, 800):
+        t = np.linspace(0.0, 1.0, steps + 1)
+        F = np.zeros((t.size, 2, 2))
+        F[:, 0, 0] = 1.0 + 0.08 * t
+        F[:, 1, 1] = 1.0 - 0.03 * t
+        F[:, 0, 1] = 0.05 * t
+        b = mat.evaluate(F)
+        assert np.unique(b.n_contacts).size > 5  # the contact set really changes
+        jumps.append(np.max(np.abs(np.diff(b.piola, axis=0))) / np.max(np.abs(b.piola)))
+    assert jumps[1] < 0.6 * jumps[0]
+
+
+def test_two_disks_contact_closing_is_continuous():
+    """Exact case: P (and W) go to zero continuously as one contact opens; A jumps (Heaviside)."""
+    a, R = 1e-3, 0.251e-3  # four disks per cell, only the pair along 1 at distance a/2 can touch
+    p = Packing(positions=[[0, 0], [0.5 * a, 0]], radii=[R, R], cell=[[a, 0], [0, 10 * a]])
+    lam_c = 2 * R / (0.5 * a)  # stretch at which the contact opens
+    below, above = homogenize(p, np.diag([lam_c * (1 - 1e-9), 1.0]), KN), \
+        homogenize(p, np.diag([lam_c * (1 + 1e-9), 1.0]), KN)
+    assert below.n_contacts == 2 and above.n_contacts == 0
+    assert np.max(np.abs(below.piola)) < 1e-9 * KN * R / a * 10
+    assert below.tangent[0, 0, 0, 0] > 0 and above.tangent[0, 0, 0, 0] == 0
+
+
+@pytest.mark.parametrize("name", ["lattice", "sheared", "random"])
+def test_agrees_with_bruteforce(packings, name):
+    """The numba path against the plain-numpy all-images sum: 1e-12 relative (round-off of
+    summation order only), identical contact counts."""
+    for rec in crosscheck({name: packings[name]}, KN):
+        assert rec["contacts_equal"], rec
+        assert rec["rel_energy"] < 1e-12 and rec["rel_piola"] < 1e-12 and rec["rel_tangent"] < 1e-12, rec
+
+
+def test_tiny_cell_self_images():
+    """Cells smaller than a disk diameter: a disk touches its own images (counted once each)."""
+    p = Packing(positions=[[0.1e-3, 0.2e-3], [0.6e-3, 0.7e-3]], radii=[0.45e-3, 0.3e-3],
+                cell=[[0.8e-3, 0.2e-3], [0.0, 0.9e-3]])
+    for F in (np.eye(2), np.array([[0.9, 0.1], [-0.05, 1.1]])):
+        ref = homogenize_bruteforce(p, F, KN)
+        res = homogenize(p, F, KN)
+        assert res.n_contacts == ref["n_contacts"] > 4
+        assert _rel(res.tangent, ref["tangent"]) < 1e-12 and _rel(res.piola, ref["piola"]) < 1e-12
+
+
+def test_candidate_cache_catches_contacts_opening_and_closing():
+    """A small skin forces rebuilds along a strong compression; the cached path must still
+    equal the brute force at every state (no missed closing contact), and states inside the
+    skin must not rebuild."""
+    p = random_packing(40, seed=4, phi=0.8)
+    mat = TaylorMaterial(p, KN, skin_fraction=0.02)
+    mat(np.eye(2))
+    assert mat.n_builds == 1
+    mat(np.diag([0.995, 1.0]))  # sigma_min = 0.995 > 1/1.02: within the skin
+    assert mat.n_builds == 1
+    counts = []
+    for lam in np.linspace(1.0, 0.8, 9):
+        F = np.array([[lam, 0.1 * (1 - lam)], [0.0, 1.0 / np.sqrt(lam)]])
+        res = mat(F)
+        ref = homogenize_bruteforce(p, F, KN)
+        assert res.n_contacts == ref["n_contacts"]
+        assert _rel(res.piola, ref["piola"]) < 1e-12
+        counts.append(res.n_contacts)
+    assert mat.n_builds > 3
+    assert counts[-1] > counts[0]  # contacts closed along the path
+    # back to the reference state: an older set is valid again, no new build
+    n = mat.n_builds
+    mat(np.eye(2))
+    assert mat.n_builds == n
+
+
+def test_batched_equals_single_and_rve_index(packings):
+    names = list(packings)
+    mat = TaylorMaterial(packings, KN)
+    rng = np.random.default_rng(3)
+    F = np.array([_random_F(rng, 0.1) for _ in range(12)])
+    idx = rng.integers(0, len(names), 12)
+    b = mat.evaluate(F, idx)
+    for g in range(12):
+        one = homogenize(packings[names[idx[g]]], F[g], KN)
+        assert b[g].n_contacts == one.n_contacts
+        np.testing.assert_allclose(b.tangent[g], one.tangent, rtol=0, atol=1e-13 * np.abs(one.tangent).max())
+        np.testing.assert_allclose(b.cauchy[g], one.cauchy, rtol=0, atol=1e-13 * np.abs(one.cauchy).max())
+    assert np.all(b.n_candidates >= b.n_contacts)
+
+
+def test_contact_state_forces_reproduce_piola(packings):
+    """P = 1/V sum f (x) L (eq 10) from the per-contact forces."""
+    p = packings["sheared"]
+    F = np.array([[0.98, 0.03], [0.01, 1.0]])
+    cs = contact_state(p, F, KN)
+    res = homogenize(p, F, KN)
+    assert len(cs) == res.n_contacts
+    np.testing.assert_allclose(np.einsum("mi,mJ->iJ", cs.force, cs.reference_branch) / p.area, res.piola,
+                               rtol=0, atol=1e-12 * np.abs(res.piola).max())
+    assert np.all(cs.overlap > 0)
+    np.testing.assert_allclose(np.linalg.norm(cs.normals, axis=1), 1.0)
+
+
+@pytest.mark.parametrize("F, match", [
+    (np.diag([1.0, -1.0]), "det F must be > 0"),
+    (np.zeros((2, 2)), "det F must be > 0"),
+    (np.eye(3), r"expected shape \(2, 2\)"),
+    (np.array([[1.0, np.nan], [0.0, 1.0]]), "NaN"),
+    (np.array([[1.0, np.inf], [0.0, 1.0]]), "NaN or inf"),
+    ("abc", "numeric"),
+])
+def test_bad_deformation_gradient(packings, F, match):
+    with pytest.raises(InputError, match=match):
+        homogenize(packings["lattice"], F, KN)
+
+
+def test_bad_batch_and_stiffness(packings):
+    mat = TaylorMaterial(packings, KN)
+    F = np.stack([np.eye(2), np.diag([1.0, 0.0])])
+    with pytest.raises(InputError, match="at index 1"):
+        mat.evaluate(F, [0, 0])
+    with pytest.raises(InputError, match="one index per F"):
+        mat.evaluate(np.stack([np.eye(2)] * 2), [0])
+    with pytest.raises(InputError, match=r"\[0, 3\)"):
+        mat.evaluate(np.eye(2), [5])
+    with pytest.raises(InputError, match="pass an RVE index"):
+        mat.evaluate(np.eye(2))
+    for kn in (0.0, -1.0, np.nan, "x"):
+        with pytest.raises(InputError, match="normal_stiffness"):
+            homogenize(packings["lattice"], np.eye(2), kn)
+    with pytest.raises(InputError, match="Packing"):
+        homogenize(np.zeros((3, 2)), np.eye(2), KN)
