@@ -109,3 +109,32 @@ class StVenantKirchhoff:
         A = np.einsum("ik,gJL->giJkL", _I2, S) + np.einsum("giM,MJNL,gkN->giJkL", F, C, F)
         W = 0.5 * self.lam * trE**2 + self.mu * np.einsum("gIJ,gIJ->g", E, E)
         return MaterialResult(P, A, _cauchy(P, F, J), W, np.full(len(F), -1, dtype=np.int64))
+
+
+class AssignedRVEs:
+    """Several RVEs of one Taylor material assigned to the Gauss points: ``rve_index[g]`` (G,) int.
+
+    ``evaluate(F)`` forwards to ``material.evaluate(F, rve_index)`` (one batched kernel call);
+    e.g. ``AssignedRVEs(TaylorMaterial(five_packings, E_n), np.arange(G) % 5)`` assigns the five
+    RVEs in turn.
+    """
+
+    def __init__(self, material, rve_index):
+        self.material = material
+        self.rve_index = np.ascontiguousarray(rve_index, dtype=np.int64)
+
+    @property
+    def packings(self):
+        """The RVEs' reference packings."""
+        return self.material.packings
+
+    @property
+    def normal_stiffness(self) -> float:
+        """E_n of the contact law."""
+        return self.material.normal_stiffness
+
+    def evaluate(self, F):
+        """Batched response at all Gauss points."""
+        if len(F) != self.rve_index.size:
+            raise InputError(f"F: expected {self.rve_index.size} Gauss points (one per RVE index), got {len(F)}")
+        return self.material.evaluate(F, self.rve_index)

@@ -86,16 +86,20 @@ def write_vtu(path, problem: Problem, solution: NewtonResult) -> Path:
     return Path(path)
 
 
-def rve_network(material, F: np.ndarray):
-    """Deformed contact network of the material's RVE under F: (segments (M,2,2), forces (M,), cell).
+def rve_network(material, F: np.ndarray, gauss: int = 0):
+    """Deformed contact network of the RVE at Gauss point ``gauss`` under F: (segments (M,2,2),
+    forces (M,), cell).
 
-    Needs ``material.packing`` and ``material.normal_stiffness`` (the Taylor material); returns None
-    for a continuum material. Forces f = E_n eps (N/m), eq (5).
+    Needs ``material.packings`` (the Taylor material, optionally wrapped by
+    :class:`gransim.fem.materials.AssignedRVEs`) and ``material.normal_stiffness``; returns None for
+    a continuum material. Forces f = E_n eps (N/m), eq (5).
     """
-    packing = getattr(material, "packing", None)
+    packings = getattr(material, "packings", None)
     kn = getattr(material, "normal_stiffness", None)
-    if packing is None or kn is None:
+    if packings is None or kn is None:
         return None
+    index = getattr(material, "rve_index", None)
+    packing = packings[int(index[gauss]) if index is not None else 0]
     from ..contacts import find_neighbours
 
     p = packing.deformed(F)
@@ -177,7 +181,7 @@ def render_png(path, problem: Problem, solution: NewtonResult, title: str, mater
     ax.set_title(f"{title}; displacements x{magnify:g}; red: Gauss points without contacts "
                  f"({int(free.sum())})")
     if interest:
-        nets = [rve_network(material, solution.F[g]) if material is not None else None
+        nets = [rve_network(material, solution.F[g], g) if material is not None else None
                 for g in interest.values()]
         fmax = max([n[1].max() for n in nets if n is not None and len(n[1])] or [1.0])
         for k, ((name, g), net) in enumerate(zip(interest.items(), nets)):
