@@ -3,7 +3,12 @@
 Residual in the reduced coordinates q (see :mod:`gransim.fem.constraints`) at load state
 (gravity factor lam_g, footing factor lam_f)::
 
-    r(q) = T^T (f_int(u(q)) - lam_g f_body) - lam_f Q_footing(q)
+    r(q) = T^T (f_int(u(q)) - lam_g f_body - (1 - lam_g) f_int(0)) - lam_f Q_footing(q)
+
+The term (1 - lam_g) f_int(0) releases the initial imbalance of a prestressed material (the Taylor
+RVE has P(1) != 0, which free surfaces do not balance) together with the dead load: q = 0 solves
+lam = (0, 0), step 1 is a continuous path that load cutting can follow, and at lam_g = 1 (every
+later step) the term is zero, so the answer is unchanged. For P(1) = 0 it vanishes identically.
 
 Newton: K_q dq = -r, q <- q + dq. Convergence measure (Meier et al. Table 2): the relative energy
 norm e_k = |dq_k . r_k| / |dq_1 . r_1|, which falls quadratically (e_{k+1} ~ C e_k^2) near a regular
@@ -28,6 +33,9 @@ from .constraints import DofMap
 from .element import Q1Geometry
 from .materials import MaterialResult
 from .mesh import Mesh
+
+#: residual norm / force scale below which a state counts as converged (assembly round-off)
+ROUNDOFF = 1e-14
 
 
 @dataclass
@@ -73,6 +81,7 @@ class Problem:
     geometry: Q1Geometry = None
     assembler: Assembler = None
     f_body: np.ndarray = None
+    f_int0: np.ndarray = None
 
     def __post_init__(self):
         geom = Q1Geometry.from_mesh(self.mesh)
@@ -82,11 +91,14 @@ class Problem:
         object.__setattr__(self, "body_force", np.asarray(self.body_force, dtype=float))
         object.__setattr__(self, "footing_force", np.asarray(self.footing_force, dtype=float))
         object.__setattr__(self, "f_body", asm.vector(geom.body_forces(self.body_force)))
+        P0 = self.material.evaluate(np.broadcast_to(np.eye(2), (geom.n_gauss, 2, 2)).copy()).piola
+        object.__setattr__(self, "f_int0", asm.vector(geom.internal_forces(np.asarray(P0))))
 
     # ------------------------------------------------------------------
     def evaluate(self, q: np.ndarray, load: tuple[float, float], tangent: bool = True,
                  timer: Timer | None = None):
-        """Residual r (n_red,), reduced tangent K_q (sparse or None) and the material result at q."""
+        """(r, K, material, u, F, scale) at q: residual r (n_red,), reduced tangent K_q (sparse CSC or
+        None), the material result, nodal displacements (Nn, 2), F (G, 2, 2) and the force scale (N/m)."""
         timer = timer or Timer()
         u = self.dofs.displacement(q)
         F = self.geometry.deformation_gradient(u)
@@ -94,7 +106,8 @@ class Problem:
         mat: MaterialResult = self.material.evaluate(F)
         t1 = time.perf_counter()
         lam_g, lam_f = load
-        r_full = self.assembler.vector(self.geometry.internal_forces(mat.piola)) - lam_g * self.f_body
+        fe = self.geometry.internal_forces(mat.piola)
+        r_full = self.assembler.vector(fe) - lam_g * self.f_body - (1.0 - lam_g) * self.f_int0
         T = self.dofs.jacobian(q)
         r = T.T @ r_full
         K = None
@@ -111,7 +124,12 @@ class Problem:
                 K = K.tocsc()
         timer.material += t1 - t0
         timer.assembly += time.perf_counter() - t1
-        return r, K, mat, u, F
+        # size of the nodal forces (N/m): absolute element internal forces plus the applied loads;
+        # a residual below ROUNDOFF times this is round-off
+        scale = (float(np.linalg.norm(self.assembler.vector(np.abs(fe))))
+                 + abs(lam_g) * float(np.linalg.norm(self.f_body))
+                 + abs(lam_f) * float(np.linalg.norm(self.footing_force)))
+        return r, K, mat, u, F, scale
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,6 +164,9 @@ def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: flo
            max_iter: int = 15, timer: Timer | None = None) -> NewtonResult:
     """Solve r(q) = 0 from q0; converged when the relative energy norm e_k <= tol.
 
+    A state whose residual norm is at round-off level (``ROUNDOFF`` times the force scale) counts as
+    converged without a further increment (otherwise a load step that starts in equilibrium would
+    chase round-off with a relative measure).
     Raises :class:`NewtonFailure` on a singular tangent, det F <= 0 at a Gauss point, a diverging
     energy norm (e_k > 1e8) or when ``max_iter`` iterations do not reach ``tol``.
     """
@@ -155,9 +176,11 @@ def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: flo
     e0 = None
     for _ in range(max_iter):
         try:
-            r, K, _, _, _ = problem.evaluate(q, load, timer=timer)
+            r, K, _, _, _, scale = problem.evaluate(q, load, timer=timer)
         except GransimError as exc:  # det F <= 0 inside the material
             raise NewtonFailure(f"material evaluation failed: {exc}") from None
+        if np.linalg.norm(r) <= ROUNDOFF * scale:
+            break
         dq = _solve(K, r, timer)
         timer.iterations += 1
         e = abs(float(dq @ r))
@@ -174,7 +197,7 @@ def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: flo
         raise NewtonFailure(f"no convergence in {max_iter} iterations (relative energy norm "
                             f"{enorms[-1]:.3e} > {tol:.1e})")
     try:
-        r, _, mat, u, F = problem.evaluate(q, load, tangent=False, timer=timer)
+        r, _, mat, u, F, _ = problem.evaluate(q, load, tangent=False, timer=timer)
     except GransimError as exc:
         raise NewtonFailure(f"material evaluation failed: {exc}") from None
     return NewtonResult(q, u, F, mat, np.array(enorms), np.array(rnorms))
