@@ -165,8 +165,9 @@ def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: flo
     """Solve r(q) = 0 from q0; converged when the relative energy norm e_k <= tol.
 
     A state whose residual norm is at round-off level (``ROUNDOFF`` times the force scale) counts as
-    converged without a further increment (otherwise a load step that starts in equilibrium would
-    chase round-off with a relative measure).
+    converged: the energy norm of its (round-off sized) increment is still recorded for the table but
+    not applied, and a step that starts in equilibrium returns at once (a relative measure would
+    otherwise chase round-off).
     Raises :class:`NewtonFailure` on a singular tangent, det F <= 0 at a Gauss point, a diverging
     energy norm (e_k > 1e8) or when ``max_iter`` iterations do not reach ``tol``.
     """
@@ -174,12 +175,15 @@ def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: flo
     q = np.array(q0, dtype=float)
     enorms, rnorms = [], []
     e0 = None
+    final = None
     for _ in range(max_iter):
         try:
-            r, K, _, _, _, scale = problem.evaluate(q, load, timer=timer)
+            r, K, mat, u, F, scale = problem.evaluate(q, load, timer=timer)
         except GransimError as exc:  # det F <= 0 inside the material
             raise NewtonFailure(f"material evaluation failed: {exc}") from None
-        if np.linalg.norm(r) <= ROUNDOFF * scale:
+        at_roundoff = np.linalg.norm(r) <= ROUNDOFF * scale
+        if at_roundoff and e0 is None:  # already in equilibrium: nothing to record
+            final = (mat, u, F)
             break
         dq = _solve(K, r, timer)
         timer.iterations += 1
@@ -188,18 +192,26 @@ def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: flo
             e0 = e if e > 0 else 1.0
         enorms.append(e / e0)
         rnorms.append(float(np.linalg.norm(r)))
-        q = q + dq
         if not np.isfinite(enorms[-1]) or enorms[-1] > 1e8:
             raise NewtonFailure(f"diverged (relative energy norm {enorms[-1]:.3e})")
+        if at_roundoff:
+            # the residual is round-off: record the energy norm of this last increment (Table 2) but
+            # keep the evaluated state (the increment is at round-off level too)
+            final = (mat, u, F)
+            break
+        q = q + dq
         if enorms[-1] <= tol:
             break
     else:
         raise NewtonFailure(f"no convergence in {max_iter} iterations (relative energy norm "
                             f"{enorms[-1]:.3e} > {tol:.1e})")
-    try:
-        r, _, mat, u, F, _ = problem.evaluate(q, load, tangent=False, timer=timer)
-    except GransimError as exc:
-        raise NewtonFailure(f"material evaluation failed: {exc}") from None
+    if final is None:
+        try:
+            r, _, mat, u, F, _ = problem.evaluate(q, load, tangent=False, timer=timer)
+        except GransimError as exc:
+            raise NewtonFailure(f"material evaluation failed: {exc}") from None
+    else:
+        mat, u, F = final
     return NewtonResult(q, u, F, mat, np.array(enorms), np.array(rnorms))
 
 
