@@ -45,6 +45,7 @@ implies it for F0 = I. ``skin_fraction`` sets s = skin_fraction * 2 r_max.
 
 from __future__ import annotations
 
+import math
 import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -152,6 +153,22 @@ def _taylor_point(F, L, ri, rj, lo, hi, kn, inv_area, g, W, P, A, nc):
     nc[g] = count
 
 
+@njit
+def _taylor_single(F, L, ri, rj, lo, hi, kn, inv_area):
+    """One state: returns (W (1,), P (1, 2, 2), A (1, 2, 2, 2, 2), nc (1,), sigma (2, 2))."""
+    W = np.empty(1)
+    P = np.empty((1, 2, 2))
+    A = np.empty((1, 2, 2, 2, 2))
+    nc = np.empty(1, np.int64)
+    _taylor_point(F, L, ri, rj, lo, hi, kn, inv_area, 0, W, P, A, nc)
+    J = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
+    sig = np.empty((2, 2))
+    for i in range(2):
+        for k in range(2):
+            sig[i, k] = (P[0, i, 0] * F[k, 0] + P[0, i, 1] * F[k, 1]) / J
+    return W, P, A, nc, sig
+
+
 @pjit
 def _taylor_batch(F, set_of, starts, L, ri, rj, kn, inv_area, W, P, A, nc):
     """All Gauss points g in parallel: point g uses candidate set set_of[g] (rows starts[s]:starts[s+1])."""
@@ -238,6 +255,18 @@ def check_deformation_gradients(F, name: str = "F") -> np.ndarray:
         raise InputError(f"{name}: det F must be > 0 (the map must keep orientation), "
                          f"got det F = {det[g]:.6g}{where}")
     return arr
+
+
+def _check_single_F(F) -> np.ndarray:
+    """Fast check of one F (2, 2): finite, det > 0; falls back to the general check on anything odd."""
+    if type(F) is np.ndarray and F.shape == (2, 2) and F.dtype == np.float64:
+        a, b, c, d = F.ravel().tolist()
+        if math.isfinite(a + b + c + d) and a * d - b * c > 0:
+            return F if F.flags.c_contiguous else np.ascontiguousarray(F)
+    G = check_deformation_gradients(F)
+    if G.shape[0] != 1:
+        raise InputError(f"F: expected shape (2, 2) for one state, got {np.shape(F)}")
+    return G[0]
 
 
 def _smallest_singular_value(G: np.ndarray) -> np.ndarray:
@@ -335,6 +364,7 @@ class TaylorMaterial:
         self._rves = [_RVE(p, self.skin_fraction) for p in items]
         self.n_builds = 0
         self._flat = None  # concatenated candidate arrays, rebuilt when a set is added
+        self._last = {}  # rve -> global set index of the last single-state call
         self._out = {}
 
     # -- bookkeeping ------------------------------------------------------------------------
@@ -386,6 +416,7 @@ class TaylorMaterial:
             set_of[sel] = local + sum(len(r.sets) for r in self._rves[:k])
         if changed or self._flat is None:
             self._flatten()
+            self._last = {}
         return set_of
 
     def _check_rve_index(self, rve, G: int) -> np.ndarray:
@@ -436,23 +467,36 @@ class TaylorMaterial:
                            n_contacts=_ro(nc), n_candidates=_ro(ncand))
 
     def __call__(self, F, rve: int = 0) -> TaylorResult:
-        """One state: F (2, 2) of RVE ``rve`` (serial kernel, no thread start-up)."""
-        F = check_deformation_gradients(F)
-        if F.shape[0] != 1:
-            raise InputError(f"F: expected shape (2, 2) for one state, got {F.shape[1:]} x {F.shape[0]}")
-        idx = self._check_rve_index(rve, 1)
-        s = int(self._assign(F, idx)[0])
+        """One state: F (2, 2) of RVE ``rve`` (serial kernel, no thread start-up).
+
+        Fast path for repeated calls: the last used candidate set of the RVE is re-checked
+        with the validity rule in scalar arithmetic before the general assignment.
+        """
+        F = _check_single_F(F)
+        if not (type(rve) is int and 0 <= rve < len(self._rves)):
+            rve = int(self._check_rve_index(rve, 1)[0])
+        s = self._last.get(rve)
+        if s is None or self._flat is None or not self._still_valid(F, rve, s):
+            s = int(self._assign(F[None], np.full(1, rve, np.int64))[0])
+            self._last = {rve: s}
         L, ri, rj, starts, inv_area, _ = self._flat
-        W = np.empty(1)
-        P = np.empty((1, 2, 2))
-        A = np.empty((1, 2, 2, 2, 2))
-        nc = np.empty(1, np.int64)
-        _taylor_point(F[0], L, ri, rj, starts[s], starts[s + 1], self.normal_stiffness, inv_area[s], 0,
-                      W, P, A, nc)
-        F0 = F[0]
-        J = F0[0, 0] * F0[1, 1] - F0[0, 1] * F0[1, 0]
-        return TaylorResult(energy=float(W[0]), piola=_ro(P[0]), tangent=_ro(A[0]),
-                            cauchy=_ro(P[0] @ F0.T / J), n_contacts=int(nc[0]))
+        W, P, A, nc, sig = _taylor_single(F, L, ri, rj, starts[s], starts[s + 1], self.normal_stiffness,
+                                          inv_area[s])
+        return TaylorResult(energy=float(W[0]), piola=_ro(P[0]), tangent=_ro(A[0]), cauchy=_ro(sig),
+                            n_contacts=int(nc[0]))
+
+    def _still_valid(self, F, rve: int, s: int) -> bool:
+        """Validity rule for global set index s (still of RVE rve) in scalar arithmetic."""
+        R = self._rves[rve]
+        first = sum(len(r.sets) for r in self._rves[:rve])
+        local = s - first
+        if not 0 <= local < len(R.sets):
+            return False
+        (g00, g01), (g10, g11) = (F @ R.sets[local][0]).tolist()
+        s1 = g00 * g00 + g01 * g01 + g10 * g10 + g11 * g11
+        det = g00 * g11 - g01 * g10
+        disc = math.sqrt(max(s1 * s1 - 4.0 * det * det, 0.0))
+        return math.sqrt(2.0 * det * det / (s1 + disc)) >= R.threshold
 
     def stress_and_tangent(self, F, rve=None) -> tuple[np.ndarray, np.ndarray]:
         """(P (G, 2, 2), A (G, 2, 2, 2, 2)) for a finite-element solver."""
