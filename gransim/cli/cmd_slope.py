@@ -18,6 +18,10 @@ def register(subparsers) -> None:
     p.add_argument("--packing", default=None,
                    help="HDF5 packing file for the RVE (default: the most uniform of the five standard "
                         "700-particle quartz-sand RVEs)")
+    p.add_argument("--rves", choices=["most-uniform", "five"], default="most-uniform",
+                   help="most-uniform: one RVE everywhere; five: the five 700-particle RVEs in turn")
+    p.add_argument("--packing-dir", default="results/packings",
+                   help="where the standard packings are generated/cached")
     p.add_argument("--out", default=None, help="output directory (default results/slope-<protocol>)")
     p.add_argument("--figures", choices=["all", "final", "none"], default="all",
                    help="PNG pictures for every converged step, only the last one, or none")
@@ -37,7 +41,7 @@ def handler(args) -> int:
     out = Path(args.out or f"results/slope-{args.protocol}")
     summary = run_slope_case(args.protocol, material=args.material, packing=args.packing, out=out,
                              figures=args.figures, tol=args.tol, min_fraction=args.min_fraction,
-                             verbose=True)
+                             assignment=args.rves, packing_dir=args.packing_dir)
     print(summary["report"])
     if not summary["completed"]:
         print(f"outputs of every converged step kept in {out}", file=sys.stderr)

@@ -159,6 +159,10 @@ def render_png(path, problem: Problem, solution: NewtonResult, title: str, mater
         pl.camera.zoom(1.3)
         img = pl.screenshot(return_img=True)
         pl.close()
+        fg = np.any(np.abs(img.astype(int) - img[0, 0].astype(int)) > 8, axis=2)  # crop the margins
+        rows, cols = np.flatnonzero(fg.any(axis=1)), np.flatnonzero(fg.any(axis=0))
+        if rows.size and cols.size:
+            img = img[max(rows[0] - 10, 0):rows[-1] + 10, max(cols[0] - 10, 0):cols[-1] + 10]
     except Exception as exc:  # pragma: no cover - depends on the machine's OpenGL
         renderer = f"matplotlib (pyvista failed: {exc})"
 
@@ -249,10 +253,12 @@ def plot_load_settlement(path, problem: Problem, setup, result: LoadPathResult) 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    d = load_settlement(problem, setup, result)
+    d = load_settlement(problem, setup, result)[1:]  # from the dead-load state on
+    if len(d) == 0:
+        d = np.zeros((1, 3))
     fig, ax = plt.subplots(figsize=(6, 4.5))
-    ax.plot(d[:, 1], -d[:, 0], "o-")
-    ax.set_xlabel("settlement of the footing centre (m)")
+    ax.plot(d[:, 1] - d[0, 1], -d[:, 0], "o-")
+    ax.set_xlabel("settlement of the footing centre under the footing load (m)")
     ax.set_ylabel("footing force (N per m)")
     status = "complete" if result.completed else (
         f"stopped: limit at {result.limit['last_converged_load'][1]:.3f} of the target")

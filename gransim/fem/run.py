@@ -17,29 +17,52 @@ from .slope import NORMAL_STIFFNESS, gauss_points_of_interest, limit_message, ru
 NEO_HOOKEAN_E, NEO_HOOKEAN_NU = 3.0e7, 0.3
 
 
-def default_rve_packing():
-    """The most uniform of the five standard 700-particle quartz-sand RVEs (contact normal measure)."""
+def rve_700_packings(packing_dir="results/packings") -> dict:
+    """The five standard 700-particle quartz-sand RVEs {name: Packing} (generated once, then cached)."""
     try:
-        from ..rve import most_uniform
         from ..generation import standard_packings
     except ImportError as exc:
-        raise InputError(f"the default RVE needs gransim.generation and gransim.rve ({exc}); "
-                         "pass --packing FILE.h5 or --material neo-hookean") from None
-    return most_uniform(standard_packings(700), NORMAL_STIFFNESS)
+        raise InputError(f"the standard RVEs need gransim.generation ({exc}); pass --packing FILE.h5 "
+                         "or --material neo-hookean") from None
+    from ..io import load_packing
+
+    paths = standard_packings(packing_dir, names=[f"rve-700-{s}" for s in range(1, 6)])
+    return {name: load_packing(path) for name, path in paths.items()}
 
 
-def make_material(kind: str, packing=None):
-    """The material of a run: ``taylor`` (Taylor RVE, E_n = 2.8e7 N/m^2) or ``neo-hookean``."""
+def default_rve_packing(packing_dir="results/packings"):
+    """The most uniform of the five standard 700-particle RVEs (contact normal density measure of
+    gransim.rve.fabric: smallest deviation from the uniform density at 20 degrees)."""
+    from ..rve.fabric import most_uniform
+
+    packings = rve_700_packings(packing_dir)
+    name, _ = most_uniform(packings)
+    return packings[name]
+
+
+def make_material(kind: str, packing=None, assignment: str = "most-uniform", n_gauss: int = 1520,
+                  packing_dir="results/packings"):
+    """The material of a run: ``taylor`` (Taylor RVE, E_n = 2.8e7 N/m^2) or ``neo-hookean``.
+
+    ``assignment``: ``most-uniform`` (one RVE at every Gauss point: ``packing``, default the most
+    uniform standard 700-particle RVE) or ``five`` (the five standard 700-particle RVEs assigned to
+    the Gauss points in turn, g mod 5).
+    """
     if kind == "neo-hookean":
         return NeoHookean(*lame(NEO_HOOKEAN_E, NEO_HOOKEAN_NU))
     if kind != "taylor":
         raise InputError(f"unknown material {kind!r}; choose taylor or neo-hookean")
-    try:
-        from ..rve import TaylorMaterial
-    except ImportError as exc:
-        raise InputError(f"the Taylor material needs gransim.rve ({exc}); use --material neo-hookean") from None
+    from ..rve import TaylorMaterial
+
+    if assignment == "five":
+        from .materials import AssignedRVEs
+
+        five = rve_700_packings(packing_dir)
+        return AssignedRVEs(TaylorMaterial(five, NORMAL_STIFFNESS), np.arange(n_gauss) % len(five))
+    if assignment != "most-uniform":
+        raise InputError(f"unknown RVE assignment {assignment!r}; choose most-uniform or five")
     if packing is None:
-        packing = default_rve_packing()
+        packing = default_rve_packing(packing_dir)
     elif isinstance(packing, (str, Path)):
         from ..io import load_packing
 
@@ -47,9 +70,25 @@ def make_material(kind: str, packing=None):
     return TaylorMaterial(packing, NORMAL_STIFFNESS)
 
 
+def linear_check(problem, scale: float = 1e-3) -> dict:
+    """Small-load check: the Newton solution under ``scale`` of the dead load against the linear
+    solution with the RVE tangent at F = 1, q_lin = -K(0)^-1 r(0) (r includes the prestress release,
+    so q_lin is linear in the load). Returns the relative difference and the displacement size."""
+    import scipy.sparse.linalg as spla
+
+    from .solver import newton
+
+    q0 = np.zeros(problem.dofs.n_reduced)
+    r0, K0, *_ = problem.evaluate(q0, (scale, 0.0))
+    q_lin = -spla.spsolve(K0, r0)
+    q_nl = newton(problem, q0, (scale, 0.0)).q
+    return {"scale": scale, "relative_difference": float(np.linalg.norm(q_nl - q_lin) / np.linalg.norm(q_lin)),
+            "max_displacement_m": float(np.abs(q_lin).max())}
+
+
 def run_slope_case(protocol: str = "service", material="taylor", packing=None, out=None,
                    figures: str = "all", tol: float = 1e-20, min_fraction: float = 1.0 / 64,
-                   geometry=None, verbose: bool = False) -> dict:
+                   geometry=None, assignment: str = "most-uniform", packing_dir="results/packings") -> dict:
     """Solve one protocol and write its outputs to ``out`` (None: no files).
 
     Returns a summary dict: ``completed``, ``message``, ``report`` (markdown), ``timing``,
@@ -58,7 +97,13 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
     from ..progress import progress
 
     setup = setup_for(protocol, geometry)
-    mat = make_material(material, packing) if isinstance(material, str) else material
+    if isinstance(material, str):
+        from .mesh import SlopeGeometry
+
+        g = geometry or SlopeGeometry()
+        mat = make_material(material, packing, assignment, 4 * g.columns * g.rows, packing_dir)
+    else:
+        mat = material
     out = Path(out) if out is not None else None
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
@@ -112,6 +157,13 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
     lines += ["", "Load-settlement (footing force N/m, settlement m, rotation rad):", "",
               "| force | settlement | rotation |", "|---|---|---|"]
     lines += [f"| {r[0]:.4g} | {r[1]:.5g} | {r[2]:.4e} |" for r in ls]
+    try:
+        lc = [linear_check(problem, s) for s in (1e-3, 2e-3)]
+        lines += ["", f"Small-load check (dead load x 1e-3 and 2e-3 against the linear solution with the RVE "
+                      f"tangent at F = 1): relative differences {lc[0]['relative_difference']:.3e}, "
+                      f"{lc[1]['relative_difference']:.3e} (max displacement {lc[0]['max_displacement_m']:.3e} m)"]
+    except Exception as exc:  # a singular K(0) (no contacts) is itself worth reporting
+        lines += ["", f"Small-load check failed: {exc}"]
     report = "\n".join(lines)
     if out is not None:
         if last is not None and figures != "none":

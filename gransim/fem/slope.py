@@ -128,7 +128,7 @@ def limit_message(problem: Problem, setup: SlopeSetup, result: LoadPathResult) -
             f"RVE carries no tension) at that state: {where}")
 
 
-def run_slope(material, setup: SlopeSetup, tol: float = 1e-20, max_iter: int = 15,
+def run_slope(material, setup: SlopeSetup, tol: float = 1e-20, max_iter: int = 12,
               min_fraction: float = 1.0 / 64, on_step=None, progress=None):
     """Build and solve the slope; returns (problem, LoadPathResult)."""
     problem = slope_problem(material, setup)

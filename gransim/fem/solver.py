@@ -36,6 +36,11 @@ from .mesh import Mesh
 
 #: residual norm / force scale below which a state counts as converged (assembly round-off)
 ROUNDOFF = 1e-14
+#: (iterations, energy norm): a solve still above this energy norm after this many iterations is
+#: abandoned as not converging (a quadratically converging step is many decades lower by then; this
+#: only shortens the hopeless attempts of the limit search, it never rejects a converging step of
+#: the slope runs, whose 5th energy norm is below 3e-6)
+STAGNATION = (5, 1e-3)
 
 
 @dataclass
@@ -54,7 +59,11 @@ class Timer:
 
 
 class NewtonFailure(GransimError):
-    """One Newton solve failed (the load stepper cuts the increment)."""
+    """One Newton solve failed (the load stepper cuts the increment); ``energy_norms`` its history."""
+
+    def __init__(self, message: str, energy_norms=()):
+        super().__init__(message)
+        self.energy_norms = list(energy_norms)
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,7 +153,7 @@ class NewtonResult:
     residual_norms: np.ndarray
 
 
-def _solve(K, r, timer: Timer):
+def _solve(K, r, timer: Timer, enorms=()):
     t0 = time.perf_counter()
     try:
         with warnings.catch_warnings():
@@ -152,16 +161,16 @@ def _solve(K, r, timer: Timer):
             lu = spla.splu(K)
             dq = -lu.solve(r)
     except (RuntimeError, spla.MatrixRankWarning, RuntimeWarning) as exc:
-        raise NewtonFailure(f"singular tangent ({exc})") from None
+        raise NewtonFailure(f"singular tangent ({exc})", enorms) from None
     finally:
         timer.solve += time.perf_counter() - t0
     if not np.all(np.isfinite(dq)):
-        raise NewtonFailure("singular tangent (non-finite increment)")
+        raise NewtonFailure("singular tangent (non-finite increment)", enorms)
     return dq
 
 
 def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: float = 1e-20,
-           max_iter: int = 15, timer: Timer | None = None) -> NewtonResult:
+           max_iter: int = 12, timer: Timer | None = None) -> NewtonResult:
     """Solve r(q) = 0 from q0; converged when the relative energy norm e_k <= tol.
 
     A state whose residual norm is at round-off level (``ROUNDOFF`` times the force scale) counts as
@@ -169,23 +178,22 @@ def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: flo
     not applied, and a step that starts in equilibrium returns at once (a relative measure would
     otherwise chase round-off).
     Raises :class:`NewtonFailure` on a singular tangent, det F <= 0 at a Gauss point, a diverging
-    energy norm (e_k > 1e8) or when ``max_iter`` iterations do not reach ``tol``.
+    energy norm (e_k > 1e8), stagnation (see ``STAGNATION``) or when ``max_iter`` iterations do not
+    reach ``tol``.
     """
     timer = timer or Timer()
     q = np.array(q0, dtype=float)
     enorms, rnorms = [], []
     e0 = None
-    final = None
     for _ in range(max_iter):
         try:
             r, K, mat, u, F, scale = problem.evaluate(q, load, timer=timer)
         except GransimError as exc:  # det F <= 0 inside the material
-            raise NewtonFailure(f"material evaluation failed: {exc}") from None
+            raise NewtonFailure(f"material evaluation failed: {exc}", enorms) from None
         at_roundoff = np.linalg.norm(r) <= ROUNDOFF * scale
         if at_roundoff and e0 is None:  # already in equilibrium: nothing to record
-            final = (mat, u, F)
             break
-        dq = _solve(K, r, timer)
+        dq = _solve(K, r, timer, enorms)
         timer.iterations += 1
         e = abs(float(dq @ r))
         if e0 is None:
@@ -193,25 +201,18 @@ def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: flo
         enorms.append(e / e0)
         rnorms.append(float(np.linalg.norm(r)))
         if not np.isfinite(enorms[-1]) or enorms[-1] > 1e8:
-            raise NewtonFailure(f"diverged (relative energy norm {enorms[-1]:.3e})")
-        if at_roundoff:
-            # the residual is round-off: record the energy norm of this last increment (Table 2) but
-            # keep the evaluated state (the increment is at round-off level too)
-            final = (mat, u, F)
+            raise NewtonFailure(f"diverged (relative energy norm {enorms[-1]:.3e})", enorms)
+        if len(enorms) >= STAGNATION[0] and enorms[-1] > STAGNATION[1]:
+            raise NewtonFailure(f"no quadratic convergence (relative energy norm {enorms[-1]:.3e} after "
+                                f"{len(enorms)} iterations)", enorms)
+        if at_roundoff or enorms[-1] <= tol:
+            # converged: the evaluated state q is returned; e_k measures its distance from equilibrium
+            # (the remaining increment dq is below tolerance and is not applied)
             break
         q = q + dq
-        if enorms[-1] <= tol:
-            break
     else:
         raise NewtonFailure(f"no convergence in {max_iter} iterations (relative energy norm "
-                            f"{enorms[-1]:.3e} > {tol:.1e})")
-    if final is None:
-        try:
-            r, _, mat, u, F, _ = problem.evaluate(q, load, tangent=False, timer=timer)
-        except GransimError as exc:
-            raise NewtonFailure(f"material evaluation failed: {exc}") from None
-    else:
-        mat, u, F = final
+                            f"{enorms[-1]:.3e} > {tol:.1e})", enorms)
     return NewtonResult(q, u, F, mat, np.array(enorms), np.array(rnorms))
 
 
@@ -242,6 +243,7 @@ class LoadPathResult:
     steps: list
     limit: dict | None
     timer: Timer
+    failures: list = field(default_factory=list)
 
     @property
     def completed(self) -> bool:
@@ -249,7 +251,7 @@ class LoadPathResult:
         return self.limit is None
 
 
-def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int = 15,
+def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int = 12,
                    min_fraction: float = 1.0 / 64, on_step=None, progress=None) -> LoadPathResult:
     """Follow ``schedule`` (a list of (lam_g, lam_f) targets, one per step) from the unloaded state.
 
@@ -264,6 +266,7 @@ def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int
     prev = np.zeros(2)
     steps = []
     limit = None
+    failures = []  # (step, fraction of the step tried, energy norms) of every failed attempt
     for k, target in enumerate(schedule, start=1):
         target = np.asarray(target, dtype=float)
         done, h, cuts, sub = 0.0, 1.0, 0, []
@@ -276,6 +279,7 @@ def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int
                 sol = newton(problem, q, tuple(load), tol=tol, max_iter=max_iter, timer=timer)
             except NewtonFailure as exc:
                 last_failure = str(exc)
+                failures.append((k, float(done + h), exc.energy_norms))
                 h *= 0.5
                 cuts += 1
                 if h < min_fraction * (1 - 1e-12):
@@ -298,4 +302,4 @@ def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int
         if progress is not None:
             progress.update(1)
         prev = target
-    return LoadPathResult(steps, limit, timer)
+    return LoadPathResult(steps, limit, timer, failures)
