@@ -16,6 +16,8 @@ from ..io import atomic_h5, atomic_path
 from .solver import LoadPathResult, NewtonResult, Problem
 
 TABLE2_STEPS = (2, 6, 10, 15, 18)
+#: line width (points) of the strongest contact in the RVE pictures; widths are proportional to force
+BRANCH_WIDTH = 3.0
 
 
 def von_mises(cauchy: np.ndarray) -> np.ndarray:
@@ -199,13 +201,13 @@ def render_png(path, problem: Problem, solution: NewtonResult, title: str, mater
                 a.text(0.5, 0.5, "continuum material\n(no RVE)", ha="center", va="center")
                 continue
             seg, f, cell = net
-            a.add_collection(LineCollection(seg, linewidths=0.2 + 3.0 * f / fmax, colors="k"))
+            a.add_collection(LineCollection(seg, linewidths=BRANCH_WIDTH * f / fmax, colors="k"))
             corners = np.array([[0, 0], cell[:, 0], cell[:, 0] + cell[:, 1], cell[:, 1], [0, 0]])
             a.plot(corners[:, 0], corners[:, 1], "b-", lw=0.5)
             a.set_aspect("equal")
             a.autoscale()
-        fig.text(0.5, 0.005, f"branch width = 0.2 + 3 f / {fmax:.3g} N/m (one scale for all four RVEs)",
-                 ha="center", fontsize=9)
+        fig.text(0.5, 0.005, f"RVEs at the Gauss point's F (true scale); branch width {BRANCH_WIDTH:g} pt x f / "
+                 f"{fmax:.3g} N/m, one scale for all four", ha="center", fontsize=9)
     with atomic_path(path, suffix=".png") as tmp:
         fig.savefig(tmp, dpi=80, format="png")
     plt.close(fig)

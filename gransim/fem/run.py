@@ -156,7 +156,7 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
         f"step {k}: " + ", ".join(f"{o:.2f}" for o in orders[k]) for k in TABLE2_STEPS if k in orders))
     lines += ["", "Load-settlement (footing force N/m, settlement m, rotation rad):", "",
               "| force | settlement | rotation |", "|---|---|---|"]
-    lines += [f"| {r[0]:.4g} | {r[1]:.5g} | {r[2]:.4e} |" for r in ls]
+    lines += [f"| {r[0] + 0.0:.4g} | {r[1] + 0.0:.5g} | {r[2] + 0.0:.4e} |" for r in ls]
     try:
         lc = [linear_check(problem, s) for s in (1e-3, 2e-3)]
         lines += ["", f"Small-load check (dead load x 1e-3 and 2e-3 against the linear solution with the RVE "
