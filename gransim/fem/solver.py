@@ -80,6 +80,9 @@ class Problem:
         Body force per reference volume at full dead load (N/m^3), e.g. (0, -rho g).
     footing_force : (2,) float
         Force on the rigid footing at full load (N per m of thickness), at its load point.
+    release_prestress : bool
+        Release the initial imbalance f_int(0) of a prestressed material with the dead load factor
+        (see the module docstring); False applies it at once.
     """
 
     mesh: Mesh
@@ -87,6 +90,7 @@ class Problem:
     dofs: DofMap
     body_force: np.ndarray = field(default_factory=lambda: np.zeros(2))
     footing_force: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    release_prestress: bool = True
     geometry: Q1Geometry = None
     assembler: Assembler = None
     f_body: np.ndarray = None
@@ -100,8 +104,11 @@ class Problem:
         object.__setattr__(self, "body_force", np.asarray(self.body_force, dtype=float))
         object.__setattr__(self, "footing_force", np.asarray(self.footing_force, dtype=float))
         object.__setattr__(self, "f_body", asm.vector(geom.body_forces(self.body_force)))
-        P0 = self.material.evaluate(np.broadcast_to(np.eye(2), (geom.n_gauss, 2, 2)).copy()).piola
-        object.__setattr__(self, "f_int0", asm.vector(geom.internal_forces(np.asarray(P0))))
+        f0 = np.zeros(asm.n_dofs)
+        if self.release_prestress:
+            P0 = self.material.evaluate(np.broadcast_to(np.eye(2), (geom.n_gauss, 2, 2)).copy()).piola
+            f0 = asm.vector(geom.internal_forces(np.asarray(P0)))
+        object.__setattr__(self, "f_int0", f0)
 
     # ------------------------------------------------------------------
     def evaluate(self, q: np.ndarray, load: tuple[float, float], tangent: bool = True,

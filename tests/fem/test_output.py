@@ -79,3 +79,11 @@ def test_cli_rejects_bad_input(capsys):
         main(["slope", "--protocol", "nonsense"])
     with pytest.raises(InputError, match="protocol"):
         setup_for("nonsense")
+
+
+def test_acceptance_records_of_a_completed_run(case):
+    from gransim.fem.run import acceptance_records
+
+    recs = acceptance_records({"service": case[1]})
+    assert {r["metric"] for r in recs} >= {"completed", "largest final relative energy norm"}
+    assert all(r["pass"] for r in recs), recs

@@ -107,3 +107,18 @@ def test_paper_load_on_reduced_slope_stops_at_crest_mechanism():
     xy = prob.geometry.points.reshape(-1, 2)[free]
     g = SMALL_SLOPE
     assert np.all((xy[:, 0] > g.toe_x) & (xy[:, 0] < setup.footing_right) & (xy[:, 1] > 0.5 * g.crest_height))
+
+
+def test_prestress_release_does_not_change_the_answer():
+    """Releasing the RVE prestress imbalance with the dead load is a continuation only: at full dead
+    load the state equals the one reached by applying everything at once (when that converges)."""
+    mat = rve.TaylorMaterial(triangular_packing(5, 6, 1.0005, 0.0002, seed=1), E_N)
+    setup = setup_for("service", SMALL_SLOPE, load_steps=2)
+    sols = []
+    for release in (True, False):
+        p = slope_problem(mat, setup)
+        p = Problem(p.mesh, mat, p.dofs, p.body_force, p.footing_force, release_prestress=release)
+        res = run_load_steps(p, setup.schedule())
+        assert res.completed
+        sols.append(res.steps[-1].solution.q)
+    assert np.allclose(sols[0], sols[1], rtol=0, atol=1e-9 * np.abs(sols[0]).max())
