@@ -30,11 +30,12 @@ def standin_packing(n_x: int = 28, n_y: int = 25, swell: float = 1.0005, jitter:
 
 
 def _material():
+    from gransim.errors import GransimError
     from gransim.fem.run import default_rve_packing, make_material
 
     try:
         packing, note = default_rve_packing(), "most uniform standard 700-particle RVE"
-    except Exception as exc:  # generation/rve selection not available
+    except (ImportError, GransimError) as exc:  # generation/rve selection not available
         packing, note = standin_packing(), f"stand-in 700-disk lattice ({type(exc).__name__})"
     return make_material("taylor", packing), note
 

@@ -9,7 +9,15 @@ from .constraints import DofMap, RigidBody
 from .element import Q1Geometry
 from .materials import MaterialResult, NeoHookean, StVenantKirchhoff, lame
 from .mesh import Mesh, SlopeGeometry, rectangle_mesh, slope_mesh
-from .solver import LoadPathResult, NewtonFailure, Problem, StepRecord, Timer, newton, run_load_steps
+from .solver import (
+           LoadPathResult,
+           NewtonFailure,
+           Problem,
+           StepRecord,
+           Timer,
+           newton,
+           run_load_steps,
+)
 
 __all__ = ["Assembler", "DofMap", "LoadPathResult", "MaterialResult", "Mesh", "NeoHookean",
            "NewtonFailure", "Problem", "Q1Geometry", "RigidBody", "SlopeGeometry", "StVenantKirchhoff",

@@ -26,7 +26,7 @@ class Assembler:
     slot: np.ndarray  # (E*64,) CSR data position of each element entry
 
     @classmethod
-    def from_elements(cls, elements: np.ndarray, n_nodes: int) -> "Assembler":
+    def from_elements(cls, elements: np.ndarray, n_nodes: int) -> Assembler:
         """Build the CSR pattern of a mesh's stiffness matrix."""
         elements = np.asarray(elements, dtype=np.int64)
         edofs = (2 * elements[:, :, None] + np.arange(2)[None, None, :]).reshape(-1, 8)

@@ -64,7 +64,7 @@ class DofMap:
 
     @classmethod
     def build(cls, nodes: np.ndarray, fixed_dofs, body: RigidBody | None = None,
-              values=None) -> "DofMap":
+              values=None) -> DofMap:
         """Free dofs = all dofs not fixed and not on the rigid body.
 
         ``values`` (same length as ``fixed_dofs``, m) are the prescribed displacements of the fixed

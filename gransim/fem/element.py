@@ -65,7 +65,7 @@ class Q1Geometry:
     elements: np.ndarray
 
     @classmethod
-    def from_mesh(cls, mesh: Mesh) -> "Q1Geometry":
+    def from_mesh(cls, mesh: Mesh) -> Q1Geometry:
         """Precompute the reference gradients; raises InputError for an inverted element."""
         N, dNdxi = shape_functions(XI_GAUSS)  # (4 g, 4 a), (4 g, 4 a, 2)
         Xe = mesh.nodes[mesh.elements]  # (E, 4 a, 2)

@@ -165,7 +165,7 @@ def render_png(path, problem: Problem, solution: NewtonResult, title: str, mater
         rows, cols = np.flatnonzero(fg.any(axis=1)), np.flatnonzero(fg.any(axis=0))
         if rows.size and cols.size:
             img = img[max(rows[0] - 10, 0):rows[-1] + 10, max(cols[0] - 10, 0):cols[-1] + 10]
-    except Exception as exc:  # pragma: no cover - depends on the machine's OpenGL
+    except Exception as exc:  # noqa: BLE001 - any VTK/OpenGL failure means: draw with matplotlib
         renderer = f"matplotlib (pyvista failed: {exc})"
 
     fig = plt.figure(figsize=(16, 9))

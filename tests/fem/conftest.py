@@ -1,5 +1,4 @@
 import pytest
-
 from fem_helpers import make_continuum
 
 

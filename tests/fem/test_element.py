@@ -2,13 +2,12 @@
 
 import numpy as np
 import pytest
+from fem_helpers import SMALL_SLOPE
 
 from gransim.errors import InputError
 from gransim.fem import DofMap, Mesh, Problem, Q1Geometry, newton, rectangle_mesh
 from gransim.fem.element import shape_functions
 from gransim.fem.slope import setup_for, slope_problem
-
-from fem_helpers import SMALL_SLOPE
 
 
 def test_shape_functions_partition_of_unity():
@@ -46,7 +45,7 @@ def test_patch_test_homogeneous_deformation(continuum):
     """Boundary nodes on an affine field; Newton from zero recovers the field, P(F0) at every Gauss point
     and zero interior residual, on distorted elements."""
     F0 = np.array([[1.08, 0.12], [-0.05, 0.93]])
-    prob, u_exact, boundary = _patch(continuum, F0)
+    prob, u_exact, _ = _patch(continuum, F0)
     sol = newton(prob, np.zeros(prob.dofs.n_reduced), (0.0, 0.0))
     assert np.allclose(sol.u, u_exact, atol=1e-12)
     P0 = continuum.evaluate(F0[None]).piola[0]

@@ -2,11 +2,10 @@
 
 import numpy as np
 import pytest
+from fem_helpers import random_F
 
 from gransim.errors import InputError
 from gransim.fem import NeoHookean, lame
-
-from fem_helpers import random_F
 
 
 def test_stress_and_tangent_are_derivatives(continuum):

@@ -4,11 +4,11 @@ import h5py
 import meshio
 import numpy as np
 import pytest
-
 from fem_helpers import SMALL_SLOPE, make_continuum
+
 from gransim.cli import main
 from gransim.errors import InputError
-from gransim.fem.output import convergence_table, observed_orders, von_mises
+from gransim.fem.output import observed_orders, von_mises
 from gransim.fem.run import run_slope_case
 from gransim.fem.slope import setup_for
 
@@ -49,7 +49,7 @@ def test_run_writes_every_step(case):
 
 
 def test_hdf5_layout_matches_schema(case):
-    out, summary = case
+    out, _ = case
     with h5py.File(out / "slope.h5") as f:
         assert f.attrs["kind"] == "fem-slope" and bool(f.attrs["completed"])
         g = f["steps/021"]

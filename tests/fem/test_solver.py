@@ -3,8 +3,8 @@ linear elastic limit against an independent small-strain FE code, rigid-footing 
 
 import numpy as np
 import pytest
-
 from fem_helpers import SMALL_SLOPE, linear_small_strain, make_continuum
+
 from gransim.fem import DofMap, Problem, RigidBody, rectangle_mesh, run_load_steps
 from gransim.fem.constraints import rotation
 from gransim.fem.output import observed_orders

@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
-
 from fem_helpers import SMALL_SLOPE, linear_small_strain, triangular_packing
+
 from gransim.fem import DofMap, NewtonFailure, Problem, newton, rectangle_mesh, run_load_steps
 from gransim.fem.materials import AssignedRVEs
 from gransim.fem.slope import limit_message, setup_for, slope_problem
