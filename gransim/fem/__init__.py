@@ -7,7 +7,7 @@ mesh -> element (total-Lagrangian Q1) -> assembly -> constraints -> solver (Newt
 from .assembly import Assembler
 from .constraints import DofMap, RigidBody
 from .element import Q1Geometry
-from .materials import MaterialResult, NeoHookean, StVenantKirchhoff, lame
+from .materials import AssignedRVEs, MaterialResult, NeoHookean, StVenantKirchhoff, lame
 from .mesh import Mesh, SlopeGeometry, rectangle_mesh, slope_mesh
 from .solver import (
            LoadPathResult,
@@ -19,6 +19,7 @@ from .solver import (
            run_load_steps,
 )
 
-__all__ = ["Assembler", "DofMap", "LoadPathResult", "MaterialResult", "Mesh", "NeoHookean",
-           "NewtonFailure", "Problem", "Q1Geometry", "RigidBody", "SlopeGeometry", "StVenantKirchhoff",
-           "StepRecord", "Timer", "lame", "newton", "rectangle_mesh", "run_load_steps", "slope_mesh"]
+__all__ = ["PROTOCOLS", "Assembler", "AssignedRVEs", "DofMap", "LoadPathResult", "MaterialResult", "Mesh",
+           "NeoHookean", "NewtonFailure", "Problem", "Q1Geometry", "RigidBody", "SlopeGeometry", "SlopeSetup",
+           "StVenantKirchhoff", "StepRecord", "Timer", "lame", "limit_message", "newton", "rectangle_mesh",
+           "run_load_steps", "run_slope", "setup_for", "slope_mesh", "slope_problem"]
