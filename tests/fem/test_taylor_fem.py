@@ -6,6 +6,7 @@ from fem_helpers import SMALL_SLOPE, linear_small_strain, triangular_packing
 
 from gransim.fem import DofMap, NewtonFailure, Problem, newton, rectangle_mesh, run_load_steps
 from gransim.fem.materials import AssignedRVEs
+from gransim.fem.output import observed_orders
 from gransim.fem.slope import limit_message, setup_for, slope_problem
 
 rve = pytest.importorskip("gransim.rve")
@@ -97,6 +98,11 @@ def test_paper_load_on_reduced_slope_stops_at_crest_mechanism():
     prob = slope_problem(AssignedRVEs(mat, np.arange(200) % 2), setup)
     res = run_load_steps(prob, setup.schedule(), min_fraction=1 / 16)
     assert len(res.steps) >= 3 and not res.completed
+    for st in res.steps:  # every converged step converges quadratically (Taylor tangent is consistent)
+        e = st.energy_norms
+        assert e[-1] <= 1e-11 and len(e) <= 9
+        if len(e) >= 4:
+            assert max(observed_orders(e)[-2:]) > 1.6
     lam = res.limit["last_converged_load"][1]
     assert 0.5 < lam < 1.0
     msg = limit_message(prob, setup, res)
