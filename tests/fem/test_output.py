@@ -87,3 +87,11 @@ def test_acceptance_records_of_a_completed_run(case):
     recs = acceptance_records({"service": case[1]})
     assert {r["metric"] for r in recs} >= {"completed", "largest final relative energy norm"}
     assert all(r["pass"] for r in recs), recs
+
+
+def test_cli_slope_end_to_end(tmp_path, capsys):
+    """`gransim slope` on the full 380-element mesh with the continuum stand-in: exit 0, all outputs."""
+    rc = main(["slope", "--material", "neo-hookean", "--figures", "none", "--out", str(tmp_path)])
+    assert rc == 0
+    assert "completed all 21 steps" in capsys.readouterr().out
+    assert len(list(tmp_path.glob("step_*.vtu"))) == 21 and (tmp_path / "slope.h5").exists()
