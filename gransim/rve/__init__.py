@@ -3,8 +3,24 @@
 Stresses are tension positive; ``A[i, J, k, L] = dP_iJ/dF_kL``. See :mod:`gransim.rve.taylor`.
 """
 
-from .taylor import (ContactState, TaylorBatch, TaylorMaterial, TaylorResult, check_deformation_gradients,
-                     contact_state, homogenize, material_for)
+from .taylor import (
+    ContactState,
+    TaylorBatch,
+    TaylorMaterial,
+    TaylorResult,
+    check_deformation_gradients,
+    contact_state,
+    homogenize,
+    material_for,
+)
 
-__all__ = ["ContactState", "TaylorBatch", "TaylorMaterial", "TaylorResult", "check_deformation_gradients",
-           "contact_state", "homogenize", "material_for"]
+__all__ = [
+    "ContactState",
+    "TaylorBatch",
+    "TaylorMaterial",
+    "TaylorResult",
+    "check_deformation_gradients",
+    "contact_state",
+    "homogenize",
+    "material_for",
+]

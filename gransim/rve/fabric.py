@@ -51,7 +51,7 @@ TWO_PI = 2.0 * np.pi
 
 
 def contact_normal_angles(packing: Packing, F=None) -> np.ndarray:
-    """Directions theta in [0, 2 pi) of the normals n_ij of the overlapping pairs at x = F X, (M,)."""
+    """Directions theta in [0, 2 pi) of the normals of the overlapping pairs at x = F X (M,)."""
     from .taylor import check_deformation_gradients
 
     if not isinstance(packing, Packing):
@@ -66,14 +66,16 @@ def _directions(theta_c: np.ndarray) -> np.ndarray:
 
 
 def normal_density(theta_c, delta: float, theta) -> np.ndarray:
-    """rho_delta at the angles ``theta`` (rad) for contact directions ``theta_c`` (rad), see module doc."""
+    """rho_delta at angles ``theta`` for contact directions ``theta_c`` (rad); see module doc."""
     t = np.sort(_directions(np.asarray(theta_c, float)))
     th = np.mod(np.asarray(theta, float), TWO_PI)
     m = t.size
     if m == 0:
         raise InputError("contact normal density: no contacts (no overlapping pairs)")
     if not 0 < delta <= np.pi / 2:
-        raise InputError(f"angle of influence: must lie in (0, 90] degrees, got {np.degrees(delta):.6g}")
+        raise InputError(
+            f"angle of influence: must lie in (0, 90] degrees, got {np.degrees(delta):.6g}"
+        )
     # count of t in the open window (th - delta, th + delta), modulo 2 pi, by sorted search
     tt = np.concatenate([t - TWO_PI, t, t + TWO_PI])
     lo = np.searchsorted(tt, th - delta, side="right")
@@ -146,13 +148,16 @@ class NormalDensity:
         return uniformity(self.contact_angles, np.radians(RANKING_ANGLE_DEG))
 
 
-def contact_normal_density(packing: Packing, angles_deg=DEFAULT_ANGLES_DEG, F=None,
-                           n_theta: int = 720) -> NormalDensity:
+def contact_normal_density(
+    packing: Packing, angles_deg=DEFAULT_ANGLES_DEG, F=None, n_theta: int = 720
+) -> NormalDensity:
     """Contact normal density, uniformity and fabric of ``packing`` (at x = F X, default F = I)."""
     deltas = np.radians(as_array(angles_deg, "angles_deg", (None,)))
     if deltas.size == 0 or np.any(deltas <= 0) or np.any(deltas > np.pi / 2):
-        raise InputError(f"angles_deg: each angle of influence must lie in (0, 90] degrees, got "
-                         f"{np.degrees(deltas).tolist()}")
+        raise InputError(
+            f"angles_deg: each angle of influence must lie in (0, 90] degrees, got "
+            f"{np.degrees(deltas).tolist()}"
+        )
     if int(n_theta) < 8:
         raise InputError(f"n_theta: need at least 8 grid angles, got {n_theta}")
     tc = contact_normal_angles(packing, F)
@@ -162,8 +167,15 @@ def contact_normal_density(packing: Packing, angles_deg=DEFAULT_ANGLES_DEG, F=No
     dens = np.array([normal_density(tc, d, theta) for d in deltas])
     U = np.array([uniformity(tc, d) for d in deltas])
     fab = fabric_tensor(tc)
-    return NormalDensity(contact_angles=tc, angles_of_influence=deltas, theta=theta, density=dens,
-                         uniformity=U, anisotropy=anisotropy(tc), fabric=fab)
+    return NormalDensity(
+        contact_angles=tc,
+        angles_of_influence=deltas,
+        theta=theta,
+        density=dens,
+        uniformity=U,
+        anisotropy=anisotropy(tc),
+        fabric=fab,
+    )
 
 
 def most_uniform(packings: Mapping, F=None) -> tuple[str, dict]:
@@ -203,8 +215,13 @@ def plot_normal_densities(densities: Mapping, path, ncols: int = 5, title: str |
     n = len(names)
     ncols = max(1, min(ncols, n))
     nrows = int(np.ceil(n / ncols))
-    fig, axes = plt.subplots(nrows, ncols, subplot_kw={"projection": "polar"},
-                             figsize=(2.6 * ncols, 2.8 * nrows), squeeze=False)
+    fig, axes = plt.subplots(
+        nrows,
+        ncols,
+        subplot_kw={"projection": "polar"},
+        figsize=(2.6 * ncols, 2.8 * nrows),
+        squeeze=False,
+    )
     colours = {10: "black", 20: "tab:blue", 30: "tab:red"}
     for ax in axes.ravel()[n:]:
         ax.set_visible(False)
@@ -213,8 +230,13 @@ def plot_normal_densities(densities: Mapping, path, ncols: int = 5, title: str |
         th = np.append(d.theta, d.theta[:1] + 2 * np.pi)
         for k, delta in enumerate(d.angles_of_influence):
             deg = int(round(np.degrees(delta)))
-            ax.plot(th, np.append(d.density[k], d.density[k, :1]), lw=0.9, color=colours.get(deg),
-                    label=f"{deg}°")
+            ax.plot(
+                th,
+                np.append(d.density[k], d.density[k, :1]),
+                lw=0.9,
+                color=colours.get(deg),
+                label=f"{deg}°",
+            )
         ax.plot(th, np.full(th.shape, 1 / (2 * np.pi)), ls="--", lw=0.6, color="grey")
         ax.set_title(f"{name}\nU20={d.ranking_uniformity:.3f} a={d.anisotropy:.3f}", fontsize=8)
         ax.set_ylim(0.0, 1.05 * float(d.density.max()))

@@ -30,8 +30,9 @@ def homogenize_bruteforce(packing: Packing, F, normal_stiffness: float) -> dict:
     Cd = F @ C
     area_d = abs(np.linalg.det(Cd))
     heights = np.array([area_d / np.linalg.norm(Cd[:, 1]), area_d / np.linalg.norm(Cd[:, 0])])
-    # |F C (ds + n)| < 2 r_max needs |ds_k + n_k| < 2 r_max / h_k, with |ds_k| < 1
-    K = np.ceil(2.0 * r.max() / heights).astype(int) + 1
+    # |F C (ds + n)| < 2 r_max needs |ds_k + n_k| < x_k = 2 r_max / h_k with |ds_k| < 1, so
+    # |n_k| < 1 + x_k, i.e. |n_k| <= ceil(x_k)
+    K = np.ceil(2.0 * r.max() / heights).astype(int)
     N = r.size
     W = 0.0
     P = np.zeros((2, 2))
@@ -39,22 +40,32 @@ def homogenize_bruteforce(packing: Packing, F, normal_stiffness: float) -> dict:
     count = 0
     I2 = np.eye(2)
     iu, ju = np.triu_indices(N, k=0)
+    dX = X[ju] - X[iu]
+    cij = r[iu] + r[ju]
+    c2 = cij * cij
+    lX = dX @ F.T  # F (X_j - X_i); an image adds F C n
+    lx, ly = np.ascontiguousarray(lX[:, 0]), np.ascontiguousarray(lX[:, 1])
+    distinct = iu < ju
     for n1 in range(-K[0], K[0] + 1):
         for n2 in range(-K[1], K[1] + 1):
             self_ok = n1 > 0 or (n1 == 0 and n2 > 0)
-            keep = (iu < ju) | ((iu == ju) & self_ok)
-            i, j = iu[keep], ju[keep]
-            L = X[j] + C @ np.array([n1, n2], float) - X[i]
-            l = L @ F.T
-            d = np.sqrt(np.sum(l * l, axis=1))
-            c = r[i] + r[j]
-            hit = d < c
+            off = C @ np.array([n1, n2], float)
+            o = F @ off
+            ex, ey = lx + o[0], ly + o[1]
+            hit = ex * ex + ey * ey < c2 * (1.0 + 1e-9)  # loose pre-filter; exact test below
+            if not self_ok:
+                hit &= distinct
             if not np.any(hit):
                 continue
-            L, l, d, c = L[hit], l[hit], d[hit], c[hit]
+            L = dX[hit] + off
+            l = L @ F.T
+            d = np.sqrt(np.sum(l * l, axis=1))
+            c = cij[hit]
+            keep = d < c  # the same test on the exact branch, as the definition of a contact
+            L, l, d, c = L[keep], l[keep], d[keep], c[keep]
             eps = c - d
             n = l / d[:, None]
-            count += int(hit.sum())
+            count += int(keep.sum())
             W += np.sum(0.5 * kn * eps**2)
             P += np.einsum("m,mi,mJ->iJ", -kn * eps, n, L)
             a = kn * c / d  # material part of eq (12)
@@ -63,8 +74,13 @@ def homogenize_bruteforce(packing: Packing, F, normal_stiffness: float) -> dict:
             A += np.einsum("m,ik,mJ,mL->iJkL", b, I2, L, L)
     V = float(np.linalg.det(C))
     W, P, A = W / V, P / V, A / V
-    return {"energy": W, "piola": P, "tangent": A, "cauchy": P @ F.T / np.linalg.det(F),
-            "n_contacts": count}
+    return {
+        "energy": W,
+        "piola": P,
+        "tangent": A,
+        "cauchy": P @ F.T / np.linalg.det(F),
+        "n_contacts": count,
+    }
 
 
 def crosscheck(packings, normal_stiffness: float, deformations=None, seed: int = 0) -> list[dict]:
@@ -81,8 +97,13 @@ def crosscheck(packings, normal_stiffness: float, deformations=None, seed: int =
         packings = {"rve": packings}
     if deformations is None:
         rng = np.random.default_rng(seed)
-        base = [np.eye(2), np.diag([0.95, 1.0]), np.diag([1.0, 0.95]), np.array([[1, 0.05], [0, 1.0]]),
-                np.array([[1, 0], [0.05, 1.0]])]
+        base = [
+            np.eye(2),
+            np.diag([0.95, 1.0]),
+            np.diag([1.0, 0.95]),
+            np.array([[1, 0.05], [0, 1.0]]),
+            np.array([[1, 0], [0.05, 1.0]]),
+        ]
         base += [np.eye(2) + 0.1 * rng.uniform(-1, 1, (2, 2)) for _ in range(3)]
         deformations = np.array(base)
     out = []
@@ -91,12 +112,18 @@ def crosscheck(packings, normal_stiffness: float, deformations=None, seed: int =
         got = mat.evaluate(deformations)
         for k, F in enumerate(deformations):
             ref = homogenize_bruteforce(p, F, normal_stiffness)
-            rec = {"rve": name, "F": np.asarray(F).tolist(), "n_contacts": ref["n_contacts"],
-                   "contacts_equal": int(got.n_contacts[k]) == ref["n_contacts"]}
+            rec = {
+                "rve": name,
+                "F": np.asarray(F).tolist(),
+                "n_contacts": ref["n_contacts"],
+                "contacts_equal": int(got.n_contacts[k]) == ref["n_contacts"],
+            }
             for key, field in (("energy", "energy"), ("piola", "piola"), ("tangent", "tangent")):
                 a = np.asarray(getattr(got, field)[k])
                 b = np.asarray(ref[key])
                 scale = np.max(np.abs(b))
-                rec[f"rel_{key}"] = float(np.max(np.abs(a - b)) / scale) if scale > 0 else float(np.max(np.abs(a)))
+                rec[f"rel_{key}"] = (
+                    float(np.max(np.abs(a - b)) / scale) if scale > 0 else float(np.max(np.abs(a)))
+                )
             out.append(rec)
     return out

@@ -114,12 +114,16 @@ class StudyResult:
         """Name of the most uniform RVE (by U at 20 degrees), optionally among one size."""
         names = [k for k, n in zip(self.names, self.sizes) if size is None or n == size]
         if not names:
-            raise InputError(f"no RVE with {size} particles (sizes: {sorted(set(self.sizes.tolist()))})")
-        return min(names, key=lambda k: (self.fabric[k].ranking_uniformity, self.fabric[k].anisotropy))
+            raise InputError(
+                f"no RVE with {size} particles (sizes: {sorted(set(self.sizes.tolist()))})"
+            )
+        return min(
+            names, key=lambda k: (self.fabric[k].ranking_uniformity, self.fabric[k].anisotropy)
+        )
 
 
 class RVEStudy:
-    """Compute object for the studies of Figs 3-5: ``RVEStudy(packings).run()`` -> :class:`StudyResult`.
+    """Compute object for Figs 3-5: ``RVEStudy(packings).run().result`` is a :class:`StudyResult`.
 
     Parameters
     ----------
@@ -129,8 +133,15 @@ class RVEStudy:
     angles_deg : angles of influence of the fabric densities (degrees).
     """
 
-    def __init__(self, packings: Mapping, normal_stiffness: float = PAPER_NORMAL_STIFFNESS, steps: int = 50,
-                 compression: float = 0.1, shear: float = 0.1, angles_deg=DEFAULT_ANGLES_DEG):
+    def __init__(
+        self,
+        packings: Mapping,
+        normal_stiffness: float = PAPER_NORMAL_STIFFNESS,
+        steps: int = 50,
+        compression: float = 0.1,
+        shear: float = 0.1,
+        angles_deg=DEFAULT_ANGLES_DEG,
+    ):
         self.packings = load_packings(packings)
         self.normal_stiffness = as_positive_float(normal_stiffness, "normal_stiffness")
         self.steps, self.compression, self.shear = int(steps), float(compression), float(shear)
@@ -155,11 +166,19 @@ class RVEStudy:
         b = mat.evaluate(np.ascontiguousarray(Fall), rve)
         fabric = {k: contact_normal_density(self.packings[k], self.angles_deg) for k in names}
         self._result = StudyResult(
-            names=tuple(names), sizes=np.array([self.packings[k].n for k in names]), paths=PATHS,
-            drive=drive, F=F, cauchy=b.cauchy.reshape(R, Q, S1, 2, 2),
-            piola=b.piola.reshape(R, Q, S1, 2, 2), energy=b.energy.reshape(R, Q, S1),
-            n_contacts=b.n_contacts.reshape(R, Q, S1), normal_stiffness=self.normal_stiffness,
-            fabric=fabric, packings={k: self.packings[k] for k in names})
+            names=tuple(names),
+            sizes=np.array([self.packings[k].n for k in names]),
+            paths=PATHS,
+            drive=drive,
+            F=F,
+            cauchy=b.cauchy.reshape(R, Q, S1, 2, 2),
+            piola=b.piola.reshape(R, Q, S1, 2, 2),
+            energy=b.energy.reshape(R, Q, S1),
+            n_contacts=b.n_contacts.reshape(R, Q, S1),
+            normal_stiffness=self.normal_stiffness,
+            fabric=fabric,
+            packings={k: self.packings[k] for k in names},
+        )
         return self
 
 
@@ -181,8 +200,13 @@ def write_study(path, result: StudyResult, parameters: dict | None = None) -> Pa
     """Write a :class:`StudyResult` to HDF5 (layout in docs/schema_rve.md), atomically."""
     from ..io import atomic_h5, write_packing_group
 
-    params = {"normal_stiffness": result.normal_stiffness, "paths": list(result.paths),
-              "steps": int(result.drive.shape[1] - 1), "rves": list(result.names), **(parameters or {})}
+    params = {
+        "normal_stiffness": result.normal_stiffness,
+        "paths": list(result.paths),
+        "steps": int(result.drive.shape[1] - 1),
+        "rves": list(result.names),
+        **(parameters or {}),
+    }
     with atomic_h5(path, kind="rve-study", parameters=params) as f:
         f.attrs["sign_convention"] = "tension positive; stresses in N/m (2D), energy in J/m^2"
         g = f.create_group("rves")
@@ -209,10 +233,18 @@ def write_study(path, result: StudyResult, parameters: dict | None = None) -> Pa
         d0 = result.fabric[result.names[0]]
         fb.create_dataset("angles_deg", data=np.degrees(d0.angles_of_influence))
         fb.create_dataset("theta", data=d0.theta)
-        fb.create_dataset("density", data=np.array([result.fabric[k].density for k in result.names]))
-        fb.create_dataset("uniformity", data=np.array([result.fabric[k].uniformity for k in result.names]))
-        fb.create_dataset("anisotropy", data=np.array([result.fabric[k].anisotropy for k in result.names]))
-        fb.create_dataset("n_contacts", data=np.array([result.fabric[k].n_contacts for k in result.names]))
+        fb.create_dataset(
+            "density", data=np.array([result.fabric[k].density for k in result.names])
+        )
+        fb.create_dataset(
+            "uniformity", data=np.array([result.fabric[k].uniformity for k in result.names])
+        )
+        fb.create_dataset(
+            "anisotropy", data=np.array([result.fabric[k].anisotropy for k in result.names])
+        )
+        fb.create_dataset(
+            "n_contacts", data=np.array([result.fabric[k].n_contacts for k in result.names])
+        )
         for n in result.groups():
             fb.attrs[f"most_uniform_{n}"] = result.most_uniform(n)
     return Path(path)
@@ -247,35 +279,57 @@ def plot_study(result: StudyResult, out_dir) -> list[Path]:
     written = []
     comps = {"11": ((0, 0), "-"), "22": ((1, 1), "--"), "12": ((0, 1), ":")}
     every = max(1, (result.drive.shape[1] - 1) // 10)
-    for fname, pair, shown in (("compression.png", ("compression11", "compression22"), ("11", "22")),
-                               ("shear.png", ("shear12", "shear21"), ("11", "22", "12"))):
+    for fname, pair, shown in (
+        ("compression.png", ("compression11", "compression22"), ("11", "22")),
+        ("shear.png", ("shear12", "shear21"), ("11", "22", "12")),
+    ):
         fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
         for ax, p in zip(axes, pair):
             q = result.paths.index(p)
             for c, (n, (mean, std, count)) in enumerate(summ.items()):
                 for comp in shown:
                     (i, j), ls = comps[comp]
-                    ax.errorbar(result.drive[q], mean[q, :, i, j], yerr=std[q, :, i, j], ls=ls,
-                                color=_COLOURS[c % len(_COLOURS)], errorevery=every, capsize=2, lw=1.1,
-                                label=f"N={n} ({count} RVEs) $\\sigma_{{{comp}}}$")
+                    ax.errorbar(
+                        result.drive[q],
+                        mean[q, :, i, j],
+                        yerr=std[q, :, i, j],
+                        ls=ls,
+                        color=_COLOURS[c % len(_COLOURS)],
+                        errorevery=every,
+                        capsize=2,
+                        lw=1.1,
+                        label=f"N={n} ({count} RVEs) $\\sigma_{{{comp}}}$",
+                    )
             ax.set_xlabel("F%d%d" % tuple(k + 1 for k in DRIVING[p]))
             ax.set_ylabel("Cauchy stress (N/m, tension +)")
             ax.set_title(p)
             ax.grid(alpha=0.3)
         axes[0].legend(fontsize=7)
-        fig.suptitle(f"Taylor RVE stress paths, mean ± std, E_n = {result.normal_stiffness:.3g} N/m", fontsize=10)
+        fig.suptitle(
+            f"Taylor RVE stress paths, mean ± std, E_n = {result.normal_stiffness:.3g} N/m",
+            fontsize=10,
+        )
         fig.tight_layout()
         with atomic_path(out_dir / fname, suffix=".png") as tmp:
             fig.savefig(tmp, dpi=110, format="png")
         plt.close(fig)
         written.append(out_dir / fname)
-    written.append(Path(plot_normal_densities(result.fabric, out_dir / "fabric.png", ncols=5,
-                                              title="Contact normal density (black 10°, blue 20°, red 30°)")))
+    written.append(
+        Path(
+            plot_normal_densities(
+                result.fabric,
+                out_dir / "fabric.png",
+                ncols=5,
+                title="Contact normal density (black 10°, blue 20°, red 30°)",
+            )
+        )
+    )
     return written
 
 
-def run_study(packings: Mapping, out_dir, normal_stiffness: float = PAPER_NORMAL_STIFFNESS,
-              steps: int = 50) -> tuple[StudyResult, Path, list[Path]]:
+def run_study(
+    packings: Mapping, out_dir, normal_stiffness: float = PAPER_NORMAL_STIFFNESS, steps: int = 50
+) -> tuple[StudyResult, Path, list[Path]]:
     """Run, write ``out_dir/rve_study.h5`` and the PNGs; returns (result, h5 path, png paths)."""
     result = RVEStudy(packings, normal_stiffness=normal_stiffness, steps=steps).run().result
     out_dir = Path(out_dir)
@@ -284,5 +338,17 @@ def run_study(packings: Mapping, out_dir, normal_stiffness: float = PAPER_NORMAL
     return result, h5, pngs
 
 
-__all__ = ["DRIVING", "PATHS", "NormalDensity", "RVEStudy", "StudyResult", "load_packings", "load_path",
-           "most_uniform", "plot_study", "read_study_packing", "run_study", "write_study"]
+__all__ = [
+    "DRIVING",
+    "PATHS",
+    "NormalDensity",
+    "RVEStudy",
+    "StudyResult",
+    "load_packings",
+    "load_path",
+    "most_uniform",
+    "plot_study",
+    "read_study_packing",
+    "run_study",
+    "write_study",
+]

@@ -27,20 +27,22 @@ Contact candidates (cache rule)
 -------------------------------
 Contacts are found in the deformed configuration, so the contact set changes with F. A
 candidate set is built once for an *anchor* F0 by the periodic cell list: all pairs with
-|F0 L| < r_i + r_j + s (skin s, m). Every pair outside the set has |F0 L| >= r_i + r_j + s,
-and for any F, with G = F F0^{-1},
+|F0 L| < (1 + f) (r_i + r_j), a skin proportional to each pair's contact distance
+(f = ``skin_fraction``; proportional rather than uniform, so that in a polydisperse packing
+the small pairs do not carry the skin the largest pair needs). Every pair outside the set
+has |F0 L| >= (1 + f)(r_i + r_j), and for any F, with G = F F0^{-1},
 
-    |F L| = |G F0 L| >= sigma_min(G) |F0 L| >= sigma_min(G) (r_i + r_j + s).
+    |F L| = |G F0 L| >= sigma_min(G) |F0 L| >= sigma_min(G) (1 + f) (r_i + r_j),
 
-Since c / (c + s) grows with c = r_i + r_j <= 2 r_max, no pair outside the set can touch
-at F when
+so no pair outside the set can touch at F when
 
-    sigma_min(F F0^{-1}) >= 2 r_max / (2 r_max + s)        (validity rule)
+    sigma_min(F F0^{-1}) >= 1 / (1 + f)                    (validity rule)
 
 (tested with a relative safety margin of 1e-12). The set is then reused; otherwise a new
-set anchored at F is built. Stretching never invalidates a set, only compression along
-some direction does. This is sharper than the |(F - I) L| <= s/2 displacement bound and
-implies it for F0 = I. ``skin_fraction`` sets s = skin_fraction * 2 r_max.
+set anchored at F is built (a state may use any cached set the rule accepts). Stretching
+never invalidates a set, only compression along some direction does. For F0 = I the rule
+implies the displacement bound |(F - I) L| <= f/(1 + f) |L| of every candidate-excluded
+pair, and it is sharper than bounding |(F - I) L| by the norm of F - I.
 """
 
 from __future__ import annotations
@@ -61,7 +63,7 @@ from ..geometry import Packing
 
 #: relative safety margin of the candidate validity rule (round-off in sigma_min)
 VALIDITY_MARGIN = 1e-12
-#: default skin as a fraction of the largest contact distance 2 r_max
+#: default skin as a fraction of each pair's contact distance r_i + r_j
 DEFAULT_SKIN_FRACTION = 0.1
 #: most candidate sets kept per RVE (oldest dropped first)
 MAX_SETS_PER_RVE = 32
@@ -101,6 +103,8 @@ def _taylor_point(F, L, ri, rj, lo, hi, kn, inv_area, g, W, P, A, nc):
             continue
         d = np.sqrt(d2)
         eps = overlap(ri[m], rj[m], d)
+        if eps <= 0.0:  # d2 < c^2 but sqrt rounded up to c: not in contact (H(0) = 0)
+            continue
         fm = force_magnitude(eps, kn)
         k = stiffness(eps, kn)
         count += 1
@@ -137,8 +141,12 @@ def _taylor_point(F, L, ri, rj, lo, hi, kn, inv_area, g, W, P, A, nc):
     P[g, 0, 1] = p01 * s
     P[g, 1, 0] = p10 * s
     P[g, 1, 1] = p11 * s
-    nn = ((m00_00, m00_01, m00_11), (m01_00, m01_01, m01_11), (m01_00, m01_01, m01_11),
-          (m11_00, m11_01, m11_11))
+    nn = (
+        (m00_00, m00_01, m00_11),
+        (m01_00, m01_01, m01_11),
+        (m01_00, m01_01, m01_11),
+        (m11_00, m11_01, m11_11),
+    )
     gg = (g00, g01, g11)
     for i in range(2):
         for k in range(2):
@@ -171,7 +179,7 @@ def _taylor_single(F, L, ri, rj, lo, hi, kn, inv_area):
 
 @pjit
 def _taylor_batch(F, set_of, starts, L, ri, rj, kn, inv_area, W, P, A, nc):
-    """All Gauss points g in parallel: point g uses candidate set set_of[g] (rows starts[s]:starts[s+1])."""
+    """All states g in parallel; state g uses set s = set_of[g], rows starts[s]:starts[s+1]."""
     for g in prange(F.shape[0]):
         s = set_of[g]
         _taylor_point(F[g], L, ri, rj, starts[s], starts[s + 1], kn, inv_area[s], g, W, P, A, nc)
@@ -233,8 +241,13 @@ class TaylorBatch:
         return self.energy.shape[0]
 
     def __getitem__(self, g: int) -> TaylorResult:
-        return TaylorResult(energy=float(self.energy[g]), piola=self.piola[g], tangent=self.tangent[g],
-                            cauchy=self.cauchy[g], n_contacts=int(self.n_contacts[g]))
+        return TaylorResult(
+            energy=float(self.energy[g]),
+            piola=self.piola[g],
+            tangent=self.tangent[g],
+            cauchy=self.cauchy[g],
+            n_contacts=int(self.n_contacts[g]),
+        )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -252,13 +265,15 @@ def check_deformation_gradients(F, name: str = "F") -> np.ndarray:
     if bad.size:
         g = int(bad[0])
         where = "" if arr.shape[0] == 1 else f" at index {g}"
-        raise InputError(f"{name}: det F must be > 0 (the map must keep orientation), "
-                         f"got det F = {det[g]:.6g}{where}")
+        raise InputError(
+            f"{name}: det F must be > 0 (the map must keep orientation), "
+            f"got det F = {det[g]:.6g}{where}"
+        )
     return arr
 
 
 def _check_single_F(F) -> np.ndarray:
-    """Fast check of one F (2, 2): finite, det > 0; falls back to the general check on anything odd."""
+    """Fast check of one F (2, 2): finite, det > 0; the general check handles anything else."""
     if type(F) is np.ndarray and F.shape == (2, 2) and F.dtype == np.float64:
         a, b, c, d = F.ravel().tolist()
         if math.isfinite(a + b + c + d) and a * d - b * c > 0:
@@ -291,25 +306,41 @@ class _RVE:
         self.C = np.ascontiguousarray(packing.cell)
         self.r = np.ascontiguousarray(packing.radii)
         self.area = float(np.linalg.det(self.C))
-        self.cmax = 2.0 * float(self.r.max())
-        self.skin = skin_fraction * self.cmax
-        self.threshold = self.cmax / (self.cmax + self.skin) * (1.0 + VALIDITY_MARGIN)
-        self.sets = []  # list of (F0inv (2,2), L, ri, rj)
+        self.f = skin_fraction
+        self.threshold = 1.0 / (1.0 + skin_fraction) * (1.0 + VALIDITY_MARGIN)
+        self.sets = []  # list of (F0inv (2,2), L, ri, rj, i, j, shift)
+        self.used = []  # call counter of each set's last use (least recently used are pruned)
+        self.clock = 0
 
     def build(self, F0: np.ndarray):
-        """Candidate set anchored at F0: pairs with |F0 L| < r_i + r_j + skin."""
-        nl = find_neighbours(self.X @ F0.T, self.r, F0 @ self.C, self.skin)
-        L = self.X[nl.j] + nl.shift @ self.C.T - self.X[nl.i]
-        entry = (np.linalg.inv(F0), np.ascontiguousarray(L), self.r[nl.i].copy(), self.r[nl.j].copy(),
-                 nl.i, nl.j, nl.shift)
+        """Candidate set anchored at F0: pairs with |F0 L| < (1 + f)(r_i + r_j)."""
+        # the cell list takes one absolute skin: the largest pair's, then filter per pair
+        skin = self.f * 2.0 * float(self.r.max())
+        nl = find_neighbours(self.X @ F0.T, self.r, F0 @ self.C, skin)
+        c = (1.0 + self.f) * (self.r[nl.i] + self.r[nl.j])
+        keep = np.einsum("ij,ij->i", nl.branch, nl.branch) < c * c
+        i, j, shift = nl.i[keep], nl.j[keep], nl.shift[keep]
+        L = self.X[j] + shift @ self.C.T - self.X[i]
+        entry = (
+            np.linalg.inv(F0),
+            np.ascontiguousarray(L),
+            self.r[i].copy(),
+            self.r[j].copy(),
+            i,
+            j,
+            shift,
+        )
         self.sets.append(entry)
+        self.used.append(self.clock)
 
     def prune(self):
-        """Drop the oldest sets beyond MAX_SETS_PER_RVE (between calls, never during one)."""
-        if len(self.sets) > MAX_SETS_PER_RVE:
-            del self.sets[: len(self.sets) - MAX_SETS_PER_RVE // 2]
-            return True
-        return False
+        """Beyond MAX_SETS_PER_RVE sets keep the MAX/2 most recently used (between calls only)."""
+        if len(self.sets) <= MAX_SETS_PER_RVE:
+            return False
+        keep = np.sort(np.argsort(self.used, kind="stable")[-(MAX_SETS_PER_RVE // 2) :])
+        self.sets = [self.sets[k] for k in keep]
+        self.used = [self.used[k] for k in keep]
+        return True
 
     def valid(self, F: np.ndarray) -> np.ndarray:
         """(G, S) bool: set s covers F[g] by the validity rule."""
@@ -329,8 +360,10 @@ def _as_packings(packings) -> tuple[list[str], list[Packing]]:
         items = list(packings)
         names = [f"rve-{k}" for k in range(len(items))]
     else:
-        raise InputError(f"packings: expected a Packing, a sequence or a mapping of Packings, "
-                         f"got {type(packings).__name__}")
+        raise InputError(
+            f"packings: expected a Packing, a sequence or a mapping of Packings, "
+            f"got {type(packings).__name__}"
+        )
     if not items:
         raise InputError("packings: at least one packing is needed")
     for name, p in zip(names, items):
@@ -349,15 +382,18 @@ class TaylorMaterial:
     normal_stiffness : float
         E_n of eq (4) (N/m), > 0.
     skin_fraction : float
-        Skin of the cached contact candidates as a fraction of 2 r_max (see the module
-        docstring for the reuse rule). Larger: fewer rebuilds, more candidates per call.
+        Skin of the cached contact candidates as a fraction of each pair's contact
+        distance r_i + r_j (see the module docstring for the reuse rule). Larger: fewer
+        rebuilds, more candidates per call.
 
     Use :meth:`evaluate` for many states in one parallel call (G Gauss points, each with an
     RVE index), :meth:`__call__` for one state. Candidate sets are cached and rebuilt only
     when the validity rule fails; :attr:`n_builds` counts the builds.
     """
 
-    def __init__(self, packings, normal_stiffness: float, skin_fraction: float = DEFAULT_SKIN_FRACTION):
+    def __init__(
+        self, packings, normal_stiffness: float, skin_fraction: float = DEFAULT_SKIN_FRACTION
+    ):
         self.names, items = _as_packings(packings)
         self.normal_stiffness = as_positive_float(normal_stiffness, "normal_stiffness")
         self.skin_fraction = as_positive_float(skin_fraction, "skin_fraction")
@@ -388,9 +424,14 @@ class TaylorMaterial:
                 starts.append(starts[-1] + s[1].shape[0])
                 inv_area.append(1.0 / rve.area)
                 owner.append(k)
-        self._flat = (np.ascontiguousarray(np.concatenate(Ls).reshape(-1, 2)),
-                      np.concatenate(ris), np.concatenate(rjs), np.asarray(starts, np.int64),
-                      np.asarray(inv_area), np.asarray(owner))
+        self._flat = (
+            np.ascontiguousarray(np.concatenate(Ls).reshape(-1, 2)),
+            np.concatenate(ris),
+            np.concatenate(rjs),
+            np.asarray(starts, np.int64),
+            np.asarray(inv_area),
+            np.asarray(owner),
+        )
 
     def _assign(self, F: np.ndarray, rve: np.ndarray) -> np.ndarray:
         """Global candidate-set index for every state, building sets where none is valid."""
@@ -413,6 +454,9 @@ class TaylorMaterial:
                 ok = R.valid(Fk)
             # latest valid set (the most recently built covers the current neighbourhood best)
             local = ok.shape[1] - 1 - np.argmax(ok[:, ::-1], axis=1)
+            R.clock += 1
+            for q in np.unique(local):
+                R.used[q] = R.clock
             set_of[sel] = local + sum(len(r.sets) for r in self._rves[:k])
         if changed or self._flat is None:
             self._flatten()
@@ -423,15 +467,18 @@ class TaylorMaterial:
         if rve is None:
             if self.n_rve == 1:
                 return np.zeros(G, np.int64)
-            raise InputError(f"rve: this material holds {self.n_rve} RVEs; pass an RVE index per state")
+            raise InputError(
+                f"rve: this material holds {self.n_rve} RVEs; pass an RVE index per state"
+            )
         if np.ndim(rve) == 0:
             rve = np.full(G, rve)
         idx = as_array(rve, "rve", (None,), dtype=np.int64)
         if idx.shape[0] != G:
             raise InputError(f"rve: expected shape ({G},) (one index per F), got {idx.shape}")
         if idx.size and (idx.min() < 0 or idx.max() >= self.n_rve):
-            raise InputError(f"rve: indices must lie in [0, {self.n_rve}), got range "
-                             f"[{idx.min()}, {idx.max()}]")
+            raise InputError(
+                f"rve: indices must lie in [0, {self.n_rve}), got range [{idx.min()}, {idx.max()}]"
+            )
         return idx
 
     # -- evaluation ---------------------------------------------------------------------------
@@ -463,8 +510,14 @@ class TaylorMaterial:
         else:
             sig = np.full((G, 2, 2), np.nan)
         ncand = starts[set_of + 1] - starts[set_of]
-        return TaylorBatch(energy=_ro(W), piola=_ro(P), tangent=_ro(A), cauchy=_ro(sig),
-                           n_contacts=_ro(nc), n_candidates=_ro(ncand))
+        return TaylorBatch(
+            energy=_ro(W),
+            piola=_ro(P),
+            tangent=_ro(A),
+            cauchy=_ro(sig),
+            n_contacts=_ro(nc),
+            n_candidates=_ro(ncand),
+        )
 
     def __call__(self, F, rve: int = 0) -> TaylorResult:
         """One state: F (2, 2) of RVE ``rve`` (serial kernel, no thread start-up).
@@ -480,10 +533,16 @@ class TaylorMaterial:
             s = int(self._assign(F[None], np.full(1, rve, np.int64))[0])
             self._last = {rve: s}
         L, ri, rj, starts, inv_area, _ = self._flat
-        W, P, A, nc, sig = _taylor_single(F, L, ri, rj, starts[s], starts[s + 1], self.normal_stiffness,
-                                          inv_area[s])
-        return TaylorResult(energy=float(W[0]), piola=_ro(P[0]), tangent=_ro(A[0]), cauchy=_ro(sig),
-                            n_contacts=int(nc[0]))
+        W, P, A, nc, sig = _taylor_single(
+            F, L, ri, rj, starts[s], starts[s + 1], self.normal_stiffness, inv_area[s]
+        )
+        return TaylorResult(
+            energy=float(W[0]),
+            piola=_ro(P[0]),
+            tangent=_ro(A[0]),
+            cauchy=_ro(sig),
+            n_contacts=int(nc[0]),
+        )
 
     def _still_valid(self, F, rve: int, s: int) -> bool:
         """Validity rule for global set index s (still of RVE rve) in scalar arithmetic."""
@@ -496,7 +555,11 @@ class TaylorMaterial:
         s1 = g00 * g00 + g01 * g01 + g10 * g10 + g11 * g11
         det = g00 * g11 - g01 * g10
         disc = math.sqrt(max(s1 * s1 - 4.0 * det * det, 0.0))
-        return math.sqrt(2.0 * det * det / (s1 + disc)) >= R.threshold
+        if math.sqrt(2.0 * det * det / (s1 + disc)) < R.threshold:
+            return False
+        R.clock += 1
+        R.used[local] = R.clock
+        return True
 
     def stress_and_tangent(self, F, rve=None) -> tuple[np.ndarray, np.ndarray]:
         """(P (G, 2, 2), A (G, 2, 2, 2, 2)) for a finite-element solver."""
@@ -576,5 +639,12 @@ def contact_state(packing: Packing, F, normal_stiffness: float) -> ContactState:
     hit = d < ri + rj
     eps = (ri + rj - d)[hit]
     n = l[hit] / d[hit, None]
-    return ContactState(i=i[hit], j=j[hit], shift=shift[hit], branch=l[hit], reference_branch=L[hit],
-                        overlap=eps, force=-kn * eps[:, None] * n)
+    return ContactState(
+        i=i[hit],
+        j=j[hit],
+        shift=shift[hit],
+        branch=l[hit],
+        reference_branch=L[hit],
+        overlap=eps,
+        force=-kn * eps[:, None] * n,
+    )

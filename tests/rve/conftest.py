@@ -8,8 +8,14 @@ import pytest
 from gransim import Packing
 
 
-def lattice_packing(nx: int = 8, ny: int = 8, seed: int = 0, shear: float = 0.0, spread: float = 0.08,
-                    swell: float = 1.04) -> Packing:
+def lattice_packing(
+    nx: int = 8,
+    ny: int = 8,
+    seed: int = 0,
+    shear: float = 0.0,
+    spread: float = 0.08,
+    swell: float = 1.04,
+) -> Packing:
     """Perturbed triangular lattice (spacing 1 mm) with random radii near half the spacing.
 
     ``swell`` > 1 makes most neighbours overlap, the random radii (+-spread) and positions
@@ -25,7 +31,9 @@ def lattice_packing(nx: int = 8, ny: int = 8, seed: int = 0, shear: float = 0.0,
     r = 0.5 * a * swell * (1 + rng.uniform(-spread, spread, x.shape[0]))
     cell = np.array([[nx * a, 0.0], [0.0, ny * h]])
     S = np.array([[1.0, shear], [0.0, 1.0]])
-    return Packing(positions=x @ S.T, radii=r, cell=S @ cell, metadata={"kind": "test-lattice", "seed": seed})
+    return Packing(
+        positions=x @ S.T, radii=r, cell=S @ cell, metadata={"kind": "test-lattice", "seed": seed}
+    )
 
 
 def random_packing(n: int = 60, seed: int = 1, phi: float = 0.95) -> Packing:
@@ -39,10 +47,15 @@ def random_packing(n: int = 60, seed: int = 1, phi: float = 0.95) -> Packing:
     side = np.sqrt(area)
     cell = np.array([[side, 0.3 * side], [0.0, side]])
     s = rng.uniform(-0.2, 1.2, (n, 2))
-    return Packing(positions=s @ cell.T, radii=r, cell=cell, metadata={"kind": "test-random", "seed": seed})
+    return Packing(
+        positions=s @ cell.T, radii=r, cell=cell, metadata={"kind": "test-random", "seed": seed}
+    )
 
 
 @pytest.fixture(scope="session")
 def packings():
-    return {"lattice": lattice_packing(), "sheared": lattice_packing(7, 6, seed=3, shear=0.4),
-            "random": random_packing()}
+    return {
+        "lattice": lattice_packing(),
+        "sheared": lattice_packing(7, 6, seed=3, shear=0.4),
+        "random": random_packing(),
+    }

@@ -7,8 +7,16 @@ import pytest
 from conftest import lattice_packing, random_packing
 
 from gransim import InputError
-from gransim.rve.fabric import (anisotropy, contact_normal_angles, contact_normal_density, fabric_tensor,
-                                most_uniform, normal_density, plot_normal_densities, uniformity)
+from gransim.rve.fabric import (
+    anisotropy,
+    contact_normal_angles,
+    contact_normal_density,
+    fabric_tensor,
+    most_uniform,
+    normal_density,
+    plot_normal_densities,
+    uniformity,
+)
 
 
 def test_density_normalised_and_pi_periodic():
@@ -17,13 +25,15 @@ def test_density_normalised_and_pi_periodic():
     theta = np.linspace(0, 2 * np.pi, 20000, endpoint=False)
     for delta in np.radians([10, 20, 30, 90]):
         rho = normal_density(tc, delta, theta)
-        assert np.mean(rho) * 2 * np.pi == pytest.approx(1.0, abs=2e-3)  # Riemann sum of a step function
+        assert np.mean(rho) * 2 * np.pi == pytest.approx(
+            1.0, abs=2e-3
+        )  # Riemann sum of a step function
         np.testing.assert_array_equal(rho, normal_density(tc, delta, theta + np.pi))
         assert np.all(rho >= 0)
 
 
 def test_single_direction_closed_form():
-    """One normal (two directions): 2 pi rho = pi/(2 delta) on 4 delta of the circle, 0 elsewhere, so
+    """One normal (two directions): 2 pi rho = pi/(2 delta) on 4 delta of the circle, else 0, so
     U^2 = [4 delta (pi/(2 delta) - 1)^2 + 2 pi - 4 delta] / (2 pi)."""
     for deg in (10, 20, 30, 45):
         d = np.radians(deg)
@@ -46,7 +56,7 @@ def test_evenly_spread_normals_are_uniform():
 
 
 def test_anisotropy_of_cosine_density():
-    """Sample rho = (1 + a cos 2 theta)/(2 pi) by inverse CDF on a fine grid: fabric anisotropy -> a."""
+    """Sample rho = (1 + a cos 2 theta)/(2 pi) by inverse CDF: the fabric anisotropy is a."""
     a = 0.4
     u = (np.arange(200000) + 0.5) / 200000
     th = np.linspace(0, np.pi, 400001)

@@ -19,7 +19,9 @@ KN = 2.8e7
 
 @pytest.fixture(scope="module")
 def small_set():
-    return {f"s{n}-{k}": random_packing(n, seed=10 * n + k, phi=0.9) for n in (30, 60) for k in range(3)}
+    return {
+        f"s{n}-{k}": random_packing(n, seed=10 * n + k, phi=0.9) for n in (30, 60) for k in range(3)
+    }
 
 
 def test_load_paths():
@@ -41,8 +43,12 @@ def test_study_values_and_statistics(small_set, tmp_path):
     for r in (0, 3):
         for q, p in enumerate(PATHS):
             ref = homogenize_bruteforce(res.packings[res.names[r]], res.F[q, -1], KN)
-            np.testing.assert_allclose(res.cauchy[r, q, -1], ref["cauchy"], rtol=0,
-                                       atol=1e-12 * np.abs(ref["cauchy"]).max())
+            np.testing.assert_allclose(
+                res.cauchy[r, q, -1],
+                ref["cauchy"],
+                rtol=0,
+                atol=1e-12 * np.abs(ref["cauchy"]).max(),
+            )
             assert res.n_contacts[r, q, -1] == ref["n_contacts"]
     # compression makes every normal stress more compressive (tension positive: more negative)
     for q in (0, 1):
@@ -55,7 +61,9 @@ def test_study_values_and_statistics(small_set, tmp_path):
     with h5py.File(h5) as f:
         assert f.attrs["kind"] == "rve-study"
         np.testing.assert_array_equal(f["paths/shear12/cauchy"][()], res.cauchy[:, 2])
-        np.testing.assert_array_equal(f["summary/compression22/60/cauchy_std"][()], res.summary()[60][1][1])
+        np.testing.assert_array_equal(
+            f["summary/compression22/60/cauchy_std"][()], res.summary()[60][1][1]
+        )
         assert f["fabric/density"].shape == (6, 3, 720)
         assert f["fabric"].attrs["most_uniform_60"] == res.most_uniform(60)
     assert sorted(p.name for p in pngs) == ["compression.png", "fabric.png", "shear.png"]
@@ -87,8 +95,12 @@ def test_cli_rve_stress_and_check(tmp_path, capsys):
 
 def test_cli_rve_study(tmp_path, capsys, small_set):
     files = [str(save_packing(tmp_path / f"{k}.h5", p)) for k, p in list(small_set.items())[:2]]
-    assert main(["rve-study", "--packings", *files, "--steps", "4", "-o", str(tmp_path / "out")]) == 0
-    assert (tmp_path / "out" / "rve_study.h5").exists() and (tmp_path / "out" / "shear.png").exists()
+    assert (
+        main(["rve-study", "--packings", *files, "--steps", "4", "-o", str(tmp_path / "out")]) == 0
+    )
+    assert (tmp_path / "out" / "rve_study.h5").exists() and (
+        tmp_path / "out" / "shear.png"
+    ).exists()
     assert main(["rve-stress", str(tmp_path / "out" / "rve_study.h5")]) == 2
     assert "--rve NAME" in capsys.readouterr().err
     assert main(["rve-stress", str(tmp_path / "out" / "rve_study.h5"), "--rve", "nope"]) == 2

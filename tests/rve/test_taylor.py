@@ -139,8 +139,10 @@ def test_two_disks_contact_closing_is_continuous():
     a, R = 1e-3, 0.251e-3  # four disks per cell, only the pair along 1 at distance a/2 can touch
     p = Packing(positions=[[0, 0], [0.5 * a, 0]], radii=[R, R], cell=[[a, 0], [0, 10 * a]])
     lam_c = 2 * R / (0.5 * a)  # stretch at which the contact opens
-    below, above = homogenize(p, np.diag([lam_c * (1 - 1e-9), 1.0]), KN), \
-        homogenize(p, np.diag([lam_c * (1 + 1e-9), 1.0]), KN)
+    below, above = (
+        homogenize(p, np.diag([lam_c * (1 - 1e-9), 1.0]), KN),
+        homogenize(p, np.diag([lam_c * (1 + 1e-9), 1.0]), KN),
+    )
     assert below.n_contacts == 2 and above.n_contacts == 0
     assert np.max(np.abs(below.piola)) < 1e-9 * KN * R / a * 10
     assert below.tangent[0, 0, 0, 0] > 0 and above.tangent[0, 0, 0, 0] == 0
@@ -152,13 +154,18 @@ def test_agrees_with_bruteforce(packings, name):
     summation order only), identical contact counts."""
     for rec in crosscheck({name: packings[name]}, KN):
         assert rec["contacts_equal"], rec
-        assert rec["rel_energy"] < 1e-12 and rec["rel_piola"] < 1e-12 and rec["rel_tangent"] < 1e-12, rec
+        assert (
+            rec["rel_energy"] < 1e-12 and rec["rel_piola"] < 1e-12 and rec["rel_tangent"] < 1e-12
+        ), rec
 
 
 def test_tiny_cell_self_images():
     """Cells smaller than a disk diameter: a disk touches its own images (counted once each)."""
-    p = Packing(positions=[[0.1e-3, 0.2e-3], [0.6e-3, 0.7e-3]], radii=[0.45e-3, 0.3e-3],
-                cell=[[0.8e-3, 0.2e-3], [0.0, 0.9e-3]])
+    p = Packing(
+        positions=[[0.1e-3, 0.2e-3], [0.6e-3, 0.7e-3]],
+        radii=[0.45e-3, 0.3e-3],
+        cell=[[0.8e-3, 0.2e-3], [0.0, 0.9e-3]],
+    )
     for F in (np.eye(2), np.array([[0.9, 0.1], [-0.05, 1.1]])):
         ref = homogenize_bruteforce(p, F, KN)
         res = homogenize(p, F, KN)
@@ -202,8 +209,12 @@ def test_batched_equals_single_and_rve_index(packings):
     for g in range(12):
         one = homogenize(packings[names[idx[g]]], F[g], KN)
         assert b[g].n_contacts == one.n_contacts
-        np.testing.assert_allclose(b.tangent[g], one.tangent, rtol=0, atol=1e-13 * np.abs(one.tangent).max())
-        np.testing.assert_allclose(b.cauchy[g], one.cauchy, rtol=0, atol=1e-13 * np.abs(one.cauchy).max())
+        np.testing.assert_allclose(
+            b.tangent[g], one.tangent, rtol=0, atol=1e-13 * np.abs(one.tangent).max()
+        )
+        np.testing.assert_allclose(
+            b.cauchy[g], one.cauchy, rtol=0, atol=1e-13 * np.abs(one.cauchy).max()
+        )
     assert np.all(b.n_candidates >= b.n_contacts)
 
 
@@ -214,20 +225,27 @@ def test_contact_state_forces_reproduce_piola(packings):
     cs = contact_state(p, F, KN)
     res = homogenize(p, F, KN)
     assert len(cs) == res.n_contacts
-    np.testing.assert_allclose(np.einsum("mi,mJ->iJ", cs.force, cs.reference_branch) / p.area, res.piola,
-                               rtol=0, atol=1e-12 * np.abs(res.piola).max())
+    np.testing.assert_allclose(
+        np.einsum("mi,mJ->iJ", cs.force, cs.reference_branch) / p.area,
+        res.piola,
+        rtol=0,
+        atol=1e-12 * np.abs(res.piola).max(),
+    )
     assert np.all(cs.overlap > 0)
     np.testing.assert_allclose(np.linalg.norm(cs.normals, axis=1), 1.0)
 
 
-@pytest.mark.parametrize("F, match", [
-    (np.diag([1.0, -1.0]), "det F must be > 0"),
-    (np.zeros((2, 2)), "det F must be > 0"),
-    (np.eye(3), r"expected shape \(2, 2\)"),
-    (np.array([[1.0, np.nan], [0.0, 1.0]]), "NaN"),
-    (np.array([[1.0, np.inf], [0.0, 1.0]]), "NaN or inf"),
-    ("abc", "numeric"),
-])
+@pytest.mark.parametrize(
+    "F, match",
+    [
+        (np.diag([1.0, -1.0]), "det F must be > 0"),
+        (np.zeros((2, 2)), "det F must be > 0"),
+        (np.eye(3), r"expected shape \(2, 2\)"),
+        (np.array([[1.0, np.nan], [0.0, 1.0]]), "NaN"),
+        (np.array([[1.0, np.inf], [0.0, 1.0]]), "NaN or inf"),
+        ("abc", "numeric"),
+    ],
+)
 def test_bad_deformation_gradient(packings, F, match):
     with pytest.raises(InputError, match=match):
         homogenize(packings["lattice"], F, KN)
@@ -252,7 +270,7 @@ def test_bad_batch_and_stiffness(packings):
 
 
 def test_many_rebuilds_prune_old_sets_and_stay_exact():
-    """More anchors than MAX_SETS_PER_RVE: old sets are dropped between calls, results stay exact."""
+    """More anchors than MAX_SETS_PER_RVE: old sets dropped between calls, still exact."""
     from gransim.rve import taylor
 
     p = random_packing(30, seed=6, phi=0.8)
@@ -279,11 +297,13 @@ def _standard_rves():
     except ImportError:
         return None
     d = Path("results/packings")
-    if not d.is_dir() or len(list(d.glob("rve-*.h5"))) < 15:
-        return None
+    from gransim.cli.cmd_rve import standard_rve_names
     from gransim.rve.study import load_packings
 
-    return load_packings(standard_packings(d))
+    names = standard_rve_names()
+    if not all((d / f"{k}.h5").exists() for k in names):
+        return None
+    return load_packings(standard_packings(d, names=names))
 
 
 @pytest.mark.slow
@@ -293,6 +313,25 @@ def test_all_standard_rves_agree_with_bruteforce():
     rves = _standard_rves()
     if rves is None:
         pytest.skip("the 15 standard RVEs are not generated in results/packings")
-    for rec in crosscheck(rves, 2.8e7):
+    # three states per RVE keep this under ~15 s; ``gransim rve-check`` runs eight
+    Fs = np.array(
+        [[[0.95, 0.0], [0.0, 1.0]], [[1.0, 0.05], [0.0, 1.0]], [[1.08, -0.06], [0.09, 0.93]]]
+    )
+    for rec in crosscheck(rves, 2.8e7, Fs):
         assert rec["contacts_equal"], rec
         assert max(rec["rel_energy"], rec["rel_piola"], rec["rel_tangent"]) < 1e-12, rec
+
+
+def test_pruning_keeps_the_sets_in_use():
+    """Sets used recently survive pruning: the identity-anchored set, used at every call, is kept
+    while many far states force builds; afterwards states near I need no new build."""
+    from gransim.rve import taylor
+
+    p = random_packing(30, seed=6, phi=0.8)
+    mat = TaylorMaterial(p, KN, skin_fraction=0.01)
+    for lam in 0.98 * 0.985 ** np.arange(taylor.MAX_SETS_PER_RVE + 8):  # each beyond the last skin
+        mat.evaluate(np.stack([np.eye(2), np.diag([lam, 1.0])]))
+    n = mat.n_builds
+    assert n > taylor.MAX_SETS_PER_RVE
+    mat(np.diag([1.0, 1.005]))
+    assert mat.n_builds == n
