@@ -31,8 +31,7 @@ def nodal_average(problem: Problem, values: np.ndarray) -> np.ndarray:
     geom = problem.geometry
     w = geom.weight.ravel()
     v = values.reshape(len(w), -1)
-    nodes = np.repeat(geom.elements, 1, axis=0)  # (E, 4): Gauss point g sits next to node g
-    idx = nodes.ravel()
+    idx = geom.elements.ravel()  # Gauss point g of an element sits next to its node g
     num = np.zeros((problem.mesh.n_nodes, v.shape[1]))
     np.add.at(num, idx, w[:, None] * v)
     den = np.bincount(idx, weights=w, minlength=problem.mesh.n_nodes)

@@ -20,7 +20,14 @@ from .output import (
     write_h5,
     write_vtu,
 )
-from .slope import NORMAL_STIFFNESS, gauss_points_of_interest, limit_message, run_slope, setup_for
+from .slope import (
+    NORMAL_STIFFNESS,
+    gauss_points_of_interest,
+    limit_message,
+    setup_for,
+    slope_problem,
+)
+from .solver import run_load_steps
 
 #: The continuum stand-in material (tests and runs without the RVE branch).
 NEO_HOOKEAN_E, NEO_HOOKEAN_NU = 3.0e7, 0.3
@@ -116,28 +123,23 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
     out = Path(out) if out is not None else None
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-    state = {"problem": None, "interest": None}
+    problem = slope_problem(mat, setup)
+    interest = gauss_points_of_interest(problem, setup)
 
     def on_step(rec):
         if out is None:
             return
-        problem = state["problem"]
         write_vtu(out / f"step_{rec.step:03d}.vtu", problem, rec.solution)
         if figures == "all":
             render_png(out / f"step_{rec.step:03d}.png", problem, rec.solution,
-                       f"{protocol} step {rec.step}, footing {rec.load[1]:.0%}", mat, state["interest"])
+                       f"{protocol} step {rec.step}, footing {rec.load[1]:.0%}", mat, interest)
 
-    # build once to get the Gauss points of interest before the first step finishes
-    from .slope import slope_problem
-
-    state["problem"] = slope_problem(mat, setup)
-    state["interest"] = gauss_points_of_interest(state["problem"], setup)
     t0 = time.perf_counter()
     bar = progress(total=len(setup.schedule()), desc=f"slope {protocol}")
-    problem, result = run_slope(mat, setup, tol=tol, min_fraction=min_fraction, on_step=on_step, progress=bar)
+    result = run_load_steps(problem, setup.schedule(), tol=tol, min_fraction=min_fraction, on_step=on_step,
+                            progress=bar)
     bar.close()
     wall = time.perf_counter() - t0
-    state["problem"] = problem
     message = "" if result.completed else limit_message(problem, setup, result)
     table = convergence_table(result, TABLE2_STEPS)
     last = (result.limit["partial"] if (result.limit and result.limit["partial"] is not None)
@@ -179,7 +181,7 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
             tag = "final" if result.completed else "limit"
             render_png(out / f"{tag}.png", problem, last, f"{protocol}: {tag} state, footing "
                        f"{(result.limit['last_converged_load'][1] if result.limit else 1.0):.1%}", mat,
-                       state["interest"])
+                       interest)
         if result.limit and result.limit["partial"] is not None:
             write_vtu(out / f"step_{result.limit['step']:03d}_partial.vtu", problem, result.limit["partial"])
         plot_load_settlement(out / "load_settlement.png", problem, setup, result)
