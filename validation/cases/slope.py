@@ -1,0 +1,41 @@
+"""Case ``slope``: the FE2 slope stability problem of Meier et al. section 5 (no LIGGGHTS side).
+
+Not a code-to-code comparison: it checks the solver's own acceptance criteria (the service load
+runs to the end, the paper load stops at an honest limit, Newton converges quadratically) and
+puts the results (von Mises with deformed RVEs, load-settlement, Table 2) in the report.
+"""
+
+from __future__ import annotations
+
+import html
+
+from ..core import CaseResult, Context, Record, case
+
+
+@case("slope", "FE2 slope stability: Taylor RVE at every Gauss point", suites=("default", "full"), order=50)
+def slope(ctx: Context) -> CaseResult:
+    from gransim.fem.run import acceptance_records, run_slope_case
+
+    res = CaseResult(
+        "slope", "FE2 slope stability: Taylor RVE at every Gauss point",
+        "Plane-strain slope (20 x 19 Q1 elements, 1520 Gauss points), the most uniform 700-disk RVE "
+        "(contact normal density measure) as the material at every Gauss point (E_n = 2.8e7), dead load "
+        "in step 1 then the eccentric footing force in 20 steps, Newton-Raphson on the relative energy "
+        "norm. <i>service</i>: footing -5.0e6 N/m, must run to the end. <i>paper</i>: -4.0e7 N/m, "
+        "expected to stop at a crest mechanism near 92% of the load (the Taylor RVE carries no tension).")
+    summaries = {}
+    for protocol in ("service", "paper"):
+        out = ctx.work("slope", protocol)
+        s = run_slope_case(protocol, out=out, figures="final", packing_dir=ctx.results / "packings")
+        summaries[protocol] = s
+        res.notes.append(f"<pre>{html.escape(s['report'])}</pre>")
+        for name, cap in (("final.png", "final state"), ("limit.png", "limit state (last converged step)"),
+                          ("load_settlement.png", "load-settlement curve of the footing")):
+            if (out / name).exists():
+                dest = ctx.figure_path(f"slope_{protocol}_{name}")
+                dest.write_bytes((out / name).read_bytes())
+                res.figures.append((dest, f"slope, protocol {protocol}: {cap}"))
+    for r in acceptance_records(summaries):
+        res.records.append(Record(r["case"], r["quantity"], r["metric"], float(r["value"]), float(r["tolerance"]),
+                                  bool(r["pass"]), r.get("note", "")))
+    return res
