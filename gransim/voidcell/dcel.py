@@ -1,0 +1,317 @@
+"""Doubly connected edge list of the particle graph and the void-cell faces (Kuhn 002, sec. 3).
+
+Half-edge h (0 <= h < 2E) of edge e = h >> 1 runs from ``origin[h]`` to ``dest[h]``; its branch
+vector ``vec[h]`` is the lifted edge x_dest + C n_h - x_origin with image shift n_h (+n for
+h = 2e, -n for h = 2e + 1), so ``twin(h) = h ^ 1`` and ``vec[twin] = -vec``.
+
+Face walk (O(N)): the half-edges leaving each vertex are sorted by angle once. A face lies on the
+left of its half-edges and is traversed counter-clockwise: after arriving at v along h, the walk
+leaves v along the half-edge next *clockwise* from twin(h) (the sharpest clockwise corner,
+Fig. 5), ``next[h] = cw(twin(h))``. Every half-edge is visited exactly once. Because vectors
+carry the image shifts, a void cell that straddles the periodic boundary closes: the sum of its
+half-edge vectors is zero. Face areas follow from the lifted polygon (shoelace formula).
+
+Validity checks (a non-planar graph, e.g. from strongly overlapping particles, fails one):
+no two edges of a vertex in the same direction; no two edges crossing (explicit segment test on
+a periodic grid, O(E)); every face closed and of positive area; face areas adding up to the cell
+area; Euler's formula for the torus, F - E + V = 0 (eq 16).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._numba import njit
+from ..errors import InputError
+from ..geometry.cell import cell_area, cell_heights
+from .graph import halfedge_shifts
+
+#: relative tolerance of the closure and area checks (round-off of sums of O(N) terms)
+AREA_RTOL = 1e-8
+
+
+@dataclass(frozen=True, eq=False)
+class DCEL:
+    """Half-edge structure of the framework on the torus (arrays, read-only by convention).
+
+    Attributes
+    ----------
+    origin, dest : (H,) int64
+        Particle index at the tail / head of each half-edge (H = 2E).
+    shift : (H, 2) int64
+        Image shift n_h of the head.
+    vec : (H, 2) float64
+        Lifted edge vector x_dest + C n_h - x_origin (m).
+    next : (H,) int64
+        Next half-edge of the same face (counter-clockwise).
+    face : (H,) int64
+        Face on the left of each half-edge.
+    face_ptr : (F + 1,) int64, face_halfedges : (H,) int64
+        Half-edges of face f in walk order: face_halfedges[face_ptr[f]:face_ptr[f+1]].
+    face_area : (F,) float64
+        Area of each void cell (m^2), > 0.
+    face_centroid : (F, 2) float64
+        Centroid of each face polygon, lifted from its first vertex (m); not wrapped.
+    n_vertices : int
+    """
+
+    origin: np.ndarray
+    dest: np.ndarray
+    shift: np.ndarray
+    vec: np.ndarray
+    next: np.ndarray
+    face: np.ndarray
+    face_ptr: np.ndarray
+    face_halfedges: np.ndarray
+    face_area: np.ndarray
+    face_centroid: np.ndarray
+    n_vertices: int
+
+    @property
+    def twin(self) -> np.ndarray:
+        """twin[h] = h ^ 1, (H,)."""
+        return np.arange(self.origin.shape[0], dtype=np.int64) ^ 1
+
+    @property
+    def n_halfedges(self) -> int:
+        return int(self.origin.shape[0])
+
+    @property
+    def n_edges(self) -> int:
+        return self.n_halfedges // 2
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.face_ptr.shape[0] - 1)
+
+    @property
+    def valence(self) -> np.ndarray:
+        """Number of edges m of each face, (F,)."""
+        return np.diff(self.face_ptr)
+
+    @property
+    def euler_characteristic(self) -> int:
+        """F - E + V (0 on the torus, eq 16)."""
+        return self.n_faces - self.n_edges + self.n_vertices
+
+    def face_polygon(self, f: int) -> np.ndarray:
+        """Lifted vertex coordinates of face f, (m, 2), counter-clockwise, first vertex as stored."""
+        hs = self.face_halfedges[self.face_ptr[f]:self.face_ptr[f + 1]]
+        return np.cumsum(np.vstack([np.zeros(2), self.vec[hs[:-1]]]), axis=0)
+
+
+@njit
+def _face_cycles(nxt):
+    """Cycles of the permutation ``nxt``: face label per half-edge, CSR of half-edges in order."""
+    H = nxt.shape[0]
+    face = -np.ones(H, np.int64)
+    order = np.empty(H, np.int64)
+    ptr = np.zeros(H + 1, np.int64)
+    nf = 0
+    pos = 0
+    for h in range(H):
+        if face[h] >= 0:
+            continue
+        g = h
+        while face[g] < 0:
+            face[g] = nf
+            order[pos] = g
+            pos += 1
+            g = nxt[g]
+        if g != h:  # not a permutation: cannot happen for a valid rotation system
+            return face, order, ptr[:1], False
+        nf += 1
+        ptr[nf] = pos
+    return face, order, ptr[:nf + 1], True
+
+
+@njit
+def _first_crossing(mid, vec, ends, C, cutoff, nb1, nb2, k1, k2):
+    """First pair of edges (a, b) whose segments cross properly on the torus, or (-1, -1).
+
+    ``mid`` are wrapped midpoints (E, 2) with fractional coordinates in [0, 1); two crossing
+    segments have midpoints closer than (|l_a| + |l_b|) / 2 <= cutoff, so a bin grid of size >=
+    cutoff in each lattice direction and a scan of neighbouring bins finds every crossing.
+    """
+    ne = mid.shape[0]
+    det = C[0, 0] * C[1, 1] - C[0, 1] * C[1, 0]
+    nbins = nb1 * nb2
+    b = np.empty(ne, np.int64)
+    start = np.zeros(nbins + 1, np.int64)
+    for a in range(ne):
+        s0 = (C[1, 1] * mid[a, 0] - C[0, 1] * mid[a, 1]) / det
+        s1 = (-C[1, 0] * mid[a, 0] + C[0, 0] * mid[a, 1]) / det
+        b1 = min(max(int(s0 * nb1), 0), nb1 - 1)
+        b2 = min(max(int(s1 * nb2), 0), nb2 - 1)
+        b[a] = b1 * nb2 + b2
+        start[b[a] + 1] += 1
+    for q in range(nbins):
+        start[q + 1] += start[q]
+    fill = start[:-1].copy()
+    order = np.empty(ne, np.int64)
+    for a in range(ne):
+        order[fill[b[a]]] = a
+        fill[b[a]] += 1
+    for a in range(ne):
+        ba1 = b[a] // nb2
+        ba2 = b[a] % nb2
+        ha0 = 0.5 * vec[a, 0]
+        ha1 = 0.5 * vec[a, 1]
+        la = np.sqrt(vec[a, 0] ** 2 + vec[a, 1] ** 2)
+        for o1 in range(-k1, k1 + 1):
+            u1 = ba1 + o1
+            w1 = u1 % nb1
+            t1 = (u1 - w1) // nb1
+            for o2 in range(-k2, k2 + 1):
+                u2 = ba2 + o2
+                w2 = u2 % nb2
+                t2 = (u2 - w2) // nb2
+                off0 = C[0, 0] * t1 + C[0, 1] * t2
+                off1 = C[1, 0] * t1 + C[1, 1] * t2
+                q = w1 * nb2 + w2
+                for p in range(start[q], start[q + 1]):
+                    c = order[p]
+                    if c <= a:
+                        continue
+                    if (ends[c, 0] == ends[a, 0] or ends[c, 0] == ends[a, 1]
+                            or ends[c, 1] == ends[a, 0] or ends[c, 1] == ends[a, 1]):
+                        continue
+                    d0 = mid[c, 0] + off0 - mid[a, 0]
+                    d1 = mid[c, 1] + off1 - mid[a, 1]
+                    lc = np.sqrt(vec[c, 0] ** 2 + vec[c, 1] ** 2)
+                    if d0 * d0 + d1 * d1 > (0.5 * (la + lc)) ** 2:
+                        continue
+                    hc0 = 0.5 * vec[c, 0]
+                    hc1 = 0.5 * vec[c, 1]
+                    # segment a: -ha .. +ha ; segment c: d - hc .. d + hc
+                    o_c0 = vec[a, 0] * (d1 - hc1 + ha1) - vec[a, 1] * (d0 - hc0 + ha0)
+                    o_c1 = vec[a, 0] * (d1 + hc1 + ha1) - vec[a, 1] * (d0 + hc0 + ha0)
+                    o_a0 = vec[c, 0] * (-ha1 - d1 + hc1) - vec[c, 1] * (-ha0 - d0 + hc0)
+                    o_a1 = vec[c, 0] * (ha1 - d1 + hc1) - vec[c, 1] * (ha0 - d0 + hc0)
+                    if o_c0 * o_c1 < 0.0 and o_a0 * o_a1 < 0.0:
+                        return a, c
+    return -1, -1
+
+
+def find_crossing(positions, cell, edge_i, edge_j, edge_vec):
+    """First pair of crossing edges (indices into the edge list) or None. O(E)."""
+    ne = edge_i.shape[0]
+    if ne < 2:
+        return None
+    lengths = np.sqrt(np.einsum("ij,ij->i", edge_vec, edge_vec))
+    cutoff = float(lengths.max())
+    mid = positions[edge_i] + 0.5 * edge_vec
+    s = np.linalg.solve(cell, mid.T).T
+    s -= np.floor(s)
+    s[s >= 1.0] = 0.0
+    mid = np.ascontiguousarray(s @ cell.T)
+    h = cell_heights(cell)
+    nb = [max(1, int(np.floor(hk / cutoff))) for hk in h]
+    while nb[0] * nb[1] > 4 * ne:
+        nb = [max(1, v // 2) for v in nb]
+    k = [max(1, int(np.ceil(cutoff * nbk / hk - 1e-12))) for nbk, hk in zip(nb, h)]
+    ends = np.ascontiguousarray(np.column_stack([edge_i, edge_j]))
+    a, c = _first_crossing(mid, np.ascontiguousarray(edge_vec), ends, np.ascontiguousarray(cell),
+                           cutoff, nb[0], nb[1], k[0], k[1])
+    return None if a < 0 else (int(a), int(c))
+
+
+def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,
+               check_crossings: bool = True) -> DCEL:
+    """Build the half-edge structure and identify the void-cell faces (see module docstring).
+
+    Parameters
+    ----------
+    positions : (N, 2) float64, particle centres (m)
+    cell : (2, 2) float64, columns = lattice vectors (m)
+    edge_i, edge_j : (E,) int64, edge_shift : (E, 2) int64
+        Edges of the pruned framework (:class:`~gransim.voidcell.graph.ParticleGraph`).
+    n_vertices : int
+        Number of framework vertices V (for Euler's formula).
+    check_crossings : bool
+        Run the explicit O(E) segment-crossing test (default). The face checks below run always.
+
+    Raises
+    ------
+    InputError
+        crossing or coincident edges, a face that does not close or has non-positive area, face
+        areas not adding up to the cell area, or F - E + V != 0.
+    """
+    x = np.asarray(positions, np.float64)
+    C = np.asarray(cell, np.float64)
+    ne = edge_i.shape[0]
+    origin = np.empty(2 * ne, np.int64)
+    origin[0::2] = edge_i
+    origin[1::2] = edge_j
+    dest = np.empty_like(origin)
+    dest[0::2] = edge_j
+    dest[1::2] = edge_i
+    hshift = halfedge_shifts(edge_shift)
+    vec = x[dest] + hshift @ C.T - x[origin]
+    evec = vec[0::2]
+    if check_crossings:
+        hit = find_crossing(x, C, edge_i, edge_j, evec)
+        if hit is not None:
+            a, c = hit
+            raise InputError(
+                f"contacts: the particle graph is not planar: contact line {int(edge_i[a])}-"
+                f"{int(edge_j[a])} crosses {int(edge_i[c])}-{int(edge_j[c])} (strongly overlapping "
+                "particles?)")
+    # rotation system: half-edges sorted by (origin, angle)
+    angle = np.arctan2(vec[:, 1], vec[:, 0])
+    order = np.lexsort((angle, origin))
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.shape[0])
+    so = origin[order]
+    dup = (so[1:] == so[:-1]) & (angle[order][1:] == angle[order][:-1])
+    if np.any(dup):
+        k = int(np.argmax(dup))
+        raise InputError(f"contacts: two contact lines leave particle {int(so[k])} in the same "
+                         "direction (coincident edges: non-planar graph)")
+    n = x.shape[0]
+    first = np.searchsorted(so, np.arange(n), side="left")
+    last = np.searchsorted(so, np.arange(n), side="right") - 1
+    twin = np.arange(2 * ne, dtype=np.int64) ^ 1
+    rt = rank[twin]
+    cw_rank = np.where(rt == first[origin[twin]], last[origin[twin]], rt - 1)
+    nxt = order[cw_rank].astype(np.int64)
+    face, fh, ptr, ok = _face_cycles(nxt)
+    if not ok:  # pragma: no cover - next is a permutation by construction
+        raise InputError("contacts: face walk failed (the rotation system is not a permutation)")
+    nf = ptr.shape[0] - 1
+    # lifted polygons relative to each face's first vertex; closure and shoelace area
+    fv = vec[fh]
+    csum = np.cumsum(fv, axis=0)
+    base = np.zeros((nf, 2))
+    base[1:] = csum[ptr[1:-1] - 1]
+    fid = np.repeat(np.arange(nf), np.diff(ptr))
+    closure = csum[ptr[1:] - 1] - base
+    rel = csum - fv - base[fid]  # position of each half-edge's origin relative to the first vertex
+    cross = rel[:, 0] * fv[:, 1] - rel[:, 1] * fv[:, 0]
+    area = 0.5 * np.add.reduceat(cross, ptr[:-1]) if nf else np.zeros(0)
+    perim = np.add.reduceat(np.sqrt(np.einsum("ij,ij->i", fv, fv)), ptr[:-1]) if nf else np.zeros(0)
+    A = cell_area(C)
+    bad = np.flatnonzero(np.sqrt(np.einsum("ij,ij->i", closure, closure)) > AREA_RTOL * perim)
+    if bad.size:
+        raise InputError(f"contacts: {bad.size} face(s) do not close on the torus (face {int(bad[0])}; "
+                         "the graph is not a cellular embedding: non-planar?)")
+    bad = np.flatnonzero(area <= 0)
+    if bad.size:
+        raise InputError(f"contacts: {bad.size} face(s) with non-positive area (face {int(bad[0])}: "
+                         f"{area[bad[0]]:.3g} m^2): crossing contact lines, non-planar graph")
+    if abs(area.sum() - A) > AREA_RTOL * A:
+        raise InputError(f"contacts: face areas add up to {area.sum():.12g} m^2, not the cell area "
+                         f"{A:.12g} m^2 (overlapping faces: non-planar graph)")
+    euler = nf - ne + int(n_vertices)
+    if euler != 0:
+        raise InputError(f"contacts: Euler's formula on the torus fails: F - E + V = {nf} - {ne} + "
+                         f"{n_vertices} = {euler} != 0")
+    # centroids of the lifted polygons (shoelace-weighted)
+    nx = rel + fv
+    cx = np.add.reduceat((rel[:, 0] + nx[:, 0]) * cross, ptr[:-1]) / (6 * area)
+    cy = np.add.reduceat((rel[:, 1] + nx[:, 1]) * cross, ptr[:-1]) / (6 * area)
+    centroid = x[origin[fh[ptr[:-1]]]] + np.column_stack([cx, cy])
+    return DCEL(origin=origin, dest=dest, shift=hshift, vec=vec, next=nxt, face=face, face_ptr=ptr,
+                face_halfedges=fh, face_area=area, face_centroid=centroid, n_vertices=int(n_vertices))
