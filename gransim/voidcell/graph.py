@@ -22,9 +22,11 @@ The removed particles are classified, in this order of precedence:
 * **isolated** -- no contact at all;
 * **island** -- in a connected component of the full contact graph that does not contain the
   framework (a cluster floating in a void);
-* **pendant** -- exactly one contact (and not in an island);
-* **peninsular** -- any other removed particle: a group joined to the framework through a bridge
-  (e.g. a pair or a ring hanging on one contact), and chains of such groups.
+* **pendant** -- removed by repeated deletion of particles with exactly one contact (a dangling
+  particle or a dangling chain), and not in an island;
+* **peninsular** -- any other removed particle: a group containing a closed loop of contacts
+  that is joined to the framework only through a bridge (e.g. a ring hanging on one contact),
+  together with the particles of the bridge chain.
 
 Repeated deletion of degree <= 1 vertices is contained in this rule (a pendant edge is a bridge).
 Groups joined to the framework at a single particle (a cut vertex) with at least two contacts
@@ -257,6 +259,21 @@ def components(n_particles: int, ci, cj, cs, active=None):
                             np.ascontiguousarray(active, np.bool_))
 
 
+def _peel(n, ci, cj, degree) -> np.ndarray:
+    """Particles removed by repeated deletion of degree-1 vertices, (N,) bool (vectorised rounds)."""
+    deg = degree.copy()
+    gone = np.zeros(n, bool)
+    alive_e = np.ones(ci.shape[0], bool)
+    while True:
+        leaf = (deg == 1) & ~gone
+        if not leaf.any():
+            return gone & (degree > 0)
+        gone |= leaf
+        dead = alive_e & (leaf[ci] | leaf[cj])
+        alive_e &= ~dead
+        deg -= np.bincount(ci[dead], minlength=n) + np.bincount(cj[dead], minlength=n)
+
+
 def build_graph(n_particles: int, contacts_i, contacts_j, contacts_shift) -> ParticleGraph:
     """Prune the contact graph to the framework (see the module docstring). O(N + M).
 
@@ -302,7 +319,7 @@ def build_graph(n_particles: int, contacts_i, contacts_j, contacts_shift) -> Par
     core_full = comp_full[np.argmax(core)]
     removed = np.full(n, PENINSULAR, np.int8)
     removed[core] = KEPT
-    removed[~core & (degree == 1)] = PENDANT
+    removed[_peel(n, ci, cj, degree)] = PENDANT
     removed[~core & (comp_full != core_full)] = ISLAND
     removed[degree == 0] = ISOLATED
     idx = np.flatnonzero(keep_edge)
