@@ -54,7 +54,9 @@ class VoidCells:
         dcel = build_dcel(s.positions, s.cell, graph.edge_i, graph.edge_j, graph.edge_shift,
                           graph.n_vertices, check_crossings=self.check_crossings)
         v = s.velocities
-        dv = v[dcel.dest] + dcel.shift @ s.cell_velocity.T - v[dcel.origin]
+        Cd = s.cell_velocity
+        dv = v[dcel.dest] - v[dcel.origin]  # eq (5), the head's image moving with (dC/dt) n
+        dv += dcel.shift[:, 0:1] * Cd[:, 0] + dcel.shift[:, 1:2] * Cd[:, 1]
         L = face_gradients(dcel.face_ptr, dcel.face_halfedges, dcel.vec, dv, dcel.face_area)
         L_cells = assembly_average(L, dcel.face_area)
         Lbar = L_cells if self.reference == "cells" else s.imposed_gradient

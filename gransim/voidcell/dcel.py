@@ -103,6 +103,81 @@ class DCEL:
 
 
 @njit
+def _rotation_next(n, origin, angle):
+    """next[h] = the half-edge leaving dest(h) next clockwise from twin(h) = h ^ 1.
+
+    Half-edges are bucketed by origin and each bucket insertion-sorted by angle (degrees are
+    small), O(H). Returns (next, v) with v >= 0 a vertex with two half-edges of equal angle.
+    """
+    H = origin.shape[0]
+    ptr = np.zeros(n + 1, np.int64)
+    for h in range(H):
+        ptr[origin[h] + 1] += 1
+    for v in range(n):
+        ptr[v + 1] += ptr[v]
+    fill = ptr[:-1].copy()
+    order = np.empty(H, np.int64)
+    for h in range(H):
+        order[fill[origin[h]]] = h
+        fill[origin[h]] += 1
+    dup = -1
+    for v in range(n):
+        for a in range(ptr[v] + 1, ptr[v + 1]):
+            h = order[a]
+            b = a - 1
+            while b >= ptr[v] and angle[order[b]] > angle[h]:
+                order[b + 1] = order[b]
+                b -= 1
+            order[b + 1] = h
+        for a in range(ptr[v] + 1, ptr[v + 1]):
+            if angle[order[a]] == angle[order[a - 1]] and dup < 0:
+                dup = v
+    pos = np.empty(H, np.int64)
+    for a in range(H):
+        pos[order[a]] = a
+    nxt = np.empty(H, np.int64)
+    for h in range(H):
+        t = h ^ 1
+        v = origin[t]
+        r = pos[t]
+        nxt[h] = order[r - 1] if r > ptr[v] else order[ptr[v + 1] - 1]
+    return nxt, dup
+
+
+@njit
+def _face_geometry(ptr, fh, vec):
+    """Per face: shoelace area, closure |sum of vectors| / perimeter, centroid relative to the
+    first vertex (lifted polygon)."""
+    nf = ptr.shape[0] - 1
+    area = np.empty(nf)
+    closure = np.empty(nf)
+    cen = np.empty((nf, 2))
+    for f in range(nf):
+        px = 0.0
+        py = 0.0
+        a2 = 0.0
+        cx = 0.0
+        cy = 0.0
+        per = 0.0
+        for k in range(ptr[f], ptr[f + 1]):
+            h = fh[k]
+            qx = px + vec[h, 0]
+            qy = py + vec[h, 1]
+            c = px * qy - py * qx
+            a2 += c
+            cx += (px + qx) * c
+            cy += (py + qy) * c
+            per += np.sqrt(vec[h, 0] ** 2 + vec[h, 1] ** 2)
+            px = qx
+            py = qy
+        area[f] = 0.5 * a2
+        closure[f] = np.sqrt(px * px + py * py) / per if per > 0 else 0.0
+        cen[f, 0] = cx / (3.0 * a2) if a2 != 0 else 0.0
+        cen[f, 1] = cy / (3.0 * a2) if a2 != 0 else 0.0
+    return area, closure, cen
+
+
+@njit
 def _face_cycles(nxt):
     """Cycles of the permutation ``nxt``: face label per half-edge, CSR of half-edges in order."""
     H = nxt.shape[0]
@@ -200,10 +275,9 @@ def find_crossing(positions, cell, edge_i, edge_j, edge_vec):
     ne = edge_i.shape[0]
     if ne < 2:
         return None
-    lengths = np.sqrt(np.einsum("ij,ij->i", edge_vec, edge_vec))
-    cutoff = float(lengths.max())
+    cutoff = float(np.sqrt((edge_vec[:, 0] ** 2 + edge_vec[:, 1] ** 2).max()))
     mid = positions[edge_i] + 0.5 * edge_vec
-    s = np.linalg.solve(cell, mid.T).T
+    s = mid @ np.linalg.inv(cell).T
     s -= np.floor(s)
     s[s >= 1.0] = 0.0
     mid = np.ascontiguousarray(s @ cell.T)
@@ -249,7 +323,8 @@ def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,
     dest[0::2] = edge_j
     dest[1::2] = edge_i
     hshift = halfedge_shifts(edge_shift)
-    vec = x[dest] + hshift @ C.T - x[origin]
+    vec = x[dest] - x[origin]
+    vec += hshift[:, 0:1] * C[:, 0] + hshift[:, 1:2] * C[:, 1]
     evec = vec[0::2]
     if check_crossings:
         hit = find_crossing(x, C, edge_i, edge_j, evec)
@@ -259,44 +334,19 @@ def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,
                 f"contacts: the particle graph is not planar: contact line {int(edge_i[a])}-"
                 f"{int(edge_j[a])} crosses {int(edge_i[c])}-{int(edge_j[c])} (strongly overlapping "
                 "particles?)")
-    # rotation system: half-edges sorted by (origin, angle)
+    # rotation system: half-edges of each vertex sorted by angle; next = clockwise of the twin
     angle = np.arctan2(vec[:, 1], vec[:, 0])
-    order = np.lexsort((angle, origin))
-    rank = np.empty_like(order)
-    rank[order] = np.arange(order.shape[0])
-    so = origin[order]
-    dup = (so[1:] == so[:-1]) & (angle[order][1:] == angle[order][:-1])
-    if np.any(dup):
-        k = int(np.argmax(dup))
-        raise InputError(f"contacts: two contact lines leave particle {int(so[k])} in the same "
+    nxt, dup = _rotation_next(x.shape[0], origin, angle)
+    if dup >= 0:
+        raise InputError(f"contacts: two contact lines leave particle {int(dup)} in the same "
                          "direction (coincident edges: non-planar graph)")
-    n = x.shape[0]
-    first = np.searchsorted(so, np.arange(n), side="left")
-    last = np.searchsorted(so, np.arange(n), side="right") - 1
-    twin = np.arange(2 * ne, dtype=np.int64) ^ 1
-    rt = rank[twin]
-    cw_rank = np.where(rt == first[origin[twin]], last[origin[twin]], rt - 1)
-    nxt = order[cw_rank].astype(np.int64)
     face, fh, ptr, ok = _face_cycles(nxt)
     if not ok:  # pragma: no cover - next is a permutation by construction
         raise InputError("contacts: face walk failed (the rotation system is not a permutation)")
     nf = ptr.shape[0] - 1
-    # lifted polygons relative to each face's first vertex; closure and shoelace area
-    fv = vec[fh]
-    csum = np.cumsum(fv, axis=0)
-    base = np.zeros((nf, 2))
-    base[1:] = csum[ptr[1:-1] - 1]
-    fid = np.repeat(np.arange(nf), np.diff(ptr))
-    closure = csum[ptr[1:] - 1] - base
-    rel = csum - fv - base[fid]  # position of each half-edge's origin relative to the first vertex
-    cross = rel[:, 0] * fv[:, 1] - rel[:, 1] * fv[:, 0]
-    area = 0.5 * np.add.reduceat(cross, ptr[:-1]) if nf else np.zeros(0)
-    perim = np.add.reduceat(np.sqrt(np.einsum("ij,ij->i", fv, fv)), ptr[:-1]) if nf else np.zeros(0)
+    area, closure, centroid_rel = _face_geometry(ptr, fh, vec)
     A = cell_area(C)
-    bad = np.flatnonzero(np.sqrt(np.einsum("ij,ij->i", closure, closure)) > AREA_RTOL * perim)
-    if bad.size:
-        raise InputError(f"contacts: {bad.size} face(s) do not close on the torus (face {int(bad[0])}; "
-                         "the graph is not a cellular embedding: non-planar?)")
+    bad = np.flatnonzero(closure > AREA_RTOL)
     bad = np.flatnonzero(area <= 0)
     if bad.size:
         raise InputError(f"contacts: {bad.size} face(s) with non-positive area (face {int(bad[0])}: "
@@ -308,10 +358,6 @@ def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,
     if euler != 0:
         raise InputError(f"contacts: Euler's formula on the torus fails: F - E + V = {nf} - {ne} + "
                          f"{n_vertices} = {euler} != 0")
-    # centroids of the lifted polygons (shoelace-weighted)
-    nx = rel + fv
-    cx = np.add.reduceat((rel[:, 0] + nx[:, 0]) * cross, ptr[:-1]) / (6 * area)
-    cy = np.add.reduceat((rel[:, 1] + nx[:, 1]) * cross, ptr[:-1]) / (6 * area)
-    centroid = x[origin[fh[ptr[:-1]]]] + np.column_stack([cx, cy])
+    centroid = x[origin[fh[ptr[:-1]]]] + centroid_rel
     return DCEL(origin=origin, dest=dest, shift=hshift, vec=vec, next=nxt, face=face, face_ptr=ptr,
                 face_halfedges=fh, face_area=area, face_centroid=centroid, n_vertices=int(n_vertices))

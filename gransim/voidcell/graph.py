@@ -217,18 +217,27 @@ def halfedge_shifts(shift: np.ndarray) -> np.ndarray:
     return hs
 
 
-def check_duplicates(ci, cj, cs) -> None:
+@njit
+def _first_duplicate(n, ptr, adj, dest, hshift):
+    """An edge whose (dest, shift) repeats among the half-edges of one vertex, or -1. O(sum deg^2)."""
+    for v in range(n):
+        for a in range(ptr[v], ptr[v + 1]):
+            ha = adj[a]
+            for b in range(a + 1, ptr[v + 1]):
+                hb = adj[b]
+                if (dest[ha] == dest[hb] and hshift[ha, 0] == hshift[hb, 0]
+                        and hshift[ha, 1] == hshift[hb, 1]):
+                    return max(ha, hb) >> 1
+    return -1
+
+
+def check_duplicates(ci, cj, cs, csr=None, hs=None) -> None:
     """Raise :class:`InputError` if a contact is listed twice (also as (j, i, -n))."""
-    if ci.shape[0] == 0:
-        return
-    swap = (ci > cj) | ((ci == cj) & ((cs[:, 0] < 0) | ((cs[:, 0] == 0) & (cs[:, 1] < 0))))
-    a = np.where(swap, cj, ci)
-    b = np.where(swap, ci, cj)
-    s = np.where(swap[:, None], -cs, cs)
-    keys = np.column_stack([a, b, s])
-    _, first, counts = np.unique(keys, axis=0, return_index=True, return_counts=True)
-    if np.any(counts > 1):
-        k = int(first[np.argmax(counts > 1)])
+    n = int(max(ci.max(), cj.max())) + 1 if ci.shape[0] else 0
+    ptr, adj, dest = csr if csr is not None else _csr(n, ci, cj)
+    hs = halfedge_shifts(cs) if hs is None else hs
+    k = _first_duplicate(ptr.shape[0] - 1, ptr, adj, dest, hs)
+    if k >= 0:
         raise InputError(f"contacts: contact {k} (particles {int(ci[k])}, {int(cj[k])}, image shift "
                          f"{cs[k].tolist()}) is listed more than once")
 
@@ -295,9 +304,9 @@ def build_graph(n_particles: int, contacts_i, contacts_j, contacts_shift) -> Par
     cs = np.ascontiguousarray(contacts_shift, np.int64).reshape(-1, 2)
     if ci.shape[0] == 0:
         raise InputError("contacts: the contact list is empty, there is no particle graph")
-    check_duplicates(ci, cj, cs)
     ptr, adj, dest = _csr(n, ci, cj)
     hs = halfedge_shifts(cs)
+    check_duplicates(ci, cj, cs, (ptr, adj, dest), hs)
     bridge = _bridges(n, ptr, adj, dest)
     comp, _, rank = _lift_components(n, ptr, adj, dest, hs, ~bridge)
     wrapping = np.flatnonzero(rank == 2)

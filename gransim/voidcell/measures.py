@@ -59,8 +59,8 @@ def face_gradients(face_ptr, face_halfedges, vec, dv, area) -> np.ndarray:
     for m in np.unique(m_of):
         faces = np.flatnonzero(m_of == m)
         hs = face_halfedges[face_ptr[faces][:, None] + np.arange(m)[None, :]]  # (nf_m, m)
-        b = edge_normals(vec[hs])
-        L[faces] = np.einsum("jk,fjp,fkq->fpq", q_matrix(int(m)), dv[hs], b) / (6.0 * area[faces, None, None])
+        Qb = np.matmul(q_matrix(int(m)), edge_normals(vec[hs]))  # (nf_m, m, 2): sum_k Q_jk b^k
+        L[faces] = np.matmul(dv[hs].transpose(0, 2, 1), Qb) / (6.0 * area[faces, None, None])
     return L
 
 
