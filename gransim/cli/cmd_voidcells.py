@@ -21,7 +21,13 @@ def register(subparsers):
                    help="axial compressive strains eps22 = -ln(Ly/Ly0) (default 0.0001 0.0016)")
     p.add_argument("--motion", choices=["velocity", "displacement"], default="velocity",
                    help="particle velocities (default) or displacements to the next snapshot")
+    p.add_argument("--velocities", choices=["remap", "absolute"], default="remap",
+                   help="stored velocities exclude the affine box remap (default; native DEM and "
+                        "LIGGGHTS 'fix deform remap x') or are absolute")
     p.add_argument("--out", default=None, help="output folder (default: RUN stem + '_voidcells')")
+    p.add_argument("--all-frames", action="store_true",
+                   help="also analyse every snapshot: counts, Euler's formula, mean alpha per frame "
+                        "(frames.csv)")
     p.add_argument("--no-vtk", action="store_true", help="skip the .vtu export")
     p.set_defaults(func=handler)
 
@@ -54,7 +60,8 @@ def handler(args) -> int:
     out = Path(args.out) if args.out else run.with_name(run.stem + "_voidcells")
     out.mkdir(parents=True, exist_ok=True)
     rows = []
-    for rs in load_run_snapshots(run, args.strain, motion=args.motion):
+    for rs in load_run_snapshots(run, args.strain, motion=args.motion,
+                                 velocities=args.velocities):
         vc = VoidCells().compute(rs.snapshot)
         tag = f"strain_{rs.requested:.6g}"
         save_figures(vc, out / tag, label=f"eps22 = {100 * rs.strain:.3g}% (step {rs.step})")
@@ -66,9 +73,24 @@ def handler(args) -> int:
             w = csv.DictWriter(fh, fieldnames=list(rows[0]))
             w.writeheader()
             w.writerows(rows)
+    if args.all_frames:
+        frames = []
+        for rs in load_run_snapshots(run, None, motion=args.motion, velocities=args.velocities):
+            vc = VoidCells().compute(rs.snapshot)
+            frames.append({"strain": rs.strain, "step": rs.step, **vc.summary()})
+        with atomic_path(out / "frames.csv", suffix=".csv") as tmp:
+            with open(tmp, "w", newline="") as fh:
+                w = csv.DictWriter(fh, fieldnames=list(frames[0]))
+                w.writeheader()
+                w.writerows(frames)
+        bad = [f["step"] for f in frames if f["euler"] != 0]
+        print(f"{len(frames)} frames: F - E + V = 0 on {len(frames) - len(bad)} of them"
+              + (f" (fails at steps {bad})" if bad else "") + f"; first frame (step {frames[0]['step']}): "
+              f"{frames[0]['faces']} faces, {frames[0]['edges']} edges, {frames[0]['vertices']} vertices")
     table = format_table(rows)
     with atomic_path(out / "voidcells.md", suffix=".md") as tmp:
         tmp.write_text(table + "\n")
     print(table)
-    print(f"wrote {out}/ (PNG maps, voidcells.csv, voidcells.md{'' if args.no_vtk else ', .vtu'})")
+    print(f"wrote {out}/ (PNG maps, voidcells.csv, voidcells.md{'' if args.no_vtk else ', .vtu'}"
+          f"{', frames.csv' if args.all_frames else ''})")
     return 0

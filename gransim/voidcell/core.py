@@ -161,14 +161,16 @@ class VoidCells:
 
     @property
     def mean_alpha(self) -> float:
-        """Mean alignment over the cells (unweighted, as in sec. 4: 0.73 at 0.01% strain)."""
-        return float(np.nanmean(self.alpha))
+        """Mean alignment over the cells (unweighted, as in sec. 4: 0.73 at 0.01% strain); NaN when
+        Lbar = 0 or every cell is at rest."""
+        a = self.alpha[np.isfinite(self.alpha)]
+        return float(a.mean()) if a.size else float("nan")
 
     @property
     def fraction_nonpositive_alpha(self) -> float:
         """Fraction of cells with alpha <= 0 (about 22% at 0.16% strain in sec. 4)."""
-        a = self.alpha
-        return float(np.count_nonzero(a <= 0) / a.shape[0])
+        a = self.alpha[np.isfinite(self.alpha)]
+        return float(np.count_nonzero(a <= 0) / a.shape[0]) if a.size else float("nan")
 
     def summary(self) -> dict:
         """Counts and statistics as a flat dict (one table row)."""

@@ -67,32 +67,44 @@ def _cell_rate(series, step: int) -> np.ndarray:
     return (cells[b] - cells[a]) / (t[b] - t[a])
 
 
-def _read_snapshot(g, radii, cell_rate) -> Snapshot:
+def _read_snapshot(g, radii, cell_rate, add_streaming: bool) -> Snapshot:
     c = g["contacts"]
-    return Snapshot(positions=g["positions"][()], cell=g["cell"][()], contacts_i=c["i"][()],
-                    contacts_j=c["j"][()], contacts_shift=c["shift"][()],
-                    velocities=g["velocities"][()], cell_velocity=cell_rate, radii=radii)
+    x = g["positions"][()]
+    C = g["cell"][()]
+    v = g["velocities"][()]
+    if add_streaming:
+        v = v + x @ (cell_rate @ np.linalg.inv(C)).T
+    return Snapshot(positions=x, cell=C, contacts_i=c["i"][()], contacts_j=c["j"][()],
+                    contacts_shift=c["shift"][()], velocities=v, cell_velocity=cell_rate, radii=radii)
 
 
-def load_run_snapshots(path, strains, motion: str = "velocity") -> list[RunSnapshot]:
+def load_run_snapshots(path, strains, motion: str = "velocity",
+                       velocities: str = "remap") -> list[RunSnapshot]:
     """The snapshots of a DEM run nearest to the requested axial strains.
 
     Parameters
     ----------
     path : str or Path
         A gransim results file of kind "dem-run" (docs/schema_dem.md).
-    strains : sequence of float
+    strains : sequence of float, or None
         Axial compressive strains eps22 = -ln(Ly/Ly0) (1e-4 = 0.01%), measured from the start
-        of the compression phase.
+        of the compression phase. None: every snapshot of the run, in order (``requested`` is
+        then the snapshot's own strain).
     motion : {"velocity", "displacement"}
         "velocity": the snapshot's particle velocities with dC/dt from /series/cell (the
         instantaneous velocity gradient, as in the paper). "displacement": displacement
         increments from the chosen snapshot to the next one (a displacement-gradient increment).
+    velocities : {"remap", "absolute"}
+        What the stored velocities are. "remap" (default, the native engine and LIGGGHTS with
+        ``fix deform ... remap x``): the box change moves every position affinely each step and
+        the stored v excludes that motion, so the particle velocity is v + (dC/dt) C^{-1} x.
+        "absolute": the stored v is the full particle velocity.
 
     Raises
     ------
-    ResultFileError for a missing/foreign file or one without snapshots; InputError for strains
-    outside the range covered by the snapshots (more than 25% away from the nearest one).
+    ResultFileError for a missing/foreign file or one without snapshots; InputError for a strain
+    farther from its nearest snapshot than the largest strain gap between snapshots (outside the
+    range the run covers). The strain actually used is returned with each snapshot.
     """
     import h5py  # noqa: F401  (the file object comes from open_result)
 
@@ -100,7 +112,8 @@ def load_run_snapshots(path, strains, motion: str = "velocity") -> list[RunSnaps
 
     if motion not in ("velocity", "displacement"):
         raise InputError(f"motion: choose 'velocity' or 'displacement', got {motion!r}")
-    req = [float(s) for s in np.atleast_1d(strains)]
+    if velocities not in ("remap", "absolute"):
+        raise InputError(f"velocities: choose 'remap' or 'absolute', got {velocities!r}")
     with open_result(path, kind="dem-run") as f:
         if "snapshots" not in f or not len(f["snapshots"]):
             raise ResultFileError(f"{path}: no /snapshots in this run")
@@ -114,19 +127,28 @@ def load_run_snapshots(path, strains, motion: str = "velocity") -> list[RunSnaps
         eps = np.array([-np.log(np.linalg.norm(f["snapshots"][n]["cell"][()][:, 1]) / Ly0)
                         for n in names])
         eligible = np.flatnonzero(steps >= step0)
+        if strains is None:  # every frame, in order (the consolidation phase included)
+            picks = [(float(eps[k]), k) for k in range(len(names) - (motion == "displacement"))]
         if motion == "displacement":
             eligible = eligible[eligible < len(names) - 1]
-        if eligible.size == 0:
+        if eligible.size == 0 and strains is not None:
             raise ResultFileError(f"{path}: no snapshot in the compression phase (from step {step0})")
+        if strains is not None:
+            ee = np.sort(eps[eligible])
+            gap = float(np.max(np.diff(ee))) if ee.size > 1 else 0.0  # snapshot spacing in strain
+            gap = max(gap, 1e-12)
+            picks = []
+            for s in (float(v) for v in np.atleast_1d(strains)):
+                k = int(eligible[np.argmin(np.abs(eps[eligible] - s))])
+                if abs(eps[k] - s) > gap:
+                    raise InputError(
+                        f"strain {s:g}: nearest snapshot is at strain {eps[k]:.4g} (step {steps[k]}); "
+                        f"snapshots cover {eps[eligible].min():.3g} .. {eps[eligible].max():.3g}")
+                picks.append((s, k))
         out = []
-        for s in req:
-            k = int(eligible[np.argmin(np.abs(eps[eligible] - s))])
-            if abs(eps[k] - s) > 0.25 * max(abs(s), 1e-12) and abs(eps[k] - s) > 1e-9:
-                raise InputError(
-                    f"strain {s:g}: nearest snapshot is at strain {eps[k]:.4g} (step {steps[k]}); "
-                    f"snapshots cover {eps[eligible].min():.3g} .. {eps[eligible].max():.3g}")
+        for s, k in picks:
             g = f["snapshots"][names[k]]
-            snap = _read_snapshot(g, radii, _cell_rate(series, int(steps[k])))
+            snap = _read_snapshot(g, radii, _cell_rate(series, int(steps[k])), velocities == "remap")
             if motion == "displacement":
                 g1 = f["snapshots"][names[k + 1]]
                 snap = snap.with_displacements_to(g1["positions"][()], g1["cell"][()])

@@ -44,7 +44,9 @@ def write_affine_run(path, snapshot_steps=(2, 5, 6, 7, 21, 22)):
             nl = find_neighbours(xw, r, C, skin=0.0)
             h = sn.create_group(f"s{s:010d}")
             h.attrs["step"] = s
-            h["cell"], h["positions"], h["velocities"] = C, xw, xw @ rate.T
+            # velocities as the engine stores them: relative to the affine remap (here zero)
+            h["cell"], h["positions"], h["velocities"] = C, xw, np.zeros_like(xw)
+            h.attrs["absolute_velocities"] = xw @ rate.T
             h["contacts/i"], h["contacts/j"], h["contacts/shift"] = nl.i, nl.j, nl.shift
     return path
 
@@ -63,6 +65,20 @@ def test_load_run_snapshots_picks_strains(run_file):
         # central difference of exp(-eps): O(RATE^2) relative error on the cell rate
         np.testing.assert_allclose(vc.L_cells, np.diag([0, -RATE / DT]), atol=1e-6 * RATE / DT)
         assert vc.mean_alpha == pytest.approx(1.0, abs=1e-6)
+
+
+def test_absolute_velocity_convention(run_file, tmp_path):
+    # the same motion stored as absolute velocities reads the same
+    import h5py
+    import shutil
+    p = tmp_path / "abs.h5"
+    shutil.copy(run_file, p)
+    with h5py.File(p, "r+") as f:
+        for g in f["snapshots"].values():
+            g["velocities"][...] = g.attrs["absolute_velocities"]
+    a = load_run_snapshots(run_file, [1.6e-3])[0].snapshot
+    b = load_run_snapshots(p, [1.6e-3], velocities="absolute")[0].snapshot
+    np.testing.assert_allclose(a.velocities, b.velocities, rtol=1e-6, atol=1e-12)
 
 
 def test_displacement_mode(run_file):
@@ -85,7 +101,8 @@ def test_bad_run_files(run_file, tmp_path):
 
 def test_cli_writes_figures_and_table(run_file, tmp_path, capsys):
     out = tmp_path / "vc"
-    rc = main(["voidcells", str(run_file), "--strain", "0.0001", "0.0016", "--out", str(out)])
+    rc = main(["voidcells", str(run_file), "--strain", "0.0001", "0.0016", "--out", str(out),
+               "--all-frames"])
     assert rc == 0
     for tag in ("strain_0.0001", "strain_0.0016"):
         for kind in ("alpha", "w", "hist", "vrel"):
@@ -100,6 +117,9 @@ def test_cli_writes_figures_and_table(run_file, tmp_path, capsys):
         assert float(row["coordination_2M_over_N"]) == pytest.approx(
             2 * int(row["edges"]) / int(row["vertices"]))
     assert "Kuhn (002)" in capsys.readouterr().out
+    frames = list(csv.DictReader(open(out / "frames.csv")))
+    assert [int(f["step"]) for f in frames] == [2, 5, 6, 7, 21, 22]
+    assert all(int(f["euler"]) == 0 for f in frames)
 
 
 def test_cli_error_is_one_line(tmp_path, capsys):
