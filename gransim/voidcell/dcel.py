@@ -203,12 +203,13 @@ def _face_cycles(nxt):
 
 
 @njit
-def _first_crossing(mid, vec, ends, C, cutoff, nb1, nb2, k1, k2):
+def _first_crossing(mid, vec, ends, C, nb1, nb2, k1, k2):
     """First pair of edges (a, b) whose segments cross properly on the torus, or (-1, -1).
 
     ``mid`` are wrapped midpoints (E, 2) with fractional coordinates in [0, 1); two crossing
-    segments have midpoints closer than (|l_a| + |l_b|) / 2 <= cutoff, so a bin grid of size >=
-    cutoff in each lattice direction and a scan of neighbouring bins finds every crossing.
+    segments have midpoints closer than (|l_a| + |l_b|) / 2 <= max |l|, so a bin grid of size
+    >= max |l| in each lattice direction and a scan of neighbouring bins finds every crossing.
+    Edges are copied in bin order first so that the scan reads contiguous memory.
     """
     ne = mid.shape[0]
     det = C[0, 0] * C[1, 1] - C[0, 1] * C[1, 0]
@@ -229,44 +230,57 @@ def _first_crossing(mid, vec, ends, C, cutoff, nb1, nb2, k1, k2):
     for a in range(ne):
         order[fill[b[a]]] = a
         fill[b[a]] += 1
-    for a in range(ne):
-        ba1 = b[a] // nb2
-        ba2 = b[a] % nb2
-        ha0 = 0.5 * vec[a, 0]
-        ha1 = 0.5 * vec[a, 1]
-        la = np.sqrt(vec[a, 0] ** 2 + vec[a, 1] ** 2)
-        for o1 in range(-k1, k1 + 1):
-            u1 = ba1 + o1
-            w1 = u1 % nb1
-            t1 = (u1 - w1) // nb1
-            for o2 in range(-k2, k2 + 1):
-                u2 = ba2 + o2
-                w2 = u2 % nb2
-                t2 = (u2 - w2) // nb2
-                off0 = C[0, 0] * t1 + C[0, 1] * t2
-                off1 = C[1, 0] * t1 + C[1, 1] * t2
-                q = w1 * nb2 + w2
-                for p in range(start[q], start[q + 1]):
-                    c = order[p]
-                    if c <= a:
-                        continue
-                    if (ends[c, 0] == ends[a, 0] or ends[c, 0] == ends[a, 1]
-                            or ends[c, 1] == ends[a, 0] or ends[c, 1] == ends[a, 1]):
-                        continue
-                    d0 = mid[c, 0] + off0 - mid[a, 0]
-                    d1 = mid[c, 1] + off1 - mid[a, 1]
-                    lc = np.sqrt(vec[c, 0] ** 2 + vec[c, 1] ** 2)
-                    if d0 * d0 + d1 * d1 > (0.5 * (la + lc)) ** 2:
-                        continue
-                    hc0 = 0.5 * vec[c, 0]
-                    hc1 = 0.5 * vec[c, 1]
-                    # segment a: -ha .. +ha ; segment c: d - hc .. d + hc
-                    o_c0 = vec[a, 0] * (d1 - hc1 + ha1) - vec[a, 1] * (d0 - hc0 + ha0)
-                    o_c1 = vec[a, 0] * (d1 + hc1 + ha1) - vec[a, 1] * (d0 + hc0 + ha0)
-                    o_a0 = vec[c, 0] * (-ha1 - d1 + hc1) - vec[c, 1] * (-ha0 - d0 + hc0)
-                    o_a1 = vec[c, 0] * (ha1 - d1 + hc1) - vec[c, 1] * (ha0 - d0 + hc0)
-                    if o_c0 * o_c1 < 0.0 and o_a0 * o_a1 < 0.0:
-                        return a, c
+    # sorted copies: midpoint, half vector, length, end vertices
+    sm = np.empty((ne, 2))
+    sh = np.empty((ne, 2))
+    sl = np.empty(ne)
+    se = np.empty((ne, 2), np.int64)
+    for p in range(ne):
+        a = order[p]
+        sm[p, 0] = mid[a, 0]
+        sm[p, 1] = mid[a, 1]
+        sh[p, 0] = 0.5 * vec[a, 0]
+        sh[p, 1] = 0.5 * vec[a, 1]
+        sl[p] = np.sqrt(vec[a, 0] ** 2 + vec[a, 1] ** 2)
+        se[p, 0] = ends[a, 0]
+        se[p, 1] = ends[a, 1]
+    for q0 in range(nbins):
+        ba1 = q0 // nb2
+        ba2 = q0 % nb2
+        for pa in range(start[q0], start[q0 + 1]):
+            ha0 = sh[pa, 0]
+            ha1 = sh[pa, 1]
+            for o1 in range(-k1, k1 + 1):
+                u1 = ba1 + o1
+                w1 = u1 % nb1
+                t1 = (u1 - w1) // nb1
+                for o2 in range(-k2, k2 + 1):
+                    u2 = ba2 + o2
+                    w2 = u2 % nb2
+                    t2 = (u2 - w2) // nb2
+                    off0 = C[0, 0] * t1 + C[0, 1] * t2
+                    off1 = C[1, 0] * t1 + C[1, 1] * t2
+                    q = w1 * nb2 + w2
+                    for pc in range(max(start[q], pa + 1), start[q + 1]):
+                        d0 = sm[pc, 0] + off0 - sm[pa, 0]
+                        d1 = sm[pc, 1] + off1 - sm[pa, 1]
+                        reach = 0.5 * (sl[pa] + sl[pc])
+                        if d0 * d0 + d1 * d1 > reach * reach:
+                            continue
+                        if (se[pc, 0] == se[pa, 0] or se[pc, 0] == se[pa, 1]
+                                or se[pc, 1] == se[pa, 0] or se[pc, 1] == se[pa, 1]):
+                            continue
+                        hc0 = sh[pc, 0]
+                        hc1 = sh[pc, 1]
+                        # segment a: -ha .. +ha ; segment c: d - hc .. d + hc (orientation tests)
+                        o_c0 = ha0 * (d1 - hc1 + ha1) - ha1 * (d0 - hc0 + ha0)
+                        o_c1 = ha0 * (d1 + hc1 + ha1) - ha1 * (d0 + hc0 + ha0)
+                        o_a0 = hc0 * (-ha1 - d1 + hc1) - hc1 * (-ha0 - d0 + hc0)
+                        o_a1 = hc0 * (ha1 - d1 + hc1) - hc1 * (ha0 - d0 + hc0)
+                        if o_c0 * o_c1 < 0.0 and o_a0 * o_a1 < 0.0:
+                            a = order[pa]
+                            c = order[pc]
+                            return min(a, c), max(a, c)
     return -1, -1
 
 
@@ -288,7 +302,7 @@ def find_crossing(positions, cell, edge_i, edge_j, edge_vec):
     k = [max(1, int(np.ceil(cutoff * nbk / hk - 1e-12))) for nbk, hk in zip(nb, h)]
     ends = np.ascontiguousarray(np.column_stack([edge_i, edge_j]))
     a, c = _first_crossing(mid, np.ascontiguousarray(edge_vec), ends, np.ascontiguousarray(cell),
-                           cutoff, nb[0], nb[1], k[0], k[1])
+                           nb[0], nb[1], k[0], k[1])
     return None if a < 0 else (int(a), int(c))
 
 

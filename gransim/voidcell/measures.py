@@ -91,8 +91,11 @@ def relative_motion(positions: np.ndarray, velocities: np.ndarray, Lbar: np.ndar
     depends on where the origin is), so it is removed; eq (21) has c = 0 for a cell whose centre
     does not move.
     """
-    w = velocities - positions @ Lbar.T
-    w = w - w.mean(axis=0)
+    x = positions
+    w = np.empty_like(velocities)
+    w[:, 0] = velocities[:, 0] - (Lbar[0, 0] * x[:, 0] + Lbar[0, 1] * x[:, 1])
+    w[:, 1] = velocities[:, 1] - (Lbar[1, 0] * x[:, 0] + Lbar[1, 1] * x[:, 1])
+    w -= w.mean(axis=0)
     return w / (d50 * abs(Lbar[1, 1]))
 
 
