@@ -64,7 +64,7 @@ def run(quick: bool = False) -> list[dict]:
     out = []
     for n in sizes:
         snap = lattice_snapshot(n)
-        t = time_compute(snap, repeat=1 if n >= 1_000_000 else 3)
+        t = time_compute(snap, repeat=2 if n >= 1_000_000 else 3)
         s = t["summary"]
         note = (f"N={snap.n_particles}, M={snap.n_contacts}, F={s['faces']}, E={s['edges']}, "
                 f"V={s['vertices']}; graph {t['graph']:.2f} s, faces+checks {t['faces']:.2f} s; "

@@ -97,17 +97,26 @@ class ParticleGraph:
         return {name: int(np.count_nonzero(self.removed == code)) for code, name in REMOVAL_NAMES.items()}
 
 
+@njit
 def _csr(n, ei, ej):
-    """Half-edges grouped by origin: ptr (n+1,), adj (2E,) half-edge ids, dest (2E,)."""
-    origin = np.empty(2 * ei.shape[0], np.int64)
-    origin[0::2] = ei
-    origin[1::2] = ej
-    dest = np.empty_like(origin)
-    dest[0::2] = ej
-    dest[1::2] = ei
-    adj = np.argsort(origin, kind="stable").astype(np.int64)
+    """Half-edges grouped by origin (counting sort, O(N + E)): ptr (n+1,), adj (2E,) half-edge ids
+    in increasing order within each vertex, dest (2E,) head of every half-edge."""
+    ne = ei.shape[0]
+    dest = np.empty(2 * ne, np.int64)
     ptr = np.zeros(n + 1, np.int64)
-    np.cumsum(np.bincount(origin, minlength=n), out=ptr[1:])
+    for e in range(ne):
+        dest[2 * e] = ej[e]
+        dest[2 * e + 1] = ei[e]
+        ptr[ei[e] + 1] += 1
+        ptr[ej[e] + 1] += 1
+    for v in range(n):
+        ptr[v + 1] += ptr[v]
+    fill = ptr[:-1].copy()
+    adj = np.empty(2 * ne, np.int64)
+    for h in range(2 * ne):
+        o = dest[h ^ 1]
+        adj[fill[o]] = h
+        fill[o] += 1
     return ptr, adj, dest
 
 
