@@ -15,7 +15,8 @@ def register(subparsers):
         description="Particle graph, void cells and their velocity gradients (eq 7) at chosen "
                     "strains of a DEM run: PNG maps of alignment (Fig. 8), vorticity (Fig. 9), "
                     "relative motion (Fig. 10), alpha histograms, VTK polygons and a table "
-                    "(mean alpha, fraction alpha <= 0, faces/edges/vertices, 2M/N).")
+                    "(mean alpha, fraction alpha <= 0, faces/edges/vertices, 2M/N), with a first row for the "
+                    "initial graph (the first snapshot of the compression phase).")
     p.add_argument("run", help="DEM run file (HDF5, kind dem-run, docs/schema_dem.md)")
     p.add_argument("--strain", type=float, nargs="+", default=[1e-4, 1.6e-3],
                    help="axial compressive strains eps22 = -ln(Ly/Ly0) (default 0.0001 0.0016)")
@@ -28,22 +29,24 @@ def register(subparsers):
     p.add_argument("--all-frames", action="store_true",
                    help="also analyse every snapshot: counts, Euler's formula, mean alpha per frame "
                         "(frames.csv)")
+    p.add_argument("--no-initial", action="store_true",
+                   help="leave out the row of the first compression snapshot (the initial graph)")
     p.add_argument("--no-vtk", action="store_true", help="skip the .vtu export")
     p.set_defaults(func=handler)
 
 
 def format_table(rows: list) -> str:
     """Markdown table of the summaries, with the paper's values in the last rows."""
-    cols = ["strain", "step", "faces", "edges", "vertices", "euler", "coordination_2M_over_N",
+    cols = ["requested", "strain", "step", "faces", "edges", "vertices", "euler", "coordination_2M_over_N",
             "mean_alpha", "fraction_alpha_le_0"]
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     for r in rows:
         lines.append("| " + " | ".join(
             f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols) + " |")
-    lines.append(f"| Kuhn (002), initial graph | | {PAPER['faces']} | {PAPER['edges']} | "
+    lines.append(f"| Kuhn (002), initial graph | 0 | | {PAPER['faces']} | {PAPER['edges']} | "
                  f"{PAPER['vertices']} | 0 | {PAPER['coordination']} | | |")
-    lines.append(f"| Kuhn (002), 0.0001 | | | | | | | {PAPER['mean_alpha_at_0.0001']} | |")
-    lines.append(f"| Kuhn (002), 0.0016 | | | | | | | | about {PAPER['fraction_alpha_le_0_at_0.0016']} |")
+    lines.append(f"| Kuhn (002) | 0.0001 | | | | | | | {PAPER['mean_alpha_at_0.0001']} | |")
+    lines.append(f"| Kuhn (002) | 0.0016 | | | | | | | | about {PAPER['fraction_alpha_le_0_at_0.0016']} |")
     return "\n".join(lines)
 
 
@@ -60,10 +63,15 @@ def handler(args) -> int:
     out = Path(args.out) if args.out else run.with_name(run.stem + "_voidcells")
     out.mkdir(parents=True, exist_ok=True)
     rows = []
-    for rs in load_run_snapshots(run, args.strain, motion=args.motion,
+    strains = list(args.strain) if args.no_initial else [0.0] + list(args.strain)
+    for rs in load_run_snapshots(run, strains, motion=args.motion,
                                  velocities=args.velocities):
         vc = VoidCells().compute(rs.snapshot)
         tag = f"strain_{rs.requested:.6g}"
+        if rs.requested == 0.0 and not args.no_initial:  # the initial graph: counts only
+            rows.append({"strain": rs.strain, "requested": rs.requested, "step": rs.step,
+                         **vc.summary()})
+            continue
         save_figures(vc, out / tag, label=f"eps22 = {100 * rs.strain:.3g}% (step {rs.step})")
         if not args.no_vtk:
             cells_to_vtu(out / f"{tag}.vtu", vc)
