@@ -203,8 +203,9 @@ def _face_cycles(nxt):
 
 
 @njit
-def _first_crossing(mid, vec, ends, C, nb1, nb2, k1, k2):
-    """First pair of edges (a, b) whose segments cross properly on the torus, or (-1, -1).
+def _first_crossing(mid, vec, ends, C, nb1, nb2, k1, k2, count_all):
+    """First pair of edges (a, b) whose segments cross properly on the torus, or (-1, -1), and the
+    number of crossing pairs found (all of them with ``count_all``, else at most 1).
 
     ``mid`` are wrapped midpoints (E, 2) with fractional coordinates in [0, 1); two crossing
     segments have midpoints closer than (|l_a| + |l_b|) / 2 <= max |l|, so a bin grid of size
@@ -244,6 +245,9 @@ def _first_crossing(mid, vec, ends, C, nb1, nb2, k1, k2):
         sl[p] = np.sqrt(vec[a, 0] ** 2 + vec[a, 1] ** 2)
         se[p, 0] = ends[a, 0]
         se[p, 1] = ends[a, 1]
+    found = 0
+    first_a = -1
+    first_c = -1
     for q0 in range(nbins):
         ba1 = q0 // nb2
         ba2 = q0 % nb2
@@ -278,17 +282,24 @@ def _first_crossing(mid, vec, ends, C, nb1, nb2, k1, k2):
                         o_a0 = hc0 * (-ha1 - d1 + hc1) - hc1 * (-ha0 - d0 + hc0)
                         o_a1 = hc0 * (ha1 - d1 + hc1) - hc1 * (ha0 - d0 + hc0)
                         if o_c0 * o_c1 < 0.0 and o_a0 * o_a1 < 0.0:
-                            a = order[pa]
-                            c = order[pc]
-                            return min(a, c), max(a, c)
-    return -1, -1
+                            if found == 0:
+                                first_a = min(order[pa], order[pc])
+                                first_c = max(order[pa], order[pc])
+                            found += 1
+                            if not count_all:
+                                return first_a, first_c, found
+    return first_a, first_c, found
 
 
-def find_crossing(positions, cell, edge_i, edge_j, edge_vec):
-    """First pair of crossing edges (indices into the edge list) or None. O(E)."""
+def find_crossing(positions, cell, edge_i, edge_j, edge_vec, count_all: bool = False):
+    """First pair of crossing edges (indices into the edge list) or None. O(E).
+
+    With ``count_all`` returns ``(first_pair_or_None, number_of_crossing_pairs)``. Edges sharing
+    a particle are never counted (they meet at that particle).
+    """
     ne = edge_i.shape[0]
     if ne < 2:
-        return None
+        return (None, 0) if count_all else None
     cutoff = float(np.sqrt((edge_vec[:, 0] ** 2 + edge_vec[:, 1] ** 2).max()))
     mid = positions[edge_i] + 0.5 * edge_vec
     s = mid @ np.linalg.inv(cell).T
@@ -301,9 +312,10 @@ def find_crossing(positions, cell, edge_i, edge_j, edge_vec):
         nb = [max(1, v // 2) for v in nb]
     k = [max(1, int(np.ceil(cutoff * nbk / hk - 1e-12))) for nbk, hk in zip(nb, h)]
     ends = np.ascontiguousarray(np.column_stack([edge_i, edge_j]))
-    a, c = _first_crossing(mid, np.ascontiguousarray(edge_vec), ends, np.ascontiguousarray(cell),
-                           nb[0], nb[1], k[0], k[1])
-    return None if a < 0 else (int(a), int(c))
+    a, c, found = _first_crossing(mid, np.ascontiguousarray(edge_vec), ends,
+                                  np.ascontiguousarray(cell), nb[0], nb[1], k[0], k[1], count_all)
+    first = None if a < 0 else (int(a), int(c))
+    return (first, int(found)) if count_all else first
 
 
 def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,

@@ -99,3 +99,42 @@ def test_crossing_detected_across_the_boundary():
     assert find_crossing(pos, cell, ei, ej, vec) == (0, 1)
     vec[1] = [0.0, 0.4]  # shortened: 2 -> (0, 4.9) no longer reaches the line y = 5
     assert find_crossing(pos, cell, ei, ej, vec) is None
+
+
+def brute_force_crossings(pos, cell, ei, ej, vec):
+    """O(E^2 K^2) count of properly crossing segment pairs over image shifts -2..2 (numpy)."""
+    a0 = pos[ei]
+    a1 = a0 + vec
+    count = 0
+    for s1 in range(-2, 3):
+        for s2 in range(-2, 3):
+            off = cell @ np.array([s1, s2], float)
+            b0 = a0 + off
+            b1 = a1 + off
+
+            def orient(p, q, r):
+                return ((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
+                        - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
+            P, Q = a0[:, None], a1[:, None]
+            R, S = b0[None, :], b1[None, :]
+            hit = (orient(P, Q, R) * orient(P, Q, S) < 0) & (orient(R, S, P) * orient(R, S, Q) < 0)
+            share = ((ei[:, None] == ei[None, :]) | (ei[:, None] == ej[None, :])
+                     | (ej[:, None] == ei[None, :]) | (ej[:, None] == ej[None, :]))
+            hit &= ~share
+            count += int(np.triu(hit, 1).sum() + np.tril(hit, -1).sum())
+    return count // 2
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_crossing_count_matches_brute_force(seed):
+    rng = np.random.default_rng(seed)
+    cell = np.array([[6.0, 1.5], [0.0, 5.0]])  # sheared
+    n = 60
+    pos = rng.random((n, 2)) @ cell.T
+    ei = rng.integers(0, n, 80)
+    ej = (ei + 1 + rng.integers(0, n - 1, 80)) % n
+    vec = rng.normal(scale=0.6, size=(80, 2))  # segments need not end at pos[ej]: geometry only
+    first, count = find_crossing(pos, cell, ei, ej, vec, count_all=True)
+    expect = brute_force_crossings(pos, cell, ei, ej, vec)
+    assert expect > 0 and count == expect
+    assert (first is None) == (count == 0)
