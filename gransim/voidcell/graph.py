@@ -337,7 +337,7 @@ def build_graph(n_particles: int, contacts_i, contacts_j, contacts_shift) -> Par
     core_full = comp_full[np.argmax(core)]
     removed = np.full(n, PENINSULAR, np.int8)
     removed[core] = KEPT
-    removed[_peel(n, ci, cj, degree)] = PENDANT
+    removed[_peel(n, ci, cj, degree) & ~core] = PENDANT
     removed[~core & (comp_full != core_full)] = ISLAND
     removed[degree == 0] = ISOLATED
     idx = np.flatnonzero(keep_edge)
