@@ -15,8 +15,8 @@ def register(subparsers):
         description="Particle graph, void cells and their velocity gradients (eq 7) at chosen "
                     "strains of a DEM run: PNG maps of alignment (Fig. 8), vorticity (Fig. 9), "
                     "relative motion (Fig. 10), alpha histograms, VTK polygons and a table "
-                    "(mean alpha, fraction alpha <= 0, faces/edges/vertices, 2M/N), with a first row for the "
-                    "initial graph (the first snapshot of the compression phase).")
+                    "(mean alpha, fraction alpha <= 0, faces/edges/vertices, 2M/N), with a first "
+                    "row for the initial graph (the first snapshot of the compression phase).")
     p.add_argument("run", help="DEM run file (HDF5, kind dem-run, docs/schema_dem.md)")
     p.add_argument("--strain", type=float, nargs="+", default=[1e-4, 1.6e-3],
                    help="axial compressive strains eps22 = -ln(Ly/Ly0) (default 0.0001 0.0016)")
@@ -27,8 +27,8 @@ def register(subparsers):
                         "LIGGGHTS 'fix deform remap x') or are absolute")
     p.add_argument("--out", default=None, help="output folder (default: RUN stem + '_voidcells')")
     p.add_argument("--all-frames", action="store_true",
-                   help="also analyse every snapshot: counts, Euler's formula, mean alpha per frame "
-                        "(frames.csv)")
+                   help="also analyse every snapshot: counts, Euler's formula, mean alpha per "
+                        "frame (frames.csv)")
     p.add_argument("--no-initial", action="store_true",
                    help="leave out the row of the first compression snapshot (the initial graph)")
     p.add_argument("--no-vtk", action="store_true", help="skip the .vtu export")
@@ -37,8 +37,8 @@ def register(subparsers):
 
 def format_table(rows: list) -> str:
     """Markdown table of the summaries, with the paper's values in the last rows."""
-    cols = ["requested", "strain", "step", "faces", "edges", "vertices", "euler", "coordination_2M_over_N",
-            "mean_alpha", "fraction_alpha_le_0"]
+    cols = ["requested", "strain", "step", "faces", "edges", "vertices", "euler",
+            "coordination_2M_over_N", "mean_alpha", "fraction_alpha_le_0"]
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     for r in rows:
         lines.append("| " + " | ".join(
@@ -46,7 +46,8 @@ def format_table(rows: list) -> str:
     lines.append(f"| Kuhn (002), initial graph | 0 | | {PAPER['faces']} | {PAPER['edges']} | "
                  f"{PAPER['vertices']} | 0 | {PAPER['coordination']} | | |")
     lines.append(f"| Kuhn (002) | 0.0001 | | | | | | | {PAPER['mean_alpha_at_0.0001']} | |")
-    lines.append(f"| Kuhn (002) | 0.0016 | | | | | | | | about {PAPER['fraction_alpha_le_0_at_0.0016']} |")
+    lines.append("| Kuhn (002) | 0.0016 | | | | | | | | about "
+                 f"{PAPER['fraction_alpha_le_0_at_0.0016']} |")
     return "\n".join(lines)
 
 
@@ -75,7 +76,8 @@ def handler(args) -> int:
         save_figures(vc, out / tag, label=f"eps22 = {100 * rs.strain:.3g}% (step {rs.step})")
         if not args.no_vtk:
             cells_to_vtu(out / f"{tag}.vtu", vc)
-        rows.append({"strain": rs.strain, "requested": rs.requested, "step": rs.step, **vc.summary()})
+        rows.append({"strain": rs.strain, "requested": rs.requested, "step": rs.step,
+                     **vc.summary()})
     with atomic_path(out / "voidcells.csv", suffix=".csv") as tmp:
         with open(tmp, "w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=list(rows[0]))
@@ -93,8 +95,9 @@ def handler(args) -> int:
                 w.writerows(frames)
         bad = [f["step"] for f in frames if f["euler"] != 0]
         print(f"{len(frames)} frames: F - E + V = 0 on {len(frames) - len(bad)} of them"
-              + (f" (fails at steps {bad})" if bad else "") + f"; first frame (step {frames[0]['step']}): "
-              f"{frames[0]['faces']} faces, {frames[0]['edges']} edges, {frames[0]['vertices']} vertices")
+              + (f" (fails at steps {bad})" if bad else "")
+              + f"; first frame (step {frames[0]['step']}): {frames[0]['faces']} faces, "
+              f"{frames[0]['edges']} edges, {frames[0]['vertices']} vertices")
     table = format_table(rows)
     with atomic_path(out / "voidcells.md", suffix=".md") as tmp:
         tmp.write_text(table + "\n")

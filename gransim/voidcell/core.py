@@ -48,7 +48,8 @@ class VoidCells:
     def compute(self, snapshot: Snapshot) -> "VoidCells":
         """Build the graph, the faces and the measures of ``snapshot``; returns self."""
         if not isinstance(snapshot, Snapshot):
-            raise InputError(f"snapshot: expected a gransim.voidcell.Snapshot, got {type(snapshot).__name__}")
+            raise InputError("snapshot: expected a gransim.voidcell.Snapshot, got "
+                             f"{type(snapshot).__name__}")
         s = snapshot
         graph = build_graph(s.n_particles, s.contacts_i, s.contacts_j, s.contacts_shift)
         dcel = build_dcel(s.positions, s.cell, graph.edge_i, graph.edge_j, graph.edge_shift,
@@ -190,5 +191,6 @@ class VoidCells:
     def __repr__(self) -> str:
         if self._r is None:
             return f"VoidCells(reference={self.reference!r}, not computed)"
-        return (f"VoidCells(faces={self.n_faces}, edges={self.n_edges}, vertices={self.n_vertices}, "
+        return (f"VoidCells(faces={self.n_faces}, edges={self.n_edges}, "
+                f"vertices={self.n_vertices}, "
                 f"mean_alpha={self.mean_alpha:.3f})")

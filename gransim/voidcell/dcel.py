@@ -97,7 +97,7 @@ class DCEL:
         return self.n_faces - self.n_edges + self.n_vertices
 
     def face_polygon(self, f: int) -> np.ndarray:
-        """Lifted vertex coordinates of face f, (m, 2), counter-clockwise, first vertex as stored."""
+        """Lifted vertex coordinates of face f, (m, 2), counter-clockwise, from its first vertex."""
         hs = self.face_halfedges[self.face_ptr[f]:self.face_ptr[f + 1]]
         return np.cumsum(np.vstack([np.zeros(2), self.vec[hs[:-1]]]), axis=0)
 
@@ -375,7 +375,8 @@ def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,
     bad = np.flatnonzero(closure > AREA_RTOL)
     bad = np.flatnonzero(area <= 0)
     if bad.size:
-        raise InputError(f"contacts: {bad.size} face(s) with non-positive area (face {int(bad[0])}: "
+        raise InputError(f"contacts: {bad.size} face(s) with non-positive area "
+                         f"(face {int(bad[0])}: "
                          f"{area[bad[0]]:.3g} m^2): crossing contact lines, non-planar graph")
     if abs(area.sum() - A) > AREA_RTOL * A:
         raise InputError(f"contacts: face areas add up to {area.sum():.12g} m^2, not the cell area "
@@ -386,4 +387,5 @@ def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,
                          f"{n_vertices} = {euler} != 0")
     centroid = x[origin[fh[ptr[:-1]]]] + centroid_rel
     return DCEL(origin=origin, dest=dest, shift=hshift, vec=vec, next=nxt, face=face, face_ptr=ptr,
-                face_halfedges=fh, face_area=area, face_centroid=centroid, n_vertices=int(n_vertices))
+                face_halfedges=fh, face_area=area, face_centroid=centroid,
+                n_vertices=int(n_vertices))

@@ -94,7 +94,8 @@ class ParticleGraph:
 
     def removal_counts(self) -> dict:
         """Number of particles per removal class, e.g. {"kept": 871, "pendant": 40, ...}."""
-        return {name: int(np.count_nonzero(self.removed == code)) for code, name in REMOVAL_NAMES.items()}
+        return {name: int(np.count_nonzero(self.removed == code))
+                for code, name in REMOVAL_NAMES.items()}
 
 
 @njit
@@ -228,7 +229,7 @@ def halfedge_shifts(shift: np.ndarray) -> np.ndarray:
 
 @njit
 def _first_duplicate(n, ptr, adj, dest, hshift):
-    """An edge whose (dest, shift) repeats among the half-edges of one vertex, or -1. O(sum deg^2)."""
+    """An edge whose (dest, shift) repeats among the half-edges of a vertex, or -1. O(sum deg^2)."""
     for v in range(n):
         for a in range(ptr[v], ptr[v + 1]):
             ha = adj[a]
@@ -247,8 +248,8 @@ def check_duplicates(ci, cj, cs, csr=None, hs=None) -> None:
     hs = halfedge_shifts(cs) if hs is None else hs
     k = _first_duplicate(ptr.shape[0] - 1, ptr, adj, dest, hs)
     if k >= 0:
-        raise InputError(f"contacts: contact {k} (particles {int(ci[k])}, {int(cj[k])}, image shift "
-                         f"{cs[k].tolist()}) is listed more than once")
+        raise InputError(f"contacts: contact {k} (particles {int(ci[k])}, {int(cj[k])}, "
+                         f"image shift {cs[k].tolist()}) is listed more than once")
 
 
 def find_bridges(n_particles: int, ci, cj) -> np.ndarray:
@@ -278,7 +279,7 @@ def components(n_particles: int, ci, cj, cs, active=None):
 
 
 def _peel(n, ci, cj, degree) -> np.ndarray:
-    """Particles removed by repeated deletion of degree-1 vertices, (N,) bool (vectorised rounds)."""
+    """Particles removed by repeated deletion of degree-1 vertices, (N,) bool (vectorised)."""
     deg = degree.copy()
     gone = np.zeros(n, bool)
     alive_e = np.ones(ci.shape[0], bool)
@@ -322,8 +323,8 @@ def build_graph(n_particles: int, contacts_i, contacts_j, contacts_shift) -> Par
     if wrapping.size == 0:
         raise InputError(
             f"contacts: no group of particles spans the periodic cell in two directions "
-            f"({n} particles, {ci.shape[0]} contacts, {int(bridge.sum())} bridges): the graph has no "
-            "void-cell tessellation")
+            f"({n} particles, {ci.shape[0]} contacts, {int(bridge.sum())} bridges): the graph "
+            "has no void-cell tessellation")
     if wrapping.size > 1:
         raise InputError(
             f"contacts: {wrapping.size} separate groups of particles each span the periodic cell; "

@@ -75,7 +75,8 @@ def _read_snapshot(g, radii, cell_rate, add_streaming: bool) -> Snapshot:
     if add_streaming:
         v = v + x @ (cell_rate @ np.linalg.inv(C)).T
     return Snapshot(positions=x, cell=C, contacts_i=c["i"][()], contacts_j=c["j"][()],
-                    contacts_shift=c["shift"][()], velocities=v, cell_velocity=cell_rate, radii=radii)
+                    contacts_shift=c["shift"][()], velocities=v, cell_velocity=cell_rate,
+                    radii=radii)
 
 
 def load_run_snapshots(path, strains, motion: str = "velocity",
@@ -106,8 +107,6 @@ def load_run_snapshots(path, strains, motion: str = "velocity",
     farther from its nearest snapshot than the largest strain gap between snapshots (outside the
     range the run covers). The strain actually used is returned with each snapshot.
     """
-    import h5py  # noqa: F401  (the file object comes from open_result)
-
     from ..io.hdf5 import open_result
 
     if motion not in ("velocity", "displacement"):
@@ -132,7 +131,8 @@ def load_run_snapshots(path, strains, motion: str = "velocity",
         if motion == "displacement":
             eligible = eligible[eligible < len(names) - 1]
         if eligible.size == 0 and strains is not None:
-            raise ResultFileError(f"{path}: no snapshot in the compression phase (from step {step0})")
+            raise ResultFileError(f"{path}: no snapshot in the compression phase "
+                                  f"(from step {step0})")
         if strains is not None:
             ee = np.sort(eps[eligible])
             gap = float(np.max(np.diff(ee))) if ee.size > 1 else 0.0  # snapshot spacing in strain
@@ -142,15 +142,18 @@ def load_run_snapshots(path, strains, motion: str = "velocity",
                 k = int(eligible[np.argmin(np.abs(eps[eligible] - s))])
                 if abs(eps[k] - s) > gap:
                     raise InputError(
-                        f"strain {s:g}: nearest snapshot is at strain {eps[k]:.4g} (step {steps[k]}); "
+                        f"strain {s:g}: nearest snapshot is at strain {eps[k]:.4g} "
+                        f"(step {steps[k]}); "
                         f"snapshots cover {eps[eligible].min():.3g} .. {eps[eligible].max():.3g}")
                 picks.append((s, k))
         out = []
         for s, k in picks:
             g = f["snapshots"][names[k]]
-            snap = _read_snapshot(g, radii, _cell_rate(series, int(steps[k])), velocities == "remap")
+            rate = _cell_rate(series, int(steps[k]))
+            snap = _read_snapshot(g, radii, rate, velocities == "remap")
             if motion == "displacement":
                 g1 = f["snapshots"][names[k + 1]]
                 snap = snap.with_displacements_to(g1["positions"][()], g1["cell"][()])
-            out.append(RunSnapshot(requested=s, strain=float(eps[k]), step=int(steps[k]), snapshot=snap))
+            out.append(RunSnapshot(requested=s, strain=float(eps[k]), step=int(steps[k]),
+                                   snapshot=snap))
     return out

@@ -83,7 +83,7 @@ def plot_cells(vc: VoidCells, values=None, ax=None, cmap="Greys", vmin=None, vma
 
 
 def plot_alignment(vc: VoidCells, ax=None, title=None):
-    """Fig. 8: cells shaded by alignment alpha (eq 18), white for alpha <= 0, black for alpha = 1."""
+    """Fig. 8: cells shaded by alignment alpha (eq 18), white for alpha <= 0, black for 1."""
     ax = plot_cells(vc, vc.alpha, ax=ax, cmap="Greys", vmin=0.0, vmax=1.0,
                     colorbar_label="alignment alpha (eq 18)")
     ax.set_title(title or f"alignment: mean {vc.mean_alpha:.2f}, "
@@ -103,7 +103,7 @@ def plot_vorticity(vc: VoidCells, ax=None, title=None):
 
 
 def plot_relative_motion(vc: VoidCells, ax=None, title=None, scale=None):
-    """Fig. 10: arrows of v_rel (eq 21) at the particle centres (wrapped), over the cell outlines."""
+    """Fig. 10: arrows of v_rel (eq 21) at the (wrapped) particle centres over the cells."""
     from ..geometry.cell import wrap
 
     ax = plot_cells(vc, None, ax=ax, edgecolor="0.75")

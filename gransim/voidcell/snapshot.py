@@ -1,4 +1,4 @@
-"""The input of the void-cell analysis: one frozen snapshot of particle centres, contacts and motion.
+"""The input of the void-cell analysis: a frozen snapshot of particle centres, contacts, motion.
 
 A later adapter builds it from native DEM HDF5 output or from parsed LIGGGHTS dumps
 (:func:`gransim.voidcell.io.load_run_snapshots` reads the DEM schema of docs/schema_dem.md).
@@ -82,8 +82,8 @@ class Snapshot:
         selfc = np.flatnonzero((ci == cj) & np.all(cs == 0, axis=1))
         if selfc.size:
             k = int(selfc[0])
-            raise InputError(f"contacts: contact {k} joins particle {int(ci[k])} to itself with zero "
-                             "image shift")
+            raise InputError(f"contacts: contact {k} joins particle {int(ci[k])} to itself "
+                             "with zero image shift")
         v = as_array(self.velocities, "velocities", (n, 2))
         Cd = np.zeros((2, 2)) if self.cell_velocity is None else as_array(self.cell_velocity,
                                                                           "cell_velocity", (2, 2))
@@ -111,7 +111,8 @@ class Snapshot:
 
     @property
     def imposed_gradient(self) -> np.ndarray:
-        """The cell's velocity gradient (dC/dt) C^{-1} (1/s), (2, 2); an increment for displacements."""
+        """The cell's velocity gradient (dC/dt) C^{-1} (1/s), (2, 2) (an increment for
+        displacements)."""
         return self.cell_velocity @ np.linalg.inv(self.cell)
 
     def replace(self, **changes) -> "Snapshot":

@@ -40,7 +40,8 @@ def test_strongly_overlapping_particles_nonplanar(check_crossings):
 
 def test_empty_graph(lattice):
     x, r, cell = lattice
-    snap = Snapshot(x, cell, np.zeros(0, int), np.zeros(0, int), np.zeros((0, 2), int), np.zeros_like(x))
+    none = np.zeros(0, int)
+    snap = Snapshot(x, cell, none, none, np.zeros((0, 2), int), np.zeros_like(x))
     with pytest.raises(InputError, match="contact list is empty"):
         VoidCells().compute(snap)
 

@@ -71,7 +71,8 @@ def test_pendant_chain_isolated_and_island():
     assert g.removed[18] == ISOLATED
     assert np.all(g.removed[19:22] == ISLAND)
     assert np.all(g.removed[:16] == KEPT) and g.n_edges == 32
-    assert g.removal_counts() == {"kept": 16, "isolated": 1, "pendant": 2, "island": 3, "peninsular": 0}
+    assert g.removal_counts() == {"kept": 16, "isolated": 1, "pendant": 2, "island": 3,
+                                  "peninsular": 0}
 
 
 def test_peninsula_on_a_bridge():
