@@ -82,6 +82,28 @@ def plot_cells(vc: VoidCells, values=None, ax=None, cmap="Greys", vmin=None, vma
     return ax
 
 
+def plot_graph(vc: VoidCells, ax=None, title=None):
+    """Fig. 6b: the particle graph (void-cell outlines) with the removed particles of Fig. 4
+    marked by class (isolated, pendant, island, peninsular)."""
+    from ..geometry.cell import wrap
+    from .graph import REMOVAL_NAMES
+
+    ax = plot_cells(vc, None, ax=ax, edgecolor="k", linewidth=0.5)
+    removed = vc.graph.removed
+    colours = {1: "tab:blue", 2: "tab:orange", 3: "tab:green", 4: "tab:red"}
+    for code, colour in colours.items():
+        idx = np.flatnonzero(removed == code)
+        if idx.size:
+            xw, _ = wrap(vc.snapshot.positions[idx], vc.snapshot.cell)
+            ax.plot(xw[:, 0], xw[:, 1], "o", ms=3, color=colour,
+                    label=f"{REMOVAL_NAMES[code]} ({idx.size})")
+    if np.any(removed > 0):
+        ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
+    ax.set_title(title or f"particle graph: {vc.n_faces} faces, {vc.n_edges} edges, "
+                 f"{vc.n_vertices} vertices")
+    return ax
+
+
 def plot_alignment(vc: VoidCells, ax=None, title=None):
     """Fig. 8: cells shaded by alignment alpha (eq 18), white for alpha <= 0, black for 1."""
     ax = plot_cells(vc, vc.alpha, ax=ax, cmap="Greys", vmin=0.0, vmax=1.0,
@@ -134,7 +156,7 @@ def plot_alpha_histogram(vc: VoidCells, ax=None, bins=40, label=None):
 
 
 def save_figures(vc: VoidCells, prefix, label: str = "") -> list:
-    """Write the four figures of one snapshot as PNG files ``{prefix}_{alpha,w,vrel,hist}.png``."""
+    """Write the figures of one snapshot: ``{prefix}_{graph,alpha,w,hist,vrel}.png``."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -143,7 +165,7 @@ def save_figures(vc: VoidCells, prefix, label: str = "") -> list:
     from ..io.hdf5 import atomic_path
 
     out = []
-    makers = [("alpha", plot_alignment), ("w", plot_vorticity), ("hist", plot_alpha_histogram)]
+    makers = [("graph", plot_graph), ("alpha", plot_alignment), ("w", plot_vorticity), ("hist", plot_alpha_histogram)]
     if vc._get("v_rel") is not None:
         makers.append(("vrel", plot_relative_motion))
     for name, fn in makers:

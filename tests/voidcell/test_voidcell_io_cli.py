@@ -105,7 +105,7 @@ def test_cli_writes_figures_and_table(run_file, tmp_path, capsys):
                "--all-frames"])
     assert rc == 0
     for tag in ("strain_0.0001", "strain_0.0016"):
-        for kind in ("alpha", "w", "hist", "vrel"):
+        for kind in ("graph", "alpha", "w", "hist", "vrel"):
             assert (out / f"{tag}_{kind}.png").stat().st_size > 1000
         assert (out / f"{tag}.vtu").exists()
     rows = list(csv.DictReader(open(out / "voidcells.csv")))
