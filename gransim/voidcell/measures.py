@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .qmatrix import q_matrix
+from .._numba import njit
+from .qmatrix import q_matrix, q_separations
 
 
 def edge_normals(vec: np.ndarray) -> np.ndarray:
@@ -38,8 +39,52 @@ def polygon_gradient(vertices: np.ndarray, velocities: np.ndarray) -> np.ndarray
     return np.einsum("jk,jp,kq->pq", q_matrix(len(x)), vh, edge_normals(e)) / (6.0 * A)
 
 
+@njit
+def _face_gradients(ptr, fh, vec, dv, area, qtab):
+    nf = ptr.shape[0] - 1
+    L = np.zeros((nf, 2, 2))
+    for f in range(nf):
+        p0 = ptr[f]
+        m = ptr[f + 1] - p0
+        s00 = 0.0
+        s01 = 0.0
+        s10 = 0.0
+        s11 = 0.0
+        for j1 in range(m):
+            h1 = fh[p0 + j1]
+            # Qb = sum_j2 Q^m(j2 - j1) b^{j2}, b = (e_y, -e_x)
+            qb0 = 0.0
+            qb1 = 0.0
+            for j2 in range(m):
+                d = j2 - j1
+                if d < 0:
+                    d += m
+                q = qtab[m, d]
+                h2 = fh[p0 + j2]
+                qb0 += q * vec[h2, 1]
+                qb1 -= q * vec[h2, 0]
+            s00 += dv[h1, 0] * qb0
+            s01 += dv[h1, 0] * qb1
+            s10 += dv[h1, 1] * qb0
+            s11 += dv[h1, 1] * qb1
+        c = 1.0 / (6.0 * area[f])
+        L[f, 0, 0] = s00 * c
+        L[f, 0, 1] = s01 * c
+        L[f, 1, 0] = s10 * c
+        L[f, 1, 1] = s11 * c
+    return L
+
+
+def q_table(max_m: int) -> np.ndarray:
+    """Rows Q^m(d) of :func:`q_separations` for m = 0..max_m, zero-padded, (max_m + 1, max_m)."""
+    tab = np.zeros((max_m + 1, max(max_m, 1)))
+    for m in range(2, max_m + 1):
+        tab[m, :m] = q_separations(m)
+    return tab
+
+
 def face_gradients(face_ptr, face_halfedges, vec, dv, area) -> np.ndarray:
-    """Eq (7) for every face of a DCEL, (F, 2, 2). O(sum m^2), vectorised per valence.
+    """Eq (7) for every face of a DCEL, (F, 2, 2). O(sum m^2) in one compiled loop.
 
     Parameters
     ----------
@@ -53,15 +98,11 @@ def face_gradients(face_ptr, face_halfedges, vec, dv, area) -> np.ndarray:
     area : (F,)
         Face areas (m^2).
     """
-    nf = face_ptr.shape[0] - 1
-    L = np.zeros((nf, 2, 2))
-    m_of = np.diff(face_ptr)
-    for m in np.unique(m_of):
-        faces = np.flatnonzero(m_of == m)
-        hs = face_halfedges[face_ptr[faces][:, None] + np.arange(m)[None, :]]  # (nf_m, m)
-        Qb = np.matmul(q_matrix(int(m)), edge_normals(vec[hs]))  # (nf_m, m, 2): sum_k Q_jk b^k
-        L[faces] = np.matmul(dv[hs].transpose(0, 2, 1), Qb) / (6.0 * area[faces, None, None])
-    return L
+    max_m = int(np.diff(face_ptr).max()) if face_ptr.shape[0] > 1 else 2
+    return _face_gradients(np.ascontiguousarray(face_ptr), np.ascontiguousarray(face_halfedges),
+                           np.ascontiguousarray(vec, dtype=np.float64),
+                           np.ascontiguousarray(dv, dtype=np.float64),
+                           np.ascontiguousarray(area, dtype=np.float64), q_table(max(max_m, 2)))
 
 
 def assembly_average(L: np.ndarray, area: np.ndarray) -> np.ndarray:

@@ -86,3 +86,24 @@ def test_relative_motion_scaling(lattice):
     d50 = d50_area_weighted(r)
     # eq (21) with the exact Lbar (= G here): the fluctuation over D50 |L22|
     np.testing.assert_allclose(vc.v_rel, dv / (d50 * abs(G[1, 1])), atol=1e-10)
+
+
+def test_cell_gradients_equal_boundary_integral_on_a_packing(relaxed):
+    # compiled eq (7) per face against (1/A) sum_edges mean edge velocity (x) outward normal,
+    # with the lifted image velocities, for random particle velocities
+    x, r, cell = relaxed
+    rng = np.random.default_rng(5)
+    v = rng.normal(size=x.shape)
+    Cdot = rng.normal(size=(2, 2)) * 0.1
+    vc = VoidCells().compute(snapshot(x, r, cell, v, Cdot))
+    d = vc.dcel
+    assert d.valence.max() >= 9  # large valences are exercised too
+    for f in range(d.n_faces):
+        hs = d.face_halfedges[d.face_ptr[f]:d.face_ptr[f + 1]]
+        # velocity of each lifted vertex: the first vertex's, plus the relative velocities so far
+        vh = v[d.dest[hs]] + d.shift[hs] @ Cdot.T - v[d.origin[hs]]
+        vert_v = v[d.origin[hs[0]]] + np.cumsum(np.vstack([np.zeros(2), vh[:-1]]), axis=0)
+        e = d.vec[hs]
+        b = np.column_stack([e[:, 1], -e[:, 0]])
+        Lb = (0.5 * (vert_v + np.roll(vert_v, -1, axis=0))).T @ b / d.face_area[f]
+        np.testing.assert_allclose(vc.L[f], Lb, rtol=0, atol=1e-11 * np.abs(Lb).max())
