@@ -1,0 +1,306 @@
+"""Numba kernels of the DEM step (unpacked contiguous float64/int64 arrays; no validation here).
+
+Order of one step (LIGGGHTS 3.8.0 ``verlet.cpp``, serial; shared notes liggghts-3.8.md):
+``initial_integrate`` -> ``check_rebuild`` (-> ``pbc_wrap`` + new list) -> ``forces_*`` ->
+``final_integrate`` -> box change with ``remap_x``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._numba import njit, pjit, prange
+from ..contacts.hooke import hooke_history
+
+
+@njit
+def initial_integrate(x, v, w, f, t, m, r, dt):
+    """nve/sphere first half: v += dt/2 f/m; x += dt v; w += dt/2 T/I with I = m r^2/2."""
+    dtf = 0.5 * dt
+    dtfrot = dtf / 0.5
+    for i in range(x.shape[0]):
+        dtfm = dtf / m[i]
+        v[i, 0] += dtfm * f[i, 0]
+        v[i, 1] += dtfm * f[i, 1]
+        x[i, 0] += dt * v[i, 0]
+        x[i, 1] += dt * v[i, 1]
+        w[i] += dtfrot / (r[i] * r[i] * m[i]) * t[i]
+
+
+@njit
+def final_integrate(v, w, f, t, m, r, dt):
+    """nve/sphere second half: v += dt/2 f/m; w += dt/2 T/I."""
+    dtf = 0.5 * dt
+    dtfrot = dtf / 0.5
+    for i in range(v.shape[0]):
+        dtfm = dtf / m[i]
+        v[i, 0] += dtfm * f[i, 0]
+        v[i, 1] += dtfm * f[i, 1]
+        w[i] += dtfrot / (r[i] * r[i] * m[i]) * t[i]
+
+
+@njit
+def check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin):
+    """LIGGGHTS Neighbor::check_distance with box check. Returns (rebuild, bad particle or -1).
+
+    Trigger: some |x - x_hold|^2 > (0.5 (skin - |d lo| - |d hi|))^2 (strictly). A NaN or
+    infinite coordinate returns its particle index as ``bad``.
+    """
+    dx = lo[0] - lo_hold[0]
+    dy = lo[1] - lo_hold[1]
+    d1 = math.sqrt(dx * dx + dy * dy)
+    dx = hi[0] - hi_hold[0]
+    dy = hi[1] - hi_hold[1]
+    d2 = math.sqrt(dx * dx + dy * dy)
+    delta = 0.5 * (skin - (d1 + d2))
+    if delta < 0.0:
+        delta = 0.0
+    deltasq = delta * delta
+    flag = False
+    for i in range(x.shape[0]):
+        if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1])):
+            return True, i
+        dx = x[i, 0] - xhold[i, 0]
+        dy = x[i, 1] - xhold[i, 1]
+        if dx * dx + dy * dy > deltasq:
+            flag = True
+    return flag, -1
+
+
+@njit
+def pbc_wrap(x, lo, hi):
+    """Domain::pbc: x < lo -> x += L; x >= hi -> x -= L, then max(x, lo). Returns a lost
+    particle (still outside after one wrap) or -1."""
+    bad = -1
+    for d in range(2):
+        prd = hi[d] - lo[d]
+        for i in range(x.shape[0]):
+            if x[i, d] < lo[d]:
+                x[i, d] += prd
+            if x[i, d] >= hi[d]:
+                x[i, d] -= prd
+                x[i, d] = max(x[i, d], lo[d])
+            if (x[i, d] < lo[d] or x[i, d] >= hi[d]) and bad < 0:
+                bad = i
+    return bad
+
+
+@njit
+def remap_x(x, lo_old, hi_old, lo_new, hi_new):
+    """fix deform ``remap x``: lambda = (x - lo_old)/L_old; x = L_new lambda + lo_new (per axis)."""
+    for d in range(2):
+        hinv = 1.0 / (hi_old[d] - lo_old[d])
+        h = hi_new[d] - lo_new[d]
+        for i in range(x.shape[0]):
+            lam = hinv * (x[i, d] - lo_old[d])
+            x[i, d] = h * lam + lo_new[d]
+
+
+@njit
+def overlapping(x, r, ea, eb, esx, esy, Lx, Ly):
+    """For each list entry (a, b, s): does a touch the image x_b + s L? (LIGGGHTS' rsq < radsum^2)."""
+    out = np.zeros(ea.shape[0], np.bool_)
+    for e in range(ea.shape[0]):
+        a = ea[e]
+        b = eb[e]
+        delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
+        dely = x[a, 1] - (x[b, 1] + esy[e] * Ly)
+        radsum = r[a] + r[b]
+        out[e] = delx * delx + dely * dely < radsum * radsum
+    return out
+
+
+@njit
+def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
+                kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef):
+    """Serial force loop over a half list (LIGGGHTS ``newton off``).
+
+    Entries (a, b, s): b's image x_b + s L (L = current box lengths). ``both`` entries (s = 0,
+    both owned) apply the force to a and -force to b; entries across the boundary exist once per
+    owner, each with its own spring copy, and act on a only. ``vir`` (3,) receives the virial
+    sums xx, yy, xy of d (x) f_i (0.5 per owner as ``ev_tally_xyz``); ``ef`` (M, 2) the force on
+    a of each entry, ``slide`` (M,) the Coulomb cap flag. Returns (contacts, sum of
+    overlaps) counting each physical contact once.
+    """
+    n = x.shape[0]
+    for i in range(n):
+        f[i, 0] = 0.0
+        f[i, 1] = 0.0
+        t[i] = 0.0
+    vir[0] = 0.0
+    vir[1] = 0.0
+    vir[2] = 0.0
+    ncontact = 0.0
+    sum_overlap = 0.0
+    for e in range(ea.shape[0]):
+        a = ea[e]
+        b = eb[e]
+        delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
+        dely = x[a, 1] - (x[b, 1] + esy[e] * Ly)
+        rsq = delx * delx + dely * dely
+        radsum = r[a] + r[b]
+        if rsq < radsum * radsum:
+            fx, fy, ta, tb, s0, s1, sl, fn = hooke_history(
+                delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
+                m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
+            xi[e, 0] = s0
+            xi[e, 1] = s1
+            slide[e] = sl
+            ef[e, 0] = fx
+            ef[e, 1] = fy
+            f[a, 0] += fx
+            f[a, 1] += fy
+            t[a] += ta
+            wgt = 0.5
+            if both[e]:
+                f[b, 0] += -fx
+                f[b, 1] += -fy
+                t[b] += tb
+                vir[0] += 0.5 * (delx * fx)
+                vir[1] += 0.5 * (dely * fy)
+                vir[2] += 0.5 * (delx * fy)
+                wgt = 1.0
+            vir[0] += 0.5 * (delx * fx)
+            vir[1] += 0.5 * (dely * fy)
+            vir[2] += 0.5 * (delx * fy)
+            ncontact += wgt
+            sum_overlap += wgt * (radsum - math.sqrt(rsq))
+        else:
+            slide[e] = False
+            ef[e, 0] = 0.0
+            ef[e, 1] = 0.0
+    return ncontact, sum_overlap
+
+
+@pjit
+def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
+                kn, kt, gn, gt, mu, dt, update, f, t, pvir, slide, ef):
+    """Parallel force loop over a full list in CSR form (entries of a in start[a]:start[a+1]).
+
+    Every pair appears once per particle, each copy with its own spring (they stay exact
+    negatives of each other: the law is odd in d and v); forces act on a only, so threads never
+    write to the same particle. ``pvir`` (N, 3) per-particle virial halves; ``slide`` and
+    ``ef`` (M, 2) (force on a) per entry.
+    """
+    n = x.shape[0]
+    for a in prange(n):
+        fxa = 0.0
+        fya = 0.0
+        ta = 0.0
+        v0 = 0.0
+        v1 = 0.0
+        v2 = 0.0
+        for e in range(start[a], start[a + 1]):
+            b = eb[e]
+            delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
+            dely = x[a, 1] - (x[b, 1] + esy[e] * Ly)
+            rsq = delx * delx + dely * dely
+            radsum = r[a] + r[b]
+            if rsq < radsum * radsum:
+                fx, fy, tq, tb, s0, s1, sl, fn = hooke_history(
+                    delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
+                    m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
+                xi[e, 0] = s0
+                xi[e, 1] = s1
+                slide[e] = sl
+                ef[e, 0] = fx
+                ef[e, 1] = fy
+                fxa += fx
+                fya += fy
+                ta += tq
+                v0 += 0.5 * (delx * fx)
+                v1 += 0.5 * (dely * fy)
+                v2 += 0.5 * (delx * fy)
+            else:
+                slide[e] = False
+                ef[e, 0] = 0.0
+                ef[e, 1] = 0.0
+        f[a, 0] = fxa
+        f[a, 1] = fya
+        t[a] = ta
+        pvir[a, 0] = v0
+        pvir[a, 1] = v1
+        pvir[a, 2] = v2
+
+
+@njit
+def box_target(step, L_old, sig_servo, dt, modes, rates, targets, gains, lo0, hi0, phase_step0, lo, hi):
+    """Box of step ``step`` from the loading of each axis (fix deform variable style).
+
+    modes: 0 fixed, 1 rate (del = rate L0 dt (step - step0)), 2 servo
+    (del = (L - L0) + dt gain (sigma - target) L); lo = lo0 - del/2, hi = hi0 + del/2."""
+    for d in range(2):
+        if modes[d] == 0:
+            continue
+        L0 = hi0[d] - lo0[d]
+        if modes[d] == 1:
+            c = rates[d] * L0 * dt
+            dl = c * float(step - phase_step0)
+        else:
+            k = dt * gains[d]
+            dl = (L_old[d] - L0) + k * (sig_servo[d] - targets[d]) * L_old[d]
+        lo[d] = lo0[d] - 0.5 * dl
+        hi[d] = hi0[d] + 0.5 * dl
+
+
+@njit
+def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold, lo, hi, lo_hold,
+              hi_hold, vir, kn, kt, gn, gt, mu, dt, skin, step0, nsteps, resume,
+              modes, rates, targets, gains, lo0, hi0, phase_step0,
+              out_stress, out_L, out_nc, out_ov):
+    """Serial steps step0+1 .. step0+nsteps until a neighbour rebuild is needed.
+
+    Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the step
+    step0+completed+1 has done its first half step; call again with ``resume`` True after the
+    rebuild), 2 non-finite position, 3 collapsed cell. Per completed step k the outputs hold
+    stress (xx, yy, xy; virial / area of the new box), box lengths, contacts, mean overlap.
+    """
+    L_old = np.empty(2)
+    sig = np.empty(2)
+    lo_new = np.empty(2)
+    hi_new = np.empty(2)
+    for k in range(nsteps):
+        step = step0 + k + 1
+        if not (resume and k == 0):
+            initial_integrate(x, v, w, f, t, m, r, dt)
+            rebuild, bad = check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin)
+            if bad >= 0:
+                return k, 2, bad
+            if rebuild:
+                return k, 1, -1
+        Lx = hi[0] - lo[0]
+        Ly = hi[1] - lo[1]
+        nc, so = forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt,
+                             True, f, t, vir, slide, ef)
+        final_integrate(v, w, f, t, m, r, dt)
+        inv = 1.0 / (Lx * Ly)
+        L_old[0] = Lx
+        L_old[1] = Ly
+        sig[0] = vir[0] * inv
+        sig[1] = vir[1] * inv
+        lo_new[0] = lo[0]
+        lo_new[1] = lo[1]
+        hi_new[0] = hi[0]
+        hi_new[1] = hi[1]
+        box_target(step, L_old, sig, dt, modes, rates, targets, gains, lo0, hi0, phase_step0, lo_new, hi_new)
+        if lo_new[0] != lo[0] or lo_new[1] != lo[1] or hi_new[0] != hi[0] or hi_new[1] != hi[1]:
+            if not (hi_new[0] - lo_new[0] > 0.0 and hi_new[1] - lo_new[1] > 0.0):
+                return k, 3, -1
+            remap_x(x, lo, hi, lo_new, hi_new)
+            lo[0] = lo_new[0]
+            lo[1] = lo_new[1]
+            hi[0] = hi_new[0]
+            hi[1] = hi_new[1]
+        Lx = hi[0] - lo[0]
+        Ly = hi[1] - lo[1]
+        inv = 1.0 / (Lx * Ly)
+        out_stress[k, 0] = vir[0] * inv
+        out_stress[k, 1] = vir[1] * inv
+        out_stress[k, 2] = vir[2] * inv
+        out_L[k, 0] = Lx
+        out_L[k, 1] = Ly
+        out_nc[k] = nc
+        out_ov[k] = so / nc if nc > 0 else 0.0
+    return nsteps, 0, -1
