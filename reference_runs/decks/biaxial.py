@@ -154,3 +154,72 @@ def read_dump(dump_path) -> dict:
         else:
             k += 1
     return frames
+
+
+# -- the stored cross-check case ------------------------------------------------------------
+
+SHORT_CASE_STEPS = 3000
+SHORT_CASE_DUMP_EVERY = 500
+
+
+def short_case():
+    """The step-for-step case of tests/dem/test_liggghts.py (reference_runs/stored/biaxial-short).
+
+    120 polydisperse disks on a jittered triangular lattice, overlapping by about 4% of a radius
+    (contacts across the periodic boundary from step 0), kn = kt = 1e5 N/m, gamma_n = gamma_t =
+    50 1/s, mu = 0.5, dt = 2e-6 s (contact time / 45), skin 2e-5 m; x: servo to sigma_11 =
+    100 N/m with gain 0.01 1/(Pa s); y: compression at 1 1/s. About 60 of 150 contacts slide.
+    Returns (packing, settings, loading, nsteps).
+    """
+    from gransim.dem.lattice import lattice_packing
+    from gransim.dem.settings import AxisControl
+
+    p = lattice_packing(10, 12, seed=1, spread=0.1, compression=0.04)
+    s = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e-6, skin=2e-5)
+    ld = Loading(x=AxisControl("servo", target=100.0, gain=1e-2), y=AxisControl("rate", rate=-1.0))
+    return p, s, ld, SHORT_CASE_STEPS
+
+
+def run_liggghts(deck: Path, binary: str = "liggghts") -> Path:
+    """Run a deck serially in its directory; returns the log path. Raises on a non-zero exit
+    or an ERROR line in the log."""
+    import subprocess
+
+    deck = Path(deck)
+    log = deck.parent / "log.liggghts"
+    cmd = [binary, "-in", deck.name, "-log", log.name, "-screen", "none", "-nocite"]
+    proc = subprocess.run(cmd, cwd=deck.parent, capture_output=True, text=True)
+    text = log.read_text() if log.exists() else ""
+    if proc.returncode != 0 or "ERROR" in text:
+        err = [ln for ln in text.splitlines() if "ERROR" in ln]
+        raise RuntimeError(f"liggghts failed (exit {proc.returncode}): {err[:1] or proc.stderr[-300:]}")
+    return log
+
+
+def make_stored(out_dir, binary: str = "liggghts") -> Path:
+    """Run the short case with LIGGGHTS and store deck, data, log and dump with a README."""
+    import datetime
+    import subprocess
+
+    out = Path(out_dir)
+    p, s, ld, n = short_case()
+    deck = write_biaxial_deck(out, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY)
+    run_liggghts(deck, binary)
+    version = subprocess.run(["dpkg-query", "-W", "-f", "${Version}", "liggghts"], capture_output=True,
+                             text=True).stdout.strip() or "unknown"
+    head = (out / "log.liggghts").read_text().splitlines()[0]
+    (out / "README.md").write_text(f"""# biaxial-short: LIGGGHTS reference for the DEM engine (step for step)
+
+- Case: `reference_runs.decks.biaxial.short_case()` (120 disks, servo on x to 100 N/m, y at
+  -1 1/s, mu 0.5, kn = kt = 1e5 N/m, damping 50 1/s, dt 2e-6 s, skin 2e-5 m), {n} steps.
+- Code: {head} (Debian package liggghts {version}), serial, 1 MPI process.
+- Files: `in.biaxial` (deck, written by `reference_runs/decks/biaxial.py`), `data.biaxial`
+  (data file, %.17g), `log.liggghts` (thermo every step: box and virial stress after
+  `fix deform`, %.17g), `dump.atoms` (dump custom every {SHORT_CASE_DUMP_EVERY} steps).
+- Command: `liggghts -in in.biaxial -log log.liggghts -screen none -nocite` in this directory.
+- Regenerate: `python -c "from reference_runs.decks.biaxial import make_stored;
+  make_stored('reference_runs/stored/biaxial-short')"`.
+- Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}
+- Used by: tests/dem/test_liggghts.py (tolerances: positions 1e-10 D50, stresses 1e-8 relative).
+""")
+    return out
