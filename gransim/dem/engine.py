@@ -116,14 +116,14 @@ class DEMEngine:
         self.lo = np.zeros(2)
         self.hi = np.array([C[0, 0], C[1, 1]], np.float64)
         self.step = 0
-        self.virial = np.zeros(3)
+        self.virial = np.zeros(4)
         self.n_contacts = 0
         self.mean_overlap = 0.0
         self.n_rebuilds = 0
         self._parallel = s.mode == "parallel"
         if self._parallel:
             set_num_threads(threads)
-        self._pvir = np.zeros((n, 3))
+        self._pvir = np.zeros((n, 4))
         # neighbour list (empty; built in setup)
         self.ea = np.zeros(0, np.int64)
         self.eb = np.zeros(0, np.int64)
@@ -237,10 +237,12 @@ class DEMEngine:
 
     # ------------------------------------------------------------------ stepping
     def stress_tensor(self, L) -> np.ndarray:
-        """Love stress (eq 17 of Kuhn 002), compression positive: virial / (Lx Ly), (2, 2)."""
+        """Love stress (eq 17 of Kuhn 002), compression positive, (2, 2):
+        sigma_ab = (1/(Lx Ly)) sum_c d_a f_b, d = x_i - x_j, f the force on i. Not symmetric out of
+        equilibrium; [0, 1] = sum d_x f_y is LIGGGHTS' ``compute pressure`` component 4 (xy)."""
         inv = 1.0 / (L[0] * L[1])
         v = self.virial
-        return np.array([[v[0] * inv, v[2] * inv], [v[2] * inv, v[1] * inv]])
+        return np.array([[v[0] * inv, v[2] * inv], [v[3] * inv, v[1] * inv]])
 
     def advance(self, loading: Loading, nsteps: int = 1, phase_step0: int = 0, phase_box0=None):
         """Advance ``nsteps`` steps under ``loading``; returns a dict of per-step series.
@@ -265,7 +267,7 @@ class DEMEngine:
         rates = np.array([loading.x.rate, loading.y.rate])
         targets = np.array([loading.x.target, loading.y.target])
         gains = np.array([loading.x.gain, loading.y.gain])
-        out_stress = np.zeros((nsteps, 3))
+        out_stress = np.zeros((nsteps, 4))
         out_L = np.zeros((nsteps, 2))
         out_nc = np.zeros(nsteps)
         out_ov = np.zeros(nsteps)
@@ -304,7 +306,8 @@ class DEMEngine:
         st = np.empty((nsteps, 2, 2))
         st[:, 0, 0] = out_stress[:, 0]
         st[:, 1, 1] = out_stress[:, 1]
-        st[:, 0, 1] = st[:, 1, 0] = out_stress[:, 2]
+        st[:, 0, 1] = out_stress[:, 2]
+        st[:, 1, 0] = out_stress[:, 3]
         return {"step": np.arange(step_start + 1, step_start + nsteps + 1), "stress": st, "lengths": out_L,
                 "n_contacts": np.rint(out_nc).astype(np.int64), "mean_overlap": out_ov}
 

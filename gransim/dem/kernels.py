@@ -119,8 +119,8 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
 
     Entries (a, b, s): b's image x_b + s L (L = current box lengths). ``both`` entries (s = 0,
     both owned) apply the force to a and -force to b; entries across the boundary exist once per
-    owner, each with its own spring copy, and act on a only. ``vir`` (3,) receives the virial
-    sums xx, yy, xy of d (x) f_i (0.5 per owner as ``ev_tally_xyz``); ``ef`` (M, 2) the force on
+    owner, each with its own spring copy, and act on a only. ``vir`` (4,) receives the virial
+    sums xx, yy, xy, yx of d (x) f_i (0.5 per owner as ``ev_tally_xyz``); ``ef`` (M, 2) the force on
     a of each entry, ``slide`` (M,) the Coulomb cap flag. Returns (contacts, sum of
     overlaps) counting each physical contact once.
     """
@@ -132,6 +132,7 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
     vir[0] = 0.0
     vir[1] = 0.0
     vir[2] = 0.0
+    vir[3] = 0.0
     ncontact = 0.0
     sum_overlap = 0.0
     for e in range(ea.shape[0]):
@@ -161,10 +162,12 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
                 vir[0] += 0.5 * (delx * fx)
                 vir[1] += 0.5 * (dely * fy)
                 vir[2] += 0.5 * (delx * fy)
+                vir[3] += 0.5 * (dely * fx)
                 wgt = 1.0
             vir[0] += 0.5 * (delx * fx)
             vir[1] += 0.5 * (dely * fy)
             vir[2] += 0.5 * (delx * fy)
+            vir[3] += 0.5 * (dely * fx)
             ncontact += wgt
             sum_overlap += wgt * (radsum - math.sqrt(rsq))
         else:
@@ -181,7 +184,7 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
 
     Every pair appears once per particle, each copy with its own spring (they stay exact
     negatives of each other: the law is odd in d and v); forces act on a only, so threads never
-    write to the same particle. ``pvir`` (N, 3) per-particle virial halves; ``slide`` and
+    write to the same particle. ``pvir`` (N, 4) per-particle virial halves; ``slide`` and
     ``ef`` (M, 2) (force on a) per entry.
     """
     n = x.shape[0]
@@ -192,6 +195,7 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
         v0 = 0.0
         v1 = 0.0
         v2 = 0.0
+        v3 = 0.0
         for e in range(start[a], start[a + 1]):
             b = eb[e]
             delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
@@ -213,6 +217,7 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
                 v0 += 0.5 * (delx * fx)
                 v1 += 0.5 * (dely * fy)
                 v2 += 0.5 * (delx * fy)
+                v3 += 0.5 * (dely * fx)
             else:
                 slide[e] = False
                 ef[e, 0] = 0.0
@@ -223,6 +228,7 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
         pvir[a, 0] = v0
         pvir[a, 1] = v1
         pvir[a, 2] = v2
+        pvir[a, 3] = v3
 
 
 @njit
@@ -255,7 +261,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
     Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the step
     step0+completed+1 has done its first half step; call again with ``resume`` True after the
     rebuild), 2 non-finite position, 3 collapsed cell. Per completed step k the outputs hold
-    stress (xx, yy, xy; virial / area of the new box), box lengths, contacts, mean overlap.
+    stress (xx, yy, xy, yx; virial / area of the new box), box lengths, contacts, mean overlap.
     """
     L_old = np.empty(2)
     sig = np.empty(2)
@@ -299,6 +305,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         out_stress[k, 0] = vir[0] * inv
         out_stress[k, 1] = vir[1] * inv
         out_stress[k, 2] = vir[2] * inv
+        out_stress[k, 3] = vir[3] * inv
         out_L[k, 0] = Lx
         out_L[k, 1] = Ly
         out_nc[k] = nc
