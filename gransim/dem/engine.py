@@ -153,47 +153,14 @@ class DEMEngine:
             raise SimulationError(f"step {self.step}: particle {bad} lost (at {self.x[bad].tolist()}, "
                                   f"box {self.lo.tolist()}..{self.hi.tolist()})")
         L = self.box_lengths
-        # the pair search works on positions relative to the box origin (a translation: the
-        # shifts are unchanged, the branch vectors are recomputed by the force loop)
-        nl = find_neighbours(self.x - self.lo, self.r, np.diag(L), self.settings.skin)
-        i, j, sh = nl.i, nl.j, nl.shift
-        if np.any(i == j):
-            raise SimulationError(f"step {self.step}: particle {int(i[i == j][0])} touches its own image; "
-                                  "the cell is too small")
-        owned = np.all(sh == 0, axis=1)
-        if self._parallel:
-            a = np.concatenate([i, j])
-            b = np.concatenate([j, i])
-            s = np.concatenate([sh, -sh])
-            both = np.zeros(a.size, np.bool_)
-        else:
-            cross = ~owned
-            a = np.concatenate([i, j[cross]])
-            b = np.concatenate([j, i[cross]])
-            s = np.concatenate([sh, -sh[cross]])
-            both = np.concatenate([owned, np.zeros(int(cross.sum()), np.bool_)])
-        # minus sign: entry (a, b, s) means b's image x_b + s L, l = x_b + C s - x_a
-        order = np.lexsort((b, a))
-        a, b, s, both = a[order], b[order], s[order], both[order]
-        esx = np.ascontiguousarray(s[:, 0], np.float64)
-        esy = np.ascontiguousarray(s[:, 1], np.float64)
+        a, b, esx, esy, both, selfimg = K.build_list(self.x, self.r, self.lo, self.hi, self.settings.skin,
+                                                     self._parallel)
+        if selfimg >= 0:
+            raise SimulationError(f"step {self.step}: particle {selfimg} is near its own image; the cell is too small")
         xi = np.zeros((a.size, 2))
         if carry and self.ea.size:
-            n = self.packing.n
-            ka = self.ea * n + self.eb
-            vals = self.xi
-            if not self._parallel:
-                mirror = self.both
-                ka = np.concatenate([ka, self.eb[mirror] * n + self.ea[mirror]])
-                vals = np.concatenate([vals, -self.xi[mirror]])
-            srt = np.argsort(ka, kind="stable")
-            ka, vals = ka[srt], vals[srt]
-            touch = K.overlapping(self.x, self.r, a, b, esx, esy, L[0], L[1])
-            kn = a * n + b
-            pos = np.searchsorted(ka, kn)
-            pos_c = np.minimum(pos, max(ka.size - 1, 0))
-            found = (ka.size > 0) & (ka[pos_c] == kn) & touch
-            xi[found] = vals[pos_c[found]]
+            K.hand_over(self.x, self.r, a, b, esx, esy, L[0], L[1], self.start, self.eb, self.both, self.xi, xi)
+        s = np.stack([esx, esy], axis=1).astype(np.int64)
         self.ea, self.eb, self.esx, self.esy, self.both, self.xi = a, b, esx, esy, both, xi
         self.eshift = s
         self.slide = np.zeros(a.size, np.bool_)
@@ -254,7 +221,7 @@ class DEMEngine:
         Returns
         -------
         dict with ``step`` (n,), ``stress`` (n, 2, 2) (Love stress, compression positive, area of
-        the box after the step), ``lengths`` (n, 2), ``n_contacts`` (n,), ``mean_overlap`` (n,).
+        the box after the step), ``lengths`` (n, 2), ``n_contacts`` (n,), ``mean_overlap`` (n,), ``kinetic_energy`` (n,).
         """
         s = self.settings
         nsteps = int(nsteps)
@@ -271,6 +238,7 @@ class DEMEngine:
         out_L = np.zeros((nsteps, 2))
         out_nc = np.zeros(nsteps)
         out_ov = np.zeros(nsteps)
+        out_ke = np.zeros(nsteps)
         done = 0
         resume = False
         step_start = self.step
@@ -278,14 +246,14 @@ class DEMEngine:
             if self._parallel:
                 k, status, bad = self._python_block(nsteps - done, resume, modes, rates, targets, gains, lo0, hi0,
                                                     phase_step0, out_stress[done:], out_L[done:], out_nc[done:],
-                                                    out_ov[done:])
+                                                    out_ov[done:], out_ke[done:])
             else:
                 k, status, bad = K.run_block(
                     self.x, self.v, self.w, self.f, self.t, self.r, self.m, self.ea, self.eb, self.esx, self.esy,
                     self.both, self.xi, self.slide, self.ef, self.xhold, self.lo, self.hi, self.lo_hold,
                     self.hi_hold, self.virial, s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, s.skin, self.step,
                     nsteps - done, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
-                    out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:])
+                    out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:], out_ke[done:])
             done += k
             self.step += k
             resume = False
@@ -309,10 +277,10 @@ class DEMEngine:
         st[:, 0, 1] = out_stress[:, 2]
         st[:, 1, 0] = out_stress[:, 3]
         return {"step": np.arange(step_start + 1, step_start + nsteps + 1), "stress": st, "lengths": out_L,
-                "n_contacts": np.rint(out_nc).astype(np.int64), "mean_overlap": out_ov}
+                "n_contacts": np.rint(out_nc).astype(np.int64), "mean_overlap": out_ov, "kinetic_energy": out_ke}
 
     def _python_block(self, nsteps, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
-                      out_stress, out_L, out_nc, out_ov):
+                      out_stress, out_L, out_nc, out_ov, out_ke):
         """The same step as kernels.run_block with the parallel force loop (Python-level loop)."""
         s = self.settings
         for k in range(nsteps):
@@ -327,7 +295,7 @@ class DEMEngine:
                     return k, 1, -1
             L_old = self.box_lengths.copy()
             self._forces(update=True)
-            K.final_integrate(self.v, self.w, self.f, self.t, self.m, self.r, s.dt)
+            ke = K.final_integrate(self.v, self.w, self.f, self.t, self.m, self.r, s.dt)
             inv = 1.0 / (L_old[0] * L_old[1])
             sig = np.array([self.virial[0] * inv, self.virial[1] * inv])
             lo_new, hi_new = self.lo.copy(), self.hi.copy()
@@ -345,6 +313,7 @@ class DEMEngine:
             out_L[k] = L
             out_nc[k] = self.n_contacts
             out_ov[k] = self.mean_overlap
+            out_ke[k] = ke
         return nsteps, 0, -1
 
     # ------------------------------------------------------------------ diagnostics

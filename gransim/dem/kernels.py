@@ -31,14 +31,18 @@ def initial_integrate(x, v, w, f, t, m, r, dt):
 
 @njit
 def final_integrate(v, w, f, t, m, r, dt):
-    """nve/sphere second half: v += dt/2 f/m; w += dt/2 T/I."""
+    """nve/sphere second half: v += dt/2 f/m; w += dt/2 T/I. Returns the kinetic energy
+    sum m v^2/2 + m r^2 w^2/4 (J) of the full-step velocities."""
     dtf = 0.5 * dt
     dtfrot = dtf / 0.5
+    ke = 0.0
     for i in range(v.shape[0]):
         dtfm = dtf / m[i]
         v[i, 0] += dtfm * f[i, 0]
         v[i, 1] += dtfm * f[i, 1]
         w[i] += dtfrot / (r[i] * r[i] * m[i]) * t[i]
+        ke += 0.5 * m[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]) + 0.25 * m[i] * r[i] * r[i] * w[i] * w[i]
+    return ke
 
 
 @njit
@@ -255,13 +259,13 @@ def box_target(step, L_old, sig_servo, dt, modes, rates, targets, gains, lo0, hi
 def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold, lo, hi, lo_hold,
               hi_hold, vir, kn, kt, gn, gt, mu, dt, skin, step0, nsteps, resume,
               modes, rates, targets, gains, lo0, hi0, phase_step0,
-              out_stress, out_L, out_nc, out_ov):
+              out_stress, out_L, out_nc, out_ov, out_ke):
     """Serial steps step0+1 .. step0+nsteps until a neighbour rebuild is needed.
 
     Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the step
     step0+completed+1 has done its first half step; call again with ``resume`` True after the
     rebuild), 2 non-finite position, 3 collapsed cell. Per completed step k the outputs hold
-    stress (xx, yy, xy, yx; virial / area of the new box), box lengths, contacts, mean overlap.
+    stress (xx, yy, xy, yx; virial / area of the new box), box lengths, contacts, mean overlap, kinetic energy.
     """
     L_old = np.empty(2)
     sig = np.empty(2)
@@ -280,7 +284,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         Ly = hi[1] - lo[1]
         nc, so = forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt,
                              True, f, t, vir, slide, ef)
-        final_integrate(v, w, f, t, m, r, dt)
+        ke = final_integrate(v, w, f, t, m, r, dt)
         inv = 1.0 / (Lx * Ly)
         L_old[0] = Lx
         L_old[1] = Ly
@@ -310,4 +314,175 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         out_L[k, 1] = Ly
         out_nc[k] = nc
         out_ov[k] = so / nc if nc > 0 else 0.0
+        out_ke[k] = ke
     return nsteps, 0, -1
+
+
+@njit
+def build_list(x, r, lo, hi, skin, full):
+    """Neighbour list of an orthogonal periodic box (positions wrapped into [lo, hi)).
+
+    Linked cells of side >= 2 r_max + skin (at least 3 per axis; the caller checks). Pairs with
+    |x_a - (x_b + s L)| <= r_a + r_b + skin. Half list (``full`` False, LIGGGHTS newton off):
+    owned pairs once with a < b (both = True), pairs across the boundary once per owner. Full
+    list: every pair from both sides. Entries are sorted by a, then b. Returns (a, b, sx, sy,
+    both, self_image) with self_image >= 0 a particle close to its own image (cell too small).
+    """
+    n = x.shape[0]
+    L0 = hi[0] - lo[0]
+    L1 = hi[1] - lo[1]
+    rmax = 0.0
+    for i in range(n):
+        rmax = max(rmax, r[i])
+    cut = 2.0 * rmax + skin
+    nb0 = max(int(L0 / cut), 1)
+    nb1 = max(int(L1 / cut), 1)
+    head = -np.ones(nb0 * nb1, np.int64)
+    nxt = -np.ones(n, np.int64)
+    bx = np.empty(n, np.int64)
+    by = np.empty(n, np.int64)
+    for i in range(n - 1, -1, -1):
+        ix = min(max(int((x[i, 0] - lo[0]) / L0 * nb0), 0), nb0 - 1)
+        iy = min(max(int((x[i, 1] - lo[1]) / L1 * nb1), 0), nb1 - 1)
+        bx[i] = ix
+        by[i] = iy
+        c = ix * nb1 + iy
+        nxt[i] = head[c]
+        head[c] = i
+    cap = 8 * n + 16
+    a_out = np.empty(cap, np.int64)
+    b_out = np.empty(cap, np.int64)
+    sx_out = np.empty(cap, np.float64)
+    sy_out = np.empty(cap, np.float64)
+    both_out = np.empty(cap, np.bool_)
+    m = 0
+    self_image = -1
+    for a in range(n):
+        start = m
+        for dx in range(-1, 2):
+            cx = bx[a] + dx
+            sx = 0.0
+            if cx < 0:
+                cx += nb0
+                sx = -1.0
+            elif cx >= nb0:
+                cx -= nb0
+                sx = 1.0
+            for dy in range(-1, 2):
+                cy = by[a] + dy
+                sy = 0.0
+                if cy < 0:
+                    cy += nb1
+                    sy = -1.0
+                elif cy >= nb1:
+                    cy -= nb1
+                    sy = 1.0
+                b = head[cx * nb1 + cy]
+                while b >= 0:
+                    owned = sx == 0.0 and sy == 0.0
+                    take = (b != a) if (full or not owned) else (b > a)
+                    if take or (b == a and not owned):
+                        delx = x[a, 0] - (x[b, 0] + sx * L0)
+                        dely = x[a, 1] - (x[b, 1] + sy * L1)
+                        rc = r[a] + r[b] + skin
+                        if delx * delx + dely * dely <= rc * rc:
+                            if b == a:
+                                self_image = a
+                            else:
+                                if m == cap:
+                                    cap *= 2
+                                    a_out = _grow_i(a_out, cap)
+                                    b_out = _grow_i(b_out, cap)
+                                    sx_out = _grow_f(sx_out, cap)
+                                    sy_out = _grow_f(sy_out, cap)
+                                    both_out = _grow_b(both_out, cap)
+                                a_out[m] = a
+                                b_out[m] = b
+                                sx_out[m] = sx
+                                sy_out[m] = sy
+                                both_out[m] = owned and not full
+                                m += 1
+                    b = nxt[b]
+        # insertion sort of a's entries by b (few entries)
+        for k in range(start + 1, m):
+            kb = b_out[k]
+            ksx = sx_out[k]
+            ksy = sy_out[k]
+            kboth = both_out[k]
+            q = k - 1
+            while q >= start and b_out[q] > kb:
+                b_out[q + 1] = b_out[q]
+                sx_out[q + 1] = sx_out[q]
+                sy_out[q + 1] = sy_out[q]
+                both_out[q + 1] = both_out[q]
+                q -= 1
+            b_out[q + 1] = kb
+            sx_out[q + 1] = ksx
+            sy_out[q + 1] = ksy
+            both_out[q + 1] = kboth
+    return a_out[:m].copy(), b_out[:m].copy(), sx_out[:m].copy(), sy_out[:m].copy(), both_out[:m].copy(), self_image
+
+
+@njit
+def _grow_i(a, cap):
+    out = np.empty(cap, np.int64)
+    out[:a.shape[0]] = a
+    return out
+
+
+@njit
+def _grow_f(a, cap):
+    out = np.empty(cap, np.float64)
+    out[:a.shape[0]] = a
+    return out
+
+
+@njit
+def _grow_b(a, cap):
+    out = np.empty(cap, np.bool_)
+    out[:a.shape[0]] = a
+    return out
+
+
+@njit
+def _find(start, eb, a, b):
+    """Index of entry (a, b) in a CSR list sorted by (a, b), or -1."""
+    lo_ = start[a]
+    hi_ = start[a + 1]
+    while lo_ < hi_:
+        mid = (lo_ + hi_) // 2
+        if eb[mid] < b:
+            lo_ = mid + 1
+        else:
+            hi_ = mid
+    if lo_ < start[a + 1] and eb[lo_] == b:
+        return lo_
+    return -1
+
+
+@njit
+def hand_over(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, both_old, xi_old, xi_new):
+    """LIGGGHTS history hand-over at a rebuild (neigh_gran.cpp, fix_contact_history.cpp).
+
+    A new entry (a, b) takes the spring stored with partner b in a's old list (or minus the one
+    of an owned pair stored as (b, a)), only if it overlaps now (rsq < radsum^2); else zero.
+    """
+    for e in range(a_new.shape[0]):
+        a = a_new[e]
+        b = b_new[e]
+        xi_new[e, 0] = 0.0
+        xi_new[e, 1] = 0.0
+        delx = x[a, 0] - (x[b, 0] + sx_new[e] * L0)
+        dely = x[a, 1] - (x[b, 1] + sy_new[e] * L1)
+        radsum = r[a] + r[b]
+        if not (delx * delx + dely * dely < radsum * radsum):
+            continue
+        k = _find(start_old, eb_old, a, b)
+        if k >= 0:
+            xi_new[e, 0] = xi_old[k, 0]
+            xi_new[e, 1] = xi_old[k, 1]
+        else:
+            k = _find(start_old, eb_old, b, a)
+            if k >= 0 and both_old[k]:
+                xi_new[e, 0] = -xi_old[k, 0]
+                xi_new[e, 1] = -xi_old[k, 1]
