@@ -1,0 +1,57 @@
+"""``gransim info FILE.h5``: what a results file holds, its provenance and, for a packing, its statistics."""
+
+from __future__ import annotations
+
+
+def register(sub) -> None:
+    p = sub.add_parser("info", help="describe a gransim HDF5 file (packing statistics, provenance)",
+                       description="Print the provenance of a gransim results file and, when it holds a "
+                                   "packing, N, cell, packing fraction, void ratio, coordination and overlap "
+                                   "statistics.")
+    p.add_argument("file", help="a gransim HDF5 results file")
+    p.add_argument("--group", default="packing", help="group holding the packing (default: packing)")
+    p.set_defaults(func=_run)
+
+
+def format_stats(s: dict) -> str:
+    """Human-readable lines for :func:`gransim.generation.packing_stats`."""
+    c = s["cell"]
+    return "\n".join([
+        f"N                      {s['n']}",
+        f"cell (columns, m)      a1 = ({c[0][0]:.6g}, {c[1][0]:.6g})  a2 = ({c[0][1]:.6g}, {c[1][1]:.6g})",
+        f"packing fraction       {s['solid_fraction']:.5f}",
+        f"void ratio             {s['void_ratio']:.5f}",
+        f"D50 / mean diameter    {s['d50'] * 1e3:.5g} mm / {s['mean_diameter'] * 1e3:.5g} mm "
+        f"(range {s['d_min'] * 1e3:.4g}-{s['d_max'] * 1e3:.4g} mm)",
+        f"contacts               {s['n_contacts']}",
+        f"coordination 2Nc/N     {s['coordination']:.4f}",
+        f"  without rattlers     {s['coordination_nonrattler']:.4f} "
+        f"({s['n_rattlers']} rattlers, {100 * s['rattler_fraction']:.1f} %)",
+        f"mean overlap           {s['mean_overlap']:.4g} m = {100 * s['mean_overlap_d50']:.4g} % of D50 "
+        f"= {100 * s['mean_overlap_dmean']:.4g} % of mean diameter",
+        f"max overlap            {s['max_overlap']:.4g} m = {100 * s['max_overlap_d50']:.4g} % of D50",
+        f"fabric anisotropy a    {s['fabric_anisotropy']:.4f}",
+    ])
+
+
+def _run(args) -> int:
+    from ..errors import ResultFileError
+    from ..generation import packing_stats
+    from ..io import load_packing, open_result, read_provenance
+
+    prov = read_provenance(args.file)
+    print(f"file                   {args.file}")
+    print(f"kind                   {prov.get('kind')}  (gransim {prov.get('gransim_version')}, "
+          f"commit {prov.get('git_commit')}, created {prov.get('created')})")
+    if prov.get("parameters"):
+        print(f"parameters             {prov['parameters']}")
+    with open_result(args.file) as f:
+        has_packing = args.group in f
+        contents = sorted(f.keys())
+    if not has_packing:
+        if args.group != "packing":
+            raise ResultFileError(f"{args.file}: no group {args.group!r} (has {contents})")
+        print(f"groups                 {', '.join(contents) or '(none)'}")
+        return 0
+    print(format_stats(packing_stats(load_packing(args.file, group=args.group))))
+    return 0

@@ -1,0 +1,171 @@
+"""Packing generation: jammed periodic packings, force balance, targets, statistics, errors.
+
+Independent checks use the brute-force O(N^2) periodic search (find_neighbours_bruteforce) and plain
+numpy force sums, not the generator's kernels.
+"""
+
+import numpy as np
+import pytest
+
+from gransim import Packing
+from gransim.contacts import find_neighbours_bruteforce
+from gransim.errors import ConvergenceError, InputError
+from gransim.generation import get_distribution, make_packing, packing_stats, rattlers, standard_packings
+from gransim.generation.pack import DEFAULT_MEAN_OVERLAP, STANDARD_PACKINGS
+
+N = 120  # small: a few hundred ms per packing after compilation
+
+
+@pytest.fixture(scope="module")
+def dense():
+    return make_packing("quartz-sand", N, seed=4)
+
+
+def contact_forces(p):
+    """Net contact force on every disk (k_n = 1 per unit overlap, eq 5) and the contact forces."""
+    nl = find_neighbours_bruteforce(p.positions, p.radii, p.cell, 0.0)
+    eps = nl.overlaps(p.radii)
+    n = nl.branch / nl.distance[:, None]
+    F = np.zeros((p.n, 2))
+    np.add.at(F, nl.i, -eps[:, None] * n)
+    np.add.at(F, nl.j, eps[:, None] * n)
+    return F, eps, nl
+
+
+def test_dense_packing_reaches_the_overlap_target_and_is_periodic(dense):
+    p = dense
+    assert isinstance(p, Packing) and p.n == N
+    F, eps, nl = contact_forces(p)
+    dmean = 2 * p.radii.mean()
+    # the target mean overlap (relative to the mean diameter) within the 2 % tolerance
+    assert eps.mean() / dmean == pytest.approx(DEFAULT_MEAN_OVERLAP, rel=0.021)
+    # periodicity: the brute-force search over all images finds no overlap beyond the stated max,
+    # and contacts do cross the cell boundary (shift != 0)
+    assert eps.max() / p.d50 == pytest.approx(p.metadata["max_overlap_d50"], rel=1e-9)
+    assert eps.max() < 10 * eps.mean()
+    assert np.any(nl.shift != 0)
+    # a dense state: Kuhn's and Meier's 2D assemblies are at phi ~ 0.84-0.85
+    assert 0.82 < p.solid_fraction < 0.87
+    frac = np.linalg.solve(p.cell, p.positions.T).T
+    assert np.all((frac >= 0) & (frac < 1))  # centres wrapped into the primary cell
+    s = packing_stats(p)
+    assert s["n_contacts"] == eps.size
+    assert 3.3 < s["coordination"] < 4.2
+    # isostatic jamming: non-rattlers have ~ 2 d = 4 contacts (+ O(sqrt(p)) and finite-size excess)
+    assert 3.9 < s["coordination_nonrattler"] < 4.4
+
+
+def test_fire_reaches_force_balance(dense):
+    F, eps, _ = contact_forces(dense)
+    fmean = eps.mean()  # k_n = 1: contact force = overlap
+    # the stopping criterion (max residual <= 1e-3 mean contact force), checked independently
+    assert np.max(np.linalg.norm(F, axis=1)) <= 1.001e-3 * fmean
+    assert np.allclose(F.sum(axis=0), 0.0, atol=1e-12 * fmean * dense.n)
+
+
+def test_pressure_is_isotropic_on_average(dense):
+    # the cell is compressed isotropically: virial stress sigma = 1/A sum f (x) l has
+    # sigma_xx ~ sigma_yy up to the finite-size fluctuation of a 120-disk network
+    _, eps, nl = contact_forces(dense)
+    n = nl.branch / nl.distance[:, None]
+    sig = np.einsum("c,ci,cj->ij", eps, n, nl.branch) / dense.area
+    assert abs(sig[0, 1] - sig[1, 0]) < 1e-12 * np.trace(sig)
+    assert abs(sig[0, 0] - sig[1, 1]) < 0.25 * np.trace(sig)
+
+
+def test_solid_fraction_target_is_met_exactly_with_force_balance(dense):
+    phi_j = dense.metadata["phi_jamming"]
+    target = round(phi_j + 0.01, 4)
+    p = make_packing("quartz-sand", N, seed=4, solid_fraction=target)
+    assert p.solid_fraction == pytest.approx(target, rel=1e-12)
+    F, eps, _ = contact_forces(p)
+    assert np.max(np.linalg.norm(F, axis=1)) <= 1.001e-3 * eps.mean()
+    # compressed past jamming: overlaps grow by about (phi - phi_J) / phi of a diameter
+    assert eps.mean() / (2 * p.radii.mean()) > 10 * DEFAULT_MEAN_OVERLAP
+
+
+def test_packing_is_deterministic_for_a_seed():
+    a = make_packing("kuhn-1002", 40, seed=2)
+    b = make_packing("kuhn-1002", 40, seed=2)
+    c = make_packing("kuhn-1002", 40, seed=3)
+    assert np.array_equal(a.positions, b.positions) and np.array_equal(a.cell, b.cell)
+    assert not np.array_equal(np.sort(a.radii), np.sort(c.radii))
+
+
+def test_sizes_follow_the_distribution_and_scaling():
+    g = get_distribution("kuhn-1002")
+    p = make_packing(g, 60, seed=1, mean_diameter=2e-3, density=1000.0)
+    d = 2 * p.radii
+    assert d.min() >= 0.45 * g.d50 * 2e-3 / g.mean_diameter * (1 - 1e-12)
+    assert d.mean() == pytest.approx(2e-3, rel=0.02)  # the stratified sample mean of 60 grains
+    assert p.density == 1000.0 and p.metadata["distribution"] == "kuhn-1002"
+
+
+def test_packing_stats_exact_square_lattice():
+    # 2 x 2 square lattice, spacing 1, radius 0.5 + delta: 4 contacts per disk, overlap 2 delta
+    delta = 1e-3
+    x = np.array([[0.5, 0.5], [1.5, 0.5], [0.5, 1.5], [1.5, 1.5]])
+    p = Packing(x, np.full(4, 0.5 + delta), 2 * np.eye(2))
+    s = packing_stats(p)
+    assert s["n_contacts"] == 8 and s["coordination"] == 4.0 and s["n_rattlers"] == 0
+    assert s["mean_overlap"] == pytest.approx(2 * delta) and s["max_overlap"] == pytest.approx(2 * delta)
+    assert s["solid_fraction"] == pytest.approx(np.pi * (0.5 + delta) ** 2)
+    assert s["void_ratio"] == pytest.approx((1 - s["solid_fraction"]) / s["solid_fraction"])
+    assert s["fabric_anisotropy"] == pytest.approx(0.0, abs=1e-12)
+    # a small disk in the hole touching only one neighbour is a rattler
+    # (distance 0.566 to the disk at (0.5, 0.5) < 0.651; 0.721 to the next ones)
+    q = Packing(np.vstack([x, [[0.9, 0.9]]]), np.r_[np.full(4, 0.5 + delta), 0.15], 2 * np.eye(2))
+    sq = packing_stats(q)
+    assert sq["n_contacts"] == 9 and sq["coordination"] == pytest.approx(18 / 5)
+    assert sq["n_rattlers"] == 1 and sq["coordination_nonrattler"] == 4.0
+
+
+def test_rattler_removal_is_iterative():
+    # core: the complete graph on 0-3 (3 contacts each). Disks 4 and 6 have 2 contacts; once they
+    # go, 5 and 7 drop below 3 as well (second round); the core keeps its 3 contacts each.
+    edges = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3), (4, 5), (5, 6), (0, 6), (4, 7), (5, 7), (3, 7)]
+    i, j = np.array(edges).T
+    rat = rattlers(8, i, j, min_contacts=3)
+    assert rat.tolist() == [False] * 4 + [True] * 4
+
+
+def test_errors():
+    with pytest.raises(InputError, match="unknown distribution 'basalt'.*quartz-sand"):
+        make_packing("basalt", 50, 1)
+    with pytest.raises(InputError, match="n: expected an integer >= 2"):
+        make_packing("quartz-sand", 1, 1)
+    with pytest.raises(InputError, match="unreachable"):
+        make_packing("quartz-sand", 50, 1, solid_fraction=0.96)
+    with pytest.raises(InputError, match="solid_fraction"):
+        make_packing("quartz-sand", 50, 1, solid_fraction=0.0)
+    with pytest.raises(InputError, match="mean_overlap"):
+        make_packing("quartz-sand", 50, 1, mean_overlap=-1e-4)
+    with pytest.raises(InputError, match="not both"):
+        make_packing("quartz-sand", 50, 1, solid_fraction=0.85, mean_overlap=1e-4)
+    with pytest.raises(InputError, match="seed"):
+        make_packing("quartz-sand", 50, -1)
+    # below the jamming fraction: no contact network; the message names the reached phi_J
+    with pytest.raises(ConvergenceError, match=r"below the jamming fraction phi_J = 0\.8"):
+        make_packing("quartz-sand", 50, 1, solid_fraction=0.5)
+    # not reached within the step budget: the message names the reached state
+    with pytest.raises(ConvergenceError, match=r"reached phi = 0\.\d+, mean overlap"):
+        make_packing("quartz-sand", 50, 1, max_steps=20)
+
+
+def test_standard_packings_set_and_cheap_rerun(tmp_path):
+    assert len(STANDARD_PACKINGS) == 16 and "kuhn-1002" in STANDARD_PACKINGS
+    assert sum(k.startswith("rve-") for k in STANDARD_PACKINGS) == 15
+    out = standard_packings(tmp_path, names=["rve-70-2"])
+    path = out["rve-70-2"]
+    from gransim.io import load_packing, read_provenance
+
+    p = load_packing(path)
+    assert p.n == 70 and read_provenance(path)["parameters"]["seed"] == 2
+    mtime = path.stat().st_mtime_ns
+    standard_packings(tmp_path, names=["rve-70-2"])  # up to date: kept
+    assert path.stat().st_mtime_ns == mtime
+    standard_packings(tmp_path, names=["rve-70-2"], force=True)
+    assert path.stat().st_mtime_ns != mtime
+    assert np.array_equal(load_packing(path).positions, p.positions)  # deterministic
+    with pytest.raises(InputError, match="unknown standard packing"):
+        standard_packings(tmp_path, names=["rve-71-1"])
