@@ -64,13 +64,15 @@ def _snapshot(eng: DEMEngine) -> dict:
 
 def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output: OutputSettings | None = None,
                resume: bool = False, velocities=None, threads: int | None = None, show_progress: bool = True,
-               metadata: dict | None = None) -> Path:
+               metadata: dict | None = None, stop_at_step: int | None = None) -> Path:
     """Run ``phases`` one after the other from ``packing``; write ``out_path`` (kind "dem-run").
 
     With ``resume`` and an existing ``out_path`` of the same run (same fingerprint: packing,
     DEM settings, phases), continue from its checkpoint bit for bit; a file of another run is
     refused (:class:`ResultFileError`). A :class:`SimulationError` (NaN, lost particle) writes
     the file with the snapshots so far and ``stop_reason`` before it propagates.
+    ``stop_at_step`` ends this call at that step with a checkpoint (``complete`` False): a long
+    run split into pieces, continued with ``resume``.
     """
     output = output or OutputSettings()
     phases = list(phases)
@@ -119,6 +121,8 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
                 if ph.stop_tol > 0:
                     nxt.append(state["phase_step0"] + ((eng.step - state["phase_step0"]) // ph.check_every + 1)
                                * ph.check_every)
+                if stop_at_step is not None and stop_at_step > eng.step:
+                    nxt.append(int(stop_at_step))
                 stop = min(nxt)
                 out = eng.advance(ph.loading, stop - eng.step, phase_step0=state["phase_step0"], phase_box0=(lo0, hi0))
                 sel = out["step"] % output.series_every == 0
@@ -138,6 +142,10 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
                 if output.checkpoint_every and eng.step % output.checkpoint_every == 0:
                     _checkpoint(rec, eng, state)
                     write_run(out_path, rec)
+                if stop_at_step is not None and eng.step == stop_at_step:
+                    _checkpoint(rec, eng, state)
+                    write_run(out_path, rec)
+                    return out_path
             state = {"phase": state["phase"] + 1, "phase_step0": eng.step, "lo0": eng.lo.tolist(),
                      "hi0": eng.hi.tolist(), "settled": 0}
     except SimulationError as exc:
