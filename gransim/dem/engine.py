@@ -124,6 +124,7 @@ class DEMEngine:
         if self._parallel:
             set_num_threads(threads)
         self._pvir = np.zeros((n, 4))
+        self._pcont = np.zeros((n, 2))
         # neighbour list (empty; built in setup)
         self.ea = np.zeros(0, np.int64)
         self.eb = np.zeros(0, np.int64)
@@ -177,12 +178,9 @@ class DEMEngine:
         if self._parallel:
             K.forces_full(self.x, self.v, self.w, self.r, self.m, self.start, self.eb, self.esx, self.esy,
                           self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, update,
-                          self.f, self.t, self._pvir, self.slide, self.ef)
+                          self.f, self.t, self._pvir, self.slide, self.ef, self._pcont)
             self.virial[:] = self._pvir.sum(axis=0)
-            touch = K.overlapping(self.x, self.r, self.ea, self.eb, self.esx, self.esy, L[0], L[1])
-            nc = 0.5 * touch.sum()
-            d = self._entry_overlaps()
-            so = 0.5 * d[touch].sum()
+            nc, so = self._pcont.sum(axis=0)
         else:
             nc, so = K.forces_half(self.x, self.v, self.w, self.r, self.m, self.ea, self.eb, self.esx,
                                    self.esy, self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n,
@@ -190,11 +188,6 @@ class DEMEngine:
                                    self.ef)
         self.n_contacts = int(round(nc))
         self.mean_overlap = so / nc if nc else 0.0
-
-    def _entry_overlaps(self):
-        L = self.box_lengths
-        d = self.x[self.ea] - (self.x[self.eb] + np.stack([self.esx * L[0], self.esy * L[1]], axis=1))
-        return self.r[self.ea] + self.r[self.eb] - np.sqrt(np.einsum("ij,ij->i", d, d))
 
     def _setup(self):
         """LIGGGHTS ``run`` set-up: wrap, build (springs zero), forces without spring increment."""

@@ -183,13 +183,13 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
 
 @pjit
 def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
-                kn, kt, gn, gt, mu, dt, update, f, t, pvir, slide, ef):
+                kn, kt, gn, gt, mu, dt, update, f, t, pvir, slide, ef, pcont):
     """Parallel force loop over a full list in CSR form (entries of a in start[a]:start[a+1]).
 
     Every pair appears once per particle, each copy with its own spring (they stay exact
     negatives of each other: the law is odd in d and v); forces act on a only, so threads never
     write to the same particle. ``pvir`` (N, 4) per-particle virial halves; ``slide`` and
-    ``ef`` (M, 2) (force on a) per entry.
+    ``ef`` (M, 2) (force on a) per entry; ``pcont`` (N, 2) half contact counts and overlaps.
     """
     n = x.shape[0]
     for a in prange(n):
@@ -200,6 +200,8 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
         v1 = 0.0
         v2 = 0.0
         v3 = 0.0
+        nca = 0.0
+        ova = 0.0
         for e in range(start[a], start[a + 1]):
             b = eb[e]
             delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
@@ -222,6 +224,8 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
                 v1 += 0.5 * (dely * fy)
                 v2 += 0.5 * (delx * fy)
                 v3 += 0.5 * (dely * fx)
+                nca += 0.5
+                ova += 0.5 * (radsum - math.sqrt(rsq))
             else:
                 slide[e] = False
                 ef[e, 0] = 0.0
@@ -233,6 +237,8 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
         pvir[a, 1] = v1
         pvir[a, 2] = v2
         pvir[a, 3] = v3
+        pcont[a, 0] = nca
+        pcont[a, 1] = ova
 
 
 @njit
@@ -319,15 +325,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
 
 
 @njit
-def build_list(x, r, lo, hi, skin, full):
-    """Neighbour list of an orthogonal periodic box (positions wrapped into [lo, hi)).
-
-    Linked cells of side >= 2 r_max + skin (at least 3 per axis; the caller checks). Pairs with
-    |x_a - (x_b + s L)| <= r_a + r_b + skin. Half list (``full`` False, LIGGGHTS newton off):
-    owned pairs once with a < b (both = True), pairs across the boundary once per owner. Full
-    list: every pair from both sides. Entries are sorted by a, then b. Returns (a, b, sx, sy,
-    both, self_image) with self_image >= 0 a particle close to its own image (cell too small).
-    """
+def _bins(x, r, lo, hi, skin):
     n = x.shape[0]
     L0 = hi[0] - lo[0]
     L1 = hi[1] - lo[1]
@@ -349,60 +347,90 @@ def build_list(x, r, lo, hi, skin, full):
         c = ix * nb1 + iy
         nxt[i] = head[c]
         head[c] = i
-    cap = 8 * n + 16
-    a_out = np.empty(cap, np.int64)
-    b_out = np.empty(cap, np.int64)
-    sx_out = np.empty(cap, np.float64)
-    sy_out = np.empty(cap, np.float64)
-    both_out = np.empty(cap, np.bool_)
-    m = 0
-    self_image = -1
-    for a in range(n):
-        start = m
-        for dx in range(-1, 2):
-            cx = bx[a] + dx
-            sx = 0.0
-            if cx < 0:
-                cx += nb0
-                sx = -1.0
-            elif cx >= nb0:
-                cx -= nb0
-                sx = 1.0
-            for dy in range(-1, 2):
-                cy = by[a] + dy
-                sy = 0.0
-                if cy < 0:
-                    cy += nb1
-                    sy = -1.0
-                elif cy >= nb1:
-                    cy -= nb1
-                    sy = 1.0
-                b = head[cx * nb1 + cy]
-                while b >= 0:
-                    owned = sx == 0.0 and sy == 0.0
-                    take = (b != a) if (full or not owned) else (b > a)
-                    if take or (b == a and not owned):
-                        delx = x[a, 0] - (x[b, 0] + sx * L0)
-                        dely = x[a, 1] - (x[b, 1] + sy * L1)
-                        rc = r[a] + r[b] + skin
-                        if delx * delx + dely * dely <= rc * rc:
-                            if b == a:
-                                self_image = a
-                            else:
-                                if m == cap:
-                                    cap *= 2
-                                    a_out = _grow_i(a_out, cap)
-                                    b_out = _grow_i(b_out, cap)
-                                    sx_out = _grow_f(sx_out, cap)
-                                    sy_out = _grow_f(sy_out, cap)
-                                    both_out = _grow_b(both_out, cap)
+    return nb0, nb1, head, nxt, bx, by
+
+
+@njit
+def _scan(a, x, r, L0, L1, skin, full, nb0, nb1, head, nxt, bx, by, fill, m,
+          a_out, b_out, sx_out, sy_out, both_out):
+    """Entries of particle a (counted, or written from index m when ``fill``); returns
+    (new m, self-image flag)."""
+    selfimg = False
+    for dx in range(-1, 2):
+        cx = bx[a] + dx
+        sx = 0.0
+        if cx < 0:
+            cx += nb0
+            sx = -1.0
+        elif cx >= nb0:
+            cx -= nb0
+            sx = 1.0
+        for dy in range(-1, 2):
+            cy = by[a] + dy
+            sy = 0.0
+            if cy < 0:
+                cy += nb1
+                sy = -1.0
+            elif cy >= nb1:
+                cy -= nb1
+                sy = 1.0
+            owned = sx == 0.0 and sy == 0.0
+            b = head[cx * nb1 + cy]
+            while b >= 0:
+                if (b > a) or (b != a and (full or not owned)) or (b == a and not owned):
+                    delx = x[a, 0] - (x[b, 0] + sx * L0)
+                    dely = x[a, 1] - (x[b, 1] + sy * L1)
+                    rc = r[a] + r[b] + skin
+                    if delx * delx + dely * dely <= rc * rc:
+                        if b == a:
+                            selfimg = True
+                        else:
+                            if fill:
                                 a_out[m] = a
                                 b_out[m] = b
                                 sx_out[m] = sx
                                 sy_out[m] = sy
                                 both_out[m] = owned and not full
-                                m += 1
-                    b = nxt[b]
+                            m += 1
+                b = nxt[b]
+    return m, selfimg
+
+
+@njit
+def build_list(x, r, lo, hi, skin, full):
+    """Neighbour list of an orthogonal periodic box (positions wrapped into [lo, hi)).
+
+    Linked cells of side >= 2 r_max + skin (one periodic image per pair: the caller checks the
+    cell is larger than twice that). Pairs with |x_a - (x_b + s L)| <= r_a + r_b + skin. Half
+    list (``full`` False, LIGGGHTS newton off): owned pairs once with a < b (both = True), pairs
+    across the boundary once per owner. Full list: every pair from both sides. Entries are sorted
+    by a, then b. Returns (a, b, sx, sy, both, self_image), self_image >= 0 a particle close to
+    its own image (cell too small). Two passes (count, fill).
+    """
+    n = x.shape[0]
+    L0 = hi[0] - lo[0]
+    L1 = hi[1] - lo[1]
+    nb0, nb1, head, nxt, bx, by = _bins(x, r, lo, hi, skin)
+    dummy_i = np.empty(0, np.int64)
+    dummy_f = np.empty(0, np.float64)
+    dummy_b = np.empty(0, np.bool_)
+    m = 0
+    self_image = -1
+    for a in range(n):
+        m, si = _scan(a, x, r, L0, L1, skin, full, nb0, nb1, head, nxt, bx, by, False, m,
+                      dummy_i, dummy_i, dummy_f, dummy_f, dummy_b)
+        if si and self_image < 0:
+            self_image = a
+    a_out = np.empty(m, np.int64)
+    b_out = np.empty(m, np.int64)
+    sx_out = np.empty(m, np.float64)
+    sy_out = np.empty(m, np.float64)
+    both_out = np.empty(m, np.bool_)
+    m = 0
+    for a in range(n):
+        start = m
+        m, si = _scan(a, x, r, L0, L1, skin, full, nb0, nb1, head, nxt, bx, by, True, m,
+                      a_out, b_out, sx_out, sy_out, both_out)
         # insertion sort of a's entries by b (few entries)
         for k in range(start + 1, m):
             kb = b_out[k]
@@ -420,28 +448,7 @@ def build_list(x, r, lo, hi, skin, full):
             sx_out[q + 1] = ksx
             sy_out[q + 1] = ksy
             both_out[q + 1] = kboth
-    return a_out[:m].copy(), b_out[:m].copy(), sx_out[:m].copy(), sy_out[:m].copy(), both_out[:m].copy(), self_image
-
-
-@njit
-def _grow_i(a, cap):
-    out = np.empty(cap, np.int64)
-    out[:a.shape[0]] = a
-    return out
-
-
-@njit
-def _grow_f(a, cap):
-    out = np.empty(cap, np.float64)
-    out[:a.shape[0]] = a
-    return out
-
-
-@njit
-def _grow_b(a, cap):
-    out = np.empty(cap, np.bool_)
-    out[:a.shape[0]] = a
-    return out
+    return a_out, b_out, sx_out, sy_out, both_out, self_image
 
 
 @njit

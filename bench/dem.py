@@ -1,0 +1,93 @@
+"""DEM throughput: native engine vs LIGGGHTS 3.8.0 serial, side by side on the same assembly,
+deck and number of steps (particle-steps per second = N * steps / wall time of the loop).
+
+Records: native serial and LIGGGHTS serial at 1,002 and 100,000 disks (target native >= 1.5x),
+native with 2 threads (mode "parallel"), and the native scaling from 1e3 to 1e6 disks (cost per
+particle-step should be flat). Assembly: jittered triangular lattice of polydisperse disks
+overlapping ~4% of a radius (gransim.dem.lattice), biaxial loading (servo on x, rate on y),
+kn = kt = 1e5 N/m, damping and friction on. Run: ``python bench/dem.py [--quick]``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from gransim.dem import AxisControl, DEMEngine, DEMSettings, Loading  # noqa: E402
+from gransim.dem.lattice import lattice_packing  # noqa: E402
+
+SETTINGS = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e-6, skin=2e-5)
+# a slow rate: the box displacement eats the skin (LIGGGHTS rule) at every size alike
+LOADING = Loading(x=AxisControl("servo", target=100.0, gain=1e-3), y=AxisControl("rate", rate=-0.01))
+
+
+def assembly(n: int):
+    nx = max(3, int(round(math.sqrt(n * 2 / math.sqrt(3)))))
+    ny = max(4, int(round(n / nx)))
+    ny += ny % 2
+    return lattice_packing(nx, ny, seed=1, spread=0.1, compression=0.04)
+
+
+def native(p, steps: int, mode: str = "serial", threads: int | None = None) -> tuple[float, float]:
+    s = DEMSettings(**{**SETTINGS.to_dict(), "mode": mode})
+    eng = DEMEngine(p, s, threads=threads)
+    eng.advance(LOADING, 2)  # compile / warm up
+    t0 = time.perf_counter()
+    eng.advance(LOADING, steps)
+    dt = time.perf_counter() - t0
+    return p.n * steps / dt, 2 * eng.n_contacts / p.n
+
+
+def liggghts(p, steps: int) -> float | None:
+    if shutil.which("liggghts") is None:
+        return None
+    from reference_runs.decks.biaxial import run_liggghts, write_biaxial_deck
+
+    with tempfile.TemporaryDirectory(prefix="bench-dem-") as tmp:
+        deck = write_biaxial_deck(tmp, p, SETTINGS, LOADING, steps, thermo_every=max(steps // 10, 1),
+                                  dump_every=10 * steps)
+        log = run_liggghts(deck)
+        m = re.search(r"Loop time of ([0-9.eE+-]+) on 1 procs for (\d+) steps with (\d+) atoms", log.read_text())
+        return p.n * int(m.group(2)) / float(m.group(1))
+
+
+def run(quick: bool = False) -> list[dict]:
+    recs = []
+    for n, steps in ((1002, 2000 if quick else 10000), (100_000, 20 if quick else 200)):
+        p = assembly(n)
+        nat, z = native(p, steps)
+        lig = liggghts(p, steps)
+        note = f"{p.n} disks, {steps} steps, coordination {z:.2f}, same deck"
+        recs.append({"name": f"native serial, {p.n} disks", "value": nat, "unit": "particle-steps/s",
+                     "target": None, "note": note})
+        if lig is not None:
+            recs.append({"name": f"LIGGGHTS 3.8.0 serial, {p.n} disks", "value": lig, "unit": "particle-steps/s",
+                         "target": None, "note": note})
+            recs.append({"name": f"native / LIGGGHTS, {p.n} disks", "value": nat / lig, "unit": "x",
+                         "target": 1.5, "note": "serial, 1 core each"})
+        par, _ = native(p, steps, mode="parallel", threads=2)
+        recs.append({"name": f"native 2 threads (parallel mode), {p.n} disks", "value": par,
+                     "unit": "particle-steps/s", "target": None, "note": note})
+    sizes = (1000, 10_000, 100_000) if quick else (1000, 10_000, 100_000, 1_000_000)
+    for n in sizes:
+        p = assembly(n)
+        steps = max(10, int(2e7 / n)) if not quick else max(5, int(2e6 / n))
+        nat, _ = native(p, steps)
+        recs.append({"name": f"native serial scaling, {p.n} disks", "value": 1e9 / nat, "unit": "ns/particle-step",
+                     "target": None, "note": f"{steps} steps; flat = O(N)"})
+    return recs
+
+
+if __name__ == "__main__":
+    for r in run(quick="--quick" in sys.argv):
+        tgt = "" if r["target"] is None else f"  (target {r['target']})"
+        print(f"{r['name']:48s} {r['value']:12.4g} {r['unit']}{tgt}  [{r['note']}]")
