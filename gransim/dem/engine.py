@@ -23,7 +23,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._numba import set_num_threads
-from ..contacts import find_neighbours
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import kernels as K
@@ -186,7 +185,7 @@ class DEMEngine:
                                    self.esy, self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n,
                                    s.gamma_t, s.mu, s.dt, update, self.f, self.t, self.virial, self.slide,
                                    self.ef)
-        self.n_contacts = int(round(nc))
+        self.n_contacts = round(nc)
         self.mean_overlap = so / nc if nc else 0.0
 
     def _setup(self):
@@ -236,17 +235,13 @@ class DEMEngine:
         resume = False
         step_start = self.step
         while done < nsteps:
-            if self._parallel:
-                k, status, bad = self._python_block(nsteps - done, resume, modes, rates, targets, gains, lo0, hi0,
-                                                    phase_step0, out_stress[done:], out_L[done:], out_nc[done:],
-                                                    out_ov[done:], out_ke[done:])
-            else:
-                k, status, bad = K.run_block(
-                    self.x, self.v, self.w, self.f, self.t, self.r, self.m, self.ea, self.eb, self.esx, self.esy,
-                    self.both, self.xi, self.slide, self.ef, self.xhold, self.lo, self.hi, self.lo_hold,
-                    self.hi_hold, self.virial, s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, s.skin, self.step,
-                    nsteps - done, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
-                    out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:], out_ke[done:])
+            k, status, bad = K.run_block(
+                self.x, self.v, self.w, self.f, self.t, self.r, self.m, self.ea, self.eb, self.esx, self.esy,
+                self.both, self.xi, self.slide, self.ef, self.xhold, self.lo, self.hi, self.lo_hold,
+                self.hi_hold, self.virial, s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, s.skin, self.step,
+                nsteps - done, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
+                out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:], out_ke[done:],
+                self._parallel, self.start, self._pvir, self._pcont)
             done += k
             self.step += k
             resume = False
@@ -261,7 +256,7 @@ class DEMEngine:
             elif status == 3:
                 raise SimulationError(f"step {self.step + 1}: the cell collapsed")
         if nsteps:
-            self.n_contacts = int(round(out_nc[-1]))
+            self.n_contacts = round(out_nc[-1])
             self.mean_overlap = float(out_ov[-1])
             self.stress = self.stress_tensor(self.box_lengths)
         st = np.empty((nsteps, 2, 2))
@@ -271,43 +266,6 @@ class DEMEngine:
         st[:, 1, 0] = out_stress[:, 3]
         return {"step": np.arange(step_start + 1, step_start + nsteps + 1), "stress": st, "lengths": out_L,
                 "n_contacts": np.rint(out_nc).astype(np.int64), "mean_overlap": out_ov, "kinetic_energy": out_ke}
-
-    def _python_block(self, nsteps, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
-                      out_stress, out_L, out_nc, out_ov, out_ke):
-        """The same step as kernels.run_block with the parallel force loop (Python-level loop)."""
-        s = self.settings
-        for k in range(nsteps):
-            step = self.step + k + 1
-            if not (resume and k == 0):
-                K.initial_integrate(self.x, self.v, self.w, self.f, self.t, self.m, self.r, s.dt)
-                rebuild, bad = K.check_rebuild(self.x, self.xhold, self.lo, self.hi, self.lo_hold,
-                                               self.hi_hold, s.skin)
-                if bad >= 0:
-                    return k, 2, bad
-                if rebuild:
-                    return k, 1, -1
-            L_old = self.box_lengths.copy()
-            self._forces(update=True)
-            ke = K.final_integrate(self.v, self.w, self.f, self.t, self.m, self.r, s.dt)
-            inv = 1.0 / (L_old[0] * L_old[1])
-            sig = np.array([self.virial[0] * inv, self.virial[1] * inv])
-            lo_new, hi_new = self.lo.copy(), self.hi.copy()
-            K.box_target(step, L_old, sig, s.dt, modes, rates, targets, gains, lo0, hi0, phase_step0,
-                         lo_new, hi_new)
-            if np.any(lo_new != self.lo) or np.any(hi_new != self.hi):
-                if not np.all(hi_new - lo_new > 0):
-                    return k, 3, -1
-                K.remap_x(self.x, self.lo, self.hi, lo_new, hi_new)
-                self.lo[:] = lo_new
-                self.hi[:] = hi_new
-            L = self.box_lengths
-            inv = 1.0 / (L[0] * L[1])
-            out_stress[k] = self.virial * inv
-            out_L[k] = L
-            out_nc[k] = self.n_contacts
-            out_ov[k] = self.mean_overlap
-            out_ke[k] = ke
-        return nsteps, 0, -1
 
     # ------------------------------------------------------------------ diagnostics
     def kinetic_energy(self) -> float:
@@ -365,5 +323,13 @@ class DEMEngine:
         self.stress = self.stress_tensor(self.box_lengths)
 
 
-__all__ = ["AxisControl", "DEMEngine", "DEMSettings", "Loading", "STEPS_PER_CONTACT_MIN", "contact_time",
-           "fingerprint", "stability_limit"]
+__all__ = [
+    "STEPS_PER_CONTACT_MIN",
+    "AxisControl",
+    "DEMEngine",
+    "DEMSettings",
+    "Loading",
+    "contact_time",
+    "fingerprint",
+    "stability_limit",
+]

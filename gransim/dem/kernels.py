@@ -59,8 +59,7 @@ def check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin):
     dy = hi[1] - hi_hold[1]
     d2 = math.sqrt(dx * dx + dy * dy)
     delta = 0.5 * (skin - (d1 + d2))
-    if delta < 0.0:
-        delta = 0.0
+    delta = max(delta, 0.0)
     deltasq = delta * delta
     flag = False
     for i in range(x.shape[0]):
@@ -147,7 +146,7 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
         rsq = delx * delx + dely * dely
         radsum = r[a] + r[b]
         if rsq < radsum * radsum:
-            fx, fy, ta, tb, s0, s1, sl, fn = hooke_history(
+            fx, fy, ta, tb, s0, s1, sl, _ = hooke_history(
                 delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
                 m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
             xi[e, 0] = s0
@@ -209,7 +208,7 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
             rsq = delx * delx + dely * dely
             radsum = r[a] + r[b]
             if rsq < radsum * radsum:
-                fx, fy, tq, tb, s0, s1, sl, fn = hooke_history(
+                fx, fy, tq, _, s0, s1, sl, _ = hooke_history(
                     delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
                     m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
                 xi[e, 0] = s0
@@ -265,8 +264,10 @@ def box_target(step, L_old, sig_servo, dt, modes, rates, targets, gains, lo0, hi
 def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold, lo, hi, lo_hold,
               hi_hold, vir, kn, kt, gn, gt, mu, dt, skin, step0, nsteps, resume,
               modes, rates, targets, gains, lo0, hi0, phase_step0,
-              out_stress, out_L, out_nc, out_ov, out_ke):
-    """Serial steps step0+1 .. step0+nsteps until a neighbour rebuild is needed.
+              out_stress, out_L, out_nc, out_ov, out_ke, parallel, start, pvir, pcont):
+    """Steps step0+1 .. step0+nsteps until a neighbour rebuild is needed (force loop serial over
+    the half list, or with ``parallel`` the threaded full-list loop ``forces_full`` with CSR
+    ``start`` and per-particle scratch ``pvir`` (N, 4), ``pcont`` (N, 2)).
 
     Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the step
     step0+completed+1 has done its first half step; call again with ``resume`` True after the
@@ -288,8 +289,21 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
                 return k, 1, -1
         Lx = hi[0] - lo[0]
         Ly = hi[1] - lo[1]
-        nc, so = forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt,
-                             True, f, t, vir, slide, ef)
+        if parallel:
+            forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, True, f, t,
+                        pvir, slide, ef, pcont)
+            for c in range(4):
+                vir[c] = 0.0
+            nc = 0.0
+            so = 0.0
+            for i in range(x.shape[0]):
+                for c in range(4):
+                    vir[c] += pvir[i, c]
+                nc += pcont[i, 0]
+                so += pcont[i, 1]
+        else:
+            nc, so = forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt,
+                                 True, f, t, vir, slide, ef)
         ke = final_integrate(v, w, f, t, m, r, dt)
         inv = 1.0 / (Lx * Ly)
         L_old[0] = Lx

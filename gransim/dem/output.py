@@ -107,7 +107,7 @@ def read_record(path) -> RunRecord:
                         stop_reason=str(f.attrs["stop_reason"]))
         for k in SERIES_KEYS:
             rec.series[k] = list(f["series"][k][()])
-        for name, h in f["snapshots"].items():
+        for h in f["snapshots"].values():
             step = int(h.attrs["step"])
             rec.snapshots[step] = {"time": float(h.attrs["time"]),
                                    **{k: h[k][()] for k in ("cell", "positions", "velocities", "spins")},

@@ -86,7 +86,7 @@ class Loading:
         return {"x": dataclasses.asdict(self.x), "y": dataclasses.asdict(self.y)}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Loading":
+    def from_dict(cls, d: dict) -> Loading:
         return cls(x=AxisControl(**d["x"]), y=AxisControl(**d["y"]))
 
 

@@ -16,8 +16,14 @@ import numpy as np
 import pytest
 
 from gransim.dem import DEMEngine
-from reference_runs.decks.biaxial import (SHORT_CASE_DUMP_EVERY, read_dump, read_thermo, run_liggghts,
-                                          short_case, write_biaxial_deck)
+from reference_runs.decks.biaxial import (
+    SHORT_CASE_DUMP_EVERY,
+    read_dump,
+    read_thermo,
+    run_liggghts,
+    short_case,
+    write_biaxial_deck,
+)
 
 STORED = Path(__file__).resolve().parents[2] / "reference_runs" / "stored" / "biaxial-short"
 POS_TOL = 1e-10  # of D50
@@ -59,7 +65,7 @@ def _compare(thermo, dumps, nsteps, dump_every):
 def test_stored_liggghts_run_step_for_step():
     thermo = read_thermo(STORED / "log.liggghts")
     dumps = read_dump(STORED / "dump.atoms")
-    p, s, ld, n = short_case()
+    p, _, _, n = short_case()
     # the stored data file is the case's packing (guards against a changed generator)
     assert len(thermo["step"]) == n + 1
     np.testing.assert_allclose(dumps[0]["radius"], p.radii, rtol=0, atol=0)

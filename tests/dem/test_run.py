@@ -11,7 +11,13 @@ import pytest
 
 from gransim.cli import main
 from gransim.dem import AxisControl, DEMEngine, DEMSettings, Loading
-from gransim.dem.biaxial import BiaxialSettings, biaxial_phases, default_settings, inertial_number, run_biaxial
+from gransim.dem.biaxial import (
+    BiaxialSettings,
+    biaxial_phases,
+    default_settings,
+    inertial_number,
+    run_biaxial,
+)
 from gransim.dem.lattice import lattice_packing
 from gransim.dem.output import OutputSettings, read_run, read_snapshot, snapshot_to_vtu
 from gransim.dem.run import Phase, run_phases
