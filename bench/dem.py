@@ -20,7 +20,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from gransim.dem import AxisControl, DEMEngine, DEMSettings, Loading
+from gransim.dem import DEMEngine, DEMSettings, Loading
 from gransim.dem.lattice import lattice_packing
 
 SETTINGS = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e-6, skin=2e-5)

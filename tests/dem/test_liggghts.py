@@ -87,3 +87,17 @@ def test_live_liggghts_run_step_for_step(tmp_path):
     assert worst_pos < POS_TOL
     assert worst_stress < STRESS_TOL
     assert dl < POS_TOL
+
+
+def test_deck_mirrors_engine_settings(tmp_path):
+    p, s, ld, _ = short_case()
+    deck = write_biaxial_deck(tmp_path, p, s, ld, 10).read_text()
+    for line in ("newton off", "atom_modify map array sort 0 0.0", "neigh_modify delay 0 every 1 check yes",
+                 f"neighbor {s.skin:.17g} bin", f"timestep {s.dt:.17g}",
+                 "pair_style gran model hooke/stiffness tangential history", "remap x"):
+        assert line in deck
+    # the servo stress is a fix ave/time defined before fix deform (evaluated first in end_of_step)
+    assert deck.index("fix avsx") < deck.index("fix deform")
+    # the rate literal is c = rate L0 dt, the exact double the engine uses
+    c = ld.y.rate * p.cell[1, 1] * s.dt
+    assert f"variable dy equal {c:.17g}*step" in deck

@@ -233,3 +233,14 @@ def test_parallel_mode_matches_serial_to_round_off():
     assert np.abs(a.x - b.x).max() < 1e-10 * p.d50
     np.testing.assert_allclose(rb["stress"], ra["stress"], rtol=0, atol=1e-9 * np.abs(ra["stress"]).max())
     np.testing.assert_array_equal(ra["n_contacts"], rb["n_contacts"])
+
+
+def test_parallel_mode_is_deterministic():
+    p = lattice_packing(6, 6, seed=7, spread=0.1, compression=0.04)
+    s = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e-6, skin=2e-5, mode="parallel")
+    runs = []
+    for _ in range(2):
+        eng = DEMEngine(p, s, threads=2)
+        eng.advance(Loading(y=AxisControl("rate", rate=-1.0)), 200)
+        runs.append(eng.x.copy())
+    np.testing.assert_array_equal(runs[0], runs[1])
