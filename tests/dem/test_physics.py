@@ -244,3 +244,13 @@ def test_parallel_mode_is_deterministic():
         eng.advance(Loading(y=AxisControl("rate", rate=-1.0)), 200)
         runs.append(eng.x.copy())
     np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_lost_particle_stops_with_step_and_particle():
+    p = lattice_packing(6, 6, seed=0)
+    s = DEMSettings(kn=1e5, kt=1e5, dt=2e-6, skin=2e-5)
+    v = np.zeros((p.n, 2))
+    v[11, 0] = 3.0 * p.cell[0, 0] / s.dt  # three box lengths in one step: beyond one periodic wrap
+    eng = DEMEngine(p, s, velocities=v)
+    with pytest.raises(SimulationError, match=r"step 1: particle 11 lost"):
+        eng.advance(FIXED, 5)
