@@ -125,8 +125,8 @@ class DEMEngine:
         self._pvir = np.zeros((n, 4))
         self._pcont = np.zeros((n, 2))
         # neighbour list (empty; built in setup)
-        self.ea = np.zeros(0, np.int64)
-        self.eb = np.zeros(0, np.int64)
+        self.ea = np.zeros(0, np.int32)  # int32: memory traffic of the force loop
+        self.eb = np.zeros(0, np.int32)
         self.esx = np.zeros(0)
         self.esy = np.zeros(0)
         self.eshift = np.zeros((0, 2), np.int64)
@@ -177,14 +177,14 @@ class DEMEngine:
         if self._parallel:
             K.forces_full(self.x, self.v, self.w, self.r, self.m, self.start, self.eb, self.esx, self.esy,
                           self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, update,
-                          self.f, self.t, self._pvir, self.slide, self.ef, self._pcont)
+                          self.f, self.t, self._pvir, self.slide, self.ef, self._pcont, True)
             self.virial[:] = self._pvir.sum(axis=0)
             nc, so = self._pcont.sum(axis=0)
         else:
             nc, so = K.forces_half(self.x, self.v, self.w, self.r, self.m, self.ea, self.eb, self.esx,
                                    self.esy, self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n,
                                    s.gamma_t, s.mu, s.dt, update, self.f, self.t, self.virial, self.slide,
-                                   self.ef)
+                                   self.ef, True)
         self.n_contacts = round(nc)
         self.mean_overlap = so / nc if nc else 0.0
 
@@ -284,7 +284,7 @@ class DEMEngine:
         d = self.x[a] - (self.x[b] + self.eshift[e] * L)
         ov = self.r[a] + self.r[b] - np.sqrt(np.einsum("ij,ij->i", d, d))
         # entry (a, b, s): b's image is x_b + s L, so l_ab = x_b + C s - x_a (the schema's shift)
-        return {"i": a, "j": b, "shift": self.eshift[e].astype(np.int64), "force": -self.ef[e],
+        return {"i": a.astype(np.int64), "j": b.astype(np.int64), "shift": self.eshift[e].astype(np.int64), "force": -self.ef[e],
                 "overlap": ov, "tangential_spring": self.xi[e].copy(), "sliding": self.slide[e].copy()}
 
     def state_arrays(self) -> dict:
@@ -308,8 +308,8 @@ class DEMEngine:
         self.xhold = np.array(arrays["x_hold"])
         self.lo_hold = np.array(arrays["box_lo_hold"])
         self.hi_hold = np.array(arrays["box_hi_hold"])
-        self.ea = np.array(arrays["neighbours/a"], np.int64)
-        self.eb = np.array(arrays["neighbours/b"], np.int64)
+        self.ea = np.array(arrays["neighbours/a"], np.int32)
+        self.eb = np.array(arrays["neighbours/b"], np.int32)
         self.eshift = np.array(arrays["neighbours/shift"], np.int64).reshape(-1, 2)
         self.esx = np.ascontiguousarray(self.eshift[:, 0], np.float64)
         self.esy = np.ascontiguousarray(self.eshift[:, 1], np.float64)

@@ -117,14 +117,15 @@ def overlapping(x, r, ea, eb, esx, esy, Lx, Ly):
 
 @njit
 def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
-                kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef):
+                kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store):
     """Serial force loop over a half list (LIGGGHTS ``newton off``).
 
     Entries (a, b, s): b's image x_b + s L (L = current box lengths). ``both`` entries (s = 0,
     both owned) apply the force to a and -force to b; entries across the boundary exist once per
     owner, each with its own spring copy, and act on a only. ``vir`` (4,) receives the virial
     sums xx, yy, xy, yx of d (x) f_i (0.5 per owner as ``ev_tally_xyz``); ``ef`` (M, 2) the force on
-    a of each entry, ``slide`` (M,) the Coulomb cap flag. Returns (contacts, sum of
+    a of each entry, ``slide`` (M,) the Coulomb cap flag (written only when ``store``: memory
+    traffic; the engine stores them at the last step of each ``advance``). Returns (contacts, sum of
     overlaps) counting each physical contact once.
     """
     n = x.shape[0]
@@ -151,9 +152,10 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
                 m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
             xi[e, 0] = s0
             xi[e, 1] = s1
-            slide[e] = sl
-            ef[e, 0] = fx
-            ef[e, 1] = fy
+            if store:
+                slide[e] = sl
+                ef[e, 0] = fx
+                ef[e, 1] = fy
             f[a, 0] += fx
             f[a, 1] += fy
             t[a] += ta
@@ -173,7 +175,7 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
             vir[3] += 0.5 * (dely * fx)
             ncontact += wgt
             sum_overlap += wgt * (radsum - math.sqrt(rsq))
-        else:
+        elif store:
             slide[e] = False
             ef[e, 0] = 0.0
             ef[e, 1] = 0.0
@@ -182,7 +184,7 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
 
 @pjit
 def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
-                kn, kt, gn, gt, mu, dt, update, f, t, pvir, slide, ef, pcont):
+                kn, kt, gn, gt, mu, dt, update, f, t, pvir, slide, ef, pcont, store):
     """Parallel force loop over a full list in CSR form (entries of a in start[a]:start[a+1]).
 
     Every pair appears once per particle, each copy with its own spring (they stay exact
@@ -213,9 +215,10 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
                     m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
                 xi[e, 0] = s0
                 xi[e, 1] = s1
-                slide[e] = sl
-                ef[e, 0] = fx
-                ef[e, 1] = fy
+                if store:
+                    slide[e] = sl
+                    ef[e, 0] = fx
+                    ef[e, 1] = fy
                 fxa += fx
                 fya += fy
                 ta += tq
@@ -225,7 +228,7 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
                 v3 += 0.5 * (dely * fx)
                 nca += 0.5
                 ova += 0.5 * (radsum - math.sqrt(rsq))
-            else:
+            elif store:
                 slide[e] = False
                 ef[e, 0] = 0.0
                 ef[e, 1] = 0.0
@@ -291,7 +294,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         Ly = hi[1] - lo[1]
         if parallel:
             forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, True, f, t,
-                        pvir, slide, ef, pcont)
+                        pvir, slide, ef, pcont, k == nsteps - 1)
             for c in range(4):
                 vir[c] = 0.0
             nc = 0.0
@@ -303,7 +306,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
                 so += pcont[i, 1]
         else:
             nc, so = forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt,
-                                 True, f, t, vir, slide, ef)
+                                 True, f, t, vir, slide, ef, k == nsteps - 1)
         ke = final_integrate(v, w, f, t, m, r, dt)
         inv = 1.0 / (Lx * Ly)
         L_old[0] = Lx
@@ -425,7 +428,7 @@ def build_list(x, r, lo, hi, skin, full):
     L0 = hi[0] - lo[0]
     L1 = hi[1] - lo[1]
     nb0, nb1, head, nxt, bx, by = _bins(x, r, lo, hi, skin)
-    dummy_i = np.empty(0, np.int64)
+    dummy_i = np.empty(0, np.int32)
     dummy_f = np.empty(0, np.float64)
     dummy_b = np.empty(0, np.bool_)
     m = 0
@@ -435,8 +438,8 @@ def build_list(x, r, lo, hi, skin, full):
                       dummy_i, dummy_i, dummy_f, dummy_f, dummy_b)
         if si and self_image < 0:
             self_image = a
-    a_out = np.empty(m, np.int64)
-    b_out = np.empty(m, np.int64)
+    a_out = np.empty(m, np.int32)
+    b_out = np.empty(m, np.int32)
     sx_out = np.empty(m, np.float64)
     sy_out = np.empty(m, np.float64)
     both_out = np.empty(m, np.bool_)
