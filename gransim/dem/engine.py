@@ -154,7 +154,7 @@ class DEMEngine:
                                   f"box {self.lo.tolist()}..{self.hi.tolist()})")
         L = self.box_lengths
         a, b, esx, esy, both, selfimg = K.build_list(self.x, self.r, self.lo, self.hi, self.settings.skin,
-                                                     self._parallel)
+                                                     False)
         if selfimg >= 0:
             raise SimulationError(f"step {self.step}: particle {selfimg} is near its own image; the cell is too small")
         xi = np.zeros((a.size, 2))
@@ -166,18 +166,27 @@ class DEMEngine:
         self.slide = np.zeros(a.size, np.bool_)
         self.ef = np.zeros((a.size, 2))
         self.start = np.searchsorted(a, np.arange(self.packing.n + 1)).astype(np.int64)
+        self._set_parallel_scratch()
         self.xhold = self.x.copy()
         self.lo_hold = self.lo.copy()
         self.hi_hold = self.hi.copy()
         self.n_rebuilds += 1
 
+    def _set_parallel_scratch(self):
+        if self._parallel:
+            self._in_start, self._in_e = K.incoming(self.eb, self.both, self.packing.n)
+        else:
+            self._in_start, self._in_e = np.zeros(self.packing.n + 1, np.int64), np.zeros(0, np.int64)
+        self._tb = np.zeros(self.ea.size)
+
     def _forces(self, update: bool):
         s = self.settings
         L = self.box_lengths
         if self._parallel:
-            K.forces_full(self.x, self.v, self.w, self.r, self.m, self.start, self.eb, self.esx, self.esy,
-                          self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, update,
-                          self.f, self.t, self._pvir, self.slide, self.ef, self._pcont, True)
+            K.forces_parallel(self.x, self.v, self.w, self.r, self.m, self.start, self.eb, self.esx, self.esy,
+                              self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, update,
+                              self.f, self.t, self._pvir, self.slide, self.ef, self._tb, self._pcont,
+                              self._in_start, self._in_e, True)
             self.virial[:] = self._pvir.sum(axis=0)
             nc, so = self._pcont.sum(axis=0)
         else:
@@ -241,7 +250,7 @@ class DEMEngine:
                 self.hi_hold, self.virial, s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, s.skin, self.step,
                 nsteps - done, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
                 out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:], out_ke[done:],
-                self._parallel, self.start, self._pvir, self._pcont)
+                self._parallel, self.start, self._pvir, self._pcont, self._tb, self._in_start, self._in_e)
             done += k
             self.step += k
             resume = False
@@ -319,6 +328,7 @@ class DEMEngine:
         self.slide = np.zeros(self.ea.size, np.bool_)
         self.ef = np.zeros((self.ea.size, 2))
         self.start = np.searchsorted(self.ea, np.arange(self.packing.n + 1)).astype(np.int64)
+        self._set_parallel_scratch()
         self.step = int(step)
         self.stress = self.stress_tensor(self.box_lengths)
 

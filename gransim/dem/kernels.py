@@ -183,14 +183,15 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
 
 
 @pjit
-def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
-                kn, kt, gn, gt, mu, dt, update, f, t, pvir, slide, ef, pcont, store):
-    """Parallel force loop over a full list in CSR form (entries of a in start[a]:start[a+1]).
-
-    Every pair appears once per particle, each copy with its own spring (they stay exact
-    negatives of each other: the law is odd in d and v); forces act on a only, so threads never
-    write to the same particle. ``pvir`` (N, 4) per-particle virial halves; ``slide`` and
-    ``ef`` (M, 2) (force on a) per entry; ``pcont`` (N, 2) half contact counts and overlaps.
+def forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update,
+                    f, t, pvir, slide, ef, tb, pcont, in_start, in_e, store):
+    """Threaded force loop over the same half list as :func:`forces_half` (CSR by a: entries of
+    a in start[a]:start[a+1]; ``in_e[in_start[p]:in_start[p+1]]`` the owned entries whose b is
+    p). Pass 1 (threads over a): each entry once (spring update, force on a ``ef``, torque on b
+    ``tb``), own sums; pass 2 (threads over p): minus the forces and the torques of incoming
+    entries. No two threads write the same particle; deterministic; the summation order differs
+    from the serial loop (round-off). ``pvir`` (N, 4), ``pcont`` (N, 2) per-particle virial and
+    contact count/overlap sums (owned pairs weight 1, boundary copies 1/2).
     """
     n = x.shape[0]
     for a in prange(n):
@@ -210,28 +211,32 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
             rsq = delx * delx + dely * dely
             radsum = r[a] + r[b]
             if rsq < radsum * radsum:
-                fx, fy, tq, _, s0, s1, sl, _ = hooke_history(
+                fx, fy, tq, tqb, s0, s1, sl, _ = hooke_history(
                     delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
                     m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
                 xi[e, 0] = s0
                 xi[e, 1] = s1
                 if store:
                     slide[e] = sl
-                    ef[e, 0] = fx
-                    ef[e, 1] = fy
+                ef[e, 0] = fx
+                ef[e, 1] = fy
+                tb[e] = tqb
                 fxa += fx
                 fya += fy
                 ta += tq
-                v0 += 0.5 * (delx * fx)
-                v1 += 0.5 * (dely * fy)
-                v2 += 0.5 * (delx * fy)
-                v3 += 0.5 * (dely * fx)
-                nca += 0.5
-                ova += 0.5 * (radsum - math.sqrt(rsq))
-            elif store:
-                slide[e] = False
+                wgt = 1.0 if both[e] else 0.5
+                v0 += wgt * (delx * fx)
+                v1 += wgt * (dely * fy)
+                v2 += wgt * (delx * fy)
+                v3 += wgt * (dely * fx)
+                nca += wgt
+                ova += wgt * (radsum - math.sqrt(rsq))
+            else:
+                if store:
+                    slide[e] = False
                 ef[e, 0] = 0.0
                 ef[e, 1] = 0.0
+                tb[e] = 0.0
         f[a, 0] = fxa
         f[a, 1] = fya
         t[a] = ta
@@ -241,6 +246,36 @@ def forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly,
         pvir[a, 3] = v3
         pcont[a, 0] = nca
         pcont[a, 1] = ova
+    for p in prange(n):
+        fx = 0.0
+        fy = 0.0
+        tq = 0.0
+        for k in range(in_start[p], in_start[p + 1]):
+            e = in_e[k]
+            fx += ef[e, 0]
+            fy += ef[e, 1]
+            tq += tb[e]
+        f[p, 0] -= fx
+        f[p, 1] -= fy
+        t[p] += tq
+
+
+@njit
+def incoming(eb, both, n):
+    """CSR of owned entries by their second particle: (in_start (n+1,), in_e)."""
+    cnt = np.zeros(n + 1, np.int64)
+    for e in range(eb.shape[0]):
+        if both[e]:
+            cnt[eb[e] + 1] += 1
+    for p in range(n):
+        cnt[p + 1] += cnt[p]
+    pos = cnt[:-1].copy()
+    in_e = np.empty(cnt[n], np.int64)
+    for e in range(eb.shape[0]):
+        if both[e]:
+            in_e[pos[eb[e]]] = e
+            pos[eb[e]] += 1
+    return cnt, in_e
 
 
 @njit
@@ -267,10 +302,11 @@ def box_target(step, L_old, sig_servo, dt, modes, rates, targets, gains, lo0, hi
 def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold, lo, hi, lo_hold,
               hi_hold, vir, kn, kt, gn, gt, mu, dt, skin, step0, nsteps, resume,
               modes, rates, targets, gains, lo0, hi0, phase_step0,
-              out_stress, out_L, out_nc, out_ov, out_ke, parallel, start, pvir, pcont):
+              out_stress, out_L, out_nc, out_ov, out_ke, parallel, start, pvir, pcont, tb, in_start, in_e):
     """Steps step0+1 .. step0+nsteps until a neighbour rebuild is needed (force loop serial over
-    the half list, or with ``parallel`` the threaded full-list loop ``forces_full`` with CSR
-    ``start`` and per-particle scratch ``pvir`` (N, 4), ``pcont`` (N, 2)).
+    the half list, or with ``parallel`` the threaded ``forces_parallel`` over the same list with
+    CSR ``start``, incoming CSR ``in_start``/``in_e`` and scratch ``pvir`` (N, 4), ``pcont``
+    (N, 2), ``tb`` (M,)).
 
     Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the step
     step0+completed+1 has done its first half step; call again with ``resume`` True after the
@@ -293,8 +329,8 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         Lx = hi[0] - lo[0]
         Ly = hi[1] - lo[1]
         if parallel:
-            forces_full(x, v, w, r, m, start, eb, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, True, f, t,
-                        pvir, slide, ef, pcont, k == nsteps - 1)
+            forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, True,
+                            f, t, pvir, slide, ef, tb, pcont, in_start, in_e, k == nsteps - 1)
             for c in range(4):
                 vir[c] = 0.0
             nc = 0.0

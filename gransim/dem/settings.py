@@ -23,7 +23,8 @@ class DEMSettings:
     dt : time step (s). Must be below the stability limit (see :func:`stability_limit`).
     skin : neighbour-list skin (m). Part of the contact law (history hand-over at rebuilds).
     mode : "serial" (half list, LIGGGHTS' order: the mode that is compared step for step) or
-        "parallel" (full list over numba threads; deterministic, summation order differs).
+        "parallel" (the same half list over numba threads: each pair once, then a per-particle
+        gather of the partner forces; deterministic, summation order differs).
     """
 
     kn: float = 1.0e5

@@ -221,7 +221,7 @@ def test_bad_settings_and_cells():
 
 
 def test_parallel_mode_matches_serial_to_round_off():
-    # full list over threads: same law and step, only the summation order differs
+    # threaded loop over the same list: same law and step, only the summation order differs
     p = lattice_packing(8, 8, seed=6, spread=0.1, compression=0.04)
     s = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e-6, skin=2e-5)
     ld = Loading(x=AxisControl("servo", target=100.0, gain=1e-2), y=AxisControl("rate", rate=-1.0))
