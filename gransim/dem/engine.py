@@ -153,10 +153,11 @@ class DEMEngine:
             raise SimulationError(f"step {self.step}: particle {bad} lost (at {self.x[bad].tolist()}, "
                                   f"box {self.lo.tolist()}..{self.hi.tolist()})")
         L = self.box_lengths
-        a, b, esx, esy, both, selfimg = K.build_list(self.x, self.r, self.lo, self.hi, self.settings.skin,
-                                                     False)
-        if selfimg >= 0:
-            raise SimulationError(f"step {self.step}: particle {selfimg} is near its own image; the cell is too small")
+        a, b, esx, esy, both, selfimg = K.build_list_liggghts(self.x, self.r, self.lo, self.hi,
+                                                              self.settings.skin)
+        if selfimg != -1:
+            raise SimulationError(f"step {self.step}: particle {selfimg} is near its own image (or too many ghosts); "
+                                  "the cell is too small")
         xi = np.zeros((a.size, 2))
         if carry and self.ea.size:
             K.hand_over(self.x, self.r, a, b, esx, esy, L[0], L[1], self.start, self.eb, self.both, self.xi, xi)

@@ -378,145 +378,11 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
 
 
 @njit
-def _bins(x, r, lo, hi, skin):
-    n = x.shape[0]
-    L0 = hi[0] - lo[0]
-    L1 = hi[1] - lo[1]
-    rmax = 0.0
-    for i in range(n):
-        rmax = max(rmax, r[i])
-    cut = 2.0 * rmax + skin
-    nb0 = max(int(L0 / cut), 1)
-    nb1 = max(int(L1 / cut), 1)
-    head = -np.ones(nb0 * nb1, np.int64)
-    nxt = -np.ones(n, np.int64)
-    bx = np.empty(n, np.int64)
-    by = np.empty(n, np.int64)
-    for i in range(n - 1, -1, -1):
-        ix = min(max(int((x[i, 0] - lo[0]) / L0 * nb0), 0), nb0 - 1)
-        iy = min(max(int((x[i, 1] - lo[1]) / L1 * nb1), 0), nb1 - 1)
-        bx[i] = ix
-        by[i] = iy
-        c = ix * nb1 + iy
-        nxt[i] = head[c]
-        head[c] = i
-    return nb0, nb1, head, nxt, bx, by
-
-
-@njit
-def _scan(a, x, r, L0, L1, skin, full, nb0, nb1, head, nxt, bx, by, fill, m,
-          a_out, b_out, sx_out, sy_out, both_out):
-    """Entries of particle a (counted, or written from index m when ``fill``); returns
-    (new m, self-image flag)."""
-    selfimg = False
-    for dx in range(-1, 2):
-        cx = bx[a] + dx
-        sx = 0.0
-        if cx < 0:
-            cx += nb0
-            sx = -1.0
-        elif cx >= nb0:
-            cx -= nb0
-            sx = 1.0
-        for dy in range(-1, 2):
-            cy = by[a] + dy
-            sy = 0.0
-            if cy < 0:
-                cy += nb1
-                sy = -1.0
-            elif cy >= nb1:
-                cy -= nb1
-                sy = 1.0
-            owned = sx == 0.0 and sy == 0.0
-            b = head[cx * nb1 + cy]
-            while b >= 0:
-                if (b > a) or (b != a and (full or not owned)) or (b == a and not owned):
-                    delx = x[a, 0] - (x[b, 0] + sx * L0)
-                    dely = x[a, 1] - (x[b, 1] + sy * L1)
-                    rc = r[a] + r[b] + skin
-                    if delx * delx + dely * dely <= rc * rc:
-                        if b == a:
-                            selfimg = True
-                        else:
-                            if fill:
-                                a_out[m] = a
-                                b_out[m] = b
-                                sx_out[m] = sx
-                                sy_out[m] = sy
-                                both_out[m] = owned and not full
-                            m += 1
-                b = nxt[b]
-    return m, selfimg
-
-
-@njit
-def build_list(x, r, lo, hi, skin, full):
-    """Neighbour list of an orthogonal periodic box (positions wrapped into [lo, hi)).
-
-    Linked cells of side >= 2 r_max + skin (one periodic image per pair: the caller checks the
-    cell is larger than twice that). Pairs with |x_a - (x_b + s L)| <= r_a + r_b + skin. Half
-    list (``full`` False, LIGGGHTS newton off): owned pairs once with a < b (both = True), pairs
-    across the boundary once per owner. Full list: every pair from both sides. Entries are sorted
-    by a, then b. Returns (a, b, sx, sy, both, self_image), self_image >= 0 a particle close to
-    its own image (cell too small). Two passes (count, fill).
-    """
-    n = x.shape[0]
-    L0 = hi[0] - lo[0]
-    L1 = hi[1] - lo[1]
-    nb0, nb1, head, nxt, bx, by = _bins(x, r, lo, hi, skin)
-    dummy_i = np.empty(0, np.int32)
-    dummy_f = np.empty(0, np.float64)
-    dummy_b = np.empty(0, np.bool_)
-    m = 0
-    self_image = -1
-    for a in range(n):
-        m, si = _scan(a, x, r, L0, L1, skin, full, nb0, nb1, head, nxt, bx, by, False, m,
-                      dummy_i, dummy_i, dummy_f, dummy_f, dummy_b)
-        if si and self_image < 0:
-            self_image = a
-    a_out = np.empty(m, np.int32)
-    b_out = np.empty(m, np.int32)
-    sx_out = np.empty(m, np.float64)
-    sy_out = np.empty(m, np.float64)
-    both_out = np.empty(m, np.bool_)
-    m = 0
-    for a in range(n):
-        start = m
-        m, si = _scan(a, x, r, L0, L1, skin, full, nb0, nb1, head, nxt, bx, by, True, m,
-                      a_out, b_out, sx_out, sy_out, both_out)
-        # insertion sort of a's entries by b (few entries)
-        for k in range(start + 1, m):
-            kb = b_out[k]
-            ksx = sx_out[k]
-            ksy = sy_out[k]
-            kboth = both_out[k]
-            q = k - 1
-            while q >= start and b_out[q] > kb:
-                b_out[q + 1] = b_out[q]
-                sx_out[q + 1] = sx_out[q]
-                sy_out[q + 1] = sy_out[q]
-                both_out[q + 1] = both_out[q]
-                q -= 1
-            b_out[q + 1] = kb
-            sx_out[q + 1] = ksx
-            sy_out[q + 1] = ksy
-            both_out[q + 1] = kboth
-    return a_out, b_out, sx_out, sy_out, both_out, self_image
-
-
-@njit
 def _find(start, eb, a, b):
-    """Index of entry (a, b) in a CSR list sorted by (a, b), or -1."""
-    lo_ = start[a]
-    hi_ = start[a + 1]
-    while lo_ < hi_:
-        mid = (lo_ + hi_) // 2
-        if eb[mid] < b:
-            lo_ = mid + 1
-        else:
-            hi_ = mid
-    if lo_ < start[a + 1] and eb[lo_] == b:
-        return lo_
+    """Index of entry (a, b) in a list grouped by a (CSR ``start``), or -1 (linear: few entries)."""
+    for k in range(start[a], start[a + 1]):
+        if eb[k] == b:
+            return k
     return -1
 
 
@@ -546,3 +412,183 @@ def hand_over(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, bot
             if k >= 0 and both_old[k]:
                 xi_new[e, 0] = -xi_old[k, 0]
                 xi_new[e, 1] = -xi_old[k, 1]
+
+
+@njit
+def build_list_liggghts(x, r, lo, hi, skin):
+    """The neighbour list of LIGGGHTS 3.8.0 (1 process, ``newton off``, ``bin``), in its order.
+
+    Ghost atoms as ``Comm::borders`` makes them (x swaps then y swaps; slab tests with <=/>=;
+    candidates: owned atoms for x, owned + x ghosts for y), bins as ``Neighbor::setup_bins`` and
+    ``coord2bin`` (bin size half the neighbour cutoff 2 r_max + skin), the full 2D stencil
+    of ``half/bin/newtoff`` and, per owned atom a, partners j > a (ghosts after owned atoms) in
+    stencil order then index order, kept when rsq <= (r_a + r_j + skin)^2. Matching this order
+    makes the force sums (and so trajectories) agree with LIGGGHTS to the last bit.
+    Returns (a, b, sx, sy, both, self_image): entry (a, b, s) is b's image x_b + s L; ``both``
+    for owned pairs (s = 0); self_image >= 0 a particle near its own image (cell too small), -2
+    when the ghost buffer overflowed.
+    """
+    n = x.shape[0]
+    rmax = 0.0
+    for i in range(n):
+        rmax = max(rmax, r[i])
+    cutneighmax = (rmax + rmax) + skin
+    cutghost = cutneighmax
+    prd0 = hi[0] - lo[0]
+    prd1 = hi[1] - lo[1]
+    sub_hi0 = lo[0] + prd0 * 1.0
+    sub_hi1 = lo[1] + prd1 * 1.0
+    # ghosts: owner index, shift, coordinates
+    cap = 4 * n + 16
+    gown = np.empty(cap, np.int64)
+    gsx = np.empty(cap, np.float64)
+    gsy = np.empty(cap, np.float64)
+    xa = np.empty((n + cap, 2))
+    for i in range(n):
+        xa[i, 0] = x[i, 0]
+        xa[i, 1] = x[i, 1]
+    ng = 0
+    for dim in range(2):
+        nlast = n + ng
+        for ineed in range(2):
+            if ineed == 0:
+                slo = -1.0e20
+                shi = (lo[dim] if dim == 0 else lo[1]) + cutghost
+                pbc = 1.0
+            else:
+                shi = 1.0e20
+                slo = (sub_hi0 if dim == 0 else sub_hi1) - cutghost
+                pbc = -1.0
+            prd = prd0 if dim == 0 else prd1
+            for i in range(0, nlast):
+                c = xa[i, dim]
+                if c >= slo and c <= shi:
+                    if ng == cap:
+                        return (np.empty(0, np.int32), np.empty(0, np.int32), np.empty(0), np.empty(0),
+                                np.empty(0, np.bool_), -2)
+                    g = n + ng
+                    if i < n:
+                        gown[ng] = i
+                        gsx[ng] = 0.0
+                        gsy[ng] = 0.0
+                    else:
+                        gown[ng] = gown[i - n]
+                        gsx[ng] = gsx[i - n]
+                        gsy[ng] = gsy[i - n]
+                    if dim == 0:
+                        gsx[ng] += pbc
+                        xa[g, 0] = xa[i, 0] + pbc * prd
+                        xa[g, 1] = xa[i, 1]
+                    else:
+                        gsy[ng] += pbc
+                        xa[g, 0] = xa[i, 0]
+                        xa[g, 1] = xa[i, 1] + pbc * prd
+                    ng += 1
+    nall = n + ng
+    # bins (Neighbor::setup_bins, orthogonal box, one process)
+    small = 1.0e-6
+    binsize_opt = 0.5 * cutneighmax
+    binsizeinv = 1.0 / binsize_opt
+    nb = np.empty(2, np.int64)
+    binsz = np.empty(2)
+    bininv = np.empty(2)
+    mlo = np.empty(2, np.int64)
+    mb = np.empty(2, np.int64)
+    for d in range(2):
+        bbox = hi[d] - lo[d]
+        nbd = int(bbox * binsizeinv)
+        if nbd == 0:
+            nbd = 1
+        nb[d] = nbd
+        binsz[d] = bbox / nbd
+        bininv[d] = 1.0 / binsz[d]
+        sublo = lo[d]
+        subhi = sub_hi0 if d == 0 else sub_hi1
+        coord = (sublo - cutghost) - small * bbox
+        m_lo = int((coord - lo[d]) * bininv[d])
+        if coord < lo[d]:
+            m_lo -= 1
+        coord = (subhi + cutghost) + small * bbox
+        m_hi = int((coord - lo[d]) * bininv[d])
+        m_lo -= 1
+        m_hi += 1
+        mlo[d] = m_lo
+        mb[d] = m_hi - m_lo + 1
+    binhead = -np.ones(mb[0] * mb[1], np.int64)
+    bins = -np.ones(nall, np.int64)
+    ibin = np.empty(nall, np.int64)
+    for i in range(nall - 1, -1, -1):
+        idx = 0
+        for d in range(2):
+            c = xa[i, d]
+            if c >= hi[d]:
+                ix = int((c - hi[d]) * bininv[d]) + nb[d]
+            elif c >= lo[d]:
+                ix = min(int((c - lo[d]) * bininv[d]), nb[d] - 1)
+            else:
+                ix = int((c - lo[d]) * bininv[d]) - 1
+            if d == 0:
+                idx += ix - mlo[0]
+            else:
+                idx += (ix - mlo[1]) * mb[0]
+        ibin[i] = idx
+        bins[i] = binhead[idx]
+        binhead[idx] = i
+    # full 2D stencil (half/bin/newtoff)
+    sxn = int(cutneighmax * bininv[0])
+    if sxn * binsz[0] < cutneighmax:
+        sxn += 1
+    syn = int(cutneighmax * bininv[1])
+    if syn * binsz[1] < cutneighmax:
+        syn += 1
+    cutsq_max = cutneighmax * cutneighmax
+    stencil = np.empty((2 * sxn + 1) * (2 * syn + 1), np.int64)
+    ns = 0
+    for j in range(-syn, syn + 1):
+        for i in range(-sxn, sxn + 1):
+            dx = (i - 1) * binsz[0] if i > 0 else (0.0 if i == 0 else (i + 1) * binsz[0])
+            dy = (j - 1) * binsz[1] if j > 0 else (0.0 if j == 0 else (j + 1) * binsz[1])
+            if dx * dx + dy * dy < cutsq_max:
+                stencil[ns] = j * mb[0] + i
+                ns += 1
+    # pairs: count, then fill in LIGGGHTS order
+    m = 0
+    for pass_ in range(2):
+        if pass_ == 1:
+            a_out = np.empty(m, np.int32)
+            b_out = np.empty(m, np.int32)
+            sx_out = np.empty(m)
+            sy_out = np.empty(m)
+            both_out = np.empty(m, np.bool_)
+        m = 0
+        for a in range(n):
+            for k in range(ns):
+                j = binhead[ibin[a] + stencil[k]]
+                while j >= 0:
+                    if j > a:
+                        delx = xa[a, 0] - xa[j, 0]
+                        dely = xa[a, 1] - xa[j, 1]
+                        rj = r[j] if j < n else r[gown[j - n]]
+                        radsum = r[a] + rj
+                        cutsq = (radsum + skin) * (radsum + skin)
+                        if delx * delx + dely * dely <= cutsq:
+                            if pass_ == 1:
+                                a_out[m] = a
+                                if j < n:
+                                    b_out[m] = j
+                                    sx_out[m] = 0.0
+                                    sy_out[m] = 0.0
+                                    both_out[m] = True
+                                else:
+                                    b_out[m] = gown[j - n]
+                                    sx_out[m] = gsx[j - n]
+                                    sy_out[m] = gsy[j - n]
+                                    both_out[m] = False
+                            m += 1
+                    j = bins[j]
+    self_image = -1
+    for e in range(m):
+        if a_out[e] == b_out[e]:
+            self_image = a_out[e]
+            break
+    return a_out, b_out, sx_out, sy_out, both_out, self_image

@@ -54,9 +54,21 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
     Outputs of the run (in job_dir): ``log.liggghts`` (thermo), ``dump.atoms`` (dump custom).
     Run: ``liggghts -in in.biaxial -log log.liggghts -screen none -nocite`` (serial).
     """
+    import numpy as np
+
+    from gransim.dem import kernels
+
     job = Path(job_dir)
     job.mkdir(parents=True, exist_ok=True)
-    write_data_file(job / "data.biaxial", packing, velocities=velocities, omegas=spins)
+    # wrap as the engine does at set-up (Domain::pbc: x += L once), not through fractional
+    # coordinates (Packing.wrapped rounds every coordinate): both codes then start from the
+    # same doubles
+    x = np.array(packing.positions)
+    lost = kernels.pbc_wrap(x, np.zeros(2), np.array([packing.cell[0, 0], packing.cell[1, 1]]))
+    if lost >= 0:
+        raise ValueError(f"particle {lost} lies more than one cell length outside the cell")
+    write_data_file(job / "data.biaxial", packing.replace(positions=x), velocities=velocities, omegas=spins,
+                    wrap=False)
     s = settings
     Lx, Ly = float(packing.cell[0, 0]), float(packing.cell[1, 1])
     xl, xa = _deform_axis("x", loading.x, Lx, s.dt)
