@@ -460,7 +460,7 @@ def build_list_liggghts(x, r, lo, hi, skin):
                 slo = (sub_hi0 if dim == 0 else sub_hi1) - cutghost
                 pbc = -1.0
             prd = prd0 if dim == 0 else prd1
-            for i in range(0, nlast):
+            for i in range(nlast):
                 c = xa[i, dim]
                 if c >= slo and c <= shi:
                     if ng == cap:
