@@ -1,0 +1,346 @@
+"""The DEM engine: disks in an orthogonal periodic cell whose side lengths change each step.
+
+It follows the step of LIGGGHTS-PUBLIC 3.8.0 (serial, ``newton off``, ``neigh_modify delay 0
+every 1 check yes``, ``fix deform ... remap x``) so that, with the same settings, trajectories
+agree to round-off (shared notes liggghts-3.8.md). Step n:
+
+1. nve/sphere first half step (kernels.initial_integrate);
+2. neighbour check with the skin and the box displacement; on a rebuild: wrap into the box,
+   new list, tangential springs carried over only for pairs that overlap at that moment;
+3. forces with image positions from the current box (= the box of step n-1), virial;
+4. second half step;
+5. loading: the box moves to its value at step n (servo uses the stress of step n divided by
+   the area of box n-1, as a ``fix ave/time`` of ``compute pressure`` evaluated before
+   ``fix deform``), positions remapped affinely;
+6. stress of step n = virial / area of box n (LIGGGHTS thermo at step n).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._numba import set_num_threads
+from ..errors import InputError, SimulationError
+from ..geometry import Packing
+from . import kernels as K
+from .settings import AxisControl, DEMSettings, Loading
+
+#: the time step must not exceed contact time / this (stability of the rotational + normal modes)
+STEPS_PER_CONTACT_MIN = 5.0
+
+
+def contact_time(packing: Packing, kn: float) -> float:
+    """Duration of an undamped normal contact of the two lightest disks: pi sqrt(m_eff/kn) (s)."""
+    m = np.sort(packing.masses)
+    meff = m[0] * m[1] / (m[0] + m[1])
+    return float(np.pi * np.sqrt(meff / kn))
+
+
+def stability_limit(packing: Packing, settings: DEMSettings) -> float:
+    """Largest accepted time step: contact_time / STEPS_PER_CONTACT_MIN (s).
+
+    Velocity Verlet of a linear spring is unstable above 2 sqrt(m_eff/k) = (2/pi) t_c; with a
+    tangential spring of similar stiffness acting on the rotation, the effective mass is about
+    3 times smaller, hence the margin."""
+    k = max(settings.kn, settings.kt)
+    return contact_time(packing, k) / STEPS_PER_CONTACT_MIN
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """Scalar output of one step."""
+
+    step: int
+    stress: np.ndarray  # (2, 2) Love stress, compression positive (N/m in 2D)
+    n_contacts: int
+    mean_overlap: float
+
+
+def fingerprint(packing: Packing, settings_text: str) -> str:
+    """sha256 of the initial packing and of the settings text: identifies a run."""
+    h = hashlib.sha256()
+    for a in (packing.positions, packing.radii, packing.cell):
+        h.update(np.ascontiguousarray(a, np.float64).tobytes())
+    h.update(repr(float(packing.density)).encode())
+    h.update(settings_text.encode())
+    return h.hexdigest()
+
+
+class DEMEngine:
+    """State and stepping of one DEM run (arrays are updated in place for speed).
+
+    Parameters
+    ----------
+    packing : initial packing (orthogonal cell; the box is [0, Lx] x [0, Ly] as in the
+        LIGGGHTS data file gransim writes).
+    settings : DEMSettings.
+    velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
+    threads : numba threads for mode "parallel" (None = all).
+
+    Attributes (after construction = LIGGGHTS ``run`` set-up: forces evaluated without
+    spring increment): x, v, w, f, t, lo, hi, step, stress, virial.
+    """
+
+    def __init__(self, packing: Packing, settings: DEMSettings, velocities=None, spins=None,
+                 threads: int | None = None, check_dt: bool = True):
+        C = packing.cell
+        if C[0, 1] != 0 or C[1, 0] != 0:
+            raise InputError("packing.cell: the DEM engine needs an orthogonal cell "
+                             f"(off-diagonal entries {C[0, 1]!r}, {C[1, 0]!r})")
+        self.packing = packing
+        self.settings = s = settings
+        n = packing.n
+        if check_dt:
+            lim = stability_limit(packing, s)
+            if s.dt > lim:
+                raise InputError(f"dt = {s.dt:.4g} s is above the stability limit {lim:.4g} s "
+                                 f"(contact time pi sqrt(m_eff/k) = {contact_time(packing, max(s.kn, s.kt)):.4g}"
+                                 f" s of the two lightest disks, / {STEPS_PER_CONTACT_MIN:g})")
+        cut = 2 * 2.0 * float(packing.radii.max()) + 2 * s.skin
+        if min(C[0, 0], C[1, 1]) <= cut:
+            raise InputError(f"packing.cell: side lengths {C[0, 0]:.4g}, {C[1, 1]:.4g} m must exceed "
+                             f"2 (2 r_max + skin) = {cut:.4g} m (one periodic image per pair)")
+        self.r = np.ascontiguousarray(packing.radii, np.float64)
+        # ((pi r) r) rho: the order LIGGGHTS uses reading the data file (Packing.masses may differ
+        # in the last bit)
+        self.m = np.pi * self.r * self.r * float(packing.density)
+        self.x = np.array(packing.positions, np.float64)
+        self.v = np.zeros((n, 2)) if velocities is None else np.array(velocities, np.float64).reshape(n, 2)
+        self.w = np.zeros(n) if spins is None else np.array(spins, np.float64).reshape(n)
+        self.f = np.zeros((n, 2))
+        self.t = np.zeros(n)
+        self.lo = np.zeros(2)
+        self.hi = np.array([C[0, 0], C[1, 1]], np.float64)
+        self.step = 0
+        self.virial = np.zeros(4)
+        self.n_contacts = 0
+        self.mean_overlap = 0.0
+        self.n_rebuilds = 0
+        self._parallel = s.mode == "parallel"
+        if self._parallel:
+            set_num_threads(threads)
+        self._pvir = np.zeros((n, 4))
+        self._pcont = np.zeros((n, 2))
+        # neighbour list (empty; built in setup)
+        self.ea = np.zeros(0, np.int32)  # int32: memory traffic of the force loop
+        self.eb = np.zeros(0, np.int32)
+        self.esx = np.zeros(0)
+        self.esy = np.zeros(0)
+        self.eshift = np.zeros((0, 2), np.int64)
+        self.both = np.zeros(0, np.bool_)
+        self.xi = np.zeros((0, 2))
+        self.slide = np.zeros(0, np.bool_)
+        self.ef = np.zeros((0, 2))
+        self.start = np.zeros(n + 1, np.int64)
+        self._setup()
+
+    # ------------------------------------------------------------------ neighbours
+    @property
+    def box_lengths(self) -> np.ndarray:
+        return self.hi - self.lo
+
+    @property
+    def cell(self) -> np.ndarray:
+        L = self.box_lengths
+        return np.diag(L)
+
+    def _rebuild(self, carry: bool):
+        bad = K.pbc_wrap(self.x, self.lo, self.hi)
+        if bad >= 0:
+            raise SimulationError(f"step {self.step}: particle {bad} lost (at {self.x[bad].tolist()}, "
+                                  f"box {self.lo.tolist()}..{self.hi.tolist()})")
+        L = self.box_lengths
+        a, b, esx, esy, both, selfimg = K.build_list_liggghts(self.x, self.r, self.lo, self.hi,
+                                                              self.settings.skin)
+        if selfimg != -1:
+            raise SimulationError(f"step {self.step}: particle {selfimg} is near its own image (or too many ghosts); "
+                                  "the cell is too small")
+        xi = np.zeros((a.size, 2))
+        if carry and self.ea.size:
+            K.hand_over(self.x, self.r, a, b, esx, esy, L[0], L[1], self.start, self.eb, self.both, self.xi, xi)
+        s = np.stack([esx, esy], axis=1).astype(np.int64)
+        self.ea, self.eb, self.esx, self.esy, self.both, self.xi = a, b, esx, esy, both, xi
+        self.eshift = s
+        self.slide = np.zeros(a.size, np.bool_)
+        self.ef = np.zeros((a.size, 2))
+        self.start = np.searchsorted(a, np.arange(self.packing.n + 1)).astype(np.int64)
+        self._set_parallel_scratch()
+        self.xhold = self.x.copy()
+        self.lo_hold = self.lo.copy()
+        self.hi_hold = self.hi.copy()
+        self.n_rebuilds += 1
+
+    def _set_parallel_scratch(self):
+        if self._parallel:
+            self._in_start, self._in_e = K.incoming(self.eb, self.both, self.packing.n)
+        else:
+            self._in_start, self._in_e = np.zeros(self.packing.n + 1, np.int64), np.zeros(0, np.int64)
+        self._tb = np.zeros(self.ea.size)
+
+    def _forces(self, update: bool):
+        s = self.settings
+        L = self.box_lengths
+        if self._parallel:
+            K.forces_parallel(self.x, self.v, self.w, self.r, self.m, self.start, self.eb, self.esx, self.esy,
+                              self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, update,
+                              self.f, self.t, self._pvir, self.slide, self.ef, self._tb, self._pcont,
+                              self._in_start, self._in_e, True)
+            self.virial[:] = self._pvir.sum(axis=0)
+            nc, so = self._pcont.sum(axis=0)
+        else:
+            nc, so = K.forces_half(self.x, self.v, self.w, self.r, self.m, self.ea, self.eb, self.esx,
+                                   self.esy, self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n,
+                                   s.gamma_t, s.mu, s.dt, update, self.f, self.t, self.virial, self.slide,
+                                   self.ef, True)
+        self.n_contacts = round(nc)
+        self.mean_overlap = so / nc if nc else 0.0
+
+    def _setup(self):
+        """LIGGGHTS ``run`` set-up: wrap, build (springs zero), forces without spring increment."""
+        self._rebuild(carry=False)
+        self._forces(update=False)
+        self.stress = self.stress_tensor(self.box_lengths)
+
+    # ------------------------------------------------------------------ stepping
+    def stress_tensor(self, L) -> np.ndarray:
+        """Love stress (eq 17 of Kuhn 002), compression positive, (2, 2):
+        sigma_ab = (1/(Lx Ly)) sum_c d_a f_b, d = x_i - x_j, f the force on i. Not symmetric out of
+        equilibrium; [0, 1] = sum d_x f_y is LIGGGHTS' ``compute pressure`` component 4 (xy)."""
+        inv = 1.0 / (L[0] * L[1])
+        v = self.virial
+        return np.array([[v[0] * inv, v[2] * inv], [v[3] * inv, v[1] * inv]])
+
+    def advance(self, loading: Loading, nsteps: int = 1, phase_step0: int = 0, phase_box0=None):
+        """Advance ``nsteps`` steps under ``loading``; returns a dict of per-step series.
+
+        ``phase_step0`` and ``phase_box0`` = (lo, hi): step and box at the start of the loading
+        phase (LIGGGHTS ``fix deform`` lo_start/hi_start: rate control measures its displacement
+        from there, the servo its accumulated change).
+
+        Returns
+        -------
+        dict with ``step`` (n,), ``stress`` (n, 2, 2) (Love stress, compression positive, area of
+        the box after the step), ``lengths`` (n, 2), ``n_contacts`` (n,), ``mean_overlap`` (n,), ``kinetic_energy`` (n,).
+        """
+        s = self.settings
+        nsteps = int(nsteps)
+        if phase_box0 is None:
+            phase_box0 = (self.lo.copy(), self.hi.copy())
+        lo0 = np.array(phase_box0[0], np.float64)
+        hi0 = np.array(phase_box0[1], np.float64)
+        code = {"fixed": 0, "rate": 1, "servo": 2}
+        modes = np.array([code[loading.x.mode], code[loading.y.mode]], np.int64)
+        rates = np.array([loading.x.rate, loading.y.rate])
+        targets = np.array([loading.x.target, loading.y.target])
+        gains = np.array([loading.x.gain, loading.y.gain])
+        out_stress = np.zeros((nsteps, 4))
+        out_L = np.zeros((nsteps, 2))
+        out_nc = np.zeros(nsteps)
+        out_ov = np.zeros(nsteps)
+        out_ke = np.zeros(nsteps)
+        done = 0
+        resume = False
+        step_start = self.step
+        while done < nsteps:
+            k, status, bad = K.run_block(
+                self.x, self.v, self.w, self.f, self.t, self.r, self.m, self.ea, self.eb, self.esx, self.esy,
+                self.both, self.xi, self.slide, self.ef, self.xhold, self.lo, self.hi, self.lo_hold,
+                self.hi_hold, self.virial, s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, s.skin, self.step,
+                nsteps - done, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
+                out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:], out_ke[done:],
+                self._parallel, self.start, self._pvir, self._pcont, self._tb, self._in_start, self._in_e)
+            done += k
+            self.step += k
+            resume = False
+            if status == 1:
+                self.step += 1
+                self._rebuild(carry=True)
+                self.step -= 1
+                resume = True
+            elif status == 2:
+                raise SimulationError(f"step {self.step + 1}: particle {bad} has a non-finite position "
+                                      f"{self.x[bad].tolist()} (velocity {self.v[bad].tolist()})")
+            elif status == 3:
+                raise SimulationError(f"step {self.step + 1}: the cell collapsed")
+        if nsteps:
+            self.n_contacts = round(out_nc[-1])
+            self.mean_overlap = float(out_ov[-1])
+            self.stress = self.stress_tensor(self.box_lengths)
+        st = np.empty((nsteps, 2, 2))
+        st[:, 0, 0] = out_stress[:, 0]
+        st[:, 1, 1] = out_stress[:, 1]
+        st[:, 0, 1] = out_stress[:, 2]
+        st[:, 1, 0] = out_stress[:, 3]
+        return {"step": np.arange(step_start + 1, step_start + nsteps + 1), "stress": st, "lengths": out_L,
+                "n_contacts": np.rint(out_nc).astype(np.int64), "mean_overlap": out_ov, "kinetic_energy": out_ke}
+
+    # ------------------------------------------------------------------ diagnostics
+    def kinetic_energy(self) -> float:
+        """Translational + rotational (I = m r^2/2) kinetic energy (J)."""
+        return float(0.5 * np.sum(self.m * np.einsum("ij,ij->i", self.v, self.v))
+                     + 0.25 * np.sum(self.m * self.r**2 * self.w**2))
+
+    def contacts(self):
+        """Touching pairs, each once (i < j): dict of i, j, shift (l_ij = x_j + C n - x_i), force on
+        j applied in the last step (N), overlap (m), tangential spring (frame of i), sliding."""
+        L = self.box_lengths
+        touch = K.overlapping(self.x, self.r, self.ea, self.eb, self.esx, self.esy, L[0], L[1])
+        keep = touch & (self.ea < self.eb)
+        e = np.nonzero(keep)[0]
+        a, b = self.ea[e], self.eb[e]
+        d = self.x[a] - (self.x[b] + self.eshift[e] * L)
+        ov = self.r[a] + self.r[b] - np.sqrt(np.einsum("ij,ij->i", d, d))
+        # entry (a, b, s): b's image is x_b + s L, so l_ab = x_b + C s - x_a (the schema's shift)
+        return {"i": a.astype(np.int64), "j": b.astype(np.int64), "shift": self.eshift[e].astype(np.int64), "force": -self.ef[e],
+                "overlap": ov, "tangential_spring": self.xi[e].copy(), "sliding": self.slide[e].copy()}
+
+    def state_arrays(self) -> dict:
+        """Everything needed to continue bit for bit (checkpoint)."""
+        return {"positions": self.x, "velocities": self.v, "spins": self.w, "forces": self.f,
+                "torques": self.t, "box_lo": self.lo, "box_hi": self.hi, "x_hold": self.xhold,
+                "box_lo_hold": self.lo_hold, "box_hi_hold": self.hi_hold,
+                "neighbours/a": self.ea, "neighbours/b": self.eb, "neighbours/shift": self.eshift,
+                "neighbours/owned_both": self.both, "neighbours/xi": self.xi,
+                "virial": self.virial}
+
+    def restore(self, arrays: dict, step: int):
+        """Inverse of :meth:`state_arrays`."""
+        self.x = np.array(arrays["positions"])
+        self.v = np.array(arrays["velocities"])
+        self.w = np.array(arrays["spins"])
+        self.f = np.array(arrays["forces"])
+        self.t = np.array(arrays["torques"])
+        self.lo = np.array(arrays["box_lo"])
+        self.hi = np.array(arrays["box_hi"])
+        self.xhold = np.array(arrays["x_hold"])
+        self.lo_hold = np.array(arrays["box_lo_hold"])
+        self.hi_hold = np.array(arrays["box_hi_hold"])
+        self.ea = np.array(arrays["neighbours/a"], np.int32)
+        self.eb = np.array(arrays["neighbours/b"], np.int32)
+        self.eshift = np.array(arrays["neighbours/shift"], np.int64).reshape(-1, 2)
+        self.esx = np.ascontiguousarray(self.eshift[:, 0], np.float64)
+        self.esy = np.ascontiguousarray(self.eshift[:, 1], np.float64)
+        self.both = np.array(arrays["neighbours/owned_both"], np.bool_)
+        self.xi = np.array(arrays["neighbours/xi"]).reshape(-1, 2)
+        self.virial = np.array(arrays["virial"])
+        self.slide = np.zeros(self.ea.size, np.bool_)
+        self.ef = np.zeros((self.ea.size, 2))
+        self.start = np.searchsorted(self.ea, np.arange(self.packing.n + 1)).astype(np.int64)
+        self._set_parallel_scratch()
+        self.step = int(step)
+        self.stress = self.stress_tensor(self.box_lengths)
+
+
+__all__ = [
+    "STEPS_PER_CONTACT_MIN",
+    "AxisControl",
+    "DEMEngine",
+    "DEMSettings",
+    "Loading",
+    "contact_time",
+    "fingerprint",
+    "stability_limit",
+]

@@ -1,0 +1,594 @@
+"""Numba kernels of the DEM step (unpacked contiguous float64/int64 arrays; no validation here).
+
+Order of one step (LIGGGHTS 3.8.0 ``verlet.cpp``, serial; shared notes liggghts-3.8.md):
+``initial_integrate`` -> ``check_rebuild`` (-> ``pbc_wrap`` + new list) -> ``forces_*`` ->
+``final_integrate`` -> box change with ``remap_x``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._numba import njit, pjit, prange
+from ..contacts.hooke import hooke_history
+
+
+@njit
+def initial_integrate(x, v, w, f, t, m, r, dt):
+    """nve/sphere first half: v += dt/2 f/m; x += dt v; w += dt/2 T/I with I = m r^2/2."""
+    dtf = 0.5 * dt
+    dtfrot = dtf / 0.5
+    for i in range(x.shape[0]):
+        dtfm = dtf / m[i]
+        v[i, 0] += dtfm * f[i, 0]
+        v[i, 1] += dtfm * f[i, 1]
+        x[i, 0] += dt * v[i, 0]
+        x[i, 1] += dt * v[i, 1]
+        w[i] += dtfrot / (r[i] * r[i] * m[i]) * t[i]
+
+
+@njit
+def final_integrate(v, w, f, t, m, r, dt):
+    """nve/sphere second half: v += dt/2 f/m; w += dt/2 T/I. Returns the kinetic energy
+    sum m v^2/2 + m r^2 w^2/4 (J) of the full-step velocities."""
+    dtf = 0.5 * dt
+    dtfrot = dtf / 0.5
+    ke = 0.0
+    for i in range(v.shape[0]):
+        dtfm = dtf / m[i]
+        v[i, 0] += dtfm * f[i, 0]
+        v[i, 1] += dtfm * f[i, 1]
+        w[i] += dtfrot / (r[i] * r[i] * m[i]) * t[i]
+        ke += 0.5 * m[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]) + 0.25 * m[i] * r[i] * r[i] * w[i] * w[i]
+    return ke
+
+
+@njit
+def check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin):
+    """LIGGGHTS Neighbor::check_distance with box check. Returns (rebuild, bad particle or -1).
+
+    Trigger: some |x - x_hold|^2 > (0.5 (skin - |d lo| - |d hi|))^2 (strictly). A NaN or
+    infinite coordinate returns its particle index as ``bad``.
+    """
+    dx = lo[0] - lo_hold[0]
+    dy = lo[1] - lo_hold[1]
+    d1 = math.sqrt(dx * dx + dy * dy)
+    dx = hi[0] - hi_hold[0]
+    dy = hi[1] - hi_hold[1]
+    d2 = math.sqrt(dx * dx + dy * dy)
+    delta = 0.5 * (skin - (d1 + d2))
+    delta = max(delta, 0.0)
+    deltasq = delta * delta
+    flag = False
+    for i in range(x.shape[0]):
+        if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1])):
+            return True, i
+        dx = x[i, 0] - xhold[i, 0]
+        dy = x[i, 1] - xhold[i, 1]
+        if dx * dx + dy * dy > deltasq:
+            flag = True
+    return flag, -1
+
+
+@njit
+def pbc_wrap(x, lo, hi):
+    """Domain::pbc: x < lo -> x += L; x >= hi -> x -= L, then max(x, lo). Returns a lost
+    particle (still outside after one wrap) or -1."""
+    bad = -1
+    for d in range(2):
+        prd = hi[d] - lo[d]
+        for i in range(x.shape[0]):
+            if x[i, d] < lo[d]:
+                x[i, d] += prd
+            if x[i, d] >= hi[d]:
+                x[i, d] -= prd
+                x[i, d] = max(x[i, d], lo[d])
+            if (x[i, d] < lo[d] or x[i, d] >= hi[d]) and bad < 0:
+                bad = i
+    return bad
+
+
+@njit
+def remap_x(x, lo_old, hi_old, lo_new, hi_new):
+    """fix deform ``remap x``: lambda = (x - lo_old)/L_old; x = L_new lambda + lo_new (per axis)."""
+    for d in range(2):
+        hinv = 1.0 / (hi_old[d] - lo_old[d])
+        h = hi_new[d] - lo_new[d]
+        for i in range(x.shape[0]):
+            lam = hinv * (x[i, d] - lo_old[d])
+            x[i, d] = h * lam + lo_new[d]
+
+
+@njit
+def overlapping(x, r, ea, eb, esx, esy, Lx, Ly):
+    """For each list entry (a, b, s): does a touch the image x_b + s L? (LIGGGHTS' rsq < radsum^2)."""
+    out = np.zeros(ea.shape[0], np.bool_)
+    for e in range(ea.shape[0]):
+        a = ea[e]
+        b = eb[e]
+        delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
+        dely = x[a, 1] - (x[b, 1] + esy[e] * Ly)
+        radsum = r[a] + r[b]
+        out[e] = delx * delx + dely * dely < radsum * radsum
+    return out
+
+
+@njit
+def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
+                kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store):
+    """Serial force loop over a half list (LIGGGHTS ``newton off``).
+
+    Entries (a, b, s): b's image x_b + s L (L = current box lengths). ``both`` entries (s = 0,
+    both owned) apply the force to a and -force to b; entries across the boundary exist once per
+    owner, each with its own spring copy, and act on a only. ``vir`` (4,) receives the virial
+    sums xx, yy, xy, yx of d (x) f_i (0.5 per owner as ``ev_tally_xyz``); ``ef`` (M, 2) the force on
+    a of each entry, ``slide`` (M,) the Coulomb cap flag (written only when ``store``: memory
+    traffic; the engine stores them at the last step of each ``advance``). Returns (contacts, sum of
+    overlaps) counting each physical contact once.
+    """
+    n = x.shape[0]
+    for i in range(n):
+        f[i, 0] = 0.0
+        f[i, 1] = 0.0
+        t[i] = 0.0
+    vir[0] = 0.0
+    vir[1] = 0.0
+    vir[2] = 0.0
+    vir[3] = 0.0
+    ncontact = 0.0
+    sum_overlap = 0.0
+    for e in range(ea.shape[0]):
+        a = ea[e]
+        b = eb[e]
+        delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
+        dely = x[a, 1] - (x[b, 1] + esy[e] * Ly)
+        rsq = delx * delx + dely * dely
+        radsum = r[a] + r[b]
+        if rsq < radsum * radsum:
+            fx, fy, ta, tb, s0, s1, sl, _ = hooke_history(
+                delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
+                m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
+            xi[e, 0] = s0
+            xi[e, 1] = s1
+            if store:
+                slide[e] = sl
+                ef[e, 0] = fx
+                ef[e, 1] = fy
+            f[a, 0] += fx
+            f[a, 1] += fy
+            t[a] += ta
+            wgt = 0.5
+            if both[e]:
+                f[b, 0] += -fx
+                f[b, 1] += -fy
+                t[b] += tb
+                vir[0] += 0.5 * (delx * fx)
+                vir[1] += 0.5 * (dely * fy)
+                vir[2] += 0.5 * (delx * fy)
+                vir[3] += 0.5 * (dely * fx)
+                wgt = 1.0
+            vir[0] += 0.5 * (delx * fx)
+            vir[1] += 0.5 * (dely * fy)
+            vir[2] += 0.5 * (delx * fy)
+            vir[3] += 0.5 * (dely * fx)
+            ncontact += wgt
+            sum_overlap += wgt * (radsum - math.sqrt(rsq))
+        elif store:
+            slide[e] = False
+            ef[e, 0] = 0.0
+            ef[e, 1] = 0.0
+    return ncontact, sum_overlap
+
+
+@pjit
+def forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update,
+                    f, t, pvir, slide, ef, tb, pcont, in_start, in_e, store):
+    """Threaded force loop over the same half list as :func:`forces_half` (CSR by a: entries of
+    a in start[a]:start[a+1]; ``in_e[in_start[p]:in_start[p+1]]`` the owned entries whose b is
+    p). Pass 1 (threads over a): each entry once (spring update, force on a ``ef``, torque on b
+    ``tb``), own sums; pass 2 (threads over p): minus the forces and the torques of incoming
+    entries. No two threads write the same particle; deterministic; the summation order differs
+    from the serial loop (round-off). ``pvir`` (N, 4), ``pcont`` (N, 2) per-particle virial and
+    contact count/overlap sums (owned pairs weight 1, boundary copies 1/2).
+    """
+    n = x.shape[0]
+    for a in prange(n):
+        fxa = 0.0
+        fya = 0.0
+        ta = 0.0
+        v0 = 0.0
+        v1 = 0.0
+        v2 = 0.0
+        v3 = 0.0
+        nca = 0.0
+        ova = 0.0
+        for e in range(start[a], start[a + 1]):
+            b = eb[e]
+            delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
+            dely = x[a, 1] - (x[b, 1] + esy[e] * Ly)
+            rsq = delx * delx + dely * dely
+            radsum = r[a] + r[b]
+            if rsq < radsum * radsum:
+                fx, fy, tq, tqb, s0, s1, sl, _ = hooke_history(
+                    delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
+                    m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
+                xi[e, 0] = s0
+                xi[e, 1] = s1
+                if store:
+                    slide[e] = sl
+                ef[e, 0] = fx
+                ef[e, 1] = fy
+                tb[e] = tqb
+                fxa += fx
+                fya += fy
+                ta += tq
+                wgt = 1.0 if both[e] else 0.5
+                v0 += wgt * (delx * fx)
+                v1 += wgt * (dely * fy)
+                v2 += wgt * (delx * fy)
+                v3 += wgt * (dely * fx)
+                nca += wgt
+                ova += wgt * (radsum - math.sqrt(rsq))
+            else:
+                if store:
+                    slide[e] = False
+                ef[e, 0] = 0.0
+                ef[e, 1] = 0.0
+                tb[e] = 0.0
+        f[a, 0] = fxa
+        f[a, 1] = fya
+        t[a] = ta
+        pvir[a, 0] = v0
+        pvir[a, 1] = v1
+        pvir[a, 2] = v2
+        pvir[a, 3] = v3
+        pcont[a, 0] = nca
+        pcont[a, 1] = ova
+    for p in prange(n):
+        fx = 0.0
+        fy = 0.0
+        tq = 0.0
+        for k in range(in_start[p], in_start[p + 1]):
+            e = in_e[k]
+            fx += ef[e, 0]
+            fy += ef[e, 1]
+            tq += tb[e]
+        f[p, 0] -= fx
+        f[p, 1] -= fy
+        t[p] += tq
+
+
+@njit
+def incoming(eb, both, n):
+    """CSR of owned entries by their second particle: (in_start (n+1,), in_e)."""
+    cnt = np.zeros(n + 1, np.int64)
+    for e in range(eb.shape[0]):
+        if both[e]:
+            cnt[eb[e] + 1] += 1
+    for p in range(n):
+        cnt[p + 1] += cnt[p]
+    pos = cnt[:-1].copy()
+    in_e = np.empty(cnt[n], np.int64)
+    for e in range(eb.shape[0]):
+        if both[e]:
+            in_e[pos[eb[e]]] = e
+            pos[eb[e]] += 1
+    return cnt, in_e
+
+
+@njit
+def box_target(step, L_old, sig_servo, dt, modes, rates, targets, gains, lo0, hi0, phase_step0, lo, hi):
+    """Box of step ``step`` from the loading of each axis (fix deform variable style).
+
+    modes: 0 fixed, 1 rate (del = rate L0 dt (step - step0)), 2 servo
+    (del = (L - L0) + dt gain (sigma - target) L); lo = lo0 - del/2, hi = hi0 + del/2."""
+    for d in range(2):
+        if modes[d] == 0:
+            continue
+        L0 = hi0[d] - lo0[d]
+        if modes[d] == 1:
+            c = rates[d] * L0 * dt
+            dl = c * float(step - phase_step0)
+        else:
+            k = dt * gains[d]
+            dl = (L_old[d] - L0) + k * (sig_servo[d] - targets[d]) * L_old[d]
+        lo[d] = lo0[d] - 0.5 * dl
+        hi[d] = hi0[d] + 0.5 * dl
+
+
+@njit
+def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold, lo, hi, lo_hold,
+              hi_hold, vir, kn, kt, gn, gt, mu, dt, skin, step0, nsteps, resume,
+              modes, rates, targets, gains, lo0, hi0, phase_step0,
+              out_stress, out_L, out_nc, out_ov, out_ke, parallel, start, pvir, pcont, tb, in_start, in_e):
+    """Steps step0+1 .. step0+nsteps until a neighbour rebuild is needed (force loop serial over
+    the half list, or with ``parallel`` the threaded ``forces_parallel`` over the same list with
+    CSR ``start``, incoming CSR ``in_start``/``in_e`` and scratch ``pvir`` (N, 4), ``pcont``
+    (N, 2), ``tb`` (M,)).
+
+    Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the step
+    step0+completed+1 has done its first half step; call again with ``resume`` True after the
+    rebuild), 2 non-finite position, 3 collapsed cell. Per completed step k the outputs hold
+    stress (xx, yy, xy, yx; virial / area of the new box), box lengths, contacts, mean overlap, kinetic energy.
+    """
+    L_old = np.empty(2)
+    sig = np.empty(2)
+    lo_new = np.empty(2)
+    hi_new = np.empty(2)
+    for k in range(nsteps):
+        step = step0 + k + 1
+        if not (resume and k == 0):
+            initial_integrate(x, v, w, f, t, m, r, dt)
+            rebuild, bad = check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin)
+            if bad >= 0:
+                return k, 2, bad
+            if rebuild:
+                return k, 1, -1
+        Lx = hi[0] - lo[0]
+        Ly = hi[1] - lo[1]
+        if parallel:
+            forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, True,
+                            f, t, pvir, slide, ef, tb, pcont, in_start, in_e, k == nsteps - 1)
+            for c in range(4):
+                vir[c] = 0.0
+            nc = 0.0
+            so = 0.0
+            for i in range(x.shape[0]):
+                for c in range(4):
+                    vir[c] += pvir[i, c]
+                nc += pcont[i, 0]
+                so += pcont[i, 1]
+        else:
+            nc, so = forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt,
+                                 True, f, t, vir, slide, ef, k == nsteps - 1)
+        ke = final_integrate(v, w, f, t, m, r, dt)
+        inv = 1.0 / (Lx * Ly)
+        L_old[0] = Lx
+        L_old[1] = Ly
+        sig[0] = vir[0] * inv
+        sig[1] = vir[1] * inv
+        lo_new[0] = lo[0]
+        lo_new[1] = lo[1]
+        hi_new[0] = hi[0]
+        hi_new[1] = hi[1]
+        box_target(step, L_old, sig, dt, modes, rates, targets, gains, lo0, hi0, phase_step0, lo_new, hi_new)
+        if lo_new[0] != lo[0] or lo_new[1] != lo[1] or hi_new[0] != hi[0] or hi_new[1] != hi[1]:
+            if not (hi_new[0] - lo_new[0] > 0.0 and hi_new[1] - lo_new[1] > 0.0):
+                return k, 3, -1
+            remap_x(x, lo, hi, lo_new, hi_new)
+            lo[0] = lo_new[0]
+            lo[1] = lo_new[1]
+            hi[0] = hi_new[0]
+            hi[1] = hi_new[1]
+        Lx = hi[0] - lo[0]
+        Ly = hi[1] - lo[1]
+        inv = 1.0 / (Lx * Ly)
+        out_stress[k, 0] = vir[0] * inv
+        out_stress[k, 1] = vir[1] * inv
+        out_stress[k, 2] = vir[2] * inv
+        out_stress[k, 3] = vir[3] * inv
+        out_L[k, 0] = Lx
+        out_L[k, 1] = Ly
+        out_nc[k] = nc
+        out_ov[k] = so / nc if nc > 0 else 0.0
+        out_ke[k] = ke
+    return nsteps, 0, -1
+
+
+@njit
+def _find(start, eb, a, b):
+    """Index of entry (a, b) in a list grouped by a (CSR ``start``), or -1 (linear: few entries)."""
+    for k in range(start[a], start[a + 1]):
+        if eb[k] == b:
+            return k
+    return -1
+
+
+@njit
+def hand_over(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, both_old, xi_old, xi_new):
+    """LIGGGHTS history hand-over at a rebuild (neigh_gran.cpp, fix_contact_history.cpp).
+
+    A new entry (a, b) takes the spring stored with partner b in a's old list (or minus the one
+    of an owned pair stored as (b, a)), only if it overlaps now (rsq < radsum^2); else zero.
+    """
+    for e in range(a_new.shape[0]):
+        a = a_new[e]
+        b = b_new[e]
+        xi_new[e, 0] = 0.0
+        xi_new[e, 1] = 0.0
+        delx = x[a, 0] - (x[b, 0] + sx_new[e] * L0)
+        dely = x[a, 1] - (x[b, 1] + sy_new[e] * L1)
+        radsum = r[a] + r[b]
+        if not (delx * delx + dely * dely < radsum * radsum):
+            continue
+        k = _find(start_old, eb_old, a, b)
+        if k >= 0:
+            xi_new[e, 0] = xi_old[k, 0]
+            xi_new[e, 1] = xi_old[k, 1]
+        else:
+            k = _find(start_old, eb_old, b, a)
+            if k >= 0 and both_old[k]:
+                xi_new[e, 0] = -xi_old[k, 0]
+                xi_new[e, 1] = -xi_old[k, 1]
+
+
+@njit
+def build_list_liggghts(x, r, lo, hi, skin):
+    """The neighbour list of LIGGGHTS 3.8.0 (1 process, ``newton off``, ``bin``), in its order.
+
+    Ghost atoms as ``Comm::borders`` makes them (x swaps then y swaps; slab tests with <=/>=;
+    candidates: owned atoms for x, owned + x ghosts for y), bins as ``Neighbor::setup_bins`` and
+    ``coord2bin`` (bin size half the neighbour cutoff 2 r_max + skin), the full 2D stencil
+    of ``half/bin/newtoff`` and, per owned atom a, partners j > a (ghosts after owned atoms) in
+    stencil order then index order, kept when rsq <= (r_a + r_j + skin)^2. Matching this order
+    makes the force sums (and so trajectories) agree with LIGGGHTS to the last bit.
+    Returns (a, b, sx, sy, both, self_image): entry (a, b, s) is b's image x_b + s L; ``both``
+    for owned pairs (s = 0); self_image >= 0 a particle near its own image (cell too small), -2
+    when the ghost buffer overflowed.
+    """
+    n = x.shape[0]
+    rmax = 0.0
+    for i in range(n):
+        rmax = max(rmax, r[i])
+    cutneighmax = (rmax + rmax) + skin
+    cutghost = cutneighmax
+    prd0 = hi[0] - lo[0]
+    prd1 = hi[1] - lo[1]
+    sub_hi0 = lo[0] + prd0 * 1.0
+    sub_hi1 = lo[1] + prd1 * 1.0
+    # ghosts: owner index, shift, coordinates
+    cap = 4 * n + 16
+    gown = np.empty(cap, np.int64)
+    gsx = np.empty(cap, np.float64)
+    gsy = np.empty(cap, np.float64)
+    xa = np.empty((n + cap, 2))
+    for i in range(n):
+        xa[i, 0] = x[i, 0]
+        xa[i, 1] = x[i, 1]
+    ng = 0
+    for dim in range(2):
+        nlast = n + ng
+        for ineed in range(2):
+            if ineed == 0:
+                slo = -1.0e20
+                shi = (lo[dim] if dim == 0 else lo[1]) + cutghost
+                pbc = 1.0
+            else:
+                shi = 1.0e20
+                slo = (sub_hi0 if dim == 0 else sub_hi1) - cutghost
+                pbc = -1.0
+            prd = prd0 if dim == 0 else prd1
+            for i in range(nlast):
+                c = xa[i, dim]
+                if c >= slo and c <= shi:
+                    if ng == cap:
+                        return (np.empty(0, np.int32), np.empty(0, np.int32), np.empty(0), np.empty(0),
+                                np.empty(0, np.bool_), -2)
+                    g = n + ng
+                    if i < n:
+                        gown[ng] = i
+                        gsx[ng] = 0.0
+                        gsy[ng] = 0.0
+                    else:
+                        gown[ng] = gown[i - n]
+                        gsx[ng] = gsx[i - n]
+                        gsy[ng] = gsy[i - n]
+                    if dim == 0:
+                        gsx[ng] += pbc
+                        xa[g, 0] = xa[i, 0] + pbc * prd
+                        xa[g, 1] = xa[i, 1]
+                    else:
+                        gsy[ng] += pbc
+                        xa[g, 0] = xa[i, 0]
+                        xa[g, 1] = xa[i, 1] + pbc * prd
+                    ng += 1
+    nall = n + ng
+    # bins (Neighbor::setup_bins, orthogonal box, one process)
+    small = 1.0e-6
+    binsize_opt = 0.5 * cutneighmax
+    binsizeinv = 1.0 / binsize_opt
+    nb = np.empty(2, np.int64)
+    binsz = np.empty(2)
+    bininv = np.empty(2)
+    mlo = np.empty(2, np.int64)
+    mb = np.empty(2, np.int64)
+    for d in range(2):
+        bbox = hi[d] - lo[d]
+        nbd = int(bbox * binsizeinv)
+        if nbd == 0:
+            nbd = 1
+        nb[d] = nbd
+        binsz[d] = bbox / nbd
+        bininv[d] = 1.0 / binsz[d]
+        sublo = lo[d]
+        subhi = sub_hi0 if d == 0 else sub_hi1
+        coord = (sublo - cutghost) - small * bbox
+        m_lo = int((coord - lo[d]) * bininv[d])
+        if coord < lo[d]:
+            m_lo -= 1
+        coord = (subhi + cutghost) + small * bbox
+        m_hi = int((coord - lo[d]) * bininv[d])
+        m_lo -= 1
+        m_hi += 1
+        mlo[d] = m_lo
+        mb[d] = m_hi - m_lo + 1
+    binhead = -np.ones(mb[0] * mb[1], np.int64)
+    bins = -np.ones(nall, np.int64)
+    ibin = np.empty(nall, np.int64)
+    for i in range(nall - 1, -1, -1):
+        idx = 0
+        for d in range(2):
+            c = xa[i, d]
+            if c >= hi[d]:
+                ix = int((c - hi[d]) * bininv[d]) + nb[d]
+            elif c >= lo[d]:
+                ix = min(int((c - lo[d]) * bininv[d]), nb[d] - 1)
+            else:
+                ix = int((c - lo[d]) * bininv[d]) - 1
+            if d == 0:
+                idx += ix - mlo[0]
+            else:
+                idx += (ix - mlo[1]) * mb[0]
+        ibin[i] = idx
+        bins[i] = binhead[idx]
+        binhead[idx] = i
+    # full 2D stencil (half/bin/newtoff)
+    sxn = int(cutneighmax * bininv[0])
+    if sxn * binsz[0] < cutneighmax:
+        sxn += 1
+    syn = int(cutneighmax * bininv[1])
+    if syn * binsz[1] < cutneighmax:
+        syn += 1
+    cutsq_max = cutneighmax * cutneighmax
+    stencil = np.empty((2 * sxn + 1) * (2 * syn + 1), np.int64)
+    ns = 0
+    for j in range(-syn, syn + 1):
+        for i in range(-sxn, sxn + 1):
+            dx = (i - 1) * binsz[0] if i > 0 else (0.0 if i == 0 else (i + 1) * binsz[0])
+            dy = (j - 1) * binsz[1] if j > 0 else (0.0 if j == 0 else (j + 1) * binsz[1])
+            if dx * dx + dy * dy < cutsq_max:
+                stencil[ns] = j * mb[0] + i
+                ns += 1
+    # pairs: count, then fill in LIGGGHTS order
+    m = 0
+    for pass_ in range(2):
+        if pass_ == 1:
+            a_out = np.empty(m, np.int32)
+            b_out = np.empty(m, np.int32)
+            sx_out = np.empty(m)
+            sy_out = np.empty(m)
+            both_out = np.empty(m, np.bool_)
+        m = 0
+        for a in range(n):
+            for k in range(ns):
+                j = binhead[ibin[a] + stencil[k]]
+                while j >= 0:
+                    if j > a:
+                        delx = xa[a, 0] - xa[j, 0]
+                        dely = xa[a, 1] - xa[j, 1]
+                        rj = r[j] if j < n else r[gown[j - n]]
+                        radsum = r[a] + rj
+                        cutsq = (radsum + skin) * (radsum + skin)
+                        if delx * delx + dely * dely <= cutsq:
+                            if pass_ == 1:
+                                a_out[m] = a
+                                if j < n:
+                                    b_out[m] = j
+                                    sx_out[m] = 0.0
+                                    sy_out[m] = 0.0
+                                    both_out[m] = True
+                                else:
+                                    b_out[m] = gown[j - n]
+                                    sx_out[m] = gsx[j - n]
+                                    sy_out[m] = gsy[j - n]
+                                    both_out[m] = False
+                            m += 1
+                    j = bins[j]
+    self_image = -1
+    for e in range(m):
+        if a_out[e] == b_out[e]:
+            self_image = a_out[e]
+            break
+    return a_out, b_out, sx_out, sy_out, both_out, self_image

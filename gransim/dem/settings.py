@@ -1,0 +1,100 @@
+"""Settings of a DEM run: contact law, integration and loading (frozen dataclasses, checked once)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass, field
+
+from .._validate import as_positive_float, check_choice
+from ..errors import InputError
+
+
+@dataclass(frozen=True)
+class DEMSettings:
+    """Contact law and integration settings (SI units; 2D forces per unit thickness read the same).
+
+    Attributes
+    ----------
+    kn, kt : normal and tangential spring stiffness (N/m). Kuhn (002) uses kt = kn.
+    gamma_n, gamma_t : mass-scaled viscous damping rates (1/s); the damping coefficient of a
+        contact is m_eff gamma with m_eff = m_i m_j/(m_i + m_j) (LIGGGHTS ``gamman``, ``gammat``).
+    mu : Coulomb friction coefficient (0.5 in the biaxial test of 002).
+    dt : time step (s). Must be below the stability limit (see :func:`stability_limit`).
+    skin : neighbour-list skin (m). Part of the contact law (history hand-over at rebuilds).
+    mode : "serial" (half list, LIGGGHTS' order: the mode that is compared step for step) or
+        "parallel" (the same half list over numba threads: each pair once, then a per-particle
+        gather of the partner forces; deterministic, summation order differs).
+    """
+
+    kn: float = 1.0e5
+    kt: float = 1.0e5
+    gamma_n: float = 0.0
+    gamma_t: float = 0.0
+    mu: float = 0.5
+    dt: float = 1.0e-6
+    skin: float = 1.0e-4
+    mode: str = "serial"
+
+    def __post_init__(self):
+        for name in ("kn", "dt", "skin"):
+            object.__setattr__(self, name, as_positive_float(getattr(self, name), name))
+        for name in ("kt", "gamma_n", "gamma_t", "mu"):
+            object.__setattr__(self, name, as_positive_float(getattr(self, name), name, allow_zero=True))
+        check_choice(self.mode, "mode", ("serial", "parallel"))
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class AxisControl:
+    """Loading of one axis of the orthogonal periodic cell (applied at the end of each step).
+
+    mode "fixed": the side length stays. mode "rate": L(n) = L_0 + c n with c = rate L_0 dt
+    (``rate`` in 1/s, negative = compression; engineering rate, as the LIGGGHTS variable deck
+    ``del = c*step``). mode "servo": proportional control of the normal stress of that axis,
+    L(n) = L(n-1) + dt gain (sigma - target) L(n-1), sigma the Love stress of the step
+    (compression positive, N/m in 2D), ``gain`` in 1/(Pa s): more stress than the target
+    expands the cell.
+    """
+
+    mode: str = "fixed"
+    rate: float = 0.0
+    target: float = 0.0
+    gain: float = 0.0
+
+    def __post_init__(self):
+        check_choice(self.mode, "axis mode", ("fixed", "rate", "servo"))
+        for name in ("rate", "target", "gain"):
+            try:
+                v = float(getattr(self, name))
+            except (TypeError, ValueError):
+                raise InputError(f"{name}: expected a number, got {getattr(self, name)!r}") from None
+            object.__setattr__(self, name, v)
+        if self.mode == "servo" and self.gain <= 0:
+            raise InputError(f"servo gain: must be > 0, got {self.gain!r}")
+
+
+@dataclass(frozen=True)
+class Loading:
+    """Control of both axes (x = 1, y = 2)."""
+
+    x: AxisControl = field(default_factory=AxisControl)
+    y: AxisControl = field(default_factory=AxisControl)
+
+    def to_dict(self) -> dict:
+        return {"x": dataclasses.asdict(self.x), "y": dataclasses.asdict(self.y)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Loading:
+        return cls(x=AxisControl(**d["x"]), y=AxisControl(**d["y"]))
+
+
+def settings_json(settings: DEMSettings, loading: Loading | None = None, **extra) -> str:
+    """Canonical JSON of the settings (stored in result files, hashed into the fingerprint)."""
+    d = {"dem": settings.to_dict()}
+    if loading is not None:
+        d["loading"] = loading.to_dict()
+    d.update(extra)
+    return json.dumps(d, sort_keys=True)
