@@ -114,7 +114,7 @@ def summarize(path) -> dict:
            "inertial_number": inertial_number(run.packing, rate, p) if bi else float("nan"),
            "consolidation_steps": int(s["step"][s["phase"] == 0].max())}
     if np.any(comp):
-        st = s["stress"][comp]
+        st = -s["stress"][comp]  # compression positive: the confining stress p is a positive number
         eps = run.strain()[comp]
         ratio = st[:, 1, 1] / st[:, 0, 0]
         k = int(np.argmax(ratio))

@@ -73,7 +73,10 @@ def write_run(path, rec: RunRecord, parameters: dict | None = None, seed=None) -
         f.attrs["stop_reason"] = rec.stop_reason
         write_packing_group(f.create_group("packing"), rec.packing)
         g = f.create_group("series")
+        g.attrs["stress_sign"] = "tension positive (gransim convention; = -LIGGGHTS compute pressure)"
         for k, v in rec.series_arrays().items():
+            if k == "stress":
+                v = -v  # the engine works in LIGGGHTS' compression-positive virial; files are tension positive
             chunks = (min(max(len(v), 1), 4096),) + v.shape[1:]
             g.create_dataset(k, data=v, chunks=chunks if len(v) else None, maxshape=(None,) + v.shape[1:],
                              **(_GZ if len(v) else {}))
@@ -106,7 +109,8 @@ def read_record(path) -> RunRecord:
                         fingerprint=str(f.attrs["fingerprint"]), complete=bool(f.attrs["complete"]),
                         stop_reason=str(f.attrs["stop_reason"]))
         for k in SERIES_KEYS:
-            rec.series[k] = list(f["series"][k][()])
+            v = f["series"][k][()]
+            rec.series[k] = list(-v if k == "stress" else v)  # back to the engine's compression-positive virial
         for h in f["snapshots"].values():
             step = int(h.attrs["step"])
             rec.snapshots[step] = {"time": float(h.attrs["time"]),
@@ -141,7 +145,7 @@ class RunResult:
 
 
 def read_run(path) -> RunResult:
-    """Series, packing and settings of a run file."""
+    """Series, packing and settings of a run file (``series["stress"]`` tension positive, N/m)."""
     with open_result(path, kind=KIND) as f:
         series = {k: f["series"][k][()] for k in SERIES_KEYS}
         return RunResult(path=Path(path), packing=read_packing_group(f["packing"]),
@@ -211,7 +215,7 @@ def plot_stress_strain(path, out) -> Path:
         sel = np.ones_like(run.series["phase"], bool)
     eps = run.strain()[sel]
     e22 = -(eps[:, 1] - eps[0, 1])
-    st = run.series["stress"][sel]
+    st = -run.series["stress"][sel]  # plotted compression positive, as in the paper
     s11, s22 = st[:, 0, 0], st[:, 1, 1]
     fig, ax = plt.subplots(1, 2, figsize=(9, 3.6))
     ax[0].plot(e22 * 100, s22 / s11)

@@ -44,7 +44,8 @@ def test_run_file_layout_and_stress_series(tmp_path, packing):
     # the series equals an engine run without output (same trajectory)
     eng = DEMEngine(packing, SETTINGS)
     res = eng.advance(LOADING, 600)
-    np.testing.assert_array_equal(run.series["stress"][1:], res["stress"][1::2])
+    # files are tension positive; the engine's series is LIGGGHTS' compression-positive virial
+    np.testing.assert_array_equal(run.series["stress"][1:], -res["stress"][1::2])
     np.testing.assert_array_equal(run.series["cell"][-1], eng.cell)
     snap = read_snapshot(out, 600)
     np.testing.assert_array_equal(snap.positions, eng.x)
