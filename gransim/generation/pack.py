@@ -158,19 +158,30 @@ def _fire(x, v, r, pi, pj, off, x_ref, st, diag, area0, P, cell_free, me, ftol, 
     L_ref = st[6]
     _forces(x, r, L, pi, pj, off, f, diag)
     while True:
-        # -- convergence and neighbour-list checks on the current state --
+        # -- one pass over the current state: residual, power, |F|^2, displacement since the build --
         A = area0 * L * L
         fq = (diag[1] - 2.0 * P * A) / sq if cell_free else 0.0
+        lam = L / L_ref
         fmax2 = 0.0
+        dmax2 = 0.0
+        power = vq * fq
+        fnorm2 = fq * fq
         for i in range(n):
             a = f[i, 0] * f[i, 0] + f[i, 1] * f[i, 1]
+            fnorm2 += a
             if a > fmax2:
                 fmax2 = a
+            power += f[i, 0] * v[i, 0] + f[i, 1] * v[i, 1]
+            d0 = x[i, 0] - lam * x_ref[i, 0]
+            d1 = x[i, 1] - lam * x_ref[i, 1]
+            a = d0 * d0 + d1 * d1
+            if a > dmax2:
+                dmax2 = a
         nc = diag[2]
         fmean = diag[3] / nc if nc > 0 else 0.0  # mean contact force (k_n = 1)
+        status = -1
         if not np.isfinite(diag[0]) or not np.isfinite(L):
-            st[0] = L
-            return 3
+            status = 3
         if not cell_free and diag[0] <= UNJAMMED_ENERGY * n:
             res = 0.0  # fixed cell below jamming: every overlap has vanished
         elif nc > 0:
@@ -180,43 +191,24 @@ def _fire(x, v, r, pi, pj, off, x_ref, st, diag, area0, P, cell_free, me, ftol, 
         else:
             res = 0.0 if not cell_free else np.inf
         st[7] = res
-        if res <= ftol:
-            st[0] = L
-            st[1] = vq
-            st[2] = dt
-            st[3] = alpha
-            st[4] = npos
-            st[5] = steps
-            return 0
-        lam = L / L_ref
-        dmax2 = 0.0
-        for i in range(n):
-            d0 = x[i, 0] - lam * x_ref[i, 0]
-            d1 = x[i, 1] - lam * x_ref[i, 1]
-            a = d0 * d0 + d1 * d1
-            if a > dmax2:
-                dmax2 = a
         shrink = (1.0 - lam) * (2.0 * rmax + skin) if lam < 1.0 else 0.0
-        if 2.0 * np.sqrt(dmax2) + shrink > skin:
+        if status == 3:
+            pass
+        elif res <= ftol:
+            status = 0
+        elif 2.0 * np.sqrt(dmax2) + shrink > skin:
+            status = 1
+        elif steps >= max_steps:
+            status = 2
+        if status >= 0:
             st[0] = L
             st[1] = vq
             st[2] = dt
             st[3] = alpha
             st[4] = npos
             st[5] = steps
-            return 1
-        if steps >= max_steps:
-            st[0] = L
-            st[1] = vq
-            st[2] = dt
-            st[3] = alpha
-            st[4] = npos
-            st[5] = steps
-            return 2
+            return status
         # -- one FIRE 2.0 step (semi-implicit Euler, unit masses) --
-        power = vq * fq
-        for i in range(n):
-            power += f[i, 0] * v[i, 0] + f[i, 1] * v[i, 1]
         if power > 0.0:
             npos += 1
             if npos > n_delay:
@@ -227,42 +219,30 @@ def _fire(x, v, r, pi, pj, off, x_ref, st, diag, area0, P, cell_free, me, ftol, 
             if dt * f_dec >= dt_min:
                 dt *= f_dec
             alpha = alpha0
+            s = np.exp(-0.5 * dt * vq / sq) if cell_free else 1.0
             for i in range(n):  # step half back, stop
-                x[i, 0] -= 0.5 * dt * v[i, 0]
-                x[i, 1] -= 0.5 * dt * v[i, 1]
+                x[i, 0] = (x[i, 0] - 0.5 * dt * v[i, 0]) * s
+                x[i, 1] = (x[i, 1] - 0.5 * dt * v[i, 1]) * s
                 v[i, 0] = 0.0
                 v[i, 1] = 0.0
-            if cell_free:
-                s = np.exp(-0.5 * dt * vq / sq)
-                L *= s
-                for i in range(n):
-                    x[i, 0] *= s
-                    x[i, 1] *= s
+            L *= s
             vq = 0.0
+        vq += dt * fq
+        vnorm2 = vq * vq
         for i in range(n):
             v[i, 0] += dt * f[i, 0]
             v[i, 1] += dt * f[i, 1]
-        vq += dt * fq
-        vnorm2 = vq * vq
-        fnorm2 = fq * fq
-        for i in range(n):
             vnorm2 += v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]
-            fnorm2 += f[i, 0] * f[i, 0] + f[i, 1] * f[i, 1]
-        if fnorm2 > 0.0:
-            mix = alpha * np.sqrt(vnorm2 / fnorm2)
-            for i in range(n):
-                v[i, 0] = (1.0 - alpha) * v[i, 0] + mix * f[i, 0]
-                v[i, 1] = (1.0 - alpha) * v[i, 1] + mix * f[i, 1]
-            vq = (1.0 - alpha) * vq + mix * fq
+        mix = alpha * np.sqrt(vnorm2 / fnorm2) if fnorm2 > 0.0 else 0.0
+        keep = 1.0 - alpha if fnorm2 > 0.0 else 1.0
+        vq = keep * vq + mix * fq
+        s = np.exp(dt * vq / sq) if cell_free else 1.0
         for i in range(n):
-            x[i, 0] += dt * v[i, 0]
-            x[i, 1] += dt * v[i, 1]
-        if cell_free:
-            s = np.exp(dt * vq / sq)
-            L *= s
-            for i in range(n):
-                x[i, 0] *= s
-                x[i, 1] *= s
+            v[i, 0] = keep * v[i, 0] + mix * f[i, 0]
+            v[i, 1] = keep * v[i, 1] + mix * f[i, 1]
+            x[i, 0] = (x[i, 0] + dt * v[i, 0]) * s
+            x[i, 1] = (x[i, 1] + dt * v[i, 1]) * s
+        L *= s
         steps += 1
         _forces(x, r, L, pi, pj, off, f, diag)
 
@@ -303,15 +283,16 @@ class _Minimiser:
         self.x *= L / self.L
         self.L = float(L)
 
-    def run(self, P: float, cell_free: bool, ftol: float, max_steps: int) -> str:
+    def run(self, P: float, cell_free: bool, ftol: float, max_steps: int, skin: float | None = None) -> str:
         """Minimise H = U + P A (cell free) or U (cell fixed) from the current state."""
+        skin = self.skin if skin is None else float(skin)
         fp = self.fire
         self.v[:] = 0.0
         st = np.array([self.L, 0.0, fp.dt_start, fp.alpha_start, 0.0, 0.0, self.L, np.inf])
         while True:
             frac = self.x / self.L
             self.x = np.ascontiguousarray((frac - np.floor(frac)) * self.L)  # wrap (square cell)
-            nl = find_neighbours(self.x, self.r, self.cell, self.skin)
+            nl = find_neighbours(self.x, self.r, self.cell, skin)
             self.rebuilds += 1
             off = np.ascontiguousarray(nl.shift, dtype=float)  # C0 = identity
             st[0] = self.L
@@ -319,7 +300,7 @@ class _Minimiser:
             x_ref = self.x.copy()
             done = int(st[5])
             status = _fire(self.x, self.v, self.r, nl.i, nl.j, off, x_ref, st, self.diag, 1.0, float(P),
-                           bool(cell_free), self.me, float(ftol), self.skin, float(self.r.max()),
+                           bool(cell_free), self.me, float(ftol), skin, float(self.r.max()),
                            int(max_steps), fp.dt_max, fp.dt_min, fp.f_inc, fp.f_dec, fp.alpha_start,
                            fp.f_alpha, int(fp.n_delay))
             self.L = float(st[0])
@@ -448,7 +429,8 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
 
     # the random start relaxed at fixed cell (a quench from "infinite temperature"); only the large
     # overlaps of the random start need to go, so a loose tolerance suffices
-    status = m.run(0.0, False, max(force_tol, QUENCH_TOL), max_steps)
+    # (with a doubled skin: the disks of the random start travel far, rebuilds would dominate)
+    status = m.run(0.0, False, max(force_tol, QUENCH_TOL), max_steps, skin=2 * skin)
     if status != "converged":
         fail(f"relaxation of the random start did not converge ({status})")
     # pressure passes: loose tolerance while the pressure is being adjusted, then force_tol
