@@ -1,0 +1,57 @@
+"""gransim pack / info / packings on the command line: output files, printed statistics, one-line errors."""
+
+import h5py
+import pytest
+
+from gransim.cli import main
+from gransim.io import load_packing
+
+
+def test_pack_then_info(tmp_path, capsys):
+    out = tmp_path / "rve.h5"
+    assert main(["pack", "--distribution", "quartz-sand", "--n", "60", "--seed", "3", "-o", str(out),
+                 "--vtu", str(tmp_path / "rve.vtu")]) == 0
+    p = load_packing(out)
+    assert p.n == 60 and p.metadata["seed"] == 3 and (tmp_path / "rve.vtu").exists()
+    capsys.readouterr()
+    assert main(["info", str(out)]) == 0
+    text = capsys.readouterr().out
+    for key in ("N                      60", "packing fraction", "void ratio", "coordination",
+                "without rattlers", "mean overlap", "max overlap"):
+        assert key in text
+    assert f"{p.solid_fraction:.5f}" in text
+
+
+def test_pack_solid_fraction_option(tmp_path, capsys):
+    out = tmp_path / "phi.h5"
+    assert main(["pack", "--n", "40", "--seed", "1", "--solid-fraction", "0.88", "-o", str(out)]) == 0
+    assert load_packing(out).solid_fraction == pytest.approx(0.88, rel=1e-12)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["pack", "--n", "1", "-o", "x.h5"], "n: expected an integer >= 2"),
+    (["pack", "--n", "50", "--distribution", "granite", "-o", "x.h5"], "unknown distribution 'granite'"),
+    (["pack", "--n", "50", "--solid-fraction", "0.97", "-o", "x.h5"], "unreachable"),
+    (["pack", "--n", "50", "--mean-overlap=-1e-4", "-o", "x.h5"], "mean_overlap"),
+    (["packings", "--only", "rve-9-9"], "unknown standard packing"),
+])
+def test_bad_input_is_one_line_and_exit_2(argv, message, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_info_on_foreign_and_missing_files(tmp_path, capsys):
+    foreign = tmp_path / "foreign.h5"
+    with h5py.File(foreign, "w") as f:
+        f["x"] = 1
+    assert main(["info", str(foreign)]) == 2
+    assert "not a gransim results file" in capsys.readouterr().err
+    assert main(["info", str(tmp_path / "missing.h5")]) == 2
+    assert "no such file" in capsys.readouterr().err
+    text = tmp_path / "text.h5"
+    text.write_text("hello")
+    assert main(["info", str(text)]) == 2
+    assert "not a readable HDF5 file" in capsys.readouterr().err
