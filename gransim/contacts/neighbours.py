@@ -89,8 +89,12 @@ def _bin_sort(s, nb1, nb2):
 
 
 @njit
-def _scan_one(i, xw, radii, C, skin, b, start, order, nb1, nb2, k1, k2, out_j, out_t, out_l, base, write):
-    """Visit every image near particle i; count (write=False) or store the pairs."""
+def _scan_one(i, xw, radii, xs, rs, C, skin, b, start, order, nb1, nb2, k1, k2, out_j, out_t, out_l, base, write):
+    """Visit every image near particle i; count (write=False) or store the pairs.
+
+    Candidates are read from ``xs``/``rs``, copies of positions and radii in bin order, so the
+    inner loop walks contiguous memory; ``order`` maps them back to particle indices.
+    """
     m = 0
     bi1 = b[i] // nb2
     bi2 = b[i] % nb2
@@ -113,9 +117,9 @@ def _scan_one(i, xw, radii, C, skin, b, start, order, nb1, nb2, k1, k2, out_j, o
                     continue
                 if j == i and not (t1 > 0 or (t1 == 0 and t2 > 0)):
                     continue
-                d0 = xw[j, 0] + off0 - xi0
-                d1 = xw[j, 1] + off1 - xi1
-                cut = radii[i] + radii[j] + skin
+                d0 = xs[p, 0] + off0 - xi0
+                d1 = xs[p, 1] + off1 - xi1
+                cut = radii[i] + rs[p] + skin
                 if d0 * d0 + d1 * d1 < cut * cut:
                     if write:
                         out_j[base + m] = j
@@ -128,20 +132,24 @@ def _scan_one(i, xw, radii, C, skin, b, start, order, nb1, nb2, k1, k2, out_j, o
 
 
 @pjit
-def _cell_list_pairs(xw, radii, C, skin, nb1, nb2, k1, k2):
+def _cell_list_pairs(xw, s, radii, C, skin, nb1, nb2, k1, k2):
     n = xw.shape[0]
-    s = np.empty((n, 2))
-    det = C[0, 0] * C[1, 1] - C[0, 1] * C[1, 0]
-    for p in range(n):
-        s[p, 0] = (C[1, 1] * xw[p, 0] - C[0, 1] * xw[p, 1]) / det
-        s[p, 1] = (-C[1, 0] * xw[p, 0] + C[0, 0] * xw[p, 1]) / det
     b, start, order = _bin_sort(s, nb1, nb2)
+    xs = np.empty((n, 2))
+    rs = np.empty(n)
+    for p in prange(n):
+        xs[p, 0] = xw[order[p], 0]
+        xs[p, 1] = xw[order[p], 1]
+        rs[p] = radii[order[p]]
     counts = np.zeros(n + 1, np.int64)
     dj = np.empty(0, np.int64)
     dt = np.empty((0, 2), np.int64)
     dl = np.empty((0, 2))
-    for i in prange(n):
-        counts[i + 1] = _scan_one(i, xw, radii, C, skin, b, start, order, nb1, nb2, k1, k2,
+    # particles are visited in bin order (i = order[q]) so consecutive iterations scan the same,
+    # cache-resident bins; results still land in the slots of the original index i
+    for q in prange(n):
+        i = order[q]
+        counts[i + 1] = _scan_one(i, xw, radii, xs, rs, C, skin, b, start, order, nb1, nb2, k1, k2,
                                   dj, dt, dl, 0, False)
     for i in range(n):
         counts[i + 1] += counts[i]
@@ -150,11 +158,12 @@ def _cell_list_pairs(xw, radii, C, skin, nb1, nb2, k1, k2):
     out_j = np.empty(m, np.int64)
     out_t = np.empty((m, 2), np.int64)
     out_l = np.empty((m, 2))
-    for i in prange(n):
-        _scan_one(i, xw, radii, C, skin, b, start, order, nb1, nb2, k1, k2,
+    for q in prange(n):
+        i = order[q]
+        _scan_one(i, xw, radii, xs, rs, C, skin, b, start, order, nb1, nb2, k1, k2,
                   out_j, out_t, out_l, counts[i], True)
-        for q in range(counts[i], counts[i + 1]):
-            out_i[q] = i
+        for e in range(counts[i], counts[i + 1]):
+            out_i[e] = i
     return out_i, out_j, out_t, out_l
 
 
@@ -171,11 +180,14 @@ def _check_inputs(positions, radii, cell, skin):
 
 
 def _wrap_fractional(x, C):
-    s = np.linalg.solve(C, x.T).T
+    """Wrapped positions, their fractional coordinates in [0, 1) and the image counts."""
+    s = x @ np.linalg.inv(C).T
     n = np.floor(s)
     sw = s - n
-    sw = np.where(sw >= 1.0, 0.0, sw)
-    return sw @ C.T, n.astype(np.int64)
+    top = sw >= 1.0  # round-off at the upper face: the point belongs to the next image
+    sw[top] = 0.0
+    n[top] += 1.0
+    return sw @ C.T, sw, n.astype(np.int64)
 
 
 def bin_layout(cell: np.ndarray, cutoff: float, n_particles: int) -> tuple[int, int, int, int]:
@@ -204,10 +216,10 @@ def find_neighbours(positions, radii, cell, skin: float = 0.0) -> NeighbourList:
     NeighbourList, pairs sorted by i. O(N) time and memory.
     """
     x, r, C, skin = _check_inputs(positions, radii, cell, skin)
-    xw, nimg = _wrap_fractional(x, C)
+    xw, sw, nimg = _wrap_fractional(x, C)
     cutoff = 2.0 * float(r.max()) + skin
     nb1, nb2, k1, k2 = bin_layout(C, cutoff, x.shape[0])
-    i, j, t, l = _cell_list_pairs(xw, r, C, skin, nb1, nb2, k1, k2)
+    i, j, t, l = _cell_list_pairs(xw, sw, r, C, skin, nb1, nb2, k1, k2)
     shift = t + nimg[i] - nimg[j]
     return NeighbourList(i=i, j=j, shift=shift, branch=l)
 

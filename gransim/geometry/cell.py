@@ -68,7 +68,9 @@ def wrap(x: np.ndarray, cell: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     s = to_fractional(x, cell)
     n = np.floor(s)
     sw = s - n
-    sw[sw >= 1.0] = 0.0  # round-off at the upper face
+    top = sw >= 1.0  # round-off at the upper face: the point belongs to the next image
+    sw[top] = 0.0
+    n[top] += 1.0
     return to_cartesian(sw, cell), n.astype(np.int64)
 
 
