@@ -290,36 +290,32 @@ def test_many_rebuilds_prune_old_sets_and_stay_exact():
         assert _rel(b.piola[g], ref["piola"]) < 1e-12
 
 
-def _standard_rves():
-    """The 15 standard RVEs if gransim.generation is present and they were generated already."""
+@pytest.fixture(scope="module")
+def standard_rves(tmp_path_factory):
+    """The 15 standard RVEs: reused from results/packings when generated there, else generated
+    (about 15 s) into a temporary folder, so this acceptance test always runs."""
     from pathlib import Path
 
-    try:
-        from gransim.generation import standard_packings
-    except ImportError:
-        return None
-    d = Path("results/packings")
     from gransim.cli.cmd_rve import standard_rve_names
+    from gransim.generation import standard_packings
     from gransim.rve.study import load_packings
 
     names = standard_rve_names()
+    d = Path("results/packings")
     if not all((d / f"{k}.h5").exists() for k in names):
-        return None
+        d = tmp_path_factory.mktemp("packings")
     return load_packings(standard_packings(d, names=names))
 
 
 @pytest.mark.slow
-def test_all_standard_rves_agree_with_bruteforce():
-    """Acceptance: numba path = brute force to 1e-12 on all 15 RVEs (run ``gransim rve-study`` or
-    ``gransim rve-check`` first to generate them; skipped otherwise)."""
-    rves = _standard_rves()
-    if rves is None:
-        pytest.skip("the 15 standard RVEs are not generated in results/packings")
+def test_all_standard_rves_agree_with_bruteforce(standard_rves):
+    """Acceptance: numba path = brute force to 1e-12 on all 15 RVEs (contacts identical)."""
     # three states per RVE keep this under ~15 s; ``gransim rve-check`` runs eight
     Fs = np.array(
         [[[0.95, 0.0], [0.0, 1.0]], [[1.0, 0.05], [0.0, 1.0]], [[1.08, -0.06], [0.09, 0.93]]]
     )
-    for rec in crosscheck(rves, 2.8e7, Fs):
+    assert len(standard_rves) == 15
+    for rec in crosscheck(standard_rves, 2.8e7, Fs):
         assert rec["contacts_equal"], rec
         assert max(rec["rel_energy"], rec["rel_piola"], rec["rel_tangent"]) < 1e-12, rec
 
