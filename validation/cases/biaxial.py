@@ -175,6 +175,8 @@ def full_runs(ctx: Context) -> dict:
     if key in _FULL_CACHE:
         return _FULL_CACHE[key]
     cfg = _settings_by_suite(ctx.suite)
+    if not ctx.liggghts:  # only the stored series can be compared: run to its strain
+        cfg["strain"] = _settings_by_suite("default")["strain"]
     pk = _kuhn(ctx)
     dem, bi = dem_defaults(pk, strain=cfg["strain"])
     servo = _servo(bi)
