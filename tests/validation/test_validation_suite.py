@@ -90,3 +90,17 @@ def test_unknown_case_is_a_clear_error(tmp_path):
 
     with pytest.raises(InputError, match="case"):
         run_validation("quick", tmp_path, only=["no-such-case"], log=_quiet)
+
+
+def test_without_liggghts_biaxial_full_uses_the_stored_series(tmp_path, monkeypatch):
+    # a machine without LIGGGHTS: the report says so and the full loading is compared with the
+    # stored stress/box series of the reference and perturbed LIGGGHTS runs
+    import validation.runner as runner
+
+    monkeypatch.setattr(runner, "liggghts_available", lambda: False)
+    ok, results = run_validation("default", tmp_path, only=["biaxial-full"], log=_quiet)
+    (res,) = results
+    assert ok, [(r.case, r.quantity, r.value, r.tolerance) for r in res.records if not r.passed]
+    assert {r.quantity for r in res.records} == {"stress", "deviator", "volumetric_strain"}
+    assert any("stored series" in n for n in res.notes)
+    assert "LIGGGHTS is not installed" in (tmp_path / "report" / "index.html").read_text()
