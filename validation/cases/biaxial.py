@@ -234,7 +234,7 @@ def _ratio(d: np.ndarray, env: np.ndarray) -> float:
         return float(np.max(np.where(env[m] > 0, d[m] / np.where(env[m] > 0, env[m], 1.0), np.inf)))
 
 
-def _plots(ctx, r, div, sdiv, cur) -> list:
+def _plots(ctx, div, sdiv, cur) -> list:
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -358,7 +358,7 @@ def biaxial_full(ctx: Context) -> CaseResult:
     res.tables.append(("End of compression", ["run", "axial strain %", "q/p", "eps_v %", "peak q/p"],
                        [[n, float(100 * c[0][k_end]), float(c[1][k_end]), float(100 * c[2][k_end]),
                          float(c[1].max())] for n, c in cur.items()]))
-    res.figures += _plots(ctx, r, div, sdiv, cur)
+    res.figures += _plots(ctx, div, sdiv, cur)
     if "manifest" not in r:
         return res
     man = r["manifest"]
