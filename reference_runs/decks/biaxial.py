@@ -114,58 +114,31 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
     return deck
 
 
-# -- minimal readers of this deck's outputs (reference_runs.parsers, on branch ref, is the
-#    general one; these read only the two fixed formats written above) --------------------
+# -- readers of this deck's outputs (thin wrappers over reference_runs.parsers) -------------
 
 THERMO_COLUMNS = ("step", "lx", "ly", "xlo", "xhi", "ylo", "yhi", "sxx", "syy", "sxy")
+_THERMO_NAMES = ("Step", "Lx", "Ly", "Xlo", "Xhi", "Ylo", "Yhi", "c_pt[1]", "c_pt[2]", "c_pt[4]")
 
 
 def read_thermo(log_path) -> dict:
-    """Thermo rows of ``log.liggghts`` as arrays keyed by THERMO_COLUMNS."""
+    """Thermo rows of the deck's (single) run as arrays keyed by THERMO_COLUMNS
+    (:func:`reference_runs.parsers.parse_log`)."""
     import numpy as np
 
-    rows = []
-    in_block = False
-    for line in Path(log_path).read_text().splitlines():
-        parts = line.split()
-        if parts[:2] == ["Step", "Lx"]:
-            in_block = True
-            continue
-        if in_block:
-            if line.startswith("Loop time"):
-                in_block = False
-                continue
-            if len(parts) == len(THERMO_COLUMNS):
-                try:
-                    rows.append([float(p) for p in parts])
-                except ValueError:
-                    continue
-    a = np.array(rows, np.float64).reshape(-1, len(THERMO_COLUMNS))
-    out = {k: a[:, n] for n, k in enumerate(THERMO_COLUMNS)}
+    from reference_runs.parsers import parse_log
+
+    run = parse_log(Path(log_path)).runs[-1]
+    out = {k: np.array(run.column(name)) for k, name in zip(THERMO_COLUMNS, _THERMO_NAMES)}
     out["step"] = out["step"].astype(np.int64)
     return out
 
 
 def read_dump(dump_path) -> dict:
     """``dump.atoms`` as {step: {"id", "x", "y", "vx", "vy", "omegaz", "fx", "fy", "tqz", "mass",
-    "radius"}} (rows sorted by id)."""
-    import numpy as np
+    "radius"}} (rows sorted by id; :func:`reference_runs.parsers.parse_dump_custom`)."""
+    from reference_runs.parsers import parse_dump_custom
 
-    frames = {}
-    lines = Path(dump_path).read_text().splitlines()
-    k = 0
-    while k < len(lines):
-        if lines[k].startswith("ITEM: TIMESTEP"):
-            step = int(lines[k + 1])
-            n = int(lines[k + 3])
-            cols = lines[k + 8].split()[2:]
-            data = np.array([[float(v) for v in ln.split()] for ln in lines[k + 9:k + 9 + n]])
-            frames[step] = {c: data[:, m] for m, c in enumerate(cols)}
-            frames[step]["id"] = frames[step]["id"].astype(np.int64)
-            k += 9 + n
-        else:
-            k += 1
-    return frames
+    return {int(fr.step): dict(fr.columns) for fr in parse_dump_custom(Path(dump_path))}
 
 
 # -- the stored cross-check case ------------------------------------------------------------

@@ -1,0 +1,106 @@
+"""The validation layer end to end (quick suite) and its ability to fail.
+
+The quick suite compares the native engine with stored (and, when installed, live) LIGGGHTS
+runs: it must pass and write the documented outputs. Deliberately broken native inputs (1%
+stiffer contacts; the lateral servo dropped) must make the step-for-step and void-cell cases
+fail: a layer that cannot fail validates nothing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import h5py
+import pytest
+
+from gransim.dem import AxisControl, Loading
+from validation import dem_compare
+from validation.runner import run_validation
+
+CASE_IDS = {"taylor-rve", "biaxial-short", "biaxial-full", "voidcell", "slope"}
+
+
+def _quiet(*_a, **_k):
+    pass
+
+
+def test_quick_suite_passes_and_writes_outputs(tmp_path):
+    ok, results = run_validation("quick", tmp_path, log=_quiet)
+    assert ok, [(r.case, r.error, [x for x in r.records if not x.passed]) for r in results if not r.passed]
+    assert {r.case for r in results} == {"taylor-rve", "biaxial-short", "voidcell"}
+    doc = json.loads((tmp_path / "validation.json").read_text())
+    assert doc["cases"] == {"taylor-rve": "pass", "biaxial-short": "pass", "voidcell": "pass"}
+    assert doc["records"]
+    for rec in doc["records"]:
+        assert {"case", "quantity", "metric", "value", "tolerance", "pass"} <= set(rec)
+        assert rec["case"].split("/")[0] in CASE_IDS
+        assert rec["reason"], rec  # every tolerance carries its reason
+    qty = {(r["case"].split("/")[0], r["quantity"]) for r in doc["records"]}
+    for q in ("position", "velocity", "spin", "particle_force", "stress", "box"):
+        assert ("biaxial-short", q) in qty
+    for q in ("cell_list", "alpha", "w"):
+        assert ("voidcell", q) in qty
+    with h5py.File(tmp_path / "validation.h5", "r") as f:
+        assert f.attrs["kind"] == "validation"
+        assert len(f["value"]) == len(doc["records"])
+        assert all(f["pass"][()])
+    html = (tmp_path / "report" / "index.html").read_text()
+    for cid in ("taylor-rve", "biaxial-short", "voidcell"):
+        assert f"id='{cid}'" in html
+    assert (tmp_path / "report" / "figures" / "voidcell_stored120.png").stat().st_size > 0
+
+
+def _failed(results, case_id):
+    (res,) = [r for r in results if r.case == case_id]
+    return res, {(x.case, x.quantity) for x in res.records if not x.passed}
+
+
+def test_one_percent_stiffer_native_contacts_fail(tmp_path, monkeypatch):
+    def stiffer(settings, loading):
+        return dataclasses.replace(settings, kn=1.01 * settings.kn, kt=1.01 * settings.kt), loading
+
+    monkeypatch.setattr(dem_compare, "native_setup", stiffer)
+    ok, results = run_validation("quick", tmp_path, only=["biaxial-short", "voidcell"], log=_quiet)
+    assert not ok
+    res, bad = _failed(results, "biaxial-short")
+    assert not res.passed and res.error is None
+    assert ("biaxial-short/stored-120", "position") in bad
+    assert ("biaxial-short/stored-120", "stress") in bad
+    res, _ = _failed(results, "voidcell")
+    assert not res.passed
+
+
+def test_dropped_servo_fails(tmp_path, monkeypatch):
+    def no_servo(settings, loading):
+        fix = [AxisControl("fixed") if c.mode == "servo" else c for c in (loading.x, loading.y)]
+        assert fix != [loading.x, loading.y]  # the deck has a servo to drop
+        return settings, Loading(x=fix[0], y=fix[1])
+
+    monkeypatch.setattr(dem_compare, "native_setup", no_servo)
+    ok, results = run_validation("quick", tmp_path, only=["biaxial-short"], log=_quiet)
+    assert not ok
+    res, bad = _failed(results, "biaxial-short")
+    assert ("biaxial-short/stored-120", "box") in bad
+    assert ("biaxial-short/stored-120", "stress") in bad
+
+
+def test_unknown_case_is_a_clear_error(tmp_path):
+    from gransim.errors import InputError
+
+    with pytest.raises(InputError, match="case"):
+        run_validation("quick", tmp_path, only=["no-such-case"], log=_quiet)
+
+
+def test_without_liggghts_biaxial_full_uses_the_stored_series(tmp_path, monkeypatch):
+    # a machine without LIGGGHTS: the report says so and the full loading is compared with the
+    # stored stress/box series of the reference and perturbed LIGGGHTS runs
+    import validation.runner as runner
+
+    monkeypatch.setattr(runner, "liggghts_available", lambda: False)
+    ok, results = run_validation("default", tmp_path, only=["biaxial-full"], log=_quiet)
+    (res,) = results
+    assert ok, [(r.case, r.quantity, r.value, r.tolerance) for r in res.records if not r.passed]
+    assert {r.quantity for r in res.records} == {"stress", "deviator", "volumetric_strain"}
+    assert any("stored series" in n for n in res.notes)
+    assert "LIGGGHTS is not installed" in (tmp_path / "report" / "index.html").read_text()

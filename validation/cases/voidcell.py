@@ -1,0 +1,242 @@
+"""Case ``voidcell``: Kuhn's void-cell measures from native and from LIGGGHTS snapshots.
+
+Both sides build their :class:`gransim.voidcell.Snapshot` the same way
+(:func:`validation.dem_compare.snapshot`): contacts from the positions (overlapping pairs,
+``find_neighbours(skin=0)``), velocities plus the affine streaming of ``remap x``, dC/dt from the
+box lengths by central differences. So any difference comes from the trajectories alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core import CaseResult, Context, case, compare
+
+ALPHA_TOL = 1e-6
+ALPHA_REASON = ("same inputs give the same cells; 1e-6 (alpha in [-1, 1]) admits the velocity tolerance of "
+                "biaxial-short (1e-8 of max|v|) amplified by the ratio max|v| / (velocity difference across a "
+                "cell) ~ 1e2")
+W_REASON = "w relative to max|w|: as alpha"
+LIST_REASON = ("cell lists (faces as particle cycles, valences, edges, vertices) must be identical: a contact "
+               "differs only if positions differ by the overlap's round-off, which biaxial-short excludes")
+STATS_REASON = ("band = the largest deviation of the perturbed LIGGGHTS runs (one coordinate moved by 1e-15) "
+                "from the reference over the frames: the statistics' own spread under round-off (instantaneous "
+                "velocity fields decorrelate once positions differ by ~1e-4 D50)")
+#: strains of the paper's statistics (002, sec. 4): 0.01% and 0.16%
+PAPER = {"mean_alpha_0.01%": 0.73, "alpha_le_0_0.16%": 0.22, "faces": 762, "edges": 1633, "vertices": 871,
+         "coordination": 3.75}
+#: compression steps of the Kuhn runs counted as the short horizon (perturbations still < 1e-10 D50)
+SHORT_HORIZON = 24000
+
+
+def _cells(snap):
+    from gransim.voidcell import VoidCells
+
+    return VoidCells().compute(snap)
+
+
+def cell_signature(vc) -> tuple:
+    """Faces as sorted tuples of particle cycles (canonical rotation), with valences and counts."""
+    d = vc.dcel
+    faces = []
+    for f in range(d.n_faces):
+        cyc = [int(v) for v in d.origin[d.face_halfedges[d.face_ptr[f]:d.face_ptr[f + 1]]]]
+        k = int(np.argmin(cyc))
+        faces.append(tuple(cyc[k:] + cyc[:k]))
+    return (d.n_faces, d.n_edges, d.n_vertices, tuple(sorted(faces)))
+
+
+def _face_order(vc) -> np.ndarray:
+    sig = []
+    d = vc.dcel
+    for f in range(d.n_faces):
+        cyc = [int(v) for v in d.origin[d.face_halfedges[d.face_ptr[f]:d.face_ptr[f + 1]]]]
+        k = int(np.argmin(cyc))
+        sig.append(tuple(cyc[k:] + cyc[:k]))
+    return np.array(sorted(range(len(sig)), key=lambda i: sig[i]))
+
+
+def compare_frames(nat, lig, steps, radii, dt) -> dict:
+    """Per frame: same cell list?, max|d alpha|, max|d w|/max|w|, and both VoidCells."""
+    from ..dem_compare import snapshot
+
+    from gransim.errors import InputError
+
+    out = {"steps": [], "same": [], "alpha": [], "w": [], "vc": [], "no_tessellation": []}
+    for s in steps:
+        try:
+            a = _cells(snapshot(nat, s, radii, dt))
+        except InputError as exc:  # no framework spanning the cell: must then hold on both sides
+            a = str(exc)
+        try:
+            b = _cells(snapshot(lig, s, radii, dt))
+        except InputError as exc:
+            b = str(exc)
+        if isinstance(a, str) or isinstance(b, str):
+            same = a == b
+            if same:
+                out["no_tessellation"].append(int(s))
+                continue
+            a = b = None
+        else:
+            same = cell_signature(a) == cell_signature(b)
+        da = dw = float("inf")
+        if same:
+            ia, ib = _face_order(a), _face_order(b)
+            da = float(np.nanmax(np.abs(a.alpha[ia] - b.alpha[ib])))
+            wscale = float(np.nanmax(np.abs(b.w))) or 1.0
+            dw = float(np.nanmax(np.abs(a.w[ia] - b.w[ib]))) / wscale
+        out["steps"].append(int(s))
+        out["same"].append(same)
+        out["alpha"].append(da)
+        out["w"].append(dw)
+        out["vc"].append((a, b))
+    return out
+
+
+def _records(label, cmp) -> list:
+    ndiff = sum(not s for s in cmp["same"])
+    if not cmp["same"]:
+        return [compare(label, "cell_list", "frames with a tessellation", 0, -1, LIST_REASON)]
+    return [
+        compare(label, "cell_list", f"frames with different cell lists (of {len(cmp['same'])})", ndiff, 0,
+                LIST_REASON),
+        compare(label, "alpha", "max|d alpha| over cells and frames", max(cmp["alpha"]), ALPHA_TOL, ALPHA_REASON),
+        compare(label, "w", "max|d w|/max|w| over frames", max(cmp["w"]), ALPHA_TOL, W_REASON),
+    ]
+
+
+def _strain(tr, step) -> float:
+    L = tr.lengths
+    return float(-np.log(L[tr.at([step])[0], 1] / L[0, 1]))
+
+
+def _maps(ctx, pairs, name) -> tuple:
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    from gransim.voidcell.plots import plot_alignment
+
+    fig, axes = plt.subplots(len(pairs), 2, figsize=(12, 5.6 * len(pairs)), squeeze=False)
+    for row, (title, a, b) in enumerate(pairs):
+        for col, (vc, who) in enumerate(((a, "native"), (b, "LIGGGHTS"))):
+            plot_alignment(vc, ax=axes[row, col])
+            axes[row, col].set_title(f"{who}, {title}: mean alpha {vc.mean_alpha:.3f}, "
+                                     f"{100 * vc.fraction_nonpositive_alpha:.1f}% <= 0", fontsize=9)
+    fig.tight_layout()
+    path = ctx.figure_path(name)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+@case("voidcell", "Void-cell measures (Kuhn) from native and LIGGGHTS snapshots", order=40)
+def voidcell(ctx: Context) -> CaseResult:
+    from pathlib import Path
+
+    from reference_runs.decks.biaxial import SHORT_CASE_DUMP_EVERY, short_case
+
+    from ..dem_compare import read_liggghts, run_native
+
+    res = CaseResult(
+        "voidcell", "Void-cell measures (Kuhn) from native and LIGGGHTS snapshots",
+        "Particle graph, void cells, alignment alpha (eqs 18-19) and normalised vorticity w (eq 20) of Kuhn "
+        "(002), computed by gransim.voidcell from snapshots of both codes built identically: contacts = "
+        "overlapping pairs of the dumped positions, velocities = dumped v + (dC/dt) C^-1 x (both codes use "
+        "<code>remap x</code>, whose velocities exclude the box's affine motion), dC/dt by central differences of "
+        "the box lengths. <i>stored-120</i>: every dump of the stored 120-disk biaxial-short run. "
+        "<i>kuhn-1002</i> (default suite, with LIGGGHTS): the compression of biaxial-full.")
+    p, s, ld, n = short_case()
+    stored = Path(__file__).resolve().parents[2] / "reference_runs" / "stored" / "biaxial-short"
+    nat = run_native(p, s, ld, n, SHORT_CASE_DUMP_EVERY)
+    lig = read_liggghts(stored / "log.liggghts", stored / "dump.atoms")
+    cmp = compare_frames(nat, lig, sorted(lig.frames), p.radii, s.dt)
+    res.records += _records("voidcell/stored-120", cmp)
+    if cmp["no_tessellation"]:
+        res.notes.append(f"stored-120: steps {cmp['no_tessellation']} have no framework spanning the cell (the "
+                         "pruned graph does not wrap the torus) in either code: identical outcome, no cells to "
+                         "compare there.")
+    a, b = cmp["vc"][-1]
+    res.figures.append((_maps(ctx, [(f"step {cmp['steps'][-1]}", a, b)], "voidcell_stored120.png"),
+                        "stored-120, last compared dump: cells shaded by alpha (white <= 0), native left, LIGGGHTS right"))
+    if ctx.suite == "quick":
+        return res
+    if not ctx.liggghts:
+        res.notes.append("LIGGGHTS is absent: the Kuhn-assembly comparison (full test) is not made.")
+        return res
+    from .biaxial import full_runs
+
+    r = full_runs(ctx)
+    nat, lig, pk, dem = r["native"], r["liggghts"], r["packing"], r["settings"]
+    steps = sorted(lig.frames)
+    cmp = compare_frames(nat, lig, [k for k in steps if k <= SHORT_HORIZON], pk.radii, dem.dt)
+    res.records += _records(f"voidcell/kuhn-1002/first {SHORT_HORIZON} steps", cmp)
+    # statistics over the full test: every frame, native, LIGGGHTS and the perturbed runs
+    from ..dem_compare import snapshot
+
+    def stats(tr):
+        rows = []
+        for k in steps:
+            vc = _cells(snapshot(tr, k, pk.radii, dem.dt))
+            rows.append([vc.mean_alpha, vc.fraction_nonpositive_alpha, vc.n_faces, vc.n_edges, vc.n_vertices,
+                         vc.coordination])
+        return np.array(rows)
+
+    st = {"native": stats(nat), "LIGGGHTS": stats(lig)}
+    for name, tr in r["ensemble"].items():
+        st[name] = stats(tr)
+    pert = [k for k in st if k not in ("native", "LIGGGHTS")]
+    for col, qty in ((0, "mean_alpha"), (1, "fraction_alpha_le_0")):
+        band = max(float(np.abs(st[k][:, col] - st["LIGGGHTS"][:, col]).max()) for k in pert)
+        diff = float(np.abs(st["native"][:, col] - st["LIGGGHTS"][:, col]).max())
+        res.records.append(compare("voidcell/kuhn-1002/full test", qty, f"max over {len(steps)} frames |native - "
+                                   "LIGGGHTS|", diff, band, STATS_REASON))
+    strains = np.array([_strain(lig, k) for k in steps])
+    rows = []
+    pairs = []
+    for target, tag in ((1e-4, "0.01%"), (1.6e-3, "0.16%")):
+        k = int(np.argmin(np.abs(strains - target)))
+        vn = _cells(snapshot(nat, steps[k], pk.radii, dem.dt))
+        vl = _cells(snapshot(lig, steps[k], pk.radii, dem.dt))
+        pairs.append((f"strain {100 * strains[k]:.3f}% (step {steps[k]})", vn, vl))
+        for who, vc in (("native", vn), ("LIGGGHTS", vl)):
+            rows.append([f"{who} @ {tag}", float(100 * strains[k]), vc.mean_alpha,
+                         float(100 * vc.fraction_nonpositive_alpha), vc.n_faces, vc.n_edges, vc.n_vertices,
+                         vc.coordination])
+    rows.append(["Kuhn (002): 0.01% / 0.16%", "", "0.73 (0.01%)", "about 22 (0.16%)", 762, 1633, 871, 3.75])
+    res.tables.append(("Beside the paper (reported, not pass/fail: another packing, another contact law)",
+                       ["source", "strain %", "mean alpha", "alpha <= 0 (%)", "faces", "edges", "vertices",
+                        "2M/N"], rows))
+    res.figures.append((_maps(ctx, pairs, "voidcell_kuhn_maps.png"),
+                        "Kuhn assembly: cells shaded by alignment alpha (Fig. 8 of Kuhn; white <= 0) at the frames "
+                        "nearest 0.01% and 0.16% axial strain; native left, LIGGGHTS right"))
+    res.figures.append((_stats_plot(ctx, strains, st), "Mean alpha and fraction alpha <= 0 over the compression: "
+                        "native, LIGGGHTS and the perturbed LIGGGHTS runs"))
+    return res
+
+
+def _stats_plot(ctx, strains, st):
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
+    for name, a in st.items():
+        ls = "--" if name == "native" else "-"
+        axes[0].plot(100 * strains, a[:, 0], ls, lw=1, label=name)
+        axes[1].plot(100 * strains, 100 * a[:, 1], ls, lw=1, label=name)
+    axes[0].axhline(0.73, color="0.6", lw=0.8, ls=":")
+    axes[1].axhline(22, color="0.6", lw=0.8, ls=":")
+    axes[0].set_ylabel("mean alpha (paper 0.73 at 0.01%)")
+    axes[1].set_ylabel("alpha <= 0 (%) (paper ~22 at 0.16%)")
+    for ax in axes:
+        ax.set_xlabel("axial strain (%)")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = ctx.figure_path("voidcell_kuhn_stats.png")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
