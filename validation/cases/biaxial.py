@@ -312,6 +312,11 @@ def biaxial_full(ctx: Context) -> CaseResult:
                              "to compare (see biaxial-short for the stored step-for-step reference).")
             res.error = "LIGGGHTS absent: no full-loading reference stored for this suite"
             return res
+        if stored["input_sha256"] != input_fingerprint(ctx):
+            res.error = ("the stored LIGGGHTS series was made from another Kuhn assembly than the one generated "
+                         "here (input fingerprint differs: the packing generator changed); regenerate it with "
+                         "validation.cases.biaxial.store_full_reference where LIGGGHTS is installed")
+            return res
         r = {**r, **stored}
         res.notes.append("<b>LIGGGHTS is absent</b>: compared with the stored series "
                          f"<code>{STORED_FULL}/strain{bi.strain:g}.npz</code> (stress and box every "
@@ -405,6 +410,7 @@ def store_full_reference(ctx: Context) -> None:
         arrays[f"ensemble{k}/lengths"] = tr.lengths[tr.at(steps)]
         names.append(name)
     strain = r["biaxial"].strain
+    arrays["input_sha256"] = np.array(input_fingerprint(ctx))
     np.savez_compressed(d / f"strain{strain:g}.npz", names=np.array(json.dumps(names)), **arrays)
     man = r["manifest"]
     (d / f"strain{strain:g}.md").write_text(
@@ -421,6 +427,21 @@ def store_full_reference(ctx: Context) -> None:
         "JSON list of the ensemble runs.\n")
 
 
+def input_fingerprint(ctx: Context) -> str:
+    """SHA-256 of the assembly the full runs start from (positions, radii, cell, density).
+
+    Stored with the reference series: a series made from another assembly (e.g. after a change
+    of the packing generator) is refused with a clear message instead of failing numerically.
+    """
+    import hashlib
+
+    p = _kuhn(ctx)
+    h = hashlib.sha256()
+    for a in (p.positions, p.radii, p.cell, np.array([p.density])):
+        h.update(np.ascontiguousarray(a, np.float64).tobytes())
+    return h.hexdigest()
+
+
 def load_stored_full(strain: float):
     """The stored series as trajectories (no frames), or None."""
     import json
@@ -435,4 +456,5 @@ def load_stored_full(strain: float):
     lig = Trajectory(steps, z["reference/stress"], z["reference/lengths"], {})
     names = json.loads(str(z["names"]))
     ens = {n: Trajectory(steps, z[f"ensemble{k}/stress"], z[f"ensemble{k}/lengths"], {}) for k, n in enumerate(names)}
-    return {"liggghts": lig, "ensemble": ens}
+    return {"liggghts": lig, "ensemble": ens,
+            "input_sha256": str(z["input_sha256"]) if "input_sha256" in z else None}
