@@ -211,6 +211,12 @@ def full_runs(ctx: Context) -> dict:
             ens["2 MPI processes"], _ = run_liggghts_job(base / "np2", common, dem, loading, nsteps, FULL_DUMP_EVERY,
                                                          v, w, np_procs=2, thermo_every=te)
         r.update(liggghts=lig, manifest=man, ensemble=ens)
+        # the reference job in the native run-file schema (read by gransim.dem / gransim voidcells)
+        from reference_runs.native_schema import trajectory_to_run_file
+
+        r["liggghts_run_file"] = trajectory_to_run_file(
+            base / "reference" / "liggghts-run.h5", common, lig.steps, lig.stress, lig.lengths, lig.frames,
+            dem.dt, settings=dem.to_dict(), source=str(base / "reference"))
     _FULL_CACHE[key] = r
     return r
 
@@ -303,6 +309,10 @@ def biaxial_full(ctx: Context) -> CaseResult:
         "LIGGGHTS run.")
     res.notes.append(f"Consolidation: mean sigma_11, sigma_22 over its last 1000 steps within "
                      f"{100 * r['consolidation_error']:.2f}% of p. Native compression: {r['native'].elapsed:.1f} s.")
+    if "liggghts_run_file" in r:
+        res.notes.append("The LIGGGHTS compression job, parsed into the native run-file schema (docs/schema_dem.md; "
+                         f"readable by <code>gransim voidcells</code>, <code>gransim dem-export</code>): "
+                         f"<code>{r['liggghts_run_file']}</code>.")
     nat = r["native"]
     p = bi.confining
     if "liggghts" not in r:
