@@ -69,6 +69,9 @@ def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Pat
     out.append("<table>")
     for k, v in header.items():
         out.append(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>")
+    if (report_dir / "bench.html").exists():
+        out.append("<tr><th>benchmarks</th><td><a href='bench.html'>bench.html</a> (make bench: speed figures "
+                   "against their targets, scaling plots)</td></tr>")
     out.append("</table><h2>Summary</h2><table><tr><th>case</th><th>title</th><th>records</th>"
                "<th>result</th></tr>")
     for res in results:
