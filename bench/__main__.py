@@ -53,6 +53,9 @@ def main(argv=None) -> int:
     records, failures = [], []
     for area in areas:
         t0 = time.perf_counter()
+        import numba
+
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)  # an area may have left fewer threads set
         print(f"[bench] {area} ...", flush=True)
         try:
             mod = importlib.import_module(f"bench.{area}")
