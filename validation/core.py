@@ -83,6 +83,12 @@ class Context:
         d.mkdir(parents=True, exist_ok=True)
         return d / name
 
+    def copy_figure(self, src, name: str) -> Path:
+        """Copy a figure a computation wrote elsewhere into the report (as figures/<name>)."""
+        dest = self.figure_path(name)
+        dest.write_bytes(Path(src).read_bytes())
+        return dest
+
 
 @dataclass(frozen=True)
 class Case:

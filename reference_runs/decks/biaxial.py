@@ -184,20 +184,20 @@ def run_liggghts(deck: Path, binary: str = "liggghts") -> Path:
 def make_stored(out_dir, binary: str = "liggghts") -> Path:
     """Run the short case with LIGGGHTS and store deck, data, log and dump with a README."""
     import datetime
-    import subprocess
+
+    from gransim.io import liggghts_version
 
     out = Path(out_dir)
     p, s, ld, n = short_case()
     deck = write_biaxial_deck(out, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY)
     run_liggghts(deck, binary)
-    version = subprocess.run(["dpkg-query", "-W", "-f", "${Version}", "liggghts"], capture_output=True,
-                             text=True, check=False).stdout.strip() or "unknown"
+    version = liggghts_version() or "unknown"
     head = (out / "log.liggghts").read_text().splitlines()[0]
     (out / "README.md").write_text(f"""# biaxial-short: LIGGGHTS reference for the DEM engine (step for step)
 
 - Case: `reference_runs.decks.biaxial.short_case()` (120 disks, servo on x to 100 N/m, y at
   -1 1/s, mu 0.5, kn = kt = 1e5 N/m, damping 50 1/s, dt 2e-6 s, skin 2e-5 m), {n} steps.
-- Code: {head} (Debian package liggghts {version}), serial, 1 MPI process.
+- Code: {head} ({version}), serial, 1 MPI process.
 - Files: `in.biaxial` (deck, written by `reference_runs/decks/biaxial.py`), `data.biaxial`
   (data file, %.17g), `log.liggghts` (thermo every step: box and virial stress after
   `fix deform`, %.17g), `dump.atoms` (dump custom every {SHORT_CASE_DUMP_EVERY} steps).

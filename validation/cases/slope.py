@@ -32,8 +32,7 @@ def slope(ctx: Context) -> CaseResult:
         for name, cap in (("final.png", "final state"), ("limit.png", "limit state (last converged step)"),
                           ("load_settlement.png", "load-settlement curve of the footing")):
             if (out / name).exists():
-                dest = ctx.figure_path(f"slope_{protocol}_{name}")
-                dest.write_bytes((out / name).read_bytes())
+                dest = ctx.copy_figure(out / name, f"slope_{protocol}_{name}")
                 res.figures.append((dest, f"slope, protocol {protocol}: {cap}"))
     for r in acceptance_records(summaries):
         res.records.append(Record(r["case"], r["quantity"], r["metric"], float(r["value"]), float(r["tolerance"]),

@@ -33,13 +33,6 @@ def _suite_settings(suite: str) -> dict:
     return {"names": None, "stride": 1, "study": True}
 
 
-def _native_cauchy(packing, F_series):
-    from gransim.rve import TaylorMaterial
-
-    mat = TaylorMaterial(packing, KN)
-    return mat.evaluate(np.asarray(F_series)).cauchy
-
-
 def compare_contact_forces(packing, F, frame) -> tuple[float, int, int]:
     """Largest per-contact force difference / largest force, and the two contact counts.
 
@@ -137,10 +130,13 @@ def taylor_rve(ctx: Context) -> CaseResult:
     packings = {n: load_packing(p) for n, p in paths.items()}
     runs, source = _liggghts_runs(ctx, packings, s["stride"])
     res.notes.append(f"Reference: {source}.")
+    from gransim.rve import TaylorMaterial
+
     rows = []
     for name, run in runs.items():
+        mat = TaylorMaterial(run.packing, KN)  # one material (and candidate cache) per RVE, all paths
         for (path, route), ser in sorted(run.series.items()):
-            sig_n = _native_cauchy(run.packing, ser.F)
+            sig_n = mat.evaluate(np.asarray(ser.F)).cauchy
             scale = np.abs(ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
             diff = np.abs(sig_n - ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
             rel = float(np.max(diff / np.where(scale > 0, scale, 1.0)))
@@ -165,8 +161,7 @@ def taylor_rve(ctx: Context) -> CaseResult:
 
         _, _, pngs = run_study(packings, ctx.work("rve_study"), normal_stiffness=KN)
         for png in pngs:
-            dest = ctx.figure_path(f"rve_study_{Path(png).name}")
-            dest.write_bytes(Path(png).read_bytes())
+            dest = ctx.copy_figure(png, f"rve_study_{Path(png).name}")
             res.figures.append((dest, f"RVE study (Figs 3-5 of Meier et al.): {Path(png).stem}; mean and "
                                       "standard deviation over the 5 RVEs of each size"))
     return res
