@@ -51,8 +51,9 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
                        thermo_every: int = 1, dump_every: int = 100, velocities=None, spins=None) -> Path:
     """Write ``in.biaxial`` and ``data.biaxial`` into ``job_dir``; return the deck path.
 
-    Outputs of the run (in job_dir): ``log.liggghts`` (thermo), ``dump.atoms`` (dump custom).
-    Run: ``liggghts -in in.biaxial -log log.liggghts -screen none -nocite`` (serial).
+    Outputs of the run (in job_dir): the log (thermo), ``dump.atoms`` (dump custom).
+    Run: :func:`run_liggghts` (``run_job``: log ``log.lammps``), or by hand
+    ``liggghts -in in.biaxial -log log.liggghts -screen none -nocite``.
     """
     import numpy as np
 
@@ -165,32 +166,43 @@ def short_case():
     return p, s, ld, SHORT_CASE_STEPS
 
 
-def run_liggghts(deck: Path, binary: str = "liggghts") -> Path:
-    """Run a deck serially in its directory; returns the log path. Raises on a non-zero exit
-    or an ERROR line in the log."""
-    import subprocess
+def run_liggghts(deck: Path, np: int = 1, timeout: float | None = 600.0) -> Path:
+    """Run a deck written by :func:`write_biaxial_deck` in its directory; returns the log path.
+
+    A thin wrapper over :func:`reference_runs.runner.run_job` (job directory = the deck's
+    directory, ``np`` MPI processes, always rerun): the deck is copied to ``in.liggghts``, the
+    log is ``log.lammps`` and a ``manifest.json`` records command, version and hashes.
+    Raises :class:`~reference_runs.errors.ReferenceRunError` (binary missing, non-zero exit,
+    ERROR or unexpected WARNING lines, no ``dump.atoms``) quoting the log.
+    """
+    from reference_runs.runner import run_job
 
     deck = Path(deck)
-    log = deck.parent / "log.liggghts"
-    cmd = [binary, "-in", deck.name, "-log", log.name, "-screen", "none", "-nocite"]
-    proc = subprocess.run(cmd, cwd=deck.parent, capture_output=True, text=True, check=False)
-    text = log.read_text() if log.exists() else ""
-    if proc.returncode != 0 or "ERROR" in text:
-        err = [ln for ln in text.splitlines() if "ERROR" in ln]
-        raise RuntimeError(f"liggghts failed (exit {proc.returncode}): {err[:1] or proc.stderr[-300:]}")
-    return log
+    data = (deck.parent / "data.biaxial").read_bytes()
+    res = run_job(deck.parent, deck.read_text(), files={"data.biaxial": data}, np=np, timeout=timeout,
+                  outputs=("dump.atoms",), expected_runs=1, progress=False, force=True)
+    return res.log_path
 
 
-def make_stored(out_dir, binary: str = "liggghts") -> Path:
-    """Run the short case with LIGGGHTS and store deck, data, log and dump with a README."""
+def make_stored(out_dir) -> Path:
+    """Run the short case with LIGGGHTS (serial, :func:`run_liggghts`) and store deck, data, log
+    and dump with a README. The job runs in a scratch directory; the stored names are the
+    deck's own (``in.biaxial``, ``log.liggghts``), as read by tests/dem/test_liggghts.py."""
     import datetime
+    import shutil
+    import tempfile
 
     from gransim.io import liggghts_version
 
     out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
     p, s, ld, n = short_case()
-    deck = write_biaxial_deck(out, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY)
-    run_liggghts(deck, binary)
+    with tempfile.TemporaryDirectory(prefix="biaxial-short-") as tmp:
+        deck = write_biaxial_deck(tmp, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY)
+        log = run_liggghts(deck)
+        for src, name in ((deck, "in.biaxial"), (Path(tmp) / "data.biaxial", "data.biaxial"),
+                          (log, "log.liggghts"), (Path(tmp) / "dump.atoms", "dump.atoms")):
+            shutil.copyfile(src, out / name)
     version = liggghts_version() or "unknown"
     head = (out / "log.liggghts").read_text().splitlines()[0]
     (out / "README.md").write_text(f"""# biaxial-short: LIGGGHTS reference for the DEM engine (step for step)
@@ -201,7 +213,8 @@ def make_stored(out_dir, binary: str = "liggghts") -> Path:
 - Files: `in.biaxial` (deck, written by `reference_runs/decks/biaxial.py`), `data.biaxial`
   (data file, %.17g), `log.liggghts` (thermo every step: box and virial stress after
   `fix deform`, %.17g), `dump.atoms` (dump custom every {SHORT_CASE_DUMP_EVERY} steps).
-- Command: `liggghts -in in.biaxial -log log.liggghts -screen none -nocite` in this directory.
+- Command: `liggghts -in in.liggghts -log log.lammps -screen none -nocite` in a scratch job
+  directory (`reference_runs.runner.run_job`; deck and data as here), log stored as `log.liggghts`.
 - Regenerate: `python -c "from reference_runs.decks.biaxial import make_stored;
   make_stored('reference_runs/stored/biaxial-short')"`.
 - Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}
