@@ -1,0 +1,155 @@
+"""One measured DEM job, run as its own process by bench/dem.py; prints one JSON line.
+
+``python -m bench._dem_job native PACKING.npz STEPS MODE THREADS``
+    Import gransim.dem, warm the kernels up on a 110-disk assembly (numba cache load/compile,
+    thread pool), build the engine on the packing (LIGGGHTS' run set-up: first list build and
+    forces, not timed), then time ``advance`` of STEPS steps: the counterpart of LIGGGHTS'
+    ``Loop time``. Reports loop_s, contacts, rebuilds and the process's peak RSS (VmHWM, KiB).
+``python -m bench._dem_job baseline MODE THREADS``
+    The same imports and warm-up only: the memory a native job holds before its packing.
+``python -m bench._dem_job profile PACKING.npz STEPS``
+    Serial mode, fixed box: the step replayed from the engine's own kernels, one phase at a time
+    (first half step + rebuild check, rebuilds, forces, second half step), timed per phase; then
+    the same steps with ``advance`` from the same state, and whether both ended bitwise equal.
+``python -m bench._dem_job liggghts JOB_DIR NP TIMEOUT``
+    Run ``JOB_DIR/in.bench`` (data file ``data.biaxial``) with ``reference_runs.runner.run_job``
+    on NP MPI processes while sampling the VmHWM of every ``liggghts`` process; reports the parsed
+    loop timing (reference_runs.timing) and the per-process peaks (KiB).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+
+def _packing(path):
+    import numpy as np
+
+    from gransim import Packing
+
+    with np.load(path) as z:
+        return Packing(positions=z["positions"], radii=z["radii"], cell=z["cell"], density=float(z["density"]))
+
+
+def _warm(mode: str, threads: int):
+    from bench.dem import LOADING, SETTINGS, assembly
+    from gransim.dem import DEMEngine, DEMSettings
+
+    s = DEMSettings(**{**SETTINGS.to_dict(), "mode": mode})
+    DEMEngine(assembly(100), s, threads=threads).advance(LOADING, 2)
+    return s
+
+
+def native(path, steps: int, mode: str, threads: int) -> dict:
+    from bench._memory import own_peak_kib
+    from bench.dem import LOADING
+    from gransim.dem import DEMEngine
+
+    s = _warm(mode, threads)
+    p = _packing(path)
+    eng = DEMEngine(p, s, threads=threads)
+    r0 = eng.n_rebuilds
+    t0 = time.perf_counter()
+    eng.advance(LOADING, steps)
+    loop = time.perf_counter() - t0
+    return {"loop_s": loop, "n": p.n, "steps": steps, "contacts": eng.n_contacts, "rebuilds": eng.n_rebuilds - r0,
+            "peak_kib": own_peak_kib()}
+
+
+def baseline(mode: str, threads: int) -> dict:
+    from bench._memory import own_peak_kib
+
+    _warm(mode, threads)
+    return {"peak_kib": own_peak_kib()}
+
+
+def profile(path, steps: int) -> dict:
+    import numpy as np
+
+    from bench.dem import LOADING
+    from gransim.dem import DEMEngine
+    from gransim.dem import kernels as K
+
+    s = _warm("serial", 1)
+    if LOADING.x.mode != "fixed" or LOADING.y.mode != "fixed":
+        raise SystemExit("profile: the replay leaves out the box update; it needs a fixed box")
+    p = _packing(path)
+    eng = DEMEngine(p, s)
+    ref = DEMEngine(p, s)
+    t = {"integrate": 0.0, "rebuild": 0.0, "forces": 0.0}
+    clock = time.perf_counter
+    t_all = clock()
+    for k in range(steps):
+        t0 = clock()
+        K.initial_integrate(eng.x, eng.v, eng.w, eng.f, eng.t, eng.m, eng.r, s.dt)
+        rebuild, bad = K.check_rebuild(eng.x, eng.xhold, eng.lo, eng.hi, eng.lo_hold, eng.hi_hold, s.skin)
+        t1 = clock()
+        if bad >= 0:
+            raise SystemExit(f"profile: particle {bad} not finite")
+        if rebuild:
+            eng.step += 1
+            eng._rebuild(carry=True)  # the engine's own rebuild (wrap, list, spring hand-over)
+            eng.step -= 1
+        t2 = clock()
+        L = eng.box_lengths
+        K.forces_half(eng.x, eng.v, eng.w, eng.r, eng.m, eng.ea, eng.eb, eng.esx, eng.esy, eng.both, eng.xi,
+                      L[0], L[1], s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, True, eng.f, eng.t, eng.virial,
+                      eng.slide, eng.ef, k == steps - 1)
+        t3 = clock()
+        K.final_integrate(eng.v, eng.w, eng.f, eng.t, eng.m, eng.r, s.dt)
+        t4 = clock()
+        eng.step += 1
+        t["integrate"] += (t1 - t0) + (t4 - t3)
+        t["rebuild"] += t2 - t1
+        t["forces"] += t3 - t2
+    replay = clock() - t_all
+    r0 = ref.n_rebuilds
+    t0 = clock()
+    ref.advance(LOADING, steps)
+    adv = clock() - t0
+    same = bool(np.array_equal(ref.x, eng.x) and np.array_equal(ref.v, eng.v) and np.array_equal(ref.f, eng.f))
+    return {"n": p.n, "steps": steps, "phases_s": t, "replay_s": replay, "advance_s": adv,
+            "rebuilds": eng.n_rebuilds - 1, "advance_rebuilds": ref.n_rebuilds - r0, "identical": same}
+
+
+def liggghts(job_dir, nprocs: int, timeout: float) -> dict:
+    from pathlib import Path
+
+    from bench._memory import PeakSampler
+    from reference_runs.runner import run_job
+    from reference_runs.timing import parse_loop_timings
+
+    job = Path(job_dir)
+    sampler = PeakSampler(names={"liggghts"}, interval=0.05)
+    sampler.start()
+    try:
+        res = run_job(job, (job / "in.bench").read_text(), files={"data.biaxial": job / "data.biaxial"},
+                      np=nprocs, timeout=timeout, expected_runs=1, progress=False, force=True)
+    finally:
+        peaks = sampler.stop()
+    (t,) = parse_loop_timings(res.log_path)
+    return {"loop_s": t.loop_s, "n": t.atoms, "steps": t.steps, "procs": t.procs,
+            "breakdown": {k: v[0] for k, v in t.breakdown.items()}, "memory_mb_estimate": t.memory_mb,
+            "rebuilds": t.neighbour_builds, "rank_peaks_kib": sorted(k for _, k in peaks.values())}
+
+
+def main(argv) -> int:
+    kind, *a = argv
+    if kind == "native":
+        out = native(a[0], int(a[1]), a[2], int(a[3]))
+    elif kind == "baseline":
+        out = baseline(a[0], int(a[1]))
+    elif kind == "profile":
+        out = profile(a[0], int(a[1]))
+    elif kind == "liggghts":
+        out = liggghts(a[0], int(a[1]), float(a[2]))
+    else:
+        raise SystemExit(f"unknown job kind {kind!r}")
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
