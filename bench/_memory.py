@@ -121,6 +121,8 @@ class PeakSampler(threading.Thread):
         self.names = None if names is None else set(names)
         self.interval = float(interval)
         self.peaks: dict = {}
+        self._known: dict = {}
+        self._tick = -1
         self._halt = threading.Event()
 
     def run(self):
@@ -130,11 +132,19 @@ class PeakSampler(threading.Thread):
                 break
 
     def sample(self) -> None:
-        for pid, nm in descendants(self.root).items():
-            if self.names is not None and nm not in self.names:
-                continue
+        """One reading of every matching descendant. The process tree is rescanned (all of /proc)
+        at every sample for the first 2 s and while none matches, then once a second, so that
+        polling costs little CPU next to the job measured."""
+        self._tick += 1
+        per_s = max(1, round(1.0 / self.interval))
+        if not self._known or self._tick < 2 * per_s or self._tick % per_s == 0:
+            self._known = {pid: nm for pid, nm in descendants(self.root).items()
+                           if self.names is None or nm in self.names}
+        for pid, nm in list(self._known.items()):
             kib = vm_hwm_kib(pid)
-            if kib is not None:
+            if kib is None:
+                del self._known[pid]  # exited: keep its last reading
+            else:
                 self.peaks[pid] = (nm, max(kib, self.peaks.get(pid, (nm, 0))[1]))
 
     def stop(self) -> dict:

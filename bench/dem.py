@@ -160,6 +160,9 @@ def _records(res: dict, sizes_n, configs, judge: bool = True) -> list:
                        f"sum of the VmHWM of the {CONFIGS[c][1]} ranks (largest rank {statistics.median(ranks):.0f} MiB)")
                 how += (f", sampled at 20 Hz (lower bound); LIGGGHTS' own estimate "
                         f"{jobs[0]['memory_mb_estimate']} MB per process")
+                short = [len(j["rank_peaks_kib"]) for j in jobs if len(j["rank_peaks_kib"]) != CONFIGS[c][1]]
+                if short:
+                    how += f"; WARNING: only {short} of {CONFIGS[c][1]} processes sampled in some runs"
             recs.append({"name": f"{c} peak memory, {n:,} disks", "value": statistics.median(mem), "unit": "MiB",
                          "target": None, "n": n, "samples": mem, "note": f"{_spread(mem)}; {how}"})
         for num, den, target in ((NATIVE_1, LIG_1, 1.5), (NATIVE_2, LIG_2, None)):
