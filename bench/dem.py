@@ -233,6 +233,7 @@ def run(quick: bool = False) -> list[dict]:
                 cfg.append(LIG_2)
         return cfg
 
+    load0 = os.getloadavg()
     recs = []
     for mode, threads, c in (("serial", 1, NATIVE_1), ("parallel", 2, NATIVE_2)):
         base = [_child("baseline", mode, threads)["peak_kib"] / MIB for _ in range(1 if quick else 2)]
@@ -259,6 +260,12 @@ def run(quick: bool = False) -> list[dict]:
         lig_n = [n for n in sizes_n if (n, LIG_1) in res or (n, LIG_2) in res]
         n_lig = p.n if p.n in lig_n else (max(lig_n) if lig_n else None)
         recs += _profile_records(prof, res, n_lig)
+    load1 = os.getloadavg()
+    recs.append({"name": "machine load during the DEM benchmark", "value": load1[0], "unit": "load average",
+                 "target": None,
+                 "note": f"1-minute load average at the end {load1[0]:.2f} (5-minute {load1[1]:.2f}), at the start "
+                         f"{load0[0]:.2f}, on {os.cpu_count()} cores: above the benchmark's own 1 to 2 processes, "
+                         "other jobs shared the cores"})
     return recs
 
 
