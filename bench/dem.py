@@ -155,7 +155,7 @@ def _records(res: dict, sizes_n, configs, judge: bool = True) -> list:
             if CONFIGS[c][0] == "native":
                 how = "VmHWM of the job's process (includes the baseline: interpreter, numba, kernels)"
             else:
-                ranks = [max(j["rank_peaks_kib"]) / MIB for j in jobs]
+                ranks = [max(j["rank_peaks_kib"], default=0) / MIB for j in jobs]
                 how = ("VmHWM of the liggghts process" if CONFIGS[c][1] == 1 else
                        f"sum of the VmHWM of the {CONFIGS[c][1]} ranks (largest rank {statistics.median(ranks):.0f} MiB)")
                 how += (f", sampled at 20 Hz (lower bound); LIGGGHTS' own estimate "
