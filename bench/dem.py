@@ -54,8 +54,10 @@ SETTINGS = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e
 # rule) faster in larger boxes, so rebuilds per step would grow with N in both codes alike
 LOADING = Loading()
 
-#: (nominal disks, steps): about 5e6 particle-steps (about 1 s of LIGGGHTS serial) up to 1e5; at
-#: 1e6 30 steps (about 6 s) keep each LIGGGHTS run well under a minute with set-up
+#: (nominal disks, steps): 6e6 particle-steps (about 1 s of LIGGGHTS serial) up to 1e5; at 1e6 the
+#: same 60 steps as at 1e5 (LIGGGHTS serial: 11 s loop + 3 s set-up). From rest the first rebuild
+#: comes at about step 36 and then every 10 to 15 steps: 60 steps hold 2 rebuilds at 1e5 and 1e6,
+#: the longer small-N runs relatively more (rebuild counts are in the notes)
 SIZES = ((1_000, 6000), (10_000, 600), (100_000, 60), (1_000_000, 60))
 QUICK_SIZES = ((1_000, 300), (10_000, 30))
 QUICK_LIGGGHTS_MAX = 2_000  # quick mode runs LIGGGHTS only up to this many disks
