@@ -9,27 +9,33 @@ available; gransim uses its own, a standard route to jammed packings of soft dis
    d_mean and the contact stiffness is k_n = 1 (the minimum of the potential does not depend on k_n).
 2. **Random start.** Centres uniform at random in a square periodic cell of solid fraction
    ``phi_start`` (0.86 by default, just above jamming), relaxed at fixed cell by FIRE until the
-   residual force is below 0.1 of the mean contact force (a quench from "infinite temperature", as
-   in O'Hern et al. 2003; it removes the large overlaps of the random start). A start below jamming
-   (e.g. 0.3) relaxes to a loose, contact-free state instead and step 3 then compacts it slowly.
+   root-mean-square residual force is below 0.1 of the mean contact force (a quench from "infinite
+   temperature", as in O'Hern et al. 2003; it removes the large overlaps of the random start). A
+   start below jamming (e.g. 0.3) relaxes to a loose, contact-free state instead and step 4 then
+   compacts it slowly.
 3. **Pressure control by enthalpy minimisation.** The enthalpy H = U + p A of the seed's contact
    potential U = sum_c Phi(eps_c), Phi = k_n/2 [H(eps) eps]^2 (eqs 3-4 of Meier et al.,
    :mod:`gransim.contacts.law`) at an imposed pressure p is minimised with FIRE 2.0 (Bitzek et al.
    2006; Guénolé et al. 2020) over the centres *and* the cell scale L (the cell stays square:
    isotropic expansion or compression). The generalised force on ln L is sum_c f_c |l_c| - 2 p A
    (virial pressure minus imposed pressure); the cell "mass" is N d_mean^2 so that the cell mode
-   has the frequency of the particle modes. The dense quenched start expands (or a loose start
-   compacts) until the contact network carries exactly p.
+   has the frequency of the particle modes.
+   **Decompression ladder**: H is minimised at p_k = p 3^k, k = K, ..., 1 (rms residual <= 1e-2
+   each), p_K the first at or above the virial pressure of the quenched state: the well-connected
+   compressed network is unloaded step by step, which is nearly elastic. Expanding the quenched
+   state to p in one go overshoots into a loose state that then creeps back very slowly (84,000
+   FIRE steps at 1e5 disks against ~4,000 for the whole ladder; docs/generation.md).
 4. **Target.** ``mean_overlap`` mode: p is rescaled by target / achieved mean overlap and step 3
-   repeated from the current state until the mean overlap over the contacts (eps > 0) is within
+   repeated at p from the current state until the mean overlap over the contacts (eps > 0) is within
    ``overlap_tol`` (relative) of the target; near jamming eps is nearly proportional to p, so two
-   or three passes suffice. These passes stop at a residual of 1e-2; the last pass is converged
-   to ``force_tol`` at the final pressure. ``solid_fraction`` mode: jam at the small mean overlap
-   :data:`JAMMING_OVERLAP`, then compress affinely to the target fraction and minimise U at fixed
-   cell; a target below the jamming fraction of the protocol is a :class:`ConvergenceError`
+   or three passes suffice. These passes stop at an rms residual of 1e-2; the last pass is
+   converged to ``force_tol`` at the final pressure. ``solid_fraction`` mode: jam at the small mean
+   overlap :data:`JAMMING_OVERLAP`, then compress affinely to the target fraction and minimise U at
+   fixed cell; a target below the jamming fraction of the protocol is a :class:`ConvergenceError`
    (no contact network exists there).
-5. **Stop criterion.** Largest residual force on any disk <= ``force_tol`` times the mean
-   contact force and, with the cell free, |p_virial - p| <= ``force_tol`` p.
+5. **Stop criterion.** Residual force <= ``force_tol`` times the mean contact force and, with the
+   cell free, |p_virial - p| <= ``force_tol`` p. The residual is the largest net force on any disk
+   (``residual="max"``, default) or the root-mean-square net force (``residual="rms"``).
 
 Neighbour candidates come from :func:`gransim.contacts.find_neighbours` with a skin; the list is
 rebuilt when 2 max_i |non-affine displacement_i| + (1 - L/L_build)(2 r_max + skin) exceeds the
@@ -44,12 +50,13 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import types
 from dataclasses import dataclass
 
 import numpy as np
 
-from .._numba import njit
-from .._validate import as_positive_float
+from .._numba import njit, pjit, prange
+from .._validate import as_positive_float, check_choice
 from ..contacts import find_neighbours
 from ..contacts.law import force_magnitude, overlap, potential
 from ..errors import ConvergenceError, InputError
@@ -65,10 +72,13 @@ MAX_MEAN_OVERLAP = 0.05
 JAMMING_OVERLAP = 1e-4
 #: default target mean overlap / mean diameter (the dense RVE state expected by the slope problem)
 DEFAULT_MEAN_OVERLAP = 2.7e-4
-#: residual tolerance (relative to the mean contact force) of the fixed-cell relaxation of the random start
+#: residual tolerance (rms, relative to the mean contact force) of the fixed-cell relaxation of the random start
 QUENCH_TOL = 0.1
-#: residual tolerance of the pressure passes before the mean overlap is on target
+#: residual tolerance (rms) of the decompression stages and of the pressure passes before the mean
+#: overlap is on target
 PASS_TOL = 1e-2
+#: pressure ratio of successive decompression stages
+LADDER_FACTOR = 3.0
 #: energy per disk (reduced units, k_n = d_mean = 1) below which a fixed-cell state counts as
 #: unjammed (overlaps ~ 1e-8 d_mean)
 UNJAMMED_ENERGY = 1e-16
@@ -95,59 +105,94 @@ class FireParameters:
 # --------------------------------------------------------------------------------------------
 # kernels
 # --------------------------------------------------------------------------------------------
-@njit
-def _forces(x, r, L, pi, pj, off, f, diag):
+#: The pair list and the particle loops are cut into this many chunks, summed in a fixed order, so
+#: the result does not depend on the number of threads (or on the serial/parallel choice below).
+CHUNKS = 2
+#: from this many disks the minimiser runs its chunks on numba threads (below, thread start-up per
+#: step would cost more than the work)
+PARALLEL_FROM = 20_000
+
+
+def _forces_py(x, r, L, pi, pj, off, pcut, fb, f, dg, diag):
     """Contact forces of the pair candidates at cell scale L (reduced units, k_n = 1).
 
-    f (N, 2) is overwritten with the net force on every disk. diag receives
+    Pairs pcut[c]:pcut[c+1] are chunk c; each accumulates into its own fb[c] (CHUNKS, N, 2) and
+    dg[c]; f (N, 2) receives their sum (chunk 0 + chunk 1 + ...). diag receives
     [energy U, virial W = sum_c f_c |l_c|, contacts, sum of overlaps, max overlap].
+    A candidate is a contact when |l|^2 < (r_i + r_j)^2; only then is the square root taken.
     """
-    f[:, :] = 0.0
-    U = 0.0
-    W = 0.0
-    nc = 0
-    se = 0.0
-    me = 0.0
-    for c in range(pi.shape[0]):
-        i = pi[c]
-        j = pj[c]
-        l0 = x[j, 0] - x[i, 0] + L * off[c, 0]
-        l1 = x[j, 1] - x[i, 1] + L * off[c, 1]
-        dist = np.sqrt(l0 * l0 + l1 * l1)
-        eps = overlap(r[i], r[j], dist)
-        if eps > 0.0:
-            fm = force_magnitude(eps, 1.0)
-            U += potential(eps, 1.0)
-            W += fm * dist
-            nc += 1
-            se += eps
-            if eps > me:
-                me = eps
-            g0 = fm * l0 / dist
-            g1 = fm * l1 / dist
-            f[i, 0] -= g0
-            f[i, 1] -= g1
-            f[j, 0] += g0
-            f[j, 1] += g1
-    diag[0] = U
-    diag[1] = W
-    diag[2] = nc
-    diag[3] = se
-    diag[4] = me
+    n = x.shape[0]
+    for c in prange(CHUNKS):
+        g = fb[c]
+        g[:, :] = 0.0
+        U = 0.0
+        W = 0.0
+        nc = 0
+        se = 0.0
+        me = 0.0
+        for k in range(pcut[c], pcut[c + 1]):
+            i = pi[k]
+            j = pj[k]
+            l0 = x[j, 0] - x[i, 0] + L * off[k, 0]
+            l1 = x[j, 1] - x[i, 1] + L * off[k, 1]
+            s = r[i] + r[j]
+            d2 = l0 * l0 + l1 * l1
+            if d2 < s * s:
+                dist = np.sqrt(d2)
+                eps = overlap(r[i], r[j], dist)
+                fm = force_magnitude(eps, 1.0)
+                U += potential(eps, 1.0)
+                W += fm * dist
+                nc += 1
+                se += eps
+                if eps > me:
+                    me = eps
+                g0 = fm * l0 / dist
+                g1 = fm * l1 / dist
+                g[i, 0] -= g0
+                g[i, 1] -= g1
+                g[j, 0] += g0
+                g[j, 1] += g1
+        dg[c, 0] = U
+        dg[c, 1] = W
+        dg[c, 2] = nc
+        dg[c, 3] = se
+        dg[c, 4] = me
+    for c in prange(CHUNKS):
+        lo = (n * c) // CHUNKS
+        hi = (n * (c + 1)) // CHUNKS
+        for i in range(lo, hi):
+            a0 = fb[0, i, 0]
+            a1 = fb[0, i, 1]
+            for q in range(1, CHUNKS):
+                a0 += fb[q, i, 0]
+                a1 += fb[q, i, 1]
+            f[i, 0] = a0
+            f[i, 1] = a1
+    diag[:] = 0.0
+    for c in range(CHUNKS):
+        for q in range(4):
+            diag[q] += dg[c, q]
+        if dg[c, 4] > diag[4]:
+            diag[4] = dg[c, 4]
 
 
-@njit
-def _fire(x, v, r, pi, pj, off, x_ref, st, diag, area0, P, cell_free, me, ftol, skin, rmax, max_steps,
-          dt_max, dt_min, f_inc, f_dec, alpha0, f_alpha, n_delay):
+def _fire_py(x, v, r, pi, pj, off, pcut, x_ref, st, diag, area0, P, cell_free, me, ftol, rms, skin, rmax,
+             max_steps, dt_max, dt_min, f_inc, f_dec, alpha0, f_alpha, n_delay):
     """FIRE 2.0 minimisation of H = U + P A over centres (and the cell scale when ``cell_free``).
 
     State ``st`` = [L, vq, dt, alpha, n_pos, steps, L_ref, residual]: cell scale, velocity of
     q = sqrt(me) ln L, FIRE time step and mixing, steps with positive power, total steps, cell
     scale at the last neighbour build, last relative residual. Runs until converged (returns 0),
     until the neighbour list must be rebuilt (1), ``max_steps`` total steps (2), or a NaN (3).
+    The residual is the largest (``rms`` False) or the root-mean-square (``rms`` True) net force
+    on a disk over the mean contact force. Particle loops run in CHUNKS chunks (partial sums combined in chunk order).
     """
     n = x.shape[0]
     f = np.zeros((n, 2))
+    fb = np.zeros((CHUNKS, n, 2))
+    dg = np.zeros((CHUNKS, 5))
+    part = np.zeros((CHUNKS, 4))
     sq = np.sqrt(me)
     L = st[0]
     vq = st[1]
@@ -156,27 +201,43 @@ def _fire(x, v, r, pi, pj, off, x_ref, st, diag, area0, P, cell_free, me, ftol, 
     npos = int(st[4])
     steps = int(st[5])
     L_ref = st[6]
-    _forces(x, r, L, pi, pj, off, f, diag)
+    _forces(x, r, L, pi, pj, off, pcut, fb, f, dg, diag)
     while True:
         # -- one pass over the current state: residual, power, |F|^2, displacement since the build --
         A = area0 * L * L
         fq = (diag[1] - 2.0 * P * A) / sq if cell_free else 0.0
         lam = L / L_ref
+        for c in prange(CHUNKS):
+            fmax2c = 0.0
+            dmax2c = 0.0
+            powc = 0.0
+            fn2c = 0.0
+            for i in range((n * c) // CHUNKS, (n * (c + 1)) // CHUNKS):
+                a = f[i, 0] * f[i, 0] + f[i, 1] * f[i, 1]
+                fn2c += a
+                if a > fmax2c:
+                    fmax2c = a
+                powc += f[i, 0] * v[i, 0] + f[i, 1] * v[i, 1]
+                d0 = x[i, 0] - lam * x_ref[i, 0]
+                d1 = x[i, 1] - lam * x_ref[i, 1]
+                a = d0 * d0 + d1 * d1
+                if a > dmax2c:
+                    dmax2c = a
+            part[c, 0] = fn2c
+            part[c, 1] = fmax2c
+            part[c, 2] = powc
+            part[c, 3] = dmax2c
+        power = vq * fq
+        fnorm2 = 0.0
         fmax2 = 0.0
         dmax2 = 0.0
-        power = vq * fq
-        fnorm2 = fq * fq
-        for i in range(n):
-            a = f[i, 0] * f[i, 0] + f[i, 1] * f[i, 1]
-            fnorm2 += a
-            if a > fmax2:
-                fmax2 = a
-            power += f[i, 0] * v[i, 0] + f[i, 1] * v[i, 1]
-            d0 = x[i, 0] - lam * x_ref[i, 0]
-            d1 = x[i, 1] - lam * x_ref[i, 1]
-            a = d0 * d0 + d1 * d1
-            if a > dmax2:
-                dmax2 = a
+        for c in range(CHUNKS):
+            fnorm2 += part[c, 0]
+            power += part[c, 2]
+            fmax2 = max(fmax2, part[c, 1])
+            dmax2 = max(dmax2, part[c, 3])
+        fpart2 = fnorm2  # disks only
+        fnorm2 += fq * fq
         nc = diag[2]
         fmean = diag[3] / nc if nc > 0 else 0.0  # mean contact force (k_n = 1)
         status = -1
@@ -185,7 +246,7 @@ def _fire(x, v, r, pi, pj, off, x_ref, st, diag, area0, P, cell_free, me, ftol, 
         if not cell_free and diag[0] <= UNJAMMED_ENERGY * n:
             res = 0.0  # fixed cell below jamming: every overlap has vanished
         elif nc > 0:
-            res = np.sqrt(fmax2) / fmean
+            res = np.sqrt(fpart2 / n if rms else fmax2) / fmean
             if cell_free:
                 res = max(res, abs(diag[1] - 2.0 * P * A) / (2.0 * P * A))
         else:
@@ -220,51 +281,85 @@ def _fire(x, v, r, pi, pj, off, x_ref, st, diag, area0, P, cell_free, me, ftol, 
                 dt *= f_dec
             alpha = alpha0
             s = np.exp(-0.5 * dt * vq / sq) if cell_free else 1.0
-            for i in range(n):  # step half back, stop
-                x[i, 0] = (x[i, 0] - 0.5 * dt * v[i, 0]) * s
-                x[i, 1] = (x[i, 1] - 0.5 * dt * v[i, 1]) * s
-                v[i, 0] = 0.0
-                v[i, 1] = 0.0
+            for c in prange(CHUNKS):  # step half back, stop
+                for i in range((n * c) // CHUNKS, (n * (c + 1)) // CHUNKS):
+                    x[i, 0] = (x[i, 0] - 0.5 * dt * v[i, 0]) * s
+                    x[i, 1] = (x[i, 1] - 0.5 * dt * v[i, 1]) * s
+                    v[i, 0] = 0.0
+                    v[i, 1] = 0.0
             L *= s
             vq = 0.0
         vq += dt * fq
+        for c in prange(CHUNKS):
+            vn2c = 0.0
+            for i in range((n * c) // CHUNKS, (n * (c + 1)) // CHUNKS):
+                v[i, 0] += dt * f[i, 0]
+                v[i, 1] += dt * f[i, 1]
+                vn2c += v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]
+            part[c, 0] = vn2c
         vnorm2 = vq * vq
-        for i in range(n):
-            v[i, 0] += dt * f[i, 0]
-            v[i, 1] += dt * f[i, 1]
-            vnorm2 += v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]
+        for c in range(CHUNKS):
+            vnorm2 += part[c, 0]
         mix = alpha * np.sqrt(vnorm2 / fnorm2) if fnorm2 > 0.0 else 0.0
         keep = 1.0 - alpha if fnorm2 > 0.0 else 1.0
         vq = keep * vq + mix * fq
         s = np.exp(dt * vq / sq) if cell_free else 1.0
-        for i in range(n):
-            v[i, 0] = keep * v[i, 0] + mix * f[i, 0]
-            v[i, 1] = keep * v[i, 1] + mix * f[i, 1]
-            x[i, 0] = (x[i, 0] + dt * v[i, 0]) * s
-            x[i, 1] = (x[i, 1] + dt * v[i, 1]) * s
+        for c in prange(CHUNKS):
+            for i in range((n * c) // CHUNKS, (n * (c + 1)) // CHUNKS):
+                v[i, 0] = keep * v[i, 0] + mix * f[i, 0]
+                v[i, 1] = keep * v[i, 1] + mix * f[i, 1]
+                x[i, 0] = (x[i, 0] + dt * v[i, 0]) * s
+                x[i, 1] = (x[i, 1] + dt * v[i, 1]) * s
         L *= s
         steps += 1
-        _forces(x, r, L, pi, pj, off, f, diag)
+        _forces(x, r, L, pi, pj, off, pcut, fb, f, dg, diag)
+
+
+def _variant(fn, name: str, **overrides):
+    """A copy of the Python function ``fn`` named ``name`` whose globals are overridden (numba
+    resolves the kernels it calls through its globals; the new name gives it its own cache file)."""
+    g = dict(fn.__globals__)
+    g.update(overrides)
+    out = types.FunctionType(fn.__code__, g, name, fn.__defaults__, fn.__closure__)
+    out.__qualname__ = name
+    return out
+
+
+# serial and threaded builds of the same code: the same arithmetic (fixed chunks), the same results
+_forces = njit(_variant(_forces_py, "_forces"))
+_fire = njit(_variant(_fire_py, "_fire", _forces=_forces))
+_forces_par = pjit(_variant(_forces_py, "_forces_par"))
+_fire_par = pjit(_variant(_fire_py, "_fire_par", _forces=_forces_par))
 
 
 # --------------------------------------------------------------------------------------------
 # the minimiser (Python side: neighbour lists, FIRE state)
 # --------------------------------------------------------------------------------------------
 class _Minimiser:
-    """Positions, cell scale and FIRE state of a packing being minimised (reduced units)."""
+    """Positions, cell scale and FIRE state of a packing being minimised (reduced units).
 
-    def __init__(self, x, r, L, skin: float, fire: FireParameters):
+    The disks are kept in cell-list order (sorted by the bin of their centre at every neighbour
+    build) so that the force loop walks memory nearly in order; ``order[k]`` is the original index
+    of the disk in slot k, and :meth:`in_original_order` undoes the permutation.
+    """
+
+    def __init__(self, x, r, L, skin: float, fire: FireParameters, parallel: bool | None = None,
+                 residual: str = "max"):
         self.x = np.ascontiguousarray(x, dtype=float)
         self.r = np.ascontiguousarray(r, dtype=float)
         self.v = np.zeros_like(self.x)
+        self.order = np.arange(self.x.shape[0])
         self.L = float(L)
         self.skin = float(skin)
         self.fire = fire
+        self.parallel = self.x.shape[0] >= PARALLEL_FROM if parallel is None else bool(parallel)
+        self.rms = residual == "rms"
         self.me = float(self.x.shape[0])  # cell "mass": N d_mean^2 (d_mean = 1)
         self.diag = np.zeros(5)
         self.steps = 0
         self.rebuilds = 0
         self.residual = np.inf
+        self.log = []
 
     @property
     def cell(self) -> np.ndarray:
@@ -283,26 +378,62 @@ class _Minimiser:
         self.x *= L / self.L
         self.L = float(L)
 
-    def run(self, P: float, cell_free: bool, ftol: float, max_steps: int, skin: float | None = None) -> str:
-        """Minimise H = U + P A (cell free) or U (cell fixed) from the current state."""
+    def in_original_order(self) -> tuple[np.ndarray, np.ndarray]:
+        """(positions, radii) in the order the disks were given."""
+        inv = np.empty_like(self.order)
+        inv[self.order] = np.arange(self.order.size)
+        return self.x[inv], self.r[inv]
+
+    def _sort(self, skin: float) -> None:
+        """Wrap into the cell and renumber the disks by cell-list bin (row by row)."""
+        frac = self.x / self.L
+        frac -= np.floor(frac)
+        nb = max(1, int(self.L / (2.0 * float(self.r.max()) + skin)))
+        b = np.minimum((frac * nb).astype(np.int64), nb - 1)
+        perm = np.argsort(b[:, 1] * nb + b[:, 0], kind="stable")
+        self.x = np.ascontiguousarray(frac[perm] * self.L)
+        self.v = np.ascontiguousarray(self.v[perm])
+        self.r = np.ascontiguousarray(self.r[perm])
+        self.order = self.order[perm]
+
+    def run(self, P: float, cell_free: bool, ftol: float, max_steps: int, skin: float | None = None,
+            stage: str = "") -> str:
+        """Minimise H = U + P A (cell free) or U (cell fixed) from the current state.
+
+        Appends {stage, pressure, tol, residual norm, steps, builds, seconds} to ``self.log``."""
+        t0 = time.perf_counter()
+        s0, b0 = self.steps, self.rebuilds
+        status = self._run(P, cell_free, ftol, max_steps, skin)
+        self.log.append({"stage": stage, "pressure": float(P), "tol": float(ftol),
+                         "norm": "rms" if self.rms else "max", "steps": self.steps - s0,
+                         "builds": self.rebuilds - b0, "seconds": round(time.perf_counter() - t0, 4)})
+        return status
+
+    def _run(self, P, cell_free, ftol, max_steps, skin):
         skin = self.skin if skin is None else float(skin)
         fp = self.fire
+        fire = _fire_par if self.parallel else _fire
         self.v[:] = 0.0
         st = np.array([self.L, 0.0, fp.dt_start, fp.alpha_start, 0.0, 0.0, self.L, np.inf])
         while True:
-            frac = self.x / self.L
-            self.x = np.ascontiguousarray((frac - np.floor(frac)) * self.L)  # wrap (square cell)
+            self._sort(skin)
             nl = find_neighbours(self.x, self.r, self.cell, skin)
             self.rebuilds += 1
-            off = np.ascontiguousarray(nl.shift, dtype=float)  # C0 = identity
+            # compact pair data (12 bytes a pair): the force loop is bound by memory traffic
+            pi = nl.i.astype(np.int32)
+            pj = nl.j.astype(np.int32)
+            off = nl.shift.astype(np.int16)  # C0 = identity; |n| <= 2 unless the cell is tiny
+            if not np.array_equal(off, nl.shift):
+                off = np.ascontiguousarray(nl.shift)
+            pcut = (np.arange(CHUNKS + 1) * pi.shape[0]) // CHUNKS
             st[0] = self.L
             st[6] = self.L
             x_ref = self.x.copy()
             done = int(st[5])
-            status = _fire(self.x, self.v, self.r, nl.i, nl.j, off, x_ref, st, self.diag, 1.0, float(P),
-                           bool(cell_free), self.me, float(ftol), skin, float(self.r.max()),
-                           int(max_steps), fp.dt_max, fp.dt_min, fp.f_inc, fp.f_dec, fp.alpha_start,
-                           fp.f_alpha, int(fp.n_delay))
+            status = fire(self.x, self.v, self.r, pi, pj, off, pcut, x_ref, st, self.diag, 1.0, float(P),
+                          bool(cell_free), self.me, float(ftol), self.rms, skin, float(self.r.max()),
+                          int(max_steps), fp.dt_max, fp.dt_min, fp.f_inc, fp.f_dec, fp.alpha_start,
+                          fp.f_alpha, int(fp.n_delay))
             self.L = float(st[0])
             self.steps += int(st[5]) - done
             self.residual = float(st[7])
@@ -327,7 +458,7 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
                  mean_overlap: float | None = None, mean_diameter: float | None = None, *,
                  density: float = 2650.0, phi_start: float = 0.86, skin: float = 0.3,
                  force_tol: float = 1e-3, overlap_tol: float = 0.02, max_steps: int = 400_000,
-                 max_passes: int = 12, fire: FireParameters = FireParameters()) -> Packing:
+                 max_passes: int = 12, residual: str = "max", fire: FireParameters = FireParameters()) -> Packing:
     """A dense, isotropic, periodic packing of ``n`` disks (algorithm: module docstring).
 
     Parameters
@@ -354,8 +485,13 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     skin : float
         Neighbour-list skin in mean diameters.
     force_tol : float
-        Convergence: max residual force <= force_tol x mean contact force (and the pressure to the
+        Convergence: residual force <= force_tol x mean contact force (and the pressure to the
         same relative tolerance).
+    residual : {"max", "rms"}
+        The residual of ``force_tol``: the largest net force on any disk (default: every disk in
+        balance) or the root-mean-square net force over all disks. The largest of N fluctuating
+        forces grows with N, so at 1e5 disks the max criterion asks far more of each disk than at
+        1e3; "rms" is the same demand at every N (docs/generation.md has the measured cost).
     overlap_tol : float
         Relative tolerance on the mean overlap target.
     max_steps : int
@@ -406,6 +542,7 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     overlap_tol = as_positive_float(overlap_tol, "overlap_tol")
     max_steps = _check_count(max_steps, "max_steps", minimum=1)
     max_passes = _check_count(max_passes, "max_passes", minimum=1)
+    check_choice(residual, "residual", ("max", "rms"))
 
     # 1. sizes (reduced units: lengths in sample mean diameters)
     rng = np.random.default_rng(seed)
@@ -428,24 +565,37 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
             f"{m.mean_overlap:.3e} d_mean, residual = {m.residual:.2e} after {m.steps} FIRE steps")
 
     # the random start relaxed at fixed cell (a quench from "infinite temperature"); only the large
-    # overlaps of the random start need to go, so a loose tolerance suffices
+    # overlaps of the random start need to go, so a loose tolerance on the rms residual suffices
     # (with a doubled skin: the disks of the random start travel far, rebuilds would dominate)
-    status = m.run(0.0, False, max(force_tol, QUENCH_TOL), max_steps, skin=2 * skin)
+    m.rms = True  # preparatory stages: rms residual; the last pass uses the requested norm
+    status = m.run(0.0, False, max(force_tol, QUENCH_TOL), max_steps, skin=2 * skin, stage="quench")
     if status != "converged":
         fail(f"relaxation of the random start did not converge ({status})")
-    # pressure passes: loose tolerance while the pressure is being adjusted, then force_tol
-    loose = max(force_tol, PASS_TOL)
-    tol = loose
+    # decompression ladder: from the first p 3^k at or above the pressure of the quenched state (the
+    # first stage compacts it a little, which is fast under a high pressure) down to the target by
+    # factors of LADDER_FACTOR, each stage relaxed to PASS_TOL (rms). Unloading a relaxed network is
+    # nearly elastic; expanding the quenched state in one go overshoots into a loose state that then
+    # creeps back slowly (at 1e5 disks: 84,000 steps instead of ~4,000).
+    p_quench = m.diag[1] / (2.0 * m.L**2)
+    ladder = int(np.ceil(np.log(p_quench / P) / np.log(LADDER_FACTOR))) if p_quench > P else 0
+    for k in range(ladder, 0, -1):
+        status = m.run(P * LADDER_FACTOR**k, True, max(force_tol, PASS_TOL), max_steps, stage=f"decompression {k}")
+        if status != "converged":
+            fail(f"decompression stage at pressure {P * LADDER_FACTOR**k:.3e} k_n did not converge ({status})")
+    # pressure passes at the target: rms PASS_TOL while the pressure is adjusted, then force_tol in the
+    # requested norm
+    tol = max(force_tol, PASS_TOL)
     while True:
         passes += 1
-        status = m.run(P, True, tol, max_steps)
+        status = m.run(P, True, tol, max_steps, stage=f"pressure pass {passes}")
         if status != "converged":
             fail(f"packing did not converge ({status}) at pressure {P:.3e} k_n")
         achieved = m.mean_overlap
         if achieved > 0 and abs(achieved / target - 1.0) <= overlap_tol:
-            if tol == force_tol:
+            if tol == force_tol and m.rms == (residual == "rms"):
                 break
             tol = force_tol  # on target at the loose tolerance: converge tightly at the same pressure
+            m.rms = residual == "rms"
             continue
         if passes >= max_passes:
             fail(f"mean overlap target {target:.3e} d_mean not reached in {max_passes} passes")
@@ -460,12 +610,13 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
                 f"this protocol (N = {n}, seed = {seed}): no contact network exists there; ask for a "
                 "mean_overlap target or a larger solid fraction")
         m.scale_to(np.sqrt(np.pi * np.sum(r**2) / solid_fraction))
-        status = m.run(0.0, False, force_tol, max_steps)
+        status = m.run(0.0, False, force_tol, max_steps, stage="solid fraction")
         if status != "converged":
             fail(f"packing at solid fraction {solid_fraction} did not converge ({status})")
 
     # back to physical units
-    packing = Packing(positions=m.x * ell, radii=r * ell, cell=m.cell * ell, density=density)
+    xo, ro = m.in_original_order()
+    packing = Packing(positions=xo * ell, radii=ro * ell, cell=m.cell * ell, density=density)
     stats = packing_stats(packing)
     meta = {
         "generator": "gransim.generation.make_packing",
@@ -480,11 +631,14 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
         "phi_start": phi_start,
         "skin": skin,
         "force_tol": force_tol,
+        "residual_norm": residual,
         "overlap_tol": overlap_tol,
         "fire": dataclasses.asdict(fire),
         "pressure_reduced": P if solid_fraction is None else None,
         "phi_jamming": phi_jam,
         "passes": passes,
+        "decompression_stages": ladder,
+        "stages": m.log,
         "fire_steps": m.steps,
         "neighbour_builds": m.rebuilds,
         "residual": m.residual,
@@ -586,19 +740,18 @@ def packing_stats(packing: Packing) -> dict:
 # the standard assemblies of the papers
 # --------------------------------------------------------------------------------------------
 #: bump when the algorithm changes results, so that :func:`standard_packings` regenerates files
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2  # 2: decompression ladder, rms preparatory stages, cell-list order, chunked sums
 
 #: target mean overlap of the standard RVEs (relative to d_mean): the dense state of the slope problem
 RVE_MEAN_OVERLAP = 2.7e-4
-#: The Kuhn assembly: a dilute random start (phi_start = 0.3) compacted under the small pressure, which
-#: jams about 0.003 looser than the default quench (mean phi 0.8478 over seeds 1-8 against ~0.851), and
-#: seed 1. A frictionless jammed packing of this grading cannot reach Kuhn's void ratio 0.189 (phi 0.841):
-#: measured void ratios are 0.177-0.184 over seeds 1-8. Kuhn's assembly was made by a frictional DEM (its
-#: effective coordination 3.75 is below the frictionless isostatic value 4), which jams looser.
-KUHN_PHI_START = 0.3
+#: The Kuhn assembly (002, section 4: void ratio 0.189, effective coordination 3.75, mean indentation
+#: below 0.02 % of D50) is made by frictional DEM compaction (:func:`gransim.generation.compact_packing`):
+#: a frictionless jammed packing of this grading is denser (e = 0.177-0.184 over seeds 1-8) and
+#: better connected than Kuhn's. The preparation friction 0.05 gives e = 0.188, 0.189, 0.188, 0.194
+#: for seeds 1-4 (docs/generation.md); the seed is 1. Compaction stress 1e-4 kn: mean overlap 0.9e-4 D50.
 KUHN_SEED = 1
-#: target mean overlap of the Kuhn assembly (relative to d_mean): below Kuhn's 0.02 % of D50
-KUHN_MEAN_OVERLAP = 1e-4
+KUHN_FRICTION = 0.05
+KUHN_PRESSURE = 1e-4
 
 
 def _standard_requests() -> dict:
@@ -607,14 +760,27 @@ def _standard_requests() -> dict:
         for seed in range(1, 6):
             req[f"rve-{n}-{seed}"] = {"distribution": "quartz-sand", "n": n, "seed": seed,
                                       "mean_overlap": RVE_MEAN_OVERLAP}
-    req["kuhn-1002"] = {"distribution": "kuhn-1002", "n": 1002, "seed": KUHN_SEED,
-                        "mean_overlap": KUHN_MEAN_OVERLAP, "phi_start": KUHN_PHI_START}
+    req["kuhn-1002"] = {"protocol": "compaction", "distribution": "kuhn-1002", "n": 1002, "seed": KUHN_SEED,
+                        "friction": KUHN_FRICTION, "pressure": KUHN_PRESSURE}
     return req
 
 
-#: the 16 standard assemblies: name -> make_packing arguments. RVEs of Meier et al. section 4 (5 each
-#: of 70, 350, 700 disks of quartz-sand, seeds 1-5) and Kuhn's 1002-disk assembly (seed 1).
+#: the 16 standard assemblies: name -> request. RVEs of Meier et al. section 4 (5 each of 70, 350,
+#: 700 disks of quartz-sand, seeds 1-5; :func:`make_packing` arguments) and Kuhn's 1002-disk
+#: assembly (seed 1; ``protocol: compaction`` = :func:`gransim.generation.compact_packing` arguments).
 STANDARD_PACKINGS = _standard_requests()
+
+
+def build_standard(name: str) -> Packing:
+    """Generate one standard assembly of :data:`STANDARD_PACKINGS` (no file written)."""
+    if name not in STANDARD_PACKINGS:
+        raise InputError(f"unknown standard packing {name!r}; choose from: {', '.join(STANDARD_PACKINGS)}")
+    req = dict(STANDARD_PACKINGS[name])
+    if req.pop("protocol", "fire") == "compaction":
+        from .compaction import compact_packing
+
+        return compact_packing(**req)
+    return make_packing(**req)
 
 
 def standard_packings(out_dir="results/packings", names=None, force: bool = False) -> dict:
@@ -648,7 +814,7 @@ def standard_packings(out_dir="results/packings", names=None, force: bool = Fals
                     continue
             except ResultFileError:
                 pass  # unreadable or foreign: regenerate
-        packing = make_packing(**req)
+        packing = build_standard(name)
         save_packing(path, packing, parameters=params, seed=req["seed"])
         out[name] = path
     return out

@@ -28,7 +28,19 @@ def test_pack_solid_fraction_option(tmp_path, capsys):
     assert load_packing(out).solid_fraction == pytest.approx(0.88, rel=1e-12)
 
 
+def test_pack_by_frictional_compaction(tmp_path, capsys):
+    out = tmp_path / "dem.h5"
+    assert main(["pack", "--distribution", "kuhn-1002", "--n", "80", "--seed", "2", "--friction", "0.3",
+                 "--pressure", "2e-4", "-o", str(out)]) == 0
+    p = load_packing(out)
+    assert p.n == 80 and p.metadata["friction"] == 0.3 and p.metadata["pressure_over_kn"] == 2e-4
+    assert "DEM steps" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("argv, message", [
+    (["pack", "--n", "50", "--friction", "0.1", "--solid-fraction", "0.85", "-o", "x.h5"], "takes no --solid"),
+    (["pack", "--n", "50", "--pressure", "1e-4", "-o", "x.h5"], "--pressure needs --friction"),
+    (["pack", "--n", "50", "--friction=-1", "-o", "x.h5"], "friction"),
     (["pack", "--n", "1", "-o", "x.h5"], "n: expected an integer >= 2"),
     (["pack", "--n", "50", "--distribution", "granite", "-o", "x.h5"], "unknown distribution 'granite'"),
     (["pack", "--n", "50", "--solid-fraction", "0.97", "-o", "x.h5"], "unreachable"),

@@ -63,6 +63,18 @@ def test_fire_reaches_force_balance(dense):
     assert np.allclose(F.sum(axis=0), 0.0, atol=1e-12 * fmean * dense.n)
 
 
+def test_rms_residual_option_is_checked_independently():
+    p = make_packing("quartz-sand", 400, seed=2, force_tol=1e-3, residual="rms")
+    F, eps, _ = contact_forces(p)
+    rms = np.sqrt(np.mean(np.sum(F**2, axis=1)))
+    assert rms <= 1.001e-3 * eps.mean()
+    assert p.metadata["residual_norm"] == "rms" and p.metadata["decompression_stages"] >= 1
+    # the stage ladder starts near the quenched state's pressure: a few stages of factor 3
+    assert p.metadata["decompression_stages"] <= 8
+    with pytest.raises(InputError, match="residual"):
+        make_packing("quartz-sand", 50, seed=1, residual="mean")
+
+
 def test_pressure_is_isotropic_on_average(dense):
     # the cell is compressed isotropically: virial stress sigma = 1/A sum f (x) l has
     # sigma_xx ~ sigma_yy up to the finite-size fluctuation of a 120-disk network
@@ -169,3 +181,25 @@ def test_standard_packings_set_and_cheap_rerun(tmp_path):
     assert np.array_equal(load_packing(path).positions, p.positions)  # deterministic
     with pytest.raises(InputError, match="unknown standard packing"):
         standard_packings(tmp_path, names=["rve-71-1"])
+
+
+def test_threaded_minimiser_gives_the_serial_result_bit_for_bit():
+    """The chunked kernels sum in a fixed order: the threaded build (used from PARALLEL_FROM disks)
+    must reproduce the serial one exactly, whatever the thread count."""
+    from gransim.generation import pack
+
+    rng = np.random.default_rng(5)
+    r = get_distribution("quartz-sand").sample(300, rng)
+    r = r / (2 * r.mean())
+    L = float(np.sqrt(np.pi * np.sum(r**2) / 0.86))
+    x = rng.random((300, 2)) * L
+    out = []
+    for parallel in (False, True):
+        m = pack._Minimiser(x, r, L, 0.3, pack.FireParameters(), parallel=parallel)
+        assert m.run(0.0, False, 0.1, 100_000) == "converged"
+        assert m.run(2e-3, True, 1e-3, 100_000) == "converged"
+        out.append((m.in_original_order(), m.L, m.steps))
+    (xs, rs), Ls, ns = out[0]
+    (xp, rp), Lp, npar = out[1]
+    assert np.array_equal(rs, r) and np.array_equal(rp, r)
+    assert np.array_equal(xs, xp) and Ls == Lp and ns == npar
