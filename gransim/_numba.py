@@ -10,13 +10,23 @@ Every kernel in the package is compiled through :func:`njit` (serial) or
 * ``error_model="numpy"``: division by zero gives inf/nan instead of raising
   inside a kernel; the Python boundary checks results.
 
+* Threading layer: OpenMP first, then TBB, then numba's workqueue (``NUMBA_THREADING_LAYER``
+  overrides). Launching a ``prange`` loop costs ~4x less time with OpenMP than with TBB (18 against
+  82 us measured here), which is what a threaded DEM step of a small assembly pays many times.
+  The layer does not change results: the threaded kernels sum in a fixed order.
+
 Set ``NUMBA_DISABLE_JIT=1`` to run the kernels as plain Python (coverage,
 debugging); the test suite is expected to pass in that mode too (slowly).
 """
 
 from __future__ import annotations
 
+import os
+
 import numba
+
+if "NUMBA_THREADING_LAYER" not in os.environ:
+    numba.config.THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]
 
 JIT_OPTIONS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
 
