@@ -21,6 +21,7 @@ debugging); the test suite is expected to pass in that mode too (slowly).
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 import numba
@@ -53,3 +54,35 @@ def set_num_threads(n: int | None) -> None:
     """Set the number of numba threads (``None`` leaves the default: all cores)."""
     if n is not None:
         numba.set_num_threads(int(n))
+
+
+@contextlib.contextmanager
+def num_threads(n: int | None):
+    """Run the enclosed kernels on ``n`` numba threads and restore the previous count afterwards
+    (``None``: leave it). Numba's count is per calling thread and sticky; this keeps one
+    object's choice from leaking into the next computation."""
+    if n is None:
+        yield
+        return
+    old = numba.get_num_threads()
+    numba.set_num_threads(int(n))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(old)
+
+
+def check_threads(n, name: str = "threads") -> int | None:
+    """``None`` or an integer in [1, NUMBA_NUM_THREADS]; :class:`InputError` otherwise."""
+    if n is None:
+        return None
+    from .errors import InputError
+
+    top = numba.config.NUMBA_NUM_THREADS
+    try:
+        ok = float(n) == int(n) and 1 <= int(n) <= top
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok:
+        raise InputError(f"{name}: expected an integer from 1 to {top} (NUMBA_NUM_THREADS), got {n!r}")
+    return int(n)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._numba import set_num_threads
+from .._numba import check_threads, num_threads
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import kernels as K
@@ -78,7 +78,8 @@ class DEMEngine:
         LIGGGHTS data file gransim writes).
     settings : DEMSettings.
     velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
-    threads : numba threads for mode "parallel" (None = all).
+    threads : numba threads of mode "parallel" (None: numba's current count), set around each kernel
+        call and restored afterwards, so an engine leaves the process's thread count alone.
 
     Attributes (after construction = LIGGGHTS ``run`` set-up: forces evaluated without
     spring increment): x, v, w, f, t, lo, hi, step, stress, virial.
@@ -120,8 +121,8 @@ class DEMEngine:
         self.mean_overlap = 0.0
         self.n_rebuilds = 0
         self._parallel = s.mode == "parallel"
-        if self._parallel:
-            set_num_threads(threads)
+        # numba threads of this engine's kernels, set around each call and restored after
+        self._threads = check_threads(threads) if self._parallel else None
         self._pvir = np.zeros((n, 4))
         self._pcont = np.zeros((n, 2))
         # neighbour list (empty; built in setup)
@@ -175,7 +176,8 @@ class DEMEngine:
 
     def _set_parallel_scratch(self):
         if self._parallel:
-            self._in_start, self._in_e = K.incoming(self.eb, self.both, self.packing.n)
+            with num_threads(self._threads):
+                self._in_start, self._in_e = K.incoming(self.eb, self.both, self.packing.n)
         else:
             self._in_start, self._in_e = np.zeros(self.packing.n + 1, np.int64), np.zeros(0, np.int64)
         self._tb = np.zeros(self.ea.size)
@@ -184,10 +186,11 @@ class DEMEngine:
         s = self.settings
         L = self.box_lengths
         if self._parallel:
-            K.forces_parallel(self.x, self.v, self.w, self.r, self.m, self.start, self.eb, self.esx, self.esy,
-                              self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, update,
-                              self.f, self.t, self._pvir, self.slide, self.ef, self._tb, self._pcont,
-                              self._in_start, self._in_e, True)
+            with num_threads(self._threads):
+                K.forces_parallel(self.x, self.v, self.w, self.r, self.m, self.start, self.eb, self.esx, self.esy,
+                                  self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt,
+                                  update, self.f, self.t, self._pvir, self.slide, self.ef, self._tb, self._pcont,
+                                  self._in_start, self._in_e, True)
             self.virial[:] = self._pvir.sum(axis=0)
             nc, so = self._pcont.sum(axis=0)
         else:
@@ -245,13 +248,14 @@ class DEMEngine:
         resume = False
         step_start = self.step
         while done < nsteps:
-            k, status, bad = K.run_block(
-                self.x, self.v, self.w, self.f, self.t, self.r, self.m, self.ea, self.eb, self.esx, self.esy,
-                self.both, self.xi, self.slide, self.ef, self.xhold, self.lo, self.hi, self.lo_hold,
-                self.hi_hold, self.virial, s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, s.skin, self.step,
-                nsteps - done, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
-                out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:], out_ke[done:],
-                self._parallel, self.start, self._pvir, self._pcont, self._tb, self._in_start, self._in_e)
+            with num_threads(self._threads):
+                k, status, bad = K.run_block(
+                    self.x, self.v, self.w, self.f, self.t, self.r, self.m, self.ea, self.eb, self.esx, self.esy,
+                    self.both, self.xi, self.slide, self.ef, self.xhold, self.lo, self.hi, self.lo_hold,
+                    self.hi_hold, self.virial, s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, s.skin, self.step,
+                    nsteps - done, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
+                    out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:], out_ke[done:],
+                    self._parallel, self.start, self._pvir, self._pcont, self._tb, self._in_start, self._in_e)
             done += k
             self.step += k
             resume = False

@@ -246,6 +246,26 @@ def test_parallel_mode_is_deterministic():
     np.testing.assert_array_equal(runs[0], runs[1])
 
 
+def test_parallel_engine_leaves_the_process_thread_count_alone():
+    import numba
+
+    from gransim.errors import InputError
+
+    p = lattice_packing(6, 6, seed=7, spread=0.1, compression=0.04)
+    s = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e-6, skin=2e-5, mode="parallel")
+    before = numba.get_num_threads()
+    eng = DEMEngine(p, s, threads=1)
+    eng.advance(Loading(), 50)
+    assert numba.get_num_threads() == before
+    one = eng.x.copy()
+    eng2 = DEMEngine(p, s, threads=numba.config.NUMBA_NUM_THREADS)
+    eng2.advance(Loading(), 50)
+    np.testing.assert_array_equal(one, eng2.x)  # the thread count does not change the result
+    for bad in (0, 1.5, numba.config.NUMBA_NUM_THREADS + 1):
+        with pytest.raises(InputError, match="threads"):
+            DEMEngine(p, s, threads=bad)
+
+
 def test_lost_particle_stops_with_step_and_particle():
     p = lattice_packing(6, 6, seed=0)
     s = DEMSettings(kn=1e5, kt=1e5, dt=2e-6, skin=2e-5)
