@@ -115,6 +115,29 @@ def overlapping(x, r, ea, eb, esx, esy, Lx, Ly):
     return out
 
 
+@njit(inline="always")
+def _entry(e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update):
+    """One list entry (a, b, s): branch d = x_a - (x_b + s L), and when the disks touch
+    (rsq < radsum^2, LIGGGHTS' test) the contact law with the spring of the entry updated in place.
+
+    Returns (touch, delx, dely, rsq, radsum, fx, fy, torque on a, torque on b, sliding); the
+    force (fx, fy) acts on a. Shared by the serial and the threaded loop: the same operations
+    in the same order, so both evaluate every contact identically.
+    """
+    delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
+    dely = x[a, 1] - (x[b, 1] + esy[e] * Ly)
+    rsq = delx * delx + dely * dely
+    radsum = r[a] + r[b]
+    if rsq < radsum * radsum:
+        fx, fy, ta, tb, s0, s1, sl, _ = hooke_history(
+            delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
+            m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
+        xi[e, 0] = s0
+        xi[e, 1] = s1
+        return True, delx, dely, rsq, radsum, fx, fy, ta, tb, sl
+    return False, delx, dely, rsq, radsum, 0.0, 0.0, 0.0, 0.0, False
+
+
 @njit
 def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
                 kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store):
@@ -142,16 +165,9 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
     for e in range(ea.shape[0]):
         a = ea[e]
         b = eb[e]
-        delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
-        dely = x[a, 1] - (x[b, 1] + esy[e] * Ly)
-        rsq = delx * delx + dely * dely
-        radsum = r[a] + r[b]
-        if rsq < radsum * radsum:
-            fx, fy, ta, tb, s0, s1, sl, _ = hooke_history(
-                delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
-                m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
-            xi[e, 0] = s0
-            xi[e, 1] = s1
+        touch, delx, dely, rsq, radsum, fx, fy, ta, tb, sl = _entry(
+            e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update)
+        if touch:
             if store:
                 slide[e] = sl
                 ef[e, 0] = fx
@@ -206,16 +222,9 @@ def forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt
         ova = 0.0
         for e in range(start[a], start[a + 1]):
             b = eb[e]
-            delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
-            dely = x[a, 1] - (x[b, 1] + esy[e] * Ly)
-            rsq = delx * delx + dely * dely
-            radsum = r[a] + r[b]
-            if rsq < radsum * radsum:
-                fx, fy, tq, tqb, s0, s1, sl, _ = hooke_history(
-                    delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
-                    m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
-                xi[e, 0] = s0
-                xi[e, 1] = s1
+            touch, delx, dely, rsq, radsum, fx, fy, tq, tqb, sl = _entry(
+                e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update)
+            if touch:
                 if store:
                     slide[e] = sl
                 ef[e, 0] = fx
