@@ -8,6 +8,7 @@ sigma_vM = sqrt(s11^2 + s22^2 - s11 s22 + 3 s12^2).
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -139,6 +140,10 @@ def render_png(path, problem: Problem, solution: NewtonResult, title: str, mater
     free = fields["contact_free"]
     img, renderer = None, "pyvista"
     try:
+        if not os.environ.get("DISPLAY"):
+            # no X server: render with EGL directly instead of trying X first (VTK >= 9.4 reads this
+            # when it makes the window; without it every render prints a "bad X server" warning)
+            os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
         import pyvista as pv
 
         pv.OFF_SCREEN = True
