@@ -18,7 +18,7 @@ from gransim.dem import AxisControl, Loading
 from validation import dem_compare
 from validation.runner import run_validation
 
-CASE_IDS = {"taylor-rve", "biaxial-short", "biaxial-full", "voidcell", "slope"}
+CASE_IDS = {"packings", "taylor-rve", "biaxial-short", "biaxial-full", "voidcell", "slope"}
 
 
 def _quiet(*_a, **_k):
@@ -104,3 +104,28 @@ def test_without_liggghts_biaxial_full_uses_the_stored_series(tmp_path, monkeypa
     assert {r.quantity for r in res.records} == {"stress", "deviator", "volumetric_strain"}
     assert any("stored series" in n for n in res.notes)
     assert "LIGGGHTS is not installed" in (tmp_path / "report" / "index.html").read_text()
+
+
+def test_packings_case_checks_the_saved_files_and_can_fail(tmp_path, monkeypatch):
+    """The packings case recomputes balance, overlaps and the sieve curve from the files: a
+    generated RVE passes; the same RVE with one disk moved by 1e-5 of its radius (a few percent of a
+    contact overlap) fails the balance, and only the balance."""
+    import gransim.generation as gen
+    from gransim.io import load_packing, read_provenance, save_packing
+
+    real = gen.standard_packings
+    monkeypatch.setattr(gen, "standard_packings", lambda out, names=None, force=False: real(out, names=["rve-70-1"]))
+    ok, results = run_validation("default", tmp_path, only=["packings"], log=_quiet)
+    assert ok, [x for r in results for x in r.records if not x.passed]
+    (res,) = results
+    assert {x.quantity for x in res.records} == {"sieve curve", "force balance", "mean overlap"}
+
+    path = tmp_path / "packings" / "rve-70-1.h5"
+    p = load_packing(path)
+    x = p.positions.copy()
+    x[0, 0] += 1e-5 * p.radii[0]
+    save_packing(path, p.replace(positions=x), parameters=read_provenance(path)["parameters"])
+    monkeypatch.setattr(gen, "standard_packings", lambda out, names=None, force=False: {"rve-70-1": path})
+    ok, results = run_validation("default", tmp_path, only=["packings"], log=_quiet)
+    res, failed = _failed(results, "packings")
+    assert not ok and failed == {("packings/rve-70-1", "force balance")}

@@ -1,0 +1,142 @@
+"""Case ``packings``: the assemblies every other case starts from, checked against what they were
+asked to be (no LIGGGHTS side: both codes read these very files).
+
+Every check is computed here from the saved positions, independently of the generator's kernels:
+contacts by the brute-force O(N^2) periodic search, forces by the linear law written out in numpy.
+
+* RVEs (``make_packing``, frictionless): the largest net force on a disk over the mean contact
+  force is at most the generator's stop criterion (1e-3); the mean overlap is within the 2 %
+  tolerance of its target 2.7e-4 d_mean.
+* Kuhn's assembly (``compact_packing``, frictional): tangential forces are not stored, but the trace
+  of the Love stress needs only the normal forces, so the mean pressure sum |l| kn eps / (2A) must
+  equal the servo target p = 1e-4 kn (1.5 %: the servo's 1 % per axis plus damping forces at rest);
+  the mean indentation must be below Kuhn's 0.02 % of D50; the void ratio must be near Kuhn's 0.189
+  (within 0.005: the spread over seeds of the calibrated protocol is 0.188-0.194).
+* Sieve curves: at every aperture of the grading, the sample's percent passing by area against
+  the curve; the tolerance is the area share of the largest grain (a sample of N grains cannot
+  follow a continuous curve more closely than one grain).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core import CaseResult, Context, compare, case
+
+#: Kuhn (002, section 4)
+KUHN_PAPER = {"void_ratio": 0.189, "indentation_d50": 2e-4, "coordination_2M_N": 3.75}
+KUHN_VOID_TOL = 0.005
+
+
+def _contacts(p):
+    from gransim.contacts import find_neighbours_bruteforce
+
+    nl = find_neighbours_bruteforce(p.positions, p.radii, p.cell, 0.0)
+    eps = nl.overlaps(p.radii)
+    c = eps > 0
+    return nl.i[c], nl.j[c], nl.branch[c], nl.distance[c], eps[c]
+
+
+def _sieve_error(p) -> tuple[float, float]:
+    from gransim.generation import get_distribution
+
+    g = get_distribution(p.metadata["distribution"])
+    a = (2.0 * p.radii) ** 2
+    d = 2.0 * p.radii
+    err = max(abs(100.0 * a[d <= dk].sum() / a.sum() - pk) for dk, pk in zip(g.diameters, g.passing))
+    return float(err), float(100.0 * a.max() / a.sum())
+
+
+@case("packings", "Packings: the 15 RVEs and Kuhn's assembly against their targets", suites=("default", "full"),
+      order=5)
+def packings(ctx: Context) -> CaseResult:
+    from gransim.generation import packing_stats, standard_packings
+    from gransim.generation.pack import RVE_MEAN_OVERLAP
+    from gransim.io import load_packing
+
+    res = CaseResult(
+        "packings", "Packings: the 15 RVEs and Kuhn's assembly against their targets",
+        "The standard assemblies (<code>gransim packings</code>): 5 RVEs each of 70, 350 and 700 disks of "
+        "quartz-sand (FIRE, frictionless, mean overlap 2.7e-4 d_mean) and Kuhn's 1002 disks (frictional DEM "
+        "compaction, preparation friction 0.05, p = 1e-4 kn). Checked from the saved files with a brute-force "
+        "contact search: force balance (RVEs) or the servo pressure (Kuhn), overlaps, Kuhn's void ratio, and "
+        "the sieve curve of every sample.")
+    paths = standard_packings(ctx.results / "packings")
+    rows = []
+    for name, path in paths.items():
+        p = load_packing(path)
+        s = packing_stats(p)
+        i, j, branch, dist, eps = _contacts(p)
+        err, bound = _sieve_error(p)
+        res.records.append(compare(f"packings/{name}", "sieve curve", "max |sample - curve| over apertures (pp)",
+                                   err, bound, "one grain: the area share of the largest disk"))
+        if name.startswith("rve-"):
+            n = branch / dist[:, None]
+            F = np.zeros((p.n, 2))
+            np.add.at(F, i, -eps[:, None] * n)  # k_n = 1: force = overlap (the ratio does not depend on k_n)
+            np.add.at(F, j, eps[:, None] * n)
+            residual = float(np.max(np.linalg.norm(F, axis=1)) / eps.mean())
+            res.records.append(compare(f"packings/{name}", "force balance",
+                                       "max |net force| / mean contact force", residual, 1.001e-3,
+                                       "the generator's stop criterion (force_tol 1e-3, max norm)"))
+            rel = abs(eps.mean() / (2.0 * p.radii.mean()) / RVE_MEAN_OVERLAP - 1.0)
+            res.records.append(compare(f"packings/{name}", "mean overlap", "|<eps>/d_mean / 2.7e-4 - 1|", rel, 0.02,
+                                       "overlap_tol of the request"))
+            check = f"{residual:.2e}"
+        else:
+            kn = p.metadata["dem"]["kn"]
+            target = p.metadata["pressure_over_kn"] * kn
+            pressure = float(np.sum(dist * kn * eps) / (2.0 * p.area))
+            res.records.append(compare(f"packings/{name}", "servo pressure", "|p_normal / p_target - 1|",
+                                       abs(pressure / target - 1.0), 0.015,
+                                       "trace of the Love stress from normal forces only; servo stops at 1 % per axis"))
+            res.records.append(compare(f"packings/{name}", "mean indentation", "<eps> / D50",
+                                       s["mean_overlap_d50"], KUHN_PAPER["indentation_d50"],
+                                       "Kuhn (002): on average less than 0.02 % of D50"))
+            res.records.append(compare(f"packings/{name}", "void ratio", "|e - 0.189|",
+                                       abs(s["void_ratio"] - KUHN_PAPER["void_ratio"]), KUHN_VOID_TOL,
+                                       "Kuhn (002): e = 0.189; seeds 1-4 of the protocol give 0.188-0.194"))
+            check = f"p/p0 - 1 = {pressure / target - 1.0:+.2e}"
+        rows.append([name, p.n, f"{s['solid_fraction']:.4f}", f"{s['void_ratio']:.4f}", f"{s['coordination']:.3f}",
+                     f"{s['coordination_nonrattler']:.3f}", f"{100 * s['rattler_fraction']:.1f}",
+                     f"{100 * s['mean_overlap_d50']:.4f}", f"{s['fabric_anisotropy']:.3f}", f"{err:.2f}", check])
+    rows.append(["Kuhn (002), paper", 1002, "0.841", "0.189", "", "3.75 (2M/N)", "13.1 (131 outside the graph)",
+                 "< 0.02", "", "", ""])
+    res.tables.append(("The standard assemblies (rattlers: fewer than 3 contacts, removed iteratively)",
+                       ["name", "N", "phi", "e", "Z", "Z without rattlers", "rattlers %", "<eps>/D50 %",
+                        "fabric anisotropy", "sieve error pp", "balance"], rows))
+    shown = [n for n in ("kuhn-1002", "rve-700-1") if n in paths] or list(paths)[:1]
+    res.figures.append((_figure(ctx, paths, shown), f"{' and '.join(shown)}: disks and contact forces (line width "
+                                                    "proportional to the normal force)"))
+    return res
+
+
+def _figure(ctx: Context, paths, names):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection, PatchCollection
+    from matplotlib.patches import Circle
+
+    from gransim.io import load_packing
+
+    fig, axes = plt.subplots(1, len(names), figsize=(6.5 * len(names), 6.5), squeeze=False)
+    for ax, name in zip(axes[0], names):
+        p = load_packing(paths[name])
+        i, j, branch, dist, eps = _contacts(p)
+        ax.add_collection(PatchCollection([Circle(xy, r) for xy, r in zip(p.positions, p.radii)],
+                                          facecolor="0.88", edgecolor="0.6", linewidths=0.3))
+        seg = np.stack([p.positions[i], p.positions[i] + branch], axis=1)
+        ax.add_collection(LineCollection(seg, linewidths=0.3 + 3.0 * eps / eps.max(), colors="k"))
+        L = np.diag(p.cell)
+        ax.plot([0, L[0], L[0], 0, 0], [0, 0, L[1], L[1], 0], color="tab:blue", lw=0.8)
+        ax.set_xlim(-0.03 * L[0], 1.03 * L[0])
+        ax.set_ylim(-0.03 * L[1], 1.03 * L[1])
+        ax.set_aspect("equal")
+        ax.set_axis_off()
+        ax.set_title(f"{name}: N = {p.n}, e = {(1 - p.solid_fraction) / p.solid_fraction:.4f}")
+    out = ctx.figure_path("packings_force_chains.png")
+    fig.savefig(out, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return out
