@@ -18,6 +18,11 @@ def register(sub) -> None:
     g.add_argument("--solid-fraction", type=float, help="target packing fraction (at or above jamming)")
     g.add_argument("--mean-overlap", type=float,
                    help="target mean overlap relative to the mean diameter (default 2.7e-4)")
+    p.add_argument("--force-tol", type=float,
+                   help="FIRE stop criterion: residual force / mean contact force (default 1e-3)")
+    p.add_argument("--residual", choices=("max", "rms"),
+                   help="norm of the residual: the largest net force on a disk (default) or the root mean "
+                        "square over all disks (the same demand at every N: use it for 1e5 disks and more)")
     p.add_argument("--friction", type=float,
                    help="make the packing by isotropic frictional DEM compaction of a granular gas with this "
                         "preparation friction coefficient instead of FIRE (looser assemblies: the Kuhn assembly "
@@ -40,6 +45,9 @@ def _run(args) -> int:
         if args.solid_fraction is not None or args.mean_overlap is not None:
             raise InputError("--friction (DEM compaction) takes no --solid-fraction or --mean-overlap target: "
                              "the friction sets the density and --pressure the overlaps")
+        if args.force_tol is not None or args.residual is not None:
+            raise InputError("--force-tol and --residual belong to the FIRE protocol, not to --friction "
+                             "(the compaction stops at an unbalanced force ratio of 1e-3)")
         kw = {} if args.pressure is None else {"pressure": args.pressure}
         packing = compact_packing(args.distribution, args.n, args.seed, args.friction,
                                   mean_diameter=args.mean_diameter, density=args.density, **kw)
@@ -47,9 +55,10 @@ def _run(args) -> int:
     else:
         if args.pressure is not None:
             raise InputError("--pressure needs --friction (it is the stress of the DEM compaction)")
+        kw = {k: v for k, v in (("force_tol", args.force_tol), ("residual", args.residual)) if v is not None}
         packing = make_packing(args.distribution, args.n, args.seed, solid_fraction=args.solid_fraction,
                                mean_overlap=args.mean_overlap, mean_diameter=args.mean_diameter,
-                               density=args.density)
+                               density=args.density, **kw)
         how = f"{packing.metadata['fire_steps']} FIRE steps"
     save_packing(args.output, packing)
     if args.vtu:

@@ -77,6 +77,8 @@ QUENCH_TOL = 0.1
 #: residual tolerance (rms) of the decompression stages and of the pressure passes before the mean
 #: overlap is on target
 PASS_TOL = 1e-2
+#: from this many disks make_packing shows a progress bar (one tick per minimisation stage)
+PROGRESS_FROM = 20_000
 #: pressure ratio of successive decompression stages
 LADDER_FACTOR = 3.0
 #: energy per disk (reduced units, k_n = d_mean = 1) below which a fixed-cell state counts as
@@ -360,6 +362,7 @@ class _Minimiser:
         self.rebuilds = 0
         self.residual = np.inf
         self.log = []
+        self.bar = None  # optional progress bar (one tick per stage)
 
     @property
     def cell(self) -> np.ndarray:
@@ -403,10 +406,14 @@ class _Minimiser:
         Appends {stage, pressure, tol, residual norm, steps, builds, seconds} to ``self.log``."""
         t0 = time.perf_counter()
         s0, b0 = self.steps, self.rebuilds
+        if self.bar is not None:
+            self.bar.set_postfix_str(f"{stage}, {self.steps} FIRE steps so far")
         status = self._run(P, cell_free, ftol, max_steps, skin)
         self.log.append({"stage": stage, "pressure": float(P), "tol": float(ftol),
                          "norm": "rms" if self.rms else "max", "steps": self.steps - s0,
                          "builds": self.rebuilds - b0, "seconds": round(time.perf_counter() - t0, 4)})
+        if self.bar is not None:
+            self.bar.update(1)
         return status
 
     def _run(self, P, cell_free, ftol, max_steps, skin):
@@ -553,6 +560,10 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     L = float(np.sqrt(np.pi * np.sum(r**2) / phi_start))
     x = rng.random((n, 2)) * L
     m = _Minimiser(x, r, L, skin, fire)
+    if n >= PROGRESS_FROM:  # long runs: one tick per stage on a terminal (silent in CI)
+        from ..progress import progress
+
+        m.bar = progress(total=None, desc=f"packing {n} disks", unit="stage")
 
     # 3.-4. jam at the pressure that gives the target mean overlap
     target = mean_overlap if mean_overlap is not None else JAMMING_OVERLAP
@@ -560,6 +571,8 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     P = 4.0 * 0.84 * target / (np.pi * d2)  # p ~ z phi <eps> <l> / (pi <d^2>), z ~ 4, phi ~ 0.84
     passes = 0
     def fail(what: str):
+        if m.bar is not None:
+            m.bar.close()
         raise ConvergenceError(
             f"{what} (N = {n}, seed = {seed}): reached phi = {m.phi:.5f}, mean overlap = "
             f"{m.mean_overlap:.3e} d_mean, residual = {m.residual:.2e} after {m.steps} FIRE steps")
@@ -614,6 +627,8 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
         if status != "converged":
             fail(f"packing at solid fraction {solid_fraction} did not converge ({status})")
 
+    if m.bar is not None:
+        m.bar.close()
     # back to physical units
     xo, ro = m.in_original_order()
     packing = Packing(positions=xo * ell, radii=ro * ell, cell=m.cell * ell, density=density)

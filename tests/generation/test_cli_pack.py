@@ -28,6 +28,13 @@ def test_pack_solid_fraction_option(tmp_path, capsys):
     assert load_packing(out).solid_fraction == pytest.approx(0.88, rel=1e-12)
 
 
+def test_pack_residual_options(tmp_path, capsys):
+    out = tmp_path / "rms.h5"
+    assert main(["pack", "--n", "200", "--seed", "2", "--residual", "rms", "--force-tol", "5e-4", "-o", str(out)]) == 0
+    m = load_packing(out).metadata
+    assert m["residual_norm"] == "rms" and m["force_tol"] == 5e-4 and m["residual"] <= 5e-4
+
+
 def test_pack_by_frictional_compaction(tmp_path, capsys):
     out = tmp_path / "dem.h5"
     assert main(["pack", "--distribution", "kuhn-1002", "--n", "80", "--seed", "2", "--friction", "0.3",
@@ -40,6 +47,8 @@ def test_pack_by_frictional_compaction(tmp_path, capsys):
 @pytest.mark.parametrize("argv, message", [
     (["pack", "--n", "50", "--friction", "0.1", "--solid-fraction", "0.85", "-o", "x.h5"], "takes no --solid"),
     (["pack", "--n", "50", "--pressure", "1e-4", "-o", "x.h5"], "--pressure needs --friction"),
+    (["pack", "--n", "50", "--friction", "0.1", "--residual", "rms", "-o", "x.h5"], "belong to the FIRE"),
+    (["pack", "--n", "50", "--force-tol=-1", "-o", "x.h5"], "force_tol"),
     (["pack", "--n", "50", "--friction=-1", "-o", "x.h5"], "friction"),
     (["pack", "--n", "1", "-o", "x.h5"], "n: expected an integer >= 2"),
     (["pack", "--n", "50", "--distribution", "granite", "-o", "x.h5"], "unknown distribution 'granite'"),
