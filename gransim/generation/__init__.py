@@ -9,9 +9,9 @@
 """
 
 from .gsd import GrainSizeDistribution, distribution_names, get_distribution
-from .compaction import compact_packing
+from .compaction import compact_packing, compaction_run
 from .pack import (STANDARD_PACKINGS, FireParameters, build_standard, make_packing, packing_stats, rattlers,
                    standard_packings)
 
-__all__ = ["STANDARD_PACKINGS", "FireParameters", "build_standard", "compact_packing", "GrainSizeDistribution", "distribution_names",
+__all__ = ["STANDARD_PACKINGS", "FireParameters", "build_standard", "compact_packing", "compaction_run", "GrainSizeDistribution", "distribution_names",
            "get_distribution", "make_packing", "packing_stats", "rattlers", "standard_packings"]

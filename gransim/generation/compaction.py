@@ -75,6 +75,45 @@ def unbalanced_force_ratio(engine) -> float:
     return float(fnet / fc) if fc > 0 else 0.0
 
 
+def _setup(dist, n, seed, friction, pressure, phi_gas, density, kn):
+    """The granular gas, the DEM settings and the servo loading of a compaction (steps 1-3)."""
+    from ..dem import AxisControl, Loading, default_settings
+
+    rng = np.random.default_rng(seed)
+    d = dist.sample(n, rng)
+    ell = float(d.mean())
+    r = d / (2.0 * ell)
+    x, L = _gas(r, phi_gas, rng)
+    gas = Packing(positions=x * ell, radii=r * ell, cell=np.eye(2) * L * ell, density=density)  # as make_packing
+    dem, bi = default_settings(gas, kn=kn)
+    dem = dataclasses.replace(dem, mu=friction)
+    servo = AxisControl("servo", target=pressure * kn, gain=bi.servo_gain)
+    return gas, dem, Loading(x=servo, y=servo)
+
+
+def compaction_run(packing: Packing):
+    """The DEM run that made a packing of :func:`compact_packing`, from its metadata.
+
+    Returns (gas, settings, loading, nsteps): the initial granular gas (Packing), the
+    :class:`~gransim.dem.DEMSettings`, the servo :class:`~gransim.dem.Loading` and the number of
+    steps, so that the compaction can be replayed, e.g. by LIGGGHTS (validation case ``packings``).
+    The final state of that run, wrapped into [0, L), is the packing.
+    """
+    m = packing.metadata
+    if m.get("generator") != "gransim.generation.compact_packing":
+        raise InputError("packing: not made by compact_packing (metadata 'generator' is "
+                         f"{m.get('generator')!r})")
+    dist = get_distribution(m["distribution"])
+    if m.get("mean_diameter_target") is not None:
+        dist = dist.scaled(m["mean_diameter_target"])
+    gas, dem, loading = _setup(dist, m["n"], m["seed"], m["friction"], m["pressure_over_kn"], m["phi_gas"],
+                               packing.density, m["dem"]["kn"])
+    if dem.to_dict() != m["dem"]:
+        raise InputError("packing: the DEM settings rebuilt from its metadata differ from the stored ones "
+                         "(made by another gransim version?)")
+    return gas, dem, loading, int(m["dem_steps"])
+
+
 def compact_packing(distribution, n: int, seed: int, friction: float, *, pressure: float = DEFAULT_PRESSURE,
                     phi_gas: float = DEFAULT_PHI_GAS, mean_diameter: float | None = None, density: float = 2650.0,
                     kn: float = 1e5, stress_tol: float = 0.01, unbalanced_tol: float = 1e-3,
@@ -115,7 +154,7 @@ def compact_packing(distribution, n: int, seed: int, friction: float, *, pressur
         request, the DEM settings, the steps, the unbalanced force ratio and the statistics of
         :func:`packing_stats` (void ratio, coordination, overlaps).
     """
-    from ..dem import AxisControl, DEMEngine, Loading, default_settings
+    from ..dem import DEMEngine
     from ..progress import progress
     from .pack import _check_seed, packing_stats
 
@@ -139,24 +178,15 @@ def compact_packing(distribution, n: int, seed: int, friction: float, *, pressur
     check_every = _check_count(check_every, "check_every", minimum=1)
     max_steps = _check_count(max_steps, "max_steps", minimum=1)
 
-    rng = np.random.default_rng(seed)
-    d = dist.sample(n, rng)
-    ell = float(d.mean())
-    r = d / (2.0 * ell)
-    x, L = _gas(r, phi_gas, rng)
-    gas = Packing(positions=x * ell, radii=r * ell, cell=np.eye(2) * L * ell, density=density)  # as make_packing
-
-    dem, bi = default_settings(gas, kn=kn)
-    dem = dataclasses.replace(dem, mu=friction)
+    gas, dem, loading = _setup(dist, n, seed, friction, pressure, phi_gas, density, kn)
     p = pressure * kn
-    servo = AxisControl("servo", target=p, gain=bi.servo_gain)
-    loading = Loading(x=servo, y=servo)
     eng = DEMEngine(gas, dem)
+    box0 = (eng.lo.copy(), eng.hi.copy())  # one servo phase from step 0, as one LIGGGHTS `run`
     ubf = np.inf
     blocks = -(-max_steps // check_every)
     bar = progress(range(blocks), total=blocks, desc="compaction")
     for _ in bar:
-        eng.advance(loading, check_every)
+        eng.advance(loading, check_every, phase_step0=0, phase_box0=box0)
         s = eng.stress
         on_target = abs(s[0, 0] / p - 1.0) <= stress_tol and abs(s[1, 1] / p - 1.0) <= stress_tol
         if on_target:
@@ -177,7 +207,7 @@ def compact_packing(distribution, n: int, seed: int, friction: float, *, pressur
         "distribution": dist.name, "distribution_d50": dist.d50, "n": n, "seed": seed,
         "friction": friction, "pressure_over_kn": pressure, "phi_gas": phi_gas,
         "mean_diameter_target": mean_diameter, "stress_tol": stress_tol, "unbalanced_tol": unbalanced_tol,
-        "dem": dem.to_dict(), "servo_gain": bi.servo_gain, "dem_steps": int(eng.step),
+        "dem": dem.to_dict(), "servo_gain": loading.x.gain, "dem_steps": int(eng.step),
         "unbalanced_force_ratio": ubf, "stress_over_p": [float(eng.stress[0, 0] / p), float(eng.stress[1, 1] / p)],
         **{k: stats[k] for k in ("solid_fraction", "void_ratio", "mean_overlap_dmean", "mean_overlap_d50",
                                  "max_overlap_d50", "coordination", "coordination_nonrattler",

@@ -755,7 +755,8 @@ def packing_stats(packing: Packing) -> dict:
 # the standard assemblies of the papers
 # --------------------------------------------------------------------------------------------
 #: bump when the algorithm changes results, so that :func:`standard_packings` regenerates files
-GENERATOR_VERSION = 2  # 2: decompression ladder, rms preparatory stages, cell-list order, chunked sums
+GENERATOR_VERSION = 3  # 2: decompression ladder, rms preparatory stages, cell-list order, chunked sums;
+#                       3: the Kuhn compaction is one servo phase (as one LIGGGHTS run)
 
 #: target mean overlap of the standard RVEs (relative to d_mean): the dense state of the slope problem
 RVE_MEAN_OVERLAP = 2.7e-4

@@ -55,6 +55,26 @@ def test_compaction_draws_the_sizes_of_make_packing_and_is_deterministic(pair):
     assert np.array_equal(again.cell, pair[0.0].cell)
 
 
+def test_compaction_replays_from_its_metadata(pair):
+    """compaction_run rebuilds the gas, settings and step count from the file's metadata: one
+    uninterrupted engine run of that many steps ends exactly on the saved packing (what the
+    validation case replays in LIGGGHTS)."""
+    from gransim.dem import DEMEngine
+    from gransim.generation import compaction_run
+
+    p = pair[0.5]
+    gas, dem, loading, nsteps = compaction_run(p)
+    eng = DEMEngine(gas, dem)
+    eng.advance(loading, nsteps, phase_step0=0, phase_box0=(eng.lo.copy(), eng.hi.copy()))
+    L = eng.box_lengths
+    assert np.array_equal(np.diag(p.cell), L)
+    d = (eng.x - eng.lo) - p.positions
+    d -= np.round(d / L) * L
+    assert np.abs(d).max() <= 4 * np.spacing(L.max())  # the same run; only Packing.wrapped() rounds
+    with pytest.raises(InputError, match="not made by compact_packing"):
+        compaction_run(make_packing("quartz-sand", 30, seed=1))
+
+
 def test_kuhn_request_is_frictional_compaction_near_the_paper_void_ratio():
     from gransim.generation.pack import STANDARD_PACKINGS
 

@@ -12,6 +12,11 @@ contacts by the brute-force O(N^2) periodic search, forces by the linear law wri
   equal the servo target p = 1e-4 kn (1.5 %: the servo's 1 % per axis plus damping forces at rest);
   the mean indentation must be below Kuhn's 0.02 % of D50; the void ratio must be near Kuhn's 0.189
   (within 0.005: the spread over seeds of the calibrated protocol is 0.188-0.194).
+* Kuhn's assembly replayed by LIGGGHTS (when installed): :func:`gransim.generation.compaction_run`
+  rebuilds the granular gas, the DEM settings and the step count from the file's metadata; the
+  mirror deck of :mod:`reference_runs.decks.biaxial` runs the whole compaction (~190,000 steps) in
+  LIGGGHTS 3.8.0, whose final positions and box must equal the file's (the native engine matches
+  LIGGGHTS bit for bit; the tolerance admits only the rounding of the final wrap into the cell).
 * Sieve curves: at every aperture of the grading, the sample's percent passing by area against
   the curve; the tolerance is the area share of the largest grain (a sample of N grains cannot
   follow a continuous curve more closely than one grain).
@@ -97,6 +102,8 @@ def packings(ctx: Context) -> CaseResult:
                                        abs(s["void_ratio"] - KUHN_PAPER["void_ratio"]), KUHN_VOID_TOL,
                                        "Kuhn (002): e = 0.189; seeds 1-4 of the protocol give 0.188-0.194"))
             check = f"p/p0 - 1 = {pressure / target - 1.0:+.2e}"
+            if ctx.liggghts:
+                res.records += _liggghts_replay(ctx, name, p, res)
         rows.append([name, p.n, f"{s['solid_fraction']:.4f}", f"{s['void_ratio']:.4f}", f"{s['coordination']:.3f}",
                      f"{s['coordination_nonrattler']:.3f}", f"{100 * s['rattler_fraction']:.1f}",
                      f"{100 * s['mean_overlap_d50']:.4f}", f"{s['fabric_anisotropy']:.3f}", f"{err:.2f}", check])
@@ -109,6 +116,34 @@ def packings(ctx: Context) -> CaseResult:
     res.figures.append((_figure(ctx, paths, shown), f"{' and '.join(shown)}: disks and contact forces (line width "
                                                     "proportional to the normal force)"))
     return res
+
+
+def _liggghts_replay(ctx: Context, name: str, p, res: CaseResult) -> list:
+    """LIGGGHTS runs the compaction that made ``p`` from the same gas; final positions and box compared."""
+    from gransim.generation import compaction_run
+    from reference_runs.parsers import parse_log
+    from reference_runs.runner import LOG_NAME
+
+    from ..dem_compare import position_difference, run_liggghts_job
+
+    gas, dem, loading, nsteps = compaction_run(p)
+    job = ctx.work("reference", "packings", name)
+    lig, man = run_liggghts_job(job, gas, dem, loading, nsteps, dump_every=nsteps,
+                                thermo_every=max(nsteps // 100, 1))
+    run = parse_log(job / LOG_NAME).runs[-1]
+    lo = np.array([run["xlo"][-1], run["ylo"][-1]])
+    L = lig.lengths[-1]
+    x = lig.frames[nsteps]["x"] - lo  # the packing is the final state shifted to the origin, wrapped
+    tol = 4 * float(np.spacing(L.max()))
+    res.notes.append(f"{name}: LIGGGHTS 3.8.0 replayed the {nsteps}-step compaction from the same gas in "
+                     f"{float(man.get('elapsed_s', 0.0)):.1f} s (job {job}; 0.0 s: an identical job was reused).")
+    return [
+        compare(f"packings/{name}", "LIGGGHTS replay: position", "max|dx| (m) modulo the box",
+                position_difference(x, p.positions, L), tol,
+                "the engine matches LIGGGHTS bit for bit; only the final wrap into the cell rounds (4 ulp of L)"),
+        compare(f"packings/{name}", "LIGGGHTS replay: box", "max|dL| (m)", float(np.abs(L - np.diag(p.cell)).max()),
+                0.0, "the box is the same double in both codes"),
+    ]
 
 
 def _figure(ctx: Context, paths, names):
