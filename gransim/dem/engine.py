@@ -167,7 +167,8 @@ class DEMEngine:
         self.eshift = s
         self.slide = np.zeros(a.size, np.bool_)
         self.ef = np.zeros((a.size, 2))
-        self.start = np.searchsorted(a, np.arange(self.packing.n + 1)).astype(np.int64)
+        self.start = np.zeros(self.packing.n + 1, np.int64)  # CSR offsets of the entries of each a (sorted)
+        np.cumsum(np.bincount(a, minlength=self.packing.n), out=self.start[1:])
         self._set_parallel_scratch()
         self.xhold = self.x.copy()
         self.lo_hold = self.lo.copy()
