@@ -26,8 +26,8 @@ coefficient, lower than the friction of the test, chosen for the density wanted:
 
 The mean overlap is set by p: a mean contact force ~ p D50/2 over kn gives ~ 0.5 p/kn D50
 (measured 0.88e-4 D50 at p = 1e-4 kn on ``kuhn-1002``). The void ratio is set by the preparation
-friction: on ``kuhn-1002`` (N = 1002) e = 0.178 at friction 0, 0.188-0.194 at 0.05 (seeds 1-4),
-0.199 at 0.1, 0.213 at 0.2 and 0.236 at 0.5 (docs/generation.md has the table and the command).
+friction: on ``kuhn-1002`` (N = 1002) e = 0.177 at friction 0, 0.189-0.196 at 0.05 (seeds 1-4),
+0.205 at 0.1, 0.213 at 0.2 and 0.239 at 0.5 (docs/generation.md has the table and the command).
 """
 
 from __future__ import annotations

@@ -763,7 +763,7 @@ RVE_MEAN_OVERLAP = 2.7e-4
 #: The Kuhn assembly (002, section 4: void ratio 0.189, effective coordination 3.75, mean indentation
 #: below 0.02 % of D50) is made by frictional DEM compaction (:func:`gransim.generation.compact_packing`):
 #: a frictionless jammed packing of this grading is denser (e = 0.177-0.184 over seeds 1-8) and
-#: better connected than Kuhn's. The preparation friction 0.05 gives e = 0.188, 0.189, 0.188, 0.194
+#: better connected than Kuhn's. The preparation friction 0.05 gives e = 0.190, 0.189, 0.195, 0.196
 #: for seeds 1-4 (docs/generation.md); the seed is 1. Compaction stress 1e-4 kn: mean overlap 0.9e-4 D50.
 KUHN_SEED = 1
 KUHN_FRICTION = 0.05
