@@ -76,13 +76,6 @@ def check_threads(n, name: str = "threads") -> int | None:
     """``None`` or an integer in [1, NUMBA_NUM_THREADS]; :class:`InputError` otherwise."""
     if n is None:
         return None
-    from .errors import InputError
+    from ._validate import as_int
 
-    top = numba.config.NUMBA_NUM_THREADS
-    try:
-        ok = float(n) == int(n) and 1 <= int(n) <= top
-    except (TypeError, ValueError, OverflowError):
-        ok = False
-    if not ok:
-        raise InputError(f"{name}: expected an integer from 1 to {top} (NUMBA_NUM_THREADS), got {n!r}")
-    return int(n)
+    return as_int(n, name, 1, numba.config.NUMBA_NUM_THREADS, " (NUMBA_NUM_THREADS)")

@@ -52,6 +52,20 @@ def as_positive_float(value, name: str, allow_zero: bool = False) -> float:
     return v
 
 
+def as_int(value, name: str, minimum: int, maximum: int | None = None, note: str = "") -> int:
+    """An integral number (int, or a float with an integral value) in [minimum, maximum]; ``note``
+    is appended to the range in the error (e.g. where the maximum comes from)."""
+    try:
+        ok = float(value) == int(value)
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    ok = ok and int(value) >= minimum and (maximum is None or int(value) <= maximum)
+    if not ok:
+        want = f">= {minimum}" if maximum is None else f"from {minimum} to {maximum}"
+        raise InputError(f"{name}: expected an integer {want}{note}, got {value!r}")
+    return int(value)
+
+
 def check_choice(value: str, name: str, choices) -> str:
     """``value`` must be one of ``choices``; the error lists them."""
     if value not in choices:

@@ -37,10 +37,10 @@ import time
 
 import numpy as np
 
-from .._validate import as_positive_float
+from .._validate import as_int, as_positive_float
 from ..errors import ConvergenceError, InputError
 from ..geometry import Packing
-from .gsd import _check_count, get_distribution
+from .gsd import get_distribution
 
 #: stress (relative to kn) of the compaction: mean overlap ~ 0.9e-4 D50
 DEFAULT_PRESSURE = 1e-4
@@ -156,12 +156,12 @@ def compact_packing(distribution, n: int, seed: int, friction: float, *, pressur
     """
     from ..dem import DEMEngine
     from ..progress import progress
-    from .pack import _check_seed, packing_stats
+    from .pack import packing_stats
 
     t0 = time.perf_counter()
     dist = get_distribution(distribution)
-    n = _check_count(n, "n", minimum=2)
-    seed = _check_seed(seed)
+    n = as_int(n, "n", minimum=2)
+    seed = as_int(seed, "seed", minimum=0)
     friction = as_positive_float(friction, "friction", allow_zero=True)
     pressure = as_positive_float(pressure, "pressure")
     if pressure > 1e-2:
@@ -175,8 +175,8 @@ def compact_packing(distribution, n: int, seed: int, friction: float, *, pressur
     kn = as_positive_float(kn, "kn")
     stress_tol = as_positive_float(stress_tol, "stress_tol")
     unbalanced_tol = as_positive_float(unbalanced_tol, "unbalanced_tol")
-    check_every = _check_count(check_every, "check_every", minimum=1)
-    max_steps = _check_count(max_steps, "max_steps", minimum=1)
+    check_every = as_int(check_every, "check_every", minimum=1)
+    max_steps = as_int(max_steps, "max_steps", minimum=1)
 
     gas, dem, loading = _setup(dist, n, seed, friction, pressure, phi_gas, density, kn)
     p = pressure * kn

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validate import as_array, as_positive_float
+from .._validate import as_array, as_int, as_positive_float
 from ..errors import InputError
 
 #: directory (package resource) holding the named sieve curves, one ``<name>.csv`` each
@@ -228,7 +228,7 @@ class GrainSizeDistribution:
         -------
         (n,) float64, unordered.
         """
-        n = _check_count(n, "n", minimum=1)
+        n = as_int(n, "n", minimum=1)
         rng = np.random.default_rng(rng)
         u = rng.random(n)
         if stratified:
@@ -264,16 +264,6 @@ class GrainSizeDistribution:
     def __repr__(self) -> str:
         return (f"GrainSizeDistribution({self.name!r}, D10={self.d10 * 1e3:.4g} mm, D50={self.d50 * 1e3:.4g} mm, "
                 f"D60={self.d60 * 1e3:.4g} mm, Cu={self.cu:.3g}, {self.d_min * 1e3:.4g}-{self.d_max * 1e3:.4g} mm)")
-
-
-def _check_count(n, name: str, minimum: int) -> int:
-    try:
-        ok = float(n) == int(n)
-    except (TypeError, ValueError, OverflowError):
-        ok = False
-    if not ok or int(n) < minimum:
-        raise InputError(f"{name}: expected an integer >= {minimum}, got {n!r}")
-    return int(n)
 
 
 def distribution_names() -> tuple[str, ...]:

@@ -56,12 +56,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._numba import njit, pjit, prange
-from .._validate import as_positive_float, check_choice
+from .._validate import as_int, as_positive_float, check_choice
 from ..contacts import find_neighbours
 from ..contacts.law import force_magnitude, overlap, potential
 from ..errors import ConvergenceError, InputError
 from ..geometry import Packing
-from .gsd import _check_count, get_distribution
+from .gsd import get_distribution
 
 #: solid fractions at or above this are refused as unreachable (a 2D disk packing with small overlaps
 #: stays below ~0.91; beyond 0.95 the "packing" would be mostly overlap)
@@ -451,16 +451,6 @@ class _Minimiser:
 # --------------------------------------------------------------------------------------------
 # public API
 # --------------------------------------------------------------------------------------------
-def _check_seed(seed) -> int:
-    try:
-        ok = float(seed) == int(seed) and int(seed) >= 0
-    except (TypeError, ValueError, OverflowError):
-        ok = False
-    if not ok:
-        raise InputError(f"seed: expected an integer >= 0, got {seed!r}")
-    return int(seed)
-
-
 def make_packing(distribution, n: int, seed: int, solid_fraction: float | None = None,
                  mean_overlap: float | None = None, mean_diameter: float | None = None, *,
                  density: float = 2650.0, phi_start: float = 0.86, skin: float = 0.3,
@@ -522,8 +512,8 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     """
     t0 = time.perf_counter()
     dist = get_distribution(distribution)
-    n = _check_count(n, "n", minimum=2)
-    seed = _check_seed(seed)
+    n = as_int(n, "n", minimum=2)
+    seed = as_int(seed, "seed", minimum=0)
     if solid_fraction is not None and mean_overlap is not None:
         raise InputError("give either solid_fraction or mean_overlap as the target, not both")
     if solid_fraction is not None:
@@ -547,8 +537,8 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     skin = as_positive_float(skin, "skin")
     force_tol = as_positive_float(force_tol, "force_tol")
     overlap_tol = as_positive_float(overlap_tol, "overlap_tol")
-    max_steps = _check_count(max_steps, "max_steps", minimum=1)
-    max_passes = _check_count(max_passes, "max_passes", minimum=1)
+    max_steps = as_int(max_steps, "max_steps", minimum=1)
+    max_passes = as_int(max_passes, "max_passes", minimum=1)
     check_choice(residual, "residual", ("max", "rms"))
 
     # 1. sizes (reduced units: lengths in sample mean diameters)
