@@ -345,8 +345,7 @@ class _Minimiser:
     of the disk in slot k, and :meth:`in_original_order` undoes the permutation.
     """
 
-    def __init__(self, x, r, L, skin: float, fire: FireParameters, parallel: bool | None = None,
-                 residual: str = "max"):
+    def __init__(self, x, r, L, skin: float, fire: FireParameters, parallel: bool | None = None):
         self.x = np.ascontiguousarray(x, dtype=float)
         self.r = np.ascontiguousarray(r, dtype=float)
         self.v = np.zeros_like(self.x)
@@ -355,7 +354,6 @@ class _Minimiser:
         self.skin = float(skin)
         self.fire = fire
         self.parallel = self.x.shape[0] >= PARALLEL_FROM if parallel is None else bool(parallel)
-        self.rms = residual == "rms"
         self.me = float(self.x.shape[0])  # cell "mass": N d_mean^2 (d_mean = 1)
         self.diag = np.zeros(5)
         self.steps = 0
@@ -400,23 +398,24 @@ class _Minimiser:
         self.order = self.order[perm]
 
     def run(self, P: float, cell_free: bool, ftol: float, max_steps: int, skin: float | None = None,
-            stage: str = "") -> str:
-        """Minimise H = U + P A (cell free) or U (cell fixed) from the current state.
+            stage: str = "", rms: bool = False) -> str:
+        """Minimise H = U + P A (cell free) or U (cell fixed) from the current state, until the
+        largest (or, with ``rms``, the root-mean-square) net force is below ``ftol``.
 
         Appends {stage, pressure, tol, residual norm, steps, builds, seconds} to ``self.log``."""
         t0 = time.perf_counter()
         s0, b0 = self.steps, self.rebuilds
         if self.bar is not None:
             self.bar.set_postfix_str(f"{stage}, {self.steps} FIRE steps so far")
-        status = self._run(P, cell_free, ftol, max_steps, skin)
+        status = self._run(P, cell_free, ftol, max_steps, skin, rms)
         self.log.append({"stage": stage, "pressure": float(P), "tol": float(ftol),
-                         "norm": "rms" if self.rms else "max", "steps": self.steps - s0,
+                         "norm": "rms" if rms else "max", "steps": self.steps - s0,
                          "builds": self.rebuilds - b0, "seconds": round(time.perf_counter() - t0, 4)})
         if self.bar is not None:
             self.bar.update(1)
         return status
 
-    def _run(self, P, cell_free, ftol, max_steps, skin):
+    def _run(self, P, cell_free, ftol, max_steps, skin, rms):
         skin = self.skin if skin is None else float(skin)
         fp = self.fire
         fire = _fire_par if self.parallel else _fire
@@ -438,7 +437,7 @@ class _Minimiser:
             x_ref = self.x.copy()
             done = int(st[5])
             status = fire(self.x, self.v, self.r, pi, pj, off, pcut, x_ref, st, self.diag, 1.0, float(P),
-                          bool(cell_free), self.me, float(ftol), self.rms, skin, float(self.r.max()),
+                          bool(cell_free), self.me, float(ftol), bool(rms), skin, float(self.r.max()),
                           int(max_steps), fp.dt_max, fp.dt_min, fp.f_inc, fp.f_dec, fp.alpha_start,
                           fp.f_alpha, int(fp.n_delay))
             self.L = float(st[0])
@@ -570,8 +569,8 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     # the random start relaxed at fixed cell (a quench from "infinite temperature"); only the large
     # overlaps of the random start need to go, so a loose tolerance on the rms residual suffices
     # (with a doubled skin: the disks of the random start travel far, rebuilds would dominate)
-    m.rms = True  # preparatory stages: rms residual; the last pass uses the requested norm
-    status = m.run(0.0, False, max(force_tol, QUENCH_TOL), max_steps, skin=2 * skin, stage="quench")
+    # preparatory stages use the rms residual; the last pass uses the requested norm
+    status = m.run(0.0, False, max(force_tol, QUENCH_TOL), max_steps, skin=2 * skin, stage="quench", rms=True)
     if status != "converged":
         fail(f"relaxation of the random start did not converge ({status})")
     # decompression ladder: from the first p 3^k at or above the pressure of the quenched state (the
@@ -582,23 +581,24 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     p_quench = m.diag[1] / (2.0 * m.L**2)
     ladder = int(np.ceil(np.log(p_quench / P) / np.log(LADDER_FACTOR))) if p_quench > P else 0
     for k in range(ladder, 0, -1):
-        status = m.run(P * LADDER_FACTOR**k, True, max(force_tol, PASS_TOL), max_steps, stage=f"decompression {k}")
+        status = m.run(P * LADDER_FACTOR**k, True, max(force_tol, PASS_TOL), max_steps, stage=f"decompression {k}",
+                       rms=True)
         if status != "converged":
             fail(f"decompression stage at pressure {P * LADDER_FACTOR**k:.3e} k_n did not converge ({status})")
     # pressure passes at the target: rms PASS_TOL while the pressure is adjusted, then force_tol in the
     # requested norm
-    tol = max(force_tol, PASS_TOL)
+    tol, rms = max(force_tol, PASS_TOL), True
     while True:
         passes += 1
-        status = m.run(P, True, tol, max_steps, stage=f"pressure pass {passes}")
+        status = m.run(P, True, tol, max_steps, stage=f"pressure pass {passes}", rms=rms)
         if status != "converged":
             fail(f"packing did not converge ({status}) at pressure {P:.3e} k_n")
         achieved = m.mean_overlap
         if achieved > 0 and abs(achieved / target - 1.0) <= overlap_tol:
-            if tol == force_tol and m.rms == (residual == "rms"):
+            if tol == force_tol and rms == (residual == "rms"):
                 break
-            tol = force_tol  # on target at the loose tolerance: converge tightly at the same pressure
-            m.rms = residual == "rms"
+            # on target at the loose tolerance: converge tightly at the same pressure, requested norm
+            tol, rms = force_tol, residual == "rms"
             continue
         if passes >= max_passes:
             fail(f"mean overlap target {target:.3e} d_mean not reached in {max_passes} passes")
@@ -613,7 +613,7 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
                 f"this protocol (N = {n}, seed = {seed}): no contact network exists there; ask for a "
                 "mean_overlap target or a larger solid fraction")
         m.scale_to(np.sqrt(np.pi * np.sum(r**2) / solid_fraction))
-        status = m.run(0.0, False, force_tol, max_steps, stage="solid fraction")
+        status = m.run(0.0, False, force_tol, max_steps, stage="solid fraction", rms=residual == "rms")
         if status != "converged":
             fail(f"packing at solid fraction {solid_fraction} did not converge ({status})")
 
