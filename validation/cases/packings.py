@@ -68,10 +68,12 @@ def packings(ctx: Context) -> CaseResult:
         "the sieve curve of every sample.")
     paths = standard_packings(ctx.results / "packings")
     rows = []
+    packs, seen = {}, {}  # loaded packings and their contacts, reused by the figure
     for name, path in paths.items():
         p = load_packing(path)
         s = packing_stats(p)
-        i, j, branch, dist, eps = _contacts(p)
+        packs[name], seen[name] = p, _contacts(p)
+        i, j, branch, dist, eps = seen[name]
         err, bound = _sieve_error(p)
         res.records.append(compare(f"packings/{name}", "sieve curve", "max |sample - curve| over apertures (pp)",
                                    err, bound, "one grain: the area share of the largest disk"))
@@ -113,7 +115,7 @@ def packings(ctx: Context) -> CaseResult:
                        ["name", "N", "phi", "e", "Z", "Z without rattlers", "rattlers %", "<eps>/D50 %",
                         "fabric anisotropy", "sieve error pp", "balance"], rows))
     shown = [n for n in ("kuhn-1002", "rve-700-1") if n in paths] or list(paths)[:1]
-    res.figures.append((_figure(ctx, paths, shown), f"{' and '.join(shown)}: disks and contact forces (line width "
+    res.figures.append((_figure(ctx, {n: (packs[n], seen[n]) for n in shown}), f"{' and '.join(shown)}: disks and contact forces (line width "
                                                     "proportional to the normal force)"))
     return res
 
@@ -146,7 +148,8 @@ def _liggghts_replay(ctx: Context, name: str, p, res: CaseResult) -> list:
     ]
 
 
-def _figure(ctx: Context, paths, names):
+def _figure(ctx: Context, shown: dict):
+    """Disks and contact force lines of ``shown`` = {name: (packing, contacts of _contacts)}."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -154,12 +157,8 @@ def _figure(ctx: Context, paths, names):
     from matplotlib.collections import LineCollection, PatchCollection
     from matplotlib.patches import Circle
 
-    from gransim.io import load_packing
-
-    fig, axes = plt.subplots(1, len(names), figsize=(6.5 * len(names), 6.5), squeeze=False)
-    for ax, name in zip(axes[0], names):
-        p = load_packing(paths[name])
-        i, j, branch, dist, eps = _contacts(p)
+    fig, axes = plt.subplots(1, len(shown), figsize=(6.5 * len(shown), 6.5), squeeze=False)
+    for ax, (name, (p, (i, j, branch, dist, eps))) in zip(axes[0], shown.items()):
         ax.add_collection(PatchCollection([Circle(xy, r) for xy, r in zip(p.positions, p.radii)],
                                           facecolor="0.88", edgecolor="0.6", linewidths=0.3))
         seg = np.stack([p.positions[i], p.positions[i] + branch], axis=1)
