@@ -9,7 +9,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
+
 SUITES = ("quick", "default", "full")
+#: default per-job timeout: a constant (start-up, set-up, output) plus a cost per particle-step.
+#: LIGGGHTS 3.8.0 runs ~6 M particle-steps/s serially here (docs/dem.md, make bench): 3e-6 s per
+#: particle-step is ~20x that, so a healthy job never meets the default.
+JOB_TIMEOUT_BASE = 120.0
+JOB_TIMEOUT_PER_PSTEP = 3e-6
 
 
 @dataclass(frozen=True)
@@ -19,6 +26,10 @@ class Record:
     ``case`` is a case id optionally followed by a suffix (``taylor-rve/700-3/shear12``);
     ``metric`` names how ``value`` was computed (e.g. ``max_rel_diff``); ``passed`` is
     ``value <= tolerance`` unless the case states another rule in ``reason``.
+
+    ``kind`` is ``"check"`` (a verdict against something independent: the other code, an exact
+    or analytic value, a bound) or ``"info"`` (a figure shown for the reader, never a verdict:
+    :func:`info`). Only checks decide whether a case passes.
     """
 
     case: str
@@ -28,11 +39,28 @@ class Record:
     tolerance: float
     passed: bool
     reason: str = ""
+    kind: str = "check"
+
+    def __post_init__(self):
+        if self.kind not in RECORD_KINDS:
+            raise ValueError(f"Record.kind: expected one of {RECORD_KINDS}, got {self.kind!r}")
+
+    @property
+    def verdict(self) -> str:
+        """``"pass"``, ``"FAIL"`` or ``"info"``."""
+        if self.kind == "info":
+            return "info"
+        return "pass" if self.passed else "FAIL"
 
     def to_json(self) -> dict:
         v = self.value if math.isfinite(self.value) else str(self.value)
+        t = self.tolerance if math.isfinite(self.tolerance) else str(self.tolerance)
         return {"case": self.case, "quantity": self.quantity, "metric": self.metric, "value": v,
-                "tolerance": self.tolerance, "pass": bool(self.passed), "reason": self.reason}
+                "tolerance": t, "pass": bool(self.passed) if self.kind == "check" else None,
+                "kind": self.kind, "reason": self.reason}
+
+
+RECORD_KINDS = ("check", "info")
 
 
 def compare(case: str, quantity: str, metric: str, value: float, tolerance: float, reason: str) -> Record:
@@ -40,6 +68,41 @@ def compare(case: str, quantity: str, metric: str, value: float, tolerance: floa
     value = float(value)
     return Record(case, quantity, metric, value, float(tolerance),
                   bool(math.isfinite(value) and value <= tolerance), reason)
+
+
+def info(case: str, quantity: str, metric: str, value: float, reason: str) -> Record:
+    """A figure reported for the reader, not a verdict (no tolerance; never counts as a pass)."""
+    return Record(case, quantity, metric, float(value), float("nan"), True, reason, kind="info")
+
+
+def evidence(case: str, what: str, expected, got, reason: str = "") -> Record:
+    """The record of one piece of evidence: ``got`` of the ``expected`` items (steps, frames,
+    contacts, states, runs) were present. Fails, named ``incomplete: expected N what, got M``,
+    unless every expected item is there.
+
+    ``expected`` and ``got`` are counts, or collections of item labels (then the missing ones
+    are named in the metric).
+    """
+    if isinstance(expected, int | np.integer) and isinstance(got, int | np.integer):
+        n_exp, n_got, missing = int(expected), int(got), []
+    else:
+        exp, have = list(expected), set(got)
+        missing = [e for e in exp if e not in have]
+        n_exp, n_got = len(exp), len(exp) - len(missing)
+    short = max(0, n_exp - n_got)
+    if short or n_exp == 0:
+        metric = f"incomplete: expected {n_exp} {what}, got {n_got}"
+        if missing:
+            shown = ", ".join(str(m) for m in missing[:8]) + (" ..." if len(missing) > 8 else "")
+            metric += f" (missing: {shown})"
+        if n_exp == 0:
+            metric = f"incomplete: no {what} expected or found (nothing to compare)"
+    else:
+        metric = f"complete: {n_got} of {n_exp} {what}"
+    return Record(case, "evidence", metric, float(short if n_exp else 1), 0.0, short == 0 and n_exp > 0,
+                  reason or "a comparison is only as good as its evidence: every expected item must be present "
+                            "on both sides (a truncated log, a cut dump or a dropped contact is a failure, "
+                            "never a pass on what remains)")
 
 
 @dataclass
@@ -56,8 +119,15 @@ class CaseResult:
     error: str | None = None  # set when the case could not run: counts as a failure
 
     @property
+    def checks(self) -> list[Record]:
+        """The records that are verdicts (``kind == "check"``)."""
+        return [r for r in self.records if r.kind == "check"]
+
+    @property
     def passed(self) -> bool:
-        return self.error is None and bool(self.records) and all(r.passed for r in self.records)
+        """No error, at least one check, and every check passed (info records do not count)."""
+        checks = self.checks
+        return self.error is None and bool(checks) and all(r.passed for r in checks)
 
 
 @dataclass(frozen=True)
@@ -68,6 +138,16 @@ class Context:
     results: Path  # results/ root
     jobs: int = 1
     liggghts: bool = False  # binary available?
+    timeout: float | None = None  # s per reference job (None: scaled with the job's work)
+
+    def job_timeout(self, particle_steps: float) -> float:
+        """Seconds a reference job of ``particle_steps`` (particles x steps, summed over its runs)
+        may take before it is killed: ``--timeout`` when given, else
+        ``JOB_TIMEOUT_BASE + JOB_TIMEOUT_PER_PSTEP * particle_steps`` (about 20 times LIGGGHTS'
+        serial speed on this kind of machine, so only a hung or runaway job reaches it)."""
+        if self.timeout is not None:
+            return float(self.timeout)
+        return JOB_TIMEOUT_BASE + JOB_TIMEOUT_PER_PSTEP * float(particle_steps)
 
     @property
     def report_dir(self) -> Path:
@@ -116,6 +196,14 @@ def registered_cases(suite: str) -> list[Case]:
     from . import cases  # noqa: F401  (imports register the cases)
 
     return sorted((c for c in _REGISTRY.values() if suite in c.suites), key=lambda c: (c.order, c.id))
+
+
+def stored_dir(name: str) -> Path:
+    """Directory of a stored reference job (``reference_runs/stored/<name>``), looked up at call
+    time so that the fault tests can point the cases at a damaged copy."""
+    from reference_runs import store
+
+    return Path(store.STORED) / name
 
 
 def liggghts_available() -> bool:

@@ -107,11 +107,18 @@ def read_liggghts(log_path, dump_path) -> Trajectory:
 
 
 def run_liggghts_job(job_dir, packing, settings, loading, nsteps: int, dump_every: int, velocities=None,
-                     spins=None, np_procs: int = 1, thermo_every: int = 1) -> tuple[Trajectory, dict]:
+                     spins=None, np_procs: int = 1, thermo_every: int = 1,
+                     timeout: float | None = None) -> tuple[Trajectory, dict]:
     """Write the mirror deck of the run and run it in ``job_dir`` (reused when complete).
 
-    Returns the trajectory and the job manifest (command, version, elapsed time, hashes).
+    ``timeout`` (s) kills the job (and its process group) when exceeded; None scales it with the
+    work (:data:`validation.core.JOB_TIMEOUT_PER_PSTEP`). Returns the trajectory and the job
+    manifest (command, version, elapsed time, hashes).
     """
+    if timeout is None:
+        from .core import JOB_TIMEOUT_BASE, JOB_TIMEOUT_PER_PSTEP
+
+        timeout = JOB_TIMEOUT_BASE + JOB_TIMEOUT_PER_PSTEP * packing.n * nsteps
     from reference_runs.decks.biaxial import write_biaxial_deck
     from reference_runs.runner import run_job
 
@@ -120,10 +127,52 @@ def run_liggghts_job(job_dir, packing, settings, loading, nsteps: int, dump_ever
                                   velocities=velocities, spins=spins)
         data = (Path(tmp) / "data.biaxial").read_bytes()
         res = run_job(job_dir, deck.read_text(), files={"data.biaxial": data}, np=np_procs,
-                      outputs=("dump.atoms",), expected_runs=1, progress=False)
+                      outputs=("dump.atoms",), expected_runs=1, progress=False, timeout=timeout)
     traj = read_liggghts(res.log_path, res.path("dump.atoms"))
     el = 0.0 if res.skipped else float(res.manifest.get("elapsed_s", 0.0))
     return Trajectory(traj.steps, traj.stress, traj.lengths, traj.frames, el), res.manifest
+
+
+# ------------------------------------------------------------------ evidence
+def expected_steps(nsteps: int, every: int = 1) -> np.ndarray:
+    """Steps a series of a run of ``nsteps`` holds when it keeps every ``every``-th step from 0
+    (the thermo rows of the LIGGGHTS deck, the native series)."""
+    return np.arange(0, int(nsteps) + 1, int(every), dtype=np.int64)
+
+
+def expected_frames(nsteps: int, dump_every: int) -> np.ndarray:
+    """Steps of the frames of a run of ``nsteps`` dumped every ``dump_every`` steps from 0."""
+    return np.arange(0, int(nsteps) + 1, int(dump_every), dtype=np.int64)
+
+
+def trajectory_evidence(label: str, who: str, tr: Trajectory, steps, frames) -> list:
+    """Evidence records of one side: every expected series step and every expected frame present.
+
+    ``steps``/``frames`` are the expected step numbers (:func:`expected_steps`,
+    :func:`expected_frames`; None: not checked); ``who`` names the side (``native``, ``LIGGGHTS``). A frame counts
+    only if it holds every per-particle column for the same number of particles as frame 0 and
+    finite values.
+    """
+    from .core import evidence
+
+    recs = []
+    if steps is not None:
+        have = set(int(s) for s in tr.steps[np.all(np.isfinite(tr.stress), axis=1)]) if len(tr.steps) else set()
+        recs.append(evidence(label, f"{who} series steps", [int(s) for s in steps], have))
+    if frames is not None:
+        n0 = None
+        good = set()
+        for s, fr in tr.frames.items():
+            try:
+                n = len(fr["x"])
+                ok = all(k in fr and len(fr[k]) == n and np.all(np.isfinite(fr[k])) for k in FRAME_KEYS)
+            except (KeyError, TypeError):
+                ok = False
+            if ok and (n0 is None or n == n0):
+                n0 = n if n0 is None else n0
+                good.add(int(s))
+        recs.append(evidence(label, f"{who} frames", [int(s) for s in frames], good))
+    return recs
 
 
 # ------------------------------------------------------------------ differences
@@ -135,10 +184,15 @@ def position_difference(a: np.ndarray, b: np.ndarray, lengths: np.ndarray) -> fl
     return float(np.abs(d).max())
 
 
-def frame_differences(a: Trajectory, b: Trajectory, d50: float) -> dict:
-    """Per common frame step: position difference / D50 and the relative differences of velocities,
-    spins, forces, torques (max |a - b| / max |b| over the frame). Returns {key: (steps, values)}."""
-    steps = np.array(sorted(set(a.frames) & set(b.frames)), np.int64)
+def frame_differences(a: Trajectory, b: Trajectory, d50: float, steps=None) -> dict:
+    """Per frame step: position difference / D50 and the relative differences of velocities,
+    spins, forces, torques (max |a - b| / max |b| over the frame). Returns {key: (steps, values)}.
+
+    ``steps``: the frames to compare (default: those present in both). A step missing on either
+    side is a KeyError: completeness is checked first (:func:`trajectory_evidence`)."""
+    if steps is None:
+        steps = sorted(set(a.frames) & set(b.frames))
+    steps = np.array(sorted(int(s) for s in steps), np.int64)
     out = {k: np.zeros(len(steps)) for k in FRAME_KEYS}
     for n, s in enumerate(steps):
         fa, fb = a.frames[s], b.frames[s]
@@ -150,11 +204,11 @@ def frame_differences(a: Trajectory, b: Trajectory, d50: float) -> dict:
     return {"steps": steps, **out}
 
 
-def stress_differences(a: Trajectory, b: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per common step: max_component |sigma_a - sigma_b| / max_component |sigma_b| (sigma_xy passes
+def stress_differences(a: Trajectory, b: Trajectory, steps=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per step: max_component |sigma_a - sigma_b| / max_component |sigma_b| (sigma_xy passes
     through zero, so the scale is the largest component), and |L_a - L_b| max (m). Returns
-    (steps, rel stress diff, box diff)."""
-    steps = np.intersect1d(a.steps, b.steps)
+    (steps, rel stress diff, box diff). ``steps`` default: those present in both."""
+    steps = np.intersect1d(a.steps, b.steps) if steps is None else np.asarray(steps, np.int64)
     ia, ib = a.at(steps), b.at(steps)
     sa, sb = a.stress[ia], b.stress[ib]
     scale = np.abs(sb).max(axis=1)

@@ -43,7 +43,8 @@ def write_h5(path: Path, results: list[CaseResult], header: dict) -> None:
         f.create_dataset("metric", data=np.array([r.metric for r in rows], dtype=object), dtype=str_dt)
         f.create_dataset("value", data=np.array([r.value for r in rows], float))
         f.create_dataset("tolerance", data=np.array([r.tolerance for r in rows], float))
-        f.create_dataset("pass", data=np.array([r.passed for r in rows], bool))
+        f.create_dataset("pass", data=np.array([r.passed and r.kind == "check" for r in rows], bool))
+        f.create_dataset("kind", data=np.array([r.kind for r in rows], dtype=object), dtype=str_dt)
         f.create_dataset("reason", data=np.array([r.reason for r in rows], dtype=object), dtype=str_dt)
 
 
@@ -51,6 +52,7 @@ _CSS = """
 body{font-family:sans-serif;max-width:1200px;margin:2em auto;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 7px;font-size:90%}
 th{background:#eee}.pass{color:#080;font-weight:bold}.fail{color:#b00;font-weight:bold}
+.info{color:#555;font-style:italic}
 .banner{padding:0.7em;border:2px solid #b60;background:#fff4e0;margin:1em 0}
 img{max-width:100%;border:1px solid #ddd;margin:0.3em 0}figure{margin:1em 0}
 figcaption{font-size:90%;color:#444}code{background:#f4f4f4}
@@ -72,15 +74,31 @@ def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Pat
     if (report_dir / "bench.html").exists():
         out.append("<tr><th>benchmarks</th><td><a href='bench.html'>bench.html</a> (make bench: speed figures "
                    "against their targets, scaling plots)</td></tr>")
-    out.append("</table><h2>Summary</h2><table><tr><th>case</th><th>title</th><th>records</th>"
-               "<th>result</th></tr>")
+    out.append("</table><h2>Summary</h2><table><tr><th>case</th><th>title</th><th>checks passed</th>"
+               "<th>incomplete evidence</th><th>information</th><th>result</th></tr>")
     for res in results:
         cls = "pass" if res.passed else "fail"
         word = "PASS" if res.passed else ("NOT RUN" if res.error else "FAIL")
+        checks = res.checks
+        n_ok = sum(r.passed for r in checks)
+        n_inc = sum(1 for r in checks if r.quantity == "evidence" and not r.passed)
         out.append(f"<tr><td><a href='#{res.case}'>{html.escape(res.case)}</a></td>"
-                   f"<td>{html.escape(res.title)}</td><td>{len(res.records)}</td>"
+                   f"<td>{html.escape(res.title)}</td><td>{n_ok} of {len(checks)}</td>"
+                   f"<td class='{'fail' if n_inc else ''}'>{n_inc}</td><td>{len(res.records) - len(checks)}</td>"
                    f"<td class='{cls}'>{word}</td></tr>")
     out.append("</table>")
+    out.append("<p>A case passes only when it ran, has at least one check, and every check passes. A check whose "
+               "evidence is incomplete (a missing step, frame, state, contact or run on either side) is a "
+               "failure named <i>incomplete</i>, never a pass on what remains; <i>info</i> rows are figures for "
+               "the reader, not verdicts.</p>")
+    from .faults import FAULT_KINDS
+
+    out.append("<details><summary>Faults the test suite injects to show that these verdicts can fail "
+               f"({len(FAULT_KINDS)} kinds, <code>tests/faults</code>; each ends in a failing verdict or a clear "
+               "error)</summary><table><tr><th>fault</th><th>expected outcome</th><th>test</th></tr>"
+               + "".join(f"<tr><td>{html.escape(k.fault)}</td><td>{html.escape(k.outcome)}</td>"
+                         f"<td><code>{html.escape(k.test)}</code></td></tr>" for k in FAULT_KINDS)
+               + "</table></details>")
     for res in results:
         out.append(f"<h2 id='{res.case}'>{html.escape(res.case)}: {html.escape(res.title)}</h2>")
         out.append(f"<p>{res.description}</p>")
@@ -92,10 +110,11 @@ def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Pat
             out.append("<table><tr><th>compared</th><th>quantity</th><th>metric</th><th>measured</th>"
                        "<th>tolerance</th><th>result</th><th>why this tolerance</th></tr>")
             for r in res.records:
-                cls = "pass" if r.passed else "fail"
+                cls = {"pass": "pass", "FAIL": "fail", "info": "info"}[r.verdict]
+                tol = "" if r.kind == "info" else _fmt(r.tolerance)
                 out.append(f"<tr><td>{html.escape(r.case)}</td><td>{html.escape(r.quantity)}</td>"
                            f"<td>{html.escape(r.metric)}</td><td>{_fmt(r.value)}</td>"
-                           f"<td>{_fmt(r.tolerance)}</td><td class='{cls}'>{'pass' if r.passed else 'FAIL'}"
+                           f"<td>{tol}</td><td class='{cls}'>{r.verdict}"
                            f"</td><td>{html.escape(r.reason)}</td></tr>")
             out.append("</table>")
         for caption, head, rows in res.tables:

@@ -16,16 +16,22 @@ from .report import write_h5, write_html, write_json
 
 
 def run_validation(suite: str = "default", results: Path | str = "results", jobs: int = 1,
-                   only: list[str] | None = None, log=print) -> tuple[bool, list[CaseResult]]:
+                   only: list[str] | None = None, log=print,
+                   timeout: float | None = None) -> tuple[bool, list[CaseResult]]:
     """Run every case of ``suite``; write results/validation.{json,h5} and results/report/index.html.
 
-    Returns ``(all_passed, results)``. A case that raises is reported as not run (a failure),
-    with its error, and the other cases still run.
+    ``timeout`` (s) bounds every reference job (None: scaled with the job's work,
+    :meth:`Context.job_timeout`); a job that exceeds it is killed with its process group and its
+    case is reported as not run, naming the job. Returns ``(all_passed, results)``. A case that
+    raises is reported as not run (a failure), with its error, and the other cases still run.
     """
-    from gransim._validate import check_choice
+    from gransim._validate import as_positive_float, check_choice
 
     check_choice(suite, "suite", SUITES)
-    ctx = Context(suite=suite, results=Path(results), jobs=int(jobs), liggghts=liggghts_available())
+    if timeout is not None:
+        timeout = as_positive_float(timeout, "--timeout")
+    ctx = Context(suite=suite, results=Path(results), jobs=int(jobs), liggghts=liggghts_available(),
+                  timeout=timeout)
     ctx.report_dir.mkdir(parents=True, exist_ok=True)
     cases = registered_cases(suite)
     if only:
@@ -57,6 +63,7 @@ def run_validation(suite: str = "default", results: Path | str = "results", jobs
         "liggghts_version": liggghts_version() or "absent",
         "machine": f"{platform.node()} ({platform.machine()}, {__import__('os').cpu_count()} cores)",
         "wall_time_s": round(time.perf_counter() - t_all, 1),
+        "job_timeout_s": timeout if timeout is not None else "scaled with each job's work",
     }
     write_json(ctx.results / "validation.json", out, header)
     write_h5(ctx.results / "validation.h5", out, header)

@@ -13,11 +13,14 @@ def register(sub) -> None:
     p.add_argument("--jobs", type=int, default=1, help="parallel reference jobs (default 1)")
     p.add_argument("--results", default="results", help="results directory (default ./results)")
     p.add_argument("--case", action="append", default=None, help="run only this case (repeatable)")
+    p.add_argument("--timeout", type=float, default=None, metavar="SECONDS",
+                   help="kill any reference job running longer than this (default: scaled with the job's "
+                        "work, ~20x LIGGGHTS' speed)")
     p.set_defaults(func=_run)
 
 
 def _run(args) -> int:
     from validation.runner import run_validation
 
-    ok, _ = run_validation(args.suite, args.results, args.jobs, only=args.case)
+    ok, _ = run_validation(args.suite, args.results, args.jobs, only=args.case, timeout=args.timeout)
     return 0 if ok else 1

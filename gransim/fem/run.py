@@ -168,6 +168,7 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
     lines += ["", "Load-settlement (footing force N/m, settlement m, rotation rad):", "",
               "| force | settlement | rotation |", "|---|---|---|"]
     lines += [f"| {r[0] + 0.0:.4g} | {r[1] + 0.0:.5g} | {r[2] + 0.0:.4e} |" for r in ls]
+    lc, lc_error = None, ""
     try:
         lc = [linear_check(problem, s) for s in (1e-3, 2e-3)]
         lines += ["", (f"Small-load check (dead load x 1e-3 and 2e-3 against the linear solution with the RVE "
@@ -175,6 +176,7 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
                       f"{lc[1]['relative_difference']:.3e} (max displacement {lc[0]['max_displacement_m']:.3e} m)")]
     except (GransimError, RuntimeError, ValueError) as exc:  # e.g. a singular K(0): worth reporting
         lines += ["", f"Small-load check failed: {exc}"]
+        lc_error = str(exc)
     report = "\n".join(lines)
     if out is not None:
         if last is not None and figures != "none":
@@ -193,16 +195,57 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
         write_h5(out / "slope.h5", problem, setup, result, params, message)
     return {"completed": result.completed, "message": message, "report": report, "table": table,
             "timing": {**result.timer.as_dict(), "wall_s": wall}, "load_settlement": ls,
-            "steps": result.steps, "result": result, "problem": problem}
+            "steps": result.steps, "result": result, "problem": problem, "linear_check": lc,
+            "linear_check_error": lc_error, "patch_check": patch_check(mat)}
+
+
+def patch_check(material, F0=None) -> dict:
+    """Exact case for the FE2 machinery with the slope's own material: a distorted 3 x 3 Q1 patch
+    whose boundary nodes follow an affine field u = (F0 - 1) X must be solved by that affine field
+    exactly, with P(F0) of the material at every Gauss point (the Q1 patch test).
+
+    Returns the largest nodal displacement error relative to max|u| and the largest Piola stress
+    error relative to max|P(F0)|: round-off (~1e-13) for a correct element, assembly and material
+    interface; any error in them gives O(1).
+    """
+    from .constraints import DofMap
+    from .mesh import rectangle_mesh
+    from .solver import NewtonFailure, Problem, newton
+
+    F0 = np.array([[0.995, 0.004], [-0.002, 0.990]]) if F0 is None else np.asarray(F0, float)
+    mesh = rectangle_mesh(3, 3, 2.0, 1.0, distort=0.2, seed=5)
+    X = mesh.nodes
+    bnd = np.flatnonzero((X[:, 0] == 0) | (X[:, 0] == 2) | (X[:, 1] == 0) | (X[:, 1] == 1))
+    dofs = np.concatenate([2 * bnd, 2 * bnd + 1])
+    u = X @ (F0 - np.eye(2)).T
+    prob = Problem(mesh, material, DofMap.build(X, dofs, values=u.ravel()[dofs]))
+    try:
+        sol = newton(prob, np.zeros(prob.dofs.n_reduced), (0.0, 0.0))
+    except NewtonFailure as exc:  # no solution at all: the check fails with what Newton reached
+        return {"displacement": float("inf"), "stress": float("inf"), "error": str(exc)}
+    P0 = material.evaluate(F0[None]).piola[0]
+    return {"displacement": float(np.abs(sol.u - u).max() / np.abs(u).max()),
+            "stress": float(np.abs(sol.material.piola - P0).max() / np.abs(P0).max())}
 
 
 def acceptance_records(summaries: dict) -> list[dict]:
-    """Validation-style records {case, quantity, metric, value, tolerance, pass, note} of slope runs.
+    """Validation-style records {case, quantity, metric, value, tolerance, pass, kind, note} of slope runs.
 
-    ``summaries`` maps protocol -> :func:`run_slope_case` summary. Checks: the service protocol
-    completes; the paper protocol stops at a limit below the full load with contact-free Gauss points
-    named; every converged step ends at e <= 1e-20 or round-off; the last observed Newton order of each
-    step is near 2 (> 1.5); the small-load solution is linear in the load.
+    ``summaries`` maps protocol -> :func:`run_slope_case` summary. Checks (``kind`` "check": each
+    is set against something independent of the run's own stopping rules, with a tolerance a wrong
+    answer exceeds):
+
+    * Newton's observed order near 2 in the last iterations of every step (> 1.5): a theorem for a
+      consistent tangent; an inconsistent one converges linearly (order 1);
+    * the small-load solution against the linear solution with the tangent at F = 1: the
+      difference is the small load's nonlinearity (5e-3 relative at 1e-3 of the dead load),
+      whereas a tangent or residual a few percent off gives more than 1e-2 (no rate is judged:
+      contacts opening under the load make the Taylor response only piecewise smooth);
+    * the Q1 patch test with the slope's material: exact to round-off.
+
+    Reported for the reader (``kind`` "info", not verdicts): whether the service load path
+    completed, the last converged footing fraction of the paper protocol (the paper gives no
+    limit load to compare with) and the final energy norms (the stopping criterion itself).
     """
     from .output import observed_orders
 
@@ -211,21 +254,46 @@ def acceptance_records(summaries: dict) -> list[dict]:
         case = f"slope/{prot}"
         res = s["result"]
         if prot == "service":
-            out.append({"case": case, "quantity": "load path", "metric": "completed", "value": float(s["completed"]),
-                        "tolerance": 1.0, "pass": bool(s["completed"]), "note": "-5e6 N/m must run to the end"})
+            out.append({"case": case, "quantity": "load path", "metric": "completed (1 = yes)",
+                        "value": float(s["completed"]), "tolerance": float("nan"), "pass": True, "kind": "info",
+                        "note": "reported: the -5e6 N/m service load is expected to run to the end"})
         if prot == "paper":
             lam = res.limit["last_converged_load"][1] if res.limit else 1.0
-            ok = (not s["completed"]) and "Gauss points without contacts" in s["message"]
             out.append({"case": case, "quantity": "limit load", "metric": "last converged footing fraction",
-                        "value": float(lam), "tolerance": 1.0, "pass": bool(ok and lam < 1.0),
-                        "note": "the Taylor RVE carries no tension: a crest mechanism near 92% is expected"})
-        last_e = max(float(st.energy_norms[-1]) for st in res.steps)
+                        "value": float(lam), "tolerance": float("nan"), "pass": True, "kind": "info",
+                        "note": "reported, not judged: the paper gives no limit load; the Taylor RVE carries no "
+                                "tension, so a crest mechanism is expected before the full load"})
+        last_e = max((float(st.energy_norms[-1]) for st in res.steps), default=float("nan"))
         out.append({"case": case, "quantity": "newton", "metric": "largest final relative energy norm",
-                    "value": last_e, "tolerance": 1e-11, "pass": last_e <= 1e-11,
-                    "note": "tol 1e-20, or the residual at round-off (the last increment's e is then recorded)"})
+                    "value": last_e, "tolerance": float("nan"), "pass": True, "kind": "info",
+                    "note": "reported: the stopping criterion (tol 1e-20, or the residual at round-off)"})
         orders = [observed_orders(st.energy_norms) for st in res.steps if len(st.energy_norms) >= 4]
         worst = min(max(o[-2:]) for o in orders) if orders else float("nan")
-        out.append({"case": case, "quantity": "newton", "metric": "min over steps of the best of the last two orders",
-                    "value": float(worst), "tolerance": 1.5, "pass": bool(worst > 1.5),
-                    "note": "quadratic convergence: observed order near 2 in the last iterations"})
+        out.append({"case": case, "quantity": "newton", "metric": "min over steps of the best of the last two orders"
+                    + ("" if orders else " (no converged step with 4 or more iterations: nothing to judge)"),
+                    "value": float(worst), "tolerance": 1.5, "pass": bool(worst > 1.5), "kind": "check",
+                    "note": "quadratic convergence (order 2) holds for a consistent tangent only; an inconsistent "
+                            "tangent gives order 1, below the 1.5 bound"})
+        lc = s.get("linear_check")
+        if lc is None:
+            out.append({"case": case, "quantity": "small load", "metric": "linear check could not be made: "
+                        + (s.get("linear_check_error") or "not run"), "value": float("nan"), "tolerance": 1e-2,
+                        "pass": False, "kind": "check", "note": "a check that could not be made is a failure"})
+        else:
+            d1 = lc[0]["relative_difference"]
+            out.append({"case": case, "quantity": "small load", "metric": "|q_newton - q_linear| / |q_linear| at "
+                        "1e-3 of the dead load", "value": d1, "tolerance": 1e-2, "pass": bool(d1 <= 1e-2),
+                        "kind": "check",
+                        "note": "the Newton solution differs from the linear one (tangent at F = 1) by the small "
+                                "load's nonlinearity (measured: 5.0e-3 for the Taylor RVE, whose contacts open and close, "
+                                "1.2e-5 for the smooth neo-Hookean stand-in); a tangent or residual off by a few percent gives a difference of that order, "
+                                "above 1e-2 (tests/fem: 20% off fails)"})
+        pc = s.get("patch_check")
+        if pc is not None:
+            worst_p = max(pc["displacement"], pc["stress"])
+            out.append({"case": case, "quantity": "patch test", "metric": "max relative error of u and P on an "
+                        "affine patch", "value": worst_p, "tolerance": 1e-9, "pass": bool(worst_p <= 1e-9),
+                        "kind": "check",
+                        "note": "exact case: a Q1 patch under an affine boundary field is solved by that field with "
+                                "P(F0) of the slope's RVE at every Gauss point; round-off ~1e-13"})
     return out

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core import CaseResult, Context, case, compare
+from ..core import CaseResult, Context, case, compare, stored_dir
 
 POS_TOL = 1e-10  # of D50
 POS_REASON = ("the engine does LIGGGHTS' floating-point operations in LIGGGHTS' order (neighbour list, "
@@ -53,22 +53,44 @@ def _servo(bi):
     return AxisControl("servo", target=bi.confining, gain=bi.servo_gain)
 
 
-def step_records(label: str, nat, lig, d50: float) -> tuple[list, list]:
-    """Records (positions, velocities, spins, forces, torques, stress, box) and a table row."""
-    from ..dem_compare import Trajectory, frame_differences, stress_differences
+def _max(a) -> float:
+    """Largest entry, NaN for an empty array (a comparison over nothing fails)."""
+    a = np.asarray(a, float)
+    return float(a.max()) if a.size else float("nan")
 
-    fd = frame_differences(nat, lig, d50)
-    steps, rel, dl = stress_differences(nat, lig)
-    recs = [
-        compare(label, "position", "max|dx|/D50 over frames", fd["x"].max(), POS_TOL, POS_REASON),
-        compare(label, "velocity", "max|dv|/max|v|", fd["v"].max(), REL_TOL, VEL_REASON),
-        compare(label, "spin", "max|dw|/max|w|", fd["w"].max(), REL_TOL, VEL_REASON),
-        compare(label, "particle_force", "max|df|/max|f|", fd["f"].max(), REL_TOL, FORCE_REASON),
-        compare(label, "particle_torque", "max|dT|/max|T|", fd["t"].max(), REL_TOL, FORCE_REASON),
-        compare(label, "stress", "max over steps of max|dsigma|/max|sigma|", rel.max(), REL_TOL, STRESS_REASON),
-        compare(label, "box", "max|dL|/D50", dl.max() / d50, POS_TOL, BOX_REASON),
+
+def step_records(label: str, nat, lig, d50: float, nsteps: int, dump_every: int,
+                 thermo_every: int = 1) -> tuple[list, list]:
+    """Records (evidence of both sides, positions, velocities, spins, forces, torques, stress,
+    box) and a table row.
+
+    The expected evidence is the run's: every ``thermo_every``-th step of ``nsteps`` in the
+    series and every ``dump_every``-th step as a frame, on both sides. A missing step or frame
+    is a failing ``evidence`` record ("incomplete: expected N frames, got M"); the differences
+    are then taken over what both sides hold, and a comparison over nothing is NaN (fails).
+    """
+    from ..dem_compare import (expected_frames, expected_steps, frame_differences, stress_differences,
+                               trajectory_evidence)
+
+    exp_s, exp_f = expected_steps(nsteps, thermo_every), expected_frames(nsteps, dump_every)
+    recs = (trajectory_evidence(label, "native", nat, exp_s, exp_f)
+            + trajectory_evidence(label, "LIGGGHTS", lig, exp_s, exp_f))
+    lig_steps = set(int(s) for s in lig.steps)
+    both_f = [int(s) for s in exp_f if s in nat.frames and s in lig.frames and int(s) in lig_steps]
+    both_s = np.intersect1d(np.intersect1d(exp_s, nat.steps), lig.steps)
+    fd = frame_differences(nat, lig, d50, steps=both_f)
+    steps, rel, dl = stress_differences(nat, lig, steps=both_s)
+    recs += [
+        compare(label, "position", "max|dx|/D50 over frames", _max(fd["x"]), POS_TOL, POS_REASON),
+        compare(label, "velocity", "max|dv|/max|v|", _max(fd["v"]), REL_TOL, VEL_REASON),
+        compare(label, "spin", "max|dw|/max|w|", _max(fd["w"]), REL_TOL, VEL_REASON),
+        compare(label, "particle_force", "max|df|/max|f|", _max(fd["f"]), REL_TOL, FORCE_REASON),
+        compare(label, "particle_torque", "max|dT|/max|T|", _max(fd["t"]), REL_TOL, FORCE_REASON),
+        compare(label, "stress", "max over steps of max|dsigma|/max|sigma|", _max(rel), REL_TOL, STRESS_REASON),
+        compare(label, "box", "max|dL|/D50", _max(dl) / d50, POS_TOL, BOX_REASON),
     ]
-    row = [label, int(steps[-1]), len(fd["steps"]), fd["x"].max(), fd["v"].max(), fd["f"].max(), rel.max()]
+    row = [label, int(steps[-1]) if len(steps) else -1, len(fd["steps"]), _max(fd["x"]), _max(fd["v"]),
+           _max(fd["f"]), _max(rel)]
     return recs, row
 
 
@@ -93,17 +115,18 @@ def biaxial_short(ctx: Context) -> CaseResult:
     header = ["run", "steps", "frames", "max|dx|/D50", "max|dv|/max|v|", "max|df|/max|f|", "max rel stress"]
     rows = []
     p, s, ld, n = short_case()
-    stored = Path(__file__).resolve().parents[2] / "reference_runs" / "stored" / "biaxial-short"
+    stored = stored_dir("biaxial-short")
     nat = run_native(p, s, ld, n, SHORT_CASE_DUMP_EVERY)
     lig = read_liggghts(stored / "log.liggghts", stored / "dump.atoms")
-    recs, row = step_records("biaxial-short/stored-120", nat, lig, p.d50)
+    recs, row = step_records("biaxial-short/stored-120", nat, lig, p.d50, n, SHORT_CASE_DUMP_EVERY)
     res.records += recs
     rows.append(row)
     if ctx.liggghts:
         job = ctx.work("reference", "biaxial-short", "live-120")
-        lig, _ = run_liggghts_job(job, p, s, ld, LIVE_SHORT_STEPS, 250)
+        lig, _ = run_liggghts_job(job, p, s, ld, LIVE_SHORT_STEPS, 250,
+                                  timeout=ctx.job_timeout(p.n * LIVE_SHORT_STEPS))
         nat = run_native(p, s, ld, LIVE_SHORT_STEPS, 250)
-        recs, row = step_records("biaxial-short/live-120", nat, lig, p.d50)
+        recs, row = step_records("biaxial-short/live-120", nat, lig, p.d50, LIVE_SHORT_STEPS, 250)
         res.records += recs
         rows.append(row)
     if ctx.suite != "quick":
@@ -112,9 +135,11 @@ def biaxial_short(ctx: Context) -> CaseResult:
             dem, bi = dem_defaults(pk)
             ldk = Loading(x=_servo(bi), y=_servo(bi))
             job = ctx.work("reference", "biaxial-short", "kuhn-1002")
-            lig, man = run_liggghts_job(job, pk, dem, ldk, SHORT_KUHN_STEPS, SHORT_DUMP_EVERY)
+            lig, man = run_liggghts_job(job, pk, dem, ldk, SHORT_KUHN_STEPS, SHORT_DUMP_EVERY,
+                                        timeout=ctx.job_timeout(pk.n * SHORT_KUHN_STEPS))
             nat = run_native(pk, dem, ldk, SHORT_KUHN_STEPS, SHORT_DUMP_EVERY)
-            recs, row = step_records("biaxial-short/kuhn-1002", nat, lig, pk.d50)
+            recs, row = step_records("biaxial-short/kuhn-1002", nat, lig, pk.d50, SHORT_KUHN_STEPS,
+                                     SHORT_DUMP_EVERY)
             res.records += recs
             rows.append(row)
             res.notes.append(f"kuhn-1002: native {nat.elapsed:.2f} s, LIGGGHTS job {man.get('elapsed_s', 0):.2f} s "
@@ -152,6 +177,12 @@ def _settings_by_suite(suite: str) -> dict:
 
 
 _FULL_CACHE: dict = {}
+
+
+def ENSEMBLE_LABELS(n: int, np2: bool) -> list[str]:  # noqa: N802 (a table, read like a constant)
+    """Labels of the perturbed LIGGGHTS runs of :func:`full_runs` for ``n`` disks."""
+    out = ["x of disk 1 moved by +1e-15 rel", f"y of disk {n // 2 + 1} moved by -1e-15 rel"]
+    return out + (["2 MPI processes"] if np2 else [])
 
 
 def full_runs(ctx: Context) -> dict:
@@ -196,8 +227,9 @@ def full_runs(ctx: Context) -> dict:
     r["native"] = run_native(common, dem, loading, nsteps, FULL_DUMP_EVERY, velocities=v, spins=w, thermo_every=te)
     if ctx.liggghts:
         base = ctx.work("reference", "biaxial-full", f"strain{bi.strain:g}")
+        to = ctx.job_timeout(common.n * nsteps)
         lig, man = run_liggghts_job(base / "reference", common, dem, loading, nsteps, FULL_DUMP_EVERY, v, w,
-                                    thermo_every=te)
+                                    thermo_every=te, timeout=to)
         ens = {}
         n = common.n
         for label, k, ax, sign in (("x of disk 1 moved by +1e-15 rel", 0, 0, 1.0),
@@ -206,11 +238,11 @@ def full_runs(ctx: Context) -> dict:
             xp[k, ax] *= 1.0 + sign * PERTURB_REL
             pert = Packing(positions=xp, radii=pk.radii, cell=common.cell, density=pk.density, metadata={})
             ens[label], _ = run_liggghts_job(base / f"perturbed-{k}-{ax}", pert, dem, loading, nsteps,
-                                             FULL_DUMP_EVERY, v, w, thermo_every=te)
+                                             FULL_DUMP_EVERY, v, w, thermo_every=te, timeout=to)
         if cfg["np2"]:
             ens["2 MPI processes"], _ = run_liggghts_job(base / "np2", common, dem, loading, nsteps, FULL_DUMP_EVERY,
-                                                         v, w, np_procs=2, thermo_every=te)
-        r.update(liggghts=lig, manifest=man, ensemble=ens)
+                                                         v, w, np_procs=2, thermo_every=te, timeout=to)
+        r.update(liggghts=lig, manifest=man, ensemble=ens, expected_ensemble=list(ens))
         # the reference job in the native run-file schema (read by gransim.dem / gransim voidcells)
         from reference_runs.native_schema import trajectory_to_run_file
 
@@ -292,7 +324,9 @@ def _plots(ctx, div, sdiv, cur) -> list:
 @case("biaxial-full", "Biaxial test, full loading: divergence envelope and stress-strain curves",
       suites=("default", "full"), order=30)
 def biaxial_full(ctx: Context) -> CaseResult:
-    from ..dem_compare import Trajectory, frame_differences, stress_differences
+    from ..core import evidence
+    from ..dem_compare import (Trajectory, expected_frames, expected_steps, frame_differences,
+                               stress_differences, trajectory_evidence)
 
     r = full_runs(ctx)
     bi, dem, pk = r["biaxial"], r["settings"], r["packing"]
@@ -333,12 +367,30 @@ def biaxial_full(ctx: Context) -> CaseResult:
                          f"{STORED_EVERY} steps of the reference and perturbed LIGGGHTS runs); positions are not "
                          "stored, so only the stress divergence and the curves are checked.")
     lig = r["liggghts"]
+    # evidence: the series (and frames, live) of every run the envelope needs, complete
+    stored_run = "manifest" not in r
+    every = STORED_EVERY if stored_run else FULL_THERMO_EVERY
+    exp_s = expected_steps(r["nsteps"], every)
+    exp_f = None if stored_run else expected_frames(r["nsteps"], FULL_DUMP_EVERY)
+    res.records += trajectory_evidence("biaxial-full/evidence", "native", nat, expected_steps(r["nsteps"],
+                                       FULL_THERMO_EVERY), expected_frames(r["nsteps"], FULL_DUMP_EVERY))
+    res.records += trajectory_evidence("biaxial-full/evidence", "LIGGGHTS reference", lig, exp_s, exp_f)
+    want = r.get("expected_ensemble") or ENSEMBLE_LABELS(pk.n, ctx.suite == "full" and not stored_run)
+    res.records.append(evidence("biaxial-full/evidence", "perturbed LIGGGHTS runs (the envelope)", want,
+                                list(r["ensemble"])))
+    for k, t in r["ensemble"].items():
+        res.records += trajectory_evidence("biaxial-full/evidence", f"LIGGGHTS {k}", t, exp_s, exp_f)
+    if not all(x.passed for x in res.records if x.quantity == "evidence"):
+        res.notes.append("<b>Incomplete evidence</b>: a run the comparison needs is missing steps, frames or "
+                         "ensemble members (records above); no envelope verdict is made on what remains.")
+        return res
     runs = {"native vs LIGGGHTS": nat, **{f"LIGGGHTS {k}": t for k, t in r["ensemble"].items()}}
     div, sdiv = {}, {}
+    frames = exp_f if exp_f is not None else []
     for name, tr in runs.items():
-        fd = frame_differences(tr, lig, pk.d50)
+        fd = frame_differences(tr, lig, pk.d50, steps=frames)
         div[name] = (fd["steps"], fd["x"])
-        st, rel, _ = stress_differences(tr, lig)
+        st, rel, _ = stress_differences(tr, lig, steps=exp_s)
         sdiv[name] = (st, rel)
     ens = [k for k in div if k != "native vs LIGGGHTS"]
     env_s = np.max([sdiv[k][1] for k in ens], axis=0)
@@ -393,7 +445,7 @@ STORED_EVERY = 100
 def _stored_dir():
     from pathlib import Path
 
-    return Path(__file__).resolve().parents[2] / STORED_FULL
+    return stored_dir("biaxial-full")
 
 
 def store_full_reference(ctx: Context) -> None:

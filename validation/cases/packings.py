@@ -126,12 +126,18 @@ def _liggghts_replay(ctx: Context, name: str, p, res: CaseResult) -> list:
     from reference_runs.parsers import parse_log
     from reference_runs.runner import LOG_NAME
 
-    from ..dem_compare import position_difference, run_liggghts_job
+    from ..dem_compare import (expected_frames, expected_steps, position_difference, run_liggghts_job,
+                               trajectory_evidence)
 
     gas, dem, loading, nsteps = compaction_run(p)
     job = ctx.work("reference", "packings", name)
-    lig, man = run_liggghts_job(job, gas, dem, loading, nsteps, dump_every=nsteps,
-                                thermo_every=max(nsteps // 100, 1))
+    thermo = max(nsteps // 100, 1)
+    lig, man = run_liggghts_job(job, gas, dem, loading, nsteps, dump_every=nsteps, thermo_every=thermo,
+                                timeout=ctx.job_timeout(gas.n * nsteps))
+    ev = trajectory_evidence(f"packings/{name}", "LIGGGHTS replay", lig,
+                             [s for s in expected_steps(nsteps, thermo)], expected_frames(nsteps, nsteps))
+    if not all(r.passed for r in ev):
+        return ev
     run = parse_log(job / LOG_NAME).runs[-1]
     lo = np.array([run["xlo"][-1], run["ylo"][-1]])
     L = lig.lengths[-1]
@@ -139,7 +145,7 @@ def _liggghts_replay(ctx: Context, name: str, p, res: CaseResult) -> list:
     tol = 4 * float(np.spacing(L.max()))
     res.notes.append(f"{name}: LIGGGHTS 3.8.0 replayed the {nsteps}-step compaction from the same gas in "
                      f"{float(man.get('elapsed_s', 0.0)):.1f} s (job {job}; 0.0 s: an identical job was reused).")
-    return [
+    return ev + [
         compare(f"packings/{name}", "LIGGGHTS replay: position", "max|dx| (m) modulo the box",
                 position_difference(x, p.positions, L), tol,
                 "the engine matches LIGGGHTS bit for bit; only the final wrap into the cell rounds (4 ulp of L)"),

@@ -1,8 +1,11 @@
 """Case ``slope``: the FE2 slope stability problem of Meier et al. section 5 (no LIGGGHTS side).
 
-Not a code-to-code comparison: it checks the solver's own acceptance criteria (the service load
-runs to the end, the paper load stops at an honest limit, Newton converges quadratically) and
-puts the results (von Mises with deformed RVEs, load-settlement, Table 2) in the report.
+Not a code-to-code comparison: its checks are set against independent answers (Newton's
+quadratic rate, which only a consistent tangent gives; the small-load solution against the
+linear one; the Q1 patch test with the slope's material). Whether the service load completes,
+the limit of the paper load and the final energy norms are reported as information, not
+verdicts (:func:`gransim.fem.run.acceptance_records`). The results (von Mises with deformed
+RVEs, load-settlement, Table 2) are in the report.
 """
 
 from __future__ import annotations
@@ -36,5 +39,5 @@ def slope(ctx: Context) -> CaseResult:
                 res.figures.append((dest, f"slope, protocol {protocol}: {cap}"))
     for r in acceptance_records(summaries):
         res.records.append(Record(r["case"], r["quantity"], r["metric"], float(r["value"]), float(r["tolerance"]),
-                                  bool(r["pass"]), r.get("note", "")))
+                                  bool(r["pass"]), r.get("note", ""), kind=r.get("kind", "check")))
     return res

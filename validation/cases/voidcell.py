@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core import CaseResult, Context, case, compare
+from ..core import CaseResult, Context, case, compare, stored_dir
 
 ALPHA_TOL = 1e-6
 ALPHA_REASON = ("same inputs give the same cells; 1e-6 (alpha in [-1, 1]) admits the velocity tolerance of "
@@ -106,6 +106,22 @@ def _records(label, cmp) -> list:
     ]
 
 
+def _present(frames, *trs) -> list:
+    """The expected frames that every trajectory holds."""
+    return [int(k) for k in frames if all(int(k) in tr.frames for tr in trs)]
+
+
+def _evidence(label, nat, lig, frames) -> list:
+    """Evidence of the frames both sides must hold (positions and velocities of every disk)."""
+    from ..dem_compare import trajectory_evidence
+
+    recs = []
+    for who, tr in (("native", nat), ("LIGGGHTS", lig)):
+        if tr is not None:
+            recs += trajectory_evidence(label, who, tr, None, frames)
+    return recs
+
+
 def _strain(tr, step) -> float:
     L = tr.lengths
     return float(-np.log(L[tr.at([step])[0], 1] / L[0, 1]))
@@ -138,7 +154,7 @@ def voidcell(ctx: Context) -> CaseResult:
 
     from reference_runs.decks.biaxial import SHORT_CASE_DUMP_EVERY, short_case
 
-    from ..dem_compare import read_liggghts, run_native
+    from ..dem_compare import expected_frames, read_liggghts, run_native
 
     res = CaseResult(
         "voidcell", "Void-cell measures (Kuhn) from native and LIGGGHTS snapshots",
@@ -149,18 +165,22 @@ def voidcell(ctx: Context) -> CaseResult:
         "the box lengths. <i>stored-120</i>: every dump of the stored 120-disk biaxial-short run. "
         "<i>kuhn-1002</i> (default suite, with LIGGGHTS): the compression of biaxial-full.")
     p, s, ld, n = short_case()
-    stored = Path(__file__).resolve().parents[2] / "reference_runs" / "stored" / "biaxial-short"
+    stored = stored_dir("biaxial-short")
     nat = run_native(p, s, ld, n, SHORT_CASE_DUMP_EVERY)
     lig = read_liggghts(stored / "log.liggghts", stored / "dump.atoms")
-    cmp = compare_frames(nat, lig, sorted(lig.frames), p.radii, s.dt)
+    frames = expected_frames(n, SHORT_CASE_DUMP_EVERY)
+    res.records += _evidence("voidcell/stored-120", nat, lig, frames)
+    cmp = compare_frames(nat, lig, _present(frames, nat, lig), p.radii, s.dt)
     res.records += _records("voidcell/stored-120", cmp)
     if cmp["no_tessellation"]:
         res.notes.append(f"stored-120: steps {cmp['no_tessellation']} have no framework spanning the cell (the "
                          "pruned graph does not wrap the torus) in either code: identical outcome, no cells to "
                          "compare there.")
-    a, b = cmp["vc"][-1]
-    res.figures.append((_maps(ctx, [(f"step {cmp['steps'][-1]}", a, b)], "voidcell_stored120.png"),
-                        "stored-120, last compared dump: cells shaded by alpha (white <= 0), native left, LIGGGHTS right"))
+    if cmp["vc"] and cmp["vc"][-1][0] is not None:
+        a, b = cmp["vc"][-1]
+        res.figures.append((_maps(ctx, [(f"step {cmp['steps'][-1]}", a, b)], "voidcell_stored120.png"),
+                            "stored-120, last compared dump: cells shaded by alpha (white <= 0), native left, "
+                            "LIGGGHTS right"))
     if ctx.suite == "quick":
         return res
     if not ctx.liggghts:
@@ -168,9 +188,19 @@ def voidcell(ctx: Context) -> CaseResult:
         return res
     from .biaxial import full_runs
 
+    from .biaxial import FULL_DUMP_EVERY
+
     r = full_runs(ctx)
     nat, lig, pk, dem = r["native"], r["liggghts"], r["packing"], r["settings"]
-    steps = sorted(lig.frames)
+    frames = expected_frames(r["nsteps"], FULL_DUMP_EVERY)
+    res.records += _evidence("voidcell/kuhn-1002", nat, lig, frames)
+    for name, tr in r["ensemble"].items():
+        res.records += _evidence(f"voidcell/kuhn-1002/{name}", None, tr, frames)
+    if not all(x.passed for x in res.records if x.quantity == "evidence"):
+        res.notes.append("<b>Incomplete evidence</b> for the Kuhn assembly (records above): no statistics are "
+                         "compared on what remains.")
+        return res
+    steps = [int(k) for k in frames]
     cmp = compare_frames(nat, lig, [k for k in steps if k <= SHORT_HORIZON], pk.radii, dem.dt)
     res.records += _records(f"voidcell/kuhn-1002/first {SHORT_HORIZON} steps", cmp)
     # statistics over the full test: every frame, native, LIGGGHTS and the perturbed runs

@@ -1,0 +1,126 @@
+"""Faults injected into the validation layer: cut reference evidence and perturbed native paths.
+
+Each fault must end in a failing verdict (an ``incomplete`` evidence record or a failing
+comparison) or in a case that did not run with a clear error: never in "pass".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+from pathlib import Path
+
+import pytest
+
+import validation.runner as vrunner
+from reference_runs import store
+from validation.runner import run_validation
+
+STORED = Path(store.STORED)
+
+
+def _quiet(*_a, **_k):
+    pass
+
+
+@pytest.fixture
+def stored_copy(tmp_path, monkeypatch):
+    """A copy of reference_runs/stored that the cases read instead (to be damaged by the test);
+    LIGGGHTS is reported absent so only the stored evidence is compared."""
+    dest = tmp_path / "stored"
+    shutil.copytree(STORED, dest)
+    monkeypatch.setattr(store, "STORED", dest)
+    monkeypatch.setattr(vrunner, "liggghts_available", lambda: False)
+    return dest
+
+
+def _result(results, case_id):
+    (res,) = [r for r in results if r.case == case_id]
+    return res
+
+
+def _incomplete(res) -> list[str]:
+    return [r.metric for r in res.records if r.quantity == "evidence" and not r.passed]
+
+
+def _cut_log(path: Path, last_step: int) -> None:
+    """Keep the log up to the thermo row of ``last_step``; drop the rest (a killed job)."""
+    out = []
+    for line in path.read_text().splitlines():
+        out.append(line)
+        f = line.split()
+        if f and f[0].isdigit() and int(f[0]) == last_step:
+            break
+    path.write_text("\n".join(out) + "\n")
+
+
+def _first_frame_only(path: Path) -> None:
+    """Keep only the first ITEM: TIMESTEP block of a dump (a full disk, a changed dump interval)."""
+    lines = path.read_text().splitlines()
+    starts = [k for k, line in enumerate(lines) if line.startswith("ITEM: TIMESTEP")]
+    path.write_text("\n".join(lines[:starts[1]]) + "\n")
+
+
+def test_stored_log_cut_to_12_steps_fails(stored_copy, tmp_path):
+    _cut_log(stored_copy / "biaxial-short" / "log.liggghts", 12)
+    ok, results = run_validation("quick", tmp_path / "results", only=["biaxial-short"], log=_quiet)
+    res = _result(results, "biaxial-short")
+    assert not ok and not res.passed
+    assert any("incomplete: expected 3001 LIGGGHTS series steps, got 13" in m for m in _incomplete(res)), \
+        _incomplete(res)
+
+
+def test_stored_dump_with_only_the_first_frame_fails(stored_copy, tmp_path):
+    _first_frame_only(stored_copy / "biaxial-short" / "dump.atoms")
+    ok, results = run_validation("quick", tmp_path / "results", only=["biaxial-short", "voidcell"], log=_quiet)
+    assert not ok
+    for cid in ("biaxial-short", "voidcell"):
+        res = _result(results, cid)
+        assert not res.passed, cid
+        assert any("incomplete: expected 7 LIGGGHTS frames, got 1" in m for m in _incomplete(res)), \
+            (cid, _incomplete(res))
+    html = (tmp_path / "results" / "report" / "index.html").read_text()
+    assert "incomplete: expected 7 LIGGGHTS frames, got 1" in html
+
+
+def test_native_path_dropping_half_the_contacts_fails_taylor(stored_copy, tmp_path, monkeypatch):
+    """The contact comparison is two-sided: native contacts dropped leave LIGGGHTS rows unmatched."""
+    import gransim.rve as rve
+
+    real = rve.contact_state
+
+    def half(packing, F, kn):
+        cs = real(packing, F, kn)
+        return type(cs)(**{f.name: getattr(cs, f.name)[::2] for f in dataclasses.fields(cs)})
+
+    monkeypatch.setattr(rve, "contact_state", half)
+    ok, results = run_validation("quick", tmp_path / "results", only=["taylor-rve"], log=_quiet)
+    res = _result(results, "taylor-rve")
+    assert not ok and not res.passed
+    bad = {r.quantity for r in res.records if not r.passed}
+    assert bad == {"contact_count", "contact_unmatched"}, bad
+    unmatched = [r for r in res.records if r.quantity == "contact_unmatched" and not r.passed]
+    assert all(r.metric.startswith("LIGGGHTS contact ends without a partner: disk") for r in unmatched)
+
+
+def test_a_stored_taylor_state_missing_fails(stored_copy, tmp_path):
+    """states.json and the log cut consistently by one state: the Taylor series is incomplete."""
+    import json
+
+    d = stored_copy / store.RVE_CASE
+    meta = json.loads((d / "states.json").read_text())
+    meta["states"] = meta["states"][:-1]
+    (d / "states.json").write_text(json.dumps(meta))
+    log = (d / "log.lammps").read_text()
+    cut = log.rfind("\nrun 0")  # drop the last state's run
+    if cut < 0:
+        cut = log.rfind("\nrun ")
+    (d / "log.lammps").write_text(log[:cut] + "\n")
+    ok, results = run_validation("quick", tmp_path / "results", only=["taylor-rve"], log=_quiet)
+    res = _result(results, "taylor-rve")
+    assert not res.passed
+    if res.error is None:
+        assert any("incomplete: expected 6 LIGGGHTS states, got 5" in m for m in _incomplete(res)), \
+            _incomplete(res)
+    else:
+        assert "states" in res.error or "runs" in res.error
