@@ -19,11 +19,17 @@ def register(sub) -> None:
     p.add_argument("--confining", type=float, help="sigma_11, N/m (default 2.5e-4 kn: indentation ~2e-4 D50)")
     p.add_argument("--strain-rate", type=float, help="axial strain rate, 1/s (default: inertial number 5e-5)")
     p.add_argument("--damping-ratio", type=float, default=0.3, help="contact damping ratio (default 0.3)")
-    p.add_argument("--steps-per-contact", type=float, default=50.0, help="contact time / dt (default 50)")
+    p.add_argument("--steps-per-contact", type=float, default=50.0,
+                   help="contact time / dt (default 50; the stability limit needs >= 5 / (sqrt(1 + "
+                        "zeta^2) - zeta))")
     p.add_argument("--consolidation-steps", type=int, default=200000, help="most consolidation steps")
+    p.add_argument("--allow-unsettled", action="store_true",
+                   help="go on with the compression when the consolidation has not settled within "
+                        "--consolidation-steps (recorded in the file); default: stop with exit 2")
     p.add_argument("--series-every", type=int, default=10, help="stress row every N steps (default 10)")
     p.add_argument("--snapshot-every", type=int, default=10000, help="snapshot every N steps (default 10000)")
-    p.add_argument("--checkpoint-every", type=int, default=50000, help="checkpoint every N steps")
+    p.add_argument("--checkpoint-every", type=int, default=50000,
+                   help="checkpoint every N steps (default 50000; 0: only at the end)")
     p.add_argument("--mode", choices=("serial", "parallel"), default="serial",
                    help="serial (LIGGGHTS order) or parallel force loop (default serial)")
     p.add_argument("--threads", type=int, help="numba threads for --mode parallel")
@@ -36,32 +42,77 @@ def register(sub) -> None:
     e.add_argument("--step", type=int, help="snapshot step (default: the last)")
     e.add_argument("--vtu", help="write the snapshot to this .vtu file")
     e.add_argument("--plot", help="write the stress-strain plot to this image")
+    e.add_argument("--allow-incomplete", action="store_true",
+                   help="read a run file whose run did not finish (complete = False) anyway")
     e.set_defaults(func=_export)
+
+
+def _check_options(args) -> None:
+    """Every numeric option and output path, named as on the command line, before any work."""
+    from .._validate import as_int, as_positive_float
+    from ..errors import InputError
+    from ._paths import check_figure, check_output
+
+    check_output(args.output, "-o/--output")
+    if args.plot:
+        check_figure(args.plot, "--plot")
+    for name, v in (("--kn", args.kn), ("--strain", args.strain), ("--confining", args.confining),
+                    ("--strain-rate", args.strain_rate), ("--steps-per-contact", args.steps_per_contact)):
+        if v is not None:
+            as_positive_float(v, name)
+    if args.strain >= 0.5:
+        raise InputError(f"--strain: expected a small strain < 0.5, got {args.strain!r}")
+    as_positive_float(args.damping_ratio, "--damping-ratio", allow_zero=True)
+    for name, v, lo in (("--consolidation-steps", args.consolidation_steps, 1),
+                        ("--series-every", args.series_every, 1), ("--snapshot-every", args.snapshot_every, 1),
+                        ("--checkpoint-every", args.checkpoint_every, 0)):
+        as_int(v, name, minimum=lo)
+    if args.threads is not None:
+        from .._numba import check_threads
+
+        check_threads(args.threads, "--threads")
 
 
 def _run(args) -> int:
     import dataclasses
 
     from ..dem.biaxial import default_settings, run_biaxial
+    from ..dem.engine import contact_time, damping_ratio, stability_limit
     from ..dem.output import OutputSettings, plot_stress_strain
+    from ..errors import InputError
     from ..io import load_packing
 
+    _check_options(args)
     packing = load_packing(args.packing)
     dem, bi = default_settings(packing, kn=args.kn, damping_ratio=args.damping_ratio,
                                steps_per_contact=args.steps_per_contact, strain_rate=args.strain_rate,
                                strain=args.strain)
     dem = dataclasses.replace(dem, mode=args.mode)
+    lim = stability_limit(packing, dem)
+    if dem.dt > lim:
+        need = contact_time(packing, max(dem.kn, dem.kt)) / lim
+        raise InputError(f"--steps-per-contact {args.steps_per_contact:g} with --damping-ratio "
+                         f"{args.damping_ratio:g}: "
+                         f"dt = {dem.dt:.4g} s is above the stability limit {lim:.4g} s of velocity "
+                         f"Verlet with "
+                         f"damping (damping ratio {damping_ratio(packing, dem):.3g} for the two "
+                         f"lightest disks); "
+                         f"use --steps-per-contact >= {need:.3g} or a smaller --damping-ratio")
     changes = {"consolidation_steps": args.consolidation_steps}
     if args.confining is not None:
         changes["confining"] = args.confining
     bi = dataclasses.replace(bi, **changes)
     out = OutputSettings(series_every=args.series_every, snapshot_every=args.snapshot_every,
                          checkpoint_every=args.checkpoint_every)
-    summary = run_biaxial(packing, dem, bi, args.output, output=out, resume=args.resume, threads=args.threads)
+    summary = run_biaxial(packing, dem, bi, args.output, output=out, resume=args.resume, threads=args.threads,
+                          allow_unsettled=args.allow_unsettled)
     print(f"wrote {args.output}: {packing.n} disks, dt {dem.dt:.3g} s, confining {bi.confining:.4g} N/m, "
           f"rate {bi.strain_rate:.3g} 1/s")
     for k, v in summary.items():
         print(f"  {k:32s} {v:.6g}" if isinstance(v, float) else f"  {k:32s} {v}")
+    if summary.get("unsettled_phases", "none") != "none":
+        print(f"  WARNING: {summary['unsettled_phases']} did not settle (--allow-unsettled; recorded "
+              f"in the file)")
     if args.plot:
         plot_stress_strain(args.output, args.plot)
         print(f"wrote {args.plot}")
@@ -69,15 +120,26 @@ def _run(args) -> int:
 
 
 def _export(args) -> int:
-    from ..dem.output import plot_stress_strain, snapshot_to_vtu
+    from ..dem.output import plot_stress_strain, read_run, require_complete, snapshot_to_vtu
     from ..errors import InputError
+    from ._paths import check_figure, check_output
 
     if not (args.vtu or args.plot):
         raise InputError("dem-export: give --vtu and/or --plot")
     if args.vtu:
-        snapshot_to_vtu(args.run, args.step, args.vtu)
+        check_output(args.vtu, "--vtu", (".vtu",))
+    if args.plot:
+        check_figure(args.plot, "--plot")
+    run = read_run(args.run)
+    if not args.allow_incomplete:
+        require_complete(run, args.run, hint="--allow-incomplete reads it anyway")
+    elif not run.complete:
+        why = run.stop_reason or "no stop_reason"
+        print(f"WARNING: {args.run} is an incomplete run (complete = False): {why}")
+    if args.vtu:
+        snapshot_to_vtu(args.run, args.step, args.vtu, allow_incomplete=args.allow_incomplete)
         print(f"wrote {args.vtu}")
     if args.plot:
-        plot_stress_strain(args.run, args.plot)
+        plot_stress_strain(args.run, args.plot, allow_incomplete=args.allow_incomplete)
         print(f"wrote {args.plot}")
     return 0

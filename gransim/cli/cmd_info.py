@@ -34,6 +34,47 @@ def format_stats(s: dict) -> str:
     ])
 
 
+def _dem_run_status(path, prov: dict) -> None:
+    """complete / stop_reason / unsettled phases / sampling of a DEM run file, then its structure
+    check (a truncated or corrupt file raises ResultFileError after these lines)."""
+    import json
+
+    from ..dem.output import read_run
+    from ..errors import ResultFileError
+
+    complete = prov.get("complete")
+    why = prov.get("stop_reason") or ""
+    if complete is None:
+        print("complete               MISSING (no 'complete' attribute: not a dem-run file of "
+              "docs/schema_dem.md)")
+    elif complete:
+        print("complete               True")
+    else:
+        print(f"complete               False  INCOMPLETE RUN: {why or 'no stop_reason recorded'}")
+    if why and complete:
+        print(f"stop_reason            {why}")
+    try:
+        unsettled = json.loads(prov.get("unsettled_phases") or "[]")
+    except (TypeError, json.JSONDecodeError):
+        unsettled = [{"name": "?", "reason": f"unreadable unsettled_phases {prov.get('unsettled_phases')!r}"}]
+    if unsettled:
+        for u in unsettled:
+            print(f"UNSETTLED phase        {u.get('name')}: {u.get('reason')} (continued with "
+                  f"allow_unsettled)")
+    elif complete:
+        print("unsettled phases       none")
+    if prov.get("output_settings"):
+        print(f"output settings        {prov['output_settings']}")
+    try:
+        run = read_run(path)
+    except ResultFileError:
+        print("structure              BROKEN (see the error)")
+        raise
+    s = run.series
+    print(f"series                 {len(s['step'])} rows, steps {int(s['step'][0])}..{int(s['step'][-1])}; "
+          f"{len(run.snapshot_steps)} snapshots")
+
+
 def _run(args) -> int:
     from ..errors import ResultFileError
     from ..generation import packing_stats
@@ -45,6 +86,8 @@ def _run(args) -> int:
           f"commit {prov.get('git_commit')}, created {prov.get('created')})")
     if prov.get("parameters"):
         print(f"parameters             {prov['parameters']}")
+    if prov.get("kind") == "dem-run":
+        _dem_run_status(args.file, prov)
     with open_result(args.file) as f:
         has_packing = args.group in f
         contents = sorted(f.keys())

@@ -32,6 +32,8 @@ def register(subparsers):
     p.add_argument("--no-initial", action="store_true",
                    help="leave out the row of the first compression snapshot (the initial graph)")
     p.add_argument("--no-vtk", action="store_true", help="skip the .vtu export")
+    p.add_argument("--allow-incomplete", action="store_true",
+                   help="read a run file whose run did not finish (complete = False) anyway")
     p.set_defaults(func=handler)
 
 
@@ -60,13 +62,37 @@ def handler(args) -> int:
     from ..voidcell.plots import save_figures
     from ..voidcell.vtk import cells_to_vtu
 
+    import math
+
+    from ..errors import InputError
+    from ._paths import check_output
+
     run = Path(args.run)
     out = Path(args.out) if args.out else run.with_name(run.stem + "_voidcells")
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out: {str(out)!r} exists and is not a directory; expected an output folder")
+    for name in ("voidcells.csv", "voidcells.md"):  # the folder (or its first existing parent) is writable
+        check_output(out / name, "--out")
+    for v in args.strain:
+        if not math.isfinite(v):
+            raise InputError(f"--strain: {v!r} is not a finite number")
     rows = []
     strains = list(args.strain) if args.no_initial else [0.0] + list(args.strain)
-    for rs in load_run_snapshots(run, strains, motion=args.motion,
-                                 velocities=args.velocities):
+    picked = load_run_snapshots(run, strains, motion=args.motion, velocities=args.velocities,
+                                allow_incomplete=args.allow_incomplete)
+    if args.all_frames:  # read (and check) every frame before the long computation
+        frames_in = load_run_snapshots(run, None, motion=args.motion, velocities=args.velocities,
+                                       allow_incomplete=args.allow_incomplete)
+    if args.allow_incomplete:
+        from ..io.hdf5 import open_result
+        from ..voidcell.io import check_complete
+
+        with open_result(run, kind="dem-run") as f:
+            complete, why = check_complete(f, run, allow_incomplete=True)
+        if not complete:
+            print(f"WARNING: {run} is an incomplete run (complete = False): {why}")
+    out.mkdir(parents=True, exist_ok=True)
+    for rs in picked:
         vc = VoidCells().compute(rs.snapshot)
         tag = f"strain_{rs.requested:.6g}"
         if rs.requested == 0.0 and not args.no_initial:  # the initial graph: counts only
@@ -85,7 +111,7 @@ def handler(args) -> int:
             w.writerows(rows)
     if args.all_frames:
         frames = []
-        for rs in load_run_snapshots(run, None, motion=args.motion, velocities=args.velocities):
+        for rs in frames_in:
             vc = VoidCells().compute(rs.snapshot)
             frames.append({"strain": rs.strain, "step": rs.step, **vc.summary()})
         with atomic_path(out / "frames.csv", suffix=".csv") as tmp:

@@ -2,11 +2,18 @@
 biaxial test of Kuhn (002), section 4. See docs/dem.md and docs/schema_dem.md."""
 
 from .biaxial import BiaxialSettings, default_settings, inertial_number, run_biaxial
-from .engine import DEMEngine, contact_time, fingerprint, stability_limit
-from .output import OutputSettings, plot_stress_strain, read_run, read_snapshot, snapshot_to_vtu
+from .engine import DEMEngine, contact_time, damping_ratio, fingerprint, stability_limit
+from .output import (
+    OutputSettings,
+    plot_stress_strain,
+    read_run,
+    read_snapshot,
+    require_complete,
+    snapshot_to_vtu,
+)
 from .run import Phase, run_phases
 from .settings import AxisControl, DEMSettings, Loading
 
 __all__ = ["AxisControl", "BiaxialSettings", "DEMEngine", "DEMSettings", "Loading", "OutputSettings", "Phase",
-           "contact_time", "default_settings", "fingerprint", "inertial_number", "plot_stress_strain", "read_run",
-           "read_snapshot", "run_biaxial", "run_phases", "snapshot_to_vtu", "stability_limit"]
+           "contact_time", "damping_ratio", "default_settings", "fingerprint", "inertial_number", "plot_stress_strain", "read_run",
+           "read_snapshot", "require_complete", "run_biaxial", "run_phases", "snapshot_to_vtu", "stability_limit"]

@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .._validate import as_positive_float
+from .._validate import as_int, as_positive_float
 from ..errors import InputError
 from ..geometry import Packing
 from .engine import contact_time
@@ -47,6 +47,8 @@ class BiaxialSettings:
         for k in ("confining", "strain", "strain_rate", "servo_gain"):
             object.__setattr__(self, k, as_positive_float(getattr(self, k), k))
         as_positive_float(self.consolidation_tol, "consolidation_tol")
+        for k in ("consolidation_steps", "check_every"):
+            object.__setattr__(self, k, as_int(getattr(self, k), k, minimum=1))
         if self.strain >= 0.5:
             raise InputError(f"strain: expected a small strain < 0.5, got {self.strain!r}")
 
@@ -64,6 +66,10 @@ def default_settings(packing: Packing, kn: float = 1e5, damping_ratio: float = 0
     The servo gain makes the box react over ~100 steps: gain = 0.01 / (kn dt).
     """
     kn = as_positive_float(kn, "kn")
+    damping_ratio = as_positive_float(damping_ratio, "damping_ratio", allow_zero=True)
+    steps_per_contact = as_positive_float(steps_per_contact, "steps_per_contact")
+    if strain_rate is not None:
+        strain_rate = as_positive_float(strain_rate, "strain_rate")
     m = np.median(packing.masses)
     gamma = 2.0 * damping_ratio * np.sqrt(kn / (0.5 * m))
     dt = contact_time(packing, kn) / steps_per_contact
@@ -94,11 +100,15 @@ def biaxial_phases(dem: DEMSettings, bi: BiaxialSettings) -> list[Phase]:
 
 def run_biaxial(packing: Packing, dem: DEMSettings, bi: BiaxialSettings, out_path,
                 output: OutputSettings | None = None, resume: bool = False, threads: int | None = None,
-                show_progress: bool = True) -> dict:
-    """Run the biaxial test; returns a summary (inertial number, indentation, stresses, peak)."""
+                show_progress: bool = True, allow_unsettled: bool = False) -> dict:
+    """Run the biaxial test; returns a summary (inertial number, indentation, stresses, peak).
+
+    A consolidation that does not settle within ``bi.consolidation_steps`` stops the run
+    (:class:`~gransim.errors.ConvergenceError`, file written with ``complete`` False) unless
+    ``allow_unsettled`` (see :func:`run_phases`)."""
     phases = biaxial_phases(dem, bi)
     run_phases(packing, dem, phases, out_path, output=output, resume=resume, threads=threads,
-               show_progress=show_progress, metadata={"biaxial": asdict(bi)})
+               show_progress=show_progress, metadata={"biaxial": asdict(bi)}, allow_unsettled=allow_unsettled)
     return summarize(out_path)
 
 
@@ -111,6 +121,7 @@ def summarize(path) -> dict:
     p = bi.get("confining", float("nan"))
     rate = bi.get("strain_rate", float("nan"))
     out = {"n_particles": run.packing.n, "complete": run.complete,
+           "unsettled_phases": ", ".join(u["name"] for u in run.unsettled_phases) or "none",
            "inertial_number": inertial_number(run.packing, rate, p) if bi else float("nan"),
            "consolidation_steps": int(s["step"][s["phase"] == 0].max())}
     if np.any(comp):

@@ -31,6 +31,14 @@ from .settings import AxisControl, DEMSettings, Loading
 #: the time step must not exceed contact time / this (stability of the rotational + normal modes)
 STEPS_PER_CONTACT_MIN = 5.0
 
+#: divergence: the kinetic energy may not exceed this many times the energy the run has had
+#: (initial kinetic + elastic energy plus the gross work of the cell); see DEMEngine.advance
+KINETIC_ENERGY_FACTOR = 10.0
+
+#: a lost particle: moved more than this many skins since the last neighbour build (the list
+#: allows skin/2 between builds, so the step that triggered the build moved it > 1 skin)
+LOST_DISPLACEMENT_SKINS = 1.5
+
 
 def contact_time(packing: Packing, kn: float) -> float:
     """Duration of an undamped normal contact of the two lightest disks: pi sqrt(m_eff/kn) (s)."""
@@ -39,14 +47,46 @@ def contact_time(packing: Packing, kn: float) -> float:
     return float(np.pi * np.sqrt(meff / kn))
 
 
-def stability_limit(packing: Packing, settings: DEMSettings) -> float:
-    """Largest accepted time step: contact_time / STEPS_PER_CONTACT_MIN (s).
+def damping_ratio(packing: Packing, settings: DEMSettings) -> float:
+    """Damping ratio zeta of the normal contact of the two lightest disks (dimensionless).
 
-    Velocity Verlet of a linear spring is unstable above 2 sqrt(m_eff/k) = (2/pi) t_c; with a
-    tangential spring of similar stiffness acting on the rotation, the effective mass is about
-    3 times smaller, hence the margin."""
+    ``gamma_n`` (like ``gamma_t``) is a mass-scaled rate (1/s): the damping coefficient of a
+    contact is c = m_eff gamma (LIGGGHTS ``gamman``), so the relative normal motion obeys
+    m_eff d'' + m_eff gamma d' + k d = 0, i.e. d'' + 2 zeta omega d' + omega^2 d = 0 with
+    omega = sqrt(k/m_eff) and zeta = gamma / (2 omega). The larger of gamma_n, gamma_t and of
+    kn, kt are used (the conservative choice for the limit below).
+    """
+    m = np.sort(packing.masses)
+    meff = m[0] * m[1] / (m[0] + m[1])
+    omega = np.sqrt(max(settings.kn, settings.kt) / meff)
+    return float(max(settings.gamma_n, settings.gamma_t) / (2.0 * omega))
+
+
+def stability_limit(packing: Packing, settings: DEMSettings) -> float:
+    """Largest accepted time step (s): contact_time / STEPS_PER_CONTACT_MIN * (sqrt(1 + zeta^2) - zeta).
+
+    Derivation. The engine integrates as LIGGGHTS' nve/sphere: v(n+1/2) = v(n) + dt f(n)/2m,
+    x(n+1) = x(n) + dt v(n+1/2), f(n+1) = -k x(n+1) - c v(n+1/2) (the damping sees the half-step
+    velocity), v(n+1) = v(n+1/2) + dt f(n+1)/2m. For one damped spring (omega^2 = k/m_eff,
+    c/m_eff = 2 zeta omega, h = omega dt, b = 2 zeta h) the map of (x(n+1), v(n+1/2)) has the
+    matrix [[1 - h^2, dt (1 - b)], [-omega^2 dt, 1 - b]]: trace T = 2 - h^2 - b, determinant
+    D = 1 - b. Both roots of l^2 - T l + D lie in the unit disk (Jury) iff |D| < 1 and
+    1 + T + D > 0, i.e. b < 2 and h^2 + 4 zeta h - 4 < 0, so the critical step is
+
+        dt_c = (2/omega) (sqrt(1 + zeta^2) - zeta)     (b < 2 then holds too)
+
+    (2/omega without damping; the known limit of the central-difference method with viscous
+    damping, Belytschko, Liu & Moran, "Nonlinear finite elements for continua and structures",
+    2000, chapter 6). The accepted step keeps the margin of the undamped engine:
+    (pi/5)/omega = contact_time/5 = 0.314 dt_c(zeta = 0), times the damping factor. The margin
+    covers the tangential spring acting on the rotation (effective mass m_eff/3 for disks,
+    frequency sqrt(3) omega, damping ratio sqrt(3) zeta): (pi/5) g(zeta) <= (2/sqrt 3) g(sqrt 3 zeta)
+    for every zeta >= 0, g(z) = sqrt(1 + z^2) - z. The lightest pair gives the smallest limit
+    (dt_c grows with 1/omega at fixed gamma), zeta from :func:`damping_ratio`.
+    """
     k = max(settings.kn, settings.kt)
-    return contact_time(packing, k) / STEPS_PER_CONTACT_MIN
+    z = damping_ratio(packing, settings)
+    return contact_time(packing, k) / STEPS_PER_CONTACT_MIN * (float(np.sqrt(1.0 + z * z)) - z)
 
 
 @dataclass(frozen=True)
@@ -97,9 +137,13 @@ class DEMEngine:
         if check_dt:
             lim = stability_limit(packing, s)
             if s.dt > lim:
+                z = damping_ratio(packing, s)
                 raise InputError(f"dt = {s.dt:.4g} s is above the stability limit {lim:.4g} s "
                                  f"(contact time pi sqrt(m_eff/k) = {contact_time(packing, max(s.kn, s.kt)):.4g}"
-                                 f" s of the two lightest disks, / {STEPS_PER_CONTACT_MIN:g})")
+                                 f" s of the two lightest disks, / {STEPS_PER_CONTACT_MIN:g}, times "
+                                 f"sqrt(1 + zeta^2) - zeta = {np.sqrt(1 + z * z) - z:.4g} for the "
+                                 f"damping ratio "
+                                 f"zeta = {z:.4g})")
         cut = 2 * 2.0 * float(packing.radii.max()) + 2 * s.skin
         if min(C[0, 0], C[1, 1]) <= cut:
             raise InputError(f"packing.cell: side lengths {C[0, 0]:.4g}, {C[1, 1]:.4g} m must exceed "
@@ -136,7 +180,9 @@ class DEMEngine:
         self.slide = np.zeros(0, np.bool_)
         self.ef = np.zeros((0, 2))
         self.start = np.zeros(n + 1, np.int64)
+        self._build_step = 0
         self._setup()
+        self._reset_energy_budget()
 
     # ------------------------------------------------------------------ neighbours
     @property
@@ -173,6 +219,7 @@ class DEMEngine:
         self.xhold = self.x.copy()
         self.lo_hold = self.lo.copy()
         self.hi_hold = self.hi.copy()
+        self._build_step = self.step
         self.n_rebuilds += 1
 
     def _set_parallel_scratch(self):
@@ -202,6 +249,68 @@ class DEMEngine:
         self.n_contacts = round(nc)
         self.mean_overlap = so / nc if nc else 0.0
 
+    def elastic_energy(self) -> float:
+        """Energy stored in the contact springs, sum 0.5 kn overlap^2 + 0.5 kt |xi|^2 (J)."""
+        c = self.contacts()
+        s = self.settings
+        return float(0.5 * s.kn * np.sum(c["overlap"] ** 2)
+                     + 0.5 * s.kt * np.sum(c["tangential_spring"] ** 2))
+
+    def _reset_energy_budget(self):
+        """Start of the energy balance of the divergence check: E0 = kinetic + elastic energy now."""
+        e0 = self.kinetic_energy() + self.elastic_energy()
+        self._energy0 = e0 if np.isfinite(e0) else np.inf  # a non-finite state is caught as NaN
+        self._work = 0.0
+
+    def _check_divergence(self, step1, ke, stress, lengths, L_before):
+        """Kinetic-energy blow-up over the completed steps step1, step1 + 1, ... (divergence check).
+
+        Energy balance of the run: d(KE + U)/dt = P_cell - D with D >= 0 (viscous damping and
+        Coulomb sliding only dissipate, U >= 0 the spring energy), so KE(n) <= E0 + W(n), E0 the
+        kinetic + elastic energy at the start and W the work of the cell, per step
+        -(V_xx dLx/Lx + V_yy dLy/Ly) with V the virial (stress times area, compression positive).
+        The check sums |work| (tangential springs do not follow the affine remap exactly, so the
+        virial work is only close to the true one) and allows KINETIC_ENERGY_FACTOR times that
+        budget: velocity Verlet below its stability limit keeps the energy within a few ten percent
+        (shadow energy), an unstable integration grows exponentially and crosses it in a few steps.
+        """
+        if not np.all(np.isfinite(ke)):
+            k = int(np.flatnonzero(~np.isfinite(ke))[0])
+            bad = np.flatnonzero(~np.all(np.isfinite(self.v), axis=1))
+            who = f" (particle {int(bad[0])} has velocity {self.v[bad[0]].tolist()})" if bad.size else ""
+            raise SimulationError(f"step {step1 + k}: the kinetic energy is not finite{who}")
+        L_old = np.vstack([L_before[None], lengths[:-1]])
+        area = lengths[:, 0] * lengths[:, 1]
+        dw = -(stress[:, 0] * area * (lengths[:, 0] - L_old[:, 0]) / L_old[:, 0]
+               + stress[:, 1] * area * (lengths[:, 1] - L_old[:, 1]) / L_old[:, 1])
+        work = self._work + np.cumsum(np.abs(dw))
+        budget = KINETIC_ENERGY_FACTOR * (self._energy0 + work)
+        over = np.flatnonzero(ke > budget)
+        if over.size:
+            k = int(over[0])
+            raise SimulationError(
+                f"step {step1 + k}: kinetic energy blow-up: {ke[k]:.4g} J exceeds {KINETIC_ENERGY_FACTOR:g} "
+                f"times the energy the run has had ({self._energy0:.4g} J kinetic + elastic at the start, "
+                f"{work[k]:.4g} J gross work of the cell; damping and friction only dissipate): the "
+                f"integration is unstable (time step {self.settings.dt:.4g} s too large for the stiffness "
+                "and damping?)")
+        if work.size:
+            self._work = float(work[-1])
+
+    def _check_lost(self):
+        """Before a rebuild: a particle that moved more than LOST_DISPLACEMENT_SKINS skins since the
+        last build crossed more than a skin in one step (the build rule allows skin/2 in between)."""
+        d = np.sqrt(np.einsum("ij,ij->i", self.x - self.xhold, self.x - self.xhold))
+        i = int(np.argmax(d)) if d.size else 0
+        skin = self.settings.skin
+        if d.size and d[i] > LOST_DISPLACEMENT_SKINS * skin:
+            raise SimulationError(
+                f"step {self.step + 1}: particle {i} lost: it moved {d[i]:.4g} m = {d[i] / skin:.3g} "
+                f"skins since "
+                f"the neighbour build of step {self._build_step}, more than a skin ({skin:.4g} m) in "
+                f"one step "
+                f"(velocity {self.v[i].tolist()} m/s, dt {self.settings.dt:.4g} s)")
+
     def _setup(self):
         """LIGGGHTS ``run`` set-up: wrap, build (springs zero), forces without spring increment."""
         self._rebuild(carry=False)
@@ -228,6 +337,14 @@ class DEMEngine:
         -------
         dict with ``step`` (n,), ``stress`` (n, 2, 2) (Love stress, compression positive, area of
         the box after the step), ``lengths`` (n, 2), ``n_contacts`` (n,), ``mean_overlap`` (n,), ``kinetic_energy`` (n,).
+
+        Raises
+        ------
+        SimulationError naming the step and the particle, on a divergence: a non-finite position or
+        kinetic energy; a kinetic-energy blow-up (more than KINETIC_ENERGY_FACTOR times the energy
+        balance allows, :meth:`_check_divergence`); a lost particle (moved more than
+        LOST_DISPLACEMENT_SKINS skins since the last neighbour build, or left the box by more than a
+        cell); a collapsed cell. These checks only read the state: the step's arithmetic is untouched.
         """
         s = self.settings
         nsteps = int(nsteps)
@@ -249,6 +366,7 @@ class DEMEngine:
         resume = False
         step_start = self.step
         while done < nsteps:
+            L_before = self.box_lengths.copy()
             with num_threads(self._threads):
                 k, status, bad = K.run_block(
                     self.x, self.v, self.w, self.f, self.t, self.r, self.m, self.ea, self.eb, self.esx, self.esy,
@@ -257,10 +375,14 @@ class DEMEngine:
                     nsteps - done, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
                     out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:], out_ke[done:],
                     self._parallel, self.start, self._pvir, self._pcont, self._tb, self._in_start, self._in_e)
+            if k:
+                self._check_divergence(self.step + 1, out_ke[done:done + k], out_stress[done:done + k],
+                                       out_L[done:done + k], L_before)
             done += k
             self.step += k
             resume = False
             if status == 1:
+                self._check_lost()
                 self.step += 1
                 self._rebuild(carry=True)
                 self.step -= 1
@@ -337,6 +459,8 @@ class DEMEngine:
         self._set_parallel_scratch()
         self.step = int(step)
         self.stress = self.stress_tensor(self.box_lengths)
+        self._build_step = self.step
+        self._reset_energy_budget()
 
 
 __all__ = [
@@ -346,6 +470,7 @@ __all__ = [
     "DEMSettings",
     "Loading",
     "contact_time",
+    "damping_ratio",
     "fingerprint",
     "stability_limit",
 ]

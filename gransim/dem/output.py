@@ -34,6 +34,9 @@ class OutputSettings:
         if self.series_every == 0:
             raise InputError("series_every: must be >= 1")
 
+    def to_dict(self) -> dict:
+        return {k: int(getattr(self, k)) for k in ("series_every", "snapshot_every", "checkpoint_every")}
+
 
 @dataclass
 class RunRecord:
@@ -47,6 +50,9 @@ class RunRecord:
     checkpoint: dict | None = None  # arrays + "step" + "protocol_state"
     complete: bool = False
     stop_reason: str = ""
+    unsettled: list = field(default_factory=list)  # phases that ended unsettled (allow_unsettled)
+    output: dict | None = None  # OutputSettings.to_dict() of the run (None: not stored)
+    allow_unsettled: bool = False
 
     def series_arrays(self) -> dict:
         out = {}
@@ -71,6 +77,10 @@ def write_run(path, rec: RunRecord, parameters: dict | None = None, seed=None) -
         f.attrs["n_particles"] = rec.packing.n
         f.attrs["complete"] = bool(rec.complete)
         f.attrs["stop_reason"] = rec.stop_reason
+        f.attrs["allow_unsettled"] = bool(rec.allow_unsettled)
+        f.attrs["unsettled_phases"] = json.dumps(rec.unsettled)
+        if rec.output is not None:
+            f.attrs["output_settings"] = json.dumps(rec.output, sort_keys=True)
         write_packing_group(f.create_group("packing"), rec.packing)
         g = f.create_group("series")
         g.attrs["stress_sign"] = "tension positive (gransim convention; = -LIGGGHTS compute pressure)"
@@ -102,12 +112,131 @@ def write_run(path, rec: RunRecord, parameters: dict | None = None, seed=None) -
     return Path(path)
 
 
+#: trailing shape of each /series dataset (all have the same number of rows T)
+SERIES_SHAPES = {"step": (), "time": (), "cell": (2, 2), "stress": (2, 2), "n_contacts": (), "mean_overlap": (),
+                 "kinetic_energy": (), "phase": ()}
+#: shape of each snapshot dataset (N particles) and contact dataset (M contacts)
+SNAPSHOT_SHAPES = {"cell": (2, 2), "positions": ("N", 2), "velocities": ("N", 2), "spins": ("N",)}
+CONTACT_SHAPES = {"i": ("M",), "j": ("M",), "shift": ("M", 2), "force": ("M", 2), "overlap": ("M",),
+                  "tangential_spring": ("M", 2), "sliding": ("M",)}
+#: checkpoint arrays: shape in N particles and K neighbour-list entries
+CHECKPOINT_SHAPES = {"positions": ("N", 2), "velocities": ("N", 2), "spins": ("N",), "forces": ("N", 2),
+                     "torques": ("N",), "box_lo": (2,), "box_hi": (2,), "x_hold": ("N", 2), "box_lo_hold": (2,),
+                     "box_hi_hold": (2,), "neighbours/a": ("K",), "neighbours/b": ("K",),
+                     "neighbours/shift": ("K", 2), "neighbours/owned_both": ("K",), "neighbours/xi": ("K", 2),
+                     "virial": (4,)}
+
+
+def _attr(f, path, name):
+    if name not in f.attrs:
+        raise ResultFileError(f"{path}: no root attribute {name!r}: not a complete dem-run file (docs/schema_dem.md)")
+    v = f.attrs[name]
+    return v.decode() if isinstance(v, bytes) else v
+
+
+def _json_attr(f, path, name, default=None, where=None, want=None):
+    obj = f if where is None else where
+    if name not in obj.attrs:
+        if default is not None:
+            return default
+        raise ResultFileError(f"{path}: no attribute {name!r} on {obj.name}")
+    text = obj.attrs[name]
+    text = text.decode() if isinstance(text, bytes) else str(text)
+    try:
+        v = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ResultFileError(f"{path}: attribute {name!r} of {obj.name} is not valid JSON ({exc}): "
+                              "corrupt run file") from None
+    if want is not None and not isinstance(v, want):
+        raise ResultFileError(f"{path}: attribute {name!r} of {obj.name} holds a JSON {type(v).__name__}, expected "
+                              f"a {want.__name__}")
+    return v
+
+
+def _check_shapes(group, shapes: dict, sizes: dict, path, what: str):
+    """Every dataset of ``shapes`` present (optional ones in ``sizes`` context) with the right shape."""
+    for k, shp in shapes.items():
+        if k not in group or not hasattr(group[k], "shape"):
+            raise ResultFileError(f"{path}: {what}: dataset {group.name}/{k} is missing")
+        got = group[k].shape
+        want = []
+        for d, e in enumerate(shp):
+            if isinstance(e, str):
+                if e not in sizes:
+                    sizes[e] = got[0] if got else -1
+                e = sizes[e]
+            want.append(e)
+        if tuple(got) != tuple(want):
+            raise ResultFileError(f"{path}: {what}: dataset {group.name}/{k} has shape {tuple(got)}, expected "
+                                  f"{tuple(want)} ({', '.join(f'{a} = {b}' for a, b in sizes.items())}): truncated or "
+                                  "corrupt run file")
+
+
+def _check_snapshot(h, n: int, path):
+    for a in ("step", "time"):
+        if a not in h.attrs:
+            raise ResultFileError(f"{path}: snapshot {h.name} has no attribute {a!r}")
+    _check_shapes(h, SNAPSHOT_SHAPES, {"N": n}, path, f"snapshot of step {int(h.attrs['step'])}")
+    if "contacts" not in h:
+        raise ResultFileError(f"{path}: snapshot {h.name} has no contacts group")
+    _check_shapes(h["contacts"], CONTACT_SHAPES, {}, path, f"contacts of the snapshot of step {int(h.attrs['step'])}")
+
+
+def _check_run_file(f, path) -> dict:
+    """Structure of a dem-run file: root attributes, settings JSON, series lengths and shapes,
+    snapshot shapes. Returns the decoded settings. Raises ResultFileError naming the dataset."""
+    for name in ("fingerprint", "complete", "stop_reason"):
+        _attr(f, path, name)
+    settings = _json_attr(f, path, "settings", want=dict)
+    for g in ("packing", "series", "snapshots"):
+        if g not in f:
+            raise ResultFileError(f"{path}: no /{g} group: not a complete dem-run file")
+    if "radii" not in f["packing"]:
+        raise ResultFileError(f"{path}: no /packing/radii")
+    n = int(f["packing/radii"].shape[0]) if f["packing/radii"].ndim == 1 else -1
+    if n < 1:
+        raise ResultFileError(f"{path}: /packing/radii has shape {f['packing/radii'].shape}, expected (N,)")
+    ser = f["series"]
+    for k in SERIES_KEYS:
+        if k not in ser:
+            raise ResultFileError(f"{path}: dataset /series/{k} is missing")
+    t = ser["step"].shape[0] if ser["step"].ndim == 1 else -1
+    if t < 1:
+        raise ResultFileError(f"{path}: dataset /series/step has shape {ser['step'].shape}, expected (T,) with T >= 1")
+    for k, trail in SERIES_SHAPES.items():
+        shp = ser[k].shape
+        if len(shp) != 1 + len(trail) or tuple(shp[1:]) != trail:
+            raise ResultFileError(f"{path}: dataset /series/{k} has shape {shp}, expected (T,) + {trail}")
+        if shp[0] != t:
+            raise ResultFileError(f"{path}: dataset /series/{k} has {shp[0]} rows, /series/step has {t}: truncated "
+                                  "or corrupt run file")
+    for h in f["snapshots"].values():
+        _check_snapshot(h, n, path)
+    return settings
+
+
+def _run_flags(f, path) -> dict:
+    return {"complete": bool(_attr(f, path, "complete")), "stop_reason": str(_attr(f, path, "stop_reason")),
+            "unsettled": _json_attr(f, path, "unsettled_phases", default=[], want=list),
+            "output": _json_attr(f, path, "output_settings", default={}, want=dict) or None,
+            "allow_unsettled": bool(f.attrs.get("allow_unsettled", False))}
+
+
 def read_record(path) -> RunRecord:
-    """Read a run file back into a :class:`RunRecord` (used to resume)."""
+    """Read a run file back into a :class:`RunRecord` (used to resume).
+
+    Checks the structure first (:class:`ResultFileError` naming the attribute or dataset for a
+    missing attribute, invalid settings JSON, series of different lengths, snapshots or
+    checkpoint arrays of the wrong shape). ``complete`` / ``stop_reason`` are returned as stored:
+    see :func:`require_complete`.
+    """
     with open_result(path, kind=KIND) as f:
-        rec = RunRecord(packing=read_packing_group(f["packing"]), settings_text=str(f.attrs["settings"]),
-                        fingerprint=str(f.attrs["fingerprint"]), complete=bool(f.attrs["complete"]),
-                        stop_reason=str(f.attrs["stop_reason"]))
+        _check_run_file(f, path)
+        fl = _run_flags(f, path)
+        rec = RunRecord(packing=read_packing_group(f["packing"]), settings_text=str(_attr(f, path, "settings")),
+                        fingerprint=str(_attr(f, path, "fingerprint")), complete=fl["complete"],
+                        stop_reason=fl["stop_reason"], unsettled=fl["unsettled"], output=fl["output"],
+                        allow_unsettled=fl["allow_unsettled"])
         for k in SERIES_KEYS:
             v = f["series"][k][()]
             rec.series[k] = list(-v if k == "stress" else v)  # back to the engine's compression-positive virial
@@ -118,11 +247,28 @@ def read_record(path) -> RunRecord:
                                    "contacts": {k: v[()] for k, v in h["contacts"].items()}}
         if "checkpoint" in f:
             ck = f["checkpoint"]
+            if "step" not in ck.attrs:
+                raise ResultFileError(f"{path}: /checkpoint has no attribute 'step'")
+            _check_shapes(ck, CHECKPOINT_SHAPES, {"N": rec.packing.n}, path, "checkpoint")
+            state = _json_attr(f, path, "protocol_state", where=ck, want=dict)
             arrays = {}
             ck.visititems(lambda name, obj: arrays.__setitem__(name, obj[()]) if hasattr(obj, "shape") else None)
-            rec.checkpoint = {"step": int(ck.attrs["step"]), "protocol_state": json.loads(ck.attrs["protocol_state"]),
-                              "arrays": arrays}
+            rec.checkpoint = {"step": int(ck.attrs["step"]), "protocol_state": state, "arrays": arrays}
     return rec
+
+
+def require_complete(record, path=None, hint: str = "pass allow_incomplete=True (CLI --allow-incomplete) to "
+                                                   "read it anyway"):
+    """Refuse an unfinished run: :class:`ResultFileError` naming the file, its ``stop_reason`` and ``hint``.
+
+    ``record`` is anything with ``complete`` and ``stop_reason`` (:class:`RunRecord`,
+    :class:`RunResult`); ``path`` defaults to ``record.path``.
+    """
+    if record.complete:
+        return record
+    path = path if path is not None else getattr(record, "path", "run file")
+    why = record.stop_reason or "no stop_reason recorded"
+    raise ResultFileError(f"{path}: incomplete run (complete = False): {why}; {hint}")
 
 
 @dataclass(frozen=True)
@@ -136,6 +282,8 @@ class RunResult:
     snapshot_steps: tuple
     complete: bool
     stop_reason: str
+    unsettled_phases: tuple = ()  # dicts (phase, name, step, reason) of phases that ended unsettled
+    output_settings: dict | None = None  # series_every, snapshot_every, checkpoint_every (None: not stored)
 
     def strain(self) -> np.ndarray:
         """Logarithmic strains ln(L/L0) of the two axes, (T, 2) (compression negative)."""
@@ -145,13 +293,20 @@ class RunResult:
 
 
 def read_run(path) -> RunResult:
-    """Series, packing and settings of a run file (``series["stress"]`` tension positive, N/m)."""
+    """Series, packing and settings of a run file (``series["stress"]`` tension positive, N/m).
+
+    The structure is checked as by :func:`read_record`; ``complete`` and ``stop_reason`` are
+    returned as stored (an unfinished run is read: callers that need a finished one call
+    :func:`require_complete`)."""
     with open_result(path, kind=KIND) as f:
+        settings = _check_run_file(f, path)
+        fl = _run_flags(f, path)
         series = {k: f["series"][k][()] for k in SERIES_KEYS}
         return RunResult(path=Path(path), packing=read_packing_group(f["packing"]),
-                         settings=json.loads(f.attrs["settings"]), series=series,
+                         settings=settings, series=series,
                          snapshot_steps=tuple(int(h.attrs["step"]) for h in f["snapshots"].values()),
-                         complete=bool(f.attrs["complete"]), stop_reason=str(f.attrs["stop_reason"]))
+                         complete=fl["complete"], stop_reason=fl["stop_reason"],
+                         unsettled_phases=tuple(fl["unsettled"]), output_settings=fl["output"])
 
 
 @dataclass(frozen=True)
@@ -184,24 +339,35 @@ def read_snapshot(path, step: int | None = None) -> Snapshot:
                 have = [int(n[1:]) for n in names]
                 raise ResultFileError(f"{path}: no snapshot at step {step} (have {have[:5]}...{have[-3:]})")
         h = g[name]
+        if "packing" not in f or "radii" not in f["packing"]:
+            raise ResultFileError(f"{path}: no /packing/radii")
+        _check_snapshot(h, int(f["packing/radii"].shape[0]), path)
         return Snapshot(step=int(h.attrs["step"]), time=float(h.attrs["time"]), cell=h["cell"][()],
                         positions=h["positions"][()], velocities=h["velocities"][()], spins=h["spins"][()],
                         radii=f["packing/radii"][()], contacts={k: v[()] for k, v in h["contacts"].items()})
 
 
-def snapshot_to_vtu(path, step: int | None, out) -> Path:
-    """Write one snapshot as a ParaView .vtu (points with radius, velocity, spin, contact count)."""
+def snapshot_to_vtu(path, step: int | None, out, allow_incomplete: bool = False) -> Path:
+    """Write one snapshot as a ParaView .vtu (points with radius, velocity, spin, contact count).
+
+    An unfinished run (``complete`` False) is refused unless ``allow_incomplete``."""
     from ..io import particles_to_vtu
 
+    run = read_run(path)
+    if not allow_incomplete:
+        require_complete(run, path)
     s = read_snapshot(path, step)
     z = np.bincount(s.contacts["i"], minlength=len(s.radii)) + np.bincount(s.contacts["j"], minlength=len(s.radii))
     return particles_to_vtu(out, s.positions, s.radii, point_data={"velocity": s.velocities, "spin": s.spins,
                                                                  "contacts": z.astype(float)}, cell=s.cell)
 
 
-def plot_stress_strain(path, out) -> Path:
+def plot_stress_strain(path, out, allow_incomplete: bool = False) -> Path:
     """Fig. 7b of Kuhn (002): stress ratio sigma_22/sigma_11 and deviator (sigma_22 - sigma_11)/2
-    against the axial strain -eps_22 (compression phase; compression-positive stresses)."""
+    against the axial strain -eps_22 (compression phase; compression-positive stresses).
+
+    An unfinished run (``complete`` False) is refused unless ``allow_incomplete``; its plot then
+    says so in the title, with the stop reason."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -210,6 +376,8 @@ def plot_stress_strain(path, out) -> Path:
     from ..io import atomic_path
 
     run = read_run(path)
+    if not allow_incomplete:
+        require_complete(run, path)
     sel = run.series["phase"] == 1
     if not np.any(sel):
         sel = np.ones_like(run.series["phase"], bool)
@@ -226,7 +394,13 @@ def plot_stress_strain(path, out) -> Path:
     ax[1].set_xlabel(r"axial strain $-\varepsilon_{22}$ (%)")
     ax[1].set_ylabel("stress (N/m)")
     ax[1].legend()
-    fig.suptitle(f"biaxial compression, {run.packing.n} disks ({Path(path).name})")
+    title = f"biaxial compression, {run.packing.n} disks ({Path(path).name})"
+    if not run.complete:
+        why = run.stop_reason if len(run.stop_reason) < 90 else run.stop_reason[:87] + "..."
+        title = f"INCOMPLETE RUN: {why}\n" + title
+    elif run.unsettled_phases:
+        title = f"UNSETTLED: {', '.join(u['name'] for u in run.unsettled_phases)} (allow_unsettled)\n" + title
+    fig.suptitle(title, color="red" if not run.complete or run.unsettled_phases else "black")
     fig.tight_layout()
     out = Path(out)
     with atomic_path(out, suffix=out.suffix) as tmp:

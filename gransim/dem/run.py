@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validate import as_positive_float
-from ..errors import InputError, ResultFileError, SimulationError
+from .._validate import as_int, as_positive_float
+from ..errors import ConvergenceError, InputError, ResultFileError, SimulationError
 from ..geometry import Packing
 from ..progress import progress
 from .engine import DEMEngine, fingerprint
@@ -56,6 +56,19 @@ def _settled(phase: Phase, mean_stress: np.ndarray) -> bool:
     return bool(ok)
 
 
+def _unsettled_reason(phase: Phase, mean_stress: np.ndarray | None, window: str = "the last window") -> str:
+    """Why a phase with a stop criterion ended on its step cap: the stress ratios of its last window."""
+    parts = []
+    for d, ctl in enumerate((phase.loading.x, phase.loading.y)):
+        if ctl.mode == "servo":
+            ok = mean_stress is not None and ctl.target
+            ratio = float(mean_stress[d, d] / ctl.target) if ok else float("nan")
+            parts.append(f"sigma_{d + 1}{d + 1}/p = {ratio:.4g}")
+    return (f"{phase.name} did not settle within {int(phase.max_steps)} steps: {', '.join(parts)} "
+            f"(mean of {window}; tolerance {phase.stop_tol:g} relative, "
+            f"{phase.settle_checks} windows of {phase.check_every} steps in a row)")
+
+
 def _snapshot(eng: DEMEngine) -> dict:
     c = eng.contacts()
     return {"time": eng.step * eng.settings.dt, "cell": eng.cell, "positions": eng.x.copy(),
@@ -64,17 +77,29 @@ def _snapshot(eng: DEMEngine) -> dict:
 
 def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output: OutputSettings | None = None,
                resume: bool = False, velocities=None, threads: int | None = None, show_progress: bool = True,
-               metadata: dict | None = None, stop_at_step: int | None = None) -> Path:
+               metadata: dict | None = None, stop_at_step: int | None = None,
+               allow_unsettled: bool = False) -> Path:
     """Run ``phases`` one after the other from ``packing``; write ``out_path`` (kind "dem-run").
 
     With ``resume`` and an existing ``out_path`` of the same run (same fingerprint: packing,
     DEM settings, phases), continue from its checkpoint bit for bit; a file of another run is
-    refused (:class:`ResultFileError`). A :class:`SimulationError` (NaN, lost particle) writes
-    the file with the snapshots so far and ``stop_reason`` before it propagates.
+    refused (:class:`ResultFileError`), and so is another sampling of the series or snapshots
+    (``output.series_every`` / ``snapshot_every`` differing from the file's, :class:`InputError`).
+    A :class:`SimulationError` (NaN, kinetic-energy blow-up, lost particle) writes the file with
+    the snapshots so far and ``stop_reason`` before it propagates.
+
+    A phase with a stop criterion (``stop_tol`` > 0) that reaches ``max_steps`` without meeting it
+    stops the run: the file is written with ``complete`` False, ``stop_reason`` ("consolidation did
+    not settle within N steps: sigma_11/p = ...") and a checkpoint at that step, and
+    :class:`ConvergenceError` is raised. With ``allow_unsettled`` the run goes on; the file lists
+    such phases in its ``unsettled_phases`` attribute (and ``allow_unsettled`` True).
+
     ``stop_at_step`` ends this call at that step with a checkpoint (``complete`` False): a long
     run split into pieces, continued with ``resume``.
     """
     output = output or OutputSettings()
+    if stop_at_step is not None:
+        stop_at_step = as_int(stop_at_step, "stop_at_step", minimum=1)
     phases = list(phases)
     text = settings_json(settings, None, phases=[p.to_dict() for p in phases], **(metadata or {}))
     fp = fingerprint(packing, text)
@@ -90,6 +115,7 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
             return out_path
         if rec.checkpoint is None:
             raise ResultFileError(f"{out_path}: no checkpoint to resume from; rerun without --resume")
+        _check_same_sampling(out_path, rec.output, output)
         step = rec.checkpoint["step"]
         eng.restore(rec.checkpoint["arrays"], step)
         state = rec.checkpoint["protocol_state"]
@@ -97,6 +123,7 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
         for k in rec.series:
             rec.series[k] = [rec.series[k][i] for i in keep]
         rec.snapshots = {s: v for s, v in rec.snapshots.items() if s <= step}
+        rec.unsettled = [u for u in rec.unsettled if u["step"] <= step]
         rec.stop_reason = ""
     else:
         rec = RunRecord(packing=packing, settings_text=text, fingerprint=fp)
@@ -104,6 +131,8 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
                 [eng.kinetic_energy()], 0)
         if output.snapshot_every:
             rec.snapshots[0] = _snapshot(eng)
+    rec.output = output.to_dict()
+    rec.allow_unsettled = bool(allow_unsettled)
     total = sum(p.max_steps for p in phases)
     bar = progress(total=total, desc="dem") if show_progress else None
     if bar is not None:
@@ -113,6 +142,9 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
             ph = phases[state["phase"]]
             lo0, hi0 = np.array(state["lo0"]), np.array(state["hi0"])
             end = state["phase_step0"] + ph.max_steps
+            settled = False
+            last_mean = None
+            tail = None
             while eng.step < end:
                 nxt = [end]
                 for every in (output.snapshot_every, output.checkpoint_every):
@@ -125,6 +157,7 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
                     nxt.append(int(stop_at_step))
                 stop = min(nxt)
                 out = eng.advance(ph.loading, stop - eng.step, phase_step0=state["phase_step0"], phase_box0=(lo0, hi0))
+                tail = out["stress"]  # the last steps of the phase, for the message of an unsettled end
                 sel = out["step"] % output.series_every == 0
                 L = out["lengths"][sel]
                 cells = np.zeros((len(L), 2, 2))
@@ -136,20 +169,59 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
                 if output.snapshot_every and eng.step % output.snapshot_every == 0:
                     rec.snapshots[eng.step] = _snapshot(eng)
                 if ph.stop_tol > 0 and (eng.step - state["phase_step0"]) % ph.check_every == 0:
-                    state["settled"] = state["settled"] + 1 if _settled(ph, out["stress"].mean(axis=0)) else 0
+                    last_mean = out["stress"].mean(axis=0)
+                    state["last_mean_stress"] = last_mean.tolist()
+                    state["settled"] = state["settled"] + 1 if _settled(ph, last_mean) else 0
                     if state["settled"] >= ph.settle_checks:
+                        settled = True
                         break
                 if output.checkpoint_every and eng.step % output.checkpoint_every == 0:
                     _checkpoint(rec, eng, state)
+                    rec.stop_reason = (f"run in progress, or killed: last checkpoint at step {eng.step} "
+                                       "(continue with resume)")
                     write_run(out_path, rec)
                 if stop_at_step is not None and eng.step == stop_at_step:
                     _checkpoint(rec, eng, state)
+                    rec.stop_reason = (f"stopped at step {eng.step} by stop_at_step (a piece of a "
+                                       f"longer run; "
+                                       "continue with resume)")
                     write_run(out_path, rec)
                     return out_path
+            if ph.stop_tol > 0 and not settled:
+                if last_mean is None and state.get("last_mean_stress") is not None:
+                    last_mean = np.array(state["last_mean_stress"])  # resumed right at the phase end
+                window = "the last window"
+                if last_mean is None and tail is not None and len(tail):
+                    last_mean, window = tail.mean(axis=0), f"the last {len(tail)} steps"
+                    if ph.max_steps < ph.check_every:
+                        window += (f"; no settle check ran: max_steps {ph.max_steps} < check_every "
+                                   f"{ph.check_every}")
+                reason = _unsettled_reason(ph, last_mean, window)
+                if not allow_unsettled:
+                    _checkpoint(rec, eng, state)
+                    rec.stop_reason = reason + ("; pass allow_unsettled=True (--allow-unsettled) to "
+                                                "go on anyway")
+                    write_run(out_path, rec)
+                    raise ConvergenceError(f"{out_path}: {rec.stop_reason}")
+                if not any(u["phase"] == state["phase"] for u in rec.unsettled):
+                    rec.unsettled.append({"phase": int(state["phase"]), "name": ph.name,
+                                          "step": int(eng.step), "reason": reason})
             state = {"phase": state["phase"] + 1, "phase_step0": eng.step, "lo0": eng.lo.tolist(),
                      "hi0": eng.hi.tolist(), "settled": 0}
+            if stop_at_step is not None and eng.step == stop_at_step and state["phase"] < len(phases):
+                _checkpoint(rec, eng, state)  # the phase ended early right at stop_at_step
+                rec.stop_reason = (f"stopped at step {eng.step} by stop_at_step (a piece of a longer run; "
+                                   "continue with resume)")
+                write_run(out_path, rec)
+                return out_path
     except SimulationError as exc:
         rec.stop_reason = str(exc)
+        write_run(out_path, rec)
+        raise
+    except KeyboardInterrupt:
+        rec.stop_reason = (f"interrupted at step {eng.step}"
+                           + (f"; resume continues from the checkpoint at step {rec.checkpoint['step']}"
+                              if rec.checkpoint is not None else ""))
         write_run(out_path, rec)
         raise
     finally:
@@ -158,9 +230,22 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
     if eng.step not in rec.snapshots and output.snapshot_every:
         rec.snapshots[eng.step] = _snapshot(eng)
     rec.complete = True
+    rec.stop_reason = ""
     _checkpoint(rec, eng, state)
     write_run(out_path, rec)
     return out_path
+
+
+def _check_same_sampling(path, stored: dict | None, output: OutputSettings):
+    """A resume must keep the sampling of the series and snapshots of the file it continues."""
+    if not stored:
+        return  # a file written before the output settings were stored: nothing to compare
+    for key, opt in (("series_every", "--series-every"), ("snapshot_every", "--snapshot-every")):
+        if key in stored and int(stored[key]) != int(getattr(output, key)):
+            raise InputError(f"{key} ({opt}) = {getattr(output, key)} differs from {key} = "
+                             f"{int(stored[key])} of the run "
+                             f"in {path}: a resume would mix two samplings in one file; resume with {opt} "
+                             f"{int(stored[key])} (or start a new file)")
 
 
 def _checkpoint(rec: RunRecord, eng: DEMEngine, state: dict):

@@ -130,10 +130,15 @@ def test_cli_biaxial_and_export(tmp_path, packing, capsys):
     pk = tmp_path / "p.h5"
     save_packing(pk, packing)
     out = tmp_path / "b.h5"
+    # 2000 steps do not settle this packing: the run goes on only with --allow-unsettled, and says so
     rc = main(["biaxial", "--packing", str(pk), "--strain", "0.001", "--strain-rate", "0.1", "-o", str(out),
-               "--consolidation-steps", "2000", "--snapshot-every", "1000", "--plot", str(tmp_path / "f.png")])
+               "--consolidation-steps", "2000", "--snapshot-every", "1000", "--plot", str(tmp_path / "f.png"),
+               "--allow-unsettled"])
     assert rc == 0
     text = capsys.readouterr().out
     assert "inertial_number" in text and (tmp_path / "f.png").exists()
+    assert "WARNING: consolidation did not settle" in text
+    run = read_run(out)
+    assert run.complete and [u["name"] for u in run.unsettled_phases] == ["consolidation"]
     assert main(["dem-export", str(out), "--vtu", str(tmp_path / "x.vtu")]) == 0
     assert main(["biaxial", "--packing", str(tmp_path / "missing.h5"), "-o", str(out)]) == 2

@@ -21,12 +21,14 @@ def eps_of(step):
     return RATE * max(step - 5, 0)
 
 
-def write_affine_run(path, snapshot_steps=(2, 5, 6, 7, 21, 22)):
+def write_affine_run(path, snapshot_steps=(2, 5, 6, 7, 21, 22), complete=True, stop_reason=""):
     """A fake biaxial run in the DEM schema: the packing compressed affinely, Ly = Ly0 exp(-eps)."""
     x0, r, C0 = relaxed_packing()
     steps = np.arange(0, 25)
     F = lambda s: np.diag([1.0, np.exp(-eps_of(s))])  # noqa: E731
     with atomic_h5(path, kind="dem-run", parameters={"test": True}, seed=0) as f:
+        f.attrs["complete"] = complete
+        f.attrs["stop_reason"] = stop_reason
         g = f.create_group("packing")
         g["positions"], g["radii"], g["cell"] = x0, r, C0
         se = f.create_group("series")
