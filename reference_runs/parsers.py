@@ -121,8 +121,8 @@ def parse_log(source) -> LogFile:
     of numeric fields (interleaved ``WARNING`` lines are kept apart) until ``Loop time of``.
     A run cut short by an error has ``complete = False``.
     """
-    if isinstance(source, Path) or (isinstance(source, str) and "\n" not in source
-                                     and Path(source).exists()):
+    if isinstance(source, Path) or (isinstance(source, str) and source and "\n" not in source
+                                     and Path(source).is_file()):
         path = Path(source)
         try:
             text = path.read_text(errors="replace")

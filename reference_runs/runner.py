@@ -1,18 +1,37 @@
 """Run one LIGGGHTS job in its own directory, with a manifest that says whether it completed.
 
 A job directory holds the deck (``in.liggghts``), its input files (data files...), the log
-(``log.lammps``), the outputs the deck writes, ``stdout.txt``/``stderr.txt`` and, written
-atomically and last, ``manifest.json``. Only a manifest with ``"status": "ok"`` marks the
-outputs as complete; a failed job leaves ``"status": "failed"`` with the reason, and a job
-that is running or was killed has no manifest at all (it is removed before the run starts).
+(``log.lammps``), the outputs the deck writes, ``stdout.txt``/``stderr.txt``, the lock file
+``.lock`` and, written atomically and last, ``manifest.json``. Only a manifest with ``"status":
+"ok"`` marks the outputs as complete; a failed job leaves ``"status": "failed"`` with the reason,
+and a job that is running or was killed has no manifest (it is removed before the run starts) or a
+``failed`` one saying it was interrupted.
 
 A job is identified by the SHA-256 of its deck and input files (``input_sha256``; the deck
-alone is ``deck_sha256``): :func:`run_job` returns at once, without running, when the
-directory already holds an ``ok`` manifest with the same input hash and all its outputs.
+alone is ``deck_sha256``). A job is accepted (fresh or reused) only when its evidence is complete
+(:mod:`reference_runs.expect`): the log holds every ``run`` of the deck, each ended by its
+``Loop time`` line at the step the deck asks for, and every ``dump`` file among the outputs holds
+the frames the deck asks for; the manifest records the counts (``evidence``) and the SHA-256 of
+the log (``log_sha256``) and of every output (``outputs``). :func:`run_job` reuses a directory
+that holds an ``ok`` manifest with the same input hash only after re-hashing the log and outputs
+and re-checking the evidence (:func:`verify_job`); a job that fails this is rerun (with a
+``WARNING`` line) when LIGGGHTS is available, and refused otherwise.
+
+One writer at a time: :func:`run_job` holds ``flock`` on ``job_dir/.lock``
+(:class:`reference_runs.locks.DirectoryLock`); a second writer of the same job waits (one line
+``waiting for job ...``), then finds the finished job and reuses it.
+
+No orphans: LIGGGHTS (or ``mpirun``) runs in a new session; its process group is killed
+(SIGTERM, then SIGKILL after :data:`KILL_GRACE_S`) on timeout, on any exception, and when it exits
+leaving members behind. Live groups are registered; :func:`terminate_children` kills them all
+(also at interpreter exit), and :func:`kill_children_on_signals` turns SIGTERM, SIGINT and SIGHUP
+into "kill the children, then raise".
 """
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import datetime as _dt
 import hashlib
 import json
@@ -21,13 +40,18 @@ import re
 import shutil
 import signal
 import subprocess
+import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from gransim.io import atomic_path, liggghts_version
+from gransim.io import atomic_path
+from gransim.io.provenance import liggghts_package_version
 
-from .errors import ReferenceRunError
+from .errors import DirectoryBusyError, ReferenceRunError
+from .expect import check_evidence, expected_evidence
+from .locks import DirectoryLock
 from .parsers import LogFile, parse_log
 
 DECK_NAME = "in.liggghts"
@@ -35,10 +59,136 @@ LOG_NAME = "log.lammps"
 MANIFEST_NAME = "manifest.json"
 INSTALL_HINT = ("install LIGGGHTS-PUBLIC 3.8.0 with `sudo apt-get install liggghts` (Debian/Ubuntu), "
                 "or put a `liggghts` binary on PATH")
+FORCE_HINT = ("`--force` (`gransim reference run|taylor --force`, `run_job(force=True)`) discards the "
+              "stored outputs and runs LIGGGHTS again; it needs the binary too")
 #: how many lines of log context to show in an error
 CONTEXT_LINES = 12
+#: seconds between SIGTERM and SIGKILL when a job's process group is killed
+KILL_GRACE_S = 5.0
 
 
+def _echo(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+# ----------------------------------------------------------------------------- children
+_LIVE: dict = {}              # process group id -> Popen of its leader
+_LIVE_LOCK = threading.Lock()
+
+
+class Terminated(SystemExit):
+    """Raised by :func:`kill_children_on_signals` on SIGTERM or SIGHUP, after the children were
+    killed. A :class:`SystemExit` with code 128 + signal number (what a shell reports for a
+    process killed by that signal); ``signum`` is the signal."""
+
+    def __init__(self, signum: int):
+        super().__init__(128 + int(signum))
+        self.signum = int(signum)
+
+    def __str__(self) -> str:
+        return f"terminated by {signal.Signals(self.signum).name}"
+
+
+def _group_alive(pgid: int) -> bool:
+    """True while any non-zombie process of group ``pgid`` exists."""
+    proc = Path("/proc")
+    if proc.is_dir():
+        for d in proc.iterdir():
+            if not d.name.isdigit():
+                continue
+            try:
+                stat = (d / "stat").read_text()
+            except OSError:
+                continue
+            fields = stat[stat.rfind(")") + 2:].split()   # state ppid pgrp ...
+            if len(fields) > 2 and fields[2] == str(pgid) and fields[0] not in ("Z", "X"):
+                return True
+        return False
+    try:
+        os.killpg(pgid, 0)
+        return True
+    except (ProcessLookupError, PermissionError):
+        return False
+
+
+def _kill_groups(items, grace: float | None = None) -> None:
+    """SIGTERM every group of ``items`` ([(pgid, Popen)]), wait up to ``grace`` s for all of them
+    (reaping the leaders), then SIGKILL whatever is left."""
+    grace = KILL_GRACE_S if grace is None else grace
+    items = list(items)
+    for pgid, _ in items:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(pgid, signal.SIGTERM)
+    deadline = time.monotonic() + grace
+    while True:
+        for _, proc in items:
+            if proc is not None:
+                proc.poll()
+        left = [(g, p) for g, p in items if _group_alive(g)]
+        if not left or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+    for pgid, proc in left:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(pgid, signal.SIGKILL)
+        if proc is not None:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                proc.wait(timeout=5)
+
+
+def live_children() -> list:
+    """Process group ids of the LIGGGHTS jobs this process is running."""
+    with _LIVE_LOCK:
+        return list(_LIVE)
+
+
+def terminate_children(grace: float | None = None) -> int:
+    """Kill the process group of every live LIGGGHTS job of this process (SIGTERM, then SIGKILL
+    after ``grace`` s, default :data:`KILL_GRACE_S`). Returns how many groups were signalled.
+    Safe to call from a signal handler or at exit; also registered with :mod:`atexit`."""
+    with _LIVE_LOCK:
+        items = list(_LIVE.items())
+    if items:
+        _kill_groups(items, grace)
+    return len(items)
+
+
+atexit.register(terminate_children)
+
+
+@contextlib.contextmanager
+def kill_children_on_signals(signals=(signal.SIGTERM, signal.SIGINT, signal.SIGHUP)):
+    """Within the block, SIGTERM, SIGINT and SIGHUP kill the live LIGGGHTS jobs
+    (:func:`terminate_children`) and then raise: :class:`KeyboardInterrupt` for SIGINT,
+    :class:`Terminated` (a ``SystemExit(128 + signum)``) for the others. The previous handlers are
+    restored on exit. Off the main thread (where Python cannot install handlers) it does nothing.
+
+    Usage::
+
+        with kill_children_on_signals():
+            run_job(...)
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        terminate_children()
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Terminated(signum)
+
+    old = {}
+    try:
+        for s in signals:
+            old[s] = signal.signal(s, handler)
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+# ----------------------------------------------------------------------------- results
 @dataclass(frozen=True)
 class JobResult:
     """Outcome of :func:`run_job`.
@@ -48,7 +198,8 @@ class JobResult:
     job_dir : the job directory.
     manifest : the manifest written (or found) as a dict.
     log : the parsed log (:class:`~reference_runs.parsers.LogFile`).
-    skipped : True when the job was not run because complete outputs already existed.
+    skipped : True when the job was not run because complete, verified outputs already existed.
+    warnings : the WARNING lines of the log (allowed ones; others fail the job).
     """
 
     job_dir: Path
@@ -70,6 +221,14 @@ def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
+def _sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
 def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
@@ -86,20 +245,136 @@ def read_manifest(job_dir) -> dict | None:
     """The manifest of a job directory, or None (absent or unreadable)."""
     p = Path(job_dir) / MANIFEST_NAME
     try:
-        return json.loads(p.read_text())
+        m = json.loads(p.read_text())
     except (OSError, ValueError):
         return None
+    return m if isinstance(m, dict) else None
+
+
+# ----------------------------------------------------------------------------- verification
+def _only(job_dir: Path, pattern: str) -> str | None:
+    found = sorted(p.name for p in job_dir.glob(pattern) if p.is_file() and not p.name.endswith(".tmp"))
+    return found[0] if len(found) == 1 else None
+
+
+def _verify(job_dir: Path, manifest: dict | None, deck_text: str | None, log_name: str, outputs,
+            require_hashes: bool) -> tuple[dict, list]:
+    """(evidence, problems) of a job directory: hashes in the manifest, then the deck's evidence."""
+    problems: list = []
+    outputs = list(dict.fromkeys(outputs))
+    if manifest is not None:
+        if manifest.get("status") != "ok":
+            problems.append(f"manifest status is {manifest.get('status')!r}"
+                            + (f" ({manifest['error']})" if manifest.get("error") else ""))
+        hashes = dict(manifest.get("outputs") or {})
+        want_log = manifest.get("log_sha256")
+        log_path = job_dir / log_name
+        if want_log is None:
+            if require_hashes:
+                problems.append(f"the manifest has no log_sha256 (written by an older runner): {log_name} "
+                                "cannot be checked against it")
+        elif not log_path.exists():
+            pass  # reported by the evidence check
+        elif _sha256_file(log_path) != want_log:
+            problems.append(f"{log_name} changed since the job ran (SHA-256 differs from the manifest)")
+        for name in outputs:
+            p = job_dir / name
+            if name not in hashes:
+                if require_hashes:
+                    problems.append(f"output {name} is not recorded in the manifest")
+                if not p.exists():
+                    problems.append(f"output {name} is missing")
+            elif not p.exists():
+                problems.append(f"output {name} is missing")
+            elif _sha256_file(p) != hashes[name]:
+                problems.append(f"output {name} changed since the job ran "
+                                "(SHA-256 differs from the manifest)")
+    elif require_hashes:
+        problems.append(f"no {MANIFEST_NAME}")
+    if deck_text is None:
+        problems.append(f"no deck ({DECK_NAME} or a single in.* file) in {job_dir} to derive the expected "
+                        "runs and dump frames from")
+        return {"problems": list(problems)}, problems
+    expect = expected_evidence(deck_text)
+    log_path = job_dir / log_name
+    log = parse_log(log_path) if log_path.exists() else None
+    ev, evp = check_evidence(expect, log, log_name, job_dir, outputs)
+    problems += evp
+    if manifest is None:
+        problems += [f"output {f} is missing" for f in outputs if not (job_dir / f).exists()]
+    ev["problems"] = list(problems)
+    return ev, problems
+
+
+def job_evidence(job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False) -> dict:
+    """The evidence record of a job directory (what :func:`verify_job` checks), with its problems.
+
+    Same parameters as :func:`verify_job`. Returns a JSON-able dict: ``runs_expected``,
+    ``runs_found``, ``runs_complete``, ``last_steps_expected``, ``last_steps_got``, ``dumps``
+    ({file: {``frames_expected``, ``frames_got``, ``every``, ``style``}}), ``unresolved`` (what
+    the deck reader could not follow), ``problems`` (list of str, empty when the job is sound),
+    and ``deck``, ``log``, ``outputs`` (the names used).
+    """
+    job_dir = Path(job_dir)
+    m = read_manifest(job_dir)
+    deck_name = deck or (m or {}).get("deck") or (DECK_NAME if (job_dir / DECK_NAME).exists()
+                                                  else _only(job_dir, "in.*"))
+    log_name = log or (LOG_NAME if (job_dir / LOG_NAME).exists() else _only(job_dir, "log.*") or LOG_NAME)
+    deck_text, pre = None, []
+    if deck_name and (job_dir / deck_name).exists():
+        deck_text = (job_dir / deck_name).read_text(errors="replace")
+        want = (m or {}).get("deck_sha256")
+        if want and _sha256(deck_text.encode()) != want:
+            pre.append(f"deck {deck_name} changed since the job ran (SHA-256 differs from the manifest)")
+    if outputs is None:
+        if m is not None:
+            outputs = list(m.get("outputs") or {})
+        else:  # a stored job without manifest: every dump file of the deck
+            outputs = list(expected_evidence(deck_text).dumps) if deck_text is not None else []
+    ev, problems = _verify(job_dir, m, deck_text, log_name, outputs, require_hashes)
+    ev["problems"] = pre + problems
+    ev.update(deck=deck_name, log=log_name, outputs=list(outputs))
+    return ev
+
+
+def verify_job(job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False) -> list:
+    """Problems of a finished job directory (empty list: the job is complete and unchanged).
+
+    Checks, when a ``manifest.json`` is present: status ``ok``, the SHA-256 of the deck, of the
+    log (``log_sha256``) and of every output against the manifest; always: the log holds every
+    ``run`` of the deck, complete (``Loop time`` line) and ending at the expected step, and every
+    ``dump`` file of the deck among the outputs holds the expected frames
+    (:mod:`reference_runs.expect`).
+
+    Parameters
+    ----------
+    job_dir : the job directory (a :func:`run_job` directory, or a stored reference such as
+        ``reference_runs/stored/biaxial-short`` without manifest).
+    deck : deck file name in ``job_dir`` (default: the manifest's, else ``in.liggghts``, else
+        the only ``in.*`` file).
+    log : log file name (default ``log.lammps``, else the only ``log.*`` file).
+    outputs : output names to check (default: those of the manifest; without a manifest the
+        deck's dump files, each of which must exist).
+    require_hashes : also report a missing manifest, a manifest without ``log_sha256`` and
+        outputs the manifest does not hash (what :func:`run_job` requires for reuse).
+
+    Returns
+    -------
+    list of str, one message per problem (e.g. ``incomplete: log.lammps holds 2 of 3 runs``,
+    ``dump.atoms: expected 7 frames, got 1``, ``log.lammps changed since the job ran ...``).
+    """
+    return job_evidence(job_dir, deck, log, outputs, require_hashes)["problems"]
 
 
 def is_complete(job_dir, input_sha256: str | None = None) -> bool:
-    """True when ``job_dir`` has an ``ok`` manifest (with this input hash) and all its outputs."""
+    """True when ``job_dir`` has an ``ok`` manifest (with this input hash) whose log and outputs are
+    unchanged and complete (:func:`verify_job` with ``require_hashes=True`` finds nothing)."""
     m = read_manifest(job_dir)
     if not m or m.get("status") != "ok":
         return False
     if input_sha256 is not None and m.get("input_sha256") != input_sha256:
         return False
-    names = [LOG_NAME, *m.get("outputs", {})]
-    return all((Path(job_dir) / name).exists() for name in names)
+    return not verify_job(job_dir, require_hashes=True)
 
 
 def _write_manifest(job_dir: Path, manifest: dict) -> None:
@@ -142,40 +417,7 @@ class _LogTail:
                     self.last_step = int(m.group(1))
 
 
-def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: float | None = 600.0,
-            progress: bool = True, outputs=(), expected_runs: int | None = None,
-            allowed_warnings=(), force: bool = False, desc: str | None = None) -> JobResult:
-    """Run a LIGGGHTS deck in ``job_dir`` and check that it succeeded.
-
-    Parameters
-    ----------
-    job_dir : directory of the job (created).
-    deck : the deck text, or a path (Path, or a one-line str naming an existing file) to a deck;
-        written to ``job_dir/in.liggghts``.
-    files : input files the deck reads, ``{name in job_dir: source}``; a source is a path (Path, or
-        a one-line str naming an existing file: copied), bytes or text (written). They are part
-        of the job's hash.
-    np : MPI processes; > 1 runs under ``mpirun -np N`` (with ``--allow-run-as-root`` as root).
-    timeout : seconds before the job is killed (None: no limit).
-    progress : show a progress bar of finished ``run`` commands (quiet off a terminal).
-    outputs : names of files the deck must produce (relative to ``job_dir``); checked and hashed.
-    expected_runs : number of ``run`` commands in the deck (progress bar total).
-    allowed_warnings : regular expressions of WARNING lines that do not fail the job; any other
-        WARNING line fails it (granular decks should run warning-free).
-    force : run even when complete outputs already exist.
-
-    Returns
-    -------
-    :class:`JobResult`.
-
-    Raises
-    ------
-    ReferenceRunError
-        binary missing, non-zero exit, ERROR or unexpected WARNING lines, lost atoms, timeout,
-        or a missing output; the message quotes the relevant log lines. The manifest then has
-        ``"status": "failed"`` (never ``"ok"``).
-    """
-    job_dir = Path(job_dir)
+def _job_inputs(deck, files):
     if isinstance(deck, Path) or (isinstance(deck, str) and "\n" not in deck and Path(deck).is_file()):
         deck_text = Path(deck).read_text()
     else:
@@ -188,22 +430,101 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
             blobs[name] = Path(src).read_bytes()
         else:
             blobs[name] = str(src).encode()
-    deck_sha = _sha256(deck_text.encode())
     h = hashlib.sha256(deck_text.encode())
     for name in sorted(blobs):
         h.update(b"\0" + name.encode() + b"\0" + _sha256(blobs[name]).encode())
-    input_sha = h.hexdigest()
+    return deck_text, blobs, _sha256(deck_text.encode()), h.hexdigest()
 
-    if not force and is_complete(job_dir, input_sha):
-        m = read_manifest(job_dir)
-        return JobResult(job_dir, m, parse_log(job_dir / LOG_NAME), skipped=True,
-                         warnings=tuple(m.get("warnings", ())))
+
+def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: float | None = 600.0,
+            progress: bool = True, outputs=(), expected_runs: int | None = None,
+            allowed_warnings=(), force: bool = False, desc: str | None = None) -> JobResult:
+    """Run a LIGGGHTS deck in ``job_dir`` and check that it succeeded and left complete evidence.
+
+    Parameters
+    ----------
+    job_dir : directory of the job (created).
+    deck : the deck text, or a path (Path, or a one-line str naming an existing file) to a deck;
+        written to ``job_dir/in.liggghts``.
+    files : input files the deck reads, ``{name in job_dir: source}``; a source is a path (Path, or
+        a one-line str naming an existing file: copied), bytes or text (written). They are part
+        of the job's hash.
+    np : MPI processes; > 1 runs under ``mpirun -np N`` (with ``--allow-run-as-root`` as root).
+    timeout : seconds before the job is killed (None: no limit); also the longest wait for
+        another process writing the same job.
+    progress : show a progress bar of finished ``run`` commands (quiet off a terminal).
+    outputs : names of files the deck must produce (relative to ``job_dir``); checked and hashed;
+        the deck's ``dump`` files among them must hold the expected frames.
+    expected_runs : number of ``run`` commands in the deck (progress bar total); checked against
+        the deck, and used as the expected count when the deck cannot be followed.
+    allowed_warnings : regular expressions of WARNING lines that do not fail the job; any other
+        WARNING line fails it (granular decks should run warning-free).
+    force : run even when complete outputs already exist.
+
+    Returns
+    -------
+    :class:`JobResult`. Its manifest records ``evidence`` (expected and found runs, last steps
+    and dump frames), ``log_sha256``, ``outputs`` (SHA-256 of each), ``liggghts_version`` (from the
+    job's own log banner), ``liggghts_package`` (Debian package version of the binary, or None)
+    and, after an automatic rerun, ``rerun_reason``.
+
+    Raises
+    ------
+    ReferenceRunError
+        binary missing, non-zero exit, ERROR or unexpected WARNING lines, lost atoms, timeout
+        (``timed_out=True``), incomplete evidence (``incomplete: log.lammps holds 2 of 3 runs``,
+        ``dump.atoms: expected 7 frames, got 1``) or a missing output; the message quotes the
+        relevant log lines and the manifest then has ``"status": "failed"`` (never ``"ok"``).
+        Also when a stored job fails verification and LIGGGHTS is not there to rerun it (the
+        message names ``--force``).
+    """
+    job_dir = Path(job_dir)
+    deck_text, blobs, deck_sha, input_sha = _job_inputs(deck, files)
+    outputs = [str(o) for o in outputs]
+    expect = expected_evidence(deck_text)
+    if expected_runs is not None and expect.runs is not None and len(expect.runs) != expected_runs:
+        raise ReferenceRunError(f"LIGGGHTS job {job_dir}: the deck has {len(expect.runs)} run commands but "
+                                f"expected_runs={expected_runs} (deck and caller disagree)", job_dir=job_dir)
+    job_dir.mkdir(parents=True, exist_ok=True)
+    lock = DirectoryLock(job_dir, fail_fast=False, timeout=timeout, what=f"job {job_dir}", clean_tmp=True,
+                         echo=_echo)
+    try:
+        lock.acquire()
+    except DirectoryBusyError as exc:
+        raise ReferenceRunError(f"LIGGGHTS job {job_dir}: {exc}", job_dir=job_dir,
+                                timed_out=exc.timed_out) from None
+    try:
+        return _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, timeout, progress,
+                           outputs, expected_runs, allowed_warnings, force, desc)
+    finally:
+        lock.release()
+
+
+def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, timeout, progress, outputs,
+                expected_runs, allowed_warnings, force, desc) -> JobResult:
+    rerun_reason = None
+    m = None if force else read_manifest(job_dir)
+    if m and m.get("status") == "ok" and m.get("input_sha256") == input_sha:
+        names = list(dict.fromkeys([*(m.get("outputs") or {}), *outputs]))
+        _, problems = _verify(job_dir, m, deck_text, LOG_NAME, names, require_hashes=True)
+        if not problems:
+            return JobResult(job_dir, m, parse_log(job_dir / LOG_NAME), skipped=True,
+                             warnings=tuple(m.get("warnings", ())))
+        if shutil.which("liggghts") is None:
+            raise ReferenceRunError(
+                f"stored LIGGGHTS job {job_dir} is marked ok but fails verification: {'; '.join(problems)}. "
+                f"It cannot be rerun here: the `liggghts` binary was not found on PATH ({INSTALL_HINT}); "
+                f"with LIGGGHTS installed it is rerun automatically, or use {FORCE_HINT}",
+                job_dir=job_dir, problems=problems)
+        rerun_reason = problems
+        _echo(f"WARNING: LIGGGHTS job {job_dir} is marked ok but fails verification ({'; '.join(problems)}): "
+              "rerunning it")
 
     exe = find_liggghts()
-    job_dir.mkdir(parents=True, exist_ok=True)
     (job_dir / MANIFEST_NAME).unlink(missing_ok=True)  # nothing complete-looking while we run
-    for stale in [LOG_NAME, *outputs]:
-        (job_dir / stale).unlink(missing_ok=True)
+    for stale in [LOG_NAME, *outputs, *expect.dumps]:
+        if "*" not in stale and "%" not in stale:
+            (job_dir / stale).unlink(missing_ok=True)
     (job_dir / DECK_NAME).write_text(deck_text)
     for name, data in blobs.items():
         (job_dir / name).parent.mkdir(parents=True, exist_ok=True)
@@ -221,20 +542,25 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
         "status": "running", "command": cmd, "job_dir": str(job_dir.resolve()),
         "deck": DECK_NAME, "deck_sha256": deck_sha, "input_sha256": input_sha,
         "inputs": {name: _sha256(b) for name, b in sorted(blobs.items())},
-        "liggghts_binary": exe, "liggghts_version": liggghts_version(), "np": int(np),
+        "liggghts_binary": exe, "liggghts_package": liggghts_package_version(exe), "np": int(np),
         "start": _now(), "timeout": timeout,
     }
+    if rerun_reason:
+        manifest["rerun_reason"] = rerun_reason
+    total = expected_runs if expected_runs is not None else expect.n_runs
     t0 = time.monotonic()
     tail = _LogTail(job_dir / LOG_NAME)
     bar = None
     if progress:
         from gransim.progress import progress as _progress
 
-        bar = _progress(total=expected_runs, desc=desc or f"liggghts {job_dir.name}", unit="run")
+        bar = _progress(total=total, desc=desc or f"liggghts {job_dir.name}", unit="run")
     timed_out = False
     with open(job_dir / "stdout.txt", "wb") as out, open(job_dir / "stderr.txt", "wb") as err:
         proc = subprocess.Popen(cmd, cwd=job_dir, stdout=out, stderr=err, stdin=subprocess.DEVNULL,
                                 start_new_session=True)
+        with _LIVE_LOCK:
+            _LIVE[proc.pid] = proc
         try:
             while True:
                 try:
@@ -251,47 +577,78 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
                         bar.set_postfix_str(f"step {tail.last_step}", refresh=False)
                 if timeout is not None and time.monotonic() - t0 > timeout:
                     timed_out = True
-                    _kill(proc)
                     break
-        except BaseException:
-            _kill(proc)
+        except BaseException as exc:
+            _kill_groups([(proc.pid, proc)])
+            manifest.update(status="failed", end=_now(), elapsed_s=round(time.monotonic() - t0, 3),
+                            returncode=proc.returncode,
+                            error=f"interrupted ({type(exc).__name__}{': ' + str(exc) if str(exc) else ''}); "
+                                  "the LIGGGHTS process group was killed")
+            with contextlib.suppress(Exception):
+                _write_manifest(job_dir, manifest)
             raise
         finally:
             if bar is not None:
                 bar.close()
+            if timed_out or _group_alive(proc.pid):  # the job, or members it left behind
+                _kill_groups([(proc.pid, proc)])
+            with _LIVE_LOCK:
+                _LIVE.pop(proc.pid, None)
     rc = proc.returncode
     manifest["end"] = _now()
     manifest["elapsed_s"] = round(time.monotonic() - t0, 3)
     manifest["returncode"] = rc
 
-    log = parse_log(job_dir / LOG_NAME) if (job_dir / LOG_NAME).exists() else parse_log("")
-    lines = (job_dir / LOG_NAME).read_text(errors="replace").splitlines() if (job_dir / LOG_NAME).exists() else []
+    log_path = job_dir / LOG_NAME
+    have_log = log_path.exists()
+    log = parse_log(log_path) if have_log else parse_log("")
+    lines = log_path.read_text(errors="replace").splitlines() if have_log else []
     stderr = (job_dir / "stderr.txt").read_text(errors="replace").strip().splitlines()
     allowed = [re.compile(p) for p in allowed_warnings]
     bad_warn = [w for w in log.warnings if not any(p.search(w.text) for p in allowed)]
     manifest["warnings"] = [str(w) for w in log.warnings]
+    manifest["liggghts_version"] = log.version
     manifest["liggghts_log_version"] = log.version
+    evidence, ev_problems = check_evidence(expect, log if have_log else None, LOG_NAME, job_dir, outputs)
+    if expect.runs is None and expected_runs is not None and have_log:
+        done = sum(r.complete for r in log.runs)
+        evidence["runs_expected"] = expected_runs
+        if done != expected_runs:
+            ev_problems.append(f"incomplete: {LOG_NAME} holds {done} of {expected_runs} runs")
+    if expect.unresolved:
+        _echo(f"WARNING: LIGGGHTS job {job_dir}: the deck reader could not follow the deck "
+              f"({'; '.join(expect.unresolved)}); only what could be derived is checked")
+    evidence["problems"] = list(ev_problems)
+    manifest["evidence"] = evidence
+
+    def tail_lines():
+        return [f"{n}: {t}" for n, t in enumerate(lines, 1)][-CONTEXT_LINES:]
 
     problem, where = None, []
     if timed_out:
         problem = f"timed out after {timeout:g} s (killed)"
-        where = [f"{n}: {t}" for n, t in enumerate(lines, 1)][-CONTEXT_LINES:]
+        where = tail_lines()
     elif log.errors:
         problem = f"LIGGGHTS stopped with an error: {log.errors[0].text}"
         where = _context(lines, [e.lineno for e in log.errors])
     elif log.lost_atoms:
         problem = "atoms were lost (the Atoms thermo column dropped or a 'Lost atoms' line)"
-        where = [f"{n}: {t}" for n, t in enumerate(lines, 1) if "Lost atoms" in t][:CONTEXT_LINES] or \
-            [f"{n}: {t}" for n, t in enumerate(lines, 1)][-CONTEXT_LINES:]
+        where = [f"{n}: {t}" for n, t in enumerate(lines, 1) if "Lost atoms" in t][:CONTEXT_LINES]
+        where = where or tail_lines()
     elif rc != 0:
         problem = f"liggghts exited with status {rc}"
-        where = [f"{n}: {t}" for n, t in enumerate(lines, 1)][-CONTEXT_LINES:]
+        where = tail_lines()
+    elif not have_log:
+        problem = f"incomplete: {LOG_NAME} was not written (liggghts exited with status 0)"
+    elif log.version is None:
+        problem = f"incomplete: {LOG_NAME} has no LIGGGHTS banner line (is `{exe}` LIGGGHTS?)"
+        where = tail_lines()
     elif bad_warn:
         problem = f"{len(bad_warn)} unexpected WARNING line(s): {bad_warn[0].text}"
         where = _context(lines, [w.lineno for w in bad_warn[:5]])
-    elif any(not run.complete for run in log.runs):
-        problem = "a run did not finish (no 'Loop time' line)"
-        where = [f"{n}: {t}" for n, t in enumerate(lines, 1)][-CONTEXT_LINES:]
+    elif ev_problems:
+        problem = "; ".join(ev_problems)
+        where = tail_lines()
     else:
         missing = [o for o in outputs if not (job_dir / o).exists()]
         if missing:
@@ -301,9 +658,11 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
             where = where + ["(stderr)"] + stderr[-CONTEXT_LINES:]
         manifest.update(status="failed", error=problem, log_lines=where)
         _write_manifest(job_dir, manifest)
-        raise ReferenceRunError(f"LIGGGHTS job {job_dir}: {problem}", job_dir=job_dir, log_lines=where)
+        raise ReferenceRunError(f"LIGGGHTS job {job_dir}: {problem}", job_dir=job_dir, log_lines=where,
+                                timed_out=timed_out, problems=ev_problems or [problem])
 
-    manifest["outputs"] = {o: _sha256((job_dir / o).read_bytes()) for o in outputs}
+    manifest["log_sha256"] = _sha256_file(log_path)
+    manifest["outputs"] = {o: _sha256_file(job_dir / o) for o in outputs}
     manifest["n_runs"] = len(log.runs)
     manifest["status"] = "ok"
     _write_manifest(job_dir, manifest)  # last: marks the outputs complete
@@ -311,18 +670,10 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
 
 
 def _kill(proc: subprocess.Popen) -> None:
-    """Terminate the job's own process group (it was started in a new session)."""
-    if proc.poll() is not None:
-        return
-    try:
-        os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-    except ProcessLookupError:
-        pass
+    """Kill the job's own process group (it was started in a new session), members included."""
+    _kill_groups([(proc.pid, proc)])
 
 
-__all__ = ["JobResult", "ReferenceRunError", "find_liggghts", "is_complete", "read_manifest", "run_job"]
+__all__ = ["FORCE_HINT", "JobResult", "KILL_GRACE_S", "ReferenceRunError", "Terminated", "find_liggghts",
+           "is_complete", "job_evidence", "kill_children_on_signals", "live_children", "read_manifest",
+           "run_job", "terminate_children", "verify_job"]

@@ -56,7 +56,8 @@ periodic-box route (compression only) and the explicit-image route (all paths).
 
 
 def regenerate_taylor(dest: Path | None = None, packing=None, name: str = TAYLOR_CASE, contacts: bool = True,
-                      keep_data: bool = True, packing_source: str | None = None) -> Path:
+                      keep_data: bool = True, packing_source: str | None = None,
+                      timeout: float | None = 600.0) -> Path:
     """Run a stored Taylor case and copy the job (without stdout/stderr) into ``dest``.
 
     Defaults: the lattice case. ``keep_data=False`` drops the per-state data files (they are
@@ -73,7 +74,7 @@ def regenerate_taylor(dest: Path | None = None, packing=None, name: str = TAYLOR
     shutil.rmtree(tmp, ignore_errors=True)
     run = run_taylor(packing, p["kn"], tmp, name=name, n_steps=p["n_steps"], stride=p["stride"],
                      max_strain=p["max_strain"], contacts=contacts, progress=False,
-                     cleanup_inputs=not keep_data, timeout=600)
+                     cleanup_inputs=not keep_data, timeout=timeout)
     for junk in ("stdout.txt", "stderr.txt"):
         (tmp / junk).unlink(missing_ok=True)
     if not keep_data:
@@ -98,7 +99,7 @@ def regenerate_taylor(dest: Path | None = None, packing=None, name: str = TAYLOR
     return dest
 
 
-def regenerate_taylor_rve(dest: Path | None = None, packing_file=None) -> Path:
+def regenerate_taylor_rve(dest: Path | None = None, packing_file=None, timeout: float | None = 600.0) -> Path:
     """The RVE case: the standard packing rve-70-1 of gransim.generation, thermo only."""
     from gransim.io import load_packing
 
@@ -108,7 +109,7 @@ def regenerate_taylor_rve(dest: Path | None = None, packing_file=None) -> Path:
     src = ("the study RVE `rve-70-1` of `gransim.generation.standard_packings` (quartz-sand, 70 disks, "
            "seed 1)")
     return regenerate_taylor(dest or STORED / RVE_CASE, packing, name=RVE_CASE, contacts=False,
-                             keep_data=False, packing_source=src)
+                             keep_data=False, packing_source=src, timeout=timeout)
 
 
 if __name__ == "__main__":  # pragma: no cover

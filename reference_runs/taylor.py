@@ -118,11 +118,15 @@ def read_taylor_job(job_dir, packing: Packing, manifest: dict | None = None) -> 
 def run_taylor(packing: Packing, kn: float, job_dir, name: str = "packing", paths=PATHS, routes=ROUTES,
                n_steps: int = 50, max_strain: float = 0.1, stride: int = 1, contacts: bool = False,
                np_procs: int = 1, timeout: float | None = 3600.0, progress: bool = True,
-               cleanup_inputs: bool = True) -> TaylorRun:
+               cleanup_inputs: bool = True, force: bool = False) -> TaylorRun:
     """Run (or reuse) the Taylor job of one packing and parse it.
 
-    ``cleanup_inputs`` deletes the per-state data files after a successful run (the manifest
-    keeps their hashes; they are rewritten if the job has to run again).
+    ``timeout`` (s, None: no limit) bounds the LIGGGHTS job (and the wait for another process
+    writing the same job): :class:`~reference_runs.errors.ReferenceRunError` with
+    ``timed_out=True`` after it. ``force`` reruns even a complete job. ``cleanup_inputs`` deletes
+    the per-state data files after a successful run (the manifest keeps their hashes; they are
+    rewritten if the job has to run again). A reused job is verified first
+    (:func:`reference_runs.runner.run_job`).
     """
     deck, files, states = taylor_job(packing, kn, paths=paths, routes=routes, n_steps=n_steps,
                                      max_strain=max_strain, stride=stride, contacts=contacts, name=name)
@@ -131,7 +135,7 @@ def run_taylor(packing: Packing, kn: float, job_dir, name: str = "packing", path
         for s in states:
             (Path(job_dir) / s.contacts_file).parent.mkdir(parents=True, exist_ok=True)
     res = run_job(job_dir, deck, files, np=np_procs, timeout=timeout, progress=progress, outputs=outputs,
-                  expected_runs=len(states), desc=f"taylor {name}")
+                  expected_runs=len(states), desc=f"taylor {name}", force=force)
     if cleanup_inputs and not res.skipped:
         for fname in files:
             if fname.endswith(".data"):

@@ -46,7 +46,10 @@ def register(subparsers) -> None:
 def _job_options(p) -> None:
     p.add_argument("--np", type=int, default=1, help="MPI processes (mpirun -np N)")
     p.add_argument("--timeout", type=float, default=3600.0, help="seconds per LIGGGHTS job")
-    p.add_argument("--force", action="store_true", help="rerun jobs even if complete outputs exist")
+    p.add_argument("--force", action="store_true",
+                   help="rerun jobs even if complete outputs exist (discards them; needs LIGGGHTS). Without "
+                        "it a stored job is reused only after its log and outputs are re-hashed and checked "
+                        "against the deck, and rerun automatically when that fails")
 
 
 def _list(args) -> int:
@@ -62,9 +65,12 @@ def _run(args) -> int:
 
     from reference_runs.cases import get_case
 
+    from reference_runs.runner import kill_children_on_signals
+
     case = get_case(args.case)
     out = Path(args.out or f"{DEFAULT_OUT}/{case.name}")
-    return case.run(out, np_procs=args.np, timeout=args.timeout, force=args.force, progress=True)
+    with kill_children_on_signals():  # SIGTERM/SIGINT/SIGHUP: no LIGGGHTS process outlives us
+        return case.run(out, np_procs=args.np, timeout=args.timeout, force=args.force, progress=True)
 
 
 def _taylor(args) -> int:
@@ -90,9 +96,12 @@ def _taylor(args) -> int:
         packings.update(standard_rves(args.packings_dir))
     if not packings:
         raise InputError("no packings: give packing files, --rves DIR, --standard or --demo")
-    _, worst = run_taylor_set(packings, args.out, kn=args.kn or PAPER_KN, n_steps=args.n_steps,
-                              stride=args.stride, max_strain=args.max_strain, contacts=args.contacts,
-                              np_procs=args.np, timeout=args.timeout, force=args.force)
+    from reference_runs.runner import kill_children_on_signals
+
+    with kill_children_on_signals():  # SIGTERM/SIGINT/SIGHUP: no LIGGGHTS process outlives us
+        _, worst = run_taylor_set(packings, args.out, kn=args.kn or PAPER_KN, n_steps=args.n_steps,
+                                  stride=args.stride, max_strain=args.max_strain, contacts=args.contacts,
+                                  np_procs=args.np, timeout=args.timeout, force=args.force)
     ok = worst <= TAYLOR_RTOL
     print(f"{len(packings)} packings: largest relative difference LIGGGHTS vs numpy Taylor stress = "
           f"{worst:.3e} ({'PASS' if ok else 'FAIL'}, tolerance {TAYLOR_RTOL:g})")

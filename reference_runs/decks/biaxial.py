@@ -172,8 +172,10 @@ def run_liggghts(deck: Path, np: int = 1, timeout: float | None = 600.0) -> Path
     A thin wrapper over :func:`reference_runs.runner.run_job` (job directory = the deck's
     directory, ``np`` MPI processes, always rerun): the deck is copied to ``in.liggghts``, the
     log is ``log.lammps`` and a ``manifest.json`` records command, version and hashes.
-    Raises :class:`~reference_runs.errors.ReferenceRunError` (binary missing, non-zero exit,
-    ERROR or unexpected WARNING lines, no ``dump.atoms``) quoting the log.
+    ``timeout`` (s, None: no limit) kills the job after that time (``ReferenceRunError`` with
+    ``timed_out=True``). Raises :class:`~reference_runs.errors.ReferenceRunError` (binary missing,
+    non-zero exit, ERROR or unexpected WARNING lines, no ``dump.atoms``, a log or dump short of the
+    runs and frames the deck asks for) quoting the log.
     """
     from reference_runs.runner import run_job
 
@@ -184,7 +186,7 @@ def run_liggghts(deck: Path, np: int = 1, timeout: float | None = 600.0) -> Path
     return res.log_path
 
 
-def make_stored(out_dir) -> Path:
+def make_stored(out_dir, timeout: float | None = 600.0) -> Path:
     """Run the short case with LIGGGHTS (serial, :func:`run_liggghts`) and store deck, data, log
     and dump with a README. The job runs in a scratch directory; the stored names are the
     deck's own (``in.biaxial``, ``log.liggghts``), as read by tests/dem/test_liggghts.py."""
@@ -199,11 +201,11 @@ def make_stored(out_dir) -> Path:
     p, s, ld, n = short_case()
     with tempfile.TemporaryDirectory(prefix="biaxial-short-") as tmp:
         deck = write_biaxial_deck(tmp, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY)
-        log = run_liggghts(deck)
+        log = run_liggghts(deck, timeout=timeout)
         for src, name in ((deck, "in.biaxial"), (Path(tmp) / "data.biaxial", "data.biaxial"),
                           (log, "log.liggghts"), (Path(tmp) / "dump.atoms", "dump.atoms")):
             shutil.copyfile(src, out / name)
-    version = liggghts_version() or "unknown"
+    version = liggghts_version() or "unknown"  # as the binary reports itself, with its path
     head = (out / "log.liggghts").read_text().splitlines()[0]
     (out / "README.md").write_text(f"""# biaxial-short: LIGGGHTS reference for the DEM engine (step for step)
 

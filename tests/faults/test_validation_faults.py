@@ -7,7 +7,12 @@ comparison) or in a case that did not run with a clear error: never in "pass".
 from __future__ import annotations
 
 import dataclasses
+import os
 import shutil
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -17,6 +22,7 @@ from reference_runs import store
 from validation.runner import run_validation
 
 STORED = Path(store.STORED)
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _quiet(*_a, **_k):
@@ -124,3 +130,88 @@ def test_a_stored_taylor_state_missing_fails(stored_copy, tmp_path):
             _incomplete(res)
     else:
         assert "states" in res.error or "runs" in res.error
+
+
+# --------------------------------------------------------------------- live LIGGGHTS faults
+def _live(res) -> str:
+    """What the case says about its live job: the error, or the failing records' metrics."""
+    return (res.error or "") + " | " + " | ".join(r.metric for r in res.records if not r.passed)
+
+
+@pytest.mark.liggghts
+def test_live_liggghts_leaving_only_the_first_dump_frame_fails(tmp_path, fake_liggghts):
+    """A LIGGGHTS that runs normally but leaves one frame per dump (full disk, killed job)."""
+    fake_liggghts("cut-dumps")
+    ok, results = run_validation("quick", tmp_path, only=["biaxial-short"], log=_quiet)
+    res = _result(results, "biaxial-short")
+    assert not ok and not res.passed
+    assert "dump.atoms: expected 5 frames, got 1" in _live(res) or \
+        "incomplete: expected 5 LIGGGHTS frames, got 1" in _live(res), _live(res)
+
+
+@pytest.mark.liggghts
+def test_live_liggghts_with_a_truncated_log_fails(tmp_path, fake_liggghts):
+    fake_liggghts("truncate-log")
+    ok, results = run_validation("quick", tmp_path, only=["biaxial-short"], log=_quiet)
+    res = _result(results, "biaxial-short")
+    assert not ok and not res.passed and res.error and "incomplete" in res.error, _live(res)
+
+
+@pytest.mark.parametrize("kind, words", [("error", "ERROR"), ("silent", "log"), ("warning", "WARNING")])
+def test_live_liggghts_failures_fail_the_case(tmp_path, fake_liggghts, kind, words):
+    fake_liggghts(kind)
+    ok, results = run_validation("quick", tmp_path, only=["biaxial-short"], log=_quiet)
+    res = _result(results, "biaxial-short")
+    assert not ok and res.error and words in res.error, _live(res)
+
+
+def test_hung_liggghts_times_out_names_the_job_and_leaves_no_process(tmp_path, fake_liggghts):
+    fake = fake_liggghts("hang")
+    ok, results = run_validation("quick", tmp_path, only=["biaxial-short"], log=_quiet, timeout=2)
+    res = _result(results, "biaxial-short")
+    assert not ok and res.error and "timed out after 2 s" in res.error
+    assert "live-120" in res.error  # which job
+    assert fake.wait_gone(2) == []
+    html = (tmp_path / "report" / "index.html").read_text()
+    assert "timed out after 2 s" in html
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_signal_to_validate_leaves_no_liggghts(tmp_path, fake_liggghts, sig):
+    fake = fake_liggghts("hang")
+    env = {**os.environ}
+    cmd = [sys.executable, "-m", "gransim", "validate", "--suite", "quick", "--case", "biaxial-short",
+           "--results", str(tmp_path / "results")]
+    py = subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not fake.pids("grandchild") and time.monotonic() < deadline and py.poll() is None:
+            time.sleep(0.1)
+        assert fake.pids("grandchild"), py.communicate()[1][-2000:] if py.poll() is not None else "no job"
+        py.send_signal(sig)
+        _, err = py.communicate(timeout=30)
+    finally:
+        if py.poll() is None:
+            py.kill()
+    assert py.returncode != 0
+    assert "Traceback" not in err, err[-2000:]
+    assert fake.wait_gone(2) == []
+
+
+def test_second_validate_into_the_same_results_fails_at_once(tmp_path):
+    from gransim.cli import main
+    from reference_runs.locks import DirectoryLock
+
+    with DirectoryLock(tmp_path):  # another validation run holds the directory
+        rc = main(["validate", "--suite", "quick", "--case", "biaxial-short", "--results", str(tmp_path)])
+    assert rc == 2
+    assert not (tmp_path / "validation.json").exists()
+
+
+def test_stray_temporaries_of_a_killed_run_are_removed(tmp_path):
+    (tmp_path / "report").mkdir()
+    stray = [tmp_path / ".validation.json.abc123.json.tmp", tmp_path / "report" / ".index.html.x1y2.html.tmp"]
+    for p in stray:
+        p.write_text("half")
+    run_validation("quick", tmp_path, only=["biaxial-short"], log=_quiet)
+    assert not any(p.exists() for p in stray)

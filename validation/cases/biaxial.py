@@ -179,7 +179,7 @@ def _settings_by_suite(suite: str) -> dict:
 _FULL_CACHE: dict = {}
 
 
-def ENSEMBLE_LABELS(n: int, np2: bool) -> list[str]:  # noqa: N802 (a table, read like a constant)
+def ensemble_labels(n: int, np2: bool) -> list[str]:
     """Labels of the perturbed LIGGGHTS runs of :func:`full_runs` for ``n`` disks."""
     out = ["x of disk 1 moved by +1e-15 rel", f"y of disk {n // 2 + 1} moved by -1e-15 rel"]
     return out + (["2 MPI processes"] if np2 else [])
@@ -242,7 +242,7 @@ def full_runs(ctx: Context) -> dict:
         if cfg["np2"]:
             ens["2 MPI processes"], _ = run_liggghts_job(base / "np2", common, dem, loading, nsteps, FULL_DUMP_EVERY,
                                                          v, w, np_procs=2, thermo_every=te, timeout=to)
-        r.update(liggghts=lig, manifest=man, ensemble=ens, expected_ensemble=list(ens))
+        r.update(liggghts=lig, manifest=man, ensemble=ens, expected_ensemble=ensemble_labels(n, cfg["np2"]))
         # the reference job in the native run-file schema (read by gransim.dem / gransim voidcells)
         from reference_runs.native_schema import trajectory_to_run_file
 
@@ -375,7 +375,7 @@ def biaxial_full(ctx: Context) -> CaseResult:
     res.records += trajectory_evidence("biaxial-full/evidence", "native", nat, expected_steps(r["nsteps"],
                                        FULL_THERMO_EVERY), expected_frames(r["nsteps"], FULL_DUMP_EVERY))
     res.records += trajectory_evidence("biaxial-full/evidence", "LIGGGHTS reference", lig, exp_s, exp_f)
-    want = r.get("expected_ensemble") or ENSEMBLE_LABELS(pk.n, ctx.suite == "full" and not stored_run)
+    want = r.get("expected_ensemble") or ensemble_labels(pk.n, ctx.suite == "full" and not stored_run)
     res.records.append(evidence("biaxial-full/evidence", "perturbed LIGGGHTS runs (the envelope)", want,
                                 list(r["ensemble"])))
     for k, t in r["ensemble"].items():

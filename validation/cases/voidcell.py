@@ -194,6 +194,12 @@ def voidcell(ctx: Context) -> CaseResult:
     nat, lig, pk, dem = r["native"], r["liggghts"], r["packing"], r["settings"]
     frames = expected_frames(r["nsteps"], FULL_DUMP_EVERY)
     res.records += _evidence("voidcell/kuhn-1002", nat, lig, frames)
+    from ..core import evidence
+    from .biaxial import ensemble_labels
+
+    want = r.get("expected_ensemble") or ensemble_labels(pk.n, ctx.suite == "full")
+    res.records.append(evidence("voidcell/kuhn-1002", "perturbed LIGGGHTS runs (the statistics' band)", want,
+                                list(r["ensemble"])))
     for name, tr in r["ensemble"].items():
         res.records += _evidence(f"voidcell/kuhn-1002/{name}", None, tr, frames)
     if not all(x.passed for x in res.records if x.quantity == "evidence"):

@@ -1,0 +1,92 @@
+"""Fixtures of the fault tests: fake ``liggghts`` binaries on PATH and a small real deck.
+
+Reusable by every test module in ``tests/faults/``:
+
+``fake_liggghts``
+    A factory: ``fake = fake_liggghts(kind)`` writes an executable ``liggghts`` of that kind into
+    a fresh temporary directory, prepends the directory to PATH (``monkeypatch``: undone after the
+    test) and returns a :class:`fakes.FakeLiggghts` with ``.path``, ``.kind``, ``.pids(role=None)``
+    (pids the fake recorded: roles ``fake``, ``grandchild``, ``real``), ``.alive()`` (those still
+    running, zombies excluded) and ``.wait_gone(timeout)``. Kinds (details in ``fakes.py``):
+
+    - ``error``: writes an ERROR line in the log, exits 1;
+    - ``silent``: exits 0 writing nothing;
+    - ``hang``: sleeps forever, with a grandchild in its process group that ignores SIGTERM;
+    - ``truncate-log``: runs the real binary, then cuts the log to its first 3 thermo rows;
+    - ``cut-dumps``: real run, then keeps only the first frame of every dump file;
+    - ``warning``: real run plus a WARNING line in the log;
+    - ``slow``: sleeps ``FAKE_LIGGGHTS_DELAY`` s (default 2), then a real run.
+
+    The kinds that run the real binary skip the test when ``liggghts`` is not installed. Every
+    fake answers the version query (``-in /dev/null``) with ``LIGGGHTS-PUBLIC 3.8.0 fake-<kind>``
+    and marks the banner of the logs it leaves the same way. At teardown any process a fake
+    recorded and that is still alive is killed (so a failing test leaves no orphans), and the
+    runner's SIGTERM-to-SIGKILL grace is 0.5 s during the test.
+
+``small_liggghts_job``
+    ``deck, files, outputs = small_liggghts_job(tail="run 10\\n", dump_every=5, local_every=None)``:
+    a 36-disk deck LIGGGHTS runs in about half a second, for ``run_job(job_dir, deck, files,
+    outputs=outputs, progress=False)`` (``fakes.small_deck``).
+
+``real_liggghts``
+    Path of the real binary (skips the test when it is absent).
+
+Tests marked ``@pytest.mark.liggghts`` are skipped when the real binary is not on PATH.
+``fakes.pid_alive(pid)`` tells whether a process is still running.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from fakes import REAL_KINDS, small_deck, write_fake  # noqa: E402
+
+_REAL = shutil.which("liggghts")
+
+
+def pytest_collection_modifyitems(config, items):
+    if _REAL is None:
+        skip = pytest.mark.skip(reason="liggghts binary not installed (apt-get install liggghts)")
+        here = Path(__file__).resolve().parent
+        for item in items:
+            if "liggghts" in item.keywords and here in Path(str(item.fspath)).resolve().parents:
+                item.add_marker(skip)
+
+
+@pytest.fixture
+def real_liggghts():
+    if _REAL is None:
+        pytest.skip("needs the real liggghts binary (apt-get install liggghts)")
+    return _REAL
+
+
+@pytest.fixture
+def fake_liggghts(tmp_path_factory, monkeypatch):
+    import reference_runs.runner as runner
+
+    monkeypatch.setattr(runner, "KILL_GRACE_S", 0.5)
+    made = []
+
+    def make(kind: str):
+        if kind in REAL_KINDS and _REAL is None:
+            pytest.skip(f"fake liggghts kind {kind!r} needs the real liggghts binary")
+        fake = write_fake(tmp_path_factory.mktemp(f"fake-{kind}"), kind, real=_REAL)
+        monkeypatch.setenv("PATH", f"{fake.bindir}{os.pathsep}{os.environ.get('PATH', '')}")
+        made.append(fake)
+        return fake
+
+    yield make
+    for fake in made:
+        fake.kill_leftovers()
+
+
+@pytest.fixture
+def small_liggghts_job():
+    return small_deck
