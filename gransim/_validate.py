@@ -71,3 +71,61 @@ def check_choice(value: str, name: str, choices) -> str:
     if value not in choices:
         raise InputError(f"unknown {name} {value!r}; choose one of: {', '.join(sorted(choices))}")
     return value
+
+
+def available_memory() -> int | None:
+    """Bytes a new allocation can still get (None when unknown).
+
+    The smallest of: ``MemAvailable`` in /proc/meminfo (free plus reclaimable memory), the
+    physical memory (``os.sysconf('SC_PHYS_PAGES') * SC_PAGE_SIZE``) and the cgroup v2 limit
+    ``memory.max`` minus ``memory.current`` (containers).
+    """
+    import os
+
+    found = []
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    found.append(int(line.split()[1]) * 1024)
+                    break
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        found.append(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, ValueError, OSError):
+        pass
+    try:
+        with open("/sys/fs/cgroup/memory.max") as fh:
+            limit = fh.read().strip()
+        if limit != "max":
+            with open("/sys/fs/cgroup/memory.current") as fh:
+                found.append(int(limit) - int(fh.read().strip()))
+    except (OSError, ValueError):
+        pass
+    found = [v for v in found if v > 0]
+    return min(found) if found else None
+
+
+def format_bytes(n: float) -> str:
+    """``n`` bytes as a short human figure (``3.2 GB``)."""
+    for unit, size in (("PB", 1e15), ("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if abs(n) >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n:.0f} B"
+
+
+def check_memory(estimate: float, what: str, hint: str = "", available: int | None = None) -> float:
+    """Refuse a computation whose estimated peak memory (bytes) exceeds the available memory.
+
+    Returns the fraction estimate / available (0 when the available memory is unknown), so a
+    caller can warn above, say, 0.5. ``what`` names the input (e.g. ``"n = 1e+09 disks"``),
+    ``hint`` says how to make it smaller.
+    """
+    avail = available_memory() if available is None else available
+    if avail is None:
+        return 0.0
+    if not np.isfinite(estimate) or estimate > avail:
+        raise InputError(f"{what} needs about {format_bytes(estimate)} of memory, more than the "
+                         f"{format_bytes(avail)} available{'; ' + hint if hint else ''}")
+    return float(estimate) / avail

@@ -206,6 +206,21 @@ def stored_dir(name: str) -> Path:
     return Path(store.STORED) / name
 
 
+def stored_job_record(label: str, job_dir) -> Record:
+    """Evidence record of a stored reference job: :func:`reference_runs.runner.verify_job` on its
+    directory (runs, last steps and dump frames against its own deck; hashes where a manifest has
+    them). Fails, listing the problems, when the stored job is incomplete or was edited."""
+    from reference_runs.runner import verify_job
+
+    problems = verify_job(job_dir)
+    metric = ("stored job verified against its deck" if not problems else
+              "incomplete stored job: " + "; ".join(str(p) for p in problems[:3])
+              + (" ..." if len(problems) > 3 else ""))
+    return Record(label, "evidence", metric, float(len(problems)), 0.0, not problems,
+                  "a stored reference counts only if it holds every run, step and frame its deck asked for "
+                  "(reference_runs.runner.verify_job)")
+
+
 def liggghts_available() -> bool:
     return shutil.which("liggghts") is not None
 

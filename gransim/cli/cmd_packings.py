@@ -17,7 +17,9 @@ def register(sub) -> None:
 def _run(args) -> int:
     from ..generation import packing_stats, standard_packings
     from ..io import load_packing
+    from ._paths import check_output_dir
 
+    check_output_dir(args.out, "--out")
     paths = standard_packings(args.out, names=args.only, force=args.force)
     head = (f"{'name':<11} {'N':>5} {'phi':>7} {'e':>7} {'Z':>6} {'Z_nr':>6} {'ratt%':>6} "
             f"{'<eps>/D50':>10} {'max/D50':>9} {'a_fab':>6}  file")

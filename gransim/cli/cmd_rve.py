@@ -4,6 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ._paths import check_input, check_number, check_output, check_output_dir, integer
+
+#: most load steps per path of rve-study (the paper uses 50)
+MAX_STEPS = 100_000
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -31,7 +35,8 @@ def register(subparsers) -> None:
         default=None,
         help="normal stiffness E_n in N/m (default 2.8e7, Table 1)",
     )
-    p.add_argument("--steps", type=int, default=50, help="load steps per path (default 50)")
+    p.add_argument("--steps", type=integer, default=50,
+                   help=f"load steps per path, 1 to {MAX_STEPS} (default 50)")
     p.add_argument(
         "-o",
         "--out",
@@ -75,9 +80,27 @@ def register(subparsers) -> None:
         "--packings", nargs="+", metavar="FILE.h5", help="packing files (default: the 15 RVEs)"
     )
     c.add_argument("--packing-dir", default="results/packings", metavar="DIR")
-    c.add_argument("--kn", type=float, default=None)
-    c.add_argument("--tol", type=float, default=1e-12)
+    c.add_argument("--kn", type=float, default=None, help="normal stiffness E_n in N/m (default 2.8e7)")
+    c.add_argument("--tol", type=float, default=1e-12, help="relative tolerance, >= 0 (default 1e-12)")
     c.set_defaults(func=_check)
+
+
+def _check_packing_options(args) -> None:
+    """--packings files exist and have distinct names; --packing-dir can hold the standard RVEs."""
+    from ..errors import InputError
+
+    if args.packings:
+        seen = {}
+        for f in args.packings:
+            check_input(f, "--packings")
+            stem = Path(f).stem
+            if stem in seen:
+                raise InputError(f"--packings: {seen[stem]!r} and {f!r} both give the RVE name {stem!r} "
+                                 "(RVEs are named by file stem); rename one")
+            seen[stem] = f
+    else:
+        check_output_dir(args.packing_dir, "--packing-dir")
+    check_number(args.kn, "--kn", low=0, low_open=True)
 
 
 def _packings(args) -> dict:
@@ -114,6 +137,12 @@ def _study(args) -> int:
 
     from ..rve.study import run_study
 
+    _check_packing_options(args)
+    check_number(args.steps, "--steps", low=1, high=MAX_STEPS, integer=True)
+    out = check_output_dir(args.out, "-o/--out")
+    check_output(out / "rve_study.h5", "-o/--out")
+    for name in ("compression", "shear", "fabric"):
+        check_output(out / f"{name}.png", "-o/--out")
     packings = _packings(args)
     t0 = time.perf_counter()
     result, h5, pngs = run_study(packings, args.out, normal_stiffness=_kn(args), steps=args.steps)
@@ -135,27 +164,74 @@ def _study(args) -> int:
     return 0
 
 
-def _stress(args) -> int:
+def check_F(values, packing, option: str = "--F"):
+    """The deformation gradient of rve-stress: finite, det F > 0, the deformed cell still larger
+    than the largest disk, and a candidate search that fits into memory. Returns F (2, 2)."""
     import numpy as np
 
-    from ..io import open_result
-    from ..rve import homogenize
-    from ..rve.study import read_study_packing
+    from ..errors import InputError
+    from ..rve.taylor import check_candidate_budget, shortest_lattice_vector
 
+    F = np.array(values, dtype=float).reshape(2, 2)
+    if not np.all(np.isfinite(F)):
+        raise InputError(f"{option}: expected finite entries, got {F.ravel().tolist()}")
+    with np.errstate(all="ignore"):
+        det = float(F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0])
+        Cd = F @ packing.cell
+        cell_ok = bool(np.all(np.isfinite(Cd)) and np.isfinite(Cd[0, 0] * Cd[1, 1] - Cd[0, 1] * Cd[1, 0]))
+    if not det > 0 or not np.isfinite(det):
+        raise InputError(f"{option}: det F must be > 0 and finite (the map must keep orientation), got "
+                         f"det F = {det:.6g} for F = {F.ravel().tolist()}")
+    if not cell_ok:
+        raise InputError(f"{option}: F = {F.ravel().tolist()} maps the cell out of the float64 range")
+    b1 = float(np.linalg.norm(shortest_lattice_vector(Cd)))
+    dmax = 2.0 * float(packing.radii.max())
+    if b1 < dmax:
+        raise InputError(
+            f"{option}: F = {F.ravel().tolist()} collapses the RVE: the deformed cell's shortest lattice "
+            f"vector ({b1:.4g} m) is shorter than the largest disk diameter ({dmax:.4g} m), so a disk "
+            f"would overlap its own periodic image (smallest stretch of F: "
+            f"{float(np.linalg.svd(F, compute_uv=False).min()):.3g})")
+    check_candidate_budget(packing, F, name=option)
+    return F
+
+
+def _read_stress_packing(args):
+    from ..errors import InputError
+    from ..io import load_packing, open_result
+    from ..rve.study import read_study_packing, study_rve_names
+
+    check_input(args.file, "FILE.h5")
     with open_result(args.file) as f:
         kind = f.attrs.get("kind")
     if kind == "rve-study":
+        names = study_rve_names(args.file)
         if args.rve is None:
-            from ..errors import InputError
+            raise InputError(f"{args.file} is a rve-study file: choose an RVE with --rve NAME "
+                             f"(one of: {', '.join(names)})")
+        if args.rve not in names:
+            raise InputError(f"--rve: {args.file} has no RVE {args.rve!r}; choose one of: {', '.join(names)}")
+        return read_study_packing(args.file, args.rve)
+    if args.rve is not None:
+        raise InputError(f"--rve applies to rve-study files; {args.file} holds a {kind!r}, not a set of RVEs "
+                         "(drop --rve)")
+    return load_packing(args.file)
 
-            raise InputError(f"{args.file} is a rve-study file: choose an RVE with --rve NAME")
-        packing = read_study_packing(args.file, args.rve)
-    else:
-        from ..io import load_packing
 
-        packing = load_packing(args.file)
-    F = np.array(args.F, dtype=float).reshape(2, 2)
+def _stress(args) -> int:
+    import numpy as np
+
+    from ..errors import SimulationError
+    from ..rve import homogenize
+
+    check_number(args.kn, "--kn", low=0, low_open=True)
+    packing = _read_stress_packing(args)
+    F = check_F(args.F, packing)
     res = homogenize(packing, F, _kn(args))
+    if not (np.all(np.isfinite(res.cauchy)) and np.isfinite(res.energy) and np.all(np.isfinite(res.piola))
+            and np.all(np.isfinite(res.tangent))):
+        raise SimulationError(f"non-finite result at F = {F.ravel().tolist()} (W = {res.energy!r}); "
+                              "nothing written")
     np.set_printoptions(precision=10, suppress=False, linewidth=120)
     print(
         f"packing: N = {packing.n}, V_rve = det C = {packing.area:.10g} m^2; "
@@ -174,6 +250,8 @@ def _stress(args) -> int:
 def _check(args) -> int:
     from ..rve.reference import crosscheck
 
+    _check_packing_options(args)
+    check_number(args.tol, "--tol", low=0)
     recs = crosscheck(_packings(args), _kn(args))
     worst = max(max(r["rel_energy"], r["rel_piola"], r["rel_tangent"]) for r in recs)
     bad = [

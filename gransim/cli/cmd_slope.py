@@ -33,12 +33,21 @@ def register(subparsers) -> None:
 
 def handler(args) -> int:
     import sys
-    from pathlib import Path
 
     from ..errors import ConvergenceError
     from ..fem.run import run_slope_case
+    from ._paths import check_input, check_number, check_output_dir
 
-    out = Path(args.out or f"results/slope-{args.protocol}")
+    out = check_output_dir(args.out or f"results/slope-{args.protocol}", "--out")
+    check_output_dir(args.packing_dir, "--packing-dir")
+    if args.packing is not None:
+        from ..io import load_packing
+
+        check_input(args.packing, "--packing")
+        load_packing(args.packing)  # a bad file is refused now, not after the mesh is built
+    # the energy norm of a Newton correction, relative to the first: below 1 to mean anything
+    check_number(args.tol, "--tol", low=0, high=1, low_open=True, high_open=True)
+    check_number(args.min_fraction, "--min-fraction", low=0, high=1, low_open=True)
     summary = run_slope_case(args.protocol, material=args.material, packing=args.packing, out=out,
                              figures=args.figures, tol=args.tol, min_fraction=args.min_fraction,
                              assignment=args.rves, packing_dir=args.packing_dir)

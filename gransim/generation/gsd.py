@@ -70,15 +70,15 @@ class GrainSizeDistribution:
         if d.shape[0] < 2:
             raise InputError(f"diameters: a sieve curve needs at least 2 points, got {d.shape[0]}")
         if np.any(d <= 0):
-            raise InputError(f"diameters: must be > 0, got {d[d <= 0][0]!r}")
+            raise InputError(f"diameters: must be > 0, got {float(d[d <= 0][0])!r}")
         if np.any(np.diff(d) <= 0):
             k = int(np.argmax(np.diff(d) <= 0))
-            raise InputError(f"diameters: must be strictly increasing (d[{k}] = {d[k]!r} >= d[{k + 1}] = {d[k + 1]!r})")
+            raise InputError(f"diameters: must be strictly increasing (d[{k}] = {float(d[k])!r} >= d[{k + 1}] = {float(d[k + 1])!r})")
         if np.any(np.diff(p) < 0):
             k = int(np.argmax(np.diff(p) < 0))
-            raise InputError(f"passing: must be non-decreasing (P[{k}] = {p[k]!r} > P[{k + 1}] = {p[k + 1]!r})")
+            raise InputError(f"passing: must be non-decreasing (P[{k}] = {float(p[k])!r} > P[{k + 1}] = {float(p[k + 1])!r})")
         if p[0] != 0.0 or p[-1] != 100.0:
-            raise InputError(f"passing: must start at 0 and end at 100 percent, got {p[0]!r} ... {p[-1]!r}")
+            raise InputError(f"passing: must start at 0 and end at 100 percent, got {float(p[0])!r} ... {float(p[-1])!r}")
         for name, arr in (("diameters", d), ("passing", p)):
             arr = arr.copy()
             arr.flags.writeable = False
@@ -125,7 +125,10 @@ class GrainSizeDistribution:
         if not rows or any(len(r) != 2 for r in rows):
             raise InputError(f"{where}: expected rows 'diameter,percent_passing'")
         arr = np.array(rows)
-        return cls(arr[:, 0] * unit, arr[:, 1], name=name, source=" ".join(comments))
+        try:
+            return cls(arr[:, 0] * unit, arr[:, 1], name=name, source=" ".join(comments))
+        except InputError as exc:  # name the file whose curve is wrong
+            raise InputError(f"{where}: {exc}") from None
 
     # -- the curve --------------------------------------------------------------------------
     def percent_passing(self, d) -> np.ndarray:

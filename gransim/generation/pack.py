@@ -56,7 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._numba import njit, pjit, prange
-from .._validate import as_int, as_positive_float, check_choice
+from .._validate import as_int, as_positive_float, check_choice, check_memory
 from ..contacts import find_neighbours
 from ..contacts.law import force_magnitude, overlap, potential
 from ..errors import ConvergenceError, InputError
@@ -447,6 +447,31 @@ class _Minimiser:
                 return _STATUS[status]
 
 
+#: peak memory of make_packing per disk (bytes), with a safety factor. Measured: peak resident set
+#: (VmHWM, bench._memory.own_peak_kib) of a process after a JIT warm-up at N = 200, minus that
+#: baseline, for quartz-sand, seed 1, residual="rms", force_tol=1e-2, divided by N: 851 B at
+#: N = 1e4, 1130 B at 3e4, 910 B at 1e5 (tracemalloc peak of the numpy arrays alone: 725-808 B;
+#: numba's own allocations are not traced). The largest figure times 2.2 covers the cell-list
+#: rebuilds of a denser start, the statistics and the file write.
+PACKING_BYTES_PER_DISK = 2500
+#: above this fraction of the available memory the CLI warns before packing
+MEMORY_WARN_FRACTION = 0.5
+
+
+def packing_memory_estimate(n: int) -> float:
+    """Estimated peak memory (bytes) of :func:`make_packing` for ``n`` disks (beyond the
+    interpreter itself): :data:`PACKING_BYTES_PER_DISK` x n."""
+    return float(PACKING_BYTES_PER_DISK) * float(n)
+
+
+def check_packing_memory(n, name: str = "n") -> float:
+    """Refuse (:class:`InputError`, with the estimate) a packing of ``n`` disks that would not fit
+    into the available memory; returns estimate / available (for a warning above 0.5)."""
+    n = as_int(n, name, minimum=2)
+    return check_memory(packing_memory_estimate(n), f"{name}: a packing of {n:.3g} disks",
+                        hint=f"the measured peak is about {PACKING_BYTES_PER_DISK} B a disk")
+
+
 # --------------------------------------------------------------------------------------------
 # public API
 # --------------------------------------------------------------------------------------------
@@ -505,14 +530,16 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     Raises
     ------
     InputError
-        N < 2, unknown distribution, targets out of range, both targets given.
+        N < 2, unknown distribution, targets out of range, both targets given, or N disks that
+        would not fit into the available memory (:func:`check_packing_memory`).
     ConvergenceError
         The target is not reached (the message names the achieved phi and mean overlap).
     """
     t0 = time.perf_counter()
     dist = get_distribution(distribution)
     n = as_int(n, "n", minimum=2)
-    seed = as_int(seed, "seed", minimum=0)
+    seed = as_int(seed, "seed", minimum=0, maximum=2**63 - 1)
+    check_packing_memory(n)
     if solid_fraction is not None and mean_overlap is not None:
         raise InputError("give either solid_fraction or mean_overlap as the target, not both")
     if solid_fraction is not None:
@@ -807,6 +834,9 @@ def standard_packings(out_dir="results/packings", names=None, force: bool = Fals
     for name in names:
         if name not in STANDARD_PACKINGS:
             raise InputError(f"unknown standard packing {name!r}; choose from: {', '.join(STANDARD_PACKINGS)}")
+        if (out_dir / f"{name}.h5").is_dir():
+            raise InputError(f"{out_dir / f'{name}.h5'} is a directory; the packing {name!r} is "
+                             "written there")
     out = {}
     bar = progress(names, total=len(names), desc="packings")
     for name in bar:

@@ -16,7 +16,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ..errors import ResultFileError
+from ..errors import InputError, ResultFileError
 from ..geometry import Packing
 from .provenance import provenance
 
@@ -24,12 +24,27 @@ FORMAT = "gransim"
 SCHEMA_VERSION = 1
 
 
+def _fsync(path, directory: bool = False) -> None:
+    """fsync a file (or a directory entry); silently skipped where the OS does not allow it."""
+    try:
+        fd = os.open(path, os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if directory else 0))
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
 @contextlib.contextmanager
 def atomic_path(path, suffix: str | None = None):
     """Yield a temporary path next to ``path``; rename it onto ``path`` only on success.
 
     A crash inside the block leaves no file at ``path`` (and removes the temporary),
-    so a half-written file never looks complete.
+    so a half-written file never looks complete. The temporary is flushed to disk (fsync) before
+    the rename, and the directory after it, so a power cut cannot leave a renamed but empty file.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -41,7 +56,9 @@ def atomic_path(path, suffix: str | None = None):
     tmp = Path(tmp)
     try:
         yield tmp
+        _fsync(tmp)
         os.replace(tmp, path)
+        _fsync(path.parent, directory=True)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
@@ -78,7 +95,12 @@ def open_result(path, kind: str | None = None) -> h5py.File:
         f = h5py.File(path, "r")
     except OSError as exc:
         raise ResultFileError(f"{path}: not a readable HDF5 file ({exc})") from None
-    if f.attrs.get("format") != FORMAT:
+    try:
+        fmt = f.attrs.get("format")
+        fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
+    except (OSError, TypeError, ValueError):  # an attribute h5py cannot read
+        fmt = None
+    if fmt != FORMAT:
         f.close()
         raise ResultFileError(f"{path}: not a gransim results file (no format='gransim' attribute)")
     if kind is not None and f.attrs.get("kind") != kind:
@@ -98,18 +120,50 @@ def write_packing_group(group: h5py.Group, packing: Packing) -> None:
     group.attrs["units"] = "m, kg/m^2 (density = mass per area)"
 
 
+def _read_dataset(group: h5py.Group, name: str, where: str, ndim: int) -> np.ndarray:
+    obj = group.get(name)
+    if not isinstance(obj, h5py.Dataset):
+        raise ResultFileError(f"{where}/{name}: expected a dataset, found a {type(obj).__name__}")
+    if obj.dtype.kind not in "biuf":
+        raise ResultFileError(f"{where}/{name}: expected numbers, found dtype {obj.dtype}")
+    if obj.ndim != ndim:
+        raise ResultFileError(f"{where}/{name}: expected {ndim} dimension(s), found shape {obj.shape}")
+    return obj[()]
+
+
 def read_packing_group(group: h5py.Group) -> Packing:
-    """Inverse of :func:`write_packing_group`."""
+    """Inverse of :func:`write_packing_group`.
+
+    Raises :class:`ResultFileError` naming the file, the dataset or attribute and what is wrong
+    (missing or malformed datasets, a ``metadata`` attribute that is not a JSON object, values
+    a :class:`Packing` refuses, such as radii <= 0 or a degenerate cell).
+    """
+    where = f"{group.file.filename}:{group.name}"
     missing = [k for k in ("positions", "radii", "cell") if k not in group]
     if missing:
-        raise ResultFileError(f"{group.file.filename}:{group.name}: no packing here (missing {missing})")
-    return Packing(
-        positions=group["positions"][()],
-        radii=group["radii"][()],
-        cell=group["cell"][()],
-        density=float(group.attrs.get("density", 2650.0)),
-        metadata=json.loads(group.attrs.get("metadata", "{}")),
-    )
+        raise ResultFileError(f"{where}: no packing here (missing {missing})")
+    positions = _read_dataset(group, "positions", where, 2)
+    radii = _read_dataset(group, "radii", where, 1)
+    cell = _read_dataset(group, "cell", where, 2)
+    raw = group.attrs.get("metadata", "{}")
+    if isinstance(raw, bytes):
+        raw = raw.decode("utf-8", "replace")
+    try:
+        metadata = json.loads(raw) if isinstance(raw, str) else None
+    except json.JSONDecodeError as exc:
+        raise ResultFileError(f"{where}: attribute 'metadata' is not valid JSON ({exc})") from None
+    if not isinstance(metadata, dict):
+        raise ResultFileError(f"{where}: attribute 'metadata' must hold a JSON object, got "
+                              f"{type(metadata).__name__ if isinstance(raw, str) else type(raw).__name__}")
+    density = group.attrs.get("density", 2650.0)
+    try:
+        density = float(density)
+    except (TypeError, ValueError):
+        raise ResultFileError(f"{where}: attribute 'density' is not a number ({density!r})") from None
+    try:
+        return Packing(positions=positions, radii=radii, cell=cell, density=density, metadata=metadata)
+    except InputError as exc:
+        raise ResultFileError(f"{where}: not a valid packing: {exc}") from None
 
 
 def save_packing(path, packing: Packing, parameters: dict | None = None, seed=None) -> Path:
@@ -126,7 +180,7 @@ def save_packing(path, packing: Packing, parameters: dict | None = None, seed=No
 def load_packing(path, group: str = "packing") -> Packing:
     """Read a packing written by :func:`save_packing` (or any group holding one)."""
     with open_result(path) as f:
-        if group not in f:
+        if group not in f or not isinstance(f[group], h5py.Group):
             raise ResultFileError(f"{path}: no group {group!r} (has {sorted(f.keys())})")
         return read_packing_group(f[group])
 

@@ -250,15 +250,27 @@ def write_study(path, result: StudyResult, parameters: dict | None = None) -> Pa
     return Path(path)
 
 
+def study_rve_names(path) -> list[str]:
+    """Names of the RVEs stored in a study file (the packing groups under ``/rves``)."""
+    import h5py
+
+    from ..io import open_result
+
+    with open_result(path, kind="rve-study") as f:
+        if "rves" not in f or not isinstance(f["rves"], h5py.Group):
+            raise ResultFileError(f"{path}: rve-study file without a /rves group")
+        return sorted(k for k, v in f["rves"].items() if isinstance(v, h5py.Group))
+
+
 def read_study_packing(path, name: str) -> Packing:
     """The packing of RVE ``name`` stored in a study file."""
     from ..io import open_result, read_packing_group
 
+    names = study_rve_names(path)
+    if name not in names:
+        raise ResultFileError(f"{path}: no RVE {name!r} (has {', '.join(names) or 'none'})")
     with open_result(path, kind="rve-study") as f:
-        if f"rves/{name}" not in f:
-            names = [n.decode() for n in f["rves/names"][()]]
-            raise ResultFileError(f"{path}: no RVE {name!r} (has {', '.join(names)})")
-        return read_packing_group(f[f"rves/{name}"])
+        return read_packing_group(f["rves"][name])
 
 
 _COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple")
@@ -349,6 +361,7 @@ __all__ = [
     "most_uniform",
     "plot_study",
     "read_study_packing",
+    "study_rve_names",
     "run_study",
     "write_study",
 ]

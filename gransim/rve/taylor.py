@@ -55,9 +55,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._numba import njit, pjit, prange
-from .._validate import as_array, as_positive_float
+from .._validate import as_array, as_positive_float, check_memory, format_bytes
 from ..contacts import find_neighbours
 from ..contacts.law import force_magnitude, overlap, potential, stiffness
+from ..contacts.neighbours import bin_layout
 from ..errors import InputError
 from ..geometry import Packing
 
@@ -67,6 +68,12 @@ VALIDITY_MARGIN = 1e-12
 DEFAULT_SKIN_FRACTION = 0.1
 #: most candidate sets kept per RVE (oldest dropped first)
 MAX_SETS_PER_RVE = 32
+#: peak bytes per candidate pair of one build: the neighbour list (i, j, shift, branch: 48 B), the
+#: shift and filter temporaries (~70 B), the kept set (L, r_i, r_j, i, j, shift: 64 B) and its copy
+#: in the flattened arrays (32 B), rounded up
+BYTES_PER_CANDIDATE = 300
+#: most pair-distance tests of one cell-list scan (about a minute on one core)
+MAX_SCAN_TESTS = 5e10
 
 
 # ----------------------------------------------------------------------------------------------
@@ -296,6 +303,75 @@ def _smallest_singular_value(G: np.ndarray) -> np.ndarray:
     return np.sqrt(2.0 * det * det / (s1 + disc))
 
 
+def shortest_lattice_vector(cell: np.ndarray) -> np.ndarray:
+    """The shortest non-zero vector C n of the lattice of ``cell`` (2, 2) (Lagrange-Gauss reduction)."""
+    u, v = np.array(cell[:, 0], float), np.array(cell[:, 1], float)
+    if u @ u > v @ v:
+        u, v = v, u
+    for _ in range(200):  # each pass shrinks |v| geometrically; 200 passes cover any float cell
+        if not u @ u > 0:
+            break
+        v = v - np.round((u @ v) / (u @ u)) * u
+        if v @ v >= u @ u:
+            break
+        u, v = v, u
+    return u
+
+
+def estimate_candidates(packing: Packing, F, skin_fraction: float = DEFAULT_SKIN_FRACTION) -> dict:
+    """Size of the candidate search of :class:`TaylorMaterial` anchored at F, before running it.
+
+    The periodic images of the N disks in the deformed cell F C form N lattices of density
+    1 / det(F C); a disk has on average pi c^2 N / det(F C) partner images within the search
+    distance c = r_i + r_j + 2 f r_max, so the list holds about
+    ``N^2 pi <c^2> / (2 det(F C)) + N c_max / |b_1|`` pairs, the second term counting the images of
+    a disk of itself along the shortest deformed lattice vector b_1 (they dominate when F squeezes
+    the cell below a disk diameter). The cell-list scan tests N (2 k_1 + 1)(2 k_2 + 1) N / n_bins
+    distances (:func:`gransim.contacts.neighbours.bin_layout`).
+
+    Returns {"pairs", "bytes", "scan_tests", "shortest_vector" (m), "max_contact_distance" (m)}.
+    """
+    F = _check_single_F(F)
+    r = packing.radii
+    n = r.size
+    Cd = F @ packing.cell
+    area = float(np.linalg.det(Cd))
+    skin = 2.0 * float(skin_fraction) * float(r.max())
+    m1, m2 = float(r.mean()), float(np.mean(r**2))
+    c2 = 2.0 * m2 + 2.0 * m1**2 + 2.0 * skin * 2.0 * m1 + skin**2  # <(r_i + r_j + skin)^2>
+    cmax = 2.0 * float(r.max()) + skin
+    b1 = float(np.linalg.norm(shortest_lattice_vector(Cd)))
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        pairs = n * n * math.pi * c2 / (2.0 * area) + n * cmax / b1
+        try:
+            nb1, nb2, k1, k2 = bin_layout(Cd, cmax, n)
+            tests = float(n) * (2 * k1 + 1) * (2 * k2 + 1) * n / (nb1 * nb2)
+        except (OverflowError, ValueError, ZeroDivisionError):
+            tests = math.inf
+    if not math.isfinite(pairs) or not area > 0:
+        pairs = math.inf
+    return {"pairs": pairs, "bytes": pairs * BYTES_PER_CANDIDATE, "scan_tests": tests,
+            "shortest_vector": b1, "max_contact_distance": float(2.0 * r.max())}
+
+
+def check_candidate_budget(packing: Packing, F, skin_fraction: float = DEFAULT_SKIN_FRACTION,
+                           name: str = "F") -> dict:
+    """Refuse (:class:`InputError` naming ``name``) an F whose candidate search would not fit into
+    the available memory or would scan more than :data:`MAX_SCAN_TESTS` distances."""
+    est = estimate_candidates(packing, F, skin_fraction)
+    what = (f"{name}: the contact candidates of {est['pairs']:.3g} periodic image pairs (deformed cell's "
+            f"shortest lattice vector {est['shortest_vector']:.3g} m, largest contact distance "
+            f"{est['max_contact_distance']:.3g} m)")
+    check_memory(est["bytes"], what, hint="the deformation squeezes the cell too much")
+    if not est["scan_tests"] <= MAX_SCAN_TESTS:
+        raise InputError(f"{name}: the contact search of this deformation would test about "
+                         f"{est['scan_tests']:.3g} distances (more than {MAX_SCAN_TESTS:.3g}); the "
+                         f"deformed cell is too thin or too sheared (shortest lattice vector "
+                         f"{est['shortest_vector']:.3g} m, candidates {est['pairs']:.3g}, about "
+                         f"{format_bytes(est['bytes'])})")
+    return est
+
+
 # ----------------------------------------------------------------------------------------------
 # the compute object
 # ----------------------------------------------------------------------------------------------
@@ -316,6 +392,7 @@ class _RVE:
 
     def build(self, F0: np.ndarray):
         """Candidate set anchored at F0: pairs with |F0 L| < (1 + f)(r_i + r_j)."""
+        check_candidate_budget(self.packing, F0, self.f)
         # the cell list takes one absolute skin: the largest pair's, then filter per pair
         skin = self.f * 2.0 * float(self.r.max())
         nl = find_neighbours(self.X @ F0.T, self.r, F0 @ self.C, skin)
@@ -323,6 +400,14 @@ class _RVE:
         keep = np.einsum("ij,ij->i", nl.branch, nl.branch) < c * c
         i, j, shift = nl.i[keep], nl.j[keep], nl.shift[keep]
         L = self.X[j] + shift @ self.C.T - self.X[i]
+        zero = np.flatnonzero(~np.any(L != 0.0, axis=1))
+        if zero.size:  # l = F L = 0 for every F: no contact normal, P = nan
+            q = int(zero[0])
+            raise InputError(
+                f"packing: disks {int(i[q])} and {int(j[q])} have coincident centres "
+                f"{self.X[i[q]].tolist()} (image shift {shift[q].tolist()}); a contact needs a non-zero "
+                f"branch vector ({zero.size} such pair(s))"
+            )
         entry = (
             np.linalg.inv(F0),
             np.ascontiguousarray(L),
@@ -593,7 +678,16 @@ def homogenize(packing: Packing, F, normal_stiffness: float) -> TaylorResult:
     Contact candidates are cached per packing (see the module docstring), so repeated
     calls on one packing cost only the kernel. Eqs (6)-(12) of Meier, Steinmann & Kuhl.
     """
-    return material_for(packing, normal_stiffness)(F)
+    res = material_for(packing, normal_stiffness)(F)
+    if not (math.isfinite(res.energy) and np.all(np.isfinite(res.piola))
+            and np.all(np.isfinite(res.tangent))):
+        from ..errors import SimulationError
+
+        raise SimulationError(
+            f"homogenize: non-finite result at F = {np.asarray(F).tolist()} (W = {res.energy!r}, "
+            f"P = {res.piola.tolist()}); the contact stiffness or F is out of the range of float64"
+        )
+    return res
 
 
 @dataclass(frozen=True)

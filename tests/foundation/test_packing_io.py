@@ -116,3 +116,22 @@ def test_vtk_export(packing, tmp_path):
     assert mesh.points.shape == (30, 3)
     np.testing.assert_allclose(mesh.point_data["radius"], packing.radii)
     assert mesh.point_data["v"].shape == (30, 3)
+
+
+def test_atomic_path_fsyncs_before_the_rename(tmp_path, monkeypatch):
+    """The data reach the disk before the file appears under its name (temp, fsync, rename)."""
+    import os
+
+    from gransim.io import atomic_path
+
+    events = []
+    real_fsync, real_replace = os.fsync, os.replace
+    monkeypatch.setattr(os, "fsync", lambda fd: (events.append("fsync"), real_fsync(fd))[1])
+    monkeypatch.setattr(os, "replace", lambda a, b: (events.append("rename"), real_replace(a, b))[1])
+    target = tmp_path / "out.txt"
+    with atomic_path(target) as tmp:
+        tmp.write_text("data")
+        assert not target.exists()
+    assert target.read_text() == "data"
+    assert events[:2] == ["fsync", "rename"]
+    assert not list(tmp_path.glob(".out.txt.*"))

@@ -48,12 +48,12 @@ def test_pack_by_frictional_compaction(tmp_path, capsys):
     (["pack", "--n", "50", "--friction", "0.1", "--solid-fraction", "0.85", "-o", "x.h5"], "takes no --solid"),
     (["pack", "--n", "50", "--pressure", "1e-4", "-o", "x.h5"], "--pressure needs --friction"),
     (["pack", "--n", "50", "--friction", "0.1", "--residual", "rms", "-o", "x.h5"], "belong to the FIRE"),
-    (["pack", "--n", "50", "--force-tol=-1", "-o", "x.h5"], "force_tol"),
-    (["pack", "--n", "50", "--friction=-1", "-o", "x.h5"], "friction"),
-    (["pack", "--n", "1", "-o", "x.h5"], "n: expected an integer >= 2"),
+    (["pack", "--n", "50", "--force-tol=-1", "-o", "x.h5"], "--force-tol: expected"),
+    (["pack", "--n", "50", "--friction=-1", "-o", "x.h5"], "--friction: expected"),
+    (["pack", "--n", "1", "-o", "x.h5"], "--n: expected an integer >= 2"),
     (["pack", "--n", "50", "--distribution", "granite", "-o", "x.h5"], "unknown distribution 'granite'"),
-    (["pack", "--n", "50", "--solid-fraction", "0.97", "-o", "x.h5"], "unreachable"),
-    (["pack", "--n", "50", "--mean-overlap=-1e-4", "-o", "x.h5"], "mean_overlap"),
+    (["pack", "--n", "50", "--solid-fraction", "0.97", "-o", "x.h5"], "--solid-fraction: expected a finite number > 0 and < 0.95"),
+    (["pack", "--n", "50", "--mean-overlap=-1e-4", "-o", "x.h5"], "--mean-overlap: expected"),
     (["packings", "--only", "rve-9-9"], "unknown standard packing"),
 ])
 def test_bad_input_is_one_line_and_exit_2(argv, message, tmp_path, capsys, monkeypatch):

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core import CaseResult, Context, case, compare, stored_dir
+from ..core import CaseResult, Context, case, compare, stored_dir, stored_job_record
 
 POS_TOL = 1e-10  # of D50
 POS_REASON = ("the engine does LIGGGHTS' floating-point operations in LIGGGHTS' order (neighbour list, "
@@ -118,6 +118,7 @@ def biaxial_short(ctx: Context) -> CaseResult:
     stored = stored_dir("biaxial-short")
     nat = run_native(p, s, ld, n, SHORT_CASE_DUMP_EVERY)
     lig = read_liggghts(stored / "log.liggghts", stored / "dump.atoms")
+    res.records.append(stored_job_record("biaxial-short/stored-120", stored))
     recs, row = step_records("biaxial-short/stored-120", nat, lig, p.d50, n, SHORT_CASE_DUMP_EVERY)
     res.records += recs
     rows.append(row)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core import CaseResult, Context, case, compare
+from ..core import CaseResult, Context, case, compare, stored_job_record
 
 KN = 2.8e7  # N/m, Table 1 of Meier et al. (the RVE study stiffness)
 STRESS_TOL = 1e-10
@@ -209,6 +209,8 @@ def taylor_rve(ctx: Context) -> CaseResult:
     if ctx.liggghts:
         res.records.append(evidence("taylor-rve", "RVEs run by LIGGGHTS", sorted(packings), sorted(runs)))
     for name, run in runs.items():
+        if not ctx.liggghts:
+            res.records.append(stored_job_record(f"taylor-rve/{name.replace('rve-', '')}", run.job_dir))
         res.records += series_evidence(f"taylor-rve/{name.replace('rve-', '')}", run)
     from gransim.rve import TaylorMaterial
 
