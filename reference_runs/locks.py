@@ -47,16 +47,17 @@ def _read_holder(path: Path) -> tuple[int | None, str]:
     return pid, (f"pid {pid}" + (f" on {words[1]}" if len(words) > 1 else "")) if pid else "unknown holder"
 
 
-def remove_stray_tmp(directory) -> list:
+def remove_stray_tmp(directory, recursive: bool = True) -> list:
     """Remove temporaries of :func:`gransim.io.atomic_path` left by a killed writer.
 
     They are named ``.<name>.<random><suffix>`` with a suffix ending in ``.tmp`` (``.tmp``,
-    ``.json.tmp``, ``.h5.tmp``), next to their target, anywhere below ``directory``. Call it only
-    while holding the directory's lock (a live writer's temporary would be removed too).
-    Returns the removed paths.
+    ``.json.tmp``, ``.h5.tmp``), next to their target, anywhere below ``directory`` (only in it
+    when ``recursive`` is False). Call it only while holding the directory's lock (a live
+    writer's temporary would be removed too). Returns the removed paths.
     """
     removed = []
-    for p in Path(directory).rglob(".*.tmp"):
+    d = Path(directory)
+    for p in (d.rglob(".*.tmp") if recursive else d.glob(".*.tmp")):
         if p.is_file() and p.name.count(".") >= 3:
             try:
                 p.unlink()

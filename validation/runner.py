@@ -32,25 +32,19 @@ def run_validation(suite: str = "default", results: Path | str = "results", jobs
         timeout = as_positive_float(timeout, "--timeout")
     ctx = Context(suite=suite, results=Path(results), jobs=int(jobs), liggghts=liggghts_available(),
                   timeout=timeout)
-    from reference_runs.locks import DirectoryLock
+    from reference_runs.locks import DirectoryLock, remove_stray_tmp
     from reference_runs.runner import kill_children_on_signals
 
     # one validation run per results directory (a second fails at once, naming the first); a
     # signal kills every LIGGGHTS job this run started before the exception ends it
     with DirectoryLock(ctx.results, fail_fast=True, what=f"results directory {ctx.results}"), \
             kill_children_on_signals():
-        _remove_stray_tmp(ctx.results, ctx.report_dir)
+        # temporaries a killed validation run left in its own files (not below: job directories
+        # are cleaned by their own locks)
+        for d in (ctx.results, ctx.report_dir):
+            if d.is_dir():
+                remove_stray_tmp(d, recursive=False)
         return _run_cases(ctx, suite, only, log, timeout)
-
-
-def _remove_stray_tmp(*dirs) -> None:
-    """Temporaries of :func:`gransim.io.atomic_path` (``.<name>.<random>...tmp``) left in these
-    directories (not below them) by a killed validation run; called with the results lock held."""
-    for d in dirs:
-        if Path(d).is_dir():
-            for p in Path(d).glob(".*.*tmp"):
-                if p.is_file():
-                    p.unlink(missing_ok=True)
 
 
 def _run_cases(ctx, suite, only, log, timeout) -> tuple[bool, list[CaseResult]]:
