@@ -63,6 +63,12 @@ class Record:
 RECORD_KINDS = ("check", "info")
 
 
+def default_job_timeout(particle_steps: float) -> float:
+    """The default timeout (s) of a reference job of ``particle_steps`` (particles x steps):
+    ``JOB_TIMEOUT_BASE + JOB_TIMEOUT_PER_PSTEP * particle_steps``."""
+    return JOB_TIMEOUT_BASE + JOB_TIMEOUT_PER_PSTEP * float(particle_steps)
+
+
 def compare(case: str, quantity: str, metric: str, value: float, tolerance: float, reason: str) -> Record:
     """A record that passes when ``value <= tolerance`` (NaN fails)."""
     value = float(value)
@@ -147,7 +153,7 @@ class Context:
         serial speed on this kind of machine, so only a hung or runaway job reaches it)."""
         if self.timeout is not None:
             return float(self.timeout)
-        return JOB_TIMEOUT_BASE + JOB_TIMEOUT_PER_PSTEP * float(particle_steps)
+        return default_job_timeout(particle_steps)
 
     @property
     def report_dir(self) -> Path:

@@ -116,9 +116,9 @@ def run_liggghts_job(job_dir, packing, settings, loading, nsteps: int, dump_ever
     manifest (command, version, elapsed time, hashes).
     """
     if timeout is None:
-        from .core import JOB_TIMEOUT_BASE, JOB_TIMEOUT_PER_PSTEP
+        from .core import default_job_timeout
 
-        timeout = JOB_TIMEOUT_BASE + JOB_TIMEOUT_PER_PSTEP * packing.n * nsteps
+        timeout = default_job_timeout(packing.n * nsteps)
     from reference_runs.decks.biaxial import write_biaxial_deck
     from reference_runs.runner import run_job
 
@@ -135,14 +135,14 @@ def run_liggghts_job(job_dir, packing, settings, loading, nsteps: int, dump_ever
 
 # ------------------------------------------------------------------ evidence
 def expected_steps(nsteps: int, every: int = 1) -> np.ndarray:
-    """Steps a series of a run of ``nsteps`` holds when it keeps every ``every``-th step from 0
-    (the thermo rows of the LIGGGHTS deck, the native series)."""
+    """Steps a run of ``nsteps`` samples when it keeps every ``every``-th step from 0: the thermo
+    rows of the LIGGGHTS deck and the native series, and (with ``every`` = the dump interval) the
+    dump frames."""
     return np.arange(0, int(nsteps) + 1, int(every), dtype=np.int64)
 
 
-def expected_frames(nsteps: int, dump_every: int) -> np.ndarray:
-    """Steps of the frames of a run of ``nsteps`` dumped every ``dump_every`` steps from 0."""
-    return np.arange(0, int(nsteps) + 1, int(dump_every), dtype=np.int64)
+#: the frames of a run dumped every ``dump_every`` steps are sampled like its series
+expected_frames = expected_steps
 
 
 def trajectory_evidence(label: str, who: str, tr: Trajectory, steps, frames) -> list:
@@ -160,7 +160,7 @@ def trajectory_evidence(label: str, who: str, tr: Trajectory, steps, frames) -> 
         have = set(int(s) for s in tr.steps[np.all(np.isfinite(tr.stress), axis=1)]) if len(tr.steps) else set()
         recs.append(evidence(label, f"{who} series steps", [int(s) for s in steps], have))
     if frames is not None:
-        n0 = None
+        n0 = None  # particle count of the first whole frame: every frame must have it
         good = set()
         for s, fr in tr.frames.items():
             try:
@@ -168,9 +168,10 @@ def trajectory_evidence(label: str, who: str, tr: Trajectory, steps, frames) -> 
                 ok = all(k in fr and len(fr[k]) == n and np.all(np.isfinite(fr[k])) for k in FRAME_KEYS)
             except (KeyError, TypeError):
                 ok = False
-            if ok and (n0 is None or n == n0):
+            if ok:
                 n0 = n if n0 is None else n0
-                good.add(int(s))
+                if n == n0:
+                    good.add(int(s))
         recs.append(evidence(label, f"{who} frames", [int(s) for s in frames], good))
     return recs
 
