@@ -7,12 +7,13 @@ STAMP := $(VENV)/.gransim-installed
 # numba's on-disk cache lives outside the source tree so a clean clone stays clean
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba-cache
 
-.PHONY: run test bench setup liggghts clean help
+.PHONY: run test bench setup engines liggghts clean help
 
 help:
 	@echo "make run   - set up, run the default validation suite, write results/report/index.html"
 	@echo "make test  - set up, run the test suite"
 	@echo "make bench - set up, run the benchmark suite (results/bench.json)"
+	@echo "make engines - install LIGGGHTS and LAMMPS with apt-get when root (else say how)"
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -20,20 +21,32 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	@touch $(STAMP)
 
-setup: $(STAMP) liggghts
+setup: $(STAMP) engines
 
-liggghts:
-	@if command -v liggghts >/dev/null 2>&1; then \
-	  echo "LIGGGHTS found: $$(command -v liggghts)"; \
+# the two established DEM codes the validation compares with: LIGGGHTS (binary `liggghts`, Debian
+# package `liggghts`) and LAMMPS (binary `lmp`, Debian package `lammps`). As root, the missing ones
+# are installed with apt-get; otherwise make says how. Neither is required: without one, the
+# comparisons use its stored outputs in reference_runs/stored/.
+engines:
+	@missing=""; \
+	if command -v liggghts >/dev/null 2>&1; then echo "LIGGGHTS found: $$(command -v liggghts)"; \
+	  else missing="$$missing liggghts"; fi; \
+	if command -v lmp >/dev/null 2>&1; then echo "LAMMPS found: $$(command -v lmp)"; \
+	  else missing="$$missing lammps"; fi; \
+	if [ -z "$$missing" ]; then \
+	  :; \
 	elif [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
-	  echo "LIGGGHTS missing: installing Debian's liggghts package with apt-get"; \
-	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq liggghts >/dev/null) \
-	    || echo "WARNING: apt-get install liggghts failed; LIGGGHTS comparisons will use stored reference outputs only"; \
+	  echo "missing:$$missing; installing Debian's package(s)$$missing with apt-get"; \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null) \
+	    || echo "WARNING: apt-get install$$missing failed; those comparisons will use stored reference outputs only"; \
 	else \
-	  echo "WARNING: LIGGGHTS (the 'liggghts' binary) is not installed and this user cannot install it."; \
-	  echo "         Install it with:  sudo apt-get install liggghts"; \
+	  echo "WARNING: not installed:$$missing (binaries 'liggghts', 'lmp'), and this user cannot install them."; \
+	  echo "         Install them with:  sudo apt-get install liggghts lammps"; \
 	  echo "         Until then, comparisons use the stored reference outputs in reference_runs/stored/."; \
 	fi
+
+# the former name of the target
+liggghts: engines
 
 run: setup
 	$(VENV)/bin/gransim validate --suite default

@@ -15,6 +15,11 @@
     Run ``JOB_DIR/in.bench`` (data file ``data.biaxial``) with ``reference_runs.runner.run_job``
     on NP MPI processes while sampling the VmHWM of every ``liggghts`` process; reports the parsed
     loop timing (reference_runs.timing) and the per-process peaks (KiB).
+``python -m bench._dem_job lammps JOB_DIR NP TIMEOUT``
+    The same with LAMMPS (``run_job(..., engine="lammps")``, the ``lmp`` processes sampled); its
+    timing breakdown (``Section | min time | avg time | ...`` table: Pair, Neigh, Comm, Output,
+    Modify, Other, average over ranks) and ``Per MPI rank memory allocation`` (max) are read
+    from the log here.
 """
 
 from __future__ import annotations
@@ -114,25 +119,57 @@ def profile(path, steps: int) -> dict:
             "rebuilds": eng.n_rebuilds - 1, "advance_rebuilds": ref.n_rebuilds - r0, "identical": same}
 
 
-def liggghts(job_dir, nprocs: int, timeout: float) -> dict:
+def lammps_breakdown(log_text: str) -> tuple[dict, float | None]:
+    """LAMMPS' timing table of the (last) run: {section: average seconds over ranks}, and the
+    largest ``Per MPI rank memory allocation`` (Mbytes) of the log."""
+    import re
+
+    parts, mem = {}, None
+    for line in log_text.splitlines():
+        m = re.match(r"^Per MPI rank memory allocation \(min/avg/max\) = ([\d.eE+-]+) \| ([\d.eE+-]+) \| "
+                     r"([\d.eE+-]+) Mbytes", line)
+        if m:
+            mem = float(m.group(3))
+            parts = {}
+            continue
+        cells = [c.strip() for c in line.split("|")]
+        if len(cells) == 6 and cells[0] in ("Pair", "Neigh", "Comm", "Output", "Modify", "Other"):
+            try:
+                parts[cells[0]] = float(cells[2])
+            except ValueError:
+                pass
+    return parts, mem
+
+
+def engine_job(job_dir, nprocs: int, timeout: float, engine: str = "liggghts") -> dict:
     from pathlib import Path
 
     from bench._memory import PeakSampler
+    from reference_runs.engines import get_engine
     from reference_runs.runner import run_job
     from reference_runs.timing import parse_loop_timings
 
+    eng = get_engine(engine)
     job = Path(job_dir)
-    sampler = PeakSampler(names={"liggghts"}, interval=0.05)
+    sampler = PeakSampler(names={eng.binary}, interval=0.05)
     sampler.start()
     try:
         res = run_job(job, (job / "in.bench").read_text(), files={"data.biaxial": job / "data.biaxial"},
-                      np=nprocs, timeout=timeout, expected_runs=1, progress=False, force=True)
+                      np=nprocs, timeout=timeout, expected_runs=1, progress=False, force=True, engine=eng.name)
     finally:
         peaks = sampler.stop()
     (t,) = parse_loop_timings(res.log_path)
-    return {"loop_s": t.loop_s, "n": t.atoms, "steps": t.steps, "procs": t.procs,
-            "breakdown": {k: v[0] for k, v in t.breakdown.items()}, "memory_mb_estimate": t.memory_mb,
+    breakdown = {k: v[0] for k, v in t.breakdown.items()}
+    mem = t.memory_mb
+    if eng.name == "lammps":
+        breakdown, mem = lammps_breakdown(res.log_path.read_text(errors="replace"))
+    return {"loop_s": t.loop_s, "n": t.atoms, "steps": t.steps, "procs": t.procs, "engine": eng.name,
+            "breakdown": breakdown, "memory_mb_estimate": mem, "version": res.manifest.get("engine_version"),
             "rebuilds": t.neighbour_builds, "rank_peaks_kib": sorted(k for _, k in peaks.values())}
+
+
+def liggghts(job_dir, nprocs: int, timeout: float) -> dict:
+    return engine_job(job_dir, nprocs, timeout, "liggghts")
 
 
 def main(argv) -> int:
@@ -143,8 +180,8 @@ def main(argv) -> int:
         out = baseline(a[0], int(a[1]))
     elif kind == "profile":
         out = profile(a[0], int(a[1]))
-    elif kind == "liggghts":
-        out = liggghts(a[0], int(a[1]), float(a[2]))
+    elif kind in ("liggghts", "lammps"):
+        out = engine_job(a[0], int(a[1]), float(a[2]), kind)
     else:
         raise SystemExit(f"unknown job kind {kind!r}")
     print(json.dumps(out))

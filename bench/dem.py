@@ -1,5 +1,12 @@
-"""DEM throughput and memory: native gransim (1 thread, 2 threads) vs LIGGGHTS 3.8.0 (serial and
-``mpirun -np 2``) on the same assembly, deck and number of steps, at about 1e3, 1e4, 1e5 and 1e6 disks.
+"""DEM throughput and memory: native gransim (1 thread, 2 threads) vs LIGGGHTS 3.8.0 and LAMMPS
+(29 Sep 2021, Debian ``lammps``), each serial and ``mpirun -np 2``, on the same assembly, contact
+law and number of steps, at about 1e3, 1e4, 1e5 and 1e6 disks.
+
+LAMMPS runs the LAMMPS form of the same deck (``write_biaxial_deck(..., engine="lammps")``:
+``pair_style gran/hooke/history`` with the same kn, kt, dampings and friction, 2D masses by
+``set density/disc``, ``fix nve/sphere disc``, sorting off, ``newton off``), timed by its own
+``Loop time of`` like LIGGGHTS; its memory is the VmHWM of the ``lmp`` processes, and its profile
+is its ``Pair/Neigh/Comm/Output/Modify/Other`` table (average over ranks).
 
 What is timed. LIGGGHTS prints ``Loop time of``: the wall time of its step loop, after the run's
 set-up (data file read, first neighbour build, ghost exchange, first forces) and without it. The
@@ -26,8 +33,9 @@ Targets: native 1 thread >= 1.5 x LIGGGHTS serial; ns per particle-step flat in 
 Also a profile at 1e5 disks: native phases (forces, integration, rebuilds) and LIGGGHTS' own
 Pair/Neigh/Comm/Outpt/Other breakdown at np 1 and np 2.
 
-Run: ``python -m bench --only dem [--quick]`` (quick: 1 repeat, small sizes, LIGGGHTS only at
-1,020 disks, no timing judged); absent LIGGGHTS or mpirun only drops their records (noted).
+Run: ``python -m bench --only dem [--quick]`` (quick: 1 repeat, small sizes, LIGGGHTS and LAMMPS
+only at 1,020 disks, no timing judged); absent LIGGGHTS, LAMMPS or mpirun only drops their records
+(noted). ``make bench`` runs the whole suite.
 """
 
 from __future__ import annotations
@@ -60,7 +68,7 @@ LOADING = Loading()
 #: the longer small-N runs relatively more (rebuild counts are in the notes)
 SIZES = ((1_000, 6000), (10_000, 600), (100_000, 60), (1_000_000, 60))
 QUICK_SIZES = ((1_000, 300), (10_000, 30))
-QUICK_LIGGGHTS_MAX = 2_000  # quick mode runs LIGGGHTS only up to this many disks
+QUICK_LIGGGHTS_MAX = 2_000  # quick mode runs LIGGGHTS and LAMMPS only up to this many disks
 REPEATS = 3
 PROFILE = (100_000, 60)
 QUICK_PROFILE = (10_000, 40)  # the first rebuild comes at about step 37
@@ -70,9 +78,13 @@ NATIVE_1 = "native 1 thread"
 NATIVE_2 = "native 2 threads"
 LIG_1 = "LIGGGHTS serial"
 LIG_2 = "LIGGGHTS np 2"
+LMP_1 = "LAMMPS serial"
+LMP_2 = "LAMMPS np 2"
 #: configuration: (job kind, native mode or MPI processes, threads)
 CONFIGS = {NATIVE_1: ("native", "serial", 1), NATIVE_2: ("native", "parallel", 2),
-           LIG_1: ("liggghts", 1, 1), LIG_2: ("liggghts", 2, 1)}
+           LIG_1: ("liggghts", 1, 1), LIG_2: ("liggghts", 2, 1),
+           LMP_1: ("lammps", 1, 1), LMP_2: ("lammps", 2, 1)}
+ALL_CONFIGS = [NATIVE_1, NATIVE_2, LIG_1, LIG_2, LMP_1, LMP_2]
 MIB = 1024.0
 
 
@@ -84,12 +96,13 @@ def assembly(n: int):
     return lattice_packing(nx, ny, seed=1, spread=0.1, compression=0.08)
 
 
-def write_bench_deck(job_dir, packing, steps: int) -> Path:
-    """The mirror deck of reference_runs.decks.biaxial without its dump, as ``in.bench`` (+ data)."""
+def write_bench_deck(job_dir, packing, steps: int, engine: str = "liggghts") -> Path:
+    """The mirror deck of reference_runs.decks.biaxial (LIGGGHTS or LAMMPS form) without its dump,
+    as ``in.bench`` (+ data)."""
     from reference_runs.decks.biaxial import write_biaxial_deck
 
     deck = write_biaxial_deck(job_dir, packing, SETTINGS, LOADING, steps, thermo_every=max(steps // 10, 1),
-                              dump_every=10 * steps)
+                              dump_every=10 * steps, engine=engine)
     lines = [ln for ln in deck.read_text().splitlines() if not ln.startswith(("dump ", "dump_modify "))]
     out = Path(job_dir) / "in.bench"
     out.write_text("\n".join(lines) + "\n")
@@ -121,15 +134,16 @@ def _sweep(sizes, repeats: int, configs_for, tmp: Path, log) -> dict:
         np_path = d / "packing.npz"
         np.savez(np_path, positions=p.positions, radii=p.radii, cell=p.cell, density=p.density)
         cfgs = configs_for(p.n)
-        if any(CONFIGS[c][0] == "liggghts" for c in cfgs):
-            write_bench_deck(d / "liggghts", p, steps)
+        for code in ("liggghts", "lammps"):
+            if any(CONFIGS[c][0] == code for c in cfgs):
+                write_bench_deck(d / code, p, steps, engine=code)
         for k in range(repeats):
             for c in cfgs[k % len(cfgs):] + cfgs[:k % len(cfgs)]:
                 kind, a, b = CONFIGS[c]
                 if kind == "native":
                     job = _child("native", np_path, steps, a, b)
                 else:
-                    job = _child("liggghts", d / "liggghts", a, LIGGGHTS_TIMEOUT, timeout=LIGGGHTS_TIMEOUT + 60)
+                    job = _child(kind, d / kind, a, LIGGGHTS_TIMEOUT, timeout=LIGGGHTS_TIMEOUT + 60)
                     job["peak_kib"] = sum(job["rank_peaks_kib"])
                 job["rate"] = job["n"] * job["steps"] / job["loop_s"]
                 out.setdefault((p.n, c), []).append(job)
@@ -158,16 +172,18 @@ def _records(res: dict, sizes_n, configs, judge: bool = True) -> list:
                 how = "VmHWM of the job's process (includes the baseline: interpreter, numba, kernels)"
             else:
                 ranks = [max(j["rank_peaks_kib"], default=0) / MIB for j in jobs]
-                how = ("VmHWM of the liggghts process" if CONFIGS[c][1] == 1 else
+                code = CONFIGS[c][0]
+                how = (f"VmHWM of the {'lmp' if code == 'lammps' else 'liggghts'} process" if CONFIGS[c][1] == 1 else
                        f"sum of the VmHWM of the {CONFIGS[c][1]} ranks (largest rank {statistics.median(ranks):.0f} MiB)")
-                how += (f", sampled at 20 Hz (lower bound); LIGGGHTS' own estimate "
-                        f"{jobs[0]['memory_mb_estimate']} MB per process")
+                how += (f", sampled at 20 Hz (lower bound); {'LAMMPS' if code == 'lammps' else 'LIGGGHTS'}' own "
+                        f"estimate {jobs[0]['memory_mb_estimate']} MB per process")
                 short = [len(j["rank_peaks_kib"]) for j in jobs if len(j["rank_peaks_kib"]) != CONFIGS[c][1]]
                 if short:
                     how += f"; WARNING: only {short} of {CONFIGS[c][1]} processes sampled in some runs"
             recs.append({"name": f"{c} peak memory, {n:,} disks", "value": statistics.median(mem), "unit": "MiB",
                          "target": None, "n": n, "samples": mem, "note": f"{_spread(mem)}; {how}"})
-        for num, den, target in ((NATIVE_1, LIG_1, 1.5), (NATIVE_2, LIG_2, None)):
+        for num, den, target in ((NATIVE_1, LIG_1, 1.5), (NATIVE_2, LIG_2, None), (NATIVE_1, LMP_1, None),
+                                 (NATIVE_2, LMP_2, None), (LMP_1, LIG_1, None)):
             a, b = res.get((n, num)), res.get((n, den))
             if not a or not b:
                 continue
@@ -205,16 +221,18 @@ def _profile_records(prof: dict, res: dict, n_lig: int | None) -> list:
     for name, sec in ph.items():
         recs.append({"name": f"native profile, {n:,} disks: {name}", "value": 100 * sec / total, "unit": "% of loop",
                      "target": None, "note": common})
-    for c in (LIG_1, LIG_2):
+    for c in (LIG_1, LIG_2, LMP_1, LMP_2):
         jobs = res.get((n_lig, c)) if n_lig is not None else None
         if not jobs:
             continue
         for part in jobs[0]["breakdown"]:
             pct = [100 * j["breakdown"][part] / j["loop_s"] for j in jobs]
+            note = ("LAMMPS' timing table (average over ranks), " if CONFIGS[c][0] == "lammps" else
+                    "LIGGGHTS' timing breakdown (process 0), ")
+            note += _spread(pct) + ("; Modify = integrator and fixes" if CONFIGS[c][0] == "lammps" else
+                                    "; Other = integrator and fixes (no Modify line in 3.8.0)")
             recs.append({"name": f"{c} profile, {n_lig:,} disks: {part}", "value": statistics.median(pct),
-                         "unit": "% of loop", "target": None,
-                         "note": f"LIGGGHTS' timing breakdown (process 0), {_spread(pct)}; Other = integrator "
-                                 "and fixes (no Modify line in 3.8.0)"})
+                         "unit": "% of loop", "target": None, "note": note})
     return recs
 
 
@@ -223,16 +241,19 @@ def run(quick: bool = False) -> list[dict]:
         print(f"[bench dem] {msg}", flush=True)
 
     have_lig = shutil.which("liggghts") is not None
-    have_mpi = have_lig and shutil.which("mpirun") is not None
+    have_lmp = shutil.which("lmp") is not None
+    have_mpi = shutil.which("mpirun") is not None
     sizes = QUICK_SIZES if quick else SIZES
     repeats = 1 if quick else REPEATS
 
     def configs_for(n):
         cfg = [NATIVE_1, NATIVE_2]
-        if have_lig and (not quick or n <= QUICK_LIGGGHTS_MAX):
-            cfg.append(LIG_1)
-            if have_mpi:
-                cfg.append(LIG_2)
+        if not quick or n <= QUICK_LIGGGHTS_MAX:
+            for have, serial, par in ((have_lig, LIG_1, LIG_2), (have_lmp, LMP_1, LMP_2)):
+                if have:
+                    cfg.append(serial)
+                    if have_mpi:
+                        cfg.append(par)
         return cfg
 
     load0 = os.getloadavg()
@@ -247,19 +268,22 @@ def run(quick: bool = False) -> list[dict]:
     if not have_lig:
         recs.append({"name": "LIGGGHTS comparison", "value": 0, "unit": "runs", "target": None,
                      "note": "liggghts not on PATH: LIGGGHTS records omitted (apt-get install liggghts)"})
-    elif not have_mpi:
-        recs.append({"name": "LIGGGHTS np 2", "value": 0, "unit": "runs", "target": None,
-                     "note": "mpirun not on PATH: LIGGGHTS np 2 records omitted"})
+    if not have_lmp:
+        recs.append({"name": "LAMMPS comparison", "value": 0, "unit": "runs", "target": None,
+                     "note": "lmp not on PATH: LAMMPS records omitted (apt-get install lammps)"})
+    if (have_lig or have_lmp) and not have_mpi:
+        recs.append({"name": "np 2 runs", "value": 0, "unit": "runs", "target": None,
+                     "note": "mpirun not on PATH: LIGGGHTS and LAMMPS np 2 records omitted"})
     with tempfile.TemporaryDirectory(prefix="bench-dem-") as tmp:
         res = _sweep(sizes, repeats, configs_for, Path(tmp), log)
         sizes_n = sorted({n for n, _ in res})
-        recs += _records(res, sizes_n, [NATIVE_1, NATIVE_2, LIG_1, LIG_2], judge=not quick)
+        recs += _records(res, sizes_n, ALL_CONFIGS, judge=not quick)
         nominal, steps = QUICK_PROFILE if quick else PROFILE
         p = assembly(nominal)
         pk = Path(tmp) / "profile.npz"
         np.savez(pk, positions=p.positions, radii=p.radii, cell=p.cell, density=p.density)
         prof = _child("profile", pk, steps)
-        lig_n = [n for n in sizes_n if (n, LIG_1) in res or (n, LIG_2) in res]
+        lig_n = [n for n in sizes_n if any((n, c) in res for c in (LIG_1, LIG_2, LMP_1, LMP_2))]
         n_lig = p.n if p.n in lig_n else (max(lig_n) if lig_n else None)
         recs += _profile_records(prof, res, n_lig)
     load1 = os.getloadavg()

@@ -1,4 +1,9 @@
-"""Parsers of LIGGGHTS 3.8.0 output: the log's thermo tables, ``dump custom`` and ``dump local``.
+"""Parsers of LIGGGHTS 3.8.0 and LAMMPS output: the log's thermo tables, ``dump custom`` and ``dump local``.
+
+Both codes write the same log and dump formats (checked on LAMMPS 29 Sep 2021 - Update 2: the
+banner ``LAMMPS (29 Sep 2021 - Update 2)``, ``Step ...`` headers, ``Loop time of ...``, ``ERROR:``
+and ``WARNING:`` lines with the source location appended); :attr:`LogFile.engine` says which
+code wrote a log.
 
 Everything is read into plain numpy arrays held by small frozen dataclasses. Numbers are
 read as float64; decks should print them with ``%.17g`` (``thermo_modify format float
@@ -20,8 +25,9 @@ import numpy as np
 
 from gransim.errors import ResultFileError
 
+from .engines import engine_of_log
+
 _LOOP = re.compile(r"^Loop time of ")
-_VERSION = re.compile(r"^LIGGGHTS \(Version ([^,)]*)")
 _LOST = re.compile(r"Lost atoms", re.IGNORECASE)
 
 
@@ -87,7 +93,8 @@ class LogFile:
     Attributes
     ----------
     path : the file read (None when parsed from text).
-    version : LIGGGHTS version from the banner (e.g. ``LIGGGHTS-PUBLIC 3.8.0``) or None.
+    version : version from the banner (``LIGGGHTS-PUBLIC 3.8.0``, ``LAMMPS 29 Sep 2021 - Update 2``)
+        or None.
     runs : thermo tables, one per ``run`` (``run 0`` included), in order.
     errors : lines starting with ``ERROR`` (``ERROR:`` or ``ERROR on proc N:``).
     warnings : lines starting with ``WARNING``.
@@ -101,6 +108,7 @@ class LogFile:
     warnings: tuple
     lost_atoms: bool
     n_lines: int
+    engine: str | None = None       # "liggghts", "lammps" (from the banner) or None
 
 
 def _floats(line: str, k: int):
@@ -114,7 +122,7 @@ def _floats(line: str, k: int):
 
 
 def parse_log(source) -> LogFile:
-    """Parse a LIGGGHTS log (path or the text itself) into thermo runs, errors and warnings.
+    """Parse a LIGGGHTS or LAMMPS log (path or the text itself) into thermo runs, errors and warnings.
 
     A thermo header is a line whose first word is ``Step`` (``thermo_style custom step ...``
     must start with ``step``); the rows that follow are the lines with the header's number
@@ -131,7 +139,7 @@ def parse_log(source) -> LogFile:
     else:
         path, text = None, str(source)
     lines = text.splitlines()
-    version = None
+    version, engine = None, None
     runs, errors, warnings = [], [], []
     lost = False
     cur_cols, cur_rows, cur_line = None, [], 0
@@ -146,10 +154,10 @@ def parse_log(source) -> LogFile:
 
     for n, line in enumerate(lines, start=1):
         s = line.strip()
-        if version is None:
-            m = _VERSION.match(s)
-            if m:
-                version = m.group(1).strip()
+        if version is None and s.startswith(("LIGGGHTS", "LAMMPS")):
+            eng, v = engine_of_log(s)
+            if eng is not None:
+                version, engine = v, eng.name
         if s.startswith("ERROR"):
             errors.append(LogLine(n, s))
             if _LOST.search(s):
@@ -180,7 +188,7 @@ def parse_log(source) -> LogFile:
             continue
         if atoms.size and np.any(atoms < atoms[0]):
             lost = True
-    return LogFile(path, version, tuple(runs), tuple(errors), tuple(warnings), lost, len(lines))
+    return LogFile(path, version, tuple(runs), tuple(errors), tuple(warnings), lost, len(lines), engine)
 
 
 # --------------------------------------------------------------------------- dumps

@@ -1,6 +1,8 @@
-"""Run one LIGGGHTS job in its own directory, with a manifest that says whether it completed.
+"""Run one LIGGGHTS or LAMMPS job in its own directory, with a manifest that says whether it completed.
 
-A job directory holds the deck (``in.liggghts``), its input files (data files...), the log
+The code is chosen by ``run_job(..., engine="liggghts"|"lammps")`` (:mod:`reference_runs.engines`);
+everything below holds for both. A job directory holds the deck (``in.liggghts`` or ``in.lammps``,
+:attr:`~reference_runs.engines.Engine.deck_name`), its input files (data files...), the log
 (``log.lammps``), the outputs the deck writes, ``stdout.txt``/``stderr.txt``, the lock file
 ``.lock`` and, written atomically and last, ``manifest.json``. Only a manifest with ``"status":
 "ok"`` marks the outputs as complete; a failed job leaves ``"status": "failed"`` with the reason,
@@ -15,13 +17,17 @@ the frames the deck asks for; the manifest records the counts (``evidence``) and
 the log (``log_sha256``) and of every output (``outputs``). :func:`run_job` reuses a directory
 that holds an ``ok`` manifest with the same input hash only after re-hashing the log and outputs
 and re-checking the evidence (:func:`verify_job`); a job that fails this is rerun (with a
-``WARNING`` line) when LIGGGHTS is available, and refused otherwise.
+``WARNING`` line) when the code is available, and refused otherwise. The manifest records the
+code (``engine``, ``engine_version`` from the job's own log banner, ``engine_binary``,
+``engine_package``; LIGGGHTS jobs also keep the older ``liggghts_*`` keys): a job run by one code
+is never reused as the other's (it is rerun with a ``WARNING`` when the requested code is there,
+refused otherwise). Manifests without ``engine`` were written by LIGGGHTS.
 
 One writer at a time: :func:`run_job` holds ``flock`` on ``job_dir/.lock``
 (:class:`reference_runs.locks.DirectoryLock`); a second writer of the same job waits (one line
 ``waiting for job ...``), then finds the finished job and reuses it.
 
-No orphans: LIGGGHTS (or ``mpirun``) runs in a new session; its process group is killed
+No orphans: the code (or ``mpirun``) runs in a new session; its process group is killed
 (SIGTERM, then SIGKILL after :data:`KILL_GRACE_S`) on timeout, on any exception, and when it exits
 leaving members behind. Live groups are registered; :func:`terminate_children` kills them all
 (also at interpreter exit), and :func:`kill_children_on_signals` turns SIGTERM, SIGINT and SIGHUP
@@ -37,7 +43,6 @@ import hashlib
 import json
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -47,20 +52,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from gransim.io import atomic_path
-from gransim.io.provenance import liggghts_package_version
 
+from .engines import ENGINES, LIGGGHTS, get_engine
 from .errors import DirectoryBusyError, ReferenceRunError
 from .expect import check_evidence, expected_evidence
 from .locks import DirectoryLock
 from .parsers import LogFile, parse_log
 
-DECK_NAME = "in.liggghts"
+#: deck file name of LIGGGHTS jobs (LAMMPS jobs: ``in.lammps``; see :attr:`Engine.deck_name`)
+DECK_NAME = LIGGGHTS.deck_name
+DECK_NAMES = tuple(e.deck_name for e in ENGINES.values())
 LOG_NAME = "log.lammps"
 MANIFEST_NAME = "manifest.json"
-INSTALL_HINT = ("install LIGGGHTS-PUBLIC 3.8.0 with `sudo apt-get install liggghts` (Debian/Ubuntu), "
-                "or put a `liggghts` binary on PATH")
+INSTALL_HINT = LIGGGHTS.install_hint
 FORCE_HINT = ("`--force` (`gransim reference run|taylor --force`, `run_job(force=True)`) discards the "
-              "stored outputs and runs LIGGGHTS again; it needs the binary too")
+              "stored outputs and runs the code again; it needs the binary too")
 #: how many lines of log context to show in an error
 CONTEXT_LINES = 12
 #: seconds between SIGTERM and SIGKILL when a job's process group is killed
@@ -137,13 +143,13 @@ def _kill_groups(items, grace: float | None = None) -> None:
 
 
 def live_children() -> list:
-    """Process group ids of the LIGGGHTS jobs this process is running."""
+    """Process group ids of the LIGGGHTS and LAMMPS jobs this process is running."""
     with _LIVE_LOCK:
         return list(_LIVE)
 
 
 def terminate_children(grace: float | None = None) -> int:
-    """Kill the process group of every live LIGGGHTS job of this process (SIGTERM, then SIGKILL
+    """Kill the process group of every live LIGGGHTS or LAMMPS job of this process (SIGTERM, then SIGKILL
     after ``grace`` s, default :data:`KILL_GRACE_S`). Returns how many groups were signalled.
     Safe to call from a signal handler or at exit; also registered with :mod:`atexit`."""
     with _LIVE_LOCK:
@@ -158,7 +164,7 @@ atexit.register(terminate_children)
 
 @contextlib.contextmanager
 def kill_children_on_signals(signals=(signal.SIGTERM, signal.SIGINT, signal.SIGHUP)):
-    """Within the block, SIGTERM, SIGINT and SIGHUP kill the live LIGGGHTS jobs
+    """Within the block, SIGTERM, SIGINT and SIGHUP kill the live LIGGGHTS and LAMMPS jobs
     (:func:`terminate_children`) and then raise: :class:`KeyboardInterrupt` for SIGINT,
     :class:`Terminated` (a ``SystemExit(128 + signum)``) for the others. The previous handlers are
     restored on exit. Off the main thread (where Python cannot install handlers) it does nothing.
@@ -234,11 +240,20 @@ def _now() -> str:
 
 
 def find_liggghts() -> str:
-    """Absolute path of the ``liggghts`` binary; :class:`ReferenceRunError` with how to install."""
-    exe = shutil.which("liggghts")
-    if exe is None:
-        raise ReferenceRunError(f"the `liggghts` binary was not found on PATH; {INSTALL_HINT}")
-    return exe
+    """Absolute path of the ``liggghts`` binary; :class:`ReferenceRunError` with how to install
+    (``get_engine("liggghts").find()``)."""
+    return LIGGGHTS.find()
+
+
+def find_engine(engine: str = "liggghts") -> str:
+    """Absolute path of the binary of ``engine``; :class:`ReferenceRunError` with its install hint,
+    :class:`~gransim.errors.InputError` for an unknown engine name."""
+    return get_engine(engine).find()
+
+
+def manifest_engine(manifest: dict | None) -> str:
+    """The code that ran a job (``engine`` of its manifest; older manifests: ``liggghts``)."""
+    return str((manifest or {}).get("engine") or "liggghts")
 
 
 def read_manifest(job_dir) -> dict | None:
@@ -292,8 +307,8 @@ def _verify(job_dir: Path, manifest: dict | None, deck_text: str | None, log_nam
     elif require_hashes:
         problems.append(f"no {MANIFEST_NAME}")
     if deck_text is None:
-        problems.append(f"no deck ({DECK_NAME} or a single in.* file) in {job_dir} to derive the expected "
-                        "runs and dump frames from")
+        problems.append(f"no deck ({' or '.join(DECK_NAMES)} or a single in.* file) in {job_dir} to derive "
+                        "the expected runs and dump frames from")
         return {"problems": list(problems)}, problems
     expect = expected_evidence(deck_text)
     log_path = job_dir / log_name
@@ -306,7 +321,8 @@ def _verify(job_dir: Path, manifest: dict | None, deck_text: str | None, log_nam
     return ev, problems
 
 
-def job_evidence(job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False) -> dict:
+def job_evidence(job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False,
+                 engine: str | None = None) -> dict:
     """The evidence record of a job directory (what :func:`verify_job` checks), with its problems.
 
     Same parameters as :func:`verify_job`. Returns a JSON-able dict: ``runs_expected``,
@@ -317,8 +333,8 @@ def job_evidence(job_dir, deck=None, log=None, outputs=None, require_hashes: boo
     """
     job_dir = Path(job_dir)
     m = read_manifest(job_dir)
-    deck_name = deck or (m or {}).get("deck") or (DECK_NAME if (job_dir / DECK_NAME).exists()
-                                                  else _only(job_dir, "in.*"))
+    deck_name = deck or (m or {}).get("deck") or next(
+        (d for d in DECK_NAMES if (job_dir / d).exists()), None) or _only(job_dir, "in.*")
     log_name = log or (LOG_NAME if (job_dir / LOG_NAME).exists() else _only(job_dir, "log.*") or LOG_NAME)
     deck_text, pre = None, []
     if deck_name and (job_dir / deck_name).exists():
@@ -331,13 +347,20 @@ def job_evidence(job_dir, deck=None, log=None, outputs=None, require_hashes: boo
             outputs = list(m.get("outputs") or {})
         else:  # a stored job without manifest: every dump file of the deck
             outputs = list(expected_evidence(deck_text).dumps) if deck_text is not None else []
+    if engine is not None and m is not None and manifest_engine(m) != get_engine(engine).name:
+        pre.append(f"the job was run by {manifest_engine(m)}, not {get_engine(engine).name}")
     ev, problems = _verify(job_dir, m, deck_text, log_name, outputs, require_hashes)
+    if engine is not None and m is None and (job_dir / LOG_NAME).exists():
+        who = parse_log(job_dir / log_name).engine if (job_dir / log_name).exists() else None
+        if who is not None and who != get_engine(engine).name:
+            pre.append(f"{log_name} was written by {who}, not {get_engine(engine).name}")
     ev["problems"] = pre + problems
     ev.update(deck=deck_name, log=log_name, outputs=list(outputs))
     return ev
 
 
-def verify_job(job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False) -> list:
+def verify_job(job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False,
+               engine: str | None = None) -> list:
     """Problems of a finished job directory (empty list: the job is complete and unchanged).
 
     Checks, when a ``manifest.json`` is present: status ``ok``, the SHA-256 of the deck, of the
@@ -350,31 +373,34 @@ def verify_job(job_dir, deck=None, log=None, outputs=None, require_hashes: bool 
     ----------
     job_dir : the job directory (a :func:`run_job` directory, or a stored reference such as
         ``reference_runs/stored/biaxial-short`` without manifest).
-    deck : deck file name in ``job_dir`` (default: the manifest's, else ``in.liggghts``, else
-        the only ``in.*`` file).
+    deck : deck file name in ``job_dir`` (default: the manifest's, else ``in.liggghts`` or
+        ``in.lammps``, else the only ``in.*`` file).
     log : log file name (default ``log.lammps``, else the only ``log.*`` file).
     outputs : output names to check (default: those of the manifest; without a manifest the
         deck's dump files, each of which must exist).
     require_hashes : also report a missing manifest, a manifest without ``log_sha256`` and
         outputs the manifest does not hash (what :func:`run_job` requires for reuse).
+    engine : when given (``liggghts``, ``lammps``), also report a job run by the other code
+        (manifest ``engine``; without a manifest, the log's banner).
 
     Returns
     -------
     list of str, one message per problem (e.g. ``incomplete: log.lammps holds 2 of 3 runs``,
     ``dump.atoms: expected 7 frames, got 1``, ``log.lammps changed since the job ran ...``).
     """
-    return job_evidence(job_dir, deck, log, outputs, require_hashes)["problems"]
+    return job_evidence(job_dir, deck, log, outputs, require_hashes, engine)["problems"]
 
 
-def is_complete(job_dir, input_sha256: str | None = None) -> bool:
-    """True when ``job_dir`` has an ``ok`` manifest (with this input hash) whose log and outputs are
-    unchanged and complete (:func:`verify_job` with ``require_hashes=True`` finds nothing)."""
+def is_complete(job_dir, input_sha256: str | None = None, engine: str | None = None) -> bool:
+    """True when ``job_dir`` has an ``ok`` manifest (with this input hash, and run by ``engine``
+    when given) whose log and outputs are unchanged and complete (:func:`verify_job` with
+    ``require_hashes=True`` finds nothing)."""
     m = read_manifest(job_dir)
     if not m or m.get("status") != "ok":
         return False
     if input_sha256 is not None and m.get("input_sha256") != input_sha256:
         return False
-    return not verify_job(job_dir, require_hashes=True)
+    return not verify_job(job_dir, require_hashes=True, engine=engine)
 
 
 def _write_manifest(job_dir: Path, manifest: dict) -> None:
@@ -438,14 +464,16 @@ def _job_inputs(deck, files):
 
 def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: float | None = 600.0,
             progress: bool = True, outputs=(), expected_runs: int | None = None,
-            allowed_warnings=(), force: bool = False, desc: str | None = None) -> JobResult:
-    """Run a LIGGGHTS deck in ``job_dir`` and check that it succeeded and left complete evidence.
+            allowed_warnings=(), force: bool = False, desc: str | None = None,
+            engine: str = "liggghts") -> JobResult:
+    """Run a LIGGGHTS or LAMMPS deck in ``job_dir`` and check that it succeeded and left complete
+    evidence.
 
     Parameters
     ----------
     job_dir : directory of the job (created).
     deck : the deck text, or a path (Path, or a one-line str naming an existing file) to a deck;
-        written to ``job_dir/in.liggghts``.
+        written to ``job_dir/in.liggghts`` (LAMMPS: ``in.lammps``).
     files : input files the deck reads, ``{name in job_dir: source}``; a source is a path (Path, or
         a one-line str naming an existing file: copied), bytes or text (written). They are part
         of the job's hash.
@@ -460,30 +488,35 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
     allowed_warnings : regular expressions of WARNING lines that do not fail the job; any other
         WARNING line fails it (granular decks should run warning-free).
     force : run even when complete outputs already exist.
+    engine : the code, ``"liggghts"`` (default) or ``"lammps"`` (:func:`reference_runs.engines.get_engine`;
+        :class:`~gransim.errors.InputError` for another name).
 
     Returns
     -------
     :class:`JobResult`. Its manifest records ``evidence`` (expected and found runs, last steps
-    and dump frames), ``log_sha256``, ``outputs`` (SHA-256 of each), ``liggghts_version`` (from the
-    job's own log banner), ``liggghts_package`` (Debian package version of the binary, or None)
-    and, after an automatic rerun, ``rerun_reason``.
+    and dump frames), ``log_sha256``, ``outputs`` (SHA-256 of each), ``engine``,
+    ``engine_version`` (from the job's own log banner), ``engine_binary``, ``engine_package``
+    (Debian package version of the binary, or None), for LIGGGHTS also ``liggghts_version``,
+    ``liggghts_binary``, ``liggghts_package`` and, after an automatic rerun, ``rerun_reason``.
 
     Raises
     ------
     ReferenceRunError
-        binary missing, non-zero exit, ERROR or unexpected WARNING lines, lost atoms, timeout
-        (``timed_out=True``), incomplete evidence (``incomplete: log.lammps holds 2 of 3 runs``,
-        ``dump.atoms: expected 7 frames, got 1``) or a missing output; the message quotes the
-        relevant log lines and the manifest then has ``"status": "failed"`` (never ``"ok"``).
-        Also when a stored job fails verification and LIGGGHTS is not there to rerun it (the
+        binary missing (with how to install it), non-zero exit, ERROR or unexpected WARNING lines,
+        lost atoms, timeout (``timed_out=True``), a log without the code's banner, incomplete
+        evidence (``incomplete: log.lammps holds 2 of 3 runs``, ``dump.atoms: expected 7 frames,
+        got 1``) or a missing output; the message quotes the relevant log lines and the manifest
+        then has ``"status": "failed"`` (never ``"ok"``). Also when a stored job fails
+        verification, or was run by the other code, and the code is not there to rerun it (the
         message names ``--force``).
     """
+    eng = get_engine(engine)
     job_dir = Path(job_dir)
     deck_text, blobs, deck_sha, input_sha = _job_inputs(deck, files)
     outputs = [str(o) for o in outputs]
     expect = expected_evidence(deck_text)
     if expected_runs is not None and expect.runs is not None and len(expect.runs) != expected_runs:
-        raise ReferenceRunError(f"LIGGGHTS job {job_dir}: the deck has {len(expect.runs)} run commands but "
+        raise ReferenceRunError(f"{eng.label} job {job_dir}: the deck has {len(expect.runs)} run commands but "
                                 f"expected_runs={expected_runs} (deck and caller disagree)", job_dir=job_dir)
     job_dir.mkdir(parents=True, exist_ok=True)
     lock = DirectoryLock(job_dir, fail_fast=False, timeout=timeout, what=f"job {job_dir}", clean_tmp=True,
@@ -491,60 +524,59 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
     try:
         lock.acquire()
     except DirectoryBusyError as exc:
-        raise ReferenceRunError(f"LIGGGHTS job {job_dir}: {exc}", job_dir=job_dir,
+        raise ReferenceRunError(f"{eng.label} job {job_dir}: {exc}", job_dir=job_dir,
                                 timed_out=exc.timed_out) from None
     try:
         return _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, timeout, progress,
-                           outputs, expected_runs, allowed_warnings, force, desc)
+                           outputs, expected_runs, allowed_warnings, force, desc, eng)
     finally:
         lock.release()
 
 
 def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, timeout, progress, outputs,
-                expected_runs, allowed_warnings, force, desc) -> JobResult:
+                expected_runs, allowed_warnings, force, desc, eng) -> JobResult:
     rerun_reason = None
+    label = eng.label
     m = None if force else read_manifest(job_dir)
     if m and m.get("status") == "ok" and m.get("input_sha256") == input_sha:
         names = list(dict.fromkeys([*(m.get("outputs") or {}), *outputs]))
         _, problems = _verify(job_dir, m, deck_text, LOG_NAME, names, require_hashes=True)
+        if manifest_engine(m) != eng.name:
+            problems = [f"the job was run by {manifest_engine(m)}, not {eng.name}", *problems]
         if not problems:
             return JobResult(job_dir, m, parse_log(job_dir / LOG_NAME), skipped=True,
                              warnings=tuple(m.get("warnings", ())))
-        if shutil.which("liggghts") is None:
+        if not eng.available():
             raise ReferenceRunError(
-                f"stored LIGGGHTS job {job_dir} is marked ok but fails verification: {'; '.join(problems)}. "
-                f"It cannot be rerun here: the `liggghts` binary was not found on PATH ({INSTALL_HINT}); "
-                f"with LIGGGHTS installed it is rerun automatically, or use {FORCE_HINT}",
+                f"stored {label} job {job_dir} is marked ok but fails verification: {'; '.join(problems)}. "
+                f"It cannot be rerun here: the `{eng.binary}` binary was not found on PATH ({eng.install_hint}); "
+                f"with {label} installed it is rerun automatically, or use {FORCE_HINT}",
                 job_dir=job_dir, problems=problems)
         rerun_reason = problems
-        _echo(f"WARNING: LIGGGHTS job {job_dir} is marked ok but fails verification ({'; '.join(problems)}): "
+        _echo(f"WARNING: {label} job {job_dir} is marked ok but fails verification ({'; '.join(problems)}): "
               "rerunning it")
 
-    exe = find_liggghts()
+    exe = eng.find()
     (job_dir / MANIFEST_NAME).unlink(missing_ok=True)  # nothing complete-looking while we run
-    for stale in [LOG_NAME, *outputs, *expect.dumps]:
+    for stale in [LOG_NAME, *outputs, *expect.dumps, *DECK_NAMES]:
         if "*" not in stale and "%" not in stale:
             (job_dir / stale).unlink(missing_ok=True)
-    (job_dir / DECK_NAME).write_text(deck_text)
+    (job_dir / eng.deck_name).write_text(deck_text)
     for name, data in blobs.items():
         (job_dir / name).parent.mkdir(parents=True, exist_ok=True)
         (job_dir / name).write_bytes(data)
 
-    cmd = [exe, "-in", DECK_NAME, "-log", LOG_NAME, "-screen", "none", "-nocite"]
-    if np > 1:
-        mpirun = shutil.which("mpirun")
-        if mpirun is None:
-            raise ReferenceRunError("np > 1 needs `mpirun` on PATH (OpenMPI: `apt-get install openmpi-bin`)")
-        extra = ["--allow-run-as-root"] if hasattr(os, "geteuid") and os.geteuid() == 0 else []
-        cmd = [mpirun, *extra, "-np", str(int(np)), *cmd]
-
+    cmd = eng.command(eng.deck_name, LOG_NAME, np, exe=exe)
+    package = eng.package_version(exe)
     manifest = {
         "status": "running", "command": cmd, "job_dir": str(job_dir.resolve()),
-        "deck": DECK_NAME, "deck_sha256": deck_sha, "input_sha256": input_sha,
+        "deck": eng.deck_name, "deck_sha256": deck_sha, "input_sha256": input_sha,
         "inputs": {name: _sha256(b) for name, b in sorted(blobs.items())},
-        "liggghts_binary": exe, "liggghts_package": liggghts_package_version(exe), "np": int(np),
+        "engine": eng.name, "engine_binary": exe, "engine_package": package, "np": int(np),
         "start": _now(), "timeout": timeout,
     }
+    if eng.name == "liggghts":
+        manifest.update(liggghts_binary=exe, liggghts_package=package)
     if rerun_reason:
         manifest["rerun_reason"] = rerun_reason
     total = expected_runs if expected_runs is not None else expect.n_runs
@@ -554,11 +586,11 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
     if progress:
         from gransim.progress import progress as _progress
 
-        bar = _progress(total=total, desc=desc or f"liggghts {job_dir.name}", unit="run")
+        bar = _progress(total=total, desc=desc or f"{eng.name} {job_dir.name}", unit="run")
     timed_out = False
     with open(job_dir / "stdout.txt", "wb") as out, open(job_dir / "stderr.txt", "wb") as err:
         proc = subprocess.Popen(cmd, cwd=job_dir, stdout=out, stderr=err, stdin=subprocess.DEVNULL,
-                                start_new_session=True)
+                                start_new_session=True, env=eng.env())
         with _LIVE_LOCK:
             _LIVE[proc.pid] = proc
         try:
@@ -583,7 +615,7 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
             manifest.update(status="failed", end=_now(), elapsed_s=round(time.monotonic() - t0, 3),
                             returncode=proc.returncode,
                             error=f"interrupted ({type(exc).__name__}{': ' + str(exc) if str(exc) else ''}); "
-                                  "the LIGGGHTS process group was killed")
+                                  f"the {label} process group was killed")
             with contextlib.suppress(Exception):
                 _write_manifest(job_dir, manifest)
             raise
@@ -607,8 +639,11 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
     allowed = [re.compile(p) for p in allowed_warnings]
     bad_warn = [w for w in log.warnings if not any(p.search(w.text) for p in allowed)]
     manifest["warnings"] = [str(w) for w in log.warnings]
-    manifest["liggghts_version"] = log.version
-    manifest["liggghts_log_version"] = log.version
+    own_version = log.version if log.engine == eng.name else None
+    manifest["engine_version"] = own_version
+    if eng.name == "liggghts":
+        manifest["liggghts_version"] = own_version
+        manifest["liggghts_log_version"] = own_version
     evidence, ev_problems = check_evidence(expect, log if have_log else None, LOG_NAME, job_dir, outputs)
     if expect.runs is None and expected_runs is not None and have_log:
         done = sum(r.complete for r in log.runs)
@@ -616,7 +651,7 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
         if done != expected_runs:
             ev_problems.append(f"incomplete: {LOG_NAME} holds {done} of {expected_runs} runs")
     if expect.unresolved:
-        _echo(f"WARNING: LIGGGHTS job {job_dir}: the deck reader could not follow the deck "
+        _echo(f"WARNING: {label} job {job_dir}: the deck reader could not follow the deck "
               f"({'; '.join(expect.unresolved)}); only what could be derived is checked")
     evidence["problems"] = list(ev_problems)
     manifest["evidence"] = evidence
@@ -629,19 +664,20 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
         problem = f"timed out after {timeout:g} s (killed)"
         where = tail_lines()
     elif log.errors:
-        problem = f"LIGGGHTS stopped with an error: {log.errors[0].text}"
+        problem = f"{label} stopped with an error: {log.errors[0].text}"
         where = _context(lines, [e.lineno for e in log.errors])
     elif log.lost_atoms:
         problem = "atoms were lost (the Atoms thermo column dropped or a 'Lost atoms' line)"
         where = [f"{n}: {t}" for n, t in enumerate(lines, 1) if "Lost atoms" in t][:CONTEXT_LINES]
         where = where or tail_lines()
     elif rc != 0:
-        problem = f"liggghts exited with status {rc}"
+        problem = f"{eng.binary} exited with status {rc}"
         where = tail_lines()
     elif not have_log:
-        problem = f"incomplete: {LOG_NAME} was not written (liggghts exited with status 0)"
-    elif log.version is None:
-        problem = f"incomplete: {LOG_NAME} has no LIGGGHTS banner line (is `{exe}` LIGGGHTS?)"
+        problem = f"incomplete: {LOG_NAME} was not written ({eng.binary} exited with status 0)"
+    elif own_version is None:
+        other = f" (it is a {log.engine} log)" if log.engine else ""
+        problem = f"incomplete: {LOG_NAME} has no {label} banner line{other} (is `{exe}` {label}?)"
         where = tail_lines()
     elif bad_warn:
         problem = f"{len(bad_warn)} unexpected WARNING line(s): {bad_warn[0].text}"
@@ -658,7 +694,7 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
             where = where + ["(stderr)"] + stderr[-CONTEXT_LINES:]
         manifest.update(status="failed", error=problem, log_lines=where)
         _write_manifest(job_dir, manifest)
-        raise ReferenceRunError(f"LIGGGHTS job {job_dir}: {problem}", job_dir=job_dir, log_lines=where,
+        raise ReferenceRunError(f"{label} job {job_dir}: {problem}", job_dir=job_dir, log_lines=where,
                                 timed_out=timed_out, problems=ev_problems or [problem])
 
     manifest["log_sha256"] = _sha256_file(log_path)
@@ -674,6 +710,6 @@ def _kill(proc: subprocess.Popen) -> None:
     _kill_groups([(proc.pid, proc)])
 
 
-__all__ = ["FORCE_HINT", "JobResult", "KILL_GRACE_S", "ReferenceRunError", "Terminated", "find_liggghts",
-           "is_complete", "job_evidence", "kill_children_on_signals", "live_children", "read_manifest",
+__all__ = ["DECK_NAMES", "FORCE_HINT", "JobResult", "KILL_GRACE_S", "ReferenceRunError", "Terminated",
+           "find_engine", "find_liggghts", "is_complete", "manifest_engine", "job_evidence", "kill_children_on_signals", "live_children", "read_manifest",
            "run_job", "terminate_children", "verify_job"]

@@ -1,9 +1,11 @@
-"""Run Taylor RVE states through LIGGGHTS and read back their stresses (and contacts).
+"""Run Taylor RVE states through LIGGGHTS or LAMMPS and read back their stresses (and contacts).
 
 :func:`run_taylor` writes the job of :func:`reference_runs.decks.taylor.taylor_job`, runs it
 with :func:`reference_runs.runner.run_job` (skipped when already complete) and returns a
 :class:`TaylorRun`: per path and route the deformation gradients and the Cauchy stress
-(tension positive, N/m) as LIGGGHTS computed it. :func:`write_taylor_h5` stores it
+(tension positive, N/m) as the code computed it (``engine="liggghts"`` or ``"lammps"``; LAMMPS
+runs the periodic route on all four paths, the shear paths in a triclinic box, and its results
+are mapped back from the engine frame ``x_engine = Q x`` of each state). :func:`write_taylor_h5` stores it
 (layout in docs/schema_reference_runs.md).
 """
 
@@ -21,7 +23,7 @@ from gransim.geometry import Packing
 from gransim.io import atomic_h5, open_result, write_packing_group
 
 from .conventions import cauchy_from_pressure, cauchy_from_stress_atom_sum
-from .decks.taylor import PATHS, ROUTES, taylor_job
+from .decks.taylor import LAMMPS_CONTACT_COLUMNS, PATHS, ROUTES, taylor_job
 from .errors import ReferenceRunError
 from .parsers import pair_gran_local_names, parse_dump_local, parse_log
 from .runner import run_job
@@ -29,7 +31,7 @@ from .runner import run_job
 
 @dataclass(frozen=True, eq=False)
 class TaylorSeries:
-    """LIGGGHTS Taylor stresses along one path by one route.
+    """Taylor stresses of one code along one path by one route.
 
     Attributes
     ----------
@@ -50,11 +52,12 @@ class TaylorSeries:
     cauchy_pressure: np.ndarray
     stress_atom_sum: np.ndarray
     contact_files: tuple
+    frames: tuple = ()      # per state Q (x_engine = Q x); identity except LAMMPS periodic shear-21
 
 
 @dataclass(frozen=True, eq=False)
 class TaylorRun:
-    """All Taylor states of one packing run through LIGGGHTS."""
+    """All Taylor states of one packing run through LIGGGHTS or LAMMPS (``engine``)."""
 
     name: str
     packing: Packing
@@ -62,6 +65,7 @@ class TaylorRun:
     job_dir: Path
     series: types.MappingProxyType     # (path, route) -> TaylorSeries
     manifest: dict
+    engine: str = "liggghts"
 
     def get(self, path: str, route: str = "images") -> TaylorSeries:
         try:
@@ -72,21 +76,50 @@ class TaylorRun:
     def contacts(self, path: str, route: str, k: int):
         """The contact rows (a :class:`~reference_runs.parsers.DumpFrame`) of one state.
 
-        For the images route only rows with at least one central particle (id <= N) are kept.
+        LIGGGHTS: the columns of ``compute pair/gran/local id pos force delta``. LAMMPS: ``id1 id2
+        dist fx fy fz`` and ``delta`` = r_1 + r_2 - dist, with the force on id1 mapped back to
+        gransim's frame (f = Q^T f_engine). Each periodic contact appears once in the periodic
+        route; in the images route a contact between a central particle and an image appears
+        from both ends (its periodic twin).
         """
         s = self.get(path, route)
         idx = int(np.nonzero(s.k == k)[0][0])
         f = s.contact_files[idx]
         if f is None:
             raise ResultFileError("this job did not dump contacts (contacts=False)")
-        (frame,) = parse_dump_local(self.job_dir / f, names=pair_gran_local_names(("id", "pos", "force", "delta")))
-        return frame
+        if self.engine != "lammps":
+            (frame,) = parse_dump_local(self.job_dir / f,
+                                        names=pair_gran_local_names(("id", "pos", "force", "delta")))
+            return frame
+        (frame,) = parse_dump_local(self.job_dir / f, names=LAMMPS_CONTACT_COLUMNS)
+        Q = np.asarray(s.frames[idx], float)
+        fxy = np.column_stack([frame["fx"], frame["fy"]]) @ Q      # rows: (Q^T f)^T = f^T Q
+        r = self.packing.radii
+        cols = dict(frame.columns)
+        cols["fx"], cols["fy"] = fxy[:, 0].copy(), fxy[:, 1].copy()
+        # atom ids are 1..N (central particles) and, in the images route, N+1.. (copies of src)
+        src = self._image_sources(path, route, int(k)) if route == "images" else np.arange(len(r))
+        rr = r[src[np.asarray(frame["id1"]) - 1]] + r[src[np.asarray(frame["id2"]) - 1]]
+        cols["delta"] = rr - np.asarray(frame["dist"])
+        for v in cols.values():
+            v.flags.writeable = False
+        return type(frame)(frame.step, frame.box, frame.tilt, frame.boundary, types.MappingProxyType(cols))
+
+    def _image_sources(self, path: str, route: str, k: int) -> np.ndarray:
+        """Original particle index of every atom of an images-route state (regenerated)."""
+        from .decks.taylor import image_state_packing
+
+        s = self.get(path, route)
+        F = s.F[int(np.nonzero(s.k == k)[0][0])]
+        _, _, src, _ = image_state_packing(self.packing, F)
+        return src
 
 
 def read_taylor_job(job_dir, packing: Packing, manifest: dict | None = None) -> TaylorRun:
     """Parse a finished Taylor job directory into a :class:`TaylorRun`."""
     job_dir = Path(job_dir)
     meta = json.loads((job_dir / "states.json").read_text())
+    engine = meta.get("engine", "liggghts")
     log = parse_log(job_dir / "log.lammps")
     states = meta["states"]
     if len(log.runs) != len(states):
@@ -99,29 +132,37 @@ def read_taylor_job(job_dir, packing: Packing, manifest: dict | None = None) -> 
             raise ReferenceRunError(f"{job_dir}: run of state {st['index']} has steps {run.steps.tolist()}",
                                     job_dir=job_dir)
         F = np.array(st["F"], float)
+        Q = np.array(st.get("frame", np.eye(2)), float)
         sums = np.array([run["c_sc[1]"][0], run["c_sc[2]"][0], run["c_sc[3]"][0]])
-        sig = cauchy_from_stress_atom_sum(*sums, np.linalg.det(F) * V)
+        # the engine's stress in its own frame, mapped back: sigma = Q^T sigma_engine Q
+        sig = Q.T @ cauchy_from_stress_atom_sum(*sums, np.linalg.det(F) * V) @ Q
+        if Q[0, 1] != 0:        # raw sums in gransim's frame too (xx and yy swapped)
+            sums = np.array([sums[1], sums[0], sums[2]])
         if st["route"] == "periodic":
-            sp = cauchy_from_pressure(run["c_p[1]"][0], run["c_p[2]"][0], run["c_p[4]"][0])
+            sp = Q.T @ cauchy_from_pressure(run["c_p[1]"][0], run["c_p[2]"][0], run["c_p[4]"][0]) @ Q
         else:
             sp = np.full((2, 2), np.nan)
-        groups.setdefault((st["path"], st["route"]), []).append((st["k"], F, sig, sp, sums, st["contacts_file"]))
+        groups.setdefault((st["path"], st["route"]), []).append(
+            (st["k"], F, sig, sp, sums, st["contacts_file"], tuple(map(tuple, Q.tolist()))))
     series = {}
     for key, rows in groups.items():
-        k, F, sig, sp, sums, cf = zip(*rows)
+        k, F, sig, sp, sums, cf, fr = zip(*rows)
         series[key] = TaylorSeries(key[0], key[1], np.array(k), np.array(F), np.array(sig), np.array(sp),
-                                   np.array(sums), tuple(cf))
+                                   np.array(sums), tuple(cf), tuple(fr))
     return TaylorRun(meta["name"], packing, float(meta["kn"]), job_dir, types.MappingProxyType(series),
-                     manifest or {})
+                     manifest or {}, engine)
 
 
 def run_taylor(packing: Packing, kn: float, job_dir, name: str = "packing", paths=PATHS, routes=ROUTES,
                n_steps: int = 50, max_strain: float = 0.1, stride: int = 1, contacts: bool = False,
                np_procs: int = 1, timeout: float | None = 3600.0, progress: bool = True,
-               cleanup_inputs: bool = True, force: bool = False) -> TaylorRun:
+               cleanup_inputs: bool = True, force: bool = False, engine: str = "liggghts") -> TaylorRun:
     """Run (or reuse) the Taylor job of one packing and parse it.
 
-    ``timeout`` (s, None: no limit) bounds the LIGGGHTS job (and the wait for another process
+    ``engine``: ``"liggghts"`` or ``"lammps"`` (the deck of
+    :func:`reference_runs.decks.taylor.taylor_job` for that code).
+
+    ``timeout`` (s, None: no limit) bounds the job (and the wait for another process
     writing the same job): :class:`~reference_runs.errors.ReferenceRunError` with
     ``timed_out=True`` after it. ``force`` reruns even a complete job. ``cleanup_inputs`` deletes
     the per-state data files after a successful run (the manifest keeps their hashes; they are
@@ -129,13 +170,14 @@ def run_taylor(packing: Packing, kn: float, job_dir, name: str = "packing", path
     (:func:`reference_runs.runner.run_job`).
     """
     deck, files, states = taylor_job(packing, kn, paths=paths, routes=routes, n_steps=n_steps,
-                                     max_strain=max_strain, stride=stride, contacts=contacts, name=name)
+                                     max_strain=max_strain, stride=stride, contacts=contacts, name=name,
+                                     engine=engine)
     outputs = ["states.json"] + [s.contacts_file for s in states if s.contacts_file]
     if contacts:
         for s in states:
             (Path(job_dir) / s.contacts_file).parent.mkdir(parents=True, exist_ok=True)
     res = run_job(job_dir, deck, files, np=np_procs, timeout=timeout, progress=progress, outputs=outputs,
-                  expected_runs=len(states), desc=f"taylor {name}", force=force)
+                  expected_runs=len(states), desc=f"taylor {name}", force=force, engine=engine)
     if cleanup_inputs and not res.skipped:
         for fname in files:
             if fname.endswith(".data"):
@@ -153,6 +195,7 @@ def write_taylor_h5(path, runs, parameters: dict | None = None):
         for run in runs:
             g = f.create_group(run.name)
             g.attrs["kn"] = run.kn
+            g.attrs["engine"] = run.engine
             g.attrs["job_dir"] = str(run.job_dir)
             g.attrs["manifest"] = json.dumps(run.manifest, sort_keys=True)
             write_packing_group(g.create_group("packing"), run.packing)

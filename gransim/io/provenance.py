@@ -1,4 +1,9 @@
-"""Provenance of results: gransim version, git commit, time, machine, LIGGGHTS version."""
+"""Provenance of results: gransim version, git commit, time, machine, DEM code versions.
+
+The versions of the established DEM codes (LIGGGHTS, LAMMPS) come from the binaries' own
+banners (:func:`binary_version`, cached per binary path, modification time and size) and from
+Debian's package database (:func:`package_version`).
+"""
 
 from __future__ import annotations
 
@@ -36,24 +41,57 @@ def git_commit() -> str:
 
 
 _BANNER = re.compile(r"LIGGGHTS \(Version ([^,)]*)")
+#: LAMMPS' banner: ``LAMMPS (29 Sep 2021 - Update 2)`` (first line of the screen output and the log)
+LAMMPS_BANNER = re.compile(r"^LAMMPS \(([^)]*)\)", re.MULTILINE)
 
 
-@functools.lru_cache(maxsize=16)
-def _binary_banner(path: str, mtime_ns: int, size: int) -> str:
+@functools.lru_cache(maxsize=32)
+def _banner_of(path: str, mtime_ns: int, size: int, pattern: str, label: str, prefix: str) -> str:
     """What the binary at ``path`` prints about itself (one call per binary and modification)."""
-    with tempfile.TemporaryDirectory(prefix="liggghts-version-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="dem-version-") as tmp:
         try:
             out = subprocess.run([path, "-in", os.devnull, "-log", "none", "-nocite"], cwd=tmp,
                                  capture_output=True, text=True, timeout=20, stdin=subprocess.DEVNULL,
-                                 start_new_session=True)
+                                 start_new_session=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
         except subprocess.TimeoutExpired:
             return f"unknown: `{path} -in /dev/null` did not answer within 20 s"
         except OSError as exc:
             return f"unknown: cannot run {path} ({exc.strerror or exc})"
-    m = _BANNER.search(out.stdout + "\n" + out.stderr)
+    m = re.compile(pattern, re.MULTILINE).search(out.stdout + "\n" + out.stderr)
     if m:
-        return m.group(1).strip()
-    return f"unknown: no LIGGGHTS banner from `{path} -in /dev/null`"
+        return prefix + m.group(1).strip()
+    return f"unknown: no {label} banner from `{path} -in /dev/null`"
+
+
+def _binary_banner(path: str, mtime_ns: int, size: int) -> str:
+    """The LIGGGHTS banner version of ``path`` (kept for callers of the older name)."""
+    return _banner_of(path, mtime_ns, size, _BANNER.pattern, "LIGGGHTS", "")
+
+
+def binary_version(binary, default: str, pattern: str, label: str, prefix: str = "") -> str | None:
+    """Version of a DEM binary as it reports itself, with its path, or None when absent.
+
+    Runs ``BINARY -in /dev/null -log none -nocite`` (well under a second, once per binary path,
+    modification time and size in a process) and returns ``prefix + group 1 of pattern`` found in
+    its output, then `` (PATH)``; ``"unknown: ..."`` (with the path) when it prints no banner.
+
+    Parameters
+    ----------
+    binary : path or name of the binary (None: ``default`` on PATH).
+    default : the binary's usual name (``liggghts``, ``lmp``).
+    pattern : regular expression of the banner, the version in group 1.
+    label : the code's name, for the message of a missing banner.
+    prefix : prepended to the version (``"LAMMPS "``).
+    """
+    path = shutil.which(str(binary)) if binary is not None else shutil.which(default)
+    if path is None:
+        return None
+    path = os.path.abspath(path)
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return f"{_banner_of(path, st.st_mtime_ns, st.st_size, pattern, label, prefix)} ({path})"
 
 
 def liggghts_version(binary=None) -> str | None:
@@ -65,38 +103,52 @@ def liggghts_version(binary=None) -> str | None:
     defaults to ``liggghts`` on PATH. The Debian package version is
     :func:`liggghts_package_version`.
     """
-    path = shutil.which(str(binary)) if binary is not None else shutil.which("liggghts")
-    if path is None:
-        return None
-    path = os.path.abspath(path)
-    try:
-        st = os.stat(path)
-    except OSError:
-        return None
-    return f"{_binary_banner(path, st.st_mtime_ns, st.st_size)} ({path})"
+    return binary_version(binary, "liggghts", _BANNER.pattern, "LIGGGHTS")
+
+
+def lammps_version(binary=None) -> str | None:
+    """Version of the LAMMPS binary as it reports itself, with its path, or None when absent.
+
+    Reads the banner ``LAMMPS (29 Sep 2021 - Update 2)`` of ``BINARY -in /dev/null``: e.g.
+    ``"LAMMPS 29 Sep 2021 - Update 2 (/usr/bin/lmp)"``. ``binary`` defaults to ``lmp`` on PATH.
+    """
+    return binary_version(binary, "lmp", LAMMPS_BANNER.pattern, "LAMMPS", prefix="LAMMPS ")
 
 
 @functools.lru_cache(maxsize=16)
-def _package_of(real: str) -> str | None:
+def _package_of(real: str, package: str = "liggghts", label: str = "LIGGGHTS-PUBLIC") -> str | None:
     try:
         owner = subprocess.run(["dpkg-query", "-S", real], capture_output=True, text=True, timeout=10)
-        if owner.returncode != 0 or not owner.stdout.startswith("liggghts:"):
+        if owner.returncode != 0 or not owner.stdout.startswith(f"{package}:"):
             return None
-        out = subprocess.run(["dpkg-query", "-W", "-f=${Version}", "liggghts"], capture_output=True,
+        out = subprocess.run(["dpkg-query", "-W", "-f=${Version}", package], capture_output=True,
                              text=True, timeout=10).stdout.strip()
-        return f"LIGGGHTS-PUBLIC {out} (Debian)" if out else None
+        return f"{label} {out} (Debian)" if out else None
     except (OSError, subprocess.SubprocessError):
         return None
+
+
+def package_version(binary, default: str, package: str, label: str) -> str | None:
+    """Debian package version of a binary (``"<label> <version> (Debian)"``), or None when the
+    binary is absent or not a file of Debian package ``package`` (a binary of one's own, a
+    stand-in). ``binary`` None means ``default`` on PATH."""
+    path = shutil.which(str(binary)) if binary is not None else shutil.which(default)
+    if path is None:
+        return None
+    return _package_of(os.path.realpath(path), package, label)
 
 
 def liggghts_package_version(binary=None) -> str | None:
     """Debian package version of the ``liggghts`` binary (e.g. ``LIGGGHTS-PUBLIC 3.8.0+repack1-9+b2
     (Debian)``), or None when it is absent or not a file of the ``liggghts`` package (a binary of
     one's own, a stand-in)."""
-    path = shutil.which(str(binary)) if binary is not None else shutil.which("liggghts")
-    if path is None:
-        return None
-    return _package_of(os.path.realpath(path))
+    return package_version(binary, "liggghts", "liggghts", "LIGGGHTS-PUBLIC")
+
+
+def lammps_package_version(binary=None) -> str | None:
+    """Debian package version of the ``lmp`` binary (e.g. ``LAMMPS 20220106.git7586adbb6a+ds1-2+b2
+    (Debian)``), or None when it is absent or not a file of the ``lammps`` package."""
+    return package_version(binary, "lmp", "lammps", "LAMMPS")
 
 
 def _jsonable(v):
@@ -117,12 +169,14 @@ def _jsonable(v):
     return v
 
 
-def provenance(parameters: dict | None = None, seed=None, liggghts: bool = False) -> dict:
+def provenance(parameters: dict | None = None, seed=None, liggghts: bool = False,
+               lammps: bool = False) -> dict:
     """The provenance record stored as attributes of every results file.
 
     Keys: ``gransim_version``, ``git_commit``, ``created`` (UTC ISO time), ``python``,
     ``numpy``, ``numba``, ``host``, ``parameters`` (JSON), ``seed`` (JSON) and, when
-    ``liggghts`` is true, ``liggghts_version``.
+    ``liggghts`` is true, ``liggghts_version``; when ``lammps`` is true, ``lammps_version``
+    (``"absent"`` when the binary is not installed).
     """
     import numba
 
@@ -139,4 +193,6 @@ def provenance(parameters: dict | None = None, seed=None, liggghts: bool = False
     }
     if liggghts:
         rec["liggghts_version"] = liggghts_version() or "absent"
+    if lammps:
+        rec["lammps_version"] = lammps_version() or "absent"
     return rec

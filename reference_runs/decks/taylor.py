@@ -1,4 +1,7 @@
-"""LIGGGHTS decks for Taylor (affine) RVE states: a packing under a prescribed F, no motion.
+"""LIGGGHTS and LAMMPS decks for Taylor (affine) RVE states: a packing under a prescribed F, no motion.
+
+``taylor_job(..., engine="liggghts")`` writes the LIGGGHTS deck described first below;
+``engine="lammps"`` the LAMMPS deck described at the end.
 
 Contact law: ``pair_style gran model hooke/stiffness tangential no_history`` with
 kn = E_n, kt = 0, gamman = gammat = 0 (the elastic normal contact of 000_6d950a6f5c65e7b0.txt,
@@ -30,6 +33,29 @@ Two routes:
     (central j with image x_i - F C n, also present) gives the other half to j, so the central
     sum is every periodic contact of the cell counted once: sigma = (1/(det F V_ref)) sum f (x) l.
     Running the compression states by both routes checks this construction.
+
+LAMMPS (``engine="lammps"``, checked on LAMMPS 29 Sep 2021 - Update 2, Debian ``lammps``)
+    ``pair_style gran/hooke KN 0 0 0 0 0`` (kt = gamman = gammat = mu = 0: the same elastic normal
+    contact f = -E_n eps n; no history), ``comm_modify mode single vel yes`` (the granular pairs
+    need ghost velocities), ``set group all density/disc RHO`` after ``read_data`` (2D masses
+    pi r^2 rho; irrelevant here since nothing moves), no integrator and ``run 0`` per state, with
+    ``compute pressure NULL virial`` and ``compute stress/atom NULL pair``. LAMMPS prints no
+    WARNING on these decks. Its triclinic box works, so the **periodic** route exists for all four
+    paths: compression in an orthogonal box, simple shear in a true periodic triclinic box whose
+    lattice is the sheared cell F C, declared in the data file (``xy xz yz`` line, the
+    equivalent of ``change_box all triclinic`` plus the tilt) with centres x = F X. LAMMPS needs
+    the first lattice vector along x: shear-12 (F C = [[Lx, g Ly], [0, Ly]]) is that box with
+    xy = g Ly; shear-21 (F C = [[Lx, 0], [g Lx, Ly]]) is run mirrored, x and y swapped (an exact
+    relabelling, no rounding; the pairwise central law is mirror invariant), lx = Ly, ly = Lx,
+    xy = g Lx, and the stress and forces are swapped back (``frame`` of the state in
+    ``states.json``: x_lammps = Q x). ``read_data`` maps every atom of a triclinic box to box
+    (lamda) coordinates and back, which rounds the centres at 1e-16 of the box size (as the
+    images route's translation does). The **images** route is the same construction as
+    LIGGGHTS' (open ``f f p`` box, central atoms type 1, image copies type 2). Contacts:
+    ``compute property/local patom1 patom2 cutoff radius`` and ``compute pair/local dist fx fy
+    fz cutoff radius`` in one ``dump local`` (the same neighbour list, so the rows match): the
+    force is the pair's ``single()`` evaluation, f on ``id1`` = (x_1 - x_2) fpair, and each
+    periodic contact appears once (LAMMPS' itag/jtag rule with ``newton off``).
 """
 
 from __future__ import annotations
@@ -48,6 +74,8 @@ from ..datafile import write_data_file
 #: the four study paths of 000_6d950a6f5c65e7b0.txt (Figs 4-5): driving component of F
 PATHS = ("compression-11", "compression-22", "shear-12", "shear-21")
 ROUTES = ("periodic", "images")
+#: engines the decks are written for
+TAYLOR_ENGINES = ("liggghts", "lammps")
 
 
 def path_F(path: str, n_steps: int = 50, max_strain: float = 0.1, stride: int = 1) -> np.ndarray:
@@ -84,6 +112,7 @@ class TaylorState:
     contacts_file: str | None
     n_central: int
     n_atoms: int
+    frame: tuple = ((1.0, 0.0), (0.0, 1.0))   # Q: x_engine = Q x (LAMMPS shear-21: x and y swapped)
 
 
 def _wrapped_reference(packing: Packing) -> tuple[np.ndarray, np.ndarray]:
@@ -108,6 +137,57 @@ def periodic_state_packing(packing: Packing, F) -> Packing:
     if np.any(x < 0) or np.any(x > L):
         raise InputError("periodic route: F must have positive diagonal entries")
     return packing.replace(positions=x, cell=F @ C)
+
+
+def triclinic_state(packing: Packing, F):
+    """Centres and LAMMPS box of the periodic route for any F with F C having a zero below or
+    above the diagonal (the compression and simple-shear paths).
+
+    Returns ``(x, (lx, ly, xy), Q)``: centres (N, 2) in the engine frame x_engine = Q F X, the
+    box (a = (lx, 0), b = (xy, ly)) and Q, the identity or the x/y swap. Raises InputError
+    when F C has both off-diagonal entries (it would need a rotation, which rounds).
+    """
+    F = np.asarray(F, float)
+    C = packing.cell
+    if C[0, 1] != 0 or C[1, 0] != 0:
+        raise InputError("the periodic route needs an orthogonal reference cell")
+    _, X = _wrapped_reference(packing)
+    x = X @ F.T
+    c = F @ C
+    if c[1, 0] == 0:
+        Q = np.eye(2)
+        box = (float(c[0, 0]), float(c[1, 1]), float(c[0, 1]))
+    elif c[0, 1] == 0:
+        Q = np.array([[0.0, 1.0], [1.0, 0.0]])
+        x = x[:, ::-1].copy()
+        box = (float(c[1, 1]), float(c[0, 0]), float(c[1, 0]))
+    else:
+        raise InputError("periodic route: F C must have a zero off-diagonal entry (compression or simple "
+                         f"shear), got {c.tolist()}")
+    if box[0] <= 0 or box[1] <= 0:
+        raise InputError("periodic route: F must have positive diagonal entries")
+    if abs(box[2]) > 0.5 * box[0]:
+        raise InputError(f"periodic route: tilt {box[2]:.4g} m exceeds half the box length {box[0]:.4g} m "
+                         "(LAMMPS refuses such a skewed box)")
+    return x, box, Q
+
+
+def _write_lammps_data(path, x, radii, density: float, box, types=None) -> None:
+    """A LAMMPS ``atom_style sphere`` data file (2D, box [0, lx] x [0, ly], tilt xy), ``%.17g``.
+    The density column is 2D (mass per area); the deck sets it again with ``density/disc``."""
+    lx, ly, xy = box
+    n = len(radii)
+    z = max(0.5, 2.0 * float(np.max(radii)))
+    t = np.ones(n, np.int64) if types is None else np.asarray(types, np.int64)
+    lines = ["LAMMPS data file written by gransim (reference_runs.decks.taylor; 2D, density = mass per area)",
+             "", f"{n} atoms", f"{int(t.max())} atom types", "",
+             f"0 {_g(lx)} xlo xhi", f"0 {_g(ly)} ylo yhi", f"{_g(-z)} {_g(z)} zlo zhi"]
+    if xy != 0:
+        lines.append(f"{_g(xy)} 0 0 xy xz yz")
+    lines += ["", "Atoms # sphere", ""]
+    for k in range(n):
+        lines.append(f"{k + 1} {t[k]} {_g(2.0 * radii[k])} {_g(density)} {_g(x[k, 0])} {_g(x[k, 1])} 0")
+    Path(path).write_text("\n".join(lines) + "\n")
 
 
 def image_state_packing(packing: Packing, F, margin: float = 1e-9):
@@ -209,9 +289,60 @@ def _g(v: float) -> str:
     return "%.17g" % v
 
 
+_LAMMPS_HEADER = """\
+# LAMMPS deck written by gransim (reference_runs.decks.taylor), for LAMMPS 29 Sep 2021 (Debian lammps)
+# Taylor (affine) RVE states: {n_states} states of packing '{name}' ({n} disks), one 'run 0' each.
+# Contact: pair_style gran/hooke KN 0 0 0 0 0 with KN = E_n = {kn} N/m (kt = gamman = gammat = mu = 0):
+#   f = -E_n eps n (the elastic normal contact). No integrator: positions are exactly x = F X.
+# Periodic route: orthogonal box (compression) or true periodic triclinic box = the sheared cell (shear);
+# shear-21 runs with x and y swapped (states.json: frame). Images route as in the LIGGGHTS deck.
+# Output per state (one thermo row, Step = state index):
+#   c_p[1] c_p[2] c_p[4]   virial pressure of the box, compression positive (periodic route)
+#   c_sc[1] c_sc[2] c_sc[3] sum of stress/atom (xx yy xy) over the central particles (type 1),
+#                           = sigma * det F * V_ref, tension positive (both routes)
+# The list of states (path, route, F, frame, files) is in states.json.
+"""
+
+_LAMMPS_STATE = """\
+# ---- state {index}: path {path}, route {route}, k = {k}, F = [[{F11}, {F12}], [{F21}, {F22}]]{swap}
+clear
+units           si
+atom_style      sphere
+dimension       2
+boundary        {boundary} p
+newton          off
+comm_modify     mode single vel yes
+atom_modify     map array sort 0 0.0
+read_data       {data_file}
+set             group all density/disc {density}
+neighbor        {skin} bin
+neigh_modify    delay 0 every 1 check yes
+pair_style      gran/hooke {kn} 0 0 0 0 0
+pair_coeff      * *
+group           central type 1
+compute         p all pressure NULL virial
+compute         sa all stress/atom NULL pair
+compute         sc central reduce sum c_sa[1] c_sa[2] c_sa[4]
+{contacts}thermo_style    custom step atoms lx ly c_p[1] c_p[2] c_p[4] c_sc[1] c_sc[2] c_sc[3]
+thermo_modify   format float %.17g lost error
+reset_timestep  {index}
+run             0
+"""
+
+_LAMMPS_CONTACTS = """\
+compute         pp all property/local patom1 patom2 cutoff radius
+compute         pl all pair/local dist fx fy fz cutoff radius
+dump            dc all local 1 {contacts_file} c_pp[1] c_pp[2] c_pl[1] c_pl[2] c_pl[3] c_pl[4]
+dump_modify     dc format line "%.17g %.17g %.17g %.17g %.17g %.17g"
+"""
+
+#: column names of the LAMMPS contact dump (force on id1, in the engine frame; dist = |x_1 - x_2|)
+LAMMPS_CONTACT_COLUMNS = ("id1", "id2", "dist", "fx", "fy", "fz")
+
+
 def taylor_job(packing: Packing, kn: float, paths=PATHS, routes=ROUTES, n_steps: int = 50,
                max_strain: float = 0.1, stride: int = 1, contacts: bool = False, name: str = "packing",
-               skin: float | None = None):
+               skin: float | None = None, engine: str = "liggghts"):
     """Deck text, input files and the state list of one Taylor job (all states of one packing).
 
     Parameters
@@ -221,8 +352,11 @@ def taylor_job(packing: Packing, kn: float, paths=PATHS, routes=ROUTES, n_steps:
     paths : subset of :data:`PATHS`.
     routes : subset of :data:`ROUTES`; the periodic route is used only on compression paths.
     n_steps, max_strain, stride : see :func:`path_F`.
-    contacts : also dump the contacts of every state (``compute pair/gran/local``).
+    contacts : also dump the contacts of every state (LIGGGHTS ``compute pair/gran/local``,
+        LAMMPS ``compute property/local`` + ``pair/local``).
     skin : neighbour skin (m); default 0.1 r_min (any value >= 0 gives the same contacts).
+    engine : ``"liggghts"`` (periodic route on compression paths only) or ``"lammps"`` (periodic
+        route on all four paths, the shear paths in a triclinic box).
 
     Returns
     -------
@@ -231,6 +365,10 @@ def taylor_job(packing: Packing, kn: float, paths=PATHS, routes=ROUTES, n_steps:
     """
     if not kn > 0:
         raise InputError(f"kn: must be > 0, got {kn!r}")
+    if engine not in TAYLOR_ENGINES:
+        raise InputError(f"engine: unknown DEM code {engine!r}; choose one of: {', '.join(TAYLOR_ENGINES)}")
+    if engine == "lammps":
+        return _lammps_taylor_job(packing, kn, paths, routes, n_steps, max_strain, stride, contacts, name, skin)
     for r in routes:
         if r not in ROUTES:
             raise InputError(f"unknown route {r!r}; choose one of: {', '.join(ROUTES)}")
@@ -279,7 +417,60 @@ def taylor_job(packing: Packing, kn: float, paths=PATHS, routes=ROUTES, n_steps:
             "reference_area": float(abs(np.linalg.det(packing.cell))), "n_steps": n_steps,
             "max_strain": max_strain, "stride": stride, "skin": skin,
             "contact_columns": list(_contact_names()) if contacts else None,
-            "states": [st.__dict__ for st in states]}
+            "states": [{k: v for k, v in st.__dict__.items() if k != "frame"} for st in states]}
+    files["states.json"] = json.dumps(meta, indent=1).encode()
+    return deck, files, states
+
+
+def _lammps_taylor_job(packing, kn, paths, routes, n_steps, max_strain, stride, contacts, name, skin):
+    for r in routes:
+        if r not in ROUTES:
+            raise InputError(f"unknown route {r!r}; choose one of: {', '.join(ROUTES)}")
+    skin = 0.1 * float(packing.radii.min()) if skin is None else float(skin)
+    files, states, blocks = {}, [], []
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        for path in paths:
+            Fs = path_F(path, n_steps, max_strain, stride)
+            ks = list(range(0, n_steps + 1, stride))
+            if ks[-1] != n_steps:
+                ks.append(n_steps)
+            for route in routes:
+                for k, F in zip(ks, Fs):
+                    index = len(states)
+                    data_name = f"states/{path}/{route}_{k:04d}.data"
+                    p = Path(tmp) / "state.data"
+                    Q = np.eye(2)
+                    if route == "periodic":
+                        x, box, Q = triclinic_state(packing, F)
+                        _write_lammps_data(p, x, packing.radii, packing.density, box)
+                        n_atoms = packing.n
+                    else:
+                        ibox, _, _, _ = image_state_packing(packing, F)
+                        types = np.where(np.arange(ibox.n) < packing.n, 1, 2)
+                        _write_lammps_data(p, ibox.positions, ibox.radii, packing.density,
+                                           (ibox.cell[0, 0], ibox.cell[1, 1], 0.0), types)
+                        n_atoms = ibox.n
+                    files[data_name] = p.read_bytes()
+                    cfile = f"contacts/{path}/{route}_{k:04d}.dump" if contacts else None
+                    st = TaylorState(index, path, route, k, tuple(map(tuple, F.tolist())), data_name, cfile,
+                                     packing.n, n_atoms, tuple(map(tuple, Q.tolist())))
+                    states.append(st)
+                    swap = "; x and y swapped (frame Q = [[0, 1], [1, 0]])" if Q[0, 1] else ""
+                    blocks.append(_LAMMPS_STATE.format(
+                        index=index, path=path, route=route, k=k, F11=_g(F[0, 0]), F12=_g(F[0, 1]),
+                        F21=_g(F[1, 0]), F22=_g(F[1, 1]), swap=swap,
+                        boundary="p p" if route == "periodic" else "f f", data_file=data_name,
+                        density=_g(packing.density), skin=_g(skin), kn=_g(kn),
+                        contacts=_LAMMPS_CONTACTS.format(contacts_file=cfile) if contacts else ""))
+    header = _LAMMPS_HEADER.format(n_states=len(states), name=name, n=packing.n, kn=_g(kn))
+    deck = header + "\n" + "\n".join(blocks)
+    meta = {"name": name, "engine": "lammps", "kn": kn, "n": packing.n, "reference_cell": packing.cell.tolist(),
+            "reference_area": float(abs(np.linalg.det(packing.cell))), "n_steps": n_steps,
+            "max_strain": max_strain, "stride": stride, "skin": skin,
+            "contact_columns": list(LAMMPS_CONTACT_COLUMNS) if contacts else None,
+            "states": [dict(st.__dict__) for st in states]}
     files["states.json"] = json.dumps(meta, indent=1).encode()
     return deck, files, states
 

@@ -23,6 +23,13 @@ Reusable by every test module in ``tests/faults/``:
     recorded and that is still alive is killed (so a failing test leaves no orphans), and the
     runner's SIGTERM-to-SIGKILL grace is 0.5 s during the test.
 
+``fake_lmp``
+    The same factory for a fake ``lmp`` (LAMMPS banner ``LAMMPS (29 Sep 2021 - Update 2
+    fake-<kind>)``); the kinds that run the real binary need the real ``lmp``.
+
+``small_lammps_job``
+    ``fakes.small_lammps_deck``: the LAMMPS twin of ``small_liggghts_job``.
+
 ``small_liggghts_job``
     ``deck, files, outputs = small_liggghts_job(tail="run 10\\n", dump_every=5, local_every=None)``:
     a 36-disk deck LIGGGHTS runs in about half a second, for ``run_job(job_dir, deck, files,
@@ -46,9 +53,10 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from fakes import REAL_KINDS, small_deck, write_fake  # noqa: E402
+from fakes import REAL_KINDS, small_deck, small_lammps_deck, write_fake  # noqa: E402
 
 _REAL = shutil.which("liggghts")
+_REAL_LMP = shutil.which("lmp")
 
 
 def pytest_collection_modifyitems(config, items):
@@ -85,6 +93,31 @@ def fake_liggghts(tmp_path_factory, monkeypatch):
     yield make
     for fake in made:
         fake.kill_leftovers()
+
+
+@pytest.fixture
+def fake_lmp(tmp_path_factory, monkeypatch):
+    import reference_runs.runner as runner
+
+    monkeypatch.setattr(runner, "KILL_GRACE_S", 0.5)
+    made = []
+
+    def make(kind: str):
+        if kind in REAL_KINDS and _REAL_LMP is None:
+            pytest.skip(f"fake lmp kind {kind!r} needs the real lmp binary (apt-get install lammps)")
+        fake = write_fake(tmp_path_factory.mktemp(f"fake-lmp-{kind}"), kind, real=_REAL_LMP, engine="lammps")
+        monkeypatch.setenv("PATH", f"{fake.bindir}{os.pathsep}{os.environ.get('PATH', '')}")
+        made.append(fake)
+        return fake
+
+    yield make
+    for fake in made:
+        fake.kill_leftovers()
+
+
+@pytest.fixture
+def small_lammps_job():
+    return small_lammps_deck
 
 
 @pytest.fixture

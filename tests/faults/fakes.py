@@ -1,4 +1,9 @@
-"""Fake ``liggghts`` executables for fault tests, and a small real deck to run through them.
+"""Fake ``liggghts`` (and ``lmp``) executables for fault tests, and a small real deck to run through them.
+
+``write_fake(..., engine="lammps")`` writes a fake ``lmp`` instead: the same kinds, with the LAMMPS
+banner ``LAMMPS (29 Sep 2021 - Update 2 fake-<kind>)`` (the kinds that run the real binary run the
+real ``lmp`` and mark its log's banner the same way); :func:`small_lammps_deck` is the LAMMPS
+twin of :func:`small_deck`.
 
 Each fake is a Python script named ``liggghts`` in its own directory (see ``conftest.py`` for the
 fixture that puts it on PATH). It appends ``<role> <pid>`` lines to ``pids.txt`` next to itself
@@ -39,7 +44,7 @@ _SCRIPT = r'''#!{python}
 # fake liggghts, kind {kind!r} (tests/faults/fakes.py)
 import os, subprocess, sys, time
 from pathlib import Path
-KIND, REAL, PIDS = {kind!r}, {real!r}, {pids!r}
+KIND, REAL, PIDS, ENGINE = {kind!r}, {real!r}, {pids!r}, {engine!r}
 def rec(role, pid):
     with open(PIDS, "a") as fh:
         fh.write(f"{{role}} {{pid}}\n")
@@ -51,7 +56,10 @@ def opt(name, default=None):
             return args[k + 1]
     return default
 deck, log = opt("-in"), opt("-log", "log.lammps")
-BANNER = f"LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0 fake-{{KIND}}, stand-in written by tests/faults/fakes.py)"
+if ENGINE == "lammps":
+    BANNER = f"LAMMPS (29 Sep 2021 - Update 2 fake-{{KIND}})"
+else:
+    BANNER = f"LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0 fake-{{KIND}}, stand-in written by tests/faults/fakes.py)"
 if deck == os.devnull:
     print(BANNER)
     sys.exit(0)
@@ -71,10 +79,12 @@ def real_run():
         lines = Path(log).read_text().splitlines()
         if lines and lines[0].startswith("LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0,"):
             lines[0] = lines[0].replace("3.8.0,", f"3.8.0 fake-{{KIND}},", 1)
+        elif lines and lines[0].startswith("LAMMPS (") and lines[0].endswith(")"):
+            lines[0] = lines[0][:-1] + f" fake-{{KIND}})"
         Path(log).write_text("\n".join(lines) + "\n")
     return rc
 if KIND == "error":
-    write_log([BANNER, *deck_lines(), "ERROR: fake failure (the fake liggghts of kind 'error')"])
+    write_log([BANNER, *deck_lines(), f"ERROR: fake failure (the fake {{ENGINE}} of kind 'error')"])
     print("ERROR: fake failure", file=sys.stderr)
     sys.exit(1)
 if KIND == "silent":
@@ -172,18 +182,20 @@ class FakeLiggghts:
                 pass
 
 
-def write_fake(bindir, kind: str, real: str | None = None) -> FakeLiggghts:
-    """Write the fake ``liggghts`` of ``kind`` into ``bindir`` (created); ``real`` is the real
-    binary, needed by :data:`REAL_KINDS`."""
+def write_fake(bindir, kind: str, real: str | None = None, engine: str = "liggghts") -> FakeLiggghts:
+    """Write the fake ``liggghts`` (``engine="lammps"``: ``lmp``) of ``kind`` into ``bindir``
+    (created); ``real`` is the real binary, needed by :data:`REAL_KINDS`."""
     if kind not in KINDS:
         raise ValueError(f"unknown fake kind {kind!r}; choose one of {KINDS}")
+    if engine not in ("liggghts", "lammps"):
+        raise ValueError(f"unknown engine {engine!r}")
     if kind in REAL_KINDS and not real:
-        raise ValueError(f"fake kind {kind!r} needs the real liggghts binary")
+        raise ValueError(f"fake kind {kind!r} needs the real {engine} binary")
     bindir = Path(bindir)
     bindir.mkdir(parents=True, exist_ok=True)
     pids = bindir / "pids.txt"
-    path = bindir / "liggghts"
-    path.write_text(_SCRIPT.format(python=sys.executable, kind=kind, real=real, pids=str(pids)))
+    path = bindir / ("lmp" if engine == "lammps" else "liggghts")
+    path.write_text(_SCRIPT.format(python=sys.executable, kind=kind, real=real, pids=str(pids), engine=engine))
     path.chmod(0o755)
     return FakeLiggghts(kind, path, pids)
 
@@ -240,4 +252,45 @@ def small_deck(tail: str = "run 10\n", dump_every: int | None = 5, local_every: 
         deck += ("compute pl all pair/gran/local id pos force delta\n"
                  f"dump d2 all local {int(local_every)} dump.contacts c_pl[1] c_pl[2]\n")
         outputs.append("dump.contacts")
+    return deck + tail, {"p.data": data}, outputs
+
+
+_LAMMPS_SETUP = """\
+units si
+atom_style sphere
+dimension 2
+boundary p p p
+newton off
+comm_modify mode single vel yes
+atom_modify map array sort 0 0.0
+read_data p.data
+set group all density/disc 2650
+neighbor 1e-5 bin
+neigh_modify delay 0
+pair_style gran/hooke 1e6 0 0 0 0 0
+pair_coeff * *
+fix 2d all enforce2d
+fix i all nve/sphere disc
+timestep 1e-7
+thermo_style custom step atoms
+thermo 4
+"""
+
+
+def small_lammps_deck(tail: str = "run 10\n", dump_every: int | None = 5):
+    """The LAMMPS twin of :func:`small_deck` (same 36 disks, ``pair_style gran/hooke``):
+    ``(deck_text, files, outputs)`` for ``run_job(..., engine="lammps")``."""
+    import numpy as np
+
+    from reference_runs.datafile import write_data_file
+    from reference_runs.demo_packings import perturbed_lattice
+
+    p = perturbed_lattice(6, 6, seed=1)
+    with tempfile.TemporaryDirectory() as tmp:
+        write_data_file(Path(tmp) / "p.data", p, velocities=np.zeros((p.n, 2)))
+        data = (Path(tmp) / "p.data").read_bytes()
+    deck, outputs = _LAMMPS_SETUP, []
+    if dump_every:
+        deck += f"dump d1 all custom {int(dump_every)} dump.atoms id x y\n"
+        outputs.append("dump.atoms")
     return deck + tail, {"p.data": data}, outputs

@@ -1,0 +1,149 @@
+"""The established DEM codes the reference jobs run on: LIGGGHTS and LAMMPS behind one interface.
+
+An :class:`Engine` says how to find, identify and call one code: its binary (``liggghts``,
+``lmp``), the deck file name of its jobs (``in.liggghts``, ``in.lammps``), its Debian package
+(``liggghts``, ``lammps``), how to install it, the regular expression of its log banner and the
+command line of a job. :func:`get_engine` looks one up by name (``liggghts``, ``lammps``).
+
+Both codes write the same log format (LIGGGHTS is a fork of LAMMPS): a banner as the first line
+(``LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, compiled ...)``, ``LAMMPS (29 Sep 2021 - Update 2)``),
+the echoed deck, one thermo table per ``run`` headed by ``Step ...`` and ended by ``Loop time of
+...``, and ``ERROR``/``WARNING`` lines (LAMMPS appends the source location, ``(src/...cpp:431)``).
+Both take ``-in DECK -log LOG -screen none -nocite`` and run under ``mpirun -np N``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+from dataclasses import dataclass
+
+from gransim.errors import InputError
+from gransim.io.provenance import binary_version, package_version
+
+from .errors import ReferenceRunError
+
+
+@dataclass(frozen=True)
+class Engine:
+    """One DEM code.
+
+    Attributes
+    ----------
+    name : ``liggghts`` or ``lammps`` (what ``run_job(..., engine=...)`` takes).
+    label : the code's display name (``LIGGGHTS``, ``LAMMPS``).
+    binary : executable name looked up on PATH (``liggghts``, ``lmp``).
+    deck_name : deck file of a job directory (``in.liggghts``, ``in.lammps``).
+    package : Debian package holding the binary (``liggghts``, ``lammps``).
+    package_label : prefix of :meth:`package_version` (``LIGGGHTS-PUBLIC``, ``LAMMPS``).
+    banner : regular expression of the first log line; group 1 is the version.
+    version_prefix : prepended to group 1 to form the version (``""``, ``"LAMMPS "``).
+    install_hint : how to install the binary (quoted by :meth:`find`).
+    """
+
+    name: str
+    label: str
+    binary: str
+    deck_name: str
+    package: str
+    package_label: str
+    banner: str
+    version_prefix: str
+    install_hint: str
+
+    @property
+    def banner_re(self) -> re.Pattern:
+        return re.compile(self.banner)
+
+    def which(self) -> str | None:
+        """Absolute path of the binary on PATH, or None."""
+        exe = shutil.which(self.binary)
+        return os.path.abspath(exe) if exe else None
+
+    def available(self) -> bool:
+        """True when the binary is on PATH."""
+        return self.which() is not None
+
+    def find(self) -> str:
+        """Absolute path of the binary; :class:`ReferenceRunError` with :attr:`install_hint`."""
+        exe = self.which()
+        if exe is None:
+            raise ReferenceRunError(f"the `{self.binary}` binary ({self.label}) was not found on PATH; "
+                                    f"{self.install_hint}")
+        return exe
+
+    def version(self, binary=None) -> str | None:
+        """Version from the binary's own banner with its path (``LIGGGHTS-PUBLIC 3.8.0
+        (/usr/bin/liggghts)``, ``LAMMPS 29 Sep 2021 - Update 2 (/usr/bin/lmp)``), None when absent.
+        Cached per binary path, modification time and size."""
+        return binary_version(binary, self.binary, self.banner, self.label, self.version_prefix)
+
+    def package_version(self, binary=None) -> str | None:
+        """Debian package version of the binary (``LAMMPS 20220106.git7586adbb6a+ds1-2+b2
+        (Debian)``), or None when absent or not a file of :attr:`package`."""
+        return package_version(binary, self.binary, self.package, self.package_label)
+
+    def log_version(self, line: str) -> str | None:
+        """The version in a log banner line, or None when ``line`` is not this code's banner."""
+        m = self.banner_re.match(line.strip())
+        return self.version_prefix + m.group(1).strip() if m else None
+
+    def command(self, deck: str, log: str, np: int = 1, exe: str | None = None) -> list:
+        """Command line of a job: ``BINARY -in DECK -log LOG -screen none -nocite``, under
+        ``mpirun [--allow-run-as-root] -np N`` when ``np > 1``."""
+        exe = exe or self.find()
+        cmd = [exe, "-in", deck, "-log", log, "-screen", "none", "-nocite"]
+        if int(np) > 1:
+            mpirun = shutil.which("mpirun")
+            if mpirun is None:
+                raise ReferenceRunError("np > 1 needs `mpirun` on PATH (OpenMPI: `apt-get install openmpi-bin`)")
+            extra = ["--allow-run-as-root"] if hasattr(os, "geteuid") and os.geteuid() == 0 else []
+            cmd = [mpirun, *extra, "-np", str(int(np)), *cmd]
+        return cmd
+
+    def env(self) -> dict:
+        """Environment of a job: the caller's, with ``OMP_NUM_THREADS=1`` unless set (LAMMPS
+        otherwise prints a notice and the benchmark would measure threads it did not ask for)."""
+        env = dict(os.environ)
+        env.setdefault("OMP_NUM_THREADS", "1")
+        return env
+
+
+LIGGGHTS = Engine(
+    name="liggghts", label="LIGGGHTS", binary="liggghts", deck_name="in.liggghts", package="liggghts",
+    package_label="LIGGGHTS-PUBLIC", banner=r"^LIGGGHTS \(Version ([^,)]*)", version_prefix="",
+    install_hint=("install LIGGGHTS-PUBLIC 3.8.0 with `sudo apt-get install liggghts` (Debian/Ubuntu), "
+                  "or put a `liggghts` binary on PATH"))
+
+LAMMPS = Engine(
+    name="lammps", label="LAMMPS", binary="lmp", deck_name="in.lammps", package="lammps",
+    package_label="LAMMPS", banner=r"^LAMMPS \(([^)]*)\)", version_prefix="LAMMPS ",
+    install_hint=("install LAMMPS with `sudo apt-get install lammps` (Debian/Ubuntu; the GRANULAR package "
+                  "is needed), or put an `lmp` binary on PATH"))
+
+#: the known engines by name
+ENGINES = {e.name: e for e in (LIGGGHTS, LAMMPS)}
+
+
+def get_engine(name) -> Engine:
+    """The :class:`Engine` called ``name`` (an Engine is returned as is); :class:`InputError`
+    naming the known engines otherwise."""
+    if isinstance(name, Engine):
+        return name
+    try:
+        return ENGINES[str(name).strip().lower()]
+    except KeyError:
+        raise InputError(f"engine: unknown DEM code {name!r}; choose one of: {', '.join(ENGINES)}") from None
+
+
+def engine_of_log(line: str) -> tuple[Engine, str] | tuple[None, None]:
+    """``(engine, version)`` of a log banner line, or ``(None, None)``."""
+    for e in ENGINES.values():
+        v = e.log_version(line)
+        if v is not None:
+            return e, v
+    return None, None
+
+
+__all__ = ["ENGINES", "Engine", "LAMMPS", "LIGGGHTS", "engine_of_log", "get_engine"]
