@@ -40,10 +40,13 @@ class Record:
     passed: bool
     reason: str = ""
     kind: str = "check"
+    pair: str = ""  # cell of the validation matrix (a key of PAIRS), "" for checks outside it
 
     def __post_init__(self):
         if self.kind not in RECORD_KINDS:
             raise ValueError(f"Record.kind: expected one of {RECORD_KINDS}, got {self.kind!r}")
+        if self.pair and self.pair not in PAIRS:
+            raise ValueError(f"Record.pair: expected one of {tuple(PAIRS)}, got {self.pair!r}")
 
     @property
     def verdict(self) -> str:
@@ -57,10 +60,24 @@ class Record:
         t = self.tolerance if math.isfinite(self.tolerance) else str(self.tolerance)
         return {"case": self.case, "quantity": self.quantity, "metric": self.metric, "value": v,
                 "tolerance": t, "pass": bool(self.passed) if self.kind == "check" else None,
-                "kind": self.kind, "reason": self.reason}
+                "kind": self.kind, "pair": self.pair, "reason": self.reason}
 
 
 RECORD_KINDS = ("check", "info")
+
+#: the columns of the validation matrix: which two implementations a check sets against each other
+PAIRS = {"native-liggghts": "native vs LIGGGHTS", "native-lammps": "native vs LAMMPS",
+         "liggghts-lammps": "LIGGGHTS vs LAMMPS"}
+#: the reference codes (engines) a pair involves
+PAIR_CODES = {"native-liggghts": ("liggghts",), "native-lammps": ("lammps",),
+              "liggghts-lammps": ("liggghts", "lammps")}
+
+
+def in_pair(records, pair: str) -> list:
+    """The records with their matrix cell set to ``pair`` (a key of :data:`PAIRS`)."""
+    if pair not in PAIRS:
+        raise ValueError(f"pair: expected one of {tuple(PAIRS)}, got {pair!r}")
+    return [dataclasses.replace(r, pair=pair) for r in records]
 
 
 def default_job_timeout(particle_steps: float) -> float:
@@ -123,17 +140,59 @@ class CaseResult:
     tables: list[tuple[str, list[str], list[list]]] = field(default_factory=list)  # (caption, header, rows)
     notes: list[str] = field(default_factory=list)
     error: str | None = None  # set when the case could not run: counts as a failure
+    #: cells of the validation matrix this case owes: pair -> why its tolerances are what they are
+    matrix: dict[str, str] = field(default_factory=dict)
+    #: cells that do not apply to this case: pair -> why not
+    not_applicable: dict[str, str] = field(default_factory=dict)
+
+    def declare(self, pair: str, reason: str) -> None:
+        """This case owes the matrix cell ``pair``: it fails unless at least one check of that
+        pair is recorded (a declared cell left empty is missing evidence, not a pass)."""
+        if pair not in PAIRS:
+            raise ValueError(f"pair: expected one of {tuple(PAIRS)}, got {pair!r}")
+        self.matrix[pair] = reason
+        self.not_applicable.pop(pair, None)
+
+    def skip_pair(self, pair: str, reason: str) -> None:
+        """The matrix cell ``pair`` does not apply to this case (shown with ``reason``)."""
+        if pair not in PAIRS:
+            raise ValueError(f"pair: expected one of {tuple(PAIRS)}, got {pair!r}")
+        if pair not in self.matrix:
+            self.not_applicable[pair] = reason
 
     @property
     def checks(self) -> list[Record]:
         """The records that are verdicts (``kind == "check"``)."""
         return [r for r in self.records if r.kind == "check"]
 
+    def pair_checks(self, pair: str) -> list[Record]:
+        return [r for r in self.checks if r.pair == pair]
+
+    @property
+    def empty_cells(self) -> list[str]:
+        """Declared matrix cells without a single check."""
+        return [p for p in self.matrix if not self.pair_checks(p)]
+
     @property
     def passed(self) -> bool:
-        """No error, at least one check, and every check passed (info records do not count)."""
+        """No error, at least one check, every check passed (info records do not count), and
+        every declared matrix cell holds at least one check."""
         checks = self.checks
-        return self.error is None and bool(checks) and all(r.passed for r in checks)
+        return (self.error is None and bool(checks) and all(r.passed for r in checks)
+                and not self.empty_cells)
+
+    def cell(self, pair: str) -> dict:
+        """One cell of the validation matrix: ``state`` ("pass", "FAIL", "empty", "n/a", "absent"),
+        the counts, the tolerances used and the reason."""
+        if pair in self.not_applicable:
+            return {"state": "n/a", "reason": self.not_applicable[pair], "n": 0, "ok": 0, "tolerances": []}
+        if pair not in self.matrix:
+            return {"state": "absent", "reason": "", "n": 0, "ok": 0, "tolerances": []}
+        rs = self.pair_checks(pair)
+        tols = sorted({r.tolerance for r in rs if r.quantity != "evidence" and math.isfinite(r.tolerance)})
+        ok = sum(r.passed for r in rs)
+        state = "empty" if not rs else ("pass" if ok == len(rs) else "FAIL")
+        return {"state": state, "reason": self.matrix[pair], "n": len(rs), "ok": ok, "tolerances": tols}
 
 
 @dataclass(frozen=True)
@@ -144,6 +203,7 @@ class Context:
     results: Path  # results/ root
     jobs: int = 1
     liggghts: bool = False  # binary available?
+    lammps: bool = False  # `lmp` available?
     timeout: float | None = None  # s per reference job (None: scaled with the job's work)
 
     def job_timeout(self, particle_steps: float) -> float:
@@ -229,6 +289,10 @@ def stored_job_record(label: str, job_dir) -> Record:
 
 def liggghts_available() -> bool:
     return shutil.which("liggghts") is not None
+
+
+def lammps_available() -> bool:
+    return shutil.which("lmp") is not None
 
 
 def replace(obj, **kw):

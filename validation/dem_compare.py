@@ -89,7 +89,7 @@ def run_native(packing, settings, loading, nsteps: int, dump_every: int, velocit
                       time.perf_counter() - t0)
 
 
-def read_liggghts(log_path, dump_path) -> Trajectory:
+def read_reference(log_path, dump_path) -> Trajectory:
     """A trajectory from the log (thermo: step lx ly xlo xhi ylo yhi c_pt[1] c_pt[2] c_pt[4]) and the
     ``dump custom`` (id x y vx vy omegaz fx fy tqz mass radius) of a deck of
     :func:`reference_runs.decks.biaxial.write_biaxial_deck`."""
@@ -106,14 +106,24 @@ def read_liggghts(log_path, dump_path) -> Trajectory:
     return Trajectory(steps, stress, lengths, frames)
 
 
-def run_liggghts_job(job_dir, packing, settings, loading, nsteps: int, dump_every: int, velocities=None,
-                     spins=None, np_procs: int = 1, thermo_every: int = 1,
-                     timeout: float | None = None) -> tuple[Trajectory, dict]:
-    """Write the mirror deck of the run and run it in ``job_dir`` (reused when complete).
+#: the LIGGGHTS and LAMMPS mirror decks print the same columns
+read_liggghts = read_reference
+
+
+#: display names of the reference codes
+CODE_NAMES = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}
+
+
+def run_reference_job(job_dir, packing, settings, loading, nsteps: int, dump_every: int, velocities=None,
+                      spins=None, np_procs: int = 1, thermo_every: int = 1, timeout: float | None = None,
+                      engine: str = "liggghts") -> tuple[Trajectory, dict]:
+    """Write the mirror deck of the run for ``engine`` ("liggghts" or "lammps") and run it in
+    ``job_dir`` (reused when complete).
 
     ``timeout`` (s) kills the job (and its process group) when exceeded; None scales it with the
     work (:data:`validation.core.JOB_TIMEOUT_PER_PSTEP`). Returns the trajectory and the job
-    manifest (command, version, elapsed time, hashes).
+    manifest (command, version, elapsed time, hashes). Both codes' decks print the same thermo
+    and dump columns, so one reader serves both.
     """
     if timeout is None:
         from .core import default_job_timeout
@@ -122,15 +132,24 @@ def run_liggghts_job(job_dir, packing, settings, loading, nsteps: int, dump_ever
     from reference_runs.decks.biaxial import write_biaxial_deck
     from reference_runs.runner import run_job
 
+    kw = {} if engine == "liggghts" else {"engine": engine}
     with tempfile.TemporaryDirectory() as tmp:
-        deck = write_biaxial_deck(tmp, packing, settings, loading, nsteps, thermo_every=thermo_every, dump_every=dump_every,
-                                  velocities=velocities, spins=spins)
-        data = (Path(tmp) / "data.biaxial").read_bytes()
-        res = run_job(job_dir, deck.read_text(), files={"data.biaxial": data}, np=np_procs,
-                      outputs=("dump.atoms",), expected_runs=1, progress=False, timeout=timeout)
+        deck = write_biaxial_deck(tmp, packing, settings, loading, nsteps, thermo_every=thermo_every,
+                                  dump_every=dump_every, velocities=velocities, spins=spins, **kw)
+        files = {q.name: q.read_bytes() for q in Path(tmp).iterdir() if q.is_file() and q != deck}
+        res = run_job(job_dir, deck.read_text(), files=files, np=np_procs, outputs=("dump.atoms",),
+                      expected_runs=1, progress=False, timeout=timeout, **kw)
     traj = read_liggghts(res.log_path, res.path("dump.atoms"))
     el = 0.0 if res.skipped else float(res.manifest.get("elapsed_s", 0.0))
     return Trajectory(traj.steps, traj.stress, traj.lengths, traj.frames, el), res.manifest
+
+
+def run_liggghts_job(job_dir, packing, settings, loading, nsteps: int, dump_every: int, velocities=None,
+                     spins=None, np_procs: int = 1, thermo_every: int = 1,
+                     timeout: float | None = None) -> tuple[Trajectory, dict]:
+    """:func:`run_reference_job` with LIGGGHTS."""
+    return run_reference_job(job_dir, packing, settings, loading, nsteps, dump_every, velocities, spins,
+                             np_procs=np_procs, thermo_every=thermo_every, timeout=timeout)
 
 
 # ------------------------------------------------------------------ evidence

@@ -11,7 +11,7 @@ import numpy as np
 
 from gransim.io import atomic_h5, atomic_path
 
-from .core import CaseResult
+from .core import PAIRS, CaseResult
 
 
 def _fmt(v) -> str:
@@ -53,10 +53,46 @@ body{font-family:sans-serif;max-width:1200px;margin:2em auto;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 7px;font-size:90%}
 th{background:#eee}.pass{color:#080;font-weight:bold}.fail{color:#b00;font-weight:bold}
 .info{color:#555;font-style:italic}
+.matrix td{vertical-align:top;max-width:330px}.na{color:#777}.reason{font-size:85%;color:#444}
 .banner{padding:0.7em;border:2px solid #b60;background:#fff4e0;margin:1em 0}
 img{max-width:100%;border:1px solid #ddd;margin:0.3em 0}figure{margin:1em 0}
 figcaption{font-size:90%;color:#444}code{background:#f4f4f4}
 """
+
+
+_CELL_CLASS = {"pass": "pass", "FAIL": "fail", "empty": "fail", "n/a": "na", "absent": "na"}
+
+
+def matrix_html(results: list[CaseResult]) -> list[str]:
+    """The validation matrix: a row per case, a column per pair of implementations (native,
+    LIGGGHTS, LAMMPS); each cell its verdict, the checks behind it, the tolerances and why."""
+    out = ["<h2>Validation matrix</h2><table class='matrix'><tr><th>case</th>"
+           + "".join(f"<th>{html.escape(v)}</th>" for v in PAIRS.values())
+           + "<th>other checks (exact, analytic, bounds)</th></tr>"]
+    for res in results:
+        row = [f"<tr><td><a href='#{res.case}'>{html.escape(res.case)}</a>"
+               + (" <span class='fail'>(not run)</span>" if res.error else "") + "</td>"]
+        for pair in PAIRS:
+            c = res.cell(pair)
+            st = c["state"]
+            word = {"empty": "FAIL: no check", "absent": "&mdash;", "n/a": "n/a"}.get(st, st.upper()
+                                                                                  if st == "pass" else st)
+            txt = f"<span class='{_CELL_CLASS[st]}'>{word}</span>"
+            if st in ("pass", "FAIL", "empty"):
+                txt += f" {c['ok']} of {c['n']} checks"
+                if c["tolerances"]:
+                    txt += "; tolerances " + ", ".join(_fmt(t) for t in c["tolerances"])
+            if c["reason"]:
+                txt += f"<div class='reason'>{html.escape(c['reason'])}</div>"
+            row.append(f"<td>{txt}</td>")
+        other = [r for r in res.checks if not r.pair]
+        ok = sum(r.passed for r in other)
+        row.append(f"<td>{ok} of {len(other)} checks</td>" if other else "<td class='na'>&mdash;</td>")
+        out.append("".join(row) + "</tr>")
+    out.append("</table><p class='reason'>A cell passes when every check of that pair passes; a declared cell "
+               "without a check fails (missing evidence). n/a: the pair does not apply to the case (reason "
+               "given).</p>")
+    return out
 
 
 def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Path:
@@ -64,10 +100,12 @@ def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Pat
     out = [f"<!doctype html><html><head><meta charset='utf-8'><title>gransim validation</title>"
            f"<style>{_CSS}</style></head><body>",
            "<h1>gransim validation report</h1>"]
-    if not header.get("liggghts_available"):
-        out.append("<div class='banner'><b>LIGGGHTS is not installed on this machine.</b> Comparisons use "
-                   "the stored reference outputs in <code>reference_runs/stored/</code> only "
-                   "(install with <code>apt-get install liggghts</code>).</div>")
+    out += matrix_html(results)
+    for code, name, pkg in (("liggghts", "LIGGGHTS", "liggghts"), ("lammps", "LAMMPS", "lammps")):
+        if not header.get(f"{code}_available"):
+            out.append(f"<div class='banner'><b>{name} is not installed on this machine.</b> Its comparisons use "
+                       "the stored reference outputs in <code>reference_runs/stored/</code> only "
+                       f"(install with <code>apt-get install {pkg}</code>).</div>")
     out.append("<table>")
     for k, v in header.items():
         out.append(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>")

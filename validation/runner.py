@@ -11,7 +11,7 @@ from pathlib import Path
 from gransim import __version__
 from gransim.io import git_commit, liggghts_version
 
-from .core import SUITES, CaseResult, Context, liggghts_available, registered_cases
+from .core import SUITES, CaseResult, Context, lammps_available, liggghts_available, registered_cases
 from .report import write_h5, write_html, write_json
 
 
@@ -31,6 +31,7 @@ def run_validation(suite: str = "default", results: Path | str = "results", jobs
     if timeout is not None:
         timeout = as_positive_float(timeout, "--timeout")
     ctx = Context(suite=suite, results=Path(results), jobs=int(jobs), liggghts=liggghts_available(),
+                  lammps=lammps_available(),
                   timeout=timeout)
     from reference_runs.locks import DirectoryLock, remove_stray_tmp
     from reference_runs.runner import kill_children_on_signals
@@ -45,6 +46,14 @@ def run_validation(suite: str = "default", results: Path | str = "results", jobs
             if d.is_dir():
                 remove_stray_tmp(d, recursive=False)
         return _run_cases(ctx, suite, only, log, timeout)
+
+
+def _lammps_version() -> str | None:
+    """The version the ``lmp`` binary reports about itself (None when absent)."""
+    from gransim.io import provenance
+
+    fn = getattr(provenance, "lammps_version", None)
+    return fn() if fn is not None else None
 
 
 def _run_cases(ctx, suite, only, log, timeout) -> tuple[bool, list[CaseResult]]:
@@ -79,6 +88,8 @@ def _run_cases(ctx, suite, only, log, timeout) -> tuple[bool, list[CaseResult]]:
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "liggghts_available": ctx.liggghts,
         "liggghts_version": liggghts_version() or "absent",
+        "lammps_available": ctx.lammps,
+        "lammps_version": _lammps_version() or "absent",
         "machine": f"{platform.node()} ({platform.machine()}, {__import__('os').cpu_count()} cores)",
         "wall_time_s": round(time.perf_counter() - t_all, 1),
         "job_timeout_s": timeout if timeout is not None else "scaled with each job's work",

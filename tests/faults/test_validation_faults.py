@@ -32,11 +32,12 @@ def _quiet(*_a, **_k):
 @pytest.fixture
 def stored_copy(tmp_path, monkeypatch):
     """A copy of reference_runs/stored that the cases read instead (to be damaged by the test);
-    LIGGGHTS is reported absent so only the stored evidence is compared."""
+    LIGGGHTS and LAMMPS are reported absent so only the stored evidence is compared."""
     dest = tmp_path / "stored"
     shutil.copytree(STORED, dest)
     monkeypatch.setattr(store, "STORED", dest)
     monkeypatch.setattr(vrunner, "liggghts_available", lambda: False)
+    monkeypatch.setattr(vrunner, "lammps_available", lambda: False)
     return dest
 
 

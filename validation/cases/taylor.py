@@ -91,7 +91,7 @@ CONTACT_REASON = ("two-sided: every contact end of gransim must be a LIGGGHTS ro
                   "are equal and nothing is left unmatched on either side")
 
 
-def contact_records(label: str, cmp: dict) -> list:
+def contact_records(label: str, cmp: dict, code: str = "LIGGGHTS") -> list:
     """Records of one state's two-sided contact comparison: the two counts, the unmatched ends on
     each side (listed in the metric), and the force difference over the matched ends."""
     from ..core import Record
@@ -102,9 +102,9 @@ def contact_records(label: str, cmp: dict) -> list:
 
     nn, nl = cmp["n_native"], cmp["n_liggghts"]
     un, ul = cmp["unmatched_native"], cmp["unmatched_liggghts"]
-    recs = [Record(label, "contact_count", f"|n_gransim - n_LIGGGHTS| (gransim {nn}, LIGGGHTS {nl} ends)",
-                   float(abs(nn - nl)), 0.0, nn == nl and nn > 0, CONTACT_REASON)]
-    for side, lst in (("gransim", un), ("LIGGGHTS", ul)):
+    recs = [Record(label, "contact_count", f"|n_gransim - n_{code}| (gransim {nn}, {code} {nl} ends)",
+                   float(abs(nn - nl)), 0.0, nn == nl and nn > 0, CONTACT_REASON.replace("LIGGGHTS", code))]
+    for side, lst in (("gransim", un), (code, ul)):
         metric = f"{side} contact ends without a partner" + (f": {shown(lst)}" if lst else "")
         recs.append(Record(label, "contact_unmatched", metric, float(len(lst)), 0.0, not lst, CONTACT_REASON))
     matched = nn - len(un)
@@ -115,8 +115,9 @@ def contact_records(label: str, cmp: dict) -> list:
 
 def expected_series(run) -> dict:
     """{(path, route): expected state indices k} of a Taylor job, from the parameters it was asked
-    for (``states.json``: n_steps, stride, the paths and routes of the deck): the periodic route
-    exists on compression paths only (LIGGGHTS' triclinic boxes are broken, shared notes)."""
+    for (``states.json``: n_steps, stride, the paths and routes of the deck): on LIGGGHTS the
+    periodic route exists on compression paths only (its triclinic boxes are broken, shared
+    notes); on LAMMPS on every path (a true triclinic box for shear)."""
     import json
 
     from reference_runs.decks.taylor import PATHS, ROUTES
@@ -126,7 +127,8 @@ def expected_series(run) -> dict:
     asked = {(st["path"], st["route"]) for st in meta["states"]}
     paths = [p for p in PATHS if any(a[0] == p for a in asked)] or list(PATHS)
     routes = [r for r in ROUTES if any(a[1] == r for a in asked)] or list(ROUTES)
-    return {(p, r): ks for p in paths for r in routes if r == "images" or p.startswith("compression")}
+    every_path = meta.get("engine", "liggghts") == "lammps"
+    return {(p, r): ks for p in paths for r in routes if r == "images" or every_path or p.startswith("compression")}
 
 
 def series_evidence(label: str, run, expected: dict | None = None) -> list:
@@ -134,32 +136,85 @@ def series_evidence(label: str, run, expected: dict | None = None) -> list:
     every expected state."""
     from ..core import evidence
 
+    code = CODE.get(getattr(run, "engine", "liggghts"), "LIGGGHTS")
     expected = expected_series(run) if expected is None else expected
-    recs = [evidence(label, "LIGGGHTS (path, route) series", [f"{p}/{r}" for p, r in expected],
+    recs = [evidence(label, f"{code} (path, route) series", [f"{p}/{r}" for p, r in expected],
                      [f"{p}/{r}" for p, r in run.series])]
     for (p, r), ks in expected.items():
         have = [int(k) for k in run.series[(p, r)].k] if (p, r) in run.series else []
-        recs.append(evidence(f"{label}/{PATH_NAMES[p]}/{r}", "LIGGGHTS states", ks, have))
+        recs.append(evidence(f"{label}/{PATH_NAMES[p]}/{r}", f"{code} states", ks, have))
     return recs
 
 
-def _liggghts_runs(ctx: Context, packings: dict, stride: int) -> tuple[dict, str]:
-    """name -> TaylorRun, from live LIGGGHTS jobs (cached) or the stored outputs."""
+CODE = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}
+PAIR = {"liggghts": "native-liggghts", "lammps": "native-lammps"}
+CROSS_REASON = ("both codes evaluate the same closed-form sum on the same positions (LAMMPS in a true periodic "
+                "triclinic box, LIGGGHTS through explicit images where its box cannot be sheared): round-off only, "
+                "as against the native stress")
+
+
+def compare_contact_forces_by_pair(packing, F, frame, contact_state_fn=None) -> dict:
+    """Two-sided match of native contacts and a LAMMPS periodic-route contact dump of one state
+    (``id1 id2 dist fx fy``, each periodic contact once, force on id1 in gransim's frame).
+
+    Ends are matched per (particle, partner) by contact distance (within 1e-9 of the mean radius).
+    Returns the dict of :func:`compare_contact_forces`."""
+    from gransim.rve import contact_state
+
+    cs = (contact_state_fn or contact_state)(packing, F, KN)
+    native: dict = {}
+    for i, j, l, f in zip(cs.i, cs.j, cs.branch, cs.force):
+        d = float(np.linalg.norm(l))
+        native.setdefault((int(i), int(j)), []).append((d, np.asarray(f)))
+        native.setdefault((int(j), int(i)), []).append((d, -np.asarray(f)))
+    other: dict = {}
+    f1 = np.column_stack([frame["fx"], frame["fy"]])
+    for a, b, d, f in zip(np.asarray(frame["id1"], int) - 1, np.asarray(frame["id2"], int) - 1, frame["dist"], f1):
+        other.setdefault((int(a), int(b)), []).append((float(d), f))
+        other.setdefault((int(b), int(a)), []).append((float(d), -f))
+    fmax = float(np.abs(cs.force).max()) if len(cs.force) else 1.0
+    tol = 1e-9 * float(np.mean(packing.radii))
+    worst, un_nat, un_oth = 0.0, [], []
+    for key in sorted(set(native) | set(other)):
+        rest = list(other.get(key, []))
+        for d, f in native.get(key, []):
+            dd = [abs(d - do) for do, _ in rest]
+            k = int(np.argmin(dd)) if dd else -1
+            if k < 0 or dd[k] > tol:
+                un_nat.append((key[0], (float(key[1]), d)))
+                continue
+            worst = max(worst, float(np.abs(f - rest[k][1]).max()) / fmax)
+            rest.pop(k)
+        un_oth += [(key[0], (float(key[1]), do)) for do, _ in rest]
+    return {"worst": worst, "n_native": sum(len(v) for v in native.values()),
+            "n_liggghts": sum(len(v) for v in other.values()), "unmatched_native": un_nat,
+            "unmatched_liggghts": un_oth}
+
+
+def _code_runs(ctx: Context, packings: dict, stride: int, engine: str = "liggghts") -> tuple[dict, str]:
+    """name -> TaylorRun of ``engine``, from live jobs (cached) or the stored outputs."""
     from gransim.io import load_packing
-    from reference_runs.store import RVE_CASE, STORED, TAYLOR_CASE
+    from reference_runs.store import RVE_CASE, STORED, TAYLOR_CASE, taylor_case
     from reference_runs.taylor import read_taylor_job, run_taylor
 
-    if ctx.liggghts:
-        jobs = ctx.work("reference", "taylor")
-        runs = {name: run_taylor(p, KN, jobs / name, name=name, stride=stride, progress=False,
+    code = CODE[engine]
+    if getattr(ctx, engine):
+        jobs = ctx.work("reference", "taylor" if engine == "liggghts" else "taylor-lammps")
+        runs = {name: run_taylor(p, KN, jobs / name, name=name, stride=stride, progress=False, engine=engine,
                                  timeout=ctx.job_timeout(_taylor_work(p, 50 // stride + 1)))
                 for name, p in packings.items()}
-        return runs, "live LIGGGHTS jobs (one job per RVE, all states of the four paths)"
+        return runs, f"live {code} jobs (one job per RVE, all states of the four paths)"
     runs = {}
-    for stored in (RVE_CASE, TAYLOR_CASE):
-        d = STORED / stored
+    for base in (RVE_CASE, TAYLOR_CASE):
+        stored = taylor_case(base, engine)
+        d = Path(STORED) / stored
         runs[stored] = read_taylor_job(d, load_packing(d / "packing.h5"))
-    return runs, "stored LIGGGHTS outputs (reference_runs/stored/), LIGGGHTS being absent"
+    return runs, f"stored {code} outputs (reference_runs/stored/), {code} being absent"
+
+
+def _liggghts_runs(ctx: Context, packings: dict, stride: int) -> tuple[dict, str]:
+    """:func:`_code_runs` of LIGGGHTS."""
+    return _code_runs(ctx, packings, stride, "liggghts")
 
 
 def _taylor_work(packing, states_per_path: int) -> float:
@@ -168,20 +223,23 @@ def _taylor_work(packing, states_per_path: int) -> float:
     return 6 * states_per_path * 4 * packing.n * 20
 
 
-def _contact_runs(ctx: Context, packings: dict):
-    """Per-contact dumps: a few states per path of one RVE per size (live), or the stored lattice case."""
+def _contact_runs(ctx: Context, packings: dict, engine: str = "liggghts"):
+    """Per-contact dumps: a few states per path of one RVE per size (live), or the stored lattice
+    case. LIGGGHTS: the images route (its periodic boxes cannot shear); LAMMPS: the periodic
+    route (every path in a true periodic box)."""
     from gransim.io import load_packing
-    from reference_runs.store import STORED, TAYLOR_CASE
+    from reference_runs.store import STORED, TAYLOR_CASE, taylor_case
     from reference_runs.taylor import read_taylor_job, run_taylor
 
-    if ctx.liggghts:
+    route = "images" if engine == "liggghts" else "periodic"
+    if getattr(ctx, engine):
         names = [n for n in packings if n.endswith("-1")]
-        jobs = ctx.work("reference", "taylor-contacts")
-        return {n: run_taylor(packings[n], KN, jobs / n, name=n, routes=("images",), stride=25, contacts=True,
-                              progress=False, timeout=ctx.job_timeout(_taylor_work(packings[n], 3)))
-                for n in names}
-    d = STORED / TAYLOR_CASE
-    return {TAYLOR_CASE: read_taylor_job(d, load_packing(d / "packing.h5"))}
+        jobs = ctx.work("reference", "taylor-contacts" if engine == "liggghts" else "taylor-contacts-lammps")
+        return {n: run_taylor(packings[n], KN, jobs / n, name=n, routes=(route,), stride=25, contacts=True,
+                              progress=False, timeout=ctx.job_timeout(_taylor_work(packings[n], 3)), engine=engine)
+                for n in names}, route
+    d = Path(STORED) / taylor_case(TAYLOR_CASE, engine)
+    return {taylor_case(TAYLOR_CASE, engine): read_taylor_job(d, load_packing(d / "packing.h5"))}, route
 
 
 @case("taylor-rve", "Taylor RVE stresses: 15 RVEs, compression 11/22 and simple shear 12/21", order=10)
@@ -194,51 +252,93 @@ def taylor_rve(ctx: Context) -> CaseResult:
         "taylor-rve", "Taylor RVE stresses: 15 RVEs, compression 11/22 and simple shear 12/21",
         "Every RVE is mapped affinely (x = F X) along F11, F22: 1 -> 0.9 and F12, F21: 0 -> 0.1 (50 steps). "
         "gransim's Cauchy stress (numba Taylor kernel, tension positive) is compared state by state with "
-        "LIGGGHTS' virial stress of the same configuration (elastic normal contact, kn = E_n = 2.8e7 N/m, "
-        "<code>run 0</code>), per RVE, path and LIGGGHTS route: <i>periodic</i> = true periodic box "
-        "(compression only), <i>images</i> = explicit periodic image copies in an open box (needed for "
-        "shear: triclinic boxes lose their ghosts in LIGGGHTS 3.8.0). Metric: max over states of "
-        "max|sigma_gransim - sigma_LIGGGHTS| / max|sigma_LIGGGHTS|.")
+        "the virial stress of LIGGGHTS and of LAMMPS for the same configuration (elastic normal contact, "
+        "kn = E_n = 2.8e7 N/m, <code>run 0</code>), per RVE, path and route: <i>periodic</i> = true periodic box "
+        "(LIGGGHTS: compression only, its triclinic boxes lose their ghosts in 3.8.0; LAMMPS: every path, "
+        "shear in a triclinic box), <i>images</i> = explicit periodic image copies in an open box. Metric: max "
+        "over states of max|sigma_a - sigma_b| / max|sigma_b|. Contact forces: LIGGGHTS images route (matched by "
+        "branch vector), LAMMPS periodic route (matched by pair and distance), both two-sided; and LIGGGHTS "
+        "against LAMMPS on every state both ran.")
     names = s["names"]
     paths = standard_packings(ctx.results / "packings", names=names)
     packings = {n: load_packing(p) for n, p in paths.items()}
-    runs, source = _liggghts_runs(ctx, packings, s["stride"])
-    res.notes.append(f"Reference: {source}.")
-    from ..core import evidence
-
-    if ctx.liggghts:
-        res.records.append(evidence("taylor-rve", "RVEs run by LIGGGHTS", sorted(packings), sorted(runs)))
-    for name, run in runs.items():
-        if not ctx.liggghts:
-            res.records.append(stored_job_record(f"taylor-rve/{name.replace('rve-', '')}", run.job_dir))
-        res.records += series_evidence(f"taylor-rve/{name.replace('rve-', '')}", run)
     from gransim.rve import TaylorMaterial
 
+    from ..core import evidence, in_pair
+
+    res.declare("native-liggghts", STRESS_REASON)
+    res.declare("native-lammps", STRESS_REASON)
+    res.declare("liggghts-lammps", CROSS_REASON)
     rows = []
-    for name, run in runs.items():
-        mat = TaylorMaterial(run.packing, KN)  # one material (and candidate cache) per RVE, all paths
-        for (path, route), ser in sorted(run.series.items()):
-            sig_n = mat.evaluate(np.asarray(ser.F)).cauchy
-            scale = np.abs(ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
-            diff = np.abs(sig_n - ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
-            rel = float(np.max(diff / np.where(scale > 0, scale, 1.0)))
-            label = name.replace("rve-", "")
-            res.records.append(compare(f"taylor-rve/{label}/{PATH_NAMES[path]}/{route}", "stress",
-                                       "max_rel_diff", rel, STRESS_TOL, STRESS_REASON))
-            rows.append([name, path, route, len(ser.F), rel])
-    for name, run in _contact_runs(ctx, packings).items():
-        exp = {k: v for k, v in expected_series(run).items() if k[1] == "images"}
-        res.records += series_evidence(f"taylor-rve/{name.replace('rve-', '')}/contacts", run, exp)
-        for (path, route), ser in sorted(run.series.items()):
-            if route != "images":
+    code_runs = {}
+    for engine in ("liggghts", "lammps"):
+        code = CODE[engine]
+        runs, source = _code_runs(ctx, packings, s["stride"], engine)
+        code_runs[engine] = runs
+        res.notes.append(f"{code} reference: {source}.")
+        recs = []
+        if getattr(ctx, engine):
+            recs.append(evidence("taylor-rve", f"RVEs run by {code}", sorted(packings), sorted(runs)))
+        for name, run in runs.items():
+            label = f"taylor-rve/{engine}/{name.replace('rve-', '')}"
+            if not getattr(ctx, engine):
+                recs.append(stored_job_record(label, run.job_dir))
+            recs += series_evidence(label, run)
+        for name, run in runs.items():
+            mat = TaylorMaterial(run.packing, KN)  # one material (and candidate cache) per RVE, all paths
+            for (path, route), ser in sorted(run.series.items()):
+                sig_n = mat.evaluate(np.asarray(ser.F)).cauchy
+                scale = np.abs(ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
+                diff = np.abs(sig_n - ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
+                rel = float(np.max(diff / np.where(scale > 0, scale, 1.0)))
+                label = f"taylor-rve/{engine}/{name.replace('rve-', '')}/{PATH_NAMES[path]}/{route}"
+                recs.append(compare(label, "stress", "max_rel_diff", rel, STRESS_TOL, STRESS_REASON))
+                rows.append([code, name, path, route, len(ser.F), rel])
+        contact_runs, croute = _contact_runs(ctx, packings, engine)
+        for name, run in contact_runs.items():
+            exp = {k: v for k, v in expected_series(run).items() if k[1] == croute}
+            recs += series_evidence(f"taylor-rve/{engine}/{name.replace('rve-', '')}/contacts", run, exp)
+            for (path, route), ser in sorted(run.series.items()):
+                if route != croute:
+                    continue
+                for k, F in zip(ser.k, ser.F):
+                    frame = run.contacts(path, route, int(k))
+                    cmp = (compare_contact_forces(run.packing, F, frame) if engine == "liggghts"
+                           else compare_contact_forces_by_pair(run.packing, F, frame))
+                    recs += contact_records(f"taylor-rve/{engine}/{name.replace('rve-', '')}/{PATH_NAMES[path]}/k{k}",
+                                            cmp, code)
+        res.records += in_pair(recs, PAIR[engine])
+    # the two codes against each other on every state both ran (same packing, path, route, k)
+    lig, lmp = code_runs["liggghts"], code_runs["lammps"]
+    from reference_runs.store import taylor_case
+
+    recs, n_states = [], 0
+    for name, run in lig.items():
+        other = lmp.get(name) or lmp.get(taylor_case(name, "lammps"))
+        if other is None:
+            recs.append(evidence(f"taylor-rve/cross/{name}", "LAMMPS run of the RVE LIGGGHTS ran", [name], []))
+            continue
+        for key, ser in sorted(run.series.items()):
+            if key not in other.series:
+                recs.append(evidence(f"taylor-rve/cross/{name}", "LAMMPS series of the LIGGGHTS series",
+                                     [f"{key[0]}/{key[1]}"], []))
                 continue
-            for k, F in zip(ser.k, ser.F):
-                frame = run.contacts(path, route, int(k))
-                cmp = compare_contact_forces(run.packing, F, frame)
-                res.records += contact_records(f"taylor-rve/{name.replace('rve-', '')}/{PATH_NAMES[path]}/k{k}",
-                                               cmp)
-    res.tables.append(("Stress agreement per RVE, path and LIGGGHTS route",
-                       ["packing", "path", "route", "states", "max rel diff"], rows))
+            o = other.series[key]
+            common = np.intersect1d(ser.k, o.k)
+            recs.append(evidence(f"taylor-rve/cross/{name}/{PATH_NAMES[key[0]]}/{key[1]}", "states of both codes",
+                                 [int(k) for k in ser.k], [int(k) for k in common]))
+            ia, ib = np.searchsorted(ser.k, common), np.searchsorted(o.k, common)
+            a, b = ser.cauchy[ia], o.cauchy[ib]
+            scale = np.abs(a).reshape(len(a), -1).max(axis=1)
+            rel = np.abs(a - b).reshape(len(a), -1).max(axis=1) / np.where(scale > 0, scale, 1.0)
+            recs.append(compare(f"taylor-rve/cross/{name.replace('rve-', '')}/{PATH_NAMES[key[0]]}/{key[1]}", "stress",
+                                "max_rel_diff LIGGGHTS vs LAMMPS", float(rel.max()) if rel.size else float("nan"),
+                                STRESS_TOL, CROSS_REASON))
+            n_states += len(common)
+    res.records += in_pair(recs, "liggghts-lammps")
+    res.notes.append(f"LIGGGHTS vs LAMMPS: {n_states} states compared directly.")
+    res.tables.append(("Stress agreement per code, RVE, path and route",
+                       ["code", "packing", "path", "route", "states", "max rel diff"], rows))
     if s["study"]:
         from gransim.rve.study import run_study
 
