@@ -107,14 +107,18 @@ def test_native_path_dropping_half_the_contacts_fails_taylor(stored_copy, tmp_pa
     bad = {r.quantity for r in res.records if not r.passed}
     assert bad == {"contact_count", "contact_unmatched"}, bad
     unmatched = [r for r in res.records if r.quantity == "contact_unmatched" and not r.passed]
-    assert all(r.metric.startswith("LIGGGHTS contact ends without a partner: disk") for r in unmatched)
+    for code, pair in (("LIGGGHTS", "native-liggghts"), ("LAMMPS", "native-lammps")):
+        mine = [r for r in unmatched if r.pair == pair]
+        assert mine and all(r.metric.startswith(f"{code} contact ends without a partner: disk") for r in mine), code
+    assert res.cell("native-lammps")["state"] == "FAIL" and res.cell("liggghts-lammps")["state"] == "pass"
 
 
-def test_a_stored_taylor_state_missing_fails(stored_copy, tmp_path):
+@pytest.mark.parametrize("engine", ["liggghts", "lammps"])
+def test_a_stored_taylor_state_missing_fails(stored_copy, tmp_path, engine):
     """states.json and the log cut consistently by one state: the Taylor series is incomplete."""
     import json
 
-    d = stored_copy / store.RVE_CASE
+    d = stored_copy / store.taylor_case(store.RVE_CASE, engine)
     meta = json.loads((d / "states.json").read_text())
     meta["states"] = meta["states"][:-1]
     (d / "states.json").write_text(json.dumps(meta))
@@ -127,7 +131,8 @@ def test_a_stored_taylor_state_missing_fails(stored_copy, tmp_path):
     res = _result(results, "taylor-rve")
     assert not res.passed
     if res.error is None:
-        assert any("incomplete: expected 6 LIGGGHTS states, got 5" in m for m in _incomplete(res)), \
+        code = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}[engine]
+        assert any(f"incomplete: expected 6 {code} states, got 5" in m for m in _incomplete(res)), \
             _incomplete(res)
     else:
         assert "states" in res.error or "runs" in res.error
