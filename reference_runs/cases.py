@@ -61,8 +61,9 @@ def compare_taylor(run, rtol: float = TAYLOR_RTOL) -> dict:
 def run_taylor_set(packings: dict, out_dir, kn: float = PAPER_KN, n_steps: int = 50, stride: int = 1,
                    max_strain: float = 0.1, contacts: bool = False, np_procs: int = 1, timeout=3600.0,
                    force: bool = False, progress: bool = True, h5_name: str = "taylor.h5", check: bool = True,
-                   echo=print) -> tuple:
-    """Run the Taylor states of several packings (one LIGGGHTS job each) and compare with numpy.
+                   echo=print, engine: str = "liggghts") -> tuple:
+    """Run the Taylor states of several packings (one job of ``engine``, "liggghts" or "lammps",
+    each) and compare with numpy.
 
     Returns ``(runs, worst)``: the TaylorRun objects and the largest relative difference.
     """
@@ -78,7 +79,7 @@ def run_taylor_set(packings: dict, out_dir, kn: float = PAPER_KN, n_steps: int =
         if force:
             (job / MANIFEST_NAME).unlink(missing_ok=True)
         run = run_taylor(packing, kn, job, name=name, n_steps=n_steps, stride=stride, max_strain=max_strain,
-                         contacts=contacts, np_procs=np_procs, timeout=timeout, progress=progress)
+                         contacts=contacts, np_procs=np_procs, timeout=timeout, progress=progress, engine=engine)
         runs.append(run)
         if check:
             diffs = compare_taylor(run)
@@ -88,17 +89,17 @@ def run_taylor_set(packings: dict, out_dir, kn: float = PAPER_KN, n_steps: int =
                  f"({run.manifest.get('elapsed_s', 0):.2f} s), max rel. diff vs numpy Taylor = {w:.3e}")
     h5 = write_taylor_h5(out_dir / h5_name, runs,
                          parameters={"kn": kn, "n_steps": n_steps, "stride": stride, "max_strain": max_strain,
-                                     "packings": list(packings)})
+                                     "packings": list(packings), "engine": engine})
     echo(f"wrote {h5}")
     return runs, worst
 
 
-def _taylor_demo(out_dir, np_procs=1, timeout=600.0, force=False, progress=True) -> int:
+def _taylor_demo(out_dir, np_procs=1, timeout=600.0, force=False, progress=True, engine="liggghts") -> int:
     from .demo_packings import perturbed_lattice
 
     packings = {f"lattice-8x8-seed{s}": perturbed_lattice(8, 8, seed=s) for s in (1, 2, 3)}
     _, worst = run_taylor_set(packings, out_dir, np_procs=np_procs, timeout=timeout, force=force,
-                              progress=progress)
+                              progress=progress, engine=engine)
     print(f"taylor-demo: largest relative difference {worst:.3e} (tolerance {TAYLOR_RTOL:g})")
     return 0 if worst <= TAYLOR_RTOL else 1
 
@@ -113,9 +114,9 @@ def standard_rves(packings_dir="results/packings") -> dict:
     return {name: load_packing(path) for name, path in paths.items()}
 
 
-def _taylor_rves(out_dir, np_procs=1, timeout=3600.0, force=False, progress=True) -> int:
+def _taylor_rves(out_dir, np_procs=1, timeout=3600.0, force=False, progress=True, engine="liggghts") -> int:
     _, worst = run_taylor_set(standard_rves(), out_dir, np_procs=np_procs, timeout=timeout, force=force,
-                              progress=progress)
+                              progress=progress, engine=engine)
     print(f"taylor-rves: largest relative difference {worst:.3e} (tolerance {TAYLOR_RTOL:g})")
     return 0 if worst <= TAYLOR_RTOL else 1
 

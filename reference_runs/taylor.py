@@ -189,7 +189,9 @@ def write_taylor_h5(path, runs, parameters: dict | None = None):
     """Store Taylor runs: ``/<name>/packing``, ``/<name>/<path>/F``, ``/<name>/<path>/<route>/cauchy``..."""
     runs = list(runs)
     params = dict(parameters or {})
-    with atomic_h5(path, kind="liggghts-taylor", parameters=params, liggghts=True) as f:
+    engines = {run.engine for run in runs}
+    with atomic_h5(path, kind="liggghts-taylor", parameters=params, liggghts="liggghts" in engines,
+                   lammps="lammps" in engines) as f:
         f.attrs["sign_convention"] = "tension positive (sigma = -p_liggghts)"
         f.attrs["units"] = "F dimensionless; stress N/m (2D); kn N/m"
         for run in runs:

@@ -1,4 +1,4 @@
-"""``gransim reference``: LIGGGHTS reference runs (list, run CASE, taylor)."""
+"""``gransim reference``: LIGGGHTS or LAMMPS reference runs (list, run CASE, taylor)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,9 @@ DEFAULT_OUT = "results/reference"
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("reference", help="LIGGGHTS reference runs (needs the liggghts binary)",
-                              description="Run LIGGGHTS-PUBLIC 3.8.0 reference jobs and parse them.")
+    p = subparsers.add_parser("reference", help="LIGGGHTS or LAMMPS reference runs (needs the binary)",
+                              description="Run reference jobs of LIGGGHTS-PUBLIC 3.8.0 (`liggghts`) or LAMMPS "
+                                          "(`lmp`) and parse them.")
     sub = p.add_subparsers(dest="reference_command", metavar="ACTION")
     sub.required = True
 
@@ -44,10 +45,12 @@ def register(subparsers) -> None:
 
 
 def _job_options(p) -> None:
+    p.add_argument("--engine", choices=("liggghts", "lammps"), default="liggghts",
+                   help="the code that runs the jobs (default liggghts)")
     p.add_argument("--np", type=int, default=1, help="MPI processes (mpirun -np N)")
-    p.add_argument("--timeout", type=float, default=3600.0, help="seconds per LIGGGHTS job")
+    p.add_argument("--timeout", type=float, default=3600.0, help="seconds per job")
     p.add_argument("--force", action="store_true",
-                   help="rerun jobs even if complete outputs exist (discards them; needs LIGGGHTS). Without "
+                   help="rerun jobs even if complete outputs exist (discards them; needs the code). Without "
                         "it a stored job is reused only after its log and outputs are re-hashed and checked "
                         "against the deck, and rerun automatically when that fails")
 
@@ -69,8 +72,9 @@ def _run(args) -> int:
 
     case = get_case(args.case)
     out = Path(args.out or f"{DEFAULT_OUT}/{case.name}")
-    with kill_children_on_signals():  # SIGTERM/SIGINT/SIGHUP: no LIGGGHTS process outlives us
-        return case.run(out, np_procs=args.np, timeout=args.timeout, force=args.force, progress=True)
+    with kill_children_on_signals():  # SIGTERM/SIGINT/SIGHUP: no reference process outlives us
+        return case.run(out, np_procs=args.np, timeout=args.timeout, force=args.force, progress=True,
+                        engine=args.engine)
 
 
 def _taylor(args) -> int:
@@ -101,8 +105,9 @@ def _taylor(args) -> int:
     with kill_children_on_signals():  # SIGTERM/SIGINT/SIGHUP: no LIGGGHTS process outlives us
         _, worst = run_taylor_set(packings, args.out, kn=args.kn or PAPER_KN, n_steps=args.n_steps,
                                   stride=args.stride, max_strain=args.max_strain, contacts=args.contacts,
-                                  np_procs=args.np, timeout=args.timeout, force=args.force)
+                                  np_procs=args.np, timeout=args.timeout, force=args.force, engine=args.engine)
     ok = worst <= TAYLOR_RTOL
-    print(f"{len(packings)} packings: largest relative difference LIGGGHTS vs numpy Taylor stress = "
+    code = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}[args.engine]
+    print(f"{len(packings)} packings: largest relative difference {code} vs numpy Taylor stress = "
           f"{worst:.3e} ({'PASS' if ok else 'FAIL'}, tolerance {TAYLOR_RTOL:g})")
     return 0 if ok else 1

@@ -65,8 +65,11 @@ def atomic_path(path, suffix: str | None = None):
 
 
 @contextlib.contextmanager
-def atomic_h5(path, kind: str, parameters: dict | None = None, seed=None, liggghts: bool = False):
-    """Open a new HDF5 file for writing, atomically; root attributes carry the provenance.
+def atomic_h5(path, kind: str, parameters: dict | None = None, seed=None, liggghts: bool = False,
+              lammps: bool = False):
+    """Open a new HDF5 file for writing, atomically; root attributes carry the provenance
+    (:func:`gransim.io.provenance.provenance`; ``liggghts``/``lammps``: also the version that
+    code's binary reports about itself).
 
     Usage::
 
@@ -78,7 +81,7 @@ def atomic_h5(path, kind: str, parameters: dict | None = None, seed=None, ligggh
             f.attrs["format"] = FORMAT
             f.attrs["schema_version"] = SCHEMA_VERSION
             f.attrs["kind"] = kind
-            for k, v in provenance(parameters, seed, liggghts).items():
+            for k, v in provenance(parameters, seed, liggghts, lammps).items():
                 f.attrs[k] = v
             yield f
 

@@ -55,3 +55,28 @@ def test_taylor_under_mpirun(tmp_path):
     assert run.manifest["command"][0].endswith("mpirun") and run.manifest["np"] == 2
     assert max(compare_taylor(run).values()) < 1e-10
     assert np.isfinite(run.get("shear-12").cauchy).all()
+
+
+def test_missing_lammps_binary_names_its_package(monkeypatch, capsys, tmp_path):
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    rc = main(["reference", "taylor", "--demo", "--engine", "lammps", "--out", str(tmp_path / "o"),
+               "--stride", "50"])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "apt-get install lammps" in err and "Traceback" not in err
+
+
+@pytest.mark.skipif(shutil.which("lmp") is None, reason="LAMMPS (lmp) not installed")
+def test_taylor_command_on_lammps_records_its_version(capsys, tmp_path):
+    import h5py
+
+    save_packing(tmp_path / "rve1.h5", perturbed_lattice(8, 8, seed=1))
+    rc = main(["reference", "taylor", "--rves", str(tmp_path), "--stride", "25", "--engine", "lammps",
+               "--out", str(tmp_path / "o")])
+    out = capsys.readouterr().out
+    assert rc == 0 and "LAMMPS vs numpy" in out and "PASS" in out
+    with h5py.File(tmp_path / "o" / "taylor.h5") as f:
+        assert f.attrs["lammps_version"].startswith("LAMMPS ")
+        assert "liggghts_version" not in f.attrs
+        assert f["rve1"].attrs["engine"] == "lammps"
+        assert '"engine": "lammps"' in f.attrs["parameters"]
