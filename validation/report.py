@@ -36,7 +36,7 @@ def write_json(path: Path, results: list[CaseResult], header: dict) -> None:
 
 def write_h5(path: Path, results: list[CaseResult], header: dict) -> None:
     rows = [r for res in results for r in res.records]
-    with atomic_h5(path, kind="validation", parameters=header, liggghts=True) as f:
+    with atomic_h5(path, kind="validation", parameters=header, liggghts=True, lammps=True) as f:
         str_dt = __import__("h5py").string_dtype()
         f.create_dataset("case", data=np.array([r.case for r in rows], dtype=object), dtype=str_dt)
         f.create_dataset("quantity", data=np.array([r.quantity for r in rows], dtype=object), dtype=str_dt)
@@ -45,6 +45,7 @@ def write_h5(path: Path, results: list[CaseResult], header: dict) -> None:
         f.create_dataset("tolerance", data=np.array([r.tolerance for r in rows], float))
         f.create_dataset("pass", data=np.array([r.passed and r.kind == "check" for r in rows], bool))
         f.create_dataset("kind", data=np.array([r.kind for r in rows], dtype=object), dtype=str_dt)
+        f.create_dataset("pair", data=np.array([r.pair for r in rows], dtype=object), dtype=str_dt)
         f.create_dataset("reason", data=np.array([r.reason for r in rows], dtype=object), dtype=str_dt)
 
 
