@@ -1,4 +1,5 @@
-"""LIGGGHTS ``hooke/stiffness`` normal law with ``tangential history``, as one jitted scalar function.
+"""LIGGGHTS ``hooke/stiffness`` normal law with ``tangential history``, as one jitted scalar function
+(and :func:`hooke_history_lammps`, the same pair in LAMMPS' ``gran/hooke/history`` arithmetic).
 
 The elastic part of the normal force is :func:`gransim.contacts.law.force_magnitude`
 (eq (5) of Meier et al.: F = E_n eps with E_n = kn); this module adds what the DEM needs:
@@ -100,3 +101,80 @@ def hooke_history(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, m
     fx = fn * enx + ft1
     fy = fn * eny + ft2
     return fx, fy, -cri * tor3, -crj * tor3, s0, s1, sliding, fn
+
+
+@njit(inline="always")
+def hooke_history_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                         kn, kt, gamman, gammat, mu, dt, s0, s1, update):
+    """The same pair in LAMMPS' arithmetic: ``pair_style gran/hooke/history`` (29 Sep 2021).
+
+    The call signature and the returned tuple are those of :func:`hooke_history`; the law and the
+    floating-point order are those of LAMMPS' ``PairGranHookeHistory::compute``
+    (src/GRANULAR/pair_gran_hooke_history.cpp, docs/lammps.md) restricted to 2D (z components are
+    zero there and drop out exactly). What differs from LIGGGHTS' ``hooke/stiffness`` +
+    ``tangential history``:
+
+    * normal force per unit branch length: ccel = kn (r_i + r_j - r)/r - m_eff gamman (v.d)/r^2,
+      force d ccel, so F_n = ccel r (the same value up to round-off);
+    * relative tangential velocity with the full radii as lever arms:
+      v_t,rel = v_t + d x (r_i w_i + r_j w_j)/r (LIGGGHTS: r - delta/2);
+    * spring update xi += v_t,rel dt, |xi| taken *before* the projection
+      xi -= ((xi.d)/r^2) d;
+    * the Coulomb cap compares the whole tangential force, spring *and* damping,
+      F_t = -(kt xi + m_eff gammat v_t,rel), with mu |F_n|: when |F_t| > mu |F_n| (strictly) and
+      |xi| != 0, F_t is scaled by mu|F_n|/|F_t| and the spring set to
+      xi = (mu|F_n|/|F_t|)(xi + m_eff gammat v_t,rel/kt) - m_eff gammat v_t,rel/kt
+      (so that -(kt xi + m_eff gammat v_t,rel) is the capped force); |xi| = 0: F_t = 0;
+    * torques -r_i (d x F_t)_z/r on i and -r_j (d x F_t)_z/r on j (full radii, same sign).
+
+    A pair that does not touch has its spring reset to zero by LAMMPS (the caller does that,
+    :func:`gransim.dem.kernels._entry`); ``update`` False is LAMMPS' set-up evaluation
+    (``shearupdate = 0``: no increment and no projection; the cap still applies).
+
+    Parameters and returns: as :func:`hooke_history` (``fn`` = ccel r, N; ``sliding`` the cap was
+    active).
+    """
+    r = math.sqrt(rsq)
+    rinv = 1.0 / r
+    rsqinv = 1.0 / rsq
+    vr1 = vix - vjx
+    vr2 = viy - vjy
+    vnnr = vr1 * delx + vr2 * dely
+    vn1 = delx * vnnr * rsqinv
+    vn2 = dely * vnnr * rsqinv
+    vt1 = vr1 - vn1
+    vt2 = vr2 - vn2
+    wr3 = (radi * wi + radj * wj) * rinv
+    meff = mi * mj / (mi + mj)
+    damp = meff * gamman * vnnr * rsqinv
+    ccel = kn * ((radi + radj) - r) * rinv - damp
+    vtr1 = vt1 + dely * wr3  # vt1 - (delz wr2 - dely wr3), delz = wr2 = 0
+    vtr2 = vt2 - delx * wr3  # vt2 - (delx wr3 - delz wr1)
+    if update:
+        s0 += vtr1 * dt
+        s1 += vtr2 * dt
+    shrmag = math.sqrt(s0 * s0 + s1 * s1)
+    rsht = (s0 * delx + s1 * dely) * rsqinv
+    if update:
+        s0 -= rsht * delx
+        s1 -= rsht * dely
+    gt = meff * gammat
+    fs1 = -(kt * s0 + gt * vtr1)
+    fs2 = -(kt * s1 + gt * vtr2)
+    fs = math.sqrt(fs1 * fs1 + fs2 * fs2)
+    fn = mu * abs(ccel * r)
+    sliding = False
+    if fs > fn:
+        sliding = True
+        if shrmag != 0.0:
+            s0 = (fn / fs) * (s0 + gt * vtr1 / kt) - gt * vtr1 / kt
+            s1 = (fn / fs) * (s1 + gt * vtr2 / kt) - gt * vtr2 / kt
+            fs1 *= fn / fs
+            fs2 *= fn / fs
+        else:
+            fs1 = 0.0
+            fs2 = 0.0
+    fx = delx * ccel + fs1
+    fy = dely * ccel + fs2
+    tor3 = rinv * (delx * fs2 - dely * fs1)
+    return fx, fy, -(radi * tor3), -(radj * tor3), s0, s1, sliding, ccel * r

@@ -55,7 +55,7 @@ class BiaxialSettings:
 
 def default_settings(packing: Packing, kn: float = 1e5, damping_ratio: float = 0.3,
                      steps_per_contact: float = 50.0, strain_rate: float | None = None,
-                     strain: float = 0.005) -> tuple[DEMSettings, BiaxialSettings]:
+                     strain: float = 0.005, flavour: str = "liggghts") -> tuple[DEMSettings, BiaxialSettings]:
     """Settings that run in minutes on a 1002-disk assembly and are quasi-static.
 
     kt = kn (Kuhn), mu = 0.5; gamma_n = gamma_t = 2 zeta sqrt(kn/m_eff) for the median disk
@@ -64,6 +64,7 @@ def default_settings(packing: Packing, kn: float = 1e5, damping_ratio: float = 0
     1002-disk assembly at the start of compression) for a dense 2D assembly
     (mean force ~ p D50 / 2, overlap = force/kn). The strain rate gives I ~ 5e-5 unless given.
     The servo gain makes the box react over ~100 steps: gain = 0.01 / (kn dt).
+    ``flavour``: whose arithmetic the engine follows, "liggghts" or "lammps" (:class:`DEMSettings`).
     """
     kn = as_positive_float(kn, "kn")
     damping_ratio = as_positive_float(damping_ratio, "damping_ratio", allow_zero=True)
@@ -77,7 +78,8 @@ def default_settings(packing: Packing, kn: float = 1e5, damping_ratio: float = 0
     p = 2.5e-4 * kn
     if strain_rate is None:
         strain_rate = 5e-5 / (d50 * np.sqrt(packing.density / p))
-    dem = DEMSettings(kn=kn, kt=kn, gamma_n=gamma, gamma_t=gamma, mu=0.5, dt=dt, skin=0.05 * d50)
+    dem = DEMSettings(kn=kn, kt=kn, gamma_n=gamma, gamma_t=gamma, mu=0.5, dt=dt, skin=0.05 * d50,
+                      flavour=flavour)
     bi = BiaxialSettings(confining=p, strain=strain, strain_rate=strain_rate, servo_gain=0.01 / (kn * dt))
     return dem, bi
 

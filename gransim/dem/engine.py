@@ -165,6 +165,8 @@ class DEMEngine:
         self.mean_overlap = 0.0
         self.n_rebuilds = 0
         self._parallel = s.mode == "parallel"
+        # LAMMPS' arithmetic in the force loop (DEMSettings.flavour, docs/lammps.md)
+        self._lammps = s.flavour == "lammps"
         # numba threads of this engine's kernels, set around each call and restored after
         self._threads = check_threads(threads) if self._parallel else None
         self._pvir = np.zeros((n, 4))
@@ -238,14 +240,14 @@ class DEMEngine:
                 K.forces_parallel(self.x, self.v, self.w, self.r, self.m, self.start, self.eb, self.esx, self.esy,
                                   self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt,
                                   update, self.f, self.t, self._pvir, self.slide, self.ef, self._tb, self._pcont,
-                                  self._in_start, self._in_e, True)
+                                  self._in_start, self._in_e, True, self._lammps)
             self.virial[:] = self._pvir.sum(axis=0)
             nc, so = self._pcont.sum(axis=0)
         else:
             nc, so = K.forces_half(self.x, self.v, self.w, self.r, self.m, self.ea, self.eb, self.esx,
                                    self.esy, self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n,
                                    s.gamma_t, s.mu, s.dt, update, self.f, self.t, self.virial, self.slide,
-                                   self.ef, True)
+                                   self.ef, True, self._lammps)
         self.n_contacts = round(nc)
         self.mean_overlap = so / nc if nc else 0.0
 
@@ -374,7 +376,8 @@ class DEMEngine:
                     self.hi_hold, self.virial, s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, s.skin, self.step,
                     nsteps - done, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
                     out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:], out_ke[done:],
-                    self._parallel, self.start, self._pvir, self._pcont, self._tb, self._in_start, self._in_e)
+                    self._parallel, self.start, self._pvir, self._pcont, self._tb, self._in_start, self._in_e,
+                    self._lammps)
             if k:
                 self._check_divergence(self.step + 1, out_ke[done:done + k], out_stress[done:done + k],
                                        out_L[done:done + k], L_before)

@@ -3,6 +3,11 @@
 Order of one step (LIGGGHTS 3.8.0 ``verlet.cpp``, serial; shared notes liggghts-3.8.md):
 ``initial_integrate`` -> ``check_rebuild`` (-> ``pbc_wrap`` + new list) -> ``forces_*`` ->
 ``final_integrate`` -> box change with ``remap_x``.
+
+``lammps`` (the force loops, ``run_block``): LAMMPS 29Sep2021 arithmetic instead (``DEMSettings``
+``flavour="lammps"``, docs/lammps.md): the law :func:`~gransim.contacts.hooke.hooke_history_lammps`
+and the spring of a list entry reset to zero whenever its pair does not touch. The step, the
+integrator, the box deformation and the neighbour list are the same in both codes.
 """
 
 from __future__ import annotations
@@ -12,7 +17,7 @@ import math
 import numpy as np
 
 from .._numba import njit, pjit, prange
-from ..contacts.hooke import hooke_history
+from ..contacts.hooke import hooke_history, hooke_history_lammps
 
 
 @njit
@@ -116,9 +121,11 @@ def overlapping(x, r, ea, eb, esx, esy, Lx, Ly):
 
 
 @njit(inline="always")
-def _entry(e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update):
+def _entry(e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update, lammps):
     """One list entry (a, b, s): branch d = x_a - (x_b + s L), and when the disks touch
-    (rsq < radsum^2, LIGGGHTS' test) the contact law with the spring of the entry updated in place.
+    (rsq < radsum^2, the test of both codes) the contact law with the spring of the entry updated in
+    place. ``lammps``: LAMMPS' law, and a pair that does not touch gets its spring zeroed
+    (``PairGranHookeHistory::compute``); LIGGGHTS keeps it until the next list build.
 
     Returns (touch, delx, dely, rsq, radsum, fx, fy, torque on a, torque on b, sliding); the
     force (fx, fy) acts on a. Shared by the serial and the threaded loop: the same operations
@@ -129,19 +136,42 @@ def _entry(e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt,
     rsq = delx * delx + dely * dely
     radsum = r[a] + r[b]
     if rsq < radsum * radsum:
-        fx, fy, ta, tb, s0, s1, sl, _ = hooke_history(
-            delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
-            m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
+        if lammps:
+            fx, fy, ta, tb, s0, s1, sl, _ = hooke_history_lammps(
+                delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
+                m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
+        else:
+            fx, fy, ta, tb, s0, s1, sl, _ = hooke_history(
+                delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
+                m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
         xi[e, 0] = s0
         xi[e, 1] = s1
         return True, delx, dely, rsq, radsum, fx, fy, ta, tb, sl
+    if lammps:
+        xi[e, 0] = 0.0
+        xi[e, 1] = 0.0
     return False, delx, dely, rsq, radsum, 0.0, 0.0, 0.0, 0.0, False
 
 
 @njit
 def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
-                kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store):
-    """Serial force loop over a half list (LIGGGHTS ``newton off``).
+                kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store, lammps=False):
+    """Serial force loop over a half list (LIGGGHTS ``newton off``; ``lammps``: :func:`_entry`).
+
+    Arguments and result: :func:`_forces_half`, compiled once per flavour (the flag is a
+    constant in each copy of the loop: the LIGGGHTS loop stays as fast as without the option).
+    """
+    if lammps:
+        return _forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
+                            kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store, True)
+    return _forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
+                        kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store, False)
+
+
+@njit(inline="always")
+def _forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
+                 kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store, lammps):
+    """Serial force loop over a half list (LIGGGHTS ``newton off``; ``lammps``: :func:`_entry`).
 
     Entries (a, b, s): b's image x_b + s L (L = current box lengths). ``both`` entries (s = 0,
     both owned) apply the force to a and -force to b; entries across the boundary exist once per
@@ -166,7 +196,7 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
         a = ea[e]
         b = eb[e]
         touch, delx, dely, rsq, radsum, fx, fy, ta, tb, sl = _entry(
-            e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update)
+            e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update, lammps)
         if touch:
             if store:
                 slide[e] = sl
@@ -200,7 +230,7 @@ def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
 
 @pjit
 def forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update,
-                    f, t, pvir, slide, ef, tb, pcont, in_start, in_e, store):
+                    f, t, pvir, slide, ef, tb, pcont, in_start, in_e, store, lammps=False):
     """Threaded force loop over the same half list as :func:`forces_half` (CSR by a: entries of
     a in start[a]:start[a+1]; ``in_e[in_start[p]:in_start[p+1]]`` the owned entries whose b is
     p). Pass 1 (threads over a): each entry once (spring update, force on a ``ef``, torque on b
@@ -223,7 +253,7 @@ def forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt
         for e in range(start[a], start[a + 1]):
             b = eb[e]
             touch, delx, dely, rsq, radsum, fx, fy, tq, tqb, sl = _entry(
-                e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update)
+                e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update, lammps)
             if touch:
                 if store:
                     slide[e] = sl
@@ -311,11 +341,12 @@ def box_target(step, L_old, sig_servo, dt, modes, rates, targets, gains, lo0, hi
 def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold, lo, hi, lo_hold,
               hi_hold, vir, kn, kt, gn, gt, mu, dt, skin, step0, nsteps, resume,
               modes, rates, targets, gains, lo0, hi0, phase_step0,
-              out_stress, out_L, out_nc, out_ov, out_ke, parallel, start, pvir, pcont, tb, in_start, in_e):
+              out_stress, out_L, out_nc, out_ov, out_ke, parallel, start, pvir, pcont, tb, in_start, in_e,
+              lammps=False):
     """Steps step0+1 .. step0+nsteps until a neighbour rebuild is needed (force loop serial over
     the half list, or with ``parallel`` the threaded ``forces_parallel`` over the same list with
     CSR ``start``, incoming CSR ``in_start``/``in_e`` and scratch ``pvir`` (N, 4), ``pcont``
-    (N, 2), ``tb`` (M,)).
+    (N, 2), ``tb`` (M,)); ``lammps``: LAMMPS' arithmetic in the force loop (:func:`_entry`).
 
     Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the step
     step0+completed+1 has done its first half step; call again with ``resume`` True after the
@@ -339,7 +370,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         Ly = hi[1] - lo[1]
         if parallel:
             forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, True,
-                            f, t, pvir, slide, ef, tb, pcont, in_start, in_e, k == nsteps - 1)
+                            f, t, pvir, slide, ef, tb, pcont, in_start, in_e, k == nsteps - 1, lammps)
             for c in range(4):
                 vir[c] = 0.0
             nc = 0.0
@@ -351,7 +382,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
                 so += pcont[i, 1]
         else:
             nc, so = forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt,
-                                 True, f, t, vir, slide, ef, k == nsteps - 1)
+                                 True, f, t, vir, slide, ef, k == nsteps - 1, lammps)
         ke = final_integrate(v, w, f, t, m, r, dt)
         inv = 1.0 / (Lx * Ly)
         L_old[0] = Lx

@@ -84,7 +84,8 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
     With ``resume`` and an existing ``out_path`` of the same run (same fingerprint: packing,
     DEM settings, phases), continue from its checkpoint bit for bit; a file of another run is
     refused (:class:`ResultFileError`), and so is another sampling of the series or snapshots
-    (``output.series_every`` / ``snapshot_every`` differing from the file's, :class:`InputError`).
+    (``output.series_every`` / ``snapshot_every`` differing from the file's, :class:`InputError`)
+    or another ``settings.flavour`` (LIGGGHTS' or LAMMPS' arithmetic, :class:`InputError`).
     A :class:`SimulationError` (NaN, kinetic-energy blow-up, lost particle) writes the file with
     the snapshots so far and ``stop_reason`` before it propagates.
 
@@ -108,6 +109,7 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
     state = {"phase": 0, "phase_step0": 0, "lo0": eng.lo.tolist(), "hi0": eng.hi.tolist(), "settled": 0}
     if resume and out_path.exists():
         rec = read_record(out_path)
+        _check_same_flavour(out_path, rec.settings_text, settings)
         if rec.fingerprint != fp:
             raise ResultFileError(f"{out_path}: belongs to another run (fingerprint {rec.fingerprint[:12]} != "
                                   f"{fp[:12]}: different packing, settings or phases); refusing to resume")
@@ -234,6 +236,20 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
     _checkpoint(rec, eng, state)
     write_run(out_path, rec)
     return out_path
+
+
+def _check_same_flavour(path, settings_text: str, settings: DEMSettings):
+    """A resume must keep the arithmetic (``DEMSettings.flavour``) of the file it continues: a run
+    half in LIGGGHTS' and half in LAMMPS' arithmetic would match neither code. A file written
+    before the option existed was computed in LIGGGHTS' arithmetic."""
+    try:
+        stored = json.loads(settings_text).get("dem", {}).get("flavour", "liggghts")
+    except (ValueError, AttributeError):
+        return  # an unreadable settings text: the fingerprint check refuses the file
+    if stored != settings.flavour:
+        raise InputError(f"flavour = {settings.flavour!r} differs from flavour = {stored!r} of the run in "
+                         f"{path}: a resume would mix the arithmetic of two DEM codes in one run; resume "
+                         f"with flavour {stored!r} (or start a new file)")
 
 
 def _check_same_sampling(path, stored: dict | None, output: OutputSettings):

@@ -9,6 +9,9 @@ from dataclasses import dataclass, field
 from .._validate import as_positive_float, check_choice
 from ..errors import InputError
 
+#: the established DEM codes whose arithmetic the engine can follow (DEMSettings.flavour)
+FLAVOURS = ("liggghts", "lammps")
+
 
 @dataclass(frozen=True)
 class DEMSettings:
@@ -25,6 +28,10 @@ class DEMSettings:
     mode : "serial" (half list, LIGGGHTS' order: the mode that is compared step for step) or
         "parallel" (the same half list over numba threads: each pair once, then a per-particle
         gather of the partner forces; deterministic, summation order differs).
+    flavour : whose arithmetic the engine reproduces bit for bit: "liggghts" (LIGGGHTS-PUBLIC
+        3.8.0, ``hooke/stiffness`` + ``tangential history``; the default) or "lammps" (LAMMPS
+        29 Sep 2021, ``gran/hooke/history``: full radii as lever arms, damping inside the Coulomb
+        cap, springs reset when a pair stops touching; docs/lammps.md). Same physics otherwise.
     """
 
     kn: float = 1.0e5
@@ -35,6 +42,7 @@ class DEMSettings:
     dt: float = 1.0e-6
     skin: float = 1.0e-4
     mode: str = "serial"
+    flavour: str = "liggghts"
 
     def __post_init__(self):
         for name in ("kn", "dt", "skin"):
@@ -42,6 +50,7 @@ class DEMSettings:
         for name in ("kt", "gamma_n", "gamma_t", "mu"):
             object.__setattr__(self, name, as_positive_float(getattr(self, name), name, allow_zero=True))
         check_choice(self.mode, "mode", ("serial", "parallel"))
+        check_choice(self.flavour, "flavour", FLAVOURS)
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)

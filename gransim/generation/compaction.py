@@ -108,7 +108,8 @@ def compaction_run(packing: Packing):
         dist = dist.scaled(m["mean_diameter_target"])
     gas, dem, loading = _setup(dist, m["n"], m["seed"], m["friction"], m["pressure_over_kn"], m["phi_gas"],
                                packing.density, m["dem"]["kn"])
-    if dem.to_dict() != m["dem"]:
+    # packings written before DEMSettings had a flavour were made in LIGGGHTS' arithmetic (the only one)
+    if dem.to_dict() != {"flavour": "liggghts", **m["dem"]}:
         raise InputError("packing: the DEM settings rebuilt from its metadata differ from the stored ones "
                          "(made by another gransim version?)")
     return gas, dem, loading, int(m["dem_steps"])

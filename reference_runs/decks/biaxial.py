@@ -1,4 +1,4 @@
-"""LIGGGHTS 3.8.0 deck of a DEM run that mirrors gransim.dem.DEMEngine step for step.
+"""LIGGGHTS 3.8.0 (or LAMMPS 29Sep2021) deck of a DEM run that mirrors gransim.dem.DEMEngine step for step.
 
 Same contact law (``hooke/stiffness`` + ``tangential history``, mass-scaled damping), time step,
 skin and neighbour rule (``neigh_modify delay 0 every 1 check yes``), no atom sorting
@@ -15,6 +15,13 @@ Thermo prints, every ``thermo_every`` steps at %.17g, the step, box (lx ly xlo x
 and a separate ``compute pressure`` (virial only) evaluated after ``fix deform``: the stress the
 engine reports. A ``dump custom`` writes id x y vx vy omegaz fx fy tqz mass radius every
 ``dump_every`` steps at %.17g.
+
+``engine="lammps"`` writes the LAMMPS (29 Sep 2021, Debian ``lmp``) form of the same run
+(``in.lammps``, docs/lammps.md): ``pair_style gran/hooke/history KN KT GAMMAN GAMMAT MU 1``,
+``set group all density/disc RHO`` after ``read_data`` (this build reads the density column
+as 3D: m = 4/3 pi r^3 rho), ``fix nve/sphere disc`` (I = m r^2/2), ``comm_modify mode single
+vel yes``, ``compute pressure NULL virial``, ``dump_modify ... format line``. The native engine
+mirrors it with ``DEMSettings(flavour="lammps")``.
 """
 
 from __future__ import annotations
@@ -31,7 +38,12 @@ def _g(v: float) -> str:
     return f"{float(v):.17g}"
 
 
-def _deform_axis(name: str, ctl, L0: float, dt: float) -> tuple[list[str], str]:
+ENGINES = ("liggghts", "lammps")
+#: deck file name per engine (the run's log: log.liggghts / log.lammps)
+DECK_NAMES = {"liggghts": "in.biaxial", "lammps": "in.lammps"}
+
+
+def _deform_axis(name: str, ctl, L0: float, dt: float, temp: str = "thermo_temp") -> tuple[list[str], str]:
     """Variable lines and the fix deform keyword of one axis (or "" for a fixed axis)."""
     if ctl.mode == "fixed":
         return [], ""
@@ -41,23 +53,30 @@ def _deform_axis(name: str, ctl, L0: float, dt: float) -> tuple[list[str], str]:
     else:
         k = dt * ctl.gain
         comp = "1" if name == "x" else "2"
-        lines = [f"compute ps{name} all pressure thermo_temp virial",
+        lines = [f"compute ps{name} all pressure {temp} virial",
                  f"fix avs{name} all ave/time 1 1 1 c_ps{name}[{comp}]",
                  f"variable d{name} equal (l{name}-{_g(L0)})+{_g(k)}*(f_avs{name}-{_g(ctl.target)})*l{name}"]
     return lines, f"{name} variable v_d{name} v_zero"
 
 
 def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading: Loading, nsteps: int,
-                       thermo_every: int = 1, dump_every: int = 100, velocities=None, spins=None) -> Path:
-    """Write ``in.biaxial`` and ``data.biaxial`` into ``job_dir``; return the deck path.
+                       thermo_every: int = 1, dump_every: int = 100, velocities=None, spins=None,
+                       engine: str = "liggghts") -> Path:
+    """Write the deck (``in.biaxial`` for LIGGGHTS, ``in.lammps`` for LAMMPS) and
+    ``data.biaxial`` into ``job_dir``; return the deck path.
 
     Outputs of the run (in job_dir): the log (thermo), ``dump.atoms`` (dump custom).
-    Run: :func:`run_liggghts` (``run_job``: log ``log.lammps``), or by hand
-    ``liggghts -in in.biaxial -log log.liggghts -screen none -nocite``.
+    Run: :func:`run_deck` (``run_job``), or by hand
+    ``liggghts -in in.biaxial -log log.liggghts -screen none -nocite`` /
+    ``lmp -in in.lammps -log log.lammps -screen none -nocite``.
+    ``engine``: "liggghts" or "lammps" (ValueError otherwise).
     """
     import numpy as np
 
     from gransim.dem import kernels
+
+    if engine not in ENGINES:
+        raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
 
     job = Path(job_dir)
     job.mkdir(parents=True, exist_ok=True)
@@ -72,44 +91,64 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
                     wrap=False)
     s = settings
     Lx, Ly = float(packing.cell[0, 0]), float(packing.cell[1, 1])
-    xl, xa = _deform_axis("x", loading.x, Lx, s.dt)
-    yl, ya = _deform_axis("y", loading.y, Ly, s.dt)
+    temp = "NULL" if engine == "lammps" else "thermo_temp"
+    xl, xa = _deform_axis("x", loading.x, Lx, s.dt, temp)
+    yl, ya = _deform_axis("y", loading.y, Ly, s.dt, temp)
     # servo computes must precede their use, ave/time fixes must precede fix deform
     pre = [ln for ln in xl + yl if not ln.startswith("variable")]
     var = [ln for ln in xl + yl if ln.startswith("variable")]
     deform = ""
     if xa or ya:
         deform = f"fix deform all deform 1 {xa} {ya} remap x".replace("  ", " ")
-    lines = [
-        "# gransim.dem mirror deck (reference_runs/decks/biaxial.py)",
-        "units si", "dimension 2", "atom_style sphere", "atom_modify map array sort 0 0.0",
-        "boundary p p p", "newton off", "communicate single vel yes",
-        "read_data data.biaxial",
-        f"neighbor {_g(s.skin)} bin", "neigh_modify delay 0 every 1 check yes",
-        f"timestep {_g(s.dt)}",
-        "fix m1 all property/global kn peratomtypepair 1 " + _g(s.kn),
-        "fix m2 all property/global kt peratomtypepair 1 " + _g(s.kt),
-        "fix m3 all property/global gamman peratomtypepair 1 " + _g(s.gamma_n),
-        "fix m4 all property/global gammat peratomtypepair 1 " + _g(s.gamma_t),
-        "fix m5 all property/global coefficientFriction peratomtypepair 1 " + _g(s.mu),
-        "pair_style gran model hooke/stiffness tangential history",
-        "pair_coeff * *",
-        "fix integr all nve/sphere", "fix e2d all enforce2d",
-        "variable zero equal 0",
-        *pre, *var,
-    ]
+    if engine == "lammps":
+        lines = [
+            "# gransim.dem mirror deck, LAMMPS form (reference_runs/decks/biaxial.py)",
+            "units si", "dimension 2", "atom_style sphere", "atom_modify map array sort 0 0.0",
+            "boundary p p p", "newton off", "comm_modify mode single vel yes",
+            "read_data data.biaxial",
+            # read_data takes the density column as 3D in this build: 2D masses pi r^2 rho
+            f"set group all density/disc {_g(packing.density)}",
+            f"neighbor {_g(s.skin)} bin", "neigh_modify delay 0 every 1 check yes",
+            f"timestep {_g(s.dt)}",
+            (f"pair_style gran/hooke/history {_g(s.kn)} {_g(s.kt)} {_g(s.gamma_n)} {_g(s.gamma_t)} "
+             f"{_g(s.mu)} 1"),
+            "pair_coeff * *",
+            "fix integr all nve/sphere disc", "fix e2d all enforce2d",
+            "variable zero equal 0",
+            *pre, *var,
+        ]
+    else:
+        lines = [
+            "# gransim.dem mirror deck (reference_runs/decks/biaxial.py)",
+            "units si", "dimension 2", "atom_style sphere", "atom_modify map array sort 0 0.0",
+            "boundary p p p", "newton off", "communicate single vel yes",
+            "read_data data.biaxial",
+            f"neighbor {_g(s.skin)} bin", "neigh_modify delay 0 every 1 check yes",
+            f"timestep {_g(s.dt)}",
+            "fix m1 all property/global kn peratomtypepair 1 " + _g(s.kn),
+            "fix m2 all property/global kt peratomtypepair 1 " + _g(s.kt),
+            "fix m3 all property/global gamman peratomtypepair 1 " + _g(s.gamma_n),
+            "fix m4 all property/global gammat peratomtypepair 1 " + _g(s.gamma_t),
+            "fix m5 all property/global coefficientFriction peratomtypepair 1 " + _g(s.mu),
+            "pair_style gran model hooke/stiffness tangential history",
+            "pair_coeff * *",
+            "fix integr all nve/sphere", "fix e2d all enforce2d",
+            "variable zero equal 0",
+            *pre, *var,
+        ]
     if deform:
         lines.append(deform)
+    fmt = "line " if engine == "lammps" else ""  # LAMMPS: dump_modify format line "..."
     lines += [
-        "compute pt all pressure thermo_temp virial",
+        f"compute pt all pressure {temp} virial",
         "thermo_style custom step lx ly xlo xhi ylo yhi c_pt[1] c_pt[2] c_pt[4]",
         "thermo_modify format float %.17g norm no",
         f"thermo {int(thermo_every)}",
         f"dump d1 all custom {int(dump_every)} dump.atoms id x y vx vy omegaz fx fy tqz mass radius",
-        "dump_modify d1 sort id format \"%d" + " %.17g" * 10 + "\"",
+        f"dump_modify d1 sort id format {fmt}\"%d" + " %.17g" * 10 + "\"",
         f"run {int(nsteps)}",
     ]
-    deck = job / "in.biaxial"
+    deck = job / DECK_NAMES[engine]
     with atomic_path(deck) as tmp:
         Path(tmp).write_text("\n".join(lines) + "\n")
     return deck
@@ -166,36 +205,103 @@ def short_case():
     return p, s, ld, SHORT_CASE_STEPS
 
 
-def run_liggghts(deck: Path, np: int = 1, timeout: float | None = 600.0) -> Path:
+def run_deck(deck: Path, engine: str = "liggghts", np: int = 1, timeout: float | None = 600.0) -> Path:
     """Run a deck written by :func:`write_biaxial_deck` in its directory; returns the log path.
 
-    A thin wrapper over :func:`reference_runs.runner.run_job` (job directory = the deck's
-    directory, ``np`` MPI processes, always rerun): the deck is copied to ``in.liggghts``, the
-    log is ``log.lammps`` and a ``manifest.json`` records command, version and hashes.
+    ``engine``: "liggghts" or "lammps" (the code the deck was written for). Through
+    :func:`reference_runs.runner.run_job` (job directory = the deck's directory, ``np`` MPI
+    processes, always rerun; the deck is copied to the runner's deck name, the log is
+    ``log.lammps`` and a ``manifest.json`` records command, version and hashes) when the runner
+    takes ``engine=``, else (LAMMPS with a runner that only knows LIGGGHTS)
+    ``lmp -in in.lammps -log log.lammps -screen none -nocite`` directly, with the same checks.
     ``timeout`` (s, None: no limit) kills the job after that time (``ReferenceRunError`` with
     ``timed_out=True``). Raises :class:`~reference_runs.errors.ReferenceRunError` (binary missing,
-    non-zero exit, ERROR or unexpected WARNING lines, no ``dump.atoms``, a log or dump short of the
-    runs and frames the deck asks for) quoting the log.
+    non-zero exit, ERROR or WARNING lines, no ``dump.atoms``, a log short of the run) quoting the log.
     """
+    import inspect
+
     from reference_runs.runner import run_job
 
+    if engine not in ENGINES:
+        raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
     deck = Path(deck)
     data = (deck.parent / "data.biaxial").read_bytes()
-    res = run_job(deck.parent, deck.read_text(), files={"data.biaxial": data}, np=np, timeout=timeout,
-                  outputs=("dump.atoms",), expected_runs=1, progress=False, force=True)
-    return res.log_path
+    kw = {"files": {"data.biaxial": data}, "np": np, "timeout": timeout, "outputs": ("dump.atoms",),
+          "expected_runs": 1, "progress": False, "force": True}
+    if "engine" in inspect.signature(run_job).parameters:
+        return run_job(deck.parent, deck.read_text(), engine=engine, **kw).log_path
+    if engine == "liggghts":
+        return run_job(deck.parent, deck.read_text(), **kw).log_path
+    return _run_lmp(deck, np, timeout)
 
 
-def make_stored(out_dir, timeout: float | None = 600.0) -> Path:
-    """Run the short case with LIGGGHTS (serial, :func:`run_liggghts`) and store deck, data, log
-    and dump with a README. The job runs in a scratch directory; the stored names are the
-    deck's own (``in.biaxial``, ``log.liggghts``), as read by tests/dem/test_liggghts.py."""
+def _run_lmp(deck: Path, np: int, timeout: float | None) -> Path:
+    """``lmp -in DECK -log log.lammps -screen none -nocite`` in the deck's directory (own process
+    group, killed on timeout); checks exit status, ERROR/WARNING lines, the loop and the dump."""
+    import os
+    import shutil
+    import signal
+    import subprocess
+
+    from reference_runs.errors import ReferenceRunError
+
+    job = deck.parent
+    lmp = shutil.which("lmp")
+    if lmp is None:
+        raise ReferenceRunError("LAMMPS binary `lmp` not found on PATH (Debian: apt-get install lammps)",
+                                job_dir=job)
+    cmd = [lmp, "-in", deck.name, "-log", "log.lammps", "-screen", "none", "-nocite"]
+    if np > 1:
+        mpi = ["mpirun", "-np", str(int(np))] + (["--allow-run-as-root"] if os.geteuid() == 0 else [])
+        cmd = mpi + cmd
+    log = job / "log.lammps"
+    proc = subprocess.Popen(cmd, cwd=job, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            start_new_session=True)
+    try:
+        out, _ = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        raise ReferenceRunError(f"LAMMPS job {job}: killed after the timeout of {timeout} s", job_dir=job,
+                                timed_out=True) from None
+    lines = log.read_text(errors="replace").splitlines() if log.exists() else []
+    bad = [ln for ln in lines if ln.startswith(("ERROR", "WARNING"))]
+    bad += [ln for ln in out.decode(errors="replace").splitlines() if "ERROR" in ln or "WARNING" in ln]
+    problems = []
+    if proc.returncode != 0:
+        problems.append(f"exit status {proc.returncode}")
+    if bad:
+        problems.append("ERROR or WARNING lines")
+    if not any(ln.startswith("Loop time") for ln in lines):
+        problems.append("log.lammps has no `Loop time` line (the run did not finish)")
+    if not (job / "dump.atoms").exists():
+        problems.append("no dump.atoms")
+    if problems:
+        raise ReferenceRunError(f"LAMMPS job {job}: {'; '.join(problems)}", job_dir=job,
+                                log_lines=(bad or lines[-10:])[:20], problems=problems)
+    return log
+
+
+def run_liggghts(deck: Path, np: int = 1, timeout: float | None = 600.0) -> Path:
+    """:func:`run_deck` with ``engine="liggghts"`` (kept for its callers)."""
+    return run_deck(deck, "liggghts", np=np, timeout=timeout)
+
+
+def make_stored(out_dir, timeout: float | None = 600.0, engine: str = "liggghts") -> Path:
+    """Run the short case with LIGGGHTS or LAMMPS (serial, :func:`run_deck`) and store deck, data,
+    log and dump with a README. The job runs in a scratch directory; the stored names are the
+    deck's own (``in.biaxial`` + ``log.liggghts``, or ``in.lammps`` + ``log.lammps``), as read by
+    tests/dem/test_liggghts.py and tests/dem/test_lammps.py."""
     import datetime
     import shutil
     import tempfile
 
     from gransim.io import liggghts_version
 
+    if engine not in ENGINES:
+        raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
+    if engine == "lammps":
+        return _make_stored_lammps(Path(out_dir), timeout)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     p, s, ld, n = short_case()
@@ -221,5 +327,54 @@ def make_stored(out_dir, timeout: float | None = 600.0) -> Path:
   make_stored('reference_runs/stored/biaxial-short')"`.
 - Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}
 - Used by: tests/dem/test_liggghts.py (tolerances: positions 1e-10 D50, stresses 1e-8 relative).
+""")
+    return out
+
+
+def _make_stored_lammps(out: Path, timeout: float | None) -> Path:
+    """:func:`make_stored` for LAMMPS (reference_runs/stored/biaxial-short-lammps)."""
+    import datetime
+    import shutil
+    import subprocess
+    import tempfile
+
+    out.mkdir(parents=True, exist_ok=True)
+    p, s, ld, n = short_case()
+    with tempfile.TemporaryDirectory(prefix="biaxial-short-lammps-") as tmp:
+        deck = write_biaxial_deck(tmp, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY,
+                                  engine="lammps")
+        log = run_deck(deck, "lammps", timeout=timeout)
+        for src, name in ((deck, "in.lammps"), (Path(tmp) / "data.biaxial", "data.biaxial"),
+                          (log, "log.lammps"), (Path(tmp) / "dump.atoms", "dump.atoms")):
+            shutil.copyfile(src, out / name)
+    lines = (out / "log.lammps").read_text().splitlines()
+    head = lines[0]
+    builds = next((ln.split("=")[1].strip() for ln in lines if ln.startswith("Neighbor list builds")), "?")
+    lmp = shutil.which("lmp") or "lmp"
+    try:
+        pkg = subprocess.run(["dpkg-query", "-W", "-f", "${Version}", "lammps"], capture_output=True,
+                             text=True, timeout=30, check=False).stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        pkg = "unknown"
+    title = "biaxial-short-lammps: LAMMPS reference for the DEM engine (step for step)"
+    (out / "README.md").write_text(f"""# {title}
+
+- Case: `reference_runs.decks.biaxial.short_case()` (120 disks, servo on x to 100 N/m, y at
+  -1 1/s, mu 0.5, kn = kt = 1e5 N/m, damping 50 1/s, dt 2e-6 s, skin 2e-5 m), {n} steps: the
+  same case as `../biaxial-short` (LIGGGHTS), the same data file.
+- Code: {head} (`{lmp}`, Debian package lammps {pkg}), serial, 1 MPI process;
+  {builds} neighbour list builds in the run.
+- Files: `in.lammps` (deck, written by `reference_runs/decks/biaxial.py` with `engine="lammps"`),
+  `data.biaxial` (data file, %.17g; masses set by `set group all density/disc`), `log.lammps`
+  (thermo every step: box and virial stress after `fix deform`, %.17g), `dump.atoms` (dump
+  custom every {SHORT_CASE_DUMP_EVERY} steps).
+- Command: `lmp -in in.lammps -log log.lammps -screen none -nocite` in a scratch job directory
+  (`reference_runs.decks.biaxial.run_deck(deck, "lammps")`; deck and data as here).
+- Regenerate: `python -c "from reference_runs.decks.biaxial import make_stored;
+  make_stored('reference_runs/stored/biaxial-short-lammps', engine='lammps')"`.
+- Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}
+- Used by: tests/dem/test_lammps.py (native `DEMSettings(flavour="lammps")`; measured: exactly
+  equal; tolerances positions 1e-10 D50, stresses 1e-8 relative). Differences of the two codes:
+  docs/lammps.md.
 """)
     return out
