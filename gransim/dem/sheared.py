@@ -1,0 +1,556 @@
+"""True periodic simple shear: the DEM in a sheared (triclinic) periodic cell, LAMMPS' convention.
+
+The cell is LAMMPS' triclinic box (``change_box all triclinic``): lower corner lo, edge vectors
+a1 = (Lx, 0) and a2 = (xy, Ly), h = [[Lx, xy], [0, Ly]]; the image of particle j with shift
+s = (s_x, s_y) lies at x_j + s_x a1 + s_y a2. The shear is ``fix deform 1 xy erate RATE remap v``
+(Lees-Edwards): positions are *not* mapped affinely when the tilt changes; instead an image seen
+across the y boundary moves with v_j + s_y (d xy/dt, d Ly/dt), and a particle that crosses y is
+wrapped with its x velocity changed by -/+ d xy/dt (its peculiar velocity, relative to the
+homogeneous shear flow u(y) = (d xy/dt) y / Ly, is kept). The y axis is fixed (constant-volume
+shear) or under a normal-stress servo expressed as LAMMPS' ``fix deform y variable v_dy v_ry``:
+
+    del(n) = (Ly(n-1) - Ly0) + dt g (sigma_yy(n) - target) Ly(n-1),   y = y0 -/+ del/2,
+    h_rate[1] = g (sigma_yy(n) - target) Ly(n-1)          (the velocity jump of the y images)
+
+with sigma_yy(n) the virial stress of step n over the area of box n-1 (a ``fix ave/time`` of
+``compute pressure NULL virial`` defined before ``fix deform``, compression positive) and g the
+gain (1/(Pa s)): more stress than the target expands the cell. Only the y axis moves: the tilt
+stays xy and Lx fixed.
+
+One step, as LAMMPS 29 Sep 2021 ``Verlet::run`` (serial, ``newton off``, ``neigh_modify delay 0
+every 1 check yes``, ``atom_modify sort 0 0.0``):
+
+1. ``fix nve/sphere disc`` first half (:func:`gransim.dem.kernels.initial_integrate`);
+2. neighbour decision: some |x - x_hold| > (skin - d1 - d2)/2, d1, d2 from the 8 box corners
+   (``Neighbor::check_distance``);
+3. on a build: springs saved (``fix neigh/history``: those of touching entries), x -> lamda,
+   wrap in lamda with the velocity jumps (``Domain::pbc``), lamda -> x, new list, springs restored;
+4. forces: image positions owner + shift of the current box (the box of step n-1), from lamda on
+   a build step; image velocities with the Lees-Edwards jump; virial;
+5. second half step;
+6. ``fix deform`` end of step: the box of step n (tilt linear over the run ``begin``..``end``:
+   xy(n) = xy0 + (n - begin)/(end - begin) (xy_stop - xy0), xy_stop = xy0 + (end - begin) dt
+   rate Ly0; then LAMMPS' tilt wrap), stress of step n = virial / (Lx Ly) of box n (thermo).
+
+The contact law is ``gransim.contacts.hooke.hooke_history_lammps`` when it exists (else
+``hooke_history``, see :data:`gransim.dem.sheared_kernels.LAMMPS_LAW_NAME`), with LAMMPS'
+reset of the spring of an entry that does not touch. ``flavour="liggghts"`` instead keeps
+LIGGGHTS' bookkeeping (``hooke_history``, no reset, hand-over of overlapping pairs, orthogonal
+wrap and box check): a zero-tilt cell then reproduces :class:`gransim.dem.DEMEngine` (it needs
+zero tilt and a fixed box, the only case both can express). Details and sources: docs/shear.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._validate import as_int, check_choice
+from ..errors import InputError, SimulationError
+from ..geometry import Packing
+from . import kernels as K
+from . import sheared_kernels as SK
+from .engine import (
+    LOST_DISPLACEMENT_SKINS,
+    STEPS_PER_CONTACT_MIN,
+    contact_time,
+    damping_ratio,
+    stability_limit,
+)
+from .settings import DEMSettings
+
+FLAVOURS = ("lammps", "liggghts")
+
+
+def _number(value, name: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected a number, got {value!r}") from None
+    if not np.isfinite(v):
+        raise InputError(f"{name}: expected a finite number, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class ShearLoading:
+    """Loading of the sheared cell (LAMMPS ``fix deform 1 xy erate ERATE [y variable ...] remap v``).
+
+    Attributes
+    ----------
+    erate : engineering shear rate (1/s): d xy/dt = erate * Ly0 (Ly0 the height at the start of
+        the run), LAMMPS ``xy erate``. 0: no shear.
+    y : "fixed" (constant volume) or "servo" (normal stress on y, see the module docstring).
+    target : servo target sigma_yy, compression positive (N/m in 2D).
+    gain : servo gain g (1/(Pa s)), > 0 for "servo".
+    """
+
+    erate: float = 0.0
+    y: str = "fixed"
+    target: float = 0.0
+    gain: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "erate", _number(self.erate, "erate"))
+        check_choice(self.y, "y control", ("fixed", "servo"))
+        object.__setattr__(self, "target", _number(self.target, "target"))
+        object.__setattr__(self, "gain", _number(self.gain, "gain"))
+        if self.y == "servo" and not self.gain > 0:
+            raise InputError(f"gain: the y servo needs a gain > 0 (1/(Pa s)), got {self.gain!r}")
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+class ShearEngine:
+    """State and stepping of one DEM run in a sheared periodic cell (arrays updated in place).
+
+    Parameters
+    ----------
+    packing : initial packing; its cell [[Lx, xy], [0, Ly]] (a1 = (Lx, 0), a2 = (xy, Ly), |xy| <=
+        Lx/2, as a LAMMPS triclinic box); the box is [0, Lx] x [0, Ly] with tilt xy.
+    settings : DEMSettings (kn, kt, gamma_n, gamma_t, mu, dt, skin; ``mode`` must be "serial").
+    velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
+    flavour : "lammps" (default) or "liggghts" (see the module docstring).
+    check_dt : refuse a time step above :func:`gransim.dem.engine.stability_limit`.
+
+    Attributes (after construction = LAMMPS ``run`` set-up: list built, forces without spring
+    increment): x (N, 2), v, w, f, t, box (lo_x, lo_y, hi_x, hi_y, xy), h_rate (h_rate[0],
+    h_rate[1], h_rate[5]), step, virial (xx, yy, xy, yx), stress (2, 2, compression positive).
+    """
+
+    def __init__(
+        self,
+        packing: Packing,
+        settings: DEMSettings,
+        velocities=None,
+        spins=None,
+        flavour: str = "lammps",
+        check_dt: bool = True,
+    ):
+        check_choice(flavour, "flavour", FLAVOURS)
+        if not isinstance(settings, DEMSettings):
+            raise InputError(f"settings: expected a DEMSettings, got {type(settings).__name__}")
+        if settings.mode != "serial":
+            raise InputError(
+                f"settings.mode: the sheared cell runs the serial loop only, got {settings.mode!r}"
+            )
+        C = np.asarray(packing.cell, np.float64)
+        if C[1, 0] != 0.0:
+            raise InputError(
+                f"packing.cell: a LAMMPS triclinic cell has a1 = (Lx, 0): cell[1, 0] must be 0, "
+                f"got {C[1, 0]!r}"
+            )
+        Lx, Ly, xy = float(C[0, 0]), float(C[1, 1]), float(C[0, 1])
+        if not (Lx > 0 and Ly > 0):
+            raise InputError(f"packing.cell: Lx and Ly must be > 0, got {Lx!r}, {Ly!r}")
+        if abs(xy) > 0.5 * Lx:
+            raise InputError(
+                f"packing.cell: tilt xy = {xy!r} m beyond Lx/2 = {0.5 * Lx!r} m (LAMMPS needs |xy| <= Lx/2)"
+            )
+        if flavour == "liggghts" and xy != 0.0:
+            raise InputError(
+                "flavour 'liggghts': needs a cell without tilt (LIGGGHTS' bookkeeping is "
+                f"orthogonal), got xy = {xy!r}"
+            )
+        s = settings
+        if check_dt:
+            lim = stability_limit(packing, s)
+            if s.dt > lim:
+                z = damping_ratio(packing, s)
+                raise InputError(
+                    f"dt = {s.dt:.4g} s is above the stability limit {lim:.4g} s (contact time "
+                    f"{contact_time(packing, max(s.kn, s.kt)):.4g} s / {STEPS_PER_CONTACT_MIN:g}, "
+                    f"damping ratio {z:.4g})"
+                )
+        heights = np.array([Lx * Ly / np.hypot(Ly, xy), Ly])
+        cut = 2 * (2.0 * float(packing.radii.max()) + s.skin)
+        if heights.min() <= cut:
+            raise InputError(
+                f"packing.cell: cell heights {heights[0]:.4g}, {heights[1]:.4g} m must exceed "
+                f"2 (2 r_max + skin) = {cut:.4g} m (one periodic image per pair)"
+            )
+        self.packing = packing
+        self.settings = s
+        self.flavour = flavour
+        self._lmp = flavour == "lammps"
+        n = packing.n
+        self.r = np.ascontiguousarray(packing.radii, np.float64)
+        self.m = np.pi * self.r * self.r * float(packing.density)  # LAMMPS set density/disc: MY_PI*r*r*rho
+        self.x = np.array(packing.positions, np.float64)
+        self.v = np.zeros((n, 2)) if velocities is None else np.array(velocities, np.float64).reshape(n, 2)
+        self.w = np.zeros(n) if spins is None else np.array(spins, np.float64).reshape(n)
+        for name, a in (("positions", self.x), ("velocities", self.v), ("spins", self.w)):
+            if not np.all(np.isfinite(a)):
+                raise InputError(f"{name}: expected finite numbers")
+        self.f = np.zeros((n, 2))
+        self.t = np.zeros(n)
+        self.box = np.array([0.0, 0.0, Lx, Ly, xy])
+        self.h_rate = np.zeros(3)
+        self.lam = np.zeros((n, 2))
+        self.step = 0
+        self.virial = np.zeros(4)
+        self.n_contacts = 0
+        self.mean_overlap = 0.0
+        self.n_rebuilds = 0
+        self._build_step = 0
+        self.ea = np.zeros(0, np.int32)
+        self.eb = np.zeros(0, np.int32)
+        self.esx = np.zeros(0)
+        self.esy = np.zeros(0)
+        self.both = np.zeros(0, np.bool_)
+        self.xi = np.zeros((0, 2))
+        self.touch = np.zeros(0, np.bool_)
+        self.slide = np.zeros(0, np.bool_)
+        self.ef = np.zeros((0, 2))
+        self.start = np.zeros(n + 1, np.int64)
+        self.corners_hold = np.zeros((8, 2))
+        self.box_hold = self.box.copy()
+        self._run = None  # (begin, end, loading) of the current fix deform run
+        self._rebuild(carry=False)
+        self._forces(update=False, use_lam=self._lmp)
+        self.stress = self.stress_tensor()
+
+    # ------------------------------------------------------------------ geometry
+    @property
+    def cell(self) -> np.ndarray:
+        """Current cell [[Lx, xy], [0, Ly]] (m), columns the lattice vectors."""
+        b = self.box
+        return np.array([[b[2] - b[0], b[4]], [0.0, b[3] - b[1]]])
+
+    @property
+    def area(self) -> float:
+        b = self.box
+        return float((b[2] - b[0]) * (b[3] - b[1]))
+
+    def stress_tensor(self) -> np.ndarray:
+        """Love stress sigma_ab = (1/(Lx Ly)) sum d_a f_b (compression positive, N/m), (2, 2);
+        [0, 1] = sum d_x f_y is LAMMPS' ``compute pressure`` component 4 (xy)."""
+        inv = 1.0 / ((self.box[2] - self.box[0]) * (self.box[3] - self.box[1]))
+        v = self.virial
+        return np.array([[v[0] * inv, v[2] * inv], [v[3] * inv, v[1] * inv]])
+
+    # ------------------------------------------------------------------ neighbours
+    def _rebuild(self, carry: bool):
+        if self._lmp:
+            SK.x2lamda(self.x, self.box, self.lam)
+            bad = SK.pbc_lamda(self.lam, self.v, self.h_rate, True)
+            if bad >= 0:
+                raise SimulationError(
+                    f"step {self.step}: particle {bad} lost (lamda {self.lam[bad].tolist()}, "
+                    f"more than a cell outside the box)"
+                )
+            SK.lamda2x(self.lam, self.box, self.x)
+        else:
+            bad = K.pbc_wrap(self.x, self.box[0:2].copy(), self.box[2:4].copy())
+            if bad >= 0:
+                raise SimulationError(f"step {self.step}: particle {bad} lost (at {self.x[bad].tolist()})")
+            SK.x2lamda(self.x, self.box, self.lam)
+        a, b, sx, sy, both, selfimg = SK.build_list(
+            self.x, self.lam, self.r, self.box, self.settings.skin, self._lmp
+        )
+        if selfimg >= 0:
+            raise SimulationError(
+                f"step {self.step}: particle {selfimg} is near its own image; the cell is too small"
+            )
+        xi = np.zeros((a.size, 2))
+        if carry and self.ea.size:
+            SK.hand_over(
+                self.x,
+                self.r,
+                self.box,
+                a,
+                b,
+                sx,
+                sy,
+                self.start,
+                self.eb,
+                self.both,
+                self.xi,
+                self.touch,
+                self._lmp,
+                xi,
+            )
+        self.ea, self.eb, self.esx, self.esy, self.both, self.xi = a, b, sx, sy, both, xi
+        self.touch = np.zeros(a.size, np.bool_)
+        self.slide = np.zeros(a.size, np.bool_)
+        self.ef = np.zeros((a.size, 2))
+        self.start = np.zeros(self.packing.n + 1, np.int64)
+        np.cumsum(np.bincount(a, minlength=self.packing.n), out=self.start[1:])
+        self.xhold = self.x.copy()
+        SK.box_corners(self.box, self.corners_hold)
+        self.box_hold = self.box.copy()
+        self._build_step = self.step
+        self.n_rebuilds += 1
+
+    def _forces(self, update: bool, use_lam: bool):
+        s = self.settings
+        nc, so = SK.forces(
+            self.x,
+            self.lam,
+            use_lam,
+            self.v,
+            self.w,
+            self.r,
+            self.m,
+            self.ea,
+            self.eb,
+            self.esx,
+            self.esy,
+            self.both,
+            self.xi,
+            self.touch,
+            self.box,
+            self.h_rate,
+            s.kn,
+            s.kt,
+            s.gamma_n,
+            s.gamma_t,
+            s.mu,
+            s.dt,
+            update,
+            self._lmp,
+            self.f,
+            self.t,
+            self.virial,
+            self.slide,
+            self.ef,
+        )
+        self.n_contacts = round(nc)
+        self.mean_overlap = so / nc if nc else 0.0
+
+    def _check_lost(self):
+        d = np.sqrt(np.einsum("ij,ij->i", self.x - self.xhold, self.x - self.xhold))
+        i = int(np.argmax(d)) if d.size else 0
+        skin = self.settings.skin
+        if d.size and d[i] > LOST_DISPLACEMENT_SKINS * skin:
+            raise SimulationError(
+                f"step {self.step + 1}: particle {i} lost: it moved {d[i]:.4g} m = "
+                f"{d[i] / skin:.3g} skins since the neighbour build of step {self._build_step} "
+                f"(velocity {self.v[i].tolist()} m/s, dt {self.settings.dt:.4g} s)"
+            )
+
+    # ------------------------------------------------------------------ stepping
+    def start_run(self, loading: ShearLoading, nsteps: int):
+        """Begin a LAMMPS ``run nsteps`` under ``loading``: ``fix deform`` init (the tilt runs
+        linearly from its value now to xy + nsteps dt erate Ly over the run; h_rate[5] =
+        (xy_stop - xy_start) / (nsteps dt), h_rate[1] = 0 until the first servo step), then the
+        run's set-up evaluation (``Verlet::setup``). Returns the set-up stress (2, 2), LAMMPS'
+        thermo at the first step of the run."""
+        if not isinstance(loading, ShearLoading):
+            raise InputError(f"loading: expected a ShearLoading, got {type(loading).__name__}")
+        nsteps = as_int(nsteps, "nsteps", 1)
+        if self.flavour == "liggghts" and (loading.erate != 0.0 or loading.y != "fixed"):
+            raise InputError("flavour 'liggghts': only a fixed box (erate 0, y fixed) is supported")
+        s = self.settings
+        begin = self.step
+        end = begin + nsteps
+        delt = float(end - begin) * s.dt
+        b = self.box
+        tilt_start = float(b[4])
+        tilt_stop = tilt_start + delt * loading.erate * (b[3] - b[1])
+        self.h_rate[:] = 0.0
+        if loading.erate != 0.0:
+            self.h_rate[2] = (tilt_stop - tilt_start) / delt
+        self._run = {
+            "begin": begin,
+            "end": end,
+            "loading": loading,
+            "tilt_start": tilt_start,
+            "tilt_stop": tilt_stop,
+            "y_lo": float(b[1]),
+            "y_hi": float(b[3]),
+            "ly0": float(b[3] - b[1]),
+        }
+        # Verlet::setup after fix deform init: wrap (with this run's h_rate), list build with the
+        # springs handed over, forces without spring increment (images see the run's h_rate)
+        self._rebuild(carry=True)
+        self._forces(update=False, use_lam=self._lmp)
+        self.stress = self.stress_tensor()
+        return self.stress.copy()
+
+    def advance(self, nsteps: int) -> dict:
+        """Advance ``nsteps`` steps of the current run (:meth:`start_run`); returns per-step series.
+
+        Returns
+        -------
+        dict with ``step`` (n,), ``stress`` (n, 2, 2) (compression positive, N/m; virial / area of
+        the box after the step), ``box`` (n, 5) (lx, ly, xy, ylo, yhi; m), ``n_contacts`` (n,),
+        ``mean_overlap`` (n,) (m), ``kinetic_energy`` (n,) (J, of the full velocities).
+
+        Raises
+        ------
+        InputError when no run was started or the run would be passed. SimulationError naming the
+        step on a non-finite position, a lost particle, a collapsed cell or a tilt beyond Lx/2.
+        """
+        if self._run is None:
+            raise InputError("advance: call start_run(loading, nsteps) first (the fix deform of the run)")
+        run = self._run
+        nsteps = as_int(
+            nsteps,
+            "nsteps",
+            0,
+            run["end"] - self.step,
+            note=f" (the run ends at step {run['end']}, now at step {self.step})",
+        )
+        s = self.settings
+        ld = run["loading"]
+        out_stress = np.zeros((nsteps, 4))
+        out_box = np.zeros((nsteps, 5))
+        out_nc = np.zeros(nsteps)
+        out_ov = np.zeros(nsteps)
+        out_ke = np.zeros(nsteps)
+        step_start = self.step
+        done = 0
+        resume = False
+        kgain = s.dt * ld.gain
+        while done < nsteps:
+            k, status, bad = SK.run_block(
+                self.x,
+                self.v,
+                self.w,
+                self.f,
+                self.t,
+                self.r,
+                self.m,
+                self.lam,
+                self.ea,
+                self.eb,
+                self.esx,
+                self.esy,
+                self.both,
+                self.xi,
+                self.touch,
+                self.slide,
+                self.ef,
+                self.xhold,
+                self.corners_hold,
+                self.box,
+                self.box_hold,
+                self.h_rate,
+                self.virial,
+                s.kn,
+                s.kt,
+                s.gamma_n,
+                s.gamma_t,
+                s.mu,
+                s.dt,
+                s.skin,
+                self._lmp,
+                self.step,
+                nsteps - done,
+                resume,
+                run["begin"],
+                run["end"],
+                ld.erate != 0.0,
+                run["tilt_start"],
+                run["tilt_stop"],
+                ld.y == "servo",
+                run["y_lo"],
+                run["y_hi"],
+                run["ly0"],
+                kgain,
+                ld.gain,
+                ld.target,
+                out_stress[done:],
+                out_box[done:],
+                out_nc[done:],
+                out_ov[done:],
+                out_ke[done:],
+            )
+            done += k
+            self.step += k
+            resume = False
+            if status == 1:
+                self._check_lost()
+                self.step += 1
+                self._rebuild(carry=True)
+                self.step -= 1
+                resume = True
+            elif status == 2:
+                raise SimulationError(
+                    f"step {self.step + 1}: particle {bad} has a non-finite position "
+                    f"{self.x[bad].tolist()} (velocity {self.v[bad].tolist()})"
+                )
+            elif status == 3:
+                raise SimulationError(
+                    f"step {self.step + 1}: the cell collapsed or its tilt passed Lx/2 "
+                    f"(box {self.box.tolist()}; LAMMPS would flip the box, not supported)"
+                )
+            if done < nsteps and k == 0 and not resume:
+                raise SimulationError(f"step {self.step + 1}: no progress")  # pragma: no cover
+        if nsteps:
+            self.n_contacts = round(out_nc[-1])
+            self.mean_overlap = float(out_ov[-1])
+            self.stress = self.stress_tensor()
+        st = np.empty((nsteps, 2, 2))
+        st[:, 0, 0] = out_stress[:, 0]
+        st[:, 1, 1] = out_stress[:, 1]
+        st[:, 0, 1] = out_stress[:, 2]
+        st[:, 1, 0] = out_stress[:, 3]
+        return {
+            "step": np.arange(step_start + 1, step_start + nsteps + 1),
+            "stress": st,
+            "box": out_box,
+            "n_contacts": np.rint(out_nc).astype(np.int64),
+            "mean_overlap": out_ov,
+            "kinetic_energy": out_ke,
+        }
+
+    # ------------------------------------------------------------------ diagnostics
+    def kinetic_energy(self) -> float:
+        """Translational + rotational (I = m r^2/2) kinetic energy (J) of the lab-frame velocities."""
+        return float(
+            0.5 * np.sum(self.m * np.einsum("ij,ij->i", self.v, self.v))
+            + 0.25 * np.sum(self.m * self.r**2 * self.w**2)
+        )
+
+    def peculiar_velocities(self) -> np.ndarray:
+        """v - u(x) (m/s), (N, 2): u the homogeneous flow of the cell, u_x = h_rate[5] (y - ylo)/Ly,
+        u_y = h_rate[1] (y - ylo)/Ly (continuous across the Lees-Edwards boundary)."""
+        b = self.box
+        f = (self.x[:, 1] - b[1]) / (b[3] - b[1])
+        return self.v - np.stack([self.h_rate[2] * f, self.h_rate[1] * f], axis=1)
+
+
+def simple_shear(
+    packing: Packing,
+    settings: DEMSettings,
+    loading: ShearLoading,
+    nsteps: int,
+    velocities=None,
+    spins=None,
+    flavour: str = "lammps",
+    every: int | None = None,
+    callback=None,
+) -> dict:
+    """Simple shear of ``packing`` for ``nsteps`` steps (one LAMMPS ``run``); per-step series.
+
+    ``loading`` (:class:`ShearLoading`): constant-volume shear (``y="fixed"``) or shear under
+    the y normal-stress servo. ``callback(engine)`` is called every ``every`` steps (and at the end),
+    e.g. to record positions. Returns the dict of :meth:`ShearEngine.advance` plus ``setup_stress``
+    (2, 2) (the set-up evaluation, LAMMPS' thermo at step 0), ``shear_strain`` (n,) (xy / Ly0) and
+    ``engine`` (the final state).
+    """
+    nsteps = as_int(nsteps, "nsteps", 1)
+    if every is not None:
+        every = as_int(every, "every", 1)
+    eng = ShearEngine(packing, settings, velocities=velocities, spins=spins, flavour=flavour)
+    ly0 = float(eng.box[3] - eng.box[1])
+    setup = eng.start_run(loading, nsteps)
+    parts = []
+    chunk = every or nsteps
+    while eng.step < nsteps:
+        parts.append(eng.advance(min(chunk, nsteps - eng.step)))
+        if callback is not None:
+            callback(eng)
+    out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    out["setup_stress"] = setup
+    out["shear_strain"] = (out["box"][:, 2] - float(packing.cell[0, 1])) / ly0
+    out["engine"] = eng
+    return out
+
+
+__all__ = ["FLAVOURS", "ShearEngine", "ShearLoading", "simple_shear"]

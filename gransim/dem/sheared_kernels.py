@@ -1,0 +1,654 @@
+"""Numba kernels of the sheared (triclinic) periodic cell, in the arithmetic of LAMMPS.
+
+The cell is LAMMPS' 2D triclinic box: lo = (lo_x, lo_y), h = [[Lx, xy], [0, Ly]] (``h[0]``,
+``h[1]``, ``h[5]`` of ``Domain``), stored as ``box = [lo_x, lo_y, hi_x, hi_y, xy]``. The image of
+particle j with shift s = (s_x, s_y) lies at x_j + s_x (Lx, 0) + s_y (xy, Ly); under ``fix deform
+... remap v`` (Lees-Edwards) it moves with v_j + s_x (h_rate[0], 0) + s_y (h_rate[5], h_rate[1]).
+``hr = [h_rate[0], h_rate[1], h_rate[5]]`` (m/s). The floating-point operations follow LAMMPS
+29 Sep 2021 (``src/domain.cpp`` ``x2lamda``/``lamda2x``/``pbc``/``lamda_box_corners``,
+``src/atom_vec*.cpp`` ``pack_comm_vel``/``pack_border_vel``, ``src/neighbor.cpp``
+``check_distance``, ``src/fix_deform.cpp`` ``end_of_step``, ``src/fix_neigh_history.cpp``); see
+docs/shear.md. The time integration is :func:`gransim.dem.kernels.initial_integrate` /
+:func:`~gransim.dem.kernels.final_integrate` (LAMMPS' ``fix nve/sphere disc`` is the same
+arithmetic).
+
+The contact law: ``gransim.contacts.hooke.hooke_history_lammps`` (LAMMPS' order) when that
+module has it, else ``hooke_history`` (LIGGGHTS' order); :data:`LAMMPS_LAW_NAME` says which.
+The kernels that call the law are compiled without the on-disk cache, so that a change of the law
+module is always picked up (numba's cache does not track functions called from another module).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._numba import njit
+from ..contacts import hooke
+from . import kernels as K
+
+_law_lmp = getattr(hooke, "hooke_history_lammps", None)
+#: name of the law function used for flavour "lammps"
+LAMMPS_LAW_NAME = "hooke_history_lammps" if _law_lmp is not None else "hooke_history"
+if _law_lmp is None:
+    _law_lmp = hooke.hooke_history
+_law_lig = hooke.hooke_history
+
+
+# --------------------------------------------------------------------------- box arithmetic
+@njit
+def x2lamda(x, box, lam):
+    """Domain::x2lamda for 2D (h_inv[5] = -xy/(Lx Ly)); the z terms add signed zeros only."""
+    h0 = box[2] - box[0]
+    h1 = box[3] - box[1]
+    hi0 = 1.0 / h0
+    hi1 = 1.0 / h1
+    hi5 = -box[4] / (h0 * h1)
+    for i in range(x.shape[0]):
+        d0 = x[i, 0] - box[0]
+        d1 = x[i, 1] - box[1]
+        lam[i, 0] = hi0 * d0 + hi5 * d1
+        lam[i, 1] = hi1 * d1
+
+
+@njit
+def lamda2x(lam, box, x):
+    """Domain::lamda2x for 2D: x = (Lx l0 + xy l1) + lo_x, y = Ly l1 + lo_y."""
+    h0 = box[2] - box[0]
+    h1 = box[3] - box[1]
+    h5 = box[4]
+    for i in range(x.shape[0]):
+        x[i, 0] = ((h0 * lam[i, 0] + h5 * lam[i, 1]) + 0.0) + box[0]
+        x[i, 1] = (h1 * lam[i, 1] + 0.0) + box[1]
+
+
+@njit
+def pbc_lamda(lam, v, hr, vremap):
+    """Domain::pbc in lamda coordinates (period 1): x first, then y; with ``vremap`` a particle
+    crossing y changes its velocity by -/+ (h_rate[5], h_rate[1]), crossing x by -/+ h_rate[0].
+    Returns a particle still outside [0, 1) after one wrap (lost), or -1."""
+    bad = -1
+    for i in range(lam.shape[0]):
+        if lam[i, 0] < 0.0:
+            lam[i, 0] += 1.0
+            if vremap:
+                v[i, 0] += hr[0]
+        if lam[i, 0] >= 1.0:
+            lam[i, 0] -= 1.0
+            lam[i, 0] = max(lam[i, 0], 0.0)
+            if vremap:
+                v[i, 0] -= hr[0]
+        if lam[i, 1] < 0.0:
+            lam[i, 1] += 1.0
+            if vremap:
+                v[i, 0] += hr[2]
+                v[i, 1] += hr[1]
+        if lam[i, 1] >= 1.0:
+            lam[i, 1] -= 1.0
+            lam[i, 1] = max(lam[i, 1], 0.0)
+            if vremap:
+                v[i, 0] -= hr[2]
+                v[i, 1] -= hr[1]
+        if bad < 0 and not (0.0 <= lam[i, 0] < 1.0 and 0.0 <= lam[i, 1] < 1.0):
+            bad = i
+    return bad
+
+
+@njit
+def box_corners(box, out):
+    """Domain::lamda_box_corners (8 corners, x fastest, then y, then z) of the 2D box: (8, 2)."""
+    h0 = box[2] - box[0]
+    h1 = box[3] - box[1]
+    h5 = box[4]
+    for c in range(8):
+        a = 1.0 if c & 1 else 0.0
+        b = 1.0 if c & 2 else 0.0
+        out[c, 0] = ((h0 * a + h5 * b) + 0.0) + box[0]
+        out[c, 1] = (h1 * b + 0.0) + box[1]
+
+
+@njit
+def check_rebuild_corners(x, xhold, box, corners_hold, skin):
+    """Neighbor::check_distance of a triclinic box: the skin is reduced by the largest and the
+    'second' displacement of the 8 corners (LAMMPS' if / else-if, kept as it is), trigger
+    |x - x_hold|^2 > (0.5 (skin - (d1 + d2)))^2. Returns (rebuild, non-finite particle or -1)."""
+    cn = np.empty((8, 2))
+    box_corners(box, cn)
+    d1 = 0.0
+    d2 = 0.0
+    for c in range(8):
+        dx = cn[c, 0] - corners_hold[c, 0]
+        dy = cn[c, 1] - corners_hold[c, 1]
+        d = math.sqrt(dx * dx + dy * dy + 0.0)
+        if d > d1:
+            d1 = d
+        elif d > d2:
+            d2 = d
+    delta = max(0.5 * (skin - (d1 + d2)), 0.0)
+    deltasq = delta * delta
+    flag = False
+    for i in range(x.shape[0]):
+        if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1])):
+            return True, i
+        dx = x[i, 0] - xhold[i, 0]
+        dy = x[i, 1] - xhold[i, 1]
+        if dx * dx + dy * dy + 0.0 > deltasq:
+            flag = True
+    return flag, -1
+
+
+@njit
+def deform_end_of_step(
+    step,
+    begin,
+    end,
+    box,
+    hr,
+    vir,
+    erate_on,
+    tilt_start,
+    tilt_stop,
+    servo_on,
+    y_lo_start,
+    y_hi_start,
+    ly0,
+    kgain,
+    gain,
+    target,
+):
+    """FixDeform::end_of_step for ``xy erate`` (linear between tilt_start and tilt_stop over the
+    run ``begin``..``end``) and ``y variable`` (servo: del = (ly - ly0) + kgain (s_yy - target) ly,
+    lo = lo_start - del/2, hi = hi_start + del/2, h_rate[1] = gain (s_yy - target) ly, s_yy the
+    virial stress of this step over the area of the current box), then the tilt wrap of LAMMPS
+    (add/subtract Lx until the tilt is closest to the current one). Updates ``box`` and ``hr``.
+    Returns False when the cell collapsed or the tilt passed half the box length (LAMMPS would
+    flip the box: not supported)."""
+    delta = float(step - begin)
+    if delta != 0.0:
+        delta /= float(end - begin)
+    h0 = box[2] - box[0]
+    h1 = box[3] - box[1]
+    h5 = box[4]
+    lo1 = box[1]
+    hi1 = box[3]
+    if servo_on:
+        syy = vir[1] * (1.0 / (h0 * h1))
+        dl = (h1 - ly0) + kgain * (syy - target) * h1
+        lo1 = y_lo_start - 0.5 * dl
+        hi1 = y_hi_start + 0.5 * dl
+        hr[1] = gain * (syy - target) * h1
+    if erate_on:
+        tt = tilt_start + delta * (tilt_stop - tilt_start)
+    else:
+        tt = h5
+    denom = box[2] - box[0]
+    current = h5 / h0
+    while tt / denom - current > 0.0:
+        tt -= denom
+    while tt / denom - current < 0.0:
+        tt += denom
+    if abs(tt / denom - 1.0 - current) < abs(tt / denom - current):
+        tt -= denom
+    box[1] = lo1
+    box[3] = hi1
+    box[4] = tt
+    xprd = box[2] - box[0]
+    yprd = box[3] - box[1]
+    if not (yprd > 0.0):
+        return False
+    return -0.5 * xprd <= tt <= 0.5 * xprd
+
+
+# --------------------------------------------------------------------------- neighbour list
+@njit(inline="always")
+def _image_x(b, sx, sy, x, lam, use_lam, box):
+    """Position of the image (b, s): from lamda (LAMMPS borders + lamda2x, the step of a list
+    build) or owner + shift of the current box (LAMMPS forward_comm, other steps)."""
+    h0 = box[2] - box[0]
+    h1 = box[3] - box[1]
+    h5 = box[4]
+    if use_lam:
+        l0 = lam[b, 0] + sx
+        l1 = lam[b, 1] + sy
+        return ((h0 * l0 + h5 * l1) + 0.0) + box[0], (h1 * l1 + 0.0) + box[1]
+    return (x[b, 0] + sx * h0) + sy * h5, x[b, 1] + sy * h1
+
+
+@njit
+def build_list(x, lam, r, box, skin, use_lam):
+    """Half list of LAMMPS ``newton off`` (``npair_half_size_bin_newtoff``) in the sheared cell.
+
+    Entries (a, b, s): owned pairs once (s = 0, b > a, ``both``), every pair across the boundary
+    once per owner ((a, b, s) and (b, a, -s), each with its own spring). Kept when |x_a - image|^2
+    <= (r_a + r_b + skin)^2, the image as :func:`_image_x` computes it. Candidates from a cell list
+    in lamda coordinates (bins at least the cutoff wide in every direction of the sheared cell) or,
+    when the cell holds fewer than 3 bins a side, all 9 shifts of every pair. Grouped by a.
+    Returns (a, b, sx, sy, both, self_image), self_image >= 0 a particle near its own image.
+    """
+    n = x.shape[0]
+    rmax = 0.0
+    for i in range(n):
+        rmax = max(rmax, r[i])
+    cut = (rmax + rmax) + skin
+    h0 = box[2] - box[0]
+    h1 = box[3] - box[1]
+    h5 = box[4]
+    nbx = int(h0 / (cut * (1.0 + abs(h5) / h1)))
+    nby = int(h1 / cut)
+    binned = nbx >= 3 and nby >= 3
+    if not binned:
+        nbx = 1
+        nby = 1
+    head = -np.ones(nbx * nby, np.int64)
+    nxt = -np.ones(n, np.int64)
+    ibx = np.zeros(n, np.int64)
+    iby = np.zeros(n, np.int64)
+    for i in range(n - 1, -1, -1):
+        if binned:
+            ix = min(max(int(lam[i, 0] * nbx), 0), nbx - 1)
+            iy = min(max(int(lam[i, 1] * nby), 0), nby - 1)
+        else:
+            ix = 0
+            iy = 0
+        ibx[i] = ix
+        iby[i] = iy
+        c = iy * nbx + ix
+        nxt[i] = head[c]
+        head[c] = i
+    self_image = -1
+    m = 0
+    for pass_ in range(2):
+        if pass_ == 1:
+            a_out = np.empty(m, np.int32)
+            b_out = np.empty(m, np.int32)
+            sx_out = np.empty(m)
+            sy_out = np.empty(m)
+            both_out = np.empty(m, np.bool_)
+        m = 0
+        for a in range(n):
+            xa = x[a, 0]
+            ya = x[a, 1]
+            for dyb in range(-1, 2):
+                for dxb in range(-1, 2):
+                    if binned:
+                        jx = ibx[a] + dxb
+                        jy = iby[a] + dyb
+                        sxb = 0.0
+                        syb = 0.0
+                        if jx < 0:
+                            jx += nbx
+                            sxb = -1.0
+                        elif jx >= nbx:
+                            jx -= nbx
+                            sxb = 1.0
+                        if jy < 0:
+                            jy += nby
+                            syb = -1.0
+                        elif jy >= nby:
+                            jy -= nby
+                            syb = 1.0
+                        b = head[jy * nbx + jx]
+                    else:
+                        sxb = float(dxb)
+                        syb = float(dyb)
+                        b = head[0]
+                    owned = sxb == 0.0 and syb == 0.0
+                    while b >= 0:
+                        if (not owned) or b > a:
+                            xb, yb = _image_x(b, sxb, syb, x, lam, use_lam, box)
+                            dx = xa - xb
+                            dy = ya - yb
+                            rc = (r[a] + r[b]) + skin
+                            if dx * dx + dy * dy <= rc * rc:
+                                if pass_ == 1:
+                                    a_out[m] = a
+                                    b_out[m] = b
+                                    sx_out[m] = sxb
+                                    sy_out[m] = syb
+                                    both_out[m] = owned
+                                elif a == b and self_image < 0:
+                                    self_image = a
+                                m += 1
+                        b = nxt[b]
+    return a_out, b_out, sx_out, sy_out, both_out, self_image
+
+
+@njit
+def _find(start, eb, a, b):
+    for k in range(start[a], start[a + 1]):
+        if eb[k] == b:
+            return k
+    return -1
+
+
+@njit
+def hand_over(
+    x, r, box, a_new, b_new, sx_new, sy_new, start_old, eb_old, both_old, xi_old, touch_old, lmp, xi_new
+):
+    """Spring hand-over at a list build. ``lmp`` (LAMMPS ``fix neigh/history``,
+    ``pre_exchange_no_newton`` / ``post_neighbor``): a new entry (a, b) takes the spring of a's old
+    entry with partner b, or minus the one of an owned old entry (b, a), if that entry touched in
+    the last force evaluation; else zero. Otherwise (LIGGGHTS): the same look-up, kept only if the
+    pair overlaps now."""
+    for e in range(a_new.shape[0]):
+        a = a_new[e]
+        b = b_new[e]
+        xi_new[e, 0] = 0.0
+        xi_new[e, 1] = 0.0
+        if not lmp:
+            xb, yb = _image_x(b, sx_new[e], sy_new[e], x, x, False, box)
+            dx = x[a, 0] - xb
+            dy = x[a, 1] - yb
+            rs = r[a] + r[b]
+            if not (dx * dx + dy * dy < rs * rs):
+                continue
+        k = _find(start_old, eb_old, a, b)
+        if k >= 0:
+            if lmp and not touch_old[k]:
+                continue
+            xi_new[e, 0] = xi_old[k, 0]
+            xi_new[e, 1] = xi_old[k, 1]
+        else:
+            k = _find(start_old, eb_old, b, a)
+            if k >= 0 and both_old[k]:
+                if lmp and not touch_old[k]:
+                    continue
+                xi_new[e, 0] = -xi_old[k, 0]
+                xi_new[e, 1] = -xi_old[k, 1]
+
+
+# --------------------------------------------------------------------------- forces and steps
+@njit(cache=False)
+def forces(
+    x,
+    lam,
+    use_lam,
+    v,
+    w,
+    r,
+    m,
+    ea,
+    eb,
+    esx,
+    esy,
+    both,
+    xi,
+    touch,
+    box,
+    hr,
+    kn,
+    kt,
+    gn,
+    gt,
+    mu,
+    dt,
+    update,
+    lmp,
+    f,
+    t,
+    vir,
+    slide,
+    ef,
+):
+    """Serial force loop over the half list (LAMMPS ``newton off``: an owned pair acts on both,
+    a boundary entry on its owner a only; virial 0.5 d (x) f per owner as ``ev_tally_xyz``).
+
+    Image positions by :func:`_image_x`, image velocities v_b + s_x hr[0] + s_y (hr[2], hr[1])
+    (``pack_comm_vel`` with ``deform_vremap``), spins copied. ``lmp``: LAMMPS' law and, for an
+    entry that does not touch, the spring reset to zero (``pair_gran_hooke_history.cpp``); else
+    LIGGGHTS' law and no reset. ``touch`` (M,) receives the contact flag. Returns (contacts,
+    sum of overlaps), each physical contact once.
+    """
+    n = x.shape[0]
+    for i in range(n):
+        f[i, 0] = 0.0
+        f[i, 1] = 0.0
+        t[i] = 0.0
+    for c in range(4):
+        vir[c] = 0.0
+    nc = 0.0
+    so = 0.0
+    for e in range(ea.shape[0]):
+        a = ea[e]
+        b = eb[e]
+        sx = esx[e]
+        sy = esy[e]
+        xb, yb = _image_x(b, sx, sy, x, lam, use_lam, box)
+        delx = x[a, 0] - xb
+        dely = x[a, 1] - yb
+        rsq = delx * delx + dely * dely
+        radsum = r[a] + r[b]
+        if rsq < radsum * radsum:
+            vbx = (v[b, 0] + sx * hr[0]) + sy * hr[2]
+            vby = v[b, 1] + sy * hr[1]
+            if lmp:
+                fx, fy, ta, tb, s0, s1, sl, _ = _law_lmp(
+                    delx,
+                    dely,
+                    rsq,
+                    r[a],
+                    r[b],
+                    v[a, 0],
+                    v[a, 1],
+                    vbx,
+                    vby,
+                    w[a],
+                    w[b],
+                    m[a],
+                    m[b],
+                    kn,
+                    kt,
+                    gn,
+                    gt,
+                    mu,
+                    dt,
+                    xi[e, 0],
+                    xi[e, 1],
+                    update,
+                )
+            else:
+                fx, fy, ta, tb, s0, s1, sl, _ = _law_lig(
+                    delx,
+                    dely,
+                    rsq,
+                    r[a],
+                    r[b],
+                    v[a, 0],
+                    v[a, 1],
+                    vbx,
+                    vby,
+                    w[a],
+                    w[b],
+                    m[a],
+                    m[b],
+                    kn,
+                    kt,
+                    gn,
+                    gt,
+                    mu,
+                    dt,
+                    xi[e, 0],
+                    xi[e, 1],
+                    update,
+                )
+            xi[e, 0] = s0
+            xi[e, 1] = s1
+            touch[e] = True
+            slide[e] = sl
+            ef[e, 0] = fx
+            ef[e, 1] = fy
+            f[a, 0] += fx
+            f[a, 1] += fy
+            t[a] += ta
+            wgt = 0.5
+            if both[e]:
+                f[b, 0] += -fx
+                f[b, 1] += -fy
+                t[b] += tb
+                vir[0] += 0.5 * (delx * fx)
+                vir[1] += 0.5 * (dely * fy)
+                vir[2] += 0.5 * (delx * fy)
+                vir[3] += 0.5 * (dely * fx)
+                wgt = 1.0
+            vir[0] += 0.5 * (delx * fx)
+            vir[1] += 0.5 * (dely * fy)
+            vir[2] += 0.5 * (delx * fy)
+            vir[3] += 0.5 * (dely * fx)
+            nc += wgt
+            so += wgt * (radsum - math.sqrt(rsq))
+        else:
+            touch[e] = False
+            slide[e] = False
+            ef[e, 0] = 0.0
+            ef[e, 1] = 0.0
+            if lmp:
+                xi[e, 0] = 0.0
+                xi[e, 1] = 0.0
+    return nc, so
+
+
+@njit(cache=False)
+def run_block(
+    x,
+    v,
+    w,
+    f,
+    t,
+    r,
+    m,
+    lam,
+    ea,
+    eb,
+    esx,
+    esy,
+    both,
+    xi,
+    touch,
+    slide,
+    ef,
+    xhold,
+    corners_hold,
+    box,
+    box_hold,
+    hr,
+    vir,
+    kn,
+    kt,
+    gn,
+    gt,
+    mu,
+    dt,
+    skin,
+    lmp,
+    step0,
+    nsteps,
+    resume,
+    begin,
+    end,
+    erate_on,
+    tilt_start,
+    tilt_stop,
+    servo_on,
+    y_lo_start,
+    y_hi_start,
+    ly0,
+    kgain,
+    gain,
+    target,
+    out_stress,
+    out_box,
+    out_nc,
+    out_ov,
+    out_ke,
+):
+    """Steps step0+1 .. step0+nsteps of LAMMPS' Verlet (nve/sphere first half, neighbour decision,
+    forces, second half, ``fix deform`` end_of_step) until a list build is needed.
+
+    Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the next
+    step has done its first half step; call again with ``resume`` after the build: its forces use
+    the image positions from lamda), 2 non-finite position, 3 collapsed cell or tilt beyond half
+    the box. Per completed step k: stress (xx, yy, xy, yx; virial / area of the box after the
+    step, compression positive), box (lx, ly, xy, ylo, yhi), contacts, mean overlap, kinetic energy.
+    """
+    for k in range(nsteps):
+        step = step0 + k + 1
+        use_lam = False
+        if resume and k == 0:
+            use_lam = lmp
+        else:
+            K.initial_integrate(x, v, w, f, t, m, r, dt)
+            if lmp:
+                rebuild, bad = check_rebuild_corners(x, xhold, box, corners_hold, skin)
+            else:
+                rebuild, bad = K.check_rebuild(
+                    x, xhold, box[0:2], box[2:4], box_hold[0:2], box_hold[2:4], skin
+                )
+            if bad >= 0:
+                return k, 2, bad
+            if rebuild:
+                return k, 1, -1
+        nc, so = forces(
+            x,
+            lam,
+            use_lam,
+            v,
+            w,
+            r,
+            m,
+            ea,
+            eb,
+            esx,
+            esy,
+            both,
+            xi,
+            touch,
+            box,
+            hr,
+            kn,
+            kt,
+            gn,
+            gt,
+            mu,
+            dt,
+            True,
+            lmp,
+            f,
+            t,
+            vir,
+            slide,
+            ef,
+        )
+        ke = K.final_integrate(v, w, f, t, m, r, dt)
+        ok = deform_end_of_step(
+            step,
+            begin,
+            end,
+            box,
+            hr,
+            vir,
+            erate_on,
+            tilt_start,
+            tilt_stop,
+            servo_on,
+            y_lo_start,
+            y_hi_start,
+            ly0,
+            kgain,
+            gain,
+            target,
+        )
+        if not ok:
+            return k, 3, -1
+        inv = 1.0 / ((box[2] - box[0]) * (box[3] - box[1]))
+        for c in range(4):
+            out_stress[k, c] = vir[c] * inv
+        out_box[k, 0] = box[2] - box[0]
+        out_box[k, 1] = box[3] - box[1]
+        out_box[k, 2] = box[4]
+        out_box[k, 3] = box[1]
+        out_box[k, 4] = box[3]
+        out_nc[k] = nc
+        out_ov[k] = so / nc if nc > 0 else 0.0
+        out_ke[k] = ke
+    return nsteps, 0, -1
