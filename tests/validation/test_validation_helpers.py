@@ -55,3 +55,41 @@ def test_affine_box_motion_gives_perfect_alignment():
     snap2 = snap.replace(contacts_i=snap.contacts_i[perm], contacts_j=snap.contacts_j[perm],
                          contacts_shift=snap.contacts_shift[perm])
     assert cell_signature(VoidCells().compute(snap2)) == cell_signature(vc)
+
+
+def test_envelope_members_of_each_code(tmp_path):
+    """The reference jobs of biaxial-full: each code's reference and its envelope members; the full
+    suite adds 2 MPI processes and twice the neighbour skin (a numerical setting) for both codes."""
+    import numpy as np
+
+    from gransim.dem import DEMSettings
+    from reference_runs.demo_packings import perturbed_lattice
+    from validation.cases.biaxial import SKIN_LABEL, reference_jobs
+    from validation.core import Context
+
+    p = perturbed_lattice(6, 6, seed=1)
+    dem = DEMSettings(skin=3e-5)
+    full = reference_jobs(Context("full", tmp_path, liggghts=True, lammps=True), p, dem, "t", True)
+    for engine in ("liggghts", "lammps"):
+        labels = {lab for e, lab in full if e == engine}
+        assert labels == {"reference", "x of disk 1 moved by +1e-15 rel", "y of disk 19 moved by -1e-15 rel",
+                          "2 MPI processes", SKIN_LABEL}, (engine, labels)
+        for (e, lab), kw in full.items():
+            if e != engine:
+                continue
+            assert kw["settings"].flavour == engine
+            assert kw["settings"].skin == (6e-5 if lab == SKIN_LABEL else 3e-5)
+            assert kw.get("np_procs", 1) == (2 if lab == "2 MPI processes" else 1)
+            moved = np.argwhere(kw["packing"].positions != p.positions)
+            if "moved" in lab:
+                (k, ax), = moved
+                rel = kw["packing"].positions[k, ax] / p.positions[k, ax] - 1
+                assert 0 < abs(rel) < 3e-15
+            else:
+                assert moved.size == 0
+    dirs = [kw["job_dir"] for kw in full.values()]
+    assert len(set(dirs)) == len(dirs)  # no two jobs share a directory
+    default = reference_jobs(Context("default", tmp_path, liggghts=True, lammps=False), p, dem, "t", False)
+    assert {lab for _, lab in default} == {"reference", "x of disk 1 moved by +1e-15 rel",
+                                           "y of disk 19 moved by -1e-15 rel"}
+    assert {e for e, _ in default} == {"liggghts"}

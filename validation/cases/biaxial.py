@@ -282,7 +282,7 @@ FULL_THERMO_EVERY = 10
 PERTURB_REL = 1e-15
 ENVELOPE_FACTOR = 10.0
 ENVELOPE_REASON = ("chaos: LIGGGHTS' own divergence under a round-off perturbation (one coordinate moved by "
-                   "1e-15 relative, two runs; full suite also 1 vs 2 MPI processes) is the envelope E(t) = max over those runs at each output step; "
+                   "1e-15 relative, two runs; full suite also 2 MPI processes and twice the neighbour skin) is the envelope E(t) = max over those runs at each output step; "
                    "native-vs-LIGGGHTS must stay within 10 E(t) at every step (a factor 10 = one decade of "
                    "exponential growth, i.e. the perturbations' onset is uncertain to that)")
 CURVE_REASON = ("band = the largest deviation of the perturbed LIGGGHTS runs from the reference along the "
@@ -298,10 +298,17 @@ def _settings_by_suite(suite: str) -> dict:
 _FULL_CACHE: dict = {}
 
 
+#: the neighbour-setting member of the full suite's envelope: the same deck with twice the skin
+#: (LIGGGHTS keeps a spring while its pair is in the list, LAMMPS rebuilds at other steps: a
+#: change of a numerical setting, not of the physics asked for)
+SKIN_LABEL = "neighbour skin x2"
+SKIN_FACTOR = 2.0
+
+
 def ensemble_labels(n: int, np2: bool) -> list[str]:
     """Labels of the perturbed LIGGGHTS runs of :func:`full_runs` for ``n`` disks."""
     out = ["x of disk 1 moved by +1e-15 rel", f"y of disk {n // 2 + 1} moved by -1e-15 rel"]
-    return out + (["2 MPI processes"] if np2 else [])
+    return out + (["2 MPI processes", SKIN_LABEL] if np2 else [])
 
 
 def lammps_ensemble_labels(n: int, suite: str) -> list[str]:
@@ -317,6 +324,39 @@ def _perturbed(common, k: int, ax: int, sign: float):
     xp = np.array(common.positions)
     xp[k, ax] *= 1.0 + sign * PERTURB_REL
     return Packing(positions=xp, radii=common.radii, cell=common.cell, density=common.density, metadata={})
+
+
+def reference_jobs(ctx: Context, common, dem, tag: str, np2: bool) -> dict:
+    """The reference jobs of the full loading: {(engine, label): keyword arguments of
+    :func:`validation.dem_compare.run_reference_job`} for each available code, its serial
+    reference (label "reference") and its envelope members (:func:`ensemble_labels`,
+    :func:`lammps_ensemble_labels`): a coordinate moved by 1e-15, 2 MPI processes, twice the skin."""
+    import dataclasses
+
+    n = common.n
+    perturb = {"x of disk 1 moved by +1e-15 rel": (0, 0, 1.0), f"y of disk {n // 2 + 1} moved by -1e-15 rel":
+               (n // 2, 1, -1.0)}
+    jobs = {}
+    for engine, avail, labels in (("liggghts", ctx.liggghts, ensemble_labels(n, np2)),
+                                  ("lammps", ctx.lammps, lammps_ensemble_labels(n, ctx.suite))):
+        if not avail:
+            continue
+        base = ctx.work("reference", "biaxial-full" if engine == "liggghts" else "biaxial-full-lammps", tag)
+        settings = _flavour(dem, engine)
+        jobs[(engine, "reference")] = dict(job_dir=base / "reference", packing=common, settings=settings)
+        for label in labels:
+            if label in perturb:
+                k, ax, sign = perturb[label]
+                jobs[(engine, label)] = dict(job_dir=base / f"perturbed-{k}-{ax}", settings=settings,
+                                             packing=_perturbed(common, k, ax, sign))
+            elif label == SKIN_LABEL:
+                jobs[(engine, label)] = dict(job_dir=base / "skin2", packing=common,
+                                             settings=dataclasses.replace(settings, skin=SKIN_FACTOR * settings.skin))
+            elif label == "2 MPI processes":
+                jobs[(engine, label)] = dict(job_dir=base / "np2", packing=common, settings=settings, np_procs=2)
+            else:
+                raise ValueError(f"unknown envelope member {label!r}")
+    return jobs
 
 
 def full_runs(ctx: Context) -> dict:
@@ -368,24 +408,7 @@ def full_runs(ctx: Context) -> dict:
     te = FULL_THERMO_EVERY
     n = common.n
     to = ctx.job_timeout(common.n * nsteps)
-    perturb = {"x of disk 1 moved by +1e-15 rel": (0, 0, 1.0), f"y of disk {n // 2 + 1} moved by -1e-15 rel":
-               (n // 2, 1, -1.0)}
-    jobs = {}  # (engine, label) -> kwargs of run_reference_job
-    for engine, avail, labels in (("liggghts", ctx.liggghts, ensemble_labels(n, cfg["np2"])),
-                                  ("lammps", ctx.lammps, lammps_ensemble_labels(n, ctx.suite))):
-        if not avail:
-            continue
-        base = ctx.work("reference", "biaxial-full" if engine == "liggghts" else "biaxial-full-lammps",
-                        f"strain{bi.strain:g}")
-        settings = _flavour(dem, engine)
-        jobs[(engine, "reference")] = dict(job_dir=base / "reference", packing=common, settings=settings)
-        for label in labels:
-            if label in perturb:
-                k, ax, sign = perturb[label]
-                jobs[(engine, label)] = dict(job_dir=base / f"perturbed-{k}-{ax}", settings=settings,
-                                             packing=_perturbed(common, k, ax, sign))
-            else:  # 2 MPI processes
-                jobs[(engine, label)] = dict(job_dir=base / "np2", packing=common, settings=settings, np_procs=2)
+    jobs = reference_jobs(ctx, common, dem, f"strain{bi.strain:g}", cfg["np2"])
     with ThreadPoolExecutor(max_workers=max(int(ctx.jobs), 1)) as pool:
         futures = {k: pool.submit(run_reference_job, loading=loading, nsteps=nsteps, dump_every=FULL_DUMP_EVERY,
                                   velocities=v, spins=w, thermo_every=te, timeout=to, engine=k[0], **kw)
@@ -544,7 +567,8 @@ def biaxial_full(ctx: Context) -> CaseResult:
         f"(sigma_11 = p by the servo, y at constant rate) to {100 * bi.strain:g}% axial strain ({r['nsteps']} steps). "
         f"Divergence = max |x_a - x_b| / D50 at every dump ({FULL_DUMP_EVERY} steps) and the relative stress "
         f"difference every {FULL_THERMO_EVERY} steps (thermo), against each code's serial run, judged against that "
-        "code's own envelope (its runs under a 1e-15 perturbation; full suite: also 2 MPI processes).")
+        "code's own envelope (its runs under a 1e-15 perturbation; full suite: also 2 MPI processes and twice the "
+        "neighbour skin).")
     res.declare("native-liggghts", ENVELOPE_REASON)
     res.declare("native-lammps", ENVELOPE_REASON.replace("LIGGGHTS", "LAMMPS"))
     res.declare("liggghts-lammps", CROSS_CURVE_REASON)
