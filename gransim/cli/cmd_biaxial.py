@@ -33,6 +33,10 @@ def register(sub) -> None:
     p.add_argument("--mode", choices=("serial", "parallel"), default="serial",
                    help="serial (LIGGGHTS order) or parallel force loop (default serial)")
     p.add_argument("--threads", type=int, help="numba threads for --mode parallel")
+    p.add_argument("--flavour", default="liggghts",
+                   help="whose arithmetic the engine reproduces bit for bit: liggghts (LIGGGHTS-PUBLIC "
+                        "3.8.0, default) or lammps (LAMMPS 29 Sep 2021, docs/lammps.md); recorded in the "
+                        "run file's provenance (parameters dem.flavour)")
     p.add_argument("--resume", action="store_true", help="continue the run in --output from its checkpoint")
     p.add_argument("--plot", help="also write the stress-strain plot (Fig. 7b) to this image")
     p.set_defaults(func=_run)
@@ -67,6 +71,10 @@ def _check_options(args) -> None:
                         ("--series-every", args.series_every, 1), ("--snapshot-every", args.snapshot_every, 1),
                         ("--checkpoint-every", args.checkpoint_every, 0)):
         as_int(v, name, minimum=lo)
+    from ..dem.settings import FLAVOURS
+
+    if args.flavour not in FLAVOURS:
+        raise InputError(f"--flavour: expected one of {', '.join(FLAVOURS)}, got {args.flavour!r}")
     if args.threads is not None:
         from .._numba import check_threads
 
@@ -86,7 +94,7 @@ def _run(args) -> int:
     packing = load_packing(args.packing)
     dem, bi = default_settings(packing, kn=args.kn, damping_ratio=args.damping_ratio,
                                steps_per_contact=args.steps_per_contact, strain_rate=args.strain_rate,
-                               strain=args.strain)
+                               strain=args.strain, flavour=args.flavour)
     dem = dataclasses.replace(dem, mode=args.mode)
     lim = stability_limit(packing, dem)
     if dem.dt > lim:
@@ -107,7 +115,7 @@ def _run(args) -> int:
     summary = run_biaxial(packing, dem, bi, args.output, output=out, resume=args.resume, threads=args.threads,
                           allow_unsettled=args.allow_unsettled)
     print(f"wrote {args.output}: {packing.n} disks, dt {dem.dt:.3g} s, confining {bi.confining:.4g} N/m, "
-          f"rate {bi.strain_rate:.3g} 1/s")
+          f"rate {bi.strain_rate:.3g} 1/s, {dem.flavour} arithmetic")
     for k, v in summary.items():
         print(f"  {k:32s} {v:.6g}" if isinstance(v, float) else f"  {k:32s} {v}")
     if summary.get("unsettled_phases", "none") != "none":

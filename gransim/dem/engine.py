@@ -26,7 +26,7 @@ from .._numba import check_threads, num_threads
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import kernels as K
-from .settings import AxisControl, DEMSettings, Loading
+from .settings import AxisControl, DEMSettings, Loading, PrescribedBox
 
 #: the time step must not exceed contact time / this (stability of the rotational + normal modes)
 STEPS_PER_CONTACT_MIN = 5.0
@@ -109,24 +109,42 @@ def fingerprint(packing: Packing, settings_text: str) -> str:
     return h.hexdigest()
 
 
+def _check_box(box, C):
+    """(lo, hi) float64 (2,) of the ``box`` argument, checked against the cell ``C``."""
+    try:
+        lo, hi = (np.array(b, np.float64).reshape(2) for b in box)
+    except (TypeError, ValueError):
+        raise InputError(f"box: expected (lo, hi) with two numbers each (m), got {box!r}") from None
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi > lo)):
+        raise InputError(f"box: expected finite lo < hi, got lo {lo.tolist()}, hi {hi.tolist()}")
+    L = np.array([C[0, 0], C[1, 1]], np.float64)
+    if np.any(np.abs((hi - lo) - L) > 1e-12 * L):
+        raise InputError(f"box: hi - lo = {(hi - lo).tolist()} m differs from the cell's side lengths "
+                         f"{L.tolist()} m")
+    return lo, hi
+
+
 class DEMEngine:
     """State and stepping of one DEM run (arrays are updated in place for speed).
 
     Parameters
     ----------
     packing : initial packing (orthogonal cell; the box is [0, Lx] x [0, Ly] as in the
-        LIGGGHTS data file gransim writes).
+        LIGGGHTS data file gransim writes, unless ``box`` is given).
     settings : DEMSettings.
     velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
     threads : numba threads of mode "parallel" (None: numba's current count), set around each kernel
         call and restored afterwards, so an engine leaves the process's thread count alone.
+    box : optional (lo, hi), each (2,) (m): the box with its own origin, as a data file's ``xlo xhi
+        ylo yhi`` (the positions are taken as they are, in that box; no translation, which would
+        round them). hi - lo must equal the diagonal of ``packing.cell`` (to 1e-12 relative).
 
     Attributes (after construction = LIGGGHTS ``run`` set-up: forces evaluated without
     spring increment): x, v, w, f, t, lo, hi, step, stress, virial.
     """
 
     def __init__(self, packing: Packing, settings: DEMSettings, velocities=None, spins=None,
-                 threads: int | None = None, check_dt: bool = True):
+                 threads: int | None = None, check_dt: bool = True, box=None):
         C = packing.cell
         if C[0, 1] != 0 or C[1, 0] != 0:
             raise InputError("packing.cell: the DEM engine needs an orthogonal cell "
@@ -159,6 +177,8 @@ class DEMEngine:
         self.t = np.zeros(n)
         self.lo = np.zeros(2)
         self.hi = np.array([C[0, 0], C[1, 1]], np.float64)
+        if box is not None:
+            self.lo, self.hi = _check_box(box, C)
         self.step = 0
         self.virial = np.zeros(4)
         self.n_contacts = 0
@@ -331,14 +351,18 @@ class DEMEngine:
     def advance(self, loading: Loading, nsteps: int = 1, phase_step0: int = 0, phase_box0=None):
         """Advance ``nsteps`` steps under ``loading``; returns a dict of per-step series.
 
-        ``phase_step0`` and ``phase_box0`` = (lo, hi): step and box at the start of the loading
-        phase (LIGGGHTS ``fix deform`` lo_start/hi_start: rate control measures its displacement
-        from there, the servo its accumulated change).
+        ``loading``: a :class:`Loading` (each axis fixed, at a rate or under a servo) or a
+        :class:`PrescribedBox` (the box of every step from a table; its rows must cover steps
+        step + 1 .. step + nsteps). ``phase_step0`` and ``phase_box0`` = (lo, hi): step and box at
+        the start of the loading phase (LIGGGHTS ``fix deform`` lo_start/hi_start: rate control
+        measures its displacement from there, the servo its accumulated change; not used by a
+        PrescribedBox).
 
         Returns
         -------
         dict with ``step`` (n,), ``stress`` (n, 2, 2) (Love stress, compression positive, area of
-        the box after the step), ``lengths`` (n, 2), ``n_contacts`` (n,), ``mean_overlap`` (n,), ``kinetic_energy`` (n,).
+        the box after the step), ``lengths`` (n, 2), ``n_contacts`` (n,), ``mean_overlap`` (n,), ``kinetic_energy`` (n,),
+        ``virial`` (n, 4) (xx, yy, xy, yx: sum d_a f_b, N m in 2D; stress times area).
 
         Raises
         ------
@@ -354,16 +378,33 @@ class DEMEngine:
             phase_box0 = (self.lo.copy(), self.hi.copy())
         lo0 = np.array(phase_box0[0], np.float64)
         hi0 = np.array(phase_box0[1], np.float64)
-        code = {"fixed": 0, "rate": 1, "servo": 2}
-        modes = np.array([code[loading.x.mode], code[loading.y.mode]], np.int64)
-        rates = np.array([loading.x.rate, loading.y.rate])
-        targets = np.array([loading.x.target, loading.y.target])
-        gains = np.array([loading.x.gain, loading.y.gain])
+        presc = isinstance(loading, PrescribedBox)
+        if presc:
+            if nsteps and not (loading.step0 <= self.step and self.step + nsteps <= loading.last_step):
+                raise InputError(f"prescribed box: the table covers steps {loading.step0 + 1}.."
+                                 f"{loading.last_step}, the run needs {self.step + 1}..{self.step + nsteps}")
+            modes = np.zeros(2, np.int64)
+            rates = targets = gains = np.zeros(2)
+            # writeable copies: one compiled signature of run_block for both loadings
+            p_lo, p_hi = np.array(loading.lo), np.array(loading.hi)
+            p_remap, p_step0 = np.array(loading.remap), loading.step0
+        elif isinstance(loading, Loading):
+            code = {"fixed": 0, "rate": 1, "servo": 2}
+            modes = np.array([code[loading.x.mode], code[loading.y.mode]], np.int64)
+            rates = np.array([loading.x.rate, loading.y.rate])
+            targets = np.array([loading.x.target, loading.y.target])
+            gains = np.array([loading.x.gain, loading.y.gain])
+            p_lo = p_hi = np.zeros((1, 2))
+            p_remap = np.zeros(1, np.bool_)
+            p_step0 = 0
+        else:
+            raise InputError(f"loading: expected a Loading or a PrescribedBox, got {type(loading).__name__}")
         out_stress = np.zeros((nsteps, 4))
         out_L = np.zeros((nsteps, 2))
         out_nc = np.zeros(nsteps)
         out_ov = np.zeros(nsteps)
         out_ke = np.zeros(nsteps)
+        out_vir = np.zeros((nsteps, 4))
         done = 0
         resume = False
         step_start = self.step
@@ -377,7 +418,7 @@ class DEMEngine:
                     nsteps - done, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
                     out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:], out_ke[done:],
                     self._parallel, self.start, self._pvir, self._pcont, self._tb, self._in_start, self._in_e,
-                    self._lammps)
+                    self._lammps, presc, p_lo, p_hi, p_remap, p_step0, out_vir[done:])
             if k:
                 self._check_divergence(self.step + 1, out_ke[done:done + k], out_stress[done:done + k],
                                        out_L[done:done + k], L_before)
@@ -405,7 +446,8 @@ class DEMEngine:
         st[:, 0, 1] = out_stress[:, 2]
         st[:, 1, 0] = out_stress[:, 3]
         return {"step": np.arange(step_start + 1, step_start + nsteps + 1), "stress": st, "lengths": out_L,
-                "n_contacts": np.rint(out_nc).astype(np.int64), "mean_overlap": out_ov, "kinetic_energy": out_ke}
+                "n_contacts": np.rint(out_nc).astype(np.int64), "mean_overlap": out_ov, "kinetic_energy": out_ke,
+                "virial": out_vir}
 
     # ------------------------------------------------------------------ diagnostics
     def kinetic_energy(self) -> float:
@@ -472,6 +514,7 @@ __all__ = [
     "DEMEngine",
     "DEMSettings",
     "Loading",
+    "PrescribedBox",
     "contact_time",
     "damping_ratio",
     "fingerprint",

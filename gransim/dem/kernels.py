@@ -342,16 +342,24 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
               hi_hold, vir, kn, kt, gn, gt, mu, dt, skin, step0, nsteps, resume,
               modes, rates, targets, gains, lo0, hi0, phase_step0,
               out_stress, out_L, out_nc, out_ov, out_ke, parallel, start, pvir, pcont, tb, in_start, in_e,
-              lammps=False):
+              lammps, presc, presc_lo, presc_hi, presc_remap, presc_step0, out_vir):
     """Steps step0+1 .. step0+nsteps until a neighbour rebuild is needed (force loop serial over
     the half list, or with ``parallel`` the threaded ``forces_parallel`` over the same list with
     CSR ``start``, incoming CSR ``in_start``/``in_e`` and scratch ``pvir`` (N, 4), ``pcont``
     (N, 2), ``tb`` (M,)); ``lammps``: LAMMPS' arithmetic in the force loop (:func:`_entry`).
 
+    Box of each step: with ``presc`` False from the loading of each axis (:func:`box_target`;
+    the positions are remapped only when the box changes). With ``presc`` True from the table
+    ``presc_lo``/``presc_hi`` (T, 2), row ``step - presc_step0`` (the box after that step), on
+    the steps whose ``presc_remap`` row is True (a ``fix deform`` step: ``remap x`` from the
+    old box to the new one even when the box is unchanged, as ``FixDeform::end_of_step``); the
+    other steps keep the box. The caller guarantees the rows exist.
+
     Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the step
     step0+completed+1 has done its first half step; call again with ``resume`` True after the
     rebuild), 2 non-finite position, 3 collapsed cell. Per completed step k the outputs hold
-    stress (xx, yy, xy, yx; virial / area of the new box), box lengths, contacts, mean overlap, kinetic energy.
+    stress (xx, yy, xy, yx; virial / area of the new box), box lengths, contacts, mean overlap, kinetic energy,
+    and ``out_vir`` the virial (xx, yy, xy, yx; N m in 2D) itself.
     """
     L_old = np.empty(2)
     sig = np.empty(2)
@@ -393,8 +401,20 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         lo_new[1] = lo[1]
         hi_new[0] = hi[0]
         hi_new[1] = hi[1]
-        box_target(step, L_old, sig, dt, modes, rates, targets, gains, lo0, hi0, phase_step0, lo_new, hi_new)
-        if lo_new[0] != lo[0] or lo_new[1] != lo[1] or hi_new[0] != hi[0] or hi_new[1] != hi[1]:
+        remap = False
+        if presc:
+            row = step - presc_step0
+            if presc_remap[row]:
+                remap = True
+                lo_new[0] = presc_lo[row, 0]
+                lo_new[1] = presc_lo[row, 1]
+                hi_new[0] = presc_hi[row, 0]
+                hi_new[1] = presc_hi[row, 1]
+        else:
+            box_target(step, L_old, sig, dt, modes, rates, targets, gains, lo0, hi0, phase_step0, lo_new, hi_new)
+            if lo_new[0] != lo[0] or lo_new[1] != lo[1] or hi_new[0] != hi[0] or hi_new[1] != hi[1]:
+                remap = True
+        if remap:
             if not (hi_new[0] - lo_new[0] > 0.0 and hi_new[1] - lo_new[1] > 0.0):
                 return k, 3, -1
             remap_x(x, lo, hi, lo_new, hi_new)
@@ -409,6 +429,8 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         out_stress[k, 1] = vir[1] * inv
         out_stress[k, 2] = vir[2] * inv
         out_stress[k, 3] = vir[3] * inv
+        for c in range(4):
+            out_vir[k, c] = vir[c]
         out_L[k, 0] = Lx
         out_L[k, 1] = Ly
         out_nc[k] = nc

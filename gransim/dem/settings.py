@@ -6,6 +6,8 @@ import dataclasses
 import json
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from .._validate import as_positive_float, check_choice
 from ..errors import InputError
 
@@ -98,6 +100,63 @@ class Loading:
     @classmethod
     def from_dict(cls, d: dict) -> Loading:
         return cls(x=AxisControl(**d["x"]), y=AxisControl(**d["y"]))
+
+
+@dataclass(frozen=True, eq=False)
+class PrescribedBox:
+    """Loading that takes the box of every step from a table (e.g. a ``fix deform`` of a replayed
+    deck, :func:`reference_runs.replay.deform.box_table`), evaluated inside the engine's step.
+
+    Attributes
+    ----------
+    lo, hi : (T, 2) float64 box corners (m): row k is the box after step ``step0 + k`` (row 0,
+        the box at ``step0``, is not used by the stepping).
+    remap : (T,) bool: step ``step0 + k`` is a box step (``fix deform`` with ``ntimestep % N ==
+        0``): the box becomes row k and the positions are mapped affinely from the old box
+        (``remap x``, even when the box is unchanged, as the codes do). On the other steps the
+        box stays. Default: every row.
+    step0 : the step of row 0.
+
+    Raises InputError for arrays of the wrong shape, non-finite values or a box with hi <= lo.
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    remap: np.ndarray | None = None
+    step0: int = 0
+
+    def __post_init__(self):
+        lo = np.array(self.lo, np.float64)
+        hi = np.array(self.hi, np.float64)
+        if lo.ndim != 2 or lo.shape[1] != 2 or lo.shape != hi.shape or lo.shape[0] < 1:
+            raise InputError(f"prescribed box: lo and hi must both be (T, 2) arrays, got shapes "
+                             f"{lo.shape} and {hi.shape}")
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+            raise InputError("prescribed box: lo and hi must be finite")
+        bad = np.flatnonzero(np.any(hi <= lo, axis=1))
+        if bad.size:
+            k = int(bad[0])
+            raise InputError(f"prescribed box: row {k} has hi <= lo ({lo[k].tolist()}, {hi[k].tolist()})")
+        if self.remap is None:
+            remap = np.ones(lo.shape[0], np.bool_)
+        else:
+            remap = np.array(self.remap, np.bool_).reshape(-1)
+            if remap.shape[0] != lo.shape[0]:
+                raise InputError(f"prescribed box: remap must have {lo.shape[0]} rows (one per box row), "
+                                 f"got {remap.shape[0]}")
+        try:
+            step0 = int(self.step0)
+        except (TypeError, ValueError):
+            raise InputError(f"prescribed box: step0 must be an integer, got {self.step0!r}") from None
+        for name, a in (("lo", lo), ("hi", hi), ("remap", remap)):
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        object.__setattr__(self, "step0", step0)
+
+    @property
+    def last_step(self) -> int:
+        """The last step the table covers."""
+        return self.step0 + self.lo.shape[0] - 1
 
 
 def settings_json(settings: DEMSettings, loading: Loading | None = None, **extra) -> str:

@@ -156,7 +156,9 @@ def compare_thermo(deck: ReplayDeck, nat: NativeRun, log_path: Path) -> list:
     d50 = deck.d50
     tol_x = POSITION_TOL * d50
     box = {"lx": nat.hi[:, 0] - nat.lo[:, 0], "ly": nat.hi[:, 1] - nat.lo[:, 1], "xlo": nat.lo[:, 0],
-           "xhi": nat.hi[:, 0], "ylo": nat.lo[:, 1], "yhi": nat.hi[:, 1]}
+           "xhi": nat.hi[:, 0], "ylo": nat.lo[:, 1], "yhi": nat.hi[:, 1],
+           "xy": nat.xy if nat.xy is not None else np.zeros(nat.lo.shape[0]),
+           "xz": np.zeros(nat.lo.shape[0]), "yz": np.zeros(nat.lo.shape[0])}
     for kw in deck.thermo_columns:
         low = kw.lower()
         try:
@@ -320,6 +322,9 @@ def write_report(res: ReplayResult, nat: NativeRun) -> None:
              f"[{float(d.box_lo[1])!r}, {float(d.box_hi[1])!r}] m, {d.nsteps} steps of {d.settings.dt!r} s"),
             f"- native settings: {json.dumps(d.settings.to_dict(), sort_keys=True)}",
             f"- fix deform: {d.deform if d.deform is not None else 'none (fixed box)'}",
+            (f"- sheared (triclinic) deck, tilt xy {d.tilt!r} m at the start: native run through "
+             f"ShearEngine (flavour lammps), {d.shear}" if d.sheared else "- orthogonal box: native run "
+             "through DEMEngine with the box table of every step (PrescribedBox)"),
             f"- native neighbour-list builds: {nat.n_rebuilds}",
             (f"- tolerances: positions {POSITION_TOL:g} D50 (D50 = {d.d50:.6g} m), pressure {STRESS_TOL:g} "
              f"relative, velocities/forces {RATE_TOL:g} relative; missing evidence fails"), ""]
@@ -358,6 +363,8 @@ def write_report(res: ReplayResult, nat: NativeRun) -> None:
         g.create_dataset("step", data=nat.steps)
         g.create_dataset("box_lo", data=nat.lo)
         g.create_dataset("box_hi", data=nat.hi)
+        g.create_dataset("xy", data=nat.xy if nat.xy is not None else np.zeros(nat.lo.shape[0]))
+        g["xy"].attrs["units"] = "m (the box's xy tilt after each step)"
         # files hold stress tension positive: sigma = -pressure (xx, yy, xy)
         g.create_dataset("stress", data=-nat.pressure[:, [0, 1, 3]])
         g["stress"].attrs["convention"] = "tension positive; columns xx, yy, xy (N/m in 2D)"

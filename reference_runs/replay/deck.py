@@ -30,7 +30,10 @@ erate|trate|vel|final|delta|scale ... remap x [units box|lattice] [flip yes|no]`
 ``thermo_modify format float|line F norm yes|no flush yes|no``, ``dump ID all custom N FILE
 cols``, ``dump_modify ID sort id format ...``, ``variable NAME equal EXPR`` (a number may be
 used as ``${NAME}`` or ``$N``; other expressions only as thermo columns ``v_NAME``, printed, not
-compared) and one ``run N``.
+compared) and one ``run N``. Sheared LAMMPS decks: ``change_box all triclinic`` (or a data file
+with ``XY 0 0 xy xz yz``) and ``fix ID all deform 1 xy erate|vel|final|delta V remap v``, run
+natively through :class:`gransim.dem.sheared.ShearEngine`; what it cannot express, and any tilt
+in a LIGGGHTS deck (its triclinic box loses the periodic ghosts), is refused naming the line.
 """
 
 from __future__ import annotations
@@ -47,7 +50,12 @@ from gransim.dem.settings import DEMSettings
 from gransim.errors import InputError
 from gransim.geometry import Packing
 
-from .deform import STYLES, AxisDeform, DeformSpec
+from .deform import STYLES, TILT_STYLES, AxisDeform, DeformSpec, tilt_stop
+
+#: why a LIGGGHTS deck with a tilt is refused
+LIGGGHTS_TILT = ("LIGGGHTS 3.8.0's triclinic box loses the periodic ghosts (contacts across the tilted "
+                 "boundary are missed; shared notes liggghts-3.8.md), so a sheared LIGGGHTS deck is not "
+                 "replayed: use a LAMMPS deck (`change_box all triclinic`, `fix deform 1 xy erate R remap v`)")
 
 ENGINES = ("liggghts", "lammps")
 
@@ -61,14 +69,16 @@ SUPPORTED = (
     "pair_style gran model hooke/stiffness tangential history (LIGGGHTS)",
     "pair_style gran/hooke/history (LAMMPS)", "pair_coeff * *", "timestep",
     "fix nve/sphere (LAMMPS: nve/sphere disc)", "fix enforce2d",
-    "fix deform (x/y erate|trate|vel|final|delta|scale, remap x)", "compute pressure TEMP virial",
+    "fix deform (x/y erate|trate|vel|final|delta|scale, remap x)",
+    "change_box all triclinic + fix deform 1 xy erate|vel|final|delta remap v (LAMMPS)",
+    "compute pressure TEMP virial",
     "thermo", "thermo_style custom", "thermo_modify", "dump custom", "dump_modify",
     "variable equal", "run",
 )
 
 #: thermo keywords accepted (besides c_ID[k] of a compute pressure and v_NAME)
 THERMO_KEYWORDS = ("step", "elapsed", "elaplong", "time", "dt", "cpu", "tpcpu", "spcpu", "atoms",
-                   "lx", "ly", "lz", "xlo", "xhi", "ylo", "yhi", "zlo", "zhi", "vol")
+                   "lx", "ly", "lz", "xlo", "xhi", "ylo", "yhi", "zlo", "zhi", "vol", "xy", "xz", "yz")
 #: dump custom columns accepted
 DUMP_COLUMNS = ("id", "type", "x", "y", "z", "vx", "vy", "vz", "omegax", "omegay", "omegaz",
                 "fx", "fy", "fz", "tqx", "tqy", "tqz", "mass", "radius", "diameter")
@@ -114,6 +124,12 @@ class ReplayDeck:
     dumps : tuple of DumpSpec. sorting : atom sorting is on (``atom_modify sort`` not 0).
     notes : accepted commands without effect on the native run, and other remarks (str).
     lines : the deck's source lines.
+    tilt : the box's xy tilt at the start (m; 0 for an orthogonal box).
+    sheared : the deck runs in a triclinic box (``change_box all triclinic`` or a data file with
+        an ``xy xz yz`` line, LAMMPS only): natively through
+        :class:`gransim.dem.sheared.ShearEngine`; then ``packing.cell`` is [[Lx, xy], [0, Ly]].
+    shear : for a sheared deck, the :class:`gransim.dem.sheared.ShearLoading` of the run (the
+        ``xy`` style expressed as the engine's erate, see :func:`_shear_loading`), else None.
     """
 
     engine: str
@@ -137,6 +153,9 @@ class ReplayDeck:
     sorting: bool
     notes: tuple
     lines: tuple = field(repr=False, default=())
+    tilt: float = 0.0
+    sheared: bool = False
+    shear: object = None
 
     @property
     def d50(self) -> float:
@@ -279,6 +298,7 @@ class _State:
         self.comm_vel = None
         self.law_style = None
         self.neigh_line = 0
+        self.triclinic = None
 
     # ---------------------------------------------------------------- helpers
     def vote(self, engine, lineno, why):
@@ -397,6 +417,15 @@ class _State:
         self.once(n, "set")
         self.density_disc = (rho, n)
 
+    def c_change_box(self, n, w):
+        self.vote("lammps", n, "change_box all triclinic")
+        if w[1:] != ["all", "triclinic"]:
+            raise self.err(n, f"`{' '.join(w)}`: the subset accepts only `change_box all triclinic`")
+        if self.read_data is None:
+            raise self.err(n, "`change_box all triclinic` before `read_data`: it must follow it")
+        self.once(n, "change_box")
+        self.triclinic = n
+
     def c_neighbor(self, n, w):
         self.once(n, "neighbor")
         if len(w) != 3 or w[2] != "bin":
@@ -471,6 +500,7 @@ class _State:
             raise self.err(n, "fix deform: N (every) is missing")
         every = _int(self.err, n, w[4], "fix deform N", minimum=1)
         axes = [None, None]
+        tilt = None
         k = 5
         remap, units = "x", None
         while k < len(w):
@@ -497,20 +527,25 @@ class _State:
                 k += 2 + m
             elif key == "z":
                 raise self.err(n, "fix deform z: the z extent of a 2D deck must stay (not in the subset)")
-            elif key in ("xy", "xz", "yz"):
-                raise self.err(n, f"fix deform {key}: a tilt needs a triclinic (sheared) periodic cell, "
-                                  "which "
-                                  "the native engine does not have yet; only x and y are supported")
+            elif key in ("xz", "yz"):
+                raise self.err(n, f"fix deform {key}: a 2D deck has no {key} tilt (only xy)")
+            elif key == "xy":
+                style = w[k + 1] if k + 1 < len(w) else None
+                if style not in TILT_STYLES:
+                    raise self.err(n, f"fix deform xy {style}: not in the subset (supported tilt styles: "
+                                      f"{', '.join(TILT_STYLES)}; the triclinic (sheared) periodic cell "
+                                      "runs natively through ShearEngine)")
+                if k + 2 >= len(w):
+                    raise self.err(n, f"fix deform xy {style}: expected 1 number")
+                tilt = (style, _float(self.err, n, w[k + 2], f"fix deform xy {style} value"))
+                k += 3
             elif key == "remap":
                 if k + 1 >= len(w):
                     raise self.err(n, "fix deform remap: the value is missing")
                 remap = w[k + 1]
-                if remap == "v":
-                    raise self.err(n, "fix deform remap v: the Lees-Edwards velocity convention needs "
-                                      "sheared "
-                                      "cells in the native engine (not there yet); use remap x")
-                if remap != "x":
-                    raise self.err(n, f"fix deform remap {remap}: only remap x is supported")
+                if remap not in ("x", "v"):
+                    raise self.err(n, f"fix deform remap {remap}: supported are remap x (orthogonal box) "
+                                      "and remap v (sheared box, LAMMPS)")
                 k += 2
             elif key == "units":
                 if k + 1 >= len(w) or w[k + 1] not in ("box", "lattice"):
@@ -520,13 +555,14 @@ class _State:
             elif key == "flip":
                 if k + 1 >= len(w) or w[k + 1] not in ("yes", "no"):
                     raise self.err(n, "fix deform flip: expected yes or no")
-                self.notes.append(f"line {n}: fix deform flip {w[k + 1]} (no tilt: no effect)")
+                self.notes.append(f"line {n}: fix deform flip {w[k + 1]} (no flip happens: a tilt beyond "
+                                  "Lx/2 is refused before the run)")
                 k += 2
             else:
                 raise self.err(n, f"fix deform keyword {key!r}: supported are x, y, remap, units, flip")
-        if axes == [None, None]:
-            raise self.err(n, "fix deform: no x or y setting")
-        self.deform = DeformSpec(every, tuple(axes), remap, units or "", n)
+        if axes == [None, None] and tilt is None:
+            raise self.err(n, "fix deform: no x, y or xy setting")
+        self.deform = DeformSpec(every, tuple(axes), remap, units or "", n, tilt)
 
     def c_pair_style(self, n, w):
         self.once(n, "pair_style")
@@ -726,6 +762,52 @@ class _State:
         if not cond:
             raise InputError(f"{self.path}: {what} is missing; the replay needs it ({_supported_text()})")
 
+    def _check_shear(self, eng, sheared, atoms, data_path):
+        """Refuse, naming the line, what the sheared-cell engine cannot express (docs/replay.md)."""
+        p, d = self.path, self.deform
+        if eng == "liggghts":
+            if self.triclinic is not None:  # pragma: no cover - change_box votes lammps
+                raise InputError(f"{p}:{self.triclinic}: {LIGGGHTS_TILT}")
+            if atoms["tilt"] is not None:
+                raise InputError(f"{data_path}: a tilted (triclinic) box in a LIGGGHTS deck: {LIGGGHTS_TILT}")
+            if d is not None and d.tilt is not None:
+                raise InputError(f"{p}:{d.line}: fix deform xy in a LIGGGHTS deck (needs a triclinic box): "
+                                 f"{LIGGGHTS_TILT}")
+            if d is not None and d.remap == "v":
+                raise InputError(f"{p}:{d.line}: fix deform remap v in a LIGGGHTS deck: the Lees-Edwards "
+                                 f"velocity convention is the sheared cell's: {LIGGGHTS_TILT}")
+            return
+        if d is None:
+            return
+        if d.tilt is not None and not sheared:
+            raise InputError(f"{p}:{d.line}: fix deform xy needs a triclinic box (`change_box all triclinic` "
+                             "after read_data, or a data file with an `xy xz yz` line); LAMMPS stops too")
+        if not sheared:
+            if d.remap == "v":
+                raise InputError(f"{p}:{d.line}: fix deform remap v on an orthogonal box: the native "
+                                 "orthogonal engine maps positions (remap x) and ShearEngine (the Lees-Edwards "
+                                 "convention) needs a triclinic box; use remap x, or change_box all triclinic")
+            return
+        if any(a is not None for a in d.axes):
+            ax = "x" if d.axes[0] is not None else "y"
+            raise InputError(f"{p}:{d.line}: fix deform {ax} {d.axes[0 if ax == 'x' else 1].style} on a sheared "
+                             "(triclinic) deck: ShearEngine keeps x fixed and moves y only under a normal-"
+                             "stress servo (a `variable` style, not in the subset); only `xy` is replayed")
+        if d.tilt is None:
+            raise InputError(f"{p}:{d.line}: fix deform without xy on a sheared deck: nothing for ShearEngine "
+                             "to move")  # pragma: no cover - the parser needs an x, y or xy setting
+        if d.tilt[0] == "trate":
+            raise InputError(f"{p}:{d.line}: fix deform xy trate: the tilt grows exponentially (h_rate "
+                             "changes every step), which ShearEngine cannot express (it runs the tilt "
+                             "linearly over the run: xy erate|vel|final|delta)")
+        if d.remap != "v":
+            raise InputError(f"{p}:{d.line}: fix deform xy with remap {d.remap}: ShearEngine runs the "
+                             "Lees-Edwards convention of remap v (positions are not mapped when the tilt "
+                             "changes); write remap v")
+        if d.every != 1:
+            raise InputError(f"{p}:{d.line}: fix deform {d.every} xy: ShearEngine changes the tilt every step; "
+                             "write fix deform 1")
+
     def finish(self, text, data):
         eng = self._engine()
         p = self.path
@@ -808,7 +890,12 @@ class _State:
                                  f"{int(atoms['ids'][0])} {dens[0]!r}: the native packing needs one density")
             rho = float(dens[0])
         lo, hi = atoms["lo"], atoms["hi"]
+        tilt = float(atoms["tilt"] or 0.0)
+        sheared = self.triclinic is not None or atoms["tilt"] is not None
+        self._check_shear(eng, sheared, atoms, data_path)
         cell = np.diag(hi - lo)
+        if sheared:
+            cell = np.array([[hi[0] - lo[0], tilt], [0.0, hi[1] - lo[1]]])
         packing = Packing(atoms["x"], 0.5 * atoms["diameter"], cell, density=rho,
                           metadata={"source": str(data_path), "box_lo": lo.tolist(), "box_hi": hi.tolist()})
         kw = {"kn": kn, "kt": kt, "gamma_n": gn, "gamma_t": gt, "mu": mu, "dt": self.dt[0],
@@ -826,12 +913,59 @@ class _State:
         except InputError as exc:
             raise InputError(f"{p}: contact law or step: {exc}") from None
         nsteps = self.run[0]
+        shear = _shear_loading(self, p, tilt, lo, hi, settings.dt, nsteps) if sheared else None
         return ReplayDeck(
             engine=eng, path=p, data_path=data_path, data_name=name, packing=packing, box_lo=lo, box_hi=hi,
             ids=atoms["ids"], velocities=atoms["v"], spins=atoms["w"], settings=settings, deform=self.deform,
             nsteps=nsteps, thermo_every=self.thermo_every, thermo_columns=self.thermo_columns,
             thermo_float_format=self.thermo_float, pressure=dict(self.pressure), dumps=dumps,
-            sorting=self.sorting, notes=tuple(self.notes), lines=tuple(text.splitlines()))
+            sorting=self.sorting, notes=tuple(self.notes), lines=tuple(text.splitlines()), tilt=tilt,
+            sheared=sheared, shear=shear)
+
+
+def _shear_loading(st, path, tilt, lo, hi, dt, nsteps):
+    """The :class:`~gransim.dem.sheared.ShearLoading` of a sheared deck, and its check.
+
+    ShearEngine runs ``xy erate R``: tilt_stop = xy0 + ((N dt) R) Ly0 over a run of N steps,
+    as LAMMPS. The other linear styles (final, delta, vel) are expressed as the erate whose
+    ``tilt_stop`` is the same double: the nearest few doubles of (stop - xy0)/(N dt Ly0) are
+    tried and the exact one kept (else the closest, noted). A tilt beyond Lx/2 at the end of the
+    run (LAMMPS would flip the box; ShearEngine stops) is refused naming the line.
+    """
+    import math
+
+    from gransim.dem.sheared import ShearLoading
+
+    d = st.deform
+    if d is None or d.tilt is None:
+        return ShearLoading(erate=0.0)
+    style, value = d.tilt
+    delt = float(nsteps) * dt
+    ly0 = float(hi[1] - lo[1])
+    stop = tilt_stop(style, value, tilt, ly0, delt)
+    if style == "erate":
+        erate = value
+    else:
+        e0 = (stop - tilt) / (delt * ly0)
+        cands = [e0]
+        up = down = e0
+        for _ in range(16):
+            up, down = math.nextafter(up, math.inf), math.nextafter(down, -math.inf)
+            cands += [up, down]
+        erate = min(cands, key=lambda e: abs((tilt + delt * e * ly0) - stop))
+        got = tilt + delt * erate * ly0
+        if got != stop:
+            st.notes.append(f"line {d.line}: fix deform xy {style} {value!r}: no erate gives LAMMPS' "
+                            f"tilt_stop {stop!r} exactly; the native run ends at {got!r} m")
+        else:
+            st.notes.append(f"line {d.line}: fix deform xy {style} {value!r} runs natively as xy erate "
+                            f"{erate!r} (the same tilt_stop {stop!r} m, bit for bit)")
+    lx = float(hi[0] - lo[0])
+    if abs(stop) > 0.5 * lx:
+        raise InputError(f"{path}:{d.line}: fix deform xy {style}: the tilt reaches {stop!r} m, beyond Lx/2 = "
+                         f"{0.5 * lx!r} m, where LAMMPS flips the box; ShearEngine does not flip (shorten "
+                         "the run or the rate)")
+    return ShearLoading(erate=erate)
 
 
 # ------------------------------------------------------------------------------ data file
@@ -841,11 +975,12 @@ _HEADER = re.compile(r"^\s*(\S+)\s+(\S+)\s+(xlo xhi|ylo yhi|zlo zhi)\s*$")
 def read_data_file(path, where: str = "read_data") -> dict:
     """Read a ``atom_style sphere`` data file: header (atoms, atom types, xlo xhi, ylo yhi,
     zlo zhi), ``Atoms`` (id type diameter density x y z [ix iy iz]) and optional
-    ``Velocities`` (id vx vy vz wx wy wz).
+    ``Velocities`` (id vx vy vz wx wy wz); a triclinic header line ``XY 0 0 xy xz yz``.
 
     Returns a dict of ``ids`` (N,) int64, ``diameter``, ``density`` (N,), ``x`` (N, 2), ``v``
-    (N, 2), ``w`` (N,) (spin about z), ``lo``, ``hi`` (2,) in file order. Positions outside the
-    box are wrapped once as the codes' ``Domain::remap`` does (x < lo: + L; x >= hi: - L).
+    (N, 2), ``w`` (N,) (spin about z), ``lo``, ``hi`` (2,) in file order, ``tilt`` (the xy tilt,
+    m, or None without the line). Positions outside an orthogonal box are wrapped once as the
+    codes' ``Domain::remap`` does (x < lo: + L; x >= hi: - L); those of a tilted box must lie in it.
 
     Raises InputError naming the file and the line.
     """
@@ -885,8 +1020,15 @@ def read_data_file(path, where: str = "read_data") -> dict:
             if ntypes != 1:
                 raise bad(n, f"{ntypes} atom types: the subset has one atom type (one set of coefficients)")
             continue
-        if len(w) == 3 and w[0] == "xy":
-            raise bad(n, "a tilted (triclinic) box: the native engine has orthogonal cells only")
+        if len(w) == 6 and w[3:] == ["xy", "xz", "yz"]:
+            e = (lambda _n, msg, n=n: bad(n, msg))
+            t = [_float(e, n, v, name) for v, name in zip(w[:3], ("xy", "xz", "yz"))]
+            if t[1] != 0.0 or t[2] != 0.0:
+                raise bad(n, f"xz = {w[1]}, yz = {w[2]}: a 2D triclinic box has only an xy tilt (xz = yz = 0)")
+            box["tilt"] = t[0]
+            continue
+        if w[:1] == ["xy"] or w[-3:] == ["xy", "xz", "yz"]:
+            raise bad(n, f"tilt line {s!r}: expected `XY XZ YZ xy xz yz`")
         if w[0] in ("Atoms", "Velocities"):
             if w[0] in sections:
                 raise bad(n, f"section {w[0]} given twice")
@@ -939,7 +1081,18 @@ def read_data_file(path, where: str = "read_data") -> dict:
         raise InputError(f"{path}: atom ids are not unique")
     lo = np.array([box["x"][0], box["y"][0]])
     hi = np.array([box["x"][1], box["y"][1]])
-    for d in range(2):
+    tilt = box.get("tilt")
+    if tilt:
+        # a tilted box: LAMMPS wraps in lamda coordinates; the replay takes atoms inside the box
+        Lx, Ly = hi[0] - lo[0], hi[1] - lo[1]
+        ly = (x[:, 1] - lo[1]) / Ly
+        lx = (x[:, 0] - lo[0] - tilt * ly) / Lx
+        out = (lx < 0) | (lx >= 1) | (ly < 0) | (ly >= 1)
+        if np.any(out):
+            i = int(np.flatnonzero(out)[0])
+            raise InputError(f"{path}: atom {int(ids[i])} at {x[i].tolist()} lies outside the tilted box; "
+                             "the replay needs the atoms of a triclinic data file inside the box")
+    for d in range(2 if not tilt else 0):
         L = hi[d] - lo[d]
         c = x[:, d]
         c[c < lo[d]] += L
@@ -965,4 +1118,5 @@ def read_data_file(path, where: str = "read_data") -> dict:
             i = index[a]
             v[i] = [_float(e, n, w[1], "vx"), _float(e, n, w[2], "vy")]
             wz[i] = _float(e, n, w[6], "wz")
-    return {"ids": ids, "diameter": diam, "density": dens, "x": x, "v": v, "w": wz, "lo": lo, "hi": hi}
+    return {"ids": ids, "diameter": diam, "density": dens, "x": x, "v": v, "w": wz, "lo": lo, "hi": hi,
+            "tilt": tilt}

@@ -40,6 +40,8 @@ from gransim.errors import InputError
 
 #: styles of one axis and their number of numeric parameters
 STYLES = {"final": 2, "delta": 2, "scale": 1, "vel": 1, "erate": 1, "trate": 1}
+#: styles of the xy tilt (one number each); trate is read and refused (see deck.py)
+TILT_STYLES = ("final", "delta", "vel", "erate", "trate")
 
 
 @dataclass(frozen=True)
@@ -67,9 +69,10 @@ class DeformSpec:
     ----------
     every : N, the fix's period in steps (the box changes on steps that are multiples of N).
     axes : (x, y) AxisDeform or None (axis not controlled).
-    remap : "x" (the only remap the native driver supports).
+    remap : "x" (affine remap of the positions) or "v" (a sheared LAMMPS deck: Lees-Edwards).
     units : "box" or "lattice" (lattice spacing 1.0).
     line : 1-based line of the command in the deck.
+    tilt : None or (style, value) of ``xy`` (a key of :data:`TILT_STYLES`; m, m/s or 1/s).
     """
 
     every: int
@@ -77,6 +80,22 @@ class DeformSpec:
     remap: str = "x"
     units: str = "box"
     line: int = 0
+    tilt: tuple | None = None
+
+
+def tilt_stop(style: str, value: float, tilt_start: float, ly_start: float, delt: float) -> float:
+    """``tilt_stop`` of ``xy STYLE value`` in LAMMPS' ``FixDeform::init`` (same double operations in
+    the same order; lattice spacing 1.0): final: value; delta: start + value; vel: start +
+    delt*value; erate: start + delt*value*(yhi_start - ylo_start). ``trate`` has no linear stop."""
+    if style == "final":
+        return value * 1.0
+    if style == "delta":
+        return tilt_start + value * 1.0
+    if style == "vel":
+        return tilt_start + delt * (value * 1.0)
+    if style == "erate":
+        return tilt_start + delt * value * ly_start
+    raise InputError(f"fix deform xy {style}: no linear tilt_stop (supported: final, delta, vel, erate)")
 
 
 def _stop(ax: AxisDeform, lo_start: float, hi_start: float, delt: float, scale: float):

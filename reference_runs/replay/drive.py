@@ -1,23 +1,21 @@
-"""Native run of a replayed deck with :class:`gransim.dem.DEMEngine`, step by step.
+"""Native run of a replayed deck: :class:`gransim.dem.DEMEngine` (orthogonal box) or, for a
+sheared (triclinic) LAMMPS deck, :class:`gransim.dem.sheared.ShearEngine`.
 
-The engine steps with a fixed box (``engine.advance(Loading(), 1)``: nve/sphere, neighbour
-check and rebuild, forces, second half step; a fixed box leaves positions alone); on every
-step that is a multiple of the fix deform's N the driver then does what the codes' ``fix deform
-end_of_step`` does (and what the engine's ``run_block`` does for its own loadings): the box of
-that step from :func:`reference_runs.replay.deform.box_table` and the affine ``remap x`` of all
-positions from the old box to the new one with the engine's own kernel
-(:func:`gransim.dem.kernels.remap_x`, ``lambda = (x - lo_old) / L_old``, ``x = L_new lambda +
-lo_new``, both axes, as ``Domain::x2lamda``/``lamda2x``). The stress of the step is the
-engine's virial divided by the area of the new box (``compute pressure`` after ``fix deform``).
+Orthogonal decks. The engine is built in the deck's own box (``DEMEngine(..., box=(lo, hi))``:
+the positions stay as the data file has them; translating them by -lo would round every
+coordinate and change the remap arithmetic) and advanced under a
+:class:`gransim.dem.settings.PrescribedBox`: the box of every step from
+:func:`reference_runs.replay.deform.box_table`, applied inside the engine's step loop in its
+own order (``fix deform end_of_step``: on the steps with ``ntimestep % N == 0`` the new box and
+the affine ``remap x`` of all positions from the old box to it, ``lambda = (x - lo_old) /
+L_old``, ``x = L_new lambda + lo_new``, as ``Domain::x2lamda``/``lamda2x``, even when the box
+did not change). The stress of a step is the engine's virial of that step divided by the area
+of the new box (``compute pressure`` after ``fix deform``); the scalar is (xx + yy)/2 of the
+virial times 1/area, in LAMMPS' order. The run is advanced in chunks between dump steps only.
 
-Box origin. The engine starts with lo = 0. Translating the packing by -lo would round every
-coordinate (x - lo is not exact in general) and change the remap arithmetic, so it is not bit
-for bit. Instead the engine is built on the translated packing (only to pass its checks), then
-given the deck's own positions and box (``engine.x``, ``engine.lo``, ``engine.hi``, all origin-
-general in the kernels) and its ``run`` set-up is redone (``engine._setup()``: wrap, neighbour
-list in LIGGGHTS order, forces without spring increment). What the engine would need to make
-this clean: a ``box_lo`` argument of ``DEMEngine`` (and a prescribed-box loading, see
-docs/replay.md).
+Sheared decks (LAMMPS ``change_box all triclinic`` or a data file with a tilt, and ``fix deform
+1 xy erate|vel|final|delta ... remap v``): :func:`run_sheared` through
+:class:`gransim.dem.sheared.ShearEngine` (``flavour="lammps"``).
 """
 
 from __future__ import annotations
@@ -26,9 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gransim.dem import DEMEngine, Loading
-from gransim.dem import kernels as K
-from gransim.errors import InputError
+from gransim.dem import DEMEngine
+from gransim.dem.settings import PrescribedBox
+from gransim.errors import InputError, SimulationError
 
 from .deck import ReplayDeck
 from .deform import box_table
@@ -52,6 +50,7 @@ class NativeRun:
     frames : {step: {column: (N,) array}} at the dump steps of the deck, in file order.
     n_rebuilds : neighbour-list builds after the set-up.
     n_contacts : (T,) contacts per step.
+    xy : (T,) the box's xy tilt after each step (m; zeros for an orthogonal box).
     """
 
     steps: np.ndarray
@@ -62,6 +61,7 @@ class NativeRun:
     frames: dict
     n_rebuilds: int
     n_contacts: np.ndarray
+    xy: np.ndarray | None = None
 
 
 def dump_steps(deck: ReplayDeck) -> list:
@@ -92,22 +92,22 @@ def _pressure(vir, lo, hi):
 
 
 def build_engine(deck: ReplayDeck, threads=None) -> DEMEngine:
-    """A DEMEngine in the state of the deck's ``run`` set-up, with the deck's box origin."""
-    p = deck.packing
-    lo, hi = np.array(deck.box_lo, float), np.array(deck.box_hi, float)
-    shifted = p.replace(positions=np.asarray(p.positions) - lo)
+    """A DEMEngine in the state of the deck's ``run`` set-up, in the deck's own box."""
     try:
-        eng = DEMEngine(shifted, deck.settings, velocities=deck.velocities, spins=deck.spins, threads=threads)
+        return DEMEngine(deck.packing, deck.settings, velocities=deck.velocities, spins=deck.spins,
+                         threads=threads, box=(deck.box_lo, deck.box_hi))
     except InputError as exc:
         raise InputError(f"{deck.path}: the native engine refuses the deck: {exc}") from None
-    eng.x[:] = np.asarray(p.positions, float)
-    eng.lo[:] = lo
-    eng.hi[:] = hi
-    eng.n_rebuilds = 0
-    eng._setup()                # the run set-up again, in the deck's own box (see module docstring)
-    eng._reset_energy_budget()
-    eng.n_rebuilds = 0
-    return eng
+
+
+def _chunks(deck: ReplayDeck):
+    """(start, stop) step ranges between the dump steps (and the end of the run)."""
+    stops = sorted({s for s in dump_steps(deck) if 0 < s <= deck.nsteps} | {deck.nsteps})
+    out, a = [], 0
+    for b in stops:
+        out.append((a, b))
+        a = b
+    return out
 
 
 def run_native(deck: ReplayDeck, progress=None) -> NativeRun:
@@ -115,42 +115,100 @@ def run_native(deck: ReplayDeck, progress=None) -> NativeRun:
 
     Raises SimulationError (from the engine) naming the step on a divergence.
     """
+    if deck.sheared:
+        return run_sheared(deck, progress)
     eng = build_engine(deck)
     n = deck.nsteps
-    lo_t, hi_t = box_table(deck.deform, deck.box_lo, deck.box_hi, deck.settings.dt, n, deck.engine)
+    lo, hi = box_table(deck.deform, deck.box_lo, deck.box_hi, deck.settings.dt, n, deck.engine)
     every = deck.deform.every if deck.deform is not None else 0
+    remap = np.zeros(n + 1, np.bool_)
+    if every:
+        remap[every::every] = True
+    loading = PrescribedBox(lo, hi, remap, step0=0)
     T = n + 1
-    lo = np.empty((T, 2))
-    hi = np.empty((T, 2))
     pres = np.empty((T, 6))
     ps = np.empty(T)
     nc = np.zeros(T, np.int64)
-    lo[0], hi[0] = eng.lo, eng.hi
     pres[0], ps[0] = _pressure(eng.virial, eng.lo, eng.hi)
     nc[0] = eng.n_contacts
     want = set(dump_steps(deck))
     frames = {0: _frame(eng, deck)} if 0 in want else {}
-    fixed = Loading()
-    for k in range(1, n + 1):
-        lo_old, hi_old = eng.lo.copy(), eng.hi.copy()
-        out = eng.advance(fixed, 1)
-        if every and k % every == 0:
-            K.remap_x(eng.x, lo_old, hi_old, lo_t[k], hi_t[k])
-            eng.lo[:] = lo_t[k]
-            eng.hi[:] = hi_t[k]
-            # the engine's divergence check allows kinetic energy up to a multiple of the work of
-            # the cell; advance() saw a fixed box, so add this step's work as run_block would
-            Lo, Ln = hi_old - lo_old, eng.hi - eng.lo
-            s = out["stress"][0]
-            area = Ln[0] * Ln[1]
-            dw = -(s[0, 0] * area * (Ln[0] - Lo[0]) / Lo[0] + s[1, 1] * area * (Ln[1] - Lo[1]) / Lo[1])
-            if hasattr(eng, "_work"):
-                eng._work += abs(float(dw))
-        lo[k], hi[k] = eng.lo, eng.hi
-        pres[k], ps[k] = _pressure(eng.virial, eng.lo, eng.hi)
-        nc[k] = out["n_contacts"][0]
-        if k in want:
-            frames[k] = _frame(eng, deck)
-        if progress is not None and (k % 200 == 0 or k == n):
-            progress(k, n)
-    return NativeRun(np.arange(T), lo, hi, pres, ps, frames, int(eng.n_rebuilds), nc)
+    for a, b in _chunks(deck):
+        out = eng.advance(loading, b - a)
+        for j, k in enumerate(range(a + 1, b + 1)):
+            pres[k], ps[k] = _pressure(out["virial"][j], lo[k], hi[k])
+        nc[a + 1:b + 1] = out["n_contacts"]
+        if not (np.array_equal(eng.lo, lo[b]) and np.array_equal(eng.hi, hi[b])):
+            raise SimulationError(f"step {b}: the engine's box {eng.lo.tolist()}..{eng.hi.tolist()} is not "
+                                  f"the prescribed {lo[b].tolist()}..{hi[b].tolist()}")  # pragma: no cover
+        if b in want:
+            frames[b] = _frame(eng, deck)
+        if progress is not None:
+            progress(b, n)
+    return NativeRun(np.arange(T), lo, hi, pres, ps, frames, int(eng.n_rebuilds) - 1, nc)
+
+
+def build_shear_engine(deck: ReplayDeck):
+    """A ShearEngine (LAMMPS flavour) in the state of the deck's ``run`` set-up, in the deck's box.
+
+    ShearEngine starts with the box [0, Lx] x [0, Ly]: it is built on the packing translated by
+    -lo (only to pass its checks), then given the deck's own positions and box through its public
+    state (``x``, ``box`` = lo_x, lo_y, hi_x, hi_y, xy; its kernels are origin-general) before
+    :meth:`~gransim.dem.sheared.ShearEngine.start_run` does the run's set-up (fix deform init, wrap,
+    list, forces without spring increment) in that box. A ``box_lo`` argument of ShearEngine
+    would remove the translated build (reported as wanted; the file is not the replay's).
+    """
+    from gransim.dem.sheared import ShearEngine
+
+    p = deck.packing
+    lo, hi = np.array(deck.box_lo, float), np.array(deck.box_hi, float)
+    shifted = p.replace(positions=np.asarray(p.positions) - lo)
+    try:
+        eng = ShearEngine(shifted, deck.settings, velocities=deck.velocities, spins=deck.spins,
+                          flavour="lammps")
+    except InputError as exc:
+        raise InputError(f"{deck.path}: the sheared-cell engine refuses the deck: {exc}") from None
+    eng.x[:] = np.asarray(p.positions, float)
+    eng.box[:] = [lo[0], lo[1], hi[0], hi[1], float(deck.tilt)]
+    return eng
+
+
+def run_sheared(deck: ReplayDeck, progress=None) -> NativeRun:
+    """Run a sheared (triclinic) LAMMPS deck through ShearEngine (see :func:`build_shear_engine`).
+
+    The stress of a step is ShearEngine's (virial / area of the box after the step, component by
+    component as ``compute pressure``); the scalar is (xx + yy)/2 of those components (LAMMPS
+    halves the virial sum before dividing by the area: a last-bit difference at most).
+    """
+    eng = build_shear_engine(deck)
+    n = deck.nsteps
+    eng.start_run(deck.shear, n)
+    builds0 = eng.n_rebuilds
+    T = n + 1
+    lo = np.empty((T, 2))
+    hi = np.empty((T, 2))
+    xy = np.empty(T)
+    pres = np.zeros((T, 6))
+    ps = np.empty(T)
+    nc = np.zeros(T, np.int64)
+    lo[:, 0], hi[:, 0] = eng.box[0], eng.box[2]
+    lo[0, 1], hi[0, 1], xy[0] = eng.box[1], eng.box[3], eng.box[4]
+    pres[0], ps[0] = _pressure(eng.virial, lo[0], hi[0])
+    nc[0] = eng.n_contacts
+    want = set(dump_steps(deck))
+    frames = {0: _frame(eng, deck)} if 0 in want else {}
+    for a, b in _chunks(deck):
+        out = eng.advance(b - a)
+        st = out["stress"]
+        pres[a + 1:b + 1, 0] = st[:, 0, 0]
+        pres[a + 1:b + 1, 1] = st[:, 1, 1]
+        pres[a + 1:b + 1, 3] = st[:, 0, 1]
+        ps[a + 1:b + 1] = (st[:, 0, 0] + st[:, 1, 1]) / 2.0
+        box = out["box"]  # lx, ly, xy, ylo, yhi
+        lo[a + 1:b + 1, 1], hi[a + 1:b + 1, 1], xy[a + 1:b + 1] = box[:, 3], box[:, 4], box[:, 2]
+        nc[a + 1:b + 1] = out["n_contacts"]
+        if b in want:
+            frames[b] = _frame(eng, deck)
+        if progress is not None:
+            progress(b, n)
+    return NativeRun(np.arange(T), lo, hi, pres, ps, frames, int(eng.n_rebuilds - builds0), nc, xy)

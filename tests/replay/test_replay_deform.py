@@ -41,8 +41,7 @@ def test_box_table_matches_stored_log(tmp_path, engine, case):
     _check(DATA / "deform" / f"{engine}-{case}.log", deck)
 
 
-@pytest.mark.liggghts
-@pytest.mark.parametrize("engine,case", PARAMS)
+@pytest.mark.parametrize("engine,case", [pytest.param(e, c, marks=getattr(pytest.mark, e)) for e, c in PARAMS])
 def test_box_table_matches_live_code(tmp_path, engine, case):
     need_binary(engine)
     deck = write(tmp_path, engine, case)

@@ -99,8 +99,7 @@ def test_cli_exit_status_and_one_line_errors(tmp_path, capsys):
     assert main(["replay", str(DATA / "in.deck_a"), "--timeout", "-1", "-o", str(out)]) == 2
 
 
-@pytest.mark.liggghts
-@pytest.mark.parametrize("name", sorted(DECKS))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=getattr(pytest.mark, DECKS[n][0])) for n in sorted(DECKS)])
 def test_replay_agrees_with_live_code(tmp_path, name):
     engine, _ = DECKS[name]
     need_binary(engine)
