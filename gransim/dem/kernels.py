@@ -51,11 +51,14 @@ def final_integrate(v, w, f, t, m, r, dt):
 
 
 @njit
-def check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin):
-    """LIGGGHTS Neighbor::check_distance with box check. Returns (rebuild, bad particle or -1).
+def check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin, clamp=True):
+    """Neighbor::check_distance with box check. Returns (rebuild, bad particle or -1).
 
-    Trigger: some |x - x_hold|^2 > (0.5 (skin - |d lo| - |d hi|))^2 (strictly). A NaN or
-    infinite coordinate returns its particle index as ``bad``.
+    Trigger: some |x - x_hold|^2 > delta^2 (strictly), delta = 0.5 (skin - |d lo| - |d hi|).
+    ``clamp``: LAMMPS sets a negative delta (the box moved more than the skin since the build) to
+    0, so every step then rebuilds (29Sep2021 neighbor.cpp:2133-2135); LIGGGHTS 3.8.0 squares the
+    negative delta as it is (neighbor.cpp:1400-1401): pass ``clamp=False`` for its flavour. A NaN
+    or infinite coordinate returns its particle index as ``bad``.
     """
     dx = lo[0] - lo_hold[0]
     dy = lo[1] - lo_hold[1]
@@ -64,7 +67,8 @@ def check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin):
     dy = hi[1] - hi_hold[1]
     d2 = math.sqrt(dx * dx + dy * dy)
     delta = 0.5 * (skin - (d1 + d2))
-    delta = max(delta, 0.0)
+    if clamp and delta < 0.0:
+        delta = 0.0
     deltasq = delta * delta
     flag = False
     for i in range(x.shape[0]):
@@ -369,7 +373,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         step = step0 + k + 1
         if not (resume and k == 0):
             initial_integrate(x, v, w, f, t, m, r, dt)
-            rebuild, bad = check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin)
+            rebuild, bad = check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin, lammps)
             if bad >= 0:
                 return k, 2, bad
             if rebuild:

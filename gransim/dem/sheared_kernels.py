@@ -138,6 +138,11 @@ def check_rebuild_corners(x, xhold, box, corners_hold, skin):
     return flag, -1
 
 
+#: xy styles of :func:`deform_end_of_step`: no tilt control, linear between tilt_start and
+#: tilt_stop (erate, vel, final, delta), exponential (trate)
+XY_NONE, XY_LINEAR, XY_TRATE = 0, 1, 2
+
+
 @njit
 def deform_end_of_step(
     step,
@@ -146,9 +151,11 @@ def deform_end_of_step(
     box,
     hr,
     vir,
-    erate_on,
+    xy_style,
     tilt_start,
     tilt_stop,
+    rate,
+    dt,
     servo_on,
     y_lo_start,
     y_hi_start,
@@ -157,13 +164,17 @@ def deform_end_of_step(
     gain,
     target,
 ):
-    """FixDeform::end_of_step for ``xy erate`` (linear between tilt_start and tilt_stop over the
-    run ``begin``..``end``) and ``y variable`` (servo: del = (ly - ly0) + kgain (s_yy - target) ly,
-    lo = lo_start - del/2, hi = hi_start + del/2, h_rate[1] = gain (s_yy - target) ly, s_yy the
-    virial stress of this step over the area of the current box), then the tilt wrap of LAMMPS
-    (add/subtract Lx until the tilt is closest to the current one). Updates ``box`` and ``hr``.
-    Returns False when the cell collapsed or the tilt passed half the box length (LAMMPS would
-    flip the box: not supported)."""
+    """FixDeform::end_of_step (LAMMPS 29 Sep 2021, ``src/fix_deform.cpp``) of the 2D sheared box.
+
+    y: ``variable`` (the servo: del = (ly - ly0) + kgain (s_yy - target) ly, lo = lo_start - del/2,
+    hi = hi_start + del/2, h_rate[1] = gain (s_yy - target) ly, s_yy the virial stress of this step
+    over the area of the current box) or fixed. xy (``xy_style``): XY_LINEAR, tilt_start +
+    delta (tilt_stop - tilt_start) with delta = (step - begin)/(end - begin) (erate, vel, final,
+    delta; h_rate[5] constant, set by ``init``); XY_TRATE, tilt_start exp(rate (step - begin) dt)
+    and h_rate[5] = rate * (the tilt before this call); XY_NONE, the current tilt. Then LAMMPS'
+    tilt wrap (add/subtract Lx until the tilt is closest to the current one) and its flip test
+    (tilt / Lx beyond -/+0.5, with 1/Lx as a factor). Updates ``box`` and ``hr``. Returns False
+    when the cell collapsed or LAMMPS would flip the box (not supported)."""
     delta = float(step - begin)
     if delta != 0.0:
         delta /= float(end - begin)
@@ -178,8 +189,12 @@ def deform_end_of_step(
         lo1 = y_lo_start - 0.5 * dl
         hi1 = y_hi_start + 0.5 * dl
         hr[1] = gain * (syy - target) * h1
-    if erate_on:
+    if xy_style == XY_LINEAR:
         tt = tilt_start + delta * (tilt_stop - tilt_start)
+    elif xy_style == XY_TRATE:
+        delt = float(step - begin) * dt
+        tt = tilt_start * math.exp(rate * delt)
+        hr[2] = rate * h5
     else:
         tt = h5
     denom = box[2] - box[0]
@@ -190,14 +205,17 @@ def deform_end_of_step(
         tt += denom
     if abs(tt / denom - 1.0 - current) < abs(tt / denom - current):
         tt -= denom
+    xprd = box[2] - box[0]
+    yprd = hi1 - lo1
+    if not (yprd > 0.0):
+        return False
+    xprdinv = 1.0 / xprd
+    if tt * xprdinv < -0.5 or tt * xprdinv > 0.5:
+        return False
     box[1] = lo1
     box[3] = hi1
     box[4] = tt
-    xprd = box[2] - box[0]
-    yprd = box[3] - box[1]
-    if not (yprd > 0.0):
-        return False
-    return -0.5 * xprd <= tt <= 0.5 * xprd
+    return True
 
 
 # --------------------------------------------------------------------------- neighbour list
@@ -546,9 +564,11 @@ def run_block(
     resume,
     begin,
     end,
-    erate_on,
+    every,
+    xy_style,
     tilt_start,
     tilt_stop,
+    rate,
     servo_on,
     y_lo_start,
     y_hi_start,
@@ -557,19 +577,22 @@ def run_block(
     gain,
     target,
     out_stress,
+    out_vir,
     out_box,
     out_nc,
     out_ov,
     out_ke,
 ):
     """Steps step0+1 .. step0+nsteps of LAMMPS' Verlet (nve/sphere first half, neighbour decision,
-    forces, second half, ``fix deform`` end_of_step) until a list build is needed.
+    forces, second half, ``fix deform`` end_of_step on the steps with ``step % every == 0``, as
+    ``Modify::end_of_step`` calls a fix every ``nevery`` steps) until a list build is needed.
 
     Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the next
     step has done its first half step; call again with ``resume`` after the build: its forces use
     the image positions from lamda), 2 non-finite position, 3 collapsed cell or tilt beyond half
     the box. Per completed step k: stress (xx, yy, xy, yx; virial / area of the box after the
-    step, compression positive), box (lx, ly, xy, ylo, yhi), contacts, mean overlap, kinetic energy.
+    step, compression positive), virial (xx, yy, xy, yx; sum 0.5 d (x) f of the step, N m), box
+    (lx, ly, xy, ylo, yhi), contacts, mean overlap, kinetic energy.
     """
     for k in range(nsteps):
         step = step0 + k + 1
@@ -582,7 +605,7 @@ def run_block(
                 rebuild, bad = check_rebuild_corners(x, xhold, box, corners_hold, skin)
             else:
                 rebuild, bad = K.check_rebuild(
-                    x, xhold, box[0:2], box[2:4], box_hold[0:2], box_hold[2:4], skin
+                    x, xhold, box[0:2], box[2:4], box_hold[0:2], box_hold[2:4], skin, False
                 )
             if bad >= 0:
                 return k, 2, bad
@@ -620,29 +643,33 @@ def run_block(
             ef,
         )
         ke = K.final_integrate(v, w, f, t, m, r, dt)
-        ok = deform_end_of_step(
-            step,
-            begin,
-            end,
-            box,
-            hr,
-            vir,
-            erate_on,
-            tilt_start,
-            tilt_stop,
-            servo_on,
-            y_lo_start,
-            y_hi_start,
-            ly0,
-            kgain,
-            gain,
-            target,
-        )
-        if not ok:
-            return k, 3, -1
+        if step % every == 0:
+            ok = deform_end_of_step(
+                step,
+                begin,
+                end,
+                box,
+                hr,
+                vir,
+                xy_style,
+                tilt_start,
+                tilt_stop,
+                rate,
+                dt,
+                servo_on,
+                y_lo_start,
+                y_hi_start,
+                ly0,
+                kgain,
+                gain,
+                target,
+            )
+            if not ok:
+                return k, 3, -1
         inv = 1.0 / ((box[2] - box[0]) * (box[3] - box[1]))
         for c in range(4):
             out_stress[k, c] = vir[c] * inv
+            out_vir[k, c] = vir[c]
         out_box[k, 0] = box[2] - box[0]
         out_box[k, 1] = box[3] - box[1]
         out_box[k, 2] = box[4]
