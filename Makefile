@@ -49,7 +49,7 @@ engines:
 liggghts: engines
 
 run: setup
-	$(VENV)/bin/gransim validate --suite default
+	$(VENV)/bin/gransim validate --suite default --jobs 2
 
 test: setup
 	$(PY) -m pytest -q -n 2 --dist loadfile

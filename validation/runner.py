@@ -50,10 +50,9 @@ def run_validation(suite: str = "default", results: Path | str = "results", jobs
 
 def _lammps_version() -> str | None:
     """The version the ``lmp`` binary reports about itself (None when absent)."""
-    from gransim.io import provenance
+    from gransim.io import lammps_version
 
-    fn = getattr(provenance, "lammps_version", None)
-    return fn() if fn is not None else None
+    return lammps_version()
 
 
 def _run_cases(ctx, suite, only, log, timeout) -> tuple[bool, list[CaseResult]]:

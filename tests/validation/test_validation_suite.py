@@ -30,6 +30,11 @@ def test_quick_suite_passes_and_writes_outputs(tmp_path):
     assert ok, [(r.case, r.error, [x for x in r.records if not x.passed]) for r in results if not r.passed]
     assert {r.case for r in results} == {"taylor-rve", "biaxial-short", "simple-shear", "voidcell"}
     doc = json.loads((tmp_path / "validation.json").read_text())
+    for code, word in (("liggghts", "LIGGGHTS"), ("lammps", "LAMMPS")):  # each code as it reports itself
+        if doc["header"][f"{code}_available"]:
+            assert doc["header"][f"{code}_version"].startswith(word), doc["header"]
+        else:
+            assert doc["header"][f"{code}_version"] == "absent"
     assert doc["cases"] == {"taylor-rve": "pass", "biaxial-short": "pass", "simple-shear": "pass", "voidcell": "pass"}
     assert doc["records"]
     for rec in doc["records"]:
