@@ -12,8 +12,10 @@ from .output import (
     snapshot_to_vtu,
 )
 from .run import Phase, run_phases
-from .settings import AxisControl, DEMSettings, Loading
+from .settings import AxisControl, DEMSettings, Loading, PrescribedBox
+from .sheared import ShearEngine, ShearLoading, simple_shear
 
 __all__ = ["AxisControl", "BiaxialSettings", "DEMEngine", "DEMSettings", "Loading", "OutputSettings", "Phase",
-           "contact_time", "damping_ratio", "default_settings", "fingerprint", "inertial_number", "plot_stress_strain", "read_run",
-           "read_snapshot", "require_complete", "run_biaxial", "run_phases", "snapshot_to_vtu", "stability_limit"]
+           "PrescribedBox", "ShearEngine", "ShearLoading", "contact_time", "damping_ratio", "default_settings",
+           "fingerprint", "inertial_number", "plot_stress_strain", "read_run", "read_snapshot", "require_complete",
+           "run_biaxial", "run_phases", "simple_shear", "snapshot_to_vtu", "stability_limit"]

@@ -28,9 +28,12 @@ every 1 check yes``, ``atom_modify sort 0 0.0``):
 4. forces: image positions owner + shift of the current box (the box of step n-1), from lamda on
    a build step; image velocities with the Lees-Edwards jump; virial;
 5. second half step;
-6. ``fix deform`` end of step: the box of step n (tilt linear over the run ``begin``..``end``:
-   xy(n) = xy0 + (n - begin)/(end - begin) (xy_stop - xy0), xy_stop = xy0 + (end - begin) dt
-   rate Ly0; then LAMMPS' tilt wrap), stress of step n = virial / (Lx Ly) of box n (thermo).
+6. ``fix deform`` end of step, on the steps that are multiples of its N (``ShearLoading.every``):
+   the box of step n (xy styles erate, vel, final, delta linear over the run ``begin``..``end``:
+   xy(n) = xy0 + (n - begin)/(end - begin) (xy_stop - xy0), e.g. xy_stop = xy0 + (end - begin) dt
+   rate Ly0 for erate; trate xy0 exp(rate (n - begin) dt) with h_rate[5] = rate * the tilt before;
+   then LAMMPS' tilt wrap), stress of step n = virial / (Lx Ly) of box n (thermo); ``advance``
+   also returns the virial of every step.
 
 The contact law is ``gransim.contacts.hooke.hooke_history_lammps`` when it exists (else
 ``hooke_history``, see :data:`gransim.dem.sheared_kernels.LAMMPS_LAW_NAME`), with LAMMPS'
@@ -43,6 +46,7 @@ zero tilt and a fixed box, the only case both can express). Details and sources:
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,23 +78,46 @@ def _number(value, name: str) -> float:
     return v
 
 
+#: ``fix deform xy`` styles (LAMMPS ``FixDeform``): the number is 1/s (erate, trate), m/s (vel), m
+#: (final, delta)
+XY_STYLES = ("erate", "trate", "vel", "final", "delta")
+
+
 @dataclass(frozen=True)
 class ShearLoading:
-    """Loading of the sheared cell (LAMMPS ``fix deform 1 xy erate ERATE [y variable ...] remap v``).
+    """Loading of the sheared cell: LAMMPS ``fix deform N xy STYLE VALUE [y variable ...] remap v``.
 
     Attributes
     ----------
-    erate : engineering shear rate (1/s): d xy/dt = erate * Ly0 (Ly0 the height at the start of
-        the run), LAMMPS ``xy erate``. 0: no shear.
+    erate : engineering shear rate (1/s) of style ``xy erate``: d xy/dt = erate * Ly0 (Ly0 the
+        height at the start of the run). 0: no shear. The same number as ``value`` for that style.
     y : "fixed" (constant volume) or "servo" (normal stress on y, see the module docstring).
     target : servo target sigma_yy, compression positive (N/m in 2D).
     gain : servo gain g (1/(Pa s)), > 0 for "servo".
+    xy : the tilt style, one of :data:`XY_STYLES` (``FixDeform::init`` / ``end_of_step``; lattice
+        spacing 1.0):
+
+        - ``erate R``: tilt_stop = xy0 + (delt R) Ly0, delt = (end - begin) dt;
+        - ``vel V``: tilt_stop = xy0 + delt V (m/s);
+        - ``final T``: tilt_stop = T (m);  ``delta D``: tilt_stop = xy0 + D (m);
+        - these four: xy = xy0 + delta (tilt_stop - xy0), delta = (step - begin)/(end - begin),
+          h_rate[5] = (tilt_stop - xy0)/delt for the whole run;
+        - ``trate R``: xy = xy0 exp(R (step - begin) dt) (1/s; needs xy0 != 0, as LAMMPS), and
+          h_rate[5] = R * (the tilt before the step's change), 0 until the first change.
+    value : the style's number; for ``xy="erate"`` it defaults to ``erate`` (give one of them, or
+        the same number twice); other styles need it (and erate 0).
+    every : ``fix deform N``: the box (tilt and servo) changes on the steps that are multiples of
+        N only (``Modify::end_of_step``); h_rate is that of the last change (linear styles: the
+        constant of ``init``).
     """
 
     erate: float = 0.0
     y: str = "fixed"
     target: float = 0.0
     gain: float = 0.0
+    xy: str = "erate"
+    value: float | None = None
+    every: int = 1
 
     def __post_init__(self):
         object.__setattr__(self, "erate", _number(self.erate, "erate"))
@@ -99,9 +126,74 @@ class ShearLoading:
         object.__setattr__(self, "gain", _number(self.gain, "gain"))
         if self.y == "servo" and not self.gain > 0:
             raise InputError(f"gain: the y servo needs a gain > 0 (1/(Pa s)), got {self.gain!r}")
+        check_choice(self.xy, "xy style", XY_STYLES)
+        if self.xy == "erate":
+            v = self.erate if self.value is None else _number(self.value, "value")
+            if self.value is not None and self.erate not in (0.0, v):
+                raise InputError(f"value: xy erate given twice with different numbers, erate = "
+                                 f"{self.erate!r} and value = {v!r}")
+            object.__setattr__(self, "erate", v)
+        else:
+            if self.value is None:
+                raise InputError(f"value: xy {self.xy} needs its number ({_UNITS[self.xy]})")
+            v = _number(self.value, "value")
+            if self.erate != 0.0:
+                raise InputError(f"erate: only for xy erate; xy {self.xy} takes its number as value, "
+                                 f"got erate = {self.erate!r}")
+        object.__setattr__(self, "value", v)
+        object.__setattr__(self, "every", as_int(self.every, "every", 1))
+
+    @property
+    def moves_tilt(self) -> bool:
+        """False when the tilt cannot change (xy erate 0)."""
+        return not (self.xy == "erate" and self.value == 0.0)
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
+
+
+_UNITS = {"erate": "1/s", "trate": "1/s", "vel": "m/s", "final": "m", "delta": "m"}
+
+
+def tilt_stop(style: str, value: float, tilt_start: float, ly_start: float, delt: float) -> float:
+    """``tilt_stop`` of ``xy STYLE value`` in LAMMPS' ``FixDeform::init`` (the same double operations
+    in the same order; lattice spacing 1.0): final: value; delta: start + value; vel: start +
+    delt*value; erate: start + (delt*value)*(yhi_start - ylo_start); trate: start*exp(value*delt)
+    (printed only: the tilt of trate is computed step by step)."""
+    if style == "final":
+        return value * 1.0
+    if style == "delta":
+        return tilt_start + value * 1.0
+    if style == "vel":
+        return tilt_start + delt * (value * 1.0)
+    if style == "erate":
+        return tilt_start + delt * value * ly_start
+    if style == "trate":
+        return tilt_start * math.exp(value * delt)
+    raise InputError(f"xy style: expected one of {', '.join(XY_STYLES)}, got {style!r}")
+
+
+def _check_box(box, Lx: float, Ly: float, xy: float):
+    """(lo_x, lo_y, hi_x, hi_y, xy) of the ``box`` argument (lo, hi[, xy]), checked against the cell."""
+    try:
+        parts = list(box)
+        if len(parts) not in (2, 3):
+            raise ValueError
+        lo, hi = (np.array(b, np.float64).reshape(2) for b in parts[:2])
+        tilt = float(parts[2]) if len(parts) == 3 else xy
+    except (TypeError, ValueError):
+        raise InputError(f"box: expected (lo, hi) or (lo, hi, xy), lo and hi two numbers each (m), "
+                         f"got {box!r}") from None
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi > lo) and np.isfinite(tilt)):
+        raise InputError(f"box: expected finite lo < hi and tilt, got lo {lo.tolist()}, hi {hi.tolist()}, "
+                         f"xy {tilt!r}")
+    L = np.array([Lx, Ly])
+    if np.any(np.abs((hi - lo) - L) > 1e-12 * L):
+        raise InputError(f"box: hi - lo = {(hi - lo).tolist()} m differs from the cell's side lengths "
+                         f"{L.tolist()} m")
+    if abs(tilt - xy) > 1e-12 * Lx:
+        raise InputError(f"box: xy = {tilt!r} m differs from the cell's tilt cell[0, 1] = {xy!r} m")
+    return np.array([lo[0], lo[1], hi[0], hi[1], tilt])
 
 
 class ShearEngine:
@@ -110,11 +202,17 @@ class ShearEngine:
     Parameters
     ----------
     packing : initial packing; its cell [[Lx, xy], [0, Ly]] (a1 = (Lx, 0), a2 = (xy, Ly), |xy| <=
-        Lx/2, as a LAMMPS triclinic box); the box is [0, Lx] x [0, Ly] with tilt xy.
+        Lx/2, as a LAMMPS triclinic box); the box is [0, Lx] x [0, Ly] with tilt xy unless ``box``
+        is given.
     settings : DEMSettings (kn, kt, gamma_n, gamma_t, mu, dt, skin; ``mode`` must be "serial").
     velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
     flavour : "lammps" (default) or "liggghts" (see the module docstring).
     check_dt : refuse a time step above :func:`gransim.dem.engine.stability_limit`.
+    box : optional (lo, hi) or (lo, hi, xy), lo and hi (2,) (m): the box with its own origin, as a
+        LAMMPS data file's ``xlo xhi ylo yhi`` (and ``xy xz yz``) lines. The values are used as
+        given (bit for bit, like ``DEMEngine(box=...)``) and the positions are taken as they are
+        in that box (no translation, which would round them). hi - lo must equal the diagonal of
+        ``packing.cell`` and xy its cell[0, 1] (to 1e-12 relative).
 
     Attributes (after construction = LAMMPS ``run`` set-up: list built, forces without spring
     increment): x (N, 2), v, w, f, t, box (lo_x, lo_y, hi_x, hi_y, xy), h_rate (h_rate[0],
@@ -129,6 +227,7 @@ class ShearEngine:
         spins=None,
         flavour: str = "lammps",
         check_dt: bool = True,
+        box=None,
     ):
         check_choice(flavour, "flavour", FLAVOURS)
         if not isinstance(settings, DEMSettings):
@@ -187,7 +286,7 @@ class ShearEngine:
                 raise InputError(f"{name}: expected finite numbers")
         self.f = np.zeros((n, 2))
         self.t = np.zeros(n)
-        self.box = np.array([0.0, 0.0, Lx, Ly, xy])
+        self.box = np.array([0.0, 0.0, Lx, Ly, xy]) if box is None else _check_box(box, Lx, Ly, xy)
         self.h_rate = np.zeros(3)
         self.lam = np.zeros((n, 2))
         self.step = 0
@@ -334,32 +433,46 @@ class ShearEngine:
 
     # ------------------------------------------------------------------ stepping
     def start_run(self, loading: ShearLoading, nsteps: int):
-        """Begin a LAMMPS ``run nsteps`` under ``loading``: ``fix deform`` init (the tilt runs
-        linearly from its value now to xy + nsteps dt erate Ly over the run; h_rate[5] =
-        (xy_stop - xy_start) / (nsteps dt), h_rate[1] = 0 until the first servo step), then the
-        run's set-up evaluation (``Verlet::setup``). Returns the set-up stress (2, 2), LAMMPS'
-        thermo at the first step of the run."""
+        """Begin a LAMMPS ``run nsteps`` under ``loading``: ``fix deform`` init (the start and stop
+        tilt of the style over the run, see :class:`ShearLoading`; h_rate[5] = (tilt_stop -
+        tilt_start) / (nsteps dt) for the linear styles, 0 for trate until its first change;
+        h_rate[1] = 0 until the first servo change), then the run's set-up evaluation
+        (``Verlet::setup``). Returns the set-up stress (2, 2), LAMMPS' thermo at the first step of
+        the run.
+
+        Raises InputError for a trate on a cell without tilt (LAMMPS: "Cannot use fix deform trate
+        on a box with zero tilt") and for a moving box with ``flavour="liggghts"``.
+        """
         if not isinstance(loading, ShearLoading):
             raise InputError(f"loading: expected a ShearLoading, got {type(loading).__name__}")
         nsteps = as_int(nsteps, "nsteps", 1)
-        if self.flavour == "liggghts" and (loading.erate != 0.0 or loading.y != "fixed"):
-            raise InputError("flavour 'liggghts': only a fixed box (erate 0, y fixed) is supported")
+        if self.flavour == "liggghts" and (loading.moves_tilt or loading.y != "fixed"):
+            raise InputError("flavour 'liggghts': only a fixed box (xy erate 0, y fixed) is supported")
         s = self.settings
         begin = self.step
         end = begin + nsteps
         delt = float(end - begin) * s.dt
         b = self.box
         tilt_start = float(b[4])
-        tilt_stop = tilt_start + delt * loading.erate * (b[3] - b[1])
+        if loading.xy == "trate" and tilt_start == 0.0:
+            raise InputError("loading: xy trate on a cell without tilt (the tilt grows as xy0 exp(rate t); "
+                             "LAMMPS stops too: 'Cannot use fix deform trate on a box with zero tilt')")
+        stop = tilt_stop(loading.xy, loading.value, tilt_start, float(b[3] - b[1]), delt)
         self.h_rate[:] = 0.0
-        if loading.erate != 0.0:
-            self.h_rate[2] = (tilt_stop - tilt_start) / delt
+        if not loading.moves_tilt:
+            style = SK.XY_NONE
+        elif loading.xy == "trate":
+            style = SK.XY_TRATE
+        else:
+            style = SK.XY_LINEAR
+            self.h_rate[2] = (stop - tilt_start) / delt
         self._run = {
             "begin": begin,
             "end": end,
             "loading": loading,
+            "style": style,
             "tilt_start": tilt_start,
-            "tilt_stop": tilt_stop,
+            "tilt_stop": stop,
             "y_lo": float(b[1]),
             "y_hi": float(b[3]),
             "ly0": float(b[3] - b[1]),
@@ -377,7 +490,9 @@ class ShearEngine:
         Returns
         -------
         dict with ``step`` (n,), ``stress`` (n, 2, 2) (compression positive, N/m; virial / area of
-        the box after the step), ``box`` (n, 5) (lx, ly, xy, ylo, yhi; m), ``n_contacts`` (n,),
+        the box after the step), ``virial`` (n, 4) (xx, yy, xy, yx: sum 0.5 d (x) f of the step
+        over the half list, N m; stress times the area, LAMMPS' ``virial`` before ``compute
+        pressure`` divides it), ``box`` (n, 5) (lx, ly, xy, ylo, yhi; m), ``n_contacts`` (n,),
         ``mean_overlap`` (n,) (m), ``kinetic_energy`` (n,) (J, of the full velocities).
 
         Raises
@@ -398,6 +513,7 @@ class ShearEngine:
         s = self.settings
         ld = run["loading"]
         out_stress = np.zeros((nsteps, 4))
+        out_vir = np.zeros((nsteps, 4))
         out_box = np.zeros((nsteps, 5))
         out_nc = np.zeros(nsteps)
         out_ov = np.zeros(nsteps)
@@ -444,9 +560,11 @@ class ShearEngine:
                 resume,
                 run["begin"],
                 run["end"],
-                ld.erate != 0.0,
+                ld.every,
+                run["style"],
                 run["tilt_start"],
                 run["tilt_stop"],
+                ld.value,
                 ld.y == "servo",
                 run["y_lo"],
                 run["y_hi"],
@@ -455,6 +573,7 @@ class ShearEngine:
                 ld.gain,
                 ld.target,
                 out_stress[done:],
+                out_vir[done:],
                 out_box[done:],
                 out_nc[done:],
                 out_ov[done:],
@@ -493,6 +612,7 @@ class ShearEngine:
         return {
             "step": np.arange(step_start + 1, step_start + nsteps + 1),
             "stress": st,
+            "virial": out_vir,
             "box": out_box,
             "n_contacts": np.rint(out_nc).astype(np.int64),
             "mean_overlap": out_ov,
@@ -525,20 +645,22 @@ def simple_shear(
     flavour: str = "lammps",
     every: int | None = None,
     callback=None,
+    box=None,
 ) -> dict:
     """Simple shear of ``packing`` for ``nsteps`` steps (one LAMMPS ``run``); per-step series.
 
     ``loading`` (:class:`ShearLoading`): constant-volume shear (``y="fixed"``) or shear under
     the y normal-stress servo. ``callback(engine)`` is called every ``every`` steps (and at the end),
-    e.g. to record positions. Returns the dict of :meth:`ShearEngine.advance` plus ``setup_stress``
-    (2, 2) (the set-up evaluation, LAMMPS' thermo at step 0), ``shear_strain`` (n,) (xy / Ly0) and
+    e.g. to record positions; ``box`` is passed to :class:`ShearEngine`. Returns the dict of :meth:`ShearEngine.advance` plus ``setup_stress``
+    (2, 2) (the set-up evaluation, LAMMPS' thermo at step 0), ``shear_strain`` (n,) ((xy - xy0) / Ly0) and
     ``engine`` (the final state).
     """
     nsteps = as_int(nsteps, "nsteps", 1)
     if every is not None:
         every = as_int(every, "every", 1)
-    eng = ShearEngine(packing, settings, velocities=velocities, spins=spins, flavour=flavour)
+    eng = ShearEngine(packing, settings, velocities=velocities, spins=spins, flavour=flavour, box=box)
     ly0 = float(eng.box[3] - eng.box[1])
+    xy0 = float(eng.box[4])
     setup = eng.start_run(loading, nsteps)
     parts = []
     chunk = every or nsteps
@@ -548,9 +670,128 @@ def simple_shear(
             callback(eng)
     out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     out["setup_stress"] = setup
-    out["shear_strain"] = (out["box"][:, 2] - float(packing.cell[0, 1])) / ly0
+    out["shear_strain"] = (out["box"][:, 2] - xy0) / ly0
     out["engine"] = eng
     return out
 
 
-__all__ = ["FLAVOURS", "ShearEngine", "ShearLoading", "simple_shear"]
+#: ``kind`` of the run file of :func:`write_shear_run` (layout: docs/shear.md)
+SHEAR_RUN_KIND = "shear-run"
+
+
+def run_shear_file(
+    packing: Packing,
+    settings: DEMSettings,
+    loading: ShearLoading,
+    nsteps: int,
+    out_path,
+    series_every: int = 10,
+    snapshot_every: int = 0,
+    parameters: dict | None = None,
+    show_progress: bool = True,
+    flavour: str = "lammps",
+) -> dict:
+    """Simple shear of ``packing`` for ``nsteps`` steps, written to an HDF5 run file (kind
+    :data:`SHEAR_RUN_KIND`, layout in docs/shear.md) atomically with the provenance.
+
+    Parameters
+    ----------
+    series_every : a row of ``/series`` every this many steps (and step 0 = the set-up, and the
+        last step). snapshot_every : ``/snapshots/<step>`` every this many steps (0: the first and
+        the last only). parameters : extra provenance (stored beside the settings and loading).
+    show_progress : a progress bar on a terminal (silent otherwise).
+
+    Returns a summary dict (steps, shear strain reached, final stresses tension positive, builds).
+    A SimulationError is re-raised after the file was written with ``complete`` False and the
+    message as ``stop_reason``. Stresses in the file are tension positive (the engine's are
+    compression positive: ``sigma_file = -stress``).
+    """
+    import json
+
+    from ..io import atomic_h5, write_packing_group
+    from ..progress import progress
+
+    nsteps = as_int(nsteps, "nsteps", 1)
+    series_every = as_int(series_every, "series_every", 1)
+    snapshot_every = as_int(snapshot_every, "snapshot_every", 0)
+    eng = ShearEngine(packing, settings, flavour=flavour)
+    ly0, xy0 = float(eng.box[3] - eng.box[1]), float(eng.box[4])
+    setup = eng.start_run(loading, nsteps)
+    rows = {k: [] for k in ("step", "box", "stress", "n_contacts", "kinetic_energy")}
+
+    def row(step, box, stress, nc, ke):
+        rows["step"].append(step)
+        rows["box"].append(box)
+        rows["stress"].append(-np.asarray(stress))
+        rows["n_contacts"].append(nc)
+        rows["kinetic_energy"].append(ke)
+
+    b = eng.box
+    row(0, [b[2] - b[0], b[3] - b[1], b[4], b[1], b[3]], setup, eng.n_contacts, eng.kinetic_energy())
+    snaps = {}
+
+    def snap():
+        snaps[eng.step] = {"positions": eng.x.copy(), "velocities": eng.v.copy(), "spins": eng.w.copy(),
+                           "cell": eng.cell, "box_lo": eng.box[0:2].copy()}
+
+    snap()
+    stops = set(range(series_every, nsteps + 1, series_every)) | {nsteps}
+    if snapshot_every:
+        stops |= set(range(snapshot_every, nsteps + 1, snapshot_every))
+    stops = sorted(stops)
+    reason = ""
+    bar = progress(total=nsteps, desc="shear") if show_progress else None
+    try:
+        for stop in stops:
+            out = eng.advance(stop - eng.step)
+            if bar is not None:
+                bar.update(len(out["step"]))
+            if stop % series_every == 0 or stop == nsteps:
+                row(stop, out["box"][-1], out["stress"][-1], out["n_contacts"][-1], out["kinetic_energy"][-1])
+            if (snapshot_every and stop % snapshot_every == 0) or stop == nsteps:
+                snap()
+    except SimulationError as exc:
+        reason = str(exc)
+    finally:
+        if bar is not None:
+            bar.close()
+    box = np.array(rows["box"], np.float64).reshape(-1, 5)
+    strain = (box[:, 2] - xy0) / ly0
+    text = json.dumps({"dem": settings.to_dict(), "loading": loading.to_dict(), "nsteps": nsteps,
+                       "flavour": flavour}, sort_keys=True)
+    params = {"dem": settings.to_dict(), "loading": loading.to_dict(), "nsteps": nsteps, "flavour": flavour,
+              **(parameters or {})}
+    with atomic_h5(out_path, kind=SHEAR_RUN_KIND, parameters=params, seed=packing.metadata.get("seed"),
+                   lammps=False) as f:
+        f.attrs["settings"] = text
+        f.attrs["n_particles"] = packing.n
+        f.attrs["nsteps"] = nsteps
+        f.attrs["complete"] = not reason
+        f.attrs["stop_reason"] = reason
+        f.attrs["stress_sign"] = "tension positive"
+        f.attrs["shear_strain_reached"] = float(strain[-1])
+        write_packing_group(f.create_group("packing"), packing)
+        g = f.create_group("series")
+        g["step"] = np.array(rows["step"], np.int64)
+        g["time"] = g["step"][()] * settings.dt
+        g["box"] = box
+        g["shear_strain"] = strain
+        g["stress"] = np.array(rows["stress"], np.float64).reshape(-1, 2, 2)
+        g["n_contacts"] = np.array(rows["n_contacts"], np.int64)
+        g["kinetic_energy"] = np.array(rows["kinetic_energy"], np.float64)
+        sg = f.create_group("snapshots")
+        for step, d in snaps.items():
+            h = sg.create_group(str(step))
+            h.attrs["step"] = step
+            for k, v in d.items():
+                h[k] = v
+    if reason:
+        raise SimulationError(f"{reason} (the run file {out_path} holds the steps before, complete = False)")
+    last = rows["stress"][-1]
+    return {"steps": nsteps, "shear_strain": float(strain[-1]), "sigma_xy": float(last[0][1]),
+            "sigma_yy": float(last[1][1]), "sigma_xx": float(last[0][0]), "ly": float(box[-1, 1]),
+            "n_rebuilds": int(eng.n_rebuilds)}
+
+
+__all__ = ["FLAVOURS", "SHEAR_RUN_KIND", "XY_STYLES", "ShearEngine", "ShearLoading", "run_shear_file", "simple_shear",
+           "tilt_stop"]

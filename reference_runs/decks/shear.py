@@ -1,6 +1,8 @@
 """LAMMPS (29 Sep 2021) deck of true periodic simple shear that mirrors gransim.dem.sheared step
 for step: a triclinic box (``change_box all triclinic``) sheared by ``fix deform 1 xy erate RATE
-remap v`` (Lees-Edwards), y fixed or under a normal-stress servo ``y variable v_dy v_ry``.
+remap v`` (Lees-Edwards; or any other ``xy`` style and ``fix deform N`` of the
+:class:`~gransim.dem.sheared.ShearLoading`, except trate, which needs a tilted start), y fixed or
+under a normal-stress servo ``y variable v_dy v_ry``.
 
 Same contact law (``pair_style gran/hooke/history KN KT GAMMAN GAMMAT MU 1``, mass-scaled damping),
 time step, skin and neighbour rule (``neigh_modify delay 0 every 1 check yes``), no atom sorting,
@@ -105,8 +107,11 @@ def deck_text(
         "fix e2d all enforce2d",
     ]
     deform = []
-    if loading.erate != 0.0:
-        deform.append(f"xy erate {_g(loading.erate)}")
+    if loading.xy == "trate":
+        raise InputError("loading: xy trate needs a tilted start, and this deck starts from an orthogonal cell "
+                         "(change_box all triclinic, xy = 0; LAMMPS refuses trate at zero tilt)")
+    if loading.moves_tilt:
+        deform.append(f"xy {loading.xy} {_g(loading.value)}")
     if loading.y == "servo":
         k = s.dt * loading.gain
         t = _g(loading.target)
@@ -118,7 +123,7 @@ def deck_text(
         ]
         deform.append("y variable v_dy v_ry")
     if deform:
-        lines.append(f"fix def all deform 1 {' '.join(deform)} remap v")
+        lines.append(f"fix def all deform {loading.every} {' '.join(deform)} remap v")
     lines += [
         "compute pt all pressure NULL virial",
         "thermo_style custom step lx ly xy xlo xhi ylo yhi c_pt[1] c_pt[2] c_pt[4]",

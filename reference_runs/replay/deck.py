@@ -31,7 +31,7 @@ erate|trate|vel|final|delta|scale ... remap x [units box|lattice] [flip yes|no]`
 cols``, ``dump_modify ID sort id format ...``, ``variable NAME equal EXPR`` (a number may be
 used as ``${NAME}`` or ``$N``; other expressions only as thermo columns ``v_NAME``, printed, not
 compared) and one ``run N``. Sheared LAMMPS decks: ``change_box all triclinic`` (or a data file
-with ``XY 0 0 xy xz yz``) and ``fix ID all deform 1 xy erate|vel|final|delta V remap v``, run
+with ``XY 0 0 xy xz yz``) and ``fix ID all deform N xy erate|trate|vel|final|delta V remap v``, run
 natively through :class:`gransim.dem.sheared.ShearEngine`; what it cannot express, and any tilt
 in a LIGGGHTS deck (its triclinic box loses the periodic ghosts), is refused naming the line.
 """
@@ -50,7 +50,7 @@ from gransim.dem.settings import DEMSettings
 from gransim.errors import InputError
 from gransim.geometry import Packing
 
-from .deform import STYLES, TILT_STYLES, AxisDeform, DeformSpec, tilt_stop
+from .deform import STYLES, TILT_STYLES, AxisDeform, DeformSpec
 
 #: why a LIGGGHTS deck with a tilt is refused
 LIGGGHTS_TILT = ("LIGGGHTS 3.8.0's triclinic box loses the periodic ghosts (contacts across the tilted "
@@ -70,7 +70,7 @@ SUPPORTED = (
     "pair_style gran/hooke/history (LAMMPS)", "pair_coeff * *", "timestep",
     "fix nve/sphere (LAMMPS: nve/sphere disc)", "fix enforce2d",
     "fix deform (x/y erate|trate|vel|final|delta|scale, remap x)",
-    "change_box all triclinic + fix deform 1 xy erate|vel|final|delta remap v (LAMMPS)",
+    "change_box all triclinic + fix deform N xy erate|trate|vel|final|delta remap v (LAMMPS)",
     "compute pressure TEMP virial",
     "thermo", "thermo_style custom", "thermo_modify", "dump custom", "dump_modify",
     "variable equal", "run",
@@ -796,17 +796,10 @@ class _State:
         if d.tilt is None:
             raise InputError(f"{p}:{d.line}: fix deform without xy on a sheared deck: nothing for ShearEngine "
                              "to move")  # pragma: no cover - the parser needs an x, y or xy setting
-        if d.tilt[0] == "trate":
-            raise InputError(f"{p}:{d.line}: fix deform xy trate: the tilt grows exponentially (h_rate "
-                             "changes every step), which ShearEngine cannot express (it runs the tilt "
-                             "linearly over the run: xy erate|vel|final|delta)")
         if d.remap != "v":
             raise InputError(f"{p}:{d.line}: fix deform xy with remap {d.remap}: ShearEngine runs the "
                              "Lees-Edwards convention of remap v (positions are not mapped when the tilt "
                              "changes); write remap v")
-        if d.every != 1:
-            raise InputError(f"{p}:{d.line}: fix deform {d.every} xy: ShearEngine changes the tilt every step; "
-                             "write fix deform 1")
 
     def finish(self, text, data):
         eng = self._engine()
@@ -926,46 +919,29 @@ class _State:
 def _shear_loading(st, path, tilt, lo, hi, dt, nsteps):
     """The :class:`~gransim.dem.sheared.ShearLoading` of a sheared deck, and its check.
 
-    ShearEngine runs ``xy erate R``: tilt_stop = xy0 + ((N dt) R) Ly0 over a run of N steps,
-    as LAMMPS. The other linear styles (final, delta, vel) are expressed as the erate whose
-    ``tilt_stop`` is the same double: the nearest few doubles of (stop - xy0)/(N dt Ly0) are
-    tried and the exact one kept (else the closest, noted). A tilt beyond Lx/2 at the end of the
-    run (LAMMPS would flip the box; ShearEngine stops) is refused naming the line.
+    ShearEngine runs every ``xy`` style of the subset (erate, trate, vel, final, delta) in LAMMPS'
+    arithmetic and ``fix deform N`` with any N, so the deck's style, number and N are passed as
+    they are. A tilt beyond Lx/2 at the end of the run (LAMMPS would flip the box; ShearEngine
+    stops) and a trate on a box without tilt (LAMMPS stops too) are refused naming the line.
     """
-    import math
-
-    from gransim.dem.sheared import ShearLoading
+    from gransim.dem.sheared import ShearLoading, tilt_stop
 
     d = st.deform
     if d is None or d.tilt is None:
         return ShearLoading(erate=0.0)
     style, value = d.tilt
+    if style == "trate" and tilt == 0.0:
+        raise InputError(f"{path}:{d.line}: fix deform xy trate on a box without tilt: the tilt grows as "
+                         "xy0 exp(rate t) (LAMMPS stops: 'Cannot use fix deform trate on a box with zero "
+                         "tilt'); give the data file a tilt or use xy erate")
     delt = float(nsteps) * dt
-    ly0 = float(hi[1] - lo[1])
-    stop = tilt_stop(style, value, tilt, ly0, delt)
-    if style == "erate":
-        erate = value
-    else:
-        e0 = (stop - tilt) / (delt * ly0)
-        cands = [e0]
-        up = down = e0
-        for _ in range(16):
-            up, down = math.nextafter(up, math.inf), math.nextafter(down, -math.inf)
-            cands += [up, down]
-        erate = min(cands, key=lambda e: abs((tilt + delt * e * ly0) - stop))
-        got = tilt + delt * erate * ly0
-        if got != stop:
-            st.notes.append(f"line {d.line}: fix deform xy {style} {value!r}: no erate gives LAMMPS' "
-                            f"tilt_stop {stop!r} exactly; the native run ends at {got!r} m")
-        else:
-            st.notes.append(f"line {d.line}: fix deform xy {style} {value!r} runs natively as xy erate "
-                            f"{erate!r} (the same tilt_stop {stop!r} m, bit for bit)")
+    stop = tilt_stop(style, value, tilt, float(hi[1] - lo[1]), delt)
     lx = float(hi[0] - lo[0])
     if abs(stop) > 0.5 * lx:
         raise InputError(f"{path}:{d.line}: fix deform xy {style}: the tilt reaches {stop!r} m, beyond Lx/2 = "
                          f"{0.5 * lx!r} m, where LAMMPS flips the box; ShearEngine does not flip (shorten "
                          "the run or the rate)")
-    return ShearLoading(erate=erate)
+    return ShearLoading(xy=style, value=value, every=d.every)
 
 
 # ------------------------------------------------------------------------------ data file

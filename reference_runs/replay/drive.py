@@ -14,8 +14,11 @@ of the new box (``compute pressure`` after ``fix deform``); the scalar is (xx + 
 virial times 1/area, in LAMMPS' order. The run is advanced in chunks between dump steps only.
 
 Sheared decks (LAMMPS ``change_box all triclinic`` or a data file with a tilt, and ``fix deform
-1 xy erate|vel|final|delta ... remap v``): :func:`run_sheared` through
-:class:`gransim.dem.sheared.ShearEngine` (``flavour="lammps"``).
+N xy erate|trate|vel|final|delta ... remap v``): :func:`run_sheared` through
+:class:`gransim.dem.sheared.ShearEngine` (``flavour="lammps"``), built in the deck's own box
+(``box=(lo, hi, xy)``) and run under the deck's style and N as they are
+(:class:`~gransim.dem.sheared.ShearLoading` ``xy``, ``value``, ``every``); the pressure of a
+step is formed from the engine's per-step virial in ``compute pressure``'s order.
 """
 
 from __future__ import annotations
@@ -149,36 +152,25 @@ def run_native(deck: ReplayDeck, progress=None) -> NativeRun:
 
 
 def build_shear_engine(deck: ReplayDeck):
-    """A ShearEngine (LAMMPS flavour) in the state of the deck's ``run`` set-up, in the deck's box.
-
-    ShearEngine starts with the box [0, Lx] x [0, Ly]: it is built on the packing translated by
-    -lo (only to pass its checks), then given the deck's own positions and box through its public
-    state (``x``, ``box`` = lo_x, lo_y, hi_x, hi_y, xy; its kernels are origin-general) before
-    :meth:`~gransim.dem.sheared.ShearEngine.start_run` does the run's set-up (fix deform init, wrap,
-    list, forces without spring increment) in that box. A ``box_lo`` argument of ShearEngine
-    would remove the translated build (reported as wanted; the file is not the replay's).
-    """
+    """A ShearEngine (LAMMPS flavour) in the deck's own box (``box=(lo, hi, xy)``: the data file's
+    positions and box as they are), before the ``run`` set-up (:meth:`start_run`)."""
     from gransim.dem.sheared import ShearEngine
 
-    p = deck.packing
-    lo, hi = np.array(deck.box_lo, float), np.array(deck.box_hi, float)
-    shifted = p.replace(positions=np.asarray(p.positions) - lo)
+    box = (np.array(deck.box_lo, float), np.array(deck.box_hi, float), float(deck.tilt))
     try:
-        eng = ShearEngine(shifted, deck.settings, velocities=deck.velocities, spins=deck.spins,
-                          flavour="lammps")
+        return ShearEngine(deck.packing, deck.settings, velocities=deck.velocities, spins=deck.spins,
+                           flavour="lammps", box=box)
     except InputError as exc:
         raise InputError(f"{deck.path}: the sheared-cell engine refuses the deck: {exc}") from None
-    eng.x[:] = np.asarray(p.positions, float)
-    eng.box[:] = [lo[0], lo[1], hi[0], hi[1], float(deck.tilt)]
-    return eng
 
 
 def run_sheared(deck: ReplayDeck, progress=None) -> NativeRun:
     """Run a sheared (triclinic) LAMMPS deck through ShearEngine (see :func:`build_shear_engine`).
 
-    The stress of a step is ShearEngine's (virial / area of the box after the step, component by
-    component as ``compute pressure``); the scalar is (xx + yy)/2 of those components (LAMMPS
-    halves the virial sum before dividing by the area: a last-bit difference at most).
+    The pressure of a step is ``compute pressure ... virial`` of the engine's virial of that step
+    (:meth:`~gransim.dem.sheared.ShearEngine.advance` returns it per step) and the box after the
+    step: components virial[k] * (1/(Lx Ly)), scalar (virial_xx + virial_yy)/2 * (1/(Lx Ly)), in
+    LAMMPS' order (``ComputePressure::compute_scalar``/``compute_vector``, 2D).
     """
     eng = build_shear_engine(deck)
     n = deck.nsteps
@@ -199,13 +191,10 @@ def run_sheared(deck: ReplayDeck, progress=None) -> NativeRun:
     frames = {0: _frame(eng, deck)} if 0 in want else {}
     for a, b in _chunks(deck):
         out = eng.advance(b - a)
-        st = out["stress"]
-        pres[a + 1:b + 1, 0] = st[:, 0, 0]
-        pres[a + 1:b + 1, 1] = st[:, 1, 1]
-        pres[a + 1:b + 1, 3] = st[:, 0, 1]
-        ps[a + 1:b + 1] = (st[:, 0, 0] + st[:, 1, 1]) / 2.0
         box = out["box"]  # lx, ly, xy, ylo, yhi
         lo[a + 1:b + 1, 1], hi[a + 1:b + 1, 1], xy[a + 1:b + 1] = box[:, 3], box[:, 4], box[:, 2]
+        for j, k in enumerate(range(a + 1, b + 1)):
+            pres[k], ps[k] = _pressure(out["virial"][j], lo[k], hi[k])
         nc[a + 1:b + 1] = out["n_contacts"]
         if b in want:
             frames[b] = _frame(eng, deck)

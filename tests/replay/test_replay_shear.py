@@ -1,6 +1,7 @@
-"""Replay of sheared LAMMPS decks (change_box all triclinic or a tilted data file, fix deform 1 xy
-... remap v) through ShearEngine: hand-written decks d (xy erate) and e (xy final, tilted data file),
-both with the box origin away from zero, against stored and live LAMMPS runs; the refusals."""
+"""Replay of sheared LAMMPS decks (change_box all triclinic or a tilted data file, fix deform N xy
+... remap v) through ShearEngine: hand-written decks d (xy erate), e (xy final, tilted data file),
+f (xy trate, N = 2, tilted data file) and g (xy vel, N = 3), all with the box origin away from zero,
+against stored and live LAMMPS runs; the refusals."""
 
 import shutil
 import subprocess
@@ -15,7 +16,7 @@ from gransim.errors import InputError
 from reference_runs.replay.compare import replay
 from reference_runs.replay.deck import read_deck
 
-DECKS = {"d": "dump.d", "e": "dump.e"}
+DECKS = {"d": "dump.d", "e": "dump.e", "f": "dump.f", "g": "dump.g"}
 
 
 @pytest.mark.parametrize("name", sorted(DECKS))
@@ -32,11 +33,32 @@ def test_sheared_replay_agrees_with_stored_lammps_run(tmp_path, name):
         xy = f["native/xy"][()]
         lo = f["native/box_lo"][()]
     # the box origin is away from zero and the cell really shears (xy erate 50 1/s over 600 steps of
-    # 1e-6 s of Ly = 0.0069282 m: 2.078e-4 m; xy final from 2e-4 m to -1e-4 m)
+    # 1e-6 s of Ly = 0.0069282 m: 2.078e-4 m; xy final from 2e-4 m to -1e-4 m; trate 400 1/s over
+    # 500e-6 s from 2e-4 m; vel 0.35 m/s over 450e-6 s), changing on the multiples of N only
     assert lo[0, 0] == 0.25 and lo[0, 1] == -0.0417
-    want = {"d": (0.0, 600e-6 * 50.0 * (-0.0347718 + 0.0417)), "e": (2e-4, -1e-4)}[name]
+    want = {"d": (0.0, 600e-6 * 50.0 * (-0.0347718 + 0.0417), 1), "e": (2e-4, -1e-4, 1),
+            "f": (2e-4, 2e-4 * np.exp(400.0 * 500e-6), 2), "g": (0.0, 0.35 * 450e-6, 3)}[name]
     assert xy[0] == want[0] and abs(xy[-1] - want[1]) < 1e-15
-    assert np.all(np.diff(xy) != 0)
+    changed = np.flatnonzero(np.diff(xy) != 0) + 1
+    assert np.array_equal(changed, np.arange(want[2], len(xy), want[2]))
+
+
+@pytest.mark.parametrize("name", ["f", "g"])
+def test_fix_deform_n_matters(name):
+    # the same deck run natively with the box changed every step instead of every N: the pressure
+    # is then far from LAMMPS' (so the stored comparison above does test N and h_rate)
+    import dataclasses
+
+    from reference_runs.parsers import parse_log
+    from reference_runs.replay.drive import run_native
+
+    deck = read_deck(DATA / f"in.deck_{name}")
+    ref = parse_log(DATA / f"ref_{name}" / "log.lammps").runs[-1].column("c_p[4]")
+    good = run_native(deck).pressure[:, 3]
+    bad = run_native(dataclasses.replace(deck, shear=dataclasses.replace(deck.shear, every=1))).pressure[:, 3]
+    scale = np.abs(ref).max()
+    assert np.abs(good - ref).max() / scale < 1e-12
+    assert np.abs(bad - ref).max() / scale > 1e-6
 
 
 def _cut(tmp_path, name, what):
@@ -78,9 +100,8 @@ DEFORM = "fix 3 all deform 1 xy erate 50.0 remap v"
 
 
 @pytest.mark.parametrize("new,needle", [
-    ("fix 3 all deform 1 xy trate 50.0 remap v", "xy trate: the tilt grows exponentially"),
+    ("fix 3 all deform 1 xy trate 50.0 remap v", "xy trate on a box without tilt"),
     ("fix 3 all deform 1 xy erate 50.0 remap x", "remap x: ShearEngine runs the Lees-Edwards"),
-    ("fix 3 all deform 2 xy erate 50.0 remap v", "write fix deform 1"),
     ("fix 3 all deform 1 x erate 1.0 xy erate 50.0 remap v", "fix deform x erate on a sheared"),
     ("fix 3 all deform 1 y vel 0.01 remap v", "fix deform y vel on a sheared"),
     ("fix 3 all deform 1 xy erate 2000.0 remap v", "beyond Lx/2"),
@@ -128,13 +149,14 @@ def test_triclinic_data_file_errors(tmp_path):
         read_deck(p)
 
 
-def test_final_style_runs_as_an_equivalent_erate():
+def test_styles_and_n_pass_to_the_engine_as_written(tmp_path):
+    # no erate search any more: the deck's style, number and N reach ShearLoading unchanged
     d = read_deck(DATA / "in.deck_e")
     assert d.sheared and d.tilt == 2e-4 and d.packing.cell[0, 1] == 2e-4
-    # ShearEngine's tilt_stop from the erate is LAMMPS' final value to the last bits
-    ly = d.box_hi[1] - d.box_lo[1]
-    assert abs((d.tilt + 500 * 1e-6 * d.shear.erate * ly) - (-1e-4)) <= 2 * np.spacing(1e-4)
-    assert any("xy final" in n for n in d.notes)
+    assert (d.shear.xy, d.shear.value, d.shear.every, d.shear.erate) == ("final", -1e-4, 1, 0.0)
+    p = _deck(tmp_path, DEFORM, "fix 3 all deform 3 xy erate 50.0 remap v")
+    d = read_deck(p)
+    assert (d.shear.xy, d.shear.value, d.shear.every) == ("erate", 50.0, 3)
 
 
 @pytest.mark.lammps

@@ -1,0 +1,160 @@
+"""``gransim shear``: true periodic simple shear of a packing in a sheared (triclinic) cell with the
+native DEM engine in LAMMPS' arithmetic (``gransim.dem.sheared``, docs/shear.md)."""
+
+from __future__ import annotations
+
+#: default inertial number when neither --rate nor --inertial-number is given
+DEFAULT_INERTIAL_NUMBER = 1e-3
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "shear", help="DEM simple shear of a packing in a sheared periodic cell (LAMMPS remap v)",
+        description="Shear the packing (as it is: no consolidation first) by a tilt xy growing at a "
+                    "constant engineering rate (LAMMPS `fix deform 1 xy erate R remap v`, Lees-Edwards "
+                    "images), at constant volume or under a normal-stress servo on y. Writes a "
+                    "shear-run HDF5 file (docs/shear.md): the per-step series, snapshots, provenance; "
+                    "stresses tension positive.")
+    p.add_argument("--packing", required=True, help="packing HDF5 file (gransim pack / save_packing)")
+    p.add_argument("--strain", type=float, required=True,
+                   help="shear strain to reach, gamma = (xy - xy0)/Ly0 (> 0, the tilt must stay within Lx/2)")
+    rate = p.add_mutually_exclusive_group()
+    rate.add_argument("--rate", type=float, help="engineering shear rate d gamma/dt, 1/s")
+    rate.add_argument("--inertial-number", type=float,
+                      help=f"inertial number I = rate D50 sqrt(rho/p) giving the rate (default "
+                           f"{DEFAULT_INERTIAL_NUMBER:g}; p = --servo, or the mean pressure of the packing "
+                           "at constant volume)")
+    y = p.add_mutually_exclusive_group()
+    y.add_argument("--constant-volume", action="store_true", help="y fixed (the default)")
+    y.add_argument("--servo", type=float, metavar="P",
+                   help="hold the normal stress sigma_yy at P (N/m, compression, > 0) by moving y")
+    p.add_argument("--flavour", default="lammps",
+                   help="whose arithmetic the engine follows: lammps (LAMMPS 29 Sep 2021, the only one "
+                        "with a sheared periodic cell; LIGGGHTS 3.8.0's triclinic box loses its ghosts)")
+    p.add_argument("--kn", type=float, default=1e5, help="normal = tangential stiffness, N/m (default 1e5)")
+    p.add_argument("--damping-ratio", type=float, default=0.3, help="contact damping ratio (default 0.3)")
+    p.add_argument("--steps-per-contact", type=float, default=50.0, help="contact time / dt (default 50)")
+    p.add_argument("--series-every", type=int, default=10, help="series row every N steps (default 10)")
+    p.add_argument("--snapshot-every", type=int, default=0,
+                   help="snapshot every N steps (default 0: the first and the last only)")
+    p.add_argument("-o", "--output", required=True, help="run file (.h5)")
+    p.add_argument("--plot", help="also write the shear stress and normal stress against the strain")
+    p.set_defaults(func=_run)
+
+
+def _check_options(args) -> None:
+    """Every option and path, named as on the command line, before any work."""
+    from .._validate import as_int, as_positive_float
+    from ..errors import InputError
+    from ._paths import check_figure, check_input, check_output
+
+    check_input(args.packing, "--packing")
+    check_output(args.output, "-o/--output", (".h5", ".hdf5"))
+    if args.plot:
+        check_figure(args.plot, "--plot")
+    for name, v in (("--strain", args.strain), ("--rate", args.rate), ("--inertial-number", args.inertial_number),
+                    ("--servo", args.servo), ("--kn", args.kn), ("--steps-per-contact", args.steps_per_contact)):
+        if v is not None:
+            as_positive_float(v, name)
+    as_positive_float(args.damping_ratio, "--damping-ratio", allow_zero=True)
+    as_int(args.series_every, "--series-every", 1)
+    as_int(args.snapshot_every, "--snapshot-every", 0)
+    if args.flavour != "lammps":
+        from ..dem.settings import FLAVOURS
+
+        if args.flavour in FLAVOURS:
+            raise InputError(f"--flavour {args.flavour}: the sheared periodic cell runs in LAMMPS' arithmetic "
+                             "only (LIGGGHTS 3.8.0's triclinic box loses the periodic ghosts); use --flavour "
+                             "lammps")
+        raise InputError(f"--flavour: expected lammps, got {args.flavour!r}")
+
+
+def _run(args) -> int:
+    import dataclasses
+
+    import numpy as np
+
+    from ..dem.biaxial import default_settings, inertial_number
+    from ..dem.sheared import ShearEngine, ShearLoading, run_shear_file
+    from ..errors import InputError
+    from ..io import load_packing
+
+    _check_options(args)
+    packing = load_packing(args.packing)
+    C = np.asarray(packing.cell, float)
+    if C[1, 0] != 0.0:
+        raise InputError(f"--packing: {args.packing}: the cell must have a1 = (Lx, 0) (cell[1, 0] = 0), "
+                         f"got cell[1, 0] = {C[1, 0]!r}")
+    dem, _ = default_settings(packing, kn=args.kn, damping_ratio=args.damping_ratio,
+                              steps_per_contact=args.steps_per_contact, flavour="lammps")
+    lx, ly, xy0 = float(C[0, 0]), float(C[1, 1]), float(C[0, 1])
+    if xy0 + args.strain * ly > 0.5 * lx:
+        raise InputError(f"--strain {args.strain:g}: the tilt would reach {xy0 + args.strain * ly:.4g} m, beyond "
+                         f"Lx/2 = {0.5 * lx:.4g} m, where LAMMPS flips the box (the engine does not); "
+                         f"at most {(0.5 * lx - xy0) / ly:.4g} for this cell")
+    try:
+        probe = ShearEngine(packing, dem)  # the checks of the cell and dt, and the packing's pressure
+    except InputError as exc:
+        raise InputError(f"--packing: {args.packing}: {exc}") from None
+    p_mean = float(0.5 * (probe.stress[0, 0] + probe.stress[1, 1]))  # compression positive
+    p_ref = args.servo if args.servo is not None else p_mean
+    if args.rate is not None:
+        rate = args.rate
+    else:
+        inum = args.inertial_number if args.inertial_number is not None else DEFAULT_INERTIAL_NUMBER
+        if not p_ref > 0:
+            raise InputError(f"--inertial-number: the packing has no compressive pressure at constant volume "
+                             f"(mean stress {p_mean:.4g} N/m, compression positive), so I gives no rate: "
+                             "give --rate or --servo P")
+        rate = inum / (packing.d50 * np.sqrt(packing.density / p_ref))
+    nsteps = int(np.ceil(args.strain / (rate * dem.dt) - 1e-9))
+    if nsteps < 1:
+        raise InputError(f"--strain {args.strain:g} at rate {rate:.4g} 1/s is less than one step of "
+                         f"{dem.dt:.4g} s")
+    if args.servo is not None:
+        loading = ShearLoading(erate=rate, y="servo", target=args.servo, gain=0.01 / (dem.kn * dem.dt))
+    else:
+        loading = ShearLoading(erate=rate)
+    # the end tilt is that of nsteps steps: strain = nsteps dt rate (>= --strain by < one step)
+    extra = {"cli": {"strain": args.strain, "rate": rate, "inertial_number": args.inertial_number,
+                     "servo": args.servo, "packing": str(args.packing)},
+             "inertial_number": inertial_number(packing, rate, p_ref) if p_ref > 0 else None}
+    summary = run_shear_file(packing, dataclasses.replace(dem), loading, nsteps, args.output,
+                             series_every=args.series_every, snapshot_every=args.snapshot_every,
+                             parameters=extra)
+    y = f"servo sigma_yy = {args.servo:g} N/m" if args.servo is not None else "constant volume"
+    print(f"wrote {args.output}: {packing.n} disks, {nsteps} steps of {dem.dt:.3g} s, shear rate {rate:.4g} 1/s, "
+          f"{y}, LAMMPS arithmetic")
+    for k, v in summary.items():
+        print(f"  {k:20s} {v:.6g}" if isinstance(v, float) else f"  {k:20s} {v}")
+    if args.plot:
+        _plot(args.output, args.plot)
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def _plot(run_path, out) -> None:
+    from pathlib import Path
+
+    import h5py
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..io import atomic_path
+
+    out = Path(out)
+    with h5py.File(run_path, "r") as f:
+        g = f["series"]
+        gam, st = g["shear_strain"][()], g["stress"][()]
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    ax.plot(gam, st[:, 0, 1], label=r"$\sigma_{xy}$")
+    ax.plot(gam, -st[:, 1, 1], label=r"$-\sigma_{yy}$")
+    ax.set_xlabel(r"shear strain $\gamma$")
+    ax.set_ylabel("stress (N/m, tension positive)")
+    ax.legend()
+    fig.tight_layout()
+    with atomic_path(out, suffix=out.suffix) as tmp:
+        fig.savefig(tmp, dpi=120, format=out.suffix.lstrip(".") or "png")
+    plt.close(fig)
