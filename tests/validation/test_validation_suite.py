@@ -18,7 +18,8 @@ from gransim.dem import AxisControl, Loading
 from validation import dem_compare
 from validation.runner import run_validation
 
-CASE_IDS = {"packings", "taylor-rve", "biaxial-short", "biaxial-full", "simple-shear", "voidcell", "slope"}
+CASE_IDS = {"packings", "taylor-rve", "biaxial-short", "biaxial-full", "simple-shear", "voidcell", "slope",
+            "impacts"}
 
 
 def _quiet(*_a, **_k):
@@ -28,14 +29,15 @@ def _quiet(*_a, **_k):
 def test_quick_suite_passes_and_writes_outputs(tmp_path):
     ok, results = run_validation("quick", tmp_path, log=_quiet)
     assert ok, [(r.case, r.error, [x for x in r.records if not x.passed]) for r in results if not r.passed]
-    assert {r.case for r in results} == {"taylor-rve", "biaxial-short", "simple-shear", "voidcell"}
+    assert {r.case for r in results} == {"taylor-rve", "biaxial-short", "simple-shear", "voidcell", "impacts"}
     doc = json.loads((tmp_path / "validation.json").read_text())
     for code, word in (("liggghts", "LIGGGHTS"), ("lammps", "LAMMPS")):  # each code as it reports itself
         if doc["header"][f"{code}_available"]:
             assert doc["header"][f"{code}_version"].startswith(word), doc["header"]
         else:
             assert doc["header"][f"{code}_version"] == "absent"
-    assert doc["cases"] == {"taylor-rve": "pass", "biaxial-short": "pass", "simple-shear": "pass", "voidcell": "pass"}
+    assert doc["cases"] == {"taylor-rve": "pass", "biaxial-short": "pass", "simple-shear": "pass", "voidcell": "pass",
+                            "impacts": "pass"}
     assert doc["records"]
     for rec in doc["records"]:
         assert {"case", "quantity", "metric", "value", "tolerance", "pass"} <= set(rec)
