@@ -1,0 +1,344 @@
+"""Rolling resistance added to the Hooke history law, as each code computes it: jitted scalar laws.
+
+* :func:`hooke_epsd2_liggghts`: LIGGGHTS-PUBLIC 3.8.0 ``pair_style gran model hooke/stiffness
+  tangential history rolling_friction epsd2`` (``fix property/global coefficientRollingFriction
+  peratomtypepair``): an elastic-perfectly-plastic rolling spring, no dashpot;
+* :func:`hooke_epsd_liggghts`: ``rolling_friction epsd`` (+ ``coefficientRollingViscousDamping``):
+  spring, dashpot below the cap, slider;
+* :func:`hooke_cdt_liggghts`: ``rolling_friction cdt``: a constant torque against the relative spin;
+* :func:`hooke_sds_granular_lammps`: LAMMPS 29Sep2021 ``pair_style granular`` + ``pair_coeff * *
+  hooke KN DAMP damping MODEL tangential linear_history KT XGAMMAT MU rolling sds KROLL GAMMAROLL
+  MUROLL``: spring-dashpot-slider on a rolling displacement.
+
+All four exist in the Debian builds (the decks of ``reference_runs/decks/rolling.py`` run with
+``/usr/bin/liggghts`` and ``/usr/bin/lmp``); LIGGGHTS 3.8.0 also has ``epsd3`` and ``luding``
+(not written here).
+
+Calling convention: the 13 pair arguments of :func:`gransim.contacts.hooke.hooke_history`
+(``delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj``: d = x_i - x_j, rsq < (r_i +
+r_j)^2, SI), the law's parameters, ``dt``, the law's history floats, ``update`` (True in a step,
+False in the set-up call of a ``run``). Every law returns ``(fx, fy, ti, tj, *history, sliding,
+rolling, fn, tr)``: force on i (N; j gets minus it), the total torques on i and j (N m: tangential
++ rolling), the updated history, whether the Coulomb cap of the tangential force was active,
+whether the rolling cap was active, the normal force (N) and the rolling torque on i alone (N m;
+j receives -tr). Per-contact history (:data:`HISTORY_WIDTH`): the tangential spring xi (2 floats,
+m), then
+
+* epsd2, epsd: 1 float, the z component of LIGGGHTS' ``r_torque_old`` (N m; the codes store three,
+  x and y stay exact zeros in 2D);
+* cdt: none;
+* sds: 2 floats, LAMMPS' rolling displacement psi (m) in the plane (stored as a vector because
+  LAMMPS rotates it into the new tangent plane with a rescaling, pair_granular.cpp:571-591, which
+  a scalar would reproduce only up to round-off; z stays zero).
+
+Sources, ``LIG`` = LIGGGHTS-PUBLIC-3.8.0/src, ``LMP`` = lammps-0~20220106.git7586adbb6a/src
+(the Debian source trees). 2D: omega = (0, 0, w), n = (nx, ny, 0); every product with a zero
+component is an exact zero, so the 3D source reduces exactly to the z line written here.
+
+**The models side by side** (w = w_i - w_j the relative spin, R* = r_i r_j/(r_i + r_j), M the
+rolling torque with i receiving -M and j +M, theta the relative rotation, docs/laws.md):
+
+* epsd2 (LIG rolling_model_epsd2.h:161-228): k_r = k_t R*^2 (the tangential stiffness kt of
+  ``hooke/stiffness``, N/m, so k_r in N m/rad), M <- M_old + k_r w dt, |M| <= mu_r R* |F_n| (F_n the
+  damped normal force), M scaled onto the cap and stored. No dashpot (the comment at :226 says so).
+* epsd (LIG rolling_model_epsd.h:247-331): k_r = 2.25 k_n mu_r^2 R*^2 (Iwashita & Oda 1998's
+  stiffness in the form of Wensrich & Katterfeld, *Powder Technol.* 217, 2012, eq (8)), the same
+  spring and cap; below the cap a dashpot C w with C = eta_r 2 sqrt(I_r k_r), I_r = 1.5 I'_i I'_j /
+  (I'_i + I'_j), I' = m r^2 in 2D (:205-215; 1.4 in 3D); the dashpot is not part of the stored torque.
+* cdt (LIG rolling_model_cdt.h:133-166): M = mu_r k_n delta R* w/|w| (elastic normal force only),
+  no history, no torque when w = 0.
+* sds (LMP GRANULAR/pair_granular.cpp:553-617, 678-707): rolling velocity v_r = R* (w_rel x n)
+  (Wang et al., *Particuology* 23, 2015, eq (31)), in 2D v_r = R* w t with t = (-ny, nx);
+  psi <- frame update (projection on the tangent plane *rescaled to the old length* when
+  |psi.n| k_roll > 1e-10 F_rcrit), then psi += v_r dt; F_r = -k_roll psi - gamma_roll v_r;
+  |F_r| > mu_roll |F_n| (spring + dashpot together): psi = -(F_rcrit F_r/|F_r| + gamma_roll v_r)/k_roll,
+  F_r scaled; torque R* (n x F_r) on i and minus it on j. As a rotational law: M = K theta + C w with
+  K = k_roll R*^2, C = gamma_roll R*^2, cap mu_roll R* |F_n|.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .._numba import njit
+from .hooke import hooke_history
+
+#: history floats per law (tangential spring first)
+HISTORY_WIDTH = {"epsd2": 3, "epsd": 3, "cdt": 2, "sds": 4}
+
+#: signs of the history columns seen from the other particle (a list entry (i, j) stored as (j, i)):
+#: the tangential spring and the epsd torque flip; sds' psi is unchanged (w_rel and n both flip)
+HISTORY_FLIP = {"epsd2": (-1.0, -1.0, -1.0), "epsd": (-1.0, -1.0, -1.0), "cdt": (-1.0, -1.0),
+                "sds": (-1.0, -1.0, 1.0, 1.0)}
+
+#: damping models of :func:`hooke_sds_granular_lammps` (LMP pair_granular.cpp:56 enum order)
+DAMPING_VELOCITY, DAMPING_MASS_VELOCITY, DAMPING_VISCOELASTIC, DAMPING_TSUJI = 0, 1, 2, 3
+
+#: LMP pair_granular.cpp:53, threshold of the frame updates
+EPSILON = 1e-10
+
+
+@njit(inline="always")
+def epsd2_torque(w, reff, kt, fn, mu_r, dt, m, update):
+    """LIGGGHTS ``rolling_friction epsd2``, 2D (LIG rolling_model_epsd2.h:161-224).
+
+    Parameters
+    ----------
+    w : relative spin w_i - w_j (rad/s), epsd2.h:130. reff : R* (m), :107. kt : tangential
+    stiffness of ``hooke/stiffness`` (N/m, ``sidata.kt``, normal_model_hooke_stiffness.h:246).
+    fn : normal force with its damping (N, ``sidata.Fn``). mu_r : coefficientRollingFriction (-,
+    a length ratio: the cap is mu_r R* |F_n|). dt : s. m : stored torque (N m). update : bool.
+
+    Returns ``(M, m, capped)``: M = min(|m + k_r w dt|, mu_r R* |F_n|) sgn(...) with
+    k_r = kt R*^2 (:193), the torque with i receiving -M, j +M (:136-141); m = M in a step (:217-224;
+    the set-up call computes the increment but does not store it).
+    """
+    kr = kt * reff * reff
+    rt = m + w * (dt * kr)
+    mag = math.sqrt(rt * rt)
+    rmax = abs(fn) * reff * mu_r
+    capped = False
+    if mag > rmax:
+        capped = True
+        rt *= rmax / mag
+    if update:
+        m = rt
+    return rt, m, capped
+
+
+@njit(inline="always")
+def epsd_torque(w, reff, kn, fn, mu_r, eta_r, mi, mj, radi, radj, dt, m, update):
+    """LIGGGHTS ``rolling_friction epsd``, 2D (LIG rolling_model_epsd.h:205-331).
+
+    Parameters: as :func:`epsd2_torque`, with kn the normal stiffness (N/m, ``sidata.kn``),
+    eta_r coefficientRollingViscousDamping (-), masses (kg) and radii (m) of i and j.
+
+    k_r = 2.25 kn mu_r^2 R*^2 (:282); spring and cap as epsd2 (the stored torque is the capped
+    spring torque, :293-320); below the cap the dashpot C w, C = eta_r 2 sqrt(I_r k_r) with
+    I_r = 1.5 (m_i r_i^2)(m_j r_j^2)/(m_i r_i^2 + m_j r_j^2) (2D, :212-214) is added to M but not
+    stored (:322-329); above the cap no dashpot. Returns ``(M, m, capped)``.
+    """
+    ri = mi * radi * radi
+    rj = mj * radj * radj
+    r_inertia = 1.5 * ri * rj / (ri + rj)
+    kr = 2.25 * kn * mu_r * mu_r * reff * reff
+    rt = m + w * (dt * kr)
+    mag = math.sqrt(rt * rt)
+    rmax = abs(fn) * reff * mu_r
+    capped = False
+    if mag > rmax:
+        capped = True
+        rt *= rmax / mag
+        if update:
+            m = rt
+    else:
+        if update:
+            m = rt
+        r_coef = eta_r * 2 * math.sqrt(r_inertia * kr)
+        rt += r_coef * w
+    return rt, m, capped
+
+
+@njit(inline="always")
+def cdt_torque(w, reff, kn, deltan, mu_r):
+    """LIGGGHTS ``rolling_friction cdt``, 2D (LIG rolling_model_cdt.h:135-156): M = w (mu_r kn delta
+    R*/|w|) (the elastic normal force kn delta, not F_n), 0 for w = 0. Returns ``(M, capped)``,
+    capped True whenever M != 0 (the torque is always at its limit)."""
+    wmag = math.sqrt(w * w)
+    if wmag > 0.0:
+        return w * (mu_r * kn * deltan * reff / wmag), True
+    return 0.0, False
+
+
+@njit(inline="always")
+def hooke_epsd2_liggghts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                         kn, kt, gamman, gammat, mu, mu_r, dt, s0, s1, m, update):
+    """``hooke/stiffness tangential history rolling_friction epsd2`` for one touching pair.
+
+    Parameters: those of :func:`gransim.contacts.hooke.hooke_history` (kn, kt N/m; gamman, gammat
+    1/s mass-scaled; mu), mu_r (coefficientRollingFriction), then dt, s0, s1 (spring, m), m
+    (rolling torque, N m), update. The contact models run normal, tangential, rolling in this order
+    (LIG contact_models.h:228-238); the rolling torque is subtracted from i's and added to j's
+    torque after the tangential one (epsd2.h:136-141). Returns ``(fx, fy, ti, tj, s0, s1, m,
+    sliding, rolling, fn, tr)`` (module docstring).
+    """
+    fx, fy, ti, tj, s0, s1, sliding, fn = hooke_history(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        kn, kt, gamman, gammat, mu, dt, s0, s1, update)
+    reff = radi * radj / (radi + radj)
+    rt, m, capped = epsd2_torque(wi - wj, reff, kt, fn, mu_r, dt, m, update)
+    return fx, fy, ti - rt, tj + rt, s0, s1, m, sliding, capped, fn, -rt
+
+
+@njit(inline="always")
+def hooke_epsd_liggghts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                        kn, kt, gamman, gammat, mu, mu_r, eta_r, dt, s0, s1, m, update):
+    """``hooke/stiffness tangential history rolling_friction epsd`` (eta_r:
+    coefficientRollingViscousDamping); otherwise as :func:`hooke_epsd2_liggghts`."""
+    fx, fy, ti, tj, s0, s1, sliding, fn = hooke_history(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        kn, kt, gamman, gammat, mu, dt, s0, s1, update)
+    reff = radi * radj / (radi + radj)
+    rt, m, capped = epsd_torque(wi - wj, reff, kn, fn, mu_r, eta_r, mi, mj, radi, radj, dt, m, update)
+    return fx, fy, ti - rt, tj + rt, s0, s1, m, sliding, capped, fn, -rt
+
+
+@njit(inline="always")
+def hooke_cdt_liggghts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                       kn, kt, gamman, gammat, mu, mu_r, dt, s0, s1, update):
+    """``hooke/stiffness tangential history rolling_friction cdt``; returns ``(fx, fy, ti, tj, s0,
+    s1, sliding, rolling, fn, tr)`` (no rolling history)."""
+    fx, fy, ti, tj, s0, s1, sliding, fn = hooke_history(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        kn, kt, gamman, gammat, mu, dt, s0, s1, update)
+    reff = radi * radj / (radi + radj)
+    deltan = (radi + radj) - math.sqrt(rsq)
+    rt, capped = cdt_torque(wi - wj, reff, kn, deltan, mu_r)
+    return fx, fy, ti - rt, tj + rt, s0, s1, sliding, capped, fn, -rt
+
+
+@njit(inline="always")
+def hooke_sds_granular_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                              kn, damp, damping, kt, xgammat, mu, kroll, gammaroll, muroll,
+                              dt, s0, s1, p0, p1, update):
+    """LAMMPS ``pair_style granular``, ``hooke KN DAMP damping MODEL tangential linear_history KT
+    XGAMMAT MU rolling sds KROLL GAMMAROLL MUROLL`` (no twisting, no ``limit_damping``).
+
+    Parameters (after the 13 pair arguments)
+    ----------
+    kn : KN (N/m). damp : DAMP; its unit depends on ``damping`` (one of ``DAMPING_*``):
+        velocity kg/s, mass_velocity 1/s (so m* DAMP v_n: the damping of ``gran/hooke/history``
+        with gamman = DAMP), viscoelastic 1/(m s) (times a = sqrt(R* delta)), tsuji (DAMP is then
+        the alpha of the caller; the polynomial map of pair_granular.cpp:987-991 is not applied here).
+    kt : KT (N/m). xgammat : tangential damping as a multiple of the normal prefactor. mu : MU.
+    kroll : KROLL (N/m). gammaroll : GAMMAROLL (kg/s). muroll : MUROLL (-).
+    dt, s0, s1 (spring xi, m), p0, p1 (rolling displacement psi, m), update.
+
+    Law (``pgr`` = LMP GRANULAR/pair_granular.cpp): normal as in
+    :func:`gransim.contacts.hertz.hertz_mindlin_granular_lammps` without the factor a
+    (``HOOKE``, pgr:349-350): F_n = kn delta - eta v_n, eta = DAMP x (1, m*, a m*, sqrt(m* kn))
+    (pgr:363-376); tangential ``linear_history`` (pgr:426-533): k_t = KT, frame update with
+    rescaling, xi += v_t,rel dt (full radii in v_t,rel), F_t = -KT xi - XGAMMAT eta v_t,rel, cap on
+    spring + damping; rolling (pgr:553-617) as in the module docstring with F_rcrit = MUROLL |F_n|;
+    torques -(r_i - delta/2)(n x F_t)_z + R*(n x F_r)_z on i and -(r_j - delta/2)(n x F_t)_z -
+    R*(n x F_r)_z on j, accumulated in that order (pgr:659-707).
+
+    Returns ``(fx, fy, ti, tj, s0, s1, p0, p1, sliding, rolling, fn, tr)``, tr = R*(n x F_r)_z.
+    """
+    r = math.sqrt(rsq)
+    rinv = 1.0 / r
+    nx = delx * rinv
+    ny = dely * rinv
+    vr1 = vix - vjx
+    vr2 = viy - vjy
+    vnnr = vr1 * nx + vr2 * ny
+    vn1 = nx * vnnr
+    vn2 = ny * vnnr
+    meff = mi * mj / (mi + mj)
+    radsum = radi + radj
+    Reff = radi * radj / radsum
+    delta = radsum - r
+    dR = delta * Reff
+    Fne = kn * delta
+    a = math.sqrt(dR)
+    if damping == DAMPING_VELOCITY:
+        damp_normal = 1.0
+    elif damping == DAMPING_MASS_VELOCITY:
+        damp_normal = meff
+    elif damping == DAMPING_VISCOELASTIC:
+        damp_normal = a * meff
+    elif damping == DAMPING_TSUJI:
+        damp_normal = math.sqrt(meff * kn)
+    else:
+        damp_normal = 0.0
+    damp_normal_prefactor = damp * damp_normal
+    Fdamp = -damp_normal_prefactor * vnnr
+    Fntot = Fne + Fdamp
+    vt1 = vr1 - vn1
+    vt2 = vr2 - vn2
+    wr3 = radi * wi + radj * wj
+    vtr1 = vt1 + ny * wr3  # vt1 - (nz wr2 - ny wr3)
+    vtr2 = vt2 - nx * wr3  # vt2 - (nx wr3 - nz wr1)
+    Fncrit = abs(Fntot)
+    Fscrit = mu * Fncrit
+    damp_tangential = xgammat * damp_normal_prefactor
+    if update:
+        rsht = s0 * nx + s1 * ny
+        if abs(rsht) * kt > EPSILON * Fscrit:
+            shrmag = math.sqrt(s0 * s0 + s1 * s1)
+            s0 -= rsht * nx
+            s1 -= rsht * ny
+            prjmag = math.sqrt(s0 * s0 + s1 * s1)
+            scalefac = shrmag / prjmag if prjmag > 0 else 0.0
+            s0 *= scalefac
+            s1 *= scalefac
+        s0 += vtr1 * dt
+        s1 += vtr2 * dt
+    fs1 = -kt * s0 - damp_tangential * vtr1
+    fs2 = -kt * s1 - damp_tangential * vtr2
+    fs = math.sqrt(fs1 * fs1 + fs2 * fs2)
+    sliding = False
+    if fs > Fscrit:
+        sliding = True
+        if math.sqrt(s0 * s0 + s1 * s1) != 0.0:
+            s0 = -1.0 / kt * (Fscrit * fs1 / fs + damp_tangential * vtr1)
+            s1 = -1.0 / kt * (Fscrit * fs2 / fs + damp_tangential * vtr2)
+            fs1 *= Fscrit / fs
+            fs2 *= Fscrit / fs
+        else:
+            fs1 = 0.0
+            fs2 = 0.0
+    # rolling resistance, pgr:545-617 (relrot = (0, 0, w_i - w_j))
+    relrot3 = wi - wj
+    vrl1 = Reff * -(relrot3 * ny)  # Reff*(relrot2*nz - relrot3*ny)
+    vrl2 = Reff * (relrot3 * nx)   # Reff*(relrot3*nx - relrot1*nz)
+    Frcrit = muroll * Fncrit
+    if update:
+        rolldotn = p0 * nx + p1 * ny
+        if abs(rolldotn) * kroll > EPSILON * Frcrit:
+            rollmag = math.sqrt(p0 * p0 + p1 * p1)
+            p0 -= rolldotn * nx
+            p1 -= rolldotn * ny
+            prjmag = math.sqrt(p0 * p0 + p1 * p1)
+            scalefac = rollmag / prjmag if prjmag > 0 else 0.0
+            p0 *= scalefac
+            p1 *= scalefac
+        p0 += vrl1 * dt
+        p1 += vrl2 * dt
+    fr1 = -kroll * p0 - gammaroll * vrl1
+    fr2 = -kroll * p1 - gammaroll * vrl2
+    fr = math.sqrt(fr1 * fr1 + fr2 * fr2)
+    rolling = False
+    if fr > Frcrit:
+        rolling = True
+        if math.sqrt(p0 * p0 + p1 * p1) != 0.0:
+            p0 = -1.0 / kroll * (Frcrit * fr1 / fr + gammaroll * vrl1)
+            p1 = -1.0 / kroll * (Frcrit * fr2 / fr + gammaroll * vrl2)
+            fr1 *= Frcrit / fr
+            fr2 *= Frcrit / fr
+        else:
+            fr1 = 0.0
+            fr2 = 0.0
+    fx = nx * Fntot + fs1
+    fy = ny * Fntot + fs2
+    tor3 = nx * fs2 - ny * fs1
+    torroll3 = Reff * (nx * fr2 - ny * fr1)
+    ti = -((radi - 0.5 * delta) * tor3) + torroll3
+    tj = -((radj - 0.5 * delta) * tor3) - torroll3
+    return fx, fy, ti, tj, s0, s1, p0, p1, sliding, rolling, Fntot, torroll3
+
+
+def rolling_stiffness(law: str, reff: float, kn: float = 0.0, kt: float = 0.0, mu_r: float = 0.0,
+                      kroll: float = 0.0) -> float:
+    """The rotational stiffness K (N m/rad) of ``law``: epsd2 kt R*^2, epsd 2.25 kn mu_r^2 R*^2,
+    sds kroll R*^2 (M = K theta below the cap); cdt has none (returns 0)."""
+    if law == "epsd2":
+        return kt * reff * reff
+    if law == "epsd":
+        return 2.25 * kn * mu_r * mu_r * reff * reff
+    if law == "sds":
+        return kroll * reff * reff
+    if law == "cdt":
+        return 0.0
+    from ..errors import InputError
+    raise InputError(f"law: expected one of epsd2, epsd, cdt, sds, got {law!r}")

@@ -1,0 +1,202 @@
+"""Two-disk decks for the rolling-resistance laws, one per code and model (issue #16 item 2).
+
+The same oblique impact of two spinning disks (:func:`rolling_case`: counter-spinning disks that
+meet along a normal 20 degrees off x, stick, roll against each other and part; a large periodic
+2D box, no periodic image in reach, a skin large enough that no neighbour list is rebuilt), with
+the linear Hooke normal law, tangential history and one rolling-resistance model:
+
+* ``law="epsd2"``, ``"epsd"``, ``"cdt"``: LIGGGHTS 3.8.0 ``pair_style gran model hooke/stiffness
+  tangential history rolling_friction MODEL`` with ``fix property/global kn kt gamman gammat
+  coefficientFriction coefficientRollingFriction (peratomtypepair)`` (and
+  ``coefficientRollingViscousDamping`` for ``epsd``);
+* ``law="sds"``: LAMMPS 29Sep2021 ``pair_style granular`` + ``pair_coeff * * hooke KN DAMP
+  damping mass_velocity tangential linear_history KT XGAMMAT MU rolling sds KROLL GAMMAROLL
+  MUROLL``, with DAMP = gamma_n (1/s) and XGAMMAT = gamma_t/gamma_n: with ``mass_velocity`` the
+  normal force is kn delta - m* gamma_n v_n, the normal law of ``gran/hooke/history`` and of
+  LIGGGHTS' ``hooke/stiffness`` (``velocity`` would take DAMP as a coefficient in kg/s, the
+  build's default ``viscoelastic`` scales it with a = sqrt(R* delta)).
+
+Each deck dumps ``id x y vx vy omegaz fx fy tqz mass radius`` every step at %.17g and writes thermo
+every step. :func:`run_rolling` runs one (``reference_runs.runner.run_job(..., engine=...)``);
+:func:`make_stored` writes ``reference_runs/stored/rolling-<code>/<law>/`` (README by hand).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from gransim.errors import InputError
+from gransim.io import atomic_path
+
+#: law name -> (engine, deck file name)
+LAWS = {
+    "epsd2": ("liggghts", "in.liggghts"),
+    "cdt": ("liggghts", "in.liggghts"),
+    "epsd": ("liggghts", "in.liggghts"),
+    "sds": ("lammps", "in.lammps"),
+}
+
+DATA_NAME = "data.rolling"
+DUMP_NAME = "dump.atoms"
+
+
+def _g(v: float) -> str:
+    return f"{float(v):.17g}"
+
+
+def rolling_case() -> dict:
+    """The two-disk case: parameters as plain floats (SI).
+
+    Disks r = 1.0 mm and 0.8 mm, 2D density 25 kg/m^2 (m = pi r^2 rho); centres 2 um apart from
+    touching along a normal 20 degrees off x, closing at about 0.12 m/s; spins 40 and -10 rad/s
+    (relative spin 50 rad/s). Hooke: kn = 1000 N/m, kt = 800 N/m, gamma_n = 2000 1/s,
+    gamma_t = 1000 1/s (mass-scaled), mu = 0.4; contact time pi/sqrt(kn/m* - (gamma_n/2)^2) about
+    5.6e-4 s; dt = 2.5e-6 s (about 225 steps in contact), 300 steps.
+    Rolling: mu_r = 0.2 (every model), ``epsd`` viscous coefficient eta_r = 0.3;
+    ``sds``: KROLL = kt (N/m), GAMMAROLL = 0.002 kg/s, MUROLL = mu_r: torque R* |F_r| <= R* mu_r |F_n|,
+    the cap of LIGGGHTS' models.
+    """
+    r1, r2 = 1.0e-3, 0.8e-3
+    ang = math.radians(20.0)
+    dist = r1 + r2 + 2.0e-6
+    x1 = (0.05, 0.05)
+    x2 = (0.05 + dist * math.cos(ang), 0.05 + dist * math.sin(ang))
+    return {
+        "radii": (r1, r2), "density": 25.0, "positions": (x1, x2),
+        "velocities": ((0.07, 0.03), (-0.05, -0.02)), "spins": (40.0, -10.0),
+        "kn": 1000.0, "kt": 800.0, "gamman": 2000.0, "gammat": 1000.0, "friction": 0.4,
+        "rolling_friction": 0.2, "rolling_viscous": 0.3,
+        "kroll": 800.0, "gammaroll": 0.002,
+        "dt": 2.5e-6, "nsteps": 300, "skin": 2.0e-3, "box": (0.1, 0.1),
+    }
+
+
+def data_text(case: dict) -> str:
+    """The data file (atom_style sphere: id type diameter density x y z; Velocities
+    id vx vy vz wx wy wz), %.17g."""
+    Lx, Ly = case["box"]
+    lines = ["two disks written by reference_runs/decks/rolling.py (2D: density = mass per area)", "",
+             "2 atoms", "1 atom types", "", f"0 {_g(Lx)} xlo xhi", f"0 {_g(Ly)} ylo yhi",
+             "-0.005 0.005 zlo zhi", "", "Atoms", ""]
+    for k in range(2):
+        x, y = case["positions"][k]
+        lines.append(f"{k + 1} 1 {_g(2.0 * case['radii'][k])} {_g(case['density'])} {_g(x)} {_g(y)} 0")
+    lines += ["", "Velocities", ""]
+    for k in range(2):
+        vx, vy = case["velocities"][k]
+        lines.append(f"{k + 1} {_g(vx)} {_g(vy)} 0 0 0 {_g(case['spins'][k])}")
+    return "\n".join(lines) + "\n"
+
+
+def deck_text(case: dict, law: str) -> str:
+    """The deck of ``law`` (one of :data:`LAWS`)."""
+    if law not in LAWS:
+        raise InputError(f"law: expected one of {', '.join(LAWS)}, got {law!r}")
+    c = case
+    head = ["units si", "dimension 2", "atom_style sphere", "atom_modify map array sort 0 0.0",
+            "boundary p p p", "newton off"]
+    if LAWS[law][0] == "liggghts":
+        lines = [
+            (f"# two-disk rolling resistance, LIGGGHTS rolling_friction {law} "
+             "(reference_runs/decks/rolling.py)"), *head,
+            "communicate single vel yes", f"read_data {DATA_NAME}",
+            f"neighbor {_g(c['skin'])} bin", "neigh_modify delay 0 every 1 check yes",
+            f"timestep {_g(c['dt'])}",
+            f"fix m1 all property/global kn peratomtypepair 1 {_g(c['kn'])}",
+            f"fix m2 all property/global kt peratomtypepair 1 {_g(c['kt'])}",
+            f"fix m3 all property/global gamman peratomtypepair 1 {_g(c['gamman'])}",
+            f"fix m4 all property/global gammat peratomtypepair 1 {_g(c['gammat'])}",
+            f"fix m5 all property/global coefficientFriction peratomtypepair 1 {_g(c['friction'])}",
+            ("fix m6 all property/global coefficientRollingFriction peratomtypepair 1 "
+             f"{_g(c['rolling_friction'])}"),
+        ]
+        if law == "epsd":
+            lines.append("fix m7 all property/global coefficientRollingViscousDamping peratomtypepair 1 "
+                         f"{_g(c['rolling_viscous'])}")
+        lines += [f"pair_style gran model hooke/stiffness tangential history rolling_friction {law}",
+                  "pair_coeff * *", "fix integr all nve/sphere", "fix e2d all enforce2d"]
+        fmt = ""
+    else:
+        lines = [
+            "# two-disk rolling resistance, LAMMPS granular rolling sds (reference_runs/decks/rolling.py)",
+            *head, "comm_modify mode single vel yes", f"read_data {DATA_NAME}",
+            f"set group all density/disc {_g(c['density'])}",
+            f"neighbor {_g(c['skin'])} bin", "neigh_modify delay 0 every 1 check yes",
+            f"timestep {_g(c['dt'])}",
+            "pair_style granular",
+            (f"pair_coeff * * hooke {_g(c['kn'])} {_g(c['gamman'])} damping mass_velocity "
+             f"tangential linear_history {_g(c['kt'])} {_g(c['gammat'] / c['gamman'])} {_g(c['friction'])} "
+             f"rolling sds {_g(c['kroll'])} {_g(c['gammaroll'])} {_g(c['rolling_friction'])}"),
+            "fix integr all nve/sphere disc", "fix e2d all enforce2d",
+        ]
+        fmt = "line "
+    lines += [
+        "thermo_style custom step atoms ke",
+        "thermo_modify format float %.17g norm no",
+        "thermo 1",
+        f"dump d1 all custom 1 {DUMP_NAME} id x y vx vy omegaz fx fy tqz mass radius",
+        f"dump_modify d1 sort id format {fmt}\"%d" + " %.17g" * 10 + "\"",
+        f"run {int(c['nsteps'])}",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def write_rolling_deck(job_dir, law: str, case: dict | None = None) -> Path:
+    """Write the deck of ``law`` and ``data.rolling`` into ``job_dir``; return the deck path."""
+    case = rolling_case() if case is None else case
+    text = deck_text(case, law)
+    job = Path(job_dir)
+    job.mkdir(parents=True, exist_ok=True)
+    with atomic_path(job / DATA_NAME) as tmp:
+        Path(tmp).write_text(data_text(case))
+    deck = job / LAWS[law][1]
+    with atomic_path(deck) as tmp:
+        Path(tmp).write_text(text)
+    return deck
+
+
+def run_rolling(job_dir, law: str, case: dict | None = None, timeout: float | None = 120.0):
+    """Run the deck of ``law`` in ``job_dir`` through :func:`reference_runs.runner.run_job`
+    (always rerun); returns the :class:`~reference_runs.runner.JobResult`."""
+    from reference_runs.runner import run_job
+
+    case = rolling_case() if case is None else case
+    if law not in LAWS:
+        raise InputError(f"law: expected one of {', '.join(LAWS)}, got {law!r}")
+    return run_job(job_dir, deck_text(case, law), files={DATA_NAME: data_text(case)}, timeout=timeout,
+                   outputs=(DUMP_NAME,), expected_runs=1, progress=False, force=True,
+                   engine=LAWS[law][0])
+
+
+def read_rolling_dump(path) -> dict:
+    """``dump.atoms`` as {step: {column: (2,) array}} (rows sorted by id)."""
+    from reference_runs.parsers import parse_dump_custom
+
+    return {int(fr.step): dict(fr.columns) for fr in parse_dump_custom(Path(path))}
+
+
+def stored_dir(root, law: str) -> Path:
+    """``root/rolling-<code>/<law>`` (the layout of :func:`make_stored`)."""
+    if law not in LAWS:
+        raise InputError(f"law: expected one of {', '.join(LAWS)}, got {law!r}")
+    return Path(root) / f"rolling-{LAWS[law][0]}" / law
+
+
+def make_stored(out_root, laws=None, timeout: float | None = 120.0) -> dict:
+    """Run the decks of ``laws`` (default all) and store each as ``out_root/rolling-<code>/<law>/``
+    (deck, data, log, dump, manifest; the README beside them is written by hand).
+    Returns {law: stored directory}."""
+    import shutil
+    import tempfile
+
+    out = {}
+    with tempfile.TemporaryDirectory(prefix="rolling-stored-") as tmp:
+        for law in (LAWS if laws is None else laws):
+            res = run_rolling(Path(tmp) / law, law, timeout=timeout)
+            dest = stored_dir(out_root, law)
+            dest.mkdir(parents=True, exist_ok=True)
+            for name in (LAWS[law][1], DATA_NAME, "log.lammps", DUMP_NAME, "manifest.json"):
+                shutil.copyfile(Path(res.job_dir) / name, dest / name)
+            out[law] = dest
+    return out
