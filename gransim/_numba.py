@@ -50,6 +50,30 @@ def pjit(*args, **kwargs):
     return numba.njit(*args, **opts)
 
 
+@contextlib.contextmanager
+def disk_cache_off(off: bool = True):
+    """Compilations inside the block are not written to numba's disk cache (``off`` False: no-op).
+
+    For kernels specialised on a type that another process may not be able to import (a contact
+    law defined in a test module or a script, ``register_law(..., cache=False)``): numba's cache
+    index of a kernel lists every signature compiled into it and is unpickled as a whole by each
+    process that loads the kernel, so one such type in it would make every other process fail
+    (ModuleNotFoundError in ``numba/core/caching.py`` ``_load_index``; measured). Loading what
+    is cached still works inside the block.
+    """
+    if not off:
+        yield
+        return
+    from numba.core import caching
+
+    orig = caching.Cache.save_overload
+    caching.Cache.save_overload = lambda self, sig, data: None
+    try:
+        yield
+    finally:
+        caching.Cache.save_overload = orig
+
+
 def set_num_threads(n: int | None) -> None:
     """Set the number of numba threads (``None`` leaves the default: all cores)."""
     if n is not None:

@@ -10,14 +10,24 @@ normal_model_hooke_stiffness.h, tangential_model_history.h; see shared notes lig
 Conventions (2D, all SI): the pair is (i, j) with d = x_i - x_j (j possibly a periodic image),
 n = d/|d| pointing from j to i, overlap delta = r_i + r_j - |d| > 0. Forces returned act on i;
 j receives minus the force (and its own torque, of the same sign, see below).
+
+As plug-ins of the DEM loop (:mod:`gransim.contacts.laws`): :class:`HookeLiggghts` and
+:class:`HookeLammps` (parameters kn, kt, gamma_n, gamma_t, mu; history width 2, the spring xi),
+built by :func:`hooke_law` from the ``DEMSettings`` and its ``flavour``.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
+
+import numpy as np
 
 from .._numba import njit
+from .._validate import as_positive_float
+from ..errors import InputError
 from .law import force_magnitude
+from .laws import register_law
 
 
 @njit(inline="always")
@@ -178,3 +188,61 @@ def hooke_history_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj
     fy = dely * ccel + fs2
     tor3 = rinv * (delx * fs2 - dely * fs1)
     return fx, fy, -(radi * tor3), -(radj * tor3), s0, s1, sliding, ccel * r
+
+
+#: LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history`` (:func:`hooke_history`): kn, kt (N/m),
+#: gamma_n, gamma_t (1/s, mass-scaled), mu (-)
+HookeLiggghts = namedtuple("HookeLiggghts", ["kn", "kt", "gamma_n", "gamma_t", "mu"])
+#: LAMMPS 29 Sep 2021 ``gran/hooke/history`` (:func:`hooke_history_lammps`), the same parameters
+HookeLammps = namedtuple("HookeLammps", ["kn", "kt", "gamma_n", "gamma_t", "mu"])
+
+
+def hooke_law(kn, kt, gamma_n, gamma_t, mu, flavour: str = "liggghts"):
+    """The Hooke law object of ``flavour`` ("liggghts" or "lammps") with checked parameters."""
+    cls = {"liggghts": HookeLiggghts, "lammps": HookeLammps}.get(flavour)
+    if cls is None:
+        raise InputError(f"flavour: expected 'liggghts' or 'lammps', got {flavour!r}")
+    return cls(as_positive_float(kn, "kn"), as_positive_float(kt, "kt", allow_zero=True),
+               as_positive_float(gamma_n, "gamma_n", allow_zero=True),
+               as_positive_float(gamma_t, "gamma_t", allow_zero=True),
+               as_positive_float(mu, "mu", allow_zero=True))
+
+
+@njit(inline="always")
+def hooke_pair_liggghts(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
+                        update):
+    """Pair function of :class:`HookeLiggghts` (:func:`hooke_history`; spring in ``hist[e, 0:2]``)."""
+    fx, fy, ti, tj, s0, s1, sl, fn = hooke_history(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, hist[e, 0], hist[e, 1], update)
+    hist[e, 0] = s0
+    hist[e, 1] = s1
+    return fx, fy, ti, tj, sl, fn
+
+
+@njit(inline="always")
+def hooke_pair_lammps(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
+                      update):
+    """Pair function of :class:`HookeLammps` (:func:`hooke_history_lammps`)."""
+    fx, fy, ti, tj, s0, s1, sl, fn = hooke_history_lammps(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, hist[e, 0], hist[e, 1], update)
+    hist[e, 0] = s0
+    hist[e, 1] = s1
+    return fx, fy, ti, tj, sl, fn
+
+
+@njit(inline="always")
+def spring_reset(law, hist, e):
+    """LAMMPS ``PairGranHookeHistory::compute``: a pair that does not touch has its spring zeroed."""
+    hist[e, 0] = 0.0
+    hist[e, 1] = 0.0
+
+
+def hooke_energy(law, overlap, hist) -> float:
+    """sum kn overlap^2/2 + kt |xi|^2/2 (J) over touching contacts (overlap (K,), hist (K, 2))."""
+    return float(0.5 * law.kn * np.sum(overlap ** 2) + 0.5 * law.kt * np.sum(hist ** 2))
+
+
+register_law(HookeLiggghts, hooke_pair_liggghts, 2, energy=hooke_energy)
+register_law(HookeLammps, hooke_pair_lammps, 2, apart=spring_reset, energy=hooke_energy)

@@ -22,7 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._numba import check_threads, num_threads
+from .._numba import check_threads, disk_cache_off, num_threads
+from ..contacts.hooke import hooke_law
+from ..contacts.laws import elastic_energy, flip_signs, law_spec
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import kernels as K
@@ -138,13 +140,21 @@ class DEMEngine:
     box : optional (lo, hi), each (2,) (m): the box with its own origin, as a data file's ``xlo xhi
         ylo yhi`` (the positions are taken as they are, in that box; no translation, which would
         round them). hi - lo must equal the diagonal of ``packing.cell`` (to 1e-12 relative).
+    law : optional contact law object (an instance of a class registered with
+        :func:`gransim.contacts.laws.register_law`); None: the Hooke law of ``settings`` in its
+        ``flavour`` (:func:`gransim.contacts.hooke.hooke_law`). ``settings.kn``, ``kt`` and the
+        dampings still set the time-step check (``check_dt``).
 
-    Attributes (after construction = LIGGGHTS ``run`` set-up: forces evaluated without
-    spring increment): x, v, w, f, t, lo, hi, step, stress, virial.
+    State: ``p`` (:class:`~gransim.dem.kernels.Particles`), ``nb`` (``Neighbours``: list, history of
+    the law's width, CSR), ``box`` (``Box``), ``sc`` (``Scratch``: the virial), small namedtuples of
+    arrays updated in place by the kernels (a rebuild replaces ``nb``); :meth:`state_arrays` /
+    :meth:`restore` save and load them. Attributes (after construction = LIGGGHTS ``run`` set-up:
+    forces evaluated without spring increment): x, v, w, f, t, lo, hi, step, stress, virial (views of
+    those objects' arrays).
     """
 
     def __init__(self, packing: Packing, settings: DEMSettings, velocities=None, spins=None,
-                 threads: int | None = None, check_dt: bool = True, box=None):
+                 threads: int | None = None, check_dt: bool = True, box=None, law=None):
         C = packing.cell
         if C[0, 1] != 0 or C[1, 0] != 0:
             raise InputError("packing.cell: the DEM engine needs an orthogonal cell "
@@ -166,42 +176,38 @@ class DEMEngine:
         if min(C[0, 0], C[1, 1]) <= cut:
             raise InputError(f"packing.cell: side lengths {C[0, 0]:.4g}, {C[1, 1]:.4g} m must exceed "
                              f"2 (2 r_max + skin) = {cut:.4g} m (one periodic image per pair)")
-        self.r = np.ascontiguousarray(packing.radii, np.float64)
+        r = np.ascontiguousarray(packing.radii, np.float64)
         # ((pi r) r) rho: the order LIGGGHTS uses reading the data file (Packing.masses may differ
         # in the last bit)
-        self.m = np.pi * self.r * self.r * float(packing.density)
-        self.x = np.array(packing.positions, np.float64)
-        self.v = np.zeros((n, 2)) if velocities is None else np.array(velocities, np.float64).reshape(n, 2)
-        self.w = np.zeros(n) if spins is None else np.array(spins, np.float64).reshape(n)
-        self.f = np.zeros((n, 2))
-        self.t = np.zeros(n)
-        self.lo = np.zeros(2)
-        self.hi = np.array([C[0, 0], C[1, 1]], np.float64)
+        m = np.pi * r * r * float(packing.density)
+        x = np.array(packing.positions, np.float64)
+        v = np.zeros((n, 2)) if velocities is None else np.array(velocities, np.float64).reshape(n, 2)
+        w = np.zeros(n) if spins is None else np.array(spins, np.float64).reshape(n)
+        self.p = K.Particles(x, v, w, np.zeros((n, 2)), np.zeros(n), m, r)
+        lo = np.zeros(2)
+        hi = np.array([C[0, 0], C[1, 1]], np.float64)
         if box is not None:
-            self.lo, self.hi = _check_box(box, C)
+            lo, hi = _check_box(box, C)
+        self.box = K.Box(lo, hi, lo.copy(), hi.copy())
+        # the contact law (gransim.contacts.laws): Hooke in the settings' flavour unless given
+        self.law = hooke_law(s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.flavour) if law is None else law
+        spec = law_spec(self.law)
+        self._width = spec.width
+        # kernels compiled for a law of a test module / script stay out of the disk cache
+        self._no_cache = not spec.cache
+        self._flip = flip_signs(self.law)
         self.step = 0
-        self.virial = np.zeros(4)
         self.n_contacts = 0
         self.mean_overlap = 0.0
         self.n_rebuilds = 0
         self._parallel = s.mode == "parallel"
-        # LAMMPS' arithmetic in the force loop (DEMSettings.flavour, docs/lammps.md)
-        self._lammps = s.flavour == "lammps"
+        # the rebuild rule of LAMMPS (check_rebuild clamp; DEMSettings.flavour, docs/lammps.md)
+        self._clamp = s.flavour == "lammps"
         # numba threads of this engine's kernels, set around each call and restored after
         self._threads = check_threads(threads) if self._parallel else None
-        self._pvir = np.zeros((n, 4))
-        self._pcont = np.zeros((n, 2))
-        # neighbour list (empty; built in setup)
-        self.ea = np.zeros(0, np.int32)  # int32: memory traffic of the force loop
-        self.eb = np.zeros(0, np.int32)
-        self.esx = np.zeros(0)
-        self.esy = np.zeros(0)
-        self.eshift = np.zeros((0, 2), np.int64)
-        self.both = np.zeros(0, np.bool_)
-        self.xi = np.zeros((0, 2))
-        self.slide = np.zeros(0, np.bool_)
-        self.ef = np.zeros((0, 2))
-        self.start = np.zeros(n + 1, np.int64)
+        self.sc = K.Scratch(np.zeros(4), np.zeros((n, 4)), np.zeros((n, 2)))
+        self.nb = self._neighbours(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros((0, 2), np.int64),
+                                   np.zeros(0, np.bool_), np.zeros((0, self._width)), x.copy())
         self._build_step = 0
         self._setup()
         self._reset_energy_budget()
@@ -216,6 +222,23 @@ class DEMEngine:
         L = self.box_lengths
         return np.diag(L)
 
+    def _neighbours(self, a, b, shift, both, hist, xhold):
+        """A :class:`~gransim.dem.kernels.Neighbours` of the list (a, b, shift, both) with history
+        ``hist`` and build positions ``xhold``: float shifts, CSR offsets of the entries of each a
+        (sorted by a), the incoming CSR of the threaded loop, zeroed per-entry outputs."""
+        n = self.packing.n
+        shift = np.ascontiguousarray(shift, np.int64).reshape(-1, 2)
+        start = np.zeros(n + 1, np.int64)  # CSR offsets of the entries of each a (sorted)
+        np.cumsum(np.bincount(a, minlength=n), out=start[1:])
+        if self._parallel:
+            with num_threads(self._threads):
+                in_start, in_e = K.incoming(b, both, n)
+        else:
+            in_start, in_e = np.zeros(n + 1, np.int64), np.zeros(0, np.int64)
+        return K.Neighbours(a, b, shift, np.ascontiguousarray(shift[:, 0], np.float64),
+                            np.ascontiguousarray(shift[:, 1], np.float64), both, hist, start, in_start, in_e,
+                            xhold, np.zeros(a.size, np.bool_), np.zeros((a.size, 2)), np.zeros(a.size))
+
     def _rebuild(self, carry: bool):
         bad = K.pbc_wrap(self.x, self.lo, self.hi)
         if bad >= 0:
@@ -227,56 +250,38 @@ class DEMEngine:
         if selfimg != -1:
             raise SimulationError(f"step {self.step}: particle {selfimg} is near its own image (or too many ghosts); "
                                   "the cell is too small")
-        xi = np.zeros((a.size, 2))
-        if carry and self.ea.size:
-            K.hand_over(self.x, self.r, a, b, esx, esy, L[0], L[1], self.start, self.eb, self.both, self.xi, xi)
-        s = np.stack([esx, esy], axis=1).astype(np.int64)
-        self.ea, self.eb, self.esx, self.esy, self.both, self.xi = a, b, esx, esy, both, xi
-        self.eshift = s
-        self.slide = np.zeros(a.size, np.bool_)
-        self.ef = np.zeros((a.size, 2))
-        self.start = np.zeros(self.packing.n + 1, np.int64)  # CSR offsets of the entries of each a (sorted)
-        np.cumsum(np.bincount(a, minlength=self.packing.n), out=self.start[1:])
-        self._set_parallel_scratch()
-        self.xhold = self.x.copy()
-        self.lo_hold = self.lo.copy()
-        self.hi_hold = self.hi.copy()
+        hist = np.zeros((a.size, self._width))
+        old = self.nb
+        if carry and old.a.size:
+            K.hand_over_history(self.x, self.r, a, b, esx, esy, L[0], L[1], old.start, old.b, old.both,
+                                old.hist, hist, self._flip)
+        self.nb = self._neighbours(a, b, np.stack([esx, esy], axis=1).astype(np.int64), both, hist,
+                                   self.x.copy())
+        self.box.lo_hold[:] = self.lo
+        self.box.hi_hold[:] = self.hi
         self._build_step = self.step
         self.n_rebuilds += 1
 
-    def _set_parallel_scratch(self):
-        if self._parallel:
-            with num_threads(self._threads):
-                self._in_start, self._in_e = K.incoming(self.eb, self.both, self.packing.n)
-        else:
-            self._in_start, self._in_e = np.zeros(self.packing.n + 1, np.int64), np.zeros(0, np.int64)
-        self._tb = np.zeros(self.ea.size)
-
     def _forces(self, update: bool):
-        s = self.settings
+        dt = self.settings.dt
         L = self.box_lengths
         if self._parallel:
-            with num_threads(self._threads):
-                K.forces_parallel(self.x, self.v, self.w, self.r, self.m, self.start, self.eb, self.esx, self.esy,
-                                  self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt,
-                                  update, self.f, self.t, self._pvir, self.slide, self.ef, self._tb, self._pcont,
-                                  self._in_start, self._in_e, True, self._lammps)
-            self.virial[:] = self._pvir.sum(axis=0)
-            nc, so = self._pcont.sum(axis=0)
+            with num_threads(self._threads), disk_cache_off(self._no_cache):
+                K.forces_threaded(self.p, self.nb, self.law, L[0], L[1], dt, update, self.sc.pvir,
+                                  self.sc.pcont, True)
+            self.virial[:] = self.sc.pvir.sum(axis=0)
+            nc, so = self.sc.pcont.sum(axis=0)
         else:
-            nc, so = K.forces_half(self.x, self.v, self.w, self.r, self.m, self.ea, self.eb, self.esx,
-                                   self.esy, self.both, self.xi, L[0], L[1], s.kn, s.kt, s.gamma_n,
-                                   s.gamma_t, s.mu, s.dt, update, self.f, self.t, self.virial, self.slide,
-                                   self.ef, True, self._lammps)
+            with disk_cache_off(self._no_cache):
+                nc, so = K.forces(self.p, self.nb, self.law, L[0], L[1], dt, update, self.virial, True)
         self.n_contacts = round(nc)
         self.mean_overlap = so / nc if nc else 0.0
 
     def elastic_energy(self) -> float:
-        """Energy stored in the contact springs, sum 0.5 kn overlap^2 + 0.5 kt |xi|^2 (J)."""
-        c = self.contacts()
-        s = self.settings
-        return float(0.5 * s.kn * np.sum(c["overlap"] ** 2)
-                     + 0.5 * s.kt * np.sum(c["tangential_spring"] ** 2))
+        """Energy stored in the touching contacts (J): the law's ``energy`` (Hooke: sum 0.5 kn
+        overlap^2 + 0.5 kt |xi|^2; :func:`gransim.contacts.laws.elastic_energy`)."""
+        e, ov = self._touching()
+        return elastic_energy(self.law, ov, self.nb.hist[e])
 
     def _reset_energy_budget(self):
         """Start of the energy balance of the divergence check: E0 = kinetic + elastic energy now."""
@@ -378,47 +383,19 @@ class DEMEngine:
             phase_box0 = (self.lo.copy(), self.hi.copy())
         lo0 = np.array(phase_box0[0], np.float64)
         hi0 = np.array(phase_box0[1], np.float64)
-        presc = isinstance(loading, PrescribedBox)
-        if presc:
-            if nsteps and not (loading.step0 <= self.step and self.step + nsteps <= loading.last_step):
-                raise InputError(f"prescribed box: the table covers steps {loading.step0 + 1}.."
-                                 f"{loading.last_step}, the run needs {self.step + 1}..{self.step + nsteps}")
-            modes = np.zeros(2, np.int64)
-            rates = targets = gains = np.zeros(2)
-            # writeable copies: one compiled signature of run_block for both loadings
-            p_lo, p_hi = np.array(loading.lo), np.array(loading.hi)
-            p_remap, p_step0 = np.array(loading.remap), loading.step0
-        elif isinstance(loading, Loading):
-            code = {"fixed": 0, "rate": 1, "servo": 2}
-            modes = np.array([code[loading.x.mode], code[loading.y.mode]], np.int64)
-            rates = np.array([loading.x.rate, loading.y.rate])
-            targets = np.array([loading.x.target, loading.y.target])
-            gains = np.array([loading.x.gain, loading.y.gain])
-            p_lo = p_hi = np.zeros((1, 2))
-            p_remap = np.zeros(1, np.bool_)
-            p_step0 = 0
-        else:
-            raise InputError(f"loading: expected a Loading or a PrescribedBox, got {type(loading).__name__}")
-        out_stress = np.zeros((nsteps, 4))
-        out_L = np.zeros((nsteps, 2))
-        out_nc = np.zeros(nsteps)
-        out_ov = np.zeros(nsteps)
-        out_ke = np.zeros(nsteps)
-        out_vir = np.zeros((nsteps, 4))
+        ctl = _control(loading, self.step, nsteps, lo0, hi0, phase_step0)
+        out = K.Series(np.zeros((nsteps, 4)), np.zeros((nsteps, 2)), np.zeros(nsteps), np.zeros(nsteps),
+                       np.zeros(nsteps), np.zeros((nsteps, 4)))
+        out_stress, out_L, out_nc, out_ov, out_ke, out_vir = out
         done = 0
         resume = False
         step_start = self.step
         while done < nsteps:
             L_before = self.box_lengths.copy()
-            with num_threads(self._threads):
+            with num_threads(self._threads), disk_cache_off(self._no_cache):
                 k, status, bad = K.run_block(
-                    self.x, self.v, self.w, self.f, self.t, self.r, self.m, self.ea, self.eb, self.esx, self.esy,
-                    self.both, self.xi, self.slide, self.ef, self.xhold, self.lo, self.hi, self.lo_hold,
-                    self.hi_hold, self.virial, s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, s.skin, self.step,
-                    nsteps - done, resume, modes, rates, targets, gains, lo0, hi0, phase_step0,
-                    out_stress[done:], out_L[done:], out_nc[done:], out_ov[done:], out_ke[done:],
-                    self._parallel, self.start, self._pvir, self._pcont, self._tb, self._in_start, self._in_e,
-                    self._lammps, presc, p_lo, p_hi, p_remap, p_step0, out_vir[done:])
+                    self.p, self.nb, self.box, ctl, self.law, self.sc, K.Series(*(a[done:] for a in out)), s.dt,
+                    s.skin, self._clamp, self._parallel, self.step, nsteps - done, resume)
             if k:
                 self._check_divergence(self.step + 1, out_ke[done:done + k], out_stress[done:done + k],
                                        out_L[done:done + k], L_before)
@@ -455,58 +432,110 @@ class DEMEngine:
         return float(0.5 * np.sum(self.m * np.einsum("ij,ij->i", self.v, self.v))
                      + 0.25 * np.sum(self.m * self.r**2 * self.w**2))
 
+    def _touching(self):
+        """Entries of the touching pairs, each physical contact once (a < b), and their overlaps (m)."""
+        nb = self.nb
+        L = self.box_lengths
+        touch = K.overlapping(self.x, self.r, nb.a, nb.b, nb.sx, nb.sy, L[0], L[1])
+        e = np.nonzero(touch & (nb.a < nb.b))[0]
+        a, b = nb.a[e], nb.b[e]
+        d = self.x[a] - (self.x[b] + nb.shift[e] * L)
+        return e, self.r[a] + self.r[b] - np.sqrt(np.einsum("ij,ij->i", d, d))
+
     def contacts(self):
         """Touching pairs, each once (i < j): dict of i, j, shift (l_ij = x_j + C n - x_i), force on
-        j applied in the last step (N), overlap (m), tangential spring (frame of i), sliding."""
-        L = self.box_lengths
-        touch = K.overlapping(self.x, self.r, self.ea, self.eb, self.esx, self.esy, L[0], L[1])
-        keep = touch & (self.ea < self.eb)
-        e = np.nonzero(keep)[0]
-        a, b = self.ea[e], self.eb[e]
-        d = self.x[a] - (self.x[b] + self.eshift[e] * L)
-        ov = self.r[a] + self.r[b] - np.sqrt(np.einsum("ij,ij->i", d, d))
+        j applied in the last step (N), overlap (m), tangential spring (frame of i; the law's history
+        when its width is 2, else zeros), sliding."""
+        nb = self.nb
+        e, ov = self._touching()
         # entry (a, b, s): b's image is x_b + s L, so l_ab = x_b + C s - x_a (the schema's shift)
-        return {"i": a.astype(np.int64), "j": b.astype(np.int64), "shift": self.eshift[e].astype(np.int64), "force": -self.ef[e],
-                "overlap": ov, "tangential_spring": self.xi[e].copy(), "sliding": self.slide[e].copy()}
+        spring = nb.hist[e].copy() if self._width == 2 else np.zeros((e.size, 2))
+        return {"i": nb.a[e].astype(np.int64), "j": nb.b[e].astype(np.int64), "shift": nb.shift[e].astype(np.int64),
+                "force": -nb.ef[e], "overlap": ov, "tangential_spring": spring, "sliding": nb.slide[e].copy()}
 
     def state_arrays(self) -> dict:
-        """Everything needed to continue bit for bit (checkpoint)."""
-        return {"positions": self.x, "velocities": self.v, "spins": self.w, "forces": self.f,
-                "torques": self.t, "box_lo": self.lo, "box_hi": self.hi, "x_hold": self.xhold,
-                "box_lo_hold": self.lo_hold, "box_hi_hold": self.hi_hold,
-                "neighbours/a": self.ea, "neighbours/b": self.eb, "neighbours/shift": self.eshift,
-                "neighbours/owned_both": self.both, "neighbours/xi": self.xi,
-                "virial": self.virial}
+        """Everything needed to continue bit for bit (checkpoint): the saved fields of the state
+        objects ``p``, ``box``, ``nb``, ``sc`` under their dataset names (:data:`CHECKPOINT`)."""
+        return {name: getattr(getattr(self, obj), field) for name, (obj, field, _) in CHECKPOINT.items()}
 
     def restore(self, arrays: dict, step: int):
-        """Inverse of :meth:`state_arrays`."""
-        self.x = np.array(arrays["positions"])
-        self.v = np.array(arrays["velocities"])
-        self.w = np.array(arrays["spins"])
-        self.f = np.array(arrays["forces"])
-        self.t = np.array(arrays["torques"])
-        self.lo = np.array(arrays["box_lo"])
-        self.hi = np.array(arrays["box_hi"])
-        self.xhold = np.array(arrays["x_hold"])
-        self.lo_hold = np.array(arrays["box_lo_hold"])
-        self.hi_hold = np.array(arrays["box_hi_hold"])
-        self.ea = np.array(arrays["neighbours/a"], np.int32)
-        self.eb = np.array(arrays["neighbours/b"], np.int32)
-        self.eshift = np.array(arrays["neighbours/shift"], np.int64).reshape(-1, 2)
-        self.esx = np.ascontiguousarray(self.eshift[:, 0], np.float64)
-        self.esy = np.ascontiguousarray(self.eshift[:, 1], np.float64)
-        self.both = np.array(arrays["neighbours/owned_both"], np.bool_)
-        self.xi = np.array(arrays["neighbours/xi"]).reshape(-1, 2)
-        self.virial = np.array(arrays["virial"])
-        self.slide = np.zeros(self.ea.size, np.bool_)
-        self.ef = np.zeros((self.ea.size, 2))
-        self.start = np.searchsorted(self.ea, np.arange(self.packing.n + 1)).astype(np.int64)
-        self._set_parallel_scratch()
+        """Inverse of :meth:`state_arrays`: new state objects from ``arrays`` (the derived arrays of
+        the list, CSR offsets and the threaded loop's incoming CSR, rebuilt from them)."""
+        got = {name: np.array(arrays[name], dtype) for name, (_, _, dtype) in CHECKPOINT.items()}
+        n = self.packing.n
+        p = self.p
+        self.p = K.Particles(got["positions"].reshape(n, 2), got["velocities"].reshape(n, 2),
+                             got["spins"].reshape(n), got["forces"].reshape(n, 2), got["torques"].reshape(n),
+                             p.m, p.r)
+        self.box = K.Box(got["box_lo"].reshape(2), got["box_hi"].reshape(2), got["box_lo_hold"].reshape(2),
+                         got["box_hi_hold"].reshape(2))
+        a = got["neighbours/a"].reshape(-1)
+        hist = got["neighbours/xi"].reshape(a.size, self._width)
+        self.nb = self._neighbours(a, got["neighbours/b"].reshape(-1), got["neighbours/shift"],
+                                   got["neighbours/owned_both"].reshape(-1), hist, got["x_hold"].reshape(n, 2))
+        self.sc.vir[:] = got["virial"].reshape(4)
         self.step = int(step)
         self.stress = self.stress_tensor(self.box_lengths)
         self._build_step = self.step
         self._reset_energy_budget()
 
+    # ------------------------------------------------------------------ views of the state
+    x = property(lambda self: self.p.x, doc="positions (N, 2), m")
+    v = property(lambda self: self.p.v, doc="velocities (N, 2), m/s")
+    w = property(lambda self: self.p.w, doc="spins (N,), rad/s")
+    f = property(lambda self: self.p.f, doc="forces of the last step (N, 2), N")
+    t = property(lambda self: self.p.t, doc="torques of the last step (N,), N m")
+    m = property(lambda self: self.p.m, doc="masses (N,), kg")
+    r = property(lambda self: self.p.r, doc="radii (N,), m")
+    lo = property(lambda self: self.box.lo, doc="box lower corner (2,), m")
+    hi = property(lambda self: self.box.hi, doc="box upper corner (2,), m")
+    lo_hold = property(lambda self: self.box.lo_hold, doc="lo at the last neighbour build (2,), m")
+    hi_hold = property(lambda self: self.box.hi_hold, doc="hi at the last neighbour build (2,), m")
+    xhold = property(lambda self: self.nb.xhold, doc="positions at the last neighbour build (N, 2), m")
+    ea = property(lambda self: self.nb.a, doc="first particle of each list entry (M,) int32")
+    eb = property(lambda self: self.nb.b, doc="second particle of each list entry (M,) int32")
+    eshift = property(lambda self: self.nb.shift, doc="image shift s of each entry (M, 2) int64")
+    esx = property(lambda self: self.nb.sx, doc="s_x as float64 (M,)")
+    esy = property(lambda self: self.nb.sy, doc="s_y as float64 (M,)")
+    both = property(lambda self: self.nb.both, doc="owned pair (force on both particles) (M,) bool")
+    xi = property(lambda self: self.nb.hist, doc="per-entry history of the law (M, width); Hooke: the spring, m")
+    slide = property(lambda self: self.nb.slide, doc="Coulomb cap active at the last stored step (M,) bool")
+    ef = property(lambda self: self.nb.ef, doc="force on a of each entry at the last stored step (M, 2), N")
+    start = property(lambda self: self.nb.start, doc="CSR offsets of the entries of each a (N+1,)")
+    virial = property(lambda self: self.sc.vir, doc="virial sums xx, yy, xy, yx of the last step (4,), N m")
+
+
+#: checkpoint datasets (docs/schema_dem.md ``/checkpoint``): name -> (state object, field, dtype)
+CHECKPOINT = {
+    "positions": ("p", "x", np.float64), "velocities": ("p", "v", np.float64), "spins": ("p", "w", np.float64),
+    "forces": ("p", "f", np.float64), "torques": ("p", "t", np.float64),
+    "box_lo": ("box", "lo", np.float64), "box_hi": ("box", "hi", np.float64),
+    "x_hold": ("nb", "xhold", np.float64),
+    "box_lo_hold": ("box", "lo_hold", np.float64), "box_hi_hold": ("box", "hi_hold", np.float64),
+    "neighbours/a": ("nb", "a", np.int32), "neighbours/b": ("nb", "b", np.int32),
+    "neighbours/shift": ("nb", "shift", np.int64), "neighbours/owned_both": ("nb", "both", np.bool_),
+    "neighbours/xi": ("nb", "hist", np.float64), "virial": ("sc", "vir", np.float64),
+}
+
+
+def _control(loading, step: int, nsteps: int, lo0, hi0, phase_step0: int):
+    """The :class:`~gransim.dem.kernels.Control` of ``loading`` (a Loading or a PrescribedBox whose
+    rows cover steps step + 1 .. step + nsteps). Both kinds give the same numba type (writeable
+    copies of the same dtypes): one compiled run_block per law."""
+    if isinstance(loading, PrescribedBox):
+        if nsteps and not (loading.step0 <= step and step + nsteps <= loading.last_step):
+            raise InputError(f"prescribed box: the table covers steps {loading.step0 + 1}.."
+                             f"{loading.last_step}, the run needs {step + 1}..{step + nsteps}")
+        z = np.zeros(2)
+        return K.Control(np.zeros(2, np.int64), z, z, z, lo0, hi0, int(phase_step0), True, np.array(loading.lo),
+                         np.array(loading.hi), np.array(loading.remap), int(loading.step0))
+    if isinstance(loading, Loading):
+        code = {"fixed": 0, "rate": 1, "servo": 2}
+        ax = (loading.x, loading.y)
+        return K.Control(np.array([code[a.mode] for a in ax], np.int64), np.array([a.rate for a in ax]),
+                         np.array([a.target for a in ax]), np.array([a.gain for a in ax]), lo0, hi0,
+                         int(phase_step0), False, np.zeros((1, 2)), np.zeros((1, 2)), np.zeros(1, np.bool_), 0)
+    raise InputError(f"loading: expected a Loading or a PrescribedBox, got {type(loading).__name__}")
 
 __all__ = [
     "STEPS_PER_CONTACT_MIN",

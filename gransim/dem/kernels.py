@@ -1,23 +1,55 @@
-"""Numba kernels of the DEM step (unpacked contiguous float64/int64 arrays; no validation here).
+"""Numba kernels of the DEM step (contiguous float64/int64 arrays; no validation here).
 
 Order of one step (LIGGGHTS 3.8.0 ``verlet.cpp``, serial; shared notes liggghts-3.8.md):
-``initial_integrate`` -> ``check_rebuild`` (-> ``pbc_wrap`` + new list) -> ``forces_*`` ->
-``final_integrate`` -> box change with ``remap_x``.
+``initial_integrate`` -> ``check_rebuild`` (-> ``pbc_wrap`` + new list) -> ``forces`` /
+``forces_threaded`` -> ``final_integrate`` -> box change with ``remap_x``.
 
-``lammps`` (the force loops, ``run_block``): LAMMPS 29Sep2021 arithmetic instead (``DEMSettings``
-``flavour="lammps"``, docs/lammps.md): the law :func:`~gransim.contacts.hooke.hooke_history_lammps`
-and the spring of a list entry reset to zero whenever its pair does not touch. The step, the
-integrator, the box deformation and the neighbour list are the same in both codes.
+The step loop :func:`run_block` and the force loops take a few namedtuples of arrays
+(:class:`Particles`, :class:`Neighbours`, :class:`Box`, :class:`Control`, :class:`Scratch`,
+:class:`Series`) and a contact-law object (:mod:`gransim.contacts.laws`): the law is called
+through ``pair_force(law, ...)``, resolved at compile time by the law's type, so each law gets its
+own compiled (and disk-cached) loop and a new law needs no edit here. The LAMMPS 29Sep2021
+arithmetic (``DEMSettings(flavour="lammps")``, docs/lammps.md) is the law ``HookeLammps`` (its
+spring reset to zero whenever its pair does not touch) plus the clamped rebuild rule
+(:func:`check_rebuild`); the integrator, the box deformation and the neighbour list are the same
+in both codes.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 
 from .._numba import njit, pjit, prange
-from ..contacts.hooke import hooke_history, hooke_history_lammps
+from ..contacts.hooke import HookeLammps, HookeLiggghts, hooke_history, hooke_history_lammps  # noqa: F401
+from ..contacts.laws import pair_apart, pair_force
+
+#: particle state: x (N, 2) m, v (N, 2) m/s, w (N,) rad/s, f (N, 2) N, t (N,) N m, m (N,) kg, r (N,) m
+Particles = namedtuple("Particles", ["x", "v", "w", "f", "t", "m", "r"])
+#: neighbour/contact state of one list build (M entries (a, b, s): b's image x_b + s L seen from a):
+#: a, b (M,) int32; shift (M, 2) int64 = s, sx, sy (M,) float64 its columns; both (M,) bool (owned
+#: pair, s = 0: the force acts on both); hist (M, width) the law's per-contact history (frame of a);
+#: start (N+1,) int64 CSR of the entries of each a; in_start (N+1,), in_e the owned entries by b
+#: (threaded loop only, else empty); xhold (N, 2) positions at the build; slide (M,) bool, ef (M, 2)
+#: N, tb (M,) N m: per-entry outputs of the last force evaluation (cap flag, force on a, torque on b)
+Neighbours = namedtuple("Neighbours", ["a", "b", "shift", "sx", "sy", "both", "hist", "start", "in_start", "in_e",
+                                       "xhold", "slide", "ef", "tb"])
+#: the box: lo, hi (2,) m now; lo_hold, hi_hold (2,) at the last neighbour build (updated in place)
+Box = namedtuple("Box", ["lo", "hi", "lo_hold", "hi_hold"])
+#: loading of the box (:func:`box_target`, :func:`run_block`): modes (2,) int64 0 fixed / 1 rate /
+#: 2 servo, rates (2,) 1/s, targets (2,) N/m, gains (2,) 1/(Pa s), lo0, hi0 (2,) m the box at the
+#: phase start, phase_step0 int; presc bool: the box from the table presc_lo, presc_hi (T, 2) m on
+#: the rows with presc_remap (T,) bool, row 0 = step presc_step0
+Control = namedtuple("Control", ["modes", "rates", "targets", "gains", "lo0", "hi0", "phase_step0", "presc",
+                                 "presc_lo", "presc_hi", "presc_remap", "presc_step0"])
+#: per-step work arrays: vir (4,) virial xx, yy, xy, yx (N m); pvir (N, 4), pcont (N, 2) the
+#: per-particle virial and (contacts, overlap) sums of the threaded loop
+Scratch = namedtuple("Scratch", ["vir", "pvir", "pcont"])
+#: per-step output rows of :func:`run_block`: stress (n, 4) N/m, L (n, 2) m, nc (n,), ov (n,) m,
+#: ke (n,) J, vir (n, 4) N m
+Series = namedtuple("Series", ["stress", "L", "nc", "ov", "ke", "vir"])
 
 
 @njit
@@ -125,11 +157,12 @@ def overlapping(x, r, ea, eb, esx, esy, Lx, Ly):
 
 
 @njit(inline="always")
-def _entry(e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update, lammps):
+def _entry(law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update):
     """One list entry (a, b, s): branch d = x_a - (x_b + s L), and when the disks touch
-    (rsq < radsum^2, the test of both codes) the contact law with the spring of the entry updated in
-    place. ``lammps``: LAMMPS' law, and a pair that does not touch gets its spring zeroed
-    (``PairGranHookeHistory::compute``); LIGGGHTS keeps it until the next list build.
+    (rsq < radsum^2, the test of both codes) the pair function of ``law``
+    (:func:`gransim.contacts.laws.pair_force`) with the history row ``hist[e]`` updated in place;
+    otherwise the law's ``apart`` (LAMMPS' Hooke: the spring zeroed, ``PairGranHookeHistory::compute``;
+    LIGGGHTS keeps it until the next list build).
 
     Returns (touch, delx, dely, rsq, radsum, fx, fy, torque on a, torque on b, sliding); the
     force (fx, fy) acts on a. Shared by the serial and the threaded loop: the same operations
@@ -140,51 +173,30 @@ def _entry(e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt,
     rsq = delx * delx + dely * dely
     radsum = r[a] + r[b]
     if rsq < radsum * radsum:
-        if lammps:
-            fx, fy, ta, tb, s0, s1, sl, _ = hooke_history_lammps(
-                delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
-                m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
-        else:
-            fx, fy, ta, tb, s0, s1, sl, _ = hooke_history(
-                delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b],
-                m[a], m[b], kn, kt, gn, gt, mu, dt, xi[e, 0], xi[e, 1], update)
-        xi[e, 0] = s0
-        xi[e, 1] = s1
-        return True, delx, dely, rsq, radsum, fx, fy, ta, tb, sl
-    if lammps:
-        xi[e, 0] = 0.0
-        xi[e, 1] = 0.0
+        fx, fy, tqa, tqb, sl, _ = pair_force(law, hist, e, delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1],
+                                             v[b, 0], v[b, 1], w[a], w[b], m[a], m[b], dt, update)
+        return True, delx, dely, rsq, radsum, fx, fy, tqa, tqb, sl
+    pair_apart(law, hist, e)
     return False, delx, dely, rsq, radsum, 0.0, 0.0, 0.0, 0.0, False
 
 
 @njit
-def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
-                kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store, lammps=False):
-    """Serial force loop over a half list (LIGGGHTS ``newton off``; ``lammps``: :func:`_entry`).
+def forces(p, nb, law, Lx, Ly, dt, update, vir, store):
+    """Serial force loop over the half list ``nb`` (LIGGGHTS ``newton off``) with the contact law
+    ``law`` (any registered law: :mod:`gransim.contacts.laws`; one compiled copy per law type).
 
-    Arguments and result: :func:`_forces_half`, compiled once per flavour (the flag is a
-    constant in each copy of the loop: the LIGGGHTS loop stays as fast as without the option).
+    ``p`` :class:`Particles` (forces ``p.f`` and torques ``p.t`` overwritten), ``nb``
+    :class:`Neighbours`. Entries (a, b, s): b's image x_b + s L (L = (Lx, Ly), the current box
+    lengths, m). ``both`` entries (s = 0, both owned) apply the force to a and -force to b; entries
+    across the boundary exist once per owner, each with its own history copy, and act on a only.
+    ``vir`` (4,) receives the virial sums xx, yy, xy, yx of d (x) f_i (0.5 per owner as
+    ``ev_tally_xyz``, N m); ``nb.ef`` (M, 2) the force on a of each entry, ``nb.slide`` (M,) the
+    Coulomb cap flag (written only when ``store``: memory traffic; the engine stores them at the
+    last step of each ``advance``). Returns (contacts, sum of overlaps) counting each physical
+    contact once.
     """
-    if lammps:
-        return _forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
-                            kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store, True)
-    return _forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
-                        kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store, False)
-
-
-@njit(inline="always")
-def _forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
-                 kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store, lammps):
-    """Serial force loop over a half list (LIGGGHTS ``newton off``; ``lammps``: :func:`_entry`).
-
-    Entries (a, b, s): b's image x_b + s L (L = current box lengths). ``both`` entries (s = 0,
-    both owned) apply the force to a and -force to b; entries across the boundary exist once per
-    owner, each with its own spring copy, and act on a only. ``vir`` (4,) receives the virial
-    sums xx, yy, xy, yx of d (x) f_i (0.5 per owner as ``ev_tally_xyz``); ``ef`` (M, 2) the force on
-    a of each entry, ``slide`` (M,) the Coulomb cap flag (written only when ``store``: memory
-    traffic; the engine stores them at the last step of each ``advance``). Returns (contacts, sum of
-    overlaps) counting each physical contact once.
-    """
+    x, v, w, f, t, m, r = p.x, p.v, p.w, p.f, p.t, p.m, p.r
+    ea, eb, esx, esy, both, hist, slide, ef = nb.a, nb.b, nb.sx, nb.sy, nb.both, nb.hist, nb.slide, nb.ef
     n = x.shape[0]
     for i in range(n):
         f[i, 0] = 0.0
@@ -200,7 +212,7 @@ def _forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
         a = ea[e]
         b = eb[e]
         touch, delx, dely, rsq, radsum, fx, fy, ta, tb, sl = _entry(
-            e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update, lammps)
+            law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update)
         if touch:
             if store:
                 slide[e] = sl
@@ -232,17 +244,27 @@ def _forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
     return ncontact, sum_overlap
 
 
-@pjit
-def forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update,
-                    f, t, pvir, slide, ef, tb, pcont, in_start, in_e, store, lammps=False):
-    """Threaded force loop over the same half list as :func:`forces_half` (CSR by a: entries of
-    a in start[a]:start[a+1]; ``in_e[in_start[p]:in_start[p+1]]`` the owned entries whose b is
-    p). Pass 1 (threads over a): each entry once (spring update, force on a ``ef``, torque on b
-    ``tb``), own sums; pass 2 (threads over p): minus the forces and the torques of incoming
-    entries. No two threads write the same particle; deterministic; the summation order differs
-    from the serial loop (round-off). ``pvir`` (N, 4), ``pcont`` (N, 2) per-particle virial and
-    contact count/overlap sums (owned pairs weight 1, boundary copies 1/2).
+@njit
+def forces_threaded(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
+    """Threaded force loop over the same half list as :func:`forces` (CSR by a: entries of a in
+    ``nb.start[a]:nb.start[a+1]``; ``nb.in_e[nb.in_start[q]:nb.in_start[q+1]]`` the owned entries
+    whose b is q). Pass 1 (threads over a): each entry once (history update, force on a ``nb.ef``,
+    torque on b ``nb.tb``), own sums; pass 2 (threads over q): minus the forces and the torques of
+    incoming entries. No two threads write the same particle; deterministic; the summation order
+    differs from the serial loop (round-off). ``pvir`` (N, 4), ``pcont`` (N, 2) per-particle
+    virial and contact count/overlap sums (owned pairs weight 1, boundary copies 1/2).
     """
+    _forces_threaded(p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.start, nb.b, nb.sx, nb.sy, nb.both, nb.hist,
+                     nb.slide, nb.ef, nb.tb, nb.in_start, nb.in_e, law, Lx, Ly, dt, update, pvir, pcont, store)
+
+
+@pjit
+def _forces_threaded(x, v, w, f, t, m, r, start, eb, esx, esy, both, hist, slide, ef, tb, in_start, in_e,
+                     law, Lx, Ly, dt, update, pvir, pcont, store):
+    """:func:`forces_threaded` on the unpacked arrays. With the arrays taken out of the
+    namedtuples inside this ``parallel=True`` function, numba 0.68 returned wrong torques on b
+    (1e-5 N m off the serial loop and the interpreted kernel, measured; presumably its parfor pass
+    merging the two ``prange`` loops); as arguments, as here, the result is right."""
     n = x.shape[0]
     for a in prange(n):
         fxa = 0.0
@@ -257,7 +279,7 @@ def forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt
         for e in range(start[a], start[a + 1]):
             b = eb[e]
             touch, delx, dely, rsq, radsum, fx, fy, tq, tqb, sl = _entry(
-                e, a, b, x, v, w, r, m, esx, esy, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update, lammps)
+                law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update)
             if touch:
                 if store:
                     slide[e] = sl
@@ -289,18 +311,33 @@ def forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt
         pvir[a, 3] = v3
         pcont[a, 0] = nca
         pcont[a, 1] = ova
-    for p in prange(n):
+    for q in prange(n):
         fx = 0.0
         fy = 0.0
         tq = 0.0
-        for k in range(in_start[p], in_start[p + 1]):
+        for k in range(in_start[q], in_start[q + 1]):
             e = in_e[k]
             fx += ef[e, 0]
             fy += ef[e, 1]
             tq += tb[e]
-        f[p, 0] -= fx
-        f[p, 1] -= fy
-        t[p] += tq
+        f[q, 0] -= fx
+        f[q, 1] -= fy
+        t[q] += tq
+
+
+@njit
+def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
+                kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store, lammps=False):
+    """The Hooke force loop with unpacked arguments (kept for callers of the former signature,
+    e.g. ``bench/_dem_job.py``): :func:`forces` with the law ``HookeLammps`` when ``lammps``,
+    else ``HookeLiggghts`` (:mod:`gransim.contacts.hooke`); the same arithmetic bit for bit."""
+    p = Particles(x, v, w, f, t, m, r)
+    z = np.zeros(0, np.int64)
+    nb = Neighbours(ea, eb, np.zeros((0, 2), np.int64), esx, esy, both, xi, z, z, z, np.zeros((0, 2)),
+                    slide, ef, np.zeros(ea.shape[0]))
+    if lammps:
+        return forces(p, nb, HookeLammps(kn, kt, gn, gt, mu), Lx, Ly, dt, update, vir, store)
+    return forces(p, nb, HookeLiggghts(kn, kt, gn, gt, mu), Lx, Ly, dt, update, vir, store)
 
 
 @njit
@@ -342,18 +379,22 @@ def box_target(step, L_old, sig_servo, dt, modes, rates, targets, gains, lo0, hi
 
 
 @njit
-def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold, lo, hi, lo_hold,
-              hi_hold, vir, kn, kt, gn, gt, mu, dt, skin, step0, nsteps, resume,
-              modes, rates, targets, gains, lo0, hi0, phase_step0,
-              out_stress, out_L, out_nc, out_ov, out_ke, parallel, start, pvir, pcont, tb, in_start, in_e,
-              lammps, presc, presc_lo, presc_hi, presc_remap, presc_step0, out_vir):
-    """Steps step0+1 .. step0+nsteps until a neighbour rebuild is needed (force loop serial over
-    the half list, or with ``parallel`` the threaded ``forces_parallel`` over the same list with
-    CSR ``start``, incoming CSR ``in_start``/``in_e`` and scratch ``pvir`` (N, 4), ``pcont``
-    (N, 2), ``tb`` (M,)); ``lammps``: LAMMPS' arithmetic in the force loop (:func:`_entry`).
+def run_block(p, nb, box, ctl, law, sc, out, dt, skin, clamp, parallel, step0, nsteps, resume):
+    """Steps step0+1 .. step0+nsteps until a neighbour rebuild is needed.
 
-    Box of each step: with ``presc`` False from the loading of each axis (:func:`box_target`;
-    the positions are remapped only when the box changes). With ``presc`` True from the table
+    Parameters
+    ----------
+    p : :class:`Particles`; nb : :class:`Neighbours` (list, history of the law's width, CSR);
+    box : :class:`Box` (lo, hi and their values at the last build; updated in place);
+    ctl : :class:`Control` (the loading of the box); law : a registered contact law
+    (:mod:`gransim.contacts.laws`): each law type compiles its own copy of this loop;
+    sc : :class:`Scratch` (virial (4,), per-particle sums of the threaded loop);
+    out : :class:`Series` (rows >= nsteps); dt (s), skin (m); clamp : the rebuild rule of LAMMPS
+    (:func:`check_rebuild`); parallel : the threaded :func:`forces_threaded` instead of
+    :func:`forces` (same list, summation order differs).
+
+    Box of each step: with ``ctl.presc`` False from the loading of each axis (:func:`box_target`;
+    the positions are remapped only when the box changes). With ``ctl.presc`` True from the table
     ``presc_lo``/``presc_hi`` (T, 2), row ``step - presc_step0`` (the box after that step), on
     the steps whose ``presc_remap`` row is True (a ``fix deform`` step: ``remap x`` from the
     old box to the new one even when the box is unchanged, as ``FixDeform::end_of_step``); the
@@ -362,9 +403,12 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
     Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the step
     step0+completed+1 has done its first half step; call again with ``resume`` True after the
     rebuild), 2 non-finite position, 3 collapsed cell. Per completed step k the outputs hold
-    stress (xx, yy, xy, yx; virial / area of the new box), box lengths, contacts, mean overlap, kinetic energy,
-    and ``out_vir`` the virial (xx, yy, xy, yx; N m in 2D) itself.
+    stress (xx, yy, xy, yx; virial / area of the new box), box lengths, contacts, mean overlap,
+    kinetic energy, and ``out.vir`` the virial (xx, yy, xy, yx; N m in 2D) itself.
     """
+    x, v, w, f, t, m, r = p.x, p.v, p.w, p.f, p.t, p.m, p.r
+    lo, hi = box.lo, box.hi
+    vir, pvir, pcont = sc.vir, sc.pvir, sc.pcont
     L_old = np.empty(2)
     sig = np.empty(2)
     lo_new = np.empty(2)
@@ -373,7 +417,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         step = step0 + k + 1
         if not (resume and k == 0):
             initial_integrate(x, v, w, f, t, m, r, dt)
-            rebuild, bad = check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin, lammps)
+            rebuild, bad = check_rebuild(x, nb.xhold, lo, hi, box.lo_hold, box.hi_hold, skin, clamp)
             if bad >= 0:
                 return k, 2, bad
             if rebuild:
@@ -381,8 +425,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         Lx = hi[0] - lo[0]
         Ly = hi[1] - lo[1]
         if parallel:
-            forces_parallel(x, v, w, r, m, start, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, True,
-                            f, t, pvir, slide, ef, tb, pcont, in_start, in_e, k == nsteps - 1, lammps)
+            forces_threaded(p, nb, law, Lx, Ly, dt, True, pvir, pcont, k == nsteps - 1)
             for c in range(4):
                 vir[c] = 0.0
             nc = 0.0
@@ -393,8 +436,7 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
                 nc += pcont[i, 0]
                 so += pcont[i, 1]
         else:
-            nc, so = forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt,
-                                 True, f, t, vir, slide, ef, k == nsteps - 1, lammps)
+            nc, so = forces(p, nb, law, Lx, Ly, dt, True, vir, k == nsteps - 1)
         ke = final_integrate(v, w, f, t, m, r, dt)
         inv = 1.0 / (Lx * Ly)
         L_old[0] = Lx
@@ -406,16 +448,17 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         hi_new[0] = hi[0]
         hi_new[1] = hi[1]
         remap = False
-        if presc:
-            row = step - presc_step0
-            if presc_remap[row]:
+        if ctl.presc:
+            row = step - ctl.presc_step0
+            if ctl.presc_remap[row]:
                 remap = True
-                lo_new[0] = presc_lo[row, 0]
-                lo_new[1] = presc_lo[row, 1]
-                hi_new[0] = presc_hi[row, 0]
-                hi_new[1] = presc_hi[row, 1]
+                lo_new[0] = ctl.presc_lo[row, 0]
+                lo_new[1] = ctl.presc_lo[row, 1]
+                hi_new[0] = ctl.presc_hi[row, 0]
+                hi_new[1] = ctl.presc_hi[row, 1]
         else:
-            box_target(step, L_old, sig, dt, modes, rates, targets, gains, lo0, hi0, phase_step0, lo_new, hi_new)
+            box_target(step, L_old, sig, dt, ctl.modes, ctl.rates, ctl.targets, ctl.gains, ctl.lo0, ctl.hi0,
+                       ctl.phase_step0, lo_new, hi_new)
             if lo_new[0] != lo[0] or lo_new[1] != lo[1] or hi_new[0] != hi[0] or hi_new[1] != hi[1]:
                 remap = True
         if remap:
@@ -429,17 +472,17 @@ def run_block(x, v, w, f, t, r, m, ea, eb, esx, esy, both, xi, slide, ef, xhold,
         Lx = hi[0] - lo[0]
         Ly = hi[1] - lo[1]
         inv = 1.0 / (Lx * Ly)
-        out_stress[k, 0] = vir[0] * inv
-        out_stress[k, 1] = vir[1] * inv
-        out_stress[k, 2] = vir[2] * inv
-        out_stress[k, 3] = vir[3] * inv
+        out.stress[k, 0] = vir[0] * inv
+        out.stress[k, 1] = vir[1] * inv
+        out.stress[k, 2] = vir[2] * inv
+        out.stress[k, 3] = vir[3] * inv
         for c in range(4):
-            out_vir[k, c] = vir[c]
-        out_L[k, 0] = Lx
-        out_L[k, 1] = Ly
-        out_nc[k] = nc
-        out_ov[k] = so / nc if nc > 0 else 0.0
-        out_ke[k] = ke
+            out.vir[k, c] = vir[c]
+        out.L[k, 0] = Lx
+        out.L[k, 1] = Ly
+        out.nc[k] = nc
+        out.ov[k] = so / nc if nc > 0 else 0.0
+        out.ke[k] = ke
     return nsteps, 0, -1
 
 
@@ -458,12 +501,26 @@ def hand_over(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, bot
 
     A new entry (a, b) takes the spring stored with partner b in a's old list (or minus the one
     of an owned pair stored as (b, a)), only if it overlaps now (rsq < radsum^2); else zero.
+    Every column of ``xi_old`` (M, W) is handed over (and negated for a (b, a) entry):
+    :func:`hand_over_history` with all flip signs -1.
     """
+    flip = -np.ones(xi_old.shape[1])
+    hand_over_history(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, both_old, xi_old, xi_new,
+                      flip)
+
+
+@njit
+def hand_over_history(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, both_old, h_old, h_new,
+                      flip):
+    """:func:`hand_over` for a history of any width W: ``h_old`` (M_old, W), ``h_new`` (M, W)
+    (written), ``flip`` (W,) the sign of each column seen from the other particle (a new entry
+    (a, b) whose pair was stored as an owned (b, a) takes ``flip * h_old``)."""
+    nw = h_new.shape[1]
     for e in range(a_new.shape[0]):
         a = a_new[e]
         b = b_new[e]
-        xi_new[e, 0] = 0.0
-        xi_new[e, 1] = 0.0
+        for c in range(nw):
+            h_new[e, c] = 0.0
         delx = x[a, 0] - (x[b, 0] + sx_new[e] * L0)
         dely = x[a, 1] - (x[b, 1] + sy_new[e] * L1)
         radsum = r[a] + r[b]
@@ -471,13 +528,13 @@ def hand_over(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, bot
             continue
         k = _find(start_old, eb_old, a, b)
         if k >= 0:
-            xi_new[e, 0] = xi_old[k, 0]
-            xi_new[e, 1] = xi_old[k, 1]
+            for c in range(nw):
+                h_new[e, c] = h_old[k, c]
         else:
             k = _find(start_old, eb_old, b, a)
             if k >= 0 and both_old[k]:
-                xi_new[e, 0] = -xi_old[k, 0]
-                xi_new[e, 1] = -xi_old[k, 1]
+                for c in range(nw):
+                    h_new[e, c] = flip[c] * h_old[k, c]
 
 
 @njit

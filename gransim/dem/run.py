@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .._validate import as_int, as_positive_float
+from ..contacts.laws import law_spec
 from ..errors import ConvergenceError, InputError, ResultFileError, SimulationError
 from ..geometry import Packing
 from ..progress import progress
@@ -78,7 +79,7 @@ def _snapshot(eng: DEMEngine) -> dict:
 def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output: OutputSettings | None = None,
                resume: bool = False, velocities=None, threads: int | None = None, show_progress: bool = True,
                metadata: dict | None = None, stop_at_step: int | None = None,
-               allow_unsettled: bool = False) -> Path:
+               allow_unsettled: bool = False, law=None) -> Path:
     """Run ``phases`` one after the other from ``packing``; write ``out_path`` (kind "dem-run").
 
     With ``resume`` and an existing ``out_path`` of the same run (same fingerprint: packing,
@@ -97,15 +98,22 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
 
     ``stop_at_step`` ends this call at that step with a checkpoint (``complete`` False): a long
     run split into pieces, continued with ``resume``.
+
+    ``law``: a contact-law object (:mod:`gransim.contacts.laws`) instead of the Hooke law of
+    ``settings``; its class name and parameters join the settings JSON (and so the fingerprint).
     """
     output = output or OutputSettings()
     if stop_at_step is not None:
         stop_at_step = as_int(stop_at_step, "stop_at_step", minimum=1)
     phases = list(phases)
-    text = settings_json(settings, None, phases=[p.to_dict() for p in phases], **(metadata or {}))
+    extra = dict(metadata or {})
+    if law is not None:
+        law_spec(law)  # InputError for an unregistered law, before any file is touched
+        extra["law"] = {"name": type(law).__name__, "params": {k: float(v) for k, v in law._asdict().items()}}
+    text = settings_json(settings, None, phases=[p.to_dict() for p in phases], **extra)
     fp = fingerprint(packing, text)
     out_path = Path(out_path)
-    eng = DEMEngine(packing, settings, velocities=velocities, threads=threads)
+    eng = DEMEngine(packing, settings, velocities=velocities, threads=threads, law=law)
     state = {"phase": 0, "phase_step0": 0, "lo0": eng.lo.tolist(), "hi0": eng.hi.tolist(), "settled": 0}
     if resume and out_path.exists():
         rec = read_record(out_path)
