@@ -1,0 +1,70 @@
+"""Benchmark: one relaxed-RVE evaluation (P and A) of a 700-disk RVE from a warm start.
+
+Issue #18 target: < 5 ms per evaluation from a warm start (committed state at a nearby F).
+
+    PYTHONPATH=. python bench/rve_relaxed.py [--packing results/packings/rve-700-1.h5] [--repeat 20]
+
+Measures, per step of a small compression path F(t) = diag(1 - t, 1 - t) + shear, the wall time of
+``RelaxedMaterial.evaluate`` started from the committed state of the previous step (commit after
+each step, as the FE2 solver does at a converged load step), and the Newton iterations; the cold
+start (w = 0) at the first F is reported apart. Not a timed test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+
+def main(argv=None) -> dict:
+    from gransim.generation import standard_packings
+    from gransim.io import load_packing
+    from gransim.rve import TaylorMaterial
+    from gransim.rve.relaxed import RelaxedMaterial
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--packing", default=None, help="HDF5 packing (default: rve-700-1 of results/packings)")
+    ap.add_argument("--repeat", type=int, default=20, help="warm steps measured")
+    ap.add_argument("--kn", type=float, default=2.8e7, help="E_n (N/m)")
+    ap.add_argument("--dstrain", type=float, default=1e-5, help="strain increment per step")
+    args = ap.parse_args(argv)
+    path = args.packing or standard_packings("results/packings", names=["rve-700-1"])["rve-700-1"]
+    p = load_packing(path)
+    mat = RelaxedMaterial(p, args.kn)
+    tay = TaylorMaterial(p, args.kn)
+    F0 = np.array([[0.999, 0.0005], [0.0, 0.999]])
+    mat.evaluate(F0)  # compile
+    mat = RelaxedMaterial(p, args.kn)
+    t0 = time.perf_counter()
+    b = mat.evaluate(F0)
+    cold = time.perf_counter() - t0
+    cold_it = int(b.n_newton[0])
+    mat.commit()
+    times, its = [], []
+    dF = args.dstrain * np.array([[-1.0, 0.3], [0.2, -0.8]])
+    for k in range(1, args.repeat + 1):
+        F = F0 + k * dF
+        t0 = time.perf_counter()
+        b = mat.evaluate(F)
+        times.append(time.perf_counter() - t0)
+        its.append(int(b.n_newton[0]))
+        mat.commit()
+        assert b.energy[0] <= tay(F).energy
+    tay(F0)
+    t0 = time.perf_counter()
+    for _ in range(100):
+        tay(F0)
+    t_taylor = (time.perf_counter() - t0) / 100
+    out = {"n": p.n, "cold_ms": 1e3 * cold, "cold_newton": cold_it,
+           "warm_ms_median": 1e3 * float(np.median(times)), "warm_ms_min": 1e3 * float(np.min(times)),
+           "warm_newton": its, "taylor_ms": 1e3 * t_taylor, "builds": mat.n_builds,
+           "n_rattlers": int(b.n_rattlers[0]), "n_contacts": int(b.n_contacts[0])}
+    print(json.dumps(out, indent=1))
+    return out
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,953 @@
+"""Relaxed periodic RVE: fluctuations minimise the contact energy at fixed F, condensed tangent.
+
+Beyond the Taylor assumption of Meier, Steinmann & Kuhl ("Towards completeness: a multiscale
+approach of confined particulate systems", eq 1: x_i = F X_i, "we do not consider any kind of
+micro fluctuations") along the construction of Miehe & Dettmar ("A framework for micro-macro
+transitions in periodic particle aggregates of granular materials", CMAME 193, 2004, sections 3-4):
+the particle centres follow the macroscopic deformation *plus a periodic fluctuation*,
+
+    x_i = F X_i + w_i,       w (N, 2) (m), the same for every periodic image of particle i,
+
+so the branch vector of the pair (i, j, image n) with L_ij = X_j + C n - X_i (eq 2) becomes
+
+    l_ij(F, w) = F L_ij + w_j - w_i.                                                       (R1)
+
+With the overlap eps_ij = r_i + r_j - |l_ij| (eq 3) and the potential Phi (eqs 4-5) the RVE energy
+per reference area V = det C (eqs 6-7) is
+
+    W(F, w) = 1/V sum_pairs Phi(eps_ij(l_ij(F, w)))                                   (J/m^2) (R2)
+
+and the relaxed energy density is its minimum over the fluctuations at fixed F (Miehe & Dettmar's
+principle of minimum energy over the periodic fluctuation field, their eq for the "relaxed" RVE):
+
+    W_rel(F) = min_w W(F, w),      W_w(F, w*) = 0 at the minimiser w* = w*(F).             (R3)
+
+Since w = 0 is admissible, W_rel(F) <= W_Taylor(F) = W(F, 0) (the Taylor bound).
+
+Derivatives (per pair, g = dPhi/dl = -Phi'(eps) n, K = d^2 Phi/dl dl = a n n + b 1 with
+a = Phi'' + Phi'/d, b = -Phi'/d as in eqs 11-12; dl/dF_kL = e_k L_L, dl/dw_j = 1, dl/dw_i = -1):
+
+* residual (out-of-balance forces)  W_w:   (W_w)_j = 1/V sum_{pairs of j} s_j g      s_i = -1, s_j = +1
+* Hessian                            W_ww:  blocks s_a s_b K at (a, b) in {i, j}^2  (sparse, 2N x 2N)
+* mixed                              W_wF:  (W_wF)_{a p, kL} = 1/V sum s_a K_pk L_L   (2N x 4)
+* Taylor part                        W_FF:  eq (12), 1/V sum K_ik L_J L_L             (4 x 4)
+
+A pair of a disk with its own image (i = j) has l = F L, independent of w: it enters W, P and W_FF
+only. Stress and tangent at the minimiser (Miehe & Dettmar's condensation):
+
+    P = dW_rel/dF = W_F(F, w*)  (= 1/V sum g (x) L, eq 10 at the relaxed l)          (N/m) (R4)
+    A = d^2 W_rel/dF dF = W_FF - W_Fw (W_ww)^-1 W_wF                                  (N/m) (R5)
+
+(R4) holds because W_w = 0 at w*; (R5) differentiates W_w(F, w*(F)) = 0:
+dw*/dF = -(W_ww)^-1 W_wF. Both use the same sparse LDL^T factorisation of W_ww at w* (Davis'
+up-looking algorithm on 2 x 2 blocks, numba, in a minimum-degree order of the candidate graph).
+``A[i, J, k, L] = dP_iJ/dF_kL`` with index pairs (iJ) -> 2 i + J; A has the major symmetry (it is
+a Hessian; the computed A is not symmetrised, it is symmetric to the round-off of the solve).
+
+Gauge and rattlers
+------------------
+W is invariant under a rigid translation w -> w + c (every pair depends on w_j - w_i), so W_ww
+is singular. The translation is removed by **fixing one particle** (the lowest index of the
+backbone keeps its w). Rattlers are found in the current configuration at every Newton iterate:
+disks with fewer than ``min_contacts`` (default 3, d + 1 in 2D) active contacts are removed
+repeatedly with their contacts (a disk with two contacts has no tangential stiffness, the
+geometric term b is even negative under compression); of the remaining disks only the largest
+connected component of the contact graph (the backbone) is relaxed, smaller clusters float (their
+translation and rotation are further zero modes) and are counted as rattlers. Rattlers are
+**excluded from the solve and keep their w**; their contacts still count in W, P and W_FF (with w
+held), so P and A are the exact derivatives of the W that is minimised. ``RelaxedResult.rattlers``
+reports them. The fixed disk carries the reaction to the held rattlers' contact forces. Limitation:
+a held rattler is not pushed out of its 1-2 contacts, so where the network falls apart (extension
+beyond the overlap strain, every disk a rattler) W_rel stays at the Taylor value of those contacts
+rather than dropping to the separated minimum.
+
+Contact changes and Newton
+--------------------------
+Phi = E_n/2 <eps>^2 is C1 in l with a jump of Phi'' at eps = 0 (H(eps) in eq 4), so W is C1 and
+piecewise smooth: contacts open and close during the relaxation. Newton's method is applied to the
+current active set (the Hessian of the contacts with eps > 0) and globalised by an Armijo
+backtracking line search on W itself; an indefinite W_ww (compressive contacts have negative
+tangential stiffness b, buckling) is shifted, W_ww + mu diag|W_ww|, mu = 1e-8, x10, until
+every 2 x 2 pivot block of the LDL^T is positive definite (Sylvester's inertia; a
+Levenberg-Marquardt / trust-region step). Once the active set settles the iteration is plain
+Newton and converges quadratically.
+Convergence: max |W_w| <= force_tol * (mean contact force) over the relaxed disks. At the converged
+state the factorisation of the unshifted W_ww gives A; if it is not positive definite
+(a floppy or unstable network) ``stable`` is False and A uses the smallest shift that is.
+
+Contact candidates (skin)
+-------------------------
+Candidates are built by the periodic cell list at an anchor (F0, w0): all pairs with
+|l0| < r_i + r_j + s, s = 2 f r_max (f = ``skin_fraction``). With G = F F0^-1 and
+delta = max_k |w_k - G w0_k|, every excluded pair has l = G l0 + (w_j - G w0_j) - (w_i - G w0_i), so
+
+    |l| >= sigma_min(G) (c + s) - 2 delta >= c      for all c = r_i + r_j in [c_min, c_max]
+
+when (sigma_min - 1) c + sigma_min s - 2 delta >= 0 at c = c_min and c = c_max (validity rule; linear
+in c). A candidate set is reused while the rule holds at the trial (F, w) of every line-search step,
+otherwise rebuilt there; ``n_builds`` counts the builds.
+
+Gauss-point history
+-------------------
+:meth:`RelaxedMaterial.evaluate` (the FE interface) starts every state g from the *committed*
+fluctuation of slot g (zero at first) and keeps the converged one as a *trial*;
+:meth:`RelaxedMaterial.commit` makes the trials the history (call it when the global load step
+has converged), :meth:`RelaxedMaterial.revert` drops them. A warm start that ends above the Taylor
+energy W(F, 0) by more than 1e-12 relative (another local minimum) is redone from w = 0, so
+W_rel <= W_Taylor (1 + 1e-12) always.
+:meth:`RelaxedMaterial.__call__` is stateless: it starts from a given fluctuation and returns the
+converged one in the result.
+
+Units: E_n in N/m, W in J/m^2, P and A in N/m (2D), as :mod:`gransim.rve.taylor`. Tension positive.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from .._numba import njit
+from .._validate import as_array, as_int, as_positive_float
+from ..contacts import find_neighbours
+from ..contacts.law import force_magnitude, overlap, potential, stiffness
+from ..errors import InputError, SimulationError
+from .taylor import (
+    DEFAULT_SKIN_FRACTION,
+    _as_packings,
+    _check_single_F,
+    _ro,
+    _smallest_singular_value,
+    check_deformation_gradients,
+)
+
+#: default Newton tolerance: max |W_w| relative to the mean contact force of the relaxed disks
+DEFAULT_FORCE_TOL = 1e-10
+#: default most Newton iterations per state
+DEFAULT_MAX_ITER = 60
+#: default fewest contacts of a non-rattler (d + 1 in 2D)
+DEFAULT_MIN_CONTACTS = 3
+#: Armijo constant of the line search
+ARMIJO = 1e-4
+#: relative energy change below which a step counts as round-off (accepted if |W_w| shrinks)
+ENERGY_ROUNDOFF = 1e-13
+
+
+# ----------------------------------------------------------------------------------------------
+# kernels
+# ----------------------------------------------------------------------------------------------
+@njit
+def _active(F, w, ci, cj, L, csum):
+    """(M,) bool: candidate m is in contact (eps > 0) at x = F X + w."""
+    M = ci.shape[0]
+    out = np.zeros(M, np.bool_)
+    for m in range(M):
+        i = ci[m]
+        j = cj[m]
+        l0 = F[0, 0] * L[m, 0] + F[0, 1] * L[m, 1] + w[j, 0] - w[i, 0]
+        l1 = F[1, 0] * L[m, 0] + F[1, 1] * L[m, 1] + w[j, 1] - w[i, 1]
+        d2 = l0 * l0 + l1 * l1
+        c = csum[m]
+        if d2 < c * c and c - np.sqrt(d2) > 0.0:
+            out[m] = True
+    return out
+
+
+@njit
+def _energy(F, w, ci, cj, L, ri, rj, kn):
+    """sum_pairs Phi(eps) (J) at x = F X + w, eqs (3)-(4) with (R1)."""
+    e = 0.0
+    for m in range(ci.shape[0]):
+        i = ci[m]
+        j = cj[m]
+        l0 = F[0, 0] * L[m, 0] + F[0, 1] * L[m, 1] + w[j, 0] - w[i, 0]
+        l1 = F[1, 0] * L[m, 0] + F[1, 1] * L[m, 1] + w[j, 1] - w[i, 1]
+        d2 = l0 * l0 + l1 * l1
+        c = ri[m] + rj[m]
+        if d2 >= c * c:
+            continue
+        e += potential(overlap(ri[m], rj[m], np.sqrt(d2)), kn)
+    return e
+
+
+@njit
+def _assemble(F, w, ci, cj, L, ri, rj, kn, dof, ndof):
+    """Energy, W_F, W_FF, W_w, W_wF and W_ww in 2 x 2 blocks (all times V, i.e. plain sums).
+
+    dof (N,) int64: first unknown of a relaxed disk (2 per disk, block dof // 2) or -1 (fixed /
+    rattler). W_ww is returned as its diagonal blocks Hd (nb, 2, 2) and the strictly upper
+    off-diagonal blocks in block-CSC form (Ap (nb + 1,), Ai, Ax (., 2, 2); duplicates allowed,
+    they add). Returns W, P (2, 2), WFF (4, 4), grad (ndof,), B (ndof, 4), Hd, Ap, Ai, Ax,
+    n_contacts.
+    """
+    M = ci.shape[0]
+    nb = ndof // 2
+    W = 0.0
+    P = np.zeros((2, 2))
+    WFF = np.zeros((4, 4))
+    grad = np.zeros(ndof)
+    B = np.zeros((ndof, 4))
+    Hd = np.zeros((nb, 2, 2))
+    Ks = np.empty((M, 2, 2))
+    off = np.zeros(M, np.bool_)
+    Ap = np.zeros(nb + 1, np.int64)
+    g = np.empty(2)
+    Lm = np.empty(2)
+    count = 0
+    for m in range(M):
+        i = ci[m]
+        j = cj[m]
+        Lm[0] = L[m, 0]
+        Lm[1] = L[m, 1]
+        l0 = F[0, 0] * Lm[0] + F[0, 1] * Lm[1] + w[j, 0] - w[i, 0]
+        l1 = F[1, 0] * Lm[0] + F[1, 1] * Lm[1] + w[j, 1] - w[i, 1]
+        d2 = l0 * l0 + l1 * l1
+        c = ri[m] + rj[m]
+        if d2 >= c * c:
+            continue
+        d = np.sqrt(d2)
+        eps = overlap(ri[m], rj[m], d)
+        if eps <= 0.0:
+            continue
+        count += 1
+        fm = force_magnitude(eps, kn)
+        a = stiffness(eps, kn) + fm / d
+        b = -fm / d
+        n0 = l0 / d
+        n1 = l1 / d
+        g[0] = -fm * n0
+        g[1] = -fm * n1
+        K = Ks[m]
+        K[0, 0] = a * n0 * n0 + b
+        K[0, 1] = a * n0 * n1
+        K[1, 0] = K[0, 1]
+        K[1, 1] = a * n1 * n1 + b
+        W += potential(eps, kn)
+        for p in range(2):
+            for J in range(2):
+                P[p, J] += g[p] * Lm[J]
+                for q in range(2):
+                    for Lx in range(2):
+                        WFF[2 * p + J, 2 * q + Lx] += K[p, q] * Lm[J] * Lm[Lx]
+        if i == j:
+            continue
+        for side in range(2):
+            da = dof[i] if side == 0 else dof[j]
+            if da < 0:
+                continue
+            sa = -1.0 if side == 0 else 1.0
+            ba = da // 2
+            for p in range(2):
+                grad[da + p] += sa * g[p]
+                for q in range(2):
+                    Hd[ba, p, q] += K[p, q]
+                    for Lx in range(2):
+                        B[da + p, 2 * q + Lx] += sa * K[p, q] * Lm[Lx]
+        if dof[i] >= 0 and dof[j] >= 0:
+            off[m] = True
+            Ap[max(dof[i], dof[j]) // 2 + 1] += 1
+    for k in range(nb):
+        Ap[k + 1] += Ap[k]
+    Ai = np.empty(Ap[nb], np.int64)
+    Ax = np.empty((Ap[nb], 2, 2))
+    fill = Ap[:nb].copy()
+    for m in range(M):
+        if off[m]:
+            bi = dof[ci[m]] // 2
+            bj = dof[cj[m]] // 2
+            col = max(bi, bj)
+            p = fill[col]
+            fill[col] += 1
+            Ai[p] = min(bi, bj)
+            for r in range(2):
+                for c2 in range(2):
+                    Ax[p, r, c2] = -Ks[m, r, c2]  # s_i s_j K, K symmetric
+    return W, P, WFF, grad, B, Hd, Ap, Ai, Ax, count
+
+
+@njit
+def _classify_kernel(N, ci, cj, active, min_contacts, order):
+    """Rattlers, backbone and unknowns of the active contact graph (see "Gauge and rattlers").
+
+    Returns rat (N,) bool (rattlers and disks off the largest component), dof (N,) int64 (first
+    unknown, numbered along ``order``; -1 if not relaxed), the fixed disk (-1: none) and ndof."""
+    deg = np.zeros(N, np.int64)
+    for m in range(ci.shape[0]):
+        if active[m] and ci[m] != cj[m]:
+            deg[ci[m]] += 1
+            deg[cj[m]] += 1
+    start = np.zeros(N + 1, np.int64)
+    for k in range(N):
+        start[k + 1] = start[k] + deg[k]
+    nbr = np.empty(start[N], np.int64)
+    fill = start[:N].copy()
+    for m in range(ci.shape[0]):
+        if active[m] and ci[m] != cj[m]:
+            nbr[fill[ci[m]]] = cj[m]
+            fill[ci[m]] += 1
+            nbr[fill[cj[m]]] = ci[m]
+            fill[cj[m]] += 1
+    # repeated removal of disks with fewer than min_contacts contacts (a queue)
+    rat = np.zeros(N, np.bool_)
+    queue = np.empty(N, np.int64)
+    head = 0
+    tail = 0
+    for k in range(N):
+        if deg[k] < min_contacts:
+            rat[k] = True
+            queue[tail] = k
+            tail += 1
+    while head < tail:
+        k = queue[head]
+        head += 1
+        for p in range(start[k], start[k + 1]):
+            q = nbr[p]
+            if not rat[q]:
+                deg[q] -= 1
+                if deg[q] < min_contacts:
+                    rat[q] = True
+                    queue[tail] = q
+                    tail += 1
+    # connected components of the rest (breadth first); keep the largest
+    lab = np.full(N, -1, np.int64)
+    best = -1
+    best_size = 0
+    ncomp = 0
+    for s0 in range(N):
+        if rat[s0] or lab[s0] >= 0:
+            continue
+        lab[s0] = ncomp
+        head = 0
+        tail = 1
+        queue[0] = s0
+        while head < tail:
+            k = queue[head]
+            head += 1
+            for p in range(start[k], start[k + 1]):
+                q = nbr[p]
+                if not rat[q] and lab[q] < 0:
+                    lab[q] = ncomp
+                    queue[tail] = q
+                    tail += 1
+        if tail > best_size:
+            best_size = tail
+            best = ncomp
+        ncomp += 1
+    dof = np.full(N, -1, np.int64)
+    fixed = -1
+    for k in range(N):
+        if lab[k] != best or best < 0:
+            rat[k] = True
+        elif fixed < 0:
+            fixed = k
+    ndof = 0
+    for t in range(N):
+        k = order[t]
+        if not rat[k] and k != fixed:
+            dof[k] = ndof
+            ndof += 2
+    return rat, dof, fixed, ndof
+
+
+# ----------------------------------------------------------------------------------------------
+# results and state
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RelaxedResult:
+    """Relaxed response of one RVE at one F (tension positive).
+
+    Attributes
+    ----------
+    energy : float
+        W_rel(F) = min_w W(F, w) (J/m^2), (R3).
+    piola : (2, 2)
+        P = dW_rel/dF (N/m), (R4).
+    tangent : (2, 2, 2, 2)
+        A[i, J, k, L] = dP_iJ/dF_kL, condensed (R5) (N/m).
+    cauchy : (2, 2)
+        sigma = P F^T / det F (N/m).
+    n_contacts : int
+        Active contacts at the minimiser.
+    fluctuation : (N, 2)
+        w* (m); x_i = F X_i + w_i.
+    rattlers : (N,) bool
+        Disks excluded from the solve (rattlers and floating clusters); they kept their start w.
+    n_newton : int
+        Newton iterations (factorisations of W_ww, the final one for A included).
+    residual : float
+        max |W_w| * V over the relaxed disks at w* (N).
+    stable : bool
+        W_ww (translation fixed) was positive definite at w*.
+    fixed : int
+        Index of the disk fixed against rigid translation (-1: nothing relaxed).
+    """
+
+    energy: float
+    piola: np.ndarray
+    tangent: np.ndarray
+    cauchy: np.ndarray
+    n_contacts: int
+    fluctuation: np.ndarray
+    rattlers: np.ndarray
+    n_newton: int
+    residual: float
+    stable: bool
+    fixed: int
+
+
+@dataclass(frozen=True)
+class RelaxedBatch:
+    """Relaxed response at G states; fields as :class:`RelaxedResult` with a leading (G,) axis.
+
+    energy (G,), piola (G, 2, 2), tangent (G, 2, 2, 2, 2), cauchy (G, 2, 2), n_contacts (G,),
+    n_newton (G,), n_rattlers (G,), residual (G,) (N), stable (G,) bool.
+    """
+
+    energy: np.ndarray
+    piola: np.ndarray
+    tangent: np.ndarray
+    cauchy: np.ndarray
+    n_contacts: np.ndarray
+    n_newton: np.ndarray
+    n_rattlers: np.ndarray
+    residual: np.ndarray
+    stable: np.ndarray
+
+    def __len__(self) -> int:
+        return self.energy.shape[0]
+
+
+def _particle_order(n, i, j) -> np.ndarray:
+    """Minimum-degree order (n,) of the candidate graph (SuperLU's MMD on A^T + A of the graph
+    Laplacian + 1): the unknowns of W_ww are numbered along it, which keeps the fill of L small
+    for every active subset of the candidates."""
+    keep = i != j
+    g = sp.coo_matrix((np.ones(int(keep.sum())), (i[keep], j[keep])), shape=(n, n)).tocsr()
+    g = g + g.T
+    lap = sp.diags(np.asarray(abs(g).sum(axis=1)).ravel() + 1.0) - g
+    # perm_c[k] is the position of unknown k in SuperLU's order, so the elimination order is its
+    # inverse (measured on rve-700-1: 36 k entries in L, against 161 k with perm_c itself)
+    return np.argsort(splu(lap.tocsc(), permc_spec="MMD_AT_PLUS_A").perm_c).astype(np.int64)
+
+
+class _Candidates:
+    """Contact candidates anchored at (F0, w0) with absolute skin s (see the module docstring)."""
+
+    __slots__ = (
+        "F0inv",
+        "L",
+        "ci",
+        "cj",
+        "cmax",
+        "cmin",
+        "csum",
+        "order",
+        "ri",
+        "rj",
+        "s",
+        "w0",
+    )
+
+    def __init__(self, rve, F0, w0):
+        s = rve.skin
+        x = rve.X @ F0.T + w0
+        nl = find_neighbours(x, rve.r, F0 @ rve.C, s)
+        self.F0inv = np.linalg.inv(F0)
+        self.w0 = w0.copy()
+        self.ci = np.ascontiguousarray(nl.i)
+        self.cj = np.ascontiguousarray(nl.j)
+        self.L = np.ascontiguousarray(rve.X[nl.j] + nl.shift @ rve.C.T - rve.X[nl.i])
+        self.ri = rve.r[nl.i].copy()
+        self.rj = rve.r[nl.j].copy()
+        self.csum = self.ri + self.rj
+        self.s = s
+        self.cmin = 2.0 * float(rve.r.min())
+        self.cmax = 2.0 * float(rve.r.max())
+        self.order = _particle_order(rve.n, self.ci, self.cj)
+
+    def valid(self, F, w) -> bool:
+        G = F @ self.F0inv
+        sig = float(_smallest_singular_value(G))
+        dw = w - self.w0 @ G.T
+        delta = math.sqrt(float(np.max(np.einsum("ij,ij->i", dw, dw)))) if dw.size else 0.0
+        margin = 1e-12 * self.cmax
+        for c in (self.cmin, self.cmax):
+            if (sig - 1.0) * c + sig * self.s - 2.0 * delta < margin:
+                return False
+        return True
+
+
+@dataclass(frozen=True)
+class _State:
+    """A converged (or start) fluctuation w (N, 2) at F with its candidates and dw*/dF (N, 2, 4)."""
+
+    w: np.ndarray
+    cand: _Candidates | None
+    F: np.ndarray | None = None
+    S: np.ndarray | None = None
+
+    def predict(self, F) -> np.ndarray:
+        """First-order predictor w*(F) ~ w + dw*/dF : (F - F_state) (the warm start)."""
+        if self.S is None:
+            return self.w
+        return self.w + self.S @ (F - self.F).reshape(4)
+
+
+class _RVE:
+    def __init__(self, packing, skin_fraction):
+        self.packing = packing
+        self.X = np.ascontiguousarray(packing.positions)
+        self.C = np.ascontiguousarray(packing.cell)
+        self.r = np.ascontiguousarray(packing.radii)
+        self.n = self.r.size
+        self.area = float(np.linalg.det(self.C))
+        self.skin = 2.0 * skin_fraction * float(self.r.max())
+
+
+@njit
+def _ldl_symbolic(n, Ap, Ai):
+    """Elimination tree and column pointers of L from the strictly upper pattern (Ap, Ai).
+
+    T. A. Davis, "Algorithm 849: a concise sparse Cholesky factorization package", ACM TOMS 31
+    (2005), ldl_symbolic, here on 2 x 2 blocks (one node per disk). Returns parent, Lp (n + 1,)."""
+    parent = np.full(n, -1, np.int64)
+    lnz = np.zeros(n, np.int64)
+    flag = np.empty(n, np.int64)
+    for k in range(n):
+        flag[k] = k
+        for p in range(Ap[k], Ap[k + 1]):
+            i = Ai[p]
+            while flag[i] != k:
+                if parent[i] == -1:
+                    parent[i] = k
+                lnz[i] += 1
+                flag[i] = k
+                i = parent[i]
+    Lp = np.zeros(n + 1, np.int64)
+    for k in range(n):
+        Lp[k + 1] = Lp[k] + lnz[k]
+    return parent, Lp
+
+
+@njit
+def _ldl_numeric(n, Ap, Ai, Ax, Hd, shift, parent, Lp, Li, Lx, Dinv):
+    """Block LDL^T of H + shift diag|H| (2 x 2 blocks, no pivoting), Davis' up-looking ldl_numeric.
+
+    Row k of L solves L y = H[:k, k] with y_i = D_i L_ki^T, so L_ki = y_i^T D_i^-1 and
+    D_k = H_kk - sum_i L_ki y_i. Returns the number of positive definite pivot blocks D_k
+    (n: H is positive definite, Sylvester's law of inertia); Dinv (n, 2, 2) receives D_k^-1."""
+    Y = np.zeros((n, 2, 2))
+    pattern = np.empty(n, np.int64)
+    flag = np.empty(n, np.int64)
+    lnz = np.zeros(n, np.int64)
+    for k in range(n):
+        top = n
+        flag[k] = k
+        lnz[k] = 0
+        for p in range(Ap[k], Ap[k + 1]):
+            i = Ai[p]
+            Y[i, 0, 0] += Ax[p, 0, 0]
+            Y[i, 0, 1] += Ax[p, 0, 1]
+            Y[i, 1, 0] += Ax[p, 1, 0]
+            Y[i, 1, 1] += Ax[p, 1, 1]
+            ln = 0
+            while flag[i] != k:
+                pattern[ln] = i
+                ln += 1
+                flag[i] = k
+                i = parent[i]
+            while ln > 0:
+                top -= 1
+                ln -= 1
+                pattern[top] = pattern[ln]
+        d00 = Hd[k, 0, 0] * (1.0 + shift)
+        d01 = Hd[k, 0, 1]
+        d10 = Hd[k, 1, 0]
+        d11 = Hd[k, 1, 1] * (1.0 + shift)
+        while top < n:
+            i = pattern[top]
+            y00 = Y[i, 0, 0]
+            y01 = Y[i, 0, 1]
+            y10 = Y[i, 1, 0]
+            y11 = Y[i, 1, 1]
+            Y[i, 0, 0] = 0.0
+            Y[i, 0, 1] = 0.0
+            Y[i, 1, 0] = 0.0
+            Y[i, 1, 1] = 0.0
+            p2 = Lp[i] + lnz[i]
+            for p in range(Lp[i], p2):
+                r = Li[p]
+                a00 = Lx[p, 0, 0]
+                a01 = Lx[p, 0, 1]
+                a10 = Lx[p, 1, 0]
+                a11 = Lx[p, 1, 1]
+                Y[r, 0, 0] -= a00 * y00 + a01 * y10
+                Y[r, 0, 1] -= a00 * y01 + a01 * y11
+                Y[r, 1, 0] -= a10 * y00 + a11 * y10
+                Y[r, 1, 1] -= a10 * y01 + a11 * y11
+            e00 = Dinv[i, 0, 0]
+            e01 = Dinv[i, 0, 1]
+            e10 = Dinv[i, 1, 0]
+            e11 = Dinv[i, 1, 1]
+            # L_ki = y^T Dinv_i
+            l00 = y00 * e00 + y10 * e10
+            l01 = y00 * e01 + y10 * e11
+            l10 = y01 * e00 + y11 * e10
+            l11 = y01 * e01 + y11 * e11
+            d00 -= l00 * y00 + l01 * y10
+            d01 -= l00 * y01 + l01 * y11
+            d10 -= l10 * y00 + l11 * y10
+            d11 -= l10 * y01 + l11 * y11
+            Li[p2] = k
+            Lx[p2, 0, 0] = l00
+            Lx[p2, 0, 1] = l01
+            Lx[p2, 1, 0] = l10
+            Lx[p2, 1, 1] = l11
+            lnz[i] += 1
+            top += 1
+        off = 0.5 * (d01 + d10)
+        det = d00 * d11 - off * off
+        if not (d00 > 0.0 and det > 0.0):
+            return k
+        Dinv[k, 0, 0] = d11 / det
+        Dinv[k, 1, 1] = d00 / det
+        Dinv[k, 0, 1] = -off / det
+        Dinv[k, 1, 0] = -off / det
+    return n
+
+
+@njit
+def _ldl_solve(Lp, Li, Lx, Dinv, X):
+    """Solve (L D L^T) X = X in place; X (n, 2, m) (unknown 2 k + c is X[k, c])."""
+    n = Dinv.shape[0]
+    m = X.shape[2]
+    for j in range(n):
+        for p in range(Lp[j], Lp[j + 1]):
+            r = Li[p]
+            for c in range(m):
+                x0 = X[j, 0, c]
+                x1 = X[j, 1, c]
+                X[r, 0, c] -= Lx[p, 0, 0] * x0 + Lx[p, 0, 1] * x1
+                X[r, 1, c] -= Lx[p, 1, 0] * x0 + Lx[p, 1, 1] * x1
+    for j in range(n):
+        for c in range(m):
+            x0 = X[j, 0, c]
+            x1 = X[j, 1, c]
+            X[j, 0, c] = Dinv[j, 0, 0] * x0 + Dinv[j, 0, 1] * x1
+            X[j, 1, c] = Dinv[j, 1, 0] * x0 + Dinv[j, 1, 1] * x1
+    for j in range(n - 1, -1, -1):
+        for p in range(Lp[j], Lp[j + 1]):
+            r = Li[p]
+            for c in range(m):
+                x0 = X[r, 0, c]
+                x1 = X[r, 1, c]
+                X[j, 0, c] -= Lx[p, 0, 0] * x0 + Lx[p, 1, 0] * x1
+                X[j, 1, c] -= Lx[p, 0, 1] * x0 + Lx[p, 1, 1] * x1
+
+
+class _LDL:
+    """Sparse block LDL^T of the symmetric W_ww (2 x 2 blocks per disk), no pivoting.
+
+    The disks are numbered along a minimum-degree order of the candidate graph (see
+    :func:`_particle_order`), so no further permutation is needed. If W_ww is not positive
+    definite (a pivot block D_k not positive definite) it is shifted, W_ww + mu diag|W_ww| with
+    mu = 1e-8, 1e-7, ... (a Levenberg-Marquardt / trust-region step); ``shifted`` records it.
+    """
+
+    def __init__(self, Hd, Ap, Ai, Ax):
+        n = Hd.shape[0]
+        parent, Lp = _ldl_symbolic(n, Ap, Ai)
+        self.Lp = Lp
+        self.Li = np.empty(Lp[-1], np.int64)
+        self.Lx = np.empty((Lp[-1], 2, 2))
+        self.Dinv = np.empty((n, 2, 2))
+        self.shifted = False
+        mu = 0.0
+        while _ldl_numeric(n, Ap, Ai, Ax, Hd, mu, parent, Lp, self.Li, self.Lx, self.Dinv) < n:
+            self.shifted = True
+            mu = 1e-8 if mu == 0.0 else 10.0 * mu
+            if mu > 1e12:
+                raise RuntimeError("relaxed RVE: no positive definite shift of W_ww found")
+
+    def solve(self, b):
+        """x = W_ww^-1 b for b (ndof,) or (ndof, m)."""
+        one = np.ndim(b) == 1
+        X = np.array(b, dtype=float, order="C")  # a copy, solved in place
+        shape = X.shape
+        X = X.reshape(-1, 2, 1 if one else shape[1])
+        _ldl_solve(self.Lp, self.Li, self.Lx, self.Dinv, X)
+        return X.reshape(shape)
+
+
+# ----------------------------------------------------------------------------------------------
+# the compute object
+# ----------------------------------------------------------------------------------------------
+class RelaxedMaterial:
+    """Relaxed (periodic-fluctuation) homogenized material of one or several RVEs.
+
+    Parameters
+    ----------
+    packings : Packing, sequence of Packing or mapping name -> Packing
+        Reference RVEs (as :class:`gransim.rve.TaylorMaterial`).
+    normal_stiffness : float
+        E_n of eq (4) (N/m), > 0.
+    skin_fraction : float
+        Candidate skin s = 2 f r_max (module docstring), > 0.
+    force_tol : float
+        Newton tolerance: max |W_w| V <= force_tol * mean contact force, > 0.
+    max_iter : int
+        Most Newton iterations per state.
+    min_contacts : int
+        Fewest active contacts of a relaxed disk (rattler rule), 2 or 3.
+
+    :meth:`evaluate` (G states, Gauss-point history with :meth:`commit` / :meth:`revert`) and
+    :meth:`stress_and_tangent` are the FE interface; :meth:`__call__` is one stateless state;
+    :meth:`energy` evaluates W(F, w) at any fluctuation.
+    """
+
+    def __init__(self, packings, normal_stiffness: float,
+                 skin_fraction: float = DEFAULT_SKIN_FRACTION,
+                 force_tol: float = DEFAULT_FORCE_TOL, max_iter: int = DEFAULT_MAX_ITER,
+                 min_contacts: int = DEFAULT_MIN_CONTACTS):
+        self.names, items = _as_packings(packings)
+        self.normal_stiffness = as_positive_float(normal_stiffness, "normal_stiffness")
+        self.skin_fraction = as_positive_float(skin_fraction, "skin_fraction")
+        self.force_tol = as_positive_float(force_tol, "force_tol")
+        self.max_iter = as_int(max_iter, "max_iter", 1)
+        self.min_contacts = as_int(min_contacts, "min_contacts", 2, 3)
+        self._rves = [_RVE(p, self.skin_fraction) for p in items]
+        self.n_builds = 0
+        self._committed: dict[int, tuple[int, _State]] = {}
+        self._trial: dict[int, tuple[int, _State]] | None = None
+
+    @property
+    def n_rve(self) -> int:
+        """Number of RVEs."""
+        return len(self._rves)
+
+    @property
+    def packings(self):
+        """The reference packings, in RVE-index order."""
+        return [r.packing for r in self._rves]
+
+    # -- helpers ------------------------------------------------------------------------------
+    def _rve_index(self, rve, G: int) -> np.ndarray:
+        if rve is None:
+            if self.n_rve == 1:
+                return np.zeros(G, np.int64)
+            raise InputError(f"rve: this material holds {self.n_rve} RVEs; pass an RVE index per state")
+        if np.ndim(rve) == 0:
+            rve = np.full(G, rve)
+        idx = as_array(rve, "rve", (None,), dtype=np.int64)
+        if idx.shape[0] != G:
+            raise InputError(f"rve: expected shape ({G},) (one index per F), got {idx.shape}")
+        if idx.size and (idx.min() < 0 or idx.max() >= self.n_rve):
+            raise InputError(f"rve: indices must lie in [0, {self.n_rve}), got range "
+                             f"[{idx.min()}, {idx.max()}]")
+        return idx
+
+    def _check_w(self, w, R: _RVE, name: str) -> np.ndarray:
+        return as_array(w, name, (R.n, 2))
+
+    def _cand(self, R, F, w, cand):
+        if cand is None or not cand.valid(F, w):
+            cand = _Candidates(R, F, w)
+            self.n_builds += 1
+        return cand
+
+    def _classify(self, R, F, w, cand):
+        """Rattler mask (N,), dof map (N,), fixed disk and unknowns of the current active set."""
+        act = _active(F, w, cand.ci, cand.cj, cand.L, cand.csum)
+        return _classify_kernel(R.n, cand.ci, cand.cj, act, self.min_contacts, cand.order)
+
+    # -- the relaxation -------------------------------------------------------------------------
+    def _relax(self, R: _RVE, F, w, cand):
+        """Newton on (R3) from w; returns the result fields and the final state."""
+        kn = self.normal_stiffness
+        w = w.copy()
+        n_newton = 0
+        shifted_final = False
+        for it in range(self.max_iter + 1):
+            cand = self._cand(R, F, w, cand)
+            rat, dof, fixed, ndof = self._classify(R, F, w, cand)
+            W, P, WFF, grad, B, Hd, Ap, Ai, Ax, nc = _assemble(
+                F, w, cand.ci, cand.cj, cand.L, cand.ri, cand.rj, kn, dof, ndof)
+            gmax = float(np.max(np.abs(grad))) if ndof else 0.0
+            fscale = self._force_scale(F, w, cand)
+            if ndof == 0:
+                lu = None
+                break
+            lu = _LDL(Hd, Ap, Ai, Ax)
+            shifted = lu.shifted
+            n_newton += 1
+            if gmax <= self.force_tol * fscale:
+                shifted_final = shifted
+                break
+            if it == self.max_iter:
+                raise SimulationError(
+                    f"relaxed RVE: Newton did not converge in max_iter = {self.max_iter} iterations "
+                    f"(max |W_w| V = {gmax:.3g} N, tolerance {self.force_tol * fscale:.3g} N)")
+            step = -lu.solve(grad)
+            slope = float(grad @ step)
+            free = np.flatnonzero(dof >= 0)
+            base = dof[free]
+            t = 1.0
+            W0 = W
+            while True:
+                wt = w.copy()
+                wt[free, 0] += t * step[base]
+                wt[free, 1] += t * step[base + 1]
+                ct = self._cand(R, F, wt, cand)
+                Wt = _energy(F, wt, ct.ci, ct.cj, ct.L, ct.ri, ct.rj, kn)
+                if Wt <= W0 + ARMIJO * t * slope:
+                    break
+                if abs(Wt - W0) <= ENERGY_ROUNDOFF * abs(W0) and t == 1.0:
+                    break  # at round-off level: take the Newton step (quadratic phase)
+                t *= 0.5
+                if t < 1e-12:
+                        raise SimulationError(
+                        f"relaxed RVE: the line search found no decrease of W at iteration {it} "
+                        f"(max |W_w| V = {gmax:.3g} N, tolerance {self.force_tol * fscale:.3g} N)")
+            w, cand = wt, ct
+        inv = 1.0 / R.area
+        S = np.zeros((R.n, 2, 4))
+        if lu is None:
+            A4 = WFF
+        else:
+            X = lu.solve(B)  # (W_ww)^-1 W_wF, (ndof, 4)
+            A4 = WFF - B.T @ X
+            free = np.flatnonzero(dof >= 0)
+            S[free, 0] = -X[dof[free]]
+            S[free, 1] = -X[dof[free] + 1]
+        A = (A4 * inv).reshape(2, 2, 2, 2)
+        P = P * inv
+        res = {"energy": W * inv, "piola": P, "tangent": A, "n_contacts": int(nc),
+               "fluctuation": w, "rattlers": rat, "n_newton": n_newton, "residual": gmax,
+               "stable": not shifted_final, "fixed": fixed}
+        return res, _State(w, cand, F.copy(), S)
+
+    def _force_scale(self, F, w, cand) -> float:
+        """Mean contact force magnitude E_n <eps> (N) of the active contacts (1 N if none)."""
+        act = _active(F, w, cand.ci, cand.cj, cand.L, cand.csum)
+        if not act.any():
+            return 1.0
+        ci, cj, L = cand.ci[act], cand.cj[act], cand.L[act]
+        l = L @ F.T + w[cj] - w[ci]
+        eps = cand.csum[act] - np.sqrt(np.einsum("ij,ij->i", l, l))
+        return self.normal_stiffness * float(np.mean(eps))
+
+    def _solve(self, R, F, start: _State | None):
+        """Relax from the start state; redo from w = 0 if the result exceeds W(F, 0)."""
+        if start is None:
+            res, st = self._relax(R, F, np.zeros((R.n, 2)), None)
+            return res, st
+        res, st = self._relax(R, F, start.predict(F), start.cand)
+        zero = np.zeros((R.n, 2))
+        c0 = self._cand(R, F, zero, st.cand)
+        W_taylor = _energy(F, zero, c0.ci, c0.cj, c0.L, c0.ri, c0.rj, self.normal_stiffness) / R.area
+        if res["energy"] > W_taylor * (1.0 + ENERGY_ROUNDOFF * 10):  # another, higher minimum
+            res, st = self._relax(R, F, zero, c0)
+        return res, st
+
+    # -- public -------------------------------------------------------------------------------
+    def __call__(self, F, rve: int = 0, start=None) -> RelaxedResult:
+        """One state, stateless: relax from ``start`` ((N, 2) fluctuation (m), a previous
+        :class:`RelaxedResult`, or None for w = 0)."""
+        F = _check_single_F(F)
+        k = int(self._rve_index(rve, 1)[0])
+        R = self._rves[k]
+        st = None
+        if isinstance(start, RelaxedResult):
+            start = start.fluctuation
+        if start is not None:
+            st = _State(self._check_w(start, R, "start"), None)
+        res, _ = self._solve(R, F, st)
+        return self._result(F, res)
+
+    @staticmethod
+    def _result(F, res) -> RelaxedResult:
+        P = res["piola"]
+        sig = P @ F.T / float(np.linalg.det(F))
+        return RelaxedResult(
+            energy=float(res["energy"]), piola=_ro(P), tangent=_ro(res["tangent"]),
+            cauchy=_ro(sig), n_contacts=res["n_contacts"], fluctuation=_ro(res["fluctuation"]),
+            rattlers=_ro(res["rattlers"]), n_newton=res["n_newton"],
+            residual=float(res["residual"]), stable=bool(res["stable"]), fixed=res["fixed"])
+
+    def evaluate(self, F, rve=None, cauchy: bool = True) -> RelaxedBatch:
+        """W, P, A, sigma at G Gauss points, each warm-started from its committed fluctuation.
+
+        Parameters
+        ----------
+        F : (G, 2, 2) or (2, 2)
+            Deformation gradients, det F > 0. State g is history slot g.
+        rve : None, int or (G,) int
+            RVE index of each state (a slot whose RVE changed starts from w = 0).
+        cauchy : bool
+            Also compute sigma = P F^T / det F.
+
+        The converged fluctuations become trials; :meth:`commit` keeps them.
+        """
+        F = check_deformation_gradients(F)
+        G = F.shape[0]
+        idx = self._rve_index(rve, G)
+        out = {k: [] for k in ("energy", "piola", "tangent", "n_contacts", "n_newton",
+                               "n_rattlers", "residual", "stable")}
+        trial = {}
+        for g in range(G):
+            k = int(idx[g])
+            prev = self._committed.get(g)
+            start = prev[1] if prev is not None and prev[0] == k else None
+            res, st = self._solve(self._rves[k], F[g], start)
+            trial[g] = (k, st)
+            for key in ("energy", "piola", "tangent", "n_contacts", "n_newton", "residual",
+                        "stable"):
+                out[key].append(res[key])
+            out["n_rattlers"].append(int(np.count_nonzero(res["rattlers"])))
+        self._trial = trial
+        P = np.asarray(out["piola"]).reshape(G, 2, 2)
+        if cauchy:
+            J = F[:, 0, 0] * F[:, 1, 1] - F[:, 0, 1] * F[:, 1, 0]
+            sig = np.einsum("giJ,gkJ->gik", P, F) / J[:, None, None]
+        else:
+            sig = np.full((G, 2, 2), np.nan)
+        return RelaxedBatch(
+            energy=_ro(np.asarray(out["energy"], float)), piola=_ro(P),
+            tangent=_ro(np.asarray(out["tangent"]).reshape(G, 2, 2, 2, 2)), cauchy=_ro(sig),
+            n_contacts=_ro(np.asarray(out["n_contacts"], np.int64)),
+            n_newton=_ro(np.asarray(out["n_newton"], np.int64)),
+            n_rattlers=_ro(np.asarray(out["n_rattlers"], np.int64)),
+            residual=_ro(np.asarray(out["residual"], float)),
+            stable=_ro(np.asarray(out["stable"], bool)))
+
+    def commit(self) -> None:
+        """Make the fluctuations of the last :meth:`evaluate` the Gauss-point history."""
+        if self._trial is None:
+            raise InputError("commit: no trial state (call evaluate first, or it was reverted)")
+        self._committed.update(self._trial)
+        self._trial = None
+
+    def revert(self) -> None:
+        """Drop the trial fluctuations; the next :meth:`evaluate` starts from the committed ones."""
+        self._trial = None
+
+    def committed_fluctuation(self, g: int) -> np.ndarray | None:
+        """The committed w (N, 2) of history slot g (None before the first commit)."""
+        prev = self._committed.get(int(g))
+        return None if prev is None else _ro(prev[1].w.copy())
+
+    def stress_and_tangent(self, F, rve=None) -> tuple[np.ndarray, np.ndarray]:
+        """(P (G, 2, 2), A (G, 2, 2, 2, 2)) for a finite-element solver."""
+        b = self.evaluate(F, rve, cauchy=False)
+        return b.piola, b.tangent
+
+    def energy(self, F, w, rve: int = 0) -> float:
+        """W(F, w) of (R2) (J/m^2) at any fluctuation w (N, 2) (m), from a fresh candidate set."""
+        F = _check_single_F(F)
+        R = self._rves[int(self._rve_index(rve, 1)[0])]
+        w = self._check_w(w, R, "w")
+        c = _Candidates(R, F, w)
+        return _energy(F, w, c.ci, c.cj, c.L, c.ri, c.rj, self.normal_stiffness) / R.area
