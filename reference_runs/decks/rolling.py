@@ -27,7 +27,7 @@ import math
 from pathlib import Path
 
 from gransim.errors import InputError
-from gransim.io import atomic_path
+from . import twodisk
 
 #: law name -> (engine, deck file name)
 LAWS = {
@@ -38,11 +38,10 @@ LAWS = {
 }
 
 DATA_NAME = "data.rolling"
-DUMP_NAME = "dump.atoms"
+DUMP_NAME = twodisk.DUMP_NAME
 
 
-def _g(v: float) -> str:
-    return f"{float(v):.17g}"
+_g = twodisk.g
 
 
 def rolling_case() -> dict:
@@ -73,20 +72,8 @@ def rolling_case() -> dict:
 
 
 def data_text(case: dict) -> str:
-    """The data file (atom_style sphere: id type diameter density x y z; Velocities
-    id vx vy vz wx wy wz), %.17g."""
-    Lx, Ly = case["box"]
-    lines = ["two disks written by reference_runs/decks/rolling.py (2D: density = mass per area)", "",
-             "2 atoms", "1 atom types", "", f"0 {_g(Lx)} xlo xhi", f"0 {_g(Ly)} ylo yhi",
-             "-0.005 0.005 zlo zhi", "", "Atoms", ""]
-    for k in range(2):
-        x, y = case["positions"][k]
-        lines.append(f"{k + 1} 1 {_g(2.0 * case['radii'][k])} {_g(case['density'])} {_g(x)} {_g(y)} 0")
-    lines += ["", "Velocities", ""]
-    for k in range(2):
-        vx, vy = case["velocities"][k]
-        lines.append(f"{k + 1} {_g(vx)} {_g(vy)} 0 0 0 {_g(case['spins'][k])}")
-    return "\n".join(lines) + "\n"
+    """The data file (:func:`reference_runs.decks.twodisk.data_text`)."""
+    return twodisk.data_text(case, "two disks written by reference_runs/decks/rolling.py (2D: density = mass per area)")
 
 
 def deck_text(case: dict, law: str) -> str:
@@ -94,15 +81,10 @@ def deck_text(case: dict, law: str) -> str:
     if law not in LAWS:
         raise InputError(f"law: expected one of {', '.join(LAWS)}, got {law!r}")
     c = case
-    head = ["units si", "dimension 2", "atom_style sphere", "atom_modify map array sort 0 0.0",
-            "boundary p p p", "newton off"]
     if LAWS[law][0] == "liggghts":
         lines = [
-            (f"# two-disk rolling resistance, LIGGGHTS rolling_friction {law} "
-             "(reference_runs/decks/rolling.py)"), *head,
-            "communicate single vel yes", f"read_data {DATA_NAME}",
-            f"neighbor {_g(c['skin'])} bin", "neigh_modify delay 0 every 1 check yes",
-            f"timestep {_g(c['dt'])}",
+            *twodisk.preamble("liggghts", f"# two-disk rolling resistance, LIGGGHTS rolling_friction {law} "
+                              "(reference_runs/decks/rolling.py)", c, DATA_NAME),
             f"fix m1 all property/global kn peratomtypepair 1 {_g(c['kn'])}",
             f"fix m2 all property/global kt peratomtypepair 1 {_g(c['kt'])}",
             f"fix m3 all property/global gamman peratomtypepair 1 {_g(c['gamman'])}",
@@ -119,11 +101,8 @@ def deck_text(case: dict, law: str) -> str:
         fmt = ""
     else:
         lines = [
-            "# two-disk rolling resistance, LAMMPS granular rolling sds (reference_runs/decks/rolling.py)",
-            *head, "comm_modify mode single vel yes", f"read_data {DATA_NAME}",
-            f"set group all density/disc {_g(c['density'])}",
-            f"neighbor {_g(c['skin'])} bin", "neigh_modify delay 0 every 1 check yes",
-            f"timestep {_g(c['dt'])}",
+            *twodisk.preamble("lammps", "# two-disk rolling resistance, LAMMPS granular rolling sds "
+                              "(reference_runs/decks/rolling.py)", c, DATA_NAME),
             "pair_style granular",
             (f"pair_coeff * * hooke {_g(c['kn'])} {_g(c['gamman'])} damping mass_velocity "
              f"tangential linear_history {_g(c['kt'])} {_g(c['gammat'] / c['gamman'])} {_g(c['friction'])} "
@@ -131,49 +110,27 @@ def deck_text(case: dict, law: str) -> str:
             "fix integr all nve/sphere disc", "fix e2d all enforce2d",
         ]
         fmt = "line "
-    lines += [
-        "thermo_style custom step atoms ke",
-        "thermo_modify format float %.17g norm no",
-        "thermo 1",
-        f"dump d1 all custom 1 {DUMP_NAME} id x y vx vy omegaz fx fy tqz mass radius",
-        f"dump_modify d1 sort id format {fmt}\"%d" + " %.17g" * 10 + "\"",
-        f"run {int(c['nsteps'])}",
-    ]
+    lines += twodisk.output_lines("liggghts" if fmt == "" else "lammps", c["nsteps"])
     return "\n".join(lines) + "\n"
 
 
 def write_rolling_deck(job_dir, law: str, case: dict | None = None) -> Path:
     """Write the deck of ``law`` and ``data.rolling`` into ``job_dir``; return the deck path."""
     case = rolling_case() if case is None else case
-    text = deck_text(case, law)
-    job = Path(job_dir)
-    job.mkdir(parents=True, exist_ok=True)
-    with atomic_path(job / DATA_NAME) as tmp:
-        Path(tmp).write_text(data_text(case))
-    deck = job / LAWS[law][1]
-    with atomic_path(deck) as tmp:
-        Path(tmp).write_text(text)
-    return deck
+    return twodisk.write_job(job_dir, LAWS[law][1], deck_text(case, law), DATA_NAME, data_text(case))
 
 
 def run_rolling(job_dir, law: str, case: dict | None = None, timeout: float | None = 120.0):
-    """Run the deck of ``law`` in ``job_dir`` through :func:`reference_runs.runner.run_job`
-    (always rerun); returns the :class:`~reference_runs.runner.JobResult`."""
-    from reference_runs.runner import run_job
-
+    """Run the deck of ``law`` in ``job_dir`` (:func:`reference_runs.decks.twodisk.run_two_disk`,
+    always rerun); returns the :class:`~reference_runs.runner.JobResult`."""
     case = rolling_case() if case is None else case
     if law not in LAWS:
         raise InputError(f"law: expected one of {', '.join(LAWS)}, got {law!r}")
-    return run_job(job_dir, deck_text(case, law), files={DATA_NAME: data_text(case)}, timeout=timeout,
-                   outputs=(DUMP_NAME,), expected_runs=1, progress=False, force=True,
-                   engine=LAWS[law][0])
+    return twodisk.run_two_disk(job_dir, LAWS[law][0], deck_text(case, law), DATA_NAME, data_text(case), timeout)
 
 
-def read_rolling_dump(path) -> dict:
-    """``dump.atoms`` as {step: {column: (2,) array}} (rows sorted by id)."""
-    from reference_runs.parsers import parse_dump_custom
-
-    return {int(fr.step): dict(fr.columns) for fr in parse_dump_custom(Path(path))}
+#: ``dump.atoms`` as {step: {column: (2,) array}} (rows sorted by id)
+read_rolling_dump = twodisk.read_dump
 
 
 def stored_dir(root, law: str) -> Path:
