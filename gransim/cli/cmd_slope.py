@@ -5,7 +5,7 @@ from __future__ import annotations
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "slope", help="FE2-style slope stability: Q1 total-Lagrangian FE with a Taylor RVE per Gauss point",
+        "slope", help="FE2-style slope stability: Q1 total-Lagrangian FE with an RVE (Taylor or relaxed) per Gauss point",
         description="Solve the slope of Meier, Steinmann & Kuhl section 5 (geometry of issue 8): dead load "
                     "in step 1, then the footing force in 20 steps. Writes per-step VTU and PNG, the "
                     "convergence table (Table 2), the load-settlement curve and an HDF5 file.")
@@ -15,6 +15,17 @@ def register(subparsers) -> None:
     p.add_argument("--material", choices=["taylor", "neo-hookean"], default="taylor",
                    help="taylor: the Taylor RVE (gransim.rve); neo-hookean: continuum test material "
                         "(E = 3e7 Pa, nu = 0.3)")
+    p.add_argument("--rve", default="taylor",
+                   help="the RVE material at every Gauss point: taylor (affine, Meier et al.) or relaxed "
+                        "(periodic fluctuations minimise the energy at fixed F, condensed consistent "
+                        "tangent; Gauss-point history committed at every converged load step)")
+    p.add_argument("--mesh", default="20x19",
+                   help="COLUMNSxROWS of the slope mesh (default 20x19, 1520 Gauss points; e.g. 10x5 for "
+                        "a feasible relaxed run)")
+    p.add_argument("--load-steps", type=int, default=20, help="footing load steps after the dead load")
+    p.add_argument("--compare", action="store_true",
+                   help="run both RVE materials (taylor, relaxed) into OUT/taylor and OUT/relaxed and "
+                        "write OUT/compare_load_settlement.png and OUT/compare.md")
     p.add_argument("--packing", default=None,
                    help="HDF5 packing file for the RVE (default: the most uniform of the five standard "
                         "700-particle quartz-sand RVEs)")
@@ -48,9 +59,39 @@ def handler(args) -> int:
     # the energy norm of a Newton correction, relative to the first: below 1 to mean anything
     check_number(args.tol, "--tol", low=0, high=1, low_open=True, high_open=True)
     check_number(args.min_fraction, "--min-fraction", low=0, high=1, low_open=True)
-    summary = run_slope_case(args.protocol, material=args.material, packing=args.packing, out=out,
-                             figures=args.figures, tol=args.tol, min_fraction=args.min_fraction,
-                             assignment=args.rves, packing_dir=args.packing_dir)
+    from ..errors import InputError
+    from ..fem.mesh import SlopeGeometry
+    from ..fem.run import RVE_KINDS, compare_slope
+
+    if args.rve not in RVE_KINDS:
+        raise InputError(f"--rve: expected taylor or relaxed, got {args.rve!r}")
+    if args.rve == "relaxed" and args.material != "taylor":
+        raise InputError("--rve relaxed: needs the RVE material (--material taylor), got --material "
+                         f"{args.material}")
+    try:
+        cols, rows = (int(v) for v in args.mesh.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--mesh: expected COLUMNSxROWS (two integers, e.g. 20x19), got {args.mesh!r}") from None
+    if cols < 2 or rows < 2:
+        raise InputError(f"--mesh: expected at least 2 columns and 2 rows, got {args.mesh!r}")
+    if args.load_steps < 1:
+        raise InputError(f"--load-steps: expected an integer >= 1, got {args.load_steps}")
+    geometry = SlopeGeometry(columns=cols, rows=rows)
+    kw = {"material": args.material, "packing": args.packing, "figures": args.figures, "tol": args.tol,
+              "min_fraction": args.min_fraction, "assignment": args.rves, "packing_dir": args.packing_dir,
+              "geometry": geometry, "load_steps": args.load_steps}
+    if args.compare:
+        if args.material != "taylor":
+            raise InputError(f"--compare: needs the RVE material (--material taylor), got {args.material}")
+        summaries = compare_slope(args.protocol, out=out, **{k: v for k, v in kw.items() if k != "material"})
+        for s in summaries.values():
+            print(s["report"])
+            print()
+        failed = [k for k, s in summaries.items() if not s["completed"]]
+        if failed:
+            raise ConvergenceError("; ".join(f"{k}: {summaries[k]['message']}" for k in failed))
+        return 0
+    summary = run_slope_case(args.protocol, out=out, rve=args.rve, **kw)
     print(summary["report"])
     if not summary["completed"]:
         print(f"outputs of every converged step kept in {out}", file=sys.stderr)

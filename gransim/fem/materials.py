@@ -112,7 +112,7 @@ class StVenantKirchhoff:
 
 
 class AssignedRVEs:
-    """Several RVEs of one Taylor material assigned to the Gauss points: ``rve_index[g]`` (G,) int.
+    """Several RVEs of one Taylor or relaxed material assigned to the Gauss points: ``rve_index[g]`` (G,) int.
 
     ``evaluate(F)`` forwards to ``material.evaluate(F, rve_index)`` (one batched kernel call);
     e.g. ``AssignedRVEs(TaylorMaterial(five_packings, E_n), np.arange(G) % 5)`` assigns the five
@@ -138,3 +138,20 @@ class AssignedRVEs:
         if len(F) != self.rve_index.size:
             raise InputError(f"F: expected {self.rve_index.size} Gauss points (one per RVE index), got {len(F)}")
         return self.material.evaluate(F, self.rve_index)
+
+    def commit(self) -> None:
+        """Commit the wrapped material's Gauss-point history (no-op for a history-free material)."""
+        fn = getattr(self.material, "commit", None)
+        if callable(fn):
+            fn()
+
+    def revert(self) -> None:
+        """Revert the wrapped material's trial history (no-op for a history-free material)."""
+        fn = getattr(self.material, "revert", None)
+        if callable(fn):
+            fn()
+
+    def committed_fluctuation(self, g: int):
+        """The committed fluctuation (N, 2) of Gauss point g, or None (Taylor: always None)."""
+        fn = getattr(self.material, "committed_fluctuation", None)
+        return fn(g) if callable(fn) else None

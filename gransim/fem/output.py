@@ -92,7 +92,8 @@ def rve_network(material, F: np.ndarray, gauss: int = 0):
     """Deformed contact network of the RVE at Gauss point ``gauss`` under F: (segments (M,2,2),
     forces (M,), cell).
 
-    Needs ``material.packings`` (the Taylor material, optionally wrapped by
+    The relaxed material's centres are F X + w with the Gauss point's committed fluctuation w.
+    Needs ``material.packings`` (the Taylor or relaxed material, optionally wrapped by
     :class:`gransim.fem.materials.AssignedRVEs`) and ``material.normal_stiffness``; returns None for
     a continuum material. Forces f = E_n eps (N/m), eq (5).
     """
@@ -105,10 +106,15 @@ def rve_network(material, F: np.ndarray, gauss: int = 0):
     from ..contacts import find_neighbours
 
     p = packing.deformed(F)
-    nl = find_neighbours(p.positions, p.radii, p.cell, 0.0)
+    pos = p.positions
+    fluct = getattr(material, "committed_fluctuation", None)
+    w = fluct(gauss) if callable(fluct) else None
+    if w is not None:  # the relaxed RVE: x = F X + w with its committed fluctuation
+        pos = pos + w
+    nl = find_neighbours(pos, p.radii, p.cell, 0.0)
     eps = p.radii[nl.i] + p.radii[nl.j] - np.linalg.norm(nl.branch, axis=1)
     on = eps > 0
-    xi = p.positions[nl.i[on]]
+    xi = pos[nl.i[on]]
     seg = np.stack([xi, xi + nl.branch[on]], axis=1)
     return seg, kn * eps[on], p.cell
 
@@ -307,3 +313,88 @@ def write_h5(path, problem: Problem, setup, result: LoadPathResult, parameters: 
             g.create_dataset("energy_norms", data=sol.energy_norms)
             g.create_dataset("residual_norms", data=sol.residual_norms)
     return Path(path)
+
+
+def _final_state(summary):
+    res = summary["result"]
+    if res.limit and res.limit["partial"] is not None:
+        return res.limit["partial"]
+    return res.steps[-1].solution if res.steps else None
+
+
+def plot_compare(out, summaries: dict, n_worst: int = 3) -> dict:
+    """Taylor vs relaxed: ``compare_load_settlement.png`` (both load-settlement curves),
+    ``compare_map.png`` (relative Cauchy stress difference per Gauss point at each run's last
+    converged state, the ``n_worst`` largest marked, with the Taylor and the relaxed RVE of each
+    drawn at its own F) and ``compare.md``. Returns {"worst": [(g, difference)], "paths": [...]}."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection
+
+    out = Path(out)
+    fig, ax = plt.subplots(figsize=(7, 5))
+    for kind, s in summaries.items():
+        ls = s["load_settlement"]
+        ax.plot(-ls[:, 1], -ls[:, 0], "o-", ms=3, label=f"{kind} RVE" + ("" if s["completed"] else " (limit)"))
+    ax.set_xlabel("settlement of the footing (m)")
+    ax.set_ylabel("footing force (N/m)")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    p1 = out / "compare_load_settlement.png"
+    with atomic_path(p1, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=100, format="png")
+    plt.close(fig)
+    st = {k: _final_state(s) for k, s in summaries.items()}
+    lines = ["# Slope: Taylor vs relaxed RVE", ""]
+    for k, s in summaries.items():
+        lam = s["result"].limit["last_converged_load"][1] if s["result"].limit else 1.0
+        lines.append(f"- {k}: {'completed' if s['completed'] else 'stopped'}, last converged footing fraction "
+                     f"{lam:.4f}, wall {s['timing']['wall_s']:.1f} s, {s['timing']['newton_iterations']} Newton "
+                     f"iterations")
+    worst = []
+    if all(v is not None for v in st.values()):
+        t, r = st["taylor"], st["relaxed"]
+        d = np.linalg.norm((r.material.cauchy - t.material.cauchy).reshape(len(t.F), -1), axis=1)
+        d = d / max(float(np.abs(t.material.cauchy).max()), 1e-300)
+        worst = [(int(g), float(d[g])) for g in np.argsort(-d)[:n_worst]]
+        prob = summaries["taylor"]["problem"]
+        gp = prob.geometry.points.reshape(-1, 2)
+        fig = plt.figure(figsize=(15, 4 + 3 * len(worst)))
+        a = fig.add_axes([0.05, 1 - 4 / (4 + 3 * len(worst)) + 0.02, 0.9, 4 / (4 + 3 * len(worst)) - 0.06])
+        sc = a.scatter(gp[:, 0], gp[:, 1], c=d, s=12, cmap="viridis")
+        fig.colorbar(sc, ax=a, label="|sigma_relaxed - sigma_Taylor| / max|sigma_Taylor|")
+        for k, (g, _) in enumerate(worst):
+            a.annotate(str(k + 1), gp[g], color="red", fontsize=12, weight="bold")
+        a.set_aspect("equal")
+        a.set_title("Gauss points where the relaxed and the Taylor RVE differ most (last converged states)")
+        h = 3 / (4 + 3 * len(worst))
+        for k, (g, dg) in enumerate(worst):
+            for c, kind in enumerate(("taylor", "relaxed")):
+                s, sol = summaries[kind], st[kind]
+                net = rve_network(s["material"], sol.F[g], g)
+                ax2 = fig.add_axes([0.1 + 0.45 * c, 1 - 4 / (4 + 3 * len(worst)) - (k + 1) * h + 0.01, 0.35,
+                                    h - 0.04])
+                ax2.set_xticks([])
+                ax2.set_yticks([])
+                ax2.set_title(f"{k + 1}: Gauss point {g} ({gp[g, 0]:.1f}, {gp[g, 1]:.1f}) m, {kind}: det F "
+                              f"{np.linalg.det(sol.F[g]):.4f}, contacts {int(sol.material.n_contacts[g])}, "
+                              f"difference {dg:.3g}", fontsize=8)
+                if net is None:
+                    continue
+                seg, f, cell = net
+                fm = float(f.max()) if len(f) else 1.0
+                ax2.add_collection(LineCollection(seg, linewidths=BRANCH_WIDTH * f / fm, colors="k"))
+                cn = np.array([[0, 0], cell[:, 0], cell[:, 0] + cell[:, 1], cell[:, 1], [0, 0]])
+                ax2.plot(cn[:, 0], cn[:, 1], "b-", lw=0.5)
+                ax2.set_aspect("equal")
+                ax2.autoscale()
+        p2 = out / "compare_map.png"
+        with atomic_path(p2, suffix=".png") as tmp:
+            fig.savefig(tmp, dpi=70, format="png")
+        plt.close(fig)
+        lines += ["", "Largest relative Cauchy stress differences (Gauss point, difference): "
+                  + ", ".join(f"{g}: {v:.3g}" for g, v in worst)]
+    (out / "compare.md").write_text("\n".join(lines) + "\n")
+    return {"worst": worst, "paths": [p1]}

@@ -27,7 +27,7 @@ from .slope import (
     setup_for,
     slope_problem,
 )
-from .solver import run_load_steps
+from .solver import history, run_load_steps
 
 #: The continuum stand-in material (tests and runs without the RVE branch).
 NEO_HOOKEAN_E, NEO_HOOKEAN_NU = 3.0e7, 0.3
@@ -56,9 +56,31 @@ def default_rve_packing(packing_dir="results/packings"):
     return packings[name]
 
 
+RVE_KINDS = ("taylor", "relaxed")
+
+
+def fresh_material(material):
+    """The same material with an empty Gauss-point history (the relaxed RVE; others are returned
+    as they are): for checks on another mesh that must not start from the slope's history."""
+    from .materials import AssignedRVEs
+
+    if isinstance(material, AssignedRVEs):
+        return AssignedRVEs(fresh_material(material.material), material.rve_index)
+    if not callable(getattr(material, "commit", None)):
+        return material
+    return type(material)(material.packings, material.normal_stiffness, skin_fraction=material.skin_fraction,
+                          force_tol=material.force_tol, max_iter=material.max_iter,
+                          min_contacts=material.min_contacts)
+
+
 def make_material(kind: str, packing=None, assignment: str = "most-uniform", n_gauss: int = 1520,
-                  packing_dir="results/packings"):
-    """The material of a run: ``taylor`` (Taylor RVE, E_n = 2.8e7 N/m^2) or ``neo-hookean``.
+                  packing_dir="results/packings", rve: str = "taylor"):
+    """The material of a run: ``taylor`` (an RVE material, E_n = 2.8e7 N/m^2) or ``neo-hookean``.
+
+    ``rve``: ``taylor`` (:class:`gransim.rve.TaylorMaterial`, affine, Meier et al. eqs 6-12) or
+    ``relaxed`` (:class:`gransim.rve.RelaxedMaterial`, periodic fluctuations minimising the energy
+    at fixed F with the condensed tangent, Miehe & Dettmar 2004; Gauss-point history committed by
+    the load stepper).
 
     ``assignment``: ``most-uniform`` (one RVE at every Gauss point: ``packing``, default the most
     uniform standard 700-particle RVE) or ``five`` (the five standard 700-particle RVEs assigned to
@@ -68,13 +90,17 @@ def make_material(kind: str, packing=None, assignment: str = "most-uniform", n_g
         return NeoHookean(*lame(NEO_HOOKEAN_E, NEO_HOOKEAN_NU))
     if kind != "taylor":
         raise InputError(f"unknown material {kind!r}; choose taylor or neo-hookean")
-    from ..rve import TaylorMaterial
+    if rve not in RVE_KINDS:
+        raise InputError(f"--rve: unknown RVE material {rve!r}; choose taylor or relaxed")
+    from ..rve import RelaxedMaterial, TaylorMaterial
+
+    cls = RelaxedMaterial if rve == "relaxed" else TaylorMaterial  # same constructor (packings, E_n)
 
     if assignment == "five":
         from .materials import AssignedRVEs
 
         five = rve_700_packings(packing_dir)
-        return AssignedRVEs(TaylorMaterial(five, NORMAL_STIFFNESS), np.arange(n_gauss) % len(five))
+        return AssignedRVEs(cls(five, NORMAL_STIFFNESS), np.arange(n_gauss) % len(five))
     if assignment != "most-uniform":
         raise InputError(f"unknown RVE assignment {assignment!r}; choose most-uniform or five")
     if packing is None:
@@ -83,7 +109,7 @@ def make_material(kind: str, packing=None, assignment: str = "most-uniform", n_g
         from ..io import load_packing
 
         packing = load_packing(packing)
-    return TaylorMaterial(packing, NORMAL_STIFFNESS)
+    return cls(packing, NORMAL_STIFFNESS)
 
 
 def linear_check(problem, scale: float = 1e-3) -> dict:
@@ -104,7 +130,8 @@ def linear_check(problem, scale: float = 1e-3) -> dict:
 
 def run_slope_case(protocol: str = "service", material="taylor", packing=None, out=None,
                    figures: str = "all", tol: float = 1e-20, min_fraction: float = 1.0 / 64,
-                   geometry=None, assignment: str = "most-uniform", packing_dir="results/packings") -> dict:
+                   geometry=None, assignment: str = "most-uniform", packing_dir="results/packings",
+                   rve: str = "taylor", load_steps: int = 20) -> dict:
     """Solve one protocol and write its outputs to ``out`` (None: no files).
 
     Returns a summary dict: ``completed``, ``message``, ``report`` (markdown), ``timing``,
@@ -112,12 +139,12 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
     """
     from ..progress import progress
 
-    setup = setup_for(protocol, geometry)
+    setup = setup_for(protocol, geometry, load_steps)
     if isinstance(material, str):
         from .mesh import SlopeGeometry
 
         g = geometry or SlopeGeometry()
-        mat = make_material(material, packing, assignment, 4 * g.columns * g.rows, packing_dir)
+        mat = make_material(material, packing, assignment, 4 * g.columns * g.rows, packing_dir, rve)
     else:
         mat = material
     out = Path(out) if out is not None else None
@@ -134,6 +161,13 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
             render_png(out / f"step_{rec.step:03d}.png", problem, rec.solution,
                        f"{protocol} step {rec.step}, footing {rec.load[1]:.0%}", mat, interest)
 
+    # the small-load check first: it starts from the reference history (F = 1) and commits nothing
+    lc, lc_error = None, ""
+    try:
+        lc = [linear_check(problem, s) for s in (1e-3, 2e-3)]
+    except (GransimError, RuntimeError, ValueError) as exc:  # e.g. a singular K(0): worth reporting
+        lc_error = str(exc)
+    history(mat, "revert")
     t0 = time.perf_counter()
     bar = progress(total=len(setup.schedule()), desc=f"slope {protocol}")
     result = run_load_steps(problem, setup.schedule(), tol=tol, min_fraction=min_fraction, on_step=on_step,
@@ -146,7 +180,8 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
             else (result.steps[-1].solution if result.steps else None))
     ls = load_settlement(problem, setup, result)
     lines = [(f"## Slope, protocol `{protocol}` (footing {setup.footing_force:.3g} N/m, material "
-             f"{type(mat).__name__})"), ""]
+             f"{type(getattr(mat, 'material', mat)).__name__}, mesh {setup.geometry.columns} x "
+             f"{setup.geometry.rows}, {len(setup.schedule())} steps)"), ""]
     lines.append(f"- status: {'completed all ' + str(len(setup.schedule())) + ' steps' if result.completed else message}")
     t = result.timer
     lines.append(f"- wall time {wall:.2f} s for {t.iterations} Newton iterations (material {t.material:.2f} s, "
@@ -168,15 +203,12 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
     lines += ["", "Load-settlement (footing force N/m, settlement m, rotation rad):", "",
               "| force | settlement | rotation |", "|---|---|---|"]
     lines += [f"| {r[0] + 0.0:.4g} | {r[1] + 0.0:.5g} | {r[2] + 0.0:.4e} |" for r in ls]
-    lc, lc_error = None, ""
-    try:
-        lc = [linear_check(problem, s) for s in (1e-3, 2e-3)]
+    if lc is not None:
         lines += ["", (f"Small-load check (dead load x 1e-3 and 2e-3 against the linear solution with the RVE "
                       f"tangent at F = 1): relative differences {lc[0]['relative_difference']:.3e}, "
                       f"{lc[1]['relative_difference']:.3e} (max displacement {lc[0]['max_displacement_m']:.3e} m)")]
-    except (GransimError, RuntimeError, ValueError) as exc:  # e.g. a singular K(0): worth reporting
-        lines += ["", f"Small-load check failed: {exc}"]
-        lc_error = str(exc)
+    else:
+        lines += ["", f"Small-load check failed: {lc_error}"]
     report = "\n".join(lines)
     if out is not None:
         if last is not None and figures != "none":
@@ -189,14 +221,24 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
         plot_load_settlement(out / "load_settlement.png", problem, setup, result)
         (out / "table2.md").write_text(table + "\n")
         (out / "report.md").write_text(report + "\n")
-        params = {"protocol": protocol, "footing_force": setup.footing_force, "material": type(mat).__name__,
+        params = {"protocol": protocol, "footing_force": setup.footing_force,
+                  "material": type(getattr(mat, "material", mat)).__name__, "rve": rve_kind(mat),
                   "tol": tol, "min_fraction": min_fraction, "normal_stiffness": NORMAL_STIFFNESS,
                   "density": setup.density, "gravity": setup.gravity}
         write_h5(out / "slope.h5", problem, setup, result, params, message)
     return {"completed": result.completed, "message": message, "report": report, "table": table,
             "timing": {**result.timer.as_dict(), "wall_s": wall}, "load_settlement": ls,
             "steps": result.steps, "result": result, "problem": problem, "linear_check": lc,
-            "linear_check_error": lc_error, "patch_check": patch_check(mat)}
+            "linear_check_error": lc_error, "patch_check": patch_check(fresh_material(mat)),
+            "rve": rve_kind(mat), "material": mat}
+
+
+def rve_kind(material) -> str:
+    """``relaxed`` (Gauss-point history), ``taylor`` (an RVE material) or ``continuum``."""
+    m = getattr(material, "material", material)
+    if callable(getattr(m, "commit", None)):
+        return "relaxed"
+    return "taylor" if getattr(m, "packings", None) is not None else "continuum"
 
 
 def patch_check(material, F0=None) -> dict:
@@ -251,7 +293,8 @@ def acceptance_records(summaries: dict) -> list[dict]:
 
     out = []
     for prot, s in summaries.items():
-        case = f"slope/{prot}"
+        # the Taylor records keep their names; the relaxed material's are slope-relaxed/<protocol>
+        case = f"slope-relaxed/{prot}" if s.get("rve") == "relaxed" else f"slope/{prot}"
         res = s["result"]
         if prot == "service":
             out.append({"case": case, "quantity": "load path", "metric": "completed (1 = yes)",
@@ -297,3 +340,22 @@ def acceptance_records(summaries: dict) -> list[dict]:
                         "note": "exact case: a Q1 patch under an affine boundary field is solved by that field with "
                                 "P(F0) of the slope's RVE at every Gauss point; round-off ~1e-13"})
     return out
+
+
+def compare_slope(protocol: str = "service", out=None, **kwargs) -> dict:
+    """Run the protocol with both RVE materials; returns {"taylor": summary, "relaxed": summary}.
+
+    Each run writes to ``out/taylor`` and ``out/relaxed`` (:func:`run_slope_case`, ``kwargs`` as
+    there); ``out`` also gets ``compare_load_settlement.png`` (both curves in one figure),
+    ``compare_map.png`` (the Gauss points where the final Cauchy stresses of the two differ most,
+    with both RVEs drawn at their own F) and ``compare.md``.
+    """
+    out = Path(out) if out is not None else None
+    summaries = {}
+    for kind in RVE_KINDS:
+        summaries[kind] = run_slope_case(protocol, out=None if out is None else out / kind, rve=kind, **kwargs)
+    if out is not None:
+        from .output import plot_compare
+
+        plot_compare(out, summaries)
+    return summaries

@@ -111,6 +111,9 @@ class Problem:
         if self.release_prestress:
             P0 = self.material.evaluate(np.broadcast_to(np.eye(2), (geom.n_gauss, 2, 2)).copy()).piola
             f0 = asm.vector(geom.internal_forces(np.asarray(P0)))
+            # a material with Gauss-point history (the relaxed RVE) starts from its own state at
+            # F = 1 (the relaxed reference RVE), not from the unrelaxed generated packing
+            history(self.material, "commit")
         object.__setattr__(self, "f_int0", f0)
 
     # ------------------------------------------------------------------
@@ -198,7 +201,7 @@ def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: flo
     for _ in range(max_iter):
         try:
             r, K, mat, u, F, scale = problem.evaluate(q, load, timer=timer)
-        except GransimError as exc:  # det F <= 0 inside the material
+        except (GransimError, RuntimeError) as exc:  # det F <= 0, or an RVE relaxation that fails
             raise NewtonFailure(f"material evaluation failed: {exc}", enorms) from None
         at_roundoff = np.linalg.norm(r) <= ROUNDOFF * scale
         if at_roundoff and e0 is None:  # already in equilibrium: nothing to record
@@ -261,6 +264,14 @@ class LoadPathResult:
         return self.limit is None
 
 
+def history(material, action: str) -> None:
+    """``material.commit()`` or ``material.revert()`` when the material keeps Gauss-point history
+    (see :func:`run_load_steps`); nothing for a history-free material."""
+    fn = getattr(material, action, None)
+    if callable(fn):
+        fn()
+
+
 def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int = 12,
                    min_fraction: float = 1.0 / 64, on_step=None, progress=None) -> LoadPathResult:
     """Follow ``schedule`` (a list of (lam_g, lam_f) targets, one per step) from the unloaded state.
@@ -270,6 +281,12 @@ def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int
     the increment would fall below ``min_fraction`` of a step, the path stops: ``limit`` then holds
     the failed step, the last converged load and the reason. ``on_step(record)`` is called after each
     converged step (outputs are written there, so a stopped run keeps them).
+
+    A material with Gauss-point history (``commit()`` / ``revert()``, e.g.
+    :class:`gransim.rve.RelaxedMaterial`, whose converged fluctuations are the history) is committed
+    after every converged (sub-)increment, i.e. at the state the Newton solve returned, and
+    reverted after every failed attempt, so a rejected increment leaves the history as it was and
+    the retry starts from the last converged state. Materials without these methods are unaffected.
     """
     timer = Timer()
     q = np.zeros(problem.dofs.n_reduced)
@@ -288,6 +305,7 @@ def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int
             try:
                 sol = newton(problem, q, tuple(load), tol=tol, max_iter=max_iter, timer=timer)
             except NewtonFailure as exc:
+                history(problem.material, "revert")
                 last_failure = str(exc)
                 failures.append((k, float(done + h), exc.energy_norms))
                 h *= 0.5
@@ -295,6 +313,7 @@ def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int
                 if h < min_fraction * (1 - 1e-12):
                     break
                 continue
+            history(problem.material, "commit")
             q = sol.q
             done += h
             sub.append(done)
