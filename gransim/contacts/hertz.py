@@ -37,13 +37,27 @@ stiffness dF_n/d delta = 2 Y* sqrt(R* delta) = 2 Y* a with a = sqrt(R* delta) th
 Mindlin's tangential stiffness at the start of tangential loading (Mindlin, *J. Appl. Mech.* 16,
 1949; Di Renzo & Di Maio 2004, eq (13)): k_t = 8 G* a. Both codes use exactly these (LAMMPS
 through the user's KN, KT in ``gran/hertz/history``).
+
+**As plug-ins of the DEM loop** (:mod:`gransim.contacts.laws`; history width 2, the spring xi,
+flip -1): :class:`HertzHistoryLiggghts` (yeff, geff, betaeff, tdamp, mu: the arguments of
+:func:`hertz_history_liggghts`; LIGGGHTS keeps a separated pair's spring),
+:class:`HertzHistoryLammps` (kn, kt, gamma_n, gamma_t, mu; the spring of a separated pair is
+zeroed, pair_gran_hertz_history.cpp:126-132) and :class:`HertzGranularLammps` (E, damp, kt0,
+gammat_ratio, mu, damping as a float index; zeroed apart, pair_granular.cpp:283-288). Build them
+by name with :func:`gransim.contacts.laws.make_law` ("hertz-liggghts", "hertz-lammps",
+"hertz-granular-lammps"). No ``energy`` is registered: the engine's energy hook passes overlaps
+and histories but not R*; :func:`hertz_energy` is the function once it does.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
+
+import numpy as np
 
 from .._numba import njit
+from .laws import register_law
 
 #: floats of per-contact history of every law in this module (the tangential spring xi, m)
 HISTORY_WIDTH = 2
@@ -358,3 +372,86 @@ def elastic_normal_potential(delta, reff, yeff):
     if delta <= 0.0:
         return 0.0
     return 8.0 / 15.0 * yeff * math.sqrt(reff) * delta ** 2.5
+
+
+# ----------------------------------------------------------------------------- plug-ins
+#: LIGGGHTS ``gran model hertz tangential history``: Y*, G* (Pa), beta (-), tangential damping
+#: flag (1.0/0.0), mu (-) (:func:`hertz_history_liggghts`)
+HertzHistoryLiggghts = namedtuple("HertzHistoryLiggghts", ["yeff", "geff", "betaeff", "tdamp", "mu"])
+#: LAMMPS ``gran/hertz/history KN KT GAMMAN GAMMAT MU 1``: kn, kt (Pa), gamma_n, gamma_t
+#: (1/(s m)), mu (:func:`hertz_history_lammps`)
+HertzHistoryLammps = namedtuple("HertzHistoryLammps", ["kn", "kt", "gamma_n", "gamma_t", "mu"])
+#: LAMMPS ``granular hertz/material ... tangential mindlin NULL``: E = 4/3 Y* (Pa), damp, kt0 =
+#: 8 G* (Pa), gammat_ratio, mu, damping (model index as a float, ``DAMPING_*``)
+#: (:func:`hertz_mindlin_granular_lammps`)
+HertzGranularLammps = namedtuple("HertzGranularLammps", ["E", "damp", "kt0", "gammat_ratio", "mu", "damping"])
+
+
+@njit(inline="always")
+def hertz_pair_liggghts(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
+                        update):
+    """Pair function of :class:`HertzHistoryLiggghts` (spring in ``hist[e, 0:2]``)."""
+    fx, fy, ti, tj, s0, s1, sl, fn = hertz_history_liggghts(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.yeff, law.geff, law.betaeff, law.tdamp, law.mu, dt, hist[e, 0], hist[e, 1], update)
+    hist[e, 0] = s0
+    hist[e, 1] = s1
+    return fx, fy, ti, tj, sl, fn
+
+
+@njit(inline="always")
+def hertz_pair_lammps(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
+                      update):
+    """Pair function of :class:`HertzHistoryLammps`."""
+    fx, fy, ti, tj, s0, s1, sl, fn = hertz_history_lammps(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, hist[e, 0], hist[e, 1], update)
+    hist[e, 0] = s0
+    hist[e, 1] = s1
+    return fx, fy, ti, tj, sl, fn
+
+
+@njit(inline="always")
+def hertz_pair_granular_lammps(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                               dt, update):
+    """Pair function of :class:`HertzGranularLammps`."""
+    fx, fy, ti, tj, s0, s1, sl, fn = hertz_mindlin_granular_lammps(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.E, law.damp, law.kt0, law.gammat_ratio, law.mu, law.damping, dt, hist[e, 0], hist[e, 1], update)
+    hist[e, 0] = s0
+    hist[e, 1] = s1
+    return fx, fy, ti, tj, sl, fn
+
+
+@njit(inline="always")
+def history_reset(law, hist, e):
+    """LAMMPS: a pair that does not touch has its whole history zeroed
+    (pair_gran_hertz_history.cpp:126-132, pair_granular.cpp:283-288)."""
+    for k in range(hist.shape[1]):
+        hist[e, k] = 0.0
+
+
+def hertz_energy(law, overlap, hist, reff) -> float:
+    """Elastic energy (J) of touching Hertz contacts: sum 8/15 Y* sqrt(R*) delta^(5/2)
+    + k_t(delta) |xi|^2 / 2 with k_t = 8 G* sqrt(R* delta) (Johnson 1985, eq (4.23); Mindlin 1949).
+
+    ``overlap`` (K,) m, ``hist`` (K, 2) m, ``reff`` (K,) m. The tangential term is the energy of
+    the spring at the current stiffness (both codes do not rescale xi when delta changes, so the
+    tangential force is not the gradient of a potential; the term is exact at fixed delta)."""
+    d = np.asarray(overlap, np.float64)
+    R = np.asarray(reff, np.float64)
+    a = np.sqrt(R * d)
+    if isinstance(law, HertzHistoryLiggghts):
+        y43, kt0 = 4.0 / 3.0 * law.yeff, 8.0 * law.geff
+    elif isinstance(law, HertzHistoryLammps):
+        y43, kt0 = law.kn, law.kt
+    else:
+        y43, kt0 = law.E, law.kt0
+    un = 0.4 * y43 * np.sqrt(R) * d ** 2.5
+    ut = 0.5 * kt0 * a * np.sum(np.asarray(hist, np.float64) ** 2, axis=1)
+    return float(np.sum(un) + np.sum(ut))
+
+
+register_law(HertzHistoryLiggghts, hertz_pair_liggghts, HISTORY_WIDTH)
+register_law(HertzHistoryLammps, hertz_pair_lammps, HISTORY_WIDTH, apart=history_reset)
+register_law(HertzGranularLammps, hertz_pair_granular_lammps, HISTORY_WIDTH, apart=history_reset)

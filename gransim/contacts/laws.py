@@ -25,6 +25,11 @@ Registering a law (e.g. in ``gransim/contacts/hertz.py``)::
 
 A law defined in a test module or a script registers with ``cache=False`` (:class:`LawSpec`).
 
+**By name**: :func:`make_law` builds a law object of the package from a name of :func:`law_names`
+and its parameters as keywords (checked once: InputError naming the law, the parameter and what
+was expected); :func:`law_code` says whose arithmetic a name follows ("liggghts" or "lammps",
+the ``DEMSettings.flavour`` to run it with: the rebuild rule belongs to the code).
+
 Arguments of a pair function (all SI): ``law`` the parameters; ``hist`` (M, width) float64, the
 history of every list entry, row ``e`` the entry's (frame of i; update in place); d = (delx, dely)
 = x_i - x_j (j's periodic image, m), ``rsq`` = |d|^2 < (r_i + r_j)^2 (the caller tested contact);
@@ -171,4 +176,115 @@ def elastic_energy(law, overlap: np.ndarray, hist: np.ndarray) -> float:
     return 0.0 if fn is None else float(fn(law, overlap, hist))
 
 
-__all__ = ["LawSpec", "elastic_energy", "flip_signs", "law_spec", "pair_apart", "pair_force", "register_law"]
+# ----------------------------------------------------------------------------- factory
+_HOOKE = ("kn", "kt", "gamma_n", "gamma_t", "mu")
+_DAMPING = ("velocity", "mass_velocity", "viscoelastic", "tsuji")
+
+#: name -> (code, required parameters, optional parameters with defaults, one-line description)
+LAWS = {
+    "hooke-liggghts": ("liggghts", _HOOKE, {}, "hooke/stiffness tangential history"),
+    "hooke-lammps": ("lammps", _HOOKE, {}, "gran/hooke/history"),
+    "hertz-liggghts": ("liggghts", ("youngs_modulus", "poisson_ratio", "restitution", "friction"),
+                       {"tangential_damping": True}, "gran model hertz tangential history"),
+    "hertz-lammps": ("lammps", _HOOKE, {}, "gran/hertz/history KN KT GAMMAN GAMMAT MU 1"),
+    "hertz-granular-lammps": ("lammps", ("youngs_modulus", "poisson_ratio", "damp", "friction"),
+                              {"gammat_ratio": 1.0, "damping": "tsuji"},
+                              "granular hertz/material E DAMP NU damping MODEL tangential mindlin NULL"),
+    "hooke-epsd2-liggghts": ("liggghts", _HOOKE + ("mu_r",), {}, "hooke/stiffness ... rolling_friction epsd2"),
+    "hooke-epsd-liggghts": ("liggghts", _HOOKE + ("mu_r", "eta_r"), {},
+                            "hooke/stiffness ... rolling_friction epsd"),
+    "hooke-cdt-liggghts": ("liggghts", _HOOKE + ("mu_r",), {}, "hooke/stiffness ... rolling_friction cdt"),
+    "hooke-sds-lammps": ("lammps", ("kn", "damp", "kt", "xgammat", "mu", "kroll", "gammaroll", "muroll"),
+                         {"damping": "mass_velocity"},
+                         "granular hooke ... tangential linear_history ... rolling sds"),
+}
+
+
+def law_names() -> tuple[str, ...]:
+    """Names :func:`make_law` knows."""
+    return tuple(LAWS)
+
+
+def law_code(name: str) -> str:
+    """"liggghts" or "lammps": whose arithmetic the law ``name`` follows (its DEMSettings.flavour)."""
+    return _entry(name)[0]
+
+
+def _entry(name):
+    ent = LAWS.get(name)
+    if ent is None:
+        raise InputError(f"law: expected one of {', '.join(LAWS)}, got {name!r}")
+    return ent
+
+
+def _pos(name, key, v, zero=True):
+    from .._validate import as_positive_float
+
+    return as_positive_float(v, f"law {name}: {key}", allow_zero=zero)
+
+
+def make_law(name: str, **params):
+    """The law object of ``name`` (:func:`law_names`) with checked parameters (SI).
+
+    hooke-liggghts, hooke-lammps, hertz-lammps: kn, kt, gamma_n, gamma_t, mu (hertz-lammps: kn, kt
+    in Pa, dampings in 1/(s m)); hooke-epsd2/cdt-liggghts: those + mu_r; hooke-epsd-liggghts:
+    + mu_r, eta_r; hertz-liggghts: youngs_modulus, poisson_ratio, restitution, friction
+    [tangential_damping=True] (material constants, :class:`gransim.contacts.material.HertzLiggghts`);
+    hertz-granular-lammps: youngs_modulus, poisson_ratio, damp, friction [gammat_ratio=1,
+    damping="tsuji"] (:class:`~gransim.contacts.material.HertzMaterialLammps`); hooke-sds-lammps:
+    kn, damp, kt, xgammat, mu, kroll, gammaroll, muroll [damping="mass_velocity"]. Raises
+    InputError for an unknown name, a missing or unknown parameter or a bad value.
+    """
+    code, req, opt, _ = _entry(name)
+    unknown = sorted(set(params) - set(req) - set(opt))
+    missing = [k for k in req if k not in params]
+    if unknown or missing:
+        what = (f"unknown {', '.join(unknown)}" if unknown else "") + ("; " if unknown and missing else "") + (
+            f"missing {', '.join(missing)}" if missing else "")
+        raise InputError(f"law {name}: expected parameters {', '.join(req)}"
+                         + (f" [optional {', '.join(opt)}]" if opt else "") + f", got {what}")
+    p = {**opt, **params}
+    if name in ("hooke-liggghts", "hooke-lammps"):
+        from .hooke import hooke_law
+
+        return hooke_law(*(p[k] for k in _HOOKE), flavour=code)
+    if name == "hertz-liggghts":
+        from .hertz import HertzHistoryLiggghts
+        from .material import HertzLiggghts
+
+        m = HertzLiggghts(p["youngs_modulus"], p["poisson_ratio"], p["restitution"], p["friction"],
+                          tangential_damping=p["tangential_damping"])
+        return HertzHistoryLiggghts(*m.coefficients())
+    if name == "hertz-granular-lammps":
+        from .hertz import HertzGranularLammps
+        from .material import HertzMaterialLammps
+
+        m = HertzMaterialLammps(p["youngs_modulus"], p["poisson_ratio"], p["damp"], p["friction"],
+                                gammat_ratio=p["gammat_ratio"], damping=p["damping"])
+        E, damp, kt0, g, mu, idx = m.coefficients()
+        return HertzGranularLammps(E, damp, kt0, g, mu, float(idx))
+    if name == "hooke-sds-lammps":
+        from .rolling import HookeSdsLammps
+
+        if p["damping"] not in _DAMPING:
+            raise InputError(f"law {name}: damping: expected one of {', '.join(_DAMPING)}, got {p['damping']!r}")
+        vals = {k: _pos(name, k, p[k], zero=k != "kn") for k in req}
+        for k in ("kt", "kroll"):
+            if vals[k] == 0.0:
+                raise InputError(f"law {name}: {k}: expected a stiffness > 0 N/m (the cap divides by it), got 0")
+        return HookeSdsLammps(vals["kn"], vals["damp"], float(_DAMPING.index(p["damping"])), vals["kt"],
+                              vals["xgammat"], vals["mu"], vals["kroll"], vals["gammaroll"], vals["muroll"])
+    vals = [_pos(name, k, p[k], zero=k != "kn") for k in req]
+    if name == "hertz-lammps":
+        from .hertz import HertzHistoryLammps as cls
+    elif name == "hooke-epsd2-liggghts":
+        from .rolling import HookeEpsd2Liggghts as cls
+    elif name == "hooke-epsd-liggghts":
+        from .rolling import HookeEpsdLiggghts as cls
+    else:
+        from .rolling import HookeCdtLiggghts as cls
+    return cls(*vals)
+
+
+__all__ = ["LAWS", "LawSpec", "elastic_energy", "flip_signs", "law_code", "law_names", "law_spec", "make_law",
+           "pair_apart", "pair_force", "register_law"]

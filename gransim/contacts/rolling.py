@@ -54,14 +54,29 @@ rolling torque with i receiving -M and j +M, theta the relative rotation, docs/l
   |F_r| > mu_roll |F_n| (spring + dashpot together): psi = -(F_rcrit F_r/|F_r| + gamma_roll v_r)/k_roll,
   F_r scaled; torque R* (n x F_r) on i and minus it on j. As a rotational law: M = K theta + C w with
   K = k_roll R*^2, C = gamma_roll R*^2, cap mu_roll R* |F_n|.
+
+**As plug-ins of the DEM loop** (:mod:`gransim.contacts.laws`; widths and flips
+:data:`HISTORY_WIDTH`, :data:`HISTORY_FLIP`): :class:`HookeEpsd2Liggghts` (kn, kt, gamma_n,
+gamma_t, mu, mu_r), :class:`HookeEpsdLiggghts` (... mu_r, eta_r), :class:`HookeCdtLiggghts`
+(... mu_r), :class:`HookeSdsLammps` (kn, damp, damping index as a float, kt, xgammat, mu, kroll,
+gammaroll, muroll; the whole history of a separated pair is zeroed, LMP pair_granular.cpp:283-288;
+LIGGGHTS keeps it: ``surfacesClose`` is unreachable with contactDistanceFactor 1,
+LIG pair_gran_base.h:414). By name: :func:`gransim.contacts.laws.make_law` ("hooke-epsd2-liggghts",
+"hooke-epsd-liggghts", "hooke-cdt-liggghts", "hooke-sds-lammps"). Energies: cdt (no rolling
+spring) and sds (kroll |psi|^2/2) are registered; epsd2/epsd need R* per contact, which the
+engine's energy hook does not pass (:func:`epsd_energy` is the function once it does).
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
+
+import numpy as np
 
 from .._numba import njit
 from .hooke import hooke_history
+from .laws import register_law
 
 #: history floats per law (tangential spring first)
 HISTORY_WIDTH = {"epsd2": 3, "epsd": 3, "cdt": 2, "sds": 4}
@@ -342,3 +357,109 @@ def rolling_stiffness(law: str, reff: float, kn: float = 0.0, kt: float = 0.0, m
         return 0.0
     from ..errors import InputError
     raise InputError(f"law: expected one of epsd2, epsd, cdt, sds, got {law!r}")
+
+
+# ----------------------------------------------------------------------------- plug-ins
+#: LIGGGHTS ``hooke/stiffness tangential history rolling_friction epsd2``: kn, kt (N/m),
+#: gamma_n, gamma_t (1/s), mu, mu_r (-) (:func:`hooke_epsd2_liggghts`)
+HookeEpsd2Liggghts = namedtuple("HookeEpsd2Liggghts", ["kn", "kt", "gamma_n", "gamma_t", "mu", "mu_r"])
+#: ... ``rolling_friction epsd``, eta_r = coefficientRollingViscousDamping (:func:`hooke_epsd_liggghts`)
+HookeEpsdLiggghts = namedtuple("HookeEpsdLiggghts", ["kn", "kt", "gamma_n", "gamma_t", "mu", "mu_r", "eta_r"])
+#: ... ``rolling_friction cdt`` (:func:`hooke_cdt_liggghts`)
+HookeCdtLiggghts = namedtuple("HookeCdtLiggghts", ["kn", "kt", "gamma_n", "gamma_t", "mu", "mu_r"])
+#: LAMMPS ``granular hooke KN DAMP damping MODEL tangential linear_history KT XGAMMAT MU rolling sds
+#: KROLL GAMMAROLL MUROLL`` (:func:`hooke_sds_granular_lammps`; damping = ``DAMPING_*`` as a float)
+HookeSdsLammps = namedtuple("HookeSdsLammps", ["kn", "damp", "damping", "kt", "xgammat", "mu", "kroll",
+                                               "gammaroll", "muroll"])
+
+
+@njit(inline="always")
+def epsd2_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
+    """Pair function of :class:`HookeEpsd2Liggghts`: hist[e] = (xi_x, xi_y, M_old)."""
+    fx, fy, ti, tj, s0, s1, m, sl, _, fn, _ = hooke_epsd2_liggghts(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, law.mu_r, dt, hist[e, 0], hist[e, 1], hist[e, 2],
+        update)
+    hist[e, 0] = s0
+    hist[e, 1] = s1
+    hist[e, 2] = m
+    return fx, fy, ti, tj, sl, fn
+
+
+@njit(inline="always")
+def epsd_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
+    """Pair function of :class:`HookeEpsdLiggghts`: hist[e] = (xi_x, xi_y, M_old)."""
+    fx, fy, ti, tj, s0, s1, m, sl, _, fn, _ = hooke_epsd_liggghts(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, law.mu_r, law.eta_r, dt, hist[e, 0], hist[e, 1],
+        hist[e, 2], update)
+    hist[e, 0] = s0
+    hist[e, 1] = s1
+    hist[e, 2] = m
+    return fx, fy, ti, tj, sl, fn
+
+
+@njit(inline="always")
+def cdt_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
+    """Pair function of :class:`HookeCdtLiggghts`: hist[e] = (xi_x, xi_y)."""
+    fx, fy, ti, tj, s0, s1, sl, _, fn, _ = hooke_cdt_liggghts(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, law.mu_r, dt, hist[e, 0], hist[e, 1], update)
+    hist[e, 0] = s0
+    hist[e, 1] = s1
+    return fx, fy, ti, tj, sl, fn
+
+
+@njit(inline="always")
+def sds_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
+    """Pair function of :class:`HookeSdsLammps`: hist[e] = (xi_x, xi_y, psi_x, psi_y)."""
+    fx, fy, ti, tj, s0, s1, p0, p1, sl, _, fn, _ = hooke_sds_granular_lammps(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.kn, law.damp, law.damping, law.kt, law.xgammat, law.mu, law.kroll, law.gammaroll, law.muroll,
+        dt, hist[e, 0], hist[e, 1], hist[e, 2], hist[e, 3], update)
+    hist[e, 0] = s0
+    hist[e, 1] = s1
+    hist[e, 2] = p0
+    hist[e, 3] = p1
+    return fx, fy, ti, tj, sl, fn
+
+
+@njit(inline="always")
+def history_reset(law, hist, e):
+    """LAMMPS ``pair_style granular``: a separated pair's history is zeroed (LMP pair_granular.cpp:283-288)."""
+    for k in range(hist.shape[1]):
+        hist[e, k] = 0.0
+
+
+def _spring_energy(law, overlap, hist):
+    h = np.asarray(hist, np.float64)
+    return 0.5 * law.kn * float(np.sum(np.asarray(overlap, np.float64) ** 2)) + 0.5 * law.kt * float(
+        np.sum(h[:, :2] ** 2))
+
+
+def cdt_energy(law, overlap, hist) -> float:
+    """kn delta^2/2 + kt |xi|^2/2 summed (J); cdt's rolling torque stores no energy."""
+    return _spring_energy(law, overlap, hist)
+
+
+def sds_energy(law, overlap, hist) -> float:
+    """kn delta^2/2 + kt |xi|^2/2 + kroll |psi|^2/2 summed (J): F_n = kn delta, F_t = -kt xi,
+    F_r = -kroll psi below the caps (hist (K, 4))."""
+    h = np.asarray(hist, np.float64)
+    return _spring_energy(law, overlap, hist) + 0.5 * law.kroll * float(np.sum(h[:, 2:4] ** 2))
+
+
+def epsd_energy(law, overlap, hist, reff) -> float:
+    """epsd2/epsd: kn delta^2/2 + kt |xi|^2/2 + M^2/(2 k_r) summed (J), k_r = kt R*^2 (epsd2) or
+    2.25 kn mu_r^2 R*^2 (epsd); ``reff`` (K,) m. Not registered (the engine's hook has no R*)."""
+    R = np.asarray(reff, np.float64)
+    kr = law.kt * R * R if isinstance(law, HookeEpsd2Liggghts) else 2.25 * law.kn * law.mu_r ** 2 * R * R
+    m = np.asarray(hist, np.float64)[:, 2]
+    return _spring_energy(law, overlap, hist) + float(np.sum(0.5 * m * m / kr))
+
+
+register_law(HookeEpsd2Liggghts, epsd2_pair, HISTORY_WIDTH["epsd2"], flip=HISTORY_FLIP["epsd2"])
+register_law(HookeEpsdLiggghts, epsd_pair, HISTORY_WIDTH["epsd"], flip=HISTORY_FLIP["epsd"])
+register_law(HookeCdtLiggghts, cdt_pair, HISTORY_WIDTH["cdt"], flip=HISTORY_FLIP["cdt"], energy=cdt_energy)
+register_law(HookeSdsLammps, sds_pair, HISTORY_WIDTH["sds"], apart=history_reset, flip=HISTORY_FLIP["sds"],
+             energy=sds_energy)

@@ -115,15 +115,17 @@ def write_run(path, rec: RunRecord, parameters: dict | None = None, seed=None) -
 #: trailing shape of each /series dataset (all have the same number of rows T)
 SERIES_SHAPES = {"step": (), "time": (), "cell": (2, 2), "stress": (2, 2), "n_contacts": (), "mean_overlap": (),
                  "kinetic_energy": (), "phase": ()}
-#: shape of each snapshot dataset (N particles) and contact dataset (M contacts)
+#: shape of each snapshot dataset (N particles) and contact dataset (M contacts); "W" is the width
+#: of the contact law's per-contact history (gransim.contacts.laws: 2 for the Hooke and Hertz laws,
+#: 3 for epsd2/epsd, 4 for sds), read from the file and the same in every dataset that has it
 SNAPSHOT_SHAPES = {"cell": (2, 2), "positions": ("N", 2), "velocities": ("N", 2), "spins": ("N",)}
 CONTACT_SHAPES = {"i": ("M",), "j": ("M",), "shift": ("M", 2), "force": ("M", 2), "overlap": ("M",),
-                  "tangential_spring": ("M", 2), "sliding": ("M",)}
+                  "tangential_spring": ("M", "W"), "sliding": ("M",)}
 #: checkpoint arrays: shape in N particles and K neighbour-list entries
 CHECKPOINT_SHAPES = {"positions": ("N", 2), "velocities": ("N", 2), "spins": ("N",), "forces": ("N", 2),
                      "torques": ("N",), "box_lo": (2,), "box_hi": (2,), "x_hold": ("N", 2), "box_lo_hold": (2,),
                      "box_hi_hold": (2,), "neighbours/a": ("K",), "neighbours/b": ("K",),
-                     "neighbours/shift": ("K", 2), "neighbours/owned_both": ("K",), "neighbours/xi": ("K", 2),
+                     "neighbours/shift": ("K", 2), "neighbours/owned_both": ("K",), "neighbours/xi": ("K", "W"),
                      "virial": (4,)}
 
 
@@ -163,7 +165,7 @@ def _check_shapes(group, shapes: dict, sizes: dict, path, what: str):
         for d, e in enumerate(shp):
             if isinstance(e, str):
                 if e not in sizes:
-                    sizes[e] = got[0] if got else -1
+                    sizes[e] = got[d] if len(got) > d else -1
                 e = sizes[e]
             want.append(e)
         if tuple(got) != tuple(want):

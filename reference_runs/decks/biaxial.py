@@ -61,7 +61,7 @@ def _deform_axis(name: str, ctl, L0: float, dt: float, temp: str = "thermo_temp"
 
 def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading: Loading, nsteps: int,
                        thermo_every: int = 1, dump_every: int = 100, velocities=None, spins=None,
-                       engine: str = "liggghts") -> Path:
+                       engine: str = "liggghts", law=None) -> Path:
     """Write the deck (``in.biaxial`` for LIGGGHTS, ``in.lammps`` for LAMMPS) and
     ``data.biaxial`` into ``job_dir``; return the deck path.
 
@@ -70,6 +70,9 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
     ``liggghts -in in.biaxial -log log.liggghts -screen none -nocite`` /
     ``lmp -in in.lammps -log log.lammps -screen none -nocite``.
     ``engine``: "liggghts" or "lammps" (ValueError otherwise).
+    ``law``: optional contact law object (``gransim.contacts.laws.make_law``) of ``engine``'s code;
+    its pair_style / property lines replace the Hooke lines of ``settings`` (:func:`law_lines`;
+    InputError for a law of the other code). ``settings`` still gives dt and the skin.
     """
     import numpy as np
 
@@ -110,9 +113,7 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
             f"set group all density/disc {_g(packing.density)}",
             f"neighbor {_g(s.skin)} bin", "neigh_modify delay 0 every 1 check yes",
             f"timestep {_g(s.dt)}",
-            (f"pair_style gran/hooke/history {_g(s.kn)} {_g(s.kt)} {_g(s.gamma_n)} {_g(s.gamma_t)} "
-             f"{_g(s.mu)} 1"),
-            "pair_coeff * *",
+            *law_pair_lines(law, s, engine),
             "fix integr all nve/sphere disc", "fix e2d all enforce2d",
             "variable zero equal 0",
             *pre, *var,
@@ -125,13 +126,7 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
             "read_data data.biaxial",
             f"neighbor {_g(s.skin)} bin", "neigh_modify delay 0 every 1 check yes",
             f"timestep {_g(s.dt)}",
-            "fix m1 all property/global kn peratomtypepair 1 " + _g(s.kn),
-            "fix m2 all property/global kt peratomtypepair 1 " + _g(s.kt),
-            "fix m3 all property/global gamman peratomtypepair 1 " + _g(s.gamma_n),
-            "fix m4 all property/global gammat peratomtypepair 1 " + _g(s.gamma_t),
-            "fix m5 all property/global coefficientFriction peratomtypepair 1 " + _g(s.mu),
-            "pair_style gran model hooke/stiffness tangential history",
-            "pair_coeff * *",
+            *law_pair_lines(law, s, engine),
             "fix integr all nve/sphere", "fix e2d all enforce2d",
             "variable zero equal 0",
             *pre, *var,
@@ -152,6 +147,187 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
     with atomic_path(deck) as tmp:
         Path(tmp).write_text("\n".join(lines) + "\n")
     return deck
+
+
+def law_pair_lines(law, settings: DEMSettings, engine: str) -> list[str]:
+    """The deck lines of a contact law for ``engine`` (material properties, pair_style, pair_coeff).
+
+    ``law`` None: the Hooke law of ``settings`` (``hooke/stiffness tangential history`` /
+    ``gran/hooke/history``). Otherwise an object of :func:`gransim.contacts.laws.make_law`:
+    LIGGGHTS ``gran model hertz tangential history`` (youngsModulus, poissonsRatio,
+    coefficientRestitution, coefficientFriction: the law keeps its material constants in
+    :data:`_MATERIAL`), ``hooke/stiffness tangential history rolling_friction epsd2|epsd|cdt``
+    (+ coefficientRollingFriction, coefficientRollingViscousDamping); LAMMPS
+    ``gran/hooke/history``, ``gran/hertz/history``, ``granular hertz/material ... tangential mindlin
+    NULL``, ``granular hooke ... tangential linear_history ... rolling sds``. InputError for a law
+    of the other code or one without deck lines.
+    """
+    from gransim.contacts import hertz, hooke, rolling
+    from gransim.errors import InputError
+
+    s = settings
+    if law is None:
+        law = hooke.hooke_law(s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, engine)
+    lig = {hooke.HookeLiggghts: None, rolling.HookeEpsd2Liggghts: "epsd2", rolling.HookeEpsdLiggghts: "epsd",
+           rolling.HookeCdtLiggghts: "cdt", hertz.HertzHistoryLiggghts: "hertz"}
+    lmp = (hooke.HookeLammps, hertz.HertzHistoryLammps, hertz.HertzGranularLammps, rolling.HookeSdsLammps)
+    cls = type(law)
+    code = "liggghts" if cls in lig else "lammps" if cls in lmp else None
+    if code is None:
+        raise InputError(f"law: no deck lines for {cls.__name__} (expected a law of "
+                         "gransim.contacts.laws.make_law)")
+    if code != engine:
+        raise InputError(f"law: {cls.__name__} is a {code} law, the deck is for {engine} "
+                         f"(use the {engine} variant of the law)")
+    if engine == "liggghts":
+        prop = "fix m{} all property/global {} peratomtypepair 1 {}"
+        if cls is hertz.HertzHistoryLiggghts:
+            mat = _MATERIAL.get(law)
+            if mat is None:
+                raise InputError("law: a LIGGGHTS Hertz law for a deck must be built by "
+                                 "reference_runs.decks.biaxial.hertz_liggghts (its material constants)")
+            E, nu, e = mat
+            lines = [f"fix m1 all property/global youngsModulus peratomtype {_g(E)}",
+                     f"fix m2 all property/global poissonsRatio peratomtype {_g(nu)}",
+                     prop.format(3, "coefficientRestitution", _g(e)),
+                     prop.format(4, "coefficientFriction", _g(law.mu))]
+            if not 5e6 <= E <= 1e9:
+                lines.insert(0, "soft_particles yes" if E < 5e6 else "hard_particles yes")
+            tang = "" if law.tdamp else " tangential_damping off"
+            return lines + [f"pair_style gran model hertz tangential history{tang}", "pair_coeff * *"]
+        lines = [prop.format(1, "kn", _g(law.kn)), prop.format(2, "kt", _g(law.kt)),
+                 prop.format(3, "gamman", _g(law.gamma_n)), prop.format(4, "gammat", _g(law.gamma_t)),
+                 prop.format(5, "coefficientFriction", _g(law.mu))]
+        model = lig[cls]
+        extra = ""
+        if model is not None:
+            lines.append(prop.format(6, "coefficientRollingFriction", _g(law.mu_r)))
+            if model == "epsd":
+                lines.append(prop.format(7, "coefficientRollingViscousDamping", _g(law.eta_r)))
+            extra = f" rolling_friction {model}"
+        return lines + [f"pair_style gran model hooke/stiffness tangential history{extra}", "pair_coeff * *"]
+    if cls is hooke.HookeLammps or cls is hertz.HertzHistoryLammps:
+        style = "hooke" if cls is hooke.HookeLammps else "hertz"
+        return [(f"pair_style gran/{style}/history {_g(law.kn)} {_g(law.kt)} {_g(law.gamma_n)} "
+                f"{_g(law.gamma_t)} {_g(law.mu)} 1"), "pair_coeff * *"]
+    damping = ("velocity", "mass_velocity", "viscoelastic", "tsuji")
+    if cls is hertz.HertzGranularLammps:
+        mat = _MATERIAL.get(law)
+        if mat is None:
+            raise InputError("law: a LAMMPS granular Hertz law for a deck must be built by "
+                             "reference_runs.decks.biaxial.hertz_granular_lammps (its material constants)")
+        E, nu, damp = mat
+        return ["pair_style granular",
+                (f"pair_coeff * * hertz/material {_g(E)} {_g(damp)} {_g(nu)} damping "
+                f"{damping[int(law.damping)]} tangential mindlin NULL {_g(law.gammat_ratio)} {_g(law.mu)}")]
+    return ["pair_style granular",
+            (f"pair_coeff * * hooke {_g(law.kn)} {_g(law.damp)} damping {damping[int(law.damping)]} "
+            f"tangential linear_history {_g(law.kt)} {_g(law.xgammat)} {_g(law.mu)} "
+            f"rolling sds {_g(law.kroll)} {_g(law.gammaroll)} {_g(law.muroll)}")]
+
+
+#: law object -> the material constants its deck needs (the law holds only effective values)
+_MATERIAL: dict = {}
+
+
+def hertz_liggghts(youngs_modulus, poisson_ratio, restitution, friction):
+    """``make_law("hertz-liggghts", ...)`` remembering its material constants for the deck."""
+    from gransim.contacts.laws import make_law
+
+    law = make_law("hertz-liggghts", youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio,
+                   restitution=restitution, friction=friction)
+    _MATERIAL[law] = (float(youngs_modulus), float(poisson_ratio), float(restitution))
+    return law
+
+
+def hertz_granular_lammps(youngs_modulus, poisson_ratio, damp, friction, gammat_ratio=1.0, damping="tsuji"):
+    """``make_law("hertz-granular-lammps", ...)`` remembering E, nu, DAMP for the deck."""
+    from gransim.contacts.laws import make_law
+
+    law = make_law("hertz-granular-lammps", youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio,
+                   damp=damp, friction=friction, gammat_ratio=gammat_ratio, damping=damping)
+    _MATERIAL[law] = (float(youngs_modulus), float(poisson_ratio), float(damp))
+    return law
+
+
+#: the laws of the short case (:func:`short_case_law`), Hooke's contact time and damping
+SHORT_CASE_LAWS = ("hertz-liggghts", "hooke-epsd2-liggghts", "hooke-epsd-liggghts", "hooke-cdt-liggghts",
+                   "hertz-lammps", "hertz-granular-lammps", "hooke-sds-lammps")
+
+
+def short_case_law(name: str):
+    """The law ``name`` for :func:`short_case`, with a contact time and damping comparable to its
+    Hooke law (kn = kt = 1e5 N/m, 50 1/s, mu 0.5).
+
+    Hertz: r about 1 mm, m* about 4.2e-3 kg, overlaps about 4e-5 m, R* about 5e-4 m, a = sqrt(R*
+    delta) about 1.4e-4 m; E = 6e8 Pa, nu = 0.3 (Y* = 3.3e8 Pa) gives the tangent stiffness
+    2 Y* a about 9e4 N/m; e = 0.98 (Hooke's zeta = 50/(2 sqrt(kn/m*)) = 0.005, e = 0.984);
+    ``gran/hertz/history`` KN = 4/3 Y*, KT = 8 G*, GAMMAN = GAMMAT = 50/1.4e-4 = 3.5e5 1/(s m)
+    (damping m* GAMMAN a = m* 50 at that overlap); ``granular``: damping tsuji with e, GAMMAT =
+    sqrt(8 G*/(2 Y*)). Rolling: Hooke's parameters, mu_r = 0.1, eta_r = 0.3; sds KROLL = 1e5 N/m,
+    GAMMAROLL = 0.2 kg/s (m* 50), MUROLL = 0.1.
+    """
+    from gransim.contacts.laws import make_law
+    from gransim.contacts.material import effective_shear, effective_youngs
+    from gransim.errors import InputError
+
+    E, nu, e, mu = 6.0e8, 0.3, 0.98, 0.5
+    hooke = {"kn": 1e5, "kt": 1e5, "gamma_n": 50.0, "gamma_t": 50.0, "mu": mu}
+    if name == "hertz-liggghts":
+        return hertz_liggghts(E, nu, e, mu)
+    if name == "hertz-granular-lammps":
+        Y, G = effective_youngs(E, nu, E, nu), effective_shear(E, nu, E, nu)
+        return hertz_granular_lammps(E, nu, e, mu, gammat_ratio=(8.0 * G / (2.0 * Y)) ** 0.5)
+    if name == "hertz-lammps":
+        Y, G = effective_youngs(E, nu, E, nu), effective_shear(E, nu, E, nu)
+        return make_law(name, kn=4.0 / 3.0 * Y, kt=8.0 * G, gamma_n=3.5e5, gamma_t=3.5e5, mu=mu)
+    if name in ("hooke-epsd2-liggghts", "hooke-cdt-liggghts"):
+        return make_law(name, **hooke, mu_r=0.1)
+    if name == "hooke-epsd-liggghts":
+        return make_law(name, **hooke, mu_r=0.1, eta_r=0.3)
+    if name == "hooke-sds-lammps":
+        return make_law(name, kn=1e5, damp=50.0, damping="mass_velocity", kt=1e5, xgammat=1.0, mu=mu,
+                        kroll=1e5, gammaroll=0.2, muroll=0.1)
+    raise InputError(f"law: expected one of {', '.join(SHORT_CASE_LAWS)}, got {name!r}")
+
+
+def make_stored_law(name: str, out_root, timeout: float | None = 900.0) -> Path:
+    """Run the short case with the law ``name`` (:func:`short_case_law`) in its code and store
+    deck, data, log, dump and a README under ``out_root/biaxial-short-<name>/``."""
+    import datetime
+    import shutil
+    import tempfile
+
+    from gransim.contacts.laws import law_code
+
+    engine = law_code(name)
+    out = Path(out_root) / f"biaxial-short-{name}"
+    out.mkdir(parents=True, exist_ok=True)
+    p, s, ld, n = short_case()
+    law = short_case_law(name)
+    with tempfile.TemporaryDirectory(prefix=f"biaxial-short-{name}-") as tmp:
+        deck = write_biaxial_deck(tmp, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY,
+                                  engine=engine, law=law)
+        log = run_deck(deck, engine, timeout=timeout)
+        for src in (deck, Path(tmp) / "data.biaxial", log, Path(tmp) / "dump.atoms"):
+            shutil.copyfile(src, out / src.name)
+    head = (out / log.name).read_text().splitlines()[0]
+    (out / "README.md").write_text(f"""# biaxial-short-{name}: {engine} reference for the law {name} (step for step)
+
+- Case: `reference_runs.decks.biaxial.short_case()` (120 disks, servo on x to 100 N/m, y at
+  -1 1/s, dt 2e-6 s, skin 2e-5 m), {n} steps, with the law
+  `reference_runs.decks.biaxial.short_case_law("{name}")` = `{law!r}`.
+- Code: {head}, `/usr/bin/{'liggghts' if engine == 'liggghts' else 'lmp'}` (Debian package), serial.
+- Files: `{deck.name}` (deck, `write_biaxial_deck(..., engine="{engine}", law=law)`), `data.biaxial`
+  (%.17g), `{log.name}` (thermo every step: box and virial stress), `dump.atoms` (every
+  {SHORT_CASE_DUMP_EVERY} steps: id x y vx vy omegaz fx fy tqz mass radius).
+- Regenerate: `python -c "from reference_runs.decks.biaxial import make_stored_law;
+  make_stored_law('{name}', 'reference_runs/stored')"`.
+- Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}
+- Used by: tests/dem/test_law_runs.py (native `DEMEngine(..., law=law)` with
+  `DEMSettings(flavour="{engine}")`; tolerances positions 1e-10 D50, stresses 1e-8 relative).
+""")
+    return out
 
 
 # -- readers of this deck's outputs (thin wrappers over reference_runs.parsers) -------------
