@@ -3,6 +3,7 @@
 Issue #18 target: < 5 ms per evaluation from a warm start (committed state at a nearby F).
 
     PYTHONPATH=. python bench/rve_relaxed.py [--packing results/packings/rve-700-1.h5] [--repeat 20]
+    python -m bench --only rve_relaxed          # as an area of the benchmark suite (run())
 
 Measures, per step of a small compression path F(t) = diag(1 - t, 1 - t) + shear, the wall time of
 ``RelaxedMaterial.evaluate`` started from the committed state of the previous step (commit after
@@ -19,20 +20,14 @@ import time
 import numpy as np
 
 
-def main(argv=None) -> dict:
-    from gransim.generation import standard_packings
-    from gransim.io import load_packing
+def measure(p, kn: float = 2.8e7, repeat: int = 20, dstrain: float = 1e-5) -> dict:
+    """Cold and warm evaluation times (ms) and Newton iterations of ``RelaxedMaterial`` on ``p``."""
+    from types import SimpleNamespace
+
     from gransim.rve import TaylorMaterial
     from gransim.rve.relaxed import RelaxedMaterial
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--packing", default=None, help="HDF5 packing (default: rve-700-1 of results/packings)")
-    ap.add_argument("--repeat", type=int, default=20, help="warm steps measured")
-    ap.add_argument("--kn", type=float, default=2.8e7, help="E_n (N/m)")
-    ap.add_argument("--dstrain", type=float, default=1e-5, help="strain increment per step")
-    args = ap.parse_args(argv)
-    path = args.packing or standard_packings("results/packings", names=["rve-700-1"])["rve-700-1"]
-    p = load_packing(path)
+    args = SimpleNamespace(kn=kn, repeat=repeat, dstrain=dstrain)
     mat = RelaxedMaterial(p, args.kn)
     tay = TaylorMaterial(p, args.kn)
     F0 = np.array([[0.999, 0.0005], [0.0, 0.999]])
@@ -62,6 +57,39 @@ def main(argv=None) -> dict:
            "warm_ms_median": 1e3 * float(np.median(times)), "warm_ms_min": 1e3 * float(np.min(times)),
            "warm_newton": its, "taylor_ms": 1e3 * t_taylor, "builds": mat.n_builds,
            "n_rattlers": int(b.n_rattlers[0]), "n_contacts": int(b.n_contacts[0])}
+    return out
+
+
+def run(quick: bool = False) -> list[dict]:
+    """Records of the benchmark suite: warm and cold evaluation of the 700-disk study RVE."""
+    from bench.rve import _packing700
+
+    p, label = _packing700()
+    out = measure(p, repeat=3 if quick else 20)
+    its = out["warm_newton"]
+    return [
+        {"name": "rve_relaxed.warm_700", "value": out["warm_ms_median"], "unit": "ms", "target": "< 5",
+         "note": f"RelaxedMaterial.evaluate on {label} (N={p.n}) from the committed state of the previous "
+                 f"step (strain steps of 1e-5), median of {len(its)}; Newton iterations {its}"},
+        {"name": "rve_relaxed.cold_700", "value": out["cold_ms"], "unit": "ms", "target": None,
+         "note": f"from w = 0, {out['cold_newton']} Newton iterations"},
+        {"name": "rve_relaxed.taylor_700", "value": out["taylor_ms"], "unit": "ms", "target": None,
+         "note": "TaylorMaterial on the same RVE, for comparison"},
+    ]
+
+
+def main(argv=None) -> dict:
+    from gransim.generation import standard_packings
+    from gransim.io import load_packing
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--packing", default=None, help="HDF5 packing (default: rve-700-1 of results/packings)")
+    ap.add_argument("--repeat", type=int, default=20, help="warm steps measured")
+    ap.add_argument("--kn", type=float, default=2.8e7, help="E_n (N/m)")
+    ap.add_argument("--dstrain", type=float, default=1e-5, help="strain increment per step")
+    args = ap.parse_args(argv)
+    path = args.packing or standard_packings("results/packings", names=["rve-700-1"])["rve-700-1"]
+    out = measure(load_packing(path), args.kn, args.repeat, args.dstrain)
     print(json.dumps(out, indent=1))
     return out
 
