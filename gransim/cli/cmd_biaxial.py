@@ -15,7 +15,8 @@ def register(sub) -> None:
     p.add_argument("--packing", required=True, help="packing HDF5 file (gransim pack / save_packing)")
     p.add_argument("-o", "--output", default="biaxial.h5", help="run file (default biaxial.h5)")
     p.add_argument("--strain", type=float, default=0.005, help="final axial strain |eps_22| (default 0.005)")
-    p.add_argument("--kn", type=float, default=1e5, help="normal = tangential stiffness, N/m (default 1e5)")
+    p.add_argument("--kn", type=float, help="normal = tangential stiffness, N/m (default 1e5; a Hertz --law "
+                                           "sets its own scale)")
     p.add_argument("--confining", type=float, help="sigma_11, N/m (default 2.5e-4 kn: indentation ~2e-4 D50)")
     p.add_argument("--strain-rate", type=float, help="axial strain rate, 1/s (default: inertial number 5e-5)")
     p.add_argument("--damping-ratio", type=float, default=0.3, help="contact damping ratio (default 0.3)")
@@ -33,10 +34,19 @@ def register(sub) -> None:
     p.add_argument("--mode", choices=("serial", "parallel"), default="serial",
                    help="serial (LIGGGHTS order) or parallel force loop (default serial)")
     p.add_argument("--threads", type=int, help="numba threads for --mode parallel")
-    p.add_argument("--flavour", default="liggghts",
+    p.add_argument("--flavour",
                    help="whose arithmetic the engine reproduces bit for bit: liggghts (LIGGGHTS-PUBLIC "
                         "3.8.0, default) or lammps (LAMMPS 29 Sep 2021, docs/lammps.md); recorded in the "
-                        "run file's provenance (parameters dem.flavour)")
+                        "run file's provenance (parameters dem.flavour); with --law: the law's code")
+    p.add_argument("--law", metavar="NAME",
+                   help="contact law by name (gransim.contacts.laws.law_names(): hooke-liggghts, "
+                        "hooke-lammps, hertz-liggghts, hertz-lammps, hertz-granular-lammps, "
+                        "hooke-epsd2-liggghts, ...; docs/laws.md); default: the Hooke law of "
+                        "--kn/--damping-ratio. Recorded in the run file's settings JSON (law, "
+                        "law_options)")
+    p.add_argument("--law-param", metavar="KEY=VALUE", action="append", default=[],
+                   help="a parameter of --law (repeat; SI units, e.g. youngs_modulus=7e8, restitution=0.6, "
+                        "damping=tsuji); kn, kt, gamma_n, gamma_t, mu/friction default to the protocol's")
     p.add_argument("--resume", action="store_true", help="continue the run in --output from its checkpoint")
     p.add_argument("--plot", help="also write the stress-strain plot (Fig. 7b) to this image")
     p.set_defaults(func=_run)
@@ -73,12 +83,48 @@ def _check_options(args) -> None:
         as_int(v, name, minimum=lo)
     from ..dem.settings import FLAVOURS
 
-    if args.flavour not in FLAVOURS:
+    if args.flavour is not None and args.flavour not in FLAVOURS:
         raise InputError(f"--flavour: expected one of {', '.join(FLAVOURS)}, got {args.flavour!r}")
+    if args.law_param and not args.law:
+        raise InputError("--law-param: given without --law (name the law the parameters belong to)")
+    if args.law:
+        from ..contacts.laws import law_code
+
+        try:
+            code = law_code(args.law)
+        except InputError as e:
+            raise InputError(f"--law: {e}") from None
+        if args.flavour is not None and args.flavour != code:
+            raise InputError(f"--flavour {args.flavour}: the law {args.law} is {code}'s; drop --flavour or "
+                             f"give {code}")
+        parse_law_params(args.law_param)
     if args.threads is not None:
         from .._numba import check_threads
 
         check_threads(args.threads, "--threads")
+
+
+def parse_law_params(items) -> dict:
+    """``KEY=VALUE`` strings of --law-param as a dict: numbers as floats, true/false as bools,
+    other values (``damping=tsuji``) as strings; InputError for a malformed or repeated item."""
+    from ..errors import InputError
+
+    out = {}
+    for it in items:
+        key, sep, val = str(it).partition("=")
+        key, val = key.strip(), val.strip()
+        if not sep or not key.isidentifier() or not val:
+            raise InputError(f"--law-param: expected KEY=VALUE (e.g. youngs_modulus=7e8), got {it!r}")
+        if key in out:
+            raise InputError(f"--law-param: {key} given twice")
+        if val.lower() in ("true", "false"):
+            out[key] = val.lower() == "true"
+            continue
+        try:
+            out[key] = float(val)
+        except ValueError:
+            out[key] = val
+    return out
 
 
 def _run(args) -> int:
@@ -92,9 +138,23 @@ def _run(args) -> int:
 
     _check_options(args)
     packing = load_packing(args.packing)
-    dem, bi = default_settings(packing, kn=args.kn, damping_ratio=args.damping_ratio,
-                               steps_per_contact=args.steps_per_contact, strain_rate=args.strain_rate,
-                               strain=args.strain, flavour=args.flavour)
+    opts = {"kn": args.kn if args.kn is not None else 1e5, "damping_ratio": args.damping_ratio,
+            "steps_per_contact": args.steps_per_contact, "strain_rate": args.strain_rate,
+            "strain": args.strain}
+    law, law_options = None, None
+    if args.law:
+        from ..dem.biaxial import law_settings
+
+        if args.kn is not None and args.law.startswith("hertz"):
+            raise InputError(f"--kn: not used with the Hertz law {args.law} (its stiffness scale comes from "
+                             "its --law-param material constants)")
+        try:
+            law, dem, bi, law_options = law_settings(packing, args.law, parse_law_params(args.law_param),
+                                                     **opts)
+        except InputError as e:
+            raise InputError(f"--law-param: {e}") from None
+    else:
+        dem, bi = default_settings(packing, flavour=args.flavour or "liggghts", **opts)
     dem = dataclasses.replace(dem, mode=args.mode)
     lim = stability_limit(packing, dem)
     if dem.dt > lim:
@@ -113,9 +173,10 @@ def _run(args) -> int:
     out = OutputSettings(series_every=args.series_every, snapshot_every=args.snapshot_every,
                          checkpoint_every=args.checkpoint_every)
     summary = run_biaxial(packing, dem, bi, args.output, output=out, resume=args.resume, threads=args.threads,
-                          allow_unsettled=args.allow_unsettled)
+                          allow_unsettled=args.allow_unsettled, law=law, law_options=law_options)
     print(f"wrote {args.output}: {packing.n} disks, dt {dem.dt:.3g} s, confining {bi.confining:.4g} N/m, "
-          f"rate {bi.strain_rate:.3g} 1/s, {dem.flavour} arithmetic")
+          f"rate {bi.strain_rate:.3g} 1/s, {dem.flavour} arithmetic"
+          + (f", law {args.law}" if args.law else ""))
     for k, v in summary.items():
         print(f"  {k:32s} {v:.6g}" if isinstance(v, float) else f"  {k:32s} {v}")
     if summary.get("unsettled_phases", "none") != "none":

@@ -4,6 +4,10 @@ Phase 0 (consolidation): both axes servo-controlled to the confining stress p (i
 Phase 1 (compression): y shortened at a constant rate, x servo-controlled to hold sigma_11 = p.
 Quasi-static when the inertial number I = |eps_rate| D50 sqrt(rho/p) is small (<= 1e-4;
 rho = mass per area, p in N/m, so I is dimensionless in 2D).
+
+Any registered contact law runs the protocol (:func:`law_settings`: a law of
+:func:`gransim.contacts.laws.make_law` by name and parameters; its name and parameters go to the
+run file's settings JSON, ``law`` and ``law_options``).
 """
 
 from __future__ import annotations
@@ -84,6 +88,63 @@ def default_settings(packing: Packing, kn: float = 1e5, damping_ratio: float = 0
     return dem, bi
 
 
+#: parameters of a law that default to the protocol's Hooke settings when not given
+_HOOKE_DEFAULTS = {"kn": "kn", "kt": "kt", "gamma_n": "gamma_n", "gamma_t": "gamma_t", "mu": "mu",
+                   "friction": "mu"}
+
+
+def hertz_equivalent_stiffness(packing: Packing, name: str, params: dict) -> float:
+    """Tangent normal stiffness (N/m) of the Hertz law ``name`` at the paper's indentation:
+    k = 2 Y* sqrt(R* delta) with R* = D50/4 (two median disks) and delta = 2e-4 D50
+    (Johnson 1985, eq (4.23) differentiated). Y* from the law's parameters (hertz-liggghts,
+    hertz-granular-lammps: youngs_modulus, poisson_ratio; hertz-lammps: kn = 4/3 Y*). The
+    protocol's time step, confining stress and servo gain follow from it as from kn of the
+    Hooke law (:func:`default_settings`)."""
+    from ..contacts.material import check_poisson, check_youngs, effective_youngs
+
+    if name == "hertz-lammps":
+        y = 0.75 * as_positive_float(params.get("kn", float("nan")), f"law {name}: kn")
+    else:
+        E = params.get("youngs_modulus")
+        nu = params.get("poisson_ratio")
+        if E is None or nu is None:
+            raise InputError(f"law {name}: expected parameters youngs_modulus and poisson_ratio "
+                             "(--law-param youngs_modulus=... --law-param poisson_ratio=...)")
+        E = check_youngs(E, f"law {name}: youngs_modulus")
+        nu = check_poisson(nu, f"law {name}: poisson_ratio")
+        y = effective_youngs(E, nu, E, nu)
+    d50 = packing.d50
+    return float(2.0 * y * np.sqrt(0.25 * d50 * PAPER_INDENTATION * d50))
+
+
+def law_settings(packing: Packing, name: str, params: dict | None = None, **defaults):
+    """The law ``name`` (:func:`gransim.contacts.laws.law_names`) with ``params`` and the
+    protocol's settings for it: (law, DEMSettings, BiaxialSettings, options).
+
+    The flavour is the law's code (:func:`~gransim.contacts.laws.law_code`). The parameters
+    kn, kt, gamma_n, gamma_t, mu (and friction) default to those of :func:`default_settings`
+    (``defaults`` passed through: kn, damping_ratio, steps_per_contact, strain_rate, strain) where
+    the law takes them (hertz-lammps: only mu; its kn, kt in Pa and dampings in 1/(s m) are
+    given). A Hertz law sets the protocol's stiffness scale from
+    :func:`hertz_equivalent_stiffness`. ``options`` = {"name", "params"} as run (for the
+    provenance). InputError for an unknown name or a bad, missing or unknown parameter.
+    """
+    from ..contacts.laws import LAWS, law_code, make_law
+
+    params = dict(params or {})
+    code = law_code(name)  # InputError naming the known laws
+    defaults.pop("flavour", None)
+    if name.startswith("hertz"):
+        defaults["kn"] = hertz_equivalent_stiffness(packing, name, params)
+    dem, bi = default_settings(packing, flavour=code, **defaults)
+    _, req, _, _ = LAWS[name]
+    for k, field in _HOOKE_DEFAULTS.items():
+        if k in req and k not in params and not (name == "hertz-lammps" and k != "mu"):
+            params[k] = float(getattr(dem, field))
+    law = make_law(name, **params)
+    return law, dem, bi, {"name": name, "params": params}
+
+
 def inertial_number(packing: Packing, strain_rate: float, confining: float) -> float:
     """I = |eps_rate| D50 sqrt(rho / p) (2D: rho mass per area, p in N/m)."""
     return float(abs(strain_rate) * packing.d50 * np.sqrt(packing.density / confining))
@@ -102,15 +163,21 @@ def biaxial_phases(dem: DEMSettings, bi: BiaxialSettings) -> list[Phase]:
 
 def run_biaxial(packing: Packing, dem: DEMSettings, bi: BiaxialSettings, out_path,
                 output: OutputSettings | None = None, resume: bool = False, threads: int | None = None,
-                show_progress: bool = True, allow_unsettled: bool = False) -> dict:
+                show_progress: bool = True, allow_unsettled: bool = False, law=None,
+                law_options: dict | None = None) -> dict:
     """Run the biaxial test; returns a summary (inertial number, indentation, stresses, peak).
 
     A consolidation that does not settle within ``bi.consolidation_steps`` stops the run
     (:class:`~gransim.errors.ConvergenceError`, file written with ``complete`` False) unless
-    ``allow_unsettled`` (see :func:`run_phases`)."""
+    ``allow_unsettled`` (see :func:`run_phases`). ``law``: a contact-law object (None: the Hooke
+    law of ``dem``); ``law_options``: its factory name and parameters ({"name", "params"}, from
+    :func:`law_settings`), written to the settings JSON as ``law_options``."""
     phases = biaxial_phases(dem, bi)
+    meta = {"biaxial": asdict(bi)}
+    if law_options is not None:
+        meta["law_options"] = {"name": str(law_options["name"]), "params": dict(law_options["params"])}
     run_phases(packing, dem, phases, out_path, output=output, resume=resume, threads=threads,
-               show_progress=show_progress, metadata={"biaxial": asdict(bi)}, allow_unsettled=allow_unsettled)
+               show_progress=show_progress, metadata=meta, allow_unsettled=allow_unsettled, law=law)
     return summarize(out_path)
 
 

@@ -4,8 +4,16 @@ A *scene* is a set of independent two-disk impacts laid side by side in one orth
 box, far enough apart that no disk of one impact ever comes within the neighbour cut-off of a
 disk of another, and each pair only a few steps from touching, so that every pair meets exactly
 once during the run (the box is many contact-durations of travel wide). All impacts of a scene
-share one contact law with one set of parameters (the law is a parameter of the deck: a
-:class:`HookeLaw` today; a Hertz-Mindlin law adds its own class with the same two methods).
+share one contact law with one set of parameters (the law is a parameter of the deck:
+:class:`HookeLaw` for both codes, and the Hertz-Mindlin laws of one code each:
+:class:`HertzLiggghtsLaw`, :class:`HertzHistoryLammpsLaw`, :class:`HertzGranularLammpsLaw`).
+
+Every law class has ``engines`` (the codes that have it), ``mu``, ``dem_settings(dt, skin,
+flavour)`` (the native engine's settings), ``native_law(flavour)`` (the plug-in law object of
+:mod:`gransim.contacts.laws`, or None: the Hooke law of the settings), ``deck_lines(engine)``
+and ``describe()``. The Hertz classes add ``hertz()``: the constants of the closed forms
+(``y43`` = 4/3 Y* in Pa, ``kt0`` = 8 G* in Pa, the damping form and its dimensionless
+coefficient; validation/cases/impacts.py).
 
 The deck mirrors :class:`gransim.dem.DEMEngine` step for step (as
 :mod:`reference_runs.decks.biaxial`: ``newton off``, no atom sorting, ``neigh_modify delay 0
@@ -25,6 +33,13 @@ from pathlib import Path
 
 import numpy as np
 
+from gransim.contacts.material import (
+    HertzLiggghts,
+    HertzMaterialLammps,
+    check_friction,
+    effective_shear,
+    effective_youngs,
+)
 from gransim.dem.settings import DEMSettings
 from gransim.errors import InputError
 from gransim.geometry import Packing
@@ -69,6 +84,7 @@ class HookeLaw:
     gamma_t: float = 0.0
     mu: float = 0.5
     name: str = "hooke"
+    engines = ENGINES
 
     def __post_init__(self):
         for k in ("kn", "kt", "gamma_n", "gamma_t", "mu"):
@@ -82,6 +98,10 @@ class HookeLaw:
         """The native engine's settings of this law (serial mode, the mode compared step for step)."""
         return DEMSettings(kn=self.kn, kt=self.kt, gamma_n=self.gamma_n, gamma_t=self.gamma_t, mu=self.mu,
                            dt=dt, skin=skin, mode="serial", flavour=flavour)
+
+    def native_law(self, flavour: str = "liggghts"):
+        """None: the engine builds the Hooke law of :meth:`dem_settings` in ``flavour``."""
+        return
 
     def deck_lines(self, engine: str) -> list[str]:
         """The pair-style lines of the deck for ``engine`` ("liggghts" or "lammps")."""
@@ -98,6 +118,207 @@ class HookeLaw:
     def describe(self) -> str:
         return (f"Hooke + tangential history: kn {self.kn:g} N/m, kt {self.kt:g} N/m, gamma_n {self.gamma_n:.6g} 1/s, "
                 f"gamma_t {self.gamma_t:.6g} 1/s, mu {self.mu:g}")
+
+
+#: overlap bound (m) of the Hertz time-step check: the engine's stability test needs a linear
+#: stiffness; the Hertz scenes' peak overlaps are below 2e-5 m (validation/cases/impacts.py)
+HERTZ_DELTA_BOUND = 1.0e-4
+#: effective radius bound (m) of the same check (the wall pair: 0.0096 m)
+HERTZ_RADIUS_BOUND = 0.01
+
+
+def _one_code(law, engine: str) -> None:
+    if engine not in law.engines:
+        raise InputError(f"law {law.name}: only {', '.join(law.engines)} has it, not {engine!r} (a deck for "
+                         f"{engine} needs another law)")
+
+
+def _hertz_settings(law, y43: float, kt0: float, dt: float, skin: float, flavour: str) -> DEMSettings:
+    """Settings of a Hertz law: dt, skin, flavour; kn, kt = the tangent stiffnesses (3/2) y43 a
+    and kt0 a at a = sqrt(HERTZ_RADIUS_BOUND HERTZ_DELTA_BOUND): only the time-step check reads them."""
+    a = (HERTZ_RADIUS_BOUND * HERTZ_DELTA_BOUND) ** 0.5
+    return DEMSettings(kn=1.5 * y43 * a, kt=kt0 * a, gamma_n=0.0, gamma_t=0.0, mu=law.mu, dt=dt, skin=skin,
+                       mode="serial", flavour=flavour)
+
+
+@dataclass(frozen=True)
+class HertzLiggghtsLaw:
+    """LIGGGHTS 3.8.0 ``pair_style gran model hertz tangential history`` (docs/laws.md).
+
+    F_n = 4/3 Y* sqrt(R*) delta^(3/2) + damping -2 sqrt(5/6) beta sqrt(2 Y* a m*) v_n with
+    beta = ln e/sqrt(ln^2 e + pi^2); Mindlin k_t = 8 G* a, tangential damping with 8 G* a in place
+    of 2 Y* a (below the cap), cap mu |F_n| (normal_model_hertz.h:211-255,
+    tangential_model_history.h:147-227; :func:`gransim.contacts.hertz.hertz_history_liggghts`).
+
+    Attributes: youngs_modulus E (Pa, 5e6 <= E <= 1e9: LIGGGHTS' SI limits without
+    ``soft_particles``/``hard_particles``), poisson_ratio nu, restitution e (0.05 < e <= 1),
+    mu (coefficientFriction). Deck: ``fix property/global youngsModulus``, ``poissonsRatio``,
+    ``coefficientRestitution``, ``coefficientFriction``.
+    """
+
+    youngs_modulus: float
+    poisson_ratio: float
+    restitution: float = 1.0
+    mu: float = 0.3
+    name: str = "hertz-liggghts"
+    engines = ("liggghts",)
+
+    def __post_init__(self):
+        m = self.material()  # InputError naming the LIGGGHTS property
+        lo, hi = 5e6, 1e9
+        if not lo <= m.youngs_modulus <= hi:
+            raise InputError(f"HertzLiggghtsLaw.youngs_modulus: expected {lo:g} <= E <= {hi:g} Pa "
+                             f"(LIGGGHTS' SI limits), got {self.youngs_modulus!r}")
+
+    def material(self) -> HertzLiggghts:
+        return HertzLiggghts(self.youngs_modulus, self.poisson_ratio, self.restitution, self.mu)
+
+    def hertz(self) -> dict:
+        """y43 = 4/3 Y*, kt0 = 8 G* (Pa); damping "tsuji" with alpha = -sqrt(5) beta(e): the damping
+        coefficient alpha sqrt(m* y43 a) (2 sqrt(5/6) sqrt(2 Y* a m*) = sqrt(5) sqrt(4/3 Y* a m*))."""
+        Y, G, beta, _, _ = self.material().coefficients()
+        return {"y43": 4.0 / 3.0 * Y, "kt0": 8.0 * G, "damping": "tsuji" if beta != 0.0 else "none",
+                "alpha": -5.0 ** 0.5 * beta,
+                "kt_damping": beta != 0.0}
+
+    def native_law(self, flavour: str = "liggghts"):
+        from gransim.contacts.hertz import HertzHistoryLiggghts
+
+        return HertzHistoryLiggghts(*self.material().coefficients())
+
+    def dem_settings(self, dt: float, skin: float, flavour: str = "liggghts") -> DEMSettings:
+        h = self.hertz()
+        return _hertz_settings(self, h["y43"], h["kt0"], dt, skin, flavour)
+
+    def deck_lines(self, engine: str) -> list[str]:
+        _one_code(self, engine)
+        return [f"fix m1 all property/global youngsModulus peratomtype {_g(self.youngs_modulus)}",
+                f"fix m2 all property/global poissonsRatio peratomtype {_g(self.poisson_ratio)}",
+                f"fix m3 all property/global coefficientRestitution peratomtypepair 1 {_g(self.restitution)}",
+                f"fix m4 all property/global coefficientFriction peratomtypepair 1 {_g(self.mu)}",
+                "pair_style gran model hertz tangential history", "pair_coeff * *"]
+
+    def describe(self) -> str:
+        return (f"LIGGGHTS hertz + tangential history: E {self.youngs_modulus:g} Pa, "
+                f"nu {self.poisson_ratio:g}, e {self.restitution:g}, mu {self.mu:g}")
+
+
+@dataclass(frozen=True)
+class HertzHistoryLammpsLaw:
+    """LAMMPS 29Sep2021 ``pair_style gran/hertz/history KN KT GAMMAN GAMMAT MU 1`` built from
+    material constants: KN = 4/3 Y* (Hertz' elastic force), KT = 8 G* (Mindlin's 8 G* a), the
+    damping m* GAMMAN a v_n (1/(s m); pair_gran_hertz_history.cpp:181-221;
+    :func:`gransim.contacts.hertz.hertz_history_lammps`). ``gamma_n`` = ``gamma_t`` = 0 here
+    (undamped: the damping ~ m* a has no speed-free restitution, docs/laws.md).
+    """
+
+    youngs_modulus: float
+    poisson_ratio: float
+    mu: float = 0.3
+    gamma_n: float = 0.0
+    gamma_t: float = 0.0
+    name: str = "hertz-lammps"
+    engines = ("lammps",)
+
+    def __post_init__(self):
+        effective_youngs(self.youngs_modulus, self.poisson_ratio, self.youngs_modulus, self.poisson_ratio)
+        check_friction(self.mu, "gran/hertz/history MU")
+        for k in ("gamma_n", "gamma_t"):
+            v = getattr(self, k)
+            if not (isinstance(v, int | float) and np.isfinite(v) and v >= 0):
+                raise InputError(f"HertzHistoryLammpsLaw.{k}: expected a damping >= 0 1/(s m), got {v!r}")
+
+    def _kk(self):
+        E, nu = self.youngs_modulus, self.poisson_ratio
+        return 4.0 / 3.0 * effective_youngs(E, nu, E, nu), 8.0 * effective_shear(E, nu, E, nu)
+
+    def hertz(self) -> dict:
+        kn, kt = self._kk()
+        return {"y43": kn, "kt0": kt, "damping": "none" if self.gamma_n == 0 else "gran",
+                "alpha": 0.0, "kt_damping": self.gamma_t != 0.0}
+
+    def native_law(self, flavour: str = "lammps"):
+        from gransim.contacts.hertz import HertzHistoryLammps
+
+        kn, kt = self._kk()
+        return HertzHistoryLammps(kn, kt, float(self.gamma_n), float(self.gamma_t), float(self.mu))
+
+    def dem_settings(self, dt: float, skin: float, flavour: str = "lammps") -> DEMSettings:
+        kn, kt = self._kk()
+        return _hertz_settings(self, kn, kt, dt, skin, flavour)
+
+    def deck_lines(self, engine: str) -> list[str]:
+        _one_code(self, engine)
+        kn, kt = self._kk()
+        return [(f"pair_style gran/hertz/history {_g(kn)} {_g(kt)} {_g(self.gamma_n)} {_g(self.gamma_t)} "
+                 f"{_g(self.mu)} 1"), "pair_coeff * *"]
+
+    def describe(self) -> str:
+        kn, kt = self._kk()
+        return (f"LAMMPS gran/hertz/history: KN = 4/3 Y* = {kn:.6g} Pa, KT = 8 G* = {kt:.6g} Pa (E "
+                f"{self.youngs_modulus:g} Pa, nu {self.poisson_ratio:g}), GAMMAN {self.gamma_n:g}, GAMMAT "
+                f"{self.gamma_t:g}, mu {self.mu:g}")
+
+
+@dataclass(frozen=True)
+class HertzGranularLammpsLaw:
+    """LAMMPS 29Sep2021 ``pair_style granular`` + ``pair_coeff * * hertz/material E DAMP NU damping
+    MODEL tangential mindlin NULL GAMMAT MU`` (:func:`gransim.contacts.hertz.
+    hertz_mindlin_granular_lammps`; :class:`gransim.contacts.material.HertzMaterialLammps`).
+
+    damping "tsuji": DAMP a restitution mapped to alpha(DAMP) by the build's polynomial
+    (pair_granular.cpp:987-991), damping coefficient alpha sqrt(m* 4/3 Y* a); "mass_velocity"
+    with DAMP = 0: undamped. gammat_ratio: tangential damping = GAMMAT times the normal one.
+    """
+
+    youngs_modulus: float
+    poisson_ratio: float
+    damp: float = 0.0
+    mu: float = 0.3
+    gammat_ratio: float = 0.0
+    damping: str = "mass_velocity"
+    name: str = "hertz-granular-lammps"
+    engines = ("lammps",)
+
+    def __post_init__(self):
+        self.material()
+
+    def material(self) -> HertzMaterialLammps:
+        return HertzMaterialLammps(self.youngs_modulus, self.poisson_ratio, self.damp, self.mu,
+                                   gammat_ratio=self.gammat_ratio, damping=self.damping)
+
+    def hertz(self) -> dict:
+        E43, damp, kt0, _, _, _ = self.material().coefficients()
+        if self.damping == "tsuji":
+            kind = "tsuji"
+        elif damp == 0.0:
+            kind = "none"
+        else:
+            kind = self.damping
+        return {"y43": E43, "kt0": kt0, "damping": kind, "alpha": damp if kind == "tsuji" else 0.0,
+                "kt_damping": kind != "none" and self.gammat_ratio != 0.0}
+
+    def native_law(self, flavour: str = "lammps"):
+        from gransim.contacts.hertz import HertzGranularLammps
+
+        E43, damp, kt0, g, mu, model = self.material().coefficients()
+        return HertzGranularLammps(E43, damp, kt0, g, mu, float(model))
+
+    def dem_settings(self, dt: float, skin: float, flavour: str = "lammps") -> DEMSettings:
+        h = self.hertz()
+        return _hertz_settings(self, h["y43"], h["kt0"], dt, skin, flavour)
+
+    def deck_lines(self, engine: str) -> list[str]:
+        _one_code(self, engine)
+        return ["pair_style granular",
+                (f"pair_coeff * * hertz/material {_g(self.youngs_modulus)} {_g(self.damp)} "
+                 f"{_g(self.poisson_ratio)} damping {self.damping} tangential mindlin NULL "
+                 f"{_g(self.gammat_ratio)} {_g(self.mu)}")]
+
+    def describe(self) -> str:
+        return (f"LAMMPS granular hertz/material: E {self.youngs_modulus:g} Pa, DAMP {self.damp:g} "
+                f"(damping {self.damping}), nu {self.poisson_ratio:g}, tangential mindlin NULL, "
+                f"GAMMAT {self.gammat_ratio:g}, mu {self.mu:g}")
 
 
 def write_impact_deck(job_dir, packing: Packing, law, dt: float, skin: float, nsteps: int, velocities,
@@ -117,6 +338,9 @@ def write_impact_deck(job_dir, packing: Packing, law, dt: float, skin: float, ns
     """
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
+    if engine not in getattr(law, "engines", ENGINES):
+        raise InputError(f"law {getattr(law, 'name', law)!r}: {engine} does not have it (only "
+                         f"{', '.join(law.engines)})")
     x = np.asarray(packing.positions)
     L = np.array([packing.cell[0, 0], packing.cell[1, 1]])
     if np.any(x < 0) or np.any(x >= L):

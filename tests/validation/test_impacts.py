@@ -120,3 +120,148 @@ def test_truncated_stored_log_fails_as_incomplete(tmp_path, monkeypatch):
     bad = _failed(res, "evidence")
     assert bad and any("incomplete" in r.metric for r in bad)
     assert not res.passed
+
+
+# ---------------------------------------------------------------------- Hertz-Mindlin scenes
+def _rk4_hertz(meff, K, c, vn, h):
+    """Independent dimensional integration (classical RK4, step h) of m* delta'' = -K delta^(3/2)
+    - c delta^(1/4) delta' to the return to delta = 0: (contact time, peak overlap, restitution)."""
+    def acc(x, v):
+        x = max(x, 0.0)
+        return -(K * x ** 1.5 + c * x ** 0.25 * v) / meff
+
+    x, v, t, peak = 0.0, vn, 0.0, 0.0
+    while True:
+        k1 = (v, acc(x, v))
+        k2 = (v + h / 2 * k1[1], acc(x + h / 2 * k1[0], v + h / 2 * k1[1]))
+        k3 = (v + h / 2 * k2[1], acc(x + h / 2 * k2[0], v + h / 2 * k2[1]))
+        k4 = (v + h * k3[1], acc(x + h * k3[0], v + h * k3[1]))
+        xn = x + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+        vnew = v + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+        if xn <= 0 and t > 0:
+            return t + h * x / (x - xn), peak, -vnew / vn
+        x, v, t = xn, vnew, t + h
+        peak = max(peak, x)
+
+
+def test_hertz_closed_forms_against_integration():
+    """H1-H3 (closed forms, Beta function) against the scaled ODE (DOP853) at alpha = 0, and the
+    scaled damped solution (H4) against an independent dimensional RK4 integration."""
+    o = I.hertz_scaled_ode(0.0)
+    assert o["x_max"] == pytest.approx(1.25 ** 0.4, rel=1e-9)
+    assert o["f_max"] == pytest.approx(1.25 ** 0.6, rel=1e-9)
+    assert o["tau_c"] == pytest.approx(2 * 1.25 ** 0.4 * 1.4716, rel=1e-4)  # int_0^1 dx/sqrt(1 - x^2.5)
+    assert o["restitution"] == pytest.approx(1.0, abs=1e-9)
+    meff, reff, y43, vn = 0.157, 0.005, 3.663e8, 0.01
+    und = I.hertz_undamped(meff, reff, y43, vn)
+    assert und["contact time"] == pytest.approx(2.9432 * und["peak overlap"] / vn, rel=1e-4)
+    K = y43 * math.sqrt(reff)
+    for alpha in (0.0, 0.9):
+        an = I.normal_hertz(meff, reff, y43, vn, alpha)
+        tc, peak, e = _rk4_hertz(meff, K, alpha * math.sqrt(meff * K), vn, an["contact time"] / 20000)
+        assert tc == pytest.approx(an["contact time"], rel=1e-5)
+        assert peak == pytest.approx(an["peak overlap"], rel=1e-5)  # RK4 order drops at delta^(1/4)
+        assert e == pytest.approx(an["restitution"], rel=1e-4)
+
+
+def test_liggghts_hertz_damping_gives_the_requested_restitution():
+    """LIGGGHTS' 2 sqrt(5/6) beta(e) damping is alpha = -sqrt(5) beta(e) in H4; integrated
+    independently it returns e (speed-free); LAMMPS' tsuji polynomial gives 0.4396 for DAMP 0.3."""
+    from gransim.contacts.material import beta_liggghts, tsuji_alpha_lammps
+
+    for e in (0.3, 0.5, 0.8, 0.95):
+        alpha = -math.sqrt(5) * beta_liggghts(e)
+        assert I.hertz_scaled_ode(alpha)["restitution"] == pytest.approx(e, rel=1e-8)
+    e_tsuji = I.hertz_scaled_ode(tsuji_alpha_lammps(0.3))["restitution"]
+    assert e_tsuji == pytest.approx(0.4396, abs=1e-4)
+    meff, K, vn = 0.157, 2.59e7, 0.01
+    _, _, e = _rk4_hertz(meff, K, tsuji_alpha_lammps(0.3) * math.sqrt(meff * K), vn, 1e-7)
+    assert e == pytest.approx(e_tsuji, rel=1e-4)
+
+
+def test_hertz_stick_reference_limits():
+    """H5: for kt0 -> 0 the slip is unchanged (s'/s0 -> 1); the ratio does not depend on s0
+    (linear) and equals an RK4 integration of the same pair of equations."""
+    meff, reff, y43, vn = 0.3137, 0.0096, 3.663e8, 0.01
+    assert I.hertz_stick(meff, reff, y43, 1e-6, vn) == pytest.approx(1.0, abs=1e-9)
+    ratio = I.hertz_stick(meff, reff, y43, 4.52e8, vn)
+    K = y43 * math.sqrt(reff)
+
+    def f(y):
+        d = max(y[0], 0.0)
+        return [y[1], -K * d ** 1.5 / meff, y[3], -3 * 4.52e8 * math.sqrt(reff * d) * y[2] / meff]
+
+    y, h = [0.0, vn, 0.0, 1.0], 1e-7
+    while True:
+        k1 = f(y)
+        k2 = f([a + h / 2 * b for a, b in zip(y, k1)])
+        k3 = f([a + h / 2 * b for a, b in zip(y, k2)])
+        k4 = f([a + h * b for a, b in zip(y, k3)])
+        yn = [a + h / 6 * (b1 + 2 * b2 + 2 * b3 + b4) for a, b1, b2, b3, b4 in zip(y, k1, k2, k3, k4)]
+        if yn[0] <= 0 and y[0] > 0 and y[1] < 0:
+            break
+        y = yn
+    assert yn[3] == pytest.approx(ratio, abs=1e-5)
+
+
+def _perturbed(monkeypatch, fn):
+    orig = I.native_law
+    monkeypatch.setattr(I, "native_law", lambda law, fl: fn(orig(law, fl)))
+
+
+def test_hertz_scenes_pass_bit_for_bit_on_stored_outputs(tmp_path, monkeypatch):
+    names = [s.name for s in I.hertz_scenes()]
+    _only(monkeypatch, *names)
+    res = I.impacts(_ctx(tmp_path))
+    assert res.passed, [(r.case, r.quantity, r.metric, r.value) for r in _failed(res)]
+    for n in names:
+        pos = [r for r in res.checks if r.case.startswith(f"impacts/{n}/") and r.quantity == "positions"]
+        assert pos and all(r.value == 0.0 for r in pos), n
+    assert {r.pair for r in res.checks} >= {"native-liggghts", "native-lammps"}
+
+
+def test_fails_when_hertz_restitution_formula_off_by_one_percent(tmp_path, monkeypatch):
+    """LIGGGHTS: beta computed from 0.99 e (the law's restitution off by 1%) -> the restitution
+    record fails; LAMMPS tsuji: the polynomial evaluated at 1.01 DAMP -> the same."""
+    from gransim.contacts.material import beta_liggghts, tsuji_alpha_lammps
+
+    _only(monkeypatch, "hertz-liggghts-e0.5", "hertz-granular-tsuji0.3")
+
+    def off(law):
+        if type(law).__name__ == "HertzHistoryLiggghts":
+            return law._replace(betaeff=beta_liggghts(0.99 * 0.5))
+        return law._replace(damp=tsuji_alpha_lammps(1.01 * 0.3))
+
+    _perturbed(monkeypatch, off)
+    res = I.impacts(_ctx(tmp_path))
+    bad = [r for r in _failed(res, "restitution") if r.pair == ""]
+    assert {r.case.split("/")[1] for r in bad} == {"hertz-liggghts-e0.5", "hertz-granular-tsuji0.3"}
+
+
+@pytest.mark.parametrize("scene, field", [("hertz-liggghts-stick", "geff"), ("hertz-lammps-stick", "kt"),
+                                          ("hertz-granular-stick", "kt0")])
+def test_fails_when_mindlin_stiffness_off_by_one_percent(tmp_path, monkeypatch, scene, field):
+    _only(monkeypatch, scene)
+    _perturbed(monkeypatch, lambda law: law._replace(**{field: 1.01 * getattr(law, field)}))
+    res = I.impacts(_ctx(tmp_path))
+    bad = [r for r in _failed(res, "exit slip (stick)") if r.pair == ""]
+    assert len(bad) == 3
+
+
+def test_fails_when_hertz_modulus_off_by_one_percent(tmp_path, monkeypatch):
+    _only(monkeypatch, "hertz-liggghts")
+    _perturbed(monkeypatch, lambda law: law._replace(yeff=1.01 * law.yeff))
+    res = I.impacts(_ctx(tmp_path))
+    assert [r for r in _failed(res, "contact time") if r.pair == "" and r.case.endswith(("/disks", "/wall"))]
+
+
+def test_hertz_laws_refuse_the_other_code(tmp_path):
+    from gransim.errors import InputError
+    from reference_runs.decks.impact import HertzHistoryLammpsLaw, HertzLiggghtsLaw
+
+    with pytest.raises(InputError, match="only liggghts"):
+        HertzLiggghtsLaw(5e8, 0.3).deck_lines("lammps")
+    with pytest.raises(InputError, match="only lammps"):
+        HertzHistoryLammpsLaw(5e8, 0.3).deck_lines("liggghts")
+    with pytest.raises(InputError, match="youngs_modulus"):
+        HertzLiggghtsLaw(5e10, 0.3)

@@ -9,8 +9,10 @@ a disk of 25 times the radius (625 times the mass): every formula below is writt
 of arbitrary masses, so the finite "wall" mass is exact, not an approximation.
 
 Each *scene* (one job per code) is a set of independent impacts sharing one contact law (the law is
-a parameter of the scene: :class:`reference_runs.decks.impact.HookeLaw` today). Each impact is
-run by the native engine in both flavours (LIGGGHTS' and LAMMPS' arithmetic), by LIGGGHTS and by
+a parameter of the scene: :class:`reference_runs.decks.impact.HookeLaw` for both codes, the Hertz
+laws ``HertzLiggghtsLaw``, ``HertzHistoryLammpsLaw``, ``HertzGranularLammpsLaw`` for one code
+each). Each impact is run by the native engine in the arithmetic of each code that has the law
+(the Hooke scenes: both flavours), by LIGGGHTS and/or by
 LAMMPS (live, or their stored outputs ``reference_runs/stored/impacts-<code>/<scene>/``), and, to
 measure the time-step error, by the native engine at dt/2.
 
@@ -52,6 +54,36 @@ w_td = w_t sqrt(1 - zeta_t^2); J = m_eff (s0 - s')/3 then gives spins and veloci
 finite mu and Psi1 < 6 (microslip) there is no closed form for the discrete cap: those impacts are
 reported beside the rigid-body limit (info) and checked against the Coulomb bound |F_t| <= mu |F_n|
 at every step.
+
+Hertz-Mindlin scenes (one code each: LIGGGHTS ``gran model hertz tangential history``, LAMMPS
+``gran/hertz/history`` with KN = 4/3 Y*, KT = 8 G*, LAMMPS ``granular hertz/material ...
+tangential mindlin NULL``; both codes apply the sphere law to the disks, docs/laws.md "2D"). With
+K = 4/3 Y* sqrt(R*) and m* delta'' = -K delta^(3/2) (Hertz 1882; Johnson, *Contact Mechanics*
+1985, eq (4.23)), energy conservation gives, for an undamped impact at v_n,
+
+    delta_max = (5 m* v_n^2/(4 K))^(2/5),  F_max = K delta_max^(3/2)                          (H1, H2)
+    t_c = 2 (delta_max/v_n) int_0^1 dx/sqrt(1 - x^(5/2)) = 2 (delta_max/v_n) (2/5) B(2/5, 1/2)
+        = 2.9432 delta_max/v_n,  e = 1,  int F_n dt = 2 m* v_n                               (H3)
+
+(the classical sphere results: nothing changes for disks except m* = the disk masses). Damping
+of LIGGGHTS' hertz, -2 sqrt(5/6) beta sqrt(2 Y* a m*) v_n = -sqrt(5) beta sqrt(m* K) delta^(1/4)
+v_n, and of LAMMPS' tsuji, alpha(DAMP) sqrt(m* K) delta^(1/4) v_n (pair_granular.cpp:363-373,
+987-991), is the same form; with delta = D x, t = (D/v_n) tau, D = (m* v_n^2/K)^(2/5):
+
+    x'' + alpha x^(1/4) x' + x^(3/2) = 0,  x(0) = 0, x'(0) = 1                               (H4)
+
+(Tsuji, Tanaka & Ishida, Powder Technol. 71, 1992): the restitution depends on alpha alone (no
+speed). It has no closed form: e, t_c, delta_max, F_max of a damped scene are the DOP853
+integral of (H4) (rtol 1e-12), an independent computation. LIGGGHTS (alpha = -sqrt(5) beta(e))
+is judged against the requested e (H4 returns it to 1e-11); LAMMPS tsuji against H4 at
+alpha(DAMP): 0.43960 for DAMP = 0.3 (the polynomial is not the inverse of H4: docs/laws.md).
+Oblique impacts (undamped): the rigid-body limit (5)-(6) with P = 2 m* v_n holds in gross
+sliding (Psi1 >= 6: the cap mu F_n acts from the first step because 6 (G*/Y*) s0/v_n > mu,
+Mindlin's initial ratio of the spring force to F_n, and the slip never reverses). Sticking
+(mu = 1e3, undamped): xi'' = -(3/m*) 8 G* sqrt(R* delta(t)) xi (both codes keep xi when delta
+changes, F_t = -k_t(delta) xi; Mindlin 1949; Di Renzo & Di Maio 2004, eq (13)), released at
+delta = 0 (H5): integrated with (H1) by DOP853 (no closed form: k_t varies through the impact);
+1% in k_t moves s'/s0 by 2.1e-2.
 
 What is not exact: the lever arm (LIGGGHTS r - delta/2, LAMMPS r: relative O(delta/r) = 4e-5 here),
 the rotation of the normal during contact (O(v_t t_c/(r1 + r2)) <= 6e-5 rad) and the time step
@@ -113,7 +145,43 @@ TOL = {
     "coulomb bound": (1.0e-9, ("max over contact frames of |F_t|/(mu |F_n|) - 1 (instantaneous normal): the cap is exact "
                               "in both codes")),
 }
+#: Hertz scenes (V_H = 0.01 m/s, t_c = 840-970 steps): the time-step error at DT, measured by halving dt
+#: (docs/impacts.md, "Measured"), with a margin of about 3
+TOL_HERTZ = {
+    "contact time": (1.5e-3, (
+        "normal: time-step error <= 3.4e-4 (damped, order 0.9), 7e-7 undamped (order 2); oblique: "
+        "the rotation of the normal during a 4.8e-3 s contact (v_t t_c/(r1 + r2) = 1.8e-4 rad), "
+        "dt-independent, <= 4.0e-4 (85 deg); 1% stiffness changes it by 4e-3")),
+    "restitution": (1.5e-3, (
+        "time-step error <= 4.1e-4 (damped, DAMP 0.3), 6e-9 undamped; oblique <= 5.8e-5 "
+        "(geometric); a restitution formula off by 1% changes it by 1e-2")),
+    "peak overlap": (3.0e-3, (
+        "time-step error <= 4.9e-4 (damped), 6e-7 undamped; oblique <= 9.5e-4 (geometric, 85 deg)")),
+    "peak force": (4.0e-3, (
+        "time-step error <= 4.0e-4 (damped), 9e-7 undamped; oblique <= 1.4e-3 (geometric, 85 deg)")),
+    "friction impulse": (5.0e-3, (
+        "gross sliding: mu int |F_n| dt with P = 2 m* v_n; measured <= 1.7e-3 (85 deg), "
+        "dt-independent: the normal impulse of the curved path")),
+    "exit slip": (1.0e-3, (
+        "|s' - s'_rigid|/|s0|: measured <= 3.4e-4, dt-independent: the lever arm r - delta/2 "
+        "(delta/r = 1.6e-3) and the rotation of the normal")),
+    "exit spin": (1.0e-3, "r1 |w1' - w1'_rigid|/|s0|: measured <= 3.4e-4 (as the exit slip)"),
+    "friction impulse (stick)": (2.0e-2, (
+        "sticking Mindlin oscillator (reference integrated): measured <= 7.2e-3 at dt = 5e-6 s "
+        "(erratic order: k_t ~ sqrt(delta) ends the contact with a square-root singularity); "
+        "1% Mindlin stiffness changes it by 6.7e-2")),
+    "exit slip (stick)": (6.0e-3, (
+        "|s'/s0 - s'/s0 integrated|: measured <= 2.2e-3 at dt = 5e-6 s, 1.9e-3 at dt/2; "
+        "1% Mindlin stiffness changes it by 2.1e-2")),
+    "exit spin (stick)": (4.0e-3, "r1 |w1' - w1'_reference|/|s0|: measured <= 1.4e-3 at dt = 5e-6 s"),
+    "coulomb bound": TOL["coulomb bound"],
+}
 BIT_POS, BIT_REL = 1e-10, 1e-8
+
+
+def tolerances(scene) -> dict:
+    """The tolerance table of ``scene``: :data:`TOL_HERTZ` for a Hertz law, :data:`TOL` otherwise."""
+    return TOL_HERTZ if hasattr(scene.law, "hertz") else TOL
 
 
 # ====================================================================== analytic solutions
@@ -172,6 +240,105 @@ def stick_ratio(meff: float, kt: float, gamma_t: float, tc: float) -> float:
         raise ValueError(f"zeta_t = {zt:.4g}: eq (8) needs an underdamped tangential oscillator")
     wtd = wt * math.sqrt(1.0 - zt * zt)
     return math.exp(-zt * wt * tc) * (math.cos(wtd * tc) - zt / math.sqrt(1.0 - zt * zt) * math.sin(wtd * tc))
+
+
+# ---------------------------------------------------------------------- Hertz-Mindlin
+def hertz_undamped(meff: float, reff: float, y43: float, vn: float) -> dict:
+    """Undamped Hertz normal impact of two bodies (H1-H3 of the module docstring).
+
+    Parameters: meff (kg), reff = R* (m), y43 = 4/3 Y* (Pa), vn (m/s > 0). With K = y43 sqrt(R*):
+    peak overlap (5 m* vn^2/(4 K))^(2/5) (m), peak force K delta_max^(3/2) (N), contact time
+    2 (delta_max/vn) (2/5) B(2/5, 1/2) = 2.9432 delta_max/vn (s), restitution 1, impulse factor
+    int F_n dt/(m* vn) = 2."""
+    K = y43 * math.sqrt(reff)
+    dmax = (5.0 * meff * vn * vn / (4.0 * K)) ** 0.4
+    beta = math.gamma(0.4) * math.gamma(0.5) / math.gamma(0.9)
+    return {"peak overlap": dmax, "peak force": K * dmax ** 1.5, "contact time": 2.0 * dmax / vn * 0.4 * beta,
+            "restitution": 1.0, "impulse factor": 2.0}
+
+
+def hertz_scaled_ode(alpha: float, rtol: float = 1e-12) -> dict:
+    """The dimensionless damped Hertz impact x'' + alpha x^(1/4) x' + x^(3/2) = 0, x(0) = 0,
+    x'(0) = 1 (H4: delta = D x, t = (D/vn) tau, D = (m* vn^2/K)^(2/5), force K D^(3/2) f with
+    f = x^(3/2) + alpha x^(1/4) x'), integrated by DOP853 (scipy) to the return to x = 0 (the
+    codes end the contact there: the damped force may be attractive before it).
+
+    Returns the contact time tau_c, the peak overlap x_max, the peak force f_max, the restitution
+    -x'(tau_c) and the impulse factor int |f| dtau, all dimensionless (alpha >= 0)."""
+    from scipy.integrate import solve_ivp
+
+    if not (math.isfinite(alpha) and alpha >= 0.0):
+        raise ValueError(f"alpha: expected a damping coefficient >= 0, got {alpha!r}")
+
+    def rhs(t, y):
+        x = max(y[0], 0.0)
+        f = x ** 1.5 + alpha * x ** 0.25 * y[1]
+        return [y[1], -f, abs(f)]
+
+    def back(t, y):
+        return y[0]
+
+    back.terminal, back.direction = True, -1
+    sol = solve_ivp(rhs, (0.0, 20.0), [0.0, 1.0, 0.0], method="DOP853", rtol=rtol, atol=1e-14,
+                    events=back, dense_output=True, first_step=1e-6)
+    tc = float(sol.t_events[0][0])
+    yc = sol.y_events[0][0]
+    ts = np.linspace(0.0, tc, 20001)
+    y = sol.sol(ts)
+    f = np.clip(y[0], 0, None) ** 1.5 + alpha * np.clip(y[0], 0, None) ** 0.25 * y[1]
+    k = int(np.argmax(y[0]))
+    from scipy.optimize import minimize_scalar
+
+    xm = -minimize_scalar(lambda t: -sol.sol(t)[0], bounds=(ts[max(k - 1, 0)], ts[min(k + 1, len(ts) - 1)]),
+                          method="bounded", options={"xatol": 1e-13}).fun
+    kf = int(np.argmax(f))
+
+    def force(t):
+        yy = sol.sol(t)
+        x = max(yy[0], 0.0)
+        return x ** 1.5 + alpha * x ** 0.25 * yy[1]
+
+    fm = -minimize_scalar(lambda t: -force(t), bounds=(ts[max(kf - 1, 0)], ts[min(kf + 1, len(ts) - 1)]),
+                          method="bounded", options={"xatol": 1e-13}).fun
+    return {"tau_c": tc, "x_max": float(xm), "f_max": float(fm), "restitution": float(-yc[1]),
+            "impulse": float(yc[2])}
+
+
+def normal_hertz(meff: float, reff: float, y43: float, vn: float, alpha: float = 0.0) -> dict:
+    """Hertz normal impact (undamped: closed forms :func:`hertz_undamped`; damped with the
+    coefficient alpha sqrt(m* y43 a) of LIGGGHTS' hertz and LAMMPS' tsuji: :func:`hertz_scaled_ode`
+    scaled back, H4). Keys as :func:`normal_linear` plus "peak force" (N) and "source"."""
+    if alpha == 0.0:
+        return dict(hertz_undamped(meff, reff, y43, vn), source="closed form")
+    K = y43 * math.sqrt(reff)
+    D = (meff * vn * vn / K) ** 0.4
+    o = hertz_scaled_ode(alpha)
+    return {"peak overlap": D * o["x_max"], "peak force": K * D ** 1.5 * o["f_max"],
+            "contact time": D / vn * o["tau_c"], "restitution": o["restitution"],
+            "impulse factor": o["impulse"], "source": "integrated (DOP853)"}
+
+
+def hertz_stick(meff: float, reff: float, y43: float, kt0: float, vn: float, rtol: float = 1e-12) -> float:
+    """s'/s0 of an undamped sticking Hertz-Mindlin impact (H5): delta'' = -K delta^(3/2)/m*,
+    xi'' = -(3/m*) kt0 sqrt(R* delta) xi (F_t = -k_t(delta) xi: both codes keep xi when delta
+    changes), xi(0) = 0, xi'(0) = s0, released at the return to delta = 0; linear in s0.
+    Integrated by DOP853 (scipy): no closed form (k_t varies through the impact)."""
+    from scipy.integrate import solve_ivp
+
+    K = y43 * math.sqrt(reff)
+
+    def rhs(t, y):
+        d = max(y[0], 0.0)
+        return [y[1], -K * d ** 1.5 / meff, y[3], -3.0 * kt0 * math.sqrt(reff * d) * y[2] / meff]
+
+    def back(t, y):
+        return y[0]
+
+    back.terminal, back.direction = True, -1
+    tc = hertz_undamped(meff, reff, y43, vn)["contact time"]
+    sol = solve_ivp(rhs, (0.0, 2.0 * tc), [0.0, vn, 0.0, 1.0], method="DOP853", rtol=rtol, atol=1e-16,
+                    events=back, first_step=tc * 1e-6)
+    return float(sol.y_events[0][0][3])
 
 
 # ====================================================================== scenes
@@ -276,7 +443,63 @@ def scenes(suite: str = "default") -> list[Scene]:
     imps.append(_head_on("spin-disks", "stick", R, R, V, w1=0.15, w2=0.15, note="two spinning disks, sticking"))
     out.append(Scene("stick", law, tuple(imps), ("default", "full"),
                      f"sticking contacts (mu = 1e3), zeta = {zs} (wall), gamma_t = gamma_n"))
+    out += hertz_scenes()
     return [s for s in out if suite in s.suites]
+
+
+E_H, NU_H = 5.0e8, 0.3    # Young's modulus (Pa; inside LIGGGHTS' SI limits) and Poisson's ratio
+V_H = 0.01                # impact speed of the Hertz scenes (m/s): t_c ~ 4.2e-3 to 4.8e-3 s = 840-970 steps
+ANGLES_H = (30.0, 60.0, 70.0, 80.0, 85.0)
+MU_STICK = 1.0e3
+
+
+def hertz_scenes() -> list[Scene]:
+    """The Hertz-Mindlin scenes, one code each (docs/impacts.md): per law an undamped scene
+    (normal, oblique, spinning), a sticking one (mu 1e3) and a damped normal one (LIGGGHTS e = 0.5,
+    LAMMPS tsuji DAMP = 0.3)."""
+    from reference_runs.decks.impact import (
+        HertzGranularLammpsLaw,
+        HertzHistoryLammpsLaw,
+        HertzLiggghtsLaw,
+    )
+
+    laws = {
+        "hertz-liggghts": lambda mu, damped: HertzLiggghtsLaw(E_H, NU_H, 0.5 if damped else 1.0, mu),
+        "hertz-lammps": lambda mu, damped: HertzHistoryLammpsLaw(E_H, NU_H, mu),
+        "hertz-granular": lambda mu, damped: (
+            HertzGranularLammpsLaw(E_H, NU_H, 0.3, mu, 0.0, "tsuji") if damped
+            else HertzGranularLammpsLaw(E_H, NU_H, 0.0, mu)),
+    }
+    normal = (_head_on("disks", "normal", R, R, V_H, note="Chung & Ooi test 1 (Hertz: equal disks)"),
+              _head_on("wall", "normal", R, R_WALL, V_H, note="Chung & Ooi tests 2-3 (Hertz: wall)"))
+    out = []
+    for name, make in laws.items():
+        imps = list(normal)
+        for a in ANGLES_H:
+            vn, vt = V_H * math.cos(math.radians(a)), V_H * math.sin(math.radians(a))
+            kind = "sliding" if vt / (MU_OBLIQUE * vn) >= 6.0 else "microslip"
+            imps.append(_head_on(f"angle{a:g}", kind, R, R_WALL, vn, vt,
+                                 note=f"Chung & Ooi test 4 (Hertz): {a:g} deg"))
+        for psi in (8.0, 16.0):
+            imps.append(_head_on(f"spin-wall{psi:g}", "sliding", R, R_WALL, V_H,
+                                 w1=psi * MU_OBLIQUE * V_H / R,
+                                 note=f"Chung & Ooi test 6 (Hertz): Psi1 = {psi:g}"))
+        out.append(Scene(name, make(MU_OBLIQUE, False), tuple(imps),
+                         ("quick", "default", "full") if name == "hertz-liggghts" else ("default", "full"),
+                         f"{name}: undamped, mu = {MU_OBLIQUE}: normal, oblique and spinning impacts"))
+        imps = []
+        for a in (20.0, 45.0):
+            vn, vt = V_H * math.cos(math.radians(a)), V_H * math.sin(math.radians(a))
+            imps.append(_head_on(f"angle{a:g}", "stick", R, R_WALL, vn, vt,
+                                 note=f"{a:g} deg, sticking (mu 1e3)"))
+        imps.append(_head_on("spin-wall", "stick", R, R_WALL, V_H, w1=3.0, note="spinning disk, sticking"))
+        out.append(Scene(f"{name}-stick", make(MU_STICK, False), tuple(imps), ("default", "full"),
+                         f"{name}: undamped, sticking (mu 1e3): the Mindlin stiffness 8 G* a"))
+        tag = "e0.5" if name == "hertz-liggghts" else ("tsuji0.3" if name == "hertz-granular" else None)
+        if tag:
+            out.append(Scene(f"{name}-{tag}", make(MU_OBLIQUE, True), normal, ("default", "full"),
+                             f"{name}: damped ({tag}), normal impacts"))
+    return out
 
 
 def layout(scene: Scene, dt: float = DT):
@@ -298,7 +521,7 @@ def layout(scene: Scene, dt: float = DT):
         vel += [im.v1, im.v2]
         spin += [im.w1, im.w2]
         pairs.append((2 * k, 2 * k + 1))
-        an = normal_linear(_meff(im.r1, im.r2), scene.law.kn, scene.law.gamma_n, vn)
+        an = normal_answers(scene.law, im)
         tmax = max(tmax, GAP_SAMPLES * EVERY * DT + an["contact time"])
     every = round(EVERY * DT / dt)
     nsteps = (math.ceil(tmax / (every * dt)) + 3) * every
@@ -307,10 +530,30 @@ def layout(scene: Scene, dt: float = DT):
     return p, np.array(vel, float), np.array(spin, float), nsteps, pairs
 
 
+def normal_answers(law, im: Impact) -> dict:
+    """The normal closed forms of impact ``im`` under ``law`` (linear: :func:`normal_linear`;
+    Hertz: :func:`normal_hertz` with the law's ``hertz()`` constants)."""
+    m1, m2 = _mass(im.r1), _mass(im.r2)
+    meff = m1 * m2 / (m1 + m2)
+    vn = im.v1[0] - im.v2[0]
+    if not hasattr(law, "hertz"):
+        return dict(normal_linear(meff, law.kn, law.gamma_n, vn), source="closed form")
+    h = law.hertz()
+    if h["damping"] not in ("none", "tsuji"):
+        raise ValueError(f"{law.name}: no closed form for damping {h['damping']!r}")
+    return normal_hertz(meff, im.r1 * im.r2 / (im.r1 + im.r2), h["y43"], vn, h["alpha"])
+
+
 # ====================================================================== runs
 def native_settings(law, dt: float, flavour: str):
     """The native engine's settings for ``law`` (the tests perturb this hook)."""
     return law.dem_settings(dt, SKIN, flavour)
+
+
+def native_law(law, flavour: str):
+    """The native engine's plug-in law for ``law`` (None: the Hooke law of the settings; the tests
+    perturb this hook)."""
+    return law.native_law(flavour)
 
 
 def run_native(scene: Scene, flavour: str, dt: float = DT) -> dict:
@@ -320,7 +563,8 @@ def run_native(scene: Scene, flavour: str, dt: float = DT) -> dict:
 
     p, v, w, n, _ = layout(scene, dt)
     every = round(EVERY * DT / dt)
-    eng = DEMEngine(p, native_settings(scene.law, dt, flavour), velocities=v, spins=w)
+    eng = DEMEngine(p, native_settings(scene.law, dt, flavour), velocities=v, spins=w,
+                    law=native_law(scene.law, flavour))
     ld = Loading()
     frames = {0: _frame(eng)}
     for k in range(every, n + 1, every):
@@ -383,8 +627,8 @@ def measure(frames: dict, scene: Scene, pairs, dt: float) -> list[dict]:
     the largest sampled overlap), exit slip and spin, friction impulse m1 |dv1.t|, and the largest
     |F_t|/(mu |F_n|) - 1 over the contact frames. NaN where the contact did not start or end
     between frames."""
-    keys = ("contact time", "restitution", "peak overlap", "exit slip", "w1'", "friction impulse", "coulomb bound",
-            "s0")
+    keys = ("contact time", "restitution", "peak overlap", "peak force", "exit slip", "w1'",
+            "friction impulse", "coulomb bound", "s0")
     if len(frames) < 4:
         return [{k: math.nan for k in keys} for _ in scene.impacts]
     steps = np.array(sorted(frames))
@@ -423,6 +667,10 @@ def measure(frames: dict, scene: Scene, pairs, dt: float) -> list[dict]:
         nn = d[a:b + 1] / dist[a:b + 1, None]
         fn = np.einsum("ij,ij->i", F[a:b + 1, i], nn)
         ft = F[a:b + 1, i, 1] * nn[:, 0] - F[a:b + 1, i, 0] * nn[:, 1]
+        kf = int(np.argmax(-fn))
+        if 0 < kf < len(fn) - 1:
+            f0, f1, f2 = -fn[kf - 1], -fn[kf], -fn[kf + 1]
+            q["peak force"] = float(f1 - (f2 - f0) ** 2 / (8 * (f2 - 2 * f1 + f0)))
         mu = scene.law.mu
         q["coulomb bound"] = float(np.max(np.abs(ft) / (mu * np.abs(fn)))) - 1.0 if mu > 0 else math.nan
         out.append(q)
@@ -435,7 +683,10 @@ def analytic(scene: Scene, im: Impact) -> dict:
     m1, m2 = _mass(im.r1), _mass(im.r2)
     meff = m1 * m2 / (m1 + m2)
     vn = im.v1[0] - im.v2[0]
-    nl = normal_linear(meff, law.kn, law.gamma_n, vn)
+    nl = normal_answers(law, im)
+    if isinstance(getattr(law, "restitution", None), float):  # LIGGGHTS hertz: e as requested
+        nl["restitution (ODE)"] = nl["restitution"]
+        nl["restitution"] = law.restitution
     s0 = (im.v1[1] - im.v2[1]) + im.r1 * im.w1 + im.r2 * im.w2
     P = nl["impulse factor"] * meff * vn
     out = dict(nl, s0=s0, P=P)
@@ -444,7 +695,13 @@ def analytic(scene: Scene, im: Impact) -> dict:
         out.update(rb)
         out["w1'"] = im.w1 + rb["dw1"]
     elif im.kind == "stick":
-        ratio = stick_ratio(meff, law.kt, law.gamma_t, nl["contact time"])
+        if hasattr(law, "hertz"):
+            h = law.hertz()
+            if h["damping"] != "none":
+                raise ValueError(f"{scene.name}: the sticking Hertz reference is undamped")
+            ratio = hertz_stick(meff, im.r1 * im.r2 / (im.r1 + im.r2), h["y43"], h["kt0"], vn)
+        else:
+            ratio = stick_ratio(meff, law.kt, law.gamma_t, nl["contact time"])
         J = meff * abs(s0) * (1.0 - ratio) / 3.0
         te = tangential_exit(m1, m2, im.r1, im.r2, s0, J)
         out.update(te)
@@ -458,6 +715,8 @@ def errors(q: dict, an: dict, im: Impact) -> dict:
     e = {"contact time": abs(q["contact time"] / an["contact time"] - 1.0),
          "restitution": abs(q["restitution"] / an["restitution"] - 1.0),
          "peak overlap": abs(q["peak overlap"] / an["peak overlap"] - 1.0)}
+    if "peak force" in an:
+        e["peak force"] = abs(q["peak force"] / an["peak force"] - 1.0)
     if im.kind in ("sliding", "stick"):
         s0 = abs(an["s0"])
         sfx = "" if im.kind == "sliding" else " (stick)"
@@ -505,25 +764,37 @@ def impacts(ctx: Context) -> CaseResult:
         "time pi/w_d, restitution exp(-pi zeta/sqrt(1 - zeta<sup>2</sup>)), peak overlap, the rigid-body limit of "
         "gross sliding (Psi1 &ge; 6 for disks) and the sticking tangential oscillator. Each analytic record's value is "
         "the largest error over the implementations; its metric lists the analytic value and each one's value.")
-    res.declare("native-liggghts", "bit for bit: every step of every impact (native flavour liggghts)")
-    res.declare("native-lammps", "bit for bit: every step of every impact (native flavour lammps)")
-    res.declare("liggghts-lammps", "the codes' answers differ by at most the sum of their analytic tolerances (both "
-                                   "lie within them); their difference equals the native flavours' difference")
+    res.declare("native-liggghts", "bit for bit: every step of every impact of the Hooke scenes and "
+                                   "of LIGGGHTS' hertz scenes (native flavour liggghts)")
+    res.declare("native-lammps", "bit for bit: every step of every impact of the Hooke scenes and of "
+                                 "LAMMPS' gran/hertz/history and granular hertz/material scenes "
+                                 "(native flavour lammps)")
+    all_scenes = scenes(ctx.suite)
+    if any(len(s.law.engines) == 2 for s in all_scenes):
+        res.declare("liggghts-lammps", "Hooke scenes: the codes' answers differ by at most the sum of "
+                                       "their analytic tolerances (both lie within them); their "
+                                       "difference equals the native flavours' difference")
+    else:
+        res.skip_pair("liggghts-lammps", "only single-code (Hertz) scenes selected: each is judged "
+                                         "against its own closed forms")
     table_rows, dt_rows = [], []
     cross = {}
-    for sc in scenes(ctx.suite):
+    nat_key = {"liggghts": "native", "lammps": "native-lammps"}
+    for sc in all_scenes:
         _, _, _, nsteps, pairs = layout(sc)
         lab = f"impacts/{sc.name}"
-        got = {"native": run_native(sc, "liggghts"), "native-lammps": run_native(sc, "lammps")}
-        half = run_native(sc, "liggghts", DT / 2)
-        for code in CODES:
+        codes = tuple(c for c in CODES if c in sc.law.engines)
+        ref = nat_key[codes[0]]
+        tols = tolerances(sc)
+        got = {nat_key[c]: run_native(sc, c) for c in codes}
+        half = run_native(sc, codes[0], DT / 2)
+        for code in codes:
             frames, job, live = run_code(ctx, sc, code)
             pair = f"native-{code}"
             recs = [] if live else [stored_job_record(f"{lab}/{code}", job)]
             recs.append(evidence(f"{lab}/{code}", f"{CODE[code]} frames", list(range(0, nsteps + 1, EVERY)),
                                   list(frames)))
-            nat = got["native" if code == "liggghts" else "native-lammps"]
-            recs += bitwise_records(f"{lab}/{code}", nat, frames, CODE[code])
+            recs += bitwise_records(f"{lab}/{code}", got[nat_key[code]], frames, CODE[code])
             res.records += in_pair(recs, pair)
             got[code] = frames
             if not live:
@@ -535,8 +806,8 @@ def impacts(ctx: Context) -> CaseResult:
             an = analytic(sc, im)
             errs = {who: errors(meas[who][k], an, im) for who in got}
             eh = errors(m_half[k], an, im)
-            for qn in errs["native"]:
-                tol, why = TOL[qn]
+            for qn in errs[ref]:
+                tol, why = tols[qn]
                 vals = {who: errs[who][qn] for who in got}
                 val = max(vals.values(), key=lambda x: math.inf if not math.isfinite(x) else x)
                 src = qn.replace(" (stick)", "")
@@ -544,35 +815,46 @@ def impacts(ctx: Context) -> CaseResult:
                     src = "w1'"
                 aval = an.get(src, math.nan)
                 shown = ", ".join(f"{w} {_fmt(meas[w][k][src])}" for w in got)
-                metric = (f"error ({'analytic' if qn != 'coulomb bound' else 'bound'} "
+                kind = an.get("source", "analytic") if src in ("contact time", "peak overlap", "peak force",
+                                                               "restitution") else "analytic"
+                if src == "restitution" and "restitution (ODE)" in an:
+                    kind = f"requested e; DOP853 gives {an['restitution (ODE)']:.10g}"
+                if im.kind == "stick" and hasattr(sc.law, "hertz") and src != qn:
+                    kind = "Mindlin oscillator integrated (DOP853)"
+                metric = (f"error ({kind if qn != 'coulomb bound' else 'bound'} "
                           f"{_fmt(aval) if qn != 'coulomb bound' else 'mu |F_n|'}; {shown})")
                 res.records.append(compare(f"{lab}/{im.label}", qn, metric, val, tol, why))
-                e1, e2 = errs["native"][qn], eh[qn]
+                e1, e2 = errs[ref][qn], eh[qn]
                 w_ = worst.setdefault(qn, [0.0, 0.0])
                 if math.isfinite(e1) and math.isfinite(e2):
                     w_[0], w_[1] = max(w_[0], e1), max(w_[1], e2)
-                cross.setdefault((sc.name, qn), []).append(
-                    (meas["liggghts"][k][src], meas["lammps"][k][src], meas["native"][k][src],
-                     meas["native-lammps"][k][src], tol))
+                if len(codes) == 2:
+                    cross.setdefault((sc.name, qn), []).append(
+                        (meas["liggghts"][k][src], meas["lammps"][k][src], meas["native"][k][src],
+                         meas["native-lammps"][k][src], tol))
             if im.kind == "microslip":
                 res.records.append(info(f"{lab}/{im.label}", "exit slip vs rigid-body limit",
                                         f"s'/s0: rigid limit 0 (rolling; Psi1 = {an['psi1']:.3g} < 6); "
                                         + ", ".join(f"{w} {_fmt(meas[w][k]['exit slip'] / an['s0'])}" for w in got),
-                                        meas["liggghts"][k]["exit slip"] / an["s0"],
+                                        meas[codes[0]][k]["exit slip"] / an["s0"],
                                         "microslip: the compliant tangential spring leaves a residual slip the rigid "
                                         "limit has not; no closed form for the discrete cap"))
+
+            def cell(code, key, k=k, meas=meas):
+                return _fmt(meas[code][k][key]) if code in meas else "-"
+
             table_rows.append([sc.name, im.label, im.kind, f"{an['contact time']:.6g}",
-                               _fmt(meas["liggghts"][k]["contact time"]), _fmt(meas["lammps"][k]["contact time"]),
-                               f"{an['restitution']:.6g}", _fmt(meas["liggghts"][k]["restitution"]),
-                               _fmt(meas["lammps"][k]["restitution"]),
-                               _fmt(an.get("exit slip", math.nan)), _fmt(meas["liggghts"][k]["exit slip"]),
-                               _fmt(meas["lammps"][k]["exit slip"])])
+                               cell("liggghts", "contact time"), cell("lammps", "contact time"),
+                               f"{an['restitution']:.6g}", cell("liggghts", "restitution"),
+                               cell("lammps", "restitution"),
+                               _fmt(an.get("exit slip", math.nan)), cell("liggghts", "exit slip"),
+                               cell("lammps", "exit slip")])
         for qn, (e1, e2) in worst.items():
             order = math.log2(e1 / e2) if e1 > 1e-12 and e2 > 0 else math.nan
             res.records.append(info(lab, f"{qn}: time-step order", f"max error {e1:.3g} at dt = {DT:g} s, {e2:.3g} "
                                     f"at dt/2: observed order log2(ratio)", order,
-                                    "native engine (LIGGGHTS arithmetic) at dt and dt/2: the discretisation error "
-                                    "the tolerance covers"))
+                                    f"native engine ({codes[0]} arithmetic) at dt and dt/2: the "
+                                    "discretisation error the tolerance covers"))
             dt_rows.append([sc.name, qn, f"{e1:.3g}", f"{e2:.3g}", _fmt(order)])
     # -- LIGGGHTS vs LAMMPS
     for (name, qn), rows in cross.items():
@@ -600,17 +882,20 @@ def impacts(ctx: Context) -> CaseResult:
     res.tables.append(("Impacts: analytic value and each code's value (contact time s, restitution, exit slip m/s)",
                        ["scene", "impact", "kind", "t_c analytic", "t_c LIGGGHTS", "t_c LAMMPS", "e analytic",
                         "e LIGGGHTS", "e LAMMPS", "s' analytic", "s' LIGGGHTS", "s' LAMMPS"], table_rows))
-    res.tables.append(("Time-step error (native, LIGGGHTS arithmetic): largest error over the scene's impacts",
+    res.tables.append((("Time-step error (native, in the arithmetic of the scene's first code): "
+                        "largest error over the scene's impacts"),
                        ["scene", "quantity", f"dt = {DT:g} s", "dt/2", "order"], dt_rows))
     return res
 
 
 # ====================================================================== stored outputs
-def make_stored(root=None, suite: str = "full", timeout: float = 600.0) -> list[Path]:
-    """Run every scene of ``suite`` in both codes and store the job directories under
-    ``reference_runs/stored/impacts-<code>/<scene>/`` (deck, data, log, dump, manifest) with a
-    README each. Needs ``liggghts`` and ``lmp``."""
+def make_stored(root=None, suite: str = "full", timeout: float = 600.0, names=None) -> list[Path]:
+    """Run the scenes of ``suite`` (only ``names`` if given) in each code that has the scene's law
+    and store the job directories under ``reference_runs/stored/impacts-<code>/<scene>/`` (deck,
+    data, log, dump, manifest), other scene directories kept, with a README listing them all.
+    Needs ``liggghts`` and ``lmp``."""
     import datetime
+    import json
     import shutil
 
     from reference_runs import store
@@ -622,8 +907,9 @@ def make_stored(root=None, suite: str = "full", timeout: float = 600.0) -> list[
     for code in CODES:
         base = root / f"impacts-{code}"
         base.mkdir(parents=True, exist_ok=True)
-        versions = set()
         for sc in scenes(suite):
+            if code not in sc.law.engines or (names is not None and sc.name not in names):
+                continue
             job = base / sc.name
             if job.exists():
                 shutil.rmtree(job)
@@ -632,21 +918,31 @@ def make_stored(root=None, suite: str = "full", timeout: float = 600.0) -> list[
                 res = run_job(Path(tmp) / "job", text, files=files, outputs=(DUMP_NAME,), expected_runs=1,
                               progress=False, timeout=timeout, engine=code, force=True)
                 shutil.copytree(res.job_dir, job)
-            versions.add(str(res.manifest.get("engine_version")) + f" ({res.manifest.get('engine_binary')}, "
-                         f"Debian {res.manifest.get('engine_package')})")
             out.append(job)
+        laws = {s.name: s.law.describe() for s in scenes("full") if code in s.law.engines}
+        rows, versions = [], set()
+        for d in sorted(x for x in base.iterdir() if x.is_dir()):
+            man = json.loads((d / "manifest.json").read_text()) if (d / "manifest.json").exists() else {}
+            versions.add(f"{man.get('engine_version')} ({man.get('engine_binary')}, "
+                         f"Debian {man.get('engine_package')})")
+            rows.append(f"| `{d.name}` | {laws.get(d.name, '?')} | {man.get('end', '?')} |")
         (base / "README.md").write_text(f"""# impacts-{code}: {CODE[code]} outputs of the impact benchmarks
 
-- Case: `validation/cases/impacts.py` (docs/impacts.md), scenes {', '.join(s.name for s in scenes(suite))}:
-  one job directory each (as `reference_runs.runner.run_job` leaves it: deck, `data.impact`,
-  `log.lammps`, `dump.atoms` every step at %.17g, `manifest.json` with SHA-256 of every file).
-- Deck: `reference_runs/decks/impact.py` (`write_impact_deck(..., engine="{code}")`), law
-  `HookeLaw` (LIGGGHTS `hooke/stiffness` + `tangential history`; LAMMPS `gran/hooke/history ... 1`).
+- Case: `validation/cases/impacts.py` (docs/impacts.md): one job directory per scene (as
+  `reference_runs.runner.run_job` leaves it: deck, `data.impact`, `log.lammps`, `dump.atoms` every
+  5 steps at %.17g, `manifest.json` with SHA-256 of every file).
+- Deck: `reference_runs/decks/impact.py` (`write_impact_deck(..., engine="{code}")`), the scene's law:
+
+  | scene | law | finished |
+  |---|---|---|
+{chr(10).join("  " + r for r in rows)}
+
 - Code: {'; '.join(sorted(versions))}, serial.
 - Command: `{'liggghts -in in.liggghts' if code == 'liggghts' else 'lmp -in in.lammps'} -log log.lammps -screen none
   -nocite` in the job directory.
-- Regenerate: `python -c "from validation.cases.impacts import make_stored; make_stored()"`.
-- Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}
+- Regenerate: `python -c "from validation.cases.impacts import make_stored; make_stored()"` (one scene:
+  `make_stored(names=["<scene>"])`).
+- Written: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}
 - Used by: the `impacts` validation case when {CODE[code]} is not installed, and
   tests/validation/test_impacts.py.
 """)
