@@ -57,6 +57,10 @@ from collections import namedtuple
 import numpy as np
 
 from .._numba import njit
+# damping models of pair_style granular (pair_granular.cpp:56 enum order), re-exported: the laws'
+# damping argument
+from .granular import (DAMPING_MASS_VELOCITY, DAMPING_TSUJI, DAMPING_VELOCITY,  # noqa: F401
+                       DAMPING_VISCOELASTIC, damp_normal, spring_dashpot_slider)
 from .laws import register_law
 
 #: floats of per-contact history of every law in this module (the tangential spring xi, m)
@@ -64,12 +68,6 @@ HISTORY_WIDTH = 2
 
 #: normal_model_hertz.h:236, the literal as LIGGGHTS writes it (parsed to the nearest double)
 SQRT_FIVE_OVER_SIX = 0.91287092917527685576161630466800355658790782499663875
-
-#: damping models of :func:`hertz_mindlin_granular_lammps` (pair_granular.cpp:56 enum order)
-DAMPING_VELOCITY, DAMPING_MASS_VELOCITY, DAMPING_VISCOELASTIC, DAMPING_TSUJI = 0, 1, 2, 3
-
-#: pair_granular.cpp:53, threshold of the frame update of the tangential history
-EPSILON = 1e-10
 
 
 @njit(inline="always")
@@ -301,17 +299,7 @@ def hertz_mindlin_granular_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vj
     a = math.sqrt(dR)
     Fne *= a
     knfac *= a
-    if damping == DAMPING_VELOCITY:
-        damp_normal = 1.0
-    elif damping == DAMPING_MASS_VELOCITY:
-        damp_normal = meff
-    elif damping == DAMPING_VISCOELASTIC:
-        damp_normal = a * meff
-    elif damping == DAMPING_TSUJI:
-        damp_normal = math.sqrt(meff * knfac)
-    else:
-        damp_normal = 0.0
-    damp_normal_prefactor = damp * damp_normal
+    damp_normal_prefactor = damp * damp_normal(damping, meff, a, knfac)
     Fdamp = -damp_normal_prefactor * vnnr
     Fntot = Fne + Fdamp
     vt1 = vr1 - vn1
@@ -324,36 +312,8 @@ def hertz_mindlin_granular_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vj
     k_tangential = kt0
     damp_tangential = gammat_ratio * damp_normal_prefactor
     k_tangential *= a
-    if update:
-        rsht = s0 * nx + s1 * ny
-        if abs(rsht) * k_tangential > EPSILON * Fscrit:
-            shrmag = math.sqrt(s0 * s0 + s1 * s1)
-            s0 -= rsht * nx
-            s1 -= rsht * ny
-            prjmag = math.sqrt(s0 * s0 + s1 * s1)
-            if prjmag > 0:
-                scalefac = shrmag / prjmag
-            else:
-                scalefac = 0.0
-            s0 *= scalefac
-            s1 *= scalefac
-        s0 += vtr1 * dt
-        s1 += vtr2 * dt
-    fs1 = -k_tangential * s0 - damp_tangential * vtr1
-    fs2 = -k_tangential * s1 - damp_tangential * vtr2
-    fs = math.sqrt(fs1 * fs1 + fs2 * fs2)
-    sliding = False
-    if fs > Fscrit:
-        sliding = True
-        shrmag = math.sqrt(s0 * s0 + s1 * s1)
-        if shrmag != 0.0:
-            s0 = -1.0 / k_tangential * (Fscrit * fs1 / fs + damp_tangential * vtr1)
-            s1 = -1.0 / k_tangential * (Fscrit * fs2 / fs + damp_tangential * vtr2)
-            fs1 *= Fscrit / fs
-            fs2 *= Fscrit / fs
-        else:
-            fs1 = 0.0
-            fs2 = 0.0
+    s0, s1, fs1, fs2, sliding = spring_dashpot_slider(s0, s1, nx, ny, vtr1, vtr2, k_tangential, damp_tangential,
+                                                       Fscrit, dt, update)
     fx = nx * Fntot + fs1
     fy = ny * Fntot + fs2
     tor3 = nx * fs2 - ny * fs1

@@ -75,6 +75,10 @@ from collections import namedtuple
 import numpy as np
 
 from .._numba import njit
+# damping models of pair_style granular (pair_granular.cpp:56 enum order), re-exported: the laws'
+# damping argument
+from .granular import (DAMPING_MASS_VELOCITY, DAMPING_TSUJI, DAMPING_VELOCITY,  # noqa: F401
+                       DAMPING_VISCOELASTIC, damp_normal, spring_dashpot_slider)
 from .hooke import hooke_history
 from .laws import register_law
 
@@ -85,12 +89,6 @@ HISTORY_WIDTH = {"epsd2": 3, "epsd": 3, "cdt": 2, "sds": 4}
 #: the tangential spring and the epsd torque flip; sds' psi is unchanged (w_rel and n both flip)
 HISTORY_FLIP = {"epsd2": (-1.0, -1.0, -1.0), "epsd": (-1.0, -1.0, -1.0), "cdt": (-1.0, -1.0),
                 "sds": (-1.0, -1.0, 1.0, 1.0)}
-
-#: damping models of :func:`hooke_sds_granular_lammps` (LMP pair_granular.cpp:56 enum order)
-DAMPING_VELOCITY, DAMPING_MASS_VELOCITY, DAMPING_VISCOELASTIC, DAMPING_TSUJI = 0, 1, 2, 3
-
-#: LMP pair_granular.cpp:53, threshold of the frame updates
-EPSILON = 1e-10
 
 
 @njit(inline="always")
@@ -256,17 +254,7 @@ def hooke_sds_granular_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, w
     dR = delta * Reff
     Fne = kn * delta
     a = math.sqrt(dR)
-    if damping == DAMPING_VELOCITY:
-        damp_normal = 1.0
-    elif damping == DAMPING_MASS_VELOCITY:
-        damp_normal = meff
-    elif damping == DAMPING_VISCOELASTIC:
-        damp_normal = a * meff
-    elif damping == DAMPING_TSUJI:
-        damp_normal = math.sqrt(meff * kn)
-    else:
-        damp_normal = 0.0
-    damp_normal_prefactor = damp * damp_normal
+    damp_normal_prefactor = damp * damp_normal(damping, meff, a, kn)
     Fdamp = -damp_normal_prefactor * vnnr
     Fntot = Fne + Fdamp
     vt1 = vr1 - vn1
@@ -277,63 +265,15 @@ def hooke_sds_granular_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, w
     Fncrit = abs(Fntot)
     Fscrit = mu * Fncrit
     damp_tangential = xgammat * damp_normal_prefactor
-    if update:
-        rsht = s0 * nx + s1 * ny
-        if abs(rsht) * kt > EPSILON * Fscrit:
-            shrmag = math.sqrt(s0 * s0 + s1 * s1)
-            s0 -= rsht * nx
-            s1 -= rsht * ny
-            prjmag = math.sqrt(s0 * s0 + s1 * s1)
-            scalefac = shrmag / prjmag if prjmag > 0 else 0.0
-            s0 *= scalefac
-            s1 *= scalefac
-        s0 += vtr1 * dt
-        s1 += vtr2 * dt
-    fs1 = -kt * s0 - damp_tangential * vtr1
-    fs2 = -kt * s1 - damp_tangential * vtr2
-    fs = math.sqrt(fs1 * fs1 + fs2 * fs2)
-    sliding = False
-    if fs > Fscrit:
-        sliding = True
-        if math.sqrt(s0 * s0 + s1 * s1) != 0.0:
-            s0 = -1.0 / kt * (Fscrit * fs1 / fs + damp_tangential * vtr1)
-            s1 = -1.0 / kt * (Fscrit * fs2 / fs + damp_tangential * vtr2)
-            fs1 *= Fscrit / fs
-            fs2 *= Fscrit / fs
-        else:
-            fs1 = 0.0
-            fs2 = 0.0
+    s0, s1, fs1, fs2, sliding = spring_dashpot_slider(s0, s1, nx, ny, vtr1, vtr2, kt, damp_tangential, Fscrit,
+                                                       dt, update)
     # rolling resistance, pgr:545-617 (relrot = (0, 0, w_i - w_j))
     relrot3 = wi - wj
     vrl1 = Reff * -(relrot3 * ny)  # Reff*(relrot2*nz - relrot3*ny)
     vrl2 = Reff * (relrot3 * nx)   # Reff*(relrot3*nx - relrot1*nz)
     Frcrit = muroll * Fncrit
-    if update:
-        rolldotn = p0 * nx + p1 * ny
-        if abs(rolldotn) * kroll > EPSILON * Frcrit:
-            rollmag = math.sqrt(p0 * p0 + p1 * p1)
-            p0 -= rolldotn * nx
-            p1 -= rolldotn * ny
-            prjmag = math.sqrt(p0 * p0 + p1 * p1)
-            scalefac = rollmag / prjmag if prjmag > 0 else 0.0
-            p0 *= scalefac
-            p1 *= scalefac
-        p0 += vrl1 * dt
-        p1 += vrl2 * dt
-    fr1 = -kroll * p0 - gammaroll * vrl1
-    fr2 = -kroll * p1 - gammaroll * vrl2
-    fr = math.sqrt(fr1 * fr1 + fr2 * fr2)
-    rolling = False
-    if fr > Frcrit:
-        rolling = True
-        if math.sqrt(p0 * p0 + p1 * p1) != 0.0:
-            p0 = -1.0 / kroll * (Frcrit * fr1 / fr + gammaroll * vrl1)
-            p1 = -1.0 / kroll * (Frcrit * fr2 / fr + gammaroll * vrl2)
-            fr1 *= Frcrit / fr
-            fr2 *= Frcrit / fr
-        else:
-            fr1 = 0.0
-            fr2 = 0.0
+    p0, p1, fr1, fr2, rolling = spring_dashpot_slider(p0, p1, nx, ny, vrl1, vrl2, kroll, gammaroll, Frcrit,
+                                                      dt, update)
     fx = nx * Fntot + fs1
     fy = ny * Fntot + fs2
     tor3 = nx * fs2 - ny * fs1
