@@ -144,6 +144,36 @@ class CaseResult:
     matrix: dict[str, str] = field(default_factory=dict)
     #: cells that do not apply to this case: pair -> why not
     not_applicable: dict[str, str] = field(default_factory=dict)
+    #: figure path (str) -> the data file it was drawn from (linked beside the figure in the report)
+    figure_data: dict[str, Path] = field(default_factory=dict)
+    #: figure paths (str) shown in the report's one-screen summary (its headline figures)
+    headline: list[str] = field(default_factory=list)
+    #: wall time of the case (s), set by the runner
+    seconds: float | None = None
+
+    def add_figure(self, path, caption: str, data=None, headline: bool = False) -> Path:
+        """Add a figure with ``caption``; ``data``: the file it was drawn from (HDF5, CSV, JSON),
+        linked beside it in the report; ``headline``: also shown in the report's summary."""
+        path = Path(path)
+        self.figures.append((path, caption))
+        if data is not None:
+            self.figure_data[str(path)] = Path(data)
+        if headline:
+            self.headline.append(str(path))
+        return path
+
+    def worst_check(self) -> Record | None:
+        """The check closest to (or furthest past) its tolerance: the largest value / tolerance
+        among checks with a finite positive tolerance (failing checks first), else the first
+        failing check, else None."""
+        checks = self.checks
+        failing = [r for r in checks if not r.passed]
+        pool = failing or checks
+        ratios = [(abs(r.value) / r.tolerance, i) for i, r in enumerate(pool)
+                  if math.isfinite(r.value) and math.isfinite(r.tolerance) and r.tolerance > 0]
+        if ratios:
+            return pool[max(ratios)[1]]
+        return failing[0] if failing else None
 
     def declare(self, pair: str, reason: str) -> None:
         """This case owes the matrix cell ``pair``: it fails unless at least one check of that

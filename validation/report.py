@@ -58,6 +58,9 @@ th{background:#eee}.pass{color:#080;font-weight:bold}.fail{color:#b00;font-weigh
 .banner{padding:0.7em;border:2px solid #b60;background:#fff4e0;margin:1em 0}
 img{max-width:100%;border:1px solid #ddd;margin:0.3em 0}figure{margin:1em 0}
 figcaption{font-size:90%;color:#444}code{background:#f4f4f4}
+.verdict{font-size:115%}.headline{display:flex;flex-wrap:wrap;gap:1em}
+.headline figure{flex:1 1 45%;min-width:300px;margin:0.3em 0}
+details{margin:0.6em 0}summary{cursor:pointer;color:#035}section.case{margin-top:2em}
 """
 
 
@@ -96,40 +99,120 @@ def matrix_html(results: list[CaseResult]) -> list[str]:
     return out
 
 
+def _verdict(res: CaseResult) -> tuple[str, str]:
+    """(word, css class) of a case's verdict."""
+    if res.passed:
+        return "PASS", "pass"
+    return ("NOT RUN", "fail") if res.error else ("FAIL", "fail")
+
+
+def _case_data(report_dir: Path, res: CaseResult) -> str:
+    """Write ``data/<case>.json`` (the case's records and tables) and return its path relative to
+    the report: the data file a figure without a declared source links to."""
+    d = report_dir / "data"
+    d.mkdir(parents=True, exist_ok=True)
+    path = d / f"{res.case}.json"
+    doc = {"case": res.case, "title": res.title, "verdict": _verdict(res)[0],
+           "records": [r.to_json() for r in res.records],
+           "tables": [{"caption": c, "header": h, "rows": rows} for c, h, rows in res.tables]}
+    with atomic_path(path, suffix=".json.tmp") as tmp:
+        Path(tmp).write_text(json.dumps(doc, indent=1, default=str))
+    return os.path.relpath(path, report_dir)
+
+
+def _figure_html(report_dir: Path, res: CaseResult, path, caption: str, case_data: str) -> str:
+    rel = os.path.relpath(path, report_dir)
+    data = res.figure_data.get(str(path))
+    if data is not None:
+        drel = os.path.relpath(data, report_dir)
+        link = f"<a href='{html.escape(drel)}'>data: {html.escape(Path(data).name)}</a>"
+    else:
+        link = f"<a href='{html.escape(case_data)}'>data: the records of {html.escape(res.case)} (JSON)</a>"
+    return (f"<figure><a href='{html.escape(rel)}'><img src='{html.escape(rel)}' alt='{html.escape(caption)}'></a>"
+            f"<figcaption>{html.escape(caption)} &middot; {link}</figcaption></figure>")
+
+
+def summary_html(results: list[CaseResult]) -> list[str]:
+    """The one-screen answer: the overall verdict, then a row per case with its verdict, its checks
+    and the check closest to (or furthest past) its tolerance."""
+    n_fail = sum(not r.passed for r in results)
+    if not results:
+        head = "<p class='fail verdict'>No case ran: nothing is validated.</p>"
+    elif n_fail == 0:
+        head = (f"<p class='pass verdict'>All {len(results)} cases pass: every check of native gransim against "
+                "LIGGGHTS, LAMMPS and the analytic answers is within its tolerance, on complete evidence.</p>")
+    else:
+        names = ", ".join(r.case for r in results if not r.passed)
+        head = f"<p class='fail verdict'>{n_fail} of {len(results)} cases FAIL: {html.escape(names)}.</p>"
+    out = ["<h2>Summary</h2>", head,
+           "<table class='summary'><tr><th>case</th><th>verdict</th><th>checks passed</th>"
+           "<th>closest to its tolerance (measured / tolerance)</th><th>time</th></tr>"]
+    for res in results:
+        word, cls = _verdict(res)
+        checks = res.checks
+        worst = res.worst_check()
+        if res.error:
+            w = f"<span class='fail'>did not run: {html.escape(res.error[:200])}</span>"
+        elif worst is None:
+            w = "<span class='fail'>no check</span>" if not checks else "&mdash;"
+        else:
+            ratio = (f" = {abs(worst.value) / worst.tolerance:.2g} of the tolerance"
+                     if worst.tolerance > 0 and np.isfinite(worst.tolerance) and np.isfinite(worst.value) else "")
+            w = (f"<span class='{'pass' if worst.passed else 'fail'}'>{html.escape(worst.case)}</span>: "
+                 f"{html.escape(worst.quantity)} ({html.escape(worst.metric)}) {_fmt(worst.value)} / "
+                 f"{_fmt(worst.tolerance)}{ratio}")
+        t = f"{res.seconds:.0f} s" if res.seconds is not None else ""
+        out.append(f"<tr><td><a href='#{res.case}'>{html.escape(res.case)}</a></td><td class='{cls}'>{word}</td>"
+                   f"<td>{sum(r.passed for r in checks)} of {len(checks)}</td><td>{w}</td><td>{t}</td></tr>")
+    out.append("</table>")
+    return out
+
+
+def headline_html(report_dir: Path, results: list[CaseResult], case_data: dict) -> list[str]:
+    """The headline figures the cases marked (stress-strain of both codes with the envelope,
+    void-cell maps side by side, the slope), side by side under the summary."""
+    figs = [(res, Path(p), cap) for res in results for p, cap in res.figures if str(p) in res.headline]
+    if not figs:
+        return []
+    out = ["<div class='headline'>"]
+    for res, p, cap in figs[:4]:
+        out.append(_figure_html(report_dir, res, p, cap, case_data[res.case]))
+    out.append("</div>")
+    return out
+
+
 def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Path:
+    """The report: the one-screen summary (verdicts, the closest check of each case, the headline
+    figures), the validation matrix, then a section per case with its long tables collapsed."""
     report_dir.mkdir(parents=True, exist_ok=True)
+    case_data = {res.case: _case_data(report_dir, res) for res in results}
     out = [f"<!doctype html><html><head><meta charset='utf-8'><title>gransim validation</title>"
            f"<style>{_CSS}</style></head><body>",
-           "<h1>gransim validation report</h1>"]
-    out += matrix_html(results)
+           "<h1>gransim validation report</h1>",
+           f"<p class='reason'>suite {html.escape(str(header.get('suite', '')))}, gransim "
+           f"{html.escape(str(header.get('gransim_version', '')))} ({html.escape(str(header.get('git_commit', '')))}), "
+           f"LIGGGHTS: {html.escape(str(header.get('liggghts_version', 'absent')))}, LAMMPS: "
+           f"{html.escape(str(header.get('lammps_version', 'absent')))}, {html.escape(str(header.get('created', '')))}"
+           "</p>"]
     for code, name, pkg in (("liggghts", "LIGGGHTS", "liggghts"), ("lammps", "LAMMPS", "lammps")):
         if not header.get(f"{code}_available"):
             out.append(f"<div class='banner'><b>{name} is not installed on this machine.</b> Its comparisons use "
                        "the stored reference outputs in <code>reference_runs/stored/</code> only "
                        f"(install with <code>apt-get install {pkg}</code>).</div>")
-    out.append("<table>")
+    out += summary_html(results)
+    out += headline_html(report_dir, results, case_data)
+    out += matrix_html(results)
+    out.append("<p>A case passes only when it ran, has at least one check, and every check passes. A check whose "
+               "evidence is incomplete (a missing step, frame, state, contact or run on either side) is a "
+               "failure named <i>incomplete</i>, never a pass on what remains; <i>info</i> rows are figures for "
+               "the reader, not verdicts.</p>")
+    out.append("<details><summary>Run details (provenance)</summary><table>")
     for k, v in header.items():
         out.append(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>")
     if (report_dir / "bench.html").exists():
         out.append("<tr><th>benchmarks</th><td><a href='bench.html'>bench.html</a> (make bench: speed figures "
                    "against their targets, scaling plots)</td></tr>")
-    out.append("</table><h2>Summary</h2><table><tr><th>case</th><th>title</th><th>checks passed</th>"
-               "<th>incomplete evidence</th><th>information</th><th>result</th></tr>")
-    for res in results:
-        cls = "pass" if res.passed else "fail"
-        word = "PASS" if res.passed else ("NOT RUN" if res.error else "FAIL")
-        checks = res.checks
-        n_ok = sum(r.passed for r in checks)
-        n_inc = sum(1 for r in checks if r.quantity == "evidence" and not r.passed)
-        out.append(f"<tr><td><a href='#{res.case}'>{html.escape(res.case)}</a></td>"
-                   f"<td>{html.escape(res.title)}</td><td>{n_ok} of {len(checks)}</td>"
-                   f"<td class='{'fail' if n_inc else ''}'>{n_inc}</td><td>{len(res.records) - len(checks)}</td>"
-                   f"<td class='{cls}'>{word}</td></tr>")
-    out.append("</table>")
-    out.append("<p>A case passes only when it ran, has at least one check, and every check passes. A check whose "
-               "evidence is incomplete (a missing step, frame, state, contact or run on either side) is a "
-               "failure named <i>incomplete</i>, never a pass on what remains; <i>info</i> rows are figures for "
-               "the reader, not verdicts.</p>")
+    out.append("</table></details>")
     from .faults import FAULT_KINDS
 
     out.append("<details><summary>Faults the test suite injects to show that these verdicts can fail "
@@ -139,33 +222,39 @@ def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Pat
                          f"<td><code>{html.escape(k.test)}</code></td></tr>" for k in FAULT_KINDS)
                + "</table></details>")
     for res in results:
-        out.append(f"<h2 id='{res.case}'>{html.escape(res.case)}: {html.escape(res.title)}</h2>")
-        out.append(f"<p>{res.description}</p>")
+        word, cls = _verdict(res)
+        out.append(f"<section class='case'><h2 id='{res.case}'>{html.escape(res.case)}: {html.escape(res.title)} "
+                   f"<span class='{cls}'>{word}</span></h2>")
+        out.append(f"<p>{res.description or html.escape(res.title)}</p>")
         if res.error:
             out.append(f"<p class='fail'>The case did not run: {html.escape(res.error)}</p>")
         for note in res.notes:
             out.append(f"<p>{note}</p>")
+        for path, caption in res.figures:
+            out.append(_figure_html(report_dir, res, path, caption, case_data[res.case]))
         if res.records:
-            out.append("<table><tr><th>compared</th><th>quantity</th><th>metric</th><th>measured</th>"
+            n_fail = sum(1 for r in res.checks if not r.passed)
+            opened = " open" if n_fail else ""
+            out.append(f"<details{opened}><summary>{len(res.records)} records ({len(res.checks)} checks, "
+                       f"{n_fail} failing) &middot; <a href='{html.escape(case_data[res.case])}'>JSON</a></summary>"
+                       "<table><tr><th>compared</th><th>quantity</th><th>metric</th><th>measured</th>"
                        "<th>tolerance</th><th>result</th><th>why this tolerance</th></tr>")
-            for r in res.records:
-                cls = {"pass": "pass", "FAIL": "fail", "info": "info"}[r.verdict]
+            for r in sorted(res.records, key=lambda r: (r.kind != "check" or r.passed,)):
+                rcls = {"pass": "pass", "FAIL": "fail", "info": "info"}[r.verdict]
                 tol = "" if r.kind == "info" else _fmt(r.tolerance)
                 out.append(f"<tr><td>{html.escape(r.case)}</td><td>{html.escape(r.quantity)}</td>"
                            f"<td>{html.escape(r.metric)}</td><td>{_fmt(r.value)}</td>"
-                           f"<td>{tol}</td><td class='{cls}'>{r.verdict}"
+                           f"<td>{tol}</td><td class='{rcls}'>{r.verdict}"
                            f"</td><td>{html.escape(r.reason)}</td></tr>")
-            out.append("</table>")
+            out.append("</table></details>")
         for caption, head, rows in res.tables:
-            out.append(f"<table><caption>{html.escape(caption)}</caption><tr>"
+            out.append(f"<details><summary>{html.escape(caption)} ({len(rows)} rows)</summary>"
+                       f"<table><caption>{html.escape(caption)}</caption><tr>"
                        + "".join(f"<th>{html.escape(str(h))}</th>" for h in head) + "</tr>")
             for row in rows:
                 out.append("<tr>" + "".join(f"<td>{_fmt(c)}</td>" for c in row) + "</tr>")
-            out.append("</table>")
-        for path, caption in res.figures:
-            rel = os.path.relpath(path, report_dir)
-            out.append(f"<figure><img src='{html.escape(rel)}' alt='{html.escape(caption)}'>"
-                       f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+            out.append("</table></details>")
+        out.append("</section>")
     out.append("</body></html>")
     index = report_dir / "index.html"
     with atomic_path(index, suffix=".html.tmp") as tmp:

@@ -76,6 +76,7 @@ def _run_cases(ctx, suite, only, log, timeout) -> tuple[bool, list[CaseResult]]:
             res = CaseResult(c.id, c.title, "", error=f"{type(exc).__name__}: {exc}")
             res.notes.append("<pre>" + traceback.format_exc()[-3000:] + "</pre>")
         dt = time.perf_counter() - t0
+        res.seconds = dt
         res.notes.append(f"Wall time of this case: {dt:.1f} s.")
         word = "pass" if res.passed else ("NOT RUN: " + res.error if res.error else "FAIL")
         log(f"[validate] {c.id}: {word} ({len(res.records)} records, {dt:.1f} s)")

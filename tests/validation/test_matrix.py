@@ -1,4 +1,4 @@
-"""The validation matrix: every declared cell needs a check; the report leads with the matrix."""
+"""The validation matrix: every declared cell needs a check; the report leads with its summary."""
 
 from __future__ import annotations
 
@@ -58,7 +58,7 @@ def test_not_applicable_cells_carry_their_reason_and_unknown_pairs_are_refused()
         in_pair([], "native")
 
 
-def test_report_leads_with_the_matrix(tmp_path):
+def test_report_leads_with_its_summary_then_the_matrix(tmp_path):
     a, b = _res("alpha"), _res("beta")
     a.declare("native-lammps", "REASON-A")
     a.records += in_pair([compare("alpha", "x", "m", 0.0, 1e-10, "r")], "native-lammps")
@@ -67,7 +67,9 @@ def test_report_leads_with_the_matrix(tmp_path):
     index = write_html(tmp_path, [a, b], {"liggghts_available": True, "lammps_available": False})
     text = index.read_text()
     m = text.index("Validation matrix")
-    assert m < text.index("<h2>Summary</h2>") and m < text.index("LAMMPS is not installed")
+    summary = text.index("<h2>Summary</h2>")
+    assert text.index("LAMMPS is not installed") < summary < m  # the answer first, the matrix next
+    assert "1 of 2 cases FAIL: beta" in text[summary:m]  # beta's declared cell holds no check
     for word in ("REASON-A", "REASON-B", "REASON-NA", "FAIL: no check", "1.000e-10"):
         assert word in text, word
     rows = "".join(matrix_html([a, b]))

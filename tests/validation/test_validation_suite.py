@@ -57,10 +57,17 @@ def test_quick_suite_passes_and_writes_outputs(tmp_path):
         assert {"native-liggghts", "native-lammps", "liggghts-lammps"} <= {
             p.decode() if isinstance(p, bytes) else p for p in f["pair"][()]}
     html = (tmp_path / "report" / "index.html").read_text()
-    assert html.index("Validation matrix") < html.index("<h2>Summary</h2>")
+    assert html.index("<h2>Summary</h2>") < html.index("Validation matrix")
+    assert "All 5 cases pass" in html
     for cid in ("taylor-rve", "biaxial-short", "voidcell"):
         assert f"id='{cid}'" in html
     assert (tmp_path / "report" / "figures" / "voidcell_stored120.png").stat().st_size > 0
+    from validation.browser import check_report, chromium, problems
+
+    if chromium() is not None:  # what a reader sees at 1400 px: every image loads, no section is empty
+        seen = check_report(tmp_path / "report" / "index.html", width=1400)
+        assert problems(seen) == [], problems(seen)
+        assert len(seen["images"]) >= 3
 
 
 def _failed(results, case_id):

@@ -489,7 +489,10 @@ def _plots(ctx, div, sdiv, cur) -> list:
     path = ctx.figure_path("biaxial_full_divergence.png")
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    figs.append((path, "Divergence against each code's serial reference run over time: native in that code's "
+    data = _long_csv(path.with_suffix(".csv"), ["run", "series", "step", "value"],
+                     [(n, "position max|dx|/D50", st, v) for n, (sts, d) in div.items() for st, v in zip(sts, d)]
+                     + [(n, "stress rel diff", st, v) for n, (sts, d) in sdiv.items() for st, v in zip(sts, d)])
+    figs.append((path, data, False, "Divergence against each code's serial reference run over time: native in that code's "
                        "arithmetic, and the code itself under a round-off perturbation (the envelope). Left: positions "
                        "at every dump; right: "
                        f"stress every {FULL_THERMO_EVERY} steps."))
@@ -508,9 +511,26 @@ def _plots(ctx, div, sdiv, cur) -> list:
     path = ctx.figure_path("biaxial_full_curves.png")
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    figs.append((path, "Stress-strain and volumetric curves of the Kuhn assembly: native (dashed), LIGGGHTS and "
-                       "LAMMPS runs (the perturbed runs lie on top: their spread is the band)."))
+    data = _long_csv(path.with_suffix(".csv"), ["run", "axial_strain", "q_over_p", "volumetric_strain"],
+                     [(n, a, b, c) for n, (ea, q, ev) in cur.items() for a, b, c in zip(ea, q, ev)])
+    figs.append((path, data, True, "Stress-strain and volumetric curves of the Kuhn assembly: native (dashed), "
+                                   "LIGGGHTS and LAMMPS runs (the perturbed runs lie on top: their spread is the band)."))
     return figs
+
+
+def _long_csv(path, header, rows):
+    """Write the data a figure was drawn from as CSV (one row per point; atomic) and return its path."""
+    import csv
+
+    from gransim.io import atomic_path
+
+    with atomic_path(path, suffix=".csv.tmp") as tmp:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(header)
+            for row in rows:
+                w.writerow([f"{v:.17g}" if isinstance(v, (float, np.floating)) else v for v in row])
+    return path
 
 
 def _envelope(label: str, code: str, nat, ref, ensemble: dict, frames, exp_s, d50: float):
@@ -700,8 +720,9 @@ def biaxial_full(ctx: Context) -> CaseResult:
     res.tables.append(("End of compression", ["run", "axial strain %", "q/p", "eps_v %", "peak q/p"],
                        [[n, float(100 * c[0][min(k_end, len(c[0]) - 1)]), float(c[1][-1]), float(100 * c[2][-1]),
                          float(c[1].max())] for n, c in cur.items()]))
-    res.figures += _plots(ctx, {f"{e}: {k}": v for e, d in divs.items() for k, v in d.items()},
-                          {f"{e}: {k}": v for e, d in sdivs.items() for k, v in d.items()}, cur)
+    for path, data, head, cap in _plots(ctx, {f"{e}: {k}": v for e, d in divs.items() for k, v in d.items()},
+                                        {f"{e}: {k}": v for e, d in sdivs.items() for k, v in d.items()}, cur):
+        res.add_figure(path, cap, data=data, headline=head)
     for engine, sd in sides.items():
         man = sd["manifest"]
         if not man:

@@ -8,6 +8,8 @@ box lengths by central differences. So any difference comes from the trajectorie
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ..core import CaseResult, Context, case, compare, stored_dir
@@ -305,12 +307,31 @@ def voidcell(ctx: Context) -> CaseResult:
         res.tables.append(("Beside the paper (reported, not pass/fail: another packing, another contact law)",
                            ["source", "strain %", "mean alpha", "alpha <= 0 (%)", "faces", "edges", "vertices",
                             "2M/N"], rows))
-        res.figures.append((_maps(ctx, pairs, "voidcell_kuhn_maps.png"),
-                            "Kuhn assembly: cells shaded by alignment alpha (Fig. 8 of Kuhn; white <= 0) at the frames "
-                            "nearest 0.01% and 0.16% axial strain; native left, LIGGGHTS right"))
+        maps = _maps(ctx, pairs, "voidcell_kuhn_maps.png")
+        res.add_figure(maps, "Kuhn assembly: cells shaded by alignment alpha (Fig. 8 of Kuhn; white <= 0) at the "
+                       "frames nearest 0.01% and 0.16% axial strain; native left, LIGGGHTS right",
+                       data=_maps_data(maps, pairs), headline=True)
         res.figures.append((_stats_plot(ctx, strains, st), "Mean alpha and fraction alpha <= 0 over the compression: "
                             "native, LIGGGHTS, LAMMPS and the perturbed runs"))
     return res
+
+
+def _maps_data(png, pairs):
+    """The per-cell alignment alpha behind a map figure, as CSV beside it (frame, code, cell, alpha)."""
+    import csv
+
+    from gransim.io import atomic_path
+
+    path = Path(png).with_suffix(".csv")
+    with atomic_path(path, suffix=".csv.tmp") as tmp:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["frame", "code", "cell", "alpha"])
+            for title, a, b in pairs:
+                for who, vc in (("native", a), ("LIGGGHTS", b)):
+                    for k, al in enumerate(np.asarray(vc.alpha, float)):
+                        w.writerow([title, who, k, f"{al:.17g}"])
+    return path
 
 
 def _stats_plot(ctx, strains, st):
