@@ -1,0 +1,162 @@
+"""A/B benchmark of the native DEM between two commits, interleaved in one run, in the steady state.
+
+``python -m bench.ab_dem --base REV [--head REV|WORKTREE] [--n 10000] [--window 200] [--windows 12]
+[--mode serial|parallel] [--threads 1]``
+
+Each side is the gransim tree of one commit (``git archive`` into a temporary folder; ``WORKTREE``,
+the default head, is this checkout as it is) with its own numba cache. One long-lived process per
+side builds the bench assembly (``bench.dem.assembly``: the jittered lattice relaxing in a fixed
+periodic box, Hooke history, the same settings in both trees), compiles or loads its kernels, runs a
+warm-up of ``--warm`` steps (the first rebuilds), and reports the time it took to get there (what a
+user waits for before the first step: start-up, compilation or cache load, set-up). Then the driver
+asks the two processes in turn, A B B A A B ..., for windows of ``--window`` steps each; both
+states evolve bit for bit alike (the same arithmetic), so window k holds the same rebuilds on both
+sides. Reported: the median over windows of the per-window throughput ratio head/base (particle-
+steps per second), its spread, each side's median throughput, the rebuilds per window, the machine
+load (os.getloadavg) before and after. A ratio >= 0.95 means "no slowdown beyond 5%".
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tarfile
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+_WORKER = r"""
+import json, sys, time
+t_start = time.perf_counter()
+tree, n, mode, threads, warm = sys.argv[1], int(sys.argv[2]), sys.argv[3], int(sys.argv[4]), int(sys.argv[5])
+sys.path.insert(0, tree)
+from bench.dem import LOADING, SETTINGS, assembly
+from gransim.dem import DEMEngine, DEMSettings
+s = DEMSettings(**{**SETTINGS.to_dict(), "mode": mode})
+p = assembly(n)
+eng = DEMEngine(p, s, threads=threads)
+eng.advance(LOADING, warm)
+print(json.dumps({"ready_s": time.perf_counter() - t_start, "n": int(p.n)}), flush=True)
+for line in sys.stdin:
+    k = int(line)
+    r0 = eng.n_rebuilds
+    t0 = time.perf_counter()
+    eng.advance(LOADING, k)
+    dt = time.perf_counter() - t0
+    print(json.dumps({"loop_s": dt, "rebuilds": int(eng.n_rebuilds - r0), "contacts": int(eng.n_contacts)}),
+          flush=True)
+"""
+
+
+def _tree(rev: str, tmp: Path) -> Path:
+    """The gransim tree of ``rev`` (``WORKTREE``: this checkout) as a folder."""
+    if rev == "WORKTREE":
+        return ROOT
+    dest = tmp / rev.replace("/", "_")
+    dest.mkdir(parents=True)
+    arch = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", rev], capture_output=True)
+    if arch.returncode != 0:
+        raise SystemExit(f"ab_dem: git archive {rev} failed: {arch.stderr.decode().strip()}")
+    tar_path = tmp / f"{rev.replace('/', '_')}.tar"
+    tar_path.write_bytes(arch.stdout)
+    with tarfile.open(tar_path) as tf:
+        tf.extractall(dest, filter="data")
+    return dest
+
+
+def _spawn(tree: Path, args, cache: Path) -> subprocess.Popen:
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(tree)}
+    if args.threads:
+        env["NUMBA_NUM_THREADS"] = str(max(1, args.threads))
+    return subprocess.Popen([sys.executable, "-c", _WORKER, str(tree), str(args.n), args.mode, str(args.threads),
+                             str(args.warm)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
+                            cwd=str(tree))
+
+
+def _ask(proc: subprocess.Popen, steps: int | None) -> dict:
+    if steps is not None:
+        proc.stdin.write(f"{steps}\n")
+        proc.stdin.flush()
+    line = proc.stdout.readline()
+    if not line:
+        raise SystemExit(f"ab_dem: a worker ended early (exit {proc.poll()})")
+    return json.loads(line)
+
+
+def compare(base: str, head: str = "WORKTREE", n: int = 10000, window: int = 200, windows: int = 12,
+            warm: int = 300, mode: str = "serial", threads: int = 1, log=print) -> dict:
+    """Run the A/B comparison (module docstring) and return its figures."""
+    args = argparse.Namespace(n=n, mode=mode, threads=threads, warm=warm)
+    load0 = os.getloadavg()
+    with tempfile.TemporaryDirectory(prefix="gransim-ab-") as tmp:
+        tmp = Path(tmp)
+        trees = {"base": _tree(base, tmp), "head": _tree(head, tmp)}
+        procs, ready = {}, {}
+        try:
+            for side in ("base", "head"):  # start-up one after the other (compilation is CPU-bound)
+                procs[side] = _spawn(trees[side], args, tmp / f"cache-{side}")
+                ready[side] = _ask(procs[side], None)
+                log(f"[ab] {side} ({base if side == 'base' else head}): ready in {ready[side]['ready_s']:.1f} s")
+            per = {"base": [], "head": []}
+            for k in range(windows):
+                order = ("base", "head") if k % 2 == 0 else ("head", "base")
+                for side in order:
+                    per[side].append(_ask(procs[side], window))
+        finally:
+            for p in procs.values():
+                try:
+                    p.stdin.close()
+                    p.wait(timeout=30)
+                except Exception:
+                    p.kill()
+    ratios = [b["loop_s"] / h["loop_s"] for b, h in zip(per["base"], per["head"])]
+    same = all(b["rebuilds"] == h["rebuilds"] and b["contacts"] == h["contacts"]
+               for b, h in zip(per["base"], per["head"]))
+    npart = ready["head"]["n"]
+
+    def tput(side):
+        return statistics.median(npart * window / w["loop_s"] for w in per[side])
+
+    out = {"base": base, "head": head, "n": npart, "mode": mode, "threads": threads, "window_steps": window,
+           "windows": windows, "warm_steps": warm, "ratio_median": statistics.median(ratios),
+           "ratio_min": min(ratios), "ratio_max": max(ratios), "base_pstep_per_s": tput("base"),
+           "head_pstep_per_s": tput("head"), "rebuilds_per_window": [w["rebuilds"] for w in per["head"]],
+           "same_rebuilds_and_contacts": same, "base_ready_s": ready["base"]["ready_s"],
+           "head_ready_s": ready["head"]["ready_s"], "load_before": load0, "load_after": os.getloadavg(),
+           "command": (f"python -m bench.ab_dem --base {base} --head {head} --n {n} --window {window} "
+                       f"--windows {windows} --mode {mode} --threads {threads}")}
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.ab_dem", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--base", required=True, help="git revision of the baseline")
+    ap.add_argument("--head", default="WORKTREE", help="git revision to compare (default: this checkout)")
+    ap.add_argument("--n", type=int, default=10000, help="disks (default 10000)")
+    ap.add_argument("--window", type=int, default=200, help="steps per timed window (default 200)")
+    ap.add_argument("--windows", type=int, default=12, help="timed windows per side (default 12)")
+    ap.add_argument("--warm", type=int, default=300, help="warm-up steps before timing (default 300)")
+    ap.add_argument("--mode", choices=("serial", "parallel"), default="serial")
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    a = ap.parse_args(argv)
+    if shutil.which("git") is None:
+        raise SystemExit("ab_dem: git is needed to check out the base revision")
+    res = compare(a.base, a.head, a.n, a.window, a.windows, a.warm, a.mode, a.threads)
+    print(json.dumps(res, indent=1))
+    print(f"[ab] head/base throughput: median {res['ratio_median']:.3f} (min {res['ratio_min']:.3f}, max "
+          f"{res['ratio_max']:.3f}) over {a.windows} interleaved windows; load {res['load_before'][0]:.2f} -> "
+          f"{res['load_after'][0]:.2f}; same rebuilds and contacts: {res['same_rebuilds_and_contacts']}")
+    if a.json:
+        a.json.write_text(json.dumps(res, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
