@@ -52,10 +52,11 @@ def run(quick: bool = False) -> list[dict]:
     import numba
 
     from gransim._numba import set_num_threads
+    from gransim.paper import KN_2D
     from gransim.rve import TaylorMaterial, homogenize
 
     packing, label = _packing700()
-    kn = 2.8e7
+    kn = KN_2D  # the paper's 2D contact stiffness (N/m)
     mat = TaylorMaterial(packing, kn)
     F = np.array([[1.002, 0.001], [-0.0005, 0.999]])
     mat(F)  # compile + build candidates

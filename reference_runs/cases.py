@@ -1,23 +1,21 @@
 """Named reference cases for ``gransim reference run CASE`` and ``gransim reference list``.
 
-A case is a callable ``run(out_dir, np_procs, timeout, force, progress) -> int`` (exit status)
-with a one-line description. Cases defined here: the Taylor demo on built-in packings.
-Other modules add cases by defining ``CASES`` (a list of :class:`Case`) in a module of
-``reference_runs.decks`` (e.g. the biaxial deck), discovered at listing time.
+A case is a callable ``run(out_dir, np_procs, timeout, force, progress, engine) -> int`` (exit
+status) with a one-line description. The cases are the two Taylor sets defined here
+(:data:`CASES`): the demo on built-in packings and the 15 study RVEs. The other reference jobs
+(biaxial, shear, impacts, laws) are run by their validation cases (``gransim validate``) and by
+``reference_runs.decks.*`` directly; they are not named cases.
 """
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 from gransim.errors import InputError
+from gransim.paper import KN_2D
 
-#: normal contact stiffness E_n of 000_6d950a6f5c65e7b0.txt (table of section 4), N/m
-PAPER_KN = 2.8e7
 #: tolerance of the Taylor comparison (relative to the largest stress component of the state):
 #: both sides sum the same float64 contact forces in different orders, ~1e-15 is expected
 TAYLOR_RTOL = 1e-10
@@ -58,13 +56,14 @@ def compare_taylor(run, rtol: float = TAYLOR_RTOL) -> dict:
     return out
 
 
-def run_taylor_set(packings: dict, out_dir, kn: float = PAPER_KN, n_steps: int = 50, stride: int = 1,
+def run_taylor_set(packings: dict, out_dir, kn: float = KN_2D, n_steps: int = 50, stride: int = 1,
                    max_strain: float = 0.1, contacts: bool = False, np_procs: int = 1, timeout=3600.0,
                    force: bool = False, progress: bool = True, h5_name: str = "taylor.h5", check: bool = True,
                    echo=print, engine: str = "liggghts") -> tuple:
     """Run the Taylor states of several packings (one job of ``engine``, "liggghts" or "lammps",
     each) and compare with numpy.
 
+    ``kn``: the 2D normal contact stiffness (N/m; default the paper's, :data:`gransim.paper.KN_2D`).
     Returns ``(runs, worst)``: the TaylorRun objects and the largest relative difference.
     """
     from gransim.progress import progress as _progress
@@ -121,30 +120,22 @@ def _taylor_rves(out_dir, np_procs=1, timeout=3600.0, force=False, progress=True
     return 0 if worst <= TAYLOR_RTOL else 1
 
 
-_BUILTIN = [Case("taylor-demo", "Taylor states of 3 built-in 64-disk packings along the 4 study paths, "
-                 "both routes, checked against numpy", _taylor_demo),
-            Case("taylor-rves", "Taylor states of the 15 study RVEs (results/packings, generated if "
-                 "missing) along the 4 study paths, 50 steps, both routes, checked against numpy",
-                 _taylor_rves)]
+#: every named case, by name
+CASES = {c.name: c for c in (
+    Case("taylor-demo", "Taylor states of 3 built-in 64-disk packings along the 4 study paths, "
+         "both routes, checked against numpy", _taylor_demo),
+    Case("taylor-rves", "Taylor states of the 15 study RVEs (results/packings, generated if "
+         "missing) along the 4 study paths, 50 steps, both routes, checked against numpy", _taylor_rves),
+)}
 
 
 def all_cases() -> dict:
-    """Every known case by name (built-in plus ``CASES`` lists of reference_runs.decks modules)."""
-    cases = {c.name: c for c in _BUILTIN}
-    from . import decks
-
-    for info in pkgutil.iter_modules(decks.__path__):
-        try:
-            mod = importlib.import_module(f"{decks.__name__}.{info.name}")
-        except ImportError:
-            continue
-        for c in getattr(mod, "CASES", ()):
-            cases[c.name] = c
-    return cases
+    """Every named case by name (:data:`CASES`)."""
+    return dict(CASES)
 
 
 def get_case(name: str) -> Case:
-    cases = all_cases()
-    if name not in cases:
-        raise InputError(f"unknown reference case {name!r}; choose one of: {', '.join(sorted(cases))}")
-    return cases[name]
+    """The case ``name``; InputError naming the known cases for any other name."""
+    if name not in CASES:
+        raise InputError(f"unknown reference case {name!r}; choose one of: {', '.join(sorted(CASES))}")
+    return CASES[name]

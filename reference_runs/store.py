@@ -17,13 +17,14 @@ import sys
 from pathlib import Path
 
 from gransim.io import save_packing
+from gransim.paper import KN_2D
 
 from .demo_packings import perturbed_lattice
 
 STORED = Path(__file__).resolve().parent / "stored"
 TAYLOR_CASE = "taylor-lattice-6x6"
-#: parameters of the stored Taylor case
-TAYLOR_PARAMS = {"nx": 6, "ny": 6, "seed": 7, "kn": 2.8e7, "n_steps": 50, "stride": 10, "max_strain": 0.1}
+#: parameters of the stored Taylor case (kn: the paper's 2D contact stiffness, N/m, gransim.paper.KN_2D)
+TAYLOR_PARAMS = {"nx": 6, "ny": 6, "seed": 7, "kn": KN_2D, "n_steps": 50, "stride": 10, "max_strain": 0.1}
 #: a study RVE (gransim.generation standard packing rve-70-1), thermo only (no data files kept)
 RVE_CASE = "taylor-rve-70-1"
 
@@ -46,9 +47,10 @@ _README = """\
 # Stored LIGGGHTS reference output: `{case}`
 
 Taylor (affine) RVE states of a {n}-disk periodic packing (orthogonal cell {lx:.6g} m x {ly:.6g} m;
-{source}; stored in `packing.h5`) along the four study paths of 000_6d950a6f5c65e7b0.txt: compression-11/22 (F11, F22
-= 1 -> 0.9) and shear-12/21 (F12, F21 = 0 -> 0.1), states k = 0, 10, ..., 50 of 50 steps, by the
-periodic-box route (compression only) and the explicit-image route (all paths).
+{source}; stored in `packing.h5`) along the four study paths of Meier, Steinmann & Kuhl, "Towards
+completeness: a multiscale approach of confined particulate systems" (Figs 4-5): compression-11/22
+(F11, F22 = 1 -> 0.9) and shear-12/21 (F12, F21 = 0 -> 0.1), states k = 0, 10, ..., 50 of 50 steps,
+by the periodic-box route (compression only) and the explicit-image route (all paths).
 
 - LIGGGHTS: {version} (`/usr/bin/liggghts`, Debian package `liggghts`); banner: `{banner}`
 - Contact: `pair_style gran model hooke/stiffness tangential no_history`, kn = E_n = {kn:g} N/m,

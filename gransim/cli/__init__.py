@@ -1,8 +1,15 @@
 """The ``gransim`` command line.
 
-Each sub-command lives in a module ``gransim/cli/cmd_<name>.py`` exposing
-``register(subparsers)``; modules are discovered here, so adding a command touches
-no shared file. Heavy imports stay inside the handlers (``gransim --help`` is fast).
+Each built-in sub-command lives in a module ``gransim/cli/cmd_<name>.py`` exposing
+``register(subparsers)``; modules are discovered here, so adding a command touches no shared file.
+Packages above gransim (``reference_runs``: ``reference``, ``replay``; ``validation``:
+``validate``) add theirs as plug-ins: a ``register(subparsers)`` callable named in the
+entry-point group :data:`ENTRY_POINT_GROUP` of their distribution's metadata (``pyproject.toml``,
+``[project.entry-points."gransim.commands"]``), read with :mod:`importlib.metadata`. gransim itself
+never imports them (tests/test_boundaries.py). A plug-in that fails to load is named on stderr and
+left out; the other commands work.
+
+Heavy imports stay inside the handlers (``gransim --help`` is fast).
 Errors derived from :class:`gransim.errors.GransimError` are printed as one line
 and exit with status 2; any other exception is one line too (``internal error``, status 1; the
 traceback with ``GRANSIM_TRACEBACK=1``); a closed output pipe ends quietly (status 141).
@@ -17,21 +24,54 @@ import pkgutil
 import sys
 import traceback
 
+#: the entry-point group in which packages register ``gransim`` sub-commands: each entry point is a
+#: callable ``register(subparsers)`` that adds one sub-command (its name is the entry point's)
+ENTRY_POINT_GROUP = "gransim.commands"
 
-def build_parser() -> argparse.ArgumentParser:
+
+def build_parser(argv=None) -> argparse.ArgumentParser:
+    """The parser of every command: the built-in ``cmd_*`` modules, then the plug-ins of
+    :data:`ENTRY_POINT_GROUP`. With ``argv`` whose command is a built-in one the plug-ins are not
+    read (reading the installed distributions' metadata is most of a plug-in's start-up cost)."""
     from .. import __version__
 
     parser = argparse.ArgumentParser(
         prog="gransim",
         description="Micromechanics of 2D granular materials: packings, Taylor RVEs, DEM, void cells, "
-                    "LIGGGHTS cross-checks.")
+                    "LIGGGHTS and LAMMPS cross-checks.")
     parser.add_argument("--version", action="version", version=f"gransim {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
         if info.name.startswith("cmd_"):
             importlib.import_module(f"{__name__}.{info.name}").register(sub)
+    command = next((a for a in (argv or ()) if not str(a).startswith("-")), None)
+    if argv is not None and command in sub.choices:
+        return parser
+    for ep in plugin_commands():
+        if ep.name in sub.choices:
+            print(f"gransim: warning: command plug-in {ep.name!r} ({ep.value}) left out: a command of "
+                  "that name exists", file=sys.stderr)
+            continue
+        try:
+            register = ep.load()
+            register(sub)
+        except Exception as exc:  # noqa: BLE001 - a broken plug-in must not take the other commands down
+            sub.choices.pop(ep.name, None)
+            print(f"gransim: warning: command plug-in {ep.name!r} ({ep.value}) failed to load: "
+                  f"{type(exc).__name__}: {exc}", file=sys.stderr)
     return parser
+
+
+def plugin_commands() -> list:
+    """The entry points of :data:`ENTRY_POINT_GROUP` in the installed distributions, by name
+    (:class:`importlib.metadata.EntryPoint`; one per name, the first distribution's)."""
+    from importlib.metadata import entry_points
+
+    seen = {}
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        seen.setdefault(ep.name, ep)
+    return [seen[k] for k in sorted(seen)]
 
 
 def _quiet_stdout() -> None:
@@ -64,7 +104,7 @@ def _internal_error(command: str, exc: BaseException) -> int:
 def _main(argv) -> int:
     from ..errors import GransimError
 
-    parser = build_parser()
+    parser = build_parser(sys.argv[1:] if argv is None else argv)
     try:
         args = parser.parse_args(argv)
     except SystemExit:

@@ -1,7 +1,10 @@
-"""``gransim biaxial``: the biaxial compression test of Kuhn (002) with the native DEM engine;
+"""``gransim biaxial``: the biaxial compression test of Kuhn, "Deformation measures for granular
+materials" (1997), section 4, with the native DEM engine;
 ``gransim dem-export``: VTK of a snapshot and the stress-strain plot of a DEM run file."""
 
 from __future__ import annotations
+
+import dataclasses
 
 
 def register(sub) -> None:
@@ -15,14 +18,30 @@ def register(sub) -> None:
     p.add_argument("--packing", required=True, help="packing HDF5 file (gransim pack / save_packing)")
     p.add_argument("-o", "--output", default="biaxial.h5", help="run file (default biaxial.h5)")
     p.add_argument("--strain", type=float, default=0.005, help="final axial strain |eps_22| (default 0.005)")
-    p.add_argument("--kn", type=float, help="normal = tangential stiffness, N/m (default 1e5; a Hertz --law "
-                                           "sets its own scale)")
-    p.add_argument("--confining", type=float, help="sigma_11, N/m (default 2.5e-4 kn: indentation ~2e-4 D50)")
-    p.add_argument("--strain-rate", type=float, help="axial strain rate, 1/s (default: inertial number 5e-5)")
+    p.add_argument("--kn", type=float, help="normal stiffness, N/m (default 1e5; a Hertz --law sets its own "
+                                           "scale)")
+    p.add_argument("--kt-ratio", type=float, default=1.0,
+                   help="tangential / normal stiffness, kt = KT_RATIO kn (default 1, Kuhn)")
+    p.add_argument("--mu", type=float,
+                   help="Coulomb friction coefficient (default 0.5, Kuhn; with --law: also the law's mu)")
+    p.add_argument("--density", type=float,
+                   help="disk density, kg/m^2 (2D: mass per area, m = density pi r^2; default: the "
+                        "packing file's)")
+    p.add_argument("--confining", type=float,
+                   help="sigma_11 = p, N/m (default 2.5e-4 kn: indentation ~2e-4 D50); the default strain "
+                        "rate follows from this value")
+    rate = p.add_mutually_exclusive_group()
+    rate.add_argument("--strain-rate", type=float,
+                      help="axial strain rate, 1/s (default: from --inertial-number)")
+    rate.add_argument("--inertial-number", type=float,
+                      help="I = rate D50 sqrt(density / p) of the compression, with the final --confining "
+                           "and --density (default 5e-5, quasi-static)")
     p.add_argument("--damping-ratio", type=float, default=0.3, help="contact damping ratio (default 0.3)")
     p.add_argument("--steps-per-contact", type=float, default=50.0,
                    help="contact time / dt (default 50; the stability limit needs >= 5 / (sqrt(1 + "
                         "zeta^2) - zeta))")
+    p.add_argument("--consolidation-tol", type=float, default=0.01,
+                   help="relative stress tolerance that ends the consolidation (default 0.01)")
     p.add_argument("--consolidation-steps", type=int, default=200000, help="most consolidation steps")
     p.add_argument("--allow-unsettled", action="store_true",
                    help="go on with the compression when the consolidation has not settled within "
@@ -70,13 +89,18 @@ def _check_options(args) -> None:
     check_output(args.output, "-o/--output")
     if args.plot:
         check_figure(args.plot, "--plot")
-    for name, v in (("--kn", args.kn), ("--strain", args.strain), ("--confining", args.confining),
-                    ("--strain-rate", args.strain_rate), ("--steps-per-contact", args.steps_per_contact)):
+    for name, v in (("--kn (N/m)", args.kn), ("--strain", args.strain), ("--confining (N/m)", args.confining),
+                    ("--strain-rate (1/s)", args.strain_rate), ("--inertial-number", args.inertial_number),
+                    ("--density (kg/m^2)", args.density), ("--steps-per-contact", args.steps_per_contact),
+                    ("--consolidation-tol", args.consolidation_tol)):
         if v is not None:
             as_positive_float(v, name)
     if args.strain >= 0.5:
         raise InputError(f"--strain: expected a small strain < 0.5, got {args.strain!r}")
-    as_positive_float(args.damping_ratio, "--damping-ratio", allow_zero=True)
+    for name, v in (("--damping-ratio", args.damping_ratio), ("--kt-ratio", args.kt_ratio),
+                    ("--mu", args.mu)):
+        if v is not None:
+            as_positive_float(v, name, allow_zero=True)
     for name, v, lo in (("--consolidation-steps", args.consolidation_steps, 1),
                         ("--series-every", args.series_every, 1), ("--snapshot-every", args.snapshot_every, 1),
                         ("--checkpoint-every", args.checkpoint_every, 0)):
@@ -127,24 +151,27 @@ def parse_law_params(items) -> dict:
     return out
 
 
-def _run(args) -> int:
-    import dataclasses
-
-    from ..dem.biaxial import default_settings, run_biaxial
+def protocol_settings(args, packing):
+    """The packing (with --density), law, DEMSettings, BiaxialSettings and law options of a run
+    from the parsed options: every physical parameter from its option, the derived ones (strain
+    rate from the inertial number, servo gain, dt) from the final values. InputError naming the
+    option."""
+    from ..dem.biaxial import default_settings, law_settings
     from ..dem.engine import contact_time, damping_ratio, stability_limit
-    from ..dem.output import OutputSettings, plot_stress_strain
     from ..errors import InputError
-    from ..io import load_packing
 
-    _check_options(args)
-    packing = load_packing(args.packing)
-    opts = {"kn": args.kn if args.kn is not None else 1e5, "damping_ratio": args.damping_ratio,
-            "steps_per_contact": args.steps_per_contact, "strain_rate": args.strain_rate,
-            "strain": args.strain}
+    if args.density is not None:
+        packing = packing.replace(density=args.density)
+    opts = {"damping_ratio": args.damping_ratio, "steps_per_contact": args.steps_per_contact,
+            "strain_rate": args.strain_rate, "inertial_number": args.inertial_number, "strain": args.strain,
+            "kt_ratio": args.kt_ratio, "confining": args.confining,
+            "consolidation_steps": args.consolidation_steps, "consolidation_tol": args.consolidation_tol}
+    if args.kn is not None:
+        opts["kn"] = args.kn
+    if args.mu is not None:
+        opts["mu"] = args.mu
     law, law_options = None, None
     if args.law:
-        from ..dem.biaxial import law_settings
-
         if args.kn is not None and args.law.startswith("hertz"):
             raise InputError(f"--kn: not used with the Hertz law {args.law} (its stiffness scale comes from "
                              "its --law-param material constants)")
@@ -166,16 +193,24 @@ def _run(args) -> int:
                          f"damping (damping ratio {damping_ratio(packing, dem):.3g} for the two "
                          f"lightest disks); "
                          f"use --steps-per-contact >= {need:.3g} or a smaller --damping-ratio")
-    changes = {"consolidation_steps": args.consolidation_steps}
-    if args.confining is not None:
-        changes["confining"] = args.confining
-    bi = dataclasses.replace(bi, **changes)
+    return packing, law, dem, bi, law_options
+
+
+def _run(args) -> int:
+    from ..dem.biaxial import inertial_number, run_biaxial
+    from ..dem.output import OutputSettings, plot_stress_strain
+    from ..io import load_packing
+
+    _check_options(args)
+    packing, law, dem, bi, law_options = protocol_settings(args, load_packing(args.packing))
     out = OutputSettings(series_every=args.series_every, snapshot_every=args.snapshot_every,
                          checkpoint_every=args.checkpoint_every)
     summary = run_biaxial(packing, dem, bi, args.output, output=out, resume=args.resume, threads=args.threads,
                           allow_unsettled=args.allow_unsettled, law=law, law_options=law_options)
+    i_num = inertial_number(packing, bi.strain_rate, bi.confining)
     print(f"wrote {args.output}: {packing.n} disks, dt {dem.dt:.3g} s, confining {bi.confining:.4g} N/m, "
-          f"rate {bi.strain_rate:.3g} 1/s, {dem.flavour} arithmetic"
+          f"rate {bi.strain_rate:.3g} 1/s (I = {i_num:.3g}), "
+          f"mu {dem.mu:g}, {dem.flavour} arithmetic"
           + (f", law {args.law}" if args.law else ""))
     for k, v in summary.items():
         print(f"  {k:32s} {v:.6g}" if isinstance(v, float) else f"  {k:32s} {v}")

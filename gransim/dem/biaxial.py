@@ -1,4 +1,5 @@
-"""The biaxial compression test of Kuhn (002), section 4 (Fig. 7).
+"""The biaxial compression test of Kuhn, "Deformation measures for granular materials" (1997),
+section 4 (Fig. 7).
 
 Phase 0 (consolidation): both axes servo-controlled to the confining stress p (isotropic).
 Phase 1 (compression): y shortened at a constant rate, x servo-controlled to hold sigma_11 = p.
@@ -57,34 +58,70 @@ class BiaxialSettings:
             raise InputError(f"strain: expected a small strain < 0.5, got {self.strain!r}")
 
 
-def default_settings(packing: Packing, kn: float = 1e5, damping_ratio: float = 0.3,
-                     steps_per_contact: float = 50.0, strain_rate: float | None = None,
-                     strain: float = 0.005, flavour: str = "liggghts") -> tuple[DEMSettings, BiaxialSettings]:
-    """Settings that run in minutes on a 1002-disk assembly and are quasi-static.
+#: default normal stiffness of the protocol (N/m)
+DEFAULT_KN = 1e5
+#: default confining stress per unit normal stiffness: p = 2.5e-4 kn (N/m per N/m)
+CONFINING_PER_KN = 2.5e-4
+#: default inertial number of the compression phase, I = rate D50 sqrt(rho / p)
+DEFAULT_INERTIAL_NUMBER = 5e-5
+#: default Coulomb friction coefficient (Kuhn's biaxial test)
+DEFAULT_MU = 0.5
 
-    kt = kn (Kuhn), mu = 0.5; gamma_n = gamma_t = 2 zeta sqrt(kn/m_eff) for the median disk
-    pair; dt = contact time / ``steps_per_contact``; skin = 0.05 D50. The confining stress
-    p = 2.5e-4 kn gives a mean indentation near 2e-4 D50 (the paper's; measured 2e-4 on the Kuhn
-    1002-disk assembly at the start of compression) for a dense 2D assembly
-    (mean force ~ p D50 / 2, overlap = force/kn). The strain rate gives I ~ 5e-5 unless given.
-    The servo gain makes the box react over ~100 steps: gain = 0.01 / (kn dt).
-    ``flavour``: whose arithmetic the engine follows, "liggghts" or "lammps" (:class:`DEMSettings`).
+
+def default_settings(packing: Packing, kn: float = DEFAULT_KN, damping_ratio: float = 0.3,
+                     steps_per_contact: float = 50.0, strain_rate: float | None = None,
+                     strain: float = 0.005, flavour: str = "liggghts", *, mu: float = DEFAULT_MU,
+                     kt_ratio: float = 1.0, confining: float | None = None,
+                     inertial_number: float | None = None, consolidation_steps: int = 200000,
+                     consolidation_tol: float = 0.01) -> tuple[DEMSettings, BiaxialSettings]:
+    """Settings of the protocol from its physical parameters; every derived quantity is derived
+    from the final values (a given ``confining`` sets the strain rate of the default inertial
+    number, not the default pressure).
+
+    Parameters
+    ----------
+    packing : the assembly; its masses (``density`` pi r^2, density in kg/m^2) and D50 (m) set
+        the damping, the time step, the skin and the inertial number.
+    kn : normal spring stiffness (N/m). kt = ``kt_ratio`` kn (Kuhn: kt = kn, ``kt_ratio`` 1).
+    damping_ratio : zeta of the normal contact of two median disks: gamma_n = gamma_t =
+        2 zeta sqrt(kn/m_eff), m_eff = m_median/2 (1/s).
+    steps_per_contact : dt = contact time / ``steps_per_contact`` (contact time of the two
+        lightest disks, :func:`gransim.dem.engine.contact_time`).
+    mu : Coulomb friction coefficient (default 0.5, Kuhn).
+    confining : sigma_11 = p (N/m, 2D). Default 2.5e-4 kn: a mean indentation near 2e-4 D50
+        (the paper's; measured 2e-4 on the Kuhn 1002-disk assembly at the start of
+        compression) for a dense 2D assembly (mean force ~ p D50 / 2, overlap = force/kn).
+    strain_rate, inertial_number : the axial rate (1/s), or the inertial number
+        I = rate D50 sqrt(rho / p) it follows from with the final p (:func:`inertial_number`);
+        at most one of the two; default I = 5e-5 (quasi-static).
+    strain : final axial strain |eps_22|.
+    consolidation_steps, consolidation_tol : see :class:`BiaxialSettings`.
+    flavour : whose arithmetic the engine follows, "liggghts" or "lammps" (:class:`DEMSettings`).
+
+    The skin is 0.05 D50; the servo gain makes the box react over ~100 steps: gain =
+    0.01 / (kn dt).
     """
     kn = as_positive_float(kn, "kn")
     damping_ratio = as_positive_float(damping_ratio, "damping_ratio", allow_zero=True)
     steps_per_contact = as_positive_float(steps_per_contact, "steps_per_contact")
-    if strain_rate is not None:
-        strain_rate = as_positive_float(strain_rate, "strain_rate")
+    mu = as_positive_float(mu, "mu", allow_zero=True)
+    kt_ratio = as_positive_float(kt_ratio, "kt_ratio", allow_zero=True)
+    if strain_rate is not None and inertial_number is not None:
+        raise InputError(f"strain_rate {strain_rate!r} and inertial_number {inertial_number!r}: give at "
+                         "most one (the rate follows from the inertial number and the confining stress)")
+    p = CONFINING_PER_KN * kn if confining is None else as_positive_float(confining, "confining")
+    if strain_rate is None:
+        i_num = DEFAULT_INERTIAL_NUMBER if inertial_number is None else as_positive_float(
+            inertial_number, "inertial_number")
+        strain_rate = i_num / (packing.d50 * np.sqrt(packing.density / p))
+    strain_rate = as_positive_float(strain_rate, "strain_rate")
     m = np.median(packing.masses)
     gamma = 2.0 * damping_ratio * np.sqrt(kn / (0.5 * m))
     dt = contact_time(packing, kn) / steps_per_contact
-    d50 = packing.d50
-    p = 2.5e-4 * kn
-    if strain_rate is None:
-        strain_rate = 5e-5 / (d50 * np.sqrt(packing.density / p))
-    dem = DEMSettings(kn=kn, kt=kn, gamma_n=gamma, gamma_t=gamma, mu=0.5, dt=dt, skin=0.05 * d50,
-                      flavour=flavour)
-    bi = BiaxialSettings(confining=p, strain=strain, strain_rate=strain_rate, servo_gain=0.01 / (kn * dt))
+    dem = DEMSettings(kn=kn, kt=kt_ratio * kn, gamma_n=gamma, gamma_t=gamma, mu=mu, dt=dt,
+                      skin=0.05 * packing.d50, flavour=flavour)
+    bi = BiaxialSettings(confining=p, strain=strain, strain_rate=strain_rate, servo_gain=0.01 / (kn * dt),
+                         consolidation_steps=consolidation_steps, consolidation_tol=consolidation_tol)
     return dem, bi
 
 
@@ -123,17 +160,25 @@ def law_settings(packing: Packing, name: str, params: dict | None = None, **defa
 
     The flavour is the law's code (:func:`~gransim.contacts.laws.law_code`). The parameters
     kn, kt, gamma_n, gamma_t, mu (and friction) default to those of :func:`default_settings`
-    (``defaults`` passed through: kn, damping_ratio, steps_per_contact, strain_rate, strain) where
-    the law takes them (hertz-lammps: only mu; its kn, kt in Pa and dampings in 1/(s m) are
-    given). A Hertz law sets the protocol's stiffness scale from
-    :func:`hertz_equivalent_stiffness`. ``options`` = {"name", "params"} as run (for the
-    provenance). InputError for an unknown name or a bad, missing or unknown parameter.
+    (``defaults``: its keyword arguments, e.g. kn, kt_ratio, mu, damping_ratio, confining,
+    strain_rate or inertial_number) where the law takes them (hertz-lammps: only mu; its kn, kt
+    in Pa and dampings in 1/(s m) are given). A friction coefficient given as a law parameter
+    (mu or friction) is the protocol's mu (InputError when ``defaults`` gives another). A Hertz
+    law sets the protocol's stiffness scale from :func:`hertz_equivalent_stiffness` (and with it
+    the default confining stress, time step and servo gain). ``options`` = {"name", "params"} as
+    run (for the provenance). InputError for an unknown name or a bad, missing or unknown parameter.
     """
     from ..contacts.laws import LAWS, law_code, make_law
 
     params = dict(params or {})
     code = law_code(name)  # InputError naming the known laws
     defaults.pop("flavour", None)
+    for k in ("mu", "friction"):      # the law's friction is the protocol's (one value, recorded once)
+        if k in params:
+            if "mu" in defaults and defaults["mu"] is not None and float(defaults["mu"]) != params[k]:
+                raise InputError(f"law {name}: {k} = {params[k]!r} and mu = {defaults['mu']!r} disagree; "
+                                 "give the friction coefficient once")
+            defaults["mu"] = params[k]
     if name.startswith("hertz"):
         defaults["kn"] = hertz_equivalent_stiffness(packing, name, params)
     dem, bi = default_settings(packing, flavour=code, **defaults)

@@ -4,16 +4,15 @@ Runs without LIGGGHTS. Tolerance RTOL = 1e-10 relative to the largest stress com
 state (see conftest): both sides evaluate the same float64 forces, summed in different orders.
 """
 
-import hashlib
 import json
 
 import numpy as np
 import pytest
+from deck_semantics import check_taylor_job, stored_inputs
 
 from gransim.io import load_packing
 from reference_runs.conventions import cauchy_from_pressure
 from reference_runs.parsers import parse_dump_local
-from reference_runs.decks.taylor import taylor_job
 from reference_runs.store import RVE_CASE, STORED, TAYLOR_CASE, TAYLOR_PARAMS, stored_taylor_packing
 from reference_runs.taylor import read_taylor_job
 from reference_runs.taylor_numpy import candidate_pairs, taylor_stress_numpy
@@ -53,16 +52,27 @@ def any_stored(request):
     return d, packing, read_taylor_job(d, packing), candidate_pairs(packing, 0.85)
 
 
-def test_stored_inputs_regenerate_bit_for_bit(any_stored):
-    # the deck and every data file follow from packing.h5 and the parameters: same SHA-256 as run
-    d, packing, run, _ = any_stored
-    p = TAYLOR_PARAMS
-    deck, files, _ = taylor_job(packing, p["kn"], n_steps=p["n_steps"], stride=p["stride"],
-                                max_strain=p["max_strain"], contacts=(d.name == TAYLOR_CASE), name=d.name)
-    manifest = json.loads((d / "manifest.json").read_text())
-    assert manifest["status"] == "ok"
-    assert hashlib.sha256(deck.encode()).hexdigest() == manifest["deck_sha256"]
-    assert {k: hashlib.sha256(v).hexdigest() for k, v in files.items()} == manifest["inputs"]
+def test_stored_deck_sets_the_documented_physics(any_stored):
+    """The deck as run and its data files mean the documented states: kn = E_n, no tangential
+    spring, damping or friction; the atoms are the packing mapped by F (radii, density, x = F X up
+    to periods) in the box F C; and the code's output shows it read them so: every atom and the
+    box in its thermo row, |f| = kn delta along the line of centres for every dumped contact."""
+    d, packing, _, _ = any_stored
+    n = check_taylor_job(d, packing, KN, "liggghts", stored_inputs(d, packing))
+    assert n > 0 if d.name == TAYLOR_CASE else n == 0
+
+
+def test_the_deck_check_fails_on_a_wrong_state(any_stored):
+    """The semantic check is not vacuous: the data files of another state, or a different kn,
+    fail it."""
+    d, packing, _, _ = any_stored
+    files = stored_inputs(d, packing)
+    names = sorted(k for k in files if k.endswith(".data") and "compression-11/periodic" in k)
+    swapped = {**files, names[0]: files[names[-1]]}
+    with pytest.raises(AssertionError):
+        check_taylor_job(d, packing, KN, "liggghts", swapped)
+    with pytest.raises(AssertionError):
+        check_taylor_job(d, packing, 1.01 * KN, "liggghts", files)
 
 
 def test_stored_stress_equals_numpy_taylor(any_stored):

@@ -55,7 +55,7 @@ def test_piola_is_energy_derivative():
             E = np.zeros((2, 2))
             E[a, b] = h
             P_fd[a, b] = (_energy(p, F + E, cand) - _energy(p, F - E, cand)) / (2 * h)
-    # P = dW/dF (eq 10 of 000_6d950a6f5c65e7b0.txt); central differences, error O(h^2)
+    # P = dW/dF (Meier, Steinmann & Kuhl 2007, eq 10); central differences, error O(h^2)
     assert np.allclose(P, P_fd, rtol=1e-6, atol=1e-6 * np.abs(P).max())
 
 

@@ -12,9 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
+from gransim.paper import KN_2D
+
 from ..core import CaseResult, Context, case, compare, stored_job_record
 
-KN = 2.8e7  # N/m, Table 1 of Meier et al. (the RVE study stiffness)
+#: 2D normal contact stiffness of the RVE study (N/m): E_n of Meier et al. Table 1 per m of thickness
+KN = KN_2D
 STRESS_TOL = 1e-10
 STRESS_REASON = ("same closed-form Love/Taylor sum in both codes; only summation order differs, so round-off "
                  "(~1e-13 measured) is all that may remain; 1e-10 leaves 1000x margin and still catches "
@@ -253,7 +256,8 @@ def taylor_rve(ctx: Context) -> CaseResult:
         "Every RVE is mapped affinely (x = F X) along F11, F22: 1 -> 0.9 and F12, F21: 0 -> 0.1 (50 steps). "
         "gransim's Cauchy stress (numba Taylor kernel, tension positive) is compared state by state with "
         "the virial stress of LIGGGHTS and of LAMMPS for the same configuration (elastic normal contact, "
-        "kn = E_n = 2.8e7 N/m, <code>run 0</code>), per RVE, path and route: <i>periodic</i> = true periodic box "
+        f"kn = E_n = {KN:.3g} N/m, <code>run 0</code>), per RVE, path and route: <i>periodic</i> = true "
+        "periodic box "
         "(LIGGGHTS: compression only, its triclinic boxes lose their ghosts in 3.8.0; LAMMPS: every path, "
         "shear in a triclinic box), <i>images</i> = explicit periodic image copies in an open box. Metric: max "
         "over states of max|sigma_a - sigma_b| / max|sigma_b|. Contact forces: LIGGGHTS images route (matched by "
@@ -345,6 +349,6 @@ def taylor_rve(ctx: Context) -> CaseResult:
         _, _, pngs = run_study(packings, ctx.work("rve_study"), normal_stiffness=KN)
         for png in pngs:
             dest = ctx.copy_figure(png, f"rve_study_{Path(png).name}")
-            res.figures.append((dest, f"RVE study (Figs 3-5 of Meier et al.): {Path(png).stem}; mean and "
-                                      "standard deviation over the 5 RVEs of each size"))
+            res.figures.append((dest, (f"RVE study (Figs 3-5 of Meier et al.): {Path(png).stem}; mean and "
+                                       "standard deviation over the 5 RVEs of each size")))
     return res

@@ -1,14 +1,28 @@
-"""``gransim reference``: LIGGGHTS or LAMMPS reference runs (list, run CASE, taylor)."""
+"""The command-line sub-commands of reference_runs, registered with ``gransim`` as plug-ins.
+
+``gransim reference`` (list, run CASE, taylor: LIGGGHTS or LAMMPS reference runs) and ``gransim
+replay DECK`` (a user's LIGGGHTS or LAMMPS 2D disk deck run in its code and natively, compared step
+by step: :mod:`reference_runs.replay`, docs/replay.md).
+
+gransim never imports this package: ``pyproject.toml`` names :func:`register_reference` and
+:func:`register_replay` in the entry-point group ``gransim.commands`` and :mod:`gransim.cli`
+discovers them (:func:`gransim.cli.build_parser`). Module level imports only the standard library
+and :mod:`gransim.paper` (``gransim --help`` stays fast); the work is imported in the handlers.
+"""
 
 from __future__ import annotations
+
+import sys
+
+from gransim.paper import KN_2D
 
 DEFAULT_OUT = "results/reference"
 
 
-def register(subparsers) -> None:
+def register_reference(subparsers) -> None:
     p = subparsers.add_parser("reference", help="LIGGGHTS or LAMMPS reference runs (needs the binary)",
-                              description="Run reference jobs of LIGGGHTS-PUBLIC 3.8.0 (`liggghts`) or LAMMPS "
-                                          "(`lmp`) and parse them.")
+                              description="Run reference jobs of LIGGGHTS-PUBLIC 3.8.0 (`liggghts`) or "
+                                          "LAMMPS (`lmp`) and parse them.")
     sub = p.add_subparsers(dest="reference_command", metavar="ACTION")
     sub.required = True
 
@@ -34,7 +48,9 @@ def register(subparsers) -> None:
     pt.add_argument("--standard", action="store_true",
                     help="use the 15 study RVEs (rve-<N>-<seed> in --packings-dir, generated if missing)")
     pt.add_argument("--packings-dir", default="results/packings", help="where the standard RVEs live")
-    pt.add_argument("--kn", type=float, default=None, help="normal stiffness E_n, N/m (default 2.8e7)")
+    pt.add_argument("--kn", type=float, default=None,
+                    help=f"2D normal contact stiffness kn = E_n * thickness, N/m (default {KN_2D:g}, "
+                         "gransim.paper.KN_2D: E_n of Meier et al. Table 1)")
     pt.add_argument("--n-steps", type=int, default=50, help="states per path after the reference (50)")
     pt.add_argument("--stride", type=int, default=1, help="run every STRIDE-th state (and the last)")
     pt.add_argument("--max-strain", type=float, default=0.1, help="final |F - I| component (0.1)")
@@ -67,7 +83,6 @@ def _run(args) -> int:
     from pathlib import Path
 
     from reference_runs.cases import get_case
-
     from reference_runs.runner import kill_children_on_signals
 
     case = get_case(args.case)
@@ -80,10 +95,12 @@ def _run(args) -> int:
 def _taylor(args) -> int:
     from pathlib import Path
 
+    from gransim._validate import as_positive_float
     from gransim.errors import InputError
     from gransim.io import load_packing
-    from reference_runs.cases import PAPER_KN, TAYLOR_RTOL, run_taylor_set
+    from reference_runs.cases import TAYLOR_RTOL, run_taylor_set
 
+    kn = KN_2D if args.kn is None else as_positive_float(args.kn, "--kn (N/m)")
     files = [Path(p) for p in args.packings]
     if args.rves:
         files += sorted(Path(args.rves).glob("*.h5"))
@@ -103,11 +120,70 @@ def _taylor(args) -> int:
     from reference_runs.runner import kill_children_on_signals
 
     with kill_children_on_signals():  # SIGTERM/SIGINT/SIGHUP: no LIGGGHTS process outlives us
-        _, worst = run_taylor_set(packings, args.out, kn=args.kn or PAPER_KN, n_steps=args.n_steps,
-                                  stride=args.stride, max_strain=args.max_strain, contacts=args.contacts,
-                                  np_procs=args.np, timeout=args.timeout, force=args.force, engine=args.engine)
+        _, worst = run_taylor_set(packings, args.out, kn=kn, n_steps=args.n_steps, stride=args.stride,
+                                  max_strain=args.max_strain, contacts=args.contacts,
+                                  np_procs=args.np, timeout=args.timeout, force=args.force,
+                                  engine=args.engine)
     ok = worst <= TAYLOR_RTOL
     code = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}[args.engine]
     print(f"{len(packings)} packings: largest relative difference {code} vs numpy Taylor stress = "
           f"{worst:.3e} ({'PASS' if ok else 'FAIL'}, tolerance {TAYLOR_RTOL:g})")
     return 0 if ok else 1
+
+
+def register_replay(sub) -> None:
+    p = sub.add_parser(
+        "replay", help="replay a LIGGGHTS/LAMMPS 2D disk deck natively and in its code, and compare",
+        description="Read a LIGGGHTS 3.8.0 or LAMMPS deck of 2D periodic disks (the supported subset: "
+                    "docs/replay.md; anything else is refused naming its line), run it unchanged in its "
+                    "code and with the native engine, compare thermo (box, compute pressure) and dumps "
+                    "step by step, and write OUTDIR/report.html, report.md and replay.h5. Exit status 0 "
+                    "when everything agrees within tolerance (positions 1e-10 D50, stress 1e-8 "
+                    "relative), 1 when not or when evidence is missing, 2 for bad input.")
+    p.add_argument("deck", help="the input deck")
+    p.add_argument("--data", default=None, metavar="FILE",
+                   help="data file to use instead of the one read_data names")
+    p.add_argument("--engine", default=None, choices=["liggghts", "lammps"],
+                   help="the deck's code (default: detected from its syntax)")
+    p.add_argument("-o", "--out", default=None, metavar="OUTDIR",
+                   help="output directory (default results/replay/<deck name>)")
+    p.add_argument("--timeout", type=float, default=None, metavar="S",
+                   help="kill the code's run after S seconds (default: no limit)")
+    p.add_argument("--reference", default=None, metavar="DIR",
+                   help="a finished job directory of this deck (log.lammps and dumps) to compare with "
+                        "instead of running the code")
+    p.set_defaults(func=_replay)
+
+
+def _replay(args) -> int:
+    from pathlib import Path
+
+    from gransim.errors import InputError
+
+    deck = Path(args.deck)
+    if not deck.is_file():
+        raise InputError(f"DECK: {deck} is not a file")
+    if args.data is not None and not Path(args.data).is_file():
+        raise InputError(f"--data: {args.data} is not a file")
+    if args.timeout is not None and not args.timeout > 0:
+        raise InputError(f"--timeout: expected seconds > 0, got {args.timeout!r}")
+    from reference_runs.errors import ReferenceRunError
+    from reference_runs.replay.compare import replay
+
+    def echo(msg):
+        print(f"gransim replay: {msg}", file=sys.stderr, flush=True)
+
+    try:
+        res = replay(deck, data=args.data, engine=args.engine, outdir=args.out, timeout=args.timeout,
+                     reference=args.reference, echo=echo)
+    except ReferenceRunError as exc:
+        print(f"gransim replay: error: the code's run failed: {exc}", file=sys.stderr)
+        return 1
+    bad = [c for c in res.checks if not c.passed]
+    for c in bad:
+        print(f"FAIL {c.quantity}: {c.metric} = {float(c.value):.3g} (tolerance {float(c.tolerance):.3g}) "
+              f"{c.detail}")
+    print(f"{'PASS' if res.passed else 'FAIL'}: {len(res.checks) - len(bad)} of {len(res.checks)} checks "
+          "agree; "
+          f"report {res.outdir / 'report.html'}")
+    return 0 if res.passed else 1

@@ -1,12 +1,17 @@
-"""``gransim validate``: native gransim against LIGGGHTS, case by case, and the HTML report."""
+"""``gransim validate``: native gransim against LIGGGHTS and LAMMPS, case by case, and the HTML report.
+
+A plug-in of the ``gransim`` command: ``pyproject.toml`` names :func:`register` in the entry-point
+group ``gransim.commands`` and :func:`gransim.cli.build_parser` discovers it; gransim never imports
+this package. Module level imports nothing but the standard library (``gransim --help`` stays fast).
+"""
 
 from __future__ import annotations
 
 
 def register(sub) -> None:
     p = sub.add_parser("validate", help="run the validation suite and write results/report/index.html",
-                       description="Run the validation cases (native gransim vs LIGGGHTS reference runs), "
-                                   "write results/validation.json, results/validation.h5 and "
+                       description="Run the validation cases (native gransim vs LIGGGHTS and LAMMPS "
+                                   "reference runs), write results/validation.json, results/validation.h5 and "
                                    "results/report/index.html. Exit status 1 when any case fails.")
     p.add_argument("--suite", default="default", choices=["quick", "default", "full"],
                    help="quick (< 2 min, used by tests), default (make run), full (more seeds, larger)")
