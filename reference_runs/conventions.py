@@ -14,7 +14,7 @@ Stress sign
     sigma = (1/A) sum_c f_c (x) l_c,
 
 with l_c = x_j - x_i the branch vector from i to j and f_c the force that j exerts on i
-(000_6d950a6f5c65e7b0.txt, eqs 2 and 10: P = (1/V) sum f_ij (x) L_ij, sigma = P F^T / det F).
+(Meier, Steinmann & Kuhl, "Towards completeness, a multiscale approach of confined particulate systems" (2007), eqs 2 and 10: P = (1/V) sum f_ij (x) L_ij, sigma = P F^T / det F).
 A repulsive contact has f_c antiparallel to l_c, so compression is negative.
 
 **LIGGGHTS: compression positive.** ``compute pressure <temp> virial`` reports

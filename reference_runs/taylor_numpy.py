@@ -3,7 +3,7 @@
 An implementation independent of gransim.rve (and of gransim's cell-list search) that the
 LIGGGHTS Taylor states are checked against. For a periodic packing (reference centres X_i,
 cell C with lattice vectors as columns, reference area V = det C) and a deformation
-gradient F (000_6d950a6f5c65e7b0.txt, eqs 1-5 and 10):
+gradient F (Meier, Steinmann & Kuhl, "Towards completeness, a multiscale approach of confined particulate systems" (2007), eqs 1-5 and 10):
 
     L_ij  = X_j + C n - X_i                       reference branch vector, n in {-1, 0, 1}^2
     l_ij  = F L_ij                                deformed branch vector (Taylor assumption, eq 1)

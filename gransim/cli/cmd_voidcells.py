@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-#: the paper's figures (002 sec. 4) set beside ours in the table
+#: the paper's figures (Kuhn 1997, sec. 4) set beside ours in the table
 PAPER = {"faces": 762, "edges": 1633, "vertices": 871, "coordination": 3.75,
          "mean_alpha_at_0.0001": 0.73, "fraction_alpha_le_0_at_0.0016": 0.22}
 
 
 def register(subparsers):
     p = subparsers.add_parser(
-        "voidcells", help="void-cell deformation maps and statistics of a DEM run (Kuhn 002)",
+        "voidcells", help="void-cell deformation maps and statistics of a DEM run (Kuhn (1997))",
         description="Particle graph, void cells and their velocity gradients (eq 7) at chosen "
                     "strains of a DEM run: PNG maps of alignment (Fig. 8), vorticity (Fig. 9), "
                     "relative motion (Fig. 10), alpha histograms, VTK polygons and a table "
@@ -45,10 +45,10 @@ def format_table(rows: list) -> str:
     for r in rows:
         lines.append("| " + " | ".join(
             f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols) + " |")
-    lines.append(f"| Kuhn (002), initial graph | 0 | | {PAPER['faces']} | {PAPER['edges']} | "
+    lines.append(f"| Kuhn (1997), initial graph | 0 | | {PAPER['faces']} | {PAPER['edges']} | "
                  f"{PAPER['vertices']} | 0 | {PAPER['coordination']} | | |")
-    lines.append(f"| Kuhn (002) | 0.0001 | | | | | | | {PAPER['mean_alpha_at_0.0001']} | |")
-    lines.append("| Kuhn (002) | 0.0016 | | | | | | | | about "
+    lines.append(f"| Kuhn (1997) | 0.0001 | | | | | | | {PAPER['mean_alpha_at_0.0001']} | |")
+    lines.append("| Kuhn (1997) | 0.0016 | | | | | | | | about "
                  f"{PAPER['fraction_alpha_le_0_at_0.0016']} |")
     return "\n".join(lines)
 

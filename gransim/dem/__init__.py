@@ -1,5 +1,5 @@
 """Discrete element engine for 2D disks in a periodic cell (LIGGGHTS 3.8.0 step order) and the
-biaxial test of Kuhn (002), section 4. See docs/dem.md and docs/schema_dem.md."""
+biaxial test of Kuhn (1997), section 4. See docs/dem.md and docs/schema_dem.md."""
 
 from .biaxial import BiaxialSettings, default_settings, inertial_number, run_biaxial
 from .engine import DEMEngine, contact_time, damping_ratio, fingerprint, stability_limit

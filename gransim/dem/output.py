@@ -1,5 +1,5 @@
 """Results files of DEM runs (layout: docs/schema_dem.md), reading, VTK export and the
-stress-strain plot (Fig. 7b of Kuhn 002)."""
+stress-strain plot (Fig. 7b of Kuhn (1997))."""
 
 from __future__ import annotations
 
@@ -365,7 +365,7 @@ def snapshot_to_vtu(path, step: int | None, out, allow_incomplete: bool = False)
 
 
 def plot_stress_strain(path, out, allow_incomplete: bool = False) -> Path:
-    """Fig. 7b of Kuhn (002): stress ratio sigma_22/sigma_11 and deviator (sigma_22 - sigma_11)/2
+    """Fig. 7b of Kuhn (1997): stress ratio sigma_22/sigma_11 and deviator (sigma_22 - sigma_11)/2
     against the axial strain -eps_22 (compression phase; compression-positive stresses).
 
     An unfinished run (``complete`` False) is refused unless ``allow_incomplete``; its plot then

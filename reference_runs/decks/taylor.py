@@ -4,7 +4,7 @@
 ``engine="lammps"`` the LAMMPS deck described at the end.
 
 Contact law: ``pair_style gran model hooke/stiffness tangential no_history`` with
-kn = E_n, kt = 0, gamman = gammat = 0 (the elastic normal contact of 000_6d950a6f5c65e7b0.txt,
+kn = E_n, kt = 0, gamman = gammat = 0 (the elastic normal contact of Meier, Steinmann & Kuhl (2007),
 eqs 3-5: f = -E_n eps n), no integrator, one ``run 0`` per state. The set-up of ``run 0``
 builds the neighbour list and evaluates the forces once, so the printed virial and the
 ``compute pair/gran/local`` rows are the clean evaluation at the given positions (shared notes).
@@ -71,7 +71,7 @@ from gransim.geometry import Packing
 
 from ..datafile import write_data_file
 
-#: the four study paths of 000_6d950a6f5c65e7b0.txt (Figs 4-5): driving component of F
+#: the four study paths of Meier, Steinmann & Kuhl (2007) (Figs 4-5): driving component of F
 PATHS = ("compression-11", "compression-22", "shear-12", "shear-21")
 ROUTES = ("periodic", "images")
 #: engines the decks are written for

@@ -118,7 +118,7 @@ def test_cli_writes_figures_and_table(run_file, tmp_path, capsys):
         assert float(row["fraction_alpha_le_0"]) == 0.0
         assert float(row["coordination_2M_over_N"]) == pytest.approx(
             2 * int(row["edges"]) / int(row["vertices"]))
-    assert "Kuhn (002)" in capsys.readouterr().out
+    assert "Kuhn (1997)" in capsys.readouterr().out
     frames = list(csv.DictReader(open(out / "frames.csv")))
     assert [int(f["step"]) for f in frames] == [2, 5, 6, 7, 21, 22]
     assert all(int(f["euler"]) == 0 for f in frames)

@@ -32,7 +32,7 @@ REPLAY_REASON = ("the native engine, in that code's arithmetic, follows the code
                  "over the ~190,000 steps of the compaction any difference in the last bit would grow to a visible "
                  "one (chaos), so the final positions and box must be equal: 1e-10 D50 admits nothing else")
 
-#: Kuhn (002, section 4)
+#: Kuhn (1997, section 4)
 KUHN_PAPER = {"void_ratio": 0.189, "indentation_d50": 2e-4, "coordination_2M_N": 3.75}
 KUHN_VOID_TOL = 0.005
 
@@ -103,10 +103,10 @@ def packings(ctx: Context) -> CaseResult:
                                        "trace of the Love stress from normal forces only; servo stops at 1 % per axis"))
             res.records.append(compare(f"packings/{name}", "mean indentation", "<eps> / D50",
                                        s["mean_overlap_d50"], KUHN_PAPER["indentation_d50"],
-                                       "Kuhn (002): on average less than 0.02 % of D50"))
+                                       "Kuhn (1997): on average less than 0.02 % of D50"))
             res.records.append(compare(f"packings/{name}", "void ratio", "|e - 0.189|",
                                        abs(s["void_ratio"] - KUHN_PAPER["void_ratio"]), KUHN_VOID_TOL,
-                                       "Kuhn (002): e = 0.189, 'near 0.189' asked; seeds 1-4 of the protocol give 0.189-0.196"))
+                                       "Kuhn (1997): e = 0.189, 'near 0.189' asked; seeds 1-4 of the protocol give 0.189-0.196"))
             check = f"p/p0 - 1 = {pressure / target - 1.0:+.2e}"
             if ctx.liggghts:
                 res.declare("native-liggghts", "LIGGGHTS replays the compaction that made Kuhn's assembly: "
@@ -130,7 +130,7 @@ def packings(ctx: Context) -> CaseResult:
     res.skip_pair("liggghts-lammps", "a 190,000-step compaction in two codes with slightly different laws ends in "
                                      "different (equally valid) packings by chaos; the codes are set against each "
                                      "other on the same start in biaxial-short, biaxial-full and voidcell")
-    rows.append(["Kuhn (002), paper", 1002, "0.841", "0.189", "", "3.75 (2M/N)", "13.1 (131 outside the graph)",
+    rows.append(["Kuhn (1997), paper", 1002, "0.841", "0.189", "", "3.75 (2M/N)", "13.1 (131 outside the graph)",
                  "< 0.02", "", "", ""])
     res.tables.append(("The standard assemblies (rattlers: fewer than 3 contacts, removed iteratively)",
                        ["name", "N", "phi", "e", "Z", "Z without rattlers", "rattlers %", "<eps>/D50 %",

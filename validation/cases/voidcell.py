@@ -24,7 +24,7 @@ LIST_REASON = ("cell lists (faces as particle cycles, valences, edges, vertices)
 STATS_REASON = ("band = the largest deviation of the perturbed LIGGGHTS runs (one coordinate moved by 1e-15) "
                 "from the reference over the frames: the statistics' own spread under round-off (instantaneous "
                 "velocity fields decorrelate once positions differ by ~1e-4 D50)")
-#: strains of the paper's statistics (002, sec. 4): 0.01% and 0.16%
+#: strains of the paper's statistics (Kuhn 1997, sec. 4): 0.01% and 0.16%
 PAPER = {"mean_alpha_0.01%": 0.73, "alpha_le_0_0.16%": 0.22, "faces": 762, "edges": 1633, "vertices": 871,
          "coordination": 3.75}
 #: compression steps of the Kuhn runs counted as the short horizon (perturbations still < 1e-10 D50)
@@ -171,7 +171,7 @@ def voidcell(ctx: Context) -> CaseResult:
     res = CaseResult(
         "voidcell", "Void-cell measures (Kuhn) from native, LIGGGHTS and LAMMPS snapshots",
         "Particle graph, void cells, alignment alpha (eqs 18-19) and normalised vorticity w (eq 20) of Kuhn "
-        "(002), computed by gransim.voidcell from snapshots of every code built identically: contacts = "
+        "(1997), computed by gransim.voidcell from snapshots of every code built identically: contacts = "
         "overlapping pairs of the dumped positions, velocities = dumped v + (dC/dt) C^-1 x (every code uses "
         "<code>remap x</code>, whose velocities exclude the box's affine motion), dC/dt by central differences of "
         "the box lengths. <i>stored-120</i>: every dump of the stored 120-disk biaxial-short runs (LIGGGHTS and "
@@ -303,7 +303,7 @@ def voidcell(ctx: Context) -> CaseResult:
                 rows.append([f"{who} @ {tag}", float(100 * strains[k]), vc.mean_alpha,
                              float(100 * vc.fraction_nonpositive_alpha), vc.n_faces, vc.n_edges, vc.n_vertices,
                              vc.coordination])
-        rows.append(["Kuhn (002): 0.01% / 0.16%", "", "0.73 (0.01%)", "about 22 (0.16%)", 762, 1633, 871, 3.75])
+        rows.append(["Kuhn (1997): 0.01% / 0.16%", "", "0.73 (0.01%)", "about 22 (0.16%)", 762, 1633, 871, 3.75])
         res.tables.append(("Beside the paper (reported, not pass/fail: another packing, another contact law)",
                            ["source", "strain %", "mean alpha", "alpha <= 0 (%)", "faces", "edges", "vertices",
                             "2M/N"], rows))
