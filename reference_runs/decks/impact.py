@@ -383,3 +383,186 @@ def read_frames(dump_path) -> dict:
         out[int(fr.step)] = {"x": fr.array("x", "y"), "v": fr.array("vx", "vy"), "w": np.array(fr["omegaz"], float),
                              "f": fr.array("fx", "fy"), "t": np.array(fr["tqz"], float)}
     return out
+
+
+# ----------------------------------------------------------------------------- rolling resistance
+#: rolling-law name (:func:`gransim.contacts.laws.make_law`) -> its model in the codes
+ROLLING_MODELS = {
+    "hooke-epsd2-liggghts": "epsd2",
+    "hooke-epsd-liggghts": "epsd",
+    "hooke-cdt-liggghts": "cdt",
+    "hooke-sds-lammps": "sds",
+}
+
+
+@dataclass(frozen=True)
+class RollingLaw:
+    """A Hooke law with rolling resistance, by its :func:`gransim.contacts.laws.make_law` name
+    (one code each: LIGGGHTS ``hooke/stiffness tangential history rolling_friction epsd2|epsd|cdt``,
+    LAMMPS ``granular hooke ... tangential linear_history ... rolling sds``; docs/laws.md).
+
+    ``params``: the make_law parameters as a tuple of (name, value) pairs (a frozen dataclass
+    must hash), SI. The deck lines are those of the biaxial decks
+    (:func:`reference_runs.decks.biaxial.law_pair_lines`), so the two cases share one law block.
+    :meth:`rolling` gives the constants of the closed forms of validation/cases/impacts.py.
+    """
+
+    name: str
+    params: tuple
+
+    def __post_init__(self):
+        if self.name not in ROLLING_MODELS:
+            raise InputError(
+                f"RollingLaw.name: expected one of {', '.join(ROLLING_MODELS)}, got {self.name!r}"
+            )
+        self.law()  # InputError naming a bad parameter
+
+    @property
+    def engines(self) -> tuple:
+        from gransim.contacts.laws import law_code
+
+        return (law_code(self.name),)
+
+    @property
+    def p(self) -> dict:
+        return dict(self.params)
+
+    @property
+    def mu(self) -> float:
+        return float(self.p["mu"])
+
+    def law(self):
+        from gransim.contacts.laws import make_law
+
+        return make_law(self.name, **self.p)
+
+    def native_law(self, flavour: str = ""):
+        return self.law()
+
+    def rolling(self) -> dict:
+        """{"model": epsd2|epsd|cdt|sds, "kn" (N/m), "kt" (N/m), "mu_r" (-), "eta_r" (-), "kroll"
+        (N/m), "gammaroll" (kg/s)}: what the rolling torque depends on (zeros where absent)."""
+        p = self.p
+        out = {
+            "model": ROLLING_MODELS[self.name],
+            "kn": float(p["kn"]),
+            "kt": float(p["kt"]),
+            "mu_r": float(p.get("mu_r", p.get("muroll", 0.0))),
+            "eta_r": float(p.get("eta_r", 0.0)),
+            "kroll": float(p.get("kroll", 0.0)),
+            "gammaroll": float(p.get("gammaroll", 0.0)),
+        }
+        return out
+
+    def dem_settings(self, dt: float, skin: float, flavour: str = "") -> DEMSettings:
+        """Settings for the engine: kn, kt, the normal damping and mu of the law (its time-step
+        check), dt, skin, serial, the law's code as flavour (its neighbour-rebuild rule)."""
+        p = self.p
+        return DEMSettings(
+            kn=p["kn"],
+            kt=p["kt"],
+            gamma_n=p.get("gamma_n", p.get("damp", 0.0)),
+            gamma_t=p.get("gamma_t", 0.0),
+            mu=p["mu"],
+            dt=dt,
+            skin=skin,
+            mode="serial",
+            flavour=self.engines[0],
+        )
+
+    def deck_lines(self, engine: str) -> list[str]:
+        from .biaxial import law_pair_lines
+
+        _one_code(self, engine)
+        return law_pair_lines(self.law(), self.dem_settings(1.0, 1.0), engine)
+
+    def describe(self) -> str:
+        return f"{self.name}: " + ", ".join(
+            f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}" for k, v in self.params
+        )
+
+
+# ----------------------------------------------------------------------------- flat granular walls
+@dataclass(frozen=True)
+class WallLaw:
+    """Each code's own flat granular wall ``y = 0`` with the linear Hooke law with tangential
+    history, for the oblique impacts of validation/cases/impacts.py (scene ``wall-<code>``).
+
+    LAMMPS 29Sep2021: ``fix wall/gran hooke/history KN KT GAMMAN GAMMAT MU 1 yplane 0.0 NULL``
+    (GRANULAR/fix_wall_gran.cpp:847-967: the pair law of ``gran/hooke/history`` with the wall as
+    an infinitely heavy body of radius 0, meff = m_i, lever arm r_i), with the pair style
+    ``gran/hooke/history`` of the same constants (no pair ever touches). LIGGGHTS 3.8.0: ``fix
+    wall/gran model hooke/stiffness tangential history primitive type 1 yplane 0.0`` (the mesh-less
+    primitive wall, fix_wall_gran.cpp; it runs in 2D with ``enforce2d``) with the properties of
+    :class:`HookeLaw`. Both need ``boundary p f p`` (a wall in a periodic dimension is an error).
+    """
+
+    kn: float
+    kt: float
+    mu: float = 0.5
+    engine: str = "lammps"
+    name: str = "wall"
+
+    def __post_init__(self):
+        HookeLaw(self.kn, self.kt, 0.0, 0.0, self.mu)  # the checks
+        if self.engine not in ENGINES:
+            raise InputError(f"WallLaw.engine: expected one of {', '.join(ENGINES)}, got {self.engine!r}")
+
+    @property
+    def engines(self) -> tuple:
+        return (self.engine,)
+
+    def deck_lines(self, engine: str) -> list[str]:
+        _one_code(self, engine)
+        pair = HookeLaw(self.kn, self.kt, 0.0, 0.0, self.mu).deck_lines(engine)
+        if engine == "lammps":
+            return pair + [
+                (
+                    f"fix wall all wall/gran hooke/history {_g(self.kn)} {_g(self.kt)} 0 0 {_g(self.mu)} 1 "
+                    "yplane 0.0 NULL"
+                )
+            ]
+        return pair + [
+            "fix wall all wall/gran model hooke/stiffness tangential history primitive type 1 yplane 0.0"
+        ]
+
+    def describe(self) -> str:
+        what = (
+            "LAMMPS fix wall/gran hooke/history yplane"
+            if self.engine == "lammps"
+            else "LIGGGHTS fix wall/gran primitive yplane, hooke/stiffness tangential history"
+        )
+        return f"{what}: kn {self.kn:g} N/m, kt {self.kt:g} N/m, no damping, mu {self.mu:g}"
+
+
+def write_wall_deck(
+    job_dir,
+    packing: Packing,
+    law: WallLaw,
+    dt: float,
+    skin: float,
+    nsteps: int,
+    velocities,
+    spins,
+    dump_every: int = 1,
+    thermo_every: int = 10,
+) -> Path:
+    """The deck of disks impacting the flat wall ``y = 0`` of ``law`` (its code), as
+    :func:`write_impact_deck` but ``boundary p f p`` (the box spans y in [0, Ly])."""
+    deck = write_impact_deck(
+        job_dir,
+        packing,
+        law,
+        dt,
+        skin,
+        nsteps,
+        velocities,
+        spins,
+        engine=law.engine,
+        dump_every=dump_every,
+        thermo_every=thermo_every,
+    )
+    text = deck.read_text().replace("boundary p p p", "boundary p f p")
+    with atomic_path(deck) as tmp:
+        Path(tmp).write_text(text)
+    return deck
