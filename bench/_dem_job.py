@@ -1,10 +1,13 @@
 """One measured DEM job, run as its own process by bench/dem.py; prints one JSON line.
 
-``python -m bench._dem_job native PACKING.npz STEPS MODE THREADS``
+``python -m bench._dem_job native PACKING.npz STEPS MODE THREADS [WARM]``
     Import gransim.dem, warm the kernels up on a 110-disk assembly (numba cache load/compile,
     thread pool), build the engine on the packing (LIGGGHTS' run set-up: first list build and
-    forces, not timed), then time ``advance`` of STEPS steps: the counterpart of LIGGGHTS'
-    ``Loop time``. Reports loop_s, contacts, rebuilds and the process's peak RSS (VmHWM, KiB).
+    forces, not timed), advance WARM steps untimed (the first rebuilds: the steady state), then
+    time ``advance`` of STEPS steps: the counterpart of the codes' ``Loop time`` of their second
+    ``run``. MODE "serial"/"parallel": the bitwise :class:`~gransim.dem.DEMEngine`; "fast": the
+    fast path :class:`~gransim.dem.fast.FastEngine` on THREADS threads. Reports loop_s, contacts,
+    rebuilds in the window, the process's peak RSS (VmHWM, KiB) and the engine's own array bytes.
 ``python -m bench._dem_job baseline MODE THREADS``
     The same imports and warm-up only: the memory a native job holds before its packing.
 ``python -m bench._dem_job profile PACKING.npz STEPS``
@@ -25,8 +28,15 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
+
+#: threads waiting at the end of a parallel region sleep instead of spinning (GNU OpenMP's default
+#: spins): on a machine whose cores are shared, a spinning thread burns the time slice that the
+#: descheduled one needs, and a 2-thread step collapsed 10x (measured, docs/performance.md). Set
+#: before numba loads its OpenMP layer; an OMP_WAIT_POLICY in the environment wins.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
 def _packing(path):
@@ -42,25 +52,49 @@ def _warm(mode: str, threads: int):
     from bench.dem import LOADING, SETTINGS, assembly
     from gransim.dem import DEMEngine, DEMSettings
 
+    if mode == "fast":
+        from gransim.dem import fast
+
+        low, fast.MIN_PER_THREAD = fast.MIN_PER_THREAD, 0  # the threaded kernels too, on 110 disks
+        try:
+            fast.FastEngine(assembly(100), SETTINGS, threads=threads).advance(2)
+        finally:
+            fast.MIN_PER_THREAD = low
+        return SETTINGS
     s = DEMSettings(**{**SETTINGS.to_dict(), "mode": mode})
     DEMEngine(assembly(100), s, threads=threads).advance(LOADING, 2)
     return s
 
 
-def native(path, steps: int, mode: str, threads: int) -> dict:
+def native(path, steps: int, mode: str, threads: int, warm: int = 0) -> dict:
     from bench._memory import own_peak_kib
     from bench.dem import LOADING
     from gransim.dem import DEMEngine
 
     s = _warm(mode, threads)
     p = _packing(path)
-    eng = DEMEngine(p, s, threads=threads)
+    if mode == "fast":
+        from gransim.dem.fast import FastEngine
+
+        eng = FastEngine(p, s, threads=threads)
+        go = eng.advance
+    else:
+        eng = DEMEngine(p, s, threads=threads)
+
+        def go(k):
+            return eng.advance(LOADING, k)
+    go(warm)
     r0 = eng.n_rebuilds
     t0 = time.perf_counter()
-    eng.advance(LOADING, steps)
+    go(steps)
     loop = time.perf_counter() - t0
-    return {"loop_s": loop, "n": p.n, "steps": steps, "contacts": eng.n_contacts, "rebuilds": eng.n_rebuilds - r0,
-            "peak_kib": own_peak_kib()}
+    out = {"loop_s": loop, "n": p.n, "steps": steps, "warm": warm, "contacts": eng.n_contacts,
+           "rebuilds": eng.n_rebuilds - r0, "peak_kib": own_peak_kib(),
+           "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY")}
+    if mode == "fast":
+        out["engine_bytes"] = eng.memory_bytes()
+        out["entries"] = eng.n_entries
+    return out
 
 
 def baseline(mode: str, threads: int) -> dict:
@@ -152,18 +186,23 @@ def engine_job(job_dir, nprocs: int, timeout: float, engine: str = "liggghts") -
     eng = get_engine(engine)
     job = Path(job_dir)
     sampler = PeakSampler(names={eng.binary}, interval=0.05)
+    deck = (job / "in.bench").read_text()
+    runs = sum(1 for ln in deck.splitlines() if ln.startswith("run "))
     sampler.start()
+    t0 = time.perf_counter()
     try:
-        res = run_job(job, (job / "in.bench").read_text(), files={"data.biaxial": job / "data.biaxial"},
-                      np=nprocs, timeout=timeout, expected_runs=1, progress=False, force=True, engine=eng.name)
+        res = run_job(job, deck, files={"data.biaxial": job / "data.biaxial"}, np=nprocs, timeout=timeout,
+                      expected_runs=runs, progress=False, force=True, engine=eng.name)
     finally:
+        wall = time.perf_counter() - t0
         peaks = sampler.stop()
-    (t,) = parse_loop_timings(res.log_path)
+    t = parse_loop_timings(res.log_path)[-1]  # the last run: the steady-state window
     breakdown = {k: v[0] for k, v in t.breakdown.items()}
     mem = t.memory_mb
     if eng.name == "lammps":
         breakdown, mem = lammps_breakdown(res.log_path.read_text(errors="replace"))
     return {"loop_s": t.loop_s, "n": t.atoms, "steps": t.steps, "procs": t.procs, "engine": eng.name,
+            "run_job_s": wall,
             "breakdown": breakdown, "memory_mb_estimate": mem, "version": res.manifest.get("engine_version"),
             "rebuilds": t.neighbour_builds, "rank_peaks_kib": sorted(k for _, k in peaks.values())}
 
@@ -175,7 +214,7 @@ def liggghts(job_dir, nprocs: int, timeout: float) -> dict:
 def main(argv) -> int:
     kind, *a = argv
     if kind == "native":
-        out = native(a[0], int(a[1]), a[2], int(a[3]))
+        out = native(a[0], int(a[1]), a[2], int(a[3]), int(a[4]) if len(a) > 4 else 0)
     elif kind == "baseline":
         out = baseline(a[0], int(a[1]))
     elif kind == "profile":

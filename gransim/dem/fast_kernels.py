@@ -1,0 +1,1320 @@
+"""Numba kernels of the fast DEM path (:mod:`gransim.dem.fast`): no validation here.
+
+Layout (all structure-of-arrays, particles in *sorted* order, see :func:`bin_sort`):
+x, y, vx, vy, w, fx, fy, t, r, m (N,) float64; perm (N,) int32 the original index of each sorted
+particle. Half neighbour list, each pair once with i < j in the sorted order, CSR by i:
+start (N+1,) int32, nj (M,) int32, code (M,) uint8 the periodic image of j
+(code = (sx + 1) + 3 (sy + 1), image x_j + sx Lx, y_j + sy Ly), hist (M, 2) float64 the tangential
+spring in the frame of i (m).
+
+Chunks. The particles are grouped in bands of whole bin rows (``cstart`` (C+1,) int32): the bins
+are at least a neighbour cut-off wide, so every partner j > i of a particle of band c lies in band
+c or c + 1, except the pairs across the periodic y boundary (i in the first bin row, j in the
+last), which are *spilled*: their j-side force goes to a small buffer scattered serially after
+the force loop. The force loop runs the even bands, then the odd bands (two ``prange`` regions):
+within a region no two bands write the same particle, so the symmetric (Newton's third law)
+update needs no atomics and no per-thread copy of the force arrays. Every sum has a fixed order
+(band by band, entry by entry, spills last, per-band partial sums reduced in band order), so the
+results do not depend on the number of threads or on the scheduling: the chunks are many more
+than the threads and are handed out dynamically (:func:`gransim.dem.fast.dynamic_chunks`), so a
+descheduled thread holds back only the band it is working on.
+
+Contact law: LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history`` (the arithmetic of
+:func:`gransim.contacts.hooke.hooke_history`, eq (5) of Meier et al. for the elastic normal
+part), written without branches: the touch test and the Coulomb cap are selects, so the loop has
+no data-dependent jump (an entry that does not touch computes a force that is masked to zero and
+keeps its spring, as LIGGGHTS keeps it until the next list build).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._numba import njit, pjit, prange
+
+
+# ----------------------------------------------------------------------------------- the law
+@njit(inline="always")
+def hooke_select(
+    delx,
+    dely,
+    rsq,
+    radsum,
+    ri,
+    rj,
+    vix,
+    viy,
+    vjx,
+    vjy,
+    wi,
+    wj,
+    mi,
+    mj,
+    kn,
+    kt,
+    gn,
+    gt,
+    mu,
+    dt,
+    s0,
+    s1,
+    update,
+):
+    """Branch-free LIGGGHTS Hooke pair (same operations as ``hooke_history``, masked).
+
+    Returns (touch, fx, fy, ti, tj, s0, s1, overlap): force on i (N; zero when the disks do not
+    touch, rsq >= radsum^2), torques on i and j (N m), the spring (m; unchanged when apart) and
+    the overlap radsum - |d| (m; zero when apart).
+    """
+    touch = rsq < radsum * radsum
+    r = math.sqrt(rsq)
+    rinv = 1.0 / r
+    enx = delx * rinv
+    eny = dely * rinv
+    meff = mi * mj / (mi + mj)
+    vr1 = vix - vjx
+    vr2 = viy - vjy
+    vn = vr1 * enx + vr2 * eny
+    vt1 = vr1 - vn * enx
+    vt2 = vr2 - vn * eny
+    deltan = radsum - r
+    cri = ri - 0.5 * deltan
+    crj = rj - 0.5 * deltan
+    wr3 = (cri * wi + crj * wj) * rinv
+    vtr1 = vt1 + dely * wr3
+    vtr2 = vt2 - delx * wr3
+    fn = -(meff * gn) * vn + kn * deltan
+    if update:  # uniform over the loop (False only in the set-up evaluation)
+        u0 = s0 + vtr1 * dt
+        u1 = s1 + vtr2 * dt
+        rsht = u0 * enx + u1 * eny
+        u0 -= rsht * enx
+        u1 -= rsht * eny
+    else:
+        u0 = s0
+        u1 = s1
+    shrmag = math.sqrt(u0 * u0 + u1 * u1)
+    ft_shear = kt * shrmag
+    ft_friction = mu * abs(fn)
+    sl = ft_shear > ft_friction
+    # the Coulomb cap as a select: ratio = mu |F_n| / (kt |xi|) when sliding, exactly 1 otherwise
+    # (x / x = 1 in IEEE arithmetic); one division, no jump
+    ratio = ft_friction / max(ft_shear, ft_friction, 1e-300)
+    ft1 = -(kt * u0) * ratio
+    ft2 = -(kt * u1) * ratio
+    g = meff * gt
+    d1 = 0.0 if sl else g * vtr1
+    d2 = 0.0 if sl else g * vtr2
+    # the capped spring: xi ratio (LIGGGHTS: -F_t/kt, the same up to round-off)
+    n0 = u0 * ratio
+    n1 = u1 * ratio
+    ft1 = ft1 - d1
+    ft2 = ft2 - d2
+    tor3 = enx * ft2 - eny * ft1
+    fx = fn * enx + ft1
+    fy = fn * eny + ft2
+    mask = 1.0 if touch else 0.0
+    return (
+        touch,
+        mask * fx,
+        mask * fy,
+        mask * (-cri * tor3),
+        mask * (-crj * tor3),
+        n0 if touch else s0,
+        n1 if touch else s1,
+        mask * deltan,
+    )
+
+
+# ----------------------------------------------------------------------------------- forces
+@njit(inline="always")
+def _band_forces(
+    c,
+    cstart,
+    start,
+    nj,
+    code,
+    hist,
+    x,
+    y,
+    vx,
+    vy,
+    w,
+    r,
+    m,
+    fx,
+    fy,
+    t,
+    Lx,
+    Ly,
+    dt,
+    kn,
+    kt,
+    gn,
+    gt,
+    mu,
+    update,
+    sp_start,
+    sp_j,
+    sp_f,
+    acc,
+):
+    """Forces of the entries of band ``c``: i-side summed in registers, j-side written to
+    fx/fy/t when j lies in band c or c + 1, else into the spill rows ``sp_start[c]..``.
+    ``acc[c]`` receives the band's virial sums xx, yy, xy, yx (N m), contacts and overlap sum."""
+    nch = cstart.shape[0] - 1
+    i0 = cstart[c]
+    i1 = cstart[c + 1]
+    jmax = cstart[min(c + 2, nch)]
+    k = sp_start[c]
+    v0 = 0.0
+    v1 = 0.0
+    v2 = 0.0
+    v3 = 0.0
+    nc = 0.0
+    ov = 0.0
+    for i in range(i0, i1):
+        xi = x[i]
+        yi = y[i]
+        ri = r[i]
+        vix = vx[i]
+        viy = vy[i]
+        wi = w[i]
+        mi = m[i]
+        fxi = 0.0
+        fyi = 0.0
+        ti = 0.0
+        for e in range(start[i], start[i + 1]):
+            j = nj[e]
+            cd = np.uint32(code[e])  # unsigned: % and // without Python's sign fix-ups
+            sx = float(np.int32(cd % np.uint32(3)) - 1)
+            sy = float(np.int32(cd // np.uint32(3)) - 1)
+            delx = xi - (x[j] + sx * Lx)
+            dely = yi - (y[j] + sy * Ly)
+            rsq = delx * delx + dely * dely
+            radsum = ri + r[j]
+            touch, fxe, fye, tie, tje, s0, s1, dn = hooke_select(
+                delx,
+                dely,
+                rsq,
+                radsum,
+                ri,
+                r[j],
+                vix,
+                viy,
+                vx[j],
+                vy[j],
+                wi,
+                w[j],
+                mi,
+                m[j],
+                kn,
+                kt,
+                gn,
+                gt,
+                mu,
+                dt,
+                hist[e, 0],
+                hist[e, 1],
+                update,
+            )
+            hist[e, 0] = s0
+            hist[e, 1] = s1
+            fxi += fxe
+            fyi += fye
+            ti += tie
+            if j < jmax:
+                fx[j] -= fxe
+                fy[j] -= fye
+                t[j] += tje
+            else:
+                sp_j[k] = j
+                sp_f[k, 0] = -fxe
+                sp_f[k, 1] = -fye
+                sp_f[k, 2] = tje
+                k += 1
+            v0 += delx * fxe
+            v1 += dely * fye
+            v2 += delx * fye
+            v3 += dely * fxe
+            nc += 1.0 if touch else 0.0
+            ov += dn
+        fx[i] += fxi
+        fy[i] += fyi
+        t[i] += ti
+    acc[c, 0] = v0
+    acc[c, 1] = v1
+    acc[c, 2] = v2
+    acc[c, 3] = v3
+    acc[c, 4] = nc
+    acc[c, 5] = ov
+
+
+@njit
+def _scatter(sp_j, sp_f, fx, fy, t):
+    for k in range(sp_j.shape[0]):
+        j = sp_j[k]
+        fx[j] += sp_f[k, 0]
+        fy[j] += sp_f[k, 1]
+        t[j] += sp_f[k, 2]
+
+
+@njit
+def forces_serial(
+    cstart,
+    start,
+    nj,
+    code,
+    hist,
+    x,
+    y,
+    vx,
+    vy,
+    w,
+    r,
+    m,
+    fx,
+    fy,
+    t,
+    Lx,
+    Ly,
+    dt,
+    kn,
+    kt,
+    gn,
+    gt,
+    mu,
+    update,
+    sp_start,
+    sp_j,
+    sp_f,
+    acc,
+):
+    """All bands in the order of the threaded loop (even, odd, spills): the same sums as
+    :func:`forces_parallel` bit for bit. ``fx``, ``fy``, ``t`` must be zero on entry."""
+    nch = cstart.shape[0] - 1
+    for colour in range(2):
+        for h in range((nch - colour + 1) // 2):
+            _band_forces(
+                2 * h + colour,
+                cstart,
+                start,
+                nj,
+                code,
+                hist,
+                x,
+                y,
+                vx,
+                vy,
+                w,
+                r,
+                m,
+                fx,
+                fy,
+                t,
+                Lx,
+                Ly,
+                dt,
+                kn,
+                kt,
+                gn,
+                gt,
+                mu,
+                update,
+                sp_start,
+                sp_j,
+                sp_f,
+                acc,
+            )
+    _scatter(sp_j, sp_f, fx, fy, t)
+
+
+@pjit
+def forces_parallel(
+    cstart,
+    start,
+    nj,
+    code,
+    hist,
+    x,
+    y,
+    vx,
+    vy,
+    w,
+    r,
+    m,
+    fx,
+    fy,
+    t,
+    Lx,
+    Ly,
+    dt,
+    kn,
+    kt,
+    gn,
+    gt,
+    mu,
+    update,
+    sp_start,
+    sp_j,
+    sp_f,
+    acc,
+):
+    """:func:`forces_serial` with the bands of each colour spread over the threads."""
+    nch = cstart.shape[0] - 1
+    for colour in range(2):
+        for h in prange((nch - colour + 1) // 2):
+            _band_forces(
+                2 * h + colour,
+                cstart,
+                start,
+                nj,
+                code,
+                hist,
+                x,
+                y,
+                vx,
+                vy,
+                w,
+                r,
+                m,
+                fx,
+                fy,
+                t,
+                Lx,
+                Ly,
+                dt,
+                kn,
+                kt,
+                gn,
+                gt,
+                mu,
+                update,
+                sp_start,
+                sp_j,
+                sp_f,
+                acc,
+            )
+    _scatter(sp_j, sp_f, fx, fy, t)
+
+
+# ----------------------------------------------------------------------------------- integration
+@njit(inline="always")
+def _band_integrate(
+    c,
+    cstart,
+    x,
+    y,
+    vx,
+    vy,
+    w,
+    fx,
+    fy,
+    t,
+    m,
+    r,
+    xh,
+    yh,
+    dt,
+    final,
+    initial,
+    remap,
+    lo_old,
+    hi_old,
+    lo_new,
+    hi_new,
+    deltasq,
+    red,
+):
+    """One band of the fused pass: [final half step (v, w) and its kinetic energy] [remap x
+    affinely from box (lo_old, hi_old) to (lo_new, hi_new)] [first half step, position update,
+    rebuild test |x - x_hold|^2 > deltasq, forces zeroed]. ``red[c]`` = (kinetic energy (J), rebuild
+    flag, first non-finite particle + 1 or 0)."""
+    dtf = 0.5 * dt
+    dtfrot = dtf / 0.5
+    ke = 0.0
+    flag = 0.0
+    bad = 0.0
+    hx = 1.0 / (hi_old[0] - lo_old[0])
+    hy = 1.0 / (hi_old[1] - lo_old[1])
+    Hx = hi_new[0] - lo_new[0]
+    Hy = hi_new[1] - lo_new[1]
+    for i in range(cstart[c], cstart[c + 1]):
+        dtfm = dtf / m[i]
+        rot = dtfrot / (r[i] * r[i] * m[i])
+        a = vx[i]
+        b = vy[i]
+        s = w[i]
+        if final:
+            a += dtfm * fx[i]
+            b += dtfm * fy[i]
+            s += rot * t[i]
+            ke += 0.5 * m[i] * (a * a + b * b) + 0.25 * m[i] * r[i] * r[i] * s * s
+        px = x[i]
+        py = y[i]
+        if remap:
+            px = Hx * (hx * (px - lo_old[0])) + lo_new[0]
+            py = Hy * (hy * (py - lo_old[1])) + lo_new[1]
+        if initial:
+            a += dtfm * fx[i]
+            b += dtfm * fy[i]
+            px += dt * a
+            py += dt * b
+            s += rot * t[i]
+            fx[i] = 0.0
+            fy[i] = 0.0
+            t[i] = 0.0
+            dx = px - xh[i]
+            dy = py - yh[i]
+            d2 = dx * dx + dy * dy
+            if d2 > deltasq:
+                flag = 1.0
+            if not (math.isfinite(px) and math.isfinite(py)) and bad == 0.0:
+                bad = float(i + 1)
+        vx[i] = a
+        vy[i] = b
+        w[i] = s
+        x[i] = px
+        y[i] = py
+    red[c, 0] = ke
+    red[c, 1] = flag
+    red[c, 2] = bad
+
+
+@njit
+def integrate_serial(
+    cstart,
+    x,
+    y,
+    vx,
+    vy,
+    w,
+    fx,
+    fy,
+    t,
+    m,
+    r,
+    xh,
+    yh,
+    dt,
+    final,
+    initial,
+    remap,
+    lo_old,
+    hi_old,
+    lo_new,
+    hi_new,
+    deltasq,
+    red,
+):
+    """The fused pass (:func:`_band_integrate`) over all bands."""
+    for c in range(cstart.shape[0] - 1):
+        _band_integrate(
+            c,
+            cstart,
+            x,
+            y,
+            vx,
+            vy,
+            w,
+            fx,
+            fy,
+            t,
+            m,
+            r,
+            xh,
+            yh,
+            dt,
+            final,
+            initial,
+            remap,
+            lo_old,
+            hi_old,
+            lo_new,
+            hi_new,
+            deltasq,
+            red,
+        )
+
+
+@pjit
+def integrate_parallel(
+    cstart,
+    x,
+    y,
+    vx,
+    vy,
+    w,
+    fx,
+    fy,
+    t,
+    m,
+    r,
+    xh,
+    yh,
+    dt,
+    final,
+    initial,
+    remap,
+    lo_old,
+    hi_old,
+    lo_new,
+    hi_new,
+    deltasq,
+    red,
+):
+    """:func:`integrate_serial` with the bands spread over the threads."""
+    for c in prange(cstart.shape[0] - 1):
+        _band_integrate(
+            c,
+            cstart,
+            x,
+            y,
+            vx,
+            vy,
+            w,
+            fx,
+            fy,
+            t,
+            m,
+            r,
+            xh,
+            yh,
+            dt,
+            final,
+            initial,
+            remap,
+            lo_old,
+            hi_old,
+            lo_new,
+            hi_new,
+            deltasq,
+            red,
+        )
+
+
+@njit
+def run_steps(
+    parallel,
+    cstart,
+    start,
+    nj,
+    code,
+    hist,
+    x,
+    y,
+    vx,
+    vy,
+    w,
+    fx,
+    fy,
+    t,
+    m,
+    r,
+    xh,
+    yh,
+    lo,
+    hi,
+    lo_hold,
+    hi_hold,
+    modes,
+    rates,
+    lo0,
+    hi0,
+    phase_step0,
+    kn,
+    kt,
+    gn,
+    gt,
+    mu,
+    dt,
+    skin,
+    sp_start,
+    sp_j,
+    sp_f,
+    acc,
+    red,
+    out,
+    step0,
+    nsteps,
+    resume,
+):
+    """Steps step0 + 1 .. step0 + nsteps of the fast path, until a list rebuild is needed.
+
+    Per step: forces (even bands, odd bands, spills), then one fused pass: second half step of
+    this step, the box of this step (``modes`` 0 fixed / 1 rate per axis, ``fix deform``'s
+    L = L0 + rate L0 dt (step - phase_step0), centred on the phase's box lo0, hi0) with the
+    positions remapped, and -- unless it is the last step -- the first half step of the next
+    step with the rebuild test (displacement since the build above half the skin less the box
+    displacement, LAMMPS' clamped rule). Enter with the first half step of step0 + 1 done when
+    ``resume``. ``out`` (nsteps, 9) rows: virial xx, yy, xy, yx (N m), contacts, overlap sum (m),
+    Lx, Ly (m) of the box after the step, kinetic energy (J).
+
+    Returns (steps completed, status, bad): status 0 done, 1 rebuild needed before the forces of
+    step step0 + completed + 1 (its first half step is done), 2 non-finite position (bad =
+    sorted index).
+    """
+    lo_new = np.empty(2)
+    hi_new = np.empty(2)
+    lo_cur = np.empty(2)
+    hi_cur = np.empty(2)
+    nch = cstart.shape[0] - 1
+    k = 0
+    if not resume:
+        dsq = _deltasq(lo, hi, lo_hold, hi_hold, skin)
+        _integrate(
+            parallel,
+            cstart,
+            x,
+            y,
+            vx,
+            vy,
+            w,
+            fx,
+            fy,
+            t,
+            m,
+            r,
+            xh,
+            yh,
+            dt,
+            False,
+            True,
+            False,
+            lo,
+            hi,
+            lo,
+            hi,
+            dsq,
+            red,
+        )
+        st = _status(red, nch)
+        if st != 0:
+            return 0, st, _bad(red, nch)
+    while k < nsteps:
+        step = step0 + k + 1
+        Lx = hi[0] - lo[0]
+        Ly = hi[1] - lo[1]
+        if parallel:
+            forces_parallel(
+                cstart,
+                start,
+                nj,
+                code,
+                hist,
+                x,
+                y,
+                vx,
+                vy,
+                w,
+                r,
+                m,
+                fx,
+                fy,
+                t,
+                Lx,
+                Ly,
+                dt,
+                kn,
+                kt,
+                gn,
+                gt,
+                mu,
+                True,
+                sp_start,
+                sp_j,
+                sp_f,
+                acc,
+            )
+        else:
+            forces_serial(
+                cstart,
+                start,
+                nj,
+                code,
+                hist,
+                x,
+                y,
+                vx,
+                vy,
+                w,
+                r,
+                m,
+                fx,
+                fy,
+                t,
+                Lx,
+                Ly,
+                dt,
+                kn,
+                kt,
+                gn,
+                gt,
+                mu,
+                True,
+                sp_start,
+                sp_j,
+                sp_f,
+                acc,
+            )
+        for q in range(6):
+            s = 0.0
+            for c in range(nch):
+                s += acc[c, q]
+            out[k, q] = s
+        # the box of this step (fix deform, rate style)
+        remap = False
+        for d in range(2):
+            lo_cur[d] = lo[d]
+            hi_cur[d] = hi[d]
+            lo_new[d] = lo[d]
+            hi_new[d] = hi[d]
+            if modes[d] == 1:
+                L0 = hi0[d] - lo0[d]
+                dl = (rates[d] * L0 * dt) * float(step - phase_step0)
+                lo_new[d] = lo0[d] - 0.5 * dl
+                hi_new[d] = hi0[d] + 0.5 * dl
+                if lo_new[d] != lo[d] or hi_new[d] != hi[d]:
+                    remap = True
+        last = k == nsteps - 1
+        if remap:
+            for d in range(2):
+                lo[d] = lo_new[d]
+                hi[d] = hi_new[d]
+        dsq = _deltasq(lo, hi, lo_hold, hi_hold, skin)
+        _integrate(
+            parallel,
+            cstart,
+            x,
+            y,
+            vx,
+            vy,
+            w,
+            fx,
+            fy,
+            t,
+            m,
+            r,
+            xh,
+            yh,
+            dt,
+            True,
+            not last,
+            remap,
+            lo_cur,
+            hi_cur,
+            lo,
+            hi,
+            dsq,
+            red,
+        )
+        ke = 0.0
+        for c in range(nch):
+            ke += red[c, 0]
+        out[k, 6] = hi[0] - lo[0]
+        out[k, 7] = hi[1] - lo[1]
+        out[k, 8] = ke
+        k += 1
+        if not last:
+            st = _status(red, nch)
+            if st != 0:
+                return k, st, _bad(red, nch)
+    return nsteps, 0, -1
+
+
+@njit
+def _integrate(
+    parallel,
+    cstart,
+    x,
+    y,
+    vx,
+    vy,
+    w,
+    fx,
+    fy,
+    t,
+    m,
+    r,
+    xh,
+    yh,
+    dt,
+    final,
+    initial,
+    remap,
+    lo_old,
+    hi_old,
+    lo_new,
+    hi_new,
+    dsq,
+    red,
+):
+    if parallel:
+        integrate_parallel(
+            cstart,
+            x,
+            y,
+            vx,
+            vy,
+            w,
+            fx,
+            fy,
+            t,
+            m,
+            r,
+            xh,
+            yh,
+            dt,
+            final,
+            initial,
+            remap,
+            lo_old,
+            hi_old,
+            lo_new,
+            hi_new,
+            dsq,
+            red,
+        )
+    else:
+        integrate_serial(
+            cstart,
+            x,
+            y,
+            vx,
+            vy,
+            w,
+            fx,
+            fy,
+            t,
+            m,
+            r,
+            xh,
+            yh,
+            dt,
+            final,
+            initial,
+            remap,
+            lo_old,
+            hi_old,
+            lo_new,
+            hi_new,
+            dsq,
+            red,
+        )
+
+
+@njit
+def _deltasq(lo, hi, lo_hold, hi_hold, skin):
+    dx = lo[0] - lo_hold[0]
+    dy = lo[1] - lo_hold[1]
+    d1 = math.sqrt(dx * dx + dy * dy)
+    dx = hi[0] - hi_hold[0]
+    dy = hi[1] - hi_hold[1]
+    d2 = math.sqrt(dx * dx + dy * dy)
+    delta = max(0.5 * (skin - (d1 + d2)), 0.0)
+    return delta * delta
+
+
+@njit
+def _status(red, nch):
+    st = 0
+    for c in range(nch):
+        if red[c, 2] != 0.0:
+            return 2
+        if red[c, 1] != 0.0:
+            st = 1
+    return st
+
+
+@njit
+def _bad(red, nch):
+    for c in range(nch):
+        if red[c, 2] != 0.0:
+            return int(red[c, 2]) - 1
+    return -1
+
+
+# ----------------------------------------------------------------------------------- rebuild
+@njit
+def wrap(x, y, lo, hi):
+    """Domain::pbc per axis (x < lo: += L; x >= hi: -= L, then max(x, lo)); returns a particle
+    still outside after one wrap (sorted index) or -1."""
+    bad = -1
+    for d in range(2):
+        a = x if d == 0 else y
+        prd = hi[d] - lo[d]
+        for i in range(a.shape[0]):
+            if a[i] < lo[d]:
+                a[i] += prd
+            if a[i] >= hi[d]:
+                a[i] -= prd
+                a[i] = max(a[i], lo[d])
+            if (a[i] < lo[d] or a[i] >= hi[d]) and bad < 0:
+                bad = i
+    return bad
+
+
+@njit
+def bin_sort(x, y, lo, hi, nbx, nby, order, binstart, key):
+    """Counting sort of the particles by bin (row-major: bin = bx + nbx by): ``order`` (N,) int32
+    the current index of each particle in the new order (stable within a bin), ``binstart``
+    (nbx nby + 1,) int32 the first sorted particle of each bin; ``key`` (N,) int32 scratch."""
+    n = x.shape[0]
+    nbins = nbx * nby
+    sx = nbx / (hi[0] - lo[0])
+    sy = nby / (hi[1] - lo[1])
+    for b in range(nbins + 1):
+        binstart[b] = 0
+    for i in range(n):
+        bx = min(max(int((x[i] - lo[0]) * sx), 0), nbx - 1)
+        by = min(max(int((y[i] - lo[1]) * sy), 0), nby - 1)
+        key[i] = bx + nbx * by
+        binstart[key[i] + 1] += 1
+    for b in range(nbins):
+        binstart[b + 1] += binstart[b]
+    for i in range(n):
+        b = key[i]
+        order[binstart[b]] = i
+        binstart[b] += 1
+    for b in range(nbins, 0, -1):
+        binstart[b] = binstart[b - 1]
+    binstart[0] = 0
+
+
+@njit
+def permute_f(a, order, tmp):
+    """a[:] = a[order] through the scratch ``tmp`` (float64)."""
+    for i in range(order.shape[0]):
+        tmp[i] = a[order[i]]
+    for i in range(order.shape[0]):
+        a[i] = tmp[i]
+
+
+@njit
+def permute_i(a, order, tmp):
+    """a[:] = a[order] through the scratch ``tmp`` (int32)."""
+    for i in range(order.shape[0]):
+        tmp[i] = a[order[i]]
+    for i in range(order.shape[0]):
+        a[i] = tmp[i]
+
+
+@njit
+def count_history(start, hist, n):
+    """Entries of the list whose spring is not zero (the size of the hand-over table)."""
+    k = 0
+    for e in range(start[n]):
+        if hist[e, 0] != 0.0 or hist[e, 1] != 0.0:
+            k += 1
+    return k
+
+
+@njit
+def compact_history(start, nj, hist, n, hstart, hj, hh):
+    """The hand-over table: the entries of the current list whose spring is not zero, CSR by i
+    (``hstart`` (N+1,) int32, ``hj`` int32, ``hh`` (K, 2)); returns K. Only these can pass a
+    spring on (an entry with a zero spring hands over zero)."""
+    k = 0
+    for i in range(n):
+        hstart[i] = k
+        for e in range(start[i], start[i + 1]):
+            if hist[e, 0] != 0.0 or hist[e, 1] != 0.0:
+                hj[k] = nj[e]
+                hh[k, 0] = hist[e, 0]
+                hh[k, 1] = hist[e, 1]
+                k += 1
+    hstart[n] = k
+    return k
+
+
+@njit(inline="always")
+def _band_pairs(
+    c,
+    fill,
+    e0,
+    cstart,
+    binstart,
+    x,
+    y,
+    r,
+    lo,
+    hi,
+    nbx,
+    nby,
+    skin,
+    cnt,
+    start,
+    nj,
+    code,
+    hist,
+    sp_cnt,
+    order,
+    hstart,
+    hj,
+    hh,
+):
+    """Partners j > i of the particles of band ``c`` within r_i + r_j + skin (the 9 bins around
+    i's bin, periodic). ``fill`` 0: per-particle counts into ``cnt`` and the band's spill count
+    into ``sp_cnt[c]``; 1: the entries at ``start[i]..`` with the spring handed over from the
+    old list when the pair touches now (old indices ``order``, table hstart/hj/hh; a pair stored
+    as (j, i) before takes minus the spring); 2: counting and filling in one pass, the entries
+    from ``e0`` on (``start[i]`` written), returns the next free entry or -1 when the buffers are
+    full. Modes 0 and 1 return 0."""
+    Lx = hi[0] - lo[0]
+    Ly = hi[1] - lo[1]
+    sx = nbx / Lx
+    sy = nby / Ly
+    nch = cstart.shape[0] - 1
+    jmax = cstart[min(c + 2, nch)]
+    nsp = 0
+    cap = nj.shape[0]
+    e = e0
+    for i in range(cstart[c], cstart[c + 1]):
+        bx = min(max(int((x[i] - lo[0]) * sx), 0), nbx - 1)
+        by = min(max(int((y[i] - lo[1]) * sy), 0), nby - 1)
+        if fill == 1:
+            e = start[i]
+        elif fill == 2:
+            start[i] = e
+        ncount = 0
+        for oy in range(-1, 2):
+            qy = by + oy
+            iy = 0
+            if qy < 0:
+                qy += nby
+                iy = -1
+            elif qy >= nby:
+                qy -= nby
+                iy = 1
+            for ox in range(-1, 2):
+                qx = bx + ox
+                ix = 0
+                if qx < 0:
+                    qx += nbx
+                    ix = -1
+                elif qx >= nbx:
+                    qx -= nbx
+                    ix = 1
+                b = qx + nbx * qy
+                j0 = max(binstart[b], i + 1)
+                for j in range(j0, binstart[b + 1]):
+                    delx = x[i] - (x[j] + ix * Lx)
+                    dely = y[i] - (y[j] + iy * Ly)
+                    rs = r[i] + r[j]
+                    cut = rs + skin
+                    rsq = delx * delx + dely * dely
+                    if rsq <= cut * cut:
+                        ncount += 1
+                        if j >= jmax:
+                            nsp += 1
+                        if fill != 0:
+                            if e >= cap:
+                                return -1
+                            nj[e] = j
+                            code[e] = (ix + 1) + 3 * (iy + 1)
+                            h0 = 0.0
+                            h1 = 0.0
+                            if rsq < rs * rs and hstart.shape[0] > 1:
+                                oi = order[i]
+                                oj = order[j]
+                                a = min(oi, oj)
+                                bb = max(oi, oj)
+                                sg = 1.0 if oi < oj else -1.0
+                                for q in range(hstart[a], hstart[a + 1]):
+                                    if hj[q] == bb:
+                                        h0 = sg * hh[q, 0]
+                                        h1 = sg * hh[q, 1]
+                                        break
+                            hist[e, 0] = h0
+                            hist[e, 1] = h1
+                            e += 1
+        if fill == 0:
+            cnt[i] = ncount
+    if fill != 1:
+        sp_cnt[c] = nsp
+    return e if fill == 2 else 0
+
+
+@njit
+def pairs_direct(
+    cstart,
+    binstart,
+    x,
+    y,
+    r,
+    lo,
+    hi,
+    nbx,
+    nby,
+    skin,
+    start,
+    nj,
+    code,
+    hist,
+    sp_cnt,
+    order,
+    hstart,
+    hj,
+    hh,
+):
+    """The list in one pass (:func:`_band_pairs` mode 2 over all bands, in band order: the same
+    list as the count and fill passes); returns the number of entries, or -1 when the buffers are
+    too small (then count, grow and fill)."""
+    e = 0
+    n = x.shape[0]
+    for c in range(cstart.shape[0] - 1):
+        e = _band_pairs(
+            c,
+            2,
+            e,
+            cstart,
+            binstart,
+            x,
+            y,
+            r,
+            lo,
+            hi,
+            nbx,
+            nby,
+            skin,
+            start,
+            start,
+            nj,
+            code,
+            hist,
+            sp_cnt,
+            order,
+            hstart,
+            hj,
+            hh,
+        )
+        if e < 0:
+            return -1
+    start[n] = e
+    return e
+
+
+@njit
+def pairs_serial(
+    fill,
+    cstart,
+    binstart,
+    x,
+    y,
+    r,
+    lo,
+    hi,
+    nbx,
+    nby,
+    skin,
+    cnt,
+    start,
+    nj,
+    code,
+    hist,
+    sp_cnt,
+    order,
+    hstart,
+    hj,
+    hh,
+):
+    """:func:`_band_pairs` over all bands."""
+    for c in range(cstart.shape[0] - 1):
+        _band_pairs(
+            c,
+            fill,
+            0,
+            cstart,
+            binstart,
+            x,
+            y,
+            r,
+            lo,
+            hi,
+            nbx,
+            nby,
+            skin,
+            cnt,
+            start,
+            nj,
+            code,
+            hist,
+            sp_cnt,
+            order,
+            hstart,
+            hj,
+            hh,
+        )
+
+
+@pjit
+def pairs_parallel(
+    fill,
+    cstart,
+    binstart,
+    x,
+    y,
+    r,
+    lo,
+    hi,
+    nbx,
+    nby,
+    skin,
+    cnt,
+    start,
+    nj,
+    code,
+    hist,
+    sp_cnt,
+    order,
+    hstart,
+    hj,
+    hh,
+):
+    """:func:`pairs_serial` with the bands spread over the threads."""
+    for c in prange(cstart.shape[0] - 1):
+        _band_pairs(
+            c,
+            fill,
+            0,
+            cstart,
+            binstart,
+            x,
+            y,
+            r,
+            lo,
+            hi,
+            nbx,
+            nby,
+            skin,
+            cnt,
+            start,
+            nj,
+            code,
+            hist,
+            sp_cnt,
+            order,
+            hstart,
+            hj,
+            hh,
+        )
+
+
+@njit
+def prefix(cnt, start):
+    """start[0] = 0, start[i + 1] = start[i] + cnt[i]; returns the total."""
+    s = 0
+    start[0] = 0
+    for i in range(cnt.shape[0]):
+        s += cnt[i]
+        start[i + 1] = s
+    return s
+
+
+@njit
+def unsort_f(a, perm, out):
+    """out[perm[k]] = a[k]: an array of the sorted order in the original order."""
+    for k in range(perm.shape[0]):
+        out[perm[k]] = a[k]

@@ -1,0 +1,257 @@
+"""The fast DEM path (gransim.dem.fast) against the bitwise engine and against physics.
+
+The fast path reorders particles and sums (spatial sort, half list with the symmetric update,
+per-band sums), so it is compared with DEMEngine to round-off over short horizons and, over a
+long relaxation, by the divergence envelope of DEMEngine itself (docs/validation.md's rule:
+within 10 times the spread of runs from 1e-12 perturbed starts), never by equality.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gransim import Packing
+from gransim.dem import AxisControl, DEMEngine, DEMSettings, Loading, fast
+from gransim.dem.fast import FastEngine
+from gransim.dem.lattice import lattice_packing
+from gransim.errors import InputError
+
+S = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e-6, skin=2e-5)
+
+
+@pytest.fixture
+def threaded_small(monkeypatch):
+    """The threaded kernels even for the small test assemblies (they fall back to the serial
+    kernels below fast.MIN_PER_THREAD particles per thread)."""
+    monkeypatch.setattr(fast, "MIN_PER_THREAD", 0)
+
+
+def _rel(a, b):
+    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))
+
+
+def _image_diff(a, b, L):
+    """Largest |a - b| over components, each difference taken to its nearest periodic image (m)."""
+    d = a - b
+    d -= np.rint(d / L) * L
+    return float(np.max(np.abs(d)))
+
+
+def two_disks(offset=0.3e-3):
+    L = 0.02
+    r1, r2 = 1e-3, 1.5e-3
+    x = np.array(
+        [
+            [0.5 * L - r1 - 5e-6, 0.5 * L - 0.5 * offset],
+            [0.5 * L + r2 + 5e-6, 0.5 * L + 0.5 * offset],
+        ]
+    )
+    return Packing(positions=x, radii=[r1, r2], cell=np.diag([L, L]), density=2650.0)
+
+
+def test_two_disks_oblique_collision_agrees_with_bitwise_engine():
+    # an oblique, spinning impact: normal damping, tangential spring, Coulomb slip, torques on both
+    p = two_disks()
+    v = np.array([[0.3, 0.05], [-0.2, 0.0]])
+    w = np.array([30.0, -10.0])
+    s = DEMSettings(kn=1e5, kt=8e4, gamma_n=300.0, gamma_t=100.0, mu=0.3, dt=1e-6, skin=1e-5)
+    fe = FastEngine(p, s, velocities=v, spins=w)
+    de = DEMEngine(p, s, velocities=v, spins=w)
+    touched = 0
+    for _ in range(60):  # 600 steps: approach, contact (~200 steps) and separation
+        a = fe.advance(10)
+        b = de.advance(Loading(), 10)
+        touched += int(b["n_contacts"].max())
+        # the same operations on the pair, only i/j possibly swapped: round-off
+        assert _rel(fe.velocities, de.v) < 1e-12
+        assert _rel(fe.spins, de.w) < 1e-12
+        assert _image_diff(fe.positions, de.x, 0.02) < 1e-15
+        assert np.abs(a["stress"] - b["stress"]).max() <= 1e-12 * max(
+            np.abs(b["stress"]).max(), 1e-30
+        )
+    assert touched > 0
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_small_assembly_agrees_with_bitwise_engine_to_round_off(threads, threaded_small):
+    # 120 overlapping disks relaxing, contacts across the periodic boundary, rebuilds: over 400
+    # steps the reordered sums differ from DEMEngine only by round-off (1e-12 relative)
+    p = lattice_packing(10, 12, seed=3, spread=0.15, compression=0.06)
+    fe = FastEngine(p, S, threads=threads)
+    de = DEMEngine(p, S)
+    assert _rel(fe.stress, de.stress) < 1e-13
+    assert _rel(fe.forces, de.f) < 1e-12
+    a = fe.advance(400)
+    b = de.advance(Loading(), 400)
+    assert a["rebuilds"] == de.n_rebuilds - 1 > 3
+    scale = np.abs(b["stress"]).max()
+    assert np.abs(a["stress"] - b["stress"]).max() < 1e-12 * scale
+    np.testing.assert_array_equal(a["n_contacts"], b["n_contacts"])
+    assert _image_diff(fe.positions, de.x, np.diag(p.cell)) < 1e-12 * p.radii.max()
+    assert _rel(fe.velocities, de.v) < 1e-9  # velocities near rest: relative to their own size
+    assert (
+        np.abs(a["kinetic_energy"] - b["kinetic_energy"]).max() < 1e-10 * b["kinetic_energy"].max()
+    )
+
+
+def test_strain_rate_box_agrees_with_bitwise_engine():
+    # compression at a prescribed strain rate on y (fix deform erate + remap x)
+    p = lattice_packing(10, 12, seed=4, spread=0.15, compression=0.04)
+    ld = Loading(y=AxisControl("rate", rate=-2.0))
+    fe = FastEngine(p, S)
+    de = DEMEngine(p, S)
+    a = fe.advance(300, ld)
+    b = de.advance(ld, 300)
+    np.testing.assert_allclose(a["lengths"], b["lengths"], rtol=1e-15)
+    assert b["lengths"][-1, 1] < p.cell[1, 1]
+    assert np.abs(a["stress"] - b["stress"]).max() < 1e-12 * np.abs(b["stress"]).max()
+    assert _image_diff(fe.positions, de.x, b["lengths"][-1]) < 1e-12 * p.radii.max()
+
+
+def test_threads_do_not_change_the_result(threaded_small):
+    # the sums have a fixed order (bands, entries, spills): 1 and 2 threads agree bit for bit; a
+    # race between the threads (two bands writing one particle) would break this
+    from bench.dem import assembly
+
+    p = assembly(5000)
+    e1 = FastEngine(p, S, threads=1)
+    e2 = FastEngine(p, S, threads=2)
+    assert e2._parallel and not e1._parallel
+    a = e1.advance(150)
+    b = e2.advance(150)
+    assert a["rebuilds"] > 0
+    np.testing.assert_array_equal(a["stress"], b["stress"])
+    np.testing.assert_array_equal(e1.positions, e2.positions)
+    np.testing.assert_array_equal(e1.velocities, e2.velocities)
+
+
+def _stress_divergence(s, ref):
+    """Relative stress difference at every step: max over components |s - ref| / max |ref|."""
+    return np.abs(s - ref).reshape(len(ref), -1).max(axis=1) / np.abs(ref).max()
+
+
+def test_relaxation_of_1000_disks_within_the_chaos_envelope():
+    # the bench assembly (1,020 disks overlapping ~8% of a radius) relaxing for 2000 steps:
+    # DEMEngine from the unperturbed state is the reference; its runs from 1e-12 perturbed
+    # positions span the envelope E(t) (max over them of the relative stress difference); the
+    # fast path must stay within 10 E(t) (+ 1e-13 for the first steps, where E is round-off)
+    from bench.dem import assembly
+
+    p = assembly(1000)
+    steps = 2000
+    ref = DEMEngine(p, S).advance(Loading(), steps)["stress"]
+    env = np.zeros(steps)
+    rng = np.random.default_rng(7)
+    for k in range(4):
+        x = p.positions.copy()
+        i = rng.integers(p.n)
+        x[i, k % 2] *= 1.0 + (1e-12 if k < 2 else -1e-12)
+        q = Packing(positions=x, radii=p.radii, cell=p.cell, density=p.density)
+        env = np.maximum(
+            env, _stress_divergence(DEMEngine(q, S).advance(Loading(), steps)["stress"], ref)
+        )
+    fast = FastEngine(p, S).advance(steps)
+    d = _stress_divergence(fast["stress"], ref)
+    assert fast["rebuilds"] > 10
+    assert np.all(d <= 10.0 * env + 1e-13), f"worst step {int(np.argmax(d - 10 * env))}"
+    # the relaxation is damped (the perturbations neither die out nor explode: E ends at a few
+    # 1e-13 here); the envelope stays above the round-off of one step, and the fast path does
+    # differ from the reference (its sums are reordered), so the comparison is not vacuous
+    assert env[-1] > 1e-14
+    assert d.max() > 0.0
+
+
+def test_momentum_is_conserved_and_energy_dissipated(threaded_small):
+    # periodic cell, no external force: sum m v is constant (the symmetric update gives equal
+    # and opposite pair forces; the spilled j-side forces too); damping and friction only
+    # dissipate: kinetic + elastic energy never grows
+    p = lattice_packing(10, 12, seed=5, spread=0.15, compression=0.05)
+    rng = np.random.default_rng(1)
+    v = rng.normal(0.0, 0.05, (p.n, 2))
+    fe = FastEngine(p, S, velocities=v, spins=rng.normal(0.0, 20.0, p.n), threads=2)
+    m = np.pi * p.radii**2 * p.density
+    P0 = m @ v
+    e_prev = e_start = fe.kinetic_energy() + _elastic_energy(fe, p, S.kn)
+    for _ in range(20):
+        fe.advance(50)
+        P = m @ fe.velocities
+        assert np.abs(P - P0).max() < 1e-13 * np.abs(m[:, None] * v).sum()
+        e = fe.kinetic_energy() + _elastic_energy(fe, p, S.kn)
+        # the tangential spring stores energy too (not counted): allow the last 1% of it
+        assert e <= e_prev * (1 + 1e-2)
+        e_prev = min(e, e_prev)
+    assert e_prev < 0.8 * e_start  # and it does dissipate (to 0.53 here)
+
+
+def _elastic_energy(fe, p, kn):
+    """sum kn delta^2 / 2 over overlapping pairs, brute force O(N^2) with the nearest image."""
+    x = fe.positions
+    L = fe.box_lengths
+    d = x[:, None, :] - x[None, :, :]
+    d -= np.rint(d / L) * L
+    dist = np.sqrt((d**2).sum(axis=2))
+    ov = p.radii[:, None] + p.radii[None, :] - dist
+    iu = np.triu_indices(p.n, 1)
+    o = ov[iu]
+    return float(0.5 * kn * np.sum(o[o > 0] ** 2))
+
+
+def test_energy_conserved_without_damping_or_friction():
+    # kn springs only (gamma = 0, mu = 0: no tangential force): velocity Verlet conserves the
+    # energy to O(dt^2), no drift over 2000 steps
+    p = lattice_packing(10, 12, seed=6, spread=0.15, compression=0.05)
+    s = DEMSettings(kn=1e5, kt=1e5, gamma_n=0.0, gamma_t=0.0, mu=0.0, dt=1e-6, skin=2e-5)
+    fe = FastEngine(p, s)
+    e0 = fe.kinetic_energy() + _elastic_energy(fe, p, s.kn)
+    es = []
+    for _ in range(10):
+        fe.advance(200)
+        es.append(fe.kinetic_energy() + _elastic_energy(fe, p, s.kn))
+    assert fe.kinetic_energy() > 0.1 * e0  # energy moved into motion
+    assert np.max(np.abs(np.array(es) - e0)) < 1e-3 * e0
+
+
+def test_the_permutation_is_undone_exactly():
+    # free flight (no contacts) with many list builds: each build re-sorts the particles, the
+    # outputs come back in the original order; velocities and spins are untouched bit for bit
+    rng = np.random.default_rng(2)
+    n = 200
+    L = 0.2
+    g = np.stack(np.meshgrid(np.arange(20), np.arange(10)), axis=-1).reshape(-1, 2)
+    x = (g + 0.5) * np.array([L / 20, L / 10])
+    r = rng.uniform(0.8e-3, 1e-3, n)
+    p = Packing(positions=x, radii=r, cell=np.diag([L, L]), density=2650.0)
+    v = rng.normal(0.0, 1.0, (n, 2))
+    w = rng.normal(0.0, 10.0, n)
+    fe = FastEngine(p, S, velocities=v, spins=w)
+    np.testing.assert_array_equal(fe.positions, x)
+    out = fe.advance(300)
+    assert out["rebuilds"] > 20
+    assert fe.n_contacts == 0
+    np.testing.assert_array_equal(fe.velocities, v)
+    np.testing.assert_array_equal(fe.spins, w)
+    ref = x.copy()
+    for _ in range(300):
+        ref += S.dt * v
+    assert _image_diff(fe.positions, ref, L) < 1e-15
+    assert not np.array_equal(fe.perm, np.arange(n))  # the particles really were re-sorted
+
+
+def test_bad_input_is_refused():
+    p = lattice_packing(10, 12)
+    with pytest.raises(InputError, match="flavour"):
+        FastEngine(p, DEMSettings(flavour="lammps"))
+    with pytest.raises(InputError, match="servo"):
+        FastEngine(p, S).advance(1, Loading(x=AxisControl("servo", target=1.0, gain=1e-3)))
+    with pytest.raises(InputError, match="threads"):
+        FastEngine(p, S, threads=0)
+    with pytest.raises(InputError, match="velocities"):
+        FastEngine(p, S, velocities=np.zeros((3, 2)))
+    with pytest.raises(InputError, match="nsteps"):
+        FastEngine(p, S).advance(-1)
+    small = lattice_packing(3, 4)
+    with pytest.raises(InputError, match="side lengths"):
+        FastEngine(small, S)
+    with pytest.raises(InputError, match="dt"):
+        FastEngine(p, DEMSettings(kn=1e9, dt=1e-3))
