@@ -27,6 +27,9 @@ def register(sub) -> None:
     p.add_argument("--residual", choices=("max", "rms"),
                    help="norm of the residual: the largest net force on a disk (default) or the root mean "
                         "square over all disks (the same demand at every N: use it for 1e5 disks and more)")
+    p.add_argument("--method", choices=("random", "front"),
+                   help="start of the FIRE protocol: uniform random centres (default; the standard "
+                        "RVEs) or an advancing front of touching disks (a dense contact-free start)")
     p.add_argument("--friction", type=float,
                    help="make the packing by isotropic frictional DEM compaction of a granular gas with this "
                         "preparation friction coefficient instead of FIRE (looser assemblies: the Kuhn assembly "
@@ -41,6 +44,7 @@ def register(sub) -> None:
 
 def _check(args) -> None:
     """Every option checked before the packing starts (names in the messages are the options)."""
+    # imports here, not at the top: `gransim --help` must not load numba and h5py (start-up time)
     from ..errors import InputError
     from ..generation import get_distribution
     from ..generation.pack import (
@@ -86,9 +90,9 @@ def _run(args) -> int:
         if args.solid_fraction is not None or args.mean_overlap is not None:
             raise InputError("--friction (DEM compaction) takes no --solid-fraction or --mean-overlap target: "
                              "the friction sets the density and --pressure the overlaps")
-        if args.force_tol is not None or args.residual is not None:
-            raise InputError("--force-tol and --residual belong to the FIRE protocol, not to --friction "
-                             "(the compaction stops at an unbalanced force ratio of 1e-3)")
+        if args.force_tol is not None or args.residual is not None or args.method is not None:
+            raise InputError("--force-tol, --residual and --method belong to the FIRE protocol, not to "
+                             "--friction (the compaction stops at an unbalanced force ratio of 1e-3)")
         kw = {} if args.pressure is None else {"pressure": args.pressure}
         packing = compact_packing(args.distribution, args.n, args.seed, args.friction,
                                   mean_diameter=args.mean_diameter, density=args.density, **kw)
@@ -96,7 +100,8 @@ def _run(args) -> int:
     else:
         if args.pressure is not None:
             raise InputError("--pressure needs --friction (it is the stress of the DEM compaction)")
-        kw = {k: v for k, v in (("force_tol", args.force_tol), ("residual", args.residual)) if v is not None}
+        kw = {k: v for k, v in (("force_tol", args.force_tol), ("residual", args.residual),
+                                ("method", args.method)) if v is not None}
         packing = make_packing(args.distribution, args.n, args.seed, solid_fraction=args.solid_fraction,
                                mean_overlap=args.mean_overlap, mean_diameter=args.mean_diameter,
                                density=args.density, **kw)

@@ -15,6 +15,7 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
+    # imports here, not at the top: `gransim --help` must not load numba and h5py (start-up time)
     from ..generation import packing_stats, standard_packings
     from ..io import load_packing
     from ._paths import check_output_dir

@@ -10,6 +10,7 @@ import numpy as np
 
 from .._validate import as_positive_float, check_choice
 from ..errors import InputError
+from ..geometry import Packing
 
 #: the established DEM codes whose arithmetic the engine can follow (DEMSettings.flavour)
 FLAVOURS = ("liggghts", "lammps")
@@ -56,6 +57,48 @@ class DEMSettings:
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
+
+    @classmethod
+    def for_packing(cls, packing, kn: float, *, kt: float | None = None, mu: float = 0.5,
+                    damping_ratio: float = 0.3, steps_per_contact: float = 50.0, skin_d50: float = 0.05,
+                    mode: str = "serial", flavour: str = "liggghts") -> DEMSettings:
+        """Settings derived from a packing's disks and the contact stiffness alone (no test protocol).
+
+        Parameters
+        ----------
+        packing : gransim.Packing
+            Its masses (density pi r^2, kg) and D50 (m) set the time step, damping and skin.
+        kn : float
+            Normal spring stiffness (N/m); ``kt`` defaults to kn (Kuhn's law).
+        mu : float
+            Coulomb friction coefficient.
+        damping_ratio : float
+            zeta of the normal contact of two median disks: gamma_n = gamma_t = 2 zeta sqrt(kn/m_eff),
+            m_eff = m_median/2 (1/s, mass-scaled as LIGGGHTS' ``gamman``).
+        steps_per_contact : float
+            dt = t_c / steps_per_contact, with t_c = pi sqrt(m_eff/kn) the undamped contact time of
+            the two lightest disks (:func:`gransim.dem.engine.contact_time`).
+        skin_d50 : float
+            Neighbour skin in D50.
+
+        With the defaults these are the contact settings of the biaxial protocol's
+        :func:`gransim.dem.biaxial.default_settings` (the same arithmetic, so the same bits).
+        """
+        if not isinstance(packing, Packing):
+            raise InputError(f"packing: expected a gransim.Packing, got {type(packing).__name__}")
+        kn = as_positive_float(kn, "kn")
+        kt = kn if kt is None else kt
+        damping_ratio = as_positive_float(damping_ratio, "damping_ratio", allow_zero=True)
+        steps_per_contact = as_positive_float(steps_per_contact, "steps_per_contact")
+        skin_d50 = as_positive_float(skin_d50, "skin_d50")
+        if packing.n < 2:
+            raise InputError("packing: the time step needs at least two disks")
+        gamma = 2.0 * damping_ratio * np.sqrt(kn / (0.5 * np.median(packing.masses)))
+        m = np.sort(packing.masses)
+        meff = m[0] * m[1] / (m[0] + m[1])
+        dt = float(np.pi * np.sqrt(meff / kn)) / steps_per_contact
+        return cls(kn=kn, kt=kt, gamma_n=gamma, gamma_t=gamma, mu=mu, dt=dt, skin=skin_d50 * packing.d50,
+                   mode=mode, flavour=flavour)
 
 
 @dataclass(frozen=True)

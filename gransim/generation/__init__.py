@@ -1,17 +1,26 @@
 """Grain size distributions and periodic disk packings generated from them.
 
+Modules (imports flow one way: gsd, fire, stats -> pack, compaction -> standard):
+
 * :mod:`.gsd`: :class:`GrainSizeDistribution` (sieve curves, sampling by area fraction),
   :func:`get_distribution` for the shipped curves ``quartz-sand`` and ``kuhn-1002``.
+* :mod:`.fire`: the FIRE 2.0 enthalpy minimiser (:class:`Minimiser`, :class:`FireParameters`).
+* :mod:`.stats`: :func:`packing_stats` and :func:`rattlers`.
 * :mod:`.pack`: :func:`make_packing` (jammed periodic packings by pressure-controlled FIRE
-  minimisation of the contact potential), :func:`packing_stats`, :func:`standard_packings`.
+  minimisation of the contact potential).
 * :mod:`.compaction`: :func:`compact_packing` (looser, frictional assemblies by isotropic DEM
   compaction of a granular gas: the Kuhn assembly).
+* :mod:`.standard`: the standard assemblies of the papers (:data:`STANDARD_PACKINGS`,
+  :func:`standard_packings`).
 """
 
-from .gsd import GrainSizeDistribution, distribution_names, get_distribution
 from .compaction import compact_packing, compaction_run
-from .pack import (STANDARD_PACKINGS, FireParameters, build_standard, make_packing, packing_stats, rattlers,
-                   standard_packings)
+from .fire import FireParameters, Minimiser
+from .gsd import GrainSizeDistribution, distribution_names, get_distribution
+from .pack import make_packing
+from .standard import RVE_MEAN_OVERLAP, STANDARD_PACKINGS, build_standard, standard_packings
+from .stats import packing_stats, rattlers
 
-__all__ = ["STANDARD_PACKINGS", "FireParameters", "build_standard", "compact_packing", "compaction_run", "GrainSizeDistribution", "distribution_names",
-           "get_distribution", "make_packing", "packing_stats", "rattlers", "standard_packings"]
+__all__ = ["RVE_MEAN_OVERLAP", "STANDARD_PACKINGS", "FireParameters", "GrainSizeDistribution", "Minimiser",
+           "build_standard", "compact_packing", "compaction_run", "distribution_names", "get_distribution",
+           "make_packing", "packing_stats", "rattlers", "standard_packings"]

@@ -3,10 +3,11 @@
 A frictionless jammed packing (:func:`gransim.generation.make_packing`) is as dense as a random
 packing of its grading gets (for ``kuhn-1002``: void ratio e = 0.177-0.184). Laboratory and DEM
 assemblies are looser: friction stops the rearrangements before the frictionless limit. Kuhn's
-1002-disk assembly (002, section 4: e = 0.189, effective coordination 2M/N = 3.75, 131 disks
-outside the particle graph) is such an assembly. The usual way to make one (e.g. Thornton 2000;
-Agnolin & Roux 2007) is to compact a granular gas isotropically with a *preparation* friction
-coefficient, lower than the friction of the test, chosen for the density wanted:
+1002-disk assembly (Kuhn, "Deformation measures for granular materials", section 4: e = 0.189,
+effective coordination 2M/N = 3.75, 131 disks outside the particle graph) is such an assembly.
+The usual way to make one (e.g. Thornton 2000; Agnolin & Roux 2007) is to compact a granular gas
+isotropically with a *preparation* friction coefficient, lower than the friction of the test,
+chosen for the density wanted:
 
 1. **Sizes**: N diameters drawn from the grading exactly as :func:`make_packing` draws them (same
    seed, same diameters).
@@ -32,30 +33,39 @@ friction: on ``kuhn-1002`` (N = 1002) e = 0.177 at friction 0, 0.189-0.196 at 0.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 
 import numpy as np
 
 from .._validate import as_int, as_positive_float
+from ..dem.engine import DEMEngine
+from ..dem.settings import AxisControl, DEMSettings, Loading
 from ..errors import ConvergenceError, InputError
 from ..geometry import Packing
+from ..progress import progress
+from .fire import UNJAMMED_ENERGY, FireParameters, Minimiser
 from .gsd import get_distribution
+from .stats import packing_stats
 
 #: stress (relative to kn) of the compaction: mean overlap ~ 0.9e-4 D50
 DEFAULT_PRESSURE = 1e-4
 #: solid fraction of the granular gas the compaction starts from
 DEFAULT_PHI_GAS = 0.70
+#: contact law of the compaction: viscous damping ratio of a median pair, time steps per contact
+#: duration of the lightest pair, neighbour skin in D50 (:meth:`gransim.dem.DEMSettings.for_packing`)
+DAMPING_RATIO = 0.3
+STEPS_PER_CONTACT = 50.0
+SKIN_D50 = 0.05
+#: servo gain times kn dt: the box reacts over ~100 steps
+SERVO_GAIN_KN_DT = 0.01
 
 
 def _gas(r: np.ndarray, phi: float, rng) -> tuple[np.ndarray, float]:
     """Contact-free random centres (reduced units: radii r in mean diameters) in a square cell of
     solid fraction phi: uniform placement, overlaps removed by frictionless FIRE at fixed cell."""
-    from .pack import UNJAMMED_ENERGY, FireParameters, _Minimiser
-
     L = float(np.sqrt(np.pi * np.sum(r**2) / phi))
     x = rng.random((r.shape[0], 2)) * L
-    m = _Minimiser(x, r, L, 0.3, FireParameters())
+    m = Minimiser(x, r, L, 0.3, FireParameters())
     status = m.run(0.0, False, 0.1, 200_000, skin=0.6)
     if status != "converged" or m.diag[0] > UNJAMMED_ENERGY * r.shape[0]:
         raise ConvergenceError(f"the granular gas at phi = {phi} is not contact-free after {m.steps} FIRE steps "
@@ -77,17 +87,15 @@ def unbalanced_force_ratio(engine) -> float:
 
 def _setup(dist, n, seed, friction, pressure, phi_gas, density, kn):
     """The granular gas, the DEM settings and the servo loading of a compaction (steps 1-3)."""
-    from ..dem import AxisControl, Loading, default_settings
-
     rng = np.random.default_rng(seed)
     d = dist.sample(n, rng)
     ell = float(d.mean())
     r = d / (2.0 * ell)
     x, L = _gas(r, phi_gas, rng)
     gas = Packing(positions=x * ell, radii=r * ell, cell=np.eye(2) * L * ell, density=density)  # as make_packing
-    dem, bi = default_settings(gas, kn=kn)
-    dem = dataclasses.replace(dem, mu=friction)
-    servo = AxisControl("servo", target=pressure * kn, gain=bi.servo_gain)
+    dem = DEMSettings.for_packing(gas, kn, mu=friction, damping_ratio=DAMPING_RATIO,
+                                  steps_per_contact=STEPS_PER_CONTACT, skin_d50=SKIN_D50)
+    servo = AxisControl("servo", target=pressure * kn, gain=SERVO_GAIN_KN_DT / (kn * dem.dt))
     return gas, dem, Loading(x=servo, y=servo)
 
 
@@ -155,10 +163,6 @@ def compact_packing(distribution, n: int, seed: int, friction: float, *, pressur
         request, the DEM settings, the steps, the unbalanced force ratio and the statistics of
         :func:`packing_stats` (void ratio, coordination, overlaps).
     """
-    from ..dem import DEMEngine
-    from ..progress import progress
-    from .pack import packing_stats
-
     t0 = time.perf_counter()
     dist = get_distribution(distribution)
     n = as_int(n, "n", minimum=2)

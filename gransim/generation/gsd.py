@@ -86,7 +86,7 @@ class GrainSizeDistribution:
 
     # -- construction -----------------------------------------------------------------------
     @classmethod
-    def from_csv(cls, path, name: str | None = None, unit: float = 1e-3) -> "GrainSizeDistribution":
+    def from_csv(cls, path, name: str | None = None, unit: float = 1e-3) -> GrainSizeDistribution:
         """Read a sieve curve from a CSV file (``#`` comment lines, a header row, two columns).
 
         Parameters
@@ -106,7 +106,7 @@ class GrainSizeDistribution:
         return cls._parse(text, name or path.stem, unit, str(path))
 
     @classmethod
-    def _parse(cls, text: str, name: str, unit: float, where: str) -> "GrainSizeDistribution":
+    def _parse(cls, text: str, name: str, unit: float, where: str) -> GrainSizeDistribution:
         comments, rows = [], []
         for line in text.splitlines():
             s = line.strip()
@@ -247,13 +247,13 @@ class GrainSizeDistribution:
         return rng.permutation(d)
 
     # -- scaling ----------------------------------------------------------------------------
-    def scaled_by(self, factor: float) -> "GrainSizeDistribution":
+    def scaled_by(self, factor: float) -> GrainSizeDistribution:
         """The same grading with every diameter multiplied by ``factor`` (> 0)."""
         factor = as_positive_float(factor, "factor")
         return GrainSizeDistribution(self.diameters * factor, self.passing, name=self.name,
                                      source=self.source)
 
-    def scaled(self, mean_diameter: float) -> "GrainSizeDistribution":
+    def scaled(self, mean_diameter: float) -> GrainSizeDistribution:
         """The same grading scaled so that its number-mean diameter is ``mean_diameter`` (m)."""
         mean_diameter = as_positive_float(mean_diameter, "mean_diameter")
         return self.scaled_by(mean_diameter / self.mean_diameter)
@@ -275,7 +275,7 @@ def distribution_names() -> tuple[str, ...]:
     return tuple(sorted(p.name[:-4] for p in root.iterdir() if p.name.endswith(".csv")))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _load_named(name: str) -> GrainSizeDistribution:
     text = resources.files(__package__).joinpath(_DATA, f"{name}.csv").read_text()
     return GrainSizeDistribution._parse(text, name, 1e-3, f"{name}.csv")

@@ -35,6 +35,13 @@ def test_pack_residual_options(tmp_path, capsys):
     assert m["residual_norm"] == "rms" and m["force_tol"] == 5e-4 and m["residual"] <= 5e-4
 
 
+def test_pack_method_option(tmp_path, capsys):
+    out = tmp_path / "front.h5"
+    assert main(["pack", "--n", "80", "--seed", "2", "--method", "front", "-o", str(out)]) == 0
+    m = load_packing(out).metadata
+    assert m["method"] == "front" and m["residual"] <= 1e-3
+
+
 def test_pack_by_frictional_compaction(tmp_path, capsys):
     out = tmp_path / "dem.h5"
     assert main(["pack", "--distribution", "kuhn-1002", "--n", "80", "--seed", "2", "--friction", "0.3",
@@ -48,6 +55,7 @@ def test_pack_by_frictional_compaction(tmp_path, capsys):
     (["pack", "--n", "50", "--friction", "0.1", "--solid-fraction", "0.85", "-o", "x.h5"], "takes no --solid"),
     (["pack", "--n", "50", "--pressure", "1e-4", "-o", "x.h5"], "--pressure needs --friction"),
     (["pack", "--n", "50", "--friction", "0.1", "--residual", "rms", "-o", "x.h5"], "belong to the FIRE"),
+    (["pack", "--n", "50", "--friction", "0.1", "--method", "front", "-o", "x.h5"], "belong to the FIRE"),
     (["pack", "--n", "50", "--force-tol=-1", "-o", "x.h5"], "--force-tol: expected"),
     (["pack", "--n", "50", "--friction=-1", "-o", "x.h5"], "--friction: expected"),
     (["pack", "--n", "1", "-o", "x.h5"], "--n: expected an integer >= 2"),

@@ -10,8 +10,17 @@ import pytest
 from gransim import Packing
 from gransim.contacts import find_neighbours_bruteforce
 from gransim.errors import ConvergenceError, InputError
-from gransim.generation import get_distribution, make_packing, packing_stats, rattlers, standard_packings
-from gransim.generation.pack import DEFAULT_MEAN_OVERLAP, STANDARD_PACKINGS
+from gransim.generation import (
+    get_distribution,
+    make_packing,
+    packing_stats,
+    rattlers,
+    standard_packings,
+)
+from gransim.generation.fire import FireParameters, Minimiser
+from gransim.generation.front import FRONT_PHI, front_packing
+from gransim.generation.pack import DEFAULT_MEAN_OVERLAP
+from gransim.generation.standard import STANDARD_PACKINGS
 
 N = 120  # small: a few hundred ms per packing after compilation
 
@@ -35,7 +44,7 @@ def contact_forces(p):
 def test_dense_packing_reaches_the_overlap_target_and_is_periodic(dense):
     p = dense
     assert isinstance(p, Packing) and p.n == N
-    F, eps, nl = contact_forces(p)
+    _, eps, nl = contact_forces(p)
     dmean = 2 * p.radii.mean()
     # the target mean overlap (relative to the mean diameter) within the 2 % tolerance
     assert eps.mean() / dmean == pytest.approx(DEFAULT_MEAN_OVERLAP, rel=0.021)
@@ -186,8 +195,6 @@ def test_standard_packings_set_and_cheap_rerun(tmp_path):
 def test_threaded_minimiser_gives_the_serial_result_bit_for_bit():
     """The chunked kernels sum in a fixed order: the threaded build (used from PARALLEL_FROM disks)
     must reproduce the serial one exactly, whatever the thread count."""
-    from gransim.generation import pack
-
     rng = np.random.default_rng(5)
     r = get_distribution("quartz-sand").sample(300, rng)
     r = r / (2 * r.mean())
@@ -195,7 +202,7 @@ def test_threaded_minimiser_gives_the_serial_result_bit_for_bit():
     x = rng.random((300, 2)) * L
     out = []
     for parallel in (False, True):
-        m = pack._Minimiser(x, r, L, 0.3, pack.FireParameters(), parallel=parallel)
+        m = Minimiser(x, r, L, 0.3, FireParameters(), parallel=parallel)
         assert m.run(0.0, False, 0.1, 100_000) == "converged"
         assert m.run(2e-3, True, 1e-3, 100_000) == "converged"
         out.append((m.in_original_order(), m.L, m.steps))
@@ -203,3 +210,42 @@ def test_threaded_minimiser_gives_the_serial_result_bit_for_bit():
     (xp, rp), Lp, npar = out[1]
     assert np.array_equal(rs, r) and np.array_equal(rp, r)
     assert np.array_equal(xs, xp) and Ls == Lp and ns == npar
+
+
+def test_front_start_places_touching_disks_without_overlap():
+    """The advancing front (Feng, Han & Owen 2003) places each disk in contact with the front and
+    never overlapping a placed disk: checked by the brute-force periodic search."""
+    rng = np.random.default_rng(7)
+    d = get_distribution("quartz-sand").sample(500, rng)
+    r = d / (2 * d.mean())
+    L = float(np.sqrt(np.pi * np.sum(r**2) / FRONT_PHI))
+    x, placed = front_packing(r, L, rng)
+    assert placed >= 0.95 * r.size  # nearly all disks fit at the growth density
+    nl = find_neighbours_bruteforce(x[:placed], r[:placed], L * np.eye(2), 1e-6)
+    gap = -nl.overlaps(r[:placed])
+    assert gap.min() > -1e-9  # no overlap among the placed disks
+    touching = np.zeros(placed, dtype=bool)
+    t = gap < 1e-9
+    touching[nl.i[t]] = True
+    touching[nl.j[t]] = True
+    assert touching.mean() > 0.95  # placed in contact (first-layer ends and a few retired disks aside)
+    frac = x / L
+    assert np.all((frac >= 0) & (frac < 1))
+
+
+def test_front_method_meets_the_targets_of_the_random_start():
+    """method="front": the same sizes as the random start, a different packing, and the same
+    targets checked independently (mean overlap, largest residual, jammed coordination)."""
+    p = make_packing("quartz-sand", 300, seed=5, method="front")
+    q = make_packing("quartz-sand", 300, seed=5)
+    assert np.array_equal(np.sort(p.radii), np.sort(q.radii))
+    assert not np.array_equal(p.positions, q.positions)
+    F, eps, _ = contact_forces(p)
+    assert eps.mean() / (2 * p.radii.mean()) == pytest.approx(DEFAULT_MEAN_OVERLAP, rel=0.021)
+    assert np.max(np.linalg.norm(F, axis=1)) <= 1.001e-3 * eps.mean()
+    assert 0.82 < p.solid_fraction < 0.87
+    s = packing_stats(p)
+    assert 3.9 < s["coordination_nonrattler"] < 4.4
+    assert p.metadata["method"] == "front" and p.metadata["front_placed"] >= 280
+    with pytest.raises(InputError, match="method"):
+        make_packing("quartz-sand", 50, seed=1, method="lattice")

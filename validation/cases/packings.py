@@ -60,7 +60,7 @@ def _sieve_error(p) -> tuple[float, float]:
       order=5)
 def packings(ctx: Context) -> CaseResult:
     from gransim.generation import packing_stats, standard_packings
-    from gransim.generation.pack import RVE_MEAN_OVERLAP
+    from gransim.generation import RVE_MEAN_OVERLAP
     from gransim.io import load_packing
 
     res = CaseResult(
