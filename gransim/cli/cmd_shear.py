@@ -31,12 +31,19 @@ def register(sub) -> None:
     p.add_argument("--flavour", default="lammps",
                    help="whose arithmetic the engine follows: lammps (LAMMPS 29 Sep 2021, the only one "
                         "with a sheared periodic cell; LIGGGHTS 3.8.0's triclinic box loses its ghosts)")
-    p.add_argument("--kn", type=float, default=1e5, help="normal = tangential stiffness, N/m (default 1e5)")
+    p.add_argument("--kn", type=float, help="normal = tangential stiffness, N/m (default 1e5; a Hertz --law "
+                   "sets its own)")
     p.add_argument("--damping-ratio", type=float, default=0.3, help="contact damping ratio (default 0.3)")
     p.add_argument("--steps-per-contact", type=float, default=50.0, help="contact time / dt (default 50)")
     p.add_argument("--series-every", type=int, default=10, help="series row every N steps (default 10)")
     p.add_argument("--snapshot-every", type=int, default=0,
                    help="snapshot every N steps (default 0: the first and the last only)")
+    p.add_argument("--law", metavar="NAME",
+                   help="contact law by name, one in LAMMPS' arithmetic (hooke-lammps, hertz-lammps, "
+                        "hertz-granular-lammps, hooke-sds-lammps; docs/laws.md); default: the Hooke law of "
+                        "--kn/--damping-ratio. Recorded in the run file's settings JSON (law)")
+    p.add_argument("--law-param", metavar="KEY=VALUE", action="append", default=[],
+                   help="a parameter of --law (repeat; SI units, as gransim biaxial --law-param)")
     p.add_argument("-o", "--output", required=True, help="run file (.h5)")
     p.add_argument("--plot", help="also write the shear stress and normal stress against the strain")
     p.set_defaults(func=_run)
@@ -67,6 +74,23 @@ def _check_options(args) -> None:
                              "only (LIGGGHTS 3.8.0's triclinic box loses the periodic ghosts); use --flavour "
                              "lammps")
         raise InputError(f"--flavour: expected lammps, got {args.flavour!r}")
+    if args.law_param and not args.law:
+        raise InputError("--law-param: given without --law (name the law the parameters belong to)")
+    if args.law:
+        from ..contacts.laws import law_code
+        from .cmd_biaxial import parse_law_params
+
+        try:
+            code = law_code(args.law)
+        except InputError as e:
+            raise InputError(f"--law: {e}") from None
+        if code != "lammps":
+            raise InputError(f"--law {args.law}: a law in {code.upper()}' arithmetic; the sheared cell runs "
+                             "LAMMPS' (use a *-lammps law)")
+        if args.kn is not None and args.law.startswith("hertz"):
+            raise InputError(f"--kn: not used with the Hertz law {args.law} (its stiffness scale comes from "
+                             "its --law-param material constants)")
+        parse_law_params(args.law_param)
 
 
 def _run(args) -> int:
@@ -85,15 +109,31 @@ def _run(args) -> int:
     if C[1, 0] != 0.0:
         raise InputError(f"--packing: {args.packing}: the cell must have a1 = (Lx, 0) (cell[1, 0] = 0), "
                          f"got cell[1, 0] = {C[1, 0]!r}")
-    dem, _ = default_settings(packing, kn=args.kn, damping_ratio=args.damping_ratio,
-                              steps_per_contact=args.steps_per_contact, flavour="lammps")
+    law = law_options = None
+    if args.law:
+        from ..dem.biaxial import law_settings
+        from .cmd_biaxial import parse_law_params
+
+        opts = {"damping_ratio": args.damping_ratio, "steps_per_contact": args.steps_per_contact}
+        if args.kn is not None:
+            opts["kn"] = args.kn
+        try:
+            law, dem, _, law_options = law_settings(packing, args.law, parse_law_params(args.law_param),
+                                                    **opts)
+        except InputError as e:
+            raise InputError(f"--law-param: {e}") from None
+    else:
+        dem, _ = default_settings(packing, kn=1e5 if args.kn is None else args.kn,
+                                  damping_ratio=args.damping_ratio,
+                                  steps_per_contact=args.steps_per_contact, flavour="lammps")
     lx, ly, xy0 = float(C[0, 0]), float(C[1, 1]), float(C[0, 1])
     if xy0 + args.strain * ly > 0.5 * lx:
         raise InputError(f"--strain {args.strain:g}: the tilt would reach {xy0 + args.strain * ly:.4g} m, beyond "
                          f"Lx/2 = {0.5 * lx:.4g} m, where LAMMPS flips the box (the engine does not); "
                          f"at most {(0.5 * lx - xy0) / ly:.4g} for this cell")
     try:
-        probe = ShearEngine(packing, dem)  # the checks of the cell and dt, and the packing's pressure
+        # the checks of the cell and dt, and the packing's pressure
+        probe = ShearEngine(packing, dem, law=law)
     except InputError as exc:
         raise InputError(f"--packing: {args.packing}: {exc}") from None
     p_mean = float(0.5 * (probe.stress[0, 0] + probe.stress[1, 1]))  # compression positive
@@ -121,7 +161,7 @@ def _run(args) -> int:
              "inertial_number": inertial_number(packing, rate, p_ref) if p_ref > 0 else None}
     summary = run_shear_file(packing, dataclasses.replace(dem), loading, nsteps, args.output,
                              series_every=args.series_every, snapshot_every=args.snapshot_every,
-                             parameters=extra)
+                             parameters=extra, law=law, law_options=law_options)
     y = f"servo sigma_yy = {args.servo:g} N/m" if args.servo is not None else "constant volume"
     print(f"wrote {args.output}: {packing.n} disks, {nsteps} steps of {dem.dt:.3g} s, shear rate {rate:.4g} 1/s, "
           f"{y}, LAMMPS arithmetic")

@@ -45,8 +45,9 @@ flip -1): :class:`HertzHistoryLiggghts` (yeff, geff, betaeff, tdamp, mu: the arg
 zeroed, pair_gran_hertz_history.cpp:126-132) and :class:`HertzGranularLammps` (E, damp, kt0,
 gammat_ratio, mu, damping as a float index; zeroed apart, pair_granular.cpp:283-288). Build them
 by name with :func:`gransim.contacts.laws.make_law` ("hertz-liggghts", "hertz-lammps",
-"hertz-granular-lammps"). No ``energy`` is registered: the engine's energy hook passes overlaps
-and histories but not R*; :func:`hertz_energy` is the function once it does.
+"hertz-granular-lammps"). Energy (the engine's balance): :func:`hertz_energy`, registered for
+all three (the normal potential of each code's parametrisation; the spring energy k_t |xi|^2/2,
+a potential of xi at fixed overlap only).
 """
 
 from __future__ import annotations
@@ -57,10 +58,17 @@ from collections import namedtuple
 import numpy as np
 
 from .._numba import njit
+
 # damping models of pair_style granular (pair_granular.cpp:56 enum order), re-exported: the laws'
 # damping argument
-from .granular import (DAMPING_MASS_VELOCITY, DAMPING_TSUJI, DAMPING_VELOCITY,  # noqa: F401
-                       DAMPING_VISCOELASTIC, damp_normal, spring_dashpot_slider)
+from .granular import (  # noqa: F401
+    DAMPING_MASS_VELOCITY,
+    DAMPING_TSUJI,
+    DAMPING_VELOCITY,
+    DAMPING_VISCOELASTIC,
+    damp_normal,
+    spring_dashpot_slider,
+)
 from .laws import register_law
 
 #: floats of per-contact history of every law in this module (the tangential spring xi, m)
@@ -391,27 +399,57 @@ def history_reset(law, hist, e):
         hist[e, k] = 0.0
 
 
-def hertz_energy(law, overlap, hist, reff) -> float:
-    """Elastic energy (J) of touching Hertz contacts: sum 8/15 Y* sqrt(R*) delta^(5/2)
-    + k_t(delta) |xi|^2 / 2 with k_t = 8 G* sqrt(R* delta) (Johnson 1985, eq (4.23); Mindlin 1949).
+def hertz_coefficients(law):
+    """(c_n, c_t) of a Hertz law object: its elastic normal force is F_n = c_n sqrt(R*) delta^(3/2)
+    and its tangential spring stiffness k_t = c_t sqrt(R* delta), each in the code's own
+    parametrisation (Pa):
 
-    ``overlap`` (K,) m, ``hist`` (K, 2) m, ``reff`` (K,) m. The tangential term is the energy of
-    the spring at the current stiffness (both codes do not rescale xi when delta changes, so the
-    tangential force is not the gradient of a potential; the term is exact at fixed delta)."""
-    d = np.asarray(overlap, np.float64)
-    R = np.asarray(reff, np.float64)
-    a = np.sqrt(R * d)
+    * :class:`HertzHistoryLiggghts`: k_n = 4/3 Y* sqrt(R* delta), F_n = k_n delta, k_t = S_t =
+      8 G* sqrt(R* delta) (LIG normal_model_hertz.h:221, 232-235, 255), so c_n = 4/3 Y*, c_t = 8 G*;
+    * :class:`HertzHistoryLammps`: F_n = ccel r = KN delta sqrt(R* delta) (polyhertz, LMP
+      GRANULAR/pair_gran_hertz_history.cpp:182-184), F_t = -polyhertz KT xi (:219-221):
+      c_n = KN, c_t = KT;
+    * :class:`HertzGranularLammps`: F_ne = E delta a, k_t = kt0 a, a = sqrt(R* delta) (LMP
+      GRANULAR/pair_granular.cpp:326, 349-354, 426-433): c_n = E (= 4/3 Y*), c_t = kt0 (= 8 G*).
+    """
     if isinstance(law, HertzHistoryLiggghts):
-        y43, kt0 = 4.0 / 3.0 * law.yeff, 8.0 * law.geff
-    elif isinstance(law, HertzHistoryLammps):
-        y43, kt0 = law.kn, law.kt
-    else:
-        y43, kt0 = law.E, law.kt0
-    un = 0.4 * y43 * np.sqrt(R) * d ** 2.5
-    ut = 0.5 * kt0 * a * np.sum(np.asarray(hist, np.float64) ** 2, axis=1)
+        return 4.0 / 3.0 * law.yeff, 8.0 * law.geff
+    if isinstance(law, HertzHistoryLammps):
+        return law.kn, law.kt
+    if isinstance(law, HertzGranularLammps):
+        return law.E, law.kt0
+    from ..errors import InputError
+
+    raise InputError("law: expected a Hertz law (HertzHistoryLiggghts, HertzHistoryLammps, "
+                     f"HertzGranularLammps), got {type(law).__name__}")
+
+
+def hertz_energy(law, overlap, hist, radi, radj) -> float:
+    """Elastic energy (J) of K touching Hertz contacts (the law's registered ``energy``).
+
+    ``overlap`` (K,) m, ``hist`` (K, 2) the tangential springs xi (m), ``radi``, ``radj`` (K,) m.
+    With the coefficients of :func:`hertz_coefficients` (c_n, c_t) and R* = r_i r_j/(r_i + r_j):
+
+    * normal: U_n = integral_0^delta F_n d delta' = 2/5 c_n sqrt(R*) delta^(5/2) (= 8/15 Y*
+      sqrt(R*) delta^(5/2) for c_n = 4/3 Y*; Johnson 1985, eq (4.23)): dU_n/d delta is the
+      elastic normal force of each code exactly (its k_n(delta) delta);
+    * tangential: U_t = k_t(delta) |xi|^2 / 2, k_t = c_t sqrt(R* delta) (Mindlin 1949): -dU_t/dxi
+      is the code's spring force -k_t(delta) xi below the Coulomb cap. It is a potential of xi at
+      fixed delta only: neither code rescales xi when delta changes (LIGGGHTS
+      tangential_model_history.h:147-171, LAMMPS pair_gran_hertz_history.cpp:199-221 and
+      pair_granular.cpp without ``mindlin_rescale``), so along a path with a changing overlap the
+      work of F_t is not the change of U_t (the difference d U_t = |xi|^2/2 dk_t is neither
+      stored nor dissipated by the law). Frictionless contacts keep xi = 0 and are exact.
+    """
+    d = np.asarray(overlap, np.float64)
+    R = radi * radj / (radi + radj)
+    cn, ct = hertz_coefficients(law)
+    un = 0.4 * cn * np.sqrt(R) * d ** 2.5
+    ut = 0.5 * ct * np.sqrt(R * d) * np.sum(np.asarray(hist, np.float64)[:, :2] ** 2, axis=1)
     return float(np.sum(un) + np.sum(ut))
 
 
-register_law(HertzHistoryLiggghts, hertz_pair_liggghts, HISTORY_WIDTH)
-register_law(HertzHistoryLammps, hertz_pair_lammps, HISTORY_WIDTH, apart=history_reset)
-register_law(HertzGranularLammps, hertz_pair_granular_lammps, HISTORY_WIDTH, apart=history_reset)
+register_law(HertzHistoryLiggghts, hertz_pair_liggghts, HISTORY_WIDTH, energy=hertz_energy)
+register_law(HertzHistoryLammps, hertz_pair_lammps, HISTORY_WIDTH, apart=history_reset, energy=hertz_energy)
+register_law(HertzGranularLammps, hertz_pair_granular_lammps, HISTORY_WIDTH, apart=history_reset,
+             energy=hertz_energy)

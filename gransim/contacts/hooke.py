@@ -239,9 +239,14 @@ def spring_reset(law, hist, e):
     hist[e, 1] = 0.0
 
 
-def hooke_energy(law, overlap, hist) -> float:
-    """sum kn overlap^2/2 + kt |xi|^2/2 (J) over touching contacts (overlap (K,), hist (K, 2))."""
-    return float(0.5 * law.kn * np.sum(overlap ** 2) + 0.5 * law.kt * np.sum(hist ** 2))
+def hooke_energy(law, overlap, hist, radi=None, radj=None) -> float:
+    """sum kn overlap^2/2 + kt |xi|^2/2 (J) over touching contacts (overlap (K,), hist (K, 2); the
+    radii are not needed). F_n = kn delta is its delta-derivative (hooke_history: ``force_magnitude``;
+    LAMMPS ccel r = kn (R - r), pair_gran_hooke_history.cpp:244), F_t = -kt xi below the cap its
+    xi-derivative. The spring is a potential of xi at every overlap (kt constant); both codes
+    project xi on the tangent plane each step (LIGGGHTS without rescaling: |xi| shrinks with the
+    rotation of n, energy leaves the spring without work)."""
+    return float(0.5 * law.kn * np.sum(overlap ** 2) + 0.5 * law.kt * np.sum(hist[:, :2] ** 2))
 
 
 register_law(HookeLiggghts, hooke_pair_liggghts, 2, energy=hooke_energy)

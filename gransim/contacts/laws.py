@@ -21,6 +21,9 @@ Registering a law (e.g. in ``gransim/contacts/hertz.py``)::
         hist[e, 0] = s0; ...                     # write it back (in place)
         return fx, fy, ti, tj, sliding, fn       # force on i, torques on i and j, cap flag, F_n
 
+    def hertz_energy(law, overlap, hist, radi, radj):   # (K,) arrays -> J
+        ...
+
     register_law(HertzLiggghts, hertz_pair, width=2, energy=hertz_energy)
 
 A law defined in a test module or a script registers with ``cache=False`` (:class:`LawSpec`).
@@ -37,7 +40,15 @@ radii (m), velocities (m/s), spins (rad/s), masses (kg) of i and j; ``dt`` (s); 
 in the set-up evaluation of a run (no history increment, as both codes' ``run`` set-up). Returns
 (fx, fy) the force on i (N; j gets minus it), ti and tj the torques on i and j (N m), ``sliding``
 (bool) and F_n (N). The optional ``apart(law, hist, e)`` runs for an entry whose disks do not
-touch (LAMMPS' ``gran/*/history`` zeroes the spring there; LIGGGHTS keeps it).
+touch (LAMMPS' ``gran/*/history`` zeroes the spring there; LIGGGHTS keeps it). A law registered
+with ``split_torque=True`` returns two more floats, ``(..., fn, ti2, tj2)``: torques the loops add
+to i and j after ti and tj, each on its own (LAMMPS' ``granular`` rolling torque,
+:func:`gransim.contacts.rolling.sds_pair`); :func:`pair_force` still returns the six values
+(torques summed), :func:`pair_force_split` (the loops) always eight (-0.0 for the other laws, an
+addition the compiler removes).
+
+**Energy**: ``energy(law, overlap, hist, radi, radj)`` (arrays over the K touching contacts) the
+elastic energy (J) stored in them (:class:`LawSpec`, :func:`elastic_energy`; docs/laws.md).
 """
 
 from __future__ import annotations
@@ -64,8 +75,17 @@ class LawSpec:
     flip : (width,) signs of the history seen from the other particle: a new list entry (a, b)
         that was stored as (b, a) before a rebuild takes ``flip * hist`` (-1 for vectors in the
         frame of i, as the tangential spring; +1 for scalars).
-    energy : optional Python ``energy(law, overlap (K,), hist (K, width)) -> float``: the elastic
-        energy (J) stored in the touching contacts, for the engine's energy balance; None: 0.
+    energy : optional Python ``energy(law, overlap (K,), hist (K, width), radi (K,), radj (K,))
+        -> float``: the elastic energy (J) stored in the K touching contacts with overlaps (m),
+        histories and the radii of their two disks (m; R* = r_i r_j/(r_i + r_j) of a Hertz or a
+        rolling law), for the engine's energy balance; None: 0. A function of the first three
+        arguments only (the former hook) is accepted by :func:`register_law` and called without
+        the radii.
+    split_torque : the pair function returns two more floats, (..., fn, tqa2, tqb2): torques the
+        loop adds to a and b *after* ti and tj, each on its own (LAMMPS ``pair_style granular``
+        adds the rolling torque to the particle's torque after the tangential one,
+        pair_granular.cpp:664-686, 693-705; one sum ti would round differently). False: the
+        loop adds -0.0 (folded away by the compiler: no work for the other laws).
     cache : the kernels compiled for this law go to numba's disk cache. Only for a class defined
         in a module every process can import (a ``gransim`` module): the cache index of a kernel
         lists the classes of all its compiled signatures and every process unpickles all of it,
@@ -80,13 +100,15 @@ class LawSpec:
     flip: tuple
     energy: Callable | None
     cache: bool = True
+    split_torque: bool = False
 
 
 _REGISTRY: dict[type, LawSpec] = {}
 
 
 def register_law(params: type, pair: Callable, width: int, *, apart: Callable | None = None,
-                 flip=None, energy: Callable | None = None, cache: bool = True) -> LawSpec:
+                 flip=None, energy: Callable | None = None, cache: bool = True,
+                 split_torque: bool = False) -> LawSpec:
     """Register ``params`` (a namedtuple class of floats) with its jitted ``pair`` function.
 
     ``width`` >= 0 history columns; ``apart``, ``flip`` (default -1 for every column), ``energy``
@@ -98,11 +120,34 @@ def register_law(params: type, pair: Callable, width: int, *, apart: Callable | 
     if int(width) != width or width < 0:
         raise InputError(f"register_law: width must be an integer >= 0 (history columns), got {width!r}")
     flip = (-1.0,) * int(width) if flip is None else tuple(float(s) for s in flip)
+    if energy is not None:
+        energy = _energy_hook(energy)
     if len(flip) != width or any(s not in (-1.0, 1.0) for s in flip):
         raise InputError(f"register_law: flip must hold {width} signs (+1 or -1), got {flip!r}")
-    spec = LawSpec(params, pair, int(width), apart, flip, energy, bool(cache))
+    spec = LawSpec(params, pair, int(width), apart, flip, energy, bool(cache), bool(split_torque))
     _REGISTRY[params] = spec
     return spec
+
+
+def _energy_hook(fn):
+    """``fn`` as a hook of five arguments (law, overlap, hist, radi, radj): a function that takes
+    three positional arguments only (the hook before the radii were passed) is wrapped."""
+    import inspect
+
+    try:
+        params = list(inspect.signature(fn).parameters.values())
+    except (TypeError, ValueError):
+        return fn
+    if any(p.kind is p.VAR_POSITIONAL for p in params):
+        return fn
+    if len([p for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]) >= 5:
+        return fn
+
+    def three(law, overlap, hist, radi, radj):
+        return fn(law, overlap, hist)
+
+    three.__wrapped__ = fn
+    return three
 
 
 def law_spec(law) -> LawSpec:
@@ -121,9 +166,26 @@ def _spec_of_type(ty) -> LawSpec | None:
 
 
 def pair_force(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-    """The pair function of ``law``'s registered class (interpreted: NUMBA_DISABLE_JIT)."""
-    return _REGISTRY[type(law)].pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy,
-                                     wi, wj, mi, mj, dt, update)
+    """The pair function of ``law``'s registered class: (fx, fy, ti, tj, sliding, fn), ti and tj
+    the whole torques on i and j (interpreted: NUMBA_DISABLE_JIT)."""
+    out = _REGISTRY[type(law)].pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy,
+                                    wi, wj, mi, mj, dt, update)
+    if len(out) == 8:
+        fx, fy, ti, tj, sl, fn, ti2, tj2 = out
+        return fx, fy, ti + ti2, tj + tj2, sl, fn
+    return out
+
+
+def pair_force_split(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
+                     update):
+    """The pair function of ``law`` as the force loops call it: (fx, fy, ti, tj, sliding, fn, ti2,
+    tj2), ti2 and tj2 added to the particles after ti and tj (``LawSpec.split_torque``; -0.0 for a
+    law that returns its torques whole). Interpreted: NUMBA_DISABLE_JIT."""
+    out = _REGISTRY[type(law)].pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy,
+                                    wi, wj, mi, mj, dt, update)
+    if len(out) == 8:
+        return out
+    return (*out, -0.0, -0.0)
 
 
 def pair_apart(law, hist, e):
@@ -141,10 +203,40 @@ def _ov_pair_force(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy
         return None
     fn = spec.pair
 
+    if spec.split_torque:
+        def joined(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
+            fx, fy, ti, tj, sl, fnorm, ti2, tj2 = fn(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx,
+                                                     vjy, wi, wj, mi, mj, dt, update)
+            return fx, fy, ti + ti2, tj + tj2, sl, fnorm
+
+        return joined
+
     def impl(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
         return fn(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update)
 
     return impl
+
+
+@overload(pair_force_split, inline="always")
+def _ov_pair_force_split(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
+                         update):
+    spec = _spec_of_type(law)
+    if spec is None:
+        return None
+    fn = spec.pair
+    if spec.split_torque:
+        def split(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
+            return fn(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
+                      update)
+
+        return split
+
+    def whole(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
+        fx, fy, ti, tj, sl, fnorm = fn(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj,
+                                       mi, mj, dt, update)
+        return fx, fy, ti, tj, sl, fnorm, -0.0, -0.0
+
+    return whole
 
 
 @overload(pair_apart, inline="always")
@@ -170,10 +262,22 @@ def flip_signs(law) -> np.ndarray:
     return np.array(law_spec(law).flip, np.float64).reshape(-1)
 
 
-def elastic_energy(law, overlap: np.ndarray, hist: np.ndarray) -> float:
-    """Elastic energy (J) of the touching contacts with ``overlap`` (K,) and history (K, width)."""
+def elastic_energy(law, overlap: np.ndarray, hist: np.ndarray, radi: np.ndarray, radj: np.ndarray) -> float:
+    """Elastic energy (J) of the K touching contacts with ``overlap`` (K,) m, history (K, width)
+    and the radii ``radi``, ``radj`` (K,) m of their two disks: the law's registered ``energy``
+    (:class:`LawSpec`), 0 for a law without one."""
     fn = law_spec(law).energy
-    return 0.0 if fn is None else float(fn(law, overlap, hist))
+    if fn is None:
+        return 0.0
+    return float(fn(law, np.asarray(overlap, np.float64), np.asarray(hist, np.float64),
+                    np.asarray(radi, np.float64), np.asarray(radj, np.float64)))
+
+
+def effective_radius(radi, radj) -> np.ndarray:
+    """R* = r_i r_j/(r_i + r_j) (m), in the codes' order (radi * radj / (radi + radj))."""
+    radi = np.asarray(radi, np.float64)
+    radj = np.asarray(radj, np.float64)
+    return radi * radj / (radi + radj)
 
 
 # ----------------------------------------------------------------------------- factory
@@ -286,5 +390,6 @@ def make_law(name: str, **params):
     return cls(*vals)
 
 
-__all__ = ["LAWS", "LawSpec", "elastic_energy", "flip_signs", "law_code", "law_names", "law_spec", "make_law",
-           "pair_apart", "pair_force", "register_law"]
+__all__ = ["LAWS", "LawSpec", "effective_radius", "elastic_energy", "flip_signs", "law_code", "law_names",
+           "law_spec", "make_law",
+           "pair_apart", "pair_force", "pair_force_split", "register_law"]

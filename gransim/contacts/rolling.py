@@ -62,9 +62,10 @@ gamma_t, mu, mu_r), :class:`HookeEpsdLiggghts` (... mu_r, eta_r), :class:`HookeC
 gammaroll, muroll; the whole history of a separated pair is zeroed, LMP pair_granular.cpp:283-288;
 LIGGGHTS keeps it: ``surfacesClose`` is unreachable with contactDistanceFactor 1,
 LIG pair_gran_base.h:414). By name: :func:`gransim.contacts.laws.make_law` ("hooke-epsd2-liggghts",
-"hooke-epsd-liggghts", "hooke-cdt-liggghts", "hooke-sds-lammps"). Energies: cdt (no rolling
-spring) and sds (kroll |psi|^2/2) are registered; epsd2/epsd need R* per contact, which the
-engine's energy hook does not pass (:func:`epsd_energy` is the function once it does).
+"hooke-epsd-liggghts", "hooke-cdt-liggghts", "hooke-sds-lammps"). Energies (registered for all
+four): the Hooke springs kn delta^2/2 + kt |xi|^2/2 plus the rolling spring, M^2/(2 k_r) for
+epsd2/epsd (:func:`epsd_energy`, k_r from R* of each contact), kroll |psi|^2/2 for sds, none for
+cdt (a constant torque, no spring). The epsd dashpot and the cdt torque only dissipate.
 """
 
 from __future__ import annotations
@@ -75,10 +76,17 @@ from collections import namedtuple
 import numpy as np
 
 from .._numba import njit
+
 # damping models of pair_style granular (pair_granular.cpp:56 enum order), re-exported: the laws'
 # damping argument
-from .granular import (DAMPING_MASS_VELOCITY, DAMPING_TSUJI, DAMPING_VELOCITY,  # noqa: F401
-                       DAMPING_VISCOELASTIC, damp_normal, spring_dashpot_slider)
+from .granular import (  # noqa: F401
+    DAMPING_MASS_VELOCITY,
+    DAMPING_TSUJI,
+    DAMPING_VELOCITY,
+    DAMPING_VISCOELASTIC,
+    damp_normal,
+    spring_dashpot_slider,
+)
 from .hooke import hooke_history
 from .laws import register_law
 
@@ -214,6 +222,19 @@ def hooke_cdt_liggghts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, 
 def hooke_sds_granular_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
                               kn, damp, damping, kt, xgammat, mu, kroll, gammaroll, muroll,
                               dt, s0, s1, p0, p1, update):
+    """:func:`hooke_sds_parts` with the torques whole: returns ``(fx, fy, ti, tj, s0, s1, p0, p1,
+    sliding, rolling, fn, tr)``, ti = -(r_i - delta/2)(n x F_t)_z + tr, tj = -(r_j - delta/2)(n x
+    F_t)_z - tr, tr = R* (n x F_r)_z (arguments there)."""
+    fx, fy, ti, tj, s0, s1, p0, p1, sliding, rolling, fn, tr = hooke_sds_parts(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        kn, damp, damping, kt, xgammat, mu, kroll, gammaroll, muroll, dt, s0, s1, p0, p1, update)
+    return fx, fy, ti + tr, tj - tr, s0, s1, p0, p1, sliding, rolling, fn, tr
+
+
+@njit(inline="always")
+def hooke_sds_parts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                    kn, damp, damping, kt, xgammat, mu, kroll, gammaroll, muroll,
+                    dt, s0, s1, p0, p1, update):
     """LAMMPS ``pair_style granular``, ``hooke KN DAMP damping MODEL tangential linear_history KT
     XGAMMAT MU rolling sds KROLL GAMMAROLL MUROLL`` (no twisting, no ``limit_damping``).
 
@@ -236,7 +257,10 @@ def hooke_sds_granular_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, w
     torques -(r_i - delta/2)(n x F_t)_z + R*(n x F_r)_z on i and -(r_j - delta/2)(n x F_t)_z -
     R*(n x F_r)_z on j, accumulated in that order (pgr:659-707).
 
-    Returns ``(fx, fy, ti, tj, s0, s1, p0, p1, sliding, rolling, fn, tr)``, tr = R*(n x F_r)_z.
+    Returns ``(fx, fy, ti_t, tj_t, s0, s1, p0, p1, sliding, rolling, fn, tr)`` with the
+    tangential torques ti_t = -(r_i - delta/2)(n x F_t)_z, tj_t = -(r_j - delta/2)(n x F_t)_z and
+    the rolling torque on i, tr = R*(n x F_r)_z (j receives -tr): LAMMPS adds them to the
+    particle's torque one after the other (the DEM loop does too: ``split_torque``).
     """
     r = math.sqrt(rsq)
     rinv = 1.0 / r
@@ -278,8 +302,8 @@ def hooke_sds_granular_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, w
     fy = ny * Fntot + fs2
     tor3 = nx * fs2 - ny * fs1
     torroll3 = Reff * (nx * fr2 - ny * fr1)
-    ti = -((radi - 0.5 * delta) * tor3) + torroll3
-    tj = -((radj - 0.5 * delta) * tor3) - torroll3
+    ti = -((radi - 0.5 * delta) * tor3)
+    tj = -((radj - 0.5 * delta) * tor3)
     return fx, fy, ti, tj, s0, s1, p0, p1, sliding, rolling, Fntot, torroll3
 
 
@@ -352,8 +376,9 @@ def cdt_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, 
 
 @njit(inline="always")
 def sds_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-    """Pair function of :class:`HookeSdsLammps`: hist[e] = (xi_x, xi_y, psi_x, psi_y)."""
-    fx, fy, ti, tj, s0, s1, p0, p1, sl, _, fn, _ = hooke_sds_granular_lammps(
+    """Pair function of :class:`HookeSdsLammps`: hist[e] = (xi_x, xi_y, psi_x, psi_y). Returns the
+    tangential and the rolling torques apart (``split_torque``: LAMMPS' order of accumulation)."""
+    fx, fy, ti, tj, s0, s1, p0, p1, sl, _, fn, tr = hooke_sds_parts(
         delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
         law.kn, law.damp, law.damping, law.kt, law.xgammat, law.mu, law.kroll, law.gammaroll, law.muroll,
         dt, hist[e, 0], hist[e, 1], hist[e, 2], hist[e, 3], update)
@@ -361,7 +386,7 @@ def sds_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, 
     hist[e, 1] = s1
     hist[e, 2] = p0
     hist[e, 3] = p1
-    return fx, fy, ti, tj, sl, fn
+    return fx, fy, ti, tj, sl, fn, tr, -tr
 
 
 @njit(inline="always")
@@ -372,34 +397,51 @@ def history_reset(law, hist, e):
 
 
 def _spring_energy(law, overlap, hist):
+    """kn delta^2/2 + kt |xi|^2/2 summed (J), xi = hist[:, 0:2]."""
     h = np.asarray(hist, np.float64)
     return 0.5 * law.kn * float(np.sum(np.asarray(overlap, np.float64) ** 2)) + 0.5 * law.kt * float(
         np.sum(h[:, :2] ** 2))
 
 
-def cdt_energy(law, overlap, hist) -> float:
+def cdt_energy(law, overlap, hist, radi=None, radj=None) -> float:
     """kn delta^2/2 + kt |xi|^2/2 summed (J); cdt's rolling torque stores no energy."""
     return _spring_energy(law, overlap, hist)
 
 
-def sds_energy(law, overlap, hist) -> float:
+def sds_energy(law, overlap, hist, radi=None, radj=None) -> float:
     """kn delta^2/2 + kt |xi|^2/2 + kroll |psi|^2/2 summed (J): F_n = kn delta, F_t = -kt xi,
-    F_r = -kroll psi below the caps (hist (K, 4))."""
+    F_r = -kroll psi below the caps (hist (K, 4); LMP pair_granular.cpp:349-350, 499-501, 597-599).
+    The rolling spring: psi grows by v_r dt = R* w dt t (t = (-n_y, n_x), pgr:553-561), so a
+    relative rotation d theta changes U by kroll psi.t R* d theta = -tr d theta, tr = R* (n x F_r)_z
+    the rolling torque on i: U is its potential in the relative rotation (radii not needed)."""
     h = np.asarray(hist, np.float64)
     return _spring_energy(law, overlap, hist) + 0.5 * law.kroll * float(np.sum(h[:, 2:4] ** 2))
 
 
-def epsd_energy(law, overlap, hist, reff) -> float:
-    """epsd2/epsd: kn delta^2/2 + kt |xi|^2/2 + M^2/(2 k_r) summed (J), k_r = kt R*^2 (epsd2) or
-    2.25 kn mu_r^2 R*^2 (epsd); ``reff`` (K,) m. Not registered (the engine's hook has no R*)."""
-    R = np.asarray(reff, np.float64)
-    kr = law.kt * R * R if isinstance(law, HookeEpsd2Liggghts) else 2.25 * law.kn * law.mu_r ** 2 * R * R
+def epsd_energy(law, overlap, hist, radi, radj) -> float:
+    """epsd2/epsd: kn delta^2/2 + kt |xi|^2/2 + M^2/(2 k_r) summed (J); ``radi``, ``radj`` (K,) m.
+
+    The rolling spring of both models: M <- M_old + k_r w dt (LIG rolling_model_epsd2.h:193-199,
+    rolling_model_epsd.h:282-288), i.e. M = k_r theta with theta the relative rotation since the
+    contact began (or since the cap last acted), U_r = k_r theta^2/2 = M^2/(2 k_r), dU_r/d theta = M;
+    k_r = kt R*^2 (epsd2.h:193) or 2.25 kn mu_r^2 R*^2 (epsd.h:282), R* = r_i r_j/(r_i + r_j),
+    both constant in time. M is the stored torque (hist[:, 2], capped at mu_r R* |F_n|: the
+    slider's excess is dissipated, not stored). The epsd dashpot (C w, not stored) stores
+    nothing. k_r = 0 (epsd with mu_r = 0) stores nothing (M stays 0)."""
+    R = radi * radj / (radi + radj)
+    if isinstance(law, HookeEpsd2Liggghts):
+        kr = law.kt * R * R
+    else:
+        kr = 2.25 * law.kn * law.mu_r * law.mu_r * R * R
     m = np.asarray(hist, np.float64)[:, 2]
-    return _spring_energy(law, overlap, hist) + float(np.sum(0.5 * m * m / kr))
+    ur = np.divide(0.5 * m * m, kr, out=np.zeros_like(m), where=kr > 0)
+    return _spring_energy(law, overlap, hist) + float(np.sum(ur))
 
 
-register_law(HookeEpsd2Liggghts, epsd2_pair, HISTORY_WIDTH["epsd2"], flip=HISTORY_FLIP["epsd2"])
-register_law(HookeEpsdLiggghts, epsd_pair, HISTORY_WIDTH["epsd"], flip=HISTORY_FLIP["epsd"])
+register_law(HookeEpsd2Liggghts, epsd2_pair, HISTORY_WIDTH["epsd2"], flip=HISTORY_FLIP["epsd2"],
+             energy=epsd_energy)
+register_law(HookeEpsdLiggghts, epsd_pair, HISTORY_WIDTH["epsd"], flip=HISTORY_FLIP["epsd"],
+             energy=epsd_energy)
 register_law(HookeCdtLiggghts, cdt_pair, HISTORY_WIDTH["cdt"], flip=HISTORY_FLIP["cdt"], energy=cdt_energy)
 register_law(HookeSdsLammps, sds_pair, HISTORY_WIDTH["sds"], apart=history_reset, flip=HISTORY_FLIP["sds"],
-             energy=sds_energy)
+             energy=sds_energy, split_torque=True)

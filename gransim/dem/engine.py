@@ -18,7 +18,6 @@ agree to round-off (shared notes liggghts-3.8.md). Step n:
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -89,16 +88,6 @@ def stability_limit(packing: Packing, settings: DEMSettings) -> float:
     k = max(settings.kn, settings.kt)
     z = damping_ratio(packing, settings)
     return contact_time(packing, k) / STEPS_PER_CONTACT_MIN * (float(np.sqrt(1.0 + z * z)) - z)
-
-
-@dataclass(frozen=True)
-class StepRecord:
-    """Scalar output of one step."""
-
-    step: int
-    stress: np.ndarray  # (2, 2) Love stress, compression positive (N/m in 2D)
-    n_contacts: int
-    mean_overlap: float
 
 
 def fingerprint(packing: Packing, settings_text: str) -> str:
@@ -278,10 +267,13 @@ class DEMEngine:
         self.mean_overlap = so / nc if nc else 0.0
 
     def elastic_energy(self) -> float:
-        """Energy stored in the touching contacts (J): the law's ``energy`` (Hooke: sum 0.5 kn
-        overlap^2 + 0.5 kt |xi|^2; :func:`gransim.contacts.laws.elastic_energy`)."""
+        """Energy stored in the touching contacts (J): the law's ``energy`` with each contact's
+        overlap, history and radii (:func:`gransim.contacts.laws.elastic_energy`; Hooke: sum 0.5 kn
+        overlap^2 + 0.5 kt |xi|^2, Hertz: 8/15 Y* sqrt(R*) delta^(5/2) + k_t(delta) |xi|^2/2, the
+        rolling laws add their rolling spring; docs/laws.md)."""
         e, ov = self._touching()
-        return elastic_energy(self.law, ov, self.nb.hist[e])
+        nb = self.nb
+        return elastic_energy(self.law, ov, nb.hist[e], self.r[nb.a[e]], self.r[nb.b[e]])
 
     def _reset_energy_budget(self):
         """Start of the energy balance of the divergence check: E0 = kinetic + elastic energy now."""

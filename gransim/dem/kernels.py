@@ -13,6 +13,11 @@ arithmetic (``DEMSettings(flavour="lammps")``, docs/lammps.md) is the law ``Hook
 spring reset to zero whenever its pair does not touch) plus the clamped rebuild rule
 (:func:`check_rebuild`); the integrator, the box deformation and the neighbour list are the same
 in both codes.
+
+The serial force loop is shared with the sheared cell (:mod:`gransim.dem.sheared_kernels`): the
+cell's periodic image is a second compile-time plug-in (:data:`OrthoImage`, :data:`TiltedImage`;
+:func:`image_branch`, :func:`image_velocity`), the per-entry evaluation :func:`_pair` is one
+function for the serial loops of both cells and the threaded loop.
 """
 
 from __future__ import annotations
@@ -21,10 +26,11 @@ import math
 from collections import namedtuple
 
 import numpy as np
+from numba.extending import overload
 
 from .._numba import njit, pjit, prange
 from ..contacts.hooke import HookeLammps, HookeLiggghts, hooke_history, hooke_history_lammps  # noqa: F401
-from ..contacts.laws import pair_apart, pair_force
+from ..contacts.laws import pair_apart, pair_force_split
 
 #: particle state: x (N, 2) m, v (N, 2) m/s, w (N,) rad/s, f (N, 2) N, t (N,) N m, m (N,) kg, r (N,) m
 Particles = namedtuple("Particles", ["x", "v", "w", "f", "t", "m", "r"])
@@ -156,44 +162,169 @@ def overlapping(x, r, ea, eb, esx, esy, Lx, Ly):
     return out
 
 
-@njit(inline="always")
-def _entry(law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update):
-    """One list entry (a, b, s): branch d = x_a - (x_b + s L), and when the disks touch
-    (rsq < radsum^2, the test of both codes) the pair function of ``law``
-    (:func:`gransim.contacts.laws.pair_force`) with the history row ``hist[e]`` updated in place;
-    otherwise the law's ``apart`` (LAMMPS' Hooke: the spring zeroed, ``PairGranHookeHistory::compute``;
-    LIGGGHTS keeps it until the next list build).
+#: the image of an orthogonal cell (:func:`forces`): side lengths Lx, Ly (m); image of (b, s) at
+#: x_b + (s_x Lx, s_y Ly), moving with v_b (``fix deform ... remap x``)
+OrthoImage = namedtuple("OrthoImage", ["Lx", "Ly"])
+#: the image of LAMMPS' sheared (triclinic) cell (:func:`tilted_image`): box (5,) = (lo_x, lo_y,
+#: hi_x, hi_y, xy) m; hr (3,) = (h_rate[0], h_rate[1], h_rate[5]) m/s; lam (N, 2) lamda
+#: coordinates and use_lam (images from lamda: the step of a list build); touch (M,) bool receives
+#: the contact flag of every entry (LAMMPS' ``fix neigh/history`` keeps the touching ones)
+TiltedImage = namedtuple("TiltedImage", ["box", "hr", "lam", "use_lam", "touch"])
 
-    Returns (touch, delx, dely, rsq, radsum, fx, fy, torque on a, torque on b, sliding); the
-    force (fx, fy) acts on a. Shared by the serial and the threaded loop: the same operations
-    in the same order, so both evaluate every contact identically.
+
+@njit(inline="always")
+def tilted_image(b, sx, sy, x, lam, use_lam, box):
+    """Position of the image (b, s) in the sheared cell: from lamda (LAMMPS borders + lamda2x, the
+    step of a list build) or owner + shift of the current box (LAMMPS forward_comm, other steps):
+    x_b + s_x (Lx, 0) + s_y (xy, Ly), in LAMMPS' order (docs/shear.md)."""
+    h0 = box[2] - box[0]
+    h1 = box[3] - box[1]
+    h5 = box[4]
+    if use_lam:
+        l0 = lam[b, 0] + sx
+        l1 = lam[b, 1] + sy
+        return ((h0 * l0 + h5 * l1) + 0.0) + box[0], (h1 * l1 + 0.0) + box[1]
+    return (x[b, 0] + sx * h0) + sy * h5, x[b, 1] + sy * h1
+
+
+def image_branch(img, x, a, b, sx, sy):
+    """Branch d = x_a - image of (b, s) in the cell ``img`` (:data:`OrthoImage` or
+    :data:`TiltedImage`; resolved at compile time by its type). Interpreted fallback."""
+    if isinstance(img, OrthoImage):
+        return x[a, 0] - (x[b, 0] + sx * img.Lx), x[a, 1] - (x[b, 1] + sy * img.Ly)
+    xb, yb = tilted_image(b, sx, sy, x, img.lam, img.use_lam, img.box)
+    return x[a, 0] - xb, x[a, 1] - yb
+
+
+def image_velocity(img, v, b, sx, sy):
+    """Velocity of the image (b, s): v_b in the orthogonal cell; v_b + s_x (h_rate[0], 0) + s_y
+    (h_rate[5], h_rate[1]) in the sheared one (``pack_comm_vel`` with ``deform_vremap``)."""
+    if isinstance(img, OrthoImage):
+        return v[b, 0], v[b, 1]
+    hr = img.hr
+    return (v[b, 0] + sx * hr[0]) + sy * hr[2], v[b, 1] + sy * hr[1]
+
+
+def image_mark(img, e, touch):
+    """Record the contact flag of entry ``e`` (the sheared cell's ``touch``; nothing otherwise)."""
+    if not isinstance(img, OrthoImage):
+        img.touch[e] = touch
+
+
+def _is_ortho(img):
+    return getattr(img, "instance_class", None) is OrthoImage
+
+
+@overload(image_branch, inline="always")
+def _ov_image_branch(img, x, a, b, sx, sy):
+    if _is_ortho(img):
+        def ortho(img, x, a, b, sx, sy):
+            return x[a, 0] - (x[b, 0] + sx * img.Lx), x[a, 1] - (x[b, 1] + sy * img.Ly)
+
+        return ortho
+
+    def tilted(img, x, a, b, sx, sy):
+        xb, yb = tilted_image(b, sx, sy, x, img.lam, img.use_lam, img.box)
+        return x[a, 0] - xb, x[a, 1] - yb
+
+    return tilted
+
+
+@overload(image_velocity, inline="always")
+def _ov_image_velocity(img, v, b, sx, sy):
+    if _is_ortho(img):
+        def ortho(img, v, b, sx, sy):
+            return v[b, 0], v[b, 1]
+
+        return ortho
+
+    def tilted(img, v, b, sx, sy):
+        hr = img.hr
+        return (v[b, 0] + sx * hr[0]) + sy * hr[2], v[b, 1] + sy * hr[1]
+
+    return tilted
+
+
+@overload(image_mark, inline="always")
+def _ov_image_mark(img, e, touch):
+    if _is_ortho(img):
+        def ortho(img, e, touch):
+            return None
+
+        return ortho
+
+    def tilted(img, e, touch):
+        img.touch[e] = touch
+
+    return tilted
+
+
+@njit(inline="always")
+def _pair(law, img, e, a, b, x, v, w, r, m, sx, sy, hist, dt, update):
+    """One list entry (a, b, s) in the cell ``img``: branch d = x_a - image of (b, s)
+    (:func:`image_branch`), and when the disks touch (rsq < radsum^2, the test of both codes) the
+    pair function of ``law`` (:func:`gransim.contacts.laws.pair_force`) with the image's velocity
+    (:func:`image_velocity`) and the history row ``hist[e]`` updated in place; otherwise the law's
+    ``apart`` (LAMMPS: the history zeroed, ``PairGranHookeHistory::compute``; LIGGGHTS keeps it
+    until the next list build).
+
+    Returns (touch, delx, dely, rsq, radsum, fx, fy, torque on a, torque on b, sliding, second
+    torque on a, second torque on b); the force (fx, fy) acts on a; the second torques are added
+    after the first (``LawSpec.split_torque``: LAMMPS' rolling torque; -0.0 for the other laws).
+    Shared by the serial loop of both cells and the threaded loop: the same operations in the same
+    order, so all evaluate every contact identically.
     """
-    delx = x[a, 0] - (x[b, 0] + esx[e] * Lx)
-    dely = x[a, 1] - (x[b, 1] + esy[e] * Ly)
+    delx, dely = image_branch(img, x, a, b, sx, sy)
     rsq = delx * delx + dely * dely
     radsum = r[a] + r[b]
     if rsq < radsum * radsum:
-        fx, fy, tqa, tqb, sl, _ = pair_force(law, hist, e, delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1],
-                                             v[b, 0], v[b, 1], w[a], w[b], m[a], m[b], dt, update)
-        return True, delx, dely, rsq, radsum, fx, fy, tqa, tqb, sl
+        vbx, vby = image_velocity(img, v, b, sx, sy)
+        fx, fy, tqa, tqb, sl, _, tqa2, tqb2 = pair_force_split(
+            law, hist, e, delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], vbx, vby, w[a], w[b], m[a], m[b], dt,
+            update)
+        return True, delx, dely, rsq, radsum, fx, fy, tqa, tqb, sl, tqa2, tqb2
     pair_apart(law, hist, e)
-    return False, delx, dely, rsq, radsum, 0.0, 0.0, 0.0, 0.0, False
+    return False, delx, dely, rsq, radsum, 0.0, 0.0, 0.0, 0.0, False, -0.0, -0.0
+
+
+@njit(inline="always")
+def _entry(law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update):
+    """:func:`_pair` of the orthogonal cell with side lengths (Lx, Ly): image x_b + s L."""
+    return _pair(law, OrthoImage(Lx, Ly), e, a, b, x, v, w, r, m, esx[e], esy[e], hist, dt, update)
 
 
 @njit
 def forces(p, nb, law, Lx, Ly, dt, update, vir, store):
     """Serial force loop over the half list ``nb`` (LIGGGHTS ``newton off``) with the contact law
-    ``law`` (any registered law: :mod:`gransim.contacts.laws`; one compiled copy per law type).
+    ``law`` (any registered law: :mod:`gransim.contacts.laws`; one compiled copy per law type) in
+    the orthogonal cell of side lengths (Lx, Ly) (m): :func:`forces_in` with :data:`OrthoImage`."""
+    return _serial_loop(p, nb, law, OrthoImage(Lx, Ly), dt, update, vir, store)
+
+
+@njit
+def forces_in(p, nb, law, img, dt, update, vir, store):
+    """Serial force loop over the half list ``nb`` with the contact law ``law`` in the cell ``img``
+    (:func:`_serial_loop`, the loop of :func:`forces` too)."""
+    return _serial_loop(p, nb, law, img, dt, update, vir, store)
+
+
+@njit(inline="always")
+def _serial_loop(p, nb, law, img, dt, update, vir, store):
+    """Serial force loop over the half list ``nb`` with the contact law ``law`` in the cell ``img``
+    (inlined into :func:`forces` and :func:`forces_in`, so that the orthogonal image is a few local
+    values there, not a structure passed to a call).
 
     ``p`` :class:`Particles` (forces ``p.f`` and torques ``p.t`` overwritten), ``nb``
-    :class:`Neighbours`. Entries (a, b, s): b's image x_b + s L (L = (Lx, Ly), the current box
-    lengths, m). ``both`` entries (s = 0, both owned) apply the force to a and -force to b; entries
-    across the boundary exist once per owner, each with its own history copy, and act on a only.
-    ``vir`` (4,) receives the virial sums xx, yy, xy, yx of d (x) f_i (0.5 per owner as
-    ``ev_tally_xyz``, N m); ``nb.ef`` (M, 2) the force on a of each entry, ``nb.slide`` (M,) the
-    Coulomb cap flag (written only when ``store``: memory traffic; the engine stores them at the
-    last step of each ``advance``). Returns (contacts, sum of overlaps) counting each physical
-    contact once.
+    :class:`Neighbours` (``sx``, ``sy``, ``both``, ``hist``, ``slide``, ``ef`` read). Entries
+    (a, b, s): b's image, :data:`OrthoImage` x_b + s L (L the current box lengths) or
+    :data:`TiltedImage` (the sheared cell, its Lees-Edwards image velocities; the image's
+    ``touch`` receives the contact flags). ``both`` entries (s = 0, both owned) apply the force to
+    a and -force to b; entries across the boundary exist once per owner, each with its own history
+    copy, and act on a only. ``vir`` (4,) receives the virial sums xx, yy, xy, yx of d (x) f_i
+    (0.5 per owner as ``ev_tally_xyz``, N m); ``nb.ef`` (M, 2) the force on a of each entry,
+    ``nb.slide`` (M,) the Coulomb cap flag (written only when ``store``: memory traffic; the
+    orthogonal engine stores them at the last step of each ``advance``). Returns (contacts, sum of
+    overlaps) counting each physical contact once.
     """
     x, v, w, f, t, m, r = p.x, p.v, p.w, p.f, p.t, p.m, p.r
     ea, eb, esx, esy, both, hist, slide, ef = nb.a, nb.b, nb.sx, nb.sy, nb.both, nb.hist, nb.slide, nb.ef
@@ -211,8 +342,9 @@ def forces(p, nb, law, Lx, Ly, dt, update, vir, store):
     for e in range(ea.shape[0]):
         a = ea[e]
         b = eb[e]
-        touch, delx, dely, rsq, radsum, fx, fy, ta, tb, sl = _entry(
-            law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update)
+        touch, delx, dely, rsq, radsum, fx, fy, ta, tb, sl, ta2, tb2 = _pair(
+            law, img, e, a, b, x, v, w, r, m, esx[e], esy[e], hist, dt, update)
+        image_mark(img, e, touch)
         if touch:
             if store:
                 slide[e] = sl
@@ -221,11 +353,13 @@ def forces(p, nb, law, Lx, Ly, dt, update, vir, store):
             f[a, 0] += fx
             f[a, 1] += fy
             t[a] += ta
+            t[a] += ta2
             wgt = 0.5
             if both[e]:
                 f[b, 0] += -fx
                 f[b, 1] += -fy
                 t[b] += tb
+                t[b] += tb2
                 vir[0] += 0.5 * (delx * fx)
                 vir[1] += 0.5 * (dely * fy)
                 vir[2] += 0.5 * (delx * fy)
@@ -278,17 +412,18 @@ def _forces_threaded(x, v, w, f, t, m, r, start, eb, esx, esy, both, hist, slide
         ova = 0.0
         for e in range(start[a], start[a + 1]):
             b = eb[e]
-            touch, delx, dely, rsq, radsum, fx, fy, tq, tqb, sl = _entry(
+            touch, delx, dely, rsq, radsum, fx, fy, tq, tqb, sl, tq2, tqb2 = _entry(
                 law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update)
             if touch:
                 if store:
                     slide[e] = sl
                 ef[e, 0] = fx
                 ef[e, 1] = fy
-                tb[e] = tqb
+                tb[e] = tqb + tqb2
                 fxa += fx
                 fya += fy
                 ta += tq
+                ta += tq2
                 wgt = 1.0 if both[e] else 0.5
                 v0 += wgt * (delx * fx)
                 v1 += wgt * (dely * fy)

@@ -35,12 +35,15 @@ every 1 check yes``, ``atom_modify sort 0 0.0``):
    then LAMMPS' tilt wrap), stress of step n = virial / (Lx Ly) of box n (thermo); ``advance``
    also returns the virial of every step.
 
-The contact law is ``gransim.contacts.hooke.hooke_history_lammps`` when it exists (else
-``hooke_history``, see :data:`gransim.dem.sheared_kernels.LAMMPS_LAW_NAME`), with LAMMPS'
-reset of the spring of an entry that does not touch. ``flavour="liggghts"`` instead keeps
-LIGGGHTS' bookkeeping (``hooke_history``, no reset, hand-over of overlapping pairs, orthogonal
-wrap and box check): a zero-tilt cell then reproduces :class:`gransim.dem.DEMEngine` (it needs
-zero tilt and a fixed box, the only case both can express). Details and sources: docs/shear.md.
+The contact law is any registered law (``law=``, :func:`gransim.contacts.laws.make_law`); by
+default the Hooke law of the settings in the engine's flavour: ``HookeLammps``
+(``gran/hooke/history``, its spring reset when its pair does not touch) for ``flavour="lammps"``,
+``HookeLiggghts`` for ``flavour="liggghts"``, which also keeps LIGGGHTS' bookkeeping (hand-over of
+overlapping pairs, orthogonal wrap and box check): a zero-tilt cell then reproduces
+:class:`gransim.dem.DEMEngine` (it needs zero tilt and a fixed box, the only case both can
+express). The force loop is the orthogonal engine's (:func:`gransim.dem.kernels.forces_in`) with
+the sheared cell's image (:data:`gransim.dem.kernels.TiltedImage`). Details and sources:
+docs/shear.md.
 """
 
 from __future__ import annotations
@@ -51,7 +54,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._numba import disk_cache_off
 from .._validate import as_int, check_choice
+from ..contacts.hooke import hooke_law
+from ..contacts.laws import elastic_energy, flip_signs, law_spec
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import kernels as K
@@ -213,6 +219,9 @@ class ShearEngine:
         given (bit for bit, like ``DEMEngine(box=...)``) and the positions are taken as they are
         in that box (no translation, which would round them). hi - lo must equal the diagonal of
         ``packing.cell`` and xy its cell[0, 1] (to 1e-12 relative).
+    law : optional contact law object (a registered law, :func:`gransim.contacts.laws.make_law`);
+        None: the Hooke law of ``settings`` in this engine's ``flavour``. ``settings.kn``, ``kt``
+        and the dampings still set the time-step check (``check_dt``).
 
     Attributes (after construction = LAMMPS ``run`` set-up: list built, forces without spring
     increment): x (N, 2), v, w, f, t, box (lo_x, lo_y, hi_x, hi_y, xy), h_rate (h_rate[0],
@@ -228,6 +237,7 @@ class ShearEngine:
         flavour: str = "lammps",
         check_dt: bool = True,
         box=None,
+        law=None,
     ):
         check_choice(flavour, "flavour", FLAVOURS)
         if not isinstance(settings, DEMSettings):
@@ -275,6 +285,13 @@ class ShearEngine:
         self.settings = s
         self.flavour = flavour
         self._lmp = flavour == "lammps"
+        # the contact law (gransim.contacts.laws): Hooke in this engine's flavour unless given
+        self.law = hooke_law(s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, flavour) if law is None else law
+        spec = law_spec(self.law)
+        self._width = spec.width
+        self._flip = flip_signs(self.law)
+        # kernels compiled for a law of a test module / script stay out of the disk cache
+        self._no_cache = not spec.cache
         n = packing.n
         self.r = np.ascontiguousarray(packing.radii, np.float64)
         self.m = np.pi * self.r * self.r * float(packing.density)  # LAMMPS set density/disc: MY_PI*r*r*rho
@@ -300,7 +317,11 @@ class ShearEngine:
         self.esx = np.zeros(0)
         self.esy = np.zeros(0)
         self.both = np.zeros(0, np.bool_)
-        self.xi = np.zeros((0, 2))
+        self.xi = np.zeros((0, self._width))
+        self.xhold = self.x.copy()
+        self._z = np.zeros(0, np.int64)
+        self._noshift = np.zeros((0, 2), np.int64)
+        self._notb = np.zeros(0)
         self.touch = np.zeros(0, np.bool_)
         self.slide = np.zeros(0, np.bool_)
         self.ef = np.zeros((0, 2))
@@ -354,7 +375,7 @@ class ShearEngine:
             raise SimulationError(
                 f"step {self.step}: particle {selfimg} is near its own image; the cell is too small"
             )
-        xi = np.zeros((a.size, 2))
+        xi = np.zeros((a.size, self._width))
         if carry and self.ea.size:
             SK.hand_over(
                 self.x,
@@ -371,6 +392,7 @@ class ShearEngine:
                 self.touch,
                 self._lmp,
                 xi,
+                self._flip,
             )
         self.ea, self.eb, self.esx, self.esy, self.both, self.xi = a, b, sx, sy, both, xi
         self.touch = np.zeros(a.size, np.bool_)
@@ -384,41 +406,40 @@ class ShearEngine:
         self._build_step = self.step
         self.n_rebuilds += 1
 
+    def _state(self):
+        """The kernels' view of the state: (Particles, Neighbours, Cell) of the current arrays."""
+        p = K.Particles(self.x, self.v, self.w, self.f, self.t, self.m, self.r)
+        nb = K.Neighbours(self.ea, self.eb, self._noshift, self.esx, self.esy, self.both, self.xi, self.start,
+                          self._z, self._z, self.xhold, self.slide, self.ef, self._notb)
+        cell = SK.Cell(self.box, self.box_hold, self.h_rate, self.lam, self.touch, self.corners_hold)
+        return p, nb, cell
+
     def _forces(self, update: bool, use_lam: bool):
-        s = self.settings
-        nc, so = SK.forces(
-            self.x,
-            self.lam,
-            use_lam,
-            self.v,
-            self.w,
-            self.r,
-            self.m,
-            self.ea,
-            self.eb,
-            self.esx,
-            self.esy,
-            self.both,
-            self.xi,
-            self.touch,
-            self.box,
-            self.h_rate,
-            s.kn,
-            s.kt,
-            s.gamma_n,
-            s.gamma_t,
-            s.mu,
-            s.dt,
-            update,
-            self._lmp,
-            self.f,
-            self.t,
-            self.virial,
-            self.slide,
-            self.ef,
-        )
+        p, nb, cell = self._state()
+        with disk_cache_off(self._no_cache):
+            nc, so = SK.forces(p, nb, self.law, cell, use_lam, self.settings.dt, update, self.virial)
         self.n_contacts = round(nc)
         self.mean_overlap = so / nc if nc else 0.0
+
+    def _touching(self):
+        """Entries of the touching pairs, each physical contact once (a < b), and their overlaps
+        (m), the images from the current box (:func:`gransim.dem.kernels.tilted_image`)."""
+        b = self.box
+        h0, h1, h5 = b[2] - b[0], b[3] - b[1], b[4]
+        a, j = self.ea, self.eb
+        dx = self.x[a, 0] - ((self.x[j, 0] + self.esx * h0) + self.esy * h5)
+        dy = self.x[a, 1] - (self.x[j, 1] + self.esy * h1)
+        dist = np.sqrt(dx * dx + dy * dy)
+        rs = self.r[a] + self.r[j]
+        e = np.nonzero((dist < rs) & (a < j))[0]
+        return e, rs[e] - dist[e]
+
+    def elastic_energy(self) -> float:
+        """Energy stored in the touching contacts (J): the law's ``energy`` with each contact's
+        radii (:func:`gransim.contacts.laws.elastic_energy`; Hooke: sum 0.5 kn overlap^2 + 0.5 kt
+        |xi|^2, Hertz: 8/15 Y* sqrt(R*) delta^(5/2) + ...)."""
+        e, ov = self._touching()
+        return elastic_energy(self.law, ov, self.xi[e], self.r[self.ea[e]], self.r[self.eb[e]])
 
     def _check_lost(self):
         d = np.sqrt(np.einsum("ij,ij->i", self.x - self.xhold, self.x - self.xhold))
@@ -521,64 +542,17 @@ class ShearEngine:
         step_start = self.step
         done = 0
         resume = False
-        kgain = s.dt * ld.gain
+        dfm = SK.Deform(int(run["begin"]), int(run["end"]), int(ld.every), int(run["style"]),
+                        float(run["tilt_start"]), float(run["tilt_stop"]), float(ld.value), ld.y == "servo",
+                        float(run["y_lo"]), float(run["y_hi"]), float(run["ly0"]), s.dt * ld.gain,
+                        float(ld.gain), float(ld.target))
         while done < nsteps:
-            k, status, bad = SK.run_block(
-                self.x,
-                self.v,
-                self.w,
-                self.f,
-                self.t,
-                self.r,
-                self.m,
-                self.lam,
-                self.ea,
-                self.eb,
-                self.esx,
-                self.esy,
-                self.both,
-                self.xi,
-                self.touch,
-                self.slide,
-                self.ef,
-                self.xhold,
-                self.corners_hold,
-                self.box,
-                self.box_hold,
-                self.h_rate,
-                self.virial,
-                s.kn,
-                s.kt,
-                s.gamma_n,
-                s.gamma_t,
-                s.mu,
-                s.dt,
-                s.skin,
-                self._lmp,
-                self.step,
-                nsteps - done,
-                resume,
-                run["begin"],
-                run["end"],
-                ld.every,
-                run["style"],
-                run["tilt_start"],
-                run["tilt_stop"],
-                ld.value,
-                ld.y == "servo",
-                run["y_lo"],
-                run["y_hi"],
-                run["ly0"],
-                kgain,
-                ld.gain,
-                ld.target,
-                out_stress[done:],
-                out_vir[done:],
-                out_box[done:],
-                out_nc[done:],
-                out_ov[done:],
-                out_ke[done:],
-            )
+            p, nb, cell = self._state()
+            series = SK.ShearSeries(out_stress[done:], out_vir[done:], out_box[done:], out_nc[done:],
+                                    out_ov[done:], out_ke[done:])
+            with disk_cache_off(self._no_cache):
+                k, status, bad = SK.run_block(p, nb, self.law, cell, dfm, series, self.virial, s.dt, s.skin,
+                                              self._lmp, self.step, nsteps - done, resume)
             done += k
             self.step += k
             resume = False
@@ -690,6 +664,8 @@ def run_shear_file(
     parameters: dict | None = None,
     show_progress: bool = True,
     flavour: str = "lammps",
+    law=None,
+    law_options: dict | None = None,
 ) -> dict:
     """Simple shear of ``packing`` for ``nsteps`` steps, written to an HDF5 run file (kind
     :data:`SHEAR_RUN_KIND`, layout in docs/shear.md) atomically with the provenance.
@@ -700,6 +676,9 @@ def run_shear_file(
         last step). snapshot_every : ``/snapshots/<step>`` every this many steps (0: the first and
         the last only). parameters : extra provenance (stored beside the settings and loading).
     show_progress : a progress bar on a terminal (silent otherwise).
+    law : optional contact law object (:class:`ShearEngine`); law_options : its {"name", "params"}
+        (:func:`gransim.dem.biaxial.law_settings`), recorded as ``law`` in the settings JSON and
+        the provenance (absent for the default Hooke law, whose run files stay as they were).
 
     Returns a summary dict (steps, shear strain reached, final stresses tension positive, builds).
     A SimulationError is re-raised after the file was written with ``complete`` False and the
@@ -714,7 +693,7 @@ def run_shear_file(
     nsteps = as_int(nsteps, "nsteps", 1)
     series_every = as_int(series_every, "series_every", 1)
     snapshot_every = as_int(snapshot_every, "snapshot_every", 0)
-    eng = ShearEngine(packing, settings, flavour=flavour)
+    eng = ShearEngine(packing, settings, flavour=flavour, law=law)
     ly0, xy0 = float(eng.box[3] - eng.box[1]), float(eng.box[4])
     setup = eng.start_run(loading, nsteps)
     rows = {k: [] for k in ("step", "box", "stress", "n_contacts", "kinetic_energy")}
@@ -757,10 +736,12 @@ def run_shear_file(
             bar.close()
     box = np.array(rows["box"], np.float64).reshape(-1, 5)
     strain = (box[:, 2] - xy0) / ly0
-    text = json.dumps({"dem": settings.to_dict(), "loading": loading.to_dict(), "nsteps": nsteps,
-                       "flavour": flavour}, sort_keys=True)
-    params = {"dem": settings.to_dict(), "loading": loading.to_dict(), "nsteps": nsteps, "flavour": flavour,
-              **(parameters or {})}
+    info = {"dem": settings.to_dict(), "loading": loading.to_dict(), "nsteps": nsteps, "flavour": flavour}
+    if law is not None:
+        info["law"] = dict(law_options) if law_options else {"name": type(law).__name__,
+                                                              "params": dict(law._asdict())}
+    text = json.dumps(info, sort_keys=True)
+    params = {**info, **(parameters or {})}
     with atomic_h5(out_path, kind=SHEAR_RUN_KIND, parameters=params, seed=packing.metadata.get("seed"),
                    lammps=False) as f:
         f.attrs["settings"] = text

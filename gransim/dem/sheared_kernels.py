@@ -12,28 +12,34 @@ docs/shear.md. The time integration is :func:`gransim.dem.kernels.initial_integr
 :func:`~gransim.dem.kernels.final_integrate` (LAMMPS' ``fix nve/sphere disc`` is the same
 arithmetic).
 
-The contact law: ``gransim.contacts.hooke.hooke_history_lammps`` (LAMMPS' order) when that
-module has it, else ``hooke_history`` (LIGGGHTS' order); :data:`LAMMPS_LAW_NAME` says which.
-The kernels that call the law are compiled without the on-disk cache, so that a change of the law
-module is always picked up (numba's cache does not track functions called from another module).
+The contact law is any registered law (:mod:`gransim.contacts.laws`): the force loop is
+:func:`gransim.dem.kernels.forces_in` with the sheared cell's image
+(:data:`gransim.dem.kernels.TiltedImage`: the tilted minimum image and the Lees-Edwards image
+velocity are the only differences from the orthogonal cell), so each law type compiles its own
+copy of :func:`run_block` (kept in numba's disk cache like the orthogonal kernels).
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 
 from .._numba import njit
-from ..contacts import hooke
 from . import kernels as K
 
-_law_lmp = getattr(hooke, "hooke_history_lammps", None)
-#: name of the law function used for flavour "lammps"
-LAMMPS_LAW_NAME = "hooke_history_lammps" if _law_lmp is not None else "hooke_history"
-if _law_lmp is None:
-    _law_lmp = hooke.hooke_history
-_law_lig = hooke.hooke_history
+#: the fix deform parameters of a run (:func:`deform_end_of_step`): begin, end (steps), every
+#: (``fix deform N``), xy_style, tilt_start, tilt_stop (m), rate (the style's number), servo_on,
+#: y_lo_start, y_hi_start, ly0 (m), kgain = dt gain (1/Pa), gain (1/(Pa s)), target (N/m)
+Deform = namedtuple("Deform", ["begin", "end", "every", "xy_style", "tilt_start", "tilt_stop", "rate",
+                               "servo_on", "y_lo_start", "y_hi_start", "ly0", "kgain", "gain", "target"])
+#: the sheared cell's state besides particles and list: box (5,), box_hold (5,) at the last build,
+#: hr (3,) h_rate, lam (N, 2), touch (M,) the contact flags of the last force evaluation,
+#: corners_hold (8, 2) the box corners at the last build
+Cell = namedtuple("Cell", ["box", "box_hold", "hr", "lam", "touch", "corners_hold"])
+#: per-step outputs of :func:`run_block`: stress (n, 4), vir (n, 4), box (n, 5), nc (n,), ov (n,), ke (n,)
+ShearSeries = namedtuple("ShearSeries", ["stress", "vir", "box", "nc", "ov", "ke"])
 
 
 # --------------------------------------------------------------------------- box arithmetic
@@ -219,18 +225,8 @@ def deform_end_of_step(
 
 
 # --------------------------------------------------------------------------- neighbour list
-@njit(inline="always")
-def _image_x(b, sx, sy, x, lam, use_lam, box):
-    """Position of the image (b, s): from lamda (LAMMPS borders + lamda2x, the step of a list
-    build) or owner + shift of the current box (LAMMPS forward_comm, other steps)."""
-    h0 = box[2] - box[0]
-    h1 = box[3] - box[1]
-    h5 = box[4]
-    if use_lam:
-        l0 = lam[b, 0] + sx
-        l1 = lam[b, 1] + sy
-        return ((h0 * l0 + h5 * l1) + 0.0) + box[0], (h1 * l1 + 0.0) + box[1]
-    return (x[b, 0] + sx * h0) + sy * h5, x[b, 1] + sy * h1
+#: position of the image (b, s) (:func:`gransim.dem.kernels.tilted_image`)
+_image_x = K.tilted_image
 
 
 @njit
@@ -341,19 +337,20 @@ def _find(start, eb, a, b):
 
 
 @njit
-def hand_over(
-    x, r, box, a_new, b_new, sx_new, sy_new, start_old, eb_old, both_old, xi_old, touch_old, lmp, xi_new
-):
-    """Spring hand-over at a list build. ``lmp`` (LAMMPS ``fix neigh/history``,
-    ``pre_exchange_no_newton`` / ``post_neighbor``): a new entry (a, b) takes the spring of a's old
-    entry with partner b, or minus the one of an owned old entry (b, a), if that entry touched in
-    the last force evaluation; else zero. Otherwise (LIGGGHTS): the same look-up, kept only if the
-    pair overlaps now."""
+def hand_over(x, r, box, a_new, b_new, sx_new, sy_new, start_old, eb_old, both_old, h_old, touch_old, lmp,
+              h_new, flip):
+    """History hand-over at a list build, for a history of any width W (``h_old`` (M_old, W),
+    ``h_new`` (M, W) written; ``flip`` (W,) the sign of each column seen from the other particle).
+    ``lmp`` (LAMMPS ``fix neigh/history``, ``pre_exchange_no_newton`` / ``post_neighbor``): a new
+    entry (a, b) takes the history of a's old entry with partner b, or ``flip`` times the one of
+    an owned old entry (b, a), if that entry touched in the last force evaluation; else zero.
+    Otherwise (LIGGGHTS): the same look-up, kept only if the pair overlaps now."""
+    nw = h_new.shape[1]
     for e in range(a_new.shape[0]):
         a = a_new[e]
         b = b_new[e]
-        xi_new[e, 0] = 0.0
-        xi_new[e, 1] = 0.0
+        for c in range(nw):
+            h_new[e, c] = 0.0
         if not lmp:
             xb, yb = _image_x(b, sx_new[e], sy_new[e], x, x, False, box)
             dx = x[a, 0] - xb
@@ -365,227 +362,45 @@ def hand_over(
         if k >= 0:
             if lmp and not touch_old[k]:
                 continue
-            xi_new[e, 0] = xi_old[k, 0]
-            xi_new[e, 1] = xi_old[k, 1]
+            for c in range(nw):
+                h_new[e, c] = h_old[k, c]
         else:
             k = _find(start_old, eb_old, b, a)
             if k >= 0 and both_old[k]:
                 if lmp and not touch_old[k]:
                     continue
-                xi_new[e, 0] = -xi_old[k, 0]
-                xi_new[e, 1] = -xi_old[k, 1]
+                for c in range(nw):
+                    h_new[e, c] = flip[c] * h_old[k, c]
 
 
 # --------------------------------------------------------------------------- forces and steps
-@njit(cache=False)
-def forces(
-    x,
-    lam,
-    use_lam,
-    v,
-    w,
-    r,
-    m,
-    ea,
-    eb,
-    esx,
-    esy,
-    both,
-    xi,
-    touch,
-    box,
-    hr,
-    kn,
-    kt,
-    gn,
-    gt,
-    mu,
-    dt,
-    update,
-    lmp,
-    f,
-    t,
-    vir,
-    slide,
-    ef,
-):
-    """Serial force loop over the half list (LAMMPS ``newton off``: an owned pair acts on both,
-    a boundary entry on its owner a only; virial 0.5 d (x) f per owner as ``ev_tally_xyz``).
-
-    Image positions by :func:`_image_x`, image velocities v_b + s_x hr[0] + s_y (hr[2], hr[1])
-    (``pack_comm_vel`` with ``deform_vremap``), spins copied. ``lmp``: LAMMPS' law and, for an
-    entry that does not touch, the spring reset to zero (``pair_gran_hooke_history.cpp``); else
-    LIGGGHTS' law and no reset. ``touch`` (M,) receives the contact flag. Returns (contacts,
-    sum of overlaps), each physical contact once.
-    """
-    n = x.shape[0]
-    for i in range(n):
-        f[i, 0] = 0.0
-        f[i, 1] = 0.0
-        t[i] = 0.0
-    for c in range(4):
-        vir[c] = 0.0
-    nc = 0.0
-    so = 0.0
-    for e in range(ea.shape[0]):
-        a = ea[e]
-        b = eb[e]
-        sx = esx[e]
-        sy = esy[e]
-        xb, yb = _image_x(b, sx, sy, x, lam, use_lam, box)
-        delx = x[a, 0] - xb
-        dely = x[a, 1] - yb
-        rsq = delx * delx + dely * dely
-        radsum = r[a] + r[b]
-        if rsq < radsum * radsum:
-            vbx = (v[b, 0] + sx * hr[0]) + sy * hr[2]
-            vby = v[b, 1] + sy * hr[1]
-            if lmp:
-                fx, fy, ta, tb, s0, s1, sl, _ = _law_lmp(
-                    delx,
-                    dely,
-                    rsq,
-                    r[a],
-                    r[b],
-                    v[a, 0],
-                    v[a, 1],
-                    vbx,
-                    vby,
-                    w[a],
-                    w[b],
-                    m[a],
-                    m[b],
-                    kn,
-                    kt,
-                    gn,
-                    gt,
-                    mu,
-                    dt,
-                    xi[e, 0],
-                    xi[e, 1],
-                    update,
-                )
-            else:
-                fx, fy, ta, tb, s0, s1, sl, _ = _law_lig(
-                    delx,
-                    dely,
-                    rsq,
-                    r[a],
-                    r[b],
-                    v[a, 0],
-                    v[a, 1],
-                    vbx,
-                    vby,
-                    w[a],
-                    w[b],
-                    m[a],
-                    m[b],
-                    kn,
-                    kt,
-                    gn,
-                    gt,
-                    mu,
-                    dt,
-                    xi[e, 0],
-                    xi[e, 1],
-                    update,
-                )
-            xi[e, 0] = s0
-            xi[e, 1] = s1
-            touch[e] = True
-            slide[e] = sl
-            ef[e, 0] = fx
-            ef[e, 1] = fy
-            f[a, 0] += fx
-            f[a, 1] += fy
-            t[a] += ta
-            wgt = 0.5
-            if both[e]:
-                f[b, 0] += -fx
-                f[b, 1] += -fy
-                t[b] += tb
-                vir[0] += 0.5 * (delx * fx)
-                vir[1] += 0.5 * (dely * fy)
-                vir[2] += 0.5 * (delx * fy)
-                vir[3] += 0.5 * (dely * fx)
-                wgt = 1.0
-            vir[0] += 0.5 * (delx * fx)
-            vir[1] += 0.5 * (dely * fy)
-            vir[2] += 0.5 * (delx * fy)
-            vir[3] += 0.5 * (dely * fx)
-            nc += wgt
-            so += wgt * (radsum - math.sqrt(rsq))
-        else:
-            touch[e] = False
-            slide[e] = False
-            ef[e, 0] = 0.0
-            ef[e, 1] = 0.0
-            if lmp:
-                xi[e, 0] = 0.0
-                xi[e, 1] = 0.0
-    return nc, so
+@njit
+def forces(p, nb, law, cell, use_lam, dt, update, vir):
+    """Serial force loop of the sheared cell: :func:`gransim.dem.kernels.forces_in` with the image
+    :data:`~gransim.dem.kernels.TiltedImage` of ``cell`` (:data:`Cell`; LAMMPS ``newton off``: an
+    owned pair acts on both, a boundary entry on its owner a only; virial 0.5 d (x) f per owner as
+    ``ev_tally_xyz``). Image positions by :func:`gransim.dem.kernels.tilted_image` (from lamda
+    when ``use_lam``), image velocities v_b + s_x hr[0] + s_y (hr[2], hr[1]) (``pack_comm_vel``
+    with ``deform_vremap``), spins copied; ``law`` any registered law (its ``apart``: LAMMPS' laws
+    zero the history of an entry that does not touch). ``cell.touch`` (M,) receives the contact
+    flags, ``nb.slide``, ``nb.ef`` every evaluation. Returns (contacts, sum of overlaps), each
+    physical contact once."""
+    img = K.TiltedImage(cell.box, cell.hr, cell.lam, use_lam, cell.touch)
+    return K.forces_in(p, nb, law, img, dt, update, vir, True)
 
 
-@njit(cache=False)
-def run_block(
-    x,
-    v,
-    w,
-    f,
-    t,
-    r,
-    m,
-    lam,
-    ea,
-    eb,
-    esx,
-    esy,
-    both,
-    xi,
-    touch,
-    slide,
-    ef,
-    xhold,
-    corners_hold,
-    box,
-    box_hold,
-    hr,
-    vir,
-    kn,
-    kt,
-    gn,
-    gt,
-    mu,
-    dt,
-    skin,
-    lmp,
-    step0,
-    nsteps,
-    resume,
-    begin,
-    end,
-    every,
-    xy_style,
-    tilt_start,
-    tilt_stop,
-    rate,
-    servo_on,
-    y_lo_start,
-    y_hi_start,
-    ly0,
-    kgain,
-    gain,
-    target,
-    out_stress,
-    out_vir,
-    out_box,
-    out_nc,
-    out_ov,
-    out_ke,
-):
+@njit
+def run_block(p, nb, law, cell, dfm, out, vir, dt, skin, lmp, step0, nsteps, resume):
     """Steps step0+1 .. step0+nsteps of LAMMPS' Verlet (nve/sphere first half, neighbour decision,
     forces, second half, ``fix deform`` end_of_step on the steps with ``step % every == 0``, as
     ``Modify::end_of_step`` calls a fix every ``nevery`` steps) until a list build is needed.
+
+    ``p`` :class:`gransim.dem.kernels.Particles`, ``nb`` :class:`~gransim.dem.kernels.Neighbours`
+    (the list and the law's history), ``law`` a registered contact law (each law type compiles
+    its own copy), ``cell`` :data:`Cell` (box, h_rate, ... updated in place), ``dfm``
+    :data:`Deform`, ``out`` :data:`ShearSeries` (rows >= nsteps), ``vir`` (4,) the virial of the
+    last step; dt (s), skin (m); ``lmp`` LAMMPS' bookkeeping (triclinic rebuild check; else
+    LIGGGHTS' orthogonal one).
 
     Returns (steps completed, status, bad particle): status 0 done, 1 rebuild needed (the next
     step has done its first half step; call again with ``resume`` after the build: its forces use
@@ -594,6 +409,8 @@ def run_block(
     step, compression positive), virial (xx, yy, xy, yx; sum 0.5 d (x) f of the step, N m), box
     (lx, ly, xy, ylo, yhi), contacts, mean overlap, kinetic energy.
     """
+    x, v, w, f, t, m, r = p.x, p.v, p.w, p.f, p.t, p.m, p.r
+    box, box_hold, hr = cell.box, cell.box_hold, cell.hr
     for k in range(nsteps):
         step = step0 + k + 1
         use_lam = False
@@ -602,80 +419,50 @@ def run_block(
         else:
             K.initial_integrate(x, v, w, f, t, m, r, dt)
             if lmp:
-                rebuild, bad = check_rebuild_corners(x, xhold, box, corners_hold, skin)
+                rebuild, bad = check_rebuild_corners(x, nb.xhold, box, cell.corners_hold, skin)
             else:
                 rebuild, bad = K.check_rebuild(
-                    x, xhold, box[0:2], box[2:4], box_hold[0:2], box_hold[2:4], skin, False
+                    x, nb.xhold, box[0:2], box[2:4], box_hold[0:2], box_hold[2:4], skin, False
                 )
             if bad >= 0:
                 return k, 2, bad
             if rebuild:
                 return k, 1, -1
-        nc, so = forces(
-            x,
-            lam,
-            use_lam,
-            v,
-            w,
-            r,
-            m,
-            ea,
-            eb,
-            esx,
-            esy,
-            both,
-            xi,
-            touch,
-            box,
-            hr,
-            kn,
-            kt,
-            gn,
-            gt,
-            mu,
-            dt,
-            True,
-            lmp,
-            f,
-            t,
-            vir,
-            slide,
-            ef,
-        )
+        nc, so = forces(p, nb, law, cell, use_lam, dt, True, vir)
         ke = K.final_integrate(v, w, f, t, m, r, dt)
-        if step % every == 0:
+        if step % dfm.every == 0:
             ok = deform_end_of_step(
                 step,
-                begin,
-                end,
+                dfm.begin,
+                dfm.end,
                 box,
                 hr,
                 vir,
-                xy_style,
-                tilt_start,
-                tilt_stop,
-                rate,
+                dfm.xy_style,
+                dfm.tilt_start,
+                dfm.tilt_stop,
+                dfm.rate,
                 dt,
-                servo_on,
-                y_lo_start,
-                y_hi_start,
-                ly0,
-                kgain,
-                gain,
-                target,
+                dfm.servo_on,
+                dfm.y_lo_start,
+                dfm.y_hi_start,
+                dfm.ly0,
+                dfm.kgain,
+                dfm.gain,
+                dfm.target,
             )
             if not ok:
                 return k, 3, -1
         inv = 1.0 / ((box[2] - box[0]) * (box[3] - box[1]))
         for c in range(4):
-            out_stress[k, c] = vir[c] * inv
-            out_vir[k, c] = vir[c]
-        out_box[k, 0] = box[2] - box[0]
-        out_box[k, 1] = box[3] - box[1]
-        out_box[k, 2] = box[4]
-        out_box[k, 3] = box[1]
-        out_box[k, 4] = box[3]
-        out_nc[k] = nc
-        out_ov[k] = so / nc if nc > 0 else 0.0
-        out_ke[k] = ke
+            out.stress[k, c] = vir[c] * inv
+            out.vir[k, c] = vir[c]
+        out.box[k, 0] = box[2] - box[0]
+        out.box[k, 1] = box[3] - box[1]
+        out.box[k, 2] = box[4]
+        out.box[k, 3] = box[1]
+        out.box[k, 4] = box[3]
+        out.nc[k] = nc
+        out.ov[k] = so / nc if nc > 0 else 0.0
+        out.ke[k] = ke
     return nsteps, 0, -1

@@ -176,9 +176,10 @@ def test_energies_of_registered_and_radius_dependent_laws():
     assert law_spec(law).energy(law, ov, h) == pytest.approx(want, rel=1e-14)
     hl = make_law("hertz-liggghts", **CASES["hertz-liggghts"][1])
     R, d, eps = np.array([4.4e-4]), 3e-6, 1e-10
-    up = hertz.hertz_energy(hl, np.array([d + eps]), np.zeros((1, 2)), R)
-    dn = hertz.hertz_energy(hl, np.array([d - eps]), np.zeros((1, 2)), R)
+    r2 = 2 * R  # two disks of radius 2 R*: R* = R
+    up = hertz.hertz_energy(hl, np.array([d + eps]), np.zeros((1, 2)), r2, r2)
+    dn = hertz.hertz_energy(hl, np.array([d - eps]), np.zeros((1, 2)), r2, r2)
     assert (up - dn) / (2 * eps) == pytest.approx(4 / 3 * hl.yeff * math.sqrt(R[0]) * d ** 1.5, rel=1e-8)
     e2 = make_law("hooke-epsd2-liggghts", **CASES["hooke-epsd2-liggghts"][1])
-    got = rolling.epsd_energy(e2, np.zeros(1), np.array([[0.0, 0.0, 2e-6]]), R)
+    got = rolling.epsd_energy(e2, np.zeros(1), np.array([[0.0, 0.0, 2e-6]]), r2, r2)
     assert got == pytest.approx(0.5 * 4e-12 / (800 * R[0] ** 2), rel=1e-14)
