@@ -43,6 +43,9 @@ def register(subparsers) -> None:
         default="results/rve_study",
         help="output directory (default results/rve_study)",
     )
+    from ..parallel import add_options
+
+    add_options(p)  # --workers N / --scheduler ADDRESS: one task per RVE (gransim.parallel)
     p.set_defaults(func=_study)
 
     s = subparsers.add_parser(
@@ -143,10 +146,17 @@ def _study(args) -> int:
     check_output(out / "rve_study.h5", "-o/--out")
     for name in ("compression", "shear", "fabric"):
         check_output(out / f"{name}.png", "-o/--out")
+    from ..errors import InputError
+    from ..parallel import make_executor
+
+    if args.workers is not None and args.workers < 1:
+        raise InputError(f"--workers: expected an integer >= 1 (Dask worker processes), got {args.workers}")
     packings = _packings(args)
-    t0 = time.perf_counter()
-    result, h5, pngs = run_study(packings, args.out, normal_stiffness=_kn(args), steps=args.steps)
-    dt = time.perf_counter() - t0
+    with make_executor(args.workers, args.scheduler) as executor:
+        t0 = time.perf_counter()
+        result, h5, pngs = run_study(packings, args.out, normal_stiffness=_kn(args), steps=args.steps,
+                                     executor=executor)
+        dt = time.perf_counter() - t0
     print(
         f"{len(result.names)} RVEs x {len(result.paths)} paths x {args.steps + 1} states "
         f"in {dt:.2f} s"

@@ -7,12 +7,20 @@ mesh -> element (total-Lagrangian Q1) -> assembly -> constraints -> solver (Newt
 from .assembly import Assembler
 from .constraints import DofMap, RigidBody
 from .element import Q1Geometry
-from .materials import AssignedRVEs, MaterialResult, NeoHookean, StVenantKirchhoff, lame
+from .materials import (
+           AssignedRVEs,
+           MaterialResult,
+           NeoHookean,
+           RVEMaterial,
+           StVenantKirchhoff,
+           lame,
+)
 from .mesh import Mesh, SlopeGeometry, rectangle_mesh, slope_mesh
 from .solver import (
            LoadPathResult,
            NewtonFailure,
            Problem,
+           ResumeState,
            StepRecord,
            Timer,
            newton,
@@ -20,6 +28,7 @@ from .solver import (
 )
 
 __all__ = ["PROTOCOLS", "Assembler", "AssignedRVEs", "DofMap", "LoadPathResult", "MaterialResult", "Mesh",
-           "NeoHookean", "NewtonFailure", "Problem", "Q1Geometry", "RigidBody", "SlopeGeometry", "SlopeSetup",
+           "NeoHookean", "NewtonFailure", "Problem", "Q1Geometry",
+           "RVEMaterial", "ResumeState", "RigidBody", "SlopeGeometry", "SlopeSetup",
            "StVenantKirchhoff", "StepRecord", "Timer", "lame", "limit_message", "newton", "rectangle_mesh",
            "run_load_steps", "run_slope", "setup_for", "slope_mesh", "slope_problem"]

@@ -95,17 +95,24 @@ class Q1Geometry:
 
     def internal_forces(self, P: np.ndarray) -> np.ndarray:
         """Element internal force vectors (E, 4, 2) from the Piola stress P (4E, 2, 2)."""
-        P = P.reshape(-1, 4, 2, 2)
-        return np.einsum("eg,egiJ,egaJ->eai", self.weight, P, self.dNdX)
+        P = P.reshape(-1, 4, 2, 2) * self.weight[:, :, None, None]
+        # f_ai = sum_g w_g P_iJ dN_a/dX_J: one batched matmul (G, a, J) @ (G, J, i), summed over g
+        return np.matmul(self.dNdX, np.swapaxes(P, 2, 3)).sum(axis=1)
 
     def stiffness(self, A: np.ndarray) -> np.ndarray:
         """Element stiffness matrices (E, 8, 8), dof order (a, i) -> 2a + i, from A (4E, 2, 2, 2, 2)."""
-        A = A.reshape(-1, 4, 2, 2, 2, 2)
-        wB = self.dNdX * self.weight[:, :, None, None]
-        # contract in two cheap steps: (A . dN_b) then (dN_a . that)
-        AB = np.einsum("egiJkL,egbL->egiJkb", A, self.dNdX)
-        K = np.einsum("egaJ,egiJkb->eaibk", wB, AB)
-        return K.reshape(-1, 8, 8)
+        E = self.elements.shape[0]
+        G = 4 * E
+        # K_e = sum_g w_g B_g^T D_g B_g with D = A as a 4 x 4 matrix (rows iJ, columns kL) and
+        # B[(i, J), (a, k)] = delta_ik dN_a/dX_J (grad u from the element dofs): batched matmuls
+        dN = np.swapaxes(self.dNdX.reshape(G, 4, 2), 1, 2)  # (G, J, a)
+        B = np.zeros((G, 2, 2, 4, 2))
+        B[:, 0, :, :, 0] = dN
+        B[:, 1, :, :, 1] = dN
+        B = B.reshape(G, 4, 8)
+        D = np.asarray(A).reshape(G, 4, 4)
+        K = np.matmul(np.swapaxes(B, 1, 2) * self.weight.reshape(G, 1, 1), np.matmul(D, B))
+        return K.reshape(E, 4, 8, 8).sum(axis=1)
 
     def body_forces(self, b0) -> np.ndarray:
         """Consistent nodal body forces (E, 4, 2) for a constant b0 (2,) per reference volume (N/m^3)."""

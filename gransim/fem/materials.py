@@ -155,3 +155,125 @@ class AssignedRVEs:
         """The committed fluctuation (N, 2) of Gauss point g, or None (Taylor: always None)."""
         fn = getattr(self.material, "committed_fluctuation", None)
         return fn(g) if callable(fn) else None
+
+
+class RVEMaterial:
+    """The one place an RVE material enters the FE code: its 2D response converted to plane-strain Pa.
+
+    The RVE codes (:class:`gransim.rve.TaylorMaterial`, :class:`gransim.rve.RelaxedMaterial`,
+    optionally wrapped by :class:`AssignedRVEs` or evaluated on a cluster by
+    :class:`gransim.parallel.DistributedMaterial`) give the 2D first Piola stress and tangent per
+    unit out-of-plane thickness (N/m) and the energy per reference area (J/m^2); the FE code works
+    in Pa and J/m^3. ``evaluate`` converts with :func:`gransim.paper.stress_2d_to_pa` and
+    :func:`gransim.paper.tangent_2d_to_pa` (sigma_Pa = sigma_2D / thickness, :mod:`gransim.paper`)
+    and returns a :class:`MaterialResult`. Gauss-point history (``commit`` / ``revert``) and the
+    attributes the pictures need (``packings``, ``normal_stiffness``, ``rve_index``,
+    ``committed_fluctuation``) are forwarded to the wrapped RVE material ``rve``.
+    """
+
+    def __init__(self, rve, thickness: float | None = None):
+        from .. import paper
+
+        self.rve = rve
+        self.thickness = paper.THICKNESS if thickness is None else as_positive_float(thickness, "thickness")
+
+    @property
+    def packings(self):
+        """The RVEs' reference packings."""
+        return self.rve.packings
+
+    @property
+    def normal_stiffness(self) -> float:
+        """kn of the RVE contact law (N/m)."""
+        return self.rve.normal_stiffness
+
+    @property
+    def rve_index(self):
+        """RVE index per Gauss point (G,) when several RVEs are assigned, else None."""
+        return getattr(self.rve, "rve_index", None)
+
+    @property
+    def has_history(self) -> bool:
+        """True when the wrapped RVE keeps Gauss-point history (the relaxed RVE)."""
+        m = getattr(self.rve, "template", self.rve)
+        m = getattr(m, "material", m)
+        return callable(getattr(m, "commit", None))
+
+    def evaluate(self, F) -> MaterialResult:
+        """Batched response in Pa (piola (G,2,2), tangent (G,2,2,2,2), cauchy (G,2,2)), J/m^3, contacts."""
+        from ..paper import stress_2d_to_pa, tangent_2d_to_pa
+
+        b = self.rve.evaluate(F)
+        t = self.thickness
+        return MaterialResult(piola=stress_2d_to_pa(b.piola, t), tangent=tangent_2d_to_pa(b.tangent, t),
+                              cauchy=stress_2d_to_pa(b.cauchy, t), energy=np.asarray(b.energy, float) / t,
+                              n_contacts=np.asarray(b.n_contacts))
+
+    def commit(self) -> None:
+        """Commit the RVE's Gauss-point history (no-op for a history-free RVE)."""
+        fn = getattr(self.rve, "commit", None)
+        if callable(fn):
+            fn()
+
+    def revert(self) -> None:
+        """Revert the RVE's trial history (no-op for a history-free RVE)."""
+        fn = getattr(self.rve, "revert", None)
+        if callable(fn):
+            fn()
+
+    def committed_fluctuation(self, g: int):
+        """The committed fluctuation (N, 2) (m) of Gauss point g, or None (Taylor: always None)."""
+        fn = getattr(self.rve, "committed_fluctuation", None)
+        return fn(g) if callable(fn) else None
+
+
+class _SortedSet(tuple):
+    """A Taylor candidate set (the tuple of gransim.rve.taylor._RVE.sets) already sorted by (i, j, shift)."""
+
+    __slots__ = ()
+
+
+def _ordered_taylor_class():
+    from ..rve import TaylorMaterial
+
+    class OrderedTaylorMaterial(TaylorMaterial):
+        """:class:`gransim.rve.TaylorMaterial` whose candidate sets are sorted by (i, j, image shift).
+
+        The Taylor kernel sums the active contacts of a state's candidate set in the set's order. A
+        set built at another anchor F0 (the cache depends on which states a batch held before) lists
+        the same active contacts in another order (the neighbour list's order follows the cell
+        list at F0), so P and A could differ in the last bits between two histories. Sorted sets
+        give every state the same sum in the same order: the response at a Gauss point depends on
+        its F alone, bit for bit, whatever was evaluated before and whichever block or worker
+        evaluates it (:mod:`gransim.parallel`, checkpoint/resume). Only the order changes.
+        """
+
+        def _assign(self, F, rve):
+            set_of = super()._assign(F, rve)
+            changed = False
+            for R in self._rves:
+                for n, S in enumerate(R.sets):
+                    if isinstance(S, _SortedSet):
+                        continue
+                    F0inv, L, ri, rj, i, j, shift = S
+                    o = np.lexsort((shift[:, 1], shift[:, 0], j, i))
+                    R.sets[n] = _SortedSet((F0inv, np.ascontiguousarray(L[o]), ri[o].copy(), rj[o].copy(),
+                                            i[o], j[o], shift[o]))
+                    changed = True
+            if changed:
+                self._flatten()
+                self._last = {}
+            return set_of
+
+    OrderedTaylorMaterial.__module__ = __name__
+    OrderedTaylorMaterial.__qualname__ = "OrderedTaylorMaterial"
+    return OrderedTaylorMaterial
+
+
+def __getattr__(name):
+    # the Taylor RVE is imported lazily (gransim.fem imports without gransim.rve)
+    if name == "OrderedTaylorMaterial":
+        cls = _ordered_taylor_class()
+        globals()[name] = cls
+        return cls
+    raise AttributeError(name)

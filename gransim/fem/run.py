@@ -33,37 +33,100 @@ from .solver import history, run_load_steps
 NEO_HOOKEAN_E, NEO_HOOKEAN_NU = 3.0e7, 0.3
 
 
-def rve_700_packings(packing_dir="results/packings") -> dict:
-    """The five standard 700-particle quartz-sand RVEs {name: Packing} (generated once, then cached)."""
+def _rve_700_paths(packing_dir) -> dict:
     try:
         from ..generation import standard_packings
     except ImportError as exc:
         raise InputError(f"the standard RVEs need gransim.generation ({exc}); pass --packing FILE.h5 "
                          "or --material neo-hookean") from None
+    return standard_packings(packing_dir, names=[f"rve-700-{s}" for s in range(1, 6)])
+
+
+def rve_700_packings(packing_dir="results/packings") -> dict:
+    """The five standard 700-particle quartz-sand RVEs {name: Packing} (generated once, then cached)."""
     from ..io import load_packing
 
-    paths = standard_packings(packing_dir, names=[f"rve-700-{s}" for s in range(1, 6)])
-    return {name: load_packing(path) for name, path in paths.items()}
+    return {name: load_packing(path) for name, path in _rve_700_paths(packing_dir).items()}
+
+
+#: the choice of :func:`default_rve_packing`, kept beside the packings (keyed by the files' sizes and
+#: modification times, so a regenerated packing is measured again)
+MOST_UNIFORM_CACHE = "most_uniform_rve-700.json"
 
 
 def default_rve_packing(packing_dir="results/packings"):
     """The most uniform of the five standard 700-particle RVEs (contact normal density measure of
-    gransim.rve.fabric: smallest deviation from the uniform density at 20 degrees)."""
+    gransim.rve.fabric: smallest deviation from the uniform density at 20 degrees).
+
+    The choice is computed once and kept in ``packing_dir/most_uniform_rve-700.json`` (a figure is
+    measured once and reused: issue 17), keyed by the five files' sizes and modification times.
+    """
+    import json
+
+    from ..io import atomic_path, load_packing
+
+    paths = _rve_700_paths(packing_dir)
+    key = {name: [Path(p).stat().st_size, Path(p).stat().st_mtime_ns] for name, p in paths.items()}
+    cache = Path(packing_dir) / MOST_UNIFORM_CACHE
+    try:
+        stored = json.loads(cache.read_text())
+        if stored.get("files") == key and stored.get("choice") in paths:
+            return load_packing(paths[stored["choice"]])
+    except (OSError, ValueError, AttributeError):
+        pass
     from ..rve.fabric import most_uniform
 
-    packings = rve_700_packings(packing_dir)
+    packings = {name: load_packing(path) for name, path in paths.items()}
     name, _ = most_uniform(packings)
+    try:
+        with atomic_path(cache, suffix=".json") as tmp:
+            Path(tmp).write_text(json.dumps({"files": key, "choice": name,
+                                             "measure": "gransim.rve.fabric.most_uniform"}, indent=1))
+    except OSError:  # a read-only packing directory: measured again next time
+        pass
     return packings[name]
 
 
 RVE_KINDS = ("taylor", "relaxed")
+FIGURES = ("final", "all", "none")
+
+
+class SlopeInterrupted(GransimError):
+    """The run stopped on purpose after a load step (``stop_after``), its checkpoint written."""
+
+    def __init__(self, step: int, out):
+        super().__init__(f"stopped after load step {step} as asked (--stop-after); its checkpoint is "
+                         f"{Path(out) / 'checkpoint'}: continue with --resume")
+        self.step = step
+
+
+def unwrap(material):
+    """The innermost material: through :class:`gransim.fem.materials.RVEMaterial` (``rve``),
+    :class:`gransim.parallel.DistributedMaterial` (``template``) and
+    :class:`gransim.fem.materials.AssignedRVEs` (``material``)."""
+    m = material
+    for _ in range(8):
+        for attr in ("rve", "template", "material"):
+            inner = getattr(m, attr, None)
+            if inner is not None and hasattr(inner, "evaluate"):
+                m = inner
+                break
+        else:
+            return m
+    return m
 
 
 def fresh_material(material):
-    """The same material with an empty Gauss-point history (the relaxed RVE; others are returned
-    as they are): for checks on another mesh that must not start from the slope's history."""
-    from .materials import AssignedRVEs
+    """The same material with an empty Gauss-point history, in this process (the relaxed RVE; others
+    are returned as they are): for checks on another mesh that must not start from the slope's
+    history."""
+    from ..parallel import DistributedMaterial
+    from .materials import AssignedRVEs, RVEMaterial
 
+    if isinstance(material, RVEMaterial):
+        return RVEMaterial(fresh_material(material.rve), material.thickness)
+    if isinstance(material, DistributedMaterial):
+        return fresh_material(material.template)
     if isinstance(material, AssignedRVEs):
         return AssignedRVEs(fresh_material(material.material), material.rve_index)
     if not callable(getattr(material, "commit", None)):
@@ -75,7 +138,9 @@ def fresh_material(material):
 
 def make_material(kind: str, packing=None, assignment: str = "most-uniform", n_gauss: int = 1520,
                   packing_dir="results/packings", rve: str = "taylor"):
-    """The material of a run: ``taylor`` (an RVE material, E_n = 2.8e7 N/m^2) or ``neo-hookean``.
+    """The material of a run: ``taylor`` (an RVE material behind the units boundary
+    :class:`gransim.fem.materials.RVEMaterial`, kn = E_n x thickness = :data:`gransim.paper.KN_2D`)
+    or ``neo-hookean``.
 
     ``rve``: ``taylor`` (:class:`gransim.rve.TaylorMaterial`, affine, Meier et al. eqs 6-12) or
     ``relaxed`` (:class:`gransim.rve.RelaxedMaterial`, periodic fluctuations minimising the energy
@@ -86,21 +151,26 @@ def make_material(kind: str, packing=None, assignment: str = "most-uniform", n_g
     uniform standard 700-particle RVE) or ``five`` (the five standard 700-particle RVEs assigned to
     the Gauss points in turn, g mod 5).
     """
+    from .materials import RVEMaterial
+
     if kind == "neo-hookean":
         return NeoHookean(*lame(NEO_HOOKEAN_E, NEO_HOOKEAN_NU))
     if kind != "taylor":
         raise InputError(f"unknown material {kind!r}; choose taylor or neo-hookean")
     if rve not in RVE_KINDS:
         raise InputError(f"--rve: unknown RVE material {rve!r}; choose taylor or relaxed")
-    from ..rve import RelaxedMaterial, TaylorMaterial
+    from ..rve import RelaxedMaterial
+    from .materials import OrderedTaylorMaterial
 
-    cls = RelaxedMaterial if rve == "relaxed" else TaylorMaterial  # same constructor (packings, E_n)
+    # same constructor (packings, kn); the Taylor sets sorted: bitwise the same for any history,
+    # block or worker (gransim.parallel)
+    cls = RelaxedMaterial if rve == "relaxed" else OrderedTaylorMaterial
 
     if assignment == "five":
         from .materials import AssignedRVEs
 
         five = rve_700_packings(packing_dir)
-        return AssignedRVEs(cls(five, NORMAL_STIFFNESS), np.arange(n_gauss) % len(five))
+        return RVEMaterial(AssignedRVEs(cls(five, NORMAL_STIFFNESS), np.arange(n_gauss) % len(five)))
     if assignment != "most-uniform":
         raise InputError(f"unknown RVE assignment {assignment!r}; choose most-uniform or five")
     if packing is None:
@@ -109,7 +179,33 @@ def make_material(kind: str, packing=None, assignment: str = "most-uniform", n_g
         from ..io import load_packing
 
         packing = load_packing(packing)
-    return cls(packing, NORMAL_STIFFNESS)
+    return RVEMaterial(cls(packing, NORMAL_STIFFNESS))
+
+
+def distribute(material, executor, n_gauss: int):
+    """The material evaluated by ``executor`` (:mod:`gransim.parallel`) at ``n_gauss`` Gauss points; the
+    units boundary :class:`gransim.fem.materials.RVEMaterial` stays in this process, outermost."""
+    from .materials import RVEMaterial
+
+    if executor is None or getattr(executor, "kind", "") == "in-process":
+        return material
+    if isinstance(material, RVEMaterial):
+        return RVEMaterial(executor.material(material.rve, n_gauss), material.thickness)
+    return executor.material(material, n_gauss)
+
+
+def packing_fingerprint(material) -> str:
+    """SHA-256 (16 hex digits) of the RVE packings' positions, radii and cells ("" for a continuum)."""
+    import hashlib
+
+    packings = getattr(unwrap(material), "packings", None)
+    if packings is None:
+        return ""
+    h = hashlib.sha256()
+    for p in packings:
+        for a in (p.positions, p.radii, p.cell):
+            h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+    return h.hexdigest()[:16]
 
 
 def linear_check(problem, scale: float = 1e-3) -> dict:
@@ -127,39 +223,88 @@ def linear_check(problem, scale: float = 1e-3) -> dict:
     return {"scale": scale, "relative_difference": float(np.linalg.norm(q_nl - q_lin) / np.linalg.norm(q_lin)),
             "max_displacement_m": float(np.abs(q_lin).max())}
 
+def run_parameters(protocol, setup, material, rve_label, tol, min_fraction, max_iter, assignment) -> dict:
+    """The parameters a slope run's results depend on (slope.h5 provenance; the checkpoint refuses others)."""
+    inner = unwrap(material)
+    return {"protocol": protocol, "footing_force": setup.footing_force, "material": type(inner).__name__,
+            "rve": rve_label, "assignment": assignment if rve_label != "continuum" else "",
+            "packings": packing_fingerprint(material), "tol": tol, "min_fraction": min_fraction,
+            "max_iter": max_iter, "normal_stiffness": NORMAL_STIFFNESS, "density": setup.density,
+            "gravity": setup.gravity, "mesh": [setup.geometry.columns, setup.geometry.rows],
+            "load_steps": setup.load_steps}
+
 
 def run_slope_case(protocol: str = "service", material="taylor", packing=None, out=None,
-                   figures: str = "all", tol: float = 1e-20, min_fraction: float = 1.0 / 64,
+                   figures: str = "final", tol: float = 1e-20, min_fraction: float = 1.0 / 64,
                    geometry=None, assignment: str = "most-uniform", packing_dir="results/packings",
-                   rve: str = "taylor", load_steps: int = 20) -> dict:
+                   rve: str = "taylor", load_steps: int = 20, executor=None, resume: bool = False,
+                   stop_after: int | None = None, checkpoint: bool = True, max_iter: int = 12) -> dict:
     """Solve one protocol and write its outputs to ``out`` (None: no files).
+
+    ``figures``: ``final`` (default: the picture and VTU of the last converged state, and the
+    load-settlement curve), ``all`` (also a PNG and a VTU for every converged step) or ``none`` (no
+    PNG and no VTU; tables, report and slope.h5 are always written). ``executor``
+    (:mod:`gransim.parallel`; default in process) evaluates the Gauss points. With ``out`` a
+    checkpoint is written after every converged load step (:mod:`gransim.fem.checkpoint`);
+    ``resume`` continues from it (bitwise as the uninterrupted run); ``stop_after`` = k stops after
+    step k's checkpoint (raises :class:`SlopeInterrupted`, for tests of the resume).
 
     Returns a summary dict: ``completed``, ``message``, ``report`` (markdown), ``timing``,
     ``table`` (Table 2), ``load_settlement`` (rows force, settlement, rotation), ``steps``.
     """
     from ..progress import progress
+    from .checkpoint import NAME as CKPT
+    from .checkpoint import clear_checkpoint, read_checkpoint, replay_history, write_checkpoint
 
+    if figures not in FIGURES:
+        raise InputError(f"--figures: expected one of {', '.join(FIGURES)}, got {figures!r}")
+    if resume and out is None:
+        raise InputError("--resume: needs the output directory of the interrupted run (--out)")
     setup = setup_for(protocol, geometry, load_steps)
+    G = 4 * setup.geometry.columns * setup.geometry.rows
     if isinstance(material, str):
-        from .mesh import SlopeGeometry
-
-        g = geometry or SlopeGeometry()
-        mat = make_material(material, packing, assignment, 4 * g.columns * g.rows, packing_dir, rve)
+        mat = make_material(material, packing, assignment, G, packing_dir, rve)
     else:
         mat = material
+    label = rve_kind(mat)
+    params = run_parameters(protocol, setup, mat, label, tol, min_fraction, max_iter, assignment)
     out = Path(out) if out is not None else None
+    state, commits = None, []
+    if resume:
+        state, stored_commits = read_checkpoint(out / CKPT, params)  # refused before any computation
+        commits = list(stored_commits)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-    problem = slope_problem(mat, setup)
+        if not resume:
+            clear_checkpoint(out / CKPT)
+    mat_fe = distribute(mat, executor, G)
+    problem = slope_problem(mat_fe, setup)
     interest = gauss_points_of_interest(problem, setup)
+    has_history = label == "relaxed"
+
+    def on_commit(sol):
+        if has_history:
+            commits.append(np.array(sol.F))
 
     def on_step(rec):
         if out is None:
             return
-        write_vtu(out / f"step_{rec.step:03d}.vtu", problem, rec.solution)
         if figures == "all":
+            write_vtu(out / f"step_{rec.step:03d}.vtu", problem, rec.solution)
             render_png(out / f"step_{rec.step:03d}.png", problem, rec.solution,
-                       f"{protocol} step {rec.step}, footing {rec.load[1]:.0%}", mat, interest)
+                       f"{protocol} step {rec.step}, footing {rec.load[1]:.0%}", mat_fe, interest)
+        if checkpoint or stop_after is not None:
+            fails = [f for f in result_failures() if f[0] == rec.step]
+            write_checkpoint(out / CKPT, params, rec, fails, commits[n_commits[0]:])
+            n_commits[0] = len(commits)
+        if stop_after is not None and rec.step >= stop_after:
+            raise SlopeInterrupted(rec.step, out)
+
+    n_commits = [len(commits)]  # commits already in the checkpoint
+    failures_box = []
+
+    def result_failures():
+        return failures_box[0] if failures_box else []
 
     # the small-load check first: it starts from the reference history (F = 1) and commits nothing
     lc, lc_error = None, ""
@@ -167,25 +312,33 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
         lc = [linear_check(problem, s) for s in (1e-3, 2e-3)]
     except (GransimError, RuntimeError, ValueError) as exc:  # e.g. a singular K(0): worth reporting
         lc_error = str(exc)
-    history(mat, "revert")
+    history(mat_fe, "revert")
+    if state is not None:
+        replay_history(mat_fe, commits)  # the Gauss-point history of the last checkpointed step
     t0 = time.perf_counter()
     bar = progress(total=len(setup.schedule()), desc=f"slope {protocol}")
-    result = run_load_steps(problem, setup.schedule(), tol=tol, min_fraction=min_fraction, on_step=on_step,
-                            progress=bar)
-    bar.close()
+    try:
+        result = run_load_steps(problem, setup.schedule(), tol=tol, max_iter=max_iter,
+                                min_fraction=min_fraction, on_step=on_step, progress=bar, start=state, on_commit=on_commit,
+                                failures_out=failures_box)
+    finally:
+        bar.close()
     wall = time.perf_counter() - t0
     message = "" if result.completed else limit_message(problem, setup, result)
     table = convergence_table(result, TABLE2_STEPS)
     last = (result.limit["partial"] if (result.limit and result.limit["partial"] is not None)
             else (result.steps[-1].solution if result.steps else None))
     ls = load_settlement(problem, setup, result)
+    where = executor.describe() if executor is not None else "in process"
     lines = [(f"## Slope, protocol `{protocol}` (footing {setup.footing_force:.3g} N/m, material "
-             f"{type(getattr(mat, 'material', mat)).__name__}, mesh {setup.geometry.columns} x "
+             f"{params['material']}, mesh {setup.geometry.columns} x "
              f"{setup.geometry.rows}, {len(setup.schedule())} steps)"), ""]
     lines.append(f"- status: {'completed all ' + str(len(setup.schedule())) + ' steps' if result.completed else message}")
     t = result.timer
+    resumed = f"; resumed after step {len(state.steps)} from the checkpoint" if state is not None else ""
     lines.append(f"- wall time {wall:.2f} s for {t.iterations} Newton iterations (material {t.material:.2f} s, "
-                 f"assembly {t.assembly:.2f} s, linear solve {t.solve:.2f} s; outputs are the rest)")
+                 f"assembly {t.assembly:.2f} s, linear solve {t.solve:.2f} s; outputs are the rest); Gauss "
+                 f"points evaluated {where}{resumed}")
     iters = [len(s.energy_norms) for s in result.steps]
     lines.append(f"- Newton iterations per step: {iters}; cut steps: "
                  f"{[s.step for s in result.steps if s.cuts]}")
@@ -210,32 +363,33 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
     else:
         lines += ["", f"Small-load check failed: {lc_error}"]
     report = "\n".join(lines)
+    files = {}
     if out is not None:
         if last is not None and figures != "none":
             tag = "final" if result.completed else "limit"
-            render_png(out / f"{tag}.png", problem, last, f"{protocol}: {tag} state, footing "
-                       f"{(result.limit['last_converged_load'][1] if result.limit else 1.0):.1%}", mat,
-                       interest)
-        if result.limit and result.limit["partial"] is not None:
+            lam = result.limit["last_converged_load"][1] if result.limit else 1.0
+            files["state_png"] = render_png(out / f"{tag}.png", problem, last,
+                                            f"{protocol}: {tag} state, footing {lam:.1%}", mat_fe, interest)[0]
+            files["state_vtu"] = write_vtu(out / f"{tag}.vtu", problem, last)
+        if result.limit and result.limit["partial"] is not None and figures == "all":
             write_vtu(out / f"step_{result.limit['step']:03d}_partial.vtu", problem, result.limit["partial"])
-        plot_load_settlement(out / "load_settlement.png", problem, setup, result)
+        if figures != "none":
+            files["load_settlement_png"] = plot_load_settlement(out / "load_settlement.png", problem, setup,
+                                                                result)
         (out / "table2.md").write_text(table + "\n")
         (out / "report.md").write_text(report + "\n")
-        params = {"protocol": protocol, "footing_force": setup.footing_force,
-                  "material": type(getattr(mat, "material", mat)).__name__, "rve": rve_kind(mat),
-                  "tol": tol, "min_fraction": min_fraction, "normal_stiffness": NORMAL_STIFFNESS,
-                  "density": setup.density, "gravity": setup.gravity}
-        write_h5(out / "slope.h5", problem, setup, result, params, message)
+        files["h5"] = write_h5(out / "slope.h5", problem, setup, result, params, message)
     return {"completed": result.completed, "message": message, "report": report, "table": table,
             "timing": {**result.timer.as_dict(), "wall_s": wall}, "load_settlement": ls,
             "steps": result.steps, "result": result, "problem": problem, "linear_check": lc,
             "linear_check_error": lc_error, "patch_check": patch_check(fresh_material(mat)),
-            "rve": rve_kind(mat), "material": mat}
+            "rve": label, "material": mat_fe, "files": files,
+            "resumed_after": len(state.steps) if state else 0}
 
 
 def rve_kind(material) -> str:
     """``relaxed`` (Gauss-point history), ``taylor`` (an RVE material) or ``continuum``."""
-    m = getattr(material, "material", material)
+    m = unwrap(material)
     if callable(getattr(m, "commit", None)):
         return "relaxed"
     return "taylor" if getattr(m, "packings", None) is not None else "continuum"

@@ -15,15 +15,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import paper
 from .._validate import check_choice
 from .constraints import DofMap, RigidBody
 from .mesh import SlopeGeometry, slope_mesh
 from .solver import LoadPathResult, Problem, run_load_steps
 
-RHO = 2.5e3  # kg/m^3
-G = 9.81  # m/s^2
-NORMAL_STIFFNESS = 2.8e7  # N/m^2
-PROTOCOLS = {"paper": -4.0e7, "service": -5.0e6}  # footing force, N per m of thickness
+RHO = paper.DENSITY  # kg/m^3
+G = paper.GRAVITY  # m/s^2
+#: the 2D contact stiffness of the RVEs (N/m: force per m of thickness per m of overlap), E_n x thickness
+NORMAL_STIFFNESS = paper.KN_2D
+#: footing force, N per m of thickness
+PROTOCOLS = {"paper": paper.FOOTING_LOAD_PAPER, "service": paper.FOOTING_LOAD_SERVICE}
 
 
 @dataclass(frozen=True)

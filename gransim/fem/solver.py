@@ -272,8 +272,21 @@ def history(material, action: str) -> None:
         fn()
 
 
+@dataclass(frozen=True, eq=False)
+class ResumeState:
+    """Where a load path resumes (a checkpoint, :mod:`gransim.fem.checkpoint`): the converged steps
+    so far (``steps``, StepRecords 1..k), the failed attempts so far (``failures``), and the
+    Gauss-point history, already restored in the material. The next step is k + 1 from
+    ``steps[-1].solution.q`` at load ``steps[-1].load``."""
+
+    steps: list
+    failures: list = field(default_factory=list)
+
+
 def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int = 12,
-                   min_fraction: float = 1.0 / 64, on_step=None, progress=None) -> LoadPathResult:
+                   min_fraction: float = 1.0 / 64, on_step=None, progress=None,
+                   start: ResumeState | None = None, on_commit=None,
+                   failures_out: list | None = None) -> LoadPathResult:
     """Follow ``schedule`` (a list of (lam_g, lam_f) targets, one per step) from the unloaded state.
 
     A step whose Newton solve fails is cut into halves (then quarters...) of its load increment;
@@ -287,6 +300,12 @@ def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int
     after every converged (sub-)increment, i.e. at the state the Newton solve returned, and
     reverted after every failed attempt, so a rejected increment leaves the history as it was and
     the retry starts from the last converged state. Materials without these methods are unaffected.
+    ``on_commit(solution)`` is called after every commit (the checkpoint records the committed F).
+
+    ``start`` (:class:`ResumeState`) continues a path after its converged steps: the steps it holds
+    are skipped and the path goes on from the last one's state, exactly as the uninterrupted run
+    would (the material's history must already be the one committed at that step).
+    ``failures_out`` (a list) receives the live list of failed attempts (for checkpoints).
     """
     timer = Timer()
     q = np.zeros(problem.dofs.n_reduced)
@@ -294,7 +313,18 @@ def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int
     steps = []
     limit = None
     failures = []  # (step, fraction of the step tried, energy norms) of every failed attempt
+    if start is not None and start.steps:
+        steps = list(start.steps)
+        failures = list(start.failures)
+        q = np.array(steps[-1].solution.q, dtype=float)
+        prev = np.asarray(steps[-1].load, dtype=float)
+    if failures_out is not None:
+        failures_out.append(failures)
     for k, target in enumerate(schedule, start=1):
+        if k <= len(steps):
+            if progress is not None:
+                progress.update(1)
+            continue
         target = np.asarray(target, dtype=float)
         done, h, cuts, sub = 0.0, 1.0, 0, []
         last_failure = ""
@@ -314,6 +344,8 @@ def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int
                     break
                 continue
             history(problem.material, "commit")
+            if on_commit is not None:
+                on_commit(sol)
             q = sol.q
             done += h
             sub.append(done)

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import paper
 from .._validate import as_positive_float
 from ..errors import InputError, ResultFileError
 from ..geometry import Packing
@@ -36,8 +37,9 @@ from .taylor import TaylorMaterial
 PATHS = ("compression11", "compression22", "shear12", "shear21")
 #: (row, column) of the driving component of F for each path
 DRIVING = {"compression11": (0, 0), "compression22": (1, 1), "shear12": (0, 1), "shear21": (1, 0)}
-#: paper's normal contact stiffness, Table 1 (N/m per unit thickness in this 2D model)
-PAPER_NORMAL_STIFFNESS = 2.8e7
+#: paper's normal contact stiffness as the 2D RVE's kn (N/m): E_n of Table 1 times the thickness
+#: (:mod:`gransim.paper`)
+PAPER_NORMAL_STIFFNESS = paper.KN_2D
 
 
 def load_path(name: str, steps: int = 50, compression: float = 0.1, shear: float = 0.1):
@@ -131,6 +133,9 @@ class RVEStudy:
     normal_stiffness : E_n (N/m); default the paper's 2.8e7.
     steps, compression, shear : load path resolution and end values (see module doc).
     angles_deg : angles of influence of the fabric densities (degrees).
+    executor : :mod:`gransim.parallel` executor; None or in process: one batched kernel call for
+        every state of every RVE; a Dask executor: one task per RVE (the same numbers, bit for bit:
+        each RVE's candidate sets are built from its own states in the same order either way).
     """
 
     def __init__(
@@ -141,8 +146,10 @@ class RVEStudy:
         compression: float = 0.1,
         shear: float = 0.1,
         angles_deg=DEFAULT_ANGLES_DEG,
+        executor=None,
     ):
         self.packings = load_packings(packings)
+        self.executor = executor
         self.normal_stiffness = as_positive_float(normal_stiffness, "normal_stiffness")
         self.steps, self.compression, self.shear = int(steps), float(compression), float(shear)
         self.angles_deg = tuple(float(a) for a in angles_deg)
@@ -155,16 +162,23 @@ class RVEStudy:
             raise InputError("RVEStudy: call run() first; no result exists yet")
         return self._result
 
-    def run(self) -> "RVEStudy":
+    def run(self) -> RVEStudy:
         names = _sorted_names(self.packings)
-        mat = TaylorMaterial({k: self.packings[k] for k in names}, self.normal_stiffness)
         R, Q, S1 = len(names), len(PATHS), self.steps + 1
         drive = np.array([d for d, _ in self._paths])
         F = np.array([f for _, f in self._paths])  # (Q, S1, 2, 2)
-        Fall = np.broadcast_to(F, (R, Q, S1, 2, 2)).reshape(-1, 2, 2)
-        rve = np.repeat(np.arange(R), Q * S1)
-        b = mat.evaluate(np.ascontiguousarray(Fall), rve)
-        fabric = {k: contact_normal_density(self.packings[k], self.angles_deg) for k in names}
+        if self.executor is None or getattr(self.executor, "kind", "") == "in-process":
+            mat = TaylorMaterial({k: self.packings[k] for k in names}, self.normal_stiffness)
+            Fall = np.broadcast_to(F, (R, Q, S1, 2, 2)).reshape(-1, 2, 2)
+            rve = np.repeat(np.arange(R), Q * S1)
+            b = mat.evaluate(np.ascontiguousarray(Fall), rve)
+            fabric = {k: contact_normal_density(self.packings[k], self.angles_deg) for k in names}
+        else:
+            Fr = np.ascontiguousarray(F.reshape(-1, 2, 2))
+            parts = self.executor.map(_one_rve, [(self.packings[k], self.normal_stiffness, Fr, self.angles_deg)
+                                                 for k in names])
+            b = _Stacked(*(np.concatenate([p[i] for p in parts]) for i in range(4)))
+            fabric = {k: p[4] for k, p in zip(names, parts)}
         self._result = StudyResult(
             names=tuple(names),
             sizes=np.array([self.packings[k].n for k in names]),
@@ -180,6 +194,22 @@ class RVEStudy:
             packings={k: self.packings[k] for k in names},
         )
         return self
+
+
+def _one_rve(task):
+    """One RVE's states and fabric (a task of :meth:`RVEStudy.run` on an executor)."""
+    packing, kn, F, angles = task
+    b = TaylorMaterial(packing, kn).evaluate(F, np.zeros(len(F), np.int64))
+    return (np.asarray(b.cauchy), np.asarray(b.piola), np.asarray(b.energy), np.asarray(b.n_contacts),
+            contact_normal_density(packing, angles))
+
+
+@dataclass(frozen=True)
+class _Stacked:
+    cauchy: np.ndarray
+    piola: np.ndarray
+    energy: np.ndarray
+    n_contacts: np.ndarray
 
 
 def load_packings(packings) -> dict:
@@ -340,10 +370,12 @@ def plot_study(result: StudyResult, out_dir) -> list[Path]:
 
 
 def run_study(
-    packings: Mapping, out_dir, normal_stiffness: float = PAPER_NORMAL_STIFFNESS, steps: int = 50
+    packings: Mapping, out_dir, normal_stiffness: float = PAPER_NORMAL_STIFFNESS, steps: int = 50,
+    executor=None,
 ) -> tuple[StudyResult, Path, list[Path]]:
-    """Run, write ``out_dir/rve_study.h5`` and the PNGs; returns (result, h5 path, png paths)."""
-    result = RVEStudy(packings, normal_stiffness=normal_stiffness, steps=steps).run().result
+    """Run, write ``out_dir/rve_study.h5`` and the PNGs; returns (result, h5 path, png paths).
+    ``executor``: see :class:`RVEStudy`."""
+    result = RVEStudy(packings, normal_stiffness=normal_stiffness, steps=steps, executor=executor).run().result
     out_dir = Path(out_dir)
     h5 = write_study(out_dir / "rve_study.h5", result)
     pngs = plot_study(result, out_dir)

@@ -1,4 +1,4 @@
-"""Outputs: von Mises exact cases, VTU fields, HDF5 layout, Table 2, the CLI end to end (continuum)."""
+"""Outputs: von Mises exact cases, VTU fields, equilibrium of the stored stress, Table 2, the CLI."""
 
 import h5py
 import meshio
@@ -34,37 +34,115 @@ def case(tmp_path_factory):
     return out, summary
 
 
-def test_run_writes_every_step(case):
-    out, summary = case
+@pytest.fixture(scope="module")
+def case_all(tmp_path_factory):
+    out = tmp_path_factory.mktemp("slope_all")
+    summary = run_slope_case("service", material=make_continuum("neo-hookean"), out=out, figures="all",
+                             geometry=SMALL_SLOPE, load_steps=2)
+    return out, summary
+
+
+def test_figures_all_writes_every_step(case_all):
+    out, summary = case_all
     assert summary["completed"]
-    n_steps = len(setup_for("service").schedule())
-    assert sorted(p.name for p in out.glob("step_*.vtu")) == [f"step_{k:03d}.vtu" for k in range(1, n_steps + 1)]
-    for name in ("final.png", "load_settlement.png", "table2.md", "report.md", "slope.h5"):
-        assert (out / name).stat().st_size > 0
-    m = meshio.read(out / "step_021.vtu")
+    n_steps = len(setup_for("service", load_steps=2).schedule())
+    for ext in ("vtu", "png"):
+        assert sorted(p.name for p in out.glob(f"step_*.{ext}")) == [f"step_{k:03d}.{ext}"
+                                                                     for k in range(1, n_steps + 1)]
+    m = meshio.read(out / f"step_{n_steps:03d}.vtu")
     assert [c.type for c in m.cells] == ["quad", "vertex"]
     G = 4 * SMALL_SLOPE.columns * SMALL_SLOPE.rows
     assert m.cell_data["von_mises"][1].shape == (G,) and m.cell_data["cauchy"][1].shape == (G, 6)
     assert m.point_data["displacement"].shape[1] == 3
 
 
-def test_hdf5_layout_matches_schema(case):
+def test_figures_final_writes_the_last_state_only(case):
+    """The default: no per-step files; the final picture and VTU (the last converged state)."""
+    out, summary = case
+    assert summary["completed"]
+    assert not list(out.glob("step_*"))
+    for name in ("final.png", "final.vtu", "load_settlement.png", "table2.md", "report.md", "slope.h5"):
+        assert (out / name).stat().st_size > 0
+    assert summary["files"]["state_png"] == out / "final.png"
+    m = meshio.read(out / "final.vtu")
+    with h5py.File(out / "slope.h5") as f:
+        u = f["steps/021/u"][()]
+    assert np.array_equal(m.point_data["displacement"][: len(u), :2], u)
+
+
+def _q1_internal_forces(nodes, elements, piola):
+    """Nodal internal forces f_a = sum_g w_g P_g . dN_a/dX (Nn, 2) of a stored Piola field (G, 2, 2),
+    with Q1 shape functions and 2 x 2 Gauss points written out here (independent of gransim.fem);
+    also returns the Gauss point positions and weights it assumed."""
+    g = 1 / np.sqrt(3)
+    f = np.zeros((len(nodes), 2))
+    pts, wts = [], []
+    P = piola.reshape(len(elements), 4, 2, 2)
+    for e, el in enumerate(elements):
+        xe = nodes[el]
+        for k, (xi, eta) in enumerate([(-g, -g), (g, -g), (g, g), (-g, g)]):
+            dN = 0.25 * np.array([[-(1 - eta), -(1 - xi)], [1 - eta, -(1 + xi)], [1 + eta, 1 + xi],
+                                  [-(1 + eta), 1 - xi]])
+            N = 0.25 * np.array([(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta),
+                                 (1 - xi) * (1 + eta)])
+            J = xe.T @ dN
+            w = np.linalg.det(J)
+            dNx = dN @ np.linalg.inv(J)
+            f[el] += w * dNx @ P[e, k].T  # f_ai = P_iJ dN_a/dX_J
+            pts.append(N @ xe)
+            wts.append(w)
+    return f, np.array(pts), np.array(wts)
+
+
+def test_stored_stress_field_carries_the_applied_load(case):
+    """Equilibrium of the output: the stored Piola stress of the final step, integrated with an
+    independent Q1 quadrature, gives base reactions that carry the slope's weight (rho g times the
+    analytic cross-section of the trapezoidal profile) plus the footing force, and the free nodes
+    away from the footing carry only their own weight share (to round-off)."""
+    from gransim.paper import DENSITY, GRAVITY
+
     out, _ = case
+    geo = SMALL_SLOPE
+    area = (geo.toe_height * geo.toe_x + 0.5 * (geo.toe_height + geo.crest_height) * (geo.crest_x - geo.toe_x)
+            + geo.crest_height * (geo.length - geo.crest_x))
     with h5py.File(out / "slope.h5") as f:
         assert f.attrs["kind"] == "fem-slope" and bool(f.attrs["completed"])
+        nodes, elements = f["mesh/nodes"][()], f["mesh/elements"][()]
         g = f["steps/021"]
-        G = f["mesh/gauss_points"].shape[0]
-        for k, shape in (("F", (G, 2, 2)), ("cauchy", (G, 2, 2)), ("von_mises", (G,)), ("det_F", (G,)),
-                         ("n_contacts", (G,))):
-            assert g[k].shape == shape
         assert np.allclose(g.attrs["load"], [1.0, 1.0])
-        # the stored Cauchy stress is P F^T / det F of the stored P and F
-        P, F = g["piola"][()], g["F"][()]
-        sig = np.einsum("giJ,gkJ->gik", P, F) / np.linalg.det(F)[:, None, None]
-        assert np.allclose(sig, g["cauchy"][()])
+        fint, pts, wts = _q1_internal_forces(nodes, elements, g["piola"][()])
+        assert np.allclose(pts, f["mesh/gauss_points"][()], rtol=0, atol=1e-12)
+        assert np.allclose(wts, f["mesh/gauss_weights"][()], rtol=1e-13)
         ls = f["load_settlement"][()]
         assert ls.shape == (len(setup_for("service").schedule()) + 1, 3)
         assert np.all(np.diff(ls[1:, 1]) > 0)  # the footing settles further with every load step
+    assert wts.sum() == pytest.approx(area, rel=1e-12)
+    weight = DENSITY * GRAVITY * area
+    footing = setup_for("service").footing_force
+    base = np.abs(nodes[:, 1]) < 1e-9
+    # an interior node far from the footing: f_int balances its (exactly Q1-integrated) weight
+    from gransim.fem.slope import SlopeSetup
+
+    s = SlopeSetup(geometry=geo)
+    side = (np.abs(nodes[:, 0]) < 1e-9) | (np.abs(nodes[:, 0] - geo.length) < 1e-9)
+    surf = np.abs(nodes[:, 1] - geo.surface(nodes[:, 0])) < 1e-9
+    footing_nodes = surf & (nodes[:, 0] > s.footing_left - 1e-9) & (nodes[:, 0] < s.footing_right + 1e-9)
+    inner = np.flatnonzero(~base & ~side & ~footing_nodes)
+    body = np.zeros((len(nodes), 2))
+    gp = 1 / np.sqrt(3)
+    for el in elements:  # consistent body force vector int N_a b dV, 2 x 2 Gauss (exact for Q1 x det J)
+        xe = nodes[el]
+        for xi, eta in [(-gp, -gp), (gp, -gp), (gp, gp), (-gp, gp)]:
+            N = 0.25 * np.array([(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta),
+                                 (1 - xi) * (1 + eta)])
+            dN = 0.25 * np.array([[-(1 - eta), -(1 - xi)], [1 - eta, -(1 + xi)], [1 + eta, 1 + xi],
+                                  [-(1 + eta), 1 - xi]])
+            body[el, 1] -= DENSITY * GRAVITY * N * np.linalg.det(xe.T @ dN)
+    assert np.abs(fint[inner] - body[inner]).max() <= 1e-9 * np.abs(body).max()
+    # vertical reactions at the base (f_int there minus the body force there) carry weight + footing
+    assert body[:, 1].sum() == pytest.approx(-weight, rel=1e-12)
+    reaction = fint[base, 1].sum() - body[base, 1].sum()
+    assert reaction == pytest.approx(weight - footing, rel=1e-9)  # footing < 0: pushes down
 
 
 def test_table2_lists_the_paper_steps(case):
@@ -121,8 +199,10 @@ def test_acceptance_checks_fail_for_an_inconsistent_tangent():
 
 
 def test_cli_slope_end_to_end(tmp_path, capsys):
-    """`gransim slope` on the full 380-element mesh with the continuum stand-in: exit 0, all outputs."""
+    """`gransim slope` on the full 380-element mesh with the continuum stand-in: exit 0, all outputs;
+    ``--figures none`` writes no picture and no VTU."""
     rc = main(["slope", "--material", "neo-hookean", "--figures", "none", "--out", str(tmp_path)])
     assert rc == 0
     assert "completed all 21 steps" in capsys.readouterr().out
-    assert len(list(tmp_path.glob("step_*.vtu"))) == 21 and (tmp_path / "slope.h5").exists()
+    assert not list(tmp_path.glob("*.vtu")) and not list(tmp_path.glob("*.png"))
+    assert (tmp_path / "slope.h5").exists() and (tmp_path / "checkpoint" / "step_021.h5").exists()

@@ -1,0 +1,143 @@
+"""Checkpoint and resume of a slope run at each converged load step (issue 18 item 5).
+
+The checkpoint (``OUT/checkpoint/step_NNN.h5``, kind ``fem-slope-checkpoint``, one file per step) is
+written atomically after every converged load step (temporary file, fsync, rename:
+:func:`gransim.io.atomic_h5`), with the run's parameters as provenance. Together the files hold what
+the rest of the path depends on:
+
+* ``step``: the converged step (load, cuts, sub-increments, and its final Newton state q, u, F,
+  P, sigma, W, contact counts, energy and residual norms): the outputs of a resumed run (Table 2,
+  load-settlement, slope.h5, pictures) are made from these, and the path continues from the last
+  one's q and load;
+* ``failures/NNNN``: the failed attempts during that step (step, fraction tried, energy norms);
+* ``commits`` (C, G, 2, 2): the F of the Gauss-point history commits during that step (only for a
+  material with history, the relaxed RVE). Resuming replays them in order (evaluate, commit):
+  a relaxed state at a commit depends only on the previous committed state and the committed F
+  (:mod:`gransim.parallel`), so the history is restored bit for bit.
+
+So a resumed run is bitwise equal to an uninterrupted one (tests/cli/test_slope_resume.py). A
+checkpoint written with other parameters is refused, naming the first differing parameter.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, ResultFileError
+from .materials import MaterialResult
+from .solver import NewtonResult, ResumeState, StepRecord
+
+KIND = "fem-slope-checkpoint"
+#: the checkpoint directory inside a run's output directory: one file per converged load step
+NAME = "checkpoint"
+
+
+def step_path(directory, step: int) -> Path:
+    """The checkpoint file of load step ``step`` in ``directory``."""
+    return Path(directory) / f"step_{int(step):03d}.h5"
+
+
+def write_checkpoint(directory, parameters: dict, record, failures: list, commits: list) -> Path:
+    """Write the checkpoint of the converged step ``record`` (a StepRecord) into ``directory``:
+    its state, the failed attempts of that step (``failures``: (step, fraction, energy norms)) and
+    the F of the history commits made during it (``commits``). One small file per step (atomic:
+    temporary file, fsync, rename; the provenance carries ``parameters``), so the cost per step
+    does not grow with the number of steps; a resume reads steps 1, 2, ... up to the first missing one.
+    """
+    from ..io import atomic_h5
+
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    path = step_path(directory, record.step)
+    with atomic_h5(path, kind=KIND, parameters=parameters) as f:
+        f.attrs["step"] = record.step
+        g = f.create_group("step")
+        g.attrs["load"] = np.asarray(record.load, dtype=float)
+        g.attrs["cuts"] = record.cuts
+        g.attrs["substeps"] = np.asarray(record.substeps, dtype=float)
+        s = record.solution
+        for k in ("q", "u", "F", "energy_norms", "residual_norms"):
+            g.create_dataset(k, data=np.asarray(getattr(s, k)))
+        m = s.material
+        for k in ("piola", "cauchy", "energy", "n_contacts"):
+            g.create_dataset(k, data=np.asarray(getattr(m, k)))
+        for n, (step, frac, enorms) in enumerate(failures):
+            h = f.create_group(f"failures/{n:04d}")
+            h.attrs["step"] = int(step)
+            h.attrs["fraction"] = float(frac)
+            h.create_dataset("energy_norms", data=np.asarray(enorms, dtype=float))
+        G = s.F.shape[0]
+        f.create_dataset("commits", data=np.asarray(commits, dtype=float).reshape(-1, G, 2, 2))
+    return path
+
+
+def _params(f) -> dict:
+    v = f.attrs.get("parameters", "{}")
+    return json.loads(v.decode() if isinstance(v, bytes) else v)
+
+
+def check_parameters(stored: dict, current: dict, path) -> None:
+    """Refuse a checkpoint of other parameters: InputError naming the first that differs."""
+    for k in sorted(set(stored) | set(current)):
+        a, b = stored.get(k, "<absent>"), current.get(k, "<absent>")
+        if json.dumps(a, sort_keys=True) != json.dumps(b, sort_keys=True):
+            raise InputError(f"--resume: the checkpoint {path} was written with {k} = {a!r}, this run has "
+                             f"{k} = {b!r}; rerun with the checkpoint's parameters or without --resume")
+
+
+def clear_checkpoint(directory) -> None:
+    """Remove the step files of an earlier run (a fresh run must not leave a mixed checkpoint)."""
+    for p in Path(directory).glob("step_*.h5"):
+        p.unlink()
+
+
+def read_checkpoint(directory, parameters: dict) -> tuple[ResumeState, np.ndarray]:
+    """(ResumeState, commits (C, G, 2, 2)) of the checkpoint in ``directory`` written with ``parameters``."""
+    from ..io import open_result
+
+    directory = Path(directory)
+    if not step_path(directory, 1).exists():
+        raise InputError(f"--resume: no checkpoint in {directory} (a run writes one after its first "
+                         "converged step)")
+    current = json.loads(json.dumps(parameters, default=str))
+    steps, failures, commits = [], [], []
+    k = 1
+    while step_path(directory, k).exists():
+        path = step_path(directory, k)
+        try:
+            f = open_result(path, kind=KIND)
+        except ResultFileError as exc:
+            raise InputError(f"--resume: {exc}") from None
+        with f:
+            check_parameters(_params(f), current, path)
+            g = f["step"]
+            mat = MaterialResult(piola=g["piola"][()], tangent=None, cauchy=g["cauchy"][()],
+                                 energy=g["energy"][()], n_contacts=g["n_contacts"][()])
+            sol = NewtonResult(q=g["q"][()], u=g["u"][()], F=g["F"][()], material=mat,
+                               energy_norms=g["energy_norms"][()], residual_norms=g["residual_norms"][()])
+            steps.append(StepRecord(k, tuple(float(x) for x in g.attrs["load"]), sol, int(g.attrs["cuts"]),
+                                    tuple(float(x) for x in g.attrs["substeps"])))
+            for name in sorted(f["failures"].keys()) if "failures" in f else []:
+                h = f[f"failures/{name}"]
+                failures.append((int(h.attrs["step"]), float(h.attrs["fraction"]),
+                                 list(h["energy_norms"][()])))
+            commits.extend(f["commits"][()])
+        k += 1
+    G = steps[-1].solution.F.shape[0]
+    return ResumeState(steps, failures), np.asarray(commits, dtype=float).reshape(-1, G, 2, 2)
+
+
+def replay_history(material, commits) -> None:
+    """Restore a material's Gauss-point history: evaluate at every committed F and commit."""
+    if not callable(getattr(material, "commit", None)):
+        return
+    for F in commits:
+        material.evaluate(np.ascontiguousarray(F))
+        material.commit()
+
+
+__all__ = ["KIND", "NAME", "check_parameters", "clear_checkpoint", "read_checkpoint", "replay_history",
+           "step_path", "write_checkpoint"]

@@ -1,0 +1,366 @@
+"""One executor for the Gauss points of the FE2 slope, the RVE studies and sweeps: in process or Dask.
+
+``make_executor()`` (in process, the default), ``make_executor(workers=N)`` (a ``dask.distributed``
+LocalCluster of N worker processes, one thread each, no dashboard) or
+``make_executor(scheduler="tcp://host:port")`` (an existing cluster). Every executor offers
+
+* ``map(fn, items)``: stateless tasks, results in the order of ``items`` (``gransim rve-study``,
+  sweeps);
+* ``material(material, n_gauss)``: the material evaluated per Newton iteration at the G Gauss
+  points. In process this is the material itself. On a cluster it is a
+  :class:`DistributedMaterial`: the Gauss points are cut into contiguous blocks, one per worker,
+  and each block lives in a ``distributed`` Actor that owns its part of the material and its
+  Gauss-point history (the relaxed RVE's fluctuations never leave the worker). Per iteration only
+  F goes in and the material response (P, A, and the small per-point sigma, W, contact count)
+  comes back; ``commit`` / ``revert`` are forwarded to every block.
+
+Bitwise reproducibility. The response at a Gauss point depends only on its own F and its own
+committed history: the Taylor kernel sums the active contacts of a candidate set in the order of
+the neighbour list, which is sorted by (i, j, image) whatever F the set was built at, so any valid
+candidate set gives the same bits; the relaxed RVE warm-starts each point from its own committed
+state. So the result is the same, bit for bit, for any number of workers and any block cut
+(tests/fem/test_parallel.py checks in process against a 2-worker LocalCluster).
+
+A lost worker. The driver keeps the F of every commit (G x 4 floats each, only for a material
+with history). When a block's worker is lost (the Actor's calls fail), the block is rebuilt on a
+live worker from its pristine copy and the commits are replayed (evaluate at each committed F,
+commit): the relaxed state at a commit depends only on the previous committed state and the
+committed F, so the replay restores it exactly; then the interrupted call is repeated. The
+checkpoint of a slope run (:mod:`gransim.fem.checkpoint`) restores the history the same way.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+
+import numpy as np
+
+from .errors import GransimError, InputError
+
+#: seconds to wait for a worker to come back after a loss before giving up
+RECOVERY_TIMEOUT = 300.0
+#: most recoveries of one call before the error is raised
+MAX_RECOVERIES = 3
+
+
+class ExecutorError(GransimError):
+    """The cluster cannot run the work (no worker came back after a loss, scheduler gone)."""
+
+
+def split_material(material, index: np.ndarray):
+    """The part of ``material`` that evaluates the Gauss points ``index`` (K,) int.
+
+    A material with one RVE index per Gauss point (``rve_index`` and ``material``, e.g.
+    :class:`gransim.fem.materials.AssignedRVEs`) gets the slice of its index; any other batched
+    material evaluates any number of points and is returned as it is (it is copied to its worker).
+    """
+    ri = getattr(material, "rve_index", None)
+    inner = getattr(material, "material", None)
+    if ri is not None and inner is not None:
+        return type(material)(inner, np.asarray(ri)[index])
+    return material
+
+
+def _history(material, action: str, *args):
+    fn = getattr(material, action, None)
+    return fn(*args) if callable(fn) else None
+
+
+class GaussBlock:
+    """A block of Gauss points on a worker (a ``distributed`` Actor): its material and its history."""
+
+    def __init__(self, material):
+        self.material = material
+
+    def evaluate(self, F):
+        """(piola, tangent, cauchy, energy, n_contacts) of the block's F (K, 2, 2)."""
+        b = self.material.evaluate(F)
+        return (np.asarray(b.piola), np.asarray(b.tangent), np.asarray(b.cauchy), np.asarray(b.energy),
+                np.asarray(b.n_contacts))
+
+    def commit(self) -> None:
+        """Commit the block's trial history."""
+        _history(self.material, "commit")
+
+    def revert(self) -> None:
+        """Drop the block's trial history."""
+        _history(self.material, "revert")
+
+    def committed_fluctuation(self, g: int):
+        """Committed fluctuation of local Gauss point g (None for a history-free material)."""
+        return _history(self.material, "committed_fluctuation", int(g))
+
+    def pid(self) -> int:
+        """The worker's process id (tests use it to kill the worker)."""
+        import os
+
+        return os.getpid()
+
+
+class BatchResult:
+    """The response assembled from the blocks (fields as :class:`gransim.fem.materials.MaterialResult`)."""
+
+    __slots__ = ("cauchy", "energy", "n_contacts", "piola", "tangent")
+
+    def __init__(self, piola, tangent, cauchy, energy, n_contacts):
+        self.piola, self.tangent, self.cauchy, self.energy, self.n_contacts = (piola, tangent, cauchy, energy,
+                                                                                n_contacts)
+
+
+class DistributedMaterial:
+    """A batched material whose Gauss points live in Actors on a Dask cluster (module docstring).
+
+    Parameters
+    ----------
+    material : the batched material (``evaluate(F)``, optional ``commit`` / ``revert``)
+    executor : :class:`DaskExecutor`
+    n_gauss : int, the number G of Gauss points every ``evaluate`` receives
+    n_blocks : int, default the number of workers
+    """
+
+    def __init__(self, material, executor: DaskExecutor, n_gauss: int, n_blocks: int | None = None):
+        self.template = material
+        self.executor = executor
+        self.n_gauss = int(n_gauss)
+        nb = max(1, min(int(n_blocks or executor.n_workers), self.n_gauss))
+        edges = np.linspace(0, self.n_gauss, nb + 1).round().astype(int)
+        self.index = [np.arange(a, b) for a, b in itertools.pairwise(edges)]
+        self.starts = edges[:-1]
+        self._blocks = [split_material(material, ix) for ix in self.index]
+        self.has_history = callable(getattr(getattr(material, "material", material), "commit", None))
+        self._log: list[np.ndarray] = []  # F (G, 2, 2) of every commit (materials with history)
+        self._trial: np.ndarray | None = None
+        self.recoveries = 0
+        workers = executor.workers()
+        self._actors = [self._spawn(i, workers[i % len(workers)]) for i in range(nb)]
+
+    # -- the material protocol ----------------------------------------------------------------
+    @property
+    def packings(self):
+        """The RVEs' reference packings (of the template)."""
+        return self.template.packings
+
+    @property
+    def normal_stiffness(self):
+        """kn of the RVE contact law (of the template)."""
+        return self.template.normal_stiffness
+
+    @property
+    def rve_index(self):
+        """RVE index per Gauss point, or None."""
+        return getattr(self.template, "rve_index", None)
+
+    def evaluate(self, F) -> BatchResult:
+        """The response at all G Gauss points, each block on its worker."""
+        F = np.ascontiguousarray(F, dtype=float)
+        if F.shape != (self.n_gauss, 2, 2):
+            raise InputError(f"F: expected shape ({self.n_gauss}, 2, 2) (the distributed Gauss points), got "
+                             f"{F.shape}")
+        parts = self._call_all("evaluate", [F[ix] for ix in self.index])
+        self._trial = F.copy()
+        return BatchResult(*(np.concatenate([p[k] for p in parts]) for k in range(5)))
+
+    def commit(self) -> None:
+        """Commit every block's trial history (and log the committed F for a recovery)."""
+        if self.has_history:
+            if self._trial is None:
+                raise InputError("commit: no trial state (call evaluate first, or it was reverted)")
+            self._log.append(self._trial)
+        self._trial = None
+        self._call_all("commit", [() for _ in self.index], star=True)
+
+    def revert(self) -> None:
+        """Drop every block's trial history."""
+        self._trial = None
+        self._call_all("revert", [() for _ in self.index], star=True)
+
+    def committed_fluctuation(self, g: int):
+        """The committed fluctuation of Gauss point g from its worker (None for Taylor)."""
+        g = int(g)
+        i = int(np.searchsorted(self.starts, g, side="right") - 1)
+        return self._call(i, "committed_fluctuation", (g - int(self.starts[i]),))
+
+    def close(self) -> None:
+        """Release the Actors."""
+        self._actors = []
+
+    # -- machinery ----------------------------------------------------------------------------
+    def _spawn(self, i: int, worker: str | None = None):
+        kw = {"workers": [worker]} if worker else {}
+        fut = self.executor.client.submit(GaussBlock, self._blocks[i], actor=True, pure=False, **kw)
+        return fut.result()
+
+    def _call_all(self, method: str, args: list, star: bool = False):
+        futs = [getattr(a, method)(*(x if star else (x,))) for a, x in zip(self._actors, args)]
+        out = []
+        for i, (f, x) in enumerate(zip(futs, args)):
+            try:
+                out.append(f.result())
+            except Exception as exc:
+                if not self._lost(i, exc):
+                    raise
+                out.append(self._recover_and_call(i, method, x if star else (x,)))
+        return out
+
+    def _call(self, i: int, method: str, args: tuple):
+        try:
+            return getattr(self._actors[i], method)(*args).result()
+        except Exception as exc:
+            if not self._lost(i, exc):
+                raise
+            return self._recover_and_call(i, method, args)
+
+    def _lost(self, i: int, exc: Exception) -> bool:
+        """True when block i's worker is gone (the Actor's calls fail), not a material error."""
+        if isinstance(exc, GransimError):
+            return False
+        try:
+            from distributed.comm.core import CommClosedError
+        except ImportError:  # pragma: no cover
+            CommClosedError = OSError
+        if isinstance(exc, (OSError, CommClosedError)) or "Actor was lost" in str(exc):
+            return True
+        addr = getattr(self._actors[i], "_address", None)
+        return addr is not None and addr not in self.executor.workers()
+
+    def _recover_and_call(self, i: int, method: str, args: tuple):
+        for attempt in range(MAX_RECOVERIES):
+            self.executor.wait_for_workers(1, RECOVERY_TIMEOUT)
+            try:
+                self._actors[i] = self._spawn(i)
+                self.recoveries += 1
+                ix = self.index[i]
+                a = self._actors[i]
+                for Fc in self._log:  # replay the committed history (module docstring)
+                    a.evaluate(Fc[ix]).result()
+                    a.commit().result()
+                return getattr(a, method)(*args).result()
+            except Exception as exc:
+                if attempt == MAX_RECOVERIES - 1 or not self._lost(i, exc):
+                    raise
+        raise ExecutorError(f"Gauss-point block {i}: no worker could take it over")  # pragma: no cover
+
+
+class InProcess:
+    """The default executor: everything in this process."""
+
+    kind = "in-process"
+    n_workers = 1
+
+    def map(self, fn, items) -> list:
+        """``[fn(x) for x in items]``."""
+        return [fn(x) for x in items]
+
+    def material(self, material, n_gauss: int | None = None):
+        """The material itself (evaluated here)."""
+        return material
+
+    def describe(self) -> str:
+        """One line for reports."""
+        return "in process"
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class DaskExecutor:
+    """A ``dask.distributed`` client: a LocalCluster of ``workers`` processes or ``scheduler``'s cluster."""
+
+    kind = "dask"
+
+    def __init__(self, workers: int | None = None, scheduler: str | None = None, timeout: float = 30.0):
+        from distributed import Client, LocalCluster
+
+        self.cluster = None
+        if scheduler is not None:
+            try:
+                self.client = Client(scheduler, timeout=timeout)
+            except (OSError, TimeoutError) as exc:
+                raise InputError(f"--scheduler: cannot reach a Dask scheduler at {scheduler!r} "
+                                 f"({exc})") from None
+        else:
+            self.cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
+                                        dashboard_address=None)
+            self.client = Client(self.cluster)
+            self.client.wait_for_workers(int(workers), timeout=timeout)
+        self.scheduler = scheduler
+
+    def workers(self) -> list[str]:
+        """Addresses of the live workers, sorted."""
+        return sorted(self.client.scheduler_info()["workers"])
+
+    @property
+    def n_workers(self) -> int:
+        """Number of live workers."""
+        return len(self.workers())
+
+    def wait_for_workers(self, n: int, timeout: float) -> None:
+        """Block until ``n`` workers are up (a lost LocalCluster worker is restarted by its nanny)."""
+        t0 = time.monotonic()
+        while self.n_workers < n:
+            if time.monotonic() - t0 > timeout:
+                raise ExecutorError(f"no Dask worker available after {timeout:.0f} s")
+            time.sleep(0.1)
+
+    def map(self, fn, items) -> list:
+        """``fn`` on every item on the cluster; results in the order of ``items``."""
+        items = list(items)
+        return self.client.gather(self.client.map(fn, items, pure=False))
+
+    def material(self, material, n_gauss: int):
+        """A :class:`DistributedMaterial` of ``material`` at ``n_gauss`` Gauss points."""
+        return DistributedMaterial(material, self, n_gauss)
+
+    def describe(self) -> str:
+        """One line for reports."""
+        where = self.scheduler or "a LocalCluster"
+        return f"Dask, {self.n_workers} workers on {where}"
+
+    def close(self) -> None:
+        """Close the client and (when this executor started it) the LocalCluster."""
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def make_executor(workers=None, scheduler: str | None = None):
+    """The executor of the options: none (in process), ``--workers N`` or ``--scheduler ADDRESS``."""
+    if workers is not None and scheduler is not None:
+        raise InputError("--workers and --scheduler: give one of them (a LocalCluster of N workers, or an "
+                         "existing cluster's scheduler address)")
+    if scheduler is not None:
+        if not isinstance(scheduler, str) or "://" not in scheduler and ":" not in scheduler:
+            raise InputError(f"--scheduler: expected a scheduler address such as tcp://host:8786, got "
+                             f"{scheduler!r}")
+        return DaskExecutor(scheduler=scheduler)
+    if workers is None:
+        return InProcess()
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise InputError(f"--workers: expected an integer >= 1 (Dask worker processes), got {workers!r}")
+    return DaskExecutor(workers=int(workers))
+
+
+def add_options(parser) -> None:
+    """``--workers N`` and ``--scheduler ADDRESS`` on a command's parser."""
+    parser.add_argument("--workers", type=int, default=None, metavar="N",
+                        help="evaluate on a dask.distributed LocalCluster of N worker processes (one thread "
+                             "each); default: in process")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="evaluate on an existing Dask cluster (e.g. tcp://host:8786)")
+
+
+__all__ = ["DaskExecutor", "DistributedMaterial", "ExecutorError", "GaussBlock", "InProcess", "add_options",
+           "make_executor", "split_material"]

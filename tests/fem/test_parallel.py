@@ -1,0 +1,175 @@
+"""Gauss points on Dask (gransim.parallel): bitwise the same as in process, and a lost worker recovered.
+
+One LocalCluster for the module (processes, 2 workers, 1 thread each, no dashboard), always closed.
+The reduced slope with two lattice RVEs in turn (Taylor, the paper load: cut steps and a limit) and a
+clamped box with a relaxed RVE (Gauss-point history on the workers) are solved in process and on
+the cluster; every array of every converged step must be equal, bit for bit. A worker is killed
+(SIGKILL) mid-run: its Gauss-point block is rebuilt on a live worker from the committed history and
+the run ends with the same arrays.
+"""
+
+import os
+import signal
+
+import numpy as np
+import pytest
+from fem_helpers import SMALL_SLOPE, triangular_packing
+
+from gransim.errors import InputError
+from gransim.fem import DofMap, Problem, rectangle_mesh, run_load_steps
+from gransim.fem.materials import AssignedRVEs, RVEMaterial
+from gransim.fem.slope import setup_for, slope_problem
+from gransim.parallel import DistributedMaterial, InProcess, make_executor
+
+rve = pytest.importorskip("gransim.rve")
+pytest.importorskip("distributed")
+
+KN = 2.8e7
+
+
+@pytest.fixture(scope="module")
+def dask2():
+    ex = make_executor(workers=2)
+    try:
+        yield ex
+    finally:
+        ex.close()
+
+
+def _taylor():
+    from gransim.fem.materials import OrderedTaylorMaterial
+
+    mat = OrderedTaylorMaterial([triangular_packing(5, 6, 1.0005, 0.0002, seed=s) for s in (1, 2)], KN)
+    return RVEMaterial(AssignedRVEs(mat, np.arange(200) % 2))
+
+
+def _box(material):
+    mesh = rectangle_mesh(2, 2, 3.0, 3.0, distort=0.15, seed=2)
+    X = mesh.nodes
+    bnd = np.flatnonzero((X[:, 0] == 0) | (X[:, 0] == 3) | (X[:, 1] == 0) | (X[:, 1] == 3))
+    return Problem(mesh, material, DofMap.build(X, np.concatenate([2 * bnd, 2 * bnd + 1])),
+                   body_force=(0.0, -2.5e3 * 9.81))
+
+
+def _relaxed():
+    return rve.RelaxedMaterial(triangular_packing(6, 6, swell=1.0005, jitter=0.02, seed=1), KN)
+
+
+RELAXED_PATH = [(1e-4, 0.0), (2e-4, 0.0)]
+
+
+def _arrays(res):
+    out = []
+    for s in res.steps:
+        sol = s.solution
+        out += [sol.q, sol.u, sol.F, np.asarray(sol.material.piola), np.asarray(sol.material.tangent),
+                np.asarray(sol.material.cauchy), np.asarray(sol.material.n_contacts), sol.energy_norms,
+                np.asarray(s.substeps)]
+    if res.limit and res.limit["partial"] is not None:
+        out += [res.limit["partial"].q, np.asarray(res.limit["last_converged_load"])]
+    return out
+
+
+def _assert_same(a, b):
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        assert x.shape == y.shape and np.array_equal(x, y)
+
+
+def _taylor_run(material, on_step=None):
+    setup = setup_for("paper", SMALL_SLOPE, load_steps=5)
+    return run_load_steps(slope_problem(material, setup), setup.schedule(), min_fraction=1 / 16,
+                          on_step=on_step)
+
+
+def test_taylor_slope_bitwise_in_process_and_on_two_workers(dask2):
+    ref = _taylor_run(_taylor())
+    assert len(ref.steps) >= 3 and not ref.completed and any(s.cuts for s in ref.steps) or ref.failures
+    m = _taylor()
+    dist = RVEMaterial(dask2.material(m.rve, 200))
+    assert isinstance(dist.rve, DistributedMaterial) and len(dist.rve.index) == 2
+    _assert_same(_arrays(ref), _arrays(_taylor_run(dist)))
+
+
+def _relaxed_run(material, on_step=None):
+    return run_load_steps(_box(material), RELAXED_PATH, tol=1e-9, max_iter=2, on_step=on_step)
+
+
+def test_relaxed_history_stays_on_workers_and_is_bitwise(dask2):
+    local = _relaxed()
+    ref = _relaxed_run(local)
+    assert ref.completed
+    dist = DistributedMaterial(_relaxed(), dask2, 16)
+    res = _relaxed_run(dist)
+    _assert_same(_arrays(ref), _arrays(res))
+    moved = 0
+    for g in range(16):  # the history itself, fetched from the worker that owns it
+        w_local, w_remote = local.committed_fluctuation(g), dist.committed_fluctuation(g)
+        assert np.array_equal(w_local, w_remote)
+        moved += np.abs(w_local).max() > 0
+    assert moved == 16  # not trivially empty
+    assert dist.recoveries == 0
+
+
+def _kill_worker_of_block(dist, block=0):
+    pid = dist._actors[block].pid().result()
+    os.kill(pid, signal.SIGKILL)
+
+
+def test_lost_worker_is_recovered_relaxed(dask2):
+    """Kill the worker holding block 0 after step 1: step 2 rebuilds the block from the committed
+    history (replay) on a live worker; the run ends with the in-process arrays and history."""
+    local = _relaxed()
+    ref = _relaxed_run(local)
+    dist = DistributedMaterial(_relaxed(), dask2, 16)
+
+    def on_step(rec):
+        if rec.step == 1:
+            _kill_worker_of_block(dist, 0)
+
+    res = _relaxed_run(dist, on_step)
+    assert dist.recoveries >= 1
+    _assert_same(_arrays(ref), _arrays(res))
+    for g in range(16):
+        assert np.array_equal(local.committed_fluctuation(g), dist.committed_fluctuation(g))
+    dask2.wait_for_workers(2, 600)  # the nanny restarts the killed worker (slow on a loaded machine)
+
+
+def test_lost_worker_is_recovered_taylor(dask2):
+    ref = _taylor_run(_taylor())
+    m = _taylor()
+    dist = RVEMaterial(dask2.material(m.rve, 200))
+
+    def on_step(rec):
+        if rec.step == 2:
+            _kill_worker_of_block(dist.rve, 1)
+
+    res = _taylor_run(dist, on_step)
+    assert dist.rve.recoveries >= 1
+    _assert_same(_arrays(ref), _arrays(res))
+    dask2.wait_for_workers(2, 600)  # the nanny restarts the killed worker (slow on a loaded machine)
+
+
+def test_executor_map_keeps_order(dask2):
+    assert dask2.map(abs, [-3, 1, -2]) == [3, 1, 2] == InProcess().map(abs, [-3, 1, -2])
+
+
+def test_executor_options_are_checked():
+    with pytest.raises(InputError, match="--workers"):
+        make_executor(workers=0)
+    with pytest.raises(InputError, match="give one of them"):
+        make_executor(workers=2, scheduler="tcp://127.0.0.1:1")
+    with pytest.raises(InputError, match="--scheduler"):
+        make_executor(scheduler="nonsense")
+    assert isinstance(make_executor(), InProcess)
+
+
+def test_existing_cluster_by_scheduler_address(dask2):
+    """--scheduler ADDRESS: a client of an existing cluster; closing it leaves the cluster running."""
+    ex = make_executor(scheduler=dask2.cluster.scheduler_address)
+    try:
+        assert ex.cluster is None and ex.n_workers >= 1
+        assert ex.map(abs, [-1, -2]) == [1, 2]
+    finally:
+        ex.close()
+    assert dask2.map(abs, [-5]) == [5]
