@@ -16,10 +16,20 @@ servo) to show that the cases can fail.
 from __future__ import annotations
 
 import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from gransim.contacts import find_neighbours
+from gransim.dem import DEMEngine
+from gransim.voidcell import Snapshot
+from reference_runs.decks.biaxial import write_biaxial_deck
+from reference_runs.parsers import parse_dump_custom, parse_log
+from reference_runs.runner import run_job
+
+from .core import default_job_timeout, evidence
 
 #: per-particle columns of a frame
 FRAME_KEYS = ("x", "v", "w", "f", "t")
@@ -60,16 +70,14 @@ def _frame(eng) -> dict:
 
 
 def run_native(packing, settings, loading, nsteps: int, dump_every: int, velocities=None,
-               spins=None, thermo_every: int = 1) -> Trajectory:
+               spins=None, thermo_every: int = 1, law=None, check_dt: bool = True) -> Trajectory:
     """Run the native engine (serial mode, the mode compared step for step) from ``packing``; the
-    series keeps every ``thermo_every``-th step (as the LIGGGHTS deck's thermo)."""
-    import time
-
-    from gransim.dem import DEMEngine
-
+    series keeps every ``thermo_every``-th step (as the LIGGGHTS deck's thermo). ``law``: a
+    contact law object of :mod:`gransim.contacts.laws` (None: the Hooke law of ``settings``)."""
     settings, loading = native_setup(settings, loading)
     t0 = time.perf_counter()
-    eng = DEMEngine(packing, settings, velocities=velocities, spins=spins)
+    kw = {} if law is None else {"law": law}
+    eng = DEMEngine(packing, settings, velocities=velocities, spins=spins, check_dt=check_dt, **kw)
     box0 = (eng.lo.copy(), eng.hi.copy())
     st = [np.array([eng.stress[0, 0], eng.stress[1, 1], eng.stress[0, 1]])[None]]
     L = [eng.box_lengths.copy()[None]]
@@ -93,8 +101,6 @@ def read_reference(log_path, dump_path) -> Trajectory:
     """A trajectory from the log (thermo: step lx ly xlo xhi ylo yhi c_pt[1] c_pt[2] c_pt[4]) and the
     ``dump custom`` (id x y vx vy omegaz fx fy tqz mass radius) of a deck of
     :func:`reference_runs.decks.biaxial.write_biaxial_deck`."""
-    from reference_runs.parsers import parse_dump_custom, parse_log
-
     run = parse_log(Path(log_path)).runs[-1]
     steps = run.steps
     stress = np.stack([run["c_pt[1]"], run["c_pt[2]"], run["c_pt[4]"]], axis=1)
@@ -116,26 +122,24 @@ CODE_NAMES = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}
 
 def run_reference_job(job_dir, packing, settings, loading, nsteps: int, dump_every: int, velocities=None,
                       spins=None, np_procs: int = 1, thermo_every: int = 1, timeout: float | None = None,
-                      engine: str = "liggghts") -> tuple[Trajectory, dict]:
+                      engine: str = "liggghts", law=None) -> tuple[Trajectory, dict]:
     """Write the mirror deck of the run for ``engine`` ("liggghts" or "lammps") and run it in
     ``job_dir`` (reused when complete).
 
     ``timeout`` (s) kills the job (and its process group) when exceeded; None scales it with the
     work (:data:`validation.core.JOB_TIMEOUT_PER_PSTEP`). Returns the trajectory and the job
     manifest (command, version, elapsed time, hashes). Both codes' decks print the same thermo
-    and dump columns, so one reader serves both.
+    and dump columns, so one reader serves both. ``law``: a contact law object (None: the Hooke
+    law of ``settings``), written into the deck in ``engine``'s syntax.
     """
     if timeout is None:
-        from .core import default_job_timeout
-
         timeout = default_job_timeout(packing.n * nsteps)
-    from reference_runs.decks.biaxial import write_biaxial_deck
-    from reference_runs.runner import run_job
 
     kw = {} if engine == "liggghts" else {"engine": engine}
+    lkw = {} if law is None else {"law": law}
     with tempfile.TemporaryDirectory() as tmp:
         deck = write_biaxial_deck(tmp, packing, settings, loading, nsteps, thermo_every=thermo_every,
-                                  dump_every=dump_every, velocities=velocities, spins=spins, **kw)
+                                  dump_every=dump_every, velocities=velocities, spins=spins, **kw, **lkw)
         files = {q.name: q.read_bytes() for q in Path(tmp).iterdir() if q.is_file() and q != deck}
         res = run_job(job_dir, deck.read_text(), files=files, np=np_procs, outputs=("dump.atoms",),
                       expected_runs=1, progress=False, timeout=timeout, **kw)
@@ -172,8 +176,6 @@ def trajectory_evidence(label: str, who: str, tr: Trajectory, steps, frames) -> 
     only if it holds every per-particle column for the same number of particles as frame 0 and
     finite values.
     """
-    from .core import evidence
-
     recs = []
     if steps is not None:
         have = set(int(s) for s in tr.steps[np.all(np.isfinite(tr.stress), axis=1)]) if len(tr.steps) else set()
@@ -253,9 +255,6 @@ def snapshot(tr: Trajectory, step: int, radii: np.ndarray, dt: float):
     use one contact definition. Velocities: both codes deform the box with ``remap x``, so the
     stored v lacks the affine streaming; it is added, v + (dC/dt) C^{-1} x (voidcell notes).
     """
-    from gransim.contacts import find_neighbours
-    from gransim.voidcell import Snapshot
-
     fr = tr.frames[step]
     C = np.diag(tr.lengths[tr.at([step])[0]])
     Cd = cell_rate(tr, step, dt)
