@@ -21,7 +21,14 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	@touch $(STAMP)
 
-setup: $(STAMP) engines browser
+# compile every command's numba kernels into NUMBA_CACHE_DIR (gransim warmup, docs/startup.md), so
+# that a first run does not wait for numba; redone when a source file is newer than the stamp (the
+# stamp takes the time the warm-up started: a file edited during it is warmed again next time)
+WARM := $(VENV)/.gransim-warm
+$(WARM): $(STAMP) $(shell find gransim -name '*.py' 2>/dev/null)
+	@t=$$(date +%s.%N); $(VENV)/bin/gransim warmup && touch -d "@$$t" $@
+
+setup: $(STAMP) $(WARM) engines browser
 
 # the two established DEM codes the validation compares with: LIGGGHTS (binary `liggghts`, Debian
 # package `liggghts`) and LAMMPS (binary `lmp`, Debian package `lammps`). As root, the missing ones
@@ -73,3 +80,9 @@ bench: setup
 
 clean:
 	rm -rf results .pytest_cache
+
+# the test suite as plain Python (NUMBA_DISABLE_JIT=1) under coverage.py: per-module table in
+# results/coverage/report.txt and docs/coverage.md (.ci/coverage; not part of make test)
+.PHONY: coverage
+coverage: $(STAMP) engines
+	.ci/coverage

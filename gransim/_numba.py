@@ -5,6 +5,17 @@ Every kernel in the package is compiled through :func:`njit` (serial) or
 
 * ``cache=True``: compiled machine code is kept on disk (``NUMBA_CACHE_DIR``),
   so only the first run after a change pays the compile time.
+* One cache for every way gransim is run (``make``, ``.venv/bin/gransim``, ``python -c "import
+  gransim"``, Dask workers): when ``NUMBA_CACHE_DIR`` is not set, ``import gransim`` sets it,
+  before gransim imports numba, to ``sys.prefix/numba-cache`` inside a writable virtual
+  environment (the checkout's ``.venv/numba-cache``, which ``make`` exports too), else to
+  ``$XDG_CACHE_HOME/gransim/numba`` (default ``~/.cache/gransim/numba``); child processes inherit
+  it. A value the user set, even an empty one (numba's own default: ``__pycache__`` beside the
+  sources), is kept. When numba was imported before gransim, numba has already read its
+  environment: gransim then also sets ``numba.config.CACHE_DIR``, which every kernel decorated
+  afterwards (all of gransim's) uses; the user's own kernels decorated before ``import gransim``
+  keep numba's default. ``make`` fills the cache for every command (``gransim warmup``,
+  docs/startup.md).
 * ``fastmath=False``: floating point follows IEEE order exactly. The DEM engine
   is compared with LIGGGHTS bit for bit, which re-association would break.
 * ``error_model="numpy"``: division by zero gives inf/nan instead of raising

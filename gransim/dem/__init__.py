@@ -4,7 +4,6 @@ biaxial test of Kuhn (1997), section 4. See docs/dem.md and docs/schema_dem.md; 
 
 from .biaxial import BiaxialSettings, default_settings, inertial_number, run_biaxial
 from .engine import DEMEngine, contact_time, damping_ratio, fingerprint, stability_limit
-from .fast import FastEngine
 from .output import (
     OutputSettings,
     plot_stress_strain,
@@ -15,7 +14,19 @@ from .output import (
 )
 from .run import Phase, run_phases
 from .settings import AxisControl, DEMSettings, Loading, PrescribedBox
-from .sheared import ShearEngine, ShearLoading, simple_shear
+
+#: names imported on first use (PEP 562): the fast path and the sheared cell are not needed by a
+#: biaxial run, and importing them decorates their kernels (start-up time, docs/startup.md)
+_LAZY = {"FastEngine": ".fast", "ShearEngine": ".sheared", "ShearLoading": ".sheared", "simple_shear": ".sheared"}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib  # lazy: see _LAZY
+
+        return getattr(importlib.import_module(_LAZY[name], __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = ["AxisControl", "BiaxialSettings", "DEMEngine", "DEMSettings", "FastEngine", "Loading", "OutputSettings", "Phase",
            "PrescribedBox", "ShearEngine", "ShearLoading", "contact_time", "damping_ratio", "default_settings",
