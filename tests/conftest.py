@@ -1,10 +1,70 @@
+"""Shared fixtures and collection rules of the test suite.
+
+Plain-Python mode (``NUMBA_DISABLE_JIT=1``, ``make coverage``, docs/coverage.md)
+-------------------------------------------------------------------------------
+With ``NUMBA_DISABLE_JIT=1`` every gransim kernel runs as ordinary Python, which is what lets
+``coverage`` see inside them, and is 10^2-10^3 times slower. Tests that only exist to run many DEM
+steps or to drive the reference codes are then skipped by one documented rule: each node-id
+pattern in :data:`JIT_HEAVY` (``fnmatch`` on the node id) carries the reason it is too slow as
+plain Python; matching tests get the marker ``jit_heavy`` and are skipped in that mode only (the
+JIT-compiled ``make test`` runs them all). ``GRANSIM_PLAIN_PYTHON_ALL=1`` runs them anyway.
+
+``GRANSIM_TEST_BUDGET=<seconds>`` (any mode) fails a test that runs longer than that, with the
+message naming the budget: how the patterns below were found (docs/coverage.md).
+"""
+
+import fnmatch
 import os
 import shutil
+import signal
 
 import numpy as np
 import pytest
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+#: numba runs as plain Python (numba reads the variable once, at import; "0"/"" mean JIT on)
+PLAIN_PYTHON = os.environ.get("NUMBA_DISABLE_JIT", "0") not in ("", "0")
+
+_STEPS = "a DEM run of thousands of steps compared step for step"
+_CACHE = "compiles numba kernels into a fresh cache in child processes (a JIT test by design)"
+_LONG = "a long DEM run (hundreds of disks or thousands of steps)"
+
+#: ``(node-id pattern, reason)``: tests too slow as plain Python. Each pattern's tests exceeded a
+#: 20 s budget in one plain-Python run of the suite (docs/coverage.md, "How the rule was measured")
+JIT_HEAVY: tuple[tuple[str, str], ...] = (
+    (
+        "tests/cli/test_slope_resume.py::test_resume_is_bitwise_the_uninterrupted_run[[]taylor[]]",
+        "two FE2 slope runs with a Taylor RVE at every Gauss point",
+    ),
+    ("tests/dem/test_biaxial_law.py::test_hertz_law_runs_at_the_designed_indentation", _LONG),
+    ("tests/dem/test_energy_balance.py::*", "energy balance over a long undamped DEM run"),
+    ("tests/dem/test_fast.py::test_relaxation_of_1000_disks_within_the_chaos_envelope", _LONG),
+    ("tests/dem/test_fast.py::test_threads_do_not_change_the_result", _LONG),
+    ("tests/dem/test_lammps.py::test_*_run_step_for_step", _STEPS),
+    ("tests/dem/test_lammps.py::test_flavours_differ_and_liggghts_flavour_misses_lammps", _STEPS),
+    ("tests/dem/test_law_plugin.py::test_the_loop_of_a_law_is_loaded_from_the_disk_cache_*", _CACHE),
+    ("tests/dem/test_law_plugin.py::test_a_law_registered_without_cache_leaves_the_shared_*", _CACHE),
+    ("tests/dem/test_law_runs.py::test_stored_run_step_for_step*", _STEPS),
+    ("tests/dem/test_law_runs.py::test_live_*", _STEPS + " (and the reference code run live)"),
+    ("tests/dem/test_liggghts.py::test_*_run_step_for_step", _STEPS),
+    ("tests/dem/test_physics.py::test_energy_conserved_without_damping_and_friction", _LONG),
+    ("tests/dem/test_run.py::test_resume_is_bit_for_bit_and_refuses_other_runs", _LONG),
+    ("tests/dem/test_run.py::test_cli_biaxial_and_export", _LONG),
+    ("tests/dem/test_run.py::test_run_file_layout_and_stress_series", _LONG),
+    ("tests/dem/test_run.py::test_biaxial_protocol_holds_sigma11_and_compresses", _LONG),
+    ("tests/dem/test_sheared.py::test_*run_step_for_step*", _STEPS),
+    ("tests/dem/test_sheared.py::test_zero_tilt_reproduces_orthogonal_engine*", _STEPS),
+    ("tests/dem/test_sheared.py::test_constant_volume_shear_builds_shear_stress", _LONG),
+    ("tests/dem/test_sheared_styles.py::test_box_origin_is_used_as_given", _LONG),
+    ("tests/dem/test_sheared_styles.py::test_fix_deform_n_changes_the_box_on_multiples_*", _LONG),
+    ("tests/dem/test_sheared_styles.py::test_linear_styles_reach_their_end_tilt*", _LONG),
+    (
+        "tests/rve/test_relaxed.py::test_stress_and_tangent_are_derivatives_of_relaxed_energy[[]rve-70*",
+        "finite differences of the relaxed (equilibrated) energy of a 70-disk RVE: > 3 min",
+    ),
+    ("tests/reference_runs/test_ref_native_schema.py::test_stored_biaxial_job_in_native_*", _STEPS),
+)
 
 
 @pytest.fixture
@@ -12,11 +72,74 @@ def rng():
     return np.random.default_rng(12345)
 
 
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers",
+        "jit_heavy: too slow as plain Python (NUMBA_DISABLE_JIT=1): skipped there, see tests/conftest.py JIT_HEAVY",
+    )
+
+
+def _jit_heavy_reason(nodeid: str) -> str | None:
+    for pattern, reason in JIT_HEAVY:
+        if fnmatch.fnmatchcase(nodeid, pattern):
+            return reason
+    return None
+
+
 def pytest_collection_modifyitems(config, items):
     """Tests marked ``lammps`` need the LAMMPS binary ``lmp``: skipped where it is absent (as the
-    ``liggghts`` marker is in tests/reference_runs/conftest.py)."""
+    ``liggghts`` marker is in tests/reference_runs/conftest.py). Tests matching :data:`JIT_HEAVY`
+    are marked ``jit_heavy`` and, as plain Python, skipped with their pattern's reason."""
     if shutil.which("lmp") is None:
         skip = pytest.mark.skip(reason="LAMMPS binary lmp not installed (apt-get install lammps)")
         for item in items:
             if item.get_closest_marker("lammps") is not None:
                 item.add_marker(skip)
+    run_all = os.environ.get("GRANSIM_PLAIN_PYTHON_ALL", "0") not in ("", "0")
+    for item in items:
+        reason = _jit_heavy_reason(item.nodeid)
+        if reason is None:
+            continue
+        item.add_marker(pytest.mark.jit_heavy)
+        if PLAIN_PYTHON and not run_all:
+            item.add_marker(pytest.mark.skip(reason=f"jit_heavy (NUMBA_DISABLE_JIT=1): {reason}"))
+
+
+class _OverBudget(Exception):
+    pass
+
+
+def _budgeted():
+    """Run the wrapped hook (a test's set-up or call) within ``GRANSIM_TEST_BUDGET`` seconds
+    (SIGALRM; main thread, POSIX only). Over budget, the test fails with the message only: the
+    traceback of an exception raised by a signal handler can hold a frame without a line number,
+    which pytest cannot format (INTERNALERROR, measured)."""
+    budget = float(os.environ.get("GRANSIM_TEST_BUDGET", "0") or 0)
+    if budget <= 0 or not hasattr(signal, "setitimer"):
+        return (yield)
+
+    def _alarm(signum, frame):
+        raise _OverBudget(f"test exceeded GRANSIM_TEST_BUDGET={budget:g} s")
+
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.setitimer(signal.ITIMER_REAL, budget)
+    try:
+        return (yield)
+    except _OverBudget as exc:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        pytest.fail(str(exc), pytrace=False)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_setup(item):
+    """The fixtures' set-up of a test counts against ``GRANSIM_TEST_BUDGET`` on its own."""
+    return (yield from _budgeted())
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item):
+    """The test's call: ``GRANSIM_TEST_BUDGET`` seconds (:func:`_budgeted`)."""
+    return (yield from _budgeted())
