@@ -1,12 +1,11 @@
 """Periodic neighbour (contact candidate) search: a linked-cell list in fractional coordinates.
 
-For a cell C (columns a1, a2) the unit square of fractional coordinates is cut into
-nb1 x nb2 bins. Two points whose bins differ by more than k1 in the first index are
-farther apart than ``k1 * h1 / nb1`` (h1 = A/|a2|, the distance between the edges
-parallel to a2), so scanning bin offsets -k..k in an *unwrapped* bin lattice finds
-every image within the cutoff, each (pair, image shift) exactly once, for any
-shear and for cells smaller than the cutoff (then several images of one partner,
-or a particle's own image, are returned). Cost O(N) for bins of size ~ cutoff.
+The bins and the stencil walk are :mod:`gransim.geometry.bins` (shared with the crossing test of
+the void-cell graph): bins of the size of the cutoff 2 max(r) + skin in each lattice direction,
+scan offsets -k..k in the unwrapped bin lattice, so every image within the cutoff is found once
+for any shear and for cells smaller than the cutoff (then several images of one partner, or a
+particle's own image, are returned). Two passes of the walk (count, then write into the
+pre-allocated list), O(N) time and memory.
 
 Convention: a pair (i, j, n) means particle j's image x_j + C n is near x_i; its
 branch vector is l_ij = x_j + C n - x_i (from i to j, as l_ij in eq (2) of Meier et al.).
@@ -19,9 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._numba import njit, pjit, prange
 from .._validate import as_array
 from ..errors import InputError
+from ..geometry.bins import bin_layout as _bin_layout
+from ..geometry.bins import pair_list, wrap_fractional
 from ..geometry.cell import cell_heights, check_cell
 
 #: most bins per particle (bounds memory for very sparse or tiny-cutoff inputs)
@@ -65,106 +65,15 @@ class NeighbourList:
         return keys[np.lexsort(keys.T[::-1])]
 
 
-@njit
-def _bin_sort(s, nb1, nb2):
-    n = s.shape[0]
-    nbins = nb1 * nb2
-    b = np.empty(n, np.int64)
-    count = np.zeros(nbins + 1, np.int64)
-    for p in range(n):
-        b1 = int(s[p, 0] * nb1)
-        b2 = int(s[p, 1] * nb2)
-        b1 = min(max(b1, 0), nb1 - 1)
-        b2 = min(max(b2, 0), nb2 - 1)
-        b[p] = b1 * nb2 + b2
-        count[b[p] + 1] += 1
-    for q in range(nbins):
-        count[q + 1] += count[q]
-    order = np.empty(n, np.int64)
-    fill = count[:-1].copy()
-    for p in range(n):
-        order[fill[b[p]]] = p
-        fill[b[p]] += 1
-    return b, count, order
+#: names of the visitor classes of an earlier version: numba's cache index of ``walk_pairs`` may
+#: still name them, and it is unpickled before its stamp is checked (a missing class would crash)
+from ..geometry.bins import _PairCount as _PairCounter  # noqa: F401
+from ..geometry.bins import _PairList as _PairWriter  # noqa: F401
 
 
-@njit
-def _scan_one(i, xw, radii, xs, rs, C, skin, b, start, order, nb1, nb2, k1, k2, out_j, out_t, out_l, base, write):
-    """Visit every image near particle i; count (write=False) or store the pairs.
-
-    Candidates are read from ``xs``/``rs``, copies of positions and radii in bin order, so the
-    inner loop walks contiguous memory; ``order`` maps them back to particle indices.
-    """
-    m = 0
-    bi1 = b[i] // nb2
-    bi2 = b[i] % nb2
-    xi0 = xw[i, 0]
-    xi1 = xw[i, 1]
-    for o1 in range(-k1, k1 + 1):
-        u1 = bi1 + o1
-        w1 = u1 % nb1
-        t1 = (u1 - w1) // nb1
-        for o2 in range(-k2, k2 + 1):
-            u2 = bi2 + o2
-            w2 = u2 % nb2
-            t2 = (u2 - w2) // nb2
-            off0 = C[0, 0] * t1 + C[0, 1] * t2
-            off1 = C[1, 0] * t1 + C[1, 1] * t2
-            q = w1 * nb2 + w2
-            for p in range(start[q], start[q + 1]):
-                j = order[p]
-                if j < i:
-                    continue
-                if j == i and not (t1 > 0 or (t1 == 0 and t2 > 0)):
-                    continue
-                d0 = xs[p, 0] + off0 - xi0
-                d1 = xs[p, 1] + off1 - xi1
-                cut = radii[i] + rs[p] + skin
-                if d0 * d0 + d1 * d1 < cut * cut:
-                    if write:
-                        out_j[base + m] = j
-                        out_t[base + m, 0] = t1
-                        out_t[base + m, 1] = t2
-                        out_l[base + m, 0] = d0
-                        out_l[base + m, 1] = d1
-                    m += 1
-    return m
-
-
-@pjit
-def _cell_list_pairs(xw, s, radii, C, skin, nb1, nb2, k1, k2):
-    n = xw.shape[0]
-    b, start, order = _bin_sort(s, nb1, nb2)
-    xs = np.empty((n, 2))
-    rs = np.empty(n)
-    for p in prange(n):
-        xs[p, 0] = xw[order[p], 0]
-        xs[p, 1] = xw[order[p], 1]
-        rs[p] = radii[order[p]]
-    counts = np.zeros(n + 1, np.int64)
-    dj = np.empty(0, np.int64)
-    dt = np.empty((0, 2), np.int64)
-    dl = np.empty((0, 2))
-    # particles are visited in bin order (i = order[q]) so consecutive iterations scan the same,
-    # cache-resident bins; results still land in the slots of the original index i
-    for q in prange(n):
-        i = order[q]
-        counts[i + 1] = _scan_one(i, xw, radii, xs, rs, C, skin, b, start, order, nb1, nb2, k1, k2,
-                                  dj, dt, dl, 0, False)
-    for i in range(n):
-        counts[i + 1] += counts[i]
-    m = counts[n]
-    out_i = np.empty(m, np.int64)
-    out_j = np.empty(m, np.int64)
-    out_t = np.empty((m, 2), np.int64)
-    out_l = np.empty((m, 2))
-    for q in prange(n):
-        i = order[q]
-        _scan_one(i, xw, radii, xs, rs, C, skin, b, start, order, nb1, nb2, k1, k2,
-                  out_j, out_t, out_l, counts[i], True)
-        for e in range(counts[i], counts[i + 1]):
-            out_i[e] = i
-    return out_i, out_j, out_t, out_l
+def _cell_list_pairs(xw, s, radii, C, skin, nb1, nb2, k1, k2, img):
+    """Pairs in the order of the walk, grouped by i: (i, j, shift, branch)."""
+    return pair_list(xw, s, radii, C, skin, nb1, nb2, k1, k2, img, by_label=True)
 
 
 def _check_inputs(positions, radii, cell, skin):
@@ -179,26 +88,10 @@ def _check_inputs(positions, radii, cell, skin):
     return x, r, C, skin
 
 
-def _wrap_fractional(x, C):
-    """Wrapped positions, their fractional coordinates in [0, 1) and the image counts."""
-    s = x @ np.linalg.inv(C).T
-    n = np.floor(s)
-    sw = s - n
-    top = sw >= 1.0  # round-off at the upper face: the point belongs to the next image
-    sw[top] = 0.0
-    n[top] += 1.0
-    return sw @ C.T, sw, n.astype(np.int64)
-
-
 def bin_layout(cell: np.ndarray, cutoff: float, n_particles: int) -> tuple[int, int, int, int]:
-    """Bins (nb1, nb2) and scan half-widths (k1, k2) for a cutoff (m)."""
-    h = cell_heights(cell)
-    max_bins = max(1, MAX_BINS_PER_PARTICLE * n_particles)
-    nb = [max(1, int(np.floor(hk / cutoff))) for hk in h]
-    while nb[0] * nb[1] > max_bins:
-        nb = [max(1, v // 2) for v in nb]
-    k = [max(1, int(np.ceil(cutoff * nbk / hk - 1e-12))) for nbk, hk in zip(nb, h)]
-    return nb[0], nb[1], k[0], k[1]
+    """Bins (nb1, nb2) and scan half-widths (k1, k2) for a cutoff (m)
+    (:func:`gransim.geometry.bins.bin_layout`)."""
+    return _bin_layout(cell, cutoff, n_particles, MAX_BINS_PER_PARTICLE)
 
 
 def find_neighbours(positions, radii, cell, skin: float = 0.0) -> NeighbourList:
@@ -216,11 +109,11 @@ def find_neighbours(positions, radii, cell, skin: float = 0.0) -> NeighbourList:
     NeighbourList, pairs sorted by i. O(N) time and memory.
     """
     x, r, C, skin = _check_inputs(positions, radii, cell, skin)
-    xw, sw, nimg = _wrap_fractional(x, C)
+    xw, sw, nimg = wrap_fractional(x, C)
     cutoff = 2.0 * float(r.max()) + skin
     nb1, nb2, k1, k2 = bin_layout(C, cutoff, x.shape[0])
-    i, j, t, l = _cell_list_pairs(xw, sw, r, C, skin, nb1, nb2, k1, k2)
-    shift = t + nimg[i] - nimg[j]
+    i, j, shift, l = _cell_list_pairs(xw, sw, np.ascontiguousarray(r), C, skin, nb1, nb2, k1, k2,
+                                      nimg)
     return NeighbourList(i=i, j=j, shift=shift, branch=l)
 
 

@@ -9,7 +9,7 @@ from ..errors import GransimError, InputError
 from .dcel import DCEL, build_dcel
 from .graph import ParticleGraph, build_graph
 from .measures import (alignment, assembly_average, d50_area_weighted, face_gradients,
-                       normalised_vorticity, relative_motion)
+                       halfedge_velocities, normalised_vorticity, relative_motion)
 from .snapshot import Snapshot
 
 #: choices of the reference gradient Lbar in eqs (18)-(21)
@@ -56,8 +56,7 @@ class VoidCells:
                           graph.n_vertices, check_crossings=self.check_crossings)
         v = s.velocities
         Cd = s.cell_velocity
-        dv = v[dcel.dest] - v[dcel.origin]  # eq (5), the head's image moving with (dC/dt) n
-        dv += dcel.shift[:, 0:1] * Cd[:, 0] + dcel.shift[:, 1:2] * Cd[:, 1]
+        dv = halfedge_velocities(dcel.origin, dcel.dest, dcel.shift, v, Cd)  # eq (5)
         L = face_gradients(dcel.face_ptr, dcel.face_halfedges, dcel.vec, dv, dcel.face_area)
         L_cells = assembly_average(L, dcel.face_area)
         Lbar = L_cells if self.reference == "cells" else s.imposed_gradient

@@ -12,9 +12,15 @@ carry the image shifts, a void cell that straddles the periodic boundary closes:
 half-edge vectors is zero. Face areas follow from the lifted polygon (shoelace formula).
 
 Validity checks (a non-planar graph, e.g. from strongly overlapping particles, fails one):
-no two edges of a vertex in the same direction; no two edges crossing (explicit segment test on
-a periodic grid, O(E)); every face closed and of positive area; face areas adding up to the cell
-area; Euler's formula for the torus, F - E + V = 0 (eq 16).
+no two edges of a vertex in the same direction; no two edges crossing (explicit segment test with
+the bin-stencil walk of :mod:`gransim.geometry.bins` over the edge midpoints, O(E)); ``next``
+leaving the particle each half-edge arrives at; every face closed -- its half-edge vectors add
+up to zero within ``AREA_RTOL`` of its perimeter, otherwise it winds around the torus (a wrong
+image shift or an inconsistent rotation system) and the error names the face and its particles;
+every face of positive area; face areas adding up to the cell area; Euler's formula for the
+torus, F - E + V = 0 (eq 16) (a rotation system that is not the drawing's, e.g. two half-edges
+exchanged at one particle, embeds the graph in a surface of higher genus and fails it).
+:func:`faces_from_next` runs the face checks on any ``next`` array.
 """
 
 from __future__ import annotations
@@ -23,10 +29,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._numba import njit
+from .._numba import njit, pjit, prange
 from ..errors import InputError
-from ..geometry.cell import cell_area, cell_heights
-from .graph import halfedge_shifts
+from ..geometry.cell import cell_area
+
+# _CrossingVisitor: a numba cache index of an earlier version names it here (unpickled before its
+# stamp is checked: a missing name would crash the process that loads the walk)
+from ..geometry.segments import _CrossingVisitor, find_crossing  # noqa: F401
 
 #: relative tolerance of the closure and area checks (round-off of sums of O(N) terms)
 AREA_RTOL = 1e-8
@@ -102,12 +111,54 @@ class DCEL:
         return np.cumsum(np.vstack([np.zeros(2), self.vec[hs[:-1]]]), axis=0)
 
 
+@pjit
+def _halfedges(x, C, ei, ej, es):
+    """Half-edges of the edges (2e: i -> j with +n, 2e + 1: j -> i with -n): origin, dest (H,),
+    shift (H, 2), lifted vector vec = x_dest - x_origin + C n_h (H, 2) and its angle (H,)."""
+    ne = ei.shape[0]
+    origin = np.empty(2 * ne, np.int64)
+    dest = np.empty(2 * ne, np.int64)
+    hs = np.empty((2 * ne, 2), np.int64)
+    vec = np.empty((2 * ne, 2))
+    angle = np.empty(2 * ne)
+    for e in prange(ne):
+        for s in range(2):
+            h = 2 * e + s
+            o = ei[e] if s == 0 else ej[e]
+            d = ej[e] if s == 0 else ei[e]
+            n0 = es[e, 0] if s == 0 else -es[e, 0]
+            n1 = es[e, 1] if s == 0 else -es[e, 1]
+            origin[h] = o
+            dest[h] = d
+            hs[h, 0] = n0
+            hs[h, 1] = n1
+            v0 = (x[d, 0] - x[o, 0]) + (n0 * C[0, 0] + n1 * C[0, 1])
+            v1 = (x[d, 1] - x[o, 1]) + (n0 * C[1, 0] + n1 * C[1, 1])
+            vec[h, 0] = v0
+            vec[h, 1] = v1
+            angle[h] = np.arctan2(v1, v0)
+    return origin, dest, hs, vec, angle
+
+
 @njit
+def _first_bad_next(nxt, origin):
+    """First half-edge h whose next does not leave the particle h arrives at (origin of h ^ 1),
+    or whose next is not a half-edge; -1 if none."""
+    H = nxt.shape[0]
+    for h in range(H):
+        g = nxt[h]
+        if g < 0 or g >= H or origin[g] != origin[h ^ 1]:
+            return h
+    return -1
+
+
+@pjit
 def _rotation_next(n, origin, angle):
     """next[h] = the half-edge leaving dest(h) next clockwise from twin(h) = h ^ 1.
 
-    Half-edges are bucketed by origin and each bucket insertion-sorted by angle (degrees are
-    small), O(H). Returns (next, v) with v >= 0 a vertex with two half-edges of equal angle.
+    Half-edges are bucketed by origin (counting sort) and each bucket insertion-sorted by angle
+    (degrees are small), O(H). Returns (next, v) with v >= 0 a vertex with two half-edges of equal
+    angle (the smallest such vertex).
     """
     H = origin.shape[0]
     ptr = np.zeros(n + 1, np.int64)
@@ -120,8 +171,8 @@ def _rotation_next(n, origin, angle):
     for h in range(H):
         order[fill[origin[h]]] = h
         fill[origin[h]] += 1
-    dup = -1
-    for v in range(n):
+    dupv = np.zeros(n, np.bool_)
+    for v in prange(n):
         for a in range(ptr[v] + 1, ptr[v + 1]):
             h = order[a]
             b = a - 1
@@ -130,13 +181,18 @@ def _rotation_next(n, origin, angle):
                 b -= 1
             order[b + 1] = h
         for a in range(ptr[v] + 1, ptr[v + 1]):
-            if angle[order[a]] == angle[order[a - 1]] and dup < 0:
-                dup = v
+            if angle[order[a]] == angle[order[a - 1]]:
+                dupv[v] = True
+    dup = -1
+    for v in range(n):
+        if dupv[v]:
+            dup = v
+            break
     pos = np.empty(H, np.int64)
-    for a in range(H):
+    for a in prange(H):
         pos[order[a]] = a
     nxt = np.empty(H, np.int64)
-    for h in range(H):
+    for h in prange(H):
         t = h ^ 1
         v = origin[t]
         r = pos[t]
@@ -202,122 +258,6 @@ def _face_cycles(nxt):
     return face, order, ptr[:nf + 1], True
 
 
-@njit
-def _first_crossing(mid, vec, ends, C, nb1, nb2, k1, k2, count_all):
-    """First pair of edges (a, b) whose segments cross properly on the torus, or (-1, -1), and the
-    number of crossing pairs found (all of them with ``count_all``, else at most 1).
-
-    ``mid`` are wrapped midpoints (E, 2) with fractional coordinates in [0, 1); two crossing
-    segments have midpoints closer than (|l_a| + |l_b|) / 2 <= max |l|, so a bin grid of size
-    >= max |l| in each lattice direction and a scan of neighbouring bins finds every crossing.
-    Edges are copied in bin order first so that the scan reads contiguous memory.
-    """
-    ne = mid.shape[0]
-    det = C[0, 0] * C[1, 1] - C[0, 1] * C[1, 0]
-    nbins = nb1 * nb2
-    b = np.empty(ne, np.int64)
-    start = np.zeros(nbins + 1, np.int64)
-    for a in range(ne):
-        s0 = (C[1, 1] * mid[a, 0] - C[0, 1] * mid[a, 1]) / det
-        s1 = (-C[1, 0] * mid[a, 0] + C[0, 0] * mid[a, 1]) / det
-        b1 = min(max(int(s0 * nb1), 0), nb1 - 1)
-        b2 = min(max(int(s1 * nb2), 0), nb2 - 1)
-        b[a] = b1 * nb2 + b2
-        start[b[a] + 1] += 1
-    for q in range(nbins):
-        start[q + 1] += start[q]
-    fill = start[:-1].copy()
-    order = np.empty(ne, np.int64)
-    for a in range(ne):
-        order[fill[b[a]]] = a
-        fill[b[a]] += 1
-    # sorted copies: midpoint, half vector, length, end vertices
-    sm = np.empty((ne, 2))
-    sh = np.empty((ne, 2))
-    sl = np.empty(ne)
-    se = np.empty((ne, 2), np.int64)
-    for p in range(ne):
-        a = order[p]
-        sm[p, 0] = mid[a, 0]
-        sm[p, 1] = mid[a, 1]
-        sh[p, 0] = 0.5 * vec[a, 0]
-        sh[p, 1] = 0.5 * vec[a, 1]
-        sl[p] = np.sqrt(vec[a, 0] ** 2 + vec[a, 1] ** 2)
-        se[p, 0] = ends[a, 0]
-        se[p, 1] = ends[a, 1]
-    found = 0
-    first_a = -1
-    first_c = -1
-    for q0 in range(nbins):
-        ba1 = q0 // nb2
-        ba2 = q0 % nb2
-        for pa in range(start[q0], start[q0 + 1]):
-            ha0 = sh[pa, 0]
-            ha1 = sh[pa, 1]
-            for o1 in range(-k1, k1 + 1):
-                u1 = ba1 + o1
-                w1 = u1 % nb1
-                t1 = (u1 - w1) // nb1
-                for o2 in range(-k2, k2 + 1):
-                    u2 = ba2 + o2
-                    w2 = u2 % nb2
-                    t2 = (u2 - w2) // nb2
-                    off0 = C[0, 0] * t1 + C[0, 1] * t2
-                    off1 = C[1, 0] * t1 + C[1, 1] * t2
-                    q = w1 * nb2 + w2
-                    for pc in range(max(start[q], pa + 1), start[q + 1]):
-                        d0 = sm[pc, 0] + off0 - sm[pa, 0]
-                        d1 = sm[pc, 1] + off1 - sm[pa, 1]
-                        reach = 0.5 * (sl[pa] + sl[pc])
-                        if d0 * d0 + d1 * d1 > reach * reach:
-                            continue
-                        if (se[pc, 0] == se[pa, 0] or se[pc, 0] == se[pa, 1]
-                                or se[pc, 1] == se[pa, 0] or se[pc, 1] == se[pa, 1]):
-                            continue
-                        hc0 = sh[pc, 0]
-                        hc1 = sh[pc, 1]
-                        # segment a: -ha .. +ha ; segment c: d - hc .. d + hc (orientation tests)
-                        o_c0 = ha0 * (d1 - hc1 + ha1) - ha1 * (d0 - hc0 + ha0)
-                        o_c1 = ha0 * (d1 + hc1 + ha1) - ha1 * (d0 + hc0 + ha0)
-                        o_a0 = hc0 * (-ha1 - d1 + hc1) - hc1 * (-ha0 - d0 + hc0)
-                        o_a1 = hc0 * (ha1 - d1 + hc1) - hc1 * (ha0 - d0 + hc0)
-                        if o_c0 * o_c1 < 0.0 and o_a0 * o_a1 < 0.0:
-                            if found == 0:
-                                first_a = min(order[pa], order[pc])
-                                first_c = max(order[pa], order[pc])
-                            found += 1
-                            if not count_all:
-                                return first_a, first_c, found
-    return first_a, first_c, found
-
-
-def find_crossing(positions, cell, edge_i, edge_j, edge_vec, count_all: bool = False):
-    """First pair of crossing edges (indices into the edge list) or None. O(E).
-
-    With ``count_all`` returns ``(first_pair_or_None, number_of_crossing_pairs)``. Edges sharing
-    a particle are never counted (they meet at that particle).
-    """
-    ne = edge_i.shape[0]
-    if ne < 2:
-        return (None, 0) if count_all else None
-    cutoff = float(np.sqrt((edge_vec[:, 0] ** 2 + edge_vec[:, 1] ** 2).max()))
-    mid = positions[edge_i] + 0.5 * edge_vec
-    s = mid @ np.linalg.inv(cell).T
-    s -= np.floor(s)
-    s[s >= 1.0] = 0.0
-    mid = np.ascontiguousarray(s @ cell.T)
-    h = cell_heights(cell)
-    nb = [max(1, int(np.floor(hk / cutoff))) for hk in h]
-    while nb[0] * nb[1] > 4 * ne:
-        nb = [max(1, v // 2) for v in nb]
-    k = [max(1, int(np.ceil(cutoff * nbk / hk - 1e-12))) for nbk, hk in zip(nb, h)]
-    ends = np.ascontiguousarray(np.column_stack([edge_i, edge_j]))
-    a, c, found = _first_crossing(mid, np.ascontiguousarray(edge_vec), ends,
-                                  np.ascontiguousarray(cell), nb[0], nb[1], k[0], k[1], count_all)
-    first = None if a < 0 else (int(a), int(c))
-    return (first, int(found)) if count_all else first
-
-
 def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,
                check_crossings: bool = True) -> DCEL:
     """Build the half-edge structure and identify the void-cell faces (see module docstring).
@@ -339,53 +279,97 @@ def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,
         crossing or coincident edges, a face that does not close or has non-positive area, face
         areas not adding up to the cell area, or F - E + V != 0.
     """
-    x = np.asarray(positions, np.float64)
-    C = np.asarray(cell, np.float64)
-    ne = edge_i.shape[0]
-    origin = np.empty(2 * ne, np.int64)
-    origin[0::2] = edge_i
-    origin[1::2] = edge_j
-    dest = np.empty_like(origin)
-    dest[0::2] = edge_j
-    dest[1::2] = edge_i
-    hshift = halfedge_shifts(edge_shift)
-    vec = x[dest] - x[origin]
-    vec += hshift[:, 0:1] * C[:, 0] + hshift[:, 1:2] * C[:, 1]
-    evec = vec[0::2]
+    x = np.ascontiguousarray(positions, np.float64)
+    C = np.ascontiguousarray(cell, np.float64)
+    ei = np.ascontiguousarray(edge_i, np.int64)
+    ej = np.ascontiguousarray(edge_j, np.int64)
+    origin, dest, hshift, vec, angle = _halfedges(x, C, ei, ej,
+                                                  np.ascontiguousarray(edge_shift, np.int64))
     if check_crossings:
-        hit = find_crossing(x, C, edge_i, edge_j, evec)
+        hit = find_crossing(x, C, ei, ej, vec[0::2])
         if hit is not None:
             a, c = hit
             raise InputError(
-                f"contacts: the particle graph is not planar: contact line {int(edge_i[a])}-"
-                f"{int(edge_j[a])} crosses {int(edge_i[c])}-{int(edge_j[c])} (strongly overlapping "
+                f"contacts: the particle graph is not planar: contact line {int(ei[a])}-"
+                f"{int(ej[a])} crosses {int(ei[c])}-{int(ej[c])} (strongly overlapping "
                 "particles?)")
     # rotation system: half-edges of each vertex sorted by angle; next = clockwise of the twin
-    angle = np.arctan2(vec[:, 1], vec[:, 0])
     nxt, dup = _rotation_next(x.shape[0], origin, angle)
     if dup >= 0:
         raise InputError(f"contacts: two contact lines leave particle {int(dup)} in the same "
                          "direction (coincident edges: non-planar graph)")
+    face, fh, ptr, area, centroid_rel = faces_from_next(nxt, origin, vec, C, n_vertices)
+    centroid = x[origin[fh[ptr[:-1]]]] + centroid_rel
+    return DCEL(origin=origin, dest=dest, shift=hshift, vec=vec, next=nxt, face=face, face_ptr=ptr,
+                face_halfedges=fh, face_area=area, face_centroid=centroid,
+                n_vertices=int(n_vertices))
+
+
+def faces_from_next(nxt, origin, vec, cell, n_vertices: int):
+    """The faces (cycles of ``next``) of a half-edge structure, checked (module docstring).
+
+    Parameters
+    ----------
+    nxt : (H,) int64, next half-edge of the same face (twin(h) = h ^ 1)
+    origin : (H,) int64, tail particle of each half-edge
+    vec : (H, 2) float64, lifted half-edge vectors (m)
+    cell : (2, 2) float64 (m); n_vertices : int, V for Euler's formula
+
+    Returns
+    -------
+    face (H,), face_halfedges (H,), face_ptr (F + 1,), face_area (F,) m^2, centroid (F, 2) m
+    relative to each face's first vertex.
+
+    Raises
+    ------
+    InputError
+        ``next`` not a permutation or leaving another particle than the one a half-edge arrives
+        at; a face whose half-edge vectors do not add up to zero (it does not close: it winds
+        around the torus, from an inconsistent rotation system or a wrong image shift), naming
+        the face and its particles; a face of non-positive area; face areas not adding up to the
+        cell area; F - E + V != 0 (eq 16).
+    """
+    nxt = np.ascontiguousarray(nxt, np.int64)
+    origin = np.ascontiguousarray(origin, np.int64)
+    H = nxt.shape[0]
+    bad_next = _first_bad_next(nxt, origin)
+    if bad_next >= 0:
+        h = bad_next
+        g = int(nxt[h])
+        leaves = f"leaves particle {int(origin[g])}" if 0 <= g < H else "is not a half-edge"
+        raise InputError(f"contacts: half-edge {h} arrives at particle {int(origin[h ^ 1])} but "
+                         f"its next half-edge {g} {leaves} (inconsistent rotation system)")
     face, fh, ptr, ok = _face_cycles(nxt)
-    if not ok:  # pragma: no cover - next is a permutation by construction
-        raise InputError("contacts: face walk failed (the rotation system is not a permutation)")
+    if not ok:
+        raise InputError("contacts: the next half-edges are not a permutation (two half-edges "
+                         "share a successor): inconsistent rotation system")
     nf = ptr.shape[0] - 1
-    area, closure, centroid_rel = _face_geometry(ptr, fh, vec)
-    A = cell_area(C)
-    bad = np.flatnonzero(closure > AREA_RTOL)
+    area, closure, centroid_rel = _face_geometry(ptr, fh, np.ascontiguousarray(vec, np.float64))
+    open_faces = np.flatnonzero(~(closure <= AREA_RTOL))
+    if open_faces.size:
+        f = int(open_faces[0])
+        hs = fh[ptr[f]:ptr[f + 1]]
+        gap = vec[hs].sum(axis=0)
+        parts = origin[hs]
+        shown = ", ".join(str(int(k)) for k in parts[:12]) + (", ..." if parts.size > 12 else "")
+        raise InputError(
+            f"contacts: {open_faces.size} face(s) do not close: face {f} (particles {shown}) has "
+            f"half-edge vectors adding up to ({gap[0]:.9g}, {gap[1]:.9g}) m, not zero "
+            f"(|sum| / perimeter = {closure[f]:.3g} > {AREA_RTOL:g}): the face winds around the "
+            "torus (inconsistent rotation system: a wrong image shift of a contact, or a "
+            "non-planar graph)")
     bad = np.flatnonzero(area <= 0)
     if bad.size:
         raise InputError(f"contacts: {bad.size} face(s) with non-positive area "
                          f"(face {int(bad[0])}: "
                          f"{area[bad[0]]:.3g} m^2): crossing contact lines, non-planar graph")
+    A = cell_area(np.asarray(cell, np.float64))
     if abs(area.sum() - A) > AREA_RTOL * A:
         raise InputError(f"contacts: face areas add up to {area.sum():.12g} m^2, not the cell area "
                          f"{A:.12g} m^2 (overlapping faces: non-planar graph)")
+    ne = H // 2
     euler = nf - ne + int(n_vertices)
     if euler != 0:
         raise InputError(f"contacts: Euler's formula on the torus fails: F - E + V = {nf} - {ne} + "
                          f"{n_vertices} = {euler} != 0")
-    centroid = x[origin[fh[ptr[:-1]]]] + centroid_rel
-    return DCEL(origin=origin, dest=dest, shift=hshift, vec=vec, next=nxt, face=face, face_ptr=ptr,
-                face_halfedges=fh, face_area=area, face_centroid=centroid,
-                n_vertices=int(n_vertices))
+    return face, fh, ptr, area, centroid_rel

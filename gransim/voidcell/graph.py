@@ -219,6 +219,34 @@ def _lift_components(n, ptr, adj, dest, hshift, active):
     return comp, off, rank[:nc]
 
 
+@njit
+def _join_by_bridges(comp, ci, cj, bridge):
+    """Component labels of the full graph from those of the graph without bridges (union-find
+    over the bridges, O(N + M))."""
+    nc = int(comp.max()) + 1 if comp.shape[0] else 0
+    parent = np.arange(nc)
+    for e in range(ci.shape[0]):
+        if not bridge[e]:
+            continue
+        a = comp[ci[e]]
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        b = comp[cj[e]]
+        while parent[b] != b:
+            parent[b] = parent[parent[b]]
+            b = parent[b]
+        if a != b:
+            parent[max(a, b)] = min(a, b)
+    out = np.empty(comp.shape[0], np.int64)
+    for v in range(comp.shape[0]):
+        a = comp[v]
+        while parent[a] != a:
+            a = parent[a]
+        out[v] = a
+    return out
+
+
 def halfedge_shifts(shift: np.ndarray) -> np.ndarray:
     """Image shifts of the half-edges (2E, 2): +n for 2e, -n for 2e + 1."""
     hs = np.empty((2 * shift.shape[0], 2), np.int64)
@@ -278,19 +306,84 @@ def components(n_particles: int, ci, cj, cs, active=None):
                             np.ascontiguousarray(active, np.bool_))
 
 
-def _peel(n, ci, cj, degree) -> np.ndarray:
-    """Particles removed by repeated deletion of degree-1 vertices, (N,) bool (vectorised)."""
-    deg = degree.copy()
-    gone = np.zeros(n, bool)
-    alive_e = np.ones(ci.shape[0], bool)
-    while True:
-        leaf = (deg == 1) & ~gone
-        if not leaf.any():
-            return gone & (degree > 0)
-        gone |= leaf
-        dead = alive_e & (leaf[ci] | leaf[cj])
-        alive_e &= ~dead
-        deg -= np.bincount(ci[dead], minlength=n) + np.bincount(cj[dead], minlength=n)
+@njit
+def _classify(n, ptr, adj, dest, comp, core_label, comp_full):
+    """Removal class of every particle (module docstring), (N,) int8. O(N + M).
+
+    Pendant particles: repeated deletion of particles with exactly one remaining contact (a queue;
+    the particles left form the 2-core, so the order of deletion does not matter).
+    """
+    removed = np.full(n, PENINSULAR, np.int8)
+    core_full = -1
+    for v in range(n):
+        if comp[v] == core_label:
+            core_full = comp_full[v]
+            break
+    d = np.empty(n, np.int64)
+    for v in range(n):
+        d[v] = ptr[v + 1] - ptr[v]
+    gone = np.zeros(n, np.bool_)
+    alive = np.ones(adj.shape[0] // 2, np.bool_)
+    queue = np.empty(n, np.int64)
+    tail = 0
+    for v in range(n):
+        if d[v] == 1:
+            queue[tail] = v
+            tail += 1
+    head = 0
+    while head < tail:
+        v = queue[head]
+        head += 1
+        if gone[v] or d[v] != 1:
+            continue
+        gone[v] = True
+        for a in range(ptr[v], ptr[v + 1]):
+            h = adj[a]
+            e = h >> 1
+            if alive[e]:
+                alive[e] = False
+                w = dest[h]
+                d[v] -= 1
+                d[w] -= 1
+                if d[w] == 1 and not gone[w]:
+                    queue[tail] = w
+                    tail += 1
+                elif d[w] == 0:  # the last two particles of a tree: both are pendant
+                    gone[w] = True
+    for v in range(n):
+        deg = ptr[v + 1] - ptr[v]
+        if deg == 0:
+            removed[v] = ISOLATED
+        elif comp[v] == core_label:
+            removed[v] = KEPT
+        elif comp_full[v] != core_full:
+            removed[v] = ISLAND
+        elif gone[v]:
+            removed[v] = PENDANT
+    return removed
+
+
+@njit
+def _kept_edges(ci, cj, cs, bridge, comp, core_label):
+    """Edges of the framework (not bridges, in the wrapping component): i, j, shift, contact index."""
+    m = 0
+    for e in range(ci.shape[0]):
+        if not bridge[e] and comp[ci[e]] == core_label:
+            m += 1
+    ei = np.empty(m, np.int64)
+    ej = np.empty(m, np.int64)
+    es = np.empty((m, 2), np.int64)
+    idx = np.empty(m, np.int64)
+    k = 0
+    for e in range(ci.shape[0]):
+        if not bridge[e] and comp[ci[e]] == core_label:
+            ei[k] = ci[e]
+            ej[k] = cj[e]
+            es[k, 0] = cs[e, 0]
+            es[k, 1] = cs[e, 1]
+            idx[k] = e
+            k += 1
+    return ei, ej, es, idx
 
 
 def build_graph(n_particles: int, contacts_i, contacts_j, contacts_shift) -> ParticleGraph:
@@ -330,17 +423,9 @@ def build_graph(n_particles: int, contacts_i, contacts_j, contacts_shift) -> Par
             f"contacts: {wrapping.size} separate groups of particles each span the periodic cell; "
             "on a torus that needs crossing contact lines (non-planar graph from strongly "
             "overlapping particles?)")
-    core = comp == wrapping[0]
-    keep_edge = (~bridge) & core[ci]
-    # classification of removed particles
-    degree = np.bincount(ci, minlength=n) + np.bincount(cj, minlength=n)
-    comp_full, _, _ = _lift_components(n, ptr, adj, dest, hs, np.ones(ci.shape[0], np.bool_))
-    core_full = comp_full[np.argmax(core)]
-    removed = np.full(n, PENINSULAR, np.int8)
-    removed[core] = KEPT
-    removed[_peel(n, ci, cj, degree) & ~core] = PENDANT
-    removed[~core & (comp_full != core_full)] = ISLAND
-    removed[degree == 0] = ISOLATED
-    idx = np.flatnonzero(keep_edge)
-    return ParticleGraph(n_particles=n, edge_i=ci[idx], edge_j=cj[idx], edge_shift=cs[idx],
+    # components of the full graph = components of the bridge-free graph joined by the bridges
+    comp_full = _join_by_bridges(comp, ci, cj, bridge)
+    removed = _classify(n, ptr, adj, dest, comp, int(wrapping[0]), comp_full)
+    ei, ej, es, idx = _kept_edges(ci, cj, cs, bridge, comp, int(wrapping[0]))
+    return ParticleGraph(n_particles=n, edge_i=ei, edge_j=ej, edge_shift=es,
                          edge_contact=idx, removed=removed, bridge=bridge)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._numba import njit
+from .._numba import pjit, prange
 from .qmatrix import q_matrix, q_separations
 
 
@@ -39,11 +39,11 @@ def polygon_gradient(vertices: np.ndarray, velocities: np.ndarray) -> np.ndarray
     return np.einsum("jk,jp,kq->pq", q_matrix(len(x)), vh, edge_normals(e)) / (6.0 * A)
 
 
-@njit
+@pjit
 def _face_gradients(ptr, fh, vec, dv, area, qtab):
     nf = ptr.shape[0] - 1
     L = np.zeros((nf, 2, 2))
-    for f in range(nf):
+    for f in prange(nf):
         p0 = ptr[f]
         m = ptr[f + 1] - p0
         s00 = 0.0
@@ -103,6 +103,35 @@ def face_gradients(face_ptr, face_halfedges, vec, dv, area) -> np.ndarray:
                            np.ascontiguousarray(vec, dtype=np.float64),
                            np.ascontiguousarray(dv, dtype=np.float64),
                            np.ascontiguousarray(area, dtype=np.float64), q_table(max(max_m, 2)))
+
+
+@pjit
+def _halfedge_velocities(origin, dest, shift, v, Cd):
+    H = origin.shape[0]
+    dv = np.empty((H, 2))
+    for h in prange(H):
+        o = origin[h]
+        d = dest[h]
+        s0 = shift[h, 0]
+        s1 = shift[h, 1]
+        dv[h, 0] = (v[d, 0] - v[o, 0]) + (s0 * Cd[0, 0] + s1 * Cd[0, 1])
+        dv[h, 1] = (v[d, 1] - v[o, 1]) + (s0 * Cd[1, 0] + s1 * Cd[1, 1])
+    return dv
+
+
+def halfedge_velocities(origin, dest, shift, velocities, cell_velocity) -> np.ndarray:
+    """Relative velocity of every half-edge, eq (5): v_hat = v_dest + (dC/dt) n_h - v_origin, (H, 2)
+    (m/s); the head's periodic image x_dest + C n_h moves with v_dest + (dC/dt) n_h.
+
+    Parameters
+    ----------
+    origin, dest : (H,) int, shift : (H, 2) int (DCEL); velocities : (N, 2) m/s;
+    cell_velocity : (2, 2) dC/dt, lattice-vector velocities as columns (m/s).
+    """
+    return _halfedge_velocities(np.ascontiguousarray(origin), np.ascontiguousarray(dest),
+                                np.ascontiguousarray(shift),
+                                np.ascontiguousarray(velocities, np.float64),
+                                np.ascontiguousarray(cell_velocity, np.float64))
 
 
 def assembly_average(L: np.ndarray, area: np.ndarray) -> np.ndarray:
