@@ -14,6 +14,18 @@ import time
 import traceback
 from pathlib import Path
 
+import numba
+import numpy
+
+import bench
+from gransim import __version__
+from gransim.io import git_commit, liggghts_version
+
+
+def _num(v) -> str:
+    """A record's value for the tables: 4 significant digits, or "not measured" (None)."""
+    return "not measured" if v is None else f"{v:.4g}"
+
 
 def machine() -> dict:
     cpu = "unknown"
@@ -24,11 +36,6 @@ def machine() -> dict:
                 break
     except OSError:
         pass
-    import numba
-    import numpy
-
-    from gransim import __version__
-    from gransim.io import git_commit, liggghts_version
 
     return {"cores": os.cpu_count(), "cpu": cpu, "python": platform.python_version(), "numpy": numpy.__version__,
             "numba": numba.__version__, "gransim": __version__, "git_commit": git_commit(),
@@ -41,7 +48,6 @@ def main(argv=None) -> int:
     ap.add_argument("--only", action="append", help="run only this area (module name), repeatable")
     ap.add_argument("--results", default="results")
     args = ap.parse_args(argv)
-    import bench
 
     areas = sorted(m.name for m in pkgutil.iter_modules(bench.__path__) if not m.name.startswith("_"))
     if args.only:
@@ -53,16 +59,18 @@ def main(argv=None) -> int:
     records, failures = [], []
     for area in areas:
         t0 = time.perf_counter()
-        import numba
 
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)  # an area may have left fewer threads set
         print(f"[bench] {area} ...", flush=True)
         try:
             mod = importlib.import_module(f"bench.{area}")
+            if not hasattr(mod, "run"):  # a tool run on its own (python -m bench.ab_dem), not an area
+                print(f"[bench] {area}: no run(), skipped", flush=True)
+                continue
             for r in mod.run(quick=args.quick):
                 r.setdefault("area", area)
                 records.append(r)
-                print(f"[bench]   {r['name']}: {r['value']:.4g} {r.get('unit', '')} (target {r.get('target')})",
+                print(f"[bench]   {r['name']}: {_num(r['value'])} {r.get('unit', '')} (target {r.get('target')})",
                       flush=True)
         except Exception:
             failures.append(area)
@@ -86,11 +94,12 @@ def _html(report: Path, doc: dict) -> None:
     for r in doc["records"]:
         meets = r.get("meets")
         rows.append("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in (
-            r.get("area"), r["name"], f"{r['value']:.4g}", r.get("unit", ""), r.get("target", ""),
+            r.get("area"), r["name"], _num(r["value"]), r.get("unit", ""), r.get("target", ""),
             "" if meets is None else ("yes" if meets else "NO"), r.get("note", ""))) + "</tr>")
     figs = []
     series = [r for r in doc["records"] if r.get("series")]
     if series:
+        # lazy: pyplot costs ~1.5 s of import (measured, load 9); only the figures need it
         import matplotlib
 
         matplotlib.use("Agg")

@@ -134,6 +134,31 @@ def compare(base: str, head: str = "WORKTREE", n: int = 10000, window: int = 200
     return out
 
 
+#: the commit before the DEM redesign of issue 16 (laws as plug-ins, namedtuple state): the baseline of
+#: the "no slowdown beyond 5%" figure
+REDESIGN_BASE = "e658bc0"
+
+
+def run(quick: bool = False) -> list[dict]:
+    """Records of the benchmark suite: the Hooke DEM now vs before the redesign (serial, 1e4 disks,
+    interleaved steady-state windows). Skipped in quick mode (it compiles a second tree) and where
+    the checkout has no history of the base commit."""
+    rev = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--verify", "--quiet", f"{REDESIGN_BASE}^{{commit}}"],
+                         capture_output=True)
+    if quick or rev.returncode != 0:
+        why = "quick mode" if quick else f"commit {REDESIGN_BASE} not in this clone's history"
+        return [{"name": "ab_dem.redesign_ratio", "value": None, "unit": "x", "target": ">= 0.95",
+                 "note": f"not measured ({why}); python -m bench.ab_dem --base {REDESIGN_BASE}"}]
+    res = compare(REDESIGN_BASE, "WORKTREE", n=10000, window=200, windows=14, log=lambda *_: None)
+    return [{"name": "ab_dem.redesign_ratio", "value": res["ratio_median"], "unit": "x", "target": ">= 0.95",
+             "note": (f"native DEM (Hooke, LIGGGHTS flavour, serial, {res['n']} disks) now / before the plug-in "
+                      f"redesign ({REDESIGN_BASE}): median of {res['windows']} interleaved {res['window_steps']}-step "
+                      f"windows, range {res['ratio_min']:.3f}-{res['ratio_max']:.3f}; rebuilds per window "
+                      f"{res['rebuilds_per_window']}; same rebuilds and contacts on both sides: "
+                      f"{res['same_rebuilds_and_contacts']}; load {res['load_before'][0]:.2f} -> "
+                      f"{res['load_after'][0]:.2f}; rerun: {res['command']}")}]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.ab_dem", description=__doc__.split("\n\n")[0])
     ap.add_argument("--base", required=True, help="git revision of the baseline")
