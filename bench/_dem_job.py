@@ -29,8 +29,12 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 import time
+from pathlib import Path
+
+from bench._memory import PeakSampler, own_peak_kib
 
 #: threads waiting at the end of a parallel region sleep instead of spinning (GNU OpenMP's default
 #: spins): on a machine whose cores are shared, a spinning thread burns the time slice that the
@@ -40,6 +44,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
 def _packing(path):
+    # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
     import numpy as np
 
     from gransim import Packing
@@ -49,10 +54,12 @@ def _packing(path):
 
 
 def _warm(mode: str, threads: int):
+    # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
     from bench.dem import LOADING, SETTINGS, assembly
     from gransim.dem import DEMEngine, DEMSettings
 
     if mode == "fast":
+        # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
         from gransim.dem import fast
 
         low, fast.MIN_PER_THREAD = fast.MIN_PER_THREAD, 0  # the threaded kernels too, on 110 disks
@@ -67,13 +74,14 @@ def _warm(mode: str, threads: int):
 
 
 def native(path, steps: int, mode: str, threads: int, warm: int = 0) -> dict:
-    from bench._memory import own_peak_kib
+    # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
     from bench.dem import LOADING
     from gransim.dem import DEMEngine
 
     s = _warm(mode, threads)
     p = _packing(path)
     if mode == "fast":
+        # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
         from gransim.dem.fast import FastEngine
 
         eng = FastEngine(p, s, threads=threads)
@@ -98,13 +106,12 @@ def native(path, steps: int, mode: str, threads: int, warm: int = 0) -> dict:
 
 
 def baseline(mode: str, threads: int) -> dict:
-    from bench._memory import own_peak_kib
-
     _warm(mode, threads)
     return {"peak_kib": own_peak_kib()}
 
 
 def profile(path, steps: int) -> dict:
+    # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
     import numpy as np
 
     from bench.dem import LOADING
@@ -156,8 +163,6 @@ def profile(path, steps: int) -> dict:
 def lammps_breakdown(log_text: str) -> tuple[dict, float | None]:
     """LAMMPS' timing table of the (last) run: {section: average seconds over ranks}, and the
     largest ``Per MPI rank memory allocation`` (Mbytes) of the log."""
-    import re
-
     parts, mem = {}, None
     for line in log_text.splitlines():
         m = re.match(r"^Per MPI rank memory allocation \(min/avg/max\) = ([\d.eE+-]+) \| ([\d.eE+-]+) \| "
@@ -176,9 +181,7 @@ def lammps_breakdown(log_text: str) -> tuple[dict, float | None]:
 
 
 def engine_job(job_dir, nprocs: int, timeout: float, engine: str = "liggghts") -> dict:
-    from pathlib import Path
-
-    from bench._memory import PeakSampler
+    # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
     from reference_runs.engines import get_engine
     from reference_runs.runner import run_job
     from reference_runs.timing import parse_loop_timings

@@ -59,6 +59,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench._memory import run_child
+from reference_runs.decks.biaxial import write_biaxial_deck
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -115,8 +118,6 @@ def write_bench_deck(job_dir, packing, steps: int, engine: str = "liggghts", war
     """The mirror deck of reference_runs.decks.biaxial (LIGGGHTS or LAMMPS form) without its dump,
     as ``in.bench`` (+ data); with ``warm`` > 0 its ``run STEPS`` becomes ``run WARM`` then
     ``run STEPS`` (the second run's loop time is the steady-state window)."""
-    from reference_runs.decks.biaxial import write_biaxial_deck
-
     deck = write_biaxial_deck(job_dir, packing, SETTINGS, LOADING, steps, thermo_every=max(steps // 10, 1),
                               dump_every=10 * steps, engine=engine)
     lines = [ln for ln in deck.read_text().splitlines() if not ln.startswith(("dump ", "dump_modify "))]
@@ -130,8 +131,6 @@ def write_bench_deck(job_dir, packing, steps: int, engine: str = "liggghts", war
 
 
 def _child(*args, timeout: float = 900.0) -> dict:
-    from bench._memory import run_child
-
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(":")}
     r = run_child([sys.executable, "-m", "bench._dem_job", *map(str, args)], env=env, cwd=ROOT, timeout=timeout)
     if r.returncode != 0:

@@ -11,13 +11,14 @@ import tempfile
 import time
 from pathlib import Path
 
+from reference_runs.demo_packings import perturbed_lattice
+from reference_runs.runner import run_job
+from reference_runs.taylor import run_taylor
+
 
 def run(quick: bool = True) -> list[dict]:
     if shutil.which("liggghts") is None:
         return []
-    from reference_runs.demo_packings import perturbed_lattice
-    from reference_runs.runner import run_job
-    from reference_runs.taylor import run_taylor
 
     out = []
     with tempfile.TemporaryDirectory() as tmp:

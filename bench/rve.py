@@ -13,18 +13,21 @@ from __future__ import annotations
 
 import time
 
+import numba
 import numpy as np
+
+from gransim import Packing
+from gransim._numba import set_num_threads
+from gransim.generation import standard_packings
+from gransim.io import load_packing
+from gransim.paper import KN_2D
+from gransim.rve import TaylorMaterial, homogenize
 
 N_GAUSS = 1520
 
 
 def _packing700():
-    from gransim import Packing
-
     try:
-        from gransim.generation import standard_packings
-        from gransim.io import load_packing
-
         path = standard_packings("results/packings", names=["rve-700-1"])["rve-700-1"]
         return load_packing(path), "rve-700-1"
     except Exception:  # noqa: BLE001 - generation not merged or not generated: use the stand-in
@@ -49,12 +52,6 @@ def _median_time(fn, repeats: int, inner: int) -> tuple[float, float]:
 
 
 def run(quick: bool = False) -> list[dict]:
-    import numba
-
-    from gransim._numba import set_num_threads
-    from gransim.paper import KN_2D
-    from gransim.rve import TaylorMaterial, homogenize
-
     packing, label = _packing700()
     kn = KN_2D  # the paper's 2D contact stiffness (N/m)
     mat = TaylorMaterial(packing, kn)

@@ -34,6 +34,7 @@ def compare_taylor(run, rtol: float = TAYLOR_RTOL) -> dict:
     For every state: max |sigma_liggghts - sigma_numpy| / max |sigma_numpy| (componentwise),
     and the same for the periodic route's pressure column. Returns ``{(path, route): max}``.
     """
+    # lazy: `gransim reference list` imports this module; numba, h5py (~1.8 s) wait for a run
     import numpy as np
 
     from .taylor_numpy import candidate_pairs, taylor_stress_numpy
@@ -66,6 +67,7 @@ def run_taylor_set(packings: dict, out_dir, kn: float = KN_2D, n_steps: int = 50
     ``kn``: the 2D normal contact stiffness (N/m; default the paper's, :data:`gransim.paper.KN_2D`).
     Returns ``(runs, worst)``: the TaylorRun objects and the largest relative difference.
     """
+    # lazy: `gransim reference list` imports this module; numba, h5py (~1.8 s) wait for a run
     from gransim.progress import progress as _progress
 
     from .runner import MANIFEST_NAME
@@ -94,6 +96,7 @@ def run_taylor_set(packings: dict, out_dir, kn: float = KN_2D, n_steps: int = 50
 
 
 def _taylor_demo(out_dir, np_procs=1, timeout=600.0, force=False, progress=True, engine="liggghts") -> int:
+    # lazy: `gransim reference list` imports this module; numba, h5py (~1.8 s) wait for a run
     from .demo_packings import perturbed_lattice
 
     packings = {f"lattice-8x8-seed{s}": perturbed_lattice(8, 8, seed=s) for s in (1, 2, 3)}
@@ -105,6 +108,7 @@ def _taylor_demo(out_dir, np_procs=1, timeout=600.0, force=False, progress=True,
 
 def standard_rves(packings_dir="results/packings") -> dict:
     """The 15 RVEs of the study (rve-<N>-<seed>), generated or reused by gransim.generation."""
+    # lazy: `gransim reference list` imports this module; numba, h5py (~1.8 s) wait for a run
     from gransim.generation import STANDARD_PACKINGS, standard_packings
     from gransim.io import load_packing
 

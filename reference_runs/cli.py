@@ -72,6 +72,7 @@ def _job_options(p) -> None:
 
 
 def _list(args) -> int:
+    # lazy: this module is imported when `gransim` builds its parser (start-up time)
     from reference_runs.cases import all_cases
 
     for name, case in sorted(all_cases().items()):
@@ -80,6 +81,7 @@ def _list(args) -> int:
 
 
 def _run(args) -> int:
+    # lazy: this module is imported when `gransim` builds its parser (start-up time)
     from pathlib import Path
 
     from reference_runs.cases import get_case
@@ -93,6 +95,7 @@ def _run(args) -> int:
 
 
 def _taylor(args) -> int:
+    # lazy: this module is imported when `gransim` builds its parser (start-up time)
     from pathlib import Path
 
     from gransim._validate import as_positive_float
@@ -108,15 +111,18 @@ def _taylor(args) -> int:
     for f in files:
         packings[f.stem] = load_packing(f)
     if args.demo:
+        # lazy: this module is imported when `gransim` builds its parser (start-up time)
         from reference_runs.demo_packings import perturbed_lattice
 
         packings.update({f"lattice-8x8-seed{s}": perturbed_lattice(8, 8, seed=s) for s in (1, 2, 3)})
     if args.standard:
+        # lazy: this module is imported when `gransim` builds its parser (start-up time)
         from reference_runs.cases import standard_rves
 
         packings.update(standard_rves(args.packings_dir))
     if not packings:
         raise InputError("no packings: give packing files, --rves DIR, --standard or --demo")
+    # lazy: this module is imported when `gransim` builds its parser (start-up time)
     from reference_runs.runner import kill_children_on_signals
 
     with kill_children_on_signals():  # SIGTERM/SIGINT/SIGHUP: no LIGGGHTS process outlives us
@@ -156,6 +162,7 @@ def register_replay(sub) -> None:
 
 
 def _replay(args) -> int:
+    # lazy: this module is imported when `gransim` builds its parser (start-up time)
     from pathlib import Path
 
     from gransim.errors import InputError
@@ -167,6 +174,7 @@ def _replay(args) -> int:
         raise InputError(f"--data: {args.data} is not a file")
     if args.timeout is not None and not args.timeout > 0:
         raise InputError(f"--timeout: expected seconds > 0, got {args.timeout!r}")
+    # lazy: this module is imported when `gransim` builds its parser (start-up time)
     from reference_runs.errors import ReferenceRunError
     from reference_runs.replay.compare import replay
 

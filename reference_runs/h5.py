@@ -15,6 +15,7 @@ Layout of ``write_output_h5``::
 from __future__ import annotations
 
 import json
+import types
 
 import numpy as np
 
@@ -89,8 +90,6 @@ def read_thermo_h5(path) -> tuple:
 
 def read_frames_h5(path, name: str) -> tuple:
     """The dump frames stored under ``/dumps/<name>`` by :func:`write_output_h5`."""
-    import types
-
     with open_result(path) as f:
         if "dumps" not in f or name not in f["dumps"]:
             raise ResultFileError(f"{path}: no /dumps/{name} group")

@@ -25,7 +25,9 @@ from gransim.contacts import find_neighbours
 from gransim.dem.output import RunRecord, write_run
 from gransim.geometry import Packing
 
+from . import store
 from .conventions import cauchy_from_pressure
+from .decks.biaxial import read_dump, read_thermo, short_case
 
 
 def _contacts(x, r, cell) -> dict:
@@ -95,10 +97,7 @@ def trajectory_to_run_file(path, packing: Packing, steps, stress, lengths, frame
 
 def stored_short_run_file(path) -> Path:
     """The stored biaxial-short LIGGGHTS run (reference_runs/stored/biaxial-short) as a run file."""
-    from .decks.biaxial import read_dump, read_thermo, short_case
-    from .store import STORED
-
-    d = STORED / "biaxial-short"
+    d = store.STORED / "biaxial-short"
     p, s, _, _ = short_case()
     return biaxial_job_to_run_file(path, p, read_thermo(d / "log.liggghts"), read_dump(d / "dump.atoms"), s.dt,
                                    settings=s.to_dict(), source=str(d))

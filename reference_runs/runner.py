@@ -52,6 +52,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from gransim.io import atomic_path
+from gransim.progress import progress as _progress
 
 from .engines import ENGINES, LIGGGHTS, get_engine
 from .errors import DirectoryBusyError, ReferenceRunError
@@ -584,8 +585,6 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
     tail = _LogTail(job_dir / LOG_NAME)
     bar = None
     if progress:
-        from gransim.progress import progress as _progress
-
         bar = _progress(total=total, desc=desc or f"{eng.name} {job_dir.name}", unit="run")
     timed_out = False
     with open(job_dir / "stdout.txt", "wb") as out, open(job_dir / "stderr.txt", "wb") as err:

@@ -16,10 +16,13 @@ import shutil
 import sys
 from pathlib import Path
 
-from gransim.io import save_packing
+from gransim.errors import GransimError
+from gransim.io import load_packing, save_packing
 from gransim.paper import KN_2D
 
 from .demo_packings import perturbed_lattice
+from .engines import get_engine
+from .taylor import run_taylor
 
 STORED = Path(__file__).resolve().parent / "stored"
 TAYLOR_CASE = "taylor-lattice-6x6"
@@ -31,8 +34,6 @@ RVE_CASE = "taylor-rve-70-1"
 
 def taylor_case(base: str, engine: str = "liggghts") -> str:
     """Name of a stored Taylor case for an engine: ``base`` for LIGGGHTS, ``base-lammps`` for LAMMPS."""
-    from .engines import get_engine
-
     e = get_engine(engine)
     return base if e.name == "liggghts" else f"{base}-{e.name}"
 
@@ -106,9 +107,6 @@ def regenerate_taylor(dest: Path | None = None, packing=None, name: str | None =
     deck generator from ``packing.h5``; the manifest keeps their hashes). ``engine``:
     ``"liggghts"`` or ``"lammps"``.
     """
-    from .engines import get_engine
-    from .taylor import run_taylor
-
     eng = get_engine(engine)
     name = name or taylor_case(TAYLOR_CASE, eng.name)
     dest = Path(dest) if dest else STORED / name
@@ -148,8 +146,6 @@ def regenerate_taylor_rve(dest: Path | None = None, packing_file=None, timeout: 
                           engine: str = "liggghts") -> Path:
     """The RVE case: the standard packing rve-70-1 of gransim.generation, thermo only (its packing
     is read from the stored LIGGGHTS case)."""
-    from gransim.io import load_packing
-
     if packing_file is None:
         packing_file = STORED / RVE_CASE / "packing.h5"
     packing = load_packing(packing_file)
@@ -165,11 +161,8 @@ def main(argv=None) -> int:
                                  description="Regenerate the stored Taylor reference outputs.")
     ap.add_argument("--engine", default="liggghts", help="liggghts (default) or lammps")
     args = ap.parse_args(argv)
-    from gransim.errors import GransimError
 
     try:
-        from .engines import get_engine
-
         get_engine(args.engine).find()   # before anything is written
         print(regenerate_taylor(engine=args.engine))
         print(regenerate_taylor_rve(engine=args.engine))

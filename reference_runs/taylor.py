@@ -23,7 +23,7 @@ from gransim.geometry import Packing
 from gransim.io import atomic_h5, open_result, write_packing_group
 
 from .conventions import cauchy_from_pressure, cauchy_from_stress_atom_sum
-from .decks.taylor import LAMMPS_CONTACT_COLUMNS, PATHS, ROUTES, taylor_job
+from .decks.taylor import LAMMPS_CONTACT_COLUMNS, PATHS, ROUTES, image_state_packing, taylor_job
 from .errors import ReferenceRunError
 from .parsers import pair_gran_local_names, parse_dump_local, parse_log
 from .runner import run_job
@@ -107,8 +107,6 @@ class TaylorRun:
 
     def _image_sources(self, path: str, route: str, k: int) -> np.ndarray:
         """Original particle index of every atom of an images-route state (regenerated)."""
-        from .decks.taylor import image_state_packing
-
         s = self.get(path, route)
         F = s.F[int(np.nonzero(s.k == k)[0][0])]
         _, _, src, _ = image_state_packing(self.packing, F)

@@ -12,6 +12,7 @@ from ``--dump-dom``; nothing is sent anywhere (the flags switch Chromium's backg
 
 from __future__ import annotations
 
+import html
 import json
 import os
 import re
@@ -94,7 +95,6 @@ def check_report(index, width: int = 1400, height: int = 1000, timeout: float = 
     if run.returncode != 0 or m is None:
         raise GransimError(f"Chromium did not render {index} (exit {run.returncode}): "
                            f"{run.stderr.strip().splitlines()[-1:] or 'no output'}")
-    import html
 
     return json.loads(html.unescape(m.group(1)))
 

@@ -25,6 +25,7 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
+    # lazy: this module is imported when `gransim` builds its parser (start-up time)
     from validation.runner import run_validation
 
     ok, _ = run_validation(args.suite, args.results, args.jobs, only=args.case, timeout=args.timeout)

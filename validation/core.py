@@ -11,6 +11,9 @@ from typing import Callable
 
 import numpy as np
 
+from reference_runs import store
+from reference_runs.runner import verify_job
+
 SUITES = ("quick", "default", "full")
 #: default per-job timeout: a constant (start-up, set-up, output) plus a cost per particle-step.
 #: LIGGGHTS 3.8.0 runs ~6 M particle-steps/s serially here (docs/dem.md, make bench): 3e-6 s per
@@ -289,6 +292,7 @@ def case(case_id: str, title: str, suites=SUITES, order: int = 100):
 
 
 def registered_cases(suite: str) -> list[Case]:
+    # lazy: cycle with validation.cases (each case module imports validation.core at its top)
     from . import cases  # noqa: F401  (imports register the cases)
 
     return sorted((c for c in _REGISTRY.values() if suite in c.suites), key=lambda c: (c.order, c.id))
@@ -297,8 +301,6 @@ def registered_cases(suite: str) -> list[Case]:
 def stored_dir(name: str) -> Path:
     """Directory of a stored reference job (``reference_runs/stored/<name>``), looked up at call
     time so that the fault tests can point the cases at a damaged copy."""
-    from reference_runs import store
-
     return Path(store.STORED) / name
 
 
@@ -306,8 +308,6 @@ def stored_job_record(label: str, job_dir) -> Record:
     """Evidence record of a stored reference job: :func:`reference_runs.runner.verify_job` on its
     directory (runs, last steps and dump frames against its own deck; hashes where a manifest has
     them). Fails, listing the problems, when the stored job is incomplete or was edited."""
-    from reference_runs.runner import verify_job
-
     problems = verify_job(job_dir)
     metric = ("stored job verified against its deck" if not problems else
               "incomplete stored job: " + "; ".join(str(p) for p in problems[:3])

@@ -12,6 +12,7 @@ import numpy as np
 from gransim.io import atomic_h5, atomic_path
 
 from .core import PAIRS, CaseResult
+from .faults import FAULT_KINDS
 
 
 def _fmt(v) -> str:
@@ -213,7 +214,6 @@ def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Pat
         out.append("<tr><th>benchmarks</th><td><a href='bench.html'>bench.html</a> (make bench: speed figures "
                    "against their targets, scaling plots)</td></tr>")
     out.append("</table></details>")
-    from .faults import FAULT_KINDS
 
     out.append("<details><summary>Faults the test suite injects to show that these verdicts can fail "
                f"({len(FAULT_KINDS)} kinds, <code>tests/faults</code>; each ends in a failing verdict or a clear "

@@ -9,9 +9,19 @@ import traceback
 from pathlib import Path
 
 from gransim import __version__
-from gransim.io import git_commit, liggghts_version
+from gransim._validate import as_positive_float, check_choice
+from gransim.io import git_commit, lammps_version, liggghts_version
+from reference_runs.locks import DirectoryLock, remove_stray_tmp
+from reference_runs.runner import kill_children_on_signals
 
-from .core import SUITES, CaseResult, Context, lammps_available, liggghts_available, registered_cases
+from .core import (
+    SUITES,
+    CaseResult,
+    Context,
+    lammps_available,
+    liggghts_available,
+    registered_cases,
+)
 from .report import write_h5, write_html, write_json
 
 
@@ -25,16 +35,12 @@ def run_validation(suite: str = "default", results: Path | str = "results", jobs
     case is reported as not run, naming the job. Returns ``(all_passed, results)``. A case that
     raises is reported as not run (a failure), with its error, and the other cases still run.
     """
-    from gransim._validate import as_positive_float, check_choice
-
     check_choice(suite, "suite", SUITES)
     if timeout is not None:
         timeout = as_positive_float(timeout, "--timeout")
     ctx = Context(suite=suite, results=Path(results), jobs=int(jobs), liggghts=liggghts_available(),
                   lammps=lammps_available(),
                   timeout=timeout)
-    from reference_runs.locks import DirectoryLock, remove_stray_tmp
-    from reference_runs.runner import kill_children_on_signals
 
     # one validation run per results directory (a second fails at once, naming the first); a
     # signal kills every LIGGGHTS job this run started before the exception ends it
@@ -50,14 +56,10 @@ def run_validation(suite: str = "default", results: Path | str = "results", jobs
 
 def _lammps_version() -> str | None:
     """The version the ``lmp`` binary reports about itself (None when absent)."""
-    from gransim.io import lammps_version
-
     return lammps_version()
 
 
 def _run_cases(ctx, suite, only, log, timeout) -> tuple[bool, list[CaseResult]]:
-    from gransim._validate import check_choice
-
     ctx.report_dir.mkdir(parents=True, exist_ok=True)
     cases = registered_cases(suite)
     if only:

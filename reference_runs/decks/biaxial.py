@@ -26,12 +26,30 @@ mirrors it with ``DEMSettings(flavour="lammps")``.
 
 from __future__ import annotations
 
+import datetime
+import inspect
+import os
+import shutil
+import signal
+import subprocess
+import tempfile
 from pathlib import Path
 
-from gransim.dem.settings import DEMSettings, Loading
+import numpy as np
+
+from gransim.contacts import hertz, hooke, rolling
+from gransim.contacts.laws import law_code, make_law
+from gransim.contacts.material import effective_shear, effective_youngs
+from gransim.dem import kernels
+from gransim.dem.lattice import lattice_packing
+from gransim.dem.settings import AxisControl, DEMSettings, Loading
+from gransim.errors import InputError
 from gransim.geometry import Packing
-from gransim.io import atomic_path
+from gransim.io import atomic_path, liggghts_version
 from reference_runs.datafile import write_data_file
+from reference_runs.errors import ReferenceRunError
+from reference_runs.parsers import parse_dump_custom, parse_log
+from reference_runs.runner import run_job
 
 
 def _g(v: float) -> str:
@@ -74,10 +92,6 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
     its pair_style / property lines replace the Hooke lines of ``settings`` (:func:`law_lines`;
     InputError for a law of the other code). ``settings`` still gives dt and the skin.
     """
-    import numpy as np
-
-    from gransim.dem import kernels
-
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
 
@@ -162,9 +176,6 @@ def law_pair_lines(law, settings: DEMSettings, engine: str) -> list[str]:
     NULL``, ``granular hooke ... tangential linear_history ... rolling sds``. InputError for a law
     of the other code or one without deck lines.
     """
-    from gransim.contacts import hertz, hooke, rolling
-    from gransim.errors import InputError
-
     s = settings
     if law is None:
         law = hooke.hooke_law(s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, engine)
@@ -232,8 +243,6 @@ _MATERIAL: dict = {}
 
 def hertz_liggghts(youngs_modulus, poisson_ratio, restitution, friction):
     """``make_law("hertz-liggghts", ...)`` remembering its material constants for the deck."""
-    from gransim.contacts.laws import make_law
-
     law = make_law("hertz-liggghts", youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio,
                    restitution=restitution, friction=friction)
     _MATERIAL[law] = (float(youngs_modulus), float(poisson_ratio), float(restitution))
@@ -242,8 +251,6 @@ def hertz_liggghts(youngs_modulus, poisson_ratio, restitution, friction):
 
 def hertz_granular_lammps(youngs_modulus, poisson_ratio, damp, friction, gammat_ratio=1.0, damping="tsuji"):
     """``make_law("hertz-granular-lammps", ...)`` remembering E, nu, DAMP for the deck."""
-    from gransim.contacts.laws import make_law
-
     law = make_law("hertz-granular-lammps", youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio,
                    damp=damp, friction=friction, gammat_ratio=gammat_ratio, damping=damping)
     _MATERIAL[law] = (float(youngs_modulus), float(poisson_ratio), float(damp))
@@ -267,10 +274,6 @@ def short_case_law(name: str):
     sqrt(8 G*/(2 Y*)). Rolling: Hooke's parameters, mu_r = 0.1, eta_r = 0.3; sds KROLL = 1e5 N/m,
     GAMMAROLL = 0.2 kg/s (m* 50), MUROLL = 0.1.
     """
-    from gransim.contacts.laws import make_law
-    from gransim.contacts.material import effective_shear, effective_youngs
-    from gransim.errors import InputError
-
     E, nu, e, mu = 6.0e8, 0.3, 0.98, 0.5
     hooke = {"kn": 1e5, "kt": 1e5, "gamma_n": 50.0, "gamma_t": 50.0, "mu": mu}
     if name == "hertz-liggghts":
@@ -294,12 +297,6 @@ def short_case_law(name: str):
 def make_stored_law(name: str, out_root, timeout: float | None = 900.0) -> Path:
     """Run the short case with the law ``name`` (:func:`short_case_law`) in its code and store
     deck, data, log, dump and a README under ``out_root/biaxial-short-<name>/``."""
-    import datetime
-    import shutil
-    import tempfile
-
-    from gransim.contacts.laws import law_code
-
     engine = law_code(name)
     out = Path(out_root) / f"biaxial-short-{name}"
     out.mkdir(parents=True, exist_ok=True)
@@ -339,10 +336,6 @@ _THERMO_NAMES = ("Step", "Lx", "Ly", "Xlo", "Xhi", "Ylo", "Yhi", "c_pt[1]", "c_p
 def read_thermo(log_path) -> dict:
     """Thermo rows of the deck's (single) run as arrays keyed by THERMO_COLUMNS
     (:func:`reference_runs.parsers.parse_log`)."""
-    import numpy as np
-
-    from reference_runs.parsers import parse_log
-
     run = parse_log(Path(log_path)).runs[-1]
     out = {k: np.array(run.column(name)) for k, name in zip(THERMO_COLUMNS, _THERMO_NAMES)}
     out["step"] = out["step"].astype(np.int64)
@@ -352,8 +345,6 @@ def read_thermo(log_path) -> dict:
 def read_dump(dump_path) -> dict:
     """``dump.atoms`` as {step: {"id", "x", "y", "vx", "vy", "omegaz", "fx", "fy", "tqz", "mass",
     "radius"}} (rows sorted by id; :func:`reference_runs.parsers.parse_dump_custom`)."""
-    from reference_runs.parsers import parse_dump_custom
-
     return {int(fr.step): dict(fr.columns) for fr in parse_dump_custom(Path(dump_path))}
 
 
@@ -372,9 +363,6 @@ def short_case():
     100 N/m with gain 0.01 1/(Pa s); y: compression at 1 1/s. About 60 of 150 contacts slide.
     Returns (packing, settings, loading, nsteps).
     """
-    from gransim.dem.lattice import lattice_packing
-    from gransim.dem.settings import AxisControl
-
     p = lattice_packing(10, 12, seed=1, spread=0.1, compression=0.04)
     s = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e-6, skin=2e-5)
     ld = Loading(x=AxisControl("servo", target=100.0, gain=1e-2), y=AxisControl("rate", rate=-1.0))
@@ -394,10 +382,6 @@ def run_deck(deck: Path, engine: str = "liggghts", np: int = 1, timeout: float |
     ``timed_out=True``). Raises :class:`~reference_runs.errors.ReferenceRunError` (binary missing,
     non-zero exit, ERROR or WARNING lines, no ``dump.atoms``, a log short of the run) quoting the log.
     """
-    import inspect
-
-    from reference_runs.runner import run_job
-
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
     deck = Path(deck)
@@ -414,13 +398,6 @@ def run_deck(deck: Path, engine: str = "liggghts", np: int = 1, timeout: float |
 def _run_lmp(deck: Path, np: int, timeout: float | None) -> Path:
     """``lmp -in DECK -log log.lammps -screen none -nocite`` in the deck's directory (own process
     group, killed on timeout); checks exit status, ERROR/WARNING lines, the loop and the dump."""
-    import os
-    import shutil
-    import signal
-    import subprocess
-
-    from reference_runs.errors import ReferenceRunError
-
     job = deck.parent
     lmp = shutil.which("lmp")
     if lmp is None:
@@ -468,12 +445,6 @@ def make_stored(out_dir, timeout: float | None = 600.0, engine: str = "liggghts"
     log and dump with a README. The job runs in a scratch directory; the stored names are the
     deck's own (``in.biaxial`` + ``log.liggghts``, or ``in.lammps`` + ``log.lammps``), as read by
     tests/dem/test_liggghts.py and tests/dem/test_lammps.py."""
-    import datetime
-    import shutil
-    import tempfile
-
-    from gransim.io import liggghts_version
-
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
     if engine == "lammps":
@@ -509,11 +480,6 @@ def make_stored(out_dir, timeout: float | None = 600.0, engine: str = "liggghts"
 
 def _make_stored_lammps(out: Path, timeout: float | None) -> Path:
     """:func:`make_stored` for LAMMPS (reference_runs/stored/biaxial-short-lammps)."""
-    import datetime
-    import shutil
-    import subprocess
-    import tempfile
-
     out.mkdir(parents=True, exist_ok=True)
     p, s, ld, n = short_case()
     with tempfile.TemporaryDirectory(prefix="biaxial-short-lammps-") as tmp:

@@ -21,6 +21,8 @@ engine=...)``); :func:`make_stored` writes ``reference_runs/stored/hertz-<code>/
 from __future__ import annotations
 
 import math
+import shutil
+import tempfile
 from pathlib import Path
 
 from gransim.contacts.material import (
@@ -30,6 +32,7 @@ from gransim.contacts.material import (
     effective_youngs,
 )
 from gransim.errors import InputError
+
 from . import twodisk
 
 #: law name -> (engine, deck file name, job sub-directory)
@@ -148,9 +151,6 @@ def make_stored(out_root, timeout: float | None = 120.0) -> dict:
     """Run the three decks and store them as ``out_root/hertz-liggghts/`` and
     ``out_root/hertz-lammps/{gran-hertz-history,granular}/`` (deck, data, log, dump, manifest;
     the README beside them is written by hand). Returns {law: stored directory}."""
-    import shutil
-    import tempfile
-
     out = {}
     with tempfile.TemporaryDirectory(prefix="hertz-stored-") as tmp:
         for law, (engine, deck_name, sub) in LAWS.items():

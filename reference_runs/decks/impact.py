@@ -33,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from gransim.contacts.hertz import HertzGranularLammps, HertzHistoryLammps, HertzHistoryLiggghts
+from gransim.contacts.laws import law_code, make_law
 from gransim.contacts.material import (
     HertzLiggghts,
     HertzMaterialLammps,
@@ -45,6 +47,9 @@ from gransim.errors import InputError
 from gransim.geometry import Packing
 from gransim.io import atomic_path
 from reference_runs.datafile import write_data_file
+from reference_runs.parsers import parse_dump_custom
+
+from .biaxial import law_pair_lines
 
 ENGINES = ("liggghts", "lammps")
 #: deck file name written by :func:`write_impact_deck` (run_job copies it to its own deck name)
@@ -182,8 +187,6 @@ class HertzLiggghtsLaw:
                 "kt_damping": beta != 0.0}
 
     def native_law(self, flavour: str = "liggghts"):
-        from gransim.contacts.hertz import HertzHistoryLiggghts
-
         return HertzHistoryLiggghts(*self.material().coefficients())
 
     def dem_settings(self, dt: float, skin: float, flavour: str = "liggghts") -> DEMSettings:
@@ -238,8 +241,6 @@ class HertzHistoryLammpsLaw:
                 "alpha": 0.0, "kt_damping": self.gamma_t != 0.0}
 
     def native_law(self, flavour: str = "lammps"):
-        from gransim.contacts.hertz import HertzHistoryLammps
-
         kn, kt = self._kk()
         return HertzHistoryLammps(kn, kt, float(self.gamma_n), float(self.gamma_t), float(self.mu))
 
@@ -299,8 +300,6 @@ class HertzGranularLammpsLaw:
                 "kt_damping": kind != "none" and self.gammat_ratio != 0.0}
 
     def native_law(self, flavour: str = "lammps"):
-        from gransim.contacts.hertz import HertzGranularLammps
-
         E43, damp, kt0, g, mu, model = self.material().coefficients()
         return HertzGranularLammps(E43, damp, kt0, g, mu, float(model))
 
@@ -376,8 +375,6 @@ def write_impact_deck(job_dir, packing: Packing, law, dt: float, skin: float, ns
 def read_frames(dump_path) -> dict:
     """``dump.atoms`` as {step: {"x": (N, 2), "v": (N, 2), "w": (N,), "f": (N, 2), "t": (N,)}}
     (rows sorted by id; :func:`reference_runs.parsers.parse_dump_custom`)."""
-    from reference_runs.parsers import parse_dump_custom
-
     out = {}
     for fr in parse_dump_custom(Path(dump_path)):
         out[int(fr.step)] = {"x": fr.array("x", "y"), "v": fr.array("vx", "vy"), "w": np.array(fr["omegaz"], float),
@@ -419,8 +416,6 @@ class RollingLaw:
 
     @property
     def engines(self) -> tuple:
-        from gransim.contacts.laws import law_code
-
         return (law_code(self.name),)
 
     @property
@@ -432,8 +427,6 @@ class RollingLaw:
         return float(self.p["mu"])
 
     def law(self):
-        from gransim.contacts.laws import make_law
-
         return make_law(self.name, **self.p)
 
     def native_law(self, flavour: str = ""):
@@ -471,8 +464,6 @@ class RollingLaw:
         )
 
     def deck_lines(self, engine: str) -> list[str]:
-        from .biaxial import law_pair_lines
-
         _one_code(self, engine)
         return law_pair_lines(self.law(), self.dem_settings(1.0, 1.0), engine)
 

@@ -24,9 +24,12 @@ every step. :func:`run_rolling` runs one (``reference_runs.runner.run_job(..., e
 from __future__ import annotations
 
 import math
+import shutil
+import tempfile
 from pathlib import Path
 
 from gransim.errors import InputError
+
 from . import twodisk
 
 #: law name -> (engine, deck file name)
@@ -144,9 +147,6 @@ def make_stored(out_root, laws=None, timeout: float | None = 120.0) -> dict:
     """Run the decks of ``laws`` (default all) and store each as ``out_root/rolling-<code>/<law>/``
     (deck, data, log, dump, manifest; the README beside them is written by hand).
     Returns {law: stored directory}."""
-    import shutil
-    import tempfile
-
     out = {}
     with tempfile.TemporaryDirectory(prefix="rolling-stored-") as tmp:
         for law in (LAWS if laws is None else laws):

@@ -26,16 +26,24 @@ Run it with ``lmp -in in.shear -log log.lammps -screen none -nocite`` in the job
 
 from __future__ import annotations
 
+import datetime
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from gransim.dem import kernels
+from gransim.dem.lattice import lattice_packing
 from gransim.dem.settings import DEMSettings
 from gransim.dem.sheared import ShearLoading
 from gransim.errors import InputError
 from gransim.geometry import Packing
 from gransim.io import atomic_path
 from reference_runs.datafile import write_data_file
+from reference_runs.engines import LAMMPS
+from reference_runs.parsers import parse_dump_custom, parse_log
+from reference_runs.runner import run_job
 
 DECK = "in.shear"
 DATA = "data.shear"
@@ -50,8 +58,6 @@ def wrapped_packing(packing: Packing) -> Packing:
     """The packing with its centres wrapped into [0, Lx) x [0, Ly) as ``Domain::pbc`` would do
     (x += L once): the positions written to the data file, and those to give the native engine so
     that both codes start from the same doubles. Needs an orthogonal cell (the deck starts untilted)."""
-    from gransim.dem import kernels
-
     C = np.asarray(packing.cell, float)
     if C[0, 1] != 0.0 or C[1, 0] != 0.0:
         raise InputError(
@@ -167,8 +173,6 @@ _THERMO_NAMES = ("Step", "Lx", "Ly", "Xy", "Xlo", "Xhi", "Ylo", "Yhi", "c_pt[1]"
 
 def read_thermo(log_path) -> dict:
     """Thermo rows of the deck's run as arrays keyed by THERMO_COLUMNS (stress compression positive)."""
-    from reference_runs.parsers import parse_log
-
     run = parse_log(Path(log_path)).runs[-1]
     out = {k: np.array(run.column(name)) for k, name in zip(THERMO_COLUMNS, _THERMO_NAMES)}
     out["step"] = out["step"].astype(np.int64)
@@ -177,8 +181,6 @@ def read_thermo(log_path) -> dict:
 
 def read_dump(dump_path) -> dict:
     """``dump.atoms`` as {step: {column: array}} (rows sorted by id)."""
-    from reference_runs.parsers import parse_dump_custom
-
     return {int(fr.step): dict(fr.columns) for fr in parse_dump_custom(Path(dump_path))}
 
 
@@ -199,8 +201,6 @@ def short_case(name: str):
     (compression positive) with gain 1e-2 1/(Pa s). Returns (packing, settings, loading, nsteps);
     the packing is already wrapped (:func:`wrapped_packing`).
     """
-    from gransim.dem.lattice import lattice_packing
-
     if name not in SHORT_CASES:
         raise InputError(f"unknown shear case {name!r}; choose one of: {', '.join(SHORT_CASES)}")
     p = wrapped_packing(lattice_packing(10, 12, seed=1, spread=0.1, compression=0.04))
@@ -215,8 +215,6 @@ def short_case(name: str):
 def run_lammps(deck: Path, timeout: float | None = 600.0) -> Path:
     """Run a deck written by :func:`write_shear_deck` in its directory with LAMMPS (serial,
     :func:`reference_runs.runner.run_job`, ``engine="lammps"``, always rerun); returns the log."""
-    from reference_runs.runner import run_job
-
     deck = Path(deck)
     data = (deck.parent / DATA).read_bytes()
     res = run_job(
@@ -238,12 +236,6 @@ def make_stored(out_dir, timeout: float | None = 600.0) -> Path:
     """Run both short cases with LAMMPS in scratch job directories and store deck, data, log and
     dump of each under ``out_dir/CASE/`` with a README (provenance: the binary's banner, command,
     date)."""
-    import datetime
-    import shutil
-    import tempfile
-
-    from reference_runs.engines import LAMMPS
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     heads = {}

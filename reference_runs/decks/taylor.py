@@ -61,6 +61,7 @@ LAMMPS (``engine="lammps"``, checked on LAMMPS 29 Sep 2021 - Update 2, Debian ``
 from __future__ import annotations
 
 import json
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -70,6 +71,7 @@ from gransim.errors import InputError
 from gransim.geometry import Packing
 
 from ..datafile import write_data_file
+from ..parsers import pair_gran_local_names
 
 #: the four study paths of Meier, Steinmann & Kuhl (2007) (Figs 4-5): driving component of F
 PATHS = ("compression-11", "compression-22", "shear-12", "shear-21")
@@ -373,7 +375,6 @@ def taylor_job(packing: Packing, kn: float, paths=PATHS, routes=ROUTES, n_steps:
         if r not in ROUTES:
             raise InputError(f"unknown route {r!r}; choose one of: {', '.join(ROUTES)}")
     skin = 0.1 * float(packing.radii.min()) if skin is None else float(skin)
-    import tempfile
 
     files, states, blocks = {}, [], []
     cols = " ".join(f"c_pl[{a + 1}]" for a in range(_N_CONTACT_COLS))
@@ -428,7 +429,6 @@ def _lammps_taylor_job(packing, kn, paths, routes, n_steps, max_strain, stride, 
             raise InputError(f"unknown route {r!r}; choose one of: {', '.join(ROUTES)}")
     skin = 0.1 * float(packing.radii.min()) if skin is None else float(skin)
     files, states, blocks = {}, [], []
-    import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
         for path in paths:
@@ -476,6 +476,4 @@ def _lammps_taylor_job(packing, kn, paths, routes, n_steps, max_strain, stride, 
 
 
 def _contact_names():
-    from ..parsers import pair_gran_local_names
-
     return pair_gran_local_names(CONTACT_KEYWORDS)

@@ -11,6 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from gransim.io import atomic_path
+from reference_runs.parsers import parse_dump_custom
+from reference_runs.runner import run_job
 
 DUMP_NAME = "dump.atoms"
 #: the lines every two-disk deck starts with, after its comment
@@ -75,14 +77,10 @@ def write_job(job_dir, deck_name: str, text: str, data_name: str, data: str) -> 
 def run_two_disk(job_dir, engine: str, text: str, data_name: str, data: str, timeout: float | None = 120.0):
     """Run a two-disk deck through :func:`reference_runs.runner.run_job` (always rerun; the dump is
     a required output); returns the :class:`~reference_runs.runner.JobResult`."""
-    from reference_runs.runner import run_job
-
     return run_job(job_dir, text, files={data_name: data}, timeout=timeout, outputs=(DUMP_NAME,),
                    expected_runs=1, progress=False, force=True, engine=engine)
 
 
 def read_dump(path) -> dict:
     """``dump.atoms`` as {step: {column: (2,) array}} (rows sorted by id)."""
-    from reference_runs.parsers import parse_dump_custom
-
     return {int(fr.step): dict(fr.columns) for fr in parse_dump_custom(Path(path))}

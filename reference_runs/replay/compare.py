@@ -28,8 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from gransim.errors import InputError
+from gransim.errors import InputError, ResultFileError
 from gransim.io import atomic_h5, atomic_path
+from reference_runs.parsers import parse_dump_custom, parse_log
+from reference_runs.runner import run_job
 
 from .deck import ReplayDeck, read_deck
 from .drive import NativeRun, run_native
@@ -79,8 +81,6 @@ class ReplayResult:
 def run_code(deck: ReplayDeck, job_dir: Path, timeout: float | None):
     """Run the deck unchanged in its code in ``job_dir``; returns (log path, {dump file: path},
     version text). Raises ReferenceRunError (binary missing, error, timeout, incomplete)."""
-    from reference_runs.runner import run_job
-
     files = {}
     if not Path(deck.data_name).is_absolute():
         if ".." in Path(deck.data_name).parts or len(Path(deck.data_name).parts) != 1:
@@ -130,8 +130,6 @@ def _max_rel(a, b, scale):
 
 def compare_thermo(deck: ReplayDeck, nat: NativeRun, log_path: Path) -> list:
     """Checks of the thermo table (see the module docstring)."""
-    from reference_runs.parsers import parse_log
-
     checks = []
     log = parse_log(Path(log_path))
     if log.errors:
@@ -189,9 +187,6 @@ def compare_thermo(deck: ReplayDeck, nat: NativeRun, log_path: Path) -> list:
 
 def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
     """Checks of every dump frame (see the module docstring)."""
-    from gransim.errors import ResultFileError
-    from reference_runs.parsers import parse_dump_custom
-
     checks = []
     d50 = deck.d50
     index = {int(a): i for i, a in enumerate(deck.ids)}
@@ -292,7 +287,6 @@ def replay(deck_path, data=None, engine: str | None = None, outdir=None, timeout
     out.mkdir(parents=True, exist_ok=True)
     if reference is not None:
         log, dumps, version = read_reference(deck, Path(reference))
-        from reference_runs.parsers import parse_log
 
         version = parse_log(log).version or "unknown (stored job)"
         say(f"reading the {deck.engine} job in {reference}")

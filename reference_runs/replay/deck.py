@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from gransim.dem.settings import DEMSettings
+from gransim.dem.sheared import ShearLoading, tilt_stop
 from gransim.errors import InputError
 from gransim.geometry import Packing
 
@@ -924,8 +925,6 @@ def _shear_loading(st, path, tilt, lo, hi, dt, nsteps):
     they are. A tilt beyond Lx/2 at the end of the run (LAMMPS would flip the box; ShearEngine
     stops) and a trate on a box without tilt (LAMMPS stops too) are refused naming the line.
     """
-    from gransim.dem.sheared import ShearLoading, tilt_stop
-
     d = st.deform
     if d is None or d.tilt is None:
         return ShearLoading(erate=0.0)

@@ -29,6 +29,7 @@ import numpy as np
 
 from gransim.dem import DEMEngine
 from gransim.dem.settings import PrescribedBox
+from gransim.dem.sheared import ShearEngine
 from gransim.errors import InputError, SimulationError
 
 from .deck import ReplayDeck
@@ -154,8 +155,6 @@ def run_native(deck: ReplayDeck, progress=None) -> NativeRun:
 def build_shear_engine(deck: ReplayDeck):
     """A ShearEngine (LAMMPS flavour) in the deck's own box (``box=(lo, hi, xy)``: the data file's
     positions and box as they are), before the ``run`` set-up (:meth:`start_run`)."""
-    from gransim.dem.sheared import ShearEngine
-
     box = (np.array(deck.box_lo, float), np.array(deck.box_hi, float), float(deck.tilt))
     try:
         return ShearEngine(deck.packing, deck.settings, velocities=deck.velocities, spins=deck.spins,

@@ -14,10 +14,46 @@ with tangential history, the same time step, skin, rebuild rule, servo and rate 
 
 from __future__ import annotations
 
+import csv
+import dataclasses
+import datetime
+import hashlib
+import json
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
-from ..core import CaseResult, Context, case, compare, stored_dir, stored_job_record
-from ..dem_compare import frame_differences, stress_differences
+from gransim import generation
+from gransim.dem import AxisControl, DEMEngine, Loading
+from gransim.dem import default_settings as dem_defaults
+from gransim.geometry import Packing
+from gransim.io import atomic_path, load_packing
+from reference_runs.decks.biaxial import SHORT_CASE_DUMP_EVERY, short_case
+from reference_runs.native_schema import trajectory_to_run_file
+
+from ..core import (
+    CaseResult,
+    Context,
+    case,
+    compare,
+    evidence,
+    in_pair,
+    info,
+    stored_dir,
+    stored_job_record,
+)
+from ..dem_compare import (
+    Trajectory,
+    expected_frames,
+    expected_steps,
+    frame_differences,
+    position_difference,
+    read_reference,
+    run_native,
+    run_reference_job,
+    stress_differences,
+    trajectory_evidence,
+)
 
 POS_TOL = 1e-10  # of D50
 POS_REASON = ("the engine does LIGGGHTS' floating-point operations in LIGGGHTS' order (neighbour list, "
@@ -42,15 +78,11 @@ LIVE_SHORT_STEPS = 1000
 
 
 def _kuhn(ctx: Context):
-    from gransim.generation import standard_packings
-    from gransim.io import load_packing
-
-    return load_packing(standard_packings(ctx.results / "packings", names=["kuhn-1002"])["kuhn-1002"])
+    paths = generation.standard_packings(ctx.results / "packings", names=["kuhn-1002"])
+    return load_packing(paths["kuhn-1002"])
 
 
 def _servo(bi):
-    from gransim.dem import AxisControl
-
     return AxisControl("servo", target=bi.confining, gain=bi.servo_gain)
 
 
@@ -73,9 +105,6 @@ def step_records(label: str, nat, lig, d50: float, nsteps: int, dump_every: int,
     is a failing ``evidence`` record ("incomplete: expected N frames, got M"); the differences
     are then taken over what both sides hold, and a comparison over nothing is NaN (fails).
     """
-    from ..dem_compare import (expected_frames, expected_steps, frame_differences, stress_differences,
-                               trajectory_evidence)
-
     exp_s, exp_f = expected_steps(nsteps, thermo_every), expected_frames(nsteps, dump_every)
     recs = (trajectory_evidence(label, "native", nat, exp_s, exp_f)
             + trajectory_evidence(label, code, lig, exp_s, exp_f))
@@ -100,8 +129,6 @@ def step_records(label: str, nat, lig, d50: float, nsteps: int, dump_every: int,
 
 def _flavour(settings, engine: str):
     """The native settings that mirror ``engine``'s arithmetic (``DEMSettings.flavour``)."""
-    import dataclasses
-
     return dataclasses.replace(settings, flavour=engine)
 
 
@@ -127,9 +154,6 @@ def cross_records(label: str, lig, lmp, nat_l, nat_m, d50: float, nsteps: int, d
     """LIGGGHTS vs LAMMPS on one deck: the evidence of both codes, the raw differences (info) and
     the check that they equal the difference of the two native flavours (stress every thermo step,
     positions at every dump)."""
-    from ..core import info
-    from ..dem_compare import expected_frames, expected_steps, trajectory_evidence
-
     exp_s, exp_f = expected_steps(nsteps, thermo_every), expected_frames(nsteps, dump_every)
     recs = (trajectory_evidence(label, "LIGGGHTS", lig, exp_s, exp_f)
             + trajectory_evidence(label, "LAMMPS", lmp, exp_s, exp_f))
@@ -146,7 +170,6 @@ def cross_records(label: str, lig, lmp, nat_l, nat_m, d50: float, nsteps: int, d
     scale = np.where(scale > 0, scale, 1.0)
     raw = np.abs(sig(lig) - sig(lmp)).max(axis=1) / scale
     expl = np.abs((sig(lig) - sig(lmp)) - (sig(nat_l) - sig(nat_m))).max(axis=1) / scale
-    from ..dem_compare import position_difference
 
     raw_x, expl_x = [], []
     for f in frames:
@@ -173,13 +196,6 @@ def cross_records(label: str, lig, lmp, nat_l, nat_m, d50: float, nsteps: int, d
 
 @case("biaxial-short", "Biaxial test, short horizon: step for step, native vs LIGGGHTS vs LAMMPS", order=20)
 def biaxial_short(ctx: Context) -> CaseResult:
-    from gransim.dem import Loading
-    from gransim.dem import default_settings as dem_defaults
-    from reference_runs.decks.biaxial import SHORT_CASE_DUMP_EVERY, short_case
-
-    from ..core import in_pair
-    from ..dem_compare import read_reference, run_native, run_reference_job
-
     res = CaseResult(
         "biaxial-short", "Biaxial test, short horizon: step for step, native vs LIGGGHTS vs LAMMPS",
         "The same deck in each code (LIGGGHTS 3.8.0 and LAMMPS, each in its own syntax), compared at every step "
@@ -319,8 +335,6 @@ def lammps_ensemble_labels(n: int, suite: str) -> list[str]:
 
 
 def _perturbed(common, k: int, ax: int, sign: float):
-    from gransim.geometry import Packing
-
     xp = np.array(common.positions)
     xp[k, ax] *= 1.0 + sign * PERTURB_REL
     return Packing(positions=xp, radii=common.radii, cell=common.cell, density=common.density, metadata={})
@@ -331,8 +345,6 @@ def reference_jobs(ctx: Context, common, dem, tag: str, np2: bool) -> dict:
     :func:`validation.dem_compare.run_reference_job`} for each available code, its serial
     reference (label "reference") and its envelope members (:func:`ensemble_labels`,
     :func:`lammps_ensemble_labels`): a coordinate moved by 1e-15, 2 MPI processes, twice the skin."""
-    import dataclasses
-
     n = common.n
     perturb = {"x of disk 1 moved by +1e-15 rel": (0, 0, 1.0), f"y of disk {n // 2 + 1} moved by -1e-15 rel":
                (n // 2, 1, -1.0)}
@@ -376,14 +388,6 @@ def full_runs(ctx: Context) -> dict:
     (LIGGGHTS) and ``lammps`` = {``native``, ``reference``, ``manifest``, ``ensemble``,
     ``expected_ensemble``} when LAMMPS is installed.
     """
-    from concurrent.futures import ThreadPoolExecutor
-
-    from gransim.dem import AxisControl, DEMEngine, Loading
-    from gransim.dem import default_settings as dem_defaults
-    from gransim.geometry import Packing
-
-    from ..dem_compare import run_native, run_reference_job
-
     key = (str(ctx.results.resolve()), ctx.suite, ctx.liggghts, ctx.lammps)
     if key in _FULL_CACHE:
         return _FULL_CACHE[key]
@@ -429,8 +433,6 @@ def full_runs(ctx: Context) -> dict:
         ens = {lab: done[("liggghts", lab)][0] for (e, lab) in jobs if e == "liggghts" and lab != "reference"}
         r.update(liggghts=lig, manifest=man, ensemble=ens, expected_ensemble=ensemble_labels(n, cfg["np2"]))
         # the reference job in the native run-file schema (read by gransim.dem / gransim voidcells)
-        from reference_runs.native_schema import trajectory_to_run_file
-
         ref_dir = jobs[("liggghts", "reference")]["job_dir"]
         r["liggghts_run_file"] = trajectory_to_run_file(
             ref_dir / "liggghts-run.h5", common, lig.steps, lig.stress, lig.lengths, lig.frames,
@@ -464,6 +466,7 @@ def _ratio(d: np.ndarray, env: np.ndarray) -> float:
 
 
 def _plots(ctx, div, sdiv, cur) -> list:
+    # lazy: pyplot costs ~1.5 s of import (measured, load 9); only the figures need it
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -520,10 +523,6 @@ def _plots(ctx, div, sdiv, cur) -> list:
 
 def _long_csv(path, header, rows):
     """Write the data a figure was drawn from as CSV (one row per point; atomic) and return its path."""
-    import csv
-
-    from gransim.io import atomic_path
-
     with atomic_path(path, suffix=".csv.tmp") as tmp:
         with open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
@@ -564,17 +563,12 @@ CROSS_CURVE_REASON = ("the two codes run the same deck with slightly different l
 
 
 def _evidence_of(label, who, tr, exp_s, exp_f):
-    from ..dem_compare import trajectory_evidence
-
     return trajectory_evidence(label, who, tr, exp_s, exp_f)
 
 
 @case("biaxial-full", "Biaxial test, full loading: divergence envelopes and stress-strain curves",
       suites=("default", "full"), order=30)
 def biaxial_full(ctx: Context) -> CaseResult:
-    from ..core import evidence, in_pair, info
-    from ..dem_compare import Trajectory, expected_frames, expected_steps
-
     r = full_runs(ctx)
     bi, dem, pk = r["biaxial"], r["settings"], r["packing"]
     res = CaseResult(
@@ -621,8 +615,6 @@ def biaxial_full(ctx: Context) -> CaseResult:
                              "validation.cases.biaxial.store_full_reference where the code is installed.")
             continue
         if nat is None:
-            from ..dem_compare import run_native
-
             nat = run_native(pk, _flavour(dem, "lammps"), r["loading"], r["nsteps"], FULL_DUMP_EVERY,
                              velocities=r["velocities"], spins=r["spins"], thermo_every=FULL_THERMO_EVERY)
         sides[engine] = {"native": nat, "reference": stored["liggghts"], "ensemble": stored["ensemble"],
@@ -759,9 +751,6 @@ def store_full_reference(ctx: Context, engine: str = "liggghts") -> None:
     from validation.cases.biaxial import store_full_reference;
     store_full_reference(Context('default', Path('results'), liggghts=True, lammps=True), 'lammps')"``.
     """
-    import datetime
-    import json
-
     r = full_runs(ctx)
     d = _stored_dir()
     d.mkdir(parents=True, exist_ok=True)
@@ -804,8 +793,6 @@ def input_fingerprint(ctx: Context) -> str:
     Stored with the reference series: a series made from another assembly (e.g. after a change
     of the packing generator) is refused with a clear message instead of failing numerically.
     """
-    import hashlib
-
     p = _kuhn(ctx)
     h = hashlib.sha256()
     for a in (p.positions, p.radii, p.cell, np.array([p.density])):
@@ -815,10 +802,6 @@ def input_fingerprint(ctx: Context) -> str:
 
 def load_stored_full(strain: float, engine: str = "liggghts"):
     """The stored series of ``engine`` as trajectories (no frames), or None."""
-    import json
-
-    from ..dem_compare import Trajectory
-
     path = _stored_dir() / _stored_name(strain, engine)
     if not path.exists():
         return None

@@ -27,14 +27,37 @@ compression. No stored outputs: without the code the law's cell is reported not 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
+from gransim.contacts.laws import law_code, law_names, make_law
+from gransim.contacts.material import effective_shear
+from gransim.dem import AxisControl, DEMEngine, Loading
+from gransim.dem import default_settings as dem_defaults
+from gransim.dem.biaxial import PAPER_INDENTATION
+from gransim.geometry import Packing
+from reference_runs.decks import biaxial as deck
+from reference_runs.decks.biaxial import write_biaxial_deck
+from reference_runs.runner import run_job
+
 from ..core import CaseResult, Context, case, evidence, in_pair, info
+from ..dem_compare import Trajectory, _frame, expected_frames, expected_steps, read_reference
+from .biaxial import (
+    FULL_CONSOLIDATION_STEPS,
+    FULL_DUMP_EVERY,
+    FULL_THERMO_EVERY,
+    PERTURB_REL,
+    _envelope,
+    _evidence_of,
+    _kuhn,
+    _servo,
+)
 
 #: envelope members of each law's code: (label, disk index from n, axis, sign)
 PERTURB = (
@@ -50,10 +73,6 @@ POISSON = 0.3
 def law_table(packing, dem) -> dict:
     """{law name: make_law parameters} for the Kuhn assembly and the protocol's settings ``dem``
     (module docstring). Every name of :func:`gransim.contacts.laws.law_names` appears."""
-    from gransim.contacts.laws import law_names
-    from gransim.contacts.material import effective_shear
-    from gransim.dem.biaxial import PAPER_INDENTATION
-
     d50 = packing.d50
     a_ref = math.sqrt(0.25 * d50 * PAPER_INDENTATION * d50)
     ystar = dem.kn / (2.0 * a_ref)
@@ -114,9 +133,6 @@ def build_law(name: str, params: dict):
     """The law object of ``name``: :func:`gransim.contacts.laws.make_law`, through the deck module's
     builders for the laws whose deck needs their material constants (hertz-liggghts,
     hertz-granular-lammps: ``reference_runs.decks.biaxial.hertz_liggghts`` / ``hertz_granular_lammps``)."""
-    from gransim.contacts.laws import make_law
-    from reference_runs.decks import biaxial as deck
-
     if name == "hertz-liggghts":
         return deck.hertz_liggghts(**params)
     if name == "hertz-granular-lammps":
@@ -125,10 +141,6 @@ def build_law(name: str, params: dict):
 
 
 def _perturbed(common, k: int, ax: int, sign: float):
-    from gransim.geometry import Packing
-
-    from .biaxial import PERTURB_REL
-
     xp = np.array(common.positions)
     xp[k, ax] *= 1.0 + sign * PERTURB_REL
     return Packing(
@@ -140,10 +152,6 @@ def law_jobs(ctx: Context, common, dem, table: dict | None = None) -> dict:
     """The code jobs of the case: {(law name, label): {"job_dir", "packing", "settings", "law",
     "engine"}} with label "reference" (the serial run) and the :data:`PERTURB` members, for every
     law whose code is available in ``ctx``. ``settings`` is ``dem`` in the law's flavour."""
-    import dataclasses
-
-    from gransim.contacts.laws import law_code
-
     table = law_table(common, dem) if table is None else table
     jobs = {}
     for name, params in table.items():
@@ -172,8 +180,6 @@ def write_job_deck(
     tmp, job: dict, loading, nsteps: int, velocities, spins, dump_every: int, thermo_every: int
 ):
     """Deck of one job of :func:`law_jobs` in ``tmp``: (deck path, {file name: bytes})."""
-    from reference_runs.decks.biaxial import write_biaxial_deck
-
     deck = write_biaxial_deck(
         tmp,
         job["packing"],
@@ -202,10 +208,6 @@ def run_code_job(
     timeout: float,
 ):
     """Run one job (reused when complete); (Trajectory, manifest)."""
-    from reference_runs.runner import run_job
-
-    from ..dem_compare import Trajectory, read_reference
-
     with tempfile.TemporaryDirectory() as tmp:
         deck, files = write_job_deck(
             tmp, job, loading, nsteps, velocities, spins, dump_every, thermo_every
@@ -237,10 +239,6 @@ def run_native_law(
     thermo_every: int,
 ):
     """:func:`validation.dem_compare.run_native` with a contact law (``DEMEngine(..., law=law)``)."""
-    from gransim.dem import DEMEngine
-
-    from ..dem_compare import Trajectory, _frame
-
     t0 = time.perf_counter()
     eng = DEMEngine(packing, settings, velocities=velocities, spins=spins, law=law)
     box0 = (eng.lo.copy(), eng.hi.copy())
@@ -269,12 +267,6 @@ def run_native_law(
 def common_start(ctx: Context) -> dict:
     """The consolidated Kuhn assembly every law starts from (module docstring) and the protocol:
     {"packing", "settings", "biaxial", "loading", "nsteps", "velocities", "spins"}."""
-    from gransim.dem import AxisControl, DEMEngine, Loading
-    from gransim.dem import default_settings as dem_defaults
-    from gransim.geometry import Packing
-
-    from .biaxial import FULL_CONSOLIDATION_STEPS, FULL_DUMP_EVERY, _kuhn, _servo
-
     pk = _kuhn(ctx)
     dem, bi = dem_defaults(pk, strain=STRAIN)
     servo = _servo(bi)
@@ -312,13 +304,6 @@ def common_start(ctx: Context) -> dict:
     order=31,
 )
 def biaxial_laws(ctx: Context) -> CaseResult:
-    from concurrent.futures import ThreadPoolExecutor
-
-    from gransim.contacts.laws import law_code
-
-    from ..dem_compare import expected_frames, expected_steps
-    from .biaxial import FULL_DUMP_EVERY, FULL_THERMO_EVERY, _envelope, _evidence_of
-
     res = CaseResult(
         "biaxial-laws",
         "Biaxial test on the Kuhn assembly with each contact law: native vs its code's envelope",

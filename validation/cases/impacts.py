@@ -99,12 +99,37 @@ the rotation of the normal during contact (O(v_t t_c/(r1 + r2)) <= 6e-5 rad) and
 
 from __future__ import annotations
 
+import datetime
+import json
 import math
+import shutil
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq, minimize_scalar
+
+from gransim.contacts.hooke import hooke_history_lammps
+from gransim.dem import DEMEngine, Loading
+from gransim.errors import ResultFileError
+from gransim.geometry import Packing
+from reference_runs import store
+from reference_runs.decks.impact import (
+    DATA_NAME,
+    DUMP_NAME,
+    HertzGranularLammpsLaw,
+    HertzHistoryLammpsLaw,
+    HertzLiggghtsLaw,
+    HookeLaw,
+    RollingLaw,
+    WallLaw,
+    read_frames,
+    write_impact_deck,
+    write_wall_deck,
+)
+from reference_runs.runner import run_job
 
 from ..core import (
     CaseResult,
@@ -275,8 +300,6 @@ def hertz_scaled_ode(alpha: float, rtol: float = 1e-12) -> dict:
 
     Returns the contact time tau_c, the peak overlap x_max, the peak force f_max, the restitution
     -x'(tau_c) and the impulse factor int |f| dtau, all dimensionless (alpha >= 0)."""
-    from scipy.integrate import solve_ivp
-
     if not (math.isfinite(alpha) and alpha >= 0.0):
         raise ValueError(f"alpha: expected a damping coefficient >= 0, got {alpha!r}")
 
@@ -297,7 +320,6 @@ def hertz_scaled_ode(alpha: float, rtol: float = 1e-12) -> dict:
     y = sol.sol(ts)
     f = np.clip(y[0], 0, None) ** 1.5 + alpha * np.clip(y[0], 0, None) ** 0.25 * y[1]
     k = int(np.argmax(y[0]))
-    from scipy.optimize import minimize_scalar
 
     xm = -minimize_scalar(lambda t: -sol.sol(t)[0], bounds=(ts[max(k - 1, 0)], ts[min(k + 1, len(ts) - 1)]),
                           method="bounded", options={"xatol": 1e-13}).fun
@@ -333,8 +355,6 @@ def hertz_stick(meff: float, reff: float, y43: float, kt0: float, vn: float, rto
     xi'' = -(3/m*) kt0 sqrt(R* delta) xi (F_t = -k_t(delta) xi: both codes keep xi when delta
     changes), xi(0) = 0, xi'(0) = s0, released at the return to delta = 0; linear in s0.
     Integrated by DOP853 (scipy): no closed form (k_t varies through the impact)."""
-    from scipy.integrate import solve_ivp
-
     K = y43 * math.sqrt(reff)
 
     def rhs(t, y):
@@ -406,8 +426,6 @@ MU_OBLIQUE = 0.3
 
 def scenes(suite: str = "default") -> list[Scene]:
     """The scenes of ``suite`` (quick: normal zeta 0 and 0.35, oblique; default/full: all)."""
-    from reference_runs.decks.impact import HookeLaw
-
     out = []
     w0_wall = math.sqrt(KN / _meff(R, R_WALL))
     for z in ZETAS_WALL:
@@ -478,12 +496,6 @@ def hertz_scenes() -> list[Scene]:
     """The Hertz-Mindlin scenes, one code each (docs/impacts.md): per law an undamped scene
     (normal, oblique, spinning), a sticking one (mu 1e3) and a damped normal one (LIGGGHTS e = 0.5,
     LAMMPS tsuji DAMP = 0.3)."""
-    from reference_runs.decks.impact import (
-        HertzGranularLammpsLaw,
-        HertzHistoryLammpsLaw,
-        HertzLiggghtsLaw,
-    )
-
     laws = {
         "hertz-liggghts": lambda mu, damped: HertzLiggghtsLaw(E_H, NU_H, 0.5 if damped else 1.0, mu),
         "hertz-lammps": lambda mu, damped: HertzHistoryLammpsLaw(E_H, NU_H, mu),
@@ -526,8 +538,6 @@ def hertz_scenes() -> list[Scene]:
 def layout(scene: Scene, dt: float = DT):
     """(packing, velocities, spins, nsteps, pairs) of the scene: pair k in slot k along x, each
     pair GAP_STEPS base steps from touching; the run lasts until every pair has separated."""
-    from gransim.geometry import Packing
-
     if isinstance(scene, RollScene):
         return roll_layout(scene, dt)
     if isinstance(scene, WallScene):
@@ -584,8 +594,6 @@ def native_law(law, flavour: str):
 def run_native(scene: Scene, flavour: str, dt: float = DT) -> dict:
     """The native engine's frames at the dump steps (every EVERY * DT / dt steps):
     {step: {"x", "v", "w", "f", "t"}}."""
-    from gransim.dem import DEMEngine, Loading
-
     if isinstance(scene, RollScene):
         return run_native_roll(scene, dt)
     if isinstance(scene, WallScene):
@@ -608,8 +616,6 @@ def _frame(eng) -> dict:
 
 def write_job_deck(job_dir, scene: Scene, engine: str) -> tuple[str, dict]:
     """(deck text, input files) of the scene's job for ``engine``."""
-    from reference_runs.decks.impact import DATA_NAME, write_impact_deck, write_wall_deck
-
     p, v, w, n, _ = layout(scene)
     if isinstance(scene, WallScene):
         deck = write_wall_deck(job_dir, p, scene.law, DT, SKIN, n, v, w, dump_every=EVERY,
@@ -622,9 +628,6 @@ def write_job_deck(job_dir, scene: Scene, engine: str) -> tuple[str, dict]:
 
 def run_code(ctx: Context, scene: Scene, engine: str) -> tuple[dict, Path, bool]:
     """Frames of the scene in ``engine`` (live when installed, else stored); (frames, job dir, live)."""
-    from reference_runs.decks.impact import DUMP_NAME, read_frames
-    from reference_runs.runner import run_job
-
     live = ctx.liggghts if engine == "liggghts" else ctx.lammps
     if live:
         job = ctx.work("reference", "impacts", engine, scene.name)
@@ -636,7 +639,6 @@ def run_code(ctx: Context, scene: Scene, engine: str) -> tuple[dict, Path, bool]
         job = res.job_dir
     else:
         job = stored_dir(f"impacts-{engine}") / scene.name
-    from gransim.errors import ResultFileError
 
     try:  # a cut or damaged dump is missing evidence (the evidence record names it), not a crash
         frames = read_frames(job / DUMP_NAME) if (job / DUMP_NAME).exists() else {}
@@ -820,8 +822,6 @@ class RollScene:
 
 def rolling_scenes() -> list[RollScene]:
     """One scene per rolling law of the native code (docs/impacts.md, "Rolling resistance")."""
-    from reference_runs.decks.impact import RollingLaw
-
     hooke = (("kn", KN), ("gamma_n", 0.0), ("gamma_t", 0.0), ("mu", 0.0))
     laws = {
         "roll-epsd2": RollingLaw("hooke-epsd2-liggghts", hooke + (("kt", 1.0e4), ("mu_r", MU_R))),
@@ -927,8 +927,6 @@ def _osc(K, C, I, th0, w0):
 
 def _first_root(g, t0: float, t1: float, period: float):
     """First root of g on (t0, t1] (sampled at period/400, refined by brentq), or None."""
-    from scipy.optimize import brentq
-
     n = max(math.ceil((t1 - t0) / (period / 400.0)), 2)
     ts = np.linspace(t0, t1, n + 1)
     gs = g(ts)
@@ -1026,8 +1024,6 @@ def roll_layout(scene: RollScene, dt: float = DT):
     5 Ly/8, 7 Ly/8 with Ly = 4 (R + R_WALL - DELTA_ROLL): each A touches both B's (one of them
     across the periodic boundary), each pair once (the engine allows one image per pair). A1 and
     A2 start with w0, so by symmetry w = w_A - w_B obeys (R1); the column's pair is (A1, B1)."""
-    from gransim.geometry import Packing
-
     S = 2.0 * R_WALL + 2.0 * R + 4.0 * SKIN
     Ly = 4.0 * (R + R_WALL - DELTA_ROLL)
     pos, rad, spin, cols = [], [], [], []
@@ -1141,8 +1137,6 @@ class WallScene:
 
 
 def wall_scenes() -> list[WallScene]:
-    from reference_runs.decks.impact import WallLaw
-
     out = []
     for code in CODES:
         imps = []
@@ -1166,8 +1160,6 @@ def wall_scenes() -> list[WallScene]:
 def wall_layout(scene: WallScene, dt: float = DT):
     """(packing, velocities, spins, nsteps, disks): disk k at x = (k + 1/2) S, y = R + gap (it
     touches 2.3 frames after the start), velocity (V sin a, -V cos a); box [0, Lx] x [0, 8 R]."""
-    from gransim.geometry import Packing
-
     S = 4.0 * R + 4.0 * SKIN
     pos, vel = [], []
     tmax = 0.0
@@ -1199,8 +1191,6 @@ def run_native_wall(scene: WallScene, dt: float = DT) -> dict:
     number of every frame. Frames as :func:`run_native`. (LIGGGHTS' primitive wall uses the
     lever r - delta/2 and its own contact geometry: not reproduced here; its wall is judged
     against (W1) only.)"""
-    from gransim.contacts.hooke import hooke_history_lammps
-
     law = getattr(hooke_history_lammps, "py_func", hooke_history_lammps)
     p, v0, w0, nsteps, _ = wall_layout(scene, dt)
     every = round(EVERY * DT / dt)
@@ -1436,8 +1426,6 @@ def native_roll_law(law):
 
 def run_native_roll(scene: RollScene, dt: float = DT) -> dict:
     """The native engine's frames of a rolling scene (as :func:`run_native`)."""
-    from gransim.dem import DEMEngine, Loading
-
     p, v, w, n, _ = roll_layout(scene, dt)
     every = round(EVERY * DT / dt)
     eng = DEMEngine(
@@ -1792,14 +1780,6 @@ def make_stored(root=None, suite: str = "full", timeout: float = 600.0, names=No
     and store the job directories under ``reference_runs/stored/impacts-<code>/<scene>/`` (deck,
     data, log, dump, manifest), other scene directories kept, with a README listing them all.
     Needs ``liggghts`` and ``lmp``."""
-    import datetime
-    import json
-    import shutil
-
-    from reference_runs import store
-    from reference_runs.decks.impact import DUMP_NAME
-    from reference_runs.runner import run_job
-
     root = Path(root or store.STORED)
     out = []
     for code in CODES:

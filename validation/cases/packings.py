@@ -24,9 +24,28 @@ contacts by the brute-force O(N^2) periodic search, forces by the linear law wri
 
 from __future__ import annotations
 
+import dataclasses
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
+from gransim import generation
+from gransim.contacts import find_neighbours_bruteforce
+from gransim.generation import RVE_MEAN_OVERLAP, compaction_run, get_distribution, packing_stats
+from gransim.io import load_packing
+from reference_runs.parsers import parse_log
+from reference_runs.runner import LOG_NAME
+
 from ..core import CaseResult, Context, case, compare, in_pair
+from ..dem_compare import (
+    expected_frames,
+    expected_steps,
+    position_difference,
+    run_liggghts_job,
+    run_native,
+    run_reference_job,
+    trajectory_evidence,
+)
 
 REPLAY_REASON = ("the native engine, in that code's arithmetic, follows the code bit for bit (biaxial-short); "
                  "over the ~190,000 steps of the compaction any difference in the last bit would grow to a visible "
@@ -38,8 +57,6 @@ KUHN_VOID_TOL = 0.005
 
 
 def _contacts(p):
-    from gransim.contacts import find_neighbours_bruteforce
-
     nl = find_neighbours_bruteforce(p.positions, p.radii, p.cell, 0.0)
     eps = nl.overlaps(p.radii)
     c = eps > 0
@@ -47,8 +64,6 @@ def _contacts(p):
 
 
 def _sieve_error(p) -> tuple[float, float]:
-    from gransim.generation import get_distribution
-
     g = get_distribution(p.metadata["distribution"])
     a = (2.0 * p.radii) ** 2
     d = 2.0 * p.radii
@@ -59,10 +74,6 @@ def _sieve_error(p) -> tuple[float, float]:
 @case("packings", "Packings: the 15 RVEs and Kuhn's assembly against their targets", suites=("default", "full"),
       order=5)
 def packings(ctx: Context) -> CaseResult:
-    from gransim.generation import packing_stats, standard_packings
-    from gransim.generation import RVE_MEAN_OVERLAP
-    from gransim.io import load_packing
-
     res = CaseResult(
         "packings", "Packings: the 15 RVEs and Kuhn's assembly against their targets",
         "The standard assemblies (<code>gransim packings</code>): 5 RVEs each of 70, 350 and 700 disks of "
@@ -70,7 +81,7 @@ def packings(ctx: Context) -> CaseResult:
         "compaction, preparation friction 0.05, p = 1e-4 kn). Checked from the saved files with a brute-force "
         "contact search: force balance (RVEs) or the servo pressure (Kuhn), overlaps, Kuhn's void ratio, and "
         "the sieve curve of every sample.")
-    paths = standard_packings(ctx.results / "packings")
+    paths = generation.standard_packings(ctx.results / "packings")
     rows = []
     packs, seen = {}, {}  # loaded packings and their contacts, reused by the figure
     for name, path in paths.items():
@@ -143,13 +154,6 @@ def packings(ctx: Context) -> CaseResult:
 
 def _liggghts_replay(ctx: Context, name: str, p, res: CaseResult) -> list:
     """LIGGGHTS runs the compaction that made ``p`` from the same gas; final positions and box compared."""
-    from gransim.generation import compaction_run
-    from reference_runs.parsers import parse_log
-    from reference_runs.runner import LOG_NAME
-
-    from ..dem_compare import (expected_frames, expected_steps, position_difference, run_liggghts_job,
-                               trajectory_evidence)
-
     gas, dem, loading, nsteps = compaction_run(p)
     job = ctx.work("reference", "packings", name)
     thermo = max(nsteps // 100, 1)
@@ -179,14 +183,6 @@ def _lammps_replay(ctx: Context, name: str, p, res: CaseResult) -> list:
     """LAMMPS runs the compaction that made ``p`` from the same gas while the native engine runs it
     in LAMMPS' arithmetic (``flavour="lammps"``); final positions and box compared. (The packing file
     itself was made in LIGGGHTS' arithmetic: :func:`_liggghts_replay` checks it.)"""
-    import dataclasses
-    from concurrent.futures import ThreadPoolExecutor
-
-    from gransim.generation import compaction_run
-
-    from ..dem_compare import (expected_frames, expected_steps, position_difference, run_native,
-                               run_reference_job, trajectory_evidence)
-
     gas, dem, loading, nsteps = compaction_run(p)
     dem = dataclasses.replace(dem, flavour="lammps")
     job = ctx.work("reference", "packings", f"{name}-lammps")
@@ -216,6 +212,7 @@ def _lammps_replay(ctx: Context, name: str, p, res: CaseResult) -> list:
 
 def _figure(ctx: Context, shown: dict):
     """Disks and contact force lines of ``shown`` = {name: (packing, contacts of _contacts)}."""
+    # lazy: pyplot costs ~1.5 s of import (measured, load 9); only the figures need it
     import matplotlib
 
     matplotlib.use("Agg")

@@ -22,9 +22,60 @@ Trajectories here are :class:`validation.dem_compare.Trajectory` with ``lengths`
 
 from __future__ import annotations
 
+import dataclasses
+import datetime
+import hashlib
+import json
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
 import numpy as np
 
-from ..core import CaseResult, Context, case, compare, info, stored_dir, stored_job_record
+from gransim.contacts import find_neighbours
+from gransim.dem import DEMEngine, Loading
+from gransim.dem import default_settings as dem_defaults
+from gransim.dem.sheared import ShearEngine, ShearLoading
+from gransim.errors import InputError
+from gransim.geometry import Packing
+from gransim.voidcell import Snapshot
+from reference_runs.decks.shear import (
+    DATA,
+    DUMP,
+    SHORT_CASES,
+    SHORT_DUMP_EVERY,
+    read_thermo,
+    short_case,
+    wrapped_packing,
+    write_shear_deck,
+)
+from reference_runs.parsers import parse_dump_custom
+from reference_runs.runner import run_job
+
+from .. import dem_compare
+from ..core import (
+    CaseResult,
+    Context,
+    case,
+    compare,
+    default_job_timeout,
+    evidence,
+    in_pair,
+    info,
+    stored_dir,
+    stored_job_record,
+)
+from ..dem_compare import (
+    Trajectory,
+    expected_frames,
+    expected_steps,
+    stress_differences,
+    trajectory_evidence,
+)
+from .biaxial import ENVELOPE_FACTOR, FULL_CONSOLIDATION_STEPS, PERTURB_REL, _kuhn, _servo
+from .voidcell import _cells, _face_order, cell_signature
+from .voidcell import _records as cell_records
 
 CASE = "simple-shear"
 TITLE = "Simple shear in a sheared periodic cell (Lees-Edwards): native vs LAMMPS, and void cells"
@@ -127,14 +178,6 @@ def run_native_shear(
     N/m) and box (lx, ly, xy) every ``thermo_every`` steps from the set-up (step 0), frames every
     ``dump_every`` steps. The settings pass through :func:`validation.dem_compare.native_setup`
     (the hook the validation tests perturb)."""
-    import dataclasses
-    import time
-
-    from gransim.dem.sheared import ShearEngine
-
-    from .. import dem_compare
-    from ..dem_compare import Trajectory
-
     settings, loading = dem_compare.native_setup(
         dataclasses.replace(settings, flavour="lammps"), loading
     )
@@ -167,11 +210,6 @@ def read_lammps_shear(log_path, dump_path):
     """A Trajectory of a LAMMPS run of the shear deck (log: thermo; dump: frames sorted by id).
     A dump the parser refuses (e.g. a frame cut short) gives no frames: the evidence records then
     name every frame as missing."""
-    from reference_runs.decks.shear import read_thermo
-    from reference_runs.parsers import parse_dump_custom
-
-    from ..dem_compare import Trajectory
-
     th = read_thermo(log_path)
     frames = {}
     try:
@@ -208,15 +246,6 @@ def run_shear_job(
 ):
     """The shear deck run by LAMMPS in ``job_dir`` (:func:`reference_runs.runner.run_job`, reused
     when complete with the same inputs). Returns (Trajectory, manifest)."""
-    import dataclasses
-    import tempfile
-    from pathlib import Path
-
-    from reference_runs.decks.shear import DATA, DUMP, write_shear_deck
-    from reference_runs.runner import run_job
-
-    from ..core import default_job_timeout
-
     if timeout is None:
         timeout = default_job_timeout(packing.n * nsteps)
     with tempfile.TemporaryDirectory() as tmp:
@@ -277,13 +306,6 @@ def step_records(
 ) -> tuple[list, list]:
     """Evidence of both sides (every thermo step, every dump frame) and the step-for-step checks;
     returns (records, table row)."""
-    from ..dem_compare import (
-        expected_frames,
-        expected_steps,
-        stress_differences,
-        trajectory_evidence,
-    )
-
     exp_s, exp_f = expected_steps(nsteps), expected_frames(nsteps, dump_every)
     recs = trajectory_evidence(label, "native", nat, exp_s, exp_f) + trajectory_evidence(
         label, "LAMMPS", ref, exp_s, exp_f
@@ -359,9 +381,6 @@ def sheared_snapshot(tr, step: int, radii: np.ndarray, dt: float):
     unlike the ``remap x`` snapshot of :func:`validation.dem_compare.snapshot`; the image
     x_j + h n moves with v_j + (dh/dt) n, dh/dt from the box series (:func:`box_rate`).
     """
-    from gransim.contacts import find_neighbours
-    from gransim.voidcell import Snapshot
-
     fr = tr.frames[step]
     h = _cell(tr.lengths[tr.at([step])[0]])
     nl = find_neighbours(fr["x"], radii, h, skin=0.0)
@@ -379,10 +398,6 @@ def sheared_snapshot(tr, step: int, radii: np.ndarray, dt: float):
 
 def compare_cells(nat, ref, steps, radii, dt) -> dict:
     """Per frame: the same cell list?, max|d alpha|, max|d w|/max|w| (as the voidcell case)."""
-    from gransim.errors import InputError
-
-    from .voidcell import _cells, _face_order, cell_signature
-
     out = {"steps": [], "same": [], "alpha": [], "w": [], "vc": [], "no_tessellation": []}
     for s in steps:
         vcs = []
@@ -418,10 +433,6 @@ def compare_cells(nat, ref, steps, radii, dt) -> dict:
 
 def cell_stats(tr, steps, radii, dt) -> np.ndarray:
     """(len(steps), 2): mean alpha and fraction alpha <= 0 of every frame (NaN without a tessellation)."""
-    from gransim.errors import InputError
-
-    from .voidcell import _cells
-
     rows = []
     for s in steps:
         try:
@@ -442,15 +453,6 @@ def consolidated(ctx: Context) -> dict:
     axes servo-controlled to the default confining pressure, FULL_CONSOLIDATION_STEPS steps),
     wrapped into [0, Lx) x [0, Ly) (the positions the data file carries). Keys: packing, settings
     (DEMSettings, flavour lammps), biaxial, velocities, spins, consolidation_error."""
-    import dataclasses
-
-    from gransim.dem import DEMEngine, Loading
-    from gransim.dem import default_settings as dem_defaults
-    from gransim.geometry import Packing
-    from reference_runs.decks.shear import wrapped_packing
-
-    from .biaxial import FULL_CONSOLIDATION_STEPS, _kuhn, _servo
-
     key = str(ctx.results.resolve())
     if key in _CONS_CACHE:
         return _CONS_CACHE[key]
@@ -491,8 +493,6 @@ def long_setup(ctx: Context) -> dict:
     :data:`LONG_INERTIAL` (erate = I / (D50 sqrt(rho/p))), y servo to the biaxial confining p with
     the biaxial servo gain, initial velocities = consolidation velocities + the homogeneous shear
     flow erate * y (so the cell starts in the flow its boundaries impose), up to :data:`LONG_STRAIN`."""
-    from gransim.dem.sheared import ShearLoading
-
     c = consolidated(ctx)
     pk, dem, bi = c["packing"], c["settings"], c["biaxial"]
     erate = LONG_INERTIAL / (pk.d50 * np.sqrt(pk.density / bi.confining))
@@ -504,8 +504,6 @@ def long_setup(ctx: Context) -> dict:
 
 
 def _perturbed(packing, k: int, ax: int, sign: float):
-    from .biaxial import PERTURB_REL
-
     x = np.array(packing.positions)
     x[k, ax] *= 1.0 + sign * PERTURB_REL
     return packing.replace(positions=x)
@@ -514,12 +512,6 @@ def _perturbed(packing, k: int, ax: int, sign: float):
 def input_fingerprint(ctx: Context) -> str:
     """SHA-256 of the LAMMPS inputs of the long-horizon reference run (deck text and data file:
     the consolidated state, velocities, spins, law, loading, run length)."""
-    import hashlib
-    import tempfile
-    from pathlib import Path
-
-    from reference_runs.decks.shear import DATA, write_shear_deck
-
     s = long_setup(ctx)
     with tempfile.TemporaryDirectory() as tmp:
         deck = write_shear_deck(
@@ -543,8 +535,6 @@ def long_runs(ctx: Context) -> dict:
     with ``lmp``: ``reference``, ``ensemble`` {label: Trajectory}, ``manifest``. LAMMPS jobs run in
     ``max(ctx.jobs, 1)`` threads while the native run proceeds; job dirs under
     ``reference/simple-shear/kuhn-1002``."""
-    from concurrent.futures import ThreadPoolExecutor
-
     key = (str(ctx.results.resolve()), ctx.suite, ctx.lammps)
     if key in _LONG_CACHE:
         return _LONG_CACHE[key]
@@ -607,11 +597,6 @@ def store_long_reference(ctx: Context) -> None:
     ``python -c "from pathlib import Path; from validation.core import Context;
     from validation.cases.shear import store_long_reference;
     store_long_reference(Context('full', Path('results'), lammps=True))"``."""
-    import datetime
-    import json
-
-    from gransim.errors import InputError
-
     if not ctx.lammps:
         raise InputError("store_long_reference: needs LAMMPS (lmp) installed (Context.lammps)")
     r = long_runs(ctx)
@@ -661,10 +646,6 @@ def store_long_reference(ctx: Context) -> None:
 
 def load_stored_long():
     """The stored series as {reference, ensemble, input_sha256} Trajectories without frames, or None."""
-    import json
-
-    from ..dem_compare import Trajectory
-
     path = _stored_path()
     if not path.exists():
         return None
@@ -739,9 +720,6 @@ def decade_steps(steps, env, level: float = 1e-4) -> float:
 def envelope_records(label: str, nat, ref, ensemble: dict, frames, steps, d50: float):
     """Divergence of ``nat`` from the LAMMPS reference against LAMMPS' envelope; returns
     (records, div, sdiv) with {name: (steps, values)} of positions (frames) and stress (steps)."""
-    from ..dem_compare import stress_differences
-    from .biaxial import ENVELOPE_FACTOR
-
     runs = {"native vs LAMMPS": nat, **{f"LAMMPS {k}": t for k, t in ensemble.items()}}
     div, sdiv = {}, {}
     for name, tr in runs.items():
@@ -810,12 +788,6 @@ def shear_curves(tr, p: float):
 # ------------------------------------------------------------------ the case
 @case(CASE, TITLE, order=35)
 def simple_shear_case(ctx: Context) -> CaseResult:
-    from reference_runs.decks.shear import SHORT_CASES, SHORT_DUMP_EVERY, short_case
-
-    from ..core import evidence, in_pair
-    from ..dem_compare import expected_frames
-    from .voidcell import _records as cell_records
-
     res = CaseResult(
         CASE,
         TITLE,
@@ -874,14 +846,12 @@ def simple_shear_case(ctx: Context) -> CaseResult:
         r2, row = step_records(label, nat, ref, p.d50, n, SHORT_DUMP_EVERY)
         res.records += in_pair(recs + r2, "native-lammps")
         rows.append(row)
-        from ..dem_compare import stress_differences
 
         both = np.intersect1d(nat.steps, ref.steps)
         short_div[name] = stress_differences(nat, ref, steps=both)[:2]
         # void cells of every dump
         frames = [int(k) for k in expected_frames(n, SHORT_DUMP_EVERY)]
         vlab = f"{CASE}/voidcells-120/{name}"
-        from ..dem_compare import trajectory_evidence
 
         ev = trajectory_evidence(vlab, "native", nat, None, frames) + trajectory_evidence(
             vlab, "LAMMPS", ref, None, frames
@@ -959,9 +929,6 @@ def simple_shear_case(ctx: Context) -> CaseResult:
 
 
 def _long(ctx: Context, res: CaseResult, evidence) -> None:
-    from ..core import in_pair
-    from ..dem_compare import Trajectory, expected_frames, expected_steps, trajectory_evidence
-
     s = long_setup(ctx)
     pk, n, ld = s["packing"], s["nsteps"], s["loading"]
     p = ld.target
@@ -1132,6 +1099,7 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
 
 # ------------------------------------------------------------------ figures
 def _plt():
+    # lazy: pyplot costs ~1.5 s of import (measured, load 9); only the figures need it
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -1141,6 +1109,7 @@ def _plt():
 
 
 def _cell_maps(ctx, fig_data):
+    # lazy: imports matplotlib (~1.5 s); only the figures need it
     from gransim.voidcell.plots import plot_alignment
 
     plt = _plt()

@@ -8,13 +8,22 @@ triclinic boxes are broken). So the expected difference is round-off.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 
+from gransim import generation, rve
+from gransim.io import load_packing
 from gransim.paper import KN_2D
+from gransim.rve import TaylorMaterial
+from gransim.rve.study import run_study
+from reference_runs import store
+from reference_runs.decks.taylor import PATHS, ROUTES
+from reference_runs.store import RVE_CASE, TAYLOR_CASE, taylor_case
+from reference_runs.taylor import read_taylor_job, run_taylor
 
-from ..core import CaseResult, Context, case, compare, stored_job_record
+from ..core import CaseResult, Context, Record, case, compare, evidence, in_pair, stored_job_record
 
 #: 2D normal contact stiffness of the RVE study (N/m): E_n of Meier et al. Table 1 per m of thickness
 KN = KN_2D
@@ -50,9 +59,7 @@ def compare_contact_forces(packing, F, frame, contact_state_fn=None) -> dict:
     ``contact_state_fn`` replaces :func:`gransim.rve.contact_state` (the tests drop contacts
     with it to show the comparison fails).
     """
-    from gransim.rve import contact_state
-
-    cs = (contact_state_fn or contact_state)(packing, F, KN)
+    cs = (contact_state_fn or rve.contact_state)(packing, F, KN)
     n = packing.n
     native: dict = {}
     for i, j, l, f in zip(cs.i, cs.j, cs.branch, cs.force):
@@ -97,8 +104,6 @@ CONTACT_REASON = ("two-sided: every contact end of gransim must be a LIGGGHTS ro
 def contact_records(label: str, cmp: dict, code: str = "LIGGGHTS") -> list:
     """Records of one state's two-sided contact comparison: the two counts, the unmatched ends on
     each side (listed in the metric), and the force difference over the matched ends."""
-    from ..core import Record
-
     def shown(lst):
         s = "; ".join(f"disk {a} l=({b[0]:.3g}, {b[1]:.3g})" for a, b in lst[:4])
         return s + (" ..." if len(lst) > 4 else "")
@@ -121,10 +126,6 @@ def expected_series(run) -> dict:
     for (``states.json``: n_steps, stride, the paths and routes of the deck): on LIGGGHTS the
     periodic route exists on compression paths only (its triclinic boxes are broken, shared
     notes); on LAMMPS on every path (a true triclinic box for shear)."""
-    import json
-
-    from reference_runs.decks.taylor import PATHS, ROUTES
-
     meta = json.loads((Path(run.job_dir) / "states.json").read_text())
     ks = list(range(0, int(meta["n_steps"]) + 1, int(meta["stride"])))
     asked = {(st["path"], st["route"]) for st in meta["states"]}
@@ -137,8 +138,6 @@ def expected_series(run) -> dict:
 def series_evidence(label: str, run, expected: dict | None = None) -> list:
     """Evidence records of a Taylor run: every expected (path, route) series present, each with
     every expected state."""
-    from ..core import evidence
-
     code = CODE.get(getattr(run, "engine", "liggghts"), "LIGGGHTS")
     expected = expected_series(run) if expected is None else expected
     recs = [evidence(label, f"{code} (path, route) series", [f"{p}/{r}" for p, r in expected],
@@ -162,9 +161,7 @@ def compare_contact_forces_by_pair(packing, F, frame, contact_state_fn=None) -> 
 
     Ends are matched per (particle, partner) by contact distance (within 1e-9 of the mean radius).
     Returns the dict of :func:`compare_contact_forces`."""
-    from gransim.rve import contact_state
-
-    cs = (contact_state_fn or contact_state)(packing, F, KN)
+    cs = (contact_state_fn or rve.contact_state)(packing, F, KN)
     native: dict = {}
     for i, j, l, f in zip(cs.i, cs.j, cs.branch, cs.force):
         d = float(np.linalg.norm(l))
@@ -196,10 +193,6 @@ def compare_contact_forces_by_pair(packing, F, frame, contact_state_fn=None) -> 
 
 def _code_runs(ctx: Context, packings: dict, stride: int, engine: str = "liggghts") -> tuple[dict, str]:
     """name -> TaylorRun of ``engine``, from live jobs (cached) or the stored outputs."""
-    from gransim.io import load_packing
-    from reference_runs.store import RVE_CASE, STORED, TAYLOR_CASE, taylor_case
-    from reference_runs.taylor import read_taylor_job, run_taylor
-
     code = CODE[engine]
     if getattr(ctx, engine):
         jobs = ctx.work("reference", "taylor" if engine == "liggghts" else "taylor-lammps")
@@ -210,7 +203,7 @@ def _code_runs(ctx: Context, packings: dict, stride: int, engine: str = "liggght
     runs = {}
     for base in (RVE_CASE, TAYLOR_CASE):
         stored = taylor_case(base, engine)
-        d = Path(STORED) / stored
+        d = Path(store.STORED) / stored
         runs[stored] = read_taylor_job(d, load_packing(d / "packing.h5"))
     return runs, f"stored {code} outputs (reference_runs/stored/), {code} being absent"
 
@@ -230,10 +223,6 @@ def _contact_runs(ctx: Context, packings: dict, engine: str = "liggghts"):
     """Per-contact dumps: a few states per path of one RVE per size (live), or the stored lattice
     case. LIGGGHTS: the images route (its periodic boxes cannot shear); LAMMPS: the periodic
     route (every path in a true periodic box)."""
-    from gransim.io import load_packing
-    from reference_runs.store import STORED, TAYLOR_CASE, taylor_case
-    from reference_runs.taylor import read_taylor_job, run_taylor
-
     route = "images" if engine == "liggghts" else "periodic"
     if getattr(ctx, engine):
         names = [n for n in packings if n.endswith("-1")]
@@ -241,15 +230,12 @@ def _contact_runs(ctx: Context, packings: dict, engine: str = "liggghts"):
         return {n: run_taylor(packings[n], KN, jobs / n, name=n, routes=(route,), stride=25, contacts=True,
                               progress=False, timeout=ctx.job_timeout(_taylor_work(packings[n], 3)), engine=engine)
                 for n in names}, route
-    d = Path(STORED) / taylor_case(TAYLOR_CASE, engine)
+    d = Path(store.STORED) / taylor_case(TAYLOR_CASE, engine)
     return {taylor_case(TAYLOR_CASE, engine): read_taylor_job(d, load_packing(d / "packing.h5"))}, route
 
 
 @case("taylor-rve", "Taylor RVE stresses: 15 RVEs, compression 11/22 and simple shear 12/21", order=10)
 def taylor_rve(ctx: Context) -> CaseResult:
-    from gransim.generation import standard_packings
-    from gransim.io import load_packing
-
     s = _suite_settings(ctx.suite)
     res = CaseResult(
         "taylor-rve", "Taylor RVE stresses: 15 RVEs, compression 11/22 and simple shear 12/21",
@@ -264,11 +250,8 @@ def taylor_rve(ctx: Context) -> CaseResult:
         "branch vector), LAMMPS periodic route (matched by pair and distance), both two-sided; and LIGGGHTS "
         "against LAMMPS on every state both ran.")
     names = s["names"]
-    paths = standard_packings(ctx.results / "packings", names=names)
+    paths = generation.standard_packings(ctx.results / "packings", names=names)
     packings = {n: load_packing(p) for n, p in paths.items()}
-    from gransim.rve import TaylorMaterial
-
-    from ..core import evidence, in_pair
 
     res.declare("native-liggghts", STRESS_REASON)
     res.declare("native-lammps", STRESS_REASON)
@@ -314,7 +297,6 @@ def taylor_rve(ctx: Context) -> CaseResult:
         res.records += in_pair(recs, PAIR[engine])
     # the two codes against each other on every state both ran (same packing, path, route, k)
     lig, lmp = code_runs["liggghts"], code_runs["lammps"]
-    from reference_runs.store import taylor_case
 
     recs, n_states = [], 0
     for name, run in lig.items():
@@ -344,8 +326,6 @@ def taylor_rve(ctx: Context) -> CaseResult:
     res.tables.append(("Stress agreement per code, RVE, path and route",
                        ["code", "packing", "path", "route", "states", "max rel diff"], rows))
     if s["study"]:
-        from gransim.rve.study import run_study
-
         _, _, pngs = run_study(packings, ctx.work("rve_study"), normal_stiffness=KN)
         for png in pngs:
             dest = ctx.copy_figure(png, f"rve_study_{Path(png).name}")

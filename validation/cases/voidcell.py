@@ -8,11 +8,27 @@ box lengths by central differences. So any difference comes from the trajectorie
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import numpy as np
 
-from ..core import CaseResult, Context, case, compare, stored_dir
+from gransim.errors import InputError
+from gransim.io import atomic_path
+from gransim.voidcell import VoidCells
+from reference_runs.decks.biaxial import SHORT_CASE_DUMP_EVERY, short_case
+
+from ..core import CaseResult, Context, case, compare, evidence, in_pair, info, stored_dir
+from ..dem_compare import expected_frames, read_reference, run_native, snapshot, trajectory_evidence
+from .biaxial import (
+    CODE,
+    FULL_DUMP_EVERY,
+    _flavour,
+    _stored_log,
+    ensemble_labels,
+    full_runs,
+    lammps_ensemble_labels,
+)
 
 ALPHA_TOL = 1e-6
 ALPHA_REASON = ("same inputs give the same cells; 1e-6 (alpha in [-1, 1]) admits the velocity tolerance of "
@@ -32,8 +48,6 @@ SHORT_HORIZON = 24000
 
 
 def _cells(snap):
-    from gransim.voidcell import VoidCells
-
     return VoidCells().compute(snap)
 
 
@@ -60,10 +74,6 @@ def _face_order(vc) -> np.ndarray:
 
 def compare_frames(nat, lig, steps, radii, dt) -> dict:
     """Per frame: same cell list?, max|d alpha|, max|d w|/max|w|, and both VoidCells."""
-    from ..dem_compare import snapshot
-
-    from gransim.errors import InputError
-
     out = {"steps": [], "same": [], "alpha": [], "w": [], "vc": [], "no_tessellation": []}
     for s in steps:
         try:
@@ -115,8 +125,6 @@ def _present(frames, *trs) -> list:
 
 def _evidence(label, nat, lig, frames, code: str = "LIGGGHTS", first: str = "native") -> list:
     """Evidence of the frames both sides must hold (positions and velocities of every disk)."""
-    from ..dem_compare import trajectory_evidence
-
     recs = []
     for who, tr in ((first, nat), (code, lig)):
         if tr is not None:
@@ -130,11 +138,13 @@ def _strain(tr, step) -> float:
 
 
 def _maps(ctx, pairs, name) -> tuple:
+    # lazy: pyplot costs ~1.5 s of import (measured, load 9); only the figures need it
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
+    # lazy: imports matplotlib (~1.5 s); only the figures need it
     from gransim.voidcell.plots import plot_alignment
 
     fig, axes = plt.subplots(len(pairs), 2, figsize=(12, 5.6 * len(pairs)), squeeze=False)
@@ -162,12 +172,6 @@ CROSS_SHORT_REASON = ("on the 3000-step stored runs the two codes' positions dif
 
 @case("voidcell", "Void-cell measures (Kuhn) from native, LIGGGHTS and LAMMPS snapshots", order=40)
 def voidcell(ctx: Context) -> CaseResult:
-    from reference_runs.decks.biaxial import SHORT_CASE_DUMP_EVERY, short_case
-
-    from ..core import evidence, in_pair
-    from ..dem_compare import expected_frames, read_reference, run_native
-    from .biaxial import CODE, _flavour, _stored_log
-
     res = CaseResult(
         "voidcell", "Void-cell measures (Kuhn) from native, LIGGGHTS and LAMMPS snapshots",
         "Particle graph, void cells, alignment alpha (eqs 18-19) and normalised vorticity w (eq 20) of Kuhn "
@@ -211,7 +215,6 @@ def voidcell(ctx: Context) -> CaseResult:
     cmp = compare_frames(refs["liggghts"], refs["lammps"], _present(frames, refs["liggghts"], refs["lammps"]),
                          p.radii, s.dt)
     ndiff = sum(not x for x in cmp["same"])
-    from ..core import info
 
     res.records += in_pair(
         [info("voidcell/stored-120/cross", "cell_list",
@@ -219,7 +222,6 @@ def voidcell(ctx: Context) -> CaseResult:
               ndiff if cmp["same"] else float("nan"), CROSS_SHORT_REASON)], "liggghts-lammps")
     if ctx.suite == "quick":
         return res
-    from .biaxial import FULL_DUMP_EVERY, ensemble_labels, full_runs, lammps_ensemble_labels
 
     if not (ctx.liggghts or ctx.lammps):
         res.notes.append("LIGGGHTS and LAMMPS are absent: the Kuhn-assembly comparison (full test) is not made.")
@@ -240,7 +242,6 @@ def voidcell(ctx: Context) -> CaseResult:
                            lm.get("expected_ensemble") or lammps_ensemble_labels(pk.n, ctx.suite))
     else:
         res.notes.append("LAMMPS is absent: its Kuhn-assembly comparison is not made.")
-    from ..dem_compare import snapshot
 
     def stats(tr):
         rows = []
@@ -318,10 +319,6 @@ def voidcell(ctx: Context) -> CaseResult:
 
 def _maps_data(png, pairs):
     """The per-cell alignment alpha behind a map figure, as CSV beside it (frame, code, cell, alpha)."""
-    import csv
-
-    from gransim.io import atomic_path
-
     path = Path(png).with_suffix(".csv")
     with atomic_path(path, suffix=".csv.tmp") as tmp:
         with open(tmp, "w", newline="") as fh:
@@ -335,6 +332,7 @@ def _maps_data(png, pairs):
 
 
 def _stats_plot(ctx, strains, st):
+    # lazy: pyplot costs ~1.5 s of import (measured, load 9); only the figures need it
     import matplotlib
 
     matplotlib.use("Agg", force=False)
