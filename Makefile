@@ -7,11 +7,13 @@ STAMP := $(VENV)/.gransim-installed
 # numba's on-disk cache lives outside the source tree so a clean clone stays clean
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba-cache
 
-.PHONY: run test bench setup engines browser liggghts clean help
+.PHONY: run test bench setup engines browser liggghts clean help lint
 
 help:
 	@echo "make run   - set up, run the default validation suite, write results/report/index.html"
-	@echo "make test  - set up, run the test suite"
+	@echo "make test  - set up, lint (ruff check, ruff format --check), run the test suite"
+	@echo "make lint  - ruff check and ruff format --check"
+	@echo "make coverage - the suite as plain Python under coverage (docs/coverage.md)"
 	@echo "make bench - set up, run the benchmark suite (results/bench.json)"
 	@echo "make engines - install LIGGGHTS and LAMMPS with apt-get when root (else say how)"
 
@@ -72,7 +74,13 @@ browser:
 run: setup
 	$(VENV)/bin/gransim validate --suite default --jobs 2
 
-test: setup
+# style: ruff's lint rules and formatter (configured in pyproject.toml), on every Python folder
+LINT_DIRS := gransim reference_runs validation bench tests
+lint: $(STAMP)
+	$(VENV)/bin/ruff check $(LINT_DIRS)
+	$(VENV)/bin/ruff format --check $(LINT_DIRS)
+
+test: setup lint
 	$(PY) -m pytest -q -n 2 --dist loadfile
 
 bench: setup

@@ -37,9 +37,17 @@ def machine() -> dict:
     except OSError:
         pass
 
-    return {"cores": os.cpu_count(), "cpu": cpu, "python": platform.python_version(), "numpy": numpy.__version__,
-            "numba": numba.__version__, "gransim": __version__, "git_commit": git_commit(),
-            "liggghts": liggghts_version() or "absent", "host": platform.node()}
+    return {
+        "cores": os.cpu_count(),
+        "cpu": cpu,
+        "python": platform.python_version(),
+        "numpy": numpy.__version__,
+        "numba": numba.__version__,
+        "gransim": __version__,
+        "git_commit": git_commit(),
+        "liggghts": liggghts_version() or "absent",
+        "host": platform.node(),
+    }
 
 
 def main(argv=None) -> int:
@@ -70,8 +78,10 @@ def main(argv=None) -> int:
             for r in mod.run(quick=args.quick):
                 r.setdefault("area", area)
                 records.append(r)
-                print(f"[bench]   {r['name']}: {_num(r['value'])} {r.get('unit', '')} (target {r.get('target')})",
-                      flush=True)
+                print(
+                    f"[bench]   {r['name']}: {_num(r['value'])} {r.get('unit', '')} (target {r.get('target')})",
+                    flush=True,
+                )
         except Exception:
             failures.append(area)
             traceback.print_exc()
@@ -89,13 +99,27 @@ def main(argv=None) -> int:
 
 def _html(report: Path, doc: dict) -> None:
     report.mkdir(parents=True, exist_ok=True)
-    rows = ["<tr><th>area</th><th>benchmark</th><th>value</th><th>unit</th><th>target</th><th>meets</th>"
-            "<th>note</th></tr>"]
+    rows = [
+        "<tr><th>area</th><th>benchmark</th><th>value</th><th>unit</th><th>target</th><th>meets</th><th>note</th></tr>"
+    ]
     for r in doc["records"]:
         meets = r.get("meets")
-        rows.append("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in (
-            r.get("area"), r["name"], _num(r["value"]), r.get("unit", ""), r.get("target", ""),
-            "" if meets is None else ("yes" if meets else "NO"), r.get("note", ""))) + "</tr>")
+        rows.append(
+            "<tr>"
+            + "".join(
+                f"<td>{html.escape(str(c))}</td>"
+                for c in (
+                    r.get("area"),
+                    r["name"],
+                    _num(r["value"]),
+                    r.get("unit", ""),
+                    r.get("target", ""),
+                    "" if meets is None else ("yes" if meets else "NO"),
+                    r.get("note", ""),
+                )
+            )
+            + "</tr>"
+        )
     figs = []
     series = [r for r in doc["records"] if r.get("series")]
     if series:
@@ -116,11 +140,14 @@ def _html(report: Path, doc: dict) -> None:
         fig.savefig(report / "figures" / "bench_scaling.png", dpi=110, bbox_inches="tight")
         plt.close(fig)
         figs.append("<img src='figures/bench_scaling.png'>")
-    machine_rows = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
-                           for k, v in doc["machine"].items())
-    text = ("<!doctype html><html><head><meta charset='utf-8'><title>gransim benchmarks</title></head><body>"
-            f"<h1>gransim benchmarks{' (quick)' if doc['quick'] else ''}</h1><table>{machine_rows}</table>"
-            f"<table border=1>{''.join(rows)}</table>{''.join(figs)}</body></html>")
+    machine_rows = "".join(
+        f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>" for k, v in doc["machine"].items()
+    )
+    text = (
+        "<!doctype html><html><head><meta charset='utf-8'><title>gransim benchmarks</title></head><body>"
+        f"<h1>gransim benchmarks{' (quick)' if doc['quick'] else ''}</h1><table>{machine_rows}</table>"
+        f"<table border=1>{''.join(rows)}</table>{''.join(figs)}</body></html>"
+    )
     tmp = report / ".bench.html.tmp"
     tmp.write_text(text)
     os.replace(tmp, report / "bench.html")

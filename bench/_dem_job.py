@@ -91,14 +91,22 @@ def native(path, steps: int, mode: str, threads: int, warm: int = 0) -> dict:
 
         def go(k):
             return eng.advance(LOADING, k)
+
     go(warm)
     r0 = eng.n_rebuilds
     t0 = time.perf_counter()
     go(steps)
     loop = time.perf_counter() - t0
-    out = {"loop_s": loop, "n": p.n, "steps": steps, "warm": warm, "contacts": eng.n_contacts,
-           "rebuilds": eng.n_rebuilds - r0, "peak_kib": own_peak_kib(),
-           "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY")}
+    out = {
+        "loop_s": loop,
+        "n": p.n,
+        "steps": steps,
+        "warm": warm,
+        "contacts": eng.n_contacts,
+        "rebuilds": eng.n_rebuilds - r0,
+        "peak_kib": own_peak_kib(),
+        "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
+    }
     if mode == "fast":
         out["engine_bytes"] = eng.memory_bytes()
         out["entries"] = eng.n_entries
@@ -140,9 +148,34 @@ def profile(path, steps: int) -> dict:
             eng.step -= 1
         t2 = clock()
         L = eng.box_lengths
-        K.forces_half(eng.x, eng.v, eng.w, eng.r, eng.m, eng.ea, eng.eb, eng.esx, eng.esy, eng.both, eng.xi,
-                      L[0], L[1], s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, True, eng.f, eng.t, eng.virial,
-                      eng.slide, eng.ef, k == steps - 1)
+        K.forces_half(
+            eng.x,
+            eng.v,
+            eng.w,
+            eng.r,
+            eng.m,
+            eng.ea,
+            eng.eb,
+            eng.esx,
+            eng.esy,
+            eng.both,
+            eng.xi,
+            L[0],
+            L[1],
+            s.kn,
+            s.kt,
+            s.gamma_n,
+            s.gamma_t,
+            s.mu,
+            s.dt,
+            True,
+            eng.f,
+            eng.t,
+            eng.virial,
+            eng.slide,
+            eng.ef,
+            k == steps - 1,
+        )
         t3 = clock()
         K.final_integrate(eng.v, eng.w, eng.f, eng.t, eng.m, eng.r, s.dt)
         t4 = clock()
@@ -156,8 +189,16 @@ def profile(path, steps: int) -> dict:
     ref.advance(LOADING, steps)
     adv = clock() - t0
     same = bool(np.array_equal(ref.x, eng.x) and np.array_equal(ref.v, eng.v) and np.array_equal(ref.f, eng.f))
-    return {"n": p.n, "steps": steps, "phases_s": t, "replay_s": replay, "advance_s": adv,
-            "rebuilds": eng.n_rebuilds - 1, "advance_rebuilds": ref.n_rebuilds - r0, "identical": same}
+    return {
+        "n": p.n,
+        "steps": steps,
+        "phases_s": t,
+        "replay_s": replay,
+        "advance_s": adv,
+        "rebuilds": eng.n_rebuilds - 1,
+        "advance_rebuilds": ref.n_rebuilds - r0,
+        "identical": same,
+    }
 
 
 def lammps_breakdown(log_text: str) -> tuple[dict, float | None]:
@@ -165,8 +206,11 @@ def lammps_breakdown(log_text: str) -> tuple[dict, float | None]:
     largest ``Per MPI rank memory allocation`` (Mbytes) of the log."""
     parts, mem = {}, None
     for line in log_text.splitlines():
-        m = re.match(r"^Per MPI rank memory allocation \(min/avg/max\) = ([\d.eE+-]+) \| ([\d.eE+-]+) \| "
-                     r"([\d.eE+-]+) Mbytes", line)
+        m = re.match(
+            r"^Per MPI rank memory allocation \(min/avg/max\) = ([\d.eE+-]+) \| ([\d.eE+-]+) \| "
+            r"([\d.eE+-]+) Mbytes",
+            line,
+        )
         if m:
             mem = float(m.group(3))
             parts = {}
@@ -194,8 +238,17 @@ def engine_job(job_dir, nprocs: int, timeout: float, engine: str = "liggghts") -
     sampler.start()
     t0 = time.perf_counter()
     try:
-        res = run_job(job, deck, files={"data.biaxial": job / "data.biaxial"}, np=nprocs, timeout=timeout,
-                      expected_runs=runs, progress=False, force=True, engine=eng.name)
+        res = run_job(
+            job,
+            deck,
+            files={"data.biaxial": job / "data.biaxial"},
+            np=nprocs,
+            timeout=timeout,
+            expected_runs=runs,
+            progress=False,
+            force=True,
+            engine=eng.name,
+        )
     finally:
         wall = time.perf_counter() - t0
         peaks = sampler.stop()
@@ -204,10 +257,19 @@ def engine_job(job_dir, nprocs: int, timeout: float, engine: str = "liggghts") -
     mem = t.memory_mb
     if eng.name == "lammps":
         breakdown, mem = lammps_breakdown(res.log_path.read_text(errors="replace"))
-    return {"loop_s": t.loop_s, "n": t.atoms, "steps": t.steps, "procs": t.procs, "engine": eng.name,
-            "run_job_s": wall,
-            "breakdown": breakdown, "memory_mb_estimate": mem, "version": res.manifest.get("engine_version"),
-            "rebuilds": t.neighbour_builds, "rank_peaks_kib": sorted(k for _, k in peaks.values())}
+    return {
+        "loop_s": t.loop_s,
+        "n": t.atoms,
+        "steps": t.steps,
+        "procs": t.procs,
+        "engine": eng.name,
+        "run_job_s": wall,
+        "breakdown": breakdown,
+        "memory_mb_estimate": mem,
+        "version": res.manifest.get("engine_version"),
+        "rebuilds": t.neighbour_builds,
+        "rank_peaks_kib": sorted(k for _, k in peaks.values()),
+    }
 
 
 def liggghts(job_dir, nprocs: int, timeout: float) -> dict:

@@ -44,15 +44,18 @@ def run_child(argv, env=None, cwd=None, timeout: float | None = None) -> ChildRu
     """
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         t0 = time.perf_counter()
-        proc = subprocess.Popen(argv, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=env, cwd=cwd,
-                                start_new_session=True)
+        proc = subprocess.Popen(
+            argv, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=env, cwd=cwd, start_new_session=True
+        )
         timer = None
         if timeout is not None:
+
             def _kill():
                 try:
                     os.killpg(proc.pid, signal.SIGKILL)
                 except ProcessLookupError:
                     pass
+
             timer = threading.Timer(timeout, _kill)
             timer.start()
         try:
@@ -63,8 +66,7 @@ def run_child(argv, env=None, cwd=None, timeout: float | None = None) -> ChildRu
         wall = time.perf_counter() - t0
         out.seek(0)
         err.seek(0)
-        return ChildRun(proc.returncode, out.read().decode(errors="replace"), err.read().decode(errors="replace"),
-                        wall)
+        return ChildRun(proc.returncode, out.read().decode(errors="replace"), err.read().decode(errors="replace"), wall)
 
 
 def own_peak_kib() -> int:
@@ -98,8 +100,8 @@ def descendants(root: int) -> dict:
         except OSError:
             continue
         close = stat.rindex(")")
-        parent[int(d)] = int(stat[close + 2:].split()[1])
-        name[int(d)] = stat[stat.index("(") + 1:close]
+        parent[int(d)] = int(stat[close + 2 :].split()[1])
+        name[int(d)] = stat[stat.index("(") + 1 : close]
     out, todo = {}, [root]
     kids = {}
     for pid, pp in parent.items():
@@ -138,8 +140,9 @@ class PeakSampler(threading.Thread):
         self._tick += 1
         per_s = max(1, round(1.0 / self.interval))
         if not self._known or self._tick < 2 * per_s or self._tick % per_s == 0:
-            self._known = {pid: nm for pid, nm in descendants(self.root).items()
-                           if self.names is None or nm in self.names}
+            self._known = {
+                pid: nm for pid, nm in descendants(self.root).items() if self.names is None or nm in self.names
+            }
         for pid, nm in list(self._known.items()):
             kib = vm_hwm_kib(pid)
             if kib is None:

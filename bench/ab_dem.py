@@ -74,9 +74,14 @@ def _spawn(tree: Path, args, cache: Path) -> subprocess.Popen:
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(tree)}
     if args.threads:
         env["NUMBA_NUM_THREADS"] = str(max(1, args.threads))
-    return subprocess.Popen([sys.executable, "-c", _WORKER, str(tree), str(args.n), args.mode, str(args.threads),
-                             str(args.warm)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
-                            cwd=str(tree))
+    return subprocess.Popen(
+        [sys.executable, "-c", _WORKER, str(tree), str(args.n), args.mode, str(args.threads), str(args.warm)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=str(tree),
+    )
 
 
 def _ask(proc: subprocess.Popen, steps: int | None) -> dict:
@@ -89,8 +94,17 @@ def _ask(proc: subprocess.Popen, steps: int | None) -> dict:
     return json.loads(line)
 
 
-def compare(base: str, head: str = "WORKTREE", n: int = 10000, window: int = 200, windows: int = 12,
-            warm: int = 300, mode: str = "serial", threads: int = 1, log=print) -> dict:
+def compare(
+    base: str,
+    head: str = "WORKTREE",
+    n: int = 10000,
+    window: int = 200,
+    windows: int = 12,
+    warm: int = 300,
+    mode: str = "serial",
+    threads: int = 1,
+    log=print,
+) -> dict:
     """Run the A/B comparison (module docstring) and return its figures."""
     args = argparse.Namespace(n=n, mode=mode, threads=threads, warm=warm)
     load0 = os.getloadavg()
@@ -116,21 +130,39 @@ def compare(base: str, head: str = "WORKTREE", n: int = 10000, window: int = 200
                 except Exception:
                     p.kill()
     ratios = [b["loop_s"] / h["loop_s"] for b, h in zip(per["base"], per["head"])]
-    same = all(b["rebuilds"] == h["rebuilds"] and b["contacts"] == h["contacts"]
-               for b, h in zip(per["base"], per["head"]))
+    same = all(
+        b["rebuilds"] == h["rebuilds"] and b["contacts"] == h["contacts"] for b, h in zip(per["base"], per["head"])
+    )
     npart = ready["head"]["n"]
 
     def tput(side):
         return statistics.median(npart * window / w["loop_s"] for w in per[side])
 
-    out = {"base": base, "head": head, "n": npart, "mode": mode, "threads": threads, "window_steps": window,
-           "windows": windows, "warm_steps": warm, "ratio_median": statistics.median(ratios),
-           "ratio_min": min(ratios), "ratio_max": max(ratios), "base_pstep_per_s": tput("base"),
-           "head_pstep_per_s": tput("head"), "rebuilds_per_window": [w["rebuilds"] for w in per["head"]],
-           "same_rebuilds_and_contacts": same, "base_ready_s": ready["base"]["ready_s"],
-           "head_ready_s": ready["head"]["ready_s"], "load_before": load0, "load_after": os.getloadavg(),
-           "command": (f"python -m bench.ab_dem --base {base} --head {head} --n {n} --window {window} "
-                       f"--windows {windows} --mode {mode} --threads {threads}")}
+    out = {
+        "base": base,
+        "head": head,
+        "n": npart,
+        "mode": mode,
+        "threads": threads,
+        "window_steps": window,
+        "windows": windows,
+        "warm_steps": warm,
+        "ratio_median": statistics.median(ratios),
+        "ratio_min": min(ratios),
+        "ratio_max": max(ratios),
+        "base_pstep_per_s": tput("base"),
+        "head_pstep_per_s": tput("head"),
+        "rebuilds_per_window": [w["rebuilds"] for w in per["head"]],
+        "same_rebuilds_and_contacts": same,
+        "base_ready_s": ready["base"]["ready_s"],
+        "head_ready_s": ready["head"]["ready_s"],
+        "load_before": load0,
+        "load_after": os.getloadavg(),
+        "command": (
+            f"python -m bench.ab_dem --base {base} --head {head} --n {n} --window {window} "
+            f"--windows {windows} --mode {mode} --threads {threads}"
+        ),
+    }
     return out
 
 
@@ -143,20 +175,37 @@ def run(quick: bool = False) -> list[dict]:
     """Records of the benchmark suite: the Hooke DEM now vs before the redesign (serial, 1e4 disks,
     interleaved steady-state windows). Skipped in quick mode (it compiles a second tree) and where
     the checkout has no history of the base commit."""
-    rev = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--verify", "--quiet", f"{REDESIGN_BASE}^{{commit}}"],
-                         capture_output=True)
+    rev = subprocess.run(
+        ["git", "-C", str(ROOT), "rev-parse", "--verify", "--quiet", f"{REDESIGN_BASE}^{{commit}}"], capture_output=True
+    )
     if quick or rev.returncode != 0:
         why = "quick mode" if quick else f"commit {REDESIGN_BASE} not in this clone's history"
-        return [{"name": "ab_dem.redesign_ratio", "value": None, "unit": "x", "target": ">= 0.95",
-                 "note": f"not measured ({why}); python -m bench.ab_dem --base {REDESIGN_BASE}"}]
+        return [
+            {
+                "name": "ab_dem.redesign_ratio",
+                "value": None,
+                "unit": "x",
+                "target": ">= 0.95",
+                "note": f"not measured ({why}); python -m bench.ab_dem --base {REDESIGN_BASE}",
+            }
+        ]
     res = compare(REDESIGN_BASE, "WORKTREE", n=10000, window=200, windows=14, log=lambda *_: None)
-    return [{"name": "ab_dem.redesign_ratio", "value": res["ratio_median"], "unit": "x", "target": ">= 0.95",
-             "note": (f"native DEM (Hooke, LIGGGHTS flavour, serial, {res['n']} disks) now / before the plug-in "
-                      f"redesign ({REDESIGN_BASE}): median of {res['windows']} interleaved {res['window_steps']}-step "
-                      f"windows, range {res['ratio_min']:.3f}-{res['ratio_max']:.3f}; rebuilds per window "
-                      f"{res['rebuilds_per_window']}; same rebuilds and contacts on both sides: "
-                      f"{res['same_rebuilds_and_contacts']}; load {res['load_before'][0]:.2f} -> "
-                      f"{res['load_after'][0]:.2f}; rerun: {res['command']}")}]
+    return [
+        {
+            "name": "ab_dem.redesign_ratio",
+            "value": res["ratio_median"],
+            "unit": "x",
+            "target": ">= 0.95",
+            "note": (
+                f"native DEM (Hooke, LIGGGHTS flavour, serial, {res['n']} disks) now / before the plug-in "
+                f"redesign ({REDESIGN_BASE}): median of {res['windows']} interleaved {res['window_steps']}-step "
+                f"windows, range {res['ratio_min']:.3f}-{res['ratio_max']:.3f}; rebuilds per window "
+                f"{res['rebuilds_per_window']}; same rebuilds and contacts on both sides: "
+                f"{res['same_rebuilds_and_contacts']}; load {res['load_before'][0]:.2f} -> "
+                f"{res['load_after'][0]:.2f}; rerun: {res['command']}"
+            ),
+        }
+    ]
 
 
 def main(argv=None) -> int:
@@ -175,9 +224,11 @@ def main(argv=None) -> int:
         raise SystemExit("ab_dem: git is needed to check out the base revision")
     res = compare(a.base, a.head, a.n, a.window, a.windows, a.warm, a.mode, a.threads)
     print(json.dumps(res, indent=1))
-    print(f"[ab] head/base throughput: median {res['ratio_median']:.3f} (min {res['ratio_min']:.3f}, max "
-          f"{res['ratio_max']:.3f}) over {a.windows} interleaved windows; load {res['load_before'][0]:.2f} -> "
-          f"{res['load_after'][0]:.2f}; same rebuilds and contacts: {res['same_rebuilds_and_contacts']}")
+    print(
+        f"[ab] head/base throughput: median {res['ratio_median']:.3f} (min {res['ratio_min']:.3f}, max "
+        f"{res['ratio_max']:.3f}) over {a.windows} interleaved windows; load {res['load_before'][0]:.2f} -> "
+        f"{res['load_after'][0]:.2f}; same rebuilds and contacts: {res['same_rebuilds_and_contacts']}"
+    )
     if a.json:
         a.json.write_text(json.dumps(res, indent=1))
     return 0

@@ -98,10 +98,16 @@ LIG_2 = "LIGGGHTS np 2"
 LMP_1 = "LAMMPS serial"
 LMP_2 = "LAMMPS np 2"
 #: configuration: (job kind, native mode or MPI processes, threads)
-CONFIGS = {NATIVE_1: ("native", "serial", 1), NATIVE_2: ("native", "parallel", 2),
-           FAST_1: ("native", "fast", 1), FAST_2: ("native", "fast", 2),
-           LIG_1: ("liggghts", 1, 1), LIG_2: ("liggghts", 2, 1),
-           LMP_1: ("lammps", 1, 1), LMP_2: ("lammps", 2, 1)}
+CONFIGS = {
+    NATIVE_1: ("native", "serial", 1),
+    NATIVE_2: ("native", "parallel", 2),
+    FAST_1: ("native", "fast", 1),
+    FAST_2: ("native", "fast", 2),
+    LIG_1: ("liggghts", 1, 1),
+    LIG_2: ("liggghts", 2, 1),
+    LMP_1: ("lammps", 1, 1),
+    LMP_2: ("lammps", 2, 1),
+}
 ALL_CONFIGS = [FAST_1, FAST_2, NATIVE_1, NATIVE_2, LMP_1, LMP_2, LIG_1, LIG_2]
 MIB = 1024.0
 
@@ -118,12 +124,20 @@ def write_bench_deck(job_dir, packing, steps: int, engine: str = "liggghts", war
     """The mirror deck of reference_runs.decks.biaxial (LIGGGHTS or LAMMPS form) without its dump,
     as ``in.bench`` (+ data); with ``warm`` > 0 its ``run STEPS`` becomes ``run WARM`` then
     ``run STEPS`` (the second run's loop time is the steady-state window)."""
-    deck = write_biaxial_deck(job_dir, packing, SETTINGS, LOADING, steps, thermo_every=max(steps // 10, 1),
-                              dump_every=10 * steps, engine=engine)
+    deck = write_biaxial_deck(
+        job_dir,
+        packing,
+        SETTINGS,
+        LOADING,
+        steps,
+        thermo_every=max(steps // 10, 1),
+        dump_every=10 * steps,
+        engine=engine,
+    )
     lines = [ln for ln in deck.read_text().splitlines() if not ln.startswith(("dump ", "dump_modify "))]
     if warm:
         k = max(i for i, ln in enumerate(lines) if ln.startswith("run "))
-        lines[k:k + 1] = [f"run {int(warm)}", f"run {int(steps)}"]
+        lines[k : k + 1] = [f"run {int(warm)}", f"run {int(steps)}"]
     out = Path(job_dir) / "in.bench"
     out.write_text("\n".join(lines) + "\n")
     deck.unlink()
@@ -163,12 +177,14 @@ def _sweep(sizes, repeats: int, configs_for, tmp: Path, log) -> dict:
             if any(CONFIGS[c][0] == code for c in cfgs):
                 write_bench_deck(d / code, p, steps, engine=code, warm=warm)
         for k in range(repeats):
-            for c in cfgs[k % len(cfgs):] + cfgs[:k % len(cfgs)]:
+            for c in cfgs[k % len(cfgs) :] + cfgs[: k % len(cfgs)]:
                 job = _job(c, np_path, d, steps, warm)
                 out.setdefault((p.n, c), []).append(job)
-                log(f"{c}, {p.n} disks, {steps} steps after {warm}: {job['rate']:.4g} particle-steps/s, "
+                log(
+                    f"{c}, {p.n} disks, {steps} steps after {warm}: {job['rate']:.4g} particle-steps/s, "
                     f"{job['rebuilds']} rebuilds, {job['peak_kib'] / MIB:.0f} MiB, whole process "
-                    f"{job['whole_s']:.3g} s, load {job['load']:.2f}")
+                    f"{job['whole_s']:.3g} s, load {job['load']:.2f}"
+                )
     return out
 
 
@@ -207,12 +223,14 @@ def _busy_records(size, tmp: Path, log, repeats: int) -> list:
     res = {}
     cfgs = [FAST_1, FAST_2] + ([NATIVE_1, NATIVE_2] if repeats > 1 else [])  # quick: the fast path only
     for k in range(repeats):
-        for c in cfgs[k % len(cfgs):] + cfgs[:k % len(cfgs)]:
+        for c in cfgs[k % len(cfgs) :] + cfgs[: k % len(cfgs)]:
             with _spinner():
                 job = _job(c, np_path, d, steps, warm)
             res.setdefault(c, []).append(job)
-            log(f"{c} beside a spinning process, {p.n} disks: {job['rate']:.4g} particle-steps/s, "
-                f"load {job['load']:.2f}")
+            log(
+                f"{c} beside a spinning process, {p.n} disks: {job['rate']:.4g} particle-steps/s, "
+                f"load {job['load']:.2f}"
+            )
     recs = []
     for two, one in ((FAST_2, FAST_1), (NATIVE_2, NATIVE_1)):
         if two not in res:
@@ -220,19 +238,35 @@ def _busy_records(size, tmp: Path, log, repeats: int) -> list:
         r2 = statistics.median(j["rate"] for j in res[two])
         r1 = statistics.median(j["rate"] for j in res[one])
         loads = [j["load"] for j in res[two] + res[one]]
-        recs.append({"name": f"{two} / {one}, one core taken, {p.n:,} disks", "value": r2 / r1, "unit": "x",
-                     "target": None, "n": p.n,
-                     "note": f"a spinning process holds a core during each job; {two} {r2:.4g}, "
-                             f"{one} {r1:.4g} particle-steps/s (medians of {repeats}); 1 = no gain, < 1 = "
-                             f"the second thread hurts; load {min(loads):.2f}..{max(loads):.2f}; rerun: "
-                             "python -m bench --only dem"})
+        recs.append(
+            {
+                "name": f"{two} / {one}, one core taken, {p.n:,} disks",
+                "value": r2 / r1,
+                "unit": "x",
+                "target": None,
+                "n": p.n,
+                "note": f"a spinning process holds a core during each job; {two} {r2:.4g}, "
+                f"{one} {r1:.4g} particle-steps/s (medians of {repeats}); 1 = no gain, < 1 = "
+                f"the second thread hurts; load {min(loads):.2f}..{max(loads):.2f}; rerun: "
+                "python -m bench --only dem",
+            }
+        )
     return recs
 
 
 #: (numerator, denominator, target, how it is judged): throughput ratios of the records
-RATIOS = ((FAST_1, LMP_1, 2.0), (NATIVE_1, LMP_1, 1.3), (FAST_2, FAST_1, 1.8), (NATIVE_2, NATIVE_1, None),
-          (FAST_1, NATIVE_1, None), (FAST_2, LMP_2, None), (NATIVE_2, LMP_2, None), (NATIVE_1, LIG_1, 1.5),
-          (NATIVE_2, LIG_2, None), (LMP_1, LIG_1, None))
+RATIOS = (
+    (FAST_1, LMP_1, 2.0),
+    (NATIVE_1, LMP_1, 1.3),
+    (FAST_2, FAST_1, 1.8),
+    (NATIVE_2, NATIVE_1, None),
+    (FAST_1, NATIVE_1, None),
+    (FAST_2, LMP_2, None),
+    (NATIVE_2, LMP_2, None),
+    (NATIVE_1, LIG_1, 1.5),
+    (NATIVE_2, LIG_2, None),
+    (LMP_1, LIG_1, None),
+)
 #: flat cost per particle-step: max/min over N at most this (issue 17: within 20%)
 FLAT = 1.2
 #: peak memory above baseline: fast path / LAMMPS serial at 1e6 disks at most this
@@ -244,8 +278,14 @@ def _loads(jobs) -> str:
     return f"; load {min(ls):.2f}..{max(ls):.2f}" if ls else ""
 
 
-def _records(res: dict, sizes_n, configs, judge: bool = True, baselines: dict | None = None,
-             rerun: str = "python -m bench --only dem") -> list:
+def _records(
+    res: dict,
+    sizes_n,
+    configs,
+    judge: bool = True,
+    baselines: dict | None = None,
+    rerun: str = "python -m bench --only dem",
+) -> list:
     """Records of the sweep ``res``: throughput, whole-process time, peak memory (raw and above
     ``baselines`` {config: MiB}), the ratios of :data:`RATIOS`, ns per particle-step over N."""
     recs = []
@@ -259,82 +299,153 @@ def _records(res: dict, sizes_n, configs, judge: bool = True, baselines: dict | 
             steps = jobs[0]["steps"]
             reb = sorted({j["rebuilds"] for j in jobs})
             warm = jobs[0].get("warm")
-            recs.append({"name": f"{c}, {n:,} disks", "value": statistics.median(rates), "unit": "particle-steps/s",
-                         "target": None, "n": n, "samples": rates,
-                         "note": f"{_spread(rates)}; {steps} steps"
-                                 + (f" after {warm} warm-up steps" if warm else "")
-                                 + f", loop time only (set-up excluded); neighbour rebuilds in the window "
-                                   f"{'/'.join(map(str, reb))}"
-                                 + (f"; contacts {jobs[0]['contacts']}" if "contacts" in jobs[0] else "")
-                                 + _loads(jobs) + f"; rerun: {rerun}"})
+            recs.append(
+                {
+                    "name": f"{c}, {n:,} disks",
+                    "value": statistics.median(rates),
+                    "unit": "particle-steps/s",
+                    "target": None,
+                    "n": n,
+                    "samples": rates,
+                    "note": f"{_spread(rates)}; {steps} steps"
+                    + (f" after {warm} warm-up steps" if warm else "")
+                    + f", loop time only (set-up excluded); neighbour rebuilds in the window "
+                    f"{'/'.join(map(str, reb))}"
+                    + (f"; contacts {jobs[0]['contacts']}" if "contacts" in jobs[0] else "")
+                    + _loads(jobs)
+                    + f"; rerun: {rerun}",
+                }
+            )
             if all("whole_s" in j for j in jobs):
                 whole = [j["whole_s"] for j in jobs]
-                recs.append({"name": f"{c} whole process, {n:,} disks", "value": statistics.median(whole),
-                             "unit": "s", "target": None, "n": n, "samples": whole,
-                             "note": f"{_spread(whole)}; wall time of the job's process from start to exit "
-                                     f"(loop {statistics.median(j['loop_s'] for j in jobs):.3g} s of it)"
-                                     + _loads(jobs)})
+                recs.append(
+                    {
+                        "name": f"{c} whole process, {n:,} disks",
+                        "value": statistics.median(whole),
+                        "unit": "s",
+                        "target": None,
+                        "n": n,
+                        "samples": whole,
+                        "note": f"{_spread(whole)}; wall time of the job's process from start to exit "
+                        f"(loop {statistics.median(j['loop_s'] for j in jobs):.3g} s of it)" + _loads(jobs),
+                    }
+                )
             mem = [j["peak_kib"] / MIB for j in jobs]
             if CONFIGS[c][0] == "native":
                 how = "VmHWM of the job's process (includes the baseline: interpreter, numba, kernels)"
             else:
                 ranks = [max(j["rank_peaks_kib"], default=0) / MIB for j in jobs]
                 code = CONFIGS[c][0]
-                how = (f"VmHWM of the {'lmp' if code == 'lammps' else 'liggghts'} process" if CONFIGS[c][1] == 1 else
-                       f"sum of the VmHWM of the {CONFIGS[c][1]} ranks (largest rank {statistics.median(ranks):.0f} MiB)")
-                how += (f", sampled at 20 Hz (lower bound); {'LAMMPS' if code == 'lammps' else 'LIGGGHTS'}' own "
-                        f"estimate {jobs[0]['memory_mb_estimate']} MB per process")
+                how = (
+                    f"VmHWM of the {'lmp' if code == 'lammps' else 'liggghts'} process"
+                    if CONFIGS[c][1] == 1
+                    else f"sum of the VmHWM of the {CONFIGS[c][1]} ranks (largest rank {statistics.median(ranks):.0f} MiB)"  # noqa: E501
+                )
+                how += (
+                    f", sampled at 20 Hz (lower bound); {'LAMMPS' if code == 'lammps' else 'LIGGGHTS'}' own "
+                    f"estimate {jobs[0]['memory_mb_estimate']} MB per process"
+                )
                 short = [len(j["rank_peaks_kib"]) for j in jobs if len(j["rank_peaks_kib"]) != CONFIGS[c][1]]
                 if short:
                     how += f"; WARNING: only {short} of {CONFIGS[c][1]} processes sampled in some runs"
-            recs.append({"name": f"{c} peak memory, {n:,} disks", "value": statistics.median(mem), "unit": "MiB",
-                         "target": None, "n": n, "samples": mem, "note": f"{_spread(mem)}; {how}"})
+            recs.append(
+                {
+                    "name": f"{c} peak memory, {n:,} disks",
+                    "value": statistics.median(mem),
+                    "unit": "MiB",
+                    "target": None,
+                    "n": n,
+                    "samples": mem,
+                    "note": f"{_spread(mem)}; {how}",
+                }
+            )
             if baselines and c in baselines:
                 v = statistics.median(mem) - baselines[c]
                 above[(n, c)] = v
-                what = ("the same process without packing" if CONFIGS[c][0] == "native" else
-                        "the code on the smallest assembly")
-                recs.append({"name": f"{c} peak memory above baseline, {n:,} disks", "value": v,
-                             "unit": "MiB", "target": None, "n": n,
-                             "note": f"median peak {statistics.median(mem):.0f} MiB minus the baseline "
-                                     f"{baselines[c]:.0f} MiB ({what})"})
+                what = (
+                    "the same process without packing"
+                    if CONFIGS[c][0] == "native"
+                    else "the code on the smallest assembly"
+                )
+                recs.append(
+                    {
+                        "name": f"{c} peak memory above baseline, {n:,} disks",
+                        "value": v,
+                        "unit": "MiB",
+                        "target": None,
+                        "n": n,
+                        "note": f"median peak {statistics.median(mem):.0f} MiB minus the baseline "
+                        f"{baselines[c]:.0f} MiB ({what})",
+                    }
+                )
         for num, den, target in RATIOS:
             a, b = res.get((n, num)), res.get((n, den))
             if not a or not b:
                 continue
             ratio = statistics.median(j["rate"] for j in a) / statistics.median(j["rate"] for j in b)
             paired = [x["rate"] / y["rate"] for x, y in zip(a, b)]
-            recs.append({"name": f"{num} / {den}, {n:,} disks", "value": ratio, "unit": "x", "target": target,
-                         "meets": None if target is None or not judge else ratio >= target, "n": n,
-                         "note": f"ratio of medians; per-repeat ratios {min(paired):.3g}..{max(paired):.3g}"
-                                 + _loads(a + b) + f"; rerun: {rerun}"})
+            recs.append(
+                {
+                    "name": f"{num} / {den}, {n:,} disks",
+                    "value": ratio,
+                    "unit": "x",
+                    "target": target,
+                    "meets": None if target is None or not judge else ratio >= target,
+                    "n": n,
+                    "note": f"ratio of medians; per-repeat ratios {min(paired):.3g}..{max(paired):.3g}"
+                    + _loads(a + b)
+                    + f"; rerun: {rerun}",
+                }
+            )
         if (n, FAST_1) in above and (n, LMP_1) in above and above[(n, LMP_1)] > 0:
             v = above[(n, FAST_1)] / above[(n, LMP_1)]
             big = n >= 500_000
-            recs.append({"name": f"{FAST_1} / {LMP_1} peak memory above baseline, {n:,} disks", "value": v,
-                         "unit": "x", "target": MEMORY_TARGET if big else None,
-                         "meets": (v <= MEMORY_TARGET) if big and judge else None, "n": n,
-                         "note": f"{above[(n, FAST_1)]:.0f} MiB against {above[(n, LMP_1)]:.0f} MiB "
-                                 f"(target: at most {MEMORY_TARGET} at 1e6 disks)"})
+            recs.append(
+                {
+                    "name": f"{FAST_1} / {LMP_1} peak memory above baseline, {n:,} disks",
+                    "value": v,
+                    "unit": "x",
+                    "target": MEMORY_TARGET if big else None,
+                    "meets": (v <= MEMORY_TARGET) if big and judge else None,
+                    "n": n,
+                    "note": f"{above[(n, FAST_1)]:.0f} MiB against {above[(n, LMP_1)]:.0f} MiB "
+                    f"(target: at most {MEMORY_TARGET} at 1e6 disks)",
+                }
+            )
     for c in configs:
         pts = [(n, 1e9 / statistics.median(j["rate"] for j in res[(n, c)])) for n in sizes_n if (n, c) in res]
         if not pts:
             continue
         ys = [y for _, y in pts]
-        recs.append({"name": f"{c}: ns per particle-step", "value": ys[-1], "unit": "ns/particle-step",
-                     "target": None, "n": pts[-1][0], "series": pts,
-                     "note": f"value at {pts[-1][0]:,} disks; series over N = "
-                             + ", ".join(f"{n:,}: {y:.0f}" for n, y in pts)
-                             + f"; max/min over N {max(ys) / min(ys):.2f} (flat = 1); wall-clock time, "
-                               "not per core"})
+        recs.append(
+            {
+                "name": f"{c}: ns per particle-step",
+                "value": ys[-1],
+                "unit": "ns/particle-step",
+                "target": None,
+                "n": pts[-1][0],
+                "series": pts,
+                "note": f"value at {pts[-1][0]:,} disks; series over N = "
+                + ", ".join(f"{n:,}: {y:.0f}" for n, y in pts)
+                + f"; max/min over N {max(ys) / min(ys):.2f} (flat = 1); wall-clock time, "
+                "not per core",
+            }
+        )
         if len(pts) > 1:
             flat = max(ys) / min(ys)
             full = pts[0][0] <= 2_000 and pts[-1][0] >= 500_000
-            recs.append({"name": f"{c}: ns per particle-step, max/min over N", "value": flat, "unit": "x",
-                         "target": FLAT if full else None,
-                         "meets": (flat <= FLAT) if full and judge else None, "n": pts[-1][0],
-                         "note": f"over N = {pts[0][0]:,}..{pts[-1][0]:,} (target: at most {FLAT} from "
-                                 "1e3 to 1e6 at equal rebuild rates)"})
+            recs.append(
+                {
+                    "name": f"{c}: ns per particle-step, max/min over N",
+                    "value": flat,
+                    "unit": "x",
+                    "target": FLAT if full else None,
+                    "meets": (flat <= FLAT) if full and judge else None,
+                    "n": pts[-1][0],
+                    "note": f"over N = {pts[0][0]:,}..{pts[-1][0]:,} (target: at most {FLAT} from "
+                    "1e3 to 1e6 at equal rebuild rates)",
+                }
+            )
     return recs
 
 
@@ -367,10 +478,16 @@ def fast_bytes_per_particle_step(entries_per_particle: float) -> float:
 
 def _bandwidth_records(res: dict, sizes_n) -> list:
     bw = stream_triad()
-    recs = [{"name": "stream bandwidth (numpy triad, 1 core)", "value": bw / 1e9, "unit": "GB/s",
-             "target": None,
-             "note": f"a = 3 c, a += b on 2e7 float64 (5 streams of 160 MB), best of 5; load "
-                     f"{os.getloadavg()[0]:.2f}; bench.dem.stream_triad"}]
+    recs = [
+        {
+            "name": "stream bandwidth (numpy triad, 1 core)",
+            "value": bw / 1e9,
+            "unit": "GB/s",
+            "target": None,
+            "note": f"a = 3 c, a += b on 2e7 float64 (5 streams of 160 MB), best of 5; load "
+            f"{os.getloadavg()[0]:.2f}; bench.dem.stream_triad",
+        }
+    ]
     big = [n for n in sizes_n if (n, FAST_1) in res and "entries" in res[(n, FAST_1)][0]]
     if big:
         n = big[-1]
@@ -379,13 +496,20 @@ def _bandwidth_records(res: dict, sizes_n) -> list:
         byt = fast_bytes_per_particle_step(e)
         floor = byt / bw * 1e9
         meas = 1e9 / statistics.median(j["rate"] for j in jobs)
-        recs.append({"name": f"fast 1 thread: memory-bound floor, {n:,} disks", "value": floor,
-                     "unit": "ns/particle-step", "target": None, "n": n,
-                     "note": f"{byt:.0f} bytes per particle-step ({e:.2f} list entries per particle; "
-                             f"bench.dem.fast_bytes_per_particle_step) at {bw / 1e9:.1f} GB/s; measured "
-                             f"{meas:.0f} ns/particle-step, {meas / floor:.1f}x the floor: the kernel is "
-                             "bound by the arithmetic latency of the pair law (sqrt, 3 divisions per "
-                             "entry), not by memory"})
+        recs.append(
+            {
+                "name": f"fast 1 thread: memory-bound floor, {n:,} disks",
+                "value": floor,
+                "unit": "ns/particle-step",
+                "target": None,
+                "n": n,
+                "note": f"{byt:.0f} bytes per particle-step ({e:.2f} list entries per particle; "
+                f"bench.dem.fast_bytes_per_particle_step) at {bw / 1e9:.1f} GB/s; measured "
+                f"{meas:.0f} ns/particle-step, {meas / floor:.1f}x the floor: the kernel is "
+                "bound by the arithmetic latency of the pair law (sqrt, 3 divisions per "
+                "entry), not by memory",
+            }
+        )
     return recs
 
 
@@ -395,27 +519,52 @@ def _profile_records(prof: dict, res: dict, n_lig: int | None) -> list:
     total = prof["replay_s"]
     ph = dict(prof["phases_s"])
     ph["other (Python calls between kernels, stress, timers)"] = total - sum(ph.values())
-    per_reb = (f"{prof['phases_s']['rebuild'] / prof['rebuilds'] * 1e3:.3g} ms each" if prof["rebuilds"]
-               else "none in this window")
-    common = (f"native 1 thread, {prof['steps']} steps replayed phase by phase from the engine's kernels; "
-              f"replay {total:.3g} s vs advance {prof['advance_s']:.3g} s, final state bitwise equal: "
-              f"{'yes' if prof['identical'] else 'NO'}; {prof['rebuilds']} rebuilds ({per_reb}); one step "
-              f"{1e3 * (total - prof['phases_s']['rebuild']) / prof['steps']:.3g} ms without rebuilds")
+    per_reb = (
+        f"{prof['phases_s']['rebuild'] / prof['rebuilds'] * 1e3:.3g} ms each"
+        if prof["rebuilds"]
+        else "none in this window"
+    )
+    common = (
+        f"native 1 thread, {prof['steps']} steps replayed phase by phase from the engine's kernels; "
+        f"replay {total:.3g} s vs advance {prof['advance_s']:.3g} s, final state bitwise equal: "
+        f"{'yes' if prof['identical'] else 'NO'}; {prof['rebuilds']} rebuilds ({per_reb}); one step "
+        f"{1e3 * (total - prof['phases_s']['rebuild']) / prof['steps']:.3g} ms without rebuilds"
+    )
     for name, sec in ph.items():
-        recs.append({"name": f"native profile, {n:,} disks: {name}", "value": 100 * sec / total, "unit": "% of loop",
-                     "target": None, "note": common})
+        recs.append(
+            {
+                "name": f"native profile, {n:,} disks: {name}",
+                "value": 100 * sec / total,
+                "unit": "% of loop",
+                "target": None,
+                "note": common,
+            }
+        )
     for c in (LIG_1, LIG_2, LMP_1, LMP_2):
         jobs = res.get((n_lig, c)) if n_lig is not None else None
         if not jobs:
             continue
         for part in jobs[0]["breakdown"]:
             pct = [100 * j["breakdown"][part] / j["loop_s"] for j in jobs]
-            note = ("LAMMPS' timing table (average over ranks), " if CONFIGS[c][0] == "lammps" else
-                    "LIGGGHTS' timing breakdown (process 0), ")
-            note += _spread(pct) + ("; Modify = integrator and fixes" if CONFIGS[c][0] == "lammps" else
-                                    "; Other = integrator and fixes (no Modify line in 3.8.0)")
-            recs.append({"name": f"{c} profile, {n_lig:,} disks: {part}", "value": statistics.median(pct),
-                         "unit": "% of loop", "target": None, "note": note})
+            note = (
+                "LAMMPS' timing table (average over ranks), "
+                if CONFIGS[c][0] == "lammps"
+                else "LIGGGHTS' timing breakdown (process 0), "
+            )
+            note += _spread(pct) + (
+                "; Modify = integrator and fixes"
+                if CONFIGS[c][0] == "lammps"
+                else "; Other = integrator and fixes (no Modify line in 3.8.0)"
+            )
+            recs.append(
+                {
+                    "name": f"{c} profile, {n_lig:,} disks: {part}",
+                    "value": statistics.median(pct),
+                    "unit": "% of loop",
+                    "target": None,
+                    "note": note,
+                }
+            )
     return recs
 
 
@@ -444,27 +593,57 @@ def run(quick: bool = False) -> list[dict]:
     baselines = {}
     for mode, threads in (("serial", 1), ("parallel", 2), ("fast", 2)):  # numba's cache filled, not timed
         _child("baseline", mode, threads)
-    bases = ((("serial", 1, NATIVE_1), ("fast", 1, FAST_1)) if quick else
-             (("serial", 1, NATIVE_1), ("parallel", 2, NATIVE_2), ("fast", 1, FAST_1), ("fast", 2, FAST_2)))
+    bases = (
+        (("serial", 1, NATIVE_1), ("fast", 1, FAST_1))
+        if quick
+        else (("serial", 1, NATIVE_1), ("parallel", 2, NATIVE_2), ("fast", 1, FAST_1), ("fast", 2, FAST_2))
+    )
     for mode, threads, c in bases:
         base = [_child("baseline", mode, threads)["peak_kib"] / MIB for _ in range(1 if quick else 2)]
         baselines[c] = statistics.median(base)
-        recs.append({"name": f"{c} baseline peak memory (no packing)", "value": statistics.median(base),
-                     "unit": "MiB", "target": None,
-                     "note": "the native job's process with its imports (numpy, numba, gransim.dem), kernels loaded "
-                             "from the numba cache and the 110-disk warm-up, before its packing; included in every "
-                             f"native memory figure; {_spread(base)}"})
+        recs.append(
+            {
+                "name": f"{c} baseline peak memory (no packing)",
+                "value": statistics.median(base),
+                "unit": "MiB",
+                "target": None,
+                "note": "the native job's process with its imports (numpy, numba, gransim.dem), kernels loaded "
+                "from the numba cache and the 110-disk warm-up, before its packing; included in every "
+                f"native memory figure; {_spread(base)}",
+            }
+        )
     if quick:  # quick: the 2-thread jobs are measured against the 1-thread baselines
         baselines[NATIVE_2], baselines[FAST_2] = baselines[NATIVE_1], baselines[FAST_1]
     if not have_lig:
-        recs.append({"name": "LIGGGHTS comparison", "value": 0, "unit": "runs", "target": None,
-                     "note": "liggghts not on PATH: LIGGGHTS records omitted (apt-get install liggghts)"})
+        recs.append(
+            {
+                "name": "LIGGGHTS comparison",
+                "value": 0,
+                "unit": "runs",
+                "target": None,
+                "note": "liggghts not on PATH: LIGGGHTS records omitted (apt-get install liggghts)",
+            }
+        )
     if not have_lmp:
-        recs.append({"name": "LAMMPS comparison", "value": 0, "unit": "runs", "target": None,
-                     "note": "lmp not on PATH: LAMMPS records omitted (apt-get install lammps)"})
+        recs.append(
+            {
+                "name": "LAMMPS comparison",
+                "value": 0,
+                "unit": "runs",
+                "target": None,
+                "note": "lmp not on PATH: LAMMPS records omitted (apt-get install lammps)",
+            }
+        )
     if (have_lig or have_lmp) and not have_mpi:
-        recs.append({"name": "np 2 runs", "value": 0, "unit": "runs", "target": None,
-                     "note": "mpirun not on PATH: LIGGGHTS and LAMMPS np 2 records omitted"})
+        recs.append(
+            {
+                "name": "np 2 runs",
+                "value": 0,
+                "unit": "runs",
+                "target": None,
+                "note": "mpirun not on PATH: LIGGGHTS and LAMMPS np 2 records omitted",
+            }
+        )
     with tempfile.TemporaryDirectory(prefix="bench-dem-") as tmp:
         res = _sweep(sizes, repeats, configs_for, Path(tmp), log)
         sizes_n = sorted({n for n, _ in res})
@@ -484,11 +663,17 @@ def run(quick: bool = False) -> list[dict]:
         n_lig = p.n if p.n in lig_n else (max(lig_n) if lig_n else None)
         recs += _profile_records(prof, res, n_lig)
     load1 = os.getloadavg()
-    recs.append({"name": "machine load during the DEM benchmark", "value": load1[0], "unit": "load average",
-                 "target": None,
-                 "note": f"1-minute load average at the end {load1[0]:.2f} (5-minute {load1[1]:.2f}), at the start "
-                         f"{load0[0]:.2f}, on {os.cpu_count()} cores: above the benchmark's own 1 to 2 processes, "
-                         "other jobs shared the cores"})
+    recs.append(
+        {
+            "name": "machine load during the DEM benchmark",
+            "value": load1[0],
+            "unit": "load average",
+            "target": None,
+            "note": f"1-minute load average at the end {load1[0]:.2f} (5-minute {load1[1]:.2f}), at the start "
+            f"{load0[0]:.2f}, on {os.cpu_count()} cores: above the benchmark's own 1 to 2 processes, "
+            "other jobs shared the cores",
+        }
+    )
     return recs
 
 

@@ -40,8 +40,12 @@ def standin_packing(n_x: int = 28, n_y: int = 25, swell: float = 1.0005, jitter:
     ii, jj = np.meshgrid(np.arange(n_x), np.arange(n_y), indexing="ij")
     x = np.column_stack([(ii + 0.5 * (jj % 2)).ravel() * a, jj.ravel() * h])
     x += np.random.default_rng(seed).uniform(-jitter, jitter, x.shape) * a
-    return Packing(positions=x, radii=np.full(len(x), 0.5 * a * swell), cell=np.diag([n_x * a, n_y * h]),
-                   metadata={"kind": "fem-bench-standin-lattice"})
+    return Packing(
+        positions=x,
+        radii=np.full(len(x), 0.5 * a * swell),
+        cell=np.diag([n_x * a, n_y * h]),
+        metadata={"kind": "fem-bench-standin-lattice"},
+    )
 
 
 def _material():
@@ -71,8 +75,14 @@ def whole_process(protocol: str) -> dict:
         after = os.times()
         cpu = (after.children_user - before.children_user) + (after.children_system - before.children_system)
         files = sorted(os.listdir(tmp))
-    return {"wall": wall, "cpu": cpu, "rc": proc.returncode, "files": files, "load": f"{load0} -> {_load()}",
-            "command": " ".join(["gransim", *cmd[3:-2], "--out", "DIR"])}
+    return {
+        "wall": wall,
+        "cpu": cpu,
+        "rc": proc.returncode,
+        "files": files,
+        "load": f"{load0} -> {_load()}",
+        "command": " ".join(["gransim", *cmd[3:-2], "--out", "DIR"]),
+    }
 
 
 class _Stored:
@@ -91,8 +101,11 @@ def dask_overhead(mat, repeats: int = 20) -> dict:
 
     F = np.broadcast_to(np.eye(2), (1520, 2, 2)).copy()
     res = mat.rve.evaluate(F)
-    stored = _Stored(type("R", (), {k: np.asarray(getattr(res, k)) for k in
-                                    ("piola", "tangent", "cauchy", "energy", "n_contacts")})())
+    stored = _Stored(
+        type(
+            "R", (), {k: np.asarray(getattr(res, k)) for k in ("piola", "tangent", "cauchy", "energy", "n_contacts")}
+        )()
+    )
     with make_executor(workers=2) as ex:
         dist = ex.material(_Stored(stored.res), 1520)
         dist.evaluate(F)  # warm
@@ -116,8 +129,12 @@ def dask_overhead(mat, repeats: int = 20) -> dict:
             t0 = time.perf_counter()
             dist_t.evaluate(F)
             tt_dk.append(time.perf_counter() - t0)
-    return {"transport_in": float(np.median(t_in)), "transport_dask": float(np.median(t_dk)),
-            "taylor_in": float(np.median(tt_in)), "taylor_dask": float(np.median(tt_dk))}
+    return {
+        "transport_in": float(np.median(t_in)),
+        "transport_dask": float(np.median(t_dk)),
+        "taylor_in": float(np.median(tt_in)),
+        "taylor_dask": float(np.median(tt_dk)),
+    }
 
 
 def run(quick: bool = False) -> list[dict]:
@@ -129,13 +146,27 @@ def run(quick: bool = False) -> list[dict]:
     for protocol in protocols:
         w = whole_process(protocol)
         target = "< 5" if protocol == "service" else "< 8"
-        note = (f"exit {w['rc']}, default --figures final (files: {', '.join(w['files'])}); {w['load']}; "
-                f"rerun: {w['command']}")
-        out += [{"name": f"fem.slope.{protocol}.process.wall", "value": w["wall"], "unit": "s", "target": target,
-                 "note": note},
-                {"name": f"fem.slope.{protocol}.process.cpu", "value": w["cpu"], "unit": "s", "target": target,
-                 "note": "user + sys CPU of the whole process (all threads): bounds the wall time on an idle "
-                         f"machine; {w['load']}"}]
+        note = (
+            f"exit {w['rc']}, default --figures final (files: {', '.join(w['files'])}); {w['load']}; "
+            f"rerun: {w['command']}"
+        )
+        out += [
+            {
+                "name": f"fem.slope.{protocol}.process.wall",
+                "value": w["wall"],
+                "unit": "s",
+                "target": target,
+                "note": note,
+            },
+            {
+                "name": f"fem.slope.{protocol}.process.cpu",
+                "value": w["cpu"],
+                "unit": "s",
+                "target": target,
+                "note": "user + sys CPU of the whole process (all threads): bounds the wall time on an idle "
+                f"machine; {w['load']}",
+            },
+        ]
     mat, note = _material()
     mat.evaluate(np.broadcast_to(np.eye(2), (1520, 2, 2)).copy())  # compile / warm the caches
     per_iter = None
@@ -146,38 +177,92 @@ def run(quick: bool = False) -> list[dict]:
         _, res = run_slope(mat, setup)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         t = res.timer
-        status = "completed" if res.completed else (
-            f"stopped at footing fraction {res.limit['last_converged_load'][1]:.4f} (step {res.limit['step']})")
+        status = (
+            "completed"
+            if res.completed
+            else (f"stopped at footing fraction {res.limit['last_converged_load'][1]:.4f} (step {res.limit['step']})")
+        )
         n = f"{t.iterations} Newton iterations, {status}; {note}; {load0}"
         per_iter = per_iter or wall / max(t.iterations, 1)
-        out += [{"name": f"fem.slope.{protocol}.wall", "value": wall, "unit": "s", "target": "< 10", "note": n},
-                {"name": f"fem.slope.{protocol}.cpu", "value": cpu, "unit": "s", "target": "< 10",
-                 "note": "process CPU time (all threads): an upper bound of the wall time on an idle machine"},
-                {"name": f"fem.slope.{protocol}.rve_evaluation", "value": t.material, "unit": "s", "target": "",
-                 "note": "batched Taylor RVE, all 1520 Gauss points per call"},
-                {"name": f"fem.slope.{protocol}.assembly", "value": t.assembly, "unit": "s", "target": "",
-                 "note": "element residual/stiffness + sparse assembly + constraint reduction"},
-                {"name": f"fem.slope.{protocol}.solve", "value": t.solve, "unit": "s", "target": "",
-                 "note": "SuperLU factorisation and solve"},
-                {"name": f"fem.slope.{protocol}.per_iteration", "value": wall / max(t.iterations, 1), "unit": "s",
-                 "target": "", "note": ""}]
+        out += [
+            {"name": f"fem.slope.{protocol}.wall", "value": wall, "unit": "s", "target": "< 10", "note": n},
+            {
+                "name": f"fem.slope.{protocol}.cpu",
+                "value": cpu,
+                "unit": "s",
+                "target": "< 10",
+                "note": "process CPU time (all threads): an upper bound of the wall time on an idle machine",
+            },
+            {
+                "name": f"fem.slope.{protocol}.rve_evaluation",
+                "value": t.material,
+                "unit": "s",
+                "target": "",
+                "note": "batched Taylor RVE, all 1520 Gauss points per call",
+            },
+            {
+                "name": f"fem.slope.{protocol}.assembly",
+                "value": t.assembly,
+                "unit": "s",
+                "target": "",
+                "note": "element residual/stiffness + sparse assembly + constraint reduction",
+            },
+            {
+                "name": f"fem.slope.{protocol}.solve",
+                "value": t.solve,
+                "unit": "s",
+                "target": "",
+                "note": "SuperLU factorisation and solve",
+            },
+            {
+                "name": f"fem.slope.{protocol}.per_iteration",
+                "value": wall / max(t.iterations, 1),
+                "unit": "s",
+                "target": "",
+                "note": "",
+            },
+        ]
     try:
         load0 = _load()
         d = dask_overhead(mat, repeats=8 if quick else 20)
     except Exception as exc:  # noqa: BLE001 - no cluster on this machine: say so, keep the other figures
-        out.append({"name": "fem.dask.overhead", "value": float("nan"), "unit": "s", "target": "",
-                    "note": f"Dask LocalCluster not available: {exc}"})
+        out.append(
+            {
+                "name": "fem.dask.overhead",
+                "value": float("nan"),
+                "unit": "s",
+                "target": "",
+                "note": f"Dask LocalCluster not available: {exc}",
+            }
+        )
         return out
     extra = d["transport_dask"] - d["transport_in"]
-    out += [{"name": "fem.dask.transport_per_iteration", "value": extra, "unit": "s", "target": "",
-             "note": f"one 1520-point evaluation through 2 Actors minus in process (stored-array material: "
-                     f"transport only), median; {load0}"},
-            {"name": "fem.dask.overhead_vs_taylor_iteration", "value": extra / per_iter, "unit": "1",
-             "target": "< 0.1", "note": f"transport / Taylor service iteration ({per_iter:.3f} s per iteration)"},
-            {"name": "fem.dask.taylor_evaluation_ratio", "value": d["taylor_dask"] / d["taylor_in"], "unit": "1",
-             "target": "", "note": f"Taylor 1520-point evaluation, 2 workers / in process ({d['taylor_dask']:.4f} s "
-                                   f"/ {d['taylor_in']:.4f} s, interleaved medians; the in-process kernel "
-                                   f"already uses both cores)"}]
+    out += [
+        {
+            "name": "fem.dask.transport_per_iteration",
+            "value": extra,
+            "unit": "s",
+            "target": "",
+            "note": f"one 1520-point evaluation through 2 Actors minus in process (stored-array material: "
+            f"transport only), median; {load0}",
+        },
+        {
+            "name": "fem.dask.overhead_vs_taylor_iteration",
+            "value": extra / per_iter,
+            "unit": "1",
+            "target": "< 0.1",
+            "note": f"transport / Taylor service iteration ({per_iter:.3f} s per iteration)",
+        },
+        {
+            "name": "fem.dask.taylor_evaluation_ratio",
+            "value": d["taylor_dask"] / d["taylor_in"],
+            "unit": "1",
+            "target": "",
+            "note": f"Taylor 1520-point evaluation, 2 workers / in process ({d['taylor_dask']:.4f} s "
+            f"/ {d['taylor_in']:.4f} s, interleaved medians; the in-process kernel "
+            f"already uses both cores)",
+        },
+    ]
     return out
 
 

@@ -109,9 +109,7 @@ def run(quick: bool):
             f"Feng, Han & Owen 2003: 1e6 disks in {FENG_1E6_SECONDS} s (2003 PC)",
         }
         if n == 1_000_000:
-            rec.update(
-                target=f"published {FENG_1E6_SECONDS} s", meets=None, ratio=t / FENG_1E6_SECONDS
-            )
+            rec.update(target=f"published {FENG_1E6_SECONDS} s", meets=None, ratio=t / FENG_1E6_SECONDS)
         out.append(rec)
     # -- 700 disks, default request --
     times = []

@@ -27,8 +27,15 @@ def run(quick: bool = True) -> list[dict]:
             t0 = time.perf_counter()
             run_job(Path(tmp) / f"empty{k}", "units si\n", progress=False)
             t.append(time.perf_counter() - t0)
-        out.append({"name": "liggghts_process_start", "value": min(t), "unit": "s", "target": None,
-                    "note": "run_job of a one-line deck (process start, MPI init, manifest)"})
+        out.append(
+            {
+                "name": "liggghts_process_start",
+                "value": min(t),
+                "unit": "s",
+                "target": None,
+                "note": "run_job of a one-line deck (process start, MPI init, manifest)",
+            }
+        )
         nx, ny = (26, 28) if not quick else (12, 12)
         p = perturbed_lattice(nx, ny, seed=2)
         stride = 1 if not quick else 5
@@ -36,10 +43,16 @@ def run(quick: bool = True) -> list[dict]:
         r = run_taylor(p, 2.8e7, Path(tmp) / "taylor", stride=stride, progress=False)
         wall = time.perf_counter() - t0
         n_states = sum(len(s.k) for s in r.series.values())
-        out.append({"name": f"taylor_states_{p.n}_disks", "value": n_states / wall, "unit": "states/s",
-                    "target": None,
-                    "note": f"{n_states} states (4 paths, both routes) in one LIGGGHTS job incl. data "
-                            f"files; LIGGGHTS alone {r.manifest['elapsed_s']:.2f} s"})
+        out.append(
+            {
+                "name": f"taylor_states_{p.n}_disks",
+                "value": n_states / wall,
+                "unit": "states/s",
+                "target": None,
+                "note": f"{n_states} states (4 paths, both routes) in one LIGGGHTS job incl. data "
+                f"files; LIGGGHTS alone {r.manifest['elapsed_s']:.2f} s",
+            }
+        )
     return out
 
 

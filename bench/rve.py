@@ -35,9 +35,7 @@ def _packing700():
         r = rng.uniform(0.5, 1.5, 700) * 1e-4
         side = np.sqrt(np.pi * np.sum(r**2) / 0.85)
         cell = np.array([[side, 0.2 * side], [0.0, side]])
-        return Packing(
-            positions=rng.uniform(0, 1, (700, 2)) @ cell.T, radii=r, cell=cell
-        ), "stand-in"
+        return Packing(positions=rng.uniform(0, 1, (700, 2)) @ cell.T, radii=r, cell=cell), "stand-in"
 
 
 def _median_time(fn, repeats: int, inner: int) -> tuple[float, float]:
@@ -111,7 +109,4 @@ if __name__ == "__main__":
     import sys
 
     for rec in run(quick="--quick" in sys.argv):
-        print(
-            f"{rec['name']:34s} {rec['value']:12.4g} {rec['unit']:30s} target {rec['target']:8s} "
-            f"{rec['note']}"
-        )
+        print(f"{rec['name']:34s} {rec['value']:12.4g} {rec['unit']:30s} target {rec['target']:8s} {rec['note']}")

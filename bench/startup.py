@@ -126,9 +126,7 @@ def _biaxial_records(tmp: Path, repeats: int, log, quick: bool = False) -> list[
     packing = tmp / "bench-1e3.h5"
     save_packing(packing, assembly(100 if quick else 1_000))
     run = [*GRANSIM, "biaxial", "--packing", str(packing), "-o", str(tmp / "b.h5"), *BIAXIAL]
-    if (
-        quick
-    ):  # the warm figure only, from the cache in use, 110 disks: a smoke test compiles nothing
+    if quick:  # the warm figure only, from the cache in use, 110 disks: a smoke test compiles nothing
         run[run.index("--consolidation-steps") + 1] = "200"
         _timed(run, env=_env(None), cwd=tmp)
         wall, cpu = _timed(run, env=_env(None), cwd=tmp)
@@ -161,9 +159,7 @@ def _biaxial_records(tmp: Path, repeats: int, log, quick: bool = False) -> list[
         env=_env(warmed),
         cwd=tmp,
     )
-    log(
-        f"gransim warmup --only biaxial: {wall_w:.1f} s wall, {cpu_w:.1f} s cpu, load {_load():.2f}"
-    )
+    log(f"gransim warmup --only biaxial: {wall_w:.1f} s wall, {cpu_w:.1f} s cpu, load {_load():.2f}")
     warm_cache = tmp / "cache-warm"
     shutil.copytree(warmed, warm_cache)
     _timed(run, env=_env(warm_cache), cwd=tmp)  # the warm cache has seen this run once
@@ -179,13 +175,8 @@ def _biaxial_records(tmp: Path, repeats: int, log, quick: bool = False) -> list[
             load = _load()
             wall, cpu = _timed(run, env=_env(cache), cwd=tmp)
             res[kind].append((wall, cpu, load))
-            log(
-                f"first gransim biaxial, {kind}: {wall:.2f} s wall, {cpu:.2f} s cpu, load {load:.2f}"
-            )
-    med = {
-        k: (statistics.median(w for w, _, _ in v), statistics.median(c for _, c, _ in v))
-        for k, v in res.items()
-    }
+            log(f"first gransim biaxial, {kind}: {wall:.2f} s wall, {cpu:.2f} s cpu, load {load:.2f}")
+    med = {k: (statistics.median(w for w, _, _ in v), statistics.median(c for _, c, _ in v)) for k, v in res.items()}
     loads = [ld for v in res.values() for _, _, ld in v]
     note = f"1,020-disk lattice, gransim biaxial {' '.join(BIAXIAL)}; load {min(loads):.1f}..{max(loads):.1f}"
     out = [
@@ -236,9 +227,7 @@ def _overhead_records(tmp: Path, size, repeats: int, log) -> list[dict]:
     have_lig = shutil.which("liggghts") is not None
     if have_lig:
         dem.write_bench_deck(d / "liggghts", p, steps, engine="liggghts")
-    dem._job(
-        dem.NATIVE_1, npz, d, steps, 0
-    )  # kernels into the cache (a DEM source may have changed)
+    dem._job(dem.NATIVE_1, npz, d, steps, 0)  # kernels into the cache (a DEM source may have changed)
     res: dict[str, list] = {"native": [], "LIGGGHTS": []}
     for k in range(repeats):
         kinds = ["native", "LIGGGHTS"] if k % 2 == 0 else ["LIGGGHTS", "native"]
@@ -311,11 +300,7 @@ def run(quick: bool):
     )
     subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)  # fill the cache
     vals = sorted(
-        float(
-            subprocess.run(
-                [sys.executable, "-c", code], check=True, capture_output=True, text=True
-            ).stdout
-        )
+        float(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout)
         for _ in range(3)
     )
     out.append(

@@ -45,7 +45,7 @@ def _default_numba_cache() -> None:
 
 _default_numba_cache()
 
-from .errors import GransimError, InputError
+from .errors import GransimError, InputError  # noqa: E402 (after the cache directory is set)
 
 
 def __getattr__(name: str):

@@ -126,6 +126,8 @@ def check_memory(estimate: float, what: str, hint: str = "", available: int | No
     if avail is None:
         return 0.0
     if not np.isfinite(estimate) or estimate > avail:
-        raise InputError(f"{what} needs about {format_bytes(estimate)} of memory, more than the "
-                         f"{format_bytes(avail)} available{'; ' + hint if hint else ''}")
+        raise InputError(
+            f"{what} needs about {format_bytes(estimate)} of memory, more than the "
+            f"{format_bytes(avail)} available{'; ' + hint if hint else ''}"
+        )
     return float(estimate) / avail

@@ -60,5 +60,14 @@ def tangent_2d_to_pa(a_2d, thickness: float = THICKNESS):
     return np.asarray(a_2d, dtype=float) / float(thickness)
 
 
-__all__ = ["DENSITY", "E_N", "FOOTING_LOAD_PAPER", "FOOTING_LOAD_SERVICE", "GRAVITY", "KN_2D", "THICKNESS",
-           "stress_2d_to_pa", "tangent_2d_to_pa"]
+__all__ = [
+    "DENSITY",
+    "E_N",
+    "FOOTING_LOAD_PAPER",
+    "FOOTING_LOAD_SERVICE",
+    "GRAVITY",
+    "KN_2D",
+    "THICKNESS",
+    "stress_2d_to_pa",
+    "tangent_2d_to_pa",
+]

@@ -76,8 +76,13 @@ class GaussBlock:
     def evaluate(self, F):
         """(piola, tangent, cauchy, energy, n_contacts) of the block's F (K, 2, 2)."""
         b = self.material.evaluate(F)
-        return (np.asarray(b.piola), np.asarray(b.tangent), np.asarray(b.cauchy), np.asarray(b.energy),
-                np.asarray(b.n_contacts))
+        return (
+            np.asarray(b.piola),
+            np.asarray(b.tangent),
+            np.asarray(b.cauchy),
+            np.asarray(b.energy),
+            np.asarray(b.n_contacts),
+        )
 
     def commit(self) -> None:
         """Commit the block's trial history."""
@@ -104,8 +109,13 @@ class BatchResult:
     __slots__ = ("cauchy", "energy", "n_contacts", "piola", "tangent")
 
     def __init__(self, piola, tangent, cauchy, energy, n_contacts):
-        self.piola, self.tangent, self.cauchy, self.energy, self.n_contacts = (piola, tangent, cauchy, energy,
-                                                                                n_contacts)
+        self.piola, self.tangent, self.cauchy, self.energy, self.n_contacts = (
+            piola,
+            tangent,
+            cauchy,
+            energy,
+            n_contacts,
+        )
 
 
 class DistributedMaterial:
@@ -155,8 +165,7 @@ class DistributedMaterial:
         """The response at all G Gauss points, each block on its worker."""
         F = np.ascontiguousarray(F, dtype=float)
         if F.shape != (self.n_gauss, 2, 2):
-            raise InputError(f"F: expected shape ({self.n_gauss}, 2, 2) (the distributed Gauss points), got "
-                             f"{F.shape}")
+            raise InputError(f"F: expected shape ({self.n_gauss}, 2, 2) (the distributed Gauss points), got {F.shape}")
         parts = self._call_all("evaluate", [F[ix] for ix in self.index])
         self._trial = F.copy()
         return BatchResult(*(np.concatenate([p[k] for p in parts]) for k in range(5)))
@@ -283,11 +292,11 @@ class DaskExecutor:
             try:
                 self.client = Client(scheduler, timeout=timeout)
             except (OSError, TimeoutError) as exc:
-                raise InputError(f"--scheduler: cannot reach a Dask scheduler at {scheduler!r} "
-                                 f"({exc})") from None
+                raise InputError(f"--scheduler: cannot reach a Dask scheduler at {scheduler!r} ({exc})") from None
         else:
-            self.cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                                        dashboard_address=None)
+            self.cluster = LocalCluster(
+                n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=None
+            )
             self.client = Client(self.cluster)
             self.client.wait_for_workers(int(workers), timeout=timeout)
         self.scheduler = scheduler
@@ -339,12 +348,13 @@ class DaskExecutor:
 def make_executor(workers=None, scheduler: str | None = None):
     """The executor of the options: none (in process), ``--workers N`` or ``--scheduler ADDRESS``."""
     if workers is not None and scheduler is not None:
-        raise InputError("--workers and --scheduler: give one of them (a LocalCluster of N workers, or an "
-                         "existing cluster's scheduler address)")
+        raise InputError(
+            "--workers and --scheduler: give one of them (a LocalCluster of N workers, or an "
+            "existing cluster's scheduler address)"
+        )
     if scheduler is not None:
         if not isinstance(scheduler, str) or "://" not in scheduler and ":" not in scheduler:
-            raise InputError(f"--scheduler: expected a scheduler address such as tcp://host:8786, got "
-                             f"{scheduler!r}")
+            raise InputError(f"--scheduler: expected a scheduler address such as tcp://host:8786, got {scheduler!r}")
         return DaskExecutor(scheduler=scheduler)
     if workers is None:
         return InProcess()
@@ -355,12 +365,28 @@ def make_executor(workers=None, scheduler: str | None = None):
 
 def add_options(parser) -> None:
     """``--workers N`` and ``--scheduler ADDRESS`` on a command's parser."""
-    parser.add_argument("--workers", type=int, default=None, metavar="N",
-                        help="evaluate on a dask.distributed LocalCluster of N worker processes (one thread "
-                             "each); default: in process")
-    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                        help="evaluate on an existing Dask cluster (e.g. tcp://host:8786)")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="evaluate on a dask.distributed LocalCluster of N worker processes (one thread each); default: in process",
+    )
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="evaluate on an existing Dask cluster (e.g. tcp://host:8786)",
+    )
 
 
-__all__ = ["DaskExecutor", "DistributedMaterial", "ExecutorError", "GaussBlock", "InProcess", "add_options",
-           "make_executor", "split_material"]
+__all__ = [
+    "DaskExecutor",
+    "DistributedMaterial",
+    "ExecutorError",
+    "GaussBlock",
+    "InProcess",
+    "add_options",
+    "make_executor",
+    "split_material",
+]

@@ -57,10 +57,23 @@ def compare_taylor(run, rtol: float = TAYLOR_RTOL) -> dict:
     return out
 
 
-def run_taylor_set(packings: dict, out_dir, kn: float = KN_2D, n_steps: int = 50, stride: int = 1,
-                   max_strain: float = 0.1, contacts: bool = False, np_procs: int = 1, timeout=3600.0,
-                   force: bool = False, progress: bool = True, h5_name: str = "taylor.h5", check: bool = True,
-                   echo=print, engine: str = "liggghts") -> tuple:
+def run_taylor_set(
+    packings: dict,
+    out_dir,
+    kn: float = KN_2D,
+    n_steps: int = 50,
+    stride: int = 1,
+    max_strain: float = 0.1,
+    contacts: bool = False,
+    np_procs: int = 1,
+    timeout=3600.0,
+    force: bool = False,
+    progress: bool = True,
+    h5_name: str = "taylor.h5",
+    check: bool = True,
+    echo=print,
+    engine: str = "liggghts",
+) -> tuple:
     """Run the Taylor states of several packings (one job of ``engine``, "liggghts" or "lammps",
     each) and compare with numpy.
 
@@ -79,18 +92,41 @@ def run_taylor_set(packings: dict, out_dir, kn: float = KN_2D, n_steps: int = 50
         job = out_dir / "jobs" / name
         if force:
             (job / MANIFEST_NAME).unlink(missing_ok=True)
-        run = run_taylor(packing, kn, job, name=name, n_steps=n_steps, stride=stride, max_strain=max_strain,
-                         contacts=contacts, np_procs=np_procs, timeout=timeout, progress=progress, engine=engine)
+        run = run_taylor(
+            packing,
+            kn,
+            job,
+            name=name,
+            n_steps=n_steps,
+            stride=stride,
+            max_strain=max_strain,
+            contacts=contacts,
+            np_procs=np_procs,
+            timeout=timeout,
+            progress=progress,
+            engine=engine,
+        )
         runs.append(run)
         if check:
             diffs = compare_taylor(run)
             w = max(diffs.values())
             worst = max(worst, w)
-            echo(f"{name}: N = {packing.n}, {sum(len(s.k) for s in run.series.values())} states "
-                 f"({run.manifest.get('elapsed_s', 0):.2f} s), max rel. diff vs numpy Taylor = {w:.3e}")
-    h5 = write_taylor_h5(out_dir / h5_name, runs,
-                         parameters={"kn": kn, "n_steps": n_steps, "stride": stride, "max_strain": max_strain,
-                                     "packings": list(packings), "engine": engine})
+            echo(
+                f"{name}: N = {packing.n}, {sum(len(s.k) for s in run.series.values())} states "
+                f"({run.manifest.get('elapsed_s', 0):.2f} s), max rel. diff vs numpy Taylor = {w:.3e}"
+            )
+    h5 = write_taylor_h5(
+        out_dir / h5_name,
+        runs,
+        parameters={
+            "kn": kn,
+            "n_steps": n_steps,
+            "stride": stride,
+            "max_strain": max_strain,
+            "packings": list(packings),
+            "engine": engine,
+        },
+    )
     echo(f"wrote {h5}")
     return runs, worst
 
@@ -100,8 +136,9 @@ def _taylor_demo(out_dir, np_procs=1, timeout=600.0, force=False, progress=True,
     from .demo_packings import perturbed_lattice
 
     packings = {f"lattice-8x8-seed{s}": perturbed_lattice(8, 8, seed=s) for s in (1, 2, 3)}
-    _, worst = run_taylor_set(packings, out_dir, np_procs=np_procs, timeout=timeout, force=force,
-                              progress=progress, engine=engine)
+    _, worst = run_taylor_set(
+        packings, out_dir, np_procs=np_procs, timeout=timeout, force=force, progress=progress, engine=engine
+    )
     print(f"taylor-demo: largest relative difference {worst:.3e} (tolerance {TAYLOR_RTOL:g})")
     return 0 if worst <= TAYLOR_RTOL else 1
 
@@ -118,19 +155,30 @@ def standard_rves(packings_dir="results/packings") -> dict:
 
 
 def _taylor_rves(out_dir, np_procs=1, timeout=3600.0, force=False, progress=True, engine="liggghts") -> int:
-    _, worst = run_taylor_set(standard_rves(), out_dir, np_procs=np_procs, timeout=timeout, force=force,
-                              progress=progress, engine=engine)
+    _, worst = run_taylor_set(
+        standard_rves(), out_dir, np_procs=np_procs, timeout=timeout, force=force, progress=progress, engine=engine
+    )
     print(f"taylor-rves: largest relative difference {worst:.3e} (tolerance {TAYLOR_RTOL:g})")
     return 0 if worst <= TAYLOR_RTOL else 1
 
 
 #: every named case, by name
-CASES = {c.name: c for c in (
-    Case("taylor-demo", "Taylor states of 3 built-in 64-disk packings along the 4 study paths, "
-         "both routes, checked against numpy", _taylor_demo),
-    Case("taylor-rves", "Taylor states of the 15 study RVEs (results/packings, generated if "
-         "missing) along the 4 study paths, 50 steps, both routes, checked against numpy", _taylor_rves),
-)}
+CASES = {
+    c.name: c
+    for c in (
+        Case(
+            "taylor-demo",
+            "Taylor states of 3 built-in 64-disk packings along the 4 study paths, both routes, checked against numpy",
+            _taylor_demo,
+        ),
+        Case(
+            "taylor-rves",
+            "Taylor states of the 15 study RVEs (results/packings, generated if "
+            "missing) along the 4 study paths, 50 steps, both routes, checked against numpy",
+            _taylor_rves,
+        ),
+    )
+}
 
 
 def all_cases() -> dict:

@@ -14,7 +14,8 @@ Stress sign
     sigma = (1/A) sum_c f_c (x) l_c,
 
 with l_c = x_j - x_i the branch vector from i to j and f_c the force that j exerts on i
-(Meier, Steinmann & Kuhl, "Towards completeness, a multiscale approach of confined particulate systems" (2007), eqs 2 and 10: P = (1/V) sum f_ij (x) L_ij, sigma = P F^T / det F).
+(Meier, Steinmann & Kuhl, "Towards completeness, a multiscale approach of confined particulate systems"
+(2007), eqs 2 and 10: P = (1/V) sum f_ij (x) L_ij, sigma = P F^T / det F).
 A repulsive contact has f_c antiparallel to l_c, so compression is negative.
 
 **LIGGGHTS: compression positive.** ``compute pressure <temp> virial`` reports
@@ -78,5 +79,4 @@ def pressure_from_cauchy(sigma) -> np.ndarray:
     return PRESSURE_SIGN * np.stack([s[..., 0, 0], s[..., 1, 1], s[..., 0, 1]], axis=-1)
 
 
-__all__ = ["PRESSURE_SIGN", "cauchy_from_pressure", "cauchy_from_stress_atom_sum",
-           "pressure_from_cauchy"]
+__all__ = ["PRESSURE_SIGN", "cauchy_from_pressure", "cauchy_from_stress_atom_sum", "pressure_from_cauchy"]

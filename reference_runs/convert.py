@@ -15,8 +15,9 @@ from .conventions import cauchy_from_pressure
 from .parsers import ThermoRun
 
 
-def stress_series(runs, pxx: str = "c_p[1]", pyy: str = "c_p[2]", pxy: str = "c_p[4]",
-                  drop_repeated: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def stress_series(
+    runs, pxx: str = "c_p[1]", pyy: str = "c_p[2]", pxy: str = "c_p[4]", drop_repeated: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
     """Cauchy stress series (tension positive, N/m) from the ``compute pressure`` thermo columns.
 
     Parameters
@@ -55,8 +56,10 @@ def particle_series(frames, columns) -> tuple[np.ndarray, np.ndarray, dict]:
     ids = frames[0]["id"]
     for fr in frames[1:]:
         if len(fr) != len(ids) or not np.array_equal(fr["id"], ids):
-            raise ResultFileError(f"dump frame at step {fr.step} holds other particles than step "
-                                  f"{frames[0].step} ({len(fr)} vs {len(ids)} atoms)")
+            raise ResultFileError(
+                f"dump frame at step {fr.step} holds other particles than step "
+                f"{frames[0].step} ({len(fr)} vs {len(ids)} atoms)"
+            )
     out = {c: np.stack([fr[c] for fr in frames]) for c in columns}
     return np.array([fr.step for fr in frames], np.int64), ids.copy(), out
 

@@ -21,11 +21,12 @@ Z_HALF = 0.5
 
 
 def _fmt(v: float) -> str:
-    return "%.17g" % v
+    return f"{v:.17g}"
 
 
-def write_data_file(path, packing: Packing, velocities=None, omegas=None, types=None,
-                    wrap: bool = True, z_half: float | None = None) -> Path:
+def write_data_file(
+    path, packing: Packing, velocities=None, omegas=None, types=None, wrap: bool = True, z_half: float | None = None
+) -> Path:
     """Write ``packing`` as a LIGGGHTS ``atom_style sphere`` data file (2D).
 
     Parameters
@@ -42,8 +43,10 @@ def write_data_file(path, packing: Packing, velocities=None, omegas=None, types=
     """
     C = packing.cell
     if abs(C[1, 0]) > 0 or abs(C[0, 1]) > 0:
-        raise InputError("packing.cell: LIGGGHTS data files need an orthogonal cell "
-                         f"(got off-diagonal entries {C[0, 1]!r}, {C[1, 0]!r})")
+        raise InputError(
+            "packing.cell: LIGGGHTS data files need an orthogonal cell "
+            f"(got off-diagonal entries {C[0, 1]!r}, {C[1, 0]!r})"
+        )
     n = packing.n
     x = packing.wrapped().positions if wrap else packing.positions
     z = Z_HALF if z_half is None else float(z_half)
@@ -52,10 +55,19 @@ def write_data_file(path, packing: Packing, velocities=None, omegas=None, types=
     t = np.ones(n, np.int64) if types is None else np.asarray(types, np.int64)
     if t.shape != (n,) or t.min() < 1:
         raise InputError(f"types: expected ({n},) integers >= 1")
-    lines = ["LIGGGHTS data file written by gransim (2D: density column = mass per area)", "",
-             f"{n} atoms", f"{int(t.max())} atom types", "",
-             f"0 {_fmt(C[0, 0])} xlo xhi", f"0 {_fmt(C[1, 1])} ylo yhi", f"{_fmt(-z)} {_fmt(z)} zlo zhi", "",
-             "Atoms", ""]
+    lines = [
+        "LIGGGHTS data file written by gransim (2D: density column = mass per area)",
+        "",
+        f"{n} atoms",
+        f"{int(t.max())} atom types",
+        "",
+        f"0 {_fmt(C[0, 0])} xlo xhi",
+        f"0 {_fmt(C[1, 1])} ylo yhi",
+        f"{_fmt(-z)} {_fmt(z)} zlo zhi",
+        "",
+        "Atoms",
+        "",
+    ]
     d = 2.0 * packing.radii
     rho = packing.density
     for k in range(n):

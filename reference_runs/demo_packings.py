@@ -13,8 +13,15 @@ from gransim.errors import InputError
 from gransim.geometry import Packing
 
 
-def perturbed_lattice(nx: int = 8, ny: int = 8, seed: int = 1, a: float = 1e-3, jitter: float = 0.04,
-                      r_range=(0.5, 0.58), density: float = 2650.0) -> Packing:
+def perturbed_lattice(
+    nx: int = 8,
+    ny: int = 8,
+    seed: int = 1,
+    a: float = 1e-3,
+    jitter: float = 0.04,
+    r_range=(0.5, 0.58),
+    density: float = 2650.0,
+) -> Packing:
     """Triangular lattice of nx x ny disks in an orthogonal periodic cell, perturbed.
 
     Parameters
@@ -34,6 +41,18 @@ def perturbed_lattice(nx: int = 8, ny: int = 8, seed: int = 1, a: float = 1e-3, 
     pts += rng.uniform(-jitter, jitter, pts.shape)
     r = rng.uniform(*r_range, nx * ny)
     cell = np.diag([float(nx), ny * np.sqrt(3) / 2])
-    return Packing(pts * a, r * a, cell * a, density=density,
-                   metadata={"generator": "perturbed_lattice", "nx": nx, "ny": ny, "seed": seed, "a": a,
-                             "jitter": jitter, "r_range": list(r_range)})
+    return Packing(
+        pts * a,
+        r * a,
+        cell * a,
+        density=density,
+        metadata={
+            "generator": "perturbed_lattice",
+            "nx": nx,
+            "ny": ny,
+            "seed": seed,
+            "a": a,
+            "jitter": jitter,
+            "r_range": list(r_range),
+        },
+    )

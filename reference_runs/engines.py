@@ -69,8 +69,9 @@ class Engine:
         """Absolute path of the binary; :class:`ReferenceRunError` with :attr:`install_hint`."""
         exe = self.which()
         if exe is None:
-            raise ReferenceRunError(f"the `{self.binary}` binary ({self.label}) was not found on PATH; "
-                                    f"{self.install_hint}")
+            raise ReferenceRunError(
+                f"the `{self.binary}` binary ({self.label}) was not found on PATH; {self.install_hint}"
+            )
         return exe
 
     def version(self, binary=None) -> str | None:
@@ -111,16 +112,34 @@ class Engine:
 
 
 LIGGGHTS = Engine(
-    name="liggghts", label="LIGGGHTS", binary="liggghts", deck_name="in.liggghts", package="liggghts",
-    package_label="LIGGGHTS-PUBLIC", banner=r"^LIGGGHTS \(Version ([^,)]*)", version_prefix="",
-    install_hint=("install LIGGGHTS-PUBLIC 3.8.0 with `sudo apt-get install liggghts` (Debian/Ubuntu), "
-                  "or put a `liggghts` binary on PATH"))
+    name="liggghts",
+    label="LIGGGHTS",
+    binary="liggghts",
+    deck_name="in.liggghts",
+    package="liggghts",
+    package_label="LIGGGHTS-PUBLIC",
+    banner=r"^LIGGGHTS \(Version ([^,)]*)",
+    version_prefix="",
+    install_hint=(
+        "install LIGGGHTS-PUBLIC 3.8.0 with `sudo apt-get install liggghts` (Debian/Ubuntu), "
+        "or put a `liggghts` binary on PATH"
+    ),
+)
 
 LAMMPS = Engine(
-    name="lammps", label="LAMMPS", binary="lmp", deck_name="in.lammps", package="lammps",
-    package_label="LAMMPS", banner=r"^LAMMPS \(([^)]*)\)", version_prefix="LAMMPS ",
-    install_hint=("install LAMMPS with `sudo apt-get install lammps` (Debian/Ubuntu; the GRANULAR package "
-                  "is needed), or put an `lmp` binary on PATH"))
+    name="lammps",
+    label="LAMMPS",
+    binary="lmp",
+    deck_name="in.lammps",
+    package="lammps",
+    package_label="LAMMPS",
+    banner=r"^LAMMPS \(([^)]*)\)",
+    version_prefix="LAMMPS ",
+    install_hint=(
+        "install LAMMPS with `sudo apt-get install lammps` (Debian/Ubuntu; the GRANULAR package "
+        "is needed), or put an `lmp` binary on PATH"
+    ),
+)
 
 #: the known engines by name
 ENGINES = {e.name: e for e in (LIGGGHTS, LAMMPS)}

@@ -36,9 +36,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 _NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
-_UNFOLLOWABLE = {"jump": "a jump", "label": "a label (loop)", "next": "a next (loop variable)",
-                 "include": "an include file", "if": "an if command", "minimize": "a minimize",
-                 "rerun": "a rerun", "python": "a python command", "partition": "a partition command"}
+_UNFOLLOWABLE = {
+    "jump": "a jump",
+    "label": "a label (loop)",
+    "next": "a next (loop variable)",
+    "include": "an include file",
+    "if": "an if command",
+    "minimize": "a minimize",
+    "rerun": "a rerun",
+    "python": "a python command",
+    "partition": "a partition command",
+}
 
 
 @dataclass(frozen=True)
@@ -140,12 +148,12 @@ def expected_evidence(deck_text: str) -> DeckExpectation:
     -------
     :class:`DeckExpectation`; ``unresolved`` says what could not be followed, in which line.
     """
-    variables: dict = {}      # name -> number text, or None (defined but not a plain number)
+    variables: dict = {}  # name -> number text, or None (defined but not a plain number)
     unresolved: list = []
     runs: list = []
     step = 0
-    active: dict = {}         # dump id -> state dict
-    done: list = []           # finished dump states
+    active: dict = {}  # dump id -> state dict
+    done: list = []  # finished dump states
 
     def note(lineno, why):
         unresolved.append(f"deck line {lineno}: {why}")
@@ -167,8 +175,7 @@ def expected_evidence(deck_text: str) -> DeckExpectation:
 
         out = re.sub(r"\$\{(\w+)\}|\$(\w)", rep, line)
         if not ok:
-            return None, (f"{line!r} uses a variable that is not a plain number "
-                          "(variable NAME equal|index NUMBER)")
+            return None, (f"{line!r} uses a variable that is not a plain number (variable NAME equal|index NUMBER)")
         return out, None
 
     broken = False
@@ -246,8 +253,16 @@ def expected_evidence(deck_text: str) -> DeckExpectation:
             if style not in ("custom", "local", "atom", "xyz"):
                 continue
             e = _int(every)
-            d = {"lineno": lineno, "id": did, "style": style, "every": e, "file": fname, "first": False,
-                 "ran": False, "steps": []}
+            d = {
+                "lineno": lineno,
+                "id": did,
+                "style": style,
+                "every": e,
+                "file": fname,
+                "first": False,
+                "ran": False,
+                "steps": [],
+            }
             if e is None or e <= 0:
                 note(lineno, f"dump {did} every {every!r} is not a positive integer: frames not counted")
                 d["steps"] = None
@@ -299,7 +314,7 @@ def dump_frame_steps(path) -> tuple[tuple, str | None]:
     """
     steps: list = []
     try:
-        fh = open(path, "r", errors="replace")
+        fh = open(path, errors="replace")
     except OSError as exc:
         return (), f"cannot read ({exc.strerror or exc})"
     with fh:
@@ -323,7 +338,7 @@ def dump_frame_steps(path) -> tuple[tuple, str | None]:
                 if not nxt().startswith("ITEM: NUMBER OF"):
                     raise ValueError
                 n = int(nxt())
-                for _ in range(4):      # BOX BOUNDS and its three rows
+                for _ in range(4):  # BOX BOUNDS and its three rows
                     if not nxt():
                         raise ValueError
                 if not nxt().startswith("ITEM:"):
@@ -376,8 +391,10 @@ def check_evidence(expect: DeckExpectation, log, log_name: str, job_dir, outputs
                     last = ev["last_steps_got"][bad]
                     if bad < want:
                         spec = expect.runs[bad]
-                        msg += (f"; run {bad + 1} (deck line {spec.lineno}, steps {spec.start}..{spec.end}) "
-                                f"stops at step {last} with no 'Loop time' line")
+                        msg += (
+                            f"; run {bad + 1} (deck line {spec.lineno}, steps {spec.start}..{spec.end}) "
+                            f"stops at step {last} with no 'Loop time' line"
+                        )
                 problems.append(msg)
             elif len(runs) > want:
                 problems.append(f"{log_name} holds {len(runs)} runs, the deck has {want} run commands")
@@ -386,33 +403,33 @@ def check_evidence(expect: DeckExpectation, log, log_name: str, job_dir, outputs
                     continue
                 first, last = int(run.steps[0]), int(run.steps[-1])
                 if (first, last) != (spec.start, spec.end):
-                    problems.append(f"{log_name}: run {k + 1} (deck line {spec.lineno}) covers steps "
-                                    f"{first}..{last}, the deck asks for {spec.start}..{spec.end}")
+                    problems.append(
+                        f"{log_name}: run {k + 1} (deck line {spec.lineno}) covers steps "
+                        f"{first}..{last}, the deck asks for {spec.start}..{spec.end}"
+                    )
                     break
     else:
         ev["runs_expected"] = None
         incomplete = [k for k, r in enumerate(runs) if not r.complete]
         if incomplete:
-            problems.append(f"incomplete: {log_name}: run {incomplete[0] + 1} of {len(runs)} has no "
-                            "'Loop time' line")
+            problems.append(f"incomplete: {log_name}: run {incomplete[0] + 1} of {len(runs)} has no 'Loop time' line")
     dumps = {}
     for name in outputs:
         spec = expect.dumps.get(str(name))
         if spec is None:
             continue
         steps, cut = dump_frame_steps(Path(job_dir) / name) if (Path(job_dir) / name).exists() else ((), None)
-        rec = {"style": spec.style, "every": spec.every, "frames_expected": spec.frames,
-               "frames_got": len(steps)}
+        rec = {"style": spec.style, "every": spec.every, "frames_expected": spec.frames, "frames_got": len(steps)}
         if not (Path(job_dir) / name).exists():
             rec["frames_got"] = None
         elif spec.steps is not None and tuple(steps) != spec.steps:
             if len(steps) != len(spec.steps):
-                problems.append(f"{name}: expected {spec.frames} frames, got {len(steps)}"
-                                + (f" ({cut})" if cut else ""))
+                problems.append(
+                    f"{name}: expected {spec.frames} frames, got {len(steps)}" + (f" ({cut})" if cut else "")
+                )
             else:
                 diff = next(k for k, (a, b) in enumerate(zip(steps, spec.steps)) if a != b)
-                problems.append(f"{name}: frame {diff + 1} is at step {steps[diff]}, "
-                                f"expected {spec.steps[diff]}")
+                problems.append(f"{name}: frame {diff + 1} is at step {steps[diff]}, expected {spec.steps[diff]}")
         elif cut:
             problems.append(f"{name}: {cut}")
         dumps[str(name)] = rec
@@ -421,5 +438,4 @@ def check_evidence(expect: DeckExpectation, log, log_name: str, job_dir, outputs
     return ev, problems
 
 
-__all__ = ["DeckExpectation", "DumpSpec", "RunSpec", "check_evidence", "dump_frame_steps",
-           "expected_evidence"]
+__all__ = ["DeckExpectation", "DumpSpec", "RunSpec", "check_evidence", "dump_frame_steps", "expected_evidence"]

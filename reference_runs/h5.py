@@ -56,8 +56,14 @@ def write_frames_group(group, frames) -> None:
             g.create_dataset(_h5name(c), data=fr[c])
 
 
-def write_output_h5(path, log: LogFile | None = None, dumps: dict | None = None, kind: str = "liggghts-output",
-                    parameters: dict | None = None, seed=None):
+def write_output_h5(
+    path,
+    log: LogFile | None = None,
+    dumps: dict | None = None,
+    kind: str = "liggghts-output",
+    parameters: dict | None = None,
+    seed=None,
+):
     """Write a parsed log and dumps to ``path`` atomically; returns the path.
 
     ``dumps`` maps a name (e.g. ``"particles"``, ``"contacts"``) to a tuple of
@@ -69,8 +75,10 @@ def write_output_h5(path, log: LogFile | None = None, dumps: dict | None = None,
             f.attrs["n_errors"] = len(log.errors)
             f.attrs["n_warnings"] = len(log.warnings)
         for name, frames in (dumps or {}).items():
-            write_frames_group(f.create_group("dumps").require_group(name) if "dumps" not in f
-                               else f["dumps"].create_group(name), frames)
+            write_frames_group(
+                f.create_group("dumps").require_group(name) if "dumps" not in f else f["dumps"].create_group(name),
+                frames,
+            )
     return path
 
 
@@ -97,8 +105,15 @@ def read_frames_h5(path, name: str) -> tuple:
         for fname in sorted(f["dumps"][name]):
             g = f["dumps"][name][fname]
             cols = json.loads(g.attrs["columns"])
-            out.append(DumpFrame(int(g.attrs["step"]), g.attrs["box"][()], None, str(g.attrs["boundary"]),
-                                 types.MappingProxyType({c: g[_h5name(c)][()] for c in cols})))
+            out.append(
+                DumpFrame(
+                    int(g.attrs["step"]),
+                    g.attrs["box"][()],
+                    None,
+                    str(g.attrs["boundary"]),
+                    types.MappingProxyType({c: g[_h5name(c)][()] for c in cols}),
+                )
+            )
         return tuple(out)
 
 

@@ -57,7 +57,7 @@ def remove_stray_tmp(directory, recursive: bool = True) -> list:
     """
     removed = []
     d = Path(directory)
-    for p in (d.rglob(".*.tmp") if recursive else d.glob(".*.tmp")):
+    for p in d.rglob(".*.tmp") if recursive else d.glob(".*.tmp"):
         if p.is_file() and p.name.count(".") >= 3:
             try:
                 p.unlink()
@@ -84,8 +84,15 @@ class DirectoryLock:
     echo : where the waiting line goes (default: print to stderr).
     """
 
-    def __init__(self, path, fail_fast: bool = True, timeout: float | None = None, what: str | None = None,
-                 clean_tmp: bool = False, echo=None):
+    def __init__(
+        self,
+        path,
+        fail_fast: bool = True,
+        timeout: float | None = None,
+        what: str | None = None,
+        clean_tmp: bool = False,
+        echo=None,
+    ):
         self.path = Path(path)
         self.lock_path = self.path / LOCK_NAME
         self.fail_fast = bool(fail_fast)
@@ -124,12 +131,18 @@ class DirectoryLock:
                     raise DirectoryBusyError(
                         f"{self.what} is in use by another gransim process ({who}; lock file "
                         f"{self.lock_path}); wait for it to finish or stop it, then retry",
-                        path=self.path, holder_pid=pid)
+                        path=self.path,
+                        holder_pid=pid,
+                    )
                 waited = time.monotonic() - t0
                 if self.timeout is not None and waited > self.timeout:
                     raise DirectoryBusyError(
                         f"gave up waiting for {self.what} after {waited:.0f} s: still held by {who} "
-                        f"(lock file {self.lock_path})", path=self.path, holder_pid=pid, timed_out=True)
+                        f"(lock file {self.lock_path})",
+                        path=self.path,
+                        holder_pid=pid,
+                        timed_out=True,
+                    )
                 if not announced:
                     limit = "" if self.timeout is None else f", up to {self.timeout:g} s"
                     self.echo(f"waiting for {self.what} ({who}{limit})")

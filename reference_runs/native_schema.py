@@ -33,13 +33,20 @@ from .decks.biaxial import read_dump, read_thermo, short_case
 def _contacts(x, r, cell) -> dict:
     nl = find_neighbours(x, r, cell, skin=0.0)
     m = len(nl)
-    return {"i": nl.i, "j": nl.j, "shift": nl.shift, "force": np.full((m, 2), np.nan),
-            "overlap": nl.overlaps(r), "tangential_spring": np.full((m, 2), np.nan),
-            "sliding": np.zeros(m, bool)}
+    return {
+        "i": nl.i,
+        "j": nl.j,
+        "shift": nl.shift,
+        "force": np.full((m, 2), np.nan),
+        "overlap": nl.overlaps(r),
+        "tangential_spring": np.full((m, 2), np.nan),
+        "sliding": np.zeros(m, bool),
+    }
 
 
-def biaxial_job_to_run_file(path, packing: Packing, thermo: dict, dumps: dict, dt: float,
-                            settings: dict | None = None, source: str = "") -> Path:
+def biaxial_job_to_run_file(
+    path, packing: Packing, thermo: dict, dumps: dict, dt: float, settings: dict | None = None, source: str = ""
+) -> Path:
     """Write a LIGGGHTS biaxial job as a native run file.
 
     Parameters
@@ -63,35 +70,63 @@ def biaxial_job_to_run_file(path, packing: Packing, thermo: dict, dumps: dict, d
     text = json.dumps(settings, sort_keys=True, default=str)
     rec = RunRecord(packing=packing, settings_text=text, fingerprint="liggghts:" + str(hash(text) & 0xFFFFFFFF))
     # write_run stores -stress (engine convention is compression positive): hand it that form
-    rec.series = {"step": list(steps), "time": list(steps * dt), "cell": list(cells), "stress": list(-sig),
-                  "n_contacts": [-1] * T, "mean_overlap": [np.nan] * T, "kinetic_energy": [np.nan] * T,
-                  "phase": [1] * T}
+    rec.series = {
+        "step": list(steps),
+        "time": list(steps * dt),
+        "cell": list(cells),
+        "stress": list(-sig),
+        "n_contacts": [-1] * T,
+        "mean_overlap": [np.nan] * T,
+        "kinetic_energy": [np.nan] * T,
+        "phase": [1] * T,
+    }
     r = packing.radii
     for step, fr in sorted(dumps.items()):
         k = int(np.searchsorted(steps, step))
         if k >= T or steps[k] != step:
             continue
         x = np.column_stack([fr["x"], fr["y"]])
-        rec.snapshots[int(step)] = {"time": float(step * dt), "cell": cells[k], "positions": x,
-                                    "velocities": np.column_stack([fr["vx"], fr["vy"]]),
-                                    "spins": np.asarray(fr["omegaz"], float),
-                                    "contacts": _contacts(x, r, cells[k])}
+        rec.snapshots[int(step)] = {
+            "time": float(step * dt),
+            "cell": cells[k],
+            "positions": x,
+            "velocities": np.column_stack([fr["vx"], fr["vy"]]),
+            "spins": np.asarray(fr["omegaz"], float),
+            "contacts": _contacts(x, r, cells[k]),
+        }
         rec.series["n_contacts"][k] = len(rec.snapshots[int(step)]["contacts"]["i"])
     rec.complete = True
     return write_run(path, rec, parameters=settings)
 
 
-def trajectory_to_run_file(path, packing: Packing, steps, stress, lengths, frames: dict, dt: float,
-                           settings: dict | None = None, source: str = "") -> Path:
+def trajectory_to_run_file(
+    path,
+    packing: Packing,
+    steps,
+    stress,
+    lengths,
+    frames: dict,
+    dt: float,
+    settings: dict | None = None,
+    source: str = "",
+) -> Path:
     """Same as :func:`biaxial_job_to_run_file` from plain arrays: ``steps`` (T,), ``stress`` (T, 3)
     pressure-convention xx, yy, xy (compression positive), ``lengths`` (T, 2), ``frames``
     {step: {"x": (N, 2), "v": (N, 2), "w": (N,)}} (the validation layer's trajectories)."""
     stress = np.asarray(stress, float)
     lengths = np.asarray(lengths, float)
-    thermo = {"step": np.asarray(steps, np.int64), "lx": lengths[:, 0], "ly": lengths[:, 1],
-              "sxx": stress[:, 0], "syy": stress[:, 1], "sxy": stress[:, 2]}
-    dumps = {int(k): {"x": f["x"][:, 0], "y": f["x"][:, 1], "vx": f["v"][:, 0], "vy": f["v"][:, 1],
-                      "omegaz": f["w"]} for k, f in frames.items()}
+    thermo = {
+        "step": np.asarray(steps, np.int64),
+        "lx": lengths[:, 0],
+        "ly": lengths[:, 1],
+        "sxx": stress[:, 0],
+        "syy": stress[:, 1],
+        "sxy": stress[:, 2],
+    }
+    dumps = {
+        int(k): {"x": f["x"][:, 0], "y": f["x"][:, 1], "vx": f["v"][:, 0], "vy": f["v"][:, 1], "omegaz": f["w"]}
+        for k, f in frames.items()
+    }
     return biaxial_job_to_run_file(path, packing, thermo, dumps, dt, settings, source)
 
 
@@ -99,5 +134,6 @@ def stored_short_run_file(path) -> Path:
     """The stored biaxial-short LIGGGHTS run (reference_runs/stored/biaxial-short) as a run file."""
     d = store.STORED / "biaxial-short"
     p, s, _, _ = short_case()
-    return biaxial_job_to_run_file(path, p, read_thermo(d / "log.liggghts"), read_dump(d / "dump.atoms"), s.dt,
-                                   settings=s.to_dict(), source=str(d))
+    return biaxial_job_to_run_file(
+        path, p, read_thermo(d / "log.liggghts"), read_dump(d / "dump.atoms"), s.dt, settings=s.to_dict(), source=str(d)
+    )

@@ -108,7 +108,7 @@ class LogFile:
     warnings: tuple
     lost_atoms: bool
     n_lines: int
-    engine: str | None = None       # "liggghts", "lammps" (from the banner) or None
+    engine: str | None = None  # "liggghts", "lammps" (from the banner) or None
 
 
 def _floats(line: str, k: int):
@@ -129,8 +129,9 @@ def parse_log(source) -> LogFile:
     of numeric fields (interleaved ``WARNING`` lines are kept apart) until ``Loop time of``.
     A run cut short by an error has ``complete = False``.
     """
-    if isinstance(source, Path) or (isinstance(source, str) and source and "\n" not in source
-                                     and Path(source).is_file()):
+    if isinstance(source, Path) or (
+        isinstance(source, str) and source and "\n" not in source and Path(source).is_file()
+    ):
         path = Path(source)
         try:
             text = path.read_text(errors="replace")
@@ -281,7 +282,7 @@ def _read_frames(path, count_item: str, columns_item: str, names=None, sort_by=(
             raise bad(f"frame at step {step} truncated: {n} rows announced, {nl - start} present")
         if n:
             try:
-                vals = np.array(" ".join(lines[start:start + n]).split(), dtype=np.float64)
+                vals = np.array(" ".join(lines[start : start + n]).split(), dtype=np.float64)
             except ValueError:
                 raise bad(f"non-numeric entry in frame at step {step}") from None
             if vals.size != n * len(cols):
@@ -322,8 +323,7 @@ def parse_dump_local(path, names=None, sort: bool = True) -> tuple:
     sort : sort rows by (``id1``, ``id2``) when those columns exist (LIGGGHTS lists contacts
         in neighbour-list order, which depends on binning and MPI ranks).
     """
-    return _read_frames(path, "NUMBER OF ENTRIES", "ENTRIES", names=names,
-                        sort_by=("id1", "id2") if sort else ())
+    return _read_frames(path, "NUMBER OF ENTRIES", "ENTRIES", names=names, sort_by=("id1", "id2") if sort else ())
 
 
 #: column names of ``compute pair/gran/local`` per keyword, in the order LIGGGHTS writes them
@@ -353,8 +353,7 @@ def pair_gran_local_names(keywords, n_history: int = 0) -> tuple:
     tangential spring). Without keywords LIGGGHTS writes pos, vel, id, force, torque, history
     and contactArea.
     """
-    kw = set(keywords) if keywords else {"pos", "vel", "id", "force", "torque", "history",
-                                        "contactArea"}
+    kw = set(keywords) if keywords else {"pos", "vel", "id", "force", "torque", "history", "contactArea"}
     unknown = kw - {k for k, _ in _PGL}
     if unknown:
         raise ValueError(f"unknown pair/gran/local keywords {sorted(unknown)}")
@@ -365,5 +364,13 @@ def pair_gran_local_names(keywords, n_history: int = 0) -> tuple:
     return tuple(out)
 
 
-__all__ = ["DumpFrame", "LogFile", "LogLine", "ThermoRun", "pair_gran_local_names", "parse_dump_custom",
-           "parse_dump_local", "parse_log"]
+__all__ = [
+    "DumpFrame",
+    "LogFile",
+    "LogLine",
+    "ThermoRun",
+    "pair_gran_local_names",
+    "parse_dump_custom",
+    "parse_dump_local",
+    "parse_log",
+]

@@ -66,8 +66,10 @@ DECK_NAMES = tuple(e.deck_name for e in ENGINES.values())
 LOG_NAME = "log.lammps"
 MANIFEST_NAME = "manifest.json"
 INSTALL_HINT = LIGGGHTS.install_hint
-FORCE_HINT = ("`--force` (`gransim reference run|taylor --force`, `run_job(force=True)`) discards the "
-              "stored outputs and runs the code again; it needs the binary too")
+FORCE_HINT = (
+    "`--force` (`gransim reference run|taylor --force`, `run_job(force=True)`) discards the "
+    "stored outputs and runs the code again; it needs the binary too"
+)
 #: how many lines of log context to show in an error
 CONTEXT_LINES = 12
 #: seconds between SIGTERM and SIGKILL when a job's process group is killed
@@ -79,7 +81,7 @@ def _echo(msg: str) -> None:
 
 
 # ----------------------------------------------------------------------------- children
-_LIVE: dict = {}              # process group id -> Popen of its leader
+_LIVE: dict = {}  # process group id -> Popen of its leader
 _LIVE_LOCK = threading.Lock()
 
 
@@ -107,7 +109,7 @@ def _group_alive(pgid: int) -> bool:
                 stat = (d / "stat").read_text()
             except OSError:
                 continue
-            fields = stat[stat.rfind(")") + 2:].split()   # state ppid pgrp ...
+            fields = stat[stat.rfind(")") + 2 :].split()  # state ppid pgrp ...
             if len(fields) > 2 and fields[2] == str(pgid) and fields[0] not in ("Z", "X"):
                 return True
         return False
@@ -273,22 +275,27 @@ def _only(job_dir: Path, pattern: str) -> str | None:
     return found[0] if len(found) == 1 else None
 
 
-def _verify(job_dir: Path, manifest: dict | None, deck_text: str | None, log_name: str, outputs,
-            require_hashes: bool) -> tuple[dict, list]:
+def _verify(
+    job_dir: Path, manifest: dict | None, deck_text: str | None, log_name: str, outputs, require_hashes: bool
+) -> tuple[dict, list]:
     """(evidence, problems) of a job directory: hashes in the manifest, then the deck's evidence."""
     problems: list = []
     outputs = list(dict.fromkeys(outputs))
     if manifest is not None:
         if manifest.get("status") != "ok":
-            problems.append(f"manifest status is {manifest.get('status')!r}"
-                            + (f" ({manifest['error']})" if manifest.get("error") else ""))
+            problems.append(
+                f"manifest status is {manifest.get('status')!r}"
+                + (f" ({manifest['error']})" if manifest.get("error") else "")
+            )
         hashes = dict(manifest.get("outputs") or {})
         want_log = manifest.get("log_sha256")
         log_path = job_dir / log_name
         if want_log is None:
             if require_hashes:
-                problems.append(f"the manifest has no log_sha256 (written by an older runner): {log_name} "
-                                "cannot be checked against it")
+                problems.append(
+                    f"the manifest has no log_sha256 (written by an older runner): {log_name} "
+                    "cannot be checked against it"
+                )
         elif not log_path.exists():
             pass  # reported by the evidence check
         elif _sha256_file(log_path) != want_log:
@@ -303,13 +310,14 @@ def _verify(job_dir: Path, manifest: dict | None, deck_text: str | None, log_nam
             elif not p.exists():
                 problems.append(f"output {name} is missing")
             elif _sha256_file(p) != hashes[name]:
-                problems.append(f"output {name} changed since the job ran "
-                                "(SHA-256 differs from the manifest)")
+                problems.append(f"output {name} changed since the job ran (SHA-256 differs from the manifest)")
     elif require_hashes:
         problems.append(f"no {MANIFEST_NAME}")
     if deck_text is None:
-        problems.append(f"no deck ({' or '.join(DECK_NAMES)} or a single in.* file) in {job_dir} to derive "
-                        "the expected runs and dump frames from")
+        problems.append(
+            f"no deck ({' or '.join(DECK_NAMES)} or a single in.* file) in {job_dir} to derive "
+            "the expected runs and dump frames from"
+        )
         return {"problems": list(problems)}, problems
     expect = expected_evidence(deck_text)
     log_path = job_dir / log_name
@@ -322,8 +330,9 @@ def _verify(job_dir: Path, manifest: dict | None, deck_text: str | None, log_nam
     return ev, problems
 
 
-def job_evidence(job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False,
-                 engine: str | None = None) -> dict:
+def job_evidence(
+    job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False, engine: str | None = None
+) -> dict:
     """The evidence record of a job directory (what :func:`verify_job` checks), with its problems.
 
     Same parameters as :func:`verify_job`. Returns a JSON-able dict: ``runs_expected``,
@@ -334,8 +343,12 @@ def job_evidence(job_dir, deck=None, log=None, outputs=None, require_hashes: boo
     """
     job_dir = Path(job_dir)
     m = read_manifest(job_dir)
-    deck_name = deck or (m or {}).get("deck") or next(
-        (d for d in DECK_NAMES if (job_dir / d).exists()), None) or _only(job_dir, "in.*")
+    deck_name = (
+        deck
+        or (m or {}).get("deck")
+        or next((d for d in DECK_NAMES if (job_dir / d).exists()), None)
+        or _only(job_dir, "in.*")
+    )
     log_name = log or (LOG_NAME if (job_dir / LOG_NAME).exists() else _only(job_dir, "log.*") or LOG_NAME)
     deck_text, pre = None, []
     if deck_name and (job_dir / deck_name).exists():
@@ -360,8 +373,9 @@ def job_evidence(job_dir, deck=None, log=None, outputs=None, require_hashes: boo
     return ev
 
 
-def verify_job(job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False,
-               engine: str | None = None) -> list:
+def verify_job(
+    job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False, engine: str | None = None
+) -> list:
     """Problems of a finished job directory (empty list: the job is complete and unchanged).
 
     Checks, when a ``manifest.json`` is present: status ``ok``, the SHA-256 of the deck, of the
@@ -427,7 +441,7 @@ class _LogTail:
 
     def poll(self) -> None:
         try:
-            with open(self.path, "r", errors="replace") as fh:
+            with open(self.path, errors="replace") as fh:
                 fh.seek(self.pos)
                 chunk = fh.read()
                 self.pos = fh.tell()
@@ -463,10 +477,20 @@ def _job_inputs(deck, files):
     return deck_text, blobs, _sha256(deck_text.encode()), h.hexdigest()
 
 
-def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: float | None = 600.0,
-            progress: bool = True, outputs=(), expected_runs: int | None = None,
-            allowed_warnings=(), force: bool = False, desc: str | None = None,
-            engine: str = "liggghts") -> JobResult:
+def run_job(
+    job_dir,
+    deck,
+    files: dict | None = None,
+    np: int = 1,
+    timeout: float | None = 600.0,
+    progress: bool = True,
+    outputs=(),
+    expected_runs: int | None = None,
+    allowed_warnings=(),
+    force: bool = False,
+    desc: str | None = None,
+    engine: str = "liggghts",
+) -> JobResult:
     """Run a LIGGGHTS or LAMMPS deck in ``job_dir`` and check that it succeeded and left complete
     evidence.
 
@@ -517,25 +541,56 @@ def run_job(job_dir, deck, files: dict | None = None, np: int = 1, timeout: floa
     outputs = [str(o) for o in outputs]
     expect = expected_evidence(deck_text)
     if expected_runs is not None and expect.runs is not None and len(expect.runs) != expected_runs:
-        raise ReferenceRunError(f"{eng.label} job {job_dir}: the deck has {len(expect.runs)} run commands but "
-                                f"expected_runs={expected_runs} (deck and caller disagree)", job_dir=job_dir)
+        raise ReferenceRunError(
+            f"{eng.label} job {job_dir}: the deck has {len(expect.runs)} run commands but "
+            f"expected_runs={expected_runs} (deck and caller disagree)",
+            job_dir=job_dir,
+        )
     job_dir.mkdir(parents=True, exist_ok=True)
-    lock = DirectoryLock(job_dir, fail_fast=False, timeout=timeout, what=f"job {job_dir}", clean_tmp=True,
-                         echo=_echo)
+    lock = DirectoryLock(job_dir, fail_fast=False, timeout=timeout, what=f"job {job_dir}", clean_tmp=True, echo=_echo)
     try:
         lock.acquire()
     except DirectoryBusyError as exc:
-        raise ReferenceRunError(f"{eng.label} job {job_dir}: {exc}", job_dir=job_dir,
-                                timed_out=exc.timed_out) from None
+        raise ReferenceRunError(f"{eng.label} job {job_dir}: {exc}", job_dir=job_dir, timed_out=exc.timed_out) from None
     try:
-        return _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, timeout, progress,
-                           outputs, expected_runs, allowed_warnings, force, desc, eng)
+        return _run_locked(
+            job_dir,
+            deck_text,
+            blobs,
+            deck_sha,
+            input_sha,
+            expect,
+            np,
+            timeout,
+            progress,
+            outputs,
+            expected_runs,
+            allowed_warnings,
+            force,
+            desc,
+            eng,
+        )
     finally:
         lock.release()
 
 
-def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, timeout, progress, outputs,
-                expected_runs, allowed_warnings, force, desc, eng) -> JobResult:
+def _run_locked(
+    job_dir,
+    deck_text,
+    blobs,
+    deck_sha,
+    input_sha,
+    expect,
+    np,
+    timeout,
+    progress,
+    outputs,
+    expected_runs,
+    allowed_warnings,
+    force,
+    desc,
+    eng,
+) -> JobResult:
     rerun_reason = None
     label = eng.label
     m = None if force else read_manifest(job_dir)
@@ -545,17 +600,21 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
         if manifest_engine(m) != eng.name:
             problems = [f"the job was run by {manifest_engine(m)}, not {eng.name}", *problems]
         if not problems:
-            return JobResult(job_dir, m, parse_log(job_dir / LOG_NAME), skipped=True,
-                             warnings=tuple(m.get("warnings", ())))
+            return JobResult(
+                job_dir, m, parse_log(job_dir / LOG_NAME), skipped=True, warnings=tuple(m.get("warnings", ()))
+            )
         if not eng.available():
             raise ReferenceRunError(
                 f"stored {label} job {job_dir} is marked ok but fails verification: {'; '.join(problems)}. "
                 f"It cannot be rerun here: the `{eng.binary}` binary was not found on PATH ({eng.install_hint}); "
                 f"with {label} installed it is rerun automatically, or use {FORCE_HINT}",
-                job_dir=job_dir, problems=problems)
+                job_dir=job_dir,
+                problems=problems,
+            )
         rerun_reason = problems
-        _echo(f"WARNING: {label} job {job_dir} is marked ok but fails verification ({'; '.join(problems)}): "
-              "rerunning it")
+        _echo(
+            f"WARNING: {label} job {job_dir} is marked ok but fails verification ({'; '.join(problems)}): rerunning it"
+        )
 
     exe = eng.find()
     (job_dir / MANIFEST_NAME).unlink(missing_ok=True)  # nothing complete-looking while we run
@@ -570,11 +629,19 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
     cmd = eng.command(eng.deck_name, LOG_NAME, np, exe=exe)
     package = eng.package_version(exe)
     manifest = {
-        "status": "running", "command": cmd, "job_dir": str(job_dir.resolve()),
-        "deck": eng.deck_name, "deck_sha256": deck_sha, "input_sha256": input_sha,
+        "status": "running",
+        "command": cmd,
+        "job_dir": str(job_dir.resolve()),
+        "deck": eng.deck_name,
+        "deck_sha256": deck_sha,
+        "input_sha256": input_sha,
         "inputs": {name: _sha256(b) for name, b in sorted(blobs.items())},
-        "engine": eng.name, "engine_binary": exe, "engine_package": package, "np": int(np),
-        "start": _now(), "timeout": timeout,
+        "engine": eng.name,
+        "engine_binary": exe,
+        "engine_package": package,
+        "np": int(np),
+        "start": _now(),
+        "timeout": timeout,
     }
     if eng.name == "liggghts":
         manifest.update(liggghts_binary=exe, liggghts_package=package)
@@ -588,8 +655,9 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
         bar = _progress(total=total, desc=desc or f"{eng.name} {job_dir.name}", unit="run")
     timed_out = False
     with open(job_dir / "stdout.txt", "wb") as out, open(job_dir / "stderr.txt", "wb") as err:
-        proc = subprocess.Popen(cmd, cwd=job_dir, stdout=out, stderr=err, stdin=subprocess.DEVNULL,
-                                start_new_session=True, env=eng.env())
+        proc = subprocess.Popen(
+            cmd, cwd=job_dir, stdout=out, stderr=err, stdin=subprocess.DEVNULL, start_new_session=True, env=eng.env()
+        )
         with _LIVE_LOCK:
             _LIVE[proc.pid] = proc
         try:
@@ -611,10 +679,14 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
                     break
         except BaseException as exc:
             _kill_groups([(proc.pid, proc)])
-            manifest.update(status="failed", end=_now(), elapsed_s=round(time.monotonic() - t0, 3),
-                            returncode=proc.returncode,
-                            error=f"interrupted ({type(exc).__name__}{': ' + str(exc) if str(exc) else ''}); "
-                                  f"the {label} process group was killed")
+            manifest.update(
+                status="failed",
+                end=_now(),
+                elapsed_s=round(time.monotonic() - t0, 3),
+                returncode=proc.returncode,
+                error=f"interrupted ({type(exc).__name__}{': ' + str(exc) if str(exc) else ''}); "
+                f"the {label} process group was killed",
+            )
             with contextlib.suppress(Exception):
                 _write_manifest(job_dir, manifest)
             raise
@@ -650,8 +722,10 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
         if done != expected_runs:
             ev_problems.append(f"incomplete: {LOG_NAME} holds {done} of {expected_runs} runs")
     if expect.unresolved:
-        _echo(f"WARNING: {label} job {job_dir}: the deck reader could not follow the deck "
-              f"({'; '.join(expect.unresolved)}); only what could be derived is checked")
+        _echo(
+            f"WARNING: {label} job {job_dir}: the deck reader could not follow the deck "
+            f"({'; '.join(expect.unresolved)}); only what could be derived is checked"
+        )
     evidence["problems"] = list(ev_problems)
     manifest["evidence"] = evidence
 
@@ -693,8 +767,13 @@ def _run_locked(job_dir, deck_text, blobs, deck_sha, input_sha, expect, np, time
             where = where + ["(stderr)"] + stderr[-CONTEXT_LINES:]
         manifest.update(status="failed", error=problem, log_lines=where)
         _write_manifest(job_dir, manifest)
-        raise ReferenceRunError(f"{label} job {job_dir}: {problem}", job_dir=job_dir, log_lines=where,
-                                timed_out=timed_out, problems=ev_problems or [problem])
+        raise ReferenceRunError(
+            f"{label} job {job_dir}: {problem}",
+            job_dir=job_dir,
+            log_lines=where,
+            timed_out=timed_out,
+            problems=ev_problems or [problem],
+        )
 
     manifest["log_sha256"] = _sha256_file(log_path)
     manifest["outputs"] = {o: _sha256_file(job_dir / o) for o in outputs}
@@ -709,6 +788,22 @@ def _kill(proc: subprocess.Popen) -> None:
     _kill_groups([(proc.pid, proc)])
 
 
-__all__ = ["DECK_NAMES", "FORCE_HINT", "JobResult", "KILL_GRACE_S", "ReferenceRunError", "Terminated",
-           "find_engine", "find_liggghts", "is_complete", "manifest_engine", "job_evidence", "kill_children_on_signals", "live_children", "read_manifest",
-           "run_job", "terminate_children", "verify_job"]
+__all__ = [
+    "DECK_NAMES",
+    "FORCE_HINT",
+    "JobResult",
+    "KILL_GRACE_S",
+    "ReferenceRunError",
+    "Terminated",
+    "find_engine",
+    "find_liggghts",
+    "is_complete",
+    "manifest_engine",
+    "job_evidence",
+    "kill_children_on_signals",
+    "live_children",
+    "read_manifest",
+    "run_job",
+    "terminate_children",
+    "verify_job",
+]

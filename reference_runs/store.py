@@ -97,9 +97,16 @@ and the explicit-image route (all paths).
 """
 
 
-def regenerate_taylor(dest: Path | None = None, packing=None, name: str | None = None, contacts: bool = True,
-                      keep_data: bool = True, packing_source: str | None = None,
-                      timeout: float | None = 600.0, engine: str = "liggghts") -> Path:
+def regenerate_taylor(
+    dest: Path | None = None,
+    packing=None,
+    name: str | None = None,
+    contacts: bool = True,
+    keep_data: bool = True,
+    packing_source: str | None = None,
+    timeout: float | None = 600.0,
+    engine: str = "liggghts",
+) -> Path:
     """Run a stored Taylor case and copy the job (without stdout/stderr) into ``dest``.
 
     Defaults: the lattice case (``taylor-lattice-6x6``, LAMMPS: ``taylor-lattice-6x6-lammps``).
@@ -115,55 +122,95 @@ def regenerate_taylor(dest: Path | None = None, packing=None, name: str | None =
         packing = stored_taylor_packing()
     tmp = dest.parent / (dest.name + ".job")
     shutil.rmtree(tmp, ignore_errors=True)
-    run = run_taylor(packing, p["kn"], tmp, name=name, n_steps=p["n_steps"], stride=p["stride"],
-                     max_strain=p["max_strain"], contacts=contacts, progress=False,
-                     cleanup_inputs=not keep_data, timeout=timeout, engine=eng.name)
+    run = run_taylor(
+        packing,
+        p["kn"],
+        tmp,
+        name=name,
+        n_steps=p["n_steps"],
+        stride=p["stride"],
+        max_strain=p["max_strain"],
+        contacts=contacts,
+        progress=False,
+        cleanup_inputs=not keep_data,
+        timeout=timeout,
+        engine=eng.name,
+    )
     for junk in ("stdout.txt", "stderr.txt"):
         (tmp / junk).unlink(missing_ok=True)
     if not keep_data:
         shutil.rmtree(tmp / "states", ignore_errors=True)
-    save_packing(tmp / "packing.h5", packing, parameters={**dict(packing.metadata), **p},
-                 seed=packing.metadata.get("seed", p["seed"]))
+    save_packing(
+        tmp / "packing.h5",
+        packing,
+        parameters={**dict(packing.metadata), **p},
+        seed=packing.metadata.get("seed", p["seed"]),
+    )
     m = run.manifest
     banner = (tmp / "log.lammps").read_text().splitlines()[0]
     cmd = " ".join(Path(c).name if i == 0 else c for i, c in enumerate(m["command"]))
-    source = packing_source or ("`reference_runs.demo_packings.perturbed_lattice(6, 6, seed=7)`, a "
-                                "perturbed triangular lattice")
-    (tmp / "README.md").write_text((_README_LAMMPS if eng.name == "lammps" else _README).format(
-        case=name, package=m.get("engine_package"), n=packing.n, lx=packing.cell[0, 0], ly=packing.cell[1, 1], source=source,
-        data_note="" if keep_data else " (not kept: regenerated bit for bit from `packing.h5` by the "
-                                       "deck generator; their SHA-256 are in the manifest)",
-        contacts_note=", `contacts/<path>/<route>_<k>.dump` (`compute pair/gran/local id pos force delta`, "
-                      "`%.17g`)" if contacts else "",
-        version=eng.version(), banner=banner, kn=p["kn"], command=cmd,
-        date=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), elapsed=m["elapsed_s"]))
+    source = packing_source or (
+        "`reference_runs.demo_packings.perturbed_lattice(6, 6, seed=7)`, a perturbed triangular lattice"
+    )
+    (tmp / "README.md").write_text(
+        (_README_LAMMPS if eng.name == "lammps" else _README).format(
+            case=name,
+            package=m.get("engine_package"),
+            n=packing.n,
+            lx=packing.cell[0, 0],
+            ly=packing.cell[1, 1],
+            source=source,
+            data_note=""
+            if keep_data
+            else " (not kept: regenerated bit for bit from `packing.h5` by the "
+            "deck generator; their SHA-256 are in the manifest)",
+            contacts_note=", `contacts/<path>/<route>_<k>.dump` (`compute pair/gran/local id pos force delta`, `%.17g`)"
+            if contacts
+            else "",
+            version=eng.version(),
+            banner=banner,
+            kn=p["kn"],
+            command=cmd,
+            date=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            elapsed=m["elapsed_s"],
+        )
+    )
     shutil.rmtree(dest, ignore_errors=True)
     tmp.rename(dest)
     return dest
 
 
-def regenerate_taylor_rve(dest: Path | None = None, packing_file=None, timeout: float | None = 600.0,
-                          engine: str = "liggghts") -> Path:
+def regenerate_taylor_rve(
+    dest: Path | None = None, packing_file=None, timeout: float | None = 600.0, engine: str = "liggghts"
+) -> Path:
     """The RVE case: the standard packing rve-70-1 of gransim.generation, thermo only (its packing
     is read from the stored LIGGGHTS case)."""
     if packing_file is None:
         packing_file = STORED / RVE_CASE / "packing.h5"
     packing = load_packing(packing_file)
-    src = ("the study RVE `rve-70-1` of `gransim.generation.standard_packings` (quartz-sand, 70 disks, "
-           "seed 1)")
+    src = "the study RVE `rve-70-1` of `gransim.generation.standard_packings` (quartz-sand, 70 disks, seed 1)"
     name = taylor_case(RVE_CASE, engine)
-    return regenerate_taylor(dest or STORED / name, packing, name=name, contacts=False,
-                             keep_data=False, packing_source=src, timeout=timeout, engine=engine)
+    return regenerate_taylor(
+        dest or STORED / name,
+        packing,
+        name=name,
+        contacts=False,
+        keep_data=False,
+        packing_source=src,
+        timeout=timeout,
+        engine=engine,
+    )
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m reference_runs.store",
-                                 description="Regenerate the stored Taylor reference outputs.")
+    ap = argparse.ArgumentParser(
+        prog="python -m reference_runs.store", description="Regenerate the stored Taylor reference outputs."
+    )
     ap.add_argument("--engine", default="liggghts", help="liggghts (default) or lammps")
     args = ap.parse_args(argv)
 
     try:
-        get_engine(args.engine).find()   # before anything is written
+        get_engine(args.engine).find()  # before anything is written
         print(regenerate_taylor(engine=args.engine))
         print(regenerate_taylor_rve(engine=args.engine))
     except GransimError as exc:

@@ -52,7 +52,7 @@ class TaylorSeries:
     cauchy_pressure: np.ndarray
     stress_atom_sum: np.ndarray
     contact_files: tuple
-    frames: tuple = ()      # per state Q (x_engine = Q x); identity except LAMMPS periodic shear-21
+    frames: tuple = ()  # per state Q (x_engine = Q x); identity except LAMMPS periodic shear-21
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,7 +63,7 @@ class TaylorRun:
     packing: Packing
     kn: float
     job_dir: Path
-    series: types.MappingProxyType     # (path, route) -> TaylorSeries
+    series: types.MappingProxyType  # (path, route) -> TaylorSeries
     manifest: dict
     engine: str = "liggghts"
 
@@ -88,12 +88,11 @@ class TaylorRun:
         if f is None:
             raise ResultFileError("this job did not dump contacts (contacts=False)")
         if self.engine != "lammps":
-            (frame,) = parse_dump_local(self.job_dir / f,
-                                        names=pair_gran_local_names(("id", "pos", "force", "delta")))
+            (frame,) = parse_dump_local(self.job_dir / f, names=pair_gran_local_names(("id", "pos", "force", "delta")))
             return frame
         (frame,) = parse_dump_local(self.job_dir / f, names=LAMMPS_CONTACT_COLUMNS)
         Q = np.asarray(s.frames[idx], float)
-        fxy = np.column_stack([frame["fx"], frame["fy"]]) @ Q      # rows: (Q^T f)^T = f^T Q
+        fxy = np.column_stack([frame["fx"], frame["fy"]]) @ Q  # rows: (Q^T f)^T = f^T Q
         r = self.packing.radii
         cols = dict(frame.columns)
         cols["fx"], cols["fy"] = fxy[:, 0].copy(), fxy[:, 1].copy()
@@ -121,40 +120,59 @@ def read_taylor_job(job_dir, packing: Packing, manifest: dict | None = None) -> 
     log = parse_log(job_dir / "log.lammps")
     states = meta["states"]
     if len(log.runs) != len(states):
-        raise ReferenceRunError(f"{job_dir}: {len(states)} states in states.json but {len(log.runs)} runs "
-                                "in log.lammps", job_dir=job_dir)
+        raise ReferenceRunError(
+            f"{job_dir}: {len(states)} states in states.json but {len(log.runs)} runs in log.lammps", job_dir=job_dir
+        )
     V = float(meta["reference_area"])
     groups: dict = {}
     for st, run in zip(states, log.runs):
         if len(run) != 1 or int(run.steps[0]) != st["index"]:
-            raise ReferenceRunError(f"{job_dir}: run of state {st['index']} has steps {run.steps.tolist()}",
-                                    job_dir=job_dir)
+            raise ReferenceRunError(
+                f"{job_dir}: run of state {st['index']} has steps {run.steps.tolist()}", job_dir=job_dir
+            )
         F = np.array(st["F"], float)
         Q = np.array(st.get("frame", np.eye(2)), float)
         sums = np.array([run["c_sc[1]"][0], run["c_sc[2]"][0], run["c_sc[3]"][0]])
         # the engine's stress in its own frame, mapped back: sigma = Q^T sigma_engine Q
         sig = Q.T @ cauchy_from_stress_atom_sum(*sums, np.linalg.det(F) * V) @ Q
-        if Q[0, 1] != 0:        # raw sums in gransim's frame too (xx and yy swapped)
+        if Q[0, 1] != 0:  # raw sums in gransim's frame too (xx and yy swapped)
             sums = np.array([sums[1], sums[0], sums[2]])
         if st["route"] == "periodic":
             sp = Q.T @ cauchy_from_pressure(run["c_p[1]"][0], run["c_p[2]"][0], run["c_p[4]"][0]) @ Q
         else:
             sp = np.full((2, 2), np.nan)
         groups.setdefault((st["path"], st["route"]), []).append(
-            (st["k"], F, sig, sp, sums, st["contacts_file"], tuple(map(tuple, Q.tolist()))))
+            (st["k"], F, sig, sp, sums, st["contacts_file"], tuple(map(tuple, Q.tolist())))
+        )
     series = {}
     for key, rows in groups.items():
         k, F, sig, sp, sums, cf, fr = zip(*rows)
-        series[key] = TaylorSeries(key[0], key[1], np.array(k), np.array(F), np.array(sig), np.array(sp),
-                                   np.array(sums), tuple(cf), tuple(fr))
-    return TaylorRun(meta["name"], packing, float(meta["kn"]), job_dir, types.MappingProxyType(series),
-                     manifest or {}, engine)
+        series[key] = TaylorSeries(
+            key[0], key[1], np.array(k), np.array(F), np.array(sig), np.array(sp), np.array(sums), tuple(cf), tuple(fr)
+        )
+    return TaylorRun(
+        meta["name"], packing, float(meta["kn"]), job_dir, types.MappingProxyType(series), manifest or {}, engine
+    )
 
 
-def run_taylor(packing: Packing, kn: float, job_dir, name: str = "packing", paths=PATHS, routes=ROUTES,
-               n_steps: int = 50, max_strain: float = 0.1, stride: int = 1, contacts: bool = False,
-               np_procs: int = 1, timeout: float | None = 3600.0, progress: bool = True,
-               cleanup_inputs: bool = True, force: bool = False, engine: str = "liggghts") -> TaylorRun:
+def run_taylor(
+    packing: Packing,
+    kn: float,
+    job_dir,
+    name: str = "packing",
+    paths=PATHS,
+    routes=ROUTES,
+    n_steps: int = 50,
+    max_strain: float = 0.1,
+    stride: int = 1,
+    contacts: bool = False,
+    np_procs: int = 1,
+    timeout: float | None = 3600.0,
+    progress: bool = True,
+    cleanup_inputs: bool = True,
+    force: bool = False,
+    engine: str = "liggghts",
+) -> TaylorRun:
     """Run (or reuse) the Taylor job of one packing and parse it.
 
     ``engine``: ``"liggghts"`` or ``"lammps"`` (the deck of
@@ -167,15 +185,35 @@ def run_taylor(packing: Packing, kn: float, job_dir, name: str = "packing", path
     rewritten if the job has to run again). A reused job is verified first
     (:func:`reference_runs.runner.run_job`).
     """
-    deck, files, states = taylor_job(packing, kn, paths=paths, routes=routes, n_steps=n_steps,
-                                     max_strain=max_strain, stride=stride, contacts=contacts, name=name,
-                                     engine=engine)
+    deck, files, states = taylor_job(
+        packing,
+        kn,
+        paths=paths,
+        routes=routes,
+        n_steps=n_steps,
+        max_strain=max_strain,
+        stride=stride,
+        contacts=contacts,
+        name=name,
+        engine=engine,
+    )
     outputs = ["states.json"] + [s.contacts_file for s in states if s.contacts_file]
     if contacts:
         for s in states:
             (Path(job_dir) / s.contacts_file).parent.mkdir(parents=True, exist_ok=True)
-    res = run_job(job_dir, deck, files, np=np_procs, timeout=timeout, progress=progress, outputs=outputs,
-                  expected_runs=len(states), desc=f"taylor {name}", force=force, engine=engine)
+    res = run_job(
+        job_dir,
+        deck,
+        files,
+        np=np_procs,
+        timeout=timeout,
+        progress=progress,
+        outputs=outputs,
+        expected_runs=len(states),
+        desc=f"taylor {name}",
+        force=force,
+        engine=engine,
+    )
     if cleanup_inputs and not res.skipped:
         for fname in files:
             if fname.endswith(".data"):
@@ -188,8 +226,9 @@ def write_taylor_h5(path, runs, parameters: dict | None = None):
     runs = list(runs)
     params = dict(parameters or {})
     engines = {run.engine for run in runs}
-    with atomic_h5(path, kind="liggghts-taylor", parameters=params, liggghts="liggghts" in engines,
-                   lammps="lammps" in engines) as f:
+    with atomic_h5(
+        path, kind="liggghts-taylor", parameters=params, liggghts="liggghts" in engines, lammps="lammps" in engines
+    ) as f:
         f.attrs["sign_convention"] = "tension positive (sigma = -p_liggghts)"
         f.attrs["units"] = "F dimensionless; stress N/m (2D); kn N/m"
         for run in runs:
@@ -229,5 +268,13 @@ def read_taylor_h5(path) -> dict:
     return out
 
 
-__all__ = ["PATHS", "ROUTES", "TaylorRun", "TaylorSeries", "read_taylor_h5", "read_taylor_job", "run_taylor",
-           "write_taylor_h5"]
+__all__ = [
+    "PATHS",
+    "ROUTES",
+    "TaylorRun",
+    "TaylorSeries",
+    "read_taylor_h5",
+    "read_taylor_job",
+    "run_taylor",
+    "write_taylor_h5",
+]

@@ -3,7 +3,8 @@
 An implementation independent of gransim.rve (and of gransim's cell-list search) that the
 LIGGGHTS Taylor states are checked against. For a periodic packing (reference centres X_i,
 cell C with lattice vectors as columns, reference area V = det C) and a deformation
-gradient F (Meier, Steinmann & Kuhl, "Towards completeness, a multiscale approach of confined particulate systems" (2007), eqs 1-5 and 10):
+gradient F (Meier, Steinmann & Kuhl, "Towards completeness, a multiscale approach of confined particulate
+systems" (2007), eqs 1-5 and 10):
 
     L_ij  = X_j + C n - X_i                       reference branch vector, n in {-1, 0, 1}^2
     l_ij  = F L_ij                                deformed branch vector (Taylor assumption, eq 1)
@@ -57,13 +58,13 @@ class TaylorStress:
 class Candidates:
     """Pairs (i, j, n) that can touch for any F whose smallest singular value is >= s_min."""
 
-    X: np.ndarray       # (N, 2) wrapped reference centres
-    radii: np.ndarray   # (N,)
-    cell: np.ndarray    # (2, 2)
+    X: np.ndarray  # (N, 2) wrapped reference centres
+    radii: np.ndarray  # (N,)
+    cell: np.ndarray  # (2, 2)
     i: np.ndarray
     j: np.ndarray
-    shift: np.ndarray   # (M, 2)
-    L: np.ndarray       # (M, 2) reference branch vectors
+    shift: np.ndarray  # (M, 2)
+    L: np.ndarray  # (M, 2) reference branch vectors
     s_min: float
 
 
@@ -89,8 +90,10 @@ def candidate_pairs(packing: Packing, s_min: float = 0.5) -> Candidates:
     heights = A / np.linalg.norm(C, axis=0)[::-1]
     reach = 2 * r.max() / s_min
     if heights.min() <= reach:
-        raise InputError(f"cell too small for the image search: height {heights.min():.4g} m <= "
-                         f"largest contact distance {reach:.4g} m")
+        raise InputError(
+            f"cell too small for the image search: height {heights.min():.4g} m <= "
+            f"largest contact distance {reach:.4g} m"
+        )
     n = len(r)
     iu, ju = np.triu_indices(n, k=0)
     I, J, S, Ls = [], [], [], []
@@ -106,10 +109,13 @@ def candidate_pairs(packing: Packing, s_min: float = 0.5) -> Candidates:
             L = X[jj] + C @ sh - X[ii]
             d2 = np.einsum("ij,ij->i", L, L)
             keep = d2 < ((r[ii] + r[jj]) / s_min) ** 2
-            I.append(ii[keep]); J.append(jj[keep]); Ls.append(L[keep])
+            I.append(ii[keep])
+            J.append(jj[keep])
+            Ls.append(L[keep])
             S.append(np.repeat(sh[None], keep.sum(), axis=0))
-    return Candidates(X, r.copy(), C.copy(), np.concatenate(I), np.concatenate(J), np.concatenate(S),
-                      np.concatenate(Ls), float(s_min))
+    return Candidates(
+        X, r.copy(), C.copy(), np.concatenate(I), np.concatenate(J), np.concatenate(S), np.concatenate(Ls), float(s_min)
+    )
 
 
 def taylor_stress_numpy(packing: Packing, F, kn: float, candidates: Candidates | None = None) -> TaylorStress:

@@ -114,9 +114,16 @@ def parse_loop_timings(source) -> tuple:
         m = _LOOP.match(s)
         if m:
             close()
-            cur = {"loop_s": _float(m.group(1), "loop time", n), "procs": int(m.group(2)),
-                   "steps": int(m.group(3)), "atoms": int(m.group(4)), "breakdown": {}, "memory_mb": mem,
-                   "neighbour_builds": None, "dangerous_builds": None}
+            cur = {
+                "loop_s": _float(m.group(1), "loop time", n),
+                "procs": int(m.group(2)),
+                "steps": int(m.group(3)),
+                "atoms": int(m.group(4)),
+                "breakdown": {},
+                "memory_mb": mem,
+                "neighbour_builds": None,
+                "dangerous_builds": None,
+            }
             continue
         if cur is None:
             continue

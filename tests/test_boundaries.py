@@ -35,8 +35,12 @@ def imported_top_levels(source: str, filename: str = "<string>") -> list[tuple[i
             out += [(node.lineno, a.name.split(".")[0]) for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
             out.append((node.lineno, node.module.split(".")[0]))
-        elif isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant) \
-                and isinstance(node.args[0].value, str):
+        elif (
+            isinstance(node, ast.Call)
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+            and isinstance(node.args[0].value, str)
+        ):
             f = node.func
             name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", "")
             if name in ("import_module", "__import__"):
@@ -47,30 +51,50 @@ def imported_top_levels(source: str, filename: str = "<string>") -> list[tuple[i
 def test_the_import_scanner_sees_every_form():
     """The scanner is not vacuous: each import form of a forbidden package is found, relative
     imports and mere mentions in strings are not."""
-    src = ("import validation.core\nfrom reference_runs.cli import x\nimport os, bench\n"
-           "def f():\n    from tests import conftest\n    import importlib\n"
-           "    importlib.import_module('validation.runner')\n    __import__('bench')\n"
-           "from . import cli\nfrom .validation import y\ns = 'import validation'\n")
+    src = (
+        "import validation.core\nfrom reference_runs.cli import x\nimport os, bench\n"
+        "def f():\n    from tests import conftest\n    import importlib\n"
+        "    importlib.import_module('validation.runner')\n    __import__('bench')\n"
+        "from . import cli\nfrom .validation import y\ns = 'import validation'\n"
+    )
     got = imported_top_levels(src)
-    assert sorted(got) == [(1, "validation"), (2, "reference_runs"), (3, "bench"), (3, "os"),
-                           (5, "tests"), (6, "importlib"), (7, "validation"), (8, "bench")]
+    assert sorted(got) == [
+        (1, "validation"),
+        (2, "reference_runs"),
+        (3, "bench"),
+        (3, "os"),
+        (5, "tests"),
+        (6, "importlib"),
+        (7, "validation"),
+        (8, "bench"),
+    ]
 
 
 @pytest.mark.parametrize("package", sorted(FORBIDDEN))
 def test_no_module_imports_a_package_above_it(package):
     files = sorted((ROOT / package).rglob("*.py"))
     assert len(files) > 3, f"no modules found under {ROOT / package}"
-    bad = [f"{f.relative_to(ROOT)}:{line} imports {top}"
-           for f in files for line, top in imported_top_levels(f.read_text(), str(f))
-           if top in FORBIDDEN[package]]
+    bad = [
+        f"{f.relative_to(ROOT)}:{line} imports {top}"
+        for f in files
+        for line, top in imported_top_levels(f.read_text(), str(f))
+        if top in FORBIDDEN[package]
+    ]
     assert not bad, "imports against the layering:\n" + "\n".join(bad)
 
 
 def _gransim(*args, timeout=120):
     env = dict(os.environ)
     env.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".venv" / "numba-cache"))
-    return subprocess.run([sys.executable, "-m", "gransim", *args], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=timeout, check=False)
+    return subprocess.run(
+        [sys.executable, "-m", "gransim", *args],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+    )
 
 
 def test_gransim_help_lists_the_plugin_commands():
@@ -80,7 +104,8 @@ def test_gransim_help_lists_the_plugin_commands():
 
     names = {ep.name for ep in entry_points(group="gransim.commands")}
     assert {"reference", "replay", "validate"} <= names, (
-        "entry points missing: reinstall with `.venv/bin/pip install --no-deps -e .`")
+        "entry points missing: reinstall with `.venv/bin/pip install --no-deps -e .`"
+    )
     r = _gransim("--help")
     assert r.returncode == 0, r.stderr
     listed = {line.split()[0] for line in r.stdout.splitlines() if line.startswith("    ") and line.split()}

@@ -24,9 +24,18 @@ from pathlib import Path
 from gransim.errors import GransimError
 
 #: the flags of a quiet, offline, throw-away headless Chromium
-CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                  "--allow-file-access-from-files", "--hide-scrollbars")
+CHROMIUM_FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--allow-file-access-from-files",
+    "--hide-scrollbars",
+)
 
 _PROBE = """
 <script>
@@ -66,8 +75,7 @@ def chromium() -> str | None:
     return None
 
 
-def check_report(index, width: int = 1400, height: int = 1000, timeout: float = 120.0,
-                 screenshot=None) -> dict:
+def check_report(index, width: int = 1400, height: int = 1000, timeout: float = 120.0, screenshot=None) -> dict:
     """Load ``index`` (an HTML file) in headless Chromium at ``width`` x ``height`` px and return
     ``{"images": [{src, ok, width}], "sections": [{title, blocks}], "scroll_width", "window_width",
     "title"}``; ``screenshot``: also write a PNG of the first screen there."""
@@ -82,19 +90,30 @@ def check_report(index, width: int = 1400, height: int = 1000, timeout: float = 
     probe.write_text(text.replace("</body>", _PROBE + "</body>") if "</body>" in text else text + _PROBE)
     try:
         with tempfile.TemporaryDirectory(prefix="gransim-chromium-") as profile:
-            base = [exe, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}",
-                    "--virtual-time-budget=15000"]
-            run = subprocess.run([*base, "--dump-dom", probe.resolve().as_uri()], capture_output=True, text=True,
-                                 timeout=timeout)
+            base = [
+                exe,
+                *CHROMIUM_FLAGS,
+                f"--user-data-dir={profile}",
+                f"--window-size={width},{height}",
+                "--virtual-time-budget=15000",
+            ]
+            run = subprocess.run(
+                [*base, "--dump-dom", probe.resolve().as_uri()], capture_output=True, text=True, timeout=timeout
+            )
             if screenshot is not None:
-                subprocess.run([*base, f"--screenshot={Path(screenshot).resolve()}", index.resolve().as_uri()],
-                               capture_output=True, timeout=timeout)
+                subprocess.run(
+                    [*base, f"--screenshot={Path(screenshot).resolve()}", index.resolve().as_uri()],
+                    capture_output=True,
+                    timeout=timeout,
+                )
     finally:
         probe.unlink(missing_ok=True)
     m = re.search(r"<pre id=\"gransim-check\">(.*?)</pre>", run.stdout, re.S)
     if run.returncode != 0 or m is None:
-        raise GransimError(f"Chromium did not render {index} (exit {run.returncode}): "
-                           f"{run.stderr.strip().splitlines()[-1:] or 'no output'}")
+        raise GransimError(
+            f"Chromium did not render {index} (exit {run.returncode}): "
+            f"{run.stderr.strip().splitlines()[-1:] or 'no output'}"
+        )
 
     return json.loads(html.unescape(m.group(1)))
 

@@ -9,18 +9,30 @@ from __future__ import annotations
 
 
 def register(sub) -> None:
-    p = sub.add_parser("validate", help="run the validation suite and write results/report/index.html",
-                       description="Run the validation cases (native gransim vs LIGGGHTS and LAMMPS "
-                                   "reference runs), write results/validation.json, results/validation.h5 and "
-                                   "results/report/index.html. Exit status 1 when any case fails.")
-    p.add_argument("--suite", default="default", choices=["quick", "default", "full"],
-                   help="quick (< 2 min, used by tests), default (make run), full (more seeds, larger)")
+    p = sub.add_parser(
+        "validate",
+        help="run the validation suite and write results/report/index.html",
+        description="Run the validation cases (native gransim vs LIGGGHTS and LAMMPS "
+        "reference runs), write results/validation.json, results/validation.h5 and "
+        "results/report/index.html. Exit status 1 when any case fails.",
+    )
+    p.add_argument(
+        "--suite",
+        default="default",
+        choices=["quick", "default", "full"],
+        help="quick (< 2 min, used by tests), default (make run), full (more seeds, larger)",
+    )
     p.add_argument("--jobs", type=int, default=1, help="parallel reference jobs (default 1)")
     p.add_argument("--results", default="results", help="results directory (default ./results)")
     p.add_argument("--case", action="append", default=None, help="run only this case (repeatable)")
-    p.add_argument("--timeout", type=float, default=None, metavar="SECONDS",
-                   help="kill any reference job running longer than this (default: scaled with the job's "
-                        "work, ~20x LIGGGHTS' speed)")
+    p.add_argument(
+        "--timeout",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="kill any reference job running longer than this (default: scaled with the job's "
+        "work, ~20x LIGGGHTS' speed)",
+    )
     p.set_defaults(func=_run)
 
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import dataclasses
 import math
 import shutil
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -61,19 +61,29 @@ class Record:
     def to_json(self) -> dict:
         v = self.value if math.isfinite(self.value) else str(self.value)
         t = self.tolerance if math.isfinite(self.tolerance) else str(self.tolerance)
-        return {"case": self.case, "quantity": self.quantity, "metric": self.metric, "value": v,
-                "tolerance": t, "pass": bool(self.passed) if self.kind == "check" else None,
-                "kind": self.kind, "pair": self.pair, "reason": self.reason}
+        return {
+            "case": self.case,
+            "quantity": self.quantity,
+            "metric": self.metric,
+            "value": v,
+            "tolerance": t,
+            "pass": bool(self.passed) if self.kind == "check" else None,
+            "kind": self.kind,
+            "pair": self.pair,
+            "reason": self.reason,
+        }
 
 
 RECORD_KINDS = ("check", "info")
 
 #: the columns of the validation matrix: which two implementations a check sets against each other
-PAIRS = {"native-liggghts": "native vs LIGGGHTS", "native-lammps": "native vs LAMMPS",
-         "liggghts-lammps": "LIGGGHTS vs LAMMPS"}
+PAIRS = {
+    "native-liggghts": "native vs LIGGGHTS",
+    "native-lammps": "native vs LAMMPS",
+    "liggghts-lammps": "LIGGGHTS vs LAMMPS",
+}
 #: the reference codes (engines) a pair involves
-PAIR_CODES = {"native-liggghts": ("liggghts",), "native-lammps": ("lammps",),
-              "liggghts-lammps": ("liggghts", "lammps")}
+PAIR_CODES = {"native-liggghts": ("liggghts",), "native-lammps": ("lammps",), "liggghts-lammps": ("liggghts", "lammps")}
 
 
 def in_pair(records, pair: str) -> list:
@@ -92,8 +102,9 @@ def default_job_timeout(particle_steps: float) -> float:
 def compare(case: str, quantity: str, metric: str, value: float, tolerance: float, reason: str) -> Record:
     """A record that passes when ``value <= tolerance`` (NaN fails)."""
     value = float(value)
-    return Record(case, quantity, metric, value, float(tolerance),
-                  bool(math.isfinite(value) and value <= tolerance), reason)
+    return Record(
+        case, quantity, metric, value, float(tolerance), bool(math.isfinite(value) and value <= tolerance), reason
+    )
 
 
 def info(case: str, quantity: str, metric: str, value: float, reason: str) -> Record:
@@ -125,10 +136,18 @@ def evidence(case: str, what: str, expected, got, reason: str = "") -> Record:
             metric = f"incomplete: no {what} expected or found (nothing to compare)"
     else:
         metric = f"complete: {n_got} of {n_exp} {what}"
-    return Record(case, "evidence", metric, float(short if n_exp else 1), 0.0, short == 0 and n_exp > 0,
-                  reason or "a comparison is only as good as its evidence: every expected item must be present "
-                            "on both sides (a truncated log, a cut dump or a dropped contact is a failure, "
-                            "never a pass on what remains)")
+    return Record(
+        case,
+        "evidence",
+        metric,
+        float(short if n_exp else 1),
+        0.0,
+        short == 0 and n_exp > 0,
+        reason
+        or "a comparison is only as good as its evidence: every expected item must be present "
+        "on both sides (a truncated log, a cut dump or a dropped contact is a failure, "
+        "never a pass on what remains)",
+    )
 
 
 @dataclass
@@ -172,8 +191,11 @@ class CaseResult:
         checks = self.checks
         failing = [r for r in checks if not r.passed]
         pool = failing or checks
-        ratios = [(abs(r.value) / r.tolerance, i) for i, r in enumerate(pool)
-                  if math.isfinite(r.value) and math.isfinite(r.tolerance) and r.tolerance > 0]
+        ratios = [
+            (abs(r.value) / r.tolerance, i)
+            for i, r in enumerate(pool)
+            if math.isfinite(r.value) and math.isfinite(r.tolerance) and r.tolerance > 0
+        ]
         if ratios:
             return pool[max(ratios)[1]]
         return failing[0] if failing else None
@@ -211,8 +233,7 @@ class CaseResult:
         """No error, at least one check, every check passed (info records do not count), and
         every declared matrix cell holds at least one check."""
         checks = self.checks
-        return (self.error is None and bool(checks) and all(r.passed for r in checks)
-                and not self.empty_cells)
+        return self.error is None and bool(checks) and all(r.passed for r in checks) and not self.empty_cells
 
     def cell(self, pair: str) -> dict:
         """One cell of the validation matrix: ``state`` ("pass", "FAIL", "empty", "n/a", "absent"),
@@ -309,12 +330,21 @@ def stored_job_record(label: str, job_dir) -> Record:
     directory (runs, last steps and dump frames against its own deck; hashes where a manifest has
     them). Fails, listing the problems, when the stored job is incomplete or was edited."""
     problems = verify_job(job_dir)
-    metric = ("stored job verified against its deck" if not problems else
-              "incomplete stored job: " + "; ".join(str(p) for p in problems[:3])
-              + (" ..." if len(problems) > 3 else ""))
-    return Record(label, "evidence", metric, float(len(problems)), 0.0, not problems,
-                  "a stored reference counts only if it holds every run, step and frame its deck asked for "
-                  "(reference_runs.runner.verify_job)")
+    metric = (
+        "stored job verified against its deck"
+        if not problems
+        else "incomplete stored job: " + "; ".join(str(p) for p in problems[:3]) + (" ..." if len(problems) > 3 else "")
+    )
+    return Record(
+        label,
+        "evidence",
+        metric,
+        float(len(problems)),
+        0.0,
+        not problems,
+        "a stored reference counts only if it holds every run, step and frame its deck asked for "
+        "(reference_runs.runner.verify_job)",
+    )
 
 
 def liggghts_available() -> bool:

@@ -69,8 +69,18 @@ def _frame(eng) -> dict:
     return {"x": eng.x.copy(), "v": eng.v.copy(), "w": eng.w.copy(), "f": eng.f.copy(), "t": eng.t.copy()}
 
 
-def run_native(packing, settings, loading, nsteps: int, dump_every: int, velocities=None,
-               spins=None, thermo_every: int = 1, law=None, check_dt: bool = True) -> Trajectory:
+def run_native(
+    packing,
+    settings,
+    loading,
+    nsteps: int,
+    dump_every: int,
+    velocities=None,
+    spins=None,
+    thermo_every: int = 1,
+    law=None,
+    check_dt: bool = True,
+) -> Trajectory:
     """Run the native engine (serial mode, the mode compared step for step) from ``packing``; the
     series keeps every ``thermo_every``-th step (as the LIGGGHTS deck's thermo). ``law``: a
     contact law object of :mod:`gransim.contacts.laws` (None: the Hooke law of ``settings``)."""
@@ -93,8 +103,9 @@ def run_native(packing, settings, loading, nsteps: int, dump_every: int, velocit
         if done % dump_every == 0:
             frames[done] = _frame(eng)
     keep = slice(None, None, int(thermo_every))
-    return Trajectory(np.arange(nsteps + 1)[keep], np.concatenate(st)[keep], np.concatenate(L)[keep], frames,
-                      time.perf_counter() - t0)
+    return Trajectory(
+        np.arange(nsteps + 1)[keep], np.concatenate(st)[keep], np.concatenate(L)[keep], frames, time.perf_counter() - t0
+    )
 
 
 def read_reference(log_path, dump_path) -> Trajectory:
@@ -107,8 +118,13 @@ def read_reference(log_path, dump_path) -> Trajectory:
     lengths = np.stack([run["lx"], run["ly"]], axis=1)
     frames = {}
     for fr in parse_dump_custom(Path(dump_path)):
-        frames[int(fr.step)] = {"x": fr.array("x", "y"), "v": fr.array("vx", "vy"), "w": np.array(fr["omegaz"]),
-                                "f": fr.array("fx", "fy"), "t": np.array(fr["tqz"])}
+        frames[int(fr.step)] = {
+            "x": fr.array("x", "y"),
+            "v": fr.array("vx", "vy"),
+            "w": np.array(fr["omegaz"]),
+            "f": fr.array("fx", "fy"),
+            "t": np.array(fr["tqz"]),
+        }
     return Trajectory(steps, stress, lengths, frames)
 
 
@@ -120,9 +136,21 @@ read_liggghts = read_reference
 CODE_NAMES = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}
 
 
-def run_reference_job(job_dir, packing, settings, loading, nsteps: int, dump_every: int, velocities=None,
-                      spins=None, np_procs: int = 1, thermo_every: int = 1, timeout: float | None = None,
-                      engine: str = "liggghts", law=None) -> tuple[Trajectory, dict]:
+def run_reference_job(
+    job_dir,
+    packing,
+    settings,
+    loading,
+    nsteps: int,
+    dump_every: int,
+    velocities=None,
+    spins=None,
+    np_procs: int = 1,
+    thermo_every: int = 1,
+    timeout: float | None = None,
+    engine: str = "liggghts",
+    law=None,
+) -> tuple[Trajectory, dict]:
     """Write the mirror deck of the run for ``engine`` ("liggghts" or "lammps") and run it in
     ``job_dir`` (reused when complete).
 
@@ -138,22 +166,63 @@ def run_reference_job(job_dir, packing, settings, loading, nsteps: int, dump_eve
     kw = {} if engine == "liggghts" else {"engine": engine}
     lkw = {} if law is None else {"law": law}
     with tempfile.TemporaryDirectory() as tmp:
-        deck = write_biaxial_deck(tmp, packing, settings, loading, nsteps, thermo_every=thermo_every,
-                                  dump_every=dump_every, velocities=velocities, spins=spins, **kw, **lkw)
+        deck = write_biaxial_deck(
+            tmp,
+            packing,
+            settings,
+            loading,
+            nsteps,
+            thermo_every=thermo_every,
+            dump_every=dump_every,
+            velocities=velocities,
+            spins=spins,
+            **kw,
+            **lkw,
+        )
         files = {q.name: q.read_bytes() for q in Path(tmp).iterdir() if q.is_file() and q != deck}
-        res = run_job(job_dir, deck.read_text(), files=files, np=np_procs, outputs=("dump.atoms",),
-                      expected_runs=1, progress=False, timeout=timeout, **kw)
+        res = run_job(
+            job_dir,
+            deck.read_text(),
+            files=files,
+            np=np_procs,
+            outputs=("dump.atoms",),
+            expected_runs=1,
+            progress=False,
+            timeout=timeout,
+            **kw,
+        )
     traj = read_liggghts(res.log_path, res.path("dump.atoms"))
     el = 0.0 if res.skipped else float(res.manifest.get("elapsed_s", 0.0))
     return Trajectory(traj.steps, traj.stress, traj.lengths, traj.frames, el), res.manifest
 
 
-def run_liggghts_job(job_dir, packing, settings, loading, nsteps: int, dump_every: int, velocities=None,
-                     spins=None, np_procs: int = 1, thermo_every: int = 1,
-                     timeout: float | None = None) -> tuple[Trajectory, dict]:
+def run_liggghts_job(
+    job_dir,
+    packing,
+    settings,
+    loading,
+    nsteps: int,
+    dump_every: int,
+    velocities=None,
+    spins=None,
+    np_procs: int = 1,
+    thermo_every: int = 1,
+    timeout: float | None = None,
+) -> tuple[Trajectory, dict]:
     """:func:`run_reference_job` with LIGGGHTS."""
-    return run_reference_job(job_dir, packing, settings, loading, nsteps, dump_every, velocities, spins,
-                             np_procs=np_procs, thermo_every=thermo_every, timeout=timeout)
+    return run_reference_job(
+        job_dir,
+        packing,
+        settings,
+        loading,
+        nsteps,
+        dump_every,
+        velocities,
+        spins,
+        np_procs=np_procs,
+        thermo_every=thermo_every,
+        timeout=timeout,
+    )
 
 
 # ------------------------------------------------------------------ evidence
@@ -260,5 +329,13 @@ def snapshot(tr: Trajectory, step: int, radii: np.ndarray, dt: float):
     Cd = cell_rate(tr, step, dt)
     nl = find_neighbours(fr["x"], radii, C, skin=0.0)
     v = fr["v"] + fr["x"] @ (Cd @ np.linalg.inv(C)).T
-    return Snapshot(positions=fr["x"], cell=C, contacts_i=nl.i, contacts_j=nl.j, contacts_shift=nl.shift,
-                    velocities=v, cell_velocity=Cd, radii=radii)
+    return Snapshot(
+        positions=fr["x"],
+        cell=C,
+        contacts_i=nl.i,
+        contacts_j=nl.j,
+        contacts_shift=nl.shift,
+        velocities=v,
+        cell_velocity=Cd,
+        radii=radii,
+    )

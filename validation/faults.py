@@ -28,64 +28,143 @@ _F = "tests/fem/test_output.py::"
 
 FAULT_KINDS: tuple[FaultKind, ...] = (
     # reference code broken or evidence cut
-    FaultKind("LIGGGHTS exits 1 with an ERROR line", "job failed, case not run, the ERROR quoted",
-              _V + "test_live_liggghts_failures_fail_the_case"),
-    FaultKind("LIGGGHTS exits 0 writing nothing", "job failed (no log), case not run",
-              _V + "test_live_liggghts_failures_fail_the_case"),
-    FaultKind("LIGGGHTS writes a WARNING line", "job failed, the WARNING quoted",
-              _V + "test_live_liggghts_failures_fail_the_case"),
-    FaultKind("LIGGGHTS hangs (with a grandchild ignoring SIGTERM)", "killed at the timeout, the report names "
-              "the job, no process left", _V + "test_hung_liggghts_times_out_names_the_job_and_leaves_no_process"),
-    FaultKind("LIGGGHTS truncates its log", "job refused: incomplete runs/steps",
-              _V + "test_live_liggghts_with_a_truncated_log_fails"),
-    FaultKind("LIGGGHTS leaves only the first frame of each dump", "job refused or 'incomplete: expected N "
-              "frames, got 1'", _V + "test_live_liggghts_leaving_only_the_first_dump_frame_fails"),
-    FaultKind("a reused job whose log was cut to 12 steps", "verified on reuse, rerun (or refused naming "
-              "--force)", _R + "test_reuse_of_a_log_cut_to_12_steps_reruns"),
-    FaultKind("a reused job whose outputs were edited", "hash mismatch: rerun or refused",
-              _R + "test_reuse_verifies_hashes_and_evidence"),
-    FaultKind("the stored reference log cut to 12 of 3000 steps", "'incomplete: expected 3001 LIGGGHTS series "
-              "steps, got 13'", _V + "test_stored_log_cut_to_12_steps_fails"),
-    FaultKind("the stored reference dump cut to its first frame", "'incomplete: expected 7 LIGGGHTS frames, "
-              "got 1' in biaxial-short and voidcell", _V + "test_stored_dump_with_only_the_first_frame_fails"),
-    FaultKind("a stored Taylor job missing a state", "incomplete Taylor series",
-              _V + "test_a_stored_taylor_state_missing_fails"),
+    FaultKind(
+        "LIGGGHTS exits 1 with an ERROR line",
+        "job failed, case not run, the ERROR quoted",
+        _V + "test_live_liggghts_failures_fail_the_case",
+    ),
+    FaultKind(
+        "LIGGGHTS exits 0 writing nothing",
+        "job failed (no log), case not run",
+        _V + "test_live_liggghts_failures_fail_the_case",
+    ),
+    FaultKind(
+        "LIGGGHTS writes a WARNING line",
+        "job failed, the WARNING quoted",
+        _V + "test_live_liggghts_failures_fail_the_case",
+    ),
+    FaultKind(
+        "LIGGGHTS hangs (with a grandchild ignoring SIGTERM)",
+        "killed at the timeout, the report names the job, no process left",
+        _V + "test_hung_liggghts_times_out_names_the_job_and_leaves_no_process",
+    ),
+    FaultKind(
+        "LIGGGHTS truncates its log",
+        "job refused: incomplete runs/steps",
+        _V + "test_live_liggghts_with_a_truncated_log_fails",
+    ),
+    FaultKind(
+        "LIGGGHTS leaves only the first frame of each dump",
+        "job refused or 'incomplete: expected N frames, got 1'",
+        _V + "test_live_liggghts_leaving_only_the_first_dump_frame_fails",
+    ),
+    FaultKind(
+        "a reused job whose log was cut to 12 steps",
+        "verified on reuse, rerun (or refused naming --force)",
+        _R + "test_reuse_of_a_log_cut_to_12_steps_reruns",
+    ),
+    FaultKind(
+        "a reused job whose outputs were edited",
+        "hash mismatch: rerun or refused",
+        _R + "test_reuse_verifies_hashes_and_evidence",
+    ),
+    FaultKind(
+        "the stored reference log cut to 12 of 3000 steps",
+        "'incomplete: expected 3001 LIGGGHTS series steps, got 13'",
+        _V + "test_stored_log_cut_to_12_steps_fails",
+    ),
+    FaultKind(
+        "the stored reference dump cut to its first frame",
+        "'incomplete: expected 7 LIGGGHTS frames, got 1' in biaxial-short and voidcell",
+        _V + "test_stored_dump_with_only_the_first_frame_fails",
+    ),
+    FaultKind(
+        "a stored Taylor job missing a state",
+        "incomplete Taylor series",
+        _V + "test_a_stored_taylor_state_missing_fails",
+    ),
     # process control
-    FaultKind("SIGTERM / SIGINT to gransim validate while LIGGGHTS runs", "non-zero exit, no traceback, no "
-              "LIGGGHTS process left", _V + "test_signal_to_validate_leaves_no_liggghts"),
-    FaultKind("a second validate into the same results directory", "refused at once naming the holder (exit 2)",
-              _V + "test_second_validate_into_the_same_results_fails_at_once"),
-    FaultKind("a second writer of the same LIGGGHTS job", "waits for the first, then reuses its job",
-              _R + "test_second_writer_waits_then_reuses"),
-    FaultKind("temporaries left by a killed writer", "removed by the next run",
-              _V + "test_stray_temporaries_of_a_killed_run_are_removed"),
+    FaultKind(
+        "SIGTERM / SIGINT to gransim validate while LIGGGHTS runs",
+        "non-zero exit, no traceback, no LIGGGHTS process left",
+        _V + "test_signal_to_validate_leaves_no_liggghts",
+    ),
+    FaultKind(
+        "a second validate into the same results directory",
+        "refused at once naming the holder (exit 2)",
+        _V + "test_second_validate_into_the_same_results_fails_at_once",
+    ),
+    FaultKind(
+        "a second writer of the same LIGGGHTS job",
+        "waits for the first, then reuses its job",
+        _R + "test_second_writer_waits_then_reuses",
+    ),
+    FaultKind(
+        "temporaries left by a killed writer",
+        "removed by the next run",
+        _V + "test_stray_temporaries_of_a_killed_run_are_removed",
+    ),
     # perturbed native paths
-    FaultKind("native contacts 1% stiffer", "biaxial-short and voidcell fail (positions, stress)",
-              _S + "test_one_percent_stiffer_native_contacts_fail"),
+    FaultKind(
+        "native contacts 1% stiffer",
+        "biaxial-short and voidcell fail (positions, stress)",
+        _S + "test_one_percent_stiffer_native_contacts_fail",
+    ),
     FaultKind("native lateral servo removed", "biaxial-short fails", _S + "test_dropped_servo_fails"),
-    FaultKind("native Taylor path dropping half the contacts", "contact counts differ, LIGGGHTS rows unmatched",
-              _V + "test_native_path_dropping_half_the_contacts_fails_taylor"),
-    FaultKind("an FE2 material whose tangent is 20% off", "Newton-rate and small-load checks fail",
-              _F + "test_acceptance_checks_fail_for_an_inconsistent_tangent"),
+    FaultKind(
+        "native Taylor path dropping half the contacts",
+        "contact counts differ, LIGGGHTS rows unmatched",
+        _V + "test_native_path_dropping_half_the_contacts_fails_taylor",
+    ),
+    FaultKind(
+        "an FE2 material whose tangent is 20% off",
+        "Newton-rate and small-load checks fail",
+        _F + "test_acceptance_checks_fail_for_an_inconsistent_tangent",
+    ),
     # native DEM producing garbage
-    FaultKind("a time step above the damped stability limit", "refused before the run (exit 2)",
-              _D + "test_cli_refuses_a_step_above_the_damped_limit"),
-    FaultKind("a consolidation that never settles", "run stopped, stop_reason in the file, exit 2",
-              _D + "test_cli_unsettled_exit_2_and_info"),
-    FaultKind("kinetic-energy blow-up / a lost particle / NaN", "SimulationError with the step",
-              _D + "test_kinetic_energy_blow_up_is_detected"),
-    FaultKind("an unfinished (killed) run file read by voidcells, dem-export, info", "refused or flagged",
-              _D + "test_cli_readers_of_an_unfinished_run"),
-    FaultKind("truncated or corrupt run files", "ResultFileError naming the dataset",
-              _D + "test_truncated_or_corrupt_run_files"),
+    FaultKind(
+        "a time step above the damped stability limit",
+        "refused before the run (exit 2)",
+        _D + "test_cli_refuses_a_step_above_the_damped_limit",
+    ),
+    FaultKind(
+        "a consolidation that never settles",
+        "run stopped, stop_reason in the file, exit 2",
+        _D + "test_cli_unsettled_exit_2_and_info",
+    ),
+    FaultKind(
+        "kinetic-energy blow-up / a lost particle / NaN",
+        "SimulationError with the step",
+        _D + "test_kinetic_energy_blow_up_is_detected",
+    ),
+    FaultKind(
+        "an unfinished (killed) run file read by voidcells, dem-export, info",
+        "refused or flagged",
+        _D + "test_cli_readers_of_an_unfinished_run",
+    ),
+    FaultKind(
+        "truncated or corrupt run files",
+        "ResultFileError naming the dataset",
+        _D + "test_truncated_or_corrupt_run_files",
+    ),
     # bad input
-    FaultKind("output path naming a directory or an unknown image suffix", "exit 2 before computing",
-              _C + "test_output_paths_checked_first"),
-    FaultKind("malformed packing files (bad JSON, shapes, negative radii)", "ResultFileError naming the file",
-              _C + "test_malformed_packing_file"),
-    FaultKind("a packing too large for memory", "refused with the estimate before allocating",
-              _C + "test_huge_packing_refused_before_allocation"),
+    FaultKind(
+        "output path naming a directory or an unknown image suffix",
+        "exit 2 before computing",
+        _C + "test_output_paths_checked_first",
+    ),
+    FaultKind(
+        "malformed packing files (bad JSON, shapes, negative radii)",
+        "ResultFileError naming the file",
+        _C + "test_malformed_packing_file",
+    ),
+    FaultKind(
+        "a packing too large for memory",
+        "refused with the estimate before allocating",
+        _C + "test_huge_packing_refused_before_allocation",
+    ),
     FaultKind("coincident disks in an RVE", "error naming the two disks", _C + "test_coincident_disks"),
-    FaultKind("a closed output pipe (gransim ... | head)", "quiet exit, no traceback",
-              _C + "test_shell_pipe_into_head"),
+    FaultKind(
+        "a closed output pipe (gransim ... | head)", "quiet exit, no traceback", _C + "test_shell_pipe_into_head"
+    ),
 )

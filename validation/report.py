@@ -27,10 +27,22 @@ def write_json(path: Path, results: list[CaseResult], header: dict) -> None:
     records = [r.to_json() for res in results for r in res.records]
     for res in results:
         if res.error is not None:
-            records.append({"case": res.case, "quantity": "case", "metric": "ran", "value": 0.0,
-                            "tolerance": 1.0, "pass": False, "reason": f"case did not run: {res.error}"})
-    doc = {"header": header, "cases": {res.case: ("pass" if res.passed else "fail") for res in results},
-           "records": records}
+            records.append(
+                {
+                    "case": res.case,
+                    "quantity": "case",
+                    "metric": "ran",
+                    "value": 0.0,
+                    "tolerance": 1.0,
+                    "pass": False,
+                    "reason": f"case did not run: {res.error}",
+                }
+            )
+    doc = {
+        "header": header,
+        "cases": {res.case: ("pass" if res.passed else "fail") for res in results},
+        "records": records,
+    }
     with atomic_path(path, suffix=".json.tmp") as tmp:
         Path(tmp).write_text(json.dumps(doc, indent=1, default=str))
 
@@ -71,17 +83,23 @@ _CELL_CLASS = {"pass": "pass", "FAIL": "fail", "empty": "fail", "n/a": "na", "ab
 def matrix_html(results: list[CaseResult]) -> list[str]:
     """The validation matrix: a row per case, a column per pair of implementations (native,
     LIGGGHTS, LAMMPS); each cell its verdict, the checks behind it, the tolerances and why."""
-    out = ["<h2>Validation matrix</h2><table class='matrix'><tr><th>case</th>"
-           + "".join(f"<th>{html.escape(v)}</th>" for v in PAIRS.values())
-           + "<th>other checks (exact, analytic, bounds)</th></tr>"]
+    out = [
+        "<h2>Validation matrix</h2><table class='matrix'><tr><th>case</th>"
+        + "".join(f"<th>{html.escape(v)}</th>" for v in PAIRS.values())
+        + "<th>other checks (exact, analytic, bounds)</th></tr>"
+    ]
     for res in results:
-        row = [f"<tr><td><a href='#{res.case}'>{html.escape(res.case)}</a>"
-               + (" <span class='fail'>(not run)</span>" if res.error else "") + "</td>"]
+        row = [
+            f"<tr><td><a href='#{res.case}'>{html.escape(res.case)}</a>"
+            + (" <span class='fail'>(not run)</span>" if res.error else "")
+            + "</td>"
+        ]
         for pair in PAIRS:
             c = res.cell(pair)
             st = c["state"]
-            word = {"empty": "FAIL: no check", "absent": "&mdash;", "n/a": "n/a"}.get(st, st.upper()
-                                                                                  if st == "pass" else st)
+            word = {"empty": "FAIL: no check", "absent": "&mdash;", "n/a": "n/a"}.get(
+                st, st.upper() if st == "pass" else st
+            )
             txt = f"<span class='{_CELL_CLASS[st]}'>{word}</span>"
             if st in ("pass", "FAIL", "empty"):
                 txt += f" {c['ok']} of {c['n']} checks"
@@ -94,9 +112,11 @@ def matrix_html(results: list[CaseResult]) -> list[str]:
         ok = sum(r.passed for r in other)
         row.append(f"<td>{ok} of {len(other)} checks</td>" if other else "<td class='na'>&mdash;</td>")
         out.append("".join(row) + "</tr>")
-    out.append("</table><p class='reason'>A cell passes when every check of that pair passes; a declared cell "
-               "without a check fails (missing evidence). n/a: the pair does not apply to the case (reason "
-               "given).</p>")
+    out.append(
+        "</table><p class='reason'>A cell passes when every check of that pair passes; a declared cell "
+        "without a check fails (missing evidence). n/a: the pair does not apply to the case (reason "
+        "given).</p>"
+    )
     return out
 
 
@@ -113,9 +133,13 @@ def _case_data(report_dir: Path, res: CaseResult) -> str:
     d = report_dir / "data"
     d.mkdir(parents=True, exist_ok=True)
     path = d / f"{res.case}.json"
-    doc = {"case": res.case, "title": res.title, "verdict": _verdict(res)[0],
-           "records": [r.to_json() for r in res.records],
-           "tables": [{"caption": c, "header": h, "rows": rows} for c, h, rows in res.tables]}
+    doc = {
+        "case": res.case,
+        "title": res.title,
+        "verdict": _verdict(res)[0],
+        "records": [r.to_json() for r in res.records],
+        "tables": [{"caption": c, "header": h, "rows": rows} for c, h, rows in res.tables],
+    }
     with atomic_path(path, suffix=".json.tmp") as tmp:
         Path(tmp).write_text(json.dumps(doc, indent=1, default=str))
     return os.path.relpath(path, report_dir)
@@ -129,8 +153,10 @@ def _figure_html(report_dir: Path, res: CaseResult, path, caption: str, case_dat
         link = f"<a href='{html.escape(drel)}'>data: {html.escape(Path(data).name)}</a>"
     else:
         link = f"<a href='{html.escape(case_data)}'>data: the records of {html.escape(res.case)} (JSON)</a>"
-    return (f"<figure><a href='{html.escape(rel)}'><img src='{html.escape(rel)}' alt='{html.escape(caption)}'></a>"
-            f"<figcaption>{html.escape(caption)} &middot; {link}</figcaption></figure>")
+    return (
+        f"<figure><a href='{html.escape(rel)}'><img src='{html.escape(rel)}' alt='{html.escape(caption)}'></a>"
+        f"<figcaption>{html.escape(caption)} &middot; {link}</figcaption></figure>"
+    )
 
 
 def summary_html(results: list[CaseResult]) -> list[str]:
@@ -140,14 +166,19 @@ def summary_html(results: list[CaseResult]) -> list[str]:
     if not results:
         head = "<p class='fail verdict'>No case ran: nothing is validated.</p>"
     elif n_fail == 0:
-        head = (f"<p class='pass verdict'>All {len(results)} cases pass: every check of native gransim against "
-                "LIGGGHTS, LAMMPS and the analytic answers is within its tolerance, on complete evidence.</p>")
+        head = (
+            f"<p class='pass verdict'>All {len(results)} cases pass: every check of native gransim against "
+            "LIGGGHTS, LAMMPS and the analytic answers is within its tolerance, on complete evidence.</p>"
+        )
     else:
         names = ", ".join(r.case for r in results if not r.passed)
         head = f"<p class='fail verdict'>{n_fail} of {len(results)} cases FAIL: {html.escape(names)}.</p>"
-    out = ["<h2>Summary</h2>", head,
-           "<table class='summary'><tr><th>case</th><th>verdict</th><th>checks passed</th>"
-           "<th>closest to its tolerance (measured / tolerance)</th><th>time</th></tr>"]
+    out = [
+        "<h2>Summary</h2>",
+        head,
+        "<table class='summary'><tr><th>case</th><th>verdict</th><th>checks passed</th>"
+        "<th>closest to its tolerance (measured / tolerance)</th><th>time</th></tr>",
+    ]
     for res in results:
         word, cls = _verdict(res)
         checks = res.checks
@@ -157,14 +188,21 @@ def summary_html(results: list[CaseResult]) -> list[str]:
         elif worst is None:
             w = "<span class='fail'>no check</span>" if not checks else "&mdash;"
         else:
-            ratio = (f" = {abs(worst.value) / worst.tolerance:.2g} of the tolerance"
-                     if worst.tolerance > 0 and np.isfinite(worst.tolerance) and np.isfinite(worst.value) else "")
-            w = (f"<span class='{'pass' if worst.passed else 'fail'}'>{html.escape(worst.case)}</span>: "
-                 f"{html.escape(worst.quantity)} ({html.escape(worst.metric)}) {_fmt(worst.value)} / "
-                 f"{_fmt(worst.tolerance)}{ratio}")
+            ratio = (
+                f" = {abs(worst.value) / worst.tolerance:.2g} of the tolerance"
+                if worst.tolerance > 0 and np.isfinite(worst.tolerance) and np.isfinite(worst.value)
+                else ""
+            )
+            w = (
+                f"<span class='{'pass' if worst.passed else 'fail'}'>{html.escape(worst.case)}</span>: "
+                f"{html.escape(worst.quantity)} ({html.escape(worst.metric)}) {_fmt(worst.value)} / "
+                f"{_fmt(worst.tolerance)}{ratio}"
+            )
         t = f"{res.seconds:.0f} s" if res.seconds is not None else ""
-        out.append(f"<tr><td><a href='#{res.case}'>{html.escape(res.case)}</a></td><td class='{cls}'>{word}</td>"
-                   f"<td>{sum(r.passed for r in checks)} of {len(checks)}</td><td>{w}</td><td>{t}</td></tr>")
+        out.append(
+            f"<tr><td><a href='#{res.case}'>{html.escape(res.case)}</a></td><td class='{cls}'>{word}</td>"
+            f"<td>{sum(r.passed for r in checks)} of {len(checks)}</td><td>{w}</td><td>{t}</td></tr>"
+        )
     out.append("</table>")
     return out
 
@@ -187,44 +225,59 @@ def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Pat
     figures), the validation matrix, then a section per case with its long tables collapsed."""
     report_dir.mkdir(parents=True, exist_ok=True)
     case_data = {res.case: _case_data(report_dir, res) for res in results}
-    out = [f"<!doctype html><html><head><meta charset='utf-8'><title>gransim validation</title>"
-           f"<style>{_CSS}</style></head><body>",
-           "<h1>gransim validation report</h1>",
-           f"<p class='reason'>suite {html.escape(str(header.get('suite', '')))}, gransim "
-           f"{html.escape(str(header.get('gransim_version', '')))} ({html.escape(str(header.get('git_commit', '')))}), "
-           f"LIGGGHTS: {html.escape(str(header.get('liggghts_version', 'absent')))}, LAMMPS: "
-           f"{html.escape(str(header.get('lammps_version', 'absent')))}, {html.escape(str(header.get('created', '')))}"
-           "</p>"]
+    out = [
+        f"<!doctype html><html><head><meta charset='utf-8'><title>gransim validation</title>"
+        f"<style>{_CSS}</style></head><body>",
+        "<h1>gransim validation report</h1>",
+        f"<p class='reason'>suite {html.escape(str(header.get('suite', '')))}, gransim "
+        f"{html.escape(str(header.get('gransim_version', '')))} ({html.escape(str(header.get('git_commit', '')))}), "
+        f"LIGGGHTS: {html.escape(str(header.get('liggghts_version', 'absent')))}, LAMMPS: "
+        f"{html.escape(str(header.get('lammps_version', 'absent')))}, {html.escape(str(header.get('created', '')))}"
+        "</p>",
+    ]
     for code, name, pkg in (("liggghts", "LIGGGHTS", "liggghts"), ("lammps", "LAMMPS", "lammps")):
         if not header.get(f"{code}_available"):
-            out.append(f"<div class='banner'><b>{name} is not installed on this machine.</b> Its comparisons use "
-                       "the stored reference outputs in <code>reference_runs/stored/</code> only "
-                       f"(install with <code>apt-get install {pkg}</code>).</div>")
+            out.append(
+                f"<div class='banner'><b>{name} is not installed on this machine.</b> Its comparisons use "
+                "the stored reference outputs in <code>reference_runs/stored/</code> only "
+                f"(install with <code>apt-get install {pkg}</code>).</div>"
+            )
     out += summary_html(results)
     out += headline_html(report_dir, results, case_data)
     out += matrix_html(results)
-    out.append("<p>A case passes only when it ran, has at least one check, and every check passes. A check whose "
-               "evidence is incomplete (a missing step, frame, state, contact or run on either side) is a "
-               "failure named <i>incomplete</i>, never a pass on what remains; <i>info</i> rows are figures for "
-               "the reader, not verdicts.</p>")
+    out.append(
+        "<p>A case passes only when it ran, has at least one check, and every check passes. A check whose "
+        "evidence is incomplete (a missing step, frame, state, contact or run on either side) is a "
+        "failure named <i>incomplete</i>, never a pass on what remains; <i>info</i> rows are figures for "
+        "the reader, not verdicts.</p>"
+    )
     out.append("<details><summary>Run details (provenance)</summary><table>")
     for k, v in header.items():
         out.append(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>")
     if (report_dir / "bench.html").exists():
-        out.append("<tr><th>benchmarks</th><td><a href='bench.html'>bench.html</a> (make bench: speed figures "
-                   "against their targets, scaling plots)</td></tr>")
+        out.append(
+            "<tr><th>benchmarks</th><td><a href='bench.html'>bench.html</a> (make bench: speed figures "
+            "against their targets, scaling plots)</td></tr>"
+        )
     out.append("</table></details>")
 
-    out.append("<details><summary>Faults the test suite injects to show that these verdicts can fail "
-               f"({len(FAULT_KINDS)} kinds, <code>tests/faults</code>; each ends in a failing verdict or a clear "
-               "error)</summary><table><tr><th>fault</th><th>expected outcome</th><th>test</th></tr>"
-               + "".join(f"<tr><td>{html.escape(k.fault)}</td><td>{html.escape(k.outcome)}</td>"
-                         f"<td><code>{html.escape(k.test)}</code></td></tr>" for k in FAULT_KINDS)
-               + "</table></details>")
+    out.append(
+        "<details><summary>Faults the test suite injects to show that these verdicts can fail "
+        f"({len(FAULT_KINDS)} kinds, <code>tests/faults</code>; each ends in a failing verdict or a clear "
+        "error)</summary><table><tr><th>fault</th><th>expected outcome</th><th>test</th></tr>"
+        + "".join(
+            f"<tr><td>{html.escape(k.fault)}</td><td>{html.escape(k.outcome)}</td>"
+            f"<td><code>{html.escape(k.test)}</code></td></tr>"
+            for k in FAULT_KINDS
+        )
+        + "</table></details>"
+    )
     for res in results:
         word, cls = _verdict(res)
-        out.append(f"<section class='case'><h2 id='{res.case}'>{html.escape(res.case)}: {html.escape(res.title)} "
-                   f"<span class='{cls}'>{word}</span></h2>")
+        out.append(
+            f"<section class='case'><h2 id='{res.case}'>{html.escape(res.case)}: {html.escape(res.title)} "
+            f"<span class='{cls}'>{word}</span></h2>"
+        )
         out.append(f"<p>{res.description or html.escape(res.title)}</p>")
         if res.error:
             out.append(f"<p class='fail'>The case did not run: {html.escape(res.error)}</p>")
@@ -235,22 +288,29 @@ def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Pat
         if res.records:
             n_fail = sum(1 for r in res.checks if not r.passed)
             opened = " open" if n_fail else ""
-            out.append(f"<details{opened}><summary>{len(res.records)} records ({len(res.checks)} checks, "
-                       f"{n_fail} failing) &middot; <a href='{html.escape(case_data[res.case])}'>JSON</a></summary>"
-                       "<table><tr><th>compared</th><th>quantity</th><th>metric</th><th>measured</th>"
-                       "<th>tolerance</th><th>result</th><th>why this tolerance</th></tr>")
+            out.append(
+                f"<details{opened}><summary>{len(res.records)} records ({len(res.checks)} checks, "
+                f"{n_fail} failing) &middot; <a href='{html.escape(case_data[res.case])}'>JSON</a></summary>"
+                "<table><tr><th>compared</th><th>quantity</th><th>metric</th><th>measured</th>"
+                "<th>tolerance</th><th>result</th><th>why this tolerance</th></tr>"
+            )
             for r in sorted(res.records, key=lambda r: (r.kind != "check" or r.passed,)):
                 rcls = {"pass": "pass", "FAIL": "fail", "info": "info"}[r.verdict]
                 tol = "" if r.kind == "info" else _fmt(r.tolerance)
-                out.append(f"<tr><td>{html.escape(r.case)}</td><td>{html.escape(r.quantity)}</td>"
-                           f"<td>{html.escape(r.metric)}</td><td>{_fmt(r.value)}</td>"
-                           f"<td>{tol}</td><td class='{rcls}'>{r.verdict}"
-                           f"</td><td>{html.escape(r.reason)}</td></tr>")
+                out.append(
+                    f"<tr><td>{html.escape(r.case)}</td><td>{html.escape(r.quantity)}</td>"
+                    f"<td>{html.escape(r.metric)}</td><td>{_fmt(r.value)}</td>"
+                    f"<td>{tol}</td><td class='{rcls}'>{r.verdict}"
+                    f"</td><td>{html.escape(r.reason)}</td></tr>"
+                )
             out.append("</table></details>")
         for caption, head, rows in res.tables:
-            out.append(f"<details><summary>{html.escape(caption)} ({len(rows)} rows)</summary>"
-                       f"<table><caption>{html.escape(caption)}</caption><tr>"
-                       + "".join(f"<th>{html.escape(str(h))}</th>" for h in head) + "</tr>")
+            out.append(
+                f"<details><summary>{html.escape(caption)} ({len(rows)} rows)</summary>"
+                f"<table><caption>{html.escape(caption)}</caption><tr>"
+                + "".join(f"<th>{html.escape(str(h))}</th>" for h in head)
+                + "</tr>"
+            )
             for row in rows:
                 out.append("<tr>" + "".join(f"<td>{_fmt(c)}</td>" for c in row) + "</tr>")
             out.append("</table></details>")

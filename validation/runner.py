@@ -25,9 +25,14 @@ from .core import (
 from .report import write_h5, write_html, write_json
 
 
-def run_validation(suite: str = "default", results: Path | str = "results", jobs: int = 1,
-                   only: list[str] | None = None, log=print,
-                   timeout: float | None = None) -> tuple[bool, list[CaseResult]]:
+def run_validation(
+    suite: str = "default",
+    results: Path | str = "results",
+    jobs: int = 1,
+    only: list[str] | None = None,
+    log=print,
+    timeout: float | None = None,
+) -> tuple[bool, list[CaseResult]]:
     """Run every case of ``suite``; write results/validation.{json,h5} and results/report/index.html.
 
     ``timeout`` (s) bounds every reference job (None: scaled with the job's work,
@@ -38,14 +43,21 @@ def run_validation(suite: str = "default", results: Path | str = "results", jobs
     check_choice(suite, "suite", SUITES)
     if timeout is not None:
         timeout = as_positive_float(timeout, "--timeout")
-    ctx = Context(suite=suite, results=Path(results), jobs=int(jobs), liggghts=liggghts_available(),
-                  lammps=lammps_available(),
-                  timeout=timeout)
+    ctx = Context(
+        suite=suite,
+        results=Path(results),
+        jobs=int(jobs),
+        liggghts=liggghts_available(),
+        lammps=lammps_available(),
+        timeout=timeout,
+    )
 
     # one validation run per results directory (a second fails at once, naming the first); a
     # signal kills every LIGGGHTS job this run started before the exception ends it
-    with DirectoryLock(ctx.results, fail_fast=True, what=f"results directory {ctx.results}"), \
-            kill_children_on_signals():
+    with (
+        DirectoryLock(ctx.results, fail_fast=True, what=f"results directory {ctx.results}"),
+        kill_children_on_signals(),
+    ):
         # temporaries a killed validation run left in its own files (not below: job directories
         # are cleaned by their own locks)
         for d in (ctx.results, ctx.report_dir):

@@ -38,7 +38,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="gransim",
         description="Micromechanics of 2D granular materials: packings, Taylor RVEs, DEM, void cells, "
-                    "LIGGGHTS and LAMMPS cross-checks.")
+        "LIGGGHTS and LAMMPS cross-checks.",
+    )
     parser.add_argument("--version", action="version", version=f"gransim {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
@@ -50,16 +51,21 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
         return parser
     for ep in plugin_commands():
         if ep.name in sub.choices:
-            print(f"gransim: warning: command plug-in {ep.name!r} ({ep.value}) left out: a command of "
-                  "that name exists", file=sys.stderr)
+            print(
+                f"gransim: warning: command plug-in {ep.name!r} ({ep.value}) left out: a command of that name exists",
+                file=sys.stderr,
+            )
             continue
         try:
             register = ep.load()
             register(sub)
         except Exception as exc:  # noqa: BLE001 - a broken plug-in must not take the other commands down
             sub.choices.pop(ep.name, None)
-            print(f"gransim: warning: command plug-in {ep.name!r} ({ep.value}) failed to load: "
-                  f"{type(exc).__name__}: {exc}", file=sys.stderr)
+            print(
+                f"gransim: warning: command plug-in {ep.name!r} ({ep.value}) failed to load: "
+                f"{type(exc).__name__}: {exc}",
+                file=sys.stderr,
+            )
     return parser
 
 
@@ -90,14 +96,20 @@ def _internal_error(command: str, exc: BaseException) -> int:
     if os.environ.get("GRANSIM_TRACEBACK", "").strip() not in ("", "0"):
         traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
     if isinstance(exc, MemoryError):
-        print(f"gransim {command}: error: out of memory ({type(exc).__name__}: {str(exc) or 'no details'}); "
-              "reduce the problem size or free memory", file=sys.stderr)
+        print(
+            f"gransim {command}: error: out of memory ({type(exc).__name__}: {str(exc) or 'no details'}); "
+            "reduce the problem size or free memory",
+            file=sys.stderr,
+        )
     elif isinstance(exc, OSError) and exc.errno is not None:
         # the system refused something (disk full, permissions changed during the run...): not a bug
         print(f"gransim {command}: error: {type(exc).__name__}: {exc}", file=sys.stderr)
     else:
-        print(f"gransim {command}: internal error: {type(exc).__name__}: {exc} (rerun with "
-              "GRANSIM_TRACEBACK=1 for the traceback; please report it)", file=sys.stderr)
+        print(
+            f"gransim {command}: internal error: {type(exc).__name__}: {exc} (rerun with "
+            "GRANSIM_TRACEBACK=1 for the traceback; please report it)",
+            file=sys.stderr,
+        )
     return 1
 
 

@@ -16,8 +16,22 @@ from pathlib import Path
 from ..errors import InputError
 
 #: image formats matplotlib's Agg/pdf/svg/ps backends write (matplotlib.figure.Figure.savefig)
-FIGURE_SUFFIXES = (".png", ".pdf", ".svg", ".svgz", ".eps", ".ps", ".jpg", ".jpeg", ".tif", ".tiff",
-                   ".webp", ".pgf", ".raw", ".rgba")
+FIGURE_SUFFIXES = (
+    ".png",
+    ".pdf",
+    ".svg",
+    ".svgz",
+    ".eps",
+    ".ps",
+    ".jpg",
+    ".jpeg",
+    ".tif",
+    ".tiff",
+    ".webp",
+    ".pgf",
+    ".raw",
+    ".rgba",
+)
 
 
 def check_output(path, option: str, suffixes=None) -> Path:
@@ -32,8 +46,9 @@ def check_output(path, option: str, suffixes=None) -> Path:
     if p.is_dir():
         raise InputError(f"{option}: {str(p)!r} is a directory; expected a file name")
     if suffixes is not None and p.suffix.lower() not in suffixes:
-        raise InputError(f"{option}: {str(p)!r} has suffix {p.suffix or '(none)'!r}; expected one of "
-                         f"{', '.join(suffixes)}")
+        raise InputError(
+            f"{option}: {str(p)!r} has suffix {p.suffix or '(none)'!r}; expected one of {', '.join(suffixes)}"
+        )
     parent = p.parent if str(p.parent) else Path(".")
     anc = parent
     while not anc.exists():  # the first existing ancestor must be a writable directory
@@ -82,8 +97,9 @@ def check_input(path, option: str) -> Path:
     return p
 
 
-def check_number(value, option: str, low=None, high=None, low_open: bool = False,
-                 high_open: bool = False, integer: bool = False):
+def check_number(
+    value, option: str, low=None, high=None, low_open: bool = False, high_open: bool = False, integer: bool = False
+):
     """``value`` (already parsed, or None = not given) finite and within [low, high]; ``low_open``
     / ``high_open`` exclude the bound. Raises :class:`InputError` naming ``option``."""
     if value is None:

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 
 def register(sub) -> None:
-    p = sub.add_parser("info", help="describe a gransim HDF5 file (packing statistics, provenance)",
-                       description="Print the provenance of a gransim results file and, when it holds a "
-                                   "packing, N, cell, packing fraction, void ratio, coordination and overlap "
-                                   "statistics.")
+    p = sub.add_parser(
+        "info",
+        help="describe a gransim HDF5 file (packing statistics, provenance)",
+        description="Print the provenance of a gransim results file and, when it holds a "
+        "packing, N, cell, packing fraction, void ratio, coordination and overlap "
+        "statistics.",
+    )
     p.add_argument("file", help="a gransim HDF5 results file")
     p.add_argument("--group", default="packing", help="group holding the packing (default: packing)")
     p.set_defaults(func=_run)
@@ -16,22 +19,24 @@ def register(sub) -> None:
 def format_stats(s: dict) -> str:
     """Human-readable lines for :func:`gransim.generation.packing_stats`."""
     c = s["cell"]
-    return "\n".join([
-        f"N                      {s['n']}",
-        f"cell (columns, m)      a1 = ({c[0][0]:.6g}, {c[1][0]:.6g})  a2 = ({c[0][1]:.6g}, {c[1][1]:.6g})",
-        f"packing fraction       {s['solid_fraction']:.5f}",
-        f"void ratio             {s['void_ratio']:.5f}",
-        f"D50 / mean diameter    {s['d50'] * 1e3:.5g} mm / {s['mean_diameter'] * 1e3:.5g} mm "
-        f"(range {s['d_min'] * 1e3:.4g}-{s['d_max'] * 1e3:.4g} mm)",
-        f"contacts               {s['n_contacts']}",
-        f"coordination 2Nc/N     {s['coordination']:.4f}",
-        f"  without rattlers     {s['coordination_nonrattler']:.4f} "
-        f"({s['n_rattlers']} rattlers, {100 * s['rattler_fraction']:.1f} %)",
-        f"mean overlap           {s['mean_overlap']:.4g} m = {100 * s['mean_overlap_d50']:.4g} % of D50 "
-        f"= {100 * s['mean_overlap_dmean']:.4g} % of mean diameter",
-        f"max overlap            {s['max_overlap']:.4g} m = {100 * s['max_overlap_d50']:.4g} % of D50",
-        f"fabric anisotropy a    {s['fabric_anisotropy']:.4f}",
-    ])
+    return "\n".join(
+        [
+            f"N                      {s['n']}",
+            f"cell (columns, m)      a1 = ({c[0][0]:.6g}, {c[1][0]:.6g})  a2 = ({c[0][1]:.6g}, {c[1][1]:.6g})",
+            f"packing fraction       {s['solid_fraction']:.5f}",
+            f"void ratio             {s['void_ratio']:.5f}",
+            f"D50 / mean diameter    {s['d50'] * 1e3:.5g} mm / {s['mean_diameter'] * 1e3:.5g} mm "
+            f"(range {s['d_min'] * 1e3:.4g}-{s['d_max'] * 1e3:.4g} mm)",
+            f"contacts               {s['n_contacts']}",
+            f"coordination 2Nc/N     {s['coordination']:.4f}",
+            f"  without rattlers     {s['coordination_nonrattler']:.4f} "
+            f"({s['n_rattlers']} rattlers, {100 * s['rattler_fraction']:.1f} %)",
+            f"mean overlap           {s['mean_overlap']:.4g} m = {100 * s['mean_overlap_d50']:.4g} % of D50 "
+            f"= {100 * s['mean_overlap_dmean']:.4g} % of mean diameter",
+            f"max overlap            {s['max_overlap']:.4g} m = {100 * s['max_overlap_d50']:.4g} % of D50",
+            f"fabric anisotropy a    {s['fabric_anisotropy']:.4f}",
+        ]
+    )
 
 
 def _dem_run_status(path, prov: dict) -> None:
@@ -45,8 +50,7 @@ def _dem_run_status(path, prov: dict) -> None:
     complete = prov.get("complete")
     why = prov.get("stop_reason") or ""
     if complete is None:
-        print("complete               MISSING (no 'complete' attribute: not a dem-run file of "
-              "docs/schema_dem.md)")
+        print("complete               MISSING (no 'complete' attribute: not a dem-run file of docs/schema_dem.md)")
     elif complete:
         print("complete               True")
     else:
@@ -59,8 +63,7 @@ def _dem_run_status(path, prov: dict) -> None:
         unsettled = [{"name": "?", "reason": f"unreadable unsettled_phases {prov.get('unsettled_phases')!r}"}]
     if unsettled:
         for u in unsettled:
-            print(f"UNSETTLED phase        {u.get('name')}: {u.get('reason')} (continued with "
-                  f"allow_unsettled)")
+            print(f"UNSETTLED phase        {u.get('name')}: {u.get('reason')} (continued with allow_unsettled)")
     elif complete:
         print("unsettled phases       none")
     if prov.get("output_settings"):
@@ -71,8 +74,10 @@ def _dem_run_status(path, prov: dict) -> None:
         print("structure              BROKEN (see the error)")
         raise
     s = run.series
-    print(f"series                 {len(s['step'])} rows, steps {int(s['step'][0])}..{int(s['step'][-1])}; "
-          f"{len(run.snapshot_steps)} snapshots")
+    print(
+        f"series                 {len(s['step'])} rows, steps {int(s['step'][0])}..{int(s['step'][-1])}; "
+        f"{len(run.snapshot_steps)} snapshots"
+    )
 
 
 def _run(args) -> int:
@@ -82,8 +87,10 @@ def _run(args) -> int:
 
     prov = read_provenance(args.file)
     print(f"file                   {args.file}")
-    print(f"kind                   {prov.get('kind')}  (gransim {prov.get('gransim_version')}, "
-          f"commit {prov.get('git_commit')}, created {prov.get('created')})")
+    print(
+        f"kind                   {prov.get('kind')}  (gransim {prov.get('gransim_version')}, "
+        f"commit {prov.get('git_commit')}, created {prov.get('created')})"
+    )
     if prov.get("parameters"):
         print(f"parameters             {prov['parameters']}")
     if prov.get("kind") == "dem-run":

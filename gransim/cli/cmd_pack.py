@@ -8,34 +8,54 @@ from ._paths import check_number, check_output, integer
 
 
 def register(sub) -> None:
-    p = sub.add_parser("pack", help="generate a dense periodic disk packing (HDF5)",
-                       description="Generate a dense, isotropic, periodic packing of N disks from a grain size "
-                                   "distribution by pressure-controlled FIRE minimisation, and write it to HDF5. "
-                                   "Target: a mean contact overlap (default 2.7e-4 of the mean diameter) or a "
-                                   "solid fraction.")
-    p.add_argument("--distribution", default="quartz-sand",
-                   help="quartz-sand, kuhn-1002, or a CSV sieve curve in mm (default: quartz-sand)")
+    p = sub.add_parser(
+        "pack",
+        help="generate a dense periodic disk packing (HDF5)",
+        description="Generate a dense, isotropic, periodic packing of N disks from a grain size "
+        "distribution by pressure-controlled FIRE minimisation, and write it to HDF5. "
+        "Target: a mean contact overlap (default 2.7e-4 of the mean diameter) or a "
+        "solid fraction.",
+    )
+    p.add_argument(
+        "--distribution",
+        default="quartz-sand",
+        help="quartz-sand, kuhn-1002, or a CSV sieve curve in mm (default: quartz-sand)",
+    )
     p.add_argument("--n", type=integer, required=True, help="number of disks (>= 2; 1e5 is accepted)")
     p.add_argument("--seed", type=integer, default=1, help="random seed (>= 0, default 1)")
     p.add_argument("-o", "--output", required=True, help="output HDF5 file")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--solid-fraction", type=float, help="target packing fraction (at or above jamming)")
-    g.add_argument("--mean-overlap", type=float,
-                   help="target mean overlap relative to the mean diameter (default 2.7e-4)")
-    p.add_argument("--force-tol", type=float,
-                   help="FIRE stop criterion: residual force / mean contact force (default 1e-3)")
-    p.add_argument("--residual", choices=("max", "rms"),
-                   help="norm of the residual: the largest net force on a disk (default) or the root mean "
-                        "square over all disks (the same demand at every N: use it for 1e5 disks and more)")
-    p.add_argument("--method", choices=("random", "front"),
-                   help="start of the FIRE protocol: uniform random centres (default; the standard "
-                        "RVEs) or an advancing front of touching disks (a dense contact-free start)")
-    p.add_argument("--friction", type=float,
-                   help="make the packing by isotropic frictional DEM compaction of a granular gas with this "
-                        "preparation friction coefficient instead of FIRE (looser assemblies: the Kuhn assembly "
-                        "uses 0.05); excludes --solid-fraction and --mean-overlap")
-    p.add_argument("--pressure", type=float,
-                   help="with --friction: compaction stress relative to the contact stiffness (default 1e-4)")
+    g.add_argument(
+        "--mean-overlap", type=float, help="target mean overlap relative to the mean diameter (default 2.7e-4)"
+    )
+    p.add_argument(
+        "--force-tol", type=float, help="FIRE stop criterion: residual force / mean contact force (default 1e-3)"
+    )
+    p.add_argument(
+        "--residual",
+        choices=("max", "rms"),
+        help="norm of the residual: the largest net force on a disk (default) or the root mean "
+        "square over all disks (the same demand at every N: use it for 1e5 disks and more)",
+    )
+    p.add_argument(
+        "--method",
+        choices=("random", "front"),
+        help="start of the FIRE protocol: uniform random centres (default; the standard "
+        "RVEs) or an advancing front of touching disks (a dense contact-free start)",
+    )
+    p.add_argument(
+        "--friction",
+        type=float,
+        help="make the packing by isotropic frictional DEM compaction of a granular gas with this "
+        "preparation friction coefficient instead of FIRE (looser assemblies: the Kuhn assembly "
+        "uses 0.05); excludes --solid-fraction and --mean-overlap",
+    )
+    p.add_argument(
+        "--pressure",
+        type=float,
+        help="with --friction: compaction stress relative to the contact stiffness (default 1e-4)",
+    )
     p.add_argument("--mean-diameter", type=float, help="scale the distribution to this mean diameter (m)")
     p.add_argument("--density", type=float, default=2650.0, help="mass per area, kg/m^2 (default 2650)")
     p.add_argument("--vtu", help="also export the packing to this VTK (.vtu) file")
@@ -62,8 +82,7 @@ def _check(args) -> None:
         check_output(args.vtu, "--vtu", (".vtu",))
         if args.vtu == args.output:
             raise InputError(f"--vtu and -o/--output name the same file {args.output!r}")
-    check_number(args.solid_fraction, "--solid-fraction", low=0, high=MAX_SOLID_FRACTION, low_open=True,
-                 high_open=True)
+    check_number(args.solid_fraction, "--solid-fraction", low=0, high=MAX_SOLID_FRACTION, low_open=True, high_open=True)
     check_number(args.mean_overlap, "--mean-overlap", low=0, high=MAX_MEAN_OVERLAP, low_open=True)
     check_number(args.force_tol, "--force-tol", low=0, low_open=True)
     check_number(args.friction, "--friction", low=0)
@@ -75,8 +94,10 @@ def _check(args) -> None:
     # 768 B at N = 1e4, both below PACKING_BYTES_PER_DISK = 2500 B
     frac = check_packing_memory(args.n, "--n")
     if frac > MEMORY_WARN_FRACTION:
-        print(f"gransim pack: warning: --n {args.n} needs about {100 * frac:.0f}% of the available memory",
-              file=sys.stderr)
+        print(
+            f"gransim pack: warning: --n {args.n} needs about {100 * frac:.0f}% of the available memory",
+            file=sys.stderr,
+        )
 
 
 def _run(args) -> int:
@@ -88,23 +109,44 @@ def _run(args) -> int:
     _check(args)
     if args.friction is not None:
         if args.solid_fraction is not None or args.mean_overlap is not None:
-            raise InputError("--friction (DEM compaction) takes no --solid-fraction or --mean-overlap target: "
-                             "the friction sets the density and --pressure the overlaps")
+            raise InputError(
+                "--friction (DEM compaction) takes no --solid-fraction or --mean-overlap target: "
+                "the friction sets the density and --pressure the overlaps"
+            )
         if args.force_tol is not None or args.residual is not None or args.method is not None:
-            raise InputError("--force-tol, --residual and --method belong to the FIRE protocol, not to "
-                             "--friction (the compaction stops at an unbalanced force ratio of 1e-3)")
+            raise InputError(
+                "--force-tol, --residual and --method belong to the FIRE protocol, not to "
+                "--friction (the compaction stops at an unbalanced force ratio of 1e-3)"
+            )
         kw = {} if args.pressure is None else {"pressure": args.pressure}
-        packing = compact_packing(args.distribution, args.n, args.seed, args.friction,
-                                  mean_diameter=args.mean_diameter, density=args.density, **kw)
+        packing = compact_packing(
+            args.distribution,
+            args.n,
+            args.seed,
+            args.friction,
+            mean_diameter=args.mean_diameter,
+            density=args.density,
+            **kw,
+        )
         how = f"{packing.metadata['dem_steps']} DEM steps"
     else:
         if args.pressure is not None:
             raise InputError("--pressure needs --friction (it is the stress of the DEM compaction)")
-        kw = {k: v for k, v in (("force_tol", args.force_tol), ("residual", args.residual),
-                                ("method", args.method)) if v is not None}
-        packing = make_packing(args.distribution, args.n, args.seed, solid_fraction=args.solid_fraction,
-                               mean_overlap=args.mean_overlap, mean_diameter=args.mean_diameter,
-                               density=args.density, **kw)
+        kw = {
+            k: v
+            for k, v in (("force_tol", args.force_tol), ("residual", args.residual), ("method", args.method))
+            if v is not None
+        }
+        packing = make_packing(
+            args.distribution,
+            args.n,
+            args.seed,
+            solid_fraction=args.solid_fraction,
+            mean_overlap=args.mean_overlap,
+            mean_diameter=args.mean_diameter,
+            density=args.density,
+            **kw,
+        )
         how = f"{packing.metadata['fire_steps']} FIRE steps"
     save_packing(args.output, packing)
     if args.vtu:

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 
 def register(sub) -> None:
-    p = sub.add_parser("packings", help="generate the 15 standard RVEs and the Kuhn assembly",
-                       description="Generate (or reuse, when up to date) the standard assemblies: 5 RVEs each of "
-                                   "70, 350 and 700 disks of quartz-sand (rve-<N>-<seed>) and the 1002-disk "
-                                   "Kuhn assembly (kuhn-1002), then print their statistics.")
+    p = sub.add_parser(
+        "packings",
+        help="generate the 15 standard RVEs and the Kuhn assembly",
+        description="Generate (or reuse, when up to date) the standard assemblies: 5 RVEs each of "
+        "70, 350 and 700 disks of quartz-sand (rve-<N>-<seed>) and the 1002-disk "
+        "Kuhn assembly (kuhn-1002), then print their statistics.",
+    )
     p.add_argument("--out", default="results/packings", help="output directory (default results/packings)")
     p.add_argument("--only", action="append", metavar="NAME", help="only this packing (repeatable)")
     p.add_argument("--force", action="store_true", help="regenerate even when the files are up to date")
@@ -22,13 +25,17 @@ def _run(args) -> int:
 
     check_output_dir(args.out, "--out")
     paths = standard_packings(args.out, names=args.only, force=args.force)
-    head = (f"{'name':<11} {'N':>5} {'phi':>7} {'e':>7} {'Z':>6} {'Z_nr':>6} {'ratt%':>6} "
-            f"{'<eps>/D50':>10} {'max/D50':>9} {'a_fab':>6}  file")
+    head = (
+        f"{'name':<11} {'N':>5} {'phi':>7} {'e':>7} {'Z':>6} {'Z_nr':>6} {'ratt%':>6} "
+        f"{'<eps>/D50':>10} {'max/D50':>9} {'a_fab':>6}  file"
+    )
     print(head)
     print("-" * len(head))
     for name, path in paths.items():
         s = packing_stats(load_packing(path))
-        print(f"{name:<11} {s['n']:>5} {s['solid_fraction']:>7.4f} {s['void_ratio']:>7.4f} "
-              f"{s['coordination']:>6.3f} {s['coordination_nonrattler']:>6.3f} {100 * s['rattler_fraction']:>6.1f} "
-              f"{s['mean_overlap_d50']:>10.2e} {s['max_overlap_d50']:>9.2e} {s['fabric_anisotropy']:>6.3f}  {path}")
+        print(
+            f"{name:<11} {s['n']:>5} {s['solid_fraction']:>7.4f} {s['void_ratio']:>7.4f} "
+            f"{s['coordination']:>6.3f} {s['coordination_nonrattler']:>6.3f} {100 * s['rattler_fraction']:>6.1f} "
+            f"{s['mean_overlap_d50']:>10.2e} {s['max_overlap_d50']:>9.2e} {s['fabric_anisotropy']:>6.3f}  {path}"
+        )
     return 0

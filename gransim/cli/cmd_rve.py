@@ -9,6 +9,7 @@ from ._paths import check_input, check_number, check_output, check_output_dir, i
 #: most load steps per path of rve-study (the paper uses 50)
 MAX_STEPS = 100_000
 
+
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "rve-study",
@@ -20,9 +21,7 @@ def register(subparsers) -> None:
         "OUT/{compression,shear,fabric}.png. Without --packings the 15 standard RVEs "
         "(rve-70-1 .. rve-700-5) of gransim.generation are used (generated on first use).",
     )
-    p.add_argument(
-        "--packings", nargs="+", metavar="FILE.h5", help="packing files (default: the 15 RVEs)"
-    )
+    p.add_argument("--packings", nargs="+", metavar="FILE.h5", help="packing files (default: the 15 RVEs)")
     p.add_argument(
         "--packing-dir",
         default="results/packings",
@@ -35,8 +34,7 @@ def register(subparsers) -> None:
         default=None,
         help="normal stiffness E_n in N/m (default 2.8e7, Table 1)",
     )
-    p.add_argument("--steps", type=integer, default=50,
-                   help=f"load steps per path, 1 to {MAX_STEPS} (default 50)")
+    p.add_argument("--steps", type=integer, default=50, help=f"load steps per path, 1 to {MAX_STEPS} (default 50)")
     p.add_argument(
         "-o",
         "--out",
@@ -65,9 +63,7 @@ def register(subparsers) -> None:
         default=[1, 0, 0, 1],
         help="deformation gradient, row by row (default identity)",
     )
-    s.add_argument(
-        "--kn", type=float, default=None, help="normal stiffness E_n in N/m (default 2.8e7)"
-    )
+    s.add_argument("--kn", type=float, default=None, help="normal stiffness E_n in N/m (default 2.8e7)")
     s.add_argument("--rve", default=None, help="RVE name inside a rve-study file")
     s.set_defaults(func=_stress)
 
@@ -79,9 +75,7 @@ def register(subparsers) -> None:
         "all periodic image pairs at 8 deformation gradients per packing; fails (exit 1) "
         "above --tol relative.",
     )
-    c.add_argument(
-        "--packings", nargs="+", metavar="FILE.h5", help="packing files (default: the 15 RVEs)"
-    )
+    c.add_argument("--packings", nargs="+", metavar="FILE.h5", help="packing files (default: the 15 RVEs)")
     c.add_argument("--packing-dir", default="results/packings", metavar="DIR")
     c.add_argument("--kn", type=float, default=None, help="normal stiffness E_n in N/m (default 2.8e7)")
     c.add_argument("--tol", type=float, default=1e-12, help="relative tolerance, >= 0 (default 1e-12)")
@@ -98,8 +92,10 @@ def _check_packing_options(args) -> None:
             check_input(f, "--packings")
             stem = Path(f).stem
             if stem in seen:
-                raise InputError(f"--packings: {seen[stem]!r} and {f!r} both give the RVE name {stem!r} "
-                                 "(RVEs are named by file stem); rename one")
+                raise InputError(
+                    f"--packings: {seen[stem]!r} and {f!r} both give the RVE name {stem!r} "
+                    "(RVEs are named by file stem); rename one"
+                )
             seen[stem] = f
     else:
         check_output_dir(args.packing_dir, "--packing-dir")
@@ -154,13 +150,11 @@ def _study(args) -> int:
     packings = _packings(args)
     with make_executor(args.workers, args.scheduler) as executor:
         t0 = time.perf_counter()
-        result, h5, pngs = run_study(packings, args.out, normal_stiffness=_kn(args), steps=args.steps,
-                                     executor=executor)
+        result, h5, pngs = run_study(
+            packings, args.out, normal_stiffness=_kn(args), steps=args.steps, executor=executor
+        )
         dt = time.perf_counter() - t0
-    print(
-        f"{len(result.names)} RVEs x {len(result.paths)} paths x {args.steps + 1} states "
-        f"in {dt:.2f} s"
-    )
+    print(f"{len(result.names)} RVEs x {len(result.paths)} paths x {args.steps + 1} states in {dt:.2f} s")
     for n, (mean, std, count) in result.summary().items():
         q = result.paths.index("compression11")
         print(
@@ -190,8 +184,10 @@ def check_F(values, packing, option: str = "--F"):
         Cd = F @ packing.cell
         cell_ok = bool(np.all(np.isfinite(Cd)) and np.isfinite(Cd[0, 0] * Cd[1, 1] - Cd[0, 1] * Cd[1, 0]))
     if not det > 0 or not np.isfinite(det):
-        raise InputError(f"{option}: det F must be > 0 and finite (the map must keep orientation), got "
-                         f"det F = {det:.6g} for F = {F.ravel().tolist()}")
+        raise InputError(
+            f"{option}: det F must be > 0 and finite (the map must keep orientation), got "
+            f"det F = {det:.6g} for F = {F.ravel().tolist()}"
+        )
     if not cell_ok:
         raise InputError(f"{option}: F = {F.ravel().tolist()} maps the cell out of the float64 range")
     b1 = float(np.linalg.norm(shortest_lattice_vector(Cd)))
@@ -201,7 +197,8 @@ def check_F(values, packing, option: str = "--F"):
             f"{option}: F = {F.ravel().tolist()} collapses the RVE: the deformed cell's shortest lattice "
             f"vector ({b1:.4g} m) is shorter than the largest disk diameter ({dmax:.4g} m), so a disk "
             f"would overlap its own periodic image (smallest stretch of F: "
-            f"{float(np.linalg.svd(F, compute_uv=False).min()):.3g})")
+            f"{float(np.linalg.svd(F, compute_uv=False).min()):.3g})"
+        )
     check_candidate_budget(packing, F, name=option)
     return F
 
@@ -217,14 +214,16 @@ def _read_stress_packing(args):
     if kind == "rve-study":
         names = study_rve_names(args.file)
         if args.rve is None:
-            raise InputError(f"{args.file} is a rve-study file: choose an RVE with --rve NAME "
-                             f"(one of: {', '.join(names)})")
+            raise InputError(
+                f"{args.file} is a rve-study file: choose an RVE with --rve NAME (one of: {', '.join(names)})"
+            )
         if args.rve not in names:
             raise InputError(f"--rve: {args.file} has no RVE {args.rve!r}; choose one of: {', '.join(names)}")
         return read_study_packing(args.file, args.rve)
     if args.rve is not None:
-        raise InputError(f"--rve applies to rve-study files; {args.file} holds a {kind!r}, not a set of RVEs "
-                         "(drop --rve)")
+        raise InputError(
+            f"--rve applies to rve-study files; {args.file} holds a {kind!r}, not a set of RVEs (drop --rve)"
+        )
     return load_packing(args.file)
 
 
@@ -238,15 +237,15 @@ def _stress(args) -> int:
     packing = _read_stress_packing(args)
     F = check_F(args.F, packing)
     res = homogenize(packing, F, _kn(args))
-    if not (np.all(np.isfinite(res.cauchy)) and np.isfinite(res.energy) and np.all(np.isfinite(res.piola))
-            and np.all(np.isfinite(res.tangent))):
-        raise SimulationError(f"non-finite result at F = {F.ravel().tolist()} (W = {res.energy!r}); "
-                              "nothing written")
+    if not (
+        np.all(np.isfinite(res.cauchy))
+        and np.isfinite(res.energy)
+        and np.all(np.isfinite(res.piola))
+        and np.all(np.isfinite(res.tangent))
+    ):
+        raise SimulationError(f"non-finite result at F = {F.ravel().tolist()} (W = {res.energy!r}); nothing written")
     np.set_printoptions(precision=10, suppress=False, linewidth=120)
-    print(
-        f"packing: N = {packing.n}, V_rve = det C = {packing.area:.10g} m^2; "
-        f"E_n = {_kn(args):.6g} N/m"
-    )
+    print(f"packing: N = {packing.n}, V_rve = det C = {packing.area:.10g} m^2; E_n = {_kn(args):.6g} N/m")
     print(f"F =\n{F}")
     print(f"active contacts: {res.n_contacts}")
     print(f"W (J/m^2) = {res.energy:.12g}")
@@ -265,10 +264,7 @@ def _check(args) -> int:
     recs = crosscheck(_packings(args), _kn(args))
     worst = max(max(r["rel_energy"], r["rel_piola"], r["rel_tangent"]) for r in recs)
     bad = [
-        r
-        for r in recs
-        if not r["contacts_equal"]
-        or max(r["rel_energy"], r["rel_piola"], r["rel_tangent"]) > args.tol
+        r for r in recs if not r["contacts_equal"] or max(r["rel_energy"], r["rel_piola"], r["rel_tangent"]) > args.tol
     ]
     names = sorted({r["rve"] for r in recs})
     print(

@@ -5,53 +5,92 @@ from __future__ import annotations
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "slope", help="FE2-style slope stability: Q1 total-Lagrangian FE with an RVE (Taylor or relaxed) per Gauss point",
+        "slope",
+        help="FE2-style slope stability: Q1 total-Lagrangian FE with an RVE (Taylor or relaxed) per Gauss point",
         description="Solve the slope of Meier, Steinmann & Kuhl section 5 (geometry of issue 8): dead load "
-                    "in step 1, then the footing force in 20 steps. Writes per-step VTU and PNG, the "
-                    "convergence table (Table 2), the load-settlement curve and an HDF5 file; a "
-                    "checkpoint after every converged step (--resume continues). --workers N / --scheduler ADDRESS evaluate "
-                    "the Gauss points on Dask.")
-    p.add_argument("--protocol", choices=["service", "paper"], default="service",
-                   help="service: footing -5.0e6 N/m (runs to the end); paper: -4.0e7 N/m (stops at the "
-                        "crest mechanism near 94%% of the load: measured 0.943)")
-    p.add_argument("--material", choices=["taylor", "neo-hookean"], default="taylor",
-                   help="taylor: the Taylor RVE (gransim.rve); neo-hookean: continuum test material "
-                        "(E = 3e7 Pa, nu = 0.3)")
-    p.add_argument("--rve", default="taylor",
-                   help="the RVE material at every Gauss point: taylor (affine, Meier et al.) or relaxed "
-                        "(periodic fluctuations minimise the energy at fixed F, condensed consistent "
-                        "tangent; Gauss-point history committed at every converged load step)")
-    p.add_argument("--mesh", default="20x19",
-                   help="COLUMNSxROWS of the slope mesh (default 20x19, 1520 Gauss points; e.g. 10x5 for "
-                        "a feasible relaxed run)")
+        "in step 1, then the footing force in 20 steps. Writes per-step VTU and PNG, the "
+        "convergence table (Table 2), the load-settlement curve and an HDF5 file; a "
+        "checkpoint after every converged step (--resume continues). --workers N / --scheduler ADDRESS evaluate "
+        "the Gauss points on Dask.",
+    )
+    p.add_argument(
+        "--protocol",
+        choices=["service", "paper"],
+        default="service",
+        help="service: footing -5.0e6 N/m (runs to the end); paper: -4.0e7 N/m (stops at the "
+        "crest mechanism near 94%% of the load: measured 0.943)",
+    )
+    p.add_argument(
+        "--material",
+        choices=["taylor", "neo-hookean"],
+        default="taylor",
+        help="taylor: the Taylor RVE (gransim.rve); neo-hookean: continuum test material (E = 3e7 Pa, nu = 0.3)",
+    )
+    p.add_argument(
+        "--rve",
+        default="taylor",
+        help="the RVE material at every Gauss point: taylor (affine, Meier et al.) or relaxed "
+        "(periodic fluctuations minimise the energy at fixed F, condensed consistent "
+        "tangent; Gauss-point history committed at every converged load step)",
+    )
+    p.add_argument(
+        "--mesh",
+        default="20x19",
+        help="COLUMNSxROWS of the slope mesh (default 20x19, 1520 Gauss points; e.g. 10x5 for a feasible relaxed run)",
+    )
     p.add_argument("--load-steps", type=int, default=20, help="footing load steps after the dead load")
-    p.add_argument("--compare", action="store_true",
-                   help="run both RVE materials (taylor, relaxed) into OUT/taylor and OUT/relaxed and "
-                        "write OUT/compare_load_settlement.png and OUT/compare.md")
-    p.add_argument("--packing", default=None,
-                   help="HDF5 packing file for the RVE (default: the most uniform of the five standard "
-                        "700-particle quartz-sand RVEs)")
-    p.add_argument("--rves", choices=["most-uniform", "five"], default="most-uniform",
-                   help="most-uniform: one RVE everywhere; five: the five 700-particle RVEs in turn")
-    p.add_argument("--packing-dir", default="results/packings",
-                   help="where the standard packings are generated/cached")
+    p.add_argument(
+        "--compare",
+        action="store_true",
+        help="run both RVE materials (taylor, relaxed) into OUT/taylor and OUT/relaxed and "
+        "write OUT/compare_load_settlement.png and OUT/compare.md",
+    )
+    p.add_argument(
+        "--packing",
+        default=None,
+        help="HDF5 packing file for the RVE (default: the most uniform of the five standard "
+        "700-particle quartz-sand RVEs)",
+    )
+    p.add_argument(
+        "--rves",
+        choices=["most-uniform", "five"],
+        default="most-uniform",
+        help="most-uniform: one RVE everywhere; five: the five 700-particle RVEs in turn",
+    )
+    p.add_argument("--packing-dir", default="results/packings", help="where the standard packings are generated/cached")
     p.add_argument("--out", default=None, help="output directory (default results/slope-<protocol>)")
-    p.add_argument("--figures", choices=["final", "all", "none"], default="final",
-                   help="final (default): the picture and VTU of the last converged state and the "
-                        "load-settlement curve; all: also a PNG and a VTU for every converged step; none: "
-                        "no PNG or VTU (tables, report and slope.h5 are always written)")
-    p.add_argument("--resume", action="store_true",
-                   help="continue an interrupted run from OUT/checkpoint/ (one file per converged load "
-                        "step); the result is bitwise that of an uninterrupted run; a checkpoint of "
-                        "other parameters is refused")
-    p.add_argument("--stop-after", type=int, default=None, metavar="K",
-                   help="stop after load step K, its checkpoint written (to test --resume)")
+    p.add_argument(
+        "--figures",
+        choices=["final", "all", "none"],
+        default="final",
+        help="final (default): the picture and VTU of the last converged state and the "
+        "load-settlement curve; all: also a PNG and a VTU for every converged step; none: "
+        "no PNG or VTU (tables, report and slope.h5 are always written)",
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue an interrupted run from OUT/checkpoint/ (one file per converged load "
+        "step); the result is bitwise that of an uninterrupted run; a checkpoint of "
+        "other parameters is refused",
+    )
+    p.add_argument(
+        "--stop-after",
+        type=int,
+        default=None,
+        metavar="K",
+        help="stop after load step K, its checkpoint written (to test --resume)",
+    )
     from ..parallel import add_options
 
     add_options(p)
     p.add_argument("--tol", type=float, default=1e-20, help="relative energy norm tolerance")
-    p.add_argument("--min-fraction", type=float, default=1.0 / 64,
-                   help="smallest load increment, as a fraction of one step, before the run stops")
+    p.add_argument(
+        "--min-fraction",
+        type=float,
+        default=1.0 / 64,
+        help="smallest load increment, as a fraction of one step, before the run stops",
+    )
     p.set_defaults(func=handler)
 
 
@@ -77,8 +116,7 @@ def handler(args) -> int:
     if args.rve not in RVE_KINDS:
         raise InputError(f"--rve: expected taylor or relaxed, got {args.rve!r}")
     if args.rve == "relaxed" and args.material != "taylor":
-        raise InputError("--rve relaxed: needs the RVE material (--material taylor), got --material "
-                         f"{args.material}")
+        raise InputError(f"--rve relaxed: needs the RVE material (--material taylor), got --material {args.material}")
     try:
         cols, rows = (int(v) for v in args.mesh.lower().split("x"))
     except ValueError:
@@ -96,9 +134,17 @@ def handler(args) -> int:
     if args.resume and args.compare:
         raise InputError("--resume: resumes one run; not with --compare")
     geometry = SlopeGeometry(columns=cols, rows=rows)
-    kw = {"material": args.material, "packing": args.packing, "figures": args.figures, "tol": args.tol,
-              "min_fraction": args.min_fraction, "assignment": args.rves, "packing_dir": args.packing_dir,
-              "geometry": geometry, "load_steps": args.load_steps}
+    kw = {
+        "material": args.material,
+        "packing": args.packing,
+        "figures": args.figures,
+        "tol": args.tol,
+        "min_fraction": args.min_fraction,
+        "assignment": args.rves,
+        "packing_dir": args.packing_dir,
+        "geometry": geometry,
+        "load_steps": args.load_steps,
+    }
     from ..fem.run import SlopeInterrupted
     from ..parallel import make_executor
 
@@ -128,8 +174,7 @@ def _run(args, out, kw) -> int:
         if failed:
             raise ConvergenceError("; ".join(f"{k}: {summaries[k]['message']}" for k in failed))
         return 0
-    summary = run_slope_case(args.protocol, out=out, rve=args.rve, resume=args.resume,
-                             stop_after=args.stop_after, **kw)
+    summary = run_slope_case(args.protocol, out=out, rve=args.rve, resume=args.resume, stop_after=args.stop_after, **kw)
     print(summary["report"])
     if not summary["completed"]:
         print(f"outputs of every converged step kept in {out}", file=sys.stderr)

@@ -45,9 +45,7 @@ LAW_PARAMS = {
 }
 #: laws that take the parameters the protocol would fill in their own units (hertz-lammps: kn, kt
 #: in Pa = 4/3 Y* and 2/7 of it for youngs_modulus 5e8, poisson_ratio 0.3; dampings in 1/(s m))
-LAW_OWN_PARAMS = {
-    "hertz-lammps": {"kn": "3.7e8", "kt": "1.06e8", "gamma_n": "1e3", "gamma_t": "5e2"}
-}
+LAW_OWN_PARAMS = {"hertz-lammps": {"kn": "3.7e8", "kt": "1.06e8", "gamma_n": "1e3", "gamma_t": "5e2"}}
 
 
 @dataclass(frozen=True)
@@ -88,8 +86,7 @@ def register(sub) -> None:
         "--laws",
         choices=("all", "default"),
         default="all",
-        help="all (default): the biaxial and shear commands once per contact law; default: "
-        "only their default law",
+        help="all (default): the biaxial and shear commands once per contact law; default: only their default law",
     )
     p.add_argument(
         "--timeout",
@@ -120,9 +117,7 @@ def law_names() -> tuple[tuple[str, str, tuple], ...]:
     except ImportError:  # pragma: no cover
         return ()
     table = getattr(laws, "LAWS", {})
-    return tuple(
-        (n, laws.law_code(n), tuple(table[n][1]) if n in table else ()) for n in laws.law_names()
-    )
+    return tuple((n, laws.law_code(n), tuple(table[n][1]) if n in table else ()) for n in laws.law_names())
 
 
 def _law_args(name: str, required: tuple) -> tuple:
@@ -230,9 +225,7 @@ def plan(laws: str = "all", own_packing: bool = False) -> list[Step]:
             replace(
                 s,
                 after=tuple(a for a in s.after if a != "pack"),
-                args=tuple(
-                    "p-pack.h5" if (s.name == "pack" and a == "p.h5") else a for a in s.args
-                ),
+                args=tuple("p-pack.h5" if (s.name == "pack" and a == "p.h5") else a for a in s.args),
             )
             for s in steps
         ]
@@ -272,9 +265,7 @@ def command_options() -> dict[str, set[str]]:
 
     parser = build_parser(["warmup"])
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    return {
-        name: {s for a in p._actions for s in a.option_strings} for name, p in sub.choices.items()
-    }
+    return {name: {s for a in p._actions for s in a.option_strings} for name, p in sub.choices.items()}
 
 
 def argv_of(step: Step, options: dict[str, set[str]]) -> list[str] | None:
@@ -302,9 +293,7 @@ def _selected(steps: list[Step], only) -> list[Step]:
     if unknown:
         from ..errors import InputError
 
-        raise InputError(
-            f"--only: expected step names from --list, got {', '.join(map(repr, unknown))}"
-        )
+        raise InputError(f"--only: expected step names from --list, got {', '.join(map(repr, unknown))}")
     keep, todo = set(), list(only)
     while todo:
         n = todo.pop()
@@ -406,9 +395,7 @@ def run_steps(steps: list[Step], cwd: str, jobs: int, timeout: float, out=None) 
                         running[pool.submit(_one, argv, cwd, timeout)] = (s, argv)
             if not running:
                 if pending:  # only steps waiting on each other: a cycle in ``after``
-                    raise RuntimeError(
-                        f"warm-up steps wait on each other: {[s.name for s in pending]}"
-                    )
+                    raise RuntimeError(f"warm-up steps wait on each other: {[s.name for s in pending]}")
                 continue
             finished, _ = wait(list(running), return_when=FIRST_COMPLETED)
             for fut in finished:
@@ -449,14 +436,9 @@ def _run(args) -> int:
         options = command_options()
         for s in steps:
             argv = argv_of(s, options)
-            print(
-                f"{s.name:<36s} "
-                + ("(skipped: not available)" if argv is None else "gransim " + " ".join(argv))
-            )
+            print(f"{s.name:<36s} " + ("(skipped: not available)" if argv is None else "gransim " + " ".join(argv)))
         return 0
-    jobs = (
-        as_int(args.jobs, "--jobs", 1, 64) if args.jobs is not None else min(2, os.cpu_count() or 1)
-    )
+    jobs = as_int(args.jobs, "--jobs", 1, 64) if args.jobs is not None else min(2, os.cpu_count() or 1)
     if not args.timeout > 0:
         from ..errors import InputError
 
@@ -477,8 +459,7 @@ def _run(args) -> int:
     cpu = sum(r.get("cpu_seconds", 0.0) for r in records)
     print(
         f"warmup: {sum(r['status'] == 'ok' for r in records)} of {len(records)} commands ok in "
-        f"{time.perf_counter() - t0:.1f} s (cpu {cpu:.1f} s)"
-        + (f"; FAILED: {', '.join(failed)}" if failed else ""),
+        f"{time.perf_counter() - t0:.1f} s (cpu {cpu:.1f} s)" + (f"; FAILED: {', '.join(failed)}" if failed else ""),
         flush=True,
     )
     return 1 if failed else 0

@@ -79,8 +79,9 @@ SQRT_FIVE_OVER_SIX = 0.91287092917527685576161630466800355658790782499663875
 
 
 @njit(inline="always")
-def hertz_history_liggghts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-                           yeff, geff, betaeff, tdamp, mu, dt, s0, s1, update):
+def hertz_history_liggghts(
+    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, yeff, geff, betaeff, tdamp, mu, dt, s0, s1, update
+):
     """LIGGGHTS 3.8.0 ``gran model hertz tangential history`` for one touching pair.
 
     Parameters (after the 13 pair arguments, see the module docstring)
@@ -174,8 +175,9 @@ def hertz_history_liggghts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, 
 
 
 @njit(inline="always")
-def hertz_history_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-                         kn, kt, gamman, gammat, mu, dt, s0, s1, update):
+def hertz_history_lammps(
+    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+):
     """LAMMPS 29Sep2021 ``pair_style gran/hertz/history KN KT GAMMAN GAMMAT MU 1`` for one pair.
 
     Parameters: as :func:`gransim.contacts.hooke.hooke_history_lammps` (kn in N/m^2 = Pa: the
@@ -250,8 +252,31 @@ def hertz_history_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj
 
 
 @njit(inline="always")
-def hertz_mindlin_granular_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-                                  E, damp, kt0, gammat_ratio, mu, damping, dt, s0, s1, update):
+def hertz_mindlin_granular_lammps(
+    delx,
+    dely,
+    rsq,
+    radi,
+    radj,
+    vix,
+    viy,
+    vjx,
+    vjy,
+    wi,
+    wj,
+    mi,
+    mj,
+    E,
+    damp,
+    kt0,
+    gammat_ratio,
+    mu,
+    damping,
+    dt,
+    s0,
+    s1,
+    update,
+):
     """LAMMPS 29Sep2021 ``pair_style granular``, ``hertz/material E DAMP NU damping MODEL
     tangential mindlin NULL GAMMAT MU`` (no rolling, no twisting, no ``limit_damping``).
 
@@ -320,8 +345,9 @@ def hertz_mindlin_granular_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vj
     k_tangential = kt0
     damp_tangential = gammat_ratio * damp_normal_prefactor
     k_tangential *= a
-    s0, s1, fs1, fs2, sliding = spring_dashpot_slider(s0, s1, nx, ny, vtr1, vtr2, k_tangential, damp_tangential,
-                                                       Fscrit, dt, update)
+    s0, s1, fs1, fs2, sliding = spring_dashpot_slider(
+        s0, s1, nx, ny, vtr1, vtr2, k_tangential, damp_tangential, Fscrit, dt, update
+    )
     fx = nx * Fntot + fs1
     fy = ny * Fntot + fs2
     tor3 = nx * fs2 - ny * fs1
@@ -332,14 +358,14 @@ def elastic_normal_force(delta, reff, yeff):
     """F_n = 4/3 Y* sqrt(R*) delta^(3/2) (N) for delta > 0, else 0 (Johnson 1985, eq (4.23))."""
     if delta <= 0.0:
         return 0.0
-    return 4.0 / 3.0 * yeff * math.sqrt(reff) * delta ** 1.5
+    return 4.0 / 3.0 * yeff * math.sqrt(reff) * delta**1.5
 
 
 def elastic_normal_potential(delta, reff, yeff):
     """U = 8/15 Y* sqrt(R*) delta^(5/2) (J), dU/d delta = :func:`elastic_normal_force`."""
     if delta <= 0.0:
         return 0.0
-    return 8.0 / 15.0 * yeff * math.sqrt(reff) * delta ** 2.5
+    return 8.0 / 15.0 * yeff * math.sqrt(reff) * delta**2.5
 
 
 # ----------------------------------------------------------------------------- plug-ins
@@ -356,36 +382,99 @@ HertzGranularLammps = namedtuple("HertzGranularLammps", ["E", "damp", "kt0", "ga
 
 
 @njit(inline="always")
-def hertz_pair_liggghts(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
-                        update):
+def hertz_pair_liggghts(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     """Pair function of :class:`HertzHistoryLiggghts` (spring in ``hist[e, 0:2]``)."""
     fx, fy, ti, tj, s0, s1, sl, fn = hertz_history_liggghts(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.yeff, law.geff, law.betaeff, law.tdamp, law.mu, dt, hist[e, 0], hist[e, 1], update)
+        delx,
+        dely,
+        rsq,
+        radi,
+        radj,
+        vix,
+        viy,
+        vjx,
+        vjy,
+        wi,
+        wj,
+        mi,
+        mj,
+        law.yeff,
+        law.geff,
+        law.betaeff,
+        law.tdamp,
+        law.mu,
+        dt,
+        hist[e, 0],
+        hist[e, 1],
+        update,
+    )
     hist[e, 0] = s0
     hist[e, 1] = s1
     return fx, fy, ti, tj, sl, fn
 
 
 @njit(inline="always")
-def hertz_pair_lammps(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
-                      update):
+def hertz_pair_lammps(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     """Pair function of :class:`HertzHistoryLammps`."""
     fx, fy, ti, tj, s0, s1, sl, fn = hertz_history_lammps(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, hist[e, 0], hist[e, 1], update)
+        delx,
+        dely,
+        rsq,
+        radi,
+        radj,
+        vix,
+        viy,
+        vjx,
+        vjy,
+        wi,
+        wj,
+        mi,
+        mj,
+        law.kn,
+        law.kt,
+        law.gamma_n,
+        law.gamma_t,
+        law.mu,
+        dt,
+        hist[e, 0],
+        hist[e, 1],
+        update,
+    )
     hist[e, 0] = s0
     hist[e, 1] = s1
     return fx, fy, ti, tj, sl, fn
 
 
 @njit(inline="always")
-def hertz_pair_granular_lammps(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-                               dt, update):
+def hertz_pair_granular_lammps(
+    law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update
+):
     """Pair function of :class:`HertzGranularLammps`."""
     fx, fy, ti, tj, s0, s1, sl, fn = hertz_mindlin_granular_lammps(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.E, law.damp, law.kt0, law.gammat_ratio, law.mu, law.damping, dt, hist[e, 0], hist[e, 1], update)
+        delx,
+        dely,
+        rsq,
+        radi,
+        radj,
+        vix,
+        viy,
+        vjx,
+        vjy,
+        wi,
+        wj,
+        mi,
+        mj,
+        law.E,
+        law.damp,
+        law.kt0,
+        law.gammat_ratio,
+        law.mu,
+        law.damping,
+        dt,
+        hist[e, 0],
+        hist[e, 1],
+        update,
+    )
     hist[e, 0] = s0
     hist[e, 1] = s1
     return fx, fy, ti, tj, sl, fn
@@ -420,8 +509,10 @@ def hertz_coefficients(law):
         return law.E, law.kt0
     from ..errors import InputError
 
-    raise InputError("law: expected a Hertz law (HertzHistoryLiggghts, HertzHistoryLammps, "
-                     f"HertzGranularLammps), got {type(law).__name__}")
+    raise InputError(
+        "law: expected a Hertz law (HertzHistoryLiggghts, HertzHistoryLammps, "
+        f"HertzGranularLammps), got {type(law).__name__}"
+    )
 
 
 def hertz_energy(law, overlap, hist, radi, radj) -> float:
@@ -444,12 +535,11 @@ def hertz_energy(law, overlap, hist, radi, radj) -> float:
     d = np.asarray(overlap, np.float64)
     R = radi * radj / (radi + radj)
     cn, ct = hertz_coefficients(law)
-    un = 0.4 * cn * np.sqrt(R) * d ** 2.5
+    un = 0.4 * cn * np.sqrt(R) * d**2.5
     ut = 0.5 * ct * np.sqrt(R * d) * np.sum(np.asarray(hist, np.float64)[:, :2] ** 2, axis=1)
     return float(np.sum(un) + np.sum(ut))
 
 
 register_law(HertzHistoryLiggghts, hertz_pair_liggghts, HISTORY_WIDTH, energy=hertz_energy)
 register_law(HertzHistoryLammps, hertz_pair_lammps, HISTORY_WIDTH, apart=history_reset, energy=hertz_energy)
-register_law(HertzGranularLammps, hertz_pair_granular_lammps, HISTORY_WIDTH, apart=history_reset,
-             energy=hertz_energy)
+register_law(HertzGranularLammps, hertz_pair_granular_lammps, HISTORY_WIDTH, apart=history_reset, energy=hertz_energy)

@@ -31,8 +31,9 @@ from .laws import register_law
 
 
 @njit(inline="always")
-def hooke_history(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-                  kn, kt, gamman, gammat, mu, dt, s0, s1, update):
+def hooke_history(
+    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+):
     """One touching pair: force on i, torques on i and j, updated tangential spring.
 
     Parameters
@@ -114,8 +115,9 @@ def hooke_history(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, m
 
 
 @njit(inline="always")
-def hooke_history_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-                         kn, kt, gamman, gammat, mu, dt, s0, s1, update):
+def hooke_history_lammps(
+    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+):
     """The same pair in LAMMPS' arithmetic: ``pair_style gran/hooke/history`` (29 Sep 2021).
 
     The call signature and the returned tuple are those of :func:`hooke_history`; the law and the
@@ -202,31 +204,74 @@ def hooke_law(kn, kt, gamma_n, gamma_t, mu, flavour: str = "liggghts"):
     cls = {"liggghts": HookeLiggghts, "lammps": HookeLammps}.get(flavour)
     if cls is None:
         raise InputError(f"flavour: expected 'liggghts' or 'lammps', got {flavour!r}")
-    return cls(as_positive_float(kn, "kn"), as_positive_float(kt, "kt", allow_zero=True),
-               as_positive_float(gamma_n, "gamma_n", allow_zero=True),
-               as_positive_float(gamma_t, "gamma_t", allow_zero=True),
-               as_positive_float(mu, "mu", allow_zero=True))
+    return cls(
+        as_positive_float(kn, "kn"),
+        as_positive_float(kt, "kt", allow_zero=True),
+        as_positive_float(gamma_n, "gamma_n", allow_zero=True),
+        as_positive_float(gamma_t, "gamma_t", allow_zero=True),
+        as_positive_float(mu, "mu", allow_zero=True),
+    )
 
 
 @njit(inline="always")
-def hooke_pair_liggghts(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
-                        update):
+def hooke_pair_liggghts(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     """Pair function of :class:`HookeLiggghts` (:func:`hooke_history`; spring in ``hist[e, 0:2]``)."""
     fx, fy, ti, tj, s0, s1, sl, fn = hooke_history(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, hist[e, 0], hist[e, 1], update)
+        delx,
+        dely,
+        rsq,
+        radi,
+        radj,
+        vix,
+        viy,
+        vjx,
+        vjy,
+        wi,
+        wj,
+        mi,
+        mj,
+        law.kn,
+        law.kt,
+        law.gamma_n,
+        law.gamma_t,
+        law.mu,
+        dt,
+        hist[e, 0],
+        hist[e, 1],
+        update,
+    )
     hist[e, 0] = s0
     hist[e, 1] = s1
     return fx, fy, ti, tj, sl, fn
 
 
 @njit(inline="always")
-def hooke_pair_lammps(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
-                      update):
+def hooke_pair_lammps(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     """Pair function of :class:`HookeLammps` (:func:`hooke_history_lammps`)."""
     fx, fy, ti, tj, s0, s1, sl, fn = hooke_history_lammps(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, hist[e, 0], hist[e, 1], update)
+        delx,
+        dely,
+        rsq,
+        radi,
+        radj,
+        vix,
+        viy,
+        vjx,
+        vjy,
+        wi,
+        wj,
+        mi,
+        mj,
+        law.kn,
+        law.kt,
+        law.gamma_n,
+        law.gamma_t,
+        law.mu,
+        dt,
+        hist[e, 0],
+        hist[e, 1],
+        update,
+    )
     hist[e, 0] = s0
     hist[e, 1] = s1
     return fx, fy, ti, tj, sl, fn
@@ -246,7 +291,7 @@ def hooke_energy(law, overlap, hist, radi=None, radj=None) -> float:
     xi-derivative. The spring is a potential of xi at every overlap (kt constant); both codes
     project xi on the tangent plane each step (LIGGGHTS without rescaling: |xi| shrinks with the
     rotation of n, energy leaves the spring without work)."""
-    return float(0.5 * law.kn * np.sum(overlap ** 2) + 0.5 * law.kt * np.sum(hist[:, :2] ** 2))
+    return float(0.5 * law.kn * np.sum(overlap**2) + 0.5 * law.kt * np.sum(hist[:, :2] ** 2))
 
 
 register_law(HookeLiggghts, hooke_pair_liggghts, 2, energy=hooke_energy)

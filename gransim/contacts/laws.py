@@ -106,13 +106,22 @@ class LawSpec:
 _REGISTRY: dict[type, LawSpec] = {}
 
 
-def register_law(params: type, pair: Callable, width: int, *, apart: Callable | None = None,
-                 flip=None, energy: Callable | None = None, cache: bool = True,
-                 split_torque: bool = False) -> LawSpec:
+def register_law(
+    params: type,
+    pair: Callable,
+    width: int,
+    *,
+    apart: Callable | None = None,
+    flip=None,
+    energy: Callable | None = None,
+    cache: bool = True,
+    split_torque: bool = False,
+) -> LawSpec:
     """Register ``params`` (a namedtuple class of floats) with its jitted ``pair`` function.
 
     ``width`` >= 0 history columns; ``apart``, ``flip`` (default -1 for every column), ``energy``
-    and ``cache`` (False for a law defined outside an importable package module): :class:`LawSpec`. Registering the same class again replaces its entry (a module
+    and ``cache`` (False for a law defined outside an importable package module): :class:`LawSpec`.
+    Registering the same class again replaces its entry (a module
     reloaded); raises InputError for a class that is not a namedtuple or a bad width/flip.
     """
     if not (isinstance(params, type) and issubclass(params, tuple) and hasattr(params, "_fields")):
@@ -155,8 +164,10 @@ def law_spec(law) -> LawSpec:
     spec = _REGISTRY.get(type(law))
     if spec is None:
         known = ", ".join(sorted(c.__name__ for c in _REGISTRY)) or "none"
-        raise InputError(f"law: expected an instance of a registered contact law ({known}), got "
-                         f"{type(law).__name__} (gransim.contacts.laws.register_law)")
+        raise InputError(
+            f"law: expected an instance of a registered contact law ({known}), got "
+            f"{type(law).__name__} (gransim.contacts.laws.register_law)"
+        )
     return spec
 
 
@@ -168,21 +179,22 @@ def _spec_of_type(ty) -> LawSpec | None:
 def pair_force(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     """The pair function of ``law``'s registered class: (fx, fy, ti, tj, sliding, fn), ti and tj
     the whole torques on i and j (interpreted: NUMBA_DISABLE_JIT)."""
-    out = _REGISTRY[type(law)].pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy,
-                                    wi, wj, mi, mj, dt, update)
+    out = _REGISTRY[type(law)].pair(
+        law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update
+    )
     if len(out) == 8:
         fx, fy, ti, tj, sl, fn, ti2, tj2 = out
         return fx, fy, ti + ti2, tj + tj2, sl, fn
     return out
 
 
-def pair_force_split(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
-                     update):
+def pair_force_split(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     """The pair function of ``law`` as the force loops call it: (fx, fy, ti, tj, sliding, fn, ti2,
     tj2), ti2 and tj2 added to the particles after ti and tj (``LawSpec.split_torque``; -0.0 for a
     law that returns its torques whole). Interpreted: NUMBA_DISABLE_JIT."""
-    out = _REGISTRY[type(law)].pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy,
-                                    wi, wj, mi, mj, dt, update)
+    out = _REGISTRY[type(law)].pair(
+        law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update
+    )
     if len(out) == 8:
         return out
     return (*out, -0.0, -0.0)
@@ -196,17 +208,18 @@ def pair_apart(law, hist, e):
 
 
 @overload(pair_force, inline="always")
-def _ov_pair_force(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
-                   update):
+def _ov_pair_force(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     spec = _spec_of_type(law)
     if spec is None:
         return None
     fn = spec.pair
 
     if spec.split_torque:
+
         def joined(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-            fx, fy, ti, tj, sl, fnorm, ti2, tj2 = fn(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx,
-                                                     vjy, wi, wj, mi, mj, dt, update)
+            fx, fy, ti, tj, sl, fnorm, ti2, tj2 = fn(
+                law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update
+            )
             return fx, fy, ti + ti2, tj + tj2, sl, fnorm
 
         return joined
@@ -218,22 +231,22 @@ def _ov_pair_force(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy
 
 
 @overload(pair_force_split, inline="always")
-def _ov_pair_force_split(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
-                         update):
+def _ov_pair_force_split(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     spec = _spec_of_type(law)
     if spec is None:
         return None
     fn = spec.pair
     if spec.split_torque:
+
         def split(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-            return fn(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
-                      update)
+            return fn(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update)
 
         return split
 
     def whole(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-        fx, fy, ti, tj, sl, fnorm = fn(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj,
-                                       mi, mj, dt, update)
+        fx, fy, ti, tj, sl, fnorm = fn(
+            law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update
+        )
         return fx, fy, ti, tj, sl, fnorm, -0.0, -0.0
 
     return whole
@@ -246,6 +259,7 @@ def _ov_pair_apart(law, hist, e):
         return None
     fn = spec.apart
     if fn is None:
+
         def keep(law, hist, e):
             return None
 
@@ -269,8 +283,15 @@ def elastic_energy(law, overlap: np.ndarray, hist: np.ndarray, radi: np.ndarray,
     fn = law_spec(law).energy
     if fn is None:
         return 0.0
-    return float(fn(law, np.asarray(overlap, np.float64), np.asarray(hist, np.float64),
-                    np.asarray(radi, np.float64), np.asarray(radj, np.float64)))
+    return float(
+        fn(
+            law,
+            np.asarray(overlap, np.float64),
+            np.asarray(hist, np.float64),
+            np.asarray(radi, np.float64),
+            np.asarray(radj, np.float64),
+        )
+    )
 
 
 def effective_radius(radi, radj) -> np.ndarray:
@@ -288,19 +309,28 @@ _DAMPING = ("velocity", "mass_velocity", "viscoelastic", "tsuji")
 LAWS = {
     "hooke-liggghts": ("liggghts", _HOOKE, {}, "hooke/stiffness tangential history"),
     "hooke-lammps": ("lammps", _HOOKE, {}, "gran/hooke/history"),
-    "hertz-liggghts": ("liggghts", ("youngs_modulus", "poisson_ratio", "restitution", "friction"),
-                       {"tangential_damping": True}, "gran model hertz tangential history"),
+    "hertz-liggghts": (
+        "liggghts",
+        ("youngs_modulus", "poisson_ratio", "restitution", "friction"),
+        {"tangential_damping": True},
+        "gran model hertz tangential history",
+    ),
     "hertz-lammps": ("lammps", _HOOKE, {}, "gran/hertz/history KN KT GAMMAN GAMMAT MU 1"),
-    "hertz-granular-lammps": ("lammps", ("youngs_modulus", "poisson_ratio", "damp", "friction"),
-                              {"gammat_ratio": 1.0, "damping": "tsuji"},
-                              "granular hertz/material E DAMP NU damping MODEL tangential mindlin NULL"),
+    "hertz-granular-lammps": (
+        "lammps",
+        ("youngs_modulus", "poisson_ratio", "damp", "friction"),
+        {"gammat_ratio": 1.0, "damping": "tsuji"},
+        "granular hertz/material E DAMP NU damping MODEL tangential mindlin NULL",
+    ),
     "hooke-epsd2-liggghts": ("liggghts", _HOOKE + ("mu_r",), {}, "hooke/stiffness ... rolling_friction epsd2"),
-    "hooke-epsd-liggghts": ("liggghts", _HOOKE + ("mu_r", "eta_r"), {},
-                            "hooke/stiffness ... rolling_friction epsd"),
+    "hooke-epsd-liggghts": ("liggghts", _HOOKE + ("mu_r", "eta_r"), {}, "hooke/stiffness ... rolling_friction epsd"),
     "hooke-cdt-liggghts": ("liggghts", _HOOKE + ("mu_r",), {}, "hooke/stiffness ... rolling_friction cdt"),
-    "hooke-sds-lammps": ("lammps", ("kn", "damp", "kt", "xgammat", "mu", "kroll", "gammaroll", "muroll"),
-                         {"damping": "mass_velocity"},
-                         "granular hooke ... tangential linear_history ... rolling sds"),
+    "hooke-sds-lammps": (
+        "lammps",
+        ("kn", "damp", "kt", "xgammat", "mu", "kroll", "gammaroll", "muroll"),
+        {"damping": "mass_velocity"},
+        "granular hooke ... tangential linear_history ... rolling sds",
+    ),
 }
 
 
@@ -310,7 +340,7 @@ def law_names() -> tuple[str, ...]:
 
 
 def law_code(name: str) -> str:
-    """"liggghts" or "lammps": whose arithmetic the law ``name`` follows (its DEMSettings.flavour)."""
+    """ "liggghts" or "lammps": whose arithmetic the law ``name`` follows (its DEMSettings.flavour)."""
     return _entry(name)[0]
 
 
@@ -343,10 +373,16 @@ def make_law(name: str, **params):
     unknown = sorted(set(params) - set(req) - set(opt))
     missing = [k for k in req if k not in params]
     if unknown or missing:
-        what = (f"unknown {', '.join(unknown)}" if unknown else "") + ("; " if unknown and missing else "") + (
-            f"missing {', '.join(missing)}" if missing else "")
-        raise InputError(f"law {name}: expected parameters {', '.join(req)}"
-                         + (f" [optional {', '.join(opt)}]" if opt else "") + f", got {what}")
+        what = (
+            (f"unknown {', '.join(unknown)}" if unknown else "")
+            + ("; " if unknown and missing else "")
+            + (f"missing {', '.join(missing)}" if missing else "")
+        )
+        raise InputError(
+            f"law {name}: expected parameters {', '.join(req)}"
+            + (f" [optional {', '.join(opt)}]" if opt else "")
+            + f", got {what}"
+        )
     p = {**opt, **params}
     if name in ("hooke-liggghts", "hooke-lammps"):
         from .hooke import hooke_law
@@ -356,15 +392,26 @@ def make_law(name: str, **params):
         from .hertz import HertzHistoryLiggghts
         from .material import HertzLiggghts
 
-        m = HertzLiggghts(p["youngs_modulus"], p["poisson_ratio"], p["restitution"], p["friction"],
-                          tangential_damping=p["tangential_damping"])
+        m = HertzLiggghts(
+            p["youngs_modulus"],
+            p["poisson_ratio"],
+            p["restitution"],
+            p["friction"],
+            tangential_damping=p["tangential_damping"],
+        )
         return HertzHistoryLiggghts(*m.coefficients())
     if name == "hertz-granular-lammps":
         from .hertz import HertzGranularLammps
         from .material import HertzMaterialLammps
 
-        m = HertzMaterialLammps(p["youngs_modulus"], p["poisson_ratio"], p["damp"], p["friction"],
-                                gammat_ratio=p["gammat_ratio"], damping=p["damping"])
+        m = HertzMaterialLammps(
+            p["youngs_modulus"],
+            p["poisson_ratio"],
+            p["damp"],
+            p["friction"],
+            gammat_ratio=p["gammat_ratio"],
+            damping=p["damping"],
+        )
         E, damp, kt0, g, mu, idx = m.coefficients()
         return HertzGranularLammps(E, damp, kt0, g, mu, float(idx))
     if name == "hooke-sds-lammps":
@@ -376,8 +423,17 @@ def make_law(name: str, **params):
         for k in ("kt", "kroll"):
             if vals[k] == 0.0:
                 raise InputError(f"law {name}: {k}: expected a stiffness > 0 N/m (the cap divides by it), got 0")
-        return HookeSdsLammps(vals["kn"], vals["damp"], float(_DAMPING.index(p["damping"])), vals["kt"],
-                              vals["xgammat"], vals["mu"], vals["kroll"], vals["gammaroll"], vals["muroll"])
+        return HookeSdsLammps(
+            vals["kn"],
+            vals["damp"],
+            float(_DAMPING.index(p["damping"])),
+            vals["kt"],
+            vals["xgammat"],
+            vals["mu"],
+            vals["kroll"],
+            vals["gammaroll"],
+            vals["muroll"],
+        )
     vals = [_pos(name, k, p[k], zero=k != "kn") for k in req]
     if name == "hertz-lammps":
         from .hertz import HertzHistoryLammps as cls
@@ -390,6 +446,18 @@ def make_law(name: str, **params):
     return cls(*vals)
 
 
-__all__ = ["LAWS", "LawSpec", "effective_radius", "elastic_energy", "flip_signs", "law_code", "law_names",
-           "law_spec", "make_law",
-           "pair_apart", "pair_force", "pair_force_split", "register_law"]
+__all__ = [
+    "LAWS",
+    "LawSpec",
+    "effective_radius",
+    "elastic_energy",
+    "flip_signs",
+    "law_code",
+    "law_names",
+    "law_spec",
+    "make_law",
+    "pair_apart",
+    "pair_force",
+    "pair_force_split",
+    "register_law",
+]

@@ -116,8 +116,15 @@ def tsuji_alpha_lammps(e) -> float:
         raise InputError(f"damping tsuji: expected a coefficient of restitution in [0, 1], got {e!r}")
     e2 = e * e
     e3 = e2 * e
-    return (1.2728 - 4.2783 * e + 11.087 * e2 - 22.348 * e3 + 27.467 * _powint(e, 4)
-            - 18.022 * _powint(e, 5) + 4.8218 * _powint(e, 6))
+    return (
+        1.2728
+        - 4.2783 * e
+        + 11.087 * e2
+        - 22.348 * e3
+        + 27.467 * _powint(e, 4)
+        - 18.022 * _powint(e, 5)
+        + 4.8218 * _powint(e, 6)
+    )
 
 
 def _powint(x: float, n: int) -> float:
@@ -159,8 +166,13 @@ class HertzLiggghts:
     def coefficients(self) -> tuple[float, float, float, float, float]:
         """(Y*, G*, beta, tangential damping flag 1.0/0.0, mu) for one material on both sides."""
         E, nu = self.youngs_modulus, self.poisson_ratio
-        return (effective_youngs(E, nu, E, nu), effective_shear(E, nu, E, nu),
-                beta_liggghts(self.restitution), 1.0 if self.tangential_damping else 0.0, self.friction)
+        return (
+            effective_youngs(E, nu, E, nu),
+            effective_shear(E, nu, E, nu),
+            beta_liggghts(self.restitution),
+            1.0 if self.tangential_damping else 0.0,
+            self.friction,
+        )
 
 
 @dataclass(frozen=True)
@@ -190,16 +202,16 @@ class HertzMaterialLammps:
         object.__setattr__(self, "friction", check_friction(self.friction, "tangential mindlin MU"))
         g = _finite(self.gammat_ratio, "tangential mindlin GAMMAT")
         if g < 0.0:
-            raise InputError("tangential mindlin GAMMAT: expected a damping ratio >= 0, "
-                             f"got {self.gammat_ratio!r}")
+            raise InputError(f"tangential mindlin GAMMAT: expected a damping ratio >= 0, got {self.gammat_ratio!r}")
         object.__setattr__(self, "gammat_ratio", g)
         if self.damping not in self.DAMPING_MODELS:
-            raise InputError(f"damping: expected one of {', '.join(self.DAMPING_MODELS)}, "
-                             f"got {self.damping!r}")
+            raise InputError(f"damping: expected one of {', '.join(self.DAMPING_MODELS)}, got {self.damping!r}")
         d = _finite(self.damp, "hertz/material DAMP")
         if self.damping == "tsuji" and not 0.0 <= d <= 1.0:
-            raise InputError(f"hertz/material DAMP with damping tsuji: expected a coefficient of "
-                             f"restitution in [0, 1], got {self.damp!r}")
+            raise InputError(
+                f"hertz/material DAMP with damping tsuji: expected a coefficient of "
+                f"restitution in [0, 1], got {self.damp!r}"
+            )
         if d < 0.0:
             raise InputError(f"hertz/material DAMP: expected a damping coefficient >= 0, got {self.damp!r}")
         object.__setattr__(self, "damp", d)
@@ -209,5 +221,11 @@ class HertzMaterialLammps:
         as pair_granular.cpp:986-1030 stores them (``FOURTHIRDS*mix_stiffnessE``: 4.0/3.0*Y*)."""
         E, nu = self.youngs_modulus, self.poisson_ratio
         damp = tsuji_alpha_lammps(self.damp) if self.damping == "tsuji" else self.damp
-        return (4.0 / 3.0 * effective_youngs(E, nu, E, nu), damp, 8 * effective_shear(E, nu, E, nu),
-                self.gammat_ratio, self.friction, self.DAMPING_MODELS.index(self.damping))
+        return (
+            4.0 / 3.0 * effective_youngs(E, nu, E, nu),
+            damp,
+            8 * effective_shear(E, nu, E, nu),
+            self.gammat_ratio,
+            self.friction,
+            self.DAMPING_MODELS.index(self.damping),
+        )

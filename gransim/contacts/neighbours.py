@@ -67,8 +67,8 @@ class NeighbourList:
 
 #: names of the visitor classes of an earlier version: numba's cache index of ``walk_pairs`` may
 #: still name them, and it is unpickled before its stamp is checked (a missing class would crash)
-from ..geometry.bins import _PairCount as _PairCounter  # noqa: F401
-from ..geometry.bins import _PairList as _PairWriter  # noqa: F401
+from ..geometry.bins import _PairCount as _PairCounter  # noqa: F401, E402
+from ..geometry.bins import _PairList as _PairWriter  # noqa: F401, E402
 
 
 def _cell_list_pairs(xw, s, radii, C, skin, nb1, nb2, k1, k2, img):
@@ -112,8 +112,7 @@ def find_neighbours(positions, radii, cell, skin: float = 0.0) -> NeighbourList:
     xw, sw, nimg = wrap_fractional(x, C)
     cutoff = 2.0 * float(r.max()) + skin
     nb1, nb2, k1, k2 = bin_layout(C, cutoff, x.shape[0])
-    i, j, shift, l = _cell_list_pairs(xw, sw, np.ascontiguousarray(r), C, skin, nb1, nb2, k1, k2,
-                                      nimg)
+    i, j, shift, l = _cell_list_pairs(xw, sw, np.ascontiguousarray(r), C, skin, nb1, nb2, k1, k2, nimg)
     return NeighbourList(i=i, j=j, shift=shift, branch=l)
 
 

@@ -95,8 +95,12 @@ HISTORY_WIDTH = {"epsd2": 3, "epsd": 3, "cdt": 2, "sds": 4}
 
 #: signs of the history columns seen from the other particle (a list entry (i, j) stored as (j, i)):
 #: the tangential spring and the epsd torque flip; sds' psi is unchanged (w_rel and n both flip)
-HISTORY_FLIP = {"epsd2": (-1.0, -1.0, -1.0), "epsd": (-1.0, -1.0, -1.0), "cdt": (-1.0, -1.0),
-                "sds": (-1.0, -1.0, 1.0, 1.0)}
+HISTORY_FLIP = {
+    "epsd2": (-1.0, -1.0, -1.0),
+    "epsd": (-1.0, -1.0, -1.0),
+    "cdt": (-1.0, -1.0),
+    "sds": (-1.0, -1.0, 1.0, 1.0),
+}
 
 
 @njit(inline="always")
@@ -172,8 +176,32 @@ def cdt_torque(w, reff, kn, deltan, mu_r):
 
 
 @njit(inline="always")
-def hooke_epsd2_liggghts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-                         kn, kt, gamman, gammat, mu, mu_r, dt, s0, s1, m, update):
+def hooke_epsd2_liggghts(
+    delx,
+    dely,
+    rsq,
+    radi,
+    radj,
+    vix,
+    viy,
+    vjx,
+    vjy,
+    wi,
+    wj,
+    mi,
+    mj,
+    kn,
+    kt,
+    gamman,
+    gammat,
+    mu,
+    mu_r,
+    dt,
+    s0,
+    s1,
+    m,
+    update,
+):
     """``hooke/stiffness tangential history rolling_friction epsd2`` for one touching pair.
 
     Parameters: those of :func:`gransim.contacts.hooke.hooke_history` (kn, kt N/m; gamman, gammat
@@ -184,34 +212,82 @@ def hooke_epsd2_liggghts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj
     sliding, rolling, fn, tr)`` (module docstring).
     """
     fx, fy, ti, tj, s0, s1, sliding, fn = hooke_history(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        kn, kt, gamman, gammat, mu, dt, s0, s1, update)
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+    )
     reff = radi * radj / (radi + radj)
     rt, m, capped = epsd2_torque(wi - wj, reff, kt, fn, mu_r, dt, m, update)
     return fx, fy, ti - rt, tj + rt, s0, s1, m, sliding, capped, fn, -rt
 
 
 @njit(inline="always")
-def hooke_epsd_liggghts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-                        kn, kt, gamman, gammat, mu, mu_r, eta_r, dt, s0, s1, m, update):
+def hooke_epsd_liggghts(
+    delx,
+    dely,
+    rsq,
+    radi,
+    radj,
+    vix,
+    viy,
+    vjx,
+    vjy,
+    wi,
+    wj,
+    mi,
+    mj,
+    kn,
+    kt,
+    gamman,
+    gammat,
+    mu,
+    mu_r,
+    eta_r,
+    dt,
+    s0,
+    s1,
+    m,
+    update,
+):
     """``hooke/stiffness tangential history rolling_friction epsd`` (eta_r:
     coefficientRollingViscousDamping); otherwise as :func:`hooke_epsd2_liggghts`."""
     fx, fy, ti, tj, s0, s1, sliding, fn = hooke_history(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        kn, kt, gamman, gammat, mu, dt, s0, s1, update)
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+    )
     reff = radi * radj / (radi + radj)
     rt, m, capped = epsd_torque(wi - wj, reff, kn, fn, mu_r, eta_r, mi, mj, radi, radj, dt, m, update)
     return fx, fy, ti - rt, tj + rt, s0, s1, m, sliding, capped, fn, -rt
 
 
 @njit(inline="always")
-def hooke_cdt_liggghts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-                       kn, kt, gamman, gammat, mu, mu_r, dt, s0, s1, update):
+def hooke_cdt_liggghts(
+    delx,
+    dely,
+    rsq,
+    radi,
+    radj,
+    vix,
+    viy,
+    vjx,
+    vjy,
+    wi,
+    wj,
+    mi,
+    mj,
+    kn,
+    kt,
+    gamman,
+    gammat,
+    mu,
+    mu_r,
+    dt,
+    s0,
+    s1,
+    update,
+):
     """``hooke/stiffness tangential history rolling_friction cdt``; returns ``(fx, fy, ti, tj, s0,
     s1, sliding, rolling, fn, tr)`` (no rolling history)."""
     fx, fy, ti, tj, s0, s1, sliding, fn = hooke_history(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        kn, kt, gamman, gammat, mu, dt, s0, s1, update)
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+    )
     reff = radi * radj / (radi + radj)
     deltan = (radi + radj) - math.sqrt(rsq)
     rt, capped = cdt_torque(wi - wj, reff, kn, deltan, mu_r)
@@ -219,22 +295,103 @@ def hooke_cdt_liggghts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, 
 
 
 @njit(inline="always")
-def hooke_sds_granular_lammps(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-                              kn, damp, damping, kt, xgammat, mu, kroll, gammaroll, muroll,
-                              dt, s0, s1, p0, p1, update):
+def hooke_sds_granular_lammps(
+    delx,
+    dely,
+    rsq,
+    radi,
+    radj,
+    vix,
+    viy,
+    vjx,
+    vjy,
+    wi,
+    wj,
+    mi,
+    mj,
+    kn,
+    damp,
+    damping,
+    kt,
+    xgammat,
+    mu,
+    kroll,
+    gammaroll,
+    muroll,
+    dt,
+    s0,
+    s1,
+    p0,
+    p1,
+    update,
+):
     """:func:`hooke_sds_parts` with the torques whole: returns ``(fx, fy, ti, tj, s0, s1, p0, p1,
     sliding, rolling, fn, tr)``, ti = -(r_i - delta/2)(n x F_t)_z + tr, tj = -(r_j - delta/2)(n x
     F_t)_z - tr, tr = R* (n x F_r)_z (arguments there)."""
     fx, fy, ti, tj, s0, s1, p0, p1, sliding, rolling, fn, tr = hooke_sds_parts(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        kn, damp, damping, kt, xgammat, mu, kroll, gammaroll, muroll, dt, s0, s1, p0, p1, update)
+        delx,
+        dely,
+        rsq,
+        radi,
+        radj,
+        vix,
+        viy,
+        vjx,
+        vjy,
+        wi,
+        wj,
+        mi,
+        mj,
+        kn,
+        damp,
+        damping,
+        kt,
+        xgammat,
+        mu,
+        kroll,
+        gammaroll,
+        muroll,
+        dt,
+        s0,
+        s1,
+        p0,
+        p1,
+        update,
+    )
     return fx, fy, ti + tr, tj - tr, s0, s1, p0, p1, sliding, rolling, fn, tr
 
 
 @njit(inline="always")
-def hooke_sds_parts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-                    kn, damp, damping, kt, xgammat, mu, kroll, gammaroll, muroll,
-                    dt, s0, s1, p0, p1, update):
+def hooke_sds_parts(
+    delx,
+    dely,
+    rsq,
+    radi,
+    radj,
+    vix,
+    viy,
+    vjx,
+    vjy,
+    wi,
+    wj,
+    mi,
+    mj,
+    kn,
+    damp,
+    damping,
+    kt,
+    xgammat,
+    mu,
+    kroll,
+    gammaroll,
+    muroll,
+    dt,
+    s0,
+    s1,
+    p0,
+    p1,
+    update,
+):
     """LAMMPS ``pair_style granular``, ``hooke KN DAMP damping MODEL tangential linear_history KT
     XGAMMAT MU rolling sds KROLL GAMMAROLL MUROLL`` (no twisting, no ``limit_damping``).
 
@@ -289,15 +446,15 @@ def hooke_sds_parts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi,
     Fncrit = abs(Fntot)
     Fscrit = mu * Fncrit
     damp_tangential = xgammat * damp_normal_prefactor
-    s0, s1, fs1, fs2, sliding = spring_dashpot_slider(s0, s1, nx, ny, vtr1, vtr2, kt, damp_tangential, Fscrit,
-                                                       dt, update)
+    s0, s1, fs1, fs2, sliding = spring_dashpot_slider(
+        s0, s1, nx, ny, vtr1, vtr2, kt, damp_tangential, Fscrit, dt, update
+    )
     # rolling resistance, pgr:545-617 (relrot = (0, 0, w_i - w_j))
     relrot3 = wi - wj
     vrl1 = Reff * -(relrot3 * ny)  # Reff*(relrot2*nz - relrot3*ny)
-    vrl2 = Reff * (relrot3 * nx)   # Reff*(relrot3*nx - relrot1*nz)
+    vrl2 = Reff * (relrot3 * nx)  # Reff*(relrot3*nx - relrot1*nz)
     Frcrit = muroll * Fncrit
-    p0, p1, fr1, fr2, rolling = spring_dashpot_slider(p0, p1, nx, ny, vrl1, vrl2, kroll, gammaroll, Frcrit,
-                                                      dt, update)
+    p0, p1, fr1, fr2, rolling = spring_dashpot_slider(p0, p1, nx, ny, vrl1, vrl2, kroll, gammaroll, Frcrit, dt, update)
     fx = nx * Fntot + fs1
     fy = ny * Fntot + fs2
     tor3 = nx * fs2 - ny * fs1
@@ -307,8 +464,9 @@ def hooke_sds_parts(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi,
     return fx, fy, ti, tj, s0, s1, p0, p1, sliding, rolling, Fntot, torroll3
 
 
-def rolling_stiffness(law: str, reff: float, kn: float = 0.0, kt: float = 0.0, mu_r: float = 0.0,
-                      kroll: float = 0.0) -> float:
+def rolling_stiffness(
+    law: str, reff: float, kn: float = 0.0, kt: float = 0.0, mu_r: float = 0.0, kroll: float = 0.0
+) -> float:
     """The rotational stiffness K (N m/rad) of ``law``: epsd2 kt R*^2, epsd 2.25 kn mu_r^2 R*^2,
     sds kroll R*^2 (M = K theta below the cap); cdt has none (returns 0)."""
     if law == "epsd2":
@@ -320,6 +478,7 @@ def rolling_stiffness(law: str, reff: float, kn: float = 0.0, kt: float = 0.0, m
     if law == "cdt":
         return 0.0
     from ..errors import InputError
+
     raise InputError(f"law: expected one of epsd2, epsd, cdt, sds, got {law!r}")
 
 
@@ -333,17 +492,40 @@ HookeEpsdLiggghts = namedtuple("HookeEpsdLiggghts", ["kn", "kt", "gamma_n", "gam
 HookeCdtLiggghts = namedtuple("HookeCdtLiggghts", ["kn", "kt", "gamma_n", "gamma_t", "mu", "mu_r"])
 #: LAMMPS ``granular hooke KN DAMP damping MODEL tangential linear_history KT XGAMMAT MU rolling sds
 #: KROLL GAMMAROLL MUROLL`` (:func:`hooke_sds_granular_lammps`; damping = ``DAMPING_*`` as a float)
-HookeSdsLammps = namedtuple("HookeSdsLammps", ["kn", "damp", "damping", "kt", "xgammat", "mu", "kroll",
-                                               "gammaroll", "muroll"])
+HookeSdsLammps = namedtuple(
+    "HookeSdsLammps", ["kn", "damp", "damping", "kt", "xgammat", "mu", "kroll", "gammaroll", "muroll"]
+)
 
 
 @njit(inline="always")
 def epsd2_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     """Pair function of :class:`HookeEpsd2Liggghts`: hist[e] = (xi_x, xi_y, M_old)."""
     fx, fy, ti, tj, s0, s1, m, sl, _, fn, _ = hooke_epsd2_liggghts(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, law.mu_r, dt, hist[e, 0], hist[e, 1], hist[e, 2],
-        update)
+        delx,
+        dely,
+        rsq,
+        radi,
+        radj,
+        vix,
+        viy,
+        vjx,
+        vjy,
+        wi,
+        wj,
+        mi,
+        mj,
+        law.kn,
+        law.kt,
+        law.gamma_n,
+        law.gamma_t,
+        law.mu,
+        law.mu_r,
+        dt,
+        hist[e, 0],
+        hist[e, 1],
+        hist[e, 2],
+        update,
+    )
     hist[e, 0] = s0
     hist[e, 1] = s1
     hist[e, 2] = m
@@ -354,9 +536,32 @@ def epsd2_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi
 def epsd_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     """Pair function of :class:`HookeEpsdLiggghts`: hist[e] = (xi_x, xi_y, M_old)."""
     fx, fy, ti, tj, s0, s1, m, sl, _, fn, _ = hooke_epsd_liggghts(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, law.mu_r, law.eta_r, dt, hist[e, 0], hist[e, 1],
-        hist[e, 2], update)
+        delx,
+        dely,
+        rsq,
+        radi,
+        radj,
+        vix,
+        viy,
+        vjx,
+        vjy,
+        wi,
+        wj,
+        mi,
+        mj,
+        law.kn,
+        law.kt,
+        law.gamma_n,
+        law.gamma_t,
+        law.mu,
+        law.mu_r,
+        law.eta_r,
+        dt,
+        hist[e, 0],
+        hist[e, 1],
+        hist[e, 2],
+        update,
+    )
     hist[e, 0] = s0
     hist[e, 1] = s1
     hist[e, 2] = m
@@ -367,8 +572,30 @@ def epsd_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi,
 def cdt_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     """Pair function of :class:`HookeCdtLiggghts`: hist[e] = (xi_x, xi_y)."""
     fx, fy, ti, tj, s0, s1, sl, _, fn, _ = hooke_cdt_liggghts(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, law.mu_r, dt, hist[e, 0], hist[e, 1], update)
+        delx,
+        dely,
+        rsq,
+        radi,
+        radj,
+        vix,
+        viy,
+        vjx,
+        vjy,
+        wi,
+        wj,
+        mi,
+        mj,
+        law.kn,
+        law.kt,
+        law.gamma_n,
+        law.gamma_t,
+        law.mu,
+        law.mu_r,
+        dt,
+        hist[e, 0],
+        hist[e, 1],
+        update,
+    )
     hist[e, 0] = s0
     hist[e, 1] = s1
     return fx, fy, ti, tj, sl, fn
@@ -379,9 +606,35 @@ def sds_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, 
     """Pair function of :class:`HookeSdsLammps`: hist[e] = (xi_x, xi_y, psi_x, psi_y). Returns the
     tangential and the rolling torques apart (``split_torque``: LAMMPS' order of accumulation)."""
     fx, fy, ti, tj, s0, s1, p0, p1, sl, _, fn, tr = hooke_sds_parts(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.kn, law.damp, law.damping, law.kt, law.xgammat, law.mu, law.kroll, law.gammaroll, law.muroll,
-        dt, hist[e, 0], hist[e, 1], hist[e, 2], hist[e, 3], update)
+        delx,
+        dely,
+        rsq,
+        radi,
+        radj,
+        vix,
+        viy,
+        vjx,
+        vjy,
+        wi,
+        wj,
+        mi,
+        mj,
+        law.kn,
+        law.damp,
+        law.damping,
+        law.kt,
+        law.xgammat,
+        law.mu,
+        law.kroll,
+        law.gammaroll,
+        law.muroll,
+        dt,
+        hist[e, 0],
+        hist[e, 1],
+        hist[e, 2],
+        hist[e, 3],
+        update,
+    )
     hist[e, 0] = s0
     hist[e, 1] = s1
     hist[e, 2] = p0
@@ -400,7 +653,8 @@ def _spring_energy(law, overlap, hist):
     """kn delta^2/2 + kt |xi|^2/2 summed (J), xi = hist[:, 0:2]."""
     h = np.asarray(hist, np.float64)
     return 0.5 * law.kn * float(np.sum(np.asarray(overlap, np.float64) ** 2)) + 0.5 * law.kt * float(
-        np.sum(h[:, :2] ** 2))
+        np.sum(h[:, :2] ** 2)
+    )
 
 
 def cdt_energy(law, overlap, hist, radi=None, radj=None) -> float:
@@ -438,10 +692,15 @@ def epsd_energy(law, overlap, hist, radi, radj) -> float:
     return _spring_energy(law, overlap, hist) + float(np.sum(ur))
 
 
-register_law(HookeEpsd2Liggghts, epsd2_pair, HISTORY_WIDTH["epsd2"], flip=HISTORY_FLIP["epsd2"],
-             energy=epsd_energy)
-register_law(HookeEpsdLiggghts, epsd_pair, HISTORY_WIDTH["epsd"], flip=HISTORY_FLIP["epsd"],
-             energy=epsd_energy)
+register_law(HookeEpsd2Liggghts, epsd2_pair, HISTORY_WIDTH["epsd2"], flip=HISTORY_FLIP["epsd2"], energy=epsd_energy)
+register_law(HookeEpsdLiggghts, epsd_pair, HISTORY_WIDTH["epsd"], flip=HISTORY_FLIP["epsd"], energy=epsd_energy)
 register_law(HookeCdtLiggghts, cdt_pair, HISTORY_WIDTH["cdt"], flip=HISTORY_FLIP["cdt"], energy=cdt_energy)
-register_law(HookeSdsLammps, sds_pair, HISTORY_WIDTH["sds"], apart=history_reset, flip=HISTORY_FLIP["sds"],
-             energy=sds_energy, split_torque=True)
+register_law(
+    HookeSdsLammps,
+    sds_pair,
+    HISTORY_WIDTH["sds"],
+    apart=history_reset,
+    flip=HISTORY_FLIP["sds"],
+    energy=sds_energy,
+    split_torque=True,
+)

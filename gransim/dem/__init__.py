@@ -28,7 +28,30 @@ def __getattr__(name):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["AxisControl", "BiaxialSettings", "DEMEngine", "DEMSettings", "FastEngine", "Loading", "OutputSettings", "Phase",
-           "PrescribedBox", "ShearEngine", "ShearLoading", "contact_time", "damping_ratio", "default_settings",
-           "fingerprint", "inertial_number", "plot_stress_strain", "read_run", "read_snapshot", "require_complete",
-           "run_biaxial", "run_phases", "simple_shear", "snapshot_to_vtu", "stability_limit"]
+__all__ = [
+    "AxisControl",
+    "BiaxialSettings",
+    "DEMEngine",
+    "DEMSettings",
+    "FastEngine",
+    "Loading",
+    "OutputSettings",
+    "Phase",
+    "PrescribedBox",
+    "ShearEngine",
+    "ShearLoading",
+    "contact_time",
+    "damping_ratio",
+    "default_settings",
+    "fingerprint",
+    "inertial_number",
+    "plot_stress_strain",
+    "read_run",
+    "read_snapshot",
+    "require_complete",
+    "run_biaxial",
+    "run_phases",
+    "simple_shear",
+    "snapshot_to_vtu",
+    "stability_limit",
+]

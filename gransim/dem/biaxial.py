@@ -68,12 +68,22 @@ DEFAULT_INERTIAL_NUMBER = 5e-5
 DEFAULT_MU = 0.5
 
 
-def default_settings(packing: Packing, kn: float = DEFAULT_KN, damping_ratio: float = 0.3,
-                     steps_per_contact: float = 50.0, strain_rate: float | None = None,
-                     strain: float = 0.005, flavour: str = "liggghts", *, mu: float = DEFAULT_MU,
-                     kt_ratio: float = 1.0, confining: float | None = None,
-                     inertial_number: float | None = None, consolidation_steps: int = 200000,
-                     consolidation_tol: float = 0.01) -> tuple[DEMSettings, BiaxialSettings]:
+def default_settings(
+    packing: Packing,
+    kn: float = DEFAULT_KN,
+    damping_ratio: float = 0.3,
+    steps_per_contact: float = 50.0,
+    strain_rate: float | None = None,
+    strain: float = 0.005,
+    flavour: str = "liggghts",
+    *,
+    mu: float = DEFAULT_MU,
+    kt_ratio: float = 1.0,
+    confining: float | None = None,
+    inertial_number: float | None = None,
+    consolidation_steps: int = 200000,
+    consolidation_tol: float = 0.01,
+) -> tuple[DEMSettings, BiaxialSettings]:
     """Settings of the protocol from its physical parameters; every derived quantity is derived
     from the final values (a given ``confining`` sets the strain rate of the default inertial
     number, not the default pressure).
@@ -107,27 +117,38 @@ def default_settings(packing: Packing, kn: float = DEFAULT_KN, damping_ratio: fl
     mu = as_positive_float(mu, "mu", allow_zero=True)
     kt_ratio = as_positive_float(kt_ratio, "kt_ratio", allow_zero=True)
     if strain_rate is not None and inertial_number is not None:
-        raise InputError(f"strain_rate {strain_rate!r} and inertial_number {inertial_number!r}: give at "
-                         "most one (the rate follows from the inertial number and the confining stress)")
+        raise InputError(
+            f"strain_rate {strain_rate!r} and inertial_number {inertial_number!r}: give at "
+            "most one (the rate follows from the inertial number and the confining stress)"
+        )
     p = CONFINING_PER_KN * kn if confining is None else as_positive_float(confining, "confining")
     if strain_rate is None:
-        i_num = DEFAULT_INERTIAL_NUMBER if inertial_number is None else as_positive_float(
-            inertial_number, "inertial_number")
+        i_num = (
+            DEFAULT_INERTIAL_NUMBER
+            if inertial_number is None
+            else as_positive_float(inertial_number, "inertial_number")
+        )
         strain_rate = i_num / (packing.d50 * np.sqrt(packing.density / p))
     strain_rate = as_positive_float(strain_rate, "strain_rate")
     m = np.median(packing.masses)
     gamma = 2.0 * damping_ratio * np.sqrt(kn / (0.5 * m))
     dt = contact_time(packing, kn) / steps_per_contact
-    dem = DEMSettings(kn=kn, kt=kt_ratio * kn, gamma_n=gamma, gamma_t=gamma, mu=mu, dt=dt,
-                      skin=0.05 * packing.d50, flavour=flavour)
-    bi = BiaxialSettings(confining=p, strain=strain, strain_rate=strain_rate, servo_gain=0.01 / (kn * dt),
-                         consolidation_steps=consolidation_steps, consolidation_tol=consolidation_tol)
+    dem = DEMSettings(
+        kn=kn, kt=kt_ratio * kn, gamma_n=gamma, gamma_t=gamma, mu=mu, dt=dt, skin=0.05 * packing.d50, flavour=flavour
+    )
+    bi = BiaxialSettings(
+        confining=p,
+        strain=strain,
+        strain_rate=strain_rate,
+        servo_gain=0.01 / (kn * dt),
+        consolidation_steps=consolidation_steps,
+        consolidation_tol=consolidation_tol,
+    )
     return dem, bi
 
 
 #: parameters of a law that default to the protocol's Hooke settings when not given
-_HOOKE_DEFAULTS = {"kn": "kn", "kt": "kt", "gamma_n": "gamma_n", "gamma_t": "gamma_t", "mu": "mu",
-                   "friction": "mu"}
+_HOOKE_DEFAULTS = {"kn": "kn", "kt": "kt", "gamma_n": "gamma_n", "gamma_t": "gamma_t", "mu": "mu", "friction": "mu"}
 
 
 def hertz_equivalent_stiffness(packing: Packing, name: str, params: dict) -> float:
@@ -145,8 +166,10 @@ def hertz_equivalent_stiffness(packing: Packing, name: str, params: dict) -> flo
         E = params.get("youngs_modulus")
         nu = params.get("poisson_ratio")
         if E is None or nu is None:
-            raise InputError(f"law {name}: expected parameters youngs_modulus and poisson_ratio "
-                             "(--law-param youngs_modulus=... --law-param poisson_ratio=...)")
+            raise InputError(
+                f"law {name}: expected parameters youngs_modulus and poisson_ratio "
+                "(--law-param youngs_modulus=... --law-param poisson_ratio=...)"
+            )
         E = check_youngs(E, f"law {name}: youngs_modulus")
         nu = check_poisson(nu, f"law {name}: poisson_ratio")
         y = effective_youngs(E, nu, E, nu)
@@ -173,11 +196,13 @@ def law_settings(packing: Packing, name: str, params: dict | None = None, **defa
     params = dict(params or {})
     code = law_code(name)  # InputError naming the known laws
     defaults.pop("flavour", None)
-    for k in ("mu", "friction"):      # the law's friction is the protocol's (one value, recorded once)
+    for k in ("mu", "friction"):  # the law's friction is the protocol's (one value, recorded once)
         if k in params:
             if "mu" in defaults and defaults["mu"] is not None and float(defaults["mu"]) != params[k]:
-                raise InputError(f"law {name}: {k} = {params[k]!r} and mu = {defaults['mu']!r} disagree; "
-                                 "give the friction coefficient once")
+                raise InputError(
+                    f"law {name}: {k} = {params[k]!r} and mu = {defaults['mu']!r} disagree; "
+                    "give the friction coefficient once"
+                )
             defaults["mu"] = params[k]
     if name.startswith("hertz"):
         defaults["kn"] = hertz_equivalent_stiffness(packing, name, params)
@@ -199,17 +224,31 @@ def biaxial_phases(dem: DEMSettings, bi: BiaxialSettings) -> list[Phase]:
     """The two phases (consolidation, compression) of the protocol."""
     p = bi.confining
     servo = AxisControl("servo", target=p, gain=bi.servo_gain)
-    cons = Phase("consolidation", Loading(x=servo, y=servo), int(bi.consolidation_steps),
-                 stop_tol=bi.consolidation_tol, check_every=int(bi.check_every))
+    cons = Phase(
+        "consolidation",
+        Loading(x=servo, y=servo),
+        int(bi.consolidation_steps),
+        stop_tol=bi.consolidation_tol,
+        check_every=int(bi.check_every),
+    )
     n = int(np.ceil(bi.strain / (bi.strain_rate * dem.dt)))
     comp = Phase("compression", Loading(x=servo, y=AxisControl("rate", rate=-bi.strain_rate)), n)
     return [cons, comp]
 
 
-def run_biaxial(packing: Packing, dem: DEMSettings, bi: BiaxialSettings, out_path,
-                output: OutputSettings | None = None, resume: bool = False, threads: int | None = None,
-                show_progress: bool = True, allow_unsettled: bool = False, law=None,
-                law_options: dict | None = None) -> dict:
+def run_biaxial(
+    packing: Packing,
+    dem: DEMSettings,
+    bi: BiaxialSettings,
+    out_path,
+    output: OutputSettings | None = None,
+    resume: bool = False,
+    threads: int | None = None,
+    show_progress: bool = True,
+    allow_unsettled: bool = False,
+    law=None,
+    law_options: dict | None = None,
+) -> dict:
     """Run the biaxial test; returns a summary (inertial number, indentation, stresses, peak).
 
     A consolidation that does not settle within ``bi.consolidation_steps`` stops the run
@@ -221,8 +260,19 @@ def run_biaxial(packing: Packing, dem: DEMSettings, bi: BiaxialSettings, out_pat
     meta = {"biaxial": asdict(bi)}
     if law_options is not None:
         meta["law_options"] = {"name": str(law_options["name"]), "params": dict(law_options["params"])}
-    run_phases(packing, dem, phases, out_path, output=output, resume=resume, threads=threads,
-               show_progress=show_progress, metadata=meta, allow_unsettled=allow_unsettled, law=law)
+    run_phases(
+        packing,
+        dem,
+        phases,
+        out_path,
+        output=output,
+        resume=resume,
+        threads=threads,
+        show_progress=show_progress,
+        metadata=meta,
+        allow_unsettled=allow_unsettled,
+        law=law,
+    )
     return summarize(out_path)
 
 
@@ -234,23 +284,28 @@ def summarize(path) -> dict:
     bi = run.settings.get("biaxial", {})
     p = bi.get("confining", float("nan"))
     rate = bi.get("strain_rate", float("nan"))
-    out = {"n_particles": run.packing.n, "complete": run.complete,
-           "unsettled_phases": ", ".join(u["name"] for u in run.unsettled_phases) or "none",
-           "inertial_number": inertial_number(run.packing, rate, p) if bi else float("nan"),
-           "consolidation_steps": int(s["step"][s["phase"] == 0].max())}
+    out = {
+        "n_particles": run.packing.n,
+        "complete": run.complete,
+        "unsettled_phases": ", ".join(u["name"] for u in run.unsettled_phases) or "none",
+        "inertial_number": inertial_number(run.packing, rate, p) if bi else float("nan"),
+        "consolidation_steps": int(s["step"][s["phase"] == 0].max()),
+    }
     if np.any(comp):
         st = -s["stress"][comp]  # compression positive: the confining stress p is a positive number
         eps = run.strain()[comp]
         ratio = st[:, 1, 1] / st[:, 0, 0]
         k = int(np.argmax(ratio))
-        out.update({
-            "compression_steps": int(comp.sum()),
-            "axial_strain": float(-(eps[-1, 1] - eps[0, 1])),
-            "sigma11_mean_rel_error": float(np.mean(np.abs(st[:, 0, 0] / p - 1))),
-            "stress_ratio_peak": float(ratio[k]),
-            "strain_at_peak": float(-(eps[k, 1] - eps[0, 1])),
-            "mean_overlap_over_d50_start": float(s["mean_overlap"][comp][0] / run.packing.d50),
-            "mean_overlap_over_d50_end": float(s["mean_overlap"][comp][-1] / run.packing.d50),
-            "coordination_start": float(2 * s["n_contacts"][comp][0] / run.packing.n),
-        })
+        out.update(
+            {
+                "compression_steps": int(comp.sum()),
+                "axial_strain": float(-(eps[-1, 1] - eps[0, 1])),
+                "sigma11_mean_rel_error": float(np.mean(np.abs(st[:, 0, 0] / p - 1))),
+                "stress_ratio_peak": float(ratio[k]),
+                "strain_at_peak": float(-(eps[k, 1] - eps[0, 1])),
+                "mean_overlap_over_d50_start": float(s["mean_overlap"][comp][0] / run.packing.d50),
+                "mean_overlap_over_d50_end": float(s["mean_overlap"][comp][-1] / run.packing.d50),
+                "coordination_start": float(2 * s["n_contacts"][comp][0] / run.packing.n),
+            }
+        )
     return out

@@ -110,8 +110,7 @@ def _check_box(box, C):
         raise InputError(f"box: expected finite lo < hi, got lo {lo.tolist()}, hi {hi.tolist()}")
     L = np.array([C[0, 0], C[1, 1]], np.float64)
     if np.any(np.abs((hi - lo) - L) > 1e-12 * L):
-        raise InputError(f"box: hi - lo = {(hi - lo).tolist()} m differs from the cell's side lengths "
-                         f"{L.tolist()} m")
+        raise InputError(f"box: hi - lo = {(hi - lo).tolist()} m differs from the cell's side lengths {L.tolist()} m")
     return lo, hi
 
 
@@ -142,12 +141,22 @@ class DEMEngine:
     those objects' arrays).
     """
 
-    def __init__(self, packing: Packing, settings: DEMSettings, velocities=None, spins=None,
-                 threads: int | None = None, check_dt: bool = True, box=None, law=None):
+    def __init__(
+        self,
+        packing: Packing,
+        settings: DEMSettings,
+        velocities=None,
+        spins=None,
+        threads: int | None = None,
+        check_dt: bool = True,
+        box=None,
+        law=None,
+    ):
         C = packing.cell
         if C[0, 1] != 0 or C[1, 0] != 0:
-            raise InputError("packing.cell: the DEM engine needs an orthogonal cell "
-                             f"(off-diagonal entries {C[0, 1]!r}, {C[1, 0]!r})")
+            raise InputError(
+                f"packing.cell: the DEM engine needs an orthogonal cell (off-diagonal entries {C[0, 1]!r}, {C[1, 0]!r})"
+            )
         self.packing = packing
         self.settings = s = settings
         n = packing.n
@@ -155,16 +164,20 @@ class DEMEngine:
             lim = stability_limit(packing, s)
             if s.dt > lim:
                 z = damping_ratio(packing, s)
-                raise InputError(f"dt = {s.dt:.4g} s is above the stability limit {lim:.4g} s "
-                                 f"(contact time pi sqrt(m_eff/k) = {contact_time(packing, max(s.kn, s.kt)):.4g}"
-                                 f" s of the two lightest disks, / {STEPS_PER_CONTACT_MIN:g}, times "
-                                 f"sqrt(1 + zeta^2) - zeta = {np.sqrt(1 + z * z) - z:.4g} for the "
-                                 f"damping ratio "
-                                 f"zeta = {z:.4g})")
+                raise InputError(
+                    f"dt = {s.dt:.4g} s is above the stability limit {lim:.4g} s "
+                    f"(contact time pi sqrt(m_eff/k) = {contact_time(packing, max(s.kn, s.kt)):.4g}"
+                    f" s of the two lightest disks, / {STEPS_PER_CONTACT_MIN:g}, times "
+                    f"sqrt(1 + zeta^2) - zeta = {np.sqrt(1 + z * z) - z:.4g} for the "
+                    f"damping ratio "
+                    f"zeta = {z:.4g})"
+                )
         cut = 2 * 2.0 * float(packing.radii.max()) + 2 * s.skin
         if min(C[0, 0], C[1, 1]) <= cut:
-            raise InputError(f"packing.cell: side lengths {C[0, 0]:.4g}, {C[1, 1]:.4g} m must exceed "
-                             f"2 (2 r_max + skin) = {cut:.4g} m (one periodic image per pair)")
+            raise InputError(
+                f"packing.cell: side lengths {C[0, 0]:.4g}, {C[1, 1]:.4g} m must exceed "
+                f"2 (2 r_max + skin) = {cut:.4g} m (one periodic image per pair)"
+            )
         r = np.ascontiguousarray(packing.radii, np.float64)
         # ((pi r) r) rho: the order LIGGGHTS uses reading the data file (Packing.masses may differ
         # in the last bit)
@@ -195,8 +208,14 @@ class DEMEngine:
         # numba threads of this engine's kernels, set around each call and restored after
         self._threads = check_threads(threads) if self._parallel else None
         self.sc = K.Scratch(np.zeros(4), np.zeros((n, 4)), np.zeros((n, 2)))
-        self.nb = self._neighbours(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros((0, 2), np.int64),
-                                   np.zeros(0, np.bool_), np.zeros((0, self._width)), x.copy())
+        self.nb = self._neighbours(
+            np.zeros(0, np.int32),
+            np.zeros(0, np.int32),
+            np.zeros((0, 2), np.int64),
+            np.zeros(0, np.bool_),
+            np.zeros((0, self._width)),
+            x.copy(),
+        )
         self._build_step = 0
         self._setup()
         self._reset_energy_budget()
@@ -224,28 +243,44 @@ class DEMEngine:
                 in_start, in_e = K.incoming(b, both, n)
         else:
             in_start, in_e = np.zeros(n + 1, np.int64), np.zeros(0, np.int64)
-        return K.Neighbours(a, b, shift, np.ascontiguousarray(shift[:, 0], np.float64),
-                            np.ascontiguousarray(shift[:, 1], np.float64), both, hist, start, in_start, in_e,
-                            xhold, np.zeros(a.size, np.bool_), np.zeros((a.size, 2)), np.zeros(a.size))
+        return K.Neighbours(
+            a,
+            b,
+            shift,
+            np.ascontiguousarray(shift[:, 0], np.float64),
+            np.ascontiguousarray(shift[:, 1], np.float64),
+            both,
+            hist,
+            start,
+            in_start,
+            in_e,
+            xhold,
+            np.zeros(a.size, np.bool_),
+            np.zeros((a.size, 2)),
+            np.zeros(a.size),
+        )
 
     def _rebuild(self, carry: bool):
         bad = K.pbc_wrap(self.x, self.lo, self.hi)
         if bad >= 0:
-            raise SimulationError(f"step {self.step}: particle {bad} lost (at {self.x[bad].tolist()}, "
-                                  f"box {self.lo.tolist()}..{self.hi.tolist()})")
+            raise SimulationError(
+                f"step {self.step}: particle {bad} lost (at {self.x[bad].tolist()}, "
+                f"box {self.lo.tolist()}..{self.hi.tolist()})"
+            )
         L = self.box_lengths
-        a, b, esx, esy, both, selfimg = K.build_list_liggghts(self.x, self.r, self.lo, self.hi,
-                                                              self.settings.skin)
+        a, b, esx, esy, both, selfimg = K.build_list_liggghts(self.x, self.r, self.lo, self.hi, self.settings.skin)
         if selfimg != -1:
-            raise SimulationError(f"step {self.step}: particle {selfimg} is near its own image (or too many ghosts); "
-                                  "the cell is too small")
+            raise SimulationError(
+                f"step {self.step}: particle {selfimg} is near its own image (or too many ghosts); "
+                "the cell is too small"
+            )
         hist = np.zeros((a.size, self._width))
         old = self.nb
         if carry and old.a.size:
-            K.hand_over_history(self.x, self.r, a, b, esx, esy, L[0], L[1], old.start, old.b, old.both,
-                                old.hist, hist, self._flip)
-        self.nb = self._neighbours(a, b, np.stack([esx, esy], axis=1).astype(np.int64), both, hist,
-                                   self.x.copy())
+            K.hand_over_history(
+                self.x, self.r, a, b, esx, esy, L[0], L[1], old.start, old.b, old.both, old.hist, hist, self._flip
+            )
+        self.nb = self._neighbours(a, b, np.stack([esx, esy], axis=1).astype(np.int64), both, hist, self.x.copy())
         self.box.lo_hold[:] = self.lo
         self.box.hi_hold[:] = self.hi
         self._build_step = self.step
@@ -256,8 +291,7 @@ class DEMEngine:
         L = self.box_lengths
         if self._parallel:
             with num_threads(self._threads), disk_cache_off(self._no_cache):
-                K.forces_threaded(self.p, self.nb, self.law, L[0], L[1], dt, update, self.sc.pvir,
-                                  self.sc.pcont, True)
+                K.forces_threaded(self.p, self.nb, self.law, L[0], L[1], dt, update, self.sc.pvir, self.sc.pcont, True)
             self.virial[:] = self.sc.pvir.sum(axis=0)
             nc, so = self.sc.pcont.sum(axis=0)
         else:
@@ -300,8 +334,10 @@ class DEMEngine:
             raise SimulationError(f"step {step1 + k}: the kinetic energy is not finite{who}")
         L_old = np.vstack([L_before[None], lengths[:-1]])
         area = lengths[:, 0] * lengths[:, 1]
-        dw = -(stress[:, 0] * area * (lengths[:, 0] - L_old[:, 0]) / L_old[:, 0]
-               + stress[:, 1] * area * (lengths[:, 1] - L_old[:, 1]) / L_old[:, 1])
+        dw = -(
+            stress[:, 0] * area * (lengths[:, 0] - L_old[:, 0]) / L_old[:, 0]
+            + stress[:, 1] * area * (lengths[:, 1] - L_old[:, 1]) / L_old[:, 1]
+        )
         work = self._work + np.cumsum(np.abs(dw))
         budget = KINETIC_ENERGY_FACTOR * (self._energy0 + work)
         over = np.flatnonzero(ke > budget)
@@ -312,7 +348,8 @@ class DEMEngine:
                 f"times the energy the run has had ({self._energy0:.4g} J kinetic + elastic at the start, "
                 f"{work[k]:.4g} J gross work of the cell; damping and friction only dissipate): the "
                 f"integration is unstable (time step {self.settings.dt:.4g} s too large for the stiffness "
-                "and damping?)")
+                "and damping?)"
+            )
         if work.size:
             self._work = float(work[-1])
 
@@ -328,7 +365,8 @@ class DEMEngine:
                 f"skins since "
                 f"the neighbour build of step {self._build_step}, more than a skin ({skin:.4g} m) in "
                 f"one step "
-                f"(velocity {self.v[i].tolist()} m/s, dt {self.settings.dt:.4g} s)")
+                f"(velocity {self.v[i].tolist()} m/s, dt {self.settings.dt:.4g} s)"
+            )
 
     def _setup(self):
         """LIGGGHTS ``run`` set-up: wrap, build (springs zero), forces without spring increment."""
@@ -358,7 +396,8 @@ class DEMEngine:
         Returns
         -------
         dict with ``step`` (n,), ``stress`` (n, 2, 2) (Love stress, compression positive, area of
-        the box after the step), ``lengths`` (n, 2), ``n_contacts`` (n,), ``mean_overlap`` (n,), ``kinetic_energy`` (n,),
+        the box after the step), ``lengths`` (n, 2), ``n_contacts`` (n,), ``mean_overlap`` (n,),
+        ``kinetic_energy`` (n,),
         ``virial`` (n, 4) (xx, yy, xy, yx: sum d_a f_b, N m in 2D; stress times area).
 
         Raises
@@ -376,8 +415,14 @@ class DEMEngine:
         lo0 = np.array(phase_box0[0], np.float64)
         hi0 = np.array(phase_box0[1], np.float64)
         ctl = _control(loading, self.step, nsteps, lo0, hi0, phase_step0)
-        out = K.Series(np.zeros((nsteps, 4)), np.zeros((nsteps, 2)), np.zeros(nsteps), np.zeros(nsteps),
-                       np.zeros(nsteps), np.zeros((nsteps, 4)))
+        out = K.Series(
+            np.zeros((nsteps, 4)),
+            np.zeros((nsteps, 2)),
+            np.zeros(nsteps),
+            np.zeros(nsteps),
+            np.zeros(nsteps),
+            np.zeros((nsteps, 4)),
+        )
         out_stress, out_L, out_nc, out_ov, out_ke, out_vir = out
         done = 0
         resume = False
@@ -386,11 +431,29 @@ class DEMEngine:
             L_before = self.box_lengths.copy()
             with num_threads(self._threads), disk_cache_off(self._no_cache):
                 k, status, bad = K.run_block(
-                    self.p, self.nb, self.box, ctl, self.law, self.sc, K.Series(*(a[done:] for a in out)), s.dt,
-                    s.skin, self._clamp, self._parallel, self.step, nsteps - done, resume)
+                    self.p,
+                    self.nb,
+                    self.box,
+                    ctl,
+                    self.law,
+                    self.sc,
+                    K.Series(*(a[done:] for a in out)),
+                    s.dt,
+                    s.skin,
+                    self._clamp,
+                    self._parallel,
+                    self.step,
+                    nsteps - done,
+                    resume,
+                )
             if k:
-                self._check_divergence(self.step + 1, out_ke[done:done + k], out_stress[done:done + k],
-                                       out_L[done:done + k], L_before)
+                self._check_divergence(
+                    self.step + 1,
+                    out_ke[done : done + k],
+                    out_stress[done : done + k],
+                    out_L[done : done + k],
+                    L_before,
+                )
             done += k
             self.step += k
             resume = False
@@ -401,8 +464,10 @@ class DEMEngine:
                 self.step -= 1
                 resume = True
             elif status == 2:
-                raise SimulationError(f"step {self.step + 1}: particle {bad} has a non-finite position "
-                                      f"{self.x[bad].tolist()} (velocity {self.v[bad].tolist()})")
+                raise SimulationError(
+                    f"step {self.step + 1}: particle {bad} has a non-finite position "
+                    f"{self.x[bad].tolist()} (velocity {self.v[bad].tolist()})"
+                )
             elif status == 3:
                 raise SimulationError(f"step {self.step + 1}: the cell collapsed")
         if nsteps:
@@ -414,15 +479,22 @@ class DEMEngine:
         st[:, 1, 1] = out_stress[:, 1]
         st[:, 0, 1] = out_stress[:, 2]
         st[:, 1, 0] = out_stress[:, 3]
-        return {"step": np.arange(step_start + 1, step_start + nsteps + 1), "stress": st, "lengths": out_L,
-                "n_contacts": np.rint(out_nc).astype(np.int64), "mean_overlap": out_ov, "kinetic_energy": out_ke,
-                "virial": out_vir}
+        return {
+            "step": np.arange(step_start + 1, step_start + nsteps + 1),
+            "stress": st,
+            "lengths": out_L,
+            "n_contacts": np.rint(out_nc).astype(np.int64),
+            "mean_overlap": out_ov,
+            "kinetic_energy": out_ke,
+            "virial": out_vir,
+        }
 
     # ------------------------------------------------------------------ diagnostics
     def kinetic_energy(self) -> float:
         """Translational + rotational (I = m r^2/2) kinetic energy (J)."""
-        return float(0.5 * np.sum(self.m * np.einsum("ij,ij->i", self.v, self.v))
-                     + 0.25 * np.sum(self.m * self.r**2 * self.w**2))
+        return float(
+            0.5 * np.sum(self.m * np.einsum("ij,ij->i", self.v, self.v)) + 0.25 * np.sum(self.m * self.r**2 * self.w**2)
+        )
 
     def _touching(self):
         """Entries of the touching pairs, each physical contact once (a < b), and their overlaps (m)."""
@@ -442,8 +514,15 @@ class DEMEngine:
         e, ov = self._touching()
         # entry (a, b, s): b's image is x_b + s L, so l_ab = x_b + C s - x_a (the schema's shift)
         spring = nb.hist[e].copy() if self._width == 2 else np.zeros((e.size, 2))
-        return {"i": nb.a[e].astype(np.int64), "j": nb.b[e].astype(np.int64), "shift": nb.shift[e].astype(np.int64),
-                "force": -nb.ef[e], "overlap": ov, "tangential_spring": spring, "sliding": nb.slide[e].copy()}
+        return {
+            "i": nb.a[e].astype(np.int64),
+            "j": nb.b[e].astype(np.int64),
+            "shift": nb.shift[e].astype(np.int64),
+            "force": -nb.ef[e],
+            "overlap": ov,
+            "tangential_spring": spring,
+            "sliding": nb.slide[e].copy(),
+        }
 
     def state_arrays(self) -> dict:
         """Everything needed to continue bit for bit (checkpoint): the saved fields of the state
@@ -456,15 +535,31 @@ class DEMEngine:
         got = {name: np.array(arrays[name], dtype) for name, (_, _, dtype) in CHECKPOINT.items()}
         n = self.packing.n
         p = self.p
-        self.p = K.Particles(got["positions"].reshape(n, 2), got["velocities"].reshape(n, 2),
-                             got["spins"].reshape(n), got["forces"].reshape(n, 2), got["torques"].reshape(n),
-                             p.m, p.r)
-        self.box = K.Box(got["box_lo"].reshape(2), got["box_hi"].reshape(2), got["box_lo_hold"].reshape(2),
-                         got["box_hi_hold"].reshape(2))
+        self.p = K.Particles(
+            got["positions"].reshape(n, 2),
+            got["velocities"].reshape(n, 2),
+            got["spins"].reshape(n),
+            got["forces"].reshape(n, 2),
+            got["torques"].reshape(n),
+            p.m,
+            p.r,
+        )
+        self.box = K.Box(
+            got["box_lo"].reshape(2),
+            got["box_hi"].reshape(2),
+            got["box_lo_hold"].reshape(2),
+            got["box_hi_hold"].reshape(2),
+        )
         a = got["neighbours/a"].reshape(-1)
         hist = got["neighbours/xi"].reshape(a.size, self._width)
-        self.nb = self._neighbours(a, got["neighbours/b"].reshape(-1), got["neighbours/shift"],
-                                   got["neighbours/owned_both"].reshape(-1), hist, got["x_hold"].reshape(n, 2))
+        self.nb = self._neighbours(
+            a,
+            got["neighbours/b"].reshape(-1),
+            got["neighbours/shift"],
+            got["neighbours/owned_both"].reshape(-1),
+            hist,
+            got["x_hold"].reshape(n, 2),
+        )
         self.sc.vir[:] = got["virial"].reshape(4)
         self.step = int(step)
         self.stress = self.stress_tensor(self.box_lengths)
@@ -499,14 +594,22 @@ class DEMEngine:
 
 #: checkpoint datasets (docs/schema_dem.md ``/checkpoint``): name -> (state object, field, dtype)
 CHECKPOINT = {
-    "positions": ("p", "x", np.float64), "velocities": ("p", "v", np.float64), "spins": ("p", "w", np.float64),
-    "forces": ("p", "f", np.float64), "torques": ("p", "t", np.float64),
-    "box_lo": ("box", "lo", np.float64), "box_hi": ("box", "hi", np.float64),
+    "positions": ("p", "x", np.float64),
+    "velocities": ("p", "v", np.float64),
+    "spins": ("p", "w", np.float64),
+    "forces": ("p", "f", np.float64),
+    "torques": ("p", "t", np.float64),
+    "box_lo": ("box", "lo", np.float64),
+    "box_hi": ("box", "hi", np.float64),
     "x_hold": ("nb", "xhold", np.float64),
-    "box_lo_hold": ("box", "lo_hold", np.float64), "box_hi_hold": ("box", "hi_hold", np.float64),
-    "neighbours/a": ("nb", "a", np.int32), "neighbours/b": ("nb", "b", np.int32),
-    "neighbours/shift": ("nb", "shift", np.int64), "neighbours/owned_both": ("nb", "both", np.bool_),
-    "neighbours/xi": ("nb", "hist", np.float64), "virial": ("sc", "vir", np.float64),
+    "box_lo_hold": ("box", "lo_hold", np.float64),
+    "box_hi_hold": ("box", "hi_hold", np.float64),
+    "neighbours/a": ("nb", "a", np.int32),
+    "neighbours/b": ("nb", "b", np.int32),
+    "neighbours/shift": ("nb", "shift", np.int64),
+    "neighbours/owned_both": ("nb", "both", np.bool_),
+    "neighbours/xi": ("nb", "hist", np.float64),
+    "virial": ("sc", "vir", np.float64),
 }
 
 
@@ -516,18 +619,44 @@ def _control(loading, step: int, nsteps: int, lo0, hi0, phase_step0: int):
     copies of the same dtypes): one compiled run_block per law."""
     if isinstance(loading, PrescribedBox):
         if nsteps and not (loading.step0 <= step and step + nsteps <= loading.last_step):
-            raise InputError(f"prescribed box: the table covers steps {loading.step0 + 1}.."
-                             f"{loading.last_step}, the run needs {step + 1}..{step + nsteps}")
+            raise InputError(
+                f"prescribed box: the table covers steps {loading.step0 + 1}.."
+                f"{loading.last_step}, the run needs {step + 1}..{step + nsteps}"
+            )
         z = np.zeros(2)
-        return K.Control(np.zeros(2, np.int64), z, z, z, lo0, hi0, int(phase_step0), True, np.array(loading.lo),
-                         np.array(loading.hi), np.array(loading.remap), int(loading.step0))
+        return K.Control(
+            np.zeros(2, np.int64),
+            z,
+            z,
+            z,
+            lo0,
+            hi0,
+            int(phase_step0),
+            True,
+            np.array(loading.lo),
+            np.array(loading.hi),
+            np.array(loading.remap),
+            int(loading.step0),
+        )
     if isinstance(loading, Loading):
         code = {"fixed": 0, "rate": 1, "servo": 2}
         ax = (loading.x, loading.y)
-        return K.Control(np.array([code[a.mode] for a in ax], np.int64), np.array([a.rate for a in ax]),
-                         np.array([a.target for a in ax]), np.array([a.gain for a in ax]), lo0, hi0,
-                         int(phase_step0), False, np.zeros((1, 2)), np.zeros((1, 2)), np.zeros(1, np.bool_), 0)
+        return K.Control(
+            np.array([code[a.mode] for a in ax], np.int64),
+            np.array([a.rate for a in ax]),
+            np.array([a.target for a in ax]),
+            np.array([a.gain for a in ax]),
+            lo0,
+            hi0,
+            int(phase_step0),
+            False,
+            np.zeros((1, 2)),
+            np.zeros((1, 2)),
+            np.zeros(1, np.bool_),
+            0,
+        )
     raise InputError(f"loading: expected a Loading or a PrescribedBox, got {type(loading).__name__}")
+
 
 __all__ = [
     "STEPS_PER_CONTACT_MIN",

@@ -272,9 +272,7 @@ class FastEngine:
         FK.permute_i(self.perm, o, self._tmpi)
         rows = self._rows
         nb = -(-nby // rows)
-        self.cstart = np.ascontiguousarray(
-            binstart[np.minimum(np.arange(nb + 1) * rows, nby) * nbx], np.int32
-        )
+        self.cstart = np.ascontiguousarray(binstart[np.minimum(np.arange(nb + 1) * rows, nby) * nbx], np.int32)
         self._sp_start = np.zeros(nb + 1, np.int64)
         sp_cnt = np.zeros(nb, np.int64)
         self._acc = np.zeros((nb, 6))
@@ -351,9 +349,7 @@ class FastEngine:
         try:
             nsteps = int(nsteps)
         except (TypeError, ValueError):
-            raise InputError(
-                f"nsteps: expected a whole number of steps >= 0, got {nsteps!r}"
-            ) from None
+            raise InputError(f"nsteps: expected a whole number of steps >= 0, got {nsteps!r}") from None
         if nsteps < 0:
             raise InputError(f"nsteps: expected a whole number of steps >= 0, got {nsteps}")
         if loading is None:
@@ -437,10 +433,7 @@ class FastEngine:
                 self._rebuild(carry=True)
                 resume = True
             elif status == 2:
-                raise SimulationError(
-                    f"step {self.step + 1}: particle {int(self.perm[bad])} has a non-finite "
-                    "position"
-                )
+                raise SimulationError(f"step {self.step + 1}: particle {int(self.perm[bad])} has a non-finite position")
             else:
                 resume = False
         area = out[:, 6] * out[:, 7]
@@ -515,10 +508,7 @@ class FastEngine:
 
     def kinetic_energy(self) -> float:
         """Translational + rotational (I = m r^2/2) kinetic energy (J)."""
-        return float(
-            0.5 * np.sum(self.m * (self.vx**2 + self.vy**2))
-            + 0.25 * np.sum(self.m * self.r**2 * self.w**2)
-        )
+        return float(0.5 * np.sum(self.m * (self.vx**2 + self.vy**2)) + 0.25 * np.sum(self.m * self.r**2 * self.w**2))
 
     def memory_bytes(self) -> dict:
         """Bytes held by the engine's arrays: particles, list (capacity), hand-over table, rest."""

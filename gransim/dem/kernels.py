@@ -40,16 +40,33 @@ Particles = namedtuple("Particles", ["x", "v", "w", "f", "t", "m", "r"])
 #: start (N+1,) int64 CSR of the entries of each a; in_start (N+1,), in_e the owned entries by b
 #: (threaded loop only, else empty); xhold (N, 2) positions at the build; slide (M,) bool, ef (M, 2)
 #: N, tb (M,) N m: per-entry outputs of the last force evaluation (cap flag, force on a, torque on b)
-Neighbours = namedtuple("Neighbours", ["a", "b", "shift", "sx", "sy", "both", "hist", "start", "in_start", "in_e",
-                                       "xhold", "slide", "ef", "tb"])
+Neighbours = namedtuple(
+    "Neighbours",
+    ["a", "b", "shift", "sx", "sy", "both", "hist", "start", "in_start", "in_e", "xhold", "slide", "ef", "tb"],
+)
 #: the box: lo, hi (2,) m now; lo_hold, hi_hold (2,) at the last neighbour build (updated in place)
 Box = namedtuple("Box", ["lo", "hi", "lo_hold", "hi_hold"])
 #: loading of the box (:func:`box_target`, :func:`run_block`): modes (2,) int64 0 fixed / 1 rate /
 #: 2 servo, rates (2,) 1/s, targets (2,) N/m, gains (2,) 1/(Pa s), lo0, hi0 (2,) m the box at the
 #: phase start, phase_step0 int; presc bool: the box from the table presc_lo, presc_hi (T, 2) m on
 #: the rows with presc_remap (T,) bool, row 0 = step presc_step0
-Control = namedtuple("Control", ["modes", "rates", "targets", "gains", "lo0", "hi0", "phase_step0", "presc",
-                                 "presc_lo", "presc_hi", "presc_remap", "presc_step0"])
+Control = namedtuple(
+    "Control",
+    [
+        "modes",
+        "rates",
+        "targets",
+        "gains",
+        "lo0",
+        "hi0",
+        "phase_step0",
+        "presc",
+        "presc_lo",
+        "presc_hi",
+        "presc_remap",
+        "presc_step0",
+    ],
+)
 #: per-step work arrays: vir (4,) virial xx, yy, xy, yx (N m); pvir (N, 4), pcont (N, 2) the
 #: per-particle virial and (contacts, overlap) sums of the threaded loop
 Scratch = namedtuple("Scratch", ["vir", "pvir", "pcont"])
@@ -218,6 +235,7 @@ def _is_ortho(img):
 @overload(image_branch, inline="always")
 def _ov_image_branch(img, x, a, b, sx, sy):
     if _is_ortho(img):
+
         def ortho(img, x, a, b, sx, sy):
             return x[a, 0] - (x[b, 0] + sx * img.Lx), x[a, 1] - (x[b, 1] + sy * img.Ly)
 
@@ -233,6 +251,7 @@ def _ov_image_branch(img, x, a, b, sx, sy):
 @overload(image_velocity, inline="always")
 def _ov_image_velocity(img, v, b, sx, sy):
     if _is_ortho(img):
+
         def ortho(img, v, b, sx, sy):
             return v[b, 0], v[b, 1]
 
@@ -248,6 +267,7 @@ def _ov_image_velocity(img, v, b, sx, sy):
 @overload(image_mark, inline="always")
 def _ov_image_mark(img, e, touch):
     if _is_ortho(img):
+
         def ortho(img, e, touch):
             return None
 
@@ -280,8 +300,8 @@ def _pair(law, img, e, a, b, x, v, w, r, m, sx, sy, hist, dt, update):
     if rsq < radsum * radsum:
         vbx, vby = image_velocity(img, v, b, sx, sy)
         fx, fy, tqa, tqb, sl, _, tqa2, tqb2 = pair_force_split(
-            law, hist, e, delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], vbx, vby, w[a], w[b], m[a], m[b], dt,
-            update)
+            law, hist, e, delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], vbx, vby, w[a], w[b], m[a], m[b], dt, update
+        )
         return True, delx, dely, rsq, radsum, fx, fy, tqa, tqb, sl, tqa2, tqb2
     pair_apart(law, hist, e)
     return False, delx, dely, rsq, radsum, 0.0, 0.0, 0.0, 0.0, False, -0.0, -0.0
@@ -343,7 +363,8 @@ def _serial_loop(p, nb, law, img, dt, update, vir, store):
         a = ea[e]
         b = eb[e]
         touch, delx, dely, rsq, radsum, fx, fy, ta, tb, sl, ta2, tb2 = _pair(
-            law, img, e, a, b, x, v, w, r, m, esx[e], esy[e], hist, dt, update)
+            law, img, e, a, b, x, v, w, r, m, esx[e], esy[e], hist, dt, update
+        )
         image_mark(img, e, touch)
         if touch:
             if store:
@@ -388,13 +409,65 @@ def forces_threaded(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
     differs from the serial loop (round-off). ``pvir`` (N, 4), ``pcont`` (N, 2) per-particle
     virial and contact count/overlap sums (owned pairs weight 1, boundary copies 1/2).
     """
-    _forces_threaded(p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.start, nb.b, nb.sx, nb.sy, nb.both, nb.hist,
-                     nb.slide, nb.ef, nb.tb, nb.in_start, nb.in_e, law, Lx, Ly, dt, update, pvir, pcont, store)
+    _forces_threaded(
+        p.x,
+        p.v,
+        p.w,
+        p.f,
+        p.t,
+        p.m,
+        p.r,
+        nb.start,
+        nb.b,
+        nb.sx,
+        nb.sy,
+        nb.both,
+        nb.hist,
+        nb.slide,
+        nb.ef,
+        nb.tb,
+        nb.in_start,
+        nb.in_e,
+        law,
+        Lx,
+        Ly,
+        dt,
+        update,
+        pvir,
+        pcont,
+        store,
+    )
 
 
 @pjit
-def _forces_threaded(x, v, w, f, t, m, r, start, eb, esx, esy, both, hist, slide, ef, tb, in_start, in_e,
-                     law, Lx, Ly, dt, update, pvir, pcont, store):
+def _forces_threaded(
+    x,
+    v,
+    w,
+    f,
+    t,
+    m,
+    r,
+    start,
+    eb,
+    esx,
+    esy,
+    both,
+    hist,
+    slide,
+    ef,
+    tb,
+    in_start,
+    in_e,
+    law,
+    Lx,
+    Ly,
+    dt,
+    update,
+    pvir,
+    pcont,
+    store,
+):
     """:func:`forces_threaded` on the unpacked arrays. With the arrays taken out of the
     namedtuples inside this ``parallel=True`` function, numba 0.68 returned wrong torques on b
     (1e-5 N m off the serial loop and the interpreted kernel, measured; presumably its parfor pass
@@ -413,7 +486,8 @@ def _forces_threaded(x, v, w, f, t, m, r, start, eb, esx, esy, both, hist, slide
         for e in range(start[a], start[a + 1]):
             b = eb[e]
             touch, delx, dely, rsq, radsum, fx, fy, tq, tqb, sl, tq2, tqb2 = _entry(
-                law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update)
+                law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update
+            )
             if touch:
                 if store:
                     slide[e] = sl
@@ -461,15 +535,56 @@ def _forces_threaded(x, v, w, f, t, m, r, start, eb, esx, esy, both, hist, slide
 
 
 @njit
-def forces_half(x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly,
-                kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store, lammps=False):
+def forces_half(
+    x,
+    v,
+    w,
+    r,
+    m,
+    ea,
+    eb,
+    esx,
+    esy,
+    both,
+    xi,
+    Lx,
+    Ly,
+    kn,
+    kt,
+    gn,
+    gt,
+    mu,
+    dt,
+    update,
+    f,
+    t,
+    vir,
+    slide,
+    ef,
+    store,
+    lammps=False,
+):
     """The Hooke force loop with unpacked arguments (kept for callers of the former signature,
     e.g. ``bench/_dem_job.py``): :func:`forces` with the law ``HookeLammps`` when ``lammps``,
     else ``HookeLiggghts`` (:mod:`gransim.contacts.hooke`); the same arithmetic bit for bit."""
     p = Particles(x, v, w, f, t, m, r)
     z = np.zeros(0, np.int64)
-    nb = Neighbours(ea, eb, np.zeros((0, 2), np.int64), esx, esy, both, xi, z, z, z, np.zeros((0, 2)),
-                    slide, ef, np.zeros(ea.shape[0]))
+    nb = Neighbours(
+        ea,
+        eb,
+        np.zeros((0, 2), np.int64),
+        esx,
+        esy,
+        both,
+        xi,
+        z,
+        z,
+        z,
+        np.zeros((0, 2)),
+        slide,
+        ef,
+        np.zeros(ea.shape[0]),
+    )
     if lammps:
         return forces(p, nb, HookeLammps(kn, kt, gn, gt, mu), Lx, Ly, dt, update, vir, store)
     return forces(p, nb, HookeLiggghts(kn, kt, gn, gt, mu), Lx, Ly, dt, update, vir, store)
@@ -592,8 +707,21 @@ def run_block(p, nb, box, ctl, law, sc, out, dt, skin, clamp, parallel, step0, n
                 hi_new[0] = ctl.presc_hi[row, 0]
                 hi_new[1] = ctl.presc_hi[row, 1]
         else:
-            box_target(step, L_old, sig, dt, ctl.modes, ctl.rates, ctl.targets, ctl.gains, ctl.lo0, ctl.hi0,
-                       ctl.phase_step0, lo_new, hi_new)
+            box_target(
+                step,
+                L_old,
+                sig,
+                dt,
+                ctl.modes,
+                ctl.rates,
+                ctl.targets,
+                ctl.gains,
+                ctl.lo0,
+                ctl.hi0,
+                ctl.phase_step0,
+                lo_new,
+                hi_new,
+            )
             if lo_new[0] != lo[0] or lo_new[1] != lo[1] or hi_new[0] != hi[0] or hi_new[1] != hi[1]:
                 remap = True
         if remap:
@@ -640,13 +768,11 @@ def hand_over(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, bot
     :func:`hand_over_history` with all flip signs -1.
     """
     flip = -np.ones(xi_old.shape[1])
-    hand_over_history(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, both_old, xi_old, xi_new,
-                      flip)
+    hand_over_history(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, both_old, xi_old, xi_new, flip)
 
 
 @njit
-def hand_over_history(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, both_old, h_old, h_new,
-                      flip):
+def hand_over_history(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_old, both_old, h_old, h_new, flip):
     """:func:`hand_over` for a history of any width W: ``h_old`` (M_old, W), ``h_new`` (M, W)
     (written), ``flip`` (W,) the sign of each column seen from the other particle (a new entry
     (a, b) whose pair was stored as an owned (b, a) takes ``flip * h_old``)."""
@@ -722,8 +848,14 @@ def build_list_liggghts(x, r, lo, hi, skin):
                 c = xa[i, dim]
                 if c >= slo and c <= shi:
                     if ng == cap:
-                        return (np.empty(0, np.int32), np.empty(0, np.int32), np.empty(0), np.empty(0),
-                                np.empty(0, np.bool_), -2)
+                        return (
+                            np.empty(0, np.int32),
+                            np.empty(0, np.int32),
+                            np.empty(0),
+                            np.empty(0),
+                            np.empty(0, np.bool_),
+                            -2,
+                        )
                     g = n + ng
                     if i < n:
                         gown[ng] = i

@@ -10,9 +10,16 @@ from ..errors import InputError
 from ..geometry import Packing
 
 
-def lattice_packing(nx: int = 10, ny: int = 12, radius: float = 1.0e-3, spread: float = 0.15,
-                    jitter: float = 0.05, compression: float = 0.02, density: float = 2650.0,
-                    seed: int = 0) -> Packing:
+def lattice_packing(
+    nx: int = 10,
+    ny: int = 12,
+    radius: float = 1.0e-3,
+    spread: float = 0.15,
+    jitter: float = 0.05,
+    compression: float = 0.02,
+    density: float = 2650.0,
+    seed: int = 0,
+) -> Packing:
     """nx * ny disks on a triangular lattice of spacing 2 ``radius`` (ny even), radii uniform in
     radius (1 - spread, 1) * (1 + compression), centres jittered by ``jitter`` radius.
 
@@ -32,6 +39,18 @@ def lattice_packing(nx: int = 10, ny: int = 12, radius: float = 1.0e-3, spread: 
     pos += jitter * radius * rng.uniform(-1, 1, pos.shape)
     r = radius * (1.0 + compression) * (1.0 - spread * rng.uniform(0, 1, pos.shape[0]))
     cell = np.diag([nx * a, ny * h])
-    return Packing(positions=pos, radii=r, cell=cell, density=density,
-                   metadata={"generator": "lattice_packing", "nx": nx, "ny": ny, "seed": seed,
-                             "spread": spread, "jitter": jitter, "compression": compression})
+    return Packing(
+        positions=pos,
+        radii=r,
+        cell=cell,
+        density=density,
+        metadata={
+            "generator": "lattice_packing",
+            "nx": nx,
+            "ny": ny,
+            "seed": seed,
+            "spread": spread,
+            "jitter": jitter,
+            "compression": compression,
+        },
+    )

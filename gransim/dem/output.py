@@ -88,8 +88,9 @@ def write_run(path, rec: RunRecord, parameters: dict | None = None, seed=None) -
             if k == "stress":
                 v = -v  # the engine works in LIGGGHTS' compression-positive virial; files are tension positive
             chunks = (min(max(len(v), 1), 4096),) + v.shape[1:]
-            g.create_dataset(k, data=v, chunks=chunks if len(v) else None, maxshape=(None,) + v.shape[1:],
-                             **(_GZ if len(v) else {}))
+            g.create_dataset(
+                k, data=v, chunks=chunks if len(v) else None, maxshape=(None,) + v.shape[1:], **(_GZ if len(v) else {})
+            )
         sg = f.create_group("snapshots")
         for step in sorted(rec.snapshots):
             snap = rec.snapshots[step]
@@ -101,8 +102,12 @@ def write_run(path, rec: RunRecord, parameters: dict | None = None, seed=None) -
             c = h.create_group("contacts")
             for k, v in snap["contacts"].items():
                 v = np.asarray(v)
-                c.create_dataset(k, data=v, chunks=(min(max(len(v), 1), 65536),) + v.shape[1:] if len(v) else None,
-                                 **(_GZ if len(v) else {}))
+                c.create_dataset(
+                    k,
+                    data=v,
+                    chunks=(min(max(len(v), 1), 65536),) + v.shape[1:] if len(v) else None,
+                    **(_GZ if len(v) else {}),
+                )
         if rec.checkpoint is not None:
             ck = f.create_group("checkpoint")
             ck.attrs["step"] = int(rec.checkpoint["step"])
@@ -113,20 +118,48 @@ def write_run(path, rec: RunRecord, parameters: dict | None = None, seed=None) -
 
 
 #: trailing shape of each /series dataset (all have the same number of rows T)
-SERIES_SHAPES = {"step": (), "time": (), "cell": (2, 2), "stress": (2, 2), "n_contacts": (), "mean_overlap": (),
-                 "kinetic_energy": (), "phase": ()}
+SERIES_SHAPES = {
+    "step": (),
+    "time": (),
+    "cell": (2, 2),
+    "stress": (2, 2),
+    "n_contacts": (),
+    "mean_overlap": (),
+    "kinetic_energy": (),
+    "phase": (),
+}
 #: shape of each snapshot dataset (N particles) and contact dataset (M contacts); "W" is the width
 #: of the contact law's per-contact history (gransim.contacts.laws: 2 for the Hooke and Hertz laws,
 #: 3 for epsd2/epsd, 4 for sds), read from the file and the same in every dataset that has it
 SNAPSHOT_SHAPES = {"cell": (2, 2), "positions": ("N", 2), "velocities": ("N", 2), "spins": ("N",)}
-CONTACT_SHAPES = {"i": ("M",), "j": ("M",), "shift": ("M", 2), "force": ("M", 2), "overlap": ("M",),
-                  "tangential_spring": ("M", "W"), "sliding": ("M",)}
+CONTACT_SHAPES = {
+    "i": ("M",),
+    "j": ("M",),
+    "shift": ("M", 2),
+    "force": ("M", 2),
+    "overlap": ("M",),
+    "tangential_spring": ("M", "W"),
+    "sliding": ("M",),
+}
 #: checkpoint arrays: shape in N particles and K neighbour-list entries
-CHECKPOINT_SHAPES = {"positions": ("N", 2), "velocities": ("N", 2), "spins": ("N",), "forces": ("N", 2),
-                     "torques": ("N",), "box_lo": (2,), "box_hi": (2,), "x_hold": ("N", 2), "box_lo_hold": (2,),
-                     "box_hi_hold": (2,), "neighbours/a": ("K",), "neighbours/b": ("K",),
-                     "neighbours/shift": ("K", 2), "neighbours/owned_both": ("K",), "neighbours/xi": ("K", "W"),
-                     "virial": (4,)}
+CHECKPOINT_SHAPES = {
+    "positions": ("N", 2),
+    "velocities": ("N", 2),
+    "spins": ("N",),
+    "forces": ("N", 2),
+    "torques": ("N",),
+    "box_lo": (2,),
+    "box_hi": (2,),
+    "x_hold": ("N", 2),
+    "box_lo_hold": (2,),
+    "box_hi_hold": (2,),
+    "neighbours/a": ("K",),
+    "neighbours/b": ("K",),
+    "neighbours/shift": ("K", 2),
+    "neighbours/owned_both": ("K",),
+    "neighbours/xi": ("K", "W"),
+    "virial": (4,),
+}
 
 
 def _attr(f, path, name):
@@ -147,11 +180,13 @@ def _json_attr(f, path, name, default=None, where=None, want=None):
     try:
         v = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ResultFileError(f"{path}: attribute {name!r} of {obj.name} is not valid JSON ({exc}): "
-                              "corrupt run file") from None
+        raise ResultFileError(
+            f"{path}: attribute {name!r} of {obj.name} is not valid JSON ({exc}): corrupt run file"
+        ) from None
     if want is not None and not isinstance(v, want):
-        raise ResultFileError(f"{path}: attribute {name!r} of {obj.name} holds a JSON {type(v).__name__}, expected "
-                              f"a {want.__name__}")
+        raise ResultFileError(
+            f"{path}: attribute {name!r} of {obj.name} holds a JSON {type(v).__name__}, expected a {want.__name__}"
+        )
     return v
 
 
@@ -169,9 +204,11 @@ def _check_shapes(group, shapes: dict, sizes: dict, path, what: str):
                 e = sizes[e]
             want.append(e)
         if tuple(got) != tuple(want):
-            raise ResultFileError(f"{path}: {what}: dataset {group.name}/{k} has shape {tuple(got)}, expected "
-                                  f"{tuple(want)} ({', '.join(f'{a} = {b}' for a, b in sizes.items())}): truncated or "
-                                  "corrupt run file")
+            raise ResultFileError(
+                f"{path}: {what}: dataset {group.name}/{k} has shape {tuple(got)}, expected "
+                f"{tuple(want)} ({', '.join(f'{a} = {b}' for a, b in sizes.items())}): truncated or "
+                "corrupt run file"
+            )
 
 
 def _check_snapshot(h, n: int, path):
@@ -210,18 +247,22 @@ def _check_run_file(f, path) -> dict:
         if len(shp) != 1 + len(trail) or tuple(shp[1:]) != trail:
             raise ResultFileError(f"{path}: dataset /series/{k} has shape {shp}, expected (T,) + {trail}")
         if shp[0] != t:
-            raise ResultFileError(f"{path}: dataset /series/{k} has {shp[0]} rows, /series/step has {t}: truncated "
-                                  "or corrupt run file")
+            raise ResultFileError(
+                f"{path}: dataset /series/{k} has {shp[0]} rows, /series/step has {t}: truncated or corrupt run file"
+            )
     for h in f["snapshots"].values():
         _check_snapshot(h, n, path)
     return settings
 
 
 def _run_flags(f, path) -> dict:
-    return {"complete": bool(_attr(f, path, "complete")), "stop_reason": str(_attr(f, path, "stop_reason")),
-            "unsettled": _json_attr(f, path, "unsettled_phases", default=[], want=list),
-            "output": _json_attr(f, path, "output_settings", default={}, want=dict) or None,
-            "allow_unsettled": bool(f.attrs.get("allow_unsettled", False))}
+    return {
+        "complete": bool(_attr(f, path, "complete")),
+        "stop_reason": str(_attr(f, path, "stop_reason")),
+        "unsettled": _json_attr(f, path, "unsettled_phases", default=[], want=list),
+        "output": _json_attr(f, path, "output_settings", default={}, want=dict) or None,
+        "allow_unsettled": bool(f.attrs.get("allow_unsettled", False)),
+    }
 
 
 def read_record(path) -> RunRecord:
@@ -235,18 +276,26 @@ def read_record(path) -> RunRecord:
     with open_result(path, kind=KIND) as f:
         _check_run_file(f, path)
         fl = _run_flags(f, path)
-        rec = RunRecord(packing=read_packing_group(f["packing"]), settings_text=str(_attr(f, path, "settings")),
-                        fingerprint=str(_attr(f, path, "fingerprint")), complete=fl["complete"],
-                        stop_reason=fl["stop_reason"], unsettled=fl["unsettled"], output=fl["output"],
-                        allow_unsettled=fl["allow_unsettled"])
+        rec = RunRecord(
+            packing=read_packing_group(f["packing"]),
+            settings_text=str(_attr(f, path, "settings")),
+            fingerprint=str(_attr(f, path, "fingerprint")),
+            complete=fl["complete"],
+            stop_reason=fl["stop_reason"],
+            unsettled=fl["unsettled"],
+            output=fl["output"],
+            allow_unsettled=fl["allow_unsettled"],
+        )
         for k in SERIES_KEYS:
             v = f["series"][k][()]
             rec.series[k] = list(-v if k == "stress" else v)  # back to the engine's compression-positive virial
         for h in f["snapshots"].values():
             step = int(h.attrs["step"])
-            rec.snapshots[step] = {"time": float(h.attrs["time"]),
-                                   **{k: h[k][()] for k in ("cell", "positions", "velocities", "spins")},
-                                   "contacts": {k: v[()] for k, v in h["contacts"].items()}}
+            rec.snapshots[step] = {
+                "time": float(h.attrs["time"]),
+                **{k: h[k][()] for k in ("cell", "positions", "velocities", "spins")},
+                "contacts": {k: v[()] for k, v in h["contacts"].items()},
+            }
         if "checkpoint" in f:
             ck = f["checkpoint"]
             if "step" not in ck.attrs:
@@ -259,8 +308,9 @@ def read_record(path) -> RunRecord:
     return rec
 
 
-def require_complete(record, path=None, hint: str = "pass allow_incomplete=True (CLI --allow-incomplete) to "
-                                                   "read it anyway"):
+def require_complete(
+    record, path=None, hint: str = "pass allow_incomplete=True (CLI --allow-incomplete) to read it anyway"
+):
     """Refuse an unfinished run: :class:`ResultFileError` naming the file, its ``stop_reason`` and ``hint``.
 
     ``record`` is anything with ``complete`` and ``stop_reason`` (:class:`RunRecord`,
@@ -304,11 +354,17 @@ def read_run(path) -> RunResult:
         settings = _check_run_file(f, path)
         fl = _run_flags(f, path)
         series = {k: f["series"][k][()] for k in SERIES_KEYS}
-        return RunResult(path=Path(path), packing=read_packing_group(f["packing"]),
-                         settings=settings, series=series,
-                         snapshot_steps=tuple(int(h.attrs["step"]) for h in f["snapshots"].values()),
-                         complete=fl["complete"], stop_reason=fl["stop_reason"],
-                         unsettled_phases=tuple(fl["unsettled"]), output_settings=fl["output"])
+        return RunResult(
+            path=Path(path),
+            packing=read_packing_group(f["packing"]),
+            settings=settings,
+            series=series,
+            snapshot_steps=tuple(int(h.attrs["step"]) for h in f["snapshots"].values()),
+            complete=fl["complete"],
+            stop_reason=fl["stop_reason"],
+            unsettled_phases=tuple(fl["unsettled"]),
+            output_settings=fl["output"],
+        )
 
 
 @dataclass(frozen=True)
@@ -344,9 +400,16 @@ def read_snapshot(path, step: int | None = None) -> Snapshot:
         if "packing" not in f or "radii" not in f["packing"]:
             raise ResultFileError(f"{path}: no /packing/radii")
         _check_snapshot(h, int(f["packing/radii"].shape[0]), path)
-        return Snapshot(step=int(h.attrs["step"]), time=float(h.attrs["time"]), cell=h["cell"][()],
-                        positions=h["positions"][()], velocities=h["velocities"][()], spins=h["spins"][()],
-                        radii=f["packing/radii"][()], contacts={k: v[()] for k, v in h["contacts"].items()})
+        return Snapshot(
+            step=int(h.attrs["step"]),
+            time=float(h.attrs["time"]),
+            cell=h["cell"][()],
+            positions=h["positions"][()],
+            velocities=h["velocities"][()],
+            spins=h["spins"][()],
+            radii=f["packing/radii"][()],
+            contacts={k: v[()] for k, v in h["contacts"].items()},
+        )
 
 
 def snapshot_to_vtu(path, step: int | None, out, allow_incomplete: bool = False) -> Path:
@@ -360,8 +423,13 @@ def snapshot_to_vtu(path, step: int | None, out, allow_incomplete: bool = False)
         require_complete(run, path)
     s = read_snapshot(path, step)
     z = np.bincount(s.contacts["i"], minlength=len(s.radii)) + np.bincount(s.contacts["j"], minlength=len(s.radii))
-    return particles_to_vtu(out, s.positions, s.radii, point_data={"velocity": s.velocities, "spin": s.spins,
-                                                                 "contacts": z.astype(float)}, cell=s.cell)
+    return particles_to_vtu(
+        out,
+        s.positions,
+        s.radii,
+        point_data={"velocity": s.velocities, "spin": s.spins, "contacts": z.astype(float)},
+        cell=s.cell,
+    )
 
 
 def plot_stress_strain(path, out, allow_incomplete: bool = False) -> Path:

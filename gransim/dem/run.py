@@ -44,9 +44,14 @@ class Phase:
             raise InputError(f"phase {self.name}: check_every must be >= 1")
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "loading": self.loading.to_dict(), "max_steps": int(self.max_steps),
-                "stop_tol": self.stop_tol, "check_every": int(self.check_every),
-                "settle_checks": int(self.settle_checks)}
+        return {
+            "name": self.name,
+            "loading": self.loading.to_dict(),
+            "max_steps": int(self.max_steps),
+            "stop_tol": self.stop_tol,
+            "check_every": int(self.check_every),
+            "settle_checks": int(self.settle_checks),
+        }
 
 
 def _settled(phase: Phase, mean_stress: np.ndarray) -> bool:
@@ -65,21 +70,40 @@ def _unsettled_reason(phase: Phase, mean_stress: np.ndarray | None, window: str 
             ok = mean_stress is not None and ctl.target
             ratio = float(mean_stress[d, d] / ctl.target) if ok else float("nan")
             parts.append(f"sigma_{d + 1}{d + 1}/p = {ratio:.4g}")
-    return (f"{phase.name} did not settle within {int(phase.max_steps)} steps: {', '.join(parts)} "
-            f"(mean of {window}; tolerance {phase.stop_tol:g} relative, "
-            f"{phase.settle_checks} windows of {phase.check_every} steps in a row)")
+    return (
+        f"{phase.name} did not settle within {int(phase.max_steps)} steps: {', '.join(parts)} "
+        f"(mean of {window}; tolerance {phase.stop_tol:g} relative, "
+        f"{phase.settle_checks} windows of {phase.check_every} steps in a row)"
+    )
 
 
 def _snapshot(eng: DEMEngine) -> dict:
     c = eng.contacts()
-    return {"time": eng.step * eng.settings.dt, "cell": eng.cell, "positions": eng.x.copy(),
-            "velocities": eng.v.copy(), "spins": eng.w.copy(), "contacts": c}
+    return {
+        "time": eng.step * eng.settings.dt,
+        "cell": eng.cell,
+        "positions": eng.x.copy(),
+        "velocities": eng.v.copy(),
+        "spins": eng.w.copy(),
+        "contacts": c,
+    }
 
 
-def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output: OutputSettings | None = None,
-               resume: bool = False, velocities=None, threads: int | None = None, show_progress: bool = True,
-               metadata: dict | None = None, stop_at_step: int | None = None,
-               allow_unsettled: bool = False, law=None) -> Path:
+def run_phases(
+    packing: Packing,
+    settings: DEMSettings,
+    phases,
+    out_path,
+    output: OutputSettings | None = None,
+    resume: bool = False,
+    velocities=None,
+    threads: int | None = None,
+    show_progress: bool = True,
+    metadata: dict | None = None,
+    stop_at_step: int | None = None,
+    allow_unsettled: bool = False,
+    law=None,
+) -> Path:
     """Run ``phases`` one after the other from ``packing``; write ``out_path`` (kind "dem-run").
 
     With ``resume`` and an existing ``out_path`` of the same run (same fingerprint: packing,
@@ -119,8 +143,10 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
         rec = read_record(out_path)
         _check_same_flavour(out_path, rec.settings_text, settings)
         if rec.fingerprint != fp:
-            raise ResultFileError(f"{out_path}: belongs to another run (fingerprint {rec.fingerprint[:12]} != "
-                                  f"{fp[:12]}: different packing, settings or phases); refusing to resume")
+            raise ResultFileError(
+                f"{out_path}: belongs to another run (fingerprint {rec.fingerprint[:12]} != "
+                f"{fp[:12]}: different packing, settings or phases); refusing to resume"
+            )
         if rec.complete:
             return out_path
         if rec.checkpoint is None:
@@ -137,8 +163,17 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
         rec.stop_reason = ""
     else:
         rec = RunRecord(packing=packing, settings_text=text, fingerprint=fp)
-        _append(rec, eng, [0], eng.stress[None], eng.cell[None], [eng.n_contacts], [eng.mean_overlap],
-                [eng.kinetic_energy()], 0)
+        _append(
+            rec,
+            eng,
+            [0],
+            eng.stress[None],
+            eng.cell[None],
+            [eng.n_contacts],
+            [eng.mean_overlap],
+            [eng.kinetic_energy()],
+            0,
+        )
         if output.snapshot_every:
             rec.snapshots[0] = _snapshot(eng)
     rec.output = output.to_dict()
@@ -146,7 +181,7 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
     total = sum(p.max_steps for p in phases)
     bar = progress(total=total, desc="dem") if show_progress else None
     if bar is not None:
-        bar.update(sum(p.max_steps for p in phases[:state["phase"]]) + eng.step - state["phase_step0"])
+        bar.update(sum(p.max_steps for p in phases[: state["phase"]]) + eng.step - state["phase_step0"])
     try:
         while state["phase"] < len(phases):
             ph = phases[state["phase"]]
@@ -161,8 +196,10 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
                     if every:
                         nxt.append((eng.step // every + 1) * every)
                 if ph.stop_tol > 0:
-                    nxt.append(state["phase_step0"] + ((eng.step - state["phase_step0"]) // ph.check_every + 1)
-                               * ph.check_every)
+                    nxt.append(
+                        state["phase_step0"]
+                        + ((eng.step - state["phase_step0"]) // ph.check_every + 1) * ph.check_every
+                    )
                 if stop_at_step is not None and stop_at_step > eng.step:
                     nxt.append(int(stop_at_step))
                 stop = min(nxt)
@@ -172,8 +209,17 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
                 L = out["lengths"][sel]
                 cells = np.zeros((len(L), 2, 2))
                 cells[:, 0, 0], cells[:, 1, 1] = L[:, 0], L[:, 1]
-                _append(rec, eng, out["step"][sel], out["stress"][sel], cells, out["n_contacts"][sel],
-                        out["mean_overlap"][sel], out["kinetic_energy"][sel], min(state["phase"], 1))
+                _append(
+                    rec,
+                    eng,
+                    out["step"][sel],
+                    out["stress"][sel],
+                    cells,
+                    out["n_contacts"][sel],
+                    out["mean_overlap"][sel],
+                    out["kinetic_energy"][sel],
+                    min(state["phase"], 1),
+                )
                 if bar is not None:
                     bar.update(len(out["step"]))
                 if output.snapshot_every and eng.step % output.snapshot_every == 0:
@@ -187,14 +233,15 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
                         break
                 if output.checkpoint_every and eng.step % output.checkpoint_every == 0:
                     _checkpoint(rec, eng, state)
-                    rec.stop_reason = (f"run in progress, or killed: last checkpoint at step {eng.step} "
-                                       "(continue with resume)")
+                    rec.stop_reason = (
+                        f"run in progress, or killed: last checkpoint at step {eng.step} (continue with resume)"
+                    )
                     write_run(out_path, rec)
                 if stop_at_step is not None and eng.step == stop_at_step:
                     _checkpoint(rec, eng, state)
-                    rec.stop_reason = (f"stopped at step {eng.step} by stop_at_step (a piece of a "
-                                       f"longer run; "
-                                       "continue with resume)")
+                    rec.stop_reason = (
+                        f"stopped at step {eng.step} by stop_at_step (a piece of a longer run; continue with resume)"
+                    )
                     write_run(out_path, rec)
                     return out_path
             if ph.stop_tol > 0 and not settled:
@@ -204,24 +251,29 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
                 if last_mean is None and tail is not None and len(tail):
                     last_mean, window = tail.mean(axis=0), f"the last {len(tail)} steps"
                     if ph.max_steps < ph.check_every:
-                        window += (f"; no settle check ran: max_steps {ph.max_steps} < check_every "
-                                   f"{ph.check_every}")
+                        window += f"; no settle check ran: max_steps {ph.max_steps} < check_every {ph.check_every}"
                 reason = _unsettled_reason(ph, last_mean, window)
                 if not allow_unsettled:
                     _checkpoint(rec, eng, state)
-                    rec.stop_reason = reason + ("; pass allow_unsettled=True (--allow-unsettled) to "
-                                                "go on anyway")
+                    rec.stop_reason = reason + ("; pass allow_unsettled=True (--allow-unsettled) to go on anyway")
                     write_run(out_path, rec)
                     raise ConvergenceError(f"{out_path}: {rec.stop_reason}")
                 if not any(u["phase"] == state["phase"] for u in rec.unsettled):
-                    rec.unsettled.append({"phase": int(state["phase"]), "name": ph.name,
-                                          "step": int(eng.step), "reason": reason})
-            state = {"phase": state["phase"] + 1, "phase_step0": eng.step, "lo0": eng.lo.tolist(),
-                     "hi0": eng.hi.tolist(), "settled": 0}
+                    rec.unsettled.append(
+                        {"phase": int(state["phase"]), "name": ph.name, "step": int(eng.step), "reason": reason}
+                    )
+            state = {
+                "phase": state["phase"] + 1,
+                "phase_step0": eng.step,
+                "lo0": eng.lo.tolist(),
+                "hi0": eng.hi.tolist(),
+                "settled": 0,
+            }
             if stop_at_step is not None and eng.step == stop_at_step and state["phase"] < len(phases):
                 _checkpoint(rec, eng, state)  # the phase ended early right at stop_at_step
-                rec.stop_reason = (f"stopped at step {eng.step} by stop_at_step (a piece of a longer run; "
-                                   "continue with resume)")
+                rec.stop_reason = (
+                    f"stopped at step {eng.step} by stop_at_step (a piece of a longer run; continue with resume)"
+                )
                 write_run(out_path, rec)
                 return out_path
     except SimulationError as exc:
@@ -229,9 +281,11 @@ def run_phases(packing: Packing, settings: DEMSettings, phases, out_path, output
         write_run(out_path, rec)
         raise
     except KeyboardInterrupt:
-        rec.stop_reason = (f"interrupted at step {eng.step}"
-                           + (f"; resume continues from the checkpoint at step {rec.checkpoint['step']}"
-                              if rec.checkpoint is not None else ""))
+        rec.stop_reason = f"interrupted at step {eng.step}" + (
+            f"; resume continues from the checkpoint at step {rec.checkpoint['step']}"
+            if rec.checkpoint is not None
+            else ""
+        )
         write_run(out_path, rec)
         raise
     finally:
@@ -255,9 +309,11 @@ def _check_same_flavour(path, settings_text: str, settings: DEMSettings):
     except (ValueError, AttributeError):
         return  # an unreadable settings text: the fingerprint check refuses the file
     if stored != settings.flavour:
-        raise InputError(f"flavour = {settings.flavour!r} differs from flavour = {stored!r} of the run in "
-                         f"{path}: a resume would mix the arithmetic of two DEM codes in one run; resume "
-                         f"with flavour {stored!r} (or start a new file)")
+        raise InputError(
+            f"flavour = {settings.flavour!r} differs from flavour = {stored!r} of the run in "
+            f"{path}: a resume would mix the arithmetic of two DEM codes in one run; resume "
+            f"with flavour {stored!r} (or start a new file)"
+        )
 
 
 def _check_same_sampling(path, stored: dict | None, output: OutputSettings):
@@ -266,15 +322,20 @@ def _check_same_sampling(path, stored: dict | None, output: OutputSettings):
         return  # a file written before the output settings were stored: nothing to compare
     for key, opt in (("series_every", "--series-every"), ("snapshot_every", "--snapshot-every")):
         if key in stored and int(stored[key]) != int(getattr(output, key)):
-            raise InputError(f"{key} ({opt}) = {getattr(output, key)} differs from {key} = "
-                             f"{int(stored[key])} of the run "
-                             f"in {path}: a resume would mix two samplings in one file; resume with {opt} "
-                             f"{int(stored[key])} (or start a new file)")
+            raise InputError(
+                f"{key} ({opt}) = {getattr(output, key)} differs from {key} = "
+                f"{int(stored[key])} of the run "
+                f"in {path}: a resume would mix two samplings in one file; resume with {opt} "
+                f"{int(stored[key])} (or start a new file)"
+            )
 
 
 def _checkpoint(rec: RunRecord, eng: DEMEngine, state: dict):
-    rec.checkpoint = {"step": eng.step, "protocol_state": json.loads(json.dumps(state)),
-                      "arrays": {k: np.array(v) for k, v in eng.state_arrays().items()}}
+    rec.checkpoint = {
+        "step": eng.step,
+        "protocol_state": json.loads(json.dumps(state)),
+        "arrays": {k: np.array(v) for k, v in eng.state_arrays().items()},
+    }
 
 
 def _append(rec, eng, steps, stress, cells, nc, ov, ke, phase):

@@ -59,9 +59,19 @@ class DEMSettings:
         return dataclasses.asdict(self)
 
     @classmethod
-    def for_packing(cls, packing, kn: float, *, kt: float | None = None, mu: float = 0.5,
-                    damping_ratio: float = 0.3, steps_per_contact: float = 50.0, skin_d50: float = 0.05,
-                    mode: str = "serial", flavour: str = "liggghts") -> DEMSettings:
+    def for_packing(
+        cls,
+        packing,
+        kn: float,
+        *,
+        kt: float | None = None,
+        mu: float = 0.5,
+        damping_ratio: float = 0.3,
+        steps_per_contact: float = 50.0,
+        skin_d50: float = 0.05,
+        mode: str = "serial",
+        flavour: str = "liggghts",
+    ) -> DEMSettings:
         """Settings derived from a packing's disks and the contact stiffness alone (no test protocol).
 
         Parameters
@@ -97,8 +107,17 @@ class DEMSettings:
         m = np.sort(packing.masses)
         meff = m[0] * m[1] / (m[0] + m[1])
         dt = float(np.pi * np.sqrt(meff / kn)) / steps_per_contact
-        return cls(kn=kn, kt=kt, gamma_n=gamma, gamma_t=gamma, mu=mu, dt=dt, skin=skin_d50 * packing.d50,
-                   mode=mode, flavour=flavour)
+        return cls(
+            kn=kn,
+            kt=kt,
+            gamma_n=gamma,
+            gamma_t=gamma,
+            mu=mu,
+            dt=dt,
+            skin=skin_d50 * packing.d50,
+            mode=mode,
+            flavour=flavour,
+        )
 
 
 @dataclass(frozen=True)
@@ -172,8 +191,9 @@ class PrescribedBox:
         lo = np.array(self.lo, np.float64)
         hi = np.array(self.hi, np.float64)
         if lo.ndim != 2 or lo.shape[1] != 2 or lo.shape != hi.shape or lo.shape[0] < 1:
-            raise InputError(f"prescribed box: lo and hi must both be (T, 2) arrays, got shapes "
-                             f"{lo.shape} and {hi.shape}")
+            raise InputError(
+                f"prescribed box: lo and hi must both be (T, 2) arrays, got shapes {lo.shape} and {hi.shape}"
+            )
         if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
             raise InputError("prescribed box: lo and hi must be finite")
         bad = np.flatnonzero(np.any(hi <= lo, axis=1))
@@ -185,8 +205,9 @@ class PrescribedBox:
         else:
             remap = np.array(self.remap, np.bool_).reshape(-1)
             if remap.shape[0] != lo.shape[0]:
-                raise InputError(f"prescribed box: remap must have {lo.shape[0]} rows (one per box row), "
-                                 f"got {remap.shape[0]}")
+                raise InputError(
+                    f"prescribed box: remap must have {lo.shape[0]} rows (one per box row), got {remap.shape[0]}"
+                )
         try:
             step0 = int(self.step0)
         except (TypeError, ValueError):

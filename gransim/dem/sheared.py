@@ -136,16 +136,18 @@ class ShearLoading:
         if self.xy == "erate":
             v = self.erate if self.value is None else _number(self.value, "value")
             if self.value is not None and self.erate not in (0.0, v):
-                raise InputError(f"value: xy erate given twice with different numbers, erate = "
-                                 f"{self.erate!r} and value = {v!r}")
+                raise InputError(
+                    f"value: xy erate given twice with different numbers, erate = {self.erate!r} and value = {v!r}"
+                )
             object.__setattr__(self, "erate", v)
         else:
             if self.value is None:
                 raise InputError(f"value: xy {self.xy} needs its number ({_UNITS[self.xy]})")
             v = _number(self.value, "value")
             if self.erate != 0.0:
-                raise InputError(f"erate: only for xy erate; xy {self.xy} takes its number as value, "
-                                 f"got erate = {self.erate!r}")
+                raise InputError(
+                    f"erate: only for xy erate; xy {self.xy} takes its number as value, got erate = {self.erate!r}"
+                )
         object.__setattr__(self, "value", v)
         object.__setattr__(self, "every", as_int(self.every, "every", 1))
 
@@ -188,15 +190,14 @@ def _check_box(box, Lx: float, Ly: float, xy: float):
         lo, hi = (np.array(b, np.float64).reshape(2) for b in parts[:2])
         tilt = float(parts[2]) if len(parts) == 3 else xy
     except (TypeError, ValueError):
-        raise InputError(f"box: expected (lo, hi) or (lo, hi, xy), lo and hi two numbers each (m), "
-                         f"got {box!r}") from None
+        raise InputError(
+            f"box: expected (lo, hi) or (lo, hi, xy), lo and hi two numbers each (m), got {box!r}"
+        ) from None
     if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi > lo) and np.isfinite(tilt)):
-        raise InputError(f"box: expected finite lo < hi and tilt, got lo {lo.tolist()}, hi {hi.tolist()}, "
-                         f"xy {tilt!r}")
+        raise InputError(f"box: expected finite lo < hi and tilt, got lo {lo.tolist()}, hi {hi.tolist()}, xy {tilt!r}")
     L = np.array([Lx, Ly])
     if np.any(np.abs((hi - lo) - L) > 1e-12 * L):
-        raise InputError(f"box: hi - lo = {(hi - lo).tolist()} m differs from the cell's side lengths "
-                         f"{L.tolist()} m")
+        raise InputError(f"box: hi - lo = {(hi - lo).tolist()} m differs from the cell's side lengths {L.tolist()} m")
     if abs(tilt - xy) > 1e-12 * Lx:
         raise InputError(f"box: xy = {tilt!r} m differs from the cell's tilt cell[0, 1] = {xy!r} m")
     return np.array([lo[0], lo[1], hi[0], hi[1], tilt])
@@ -243,14 +244,11 @@ class ShearEngine:
         if not isinstance(settings, DEMSettings):
             raise InputError(f"settings: expected a DEMSettings, got {type(settings).__name__}")
         if settings.mode != "serial":
-            raise InputError(
-                f"settings.mode: the sheared cell runs the serial loop only, got {settings.mode!r}"
-            )
+            raise InputError(f"settings.mode: the sheared cell runs the serial loop only, got {settings.mode!r}")
         C = np.asarray(packing.cell, np.float64)
         if C[1, 0] != 0.0:
             raise InputError(
-                f"packing.cell: a LAMMPS triclinic cell has a1 = (Lx, 0): cell[1, 0] must be 0, "
-                f"got {C[1, 0]!r}"
+                f"packing.cell: a LAMMPS triclinic cell has a1 = (Lx, 0): cell[1, 0] must be 0, got {C[1, 0]!r}"
             )
         Lx, Ly, xy = float(C[0, 0]), float(C[1, 1]), float(C[0, 1])
         if not (Lx > 0 and Ly > 0):
@@ -261,8 +259,7 @@ class ShearEngine:
             )
         if flavour == "liggghts" and xy != 0.0:
             raise InputError(
-                "flavour 'liggghts': needs a cell without tilt (LIGGGHTS' bookkeeping is "
-                f"orthogonal), got xy = {xy!r}"
+                f"flavour 'liggghts': needs a cell without tilt (LIGGGHTS' bookkeeping is orthogonal), got xy = {xy!r}"
             )
         s = settings
         if check_dt:
@@ -368,13 +365,9 @@ class ShearEngine:
             if bad >= 0:
                 raise SimulationError(f"step {self.step}: particle {bad} lost (at {self.x[bad].tolist()})")
             SK.x2lamda(self.x, self.box, self.lam)
-        a, b, sx, sy, both, selfimg = SK.build_list(
-            self.x, self.lam, self.r, self.box, self.settings.skin, self._lmp
-        )
+        a, b, sx, sy, both, selfimg = SK.build_list(self.x, self.lam, self.r, self.box, self.settings.skin, self._lmp)
         if selfimg >= 0:
-            raise SimulationError(
-                f"step {self.step}: particle {selfimg} is near its own image; the cell is too small"
-            )
+            raise SimulationError(f"step {self.step}: particle {selfimg} is near its own image; the cell is too small")
         xi = np.zeros((a.size, self._width))
         if carry and self.ea.size:
             SK.hand_over(
@@ -409,8 +402,22 @@ class ShearEngine:
     def _state(self):
         """The kernels' view of the state: (Particles, Neighbours, Cell) of the current arrays."""
         p = K.Particles(self.x, self.v, self.w, self.f, self.t, self.m, self.r)
-        nb = K.Neighbours(self.ea, self.eb, self._noshift, self.esx, self.esy, self.both, self.xi, self.start,
-                          self._z, self._z, self.xhold, self.slide, self.ef, self._notb)
+        nb = K.Neighbours(
+            self.ea,
+            self.eb,
+            self._noshift,
+            self.esx,
+            self.esy,
+            self.both,
+            self.xi,
+            self.start,
+            self._z,
+            self._z,
+            self.xhold,
+            self.slide,
+            self.ef,
+            self._notb,
+        )
         cell = SK.Cell(self.box, self.box_hold, self.h_rate, self.lam, self.touch, self.corners_hold)
         return p, nb, cell
 
@@ -476,8 +483,10 @@ class ShearEngine:
         b = self.box
         tilt_start = float(b[4])
         if loading.xy == "trate" and tilt_start == 0.0:
-            raise InputError("loading: xy trate on a cell without tilt (the tilt grows as xy0 exp(rate t); "
-                             "LAMMPS stops too: 'Cannot use fix deform trate on a box with zero tilt')")
+            raise InputError(
+                "loading: xy trate on a cell without tilt (the tilt grows as xy0 exp(rate t); "
+                "LAMMPS stops too: 'Cannot use fix deform trate on a box with zero tilt')"
+            )
         stop = tilt_stop(loading.xy, loading.value, tilt_start, float(b[3] - b[1]), delt)
         self.h_rate[:] = 0.0
         if not loading.moves_tilt:
@@ -542,17 +551,43 @@ class ShearEngine:
         step_start = self.step
         done = 0
         resume = False
-        dfm = SK.Deform(int(run["begin"]), int(run["end"]), int(ld.every), int(run["style"]),
-                        float(run["tilt_start"]), float(run["tilt_stop"]), float(ld.value), ld.y == "servo",
-                        float(run["y_lo"]), float(run["y_hi"]), float(run["ly0"]), s.dt * ld.gain,
-                        float(ld.gain), float(ld.target))
+        dfm = SK.Deform(
+            int(run["begin"]),
+            int(run["end"]),
+            int(ld.every),
+            int(run["style"]),
+            float(run["tilt_start"]),
+            float(run["tilt_stop"]),
+            float(ld.value),
+            ld.y == "servo",
+            float(run["y_lo"]),
+            float(run["y_hi"]),
+            float(run["ly0"]),
+            s.dt * ld.gain,
+            float(ld.gain),
+            float(ld.target),
+        )
         while done < nsteps:
             p, nb, cell = self._state()
-            series = SK.ShearSeries(out_stress[done:], out_vir[done:], out_box[done:], out_nc[done:],
-                                    out_ov[done:], out_ke[done:])
+            series = SK.ShearSeries(
+                out_stress[done:], out_vir[done:], out_box[done:], out_nc[done:], out_ov[done:], out_ke[done:]
+            )
             with disk_cache_off(self._no_cache):
-                k, status, bad = SK.run_block(p, nb, self.law, cell, dfm, series, self.virial, s.dt, s.skin,
-                                              self._lmp, self.step, nsteps - done, resume)
+                k, status, bad = SK.run_block(
+                    p,
+                    nb,
+                    self.law,
+                    cell,
+                    dfm,
+                    series,
+                    self.virial,
+                    s.dt,
+                    s.skin,
+                    self._lmp,
+                    self.step,
+                    nsteps - done,
+                    resume,
+                )
             done += k
             self.step += k
             resume = False
@@ -597,8 +632,7 @@ class ShearEngine:
     def kinetic_energy(self) -> float:
         """Translational + rotational (I = m r^2/2) kinetic energy (J) of the lab-frame velocities."""
         return float(
-            0.5 * np.sum(self.m * np.einsum("ij,ij->i", self.v, self.v))
-            + 0.25 * np.sum(self.m * self.r**2 * self.w**2)
+            0.5 * np.sum(self.m * np.einsum("ij,ij->i", self.v, self.v)) + 0.25 * np.sum(self.m * self.r**2 * self.w**2)
         )
 
     def peculiar_velocities(self) -> np.ndarray:
@@ -625,7 +659,8 @@ def simple_shear(
 
     ``loading`` (:class:`ShearLoading`): constant-volume shear (``y="fixed"``) or shear under
     the y normal-stress servo. ``callback(engine)`` is called every ``every`` steps (and at the end),
-    e.g. to record positions; ``box`` is passed to :class:`ShearEngine`. Returns the dict of :meth:`ShearEngine.advance` plus ``setup_stress``
+    e.g. to record positions; ``box`` is passed to :class:`ShearEngine`. Returns the dict of
+    :meth:`ShearEngine.advance` plus ``setup_stress``
     (2, 2) (the set-up evaluation, LAMMPS' thermo at step 0), ``shear_strain`` (n,) ((xy - xy0) / Ly0) and
     ``engine`` (the final state).
     """
@@ -710,8 +745,13 @@ def run_shear_file(
     snaps = {}
 
     def snap():
-        snaps[eng.step] = {"positions": eng.x.copy(), "velocities": eng.v.copy(), "spins": eng.w.copy(),
-                           "cell": eng.cell, "box_lo": eng.box[0:2].copy()}
+        snaps[eng.step] = {
+            "positions": eng.x.copy(),
+            "velocities": eng.v.copy(),
+            "spins": eng.w.copy(),
+            "cell": eng.cell,
+            "box_lo": eng.box[0:2].copy(),
+        }
 
     snap()
     stops = set(range(series_every, nsteps + 1, series_every)) | {nsteps}
@@ -738,12 +778,12 @@ def run_shear_file(
     strain = (box[:, 2] - xy0) / ly0
     info = {"dem": settings.to_dict(), "loading": loading.to_dict(), "nsteps": nsteps, "flavour": flavour}
     if law is not None:
-        info["law"] = dict(law_options) if law_options else {"name": type(law).__name__,
-                                                              "params": dict(law._asdict())}
+        info["law"] = dict(law_options) if law_options else {"name": type(law).__name__, "params": dict(law._asdict())}
     text = json.dumps(info, sort_keys=True)
     params = {**info, **(parameters or {})}
-    with atomic_h5(out_path, kind=SHEAR_RUN_KIND, parameters=params, seed=packing.metadata.get("seed"),
-                   lammps=False) as f:
+    with atomic_h5(
+        out_path, kind=SHEAR_RUN_KIND, parameters=params, seed=packing.metadata.get("seed"), lammps=False
+    ) as f:
         f.attrs["settings"] = text
         f.attrs["n_particles"] = packing.n
         f.attrs["nsteps"] = nsteps
@@ -769,10 +809,24 @@ def run_shear_file(
     if reason:
         raise SimulationError(f"{reason} (the run file {out_path} holds the steps before, complete = False)")
     last = rows["stress"][-1]
-    return {"steps": nsteps, "shear_strain": float(strain[-1]), "sigma_xy": float(last[0][1]),
-            "sigma_yy": float(last[1][1]), "sigma_xx": float(last[0][0]), "ly": float(box[-1, 1]),
-            "n_rebuilds": int(eng.n_rebuilds)}
+    return {
+        "steps": nsteps,
+        "shear_strain": float(strain[-1]),
+        "sigma_xy": float(last[0][1]),
+        "sigma_yy": float(last[1][1]),
+        "sigma_xx": float(last[0][0]),
+        "ly": float(box[-1, 1]),
+        "n_rebuilds": int(eng.n_rebuilds),
+    }
 
 
-__all__ = ["FLAVOURS", "SHEAR_RUN_KIND", "XY_STYLES", "ShearEngine", "ShearLoading", "run_shear_file", "simple_shear",
-           "tilt_stop"]
+__all__ = [
+    "FLAVOURS",
+    "SHEAR_RUN_KIND",
+    "XY_STYLES",
+    "ShearEngine",
+    "ShearLoading",
+    "run_shear_file",
+    "simple_shear",
+    "tilt_stop",
+]

@@ -32,8 +32,25 @@ from . import kernels as K
 #: the fix deform parameters of a run (:func:`deform_end_of_step`): begin, end (steps), every
 #: (``fix deform N``), xy_style, tilt_start, tilt_stop (m), rate (the style's number), servo_on,
 #: y_lo_start, y_hi_start, ly0 (m), kgain = dt gain (1/Pa), gain (1/(Pa s)), target (N/m)
-Deform = namedtuple("Deform", ["begin", "end", "every", "xy_style", "tilt_start", "tilt_stop", "rate",
-                               "servo_on", "y_lo_start", "y_hi_start", "ly0", "kgain", "gain", "target"])
+Deform = namedtuple(
+    "Deform",
+    [
+        "begin",
+        "end",
+        "every",
+        "xy_style",
+        "tilt_start",
+        "tilt_stop",
+        "rate",
+        "servo_on",
+        "y_lo_start",
+        "y_hi_start",
+        "ly0",
+        "kgain",
+        "gain",
+        "target",
+    ],
+)
 #: the sheared cell's state besides particles and list: box (5,), box_hold (5,) at the last build,
 #: hr (3,) h_rate, lam (N, 2), touch (M,) the contact flags of the last force evaluation,
 #: corners_hold (8, 2) the box corners at the last build
@@ -337,8 +354,7 @@ def _find(start, eb, a, b):
 
 
 @njit
-def hand_over(x, r, box, a_new, b_new, sx_new, sy_new, start_old, eb_old, both_old, h_old, touch_old, lmp,
-              h_new, flip):
+def hand_over(x, r, box, a_new, b_new, sx_new, sy_new, start_old, eb_old, both_old, h_old, touch_old, lmp, h_new, flip):
     """History hand-over at a list build, for a history of any width W (``h_old`` (M_old, W),
     ``h_new`` (M, W) written; ``flip`` (W,) the sign of each column seen from the other particle).
     ``lmp`` (LAMMPS ``fix neigh/history``, ``pre_exchange_no_newton`` / ``post_neighbor``): a new

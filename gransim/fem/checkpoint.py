@@ -84,8 +84,10 @@ def check_parameters(stored: dict, current: dict, path) -> None:
     for k in sorted(set(stored) | set(current)):
         a, b = stored.get(k, "<absent>"), current.get(k, "<absent>")
         if json.dumps(a, sort_keys=True) != json.dumps(b, sort_keys=True):
-            raise InputError(f"--resume: the checkpoint {path} was written with {k} = {a!r}, this run has "
-                             f"{k} = {b!r}; rerun with the checkpoint's parameters or without --resume")
+            raise InputError(
+                f"--resume: the checkpoint {path} was written with {k} = {a!r}, this run has "
+                f"{k} = {b!r}; rerun with the checkpoint's parameters or without --resume"
+            )
 
 
 def clear_checkpoint(directory) -> None:
@@ -100,8 +102,7 @@ def read_checkpoint(directory, parameters: dict) -> tuple[ResumeState, np.ndarra
 
     directory = Path(directory)
     if not step_path(directory, 1).exists():
-        raise InputError(f"--resume: no checkpoint in {directory} (a run writes one after its first "
-                         "converged step)")
+        raise InputError(f"--resume: no checkpoint in {directory} (a run writes one after its first converged step)")
     current = json.loads(json.dumps(parameters, default=str))
     steps, failures, commits = [], [], []
     k = 1
@@ -114,16 +115,33 @@ def read_checkpoint(directory, parameters: dict) -> tuple[ResumeState, np.ndarra
         with f:
             check_parameters(_params(f), current, path)
             g = f["step"]
-            mat = MaterialResult(piola=g["piola"][()], tangent=None, cauchy=g["cauchy"][()],
-                                 energy=g["energy"][()], n_contacts=g["n_contacts"][()])
-            sol = NewtonResult(q=g["q"][()], u=g["u"][()], F=g["F"][()], material=mat,
-                               energy_norms=g["energy_norms"][()], residual_norms=g["residual_norms"][()])
-            steps.append(StepRecord(k, tuple(float(x) for x in g.attrs["load"]), sol, int(g.attrs["cuts"]),
-                                    tuple(float(x) for x in g.attrs["substeps"])))
+            mat = MaterialResult(
+                piola=g["piola"][()],
+                tangent=None,
+                cauchy=g["cauchy"][()],
+                energy=g["energy"][()],
+                n_contacts=g["n_contacts"][()],
+            )
+            sol = NewtonResult(
+                q=g["q"][()],
+                u=g["u"][()],
+                F=g["F"][()],
+                material=mat,
+                energy_norms=g["energy_norms"][()],
+                residual_norms=g["residual_norms"][()],
+            )
+            steps.append(
+                StepRecord(
+                    k,
+                    tuple(float(x) for x in g.attrs["load"]),
+                    sol,
+                    int(g.attrs["cuts"]),
+                    tuple(float(x) for x in g.attrs["substeps"]),
+                )
+            )
             for name in sorted(f["failures"].keys()) if "failures" in f else []:
                 h = f[f"failures/{name}"]
-                failures.append((int(h.attrs["step"]), float(h.attrs["fraction"]),
-                                 list(h["energy_norms"][()])))
+                failures.append((int(h.attrs["step"]), float(h.attrs["fraction"]), list(h["energy_norms"][()])))
             commits.extend(f["commits"][()])
         k += 1
     G = steps[-1].solution.F.shape[0]
@@ -139,5 +157,13 @@ def replay_history(material, commits) -> None:
         material.commit()
 
 
-__all__ = ["KIND", "NAME", "check_parameters", "clear_checkpoint", "read_checkpoint", "replay_history",
-           "step_path", "write_checkpoint"]
+__all__ = [
+    "KIND",
+    "NAME",
+    "check_parameters",
+    "clear_checkpoint",
+    "read_checkpoint",
+    "replay_history",
+    "step_path",
+    "write_checkpoint",
+]

@@ -63,8 +63,7 @@ class DofMap:
     prescribed: np.ndarray
 
     @classmethod
-    def build(cls, nodes: np.ndarray, fixed_dofs, body: RigidBody | None = None,
-              values=None) -> DofMap:
+    def build(cls, nodes: np.ndarray, fixed_dofs, body: RigidBody | None = None, values=None) -> DofMap:
         """Free dofs = all dofs not fixed and not on the rigid body.
 
         ``values`` (same length as ``fixed_dofs``, m) are the prescribed displacements of the fixed
@@ -78,8 +77,7 @@ class DofMap:
         if values is not None:
             values = np.asarray(values, dtype=float)
             if values.shape != fixed_dofs.shape:
-                raise InputError(f"values: expected shape {fixed_dofs.shape} (one per fixed dof), "
-                                 f"got {values.shape}")
+                raise InputError(f"values: expected shape {fixed_dofs.shape} (one per fixed dof), got {values.shape}")
             prescribed[fixed_dofs] = values
         fixed = np.zeros(n_full, dtype=bool)
         fixed[fixed_dofs] = True
@@ -103,7 +101,7 @@ class DofMap:
         u[self.free] = q[:nf]
         u = u.reshape(-1, 2)
         if self.body is not None:
-            c, th = q[nf:nf + 2], q[nf + 2]
+            c, th = q[nf : nf + 2], q[nf + 2]
             d = self.X[self.body.nodes] - self.body.reference
             u[self.body.nodes] = c + d @ (rotation(th) - np.eye(2)).T
         return u
@@ -112,7 +110,7 @@ class DofMap:
         """Displacement (2,) of a point rigidly attached to the body."""
         nf = self.free.size
         d = np.asarray(point, dtype=float) - self.body.reference
-        return q[nf:nf + 2] + (rotation(q[nf + 2]) - np.eye(2)) @ d
+        return q[nf : nf + 2] + (rotation(q[nf + 2]) - np.eye(2)) @ d
 
     def jacobian(self, q: np.ndarray) -> sp.csr_matrix:
         """T = du/dq (n_full, n_reduced), sparse."""
@@ -128,8 +126,9 @@ class DofMap:
                 rows += [2 * nodes + i, 2 * nodes + i]
                 cols += [np.full(nodes.size, nf + i), np.full(nodes.size, nf + 2)]
                 vals += [np.ones(nodes.size), dth[:, i]]
-        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                             shape=(self.n_full, self.n_reduced))
+        return sp.csr_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(self.n_full, self.n_reduced)
+        )
 
     def rotation_curvature(self, q: np.ndarray, r_full: np.ndarray) -> float:
         """sum_s r_s . d^2 u_s / dtheta^2 with d^2 u_s/dtheta^2 = -R(theta) (X_s - X_c)."""
@@ -148,7 +147,7 @@ class DofMap:
         th = q[nf + 2]
         Q = np.zeros(self.n_reduced)
         dQ = np.zeros(self.n_reduced)
-        Q[nf:nf + 2] = force
+        Q[nf : nf + 2] = force
         Q[nf + 2] = force @ (rotation_d1(th) @ d)
         dQ[nf + 2] = force @ (-rotation(th) @ d)
         return Q, dQ

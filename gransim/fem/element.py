@@ -77,8 +77,7 @@ class Q1Geometry:
         Jinv = np.linalg.inv(J)  # dxi_j/dX_I
         dNdX = np.einsum("gaj,egjI->egaI", dNdxi, Jinv)
         points = np.einsum("ga,eaI->egI", N, Xe)
-        return cls(np.ascontiguousarray(dNdX), detJ * W_GAUSS[None, :], N, points,
-                   np.asarray(mesh.elements))
+        return cls(np.ascontiguousarray(dNdX), detJ * W_GAUSS[None, :], N, points, np.asarray(mesh.elements))
 
     @property
     def n_gauss(self) -> int:

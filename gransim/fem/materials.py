@@ -79,9 +79,11 @@ class NeoHookean:
         FiT = np.swapaxes(Fi, 1, 2)
         lnJ = np.log(J)
         P = self.mu * (F - FiT) + (self.lam * lnJ)[:, None, None] * FiT
-        A = (self.mu * np.einsum("ik,JL->iJkL", _I2, _I2)[None]
-             + (self.mu - self.lam * lnJ)[:, None, None, None, None] * np.einsum("gJk,gLi->giJkL", Fi, Fi)
-             + self.lam * np.einsum("gJi,gLk->giJkL", Fi, Fi))
+        A = (
+            self.mu * np.einsum("ik,JL->iJkL", _I2, _I2)[None]
+            + (self.mu - self.lam * lnJ)[:, None, None, None, None] * np.einsum("gJk,gLi->giJkL", Fi, Fi)
+            + self.lam * np.einsum("gJi,gLk->giJkL", Fi, Fi)
+        )
         W = 0.5 * self.mu * (np.einsum("giJ,giJ->g", F, F) - 2) - self.mu * lnJ + 0.5 * self.lam * lnJ**2
         return MaterialResult(P, A, _cauchy(P, F, J), W, np.full(len(F), -1, dtype=np.int64))
 
@@ -104,8 +106,9 @@ class StVenantKirchhoff:
         trE = E[:, 0, 0] + E[:, 1, 1]
         S = self.lam * trE[:, None, None] * _I2 + 2 * self.mu * E
         P = np.einsum("giM,gMJ->giJ", F, S)
-        C = (self.lam * np.einsum("MJ,NL->MJNL", _I2, _I2)
-             + self.mu * (np.einsum("MN,JL->MJNL", _I2, _I2) + np.einsum("ML,JN->MJNL", _I2, _I2)))
+        C = self.lam * np.einsum("MJ,NL->MJNL", _I2, _I2) + self.mu * (
+            np.einsum("MN,JL->MJNL", _I2, _I2) + np.einsum("ML,JN->MJNL", _I2, _I2)
+        )
         A = np.einsum("ik,gJL->giJkL", _I2, S) + np.einsum("giM,MJNL,gkN->giJkL", F, C, F)
         W = 0.5 * self.lam * trE**2 + self.mu * np.einsum("gIJ,gIJ->g", E, E)
         return MaterialResult(P, A, _cauchy(P, F, J), W, np.full(len(F), -1, dtype=np.int64))
@@ -205,9 +208,13 @@ class RVEMaterial:
 
         b = self.rve.evaluate(F)
         t = self.thickness
-        return MaterialResult(piola=stress_2d_to_pa(b.piola, t), tangent=tangent_2d_to_pa(b.tangent, t),
-                              cauchy=stress_2d_to_pa(b.cauchy, t), energy=np.asarray(b.energy, float) / t,
-                              n_contacts=np.asarray(b.n_contacts))
+        return MaterialResult(
+            piola=stress_2d_to_pa(b.piola, t),
+            tangent=tangent_2d_to_pa(b.tangent, t),
+            cauchy=stress_2d_to_pa(b.cauchy, t),
+            energy=np.asarray(b.energy, float) / t,
+            n_contacts=np.asarray(b.n_contacts),
+        )
 
     def commit(self) -> None:
         """Commit the RVE's Gauss-point history (no-op for a history-free RVE)."""
@@ -257,8 +264,9 @@ def _ordered_taylor_class():
                         continue
                     F0inv, L, ri, rj, i, j, shift = S
                     o = np.lexsort((shift[:, 1], shift[:, 0], j, i))
-                    R.sets[n] = _SortedSet((F0inv, np.ascontiguousarray(L[o]), ri[o].copy(), rj[o].copy(),
-                                            i[o], j[o], shift[o]))
+                    R.sets[n] = _SortedSet(
+                        (F0inv, np.ascontiguousarray(L[o]), ri[o].copy(), rj[o].copy(), i[o], j[o], shift[o])
+                    )
                     changed = True
             if changed:
                 self._flatten()

@@ -34,14 +34,17 @@ class Mesh:
         nodes = as_array(self.nodes, "nodes", (None, 2))
         elements = as_array(self.elements, "elements", (None, 4), dtype=np.int64)
         if elements.size and (elements.min() < 0 or elements.max() >= nodes.shape[0]):
-            raise InputError(f"elements: node indices must lie in [0, {nodes.shape[0]}), "
-                             f"got [{elements.min()}, {elements.max()}]")
+            raise InputError(
+                f"elements: node indices must lie in [0, {nodes.shape[0]}), got [{elements.min()}, {elements.max()}]"
+            )
         x = nodes[elements]  # (Ne, 4, 2)
-        area2 = np.sum(x[:, :, 0] * np.roll(x[:, :, 1], -1, axis=1)
-                       - np.roll(x[:, :, 0], -1, axis=1) * x[:, :, 1], axis=1)
+        area2 = np.sum(
+            x[:, :, 0] * np.roll(x[:, :, 1], -1, axis=1) - np.roll(x[:, :, 0], -1, axis=1) * x[:, :, 1], axis=1
+        )
         if np.any(area2 <= 0):
-            raise InputError(f"elements: element {int(np.argmax(area2 <= 0))} is not counter-clockwise "
-                             "or has zero area")
+            raise InputError(
+                f"elements: element {int(np.argmax(area2 <= 0))} is not counter-clockwise or has zero area"
+            )
         for name, a in (("nodes", nodes), ("elements", elements)):
             a.flags.writeable = False
             object.__setattr__(self, name, a)
@@ -64,8 +67,7 @@ def _grid_elements(nx: int, ny: int) -> np.ndarray:
     return np.stack([n0, n0 + 1, n0 + nx + 2, n0 + nx + 1], axis=1).astype(np.int64)
 
 
-def rectangle_mesh(nx: int, ny: int, lx: float = 1.0, ly: float = 1.0, distort: float = 0.0,
-                   seed: int = 0) -> Mesh:
+def rectangle_mesh(nx: int, ny: int, lx: float = 1.0, ly: float = 1.0, distort: float = 0.0, seed: int = 0) -> Mesh:
     """An nx x ny rectangle [0, lx] x [0, ly]; ``distort`` moves interior nodes randomly.
 
     ``distort`` is a fraction of the smaller element size (use < 0.25 to keep elements convex); the
@@ -80,7 +82,7 @@ def rectangle_mesh(nx: int, ny: int, lx: float = 1.0, ly: float = 1.0, distort: 
     if distort:
         rng = np.random.default_rng(seed)
         h = min(lx / nx, ly / ny)
-        interior = ((nodes[:, 0] > 0) & (nodes[:, 0] < lx) & (nodes[:, 1] > 0) & (nodes[:, 1] < ly))
+        interior = (nodes[:, 0] > 0) & (nodes[:, 0] < lx) & (nodes[:, 1] > 0) & (nodes[:, 1] < ly)
         nodes[interior] += distort * h * rng.uniform(-1, 1, size=(int(interior.sum()), 2))
     return Mesh(nodes, _grid_elements(int(nx), int(ny)))
 

@@ -43,9 +43,13 @@ def gauss_fields(solution: NewtonResult) -> dict[str, np.ndarray]:
     """Per Gauss point: Cauchy (G,2,2), von Mises, det F, n_contacts, contact-free flag."""
     F = solution.F
     mat = solution.material
-    return {"cauchy": mat.cauchy, "von_mises": von_mises(mat.cauchy),
-            "det_F": F[:, 0, 0] * F[:, 1, 1] - F[:, 0, 1] * F[:, 1, 0],
-            "n_contacts": np.asarray(mat.n_contacts), "contact_free": (np.asarray(mat.n_contacts) == 0)}
+    return {
+        "cauchy": mat.cauchy,
+        "von_mises": von_mises(mat.cauchy),
+        "det_F": F[:, 0, 0] * F[:, 1, 1] - F[:, 0, 1] * F[:, 1, 0],
+        "n_contacts": np.asarray(mat.n_contacts),
+        "contact_free": (np.asarray(mat.n_contacts) == 0),
+    }
 
 
 def write_vtu(path, problem: Problem, solution: NewtonResult) -> Path:
@@ -65,10 +69,10 @@ def write_vtu(path, problem: Problem, solution: NewtonResult) -> Path:
     u_gp = np.einsum("ga,eai->egi", geom.N, solution.u[geom.elements]).reshape(-1, 2)
     pts = np.zeros((len(X) + G, 3))
     pts[: len(X), :2] = X
-    pts[len(X):, :2] = gp
+    pts[len(X) :, :2] = gp
     disp = np.zeros_like(pts)
     disp[: len(X), :2] = solution.u
-    disp[len(X):, :2] = u_gp
+    disp[len(X) :, :2] = u_gp
     s = fields["cauchy"]
     voigt = np.stack([s[:, 0, 0], s[:, 1, 1], np.zeros(G), s[:, 0, 1], np.zeros(G), np.zeros(G)], axis=1)
     cells = [("quad", problem.mesh.elements), ("vertex", (len(X) + np.arange(G))[:, None])]
@@ -77,11 +81,19 @@ def write_vtu(path, problem: Problem, solution: NewtonResult) -> Path:
         v = np.asarray(v, dtype=float)
         return [v.reshape(-1, 4, *v.shape[1:]).mean(axis=1), v]
 
-    cell_data = {"cauchy": both(voigt), "von_mises": both(fields["von_mises"]), "det_F": both(fields["det_F"]),
-                 "n_contacts": [fields["n_contacts"].reshape(-1, 4).min(axis=1).astype(float),
-                                fields["n_contacts"].astype(float)],
-                 "contact_free": [fields["contact_free"].reshape(-1, 4).sum(axis=1).astype(float),
-                                  fields["contact_free"].astype(float)]}
+    cell_data = {
+        "cauchy": both(voigt),
+        "von_mises": both(fields["von_mises"]),
+        "det_F": both(fields["det_F"]),
+        "n_contacts": [
+            fields["n_contacts"].reshape(-1, 4).min(axis=1).astype(float),
+            fields["n_contacts"].astype(float),
+        ],
+        "contact_free": [
+            fields["contact_free"].reshape(-1, 4).sum(axis=1).astype(float),
+            fields["contact_free"].astype(float),
+        ],
+    }
     mesh = meshio.Mesh(pts, cells, point_data={"displacement": disp}, cell_data=cell_data)
     with atomic_path(path, suffix=".vtu") as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
@@ -119,8 +131,15 @@ def rve_network(material, F: np.ndarray, gauss: int = 0):
     return seg, kn * eps[on], p.cell
 
 
-def render_png(path, problem: Problem, solution: NewtonResult, title: str, material=None,
-               interest: dict | None = None, magnify: float | None = None) -> tuple[Path, str]:
+def render_png(
+    path,
+    problem: Problem,
+    solution: NewtonResult,
+    title: str,
+    material=None,
+    interest: dict | None = None,
+    magnify: float | None = None,
+) -> tuple[Path, str]:
     """Von Mises contour on the deformed mesh (pyvista off-screen) with four deformed RVEs (Fig. 7).
 
     Contact-free Gauss points are drawn as red crosses. The RVE branches have a width proportional to
@@ -154,19 +173,31 @@ def render_png(path, problem: Problem, solution: NewtonResult, title: str, mater
 
         pv.OFF_SCREEN = True
         cells = np.hstack([np.full((problem.mesh.n_elements, 1), 4), problem.mesh.elements]).ravel()
-        grid = pv.UnstructuredGrid(cells, np.full(problem.mesh.n_elements, pv.CellType.QUAD),
-                                   np.column_stack([x, np.zeros(len(x))]))
+        grid = pv.UnstructuredGrid(
+            cells, np.full(problem.mesh.n_elements, pv.CellType.QUAD), np.column_stack([x, np.zeros(len(x))])
+        )
         grid.point_data["von Mises (Pa)"] = vm_nodes
         pl = pv.Plotter(off_screen=True, window_size=(1400, 700))
-        pl.add_mesh(grid, scalars="von Mises (Pa)", show_edges=True, cmap="jet",
-                    scalar_bar_args={"title": "von Mises (Pa)", "fmt": "%.2e"})
+        pl.add_mesh(
+            grid,
+            scalars="von Mises (Pa)",
+            show_edges=True,
+            cmap="jet",
+            scalar_bar_args={"title": "von Mises (Pa)", "fmt": "%.2e"},
+        )
         if free.any():
             fp = np.column_stack([(gp + magnify * u_gp)[free], np.full(int(free.sum()), 1.0)])
             pl.add_points(fp, color="red", point_size=9, render_points_as_spheres=True)
         if interest:
             ip = np.array([np.append(gp[g] + magnify * u_gp[g], 1.0) for g in interest.values()])
-            pl.add_point_labels(ip, [str(i + 1) for i in range(len(ip))], point_size=12, font_size=20,
-                                point_color="black", shape_opacity=0.6)
+            pl.add_point_labels(
+                ip,
+                [str(i + 1) for i in range(len(ip))],
+                point_size=12,
+                font_size=20,
+                point_color="black",
+                shape_opacity=0.6,
+            )
         pl.view_xy()
         pl.camera.zoom(1.3)
         img = pl.screenshot(return_img=True)
@@ -174,7 +205,7 @@ def render_png(path, problem: Problem, solution: NewtonResult, title: str, mater
         fg = np.any(np.abs(img.astype(int) - img[0, 0].astype(int)) > 8, axis=2)  # crop the margins
         rows, cols = np.flatnonzero(fg.any(axis=1)), np.flatnonzero(fg.any(axis=0))
         if rows.size and cols.size:
-            img = img[max(rows[0] - 10, 0):rows[-1] + 10, max(cols[0] - 10, 0):cols[-1] + 10]
+            img = img[max(rows[0] - 10, 0) : rows[-1] + 10, max(cols[0] - 10, 0) : cols[-1] + 10]
     except Exception as exc:  # noqa: BLE001 - any VTK/OpenGL failure means: draw with matplotlib
         renderer = f"matplotlib (pyvista failed: {exc})"
 
@@ -194,19 +225,20 @@ def render_png(path, problem: Problem, solution: NewtonResult, title: str, mater
             ax.plot(fxy[:, 0], fxy[:, 1], "rx")
         ax.set_aspect("equal")
         ax.autoscale()
-    ax.set_title(f"{title}; displacements x{magnify:g}; red: Gauss points without contacts "
-                 f"({int(free.sum())})")
+    ax.set_title(f"{title}; displacements x{magnify:g}; red: Gauss points without contacts ({int(free.sum())})")
     if interest:
-        nets = [rve_network(material, solution.F[g], g) if material is not None else None
-                for g in interest.values()]
+        nets = [rve_network(material, solution.F[g], g) if material is not None else None for g in interest.values()]
         fmax = max([n[1].max() for n in nets if n is not None and len(n[1])] or [1.0])
         for k, ((name, g), net) in enumerate(zip(interest.items(), nets)):
             a = fig.add_axes([0.02 + 0.245 * k, 0.02, 0.22, 0.3])
             a.set_xticks([])
             a.set_yticks([])
             F = solution.F[g]
-            a.set_title(f"{k + 1}: {name} (x={gp[g, 0]:.1f}, y={gp[g, 1]:.1f})\n"
-                        f"det F={np.linalg.det(F):.4f}, contacts {int(fields['n_contacts'][g])}", fontsize=9)
+            a.set_title(
+                f"{k + 1}: {name} (x={gp[g, 0]:.1f}, y={gp[g, 1]:.1f})\n"
+                f"det F={np.linalg.det(F):.4f}, contacts {int(fields['n_contacts'][g])}",
+                fontsize=9,
+            )
             if net is None:
                 a.text(0.5, 0.5, "continuum material\n(no RVE)", ha="center", va="center")
                 continue
@@ -216,8 +248,14 @@ def render_png(path, problem: Problem, solution: NewtonResult, title: str, mater
             a.plot(corners[:, 0], corners[:, 1], "b-", lw=0.5)
             a.set_aspect("equal")
             a.autoscale()
-        fig.text(0.5, 0.005, f"RVEs at the Gauss point's F (true scale); branch width {BRANCH_WIDTH:g} pt x f / "
-                 f"{fmax:.3g} N/m, one scale for all four", ha="center", fontsize=9)
+        fig.text(
+            0.5,
+            0.005,
+            f"RVEs at the Gauss point's F (true scale); branch width {BRANCH_WIDTH:g} pt x f / "
+            f"{fmax:.3g} N/m, one scale for all four",
+            ha="center",
+            fontsize=9,
+        )
     with atomic_path(path, suffix=".png") as tmp:
         fig.savefig(tmp, dpi=80, format="png")
     plt.close(fig)
@@ -272,8 +310,11 @@ def plot_load_settlement(path, problem: Problem, setup, result: LoadPathResult) 
     ax.plot(d[:, 1] - d[0, 1], -d[:, 0], "o-")
     ax.set_xlabel("settlement of the footing centre under the footing load (m)")
     ax.set_ylabel("footing force (N per m)")
-    status = "complete" if result.completed else (
-        f"stopped: limit at {result.limit['last_converged_load'][1]:.3f} of the target")
+    status = (
+        "complete"
+        if result.completed
+        else (f"stopped: limit at {result.limit['last_converged_load'][1]:.3f} of the target")
+    )
     ax.set_title(f"load-settlement (target {setup.footing_force:.3g} N/m; {status})", fontsize=9)
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
@@ -283,8 +324,7 @@ def plot_load_settlement(path, problem: Problem, setup, result: LoadPathResult) 
     return Path(path)
 
 
-def write_h5(path, problem: Problem, setup, result: LoadPathResult, parameters: dict,
-             message: str = "") -> Path:
+def write_h5(path, problem: Problem, setup, result: LoadPathResult, parameters: dict, message: str = "") -> Path:
     """All converged steps in one HDF5 file (schema: docs/schema_fem.md)."""
     with atomic_h5(path, kind="fem-slope", parameters=parameters) as f:
         m = f.create_group("mesh")
@@ -350,9 +390,11 @@ def plot_compare(out, summaries: dict, n_worst: int = 3) -> dict:
     lines = ["# Slope: Taylor vs relaxed RVE", ""]
     for k, s in summaries.items():
         lam = s["result"].limit["last_converged_load"][1] if s["result"].limit else 1.0
-        lines.append(f"- {k}: {'completed' if s['completed'] else 'stopped'}, last converged footing fraction "
-                     f"{lam:.4f}, wall {s['timing']['wall_s']:.1f} s, {s['timing']['newton_iterations']} Newton "
-                     f"iterations")
+        lines.append(
+            f"- {k}: {'completed' if s['completed'] else 'stopped'}, last converged footing fraction "
+            f"{lam:.4f}, wall {s['timing']['wall_s']:.1f} s, {s['timing']['newton_iterations']} Newton "
+            f"iterations"
+        )
     worst = []
     if all(v is not None for v in st.values()):
         t, r = st["taylor"], st["relaxed"]
@@ -374,13 +416,15 @@ def plot_compare(out, summaries: dict, n_worst: int = 3) -> dict:
             for c, kind in enumerate(("taylor", "relaxed")):
                 s, sol = summaries[kind], st[kind]
                 net = rve_network(s["material"], sol.F[g], g)
-                ax2 = fig.add_axes([0.1 + 0.45 * c, 1 - 4 / (4 + 3 * len(worst)) - (k + 1) * h + 0.01, 0.35,
-                                    h - 0.04])
+                ax2 = fig.add_axes([0.1 + 0.45 * c, 1 - 4 / (4 + 3 * len(worst)) - (k + 1) * h + 0.01, 0.35, h - 0.04])
                 ax2.set_xticks([])
                 ax2.set_yticks([])
-                ax2.set_title(f"{k + 1}: Gauss point {g} ({gp[g, 0]:.1f}, {gp[g, 1]:.1f}) m, {kind}: det F "
-                              f"{np.linalg.det(sol.F[g]):.4f}, contacts {int(sol.material.n_contacts[g])}, "
-                              f"difference {dg:.3g}", fontsize=8)
+                ax2.set_title(
+                    f"{k + 1}: Gauss point {g} ({gp[g, 0]:.1f}, {gp[g, 1]:.1f}) m, {kind}: det F "
+                    f"{np.linalg.det(sol.F[g]):.4f}, contacts {int(sol.material.n_contacts[g])}, "
+                    f"difference {dg:.3g}",
+                    fontsize=8,
+                )
                 if net is None:
                     continue
                 seg, f, cell = net
@@ -394,7 +438,10 @@ def plot_compare(out, summaries: dict, n_worst: int = 3) -> dict:
         with atomic_path(p2, suffix=".png") as tmp:
             fig.savefig(tmp, dpi=70, format="png")
         plt.close(fig)
-        lines += ["", "Largest relative Cauchy stress differences (Gauss point, difference): "
-                  + ", ".join(f"{g}: {v:.3g}" for g, v in worst)]
+        lines += [
+            "",
+            "Largest relative Cauchy stress differences (Gauss point, difference): "
+            + ", ".join(f"{g}: {v:.3g}" for g, v in worst),
+        ]
     (out / "compare.md").write_text("\n".join(lines) + "\n")
     return {"worst": worst, "paths": [p1]}

@@ -37,8 +37,9 @@ def _rve_700_paths(packing_dir) -> dict:
     try:
         from ..generation import standard_packings
     except ImportError as exc:
-        raise InputError(f"the standard RVEs need gransim.generation ({exc}); pass --packing FILE.h5 "
-                         "or --material neo-hookean") from None
+        raise InputError(
+            f"the standard RVEs need gransim.generation ({exc}); pass --packing FILE.h5 or --material neo-hookean"
+        ) from None
     return standard_packings(packing_dir, names=[f"rve-700-{s}" for s in range(1, 6)])
 
 
@@ -80,8 +81,9 @@ def default_rve_packing(packing_dir="results/packings"):
     name, _ = most_uniform(packings)
     try:
         with atomic_path(cache, suffix=".json") as tmp:
-            Path(tmp).write_text(json.dumps({"files": key, "choice": name,
-                                             "measure": "gransim.rve.fabric.most_uniform"}, indent=1))
+            Path(tmp).write_text(
+                json.dumps({"files": key, "choice": name, "measure": "gransim.rve.fabric.most_uniform"}, indent=1)
+            )
     except OSError:  # a read-only packing directory: measured again next time
         pass
     return packings[name]
@@ -95,8 +97,10 @@ class SlopeInterrupted(GransimError):
     """The run stopped on purpose after a load step (``stop_after``), its checkpoint written."""
 
     def __init__(self, step: int, out):
-        super().__init__(f"stopped after load step {step} as asked (--stop-after); its checkpoint is "
-                         f"{Path(out) / 'checkpoint'}: continue with --resume")
+        super().__init__(
+            f"stopped after load step {step} as asked (--stop-after); its checkpoint is "
+            f"{Path(out) / 'checkpoint'}: continue with --resume"
+        )
         self.step = step
 
 
@@ -131,13 +135,26 @@ def fresh_material(material):
         return AssignedRVEs(fresh_material(material.material), material.rve_index)
     if not callable(getattr(material, "commit", None)):
         return material
-    return type(material)(material.packings, material.normal_stiffness, skin_fraction=material.skin_fraction,
-                          force_tol=material.force_tol, max_iter=material.max_iter,
-                          min_contacts=material.min_contacts)
+    if callable(getattr(material, "fresh", None)):  # keeps every parameter (e.g. the confinement)
+        return material.fresh()
+    return type(material)(
+        material.packings,
+        material.normal_stiffness,
+        skin_fraction=material.skin_fraction,
+        force_tol=material.force_tol,
+        max_iter=material.max_iter,
+        min_contacts=material.min_contacts,
+    )
 
 
-def make_material(kind: str, packing=None, assignment: str = "most-uniform", n_gauss: int = 1520,
-                  packing_dir="results/packings", rve: str = "taylor"):
+def make_material(
+    kind: str,
+    packing=None,
+    assignment: str = "most-uniform",
+    n_gauss: int = 1520,
+    packing_dir="results/packings",
+    rve: str = "taylor",
+):
     """The material of a run: ``taylor`` (an RVE material behind the units boundary
     :class:`gransim.fem.materials.RVEMaterial`, kn = E_n x thickness = :data:`gransim.paper.KN_2D`)
     or ``neo-hookean``.
@@ -220,25 +237,53 @@ def linear_check(problem, scale: float = 1e-3) -> dict:
     r0, K0, *_ = problem.evaluate(q0, (scale, 0.0))
     q_lin = -spla.spsolve(K0, r0)
     q_nl = newton(problem, q0, (scale, 0.0)).q
-    return {"scale": scale, "relative_difference": float(np.linalg.norm(q_nl - q_lin) / np.linalg.norm(q_lin)),
-            "max_displacement_m": float(np.abs(q_lin).max())}
+    return {
+        "scale": scale,
+        "relative_difference": float(np.linalg.norm(q_nl - q_lin) / np.linalg.norm(q_lin)),
+        "max_displacement_m": float(np.abs(q_lin).max()),
+    }
+
 
 def run_parameters(protocol, setup, material, rve_label, tol, min_fraction, max_iter, assignment) -> dict:
     """The parameters a slope run's results depend on (slope.h5 provenance; the checkpoint refuses others)."""
     inner = unwrap(material)
-    return {"protocol": protocol, "footing_force": setup.footing_force, "material": type(inner).__name__,
-            "rve": rve_label, "assignment": assignment if rve_label != "continuum" else "",
-            "packings": packing_fingerprint(material), "tol": tol, "min_fraction": min_fraction,
-            "max_iter": max_iter, "normal_stiffness": NORMAL_STIFFNESS, "density": setup.density,
-            "gravity": setup.gravity, "mesh": [setup.geometry.columns, setup.geometry.rows],
-            "load_steps": setup.load_steps}
+    return {
+        "protocol": protocol,
+        "footing_force": setup.footing_force,
+        "material": type(inner).__name__,
+        "rve": rve_label,
+        "assignment": assignment if rve_label != "continuum" else "",
+        "packings": packing_fingerprint(material),
+        "tol": tol,
+        "min_fraction": min_fraction,
+        "max_iter": max_iter,
+        "normal_stiffness": NORMAL_STIFFNESS,
+        "density": setup.density,
+        "gravity": setup.gravity,
+        "mesh": [setup.geometry.columns, setup.geometry.rows],
+        "load_steps": setup.load_steps,
+    }
 
 
-def run_slope_case(protocol: str = "service", material="taylor", packing=None, out=None,
-                   figures: str = "final", tol: float = 1e-20, min_fraction: float = 1.0 / 64,
-                   geometry=None, assignment: str = "most-uniform", packing_dir="results/packings",
-                   rve: str = "taylor", load_steps: int = 20, executor=None, resume: bool = False,
-                   stop_after: int | None = None, checkpoint: bool = True, max_iter: int = 12) -> dict:
+def run_slope_case(
+    protocol: str = "service",
+    material="taylor",
+    packing=None,
+    out=None,
+    figures: str = "final",
+    tol: float = 1e-20,
+    min_fraction: float = 1.0 / 64,
+    geometry=None,
+    assignment: str = "most-uniform",
+    packing_dir="results/packings",
+    rve: str = "taylor",
+    load_steps: int = 20,
+    executor=None,
+    resume: bool = False,
+    stop_after: int | None = None,
+    checkpoint: bool = True,
+    max_iter: int = 12,
+) -> dict:
     """Solve one protocol and write its outputs to ``out`` (None: no files).
 
     ``figures``: ``final`` (default: the picture and VTU of the last converged state, and the
@@ -291,11 +336,17 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
             return
         if figures == "all":
             write_vtu(out / f"step_{rec.step:03d}.vtu", problem, rec.solution)
-            render_png(out / f"step_{rec.step:03d}.png", problem, rec.solution,
-                       f"{protocol} step {rec.step}, footing {rec.load[1]:.0%}", mat_fe, interest)
+            render_png(
+                out / f"step_{rec.step:03d}.png",
+                problem,
+                rec.solution,
+                f"{protocol} step {rec.step}, footing {rec.load[1]:.0%}",
+                mat_fe,
+                interest,
+            )
         if checkpoint or stop_after is not None:
             fails = [f for f in result_failures() if f[0] == rec.step]
-            write_checkpoint(out / CKPT, params, rec, fails, commits[n_commits[0]:])
+            write_checkpoint(out / CKPT, params, rec, fails, commits[n_commits[0] :])
             n_commits[0] = len(commits)
         if stop_after is not None and rec.step >= stop_after:
             raise SlopeInterrupted(rec.step, out)
@@ -318,48 +369,82 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
     t0 = time.perf_counter()
     bar = progress(total=len(setup.schedule()), desc=f"slope {protocol}")
     try:
-        result = run_load_steps(problem, setup.schedule(), tol=tol, max_iter=max_iter,
-                                min_fraction=min_fraction, on_step=on_step, progress=bar, start=state, on_commit=on_commit,
-                                failures_out=failures_box)
+        result = run_load_steps(
+            problem,
+            setup.schedule(),
+            tol=tol,
+            max_iter=max_iter,
+            min_fraction=min_fraction,
+            on_step=on_step,
+            progress=bar,
+            start=state,
+            on_commit=on_commit,
+            failures_out=failures_box,
+        )
     finally:
         bar.close()
     wall = time.perf_counter() - t0
     message = "" if result.completed else limit_message(problem, setup, result)
     table = convergence_table(result, TABLE2_STEPS)
-    last = (result.limit["partial"] if (result.limit and result.limit["partial"] is not None)
-            else (result.steps[-1].solution if result.steps else None))
+    last = (
+        result.limit["partial"]
+        if (result.limit and result.limit["partial"] is not None)
+        else (result.steps[-1].solution if result.steps else None)
+    )
     ls = load_settlement(problem, setup, result)
     where = executor.describe() if executor is not None else "in process"
-    lines = [(f"## Slope, protocol `{protocol}` (footing {setup.footing_force:.3g} N/m, material "
-             f"{params['material']}, mesh {setup.geometry.columns} x "
-             f"{setup.geometry.rows}, {len(setup.schedule())} steps)"), ""]
-    lines.append(f"- status: {'completed all ' + str(len(setup.schedule())) + ' steps' if result.completed else message}")
+    lines = [
+        (
+            f"## Slope, protocol `{protocol}` (footing {setup.footing_force:.3g} N/m, material "
+            f"{params['material']}, mesh {setup.geometry.columns} x "
+            f"{setup.geometry.rows}, {len(setup.schedule())} steps)"
+        ),
+        "",
+    ]
+    lines.append(
+        f"- status: {'completed all ' + str(len(setup.schedule())) + ' steps' if result.completed else message}"
+    )
     t = result.timer
     resumed = f"; resumed after step {len(state.steps)} from the checkpoint" if state is not None else ""
-    lines.append(f"- wall time {wall:.2f} s for {t.iterations} Newton iterations (material {t.material:.2f} s, "
-                 f"assembly {t.assembly:.2f} s, linear solve {t.solve:.2f} s; outputs are the rest); Gauss "
-                 f"points evaluated {where}{resumed}")
+    lines.append(
+        f"- wall time {wall:.2f} s for {t.iterations} Newton iterations (material {t.material:.2f} s, "
+        f"assembly {t.assembly:.2f} s, linear solve {t.solve:.2f} s; outputs are the rest); Gauss "
+        f"points evaluated {where}{resumed}"
+    )
     iters = [len(s.energy_norms) for s in result.steps]
-    lines.append(f"- Newton iterations per step: {iters}; cut steps: "
-                 f"{[s.step for s in result.steps if s.cuts]}")
+    lines.append(f"- Newton iterations per step: {iters}; cut steps: {[s.step for s in result.steps if s.cuts]}")
     if last is not None:
         fl = gauss_fields(last)
         nc = fl["n_contacts"]
-        lines.append(f"- final state: det F in [{fl['det_F'].min():.4f}, {fl['det_F'].max():.4f}], contacts per "
-                     f"Gauss point in [{nc.min()}, {nc.max()}], contact-free Gauss points {int((nc == 0).sum())}, "
-                     f"max von Mises {fl['von_mises'].max():.4g} Pa, settlement {ls[-1, 1]:.4g} m, "
-                     f"footing rotation {ls[-1, 2]:.3e} rad")
+        lines.append(
+            f"- final state: det F in [{fl['det_F'].min():.4f}, {fl['det_F'].max():.4f}], contacts per "
+            f"Gauss point in [{nc.min()}, {nc.max()}], contact-free Gauss points {int((nc == 0).sum())}, "
+            f"max von Mises {fl['von_mises'].max():.4g} Pa, settlement {ls[-1, 1]:.4g} m, "
+            f"footing rotation {ls[-1, 2]:.3e} rad"
+        )
     lines += ["", "Convergence (relative energy norm, Table 2):", "", table, ""]
     orders = {s.step: observed_orders(s.energy_norms) for s in result.steps if len(s.energy_norms) >= 3}
-    lines.append("Observed orders log(e_k+1/e_k)/log(e_k/e_k-1) in the Table 2 steps: " + "; ".join(
-        f"step {k}: " + ", ".join(f"{o:.2f}" for o in orders[k]) for k in TABLE2_STEPS if k in orders))
-    lines += ["", "Load-settlement (footing force N/m, settlement m, rotation rad):", "",
-              "| force | settlement | rotation |", "|---|---|---|"]
+    lines.append(
+        "Observed orders log(e_k+1/e_k)/log(e_k/e_k-1) in the Table 2 steps: "
+        + "; ".join(f"step {k}: " + ", ".join(f"{o:.2f}" for o in orders[k]) for k in TABLE2_STEPS if k in orders)
+    )
+    lines += [
+        "",
+        "Load-settlement (footing force N/m, settlement m, rotation rad):",
+        "",
+        "| force | settlement | rotation |",
+        "|---|---|---|",
+    ]
     lines += [f"| {r[0] + 0.0:.4g} | {r[1] + 0.0:.5g} | {r[2] + 0.0:.4e} |" for r in ls]
     if lc is not None:
-        lines += ["", (f"Small-load check (dead load x 1e-3 and 2e-3 against the linear solution with the RVE "
-                      f"tangent at F = 1): relative differences {lc[0]['relative_difference']:.3e}, "
-                      f"{lc[1]['relative_difference']:.3e} (max displacement {lc[0]['max_displacement_m']:.3e} m)")]
+        lines += [
+            "",
+            (
+                f"Small-load check (dead load x 1e-3 and 2e-3 against the linear solution with the RVE "
+                f"tangent at F = 1): relative differences {lc[0]['relative_difference']:.3e}, "
+                f"{lc[1]['relative_difference']:.3e} (max displacement {lc[0]['max_displacement_m']:.3e} m)"
+            ),
+        ]
     else:
         lines += ["", f"Small-load check failed: {lc_error}"]
     report = "\n".join(lines)
@@ -368,23 +453,35 @@ def run_slope_case(protocol: str = "service", material="taylor", packing=None, o
         if last is not None and figures != "none":
             tag = "final" if result.completed else "limit"
             lam = result.limit["last_converged_load"][1] if result.limit else 1.0
-            files["state_png"] = render_png(out / f"{tag}.png", problem, last,
-                                            f"{protocol}: {tag} state, footing {lam:.1%}", mat_fe, interest)[0]
+            files["state_png"] = render_png(
+                out / f"{tag}.png", problem, last, f"{protocol}: {tag} state, footing {lam:.1%}", mat_fe, interest
+            )[0]
             files["state_vtu"] = write_vtu(out / f"{tag}.vtu", problem, last)
         if result.limit and result.limit["partial"] is not None and figures == "all":
             write_vtu(out / f"step_{result.limit['step']:03d}_partial.vtu", problem, result.limit["partial"])
         if figures != "none":
-            files["load_settlement_png"] = plot_load_settlement(out / "load_settlement.png", problem, setup,
-                                                                result)
+            files["load_settlement_png"] = plot_load_settlement(out / "load_settlement.png", problem, setup, result)
         (out / "table2.md").write_text(table + "\n")
         (out / "report.md").write_text(report + "\n")
         files["h5"] = write_h5(out / "slope.h5", problem, setup, result, params, message)
-    return {"completed": result.completed, "message": message, "report": report, "table": table,
-            "timing": {**result.timer.as_dict(), "wall_s": wall}, "load_settlement": ls,
-            "steps": result.steps, "result": result, "problem": problem, "linear_check": lc,
-            "linear_check_error": lc_error, "patch_check": patch_check(fresh_material(mat)),
-            "rve": label, "material": mat_fe, "files": files,
-            "resumed_after": len(state.steps) if state else 0}
+    return {
+        "completed": result.completed,
+        "message": message,
+        "report": report,
+        "table": table,
+        "timing": {**result.timer.as_dict(), "wall_s": wall},
+        "load_settlement": ls,
+        "steps": result.steps,
+        "result": result,
+        "problem": problem,
+        "linear_check": lc,
+        "linear_check_error": lc_error,
+        "patch_check": patch_check(fresh_material(mat)),
+        "rve": label,
+        "material": mat_fe,
+        "files": files,
+        "resumed_after": len(state.steps) if state else 0,
+    }
 
 
 def rve_kind(material) -> str:
@@ -420,8 +517,10 @@ def patch_check(material, F0=None) -> dict:
     except NewtonFailure as exc:  # no solution at all: the check fails with what Newton reached
         return {"displacement": float("inf"), "stress": float("inf"), "error": str(exc)}
     P0 = material.evaluate(F0[None]).piola[0]
-    return {"displacement": float(np.abs(sol.u - u).max() / np.abs(u).max()),
-            "stress": float(np.abs(sol.material.piola - P0).max() / np.abs(P0).max())}
+    return {
+        "displacement": float(np.abs(sol.u - u).max() / np.abs(u).max()),
+        "stress": float(np.abs(sol.material.piola - P0).max() / np.abs(P0).max()),
+    }
 
 
 def acceptance_records(summaries: dict) -> list[dict]:
@@ -451,48 +550,109 @@ def acceptance_records(summaries: dict) -> list[dict]:
         case = f"slope-relaxed/{prot}" if s.get("rve") == "relaxed" else f"slope/{prot}"
         res = s["result"]
         if prot == "service":
-            out.append({"case": case, "quantity": "load path", "metric": "completed (1 = yes)",
-                        "value": float(s["completed"]), "tolerance": float("nan"), "pass": True, "kind": "info",
-                        "note": "reported: the -5e6 N/m service load is expected to run to the end"})
+            out.append(
+                {
+                    "case": case,
+                    "quantity": "load path",
+                    "metric": "completed (1 = yes)",
+                    "value": float(s["completed"]),
+                    "tolerance": float("nan"),
+                    "pass": True,
+                    "kind": "info",
+                    "note": "reported: the -5e6 N/m service load is expected to run to the end",
+                }
+            )
         if prot == "paper":
             lam = res.limit["last_converged_load"][1] if res.limit else 1.0
-            out.append({"case": case, "quantity": "limit load", "metric": "last converged footing fraction",
-                        "value": float(lam), "tolerance": float("nan"), "pass": True, "kind": "info",
-                        "note": "reported, not judged: the paper gives no limit load; the Taylor RVE carries no "
-                                "tension, so a crest mechanism is expected before the full load"})
+            out.append(
+                {
+                    "case": case,
+                    "quantity": "limit load",
+                    "metric": "last converged footing fraction",
+                    "value": float(lam),
+                    "tolerance": float("nan"),
+                    "pass": True,
+                    "kind": "info",
+                    "note": "reported, not judged: the paper gives no limit load; the Taylor RVE carries no "
+                    "tension, so a crest mechanism is expected before the full load",
+                }
+            )
         last_e = max((float(st.energy_norms[-1]) for st in res.steps), default=float("nan"))
-        out.append({"case": case, "quantity": "newton", "metric": "largest final relative energy norm",
-                    "value": last_e, "tolerance": float("nan"), "pass": True, "kind": "info",
-                    "note": "reported: the stopping criterion (tol 1e-20, or the residual at round-off)"})
+        out.append(
+            {
+                "case": case,
+                "quantity": "newton",
+                "metric": "largest final relative energy norm",
+                "value": last_e,
+                "tolerance": float("nan"),
+                "pass": True,
+                "kind": "info",
+                "note": "reported: the stopping criterion (tol 1e-20, or the residual at round-off)",
+            }
+        )
         orders = [observed_orders(st.energy_norms) for st in res.steps if len(st.energy_norms) >= 4]
         worst = min(max(o[-2:]) for o in orders) if orders else float("nan")
-        out.append({"case": case, "quantity": "newton", "metric": "min over steps of the best of the last two orders"
-                    + ("" if orders else " (no converged step with 4 or more iterations: nothing to judge)"),
-                    "value": float(worst), "tolerance": 1.5, "pass": bool(worst > 1.5), "kind": "check",
-                    "note": "quadratic convergence (order 2) holds for a consistent tangent only; an inconsistent "
-                            "tangent gives order 1, below the 1.5 bound"})
+        out.append(
+            {
+                "case": case,
+                "quantity": "newton",
+                "metric": "min over steps of the best of the last two orders"
+                + ("" if orders else " (no converged step with 4 or more iterations: nothing to judge)"),
+                "value": float(worst),
+                "tolerance": 1.5,
+                "pass": bool(worst > 1.5),
+                "kind": "check",
+                "note": "quadratic convergence (order 2) holds for a consistent tangent only; an inconsistent "
+                "tangent gives order 1, below the 1.5 bound",
+            }
+        )
         lc = s.get("linear_check")
         if lc is None:
-            out.append({"case": case, "quantity": "small load", "metric": "linear check could not be made: "
-                        + (s.get("linear_check_error") or "not run"), "value": float("nan"), "tolerance": 1e-2,
-                        "pass": False, "kind": "check", "note": "a check that could not be made is a failure"})
+            out.append(
+                {
+                    "case": case,
+                    "quantity": "small load",
+                    "metric": "linear check could not be made: " + (s.get("linear_check_error") or "not run"),
+                    "value": float("nan"),
+                    "tolerance": 1e-2,
+                    "pass": False,
+                    "kind": "check",
+                    "note": "a check that could not be made is a failure",
+                }
+            )
         else:
             d1 = lc[0]["relative_difference"]
-            out.append({"case": case, "quantity": "small load", "metric": "|q_newton - q_linear| / |q_linear| at "
-                        "1e-3 of the dead load", "value": d1, "tolerance": 1e-2, "pass": bool(d1 <= 1e-2),
-                        "kind": "check",
-                        "note": "the Newton solution differs from the linear one (tangent at F = 1) by the small "
-                                "load's nonlinearity (measured: 5.0e-3 for the Taylor RVE, whose contacts open and close, "
-                                "1.2e-5 for the smooth neo-Hookean stand-in); a tangent or residual off by a few percent gives a difference of that order, "
-                                "above 1e-2 (tests/fem: 20% off fails)"})
+            out.append(
+                {
+                    "case": case,
+                    "quantity": "small load",
+                    "metric": "|q_newton - q_linear| / |q_linear| at 1e-3 of the dead load",
+                    "value": d1,
+                    "tolerance": 1e-2,
+                    "pass": bool(d1 <= 1e-2),
+                    "kind": "check",
+                    "note": "the Newton solution differs from the linear one (tangent at F = 1) by the small "
+                    "load's nonlinearity (measured: 5.0e-3 for the Taylor RVE, whose contacts open and close, "
+                    "1.2e-5 for the smooth neo-Hookean stand-in); a tangent or residual off by a few percent gives a difference of that order, "  # noqa: E501
+                    "above 1e-2 (tests/fem: 20% off fails)",
+                }
+            )
         pc = s.get("patch_check")
         if pc is not None:
             worst_p = max(pc["displacement"], pc["stress"])
-            out.append({"case": case, "quantity": "patch test", "metric": "max relative error of u and P on an "
-                        "affine patch", "value": worst_p, "tolerance": 1e-9, "pass": bool(worst_p <= 1e-9),
-                        "kind": "check",
-                        "note": "exact case: a Q1 patch under an affine boundary field is solved by that field with "
-                                "P(F0) of the slope's RVE at every Gauss point; round-off ~1e-13"})
+            out.append(
+                {
+                    "case": case,
+                    "quantity": "patch test",
+                    "metric": "max relative error of u and P on an affine patch",
+                    "value": worst_p,
+                    "tolerance": 1e-9,
+                    "pass": bool(worst_p <= 1e-9),
+                    "kind": "check",
+                    "note": "exact case: a Q1 patch under an affine boundary field is solved by that field with "
+                    "P(F0) of the slope's RVE at every Gauss point; round-off ~1e-13",
+                }
+            )
     return out
 
 

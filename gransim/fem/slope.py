@@ -62,8 +62,7 @@ class SlopeSetup:
 def setup_for(protocol: str, geometry: SlopeGeometry | None = None, load_steps: int = 20) -> SlopeSetup:
     """The setup of a named protocol (``paper`` or ``service``)."""
     check_choice(protocol, "protocol", PROTOCOLS)
-    return SlopeSetup(geometry=geometry or SlopeGeometry(), footing_force=PROTOCOLS[protocol],
-                      load_steps=load_steps)
+    return SlopeSetup(geometry=geometry or SlopeGeometry(), footing_force=PROTOCOLS[protocol], load_steps=load_steps)
 
 
 def slope_problem(material, setup: SlopeSetup) -> Problem:
@@ -78,8 +77,9 @@ def slope_problem(material, setup: SlopeSetup) -> Problem:
     on_footing = surface & (X[:, 0] > setup.footing_left - tol) & (X[:, 0] < setup.footing_right + tol)
     body = RigidBody(np.flatnonzero(on_footing), setup.footing_centre, setup.load_point)
     dofs = DofMap.build(X, fixed, body)
-    return Problem(mesh, material, dofs, body_force=(0.0, -setup.density * setup.gravity),
-                   footing_force=(0.0, setup.footing_force))
+    return Problem(
+        mesh, material, dofs, body_force=(0.0, -setup.density * setup.gravity), footing_force=(0.0, setup.footing_force)
+    )
 
 
 def gauss_points_of_interest(problem: Problem, setup: SlopeSetup) -> dict[str, int]:
@@ -108,8 +108,10 @@ def describe_points(problem: Problem, gauss: np.ndarray, limit: int = 12) -> str
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     items = ", ".join(f"e{g // 4}/g{g % 4} ({x:.2f}, {y:.2f})" for g, (x, y) in zip(gauss[:limit], pts[:limit]))
     more = f", ... ({gauss.size - limit} more)" if gauss.size > limit else ""
-    return (f"{gauss.size} Gauss points in x = {lo[0]:.2f} ... {hi[0]:.2f} m, y = {lo[1]:.2f} ... "
-            f"{hi[1]:.2f} m: {items}{more}")
+    return (
+        f"{gauss.size} Gauss points in x = {lo[0]:.2f} ... {hi[0]:.2f} m, y = {lo[1]:.2f} ... "
+        f"{hi[1]:.2f} m: {items}{more}"
+    )
 
 
 def limit_message(problem: Problem, setup: SlopeSetup, result: LoadPathResult) -> str:
@@ -124,17 +126,33 @@ def limit_message(problem: Problem, setup: SlopeSetup, result: LoadPathResult) -
         where = describe_points(problem, free)
     else:
         where = "no converged state"
-    return (f"load limit: step {lim['step']} (footing {tgt:.0%} of {setup.footing_force:.3g} N/m) did not "
-            f"converge with the increment cut to {lim['min_fraction']:.3g} of a step (last failure: "
-            f"{lim['reason']}). Last converged load: dead load {lam_g:.0%}, footing {lam_f:.4f} of the "
-            f"target = {lam_f * setup.footing_force:.4g} N/m. Gauss points without contacts (the Taylor "
-            f"RVE carries no tension) at that state: {where}")
+    return (
+        f"load limit: step {lim['step']} (footing {tgt:.0%} of {setup.footing_force:.3g} N/m) did not "
+        f"converge with the increment cut to {lim['min_fraction']:.3g} of a step (last failure: "
+        f"{lim['reason']}). Last converged load: dead load {lam_g:.0%}, footing {lam_f:.4f} of the "
+        f"target = {lam_f * setup.footing_force:.4g} N/m. Gauss points without contacts (the Taylor "
+        f"RVE carries no tension) at that state: {where}"
+    )
 
 
-def run_slope(material, setup: SlopeSetup, tol: float = 1e-20, max_iter: int = 12,
-              min_fraction: float = 1.0 / 64, on_step=None, progress=None):
+def run_slope(
+    material,
+    setup: SlopeSetup,
+    tol: float = 1e-20,
+    max_iter: int = 12,
+    min_fraction: float = 1.0 / 64,
+    on_step=None,
+    progress=None,
+):
     """Build and solve the slope; returns (problem, LoadPathResult)."""
     problem = slope_problem(material, setup)
-    result = run_load_steps(problem, setup.schedule(), tol=tol, max_iter=max_iter,
-                            min_fraction=min_fraction, on_step=on_step, progress=progress)
+    result = run_load_steps(
+        problem,
+        setup.schedule(),
+        tol=tol,
+        max_iter=max_iter,
+        min_fraction=min_fraction,
+        on_step=on_step,
+        progress=progress,
+    )
     return problem, result

@@ -57,8 +57,12 @@ class Timer:
 
     def as_dict(self) -> dict:
         """The split as a plain dict."""
-        return {"material_s": self.material, "assembly_s": self.assembly, "solve_s": self.solve,
-                "newton_iterations": self.iterations}
+        return {
+            "material_s": self.material,
+            "assembly_s": self.assembly,
+            "solve_s": self.solve,
+            "newton_iterations": self.iterations,
+        }
 
 
 class NewtonFailure(GransimError):
@@ -117,8 +121,7 @@ class Problem:
         object.__setattr__(self, "f_int0", f0)
 
     # ------------------------------------------------------------------
-    def evaluate(self, q: np.ndarray, load: tuple[float, float], tangent: bool = True,
-                 timer: Timer | None = None):
+    def evaluate(self, q: np.ndarray, load: tuple[float, float], tangent: bool = True, timer: Timer | None = None):
         """(r, K, material, u, F, scale) at q: residual r (n_red,), reduced tangent K_q (sparse CSC or
         None), the material result, nodal displacements (Nn, 2), F (G, 2, 2) and the force scale (N/m)."""
         timer = timer or Timer()
@@ -148,9 +151,11 @@ class Problem:
         timer.assembly += time.perf_counter() - t1
         # size of the nodal forces (N/m): absolute element internal forces plus the applied loads;
         # a residual below ROUNDOFF times this is round-off
-        scale = (float(np.linalg.norm(self.assembler.vector(np.abs(fe))))
-                 + abs(lam_g) * float(np.linalg.norm(self.f_body))
-                 + abs(lam_f) * float(np.linalg.norm(self.footing_force)))
+        scale = (
+            float(np.linalg.norm(self.assembler.vector(np.abs(fe))))
+            + abs(lam_g) * float(np.linalg.norm(self.f_body))
+            + abs(lam_f) * float(np.linalg.norm(self.footing_force))
+        )
         return r, K, mat, u, F, scale
 
 
@@ -182,8 +187,14 @@ def _solve(K, r, timer: Timer, enorms=()):
     return dq
 
 
-def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: float = 1e-20,
-           max_iter: int = 12, timer: Timer | None = None) -> NewtonResult:
+def newton(
+    problem: Problem,
+    q0: np.ndarray,
+    load: tuple[float, float],
+    tol: float = 1e-20,
+    max_iter: int = 12,
+    timer: Timer | None = None,
+) -> NewtonResult:
     """Solve r(q) = 0 from q0; converged when the relative energy norm e_k <= tol.
 
     A state whose residual norm is at round-off level (``ROUNDOFF`` times the force scale) counts as
@@ -216,16 +227,19 @@ def newton(problem: Problem, q0: np.ndarray, load: tuple[float, float], tol: flo
         if not np.isfinite(enorms[-1]) or enorms[-1] > DIVERGENCE:
             raise NewtonFailure(f"diverged (relative energy norm {enorms[-1]:.3e})", enorms)
         if len(enorms) >= STAGNATION[0] and enorms[-1] > STAGNATION[1]:
-            raise NewtonFailure(f"no quadratic convergence (relative energy norm {enorms[-1]:.3e} after "
-                                f"{len(enorms)} iterations)", enorms)
+            raise NewtonFailure(
+                f"no quadratic convergence (relative energy norm {enorms[-1]:.3e} after {len(enorms)} iterations)",
+                enorms,
+            )
         if at_roundoff or enorms[-1] <= tol:
             # converged: the evaluated state q is returned; e_k measures its distance from equilibrium
             # (the remaining increment dq is below tolerance and is not applied)
             break
         q = q + dq
     else:
-        raise NewtonFailure(f"no convergence in {max_iter} iterations (relative energy norm "
-                            f"{enorms[-1]:.3e} > {tol:.1e})", enorms)
+        raise NewtonFailure(
+            f"no convergence in {max_iter} iterations (relative energy norm {enorms[-1]:.3e} > {tol:.1e})", enorms
+        )
     return NewtonResult(q, u, F, mat, np.array(enorms), np.array(rnorms))
 
 
@@ -283,10 +297,18 @@ class ResumeState:
     failures: list = field(default_factory=list)
 
 
-def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int = 12,
-                   min_fraction: float = 1.0 / 64, on_step=None, progress=None,
-                   start: ResumeState | None = None, on_commit=None,
-                   failures_out: list | None = None) -> LoadPathResult:
+def run_load_steps(
+    problem: Problem,
+    schedule,
+    tol: float = 1e-20,
+    max_iter: int = 12,
+    min_fraction: float = 1.0 / 64,
+    on_step=None,
+    progress=None,
+    start: ResumeState | None = None,
+    on_commit=None,
+    failures_out: list | None = None,
+) -> LoadPathResult:
     """Follow ``schedule`` (a list of (lam_g, lam_f) targets, one per step) from the unloaded state.
 
     A step whose Newton solve fails is cut into halves (then quarters...) of its load increment;
@@ -352,9 +374,15 @@ def run_load_steps(problem: Problem, schedule, tol: float = 1e-20, max_iter: int
             h *= 2.0
         if done < 1.0 - 1e-12:
             last_load = prev + done * (target - prev)
-            limit = {"step": k, "target": tuple(target), "last_converged_load": tuple(last_load),
-                     "fraction_of_step": done, "reason": last_failure, "min_fraction": min_fraction,
-                     "partial": sol if (sub and sol is not None) else None}
+            limit = {
+                "step": k,
+                "target": tuple(target),
+                "last_converged_load": tuple(last_load),
+                "fraction_of_step": done,
+                "reason": last_failure,
+                "min_fraction": min_fraction,
+                "partial": sol if (sub and sol is not None) else None,
+            }
             break
         rec = StepRecord(k, tuple(target), sol, cuts, tuple(sub))
         steps.append(rec)

@@ -21,6 +21,19 @@ from .pack import make_packing
 from .standard import RVE_MEAN_OVERLAP, STANDARD_PACKINGS, build_standard, standard_packings
 from .stats import packing_stats, rattlers
 
-__all__ = ["RVE_MEAN_OVERLAP", "STANDARD_PACKINGS", "FireParameters", "GrainSizeDistribution", "Minimiser",
-           "build_standard", "compact_packing", "compaction_run", "distribution_names", "get_distribution",
-           "make_packing", "packing_stats", "rattlers", "standard_packings"]
+__all__ = [
+    "RVE_MEAN_OVERLAP",
+    "STANDARD_PACKINGS",
+    "FireParameters",
+    "GrainSizeDistribution",
+    "Minimiser",
+    "build_standard",
+    "compact_packing",
+    "compaction_run",
+    "distribution_names",
+    "get_distribution",
+    "make_packing",
+    "packing_stats",
+    "rattlers",
+    "standard_packings",
+]

@@ -68,8 +68,10 @@ def _gas(r: np.ndarray, phi: float, rng) -> tuple[np.ndarray, float]:
     m = Minimiser(x, r, L, 0.3, FireParameters())
     status = m.run(0.0, False, 0.1, 200_000, skin=0.6)
     if status != "converged" or m.diag[0] > UNJAMMED_ENERGY * r.shape[0]:
-        raise ConvergenceError(f"the granular gas at phi = {phi} is not contact-free after {m.steps} FIRE steps "
-                               f"({status}, energy {m.diag[0]:.2e} in reduced units); use a smaller phi_gas")
+        raise ConvergenceError(
+            f"the granular gas at phi = {phi} is not contact-free after {m.steps} FIRE steps "
+            f"({status}, energy {m.diag[0]:.2e} in reduced units); use a smaller phi_gas"
+        )
     return m.in_original_order()[0], L
 
 
@@ -93,8 +95,9 @@ def _setup(dist, n, seed, friction, pressure, phi_gas, density, kn):
     r = d / (2.0 * ell)
     x, L = _gas(r, phi_gas, rng)
     gas = Packing(positions=x * ell, radii=r * ell, cell=np.eye(2) * L * ell, density=density)  # as make_packing
-    dem = DEMSettings.for_packing(gas, kn, mu=friction, damping_ratio=DAMPING_RATIO,
-                                  steps_per_contact=STEPS_PER_CONTACT, skin_d50=SKIN_D50)
+    dem = DEMSettings.for_packing(
+        gas, kn, mu=friction, damping_ratio=DAMPING_RATIO, steps_per_contact=STEPS_PER_CONTACT, skin_d50=SKIN_D50
+    )
     servo = AxisControl("servo", target=pressure * kn, gain=SERVO_GAIN_KN_DT / (kn * dem.dt))
     return gas, dem, Loading(x=servo, y=servo)
 
@@ -109,24 +112,38 @@ def compaction_run(packing: Packing):
     """
     m = packing.metadata
     if m.get("generator") != "gransim.generation.compact_packing":
-        raise InputError("packing: not made by compact_packing (metadata 'generator' is "
-                         f"{m.get('generator')!r})")
+        raise InputError(f"packing: not made by compact_packing (metadata 'generator' is {m.get('generator')!r})")
     dist = get_distribution(m["distribution"])
     if m.get("mean_diameter_target") is not None:
         dist = dist.scaled(m["mean_diameter_target"])
-    gas, dem, loading = _setup(dist, m["n"], m["seed"], m["friction"], m["pressure_over_kn"], m["phi_gas"],
-                               packing.density, m["dem"]["kn"])
+    gas, dem, loading = _setup(
+        dist, m["n"], m["seed"], m["friction"], m["pressure_over_kn"], m["phi_gas"], packing.density, m["dem"]["kn"]
+    )
     # packings written before DEMSettings had a flavour were made in LIGGGHTS' arithmetic (the only one)
     if dem.to_dict() != {"flavour": "liggghts", **m["dem"]}:
-        raise InputError("packing: the DEM settings rebuilt from its metadata differ from the stored ones "
-                         "(made by another gransim version?)")
+        raise InputError(
+            "packing: the DEM settings rebuilt from its metadata differ from the stored ones "
+            "(made by another gransim version?)"
+        )
     return gas, dem, loading, int(m["dem_steps"])
 
 
-def compact_packing(distribution, n: int, seed: int, friction: float, *, pressure: float = DEFAULT_PRESSURE,
-                    phi_gas: float = DEFAULT_PHI_GAS, mean_diameter: float | None = None, density: float = 2650.0,
-                    kn: float = 1e5, stress_tol: float = 0.01, unbalanced_tol: float = 1e-3,
-                    check_every: int = 2000, max_steps: int = 2_000_000) -> Packing:
+def compact_packing(
+    distribution,
+    n: int,
+    seed: int,
+    friction: float,
+    *,
+    pressure: float = DEFAULT_PRESSURE,
+    phi_gas: float = DEFAULT_PHI_GAS,
+    mean_diameter: float | None = None,
+    density: float = 2650.0,
+    kn: float = 1e5,
+    stress_tol: float = 0.01,
+    unbalanced_tol: float = 1e-3,
+    check_every: int = 2000,
+    max_steps: int = 2_000_000,
+) -> Packing:
     """A dense periodic assembly made by frictional isotropic DEM compaction (module docstring).
 
     Parameters
@@ -201,7 +218,8 @@ def compact_packing(distribution, n: int, seed: int, friction: float, *, pressur
     else:
         raise ConvergenceError(
             f"compaction (N = {n}, seed = {seed}, friction = {friction}) not quasi-static after {eng.step} steps: "
-            f"stresses {s[0, 0] / p:.4f} p, {s[1, 1] / p:.4f} p, unbalanced force ratio {ubf:.2e}")
+            f"stresses {s[0, 0] / p:.4f} p, {s[1, 1] / p:.4f} p, unbalanced force ratio {ubf:.2e}"
+        )
     Lx, Ly = eng.box_lengths
     cell = np.diag([Lx, Ly])
     pk = Packing(positions=eng.x - eng.lo, radii=gas.radii, cell=cell, density=density).wrapped()
@@ -209,14 +227,34 @@ def compact_packing(distribution, n: int, seed: int, friction: float, *, pressur
     meta = {
         "generator": "gransim.generation.compact_packing",
         "algorithm": "granular gas + isotropic servo compaction by the frictional DEM (gransim.dem)",
-        "distribution": dist.name, "distribution_d50": dist.d50, "n": n, "seed": seed,
-        "friction": friction, "pressure_over_kn": pressure, "phi_gas": phi_gas,
-        "mean_diameter_target": mean_diameter, "stress_tol": stress_tol, "unbalanced_tol": unbalanced_tol,
-        "dem": dem.to_dict(), "servo_gain": loading.x.gain, "dem_steps": int(eng.step),
-        "unbalanced_force_ratio": ubf, "stress_over_p": [float(eng.stress[0, 0] / p), float(eng.stress[1, 1] / p)],
-        **{k: stats[k] for k in ("solid_fraction", "void_ratio", "mean_overlap_dmean", "mean_overlap_d50",
-                                 "max_overlap_d50", "coordination", "coordination_nonrattler",
-                                 "rattler_fraction")},
+        "distribution": dist.name,
+        "distribution_d50": dist.d50,
+        "n": n,
+        "seed": seed,
+        "friction": friction,
+        "pressure_over_kn": pressure,
+        "phi_gas": phi_gas,
+        "mean_diameter_target": mean_diameter,
+        "stress_tol": stress_tol,
+        "unbalanced_tol": unbalanced_tol,
+        "dem": dem.to_dict(),
+        "servo_gain": loading.x.gain,
+        "dem_steps": int(eng.step),
+        "unbalanced_force_ratio": ubf,
+        "stress_over_p": [float(eng.stress[0, 0] / p), float(eng.stress[1, 1] / p)],
+        **{
+            k: stats[k]
+            for k in (
+                "solid_fraction",
+                "void_ratio",
+                "mean_overlap_dmean",
+                "mean_overlap_d50",
+                "max_overlap_d50",
+                "coordination",
+                "coordination_nonrattler",
+                "rattler_fraction",
+            )
+        },
         "seconds": time.perf_counter() - t0,
     }
     return pk.replace(metadata=meta)

@@ -417,9 +417,7 @@ def _fire_run(x, v, r, pi, pj, off, pcut, x_ref, st, prm, diag, parallel):
                 dt *= f_dec
             alpha = alpha0
             s = np.exp(-0.5 * dt * vq / sq) if cell_free else 1.0
-            _particles(
-                parallel, _STOP, x, v, f, x_ref, part, 0.0, 0.0, s, dt
-            )  # step half back, stop
+            _particles(parallel, _STOP, x, v, f, x_ref, part, 0.0, 0.0, s, dt)  # step half back, stop
             L *= s
             vq = 0.0
         vq += dt * fq
@@ -581,9 +579,7 @@ class Minimiser:
                 int(max_steps),
                 self.fire,
             )
-            status = _fire_run(
-                self.x, self.v, self.r, pi, pj, off, pcut, x_ref, st, prm, self.diag, self.parallel
-            )
+            status = _fire_run(self.x, self.v, self.r, pi, pj, off, pcut, x_ref, st, prm, self.diag, self.parallel)
             self.L = state.L
             self.steps += int(st[S_STEPS]) - done
             self.residual = state.residual

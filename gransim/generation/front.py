@@ -179,13 +179,9 @@ def _front(r, L, u):
                 if partner == a or partner < 0:
                     break
                 if side == 0:
-                    px, py, ok = _tangent(
-                        x[a, 0], yfront[a], r[a], x[partner, 0], yfront[partner], r[partner], rn, L
-                    )
+                    px, py, ok = _tangent(x[a, 0], yfront[a], r[a], x[partner, 0], yfront[partner], r[partner], rn, L)
                 else:
-                    px, py, ok = _tangent(
-                        x[partner, 0], yfront[partner], r[partner], x[a, 0], yfront[a], r[a], rn, L
-                    )
+                    px, py, ok = _tangent(x[partner, 0], yfront[partner], r[partner], x[a, 0], yfront[a], r[a], rn, L)
                 if not ok:
                     # too far apart to touch both: touch A at its height, towards the partner
                     dx = _wrap(x[partner, 0] - x[a, 0], L)

@@ -73,12 +73,18 @@ class GrainSizeDistribution:
             raise InputError(f"diameters: must be > 0, got {float(d[d <= 0][0])!r}")
         if np.any(np.diff(d) <= 0):
             k = int(np.argmax(np.diff(d) <= 0))
-            raise InputError(f"diameters: must be strictly increasing (d[{k}] = {float(d[k])!r} >= d[{k + 1}] = {float(d[k + 1])!r})")
+            raise InputError(
+                f"diameters: must be strictly increasing (d[{k}] = {float(d[k])!r} >= d[{k + 1}] = {float(d[k + 1])!r})"
+            )
         if np.any(np.diff(p) < 0):
             k = int(np.argmax(np.diff(p) < 0))
-            raise InputError(f"passing: must be non-decreasing (P[{k}] = {float(p[k])!r} > P[{k + 1}] = {float(p[k + 1])!r})")
+            raise InputError(
+                f"passing: must be non-decreasing (P[{k}] = {float(p[k])!r} > P[{k + 1}] = {float(p[k + 1])!r})"
+            )
         if p[0] != 0.0 or p[-1] != 100.0:
-            raise InputError(f"passing: must start at 0 and end at 100 percent, got {float(p[0])!r} ... {float(p[-1])!r}")
+            raise InputError(
+                f"passing: must start at 0 and end at 100 percent, got {float(p[0])!r} ... {float(p[-1])!r}"
+            )
         for name, arr in (("diameters", d), ("passing", p)):
             arr = arr.copy()
             arr.flags.writeable = False
@@ -250,8 +256,7 @@ class GrainSizeDistribution:
     def scaled_by(self, factor: float) -> GrainSizeDistribution:
         """The same grading with every diameter multiplied by ``factor`` (> 0)."""
         factor = as_positive_float(factor, "factor")
-        return GrainSizeDistribution(self.diameters * factor, self.passing, name=self.name,
-                                     source=self.source)
+        return GrainSizeDistribution(self.diameters * factor, self.passing, name=self.name, source=self.source)
 
     def scaled(self, mean_diameter: float) -> GrainSizeDistribution:
         """The same grading scaled so that its number-mean diameter is ``mean_diameter`` (m)."""
@@ -260,13 +265,23 @@ class GrainSizeDistribution:
 
     def summary(self) -> dict:
         """D10, D50, D60, D90, Cu, d_min, d_max, mean diameter (m; Cu dimensionless)."""
-        return {"name": self.name, "d10": self.d10, "d50": self.d50, "d60": self.d60, "d90": self.d90,
-                "cu": self.cu, "d_min": self.d_min, "d_max": self.d_max,
-                "mean_diameter": self.mean_diameter}
+        return {
+            "name": self.name,
+            "d10": self.d10,
+            "d50": self.d50,
+            "d60": self.d60,
+            "d90": self.d90,
+            "cu": self.cu,
+            "d_min": self.d_min,
+            "d_max": self.d_max,
+            "mean_diameter": self.mean_diameter,
+        }
 
     def __repr__(self) -> str:
-        return (f"GrainSizeDistribution({self.name!r}, D10={self.d10 * 1e3:.4g} mm, D50={self.d50 * 1e3:.4g} mm, "
-                f"D60={self.d60 * 1e3:.4g} mm, Cu={self.cu:.3g}, {self.d_min * 1e3:.4g}-{self.d_max * 1e3:.4g} mm)")
+        return (
+            f"GrainSizeDistribution({self.name!r}, D10={self.d10 * 1e3:.4g} mm, D50={self.d50 * 1e3:.4g} mm, "
+            f"D60={self.d60 * 1e3:.4g} mm, Cu={self.cu:.3g}, {self.d_min * 1e3:.4g}-{self.d_max * 1e3:.4g} mm)"
+        )
 
 
 def distribution_names() -> tuple[str, ...]:
@@ -306,5 +321,6 @@ def get_distribution(name) -> GrainSizeDistribution:
         return _load_named(name)
     if name.endswith(".csv") and Path(name).is_file():
         return GrainSizeDistribution.from_csv(name)
-    raise InputError(f"unknown distribution {name!r}; choose one of: {', '.join(known)} "
-                     "(or give a path to a CSV sieve curve in mm)")
+    raise InputError(
+        f"unknown distribution {name!r}; choose one of: {', '.join(known)} (or give a path to a CSV sieve curve in mm)"
+    )

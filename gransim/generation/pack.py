@@ -114,20 +114,36 @@ def check_packing_memory(n, name: str = "n") -> float:
     """Refuse (:class:`InputError`, with the estimate) a packing of ``n`` disks that would not fit
     into the available memory; returns estimate / available (for a warning above 0.5)."""
     n = as_int(n, name, minimum=2)
-    return check_memory(packing_memory_estimate(n), f"{name}: a packing of {n:.3g} disks",
-                        hint=f"estimated at {PACKING_BYTES_PER_DISK} B a disk: the measured peak of 850-1130 B a disk "
-                             "with a safety factor of about 2")
+    return check_memory(
+        packing_memory_estimate(n),
+        f"{name}: a packing of {n:.3g} disks",
+        hint=f"estimated at {PACKING_BYTES_PER_DISK} B a disk: the measured peak of 850-1130 B a disk "
+        "with a safety factor of about 2",
+    )
 
 
 # --------------------------------------------------------------------------------------------
 # public API
 # --------------------------------------------------------------------------------------------
-def make_packing(distribution, n: int, seed: int, solid_fraction: float | None = None,
-                 mean_overlap: float | None = None, mean_diameter: float | None = None, *,
-                 density: float = 2650.0, phi_start: float = 0.86, skin: float = 0.3,
-                 force_tol: float = 1e-3, overlap_tol: float = 0.02, max_steps: int = 400_000,
-                 max_passes: int = 12, residual: str = "max", fire: FireParameters = DEFAULT_FIRE,
-                 method: str = "random") -> Packing:
+def make_packing(
+    distribution,
+    n: int,
+    seed: int,
+    solid_fraction: float | None = None,
+    mean_overlap: float | None = None,
+    mean_diameter: float | None = None,
+    *,
+    density: float = 2650.0,
+    phi_start: float = 0.86,
+    skin: float = 0.3,
+    force_tol: float = 1e-3,
+    overlap_tol: float = 0.02,
+    max_steps: int = 400_000,
+    max_passes: int = 12,
+    residual: str = "max",
+    fire: FireParameters = DEFAULT_FIRE,
+    method: str = "random",
+) -> Packing:
     """A dense, isotropic, periodic packing of ``n`` disks (algorithm: module docstring).
 
     Parameters
@@ -199,15 +215,19 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     if solid_fraction is not None:
         solid_fraction = as_positive_float(solid_fraction, "solid_fraction")
         if solid_fraction >= MAX_SOLID_FRACTION:
-            raise InputError(f"solid_fraction: {solid_fraction} is unreachable for a disk packing with small "
-                             f"overlaps (must be < {MAX_SOLID_FRACTION})")
+            raise InputError(
+                f"solid_fraction: {solid_fraction} is unreachable for a disk packing with small "
+                f"overlaps (must be < {MAX_SOLID_FRACTION})"
+            )
     elif mean_overlap is None:
         mean_overlap = DEFAULT_MEAN_OVERLAP
     if mean_overlap is not None:
         mean_overlap = as_positive_float(mean_overlap, "mean_overlap")
         if mean_overlap > MAX_MEAN_OVERLAP:
-            raise InputError(f"mean_overlap: {mean_overlap} is not a small overlap (must be <= "
-                             f"{MAX_MEAN_OVERLAP} of the mean diameter)")
+            raise InputError(
+                f"mean_overlap: {mean_overlap} is not a small overlap (must be <= "
+                f"{MAX_MEAN_OVERLAP} of the mean diameter)"
+            )
     if mean_diameter is not None:
         dist = dist.scaled(as_positive_float(mean_diameter, "mean_diameter"))
     density = as_positive_float(density, "density")
@@ -244,12 +264,14 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     d2 = float(np.mean((2 * r) ** 2))
     P = 4.0 * 0.84 * target / (np.pi * d2)  # p ~ z phi <eps> <l> / (pi <d^2>), z ~ 4, phi ~ 0.84
     passes = 0
+
     def fail(what: str):
         if m.bar is not None:
             m.bar.close()
         raise ConvergenceError(
             f"{what} (N = {n}, seed = {seed}): reached phi = {m.phi:.5f}, mean overlap = "
-            f"{m.mean_overlap:.3e} d_mean, residual = {m.residual:.2e} after {m.steps} FIRE steps")
+            f"{m.mean_overlap:.3e} d_mean, residual = {m.residual:.2e} after {m.steps} FIRE steps"
+        )
 
     # the random start relaxed at fixed cell (a quench from "infinite temperature"); only the large
     # overlaps of the random start need to go, so a loose tolerance on the rms residual suffices
@@ -268,8 +290,9 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     if method == "front":
         ladder = FRONT_LADDER  # the front is below jamming: compact under P 3^K first, then unload
     for k in range(ladder, 0, -1):
-        status = m.run(P * LADDER_FACTOR**k, True, max(force_tol, PASS_TOL), max_steps, stage=f"decompression {k}",
-                       rms=True)
+        status = m.run(
+            P * LADDER_FACTOR**k, True, max(force_tol, PASS_TOL), max_steps, stage=f"decompression {k}", rms=True
+        )
         if status != "converged":
             fail(f"decompression stage at pressure {P * LADDER_FACTOR**k:.3e} k_n did not converge ({status})")
     # pressure passes at the target: rms PASS_TOL while the pressure is adjusted, then force_tol in the
@@ -298,7 +321,8 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
             raise ConvergenceError(
                 f"solid_fraction {solid_fraction} is below the jamming fraction phi_J = {phi_jam:.5f} reached by "
                 f"this protocol (N = {n}, seed = {seed}): no contact network exists there; ask for a "
-                "mean_overlap target or a larger solid fraction")
+                "mean_overlap target or a larger solid fraction"
+            )
         m.scale_to(np.sqrt(np.pi * np.sum(r**2) / solid_fraction))
         status = m.run(0.0, False, force_tol, max_steps, stage="solid fraction", rms=residual == "rms")
         if status != "converged":
@@ -312,8 +336,10 @@ def make_packing(distribution, n: int, seed: int, solid_fraction: float | None =
     stats = packing_stats(packing)
     meta = {
         "generator": "gransim.generation.make_packing",
-        "algorithm": (("advancing-front start" if method == "front" else "random start")
-                      + " + pressure-controlled FIRE 2.0 (enthalpy U + pA, square cell)"),
+        "algorithm": (
+            ("advancing-front start" if method == "front" else "random start")
+            + " + pressure-controlled FIRE 2.0 (enthalpy U + pA, square cell)"
+        ),
         "method": method,
         "front_placed": placed,
         "distribution": dist.name,

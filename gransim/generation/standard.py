@@ -31,7 +31,8 @@ GENERATOR_VERSION = 3
 RVE_MEAN_OVERLAP = DEFAULT_MEAN_OVERLAP
 #: the make_packing method of the standard RVEs (the one the stored references were made with)
 STANDARD_METHOD = "random"
-#: The Kuhn assembly (Kuhn, "Deformation measures for granular materials", section 4: void ratio 0.189, effective coordination 3.75, mean indentation
+#: The Kuhn assembly (Kuhn, "Deformation measures for granular materials", section 4: void ratio 0.189,
+#: effective coordination 3.75, mean indentation
 #: below 0.02 % of D50) is made by frictional DEM compaction (:func:`gransim.generation.compact_packing`):
 #: a frictionless jammed packing of this grading is denser (e = 0.177-0.184 over seeds 1-8) and
 #: better connected than Kuhn's. The preparation friction 0.05 gives e = 0.190, 0.189, 0.195, 0.196
@@ -71,9 +72,7 @@ STANDARD_PACKINGS = _standard_requests()
 def build_standard(name: str) -> Packing:
     """Generate one standard assembly of :data:`STANDARD_PACKINGS` (no file written)."""
     if name not in STANDARD_PACKINGS:
-        raise InputError(
-            f"unknown standard packing {name!r}; choose from: {', '.join(STANDARD_PACKINGS)}"
-        )
+        raise InputError(f"unknown standard packing {name!r}; choose from: {', '.join(STANDARD_PACKINGS)}")
     req = dict(STANDARD_PACKINGS[name])
     if req.pop("protocol", "fire") == "compaction":
         return compact_packing(**req)
@@ -91,13 +90,9 @@ def standard_packings(out_dir="results/packings", names=None, force: bool = Fals
     names = list(STANDARD_PACKINGS) if names is None else list(names)
     for name in names:
         if name not in STANDARD_PACKINGS:
-            raise InputError(
-                f"unknown standard packing {name!r}; choose from: {', '.join(STANDARD_PACKINGS)}"
-            )
+            raise InputError(f"unknown standard packing {name!r}; choose from: {', '.join(STANDARD_PACKINGS)}")
         if (out_dir / f"{name}.h5").is_dir():
-            raise InputError(
-                f"{out_dir / f'{name}.h5'} is a directory; the packing {name!r} is written there"
-            )
+            raise InputError(f"{out_dir / f'{name}.h5'} is a directory; the packing {name!r} is written there")
     out = {}
     bar = progress(names, total=len(names), desc="packings")
     for name in bar:

@@ -3,5 +3,13 @@
 from .cell import cell_area, cell_heights, check_cell, minimum_image, to_cartesian, to_fractional, wrap
 from .packing import Packing
 
-__all__ = ["Packing", "cell_area", "cell_heights", "check_cell", "minimum_image", "to_cartesian",
-           "to_fractional", "wrap"]
+__all__ = [
+    "Packing",
+    "cell_area",
+    "cell_heights",
+    "check_cell",
+    "minimum_image",
+    "to_cartesian",
+    "to_fractional",
+    "wrap",
+]

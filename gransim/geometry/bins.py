@@ -45,8 +45,9 @@ from .cell import cell_heights
 MAX_BINS_PER_POINT = 4
 
 
-def bin_layout(cell: np.ndarray, cutoff: float, n_points: int,
-               max_bins_per_point: int = MAX_BINS_PER_POINT) -> tuple[int, int, int, int]:
+def bin_layout(
+    cell: np.ndarray, cutoff: float, n_points: int, max_bins_per_point: int = MAX_BINS_PER_POINT
+) -> tuple[int, int, int, int]:
     """Bins (nb1, nb2) of size >= ``cutoff`` (m) across each pair of cell edges, and the scan
     half-widths (k1, k2) that reach ``cutoff``; at most ``max_bins_per_point * n_points`` bins."""
     h = cell_heights(cell)
@@ -209,14 +210,29 @@ def walk_pairs(visitor, xs, rs, labels, C, skin, start, nb1, nb2, k1, k2, base, 
     # of _walk_bins, never into the parfor (there numba 0.68 loses writes through the arrays of a
     # namedtuple, measured), and per-candidate calls (refcounts of the visitor's arrays) vanish
     for ch in prange(nchunk):
-        _walk_bins(visitor, xs, rs, labels, C, skin, start, nb1, nb2, k1, k2, base, half,
-                   ch * CHUNK_BINS, min(nbins, (ch + 1) * CHUNK_BINS), counts)
+        _walk_bins(
+            visitor,
+            xs,
+            rs,
+            labels,
+            C,
+            skin,
+            start,
+            nb1,
+            nb2,
+            k1,
+            k2,
+            base,
+            half,
+            ch * CHUNK_BINS,
+            min(nbins, (ch + 1) * CHUNK_BINS),
+            counts,
+        )
     return counts
 
 
 @njit
-def _walk_bins(visitor, xs, rs, labels, C, skin, start, nb1, nb2, k1, k2, base, half, q0, q1,
-               counts):
+def _walk_bins(visitor, xs, rs, labels, C, skin, start, nb1, nb2, k1, k2, base, half, q0, q1, counts):
     """The walk over bins q0 <= q < q1 (serial); writes ``counts`` of their points."""
     c00 = C[0, 0]
     c01 = C[0, 1]
@@ -254,7 +270,8 @@ def _walk_bins(visitor, xs, rs, labels, C, skin, start, nb1, nb2, k1, k2, base, 
                         d1 = xs[c, 1] + off1 - xi1
                         cut = ri + rs[c] + skin
                         if d0 * d0 + d1 * d1 < cut * cut and pair_visit(
-                                visitor, p, c, i, j, t1, t2, d0, d1, base[p] + m):
+                            visitor, p, c, i, j, t1, t2, d0, d1, base[p] + m
+                        ):
                             m += 1
             counts[p] = m
 
@@ -334,11 +351,9 @@ def pair_list(xw, s, reach, C, skin, nb1, nb2, k1, k2, img, by_label=True, half=
     """
     start, order, xs, rs = bin_points(xw, s, reach, nb1, nb2)
     n = xw.shape[0]
-    counts = walk_pairs(_PairCount(0), xs, rs, order, C, skin, start, nb1, nb2, k1, k2,
-                        np.zeros(n, np.int64), half)
+    counts = walk_pairs(_PairCount(0), xs, rs, order, C, skin, start, nb1, nb2, k1, k2, np.zeros(n, np.int64), half)
     base, m = _slots(counts, order, by_label)
-    out = _PairList(np.empty(m, np.int64), np.empty(m, np.int64), np.empty((m, 2), np.int64),
-                    np.empty((m, 2)), img)
+    out = _PairList(np.empty(m, np.int64), np.empty(m, np.int64), np.empty((m, 2), np.int64), np.empty((m, 2)), img)
     walk_pairs(out, xs, rs, order, C, skin, start, nb1, nb2, k1, k2, base, half)
     return out.out_i, out.out_j, out.out_t, out.out_d
 
@@ -362,5 +377,6 @@ def pairs_within(x, reach, cell, skin: float = 0.0, half: bool = False):
     xw, s, _ = wrap_fractional(x, cell)
     n = x.shape[0]
     nb1, nb2, k1, k2 = bin_layout(cell, 2.0 * float(reach.max(initial=0.0)) + float(skin), n)
-    return pair_list(xw, s, reach, cell, float(skin), nb1, nb2, k1, k2, np.zeros((n, 2), np.int64),
-                     by_label=False, half=bool(half))
+    return pair_list(
+        xw, s, reach, cell, float(skin), nb1, nb2, k1, k2, np.zeros((n, 2), np.int64), by_label=False, half=bool(half)
+    )

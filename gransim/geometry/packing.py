@@ -103,16 +103,16 @@ class Packing:
         return float(d[np.searchsorted(w, 0.5 * w[-1])])
 
     # -- transforms ---------------------------------------------------------
-    def replace(self, **changes) -> "Packing":
+    def replace(self, **changes) -> Packing:
         """A copy with some fields replaced (validated again)."""
         return dataclasses.replace(self, **changes)
 
-    def wrapped(self) -> "Packing":
+    def wrapped(self) -> Packing:
         """The same packing with every centre moved into the primary cell."""
         xw, _ = wrap(self.positions, self.cell)
         return self.replace(positions=xw)
 
-    def deformed(self, F) -> "Packing":
+    def deformed(self, F) -> Packing:
         """Affine (Taylor) map x = F X of every centre and of the cell, eq (1) of Meier et al."""
         F = as_array(F, "F", (2, 2))
         if np.linalg.det(F) <= 0:
@@ -120,5 +120,4 @@ class Packing:
         return self.replace(positions=self.positions @ F.T, cell=F @ self.cell)
 
     def __repr__(self) -> str:
-        return (f"Packing(n={self.n}, cell={self.cell.tolist()}, phi={self.solid_fraction:.4f}, "
-                f"density={self.density})")
+        return f"Packing(n={self.n}, cell={self.cell.tolist()}, phi={self.solid_fraction:.4f}, density={self.density})"

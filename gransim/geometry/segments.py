@@ -28,8 +28,7 @@ def _crossing_pair(v, pa, pc, a, c, t1, t2, d0, d1, slot):
     properly; edges sharing a particle never count (they meet at that particle)."""
     # most candidates are edges of a common particle (they meet there): rejected first
     se = v.se
-    if (se[pc, 0] == se[pa, 0] or se[pc, 0] == se[pa, 1]
-            or se[pc, 1] == se[pa, 0] or se[pc, 1] == se[pa, 1]):
+    if se[pc, 0] == se[pa, 0] or se[pc, 0] == se[pa, 1] or se[pc, 1] == se[pa, 0] or se[pc, 1] == se[pa, 1]:
         return False
     ha0 = v.sh[pa, 0]
     ha1 = v.sh[pa, 1]
@@ -103,8 +102,7 @@ def find_crossing(positions, cell, edge_i, edge_j, edge_vec, count_all: bool = F
     nb1, nb2, k1, k2 = bin_layout(cell, 2.0 * float(half.max()), ne)
     start, order, xs, rs = bin_points(mid, s, half, nb1, nb2)
     v = _CrossingVisitor(*_gather_edges(order, vec, ei, ej), np.full(ne, -1, np.int64))
-    counts = walk_pairs(v, xs, rs, order, cell, 0.0, start, nb1, nb2, k1, k2,
-                        np.zeros(ne, np.int64), True)
+    counts = walk_pairs(v, xs, rs, order, cell, 0.0, start, nb1, nb2, k1, k2, np.zeros(ne, np.int64), True)
     found = int(counts.sum())
     first = None
     if found:

@@ -65,8 +65,7 @@ def atomic_path(path, suffix: str | None = None):
 
 
 @contextlib.contextmanager
-def atomic_h5(path, kind: str, parameters: dict | None = None, seed=None, liggghts: bool = False,
-              lammps: bool = False):
+def atomic_h5(path, kind: str, parameters: dict | None = None, seed=None, liggghts: bool = False, lammps: bool = False):
     """Open a new HDF5 file for writing, atomically; root attributes carry the provenance
     (:func:`gransim.io.provenance.provenance`; ``liggghts``/``lammps``: also the version that
     code's binary reports about itself).
@@ -156,8 +155,10 @@ def read_packing_group(group: h5py.Group) -> Packing:
     except json.JSONDecodeError as exc:
         raise ResultFileError(f"{where}: attribute 'metadata' is not valid JSON ({exc})") from None
     if not isinstance(metadata, dict):
-        raise ResultFileError(f"{where}: attribute 'metadata' must hold a JSON object, got "
-                              f"{type(metadata).__name__ if isinstance(raw, str) else type(raw).__name__}")
+        raise ResultFileError(
+            f"{where}: attribute 'metadata' must hold a JSON object, got "
+            f"{type(metadata).__name__ if isinstance(raw, str) else type(raw).__name__}"
+        )
     density = group.attrs.get("density", 2650.0)
     try:
         density = float(density)

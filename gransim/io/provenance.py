@@ -29,12 +29,17 @@ _REPO = Path(__file__).resolve().parents[2]
 def git_commit() -> str:
     """Commit of the gransim source tree ('unknown' outside a checkout; '+dirty' if modified)."""
     try:
-        sha = subprocess.run(["git", "-C", str(_REPO), "rev-parse", "HEAD"], capture_output=True,
-                             text=True, timeout=5).stdout.strip()
+        sha = subprocess.run(
+            ["git", "-C", str(_REPO), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5
+        ).stdout.strip()
         if not sha:
             return "unknown"
-        dirty = subprocess.run(["git", "-C", str(_REPO), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, timeout=5).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(_REPO), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=5,
+        ).stdout.strip()
         return sha + ("+dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
@@ -50,9 +55,16 @@ def _banner_of(path: str, mtime_ns: int, size: int, pattern: str, label: str, pr
     """What the binary at ``path`` prints about itself (one call per binary and modification)."""
     with tempfile.TemporaryDirectory(prefix="dem-version-") as tmp:
         try:
-            out = subprocess.run([path, "-in", os.devnull, "-log", "none", "-nocite"], cwd=tmp,
-                                 capture_output=True, text=True, timeout=20, stdin=subprocess.DEVNULL,
-                                 start_new_session=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+            out = subprocess.run(
+                [path, "-in", os.devnull, "-log", "none", "-nocite"],
+                cwd=tmp,
+                capture_output=True,
+                text=True,
+                timeout=20,
+                stdin=subprocess.DEVNULL,
+                start_new_session=True,
+                env={**os.environ, "OMP_NUM_THREADS": "1"},
+            )
         except subprocess.TimeoutExpired:
             return f"unknown: `{path} -in /dev/null` did not answer within 20 s"
         except OSError as exc:
@@ -121,8 +133,9 @@ def _package_of(real: str, package: str = "liggghts", label: str = "LIGGGHTS-PUB
         owner = subprocess.run(["dpkg-query", "-S", real], capture_output=True, text=True, timeout=10)
         if owner.returncode != 0 or not owner.stdout.startswith(f"{package}:"):
             return None
-        out = subprocess.run(["dpkg-query", "-W", "-f=${Version}", package], capture_output=True,
-                             text=True, timeout=10).stdout.strip()
+        out = subprocess.run(
+            ["dpkg-query", "-W", "-f=${Version}", package], capture_output=True, text=True, timeout=10
+        ).stdout.strip()
         return f"{label} {out} (Debian)" if out else None
     except (OSError, subprocess.SubprocessError):
         return None
@@ -169,8 +182,7 @@ def _jsonable(v):
     return v
 
 
-def provenance(parameters: dict | None = None, seed=None, liggghts: bool = False,
-               lammps: bool = False) -> dict:
+def provenance(parameters: dict | None = None, seed=None, liggghts: bool = False, lammps: bool = False) -> dict:
     """The provenance record stored as attributes of every results file.
 
     Keys: ``gransim_version``, ``git_commit``, ``created`` (UTC ISO time), ``python``,

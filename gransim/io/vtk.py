@@ -10,8 +10,7 @@ from ..geometry import Packing
 from .hdf5 import atomic_path
 
 
-def particles_to_vtu(path, positions, radii, point_data: dict | None = None, cell=None,
-                     wrap: bool = True) -> Path:
+def particles_to_vtu(path, positions, radii, point_data: dict | None = None, cell=None, wrap: bool = True) -> Path:
     """Write disks as VTK points (vertex cells) with ``radius`` and extra point data.
 
     ``positions`` (N, 2) are embedded in 3D with z = 0. With ``cell`` and ``wrap``

@@ -73,9 +73,7 @@ def normal_density(theta_c, delta: float, theta) -> np.ndarray:
     if m == 0:
         raise InputError("contact normal density: no contacts (no overlapping pairs)")
     if not 0 < delta <= np.pi / 2:
-        raise InputError(
-            f"angle of influence: must lie in (0, 90] degrees, got {np.degrees(delta):.6g}"
-        )
+        raise InputError(f"angle of influence: must lie in (0, 90] degrees, got {np.degrees(delta):.6g}")
     # count of t in the open window (th - delta, th + delta), modulo 2 pi, by sorted search
     tt = np.concatenate([t - TWO_PI, t, t + TWO_PI])
     lo = np.searchsorted(tt, th - delta, side="right")
@@ -155,8 +153,7 @@ def contact_normal_density(
     deltas = np.radians(as_array(angles_deg, "angles_deg", (None,)))
     if deltas.size == 0 or np.any(deltas <= 0) or np.any(deltas > np.pi / 2):
         raise InputError(
-            f"angles_deg: each angle of influence must lie in (0, 90] degrees, got "
-            f"{np.degrees(deltas).tolist()}"
+            f"angles_deg: each angle of influence must lie in (0, 90] degrees, got {np.degrees(deltas).tolist()}"
         )
     if int(n_theta) < 8:
         raise InputError(f"n_theta: need at least 8 grid angles, got {n_theta}")

@@ -122,8 +122,6 @@ def crosscheck(packings, normal_stiffness: float, deformations=None, seed: int =
                 a = np.asarray(getattr(got, field)[k])
                 b = np.asarray(ref[key])
                 scale = np.max(np.abs(b))
-                rec[f"rel_{key}"] = (
-                    float(np.max(np.abs(a - b)) / scale) if scale > 0 else float(np.max(np.abs(a)))
-                )
+                rec[f"rel_{key}"] = float(np.max(np.abs(a - b)) / scale) if scale > 0 else float(np.max(np.abs(a)))
             out.append(rec)
     return out

@@ -708,10 +708,15 @@ class RelaxedMaterial:
     :meth:`energy` evaluates W(F, w) at any fluctuation.
     """
 
-    def __init__(self, packings, normal_stiffness: float,
-                 skin_fraction: float = DEFAULT_SKIN_FRACTION,
-                 force_tol: float = DEFAULT_FORCE_TOL, max_iter: int = DEFAULT_MAX_ITER,
-                 min_contacts: int = DEFAULT_MIN_CONTACTS):
+    def __init__(
+        self,
+        packings,
+        normal_stiffness: float,
+        skin_fraction: float = DEFAULT_SKIN_FRACTION,
+        force_tol: float = DEFAULT_FORCE_TOL,
+        max_iter: int = DEFAULT_MAX_ITER,
+        min_contacts: int = DEFAULT_MIN_CONTACTS,
+    ):
         self.names, items = _as_packings(packings)
         self.normal_stiffness = as_positive_float(normal_stiffness, "normal_stiffness")
         self.skin_fraction = as_positive_float(skin_fraction, "skin_fraction")
@@ -745,8 +750,7 @@ class RelaxedMaterial:
         if idx.shape[0] != G:
             raise InputError(f"rve: expected shape ({G},) (one index per F), got {idx.shape}")
         if idx.size and (idx.min() < 0 or idx.max() >= self.n_rve):
-            raise InputError(f"rve: indices must lie in [0, {self.n_rve}), got range "
-                             f"[{idx.min()}, {idx.max()}]")
+            raise InputError(f"rve: indices must lie in [0, {self.n_rve}), got range [{idx.min()}, {idx.max()}]")
         return idx
 
     def _check_w(self, w, R: _RVE, name: str) -> np.ndarray:
@@ -774,7 +778,8 @@ class RelaxedMaterial:
             cand = self._cand(R, F, w, cand)
             rat, dof, fixed, ndof = self._classify(R, F, w, cand)
             W, P, WFF, grad, B, Hd, Ap, Ai, Ax, nc = _assemble(
-                F, w, cand.ci, cand.cj, cand.L, cand.ri, cand.rj, kn, dof, ndof)
+                F, w, cand.ci, cand.cj, cand.L, cand.ri, cand.rj, kn, dof, ndof
+            )
             gmax = float(np.max(np.abs(grad))) if ndof else 0.0
             fscale = self._force_scale(F, w, cand)
             if ndof == 0:
@@ -789,7 +794,8 @@ class RelaxedMaterial:
             if it == self.max_iter:
                 raise SimulationError(
                     f"relaxed RVE: Newton did not converge in max_iter = {self.max_iter} iterations "
-                    f"(max |W_w| V = {gmax:.3g} N, tolerance {self.force_tol * fscale:.3g} N)")
+                    f"(max |W_w| V = {gmax:.3g} N, tolerance {self.force_tol * fscale:.3g} N)"
+                )
             step = -lu.solve(grad)
             slope = float(grad @ step)
             free = np.flatnonzero(dof >= 0)
@@ -808,9 +814,10 @@ class RelaxedMaterial:
                     break  # at round-off level: take the Newton step (quadratic phase)
                 t *= 0.5
                 if t < 1e-12:
-                        raise SimulationError(
+                    raise SimulationError(
                         f"relaxed RVE: the line search found no decrease of W at iteration {it} "
-                        f"(max |W_w| V = {gmax:.3g} N, tolerance {self.force_tol * fscale:.3g} N)")
+                        f"(max |W_w| V = {gmax:.3g} N, tolerance {self.force_tol * fscale:.3g} N)"
+                    )
             w, cand = wt, ct
         inv = 1.0 / R.area
         S = np.zeros((R.n, 2, 4))
@@ -824,9 +831,18 @@ class RelaxedMaterial:
             S[free, 1] = -X[dof[free] + 1]
         A = (A4 * inv).reshape(2, 2, 2, 2)
         P = P * inv
-        res = {"energy": W * inv, "piola": P, "tangent": A, "n_contacts": int(nc),
-               "fluctuation": w, "rattlers": rat, "n_newton": n_newton, "residual": gmax,
-               "stable": not shifted_final, "fixed": fixed}
+        res = {
+            "energy": W * inv,
+            "piola": P,
+            "tangent": A,
+            "n_contacts": int(nc),
+            "fluctuation": w,
+            "rattlers": rat,
+            "n_newton": n_newton,
+            "residual": gmax,
+            "stable": not shifted_final,
+            "fixed": fixed,
+        }
         return res, _State(w, cand, F.copy(), S)
 
     def _force_scale(self, F, w, cand) -> float:
@@ -872,10 +888,18 @@ class RelaxedMaterial:
         P = res["piola"]
         sig = P @ F.T / float(np.linalg.det(F))
         return RelaxedResult(
-            energy=float(res["energy"]), piola=_ro(P), tangent=_ro(res["tangent"]),
-            cauchy=_ro(sig), n_contacts=res["n_contacts"], fluctuation=_ro(res["fluctuation"]),
-            rattlers=_ro(res["rattlers"]), n_newton=res["n_newton"],
-            residual=float(res["residual"]), stable=bool(res["stable"]), fixed=res["fixed"])
+            energy=float(res["energy"]),
+            piola=_ro(P),
+            tangent=_ro(res["tangent"]),
+            cauchy=_ro(sig),
+            n_contacts=res["n_contacts"],
+            fluctuation=_ro(res["fluctuation"]),
+            rattlers=_ro(res["rattlers"]),
+            n_newton=res["n_newton"],
+            residual=float(res["residual"]),
+            stable=bool(res["stable"]),
+            fixed=res["fixed"],
+        )
 
     def evaluate(self, F, rve=None, cauchy: bool = True) -> RelaxedBatch:
         """W, P, A, sigma at G Gauss points, each warm-started from its committed fluctuation.
@@ -894,8 +918,9 @@ class RelaxedMaterial:
         F = check_deformation_gradients(F)
         G = F.shape[0]
         idx = self._rve_index(rve, G)
-        out = {k: [] for k in ("energy", "piola", "tangent", "n_contacts", "n_newton",
-                               "n_rattlers", "residual", "stable")}
+        out = {
+            k: [] for k in ("energy", "piola", "tangent", "n_contacts", "n_newton", "n_rattlers", "residual", "stable")
+        }
         trial = {}
         for g in range(G):
             k = int(idx[g])
@@ -903,8 +928,7 @@ class RelaxedMaterial:
             start = prev[1] if prev is not None and prev[0] == k else None
             res, st = self._solve(self._rves[k], F[g], start)
             trial[g] = (k, st)
-            for key in ("energy", "piola", "tangent", "n_contacts", "n_newton", "residual",
-                        "stable"):
+            for key in ("energy", "piola", "tangent", "n_contacts", "n_newton", "residual", "stable"):
                 out[key].append(res[key])
             out["n_rattlers"].append(int(np.count_nonzero(res["rattlers"])))
         self._trial = trial
@@ -915,13 +939,16 @@ class RelaxedMaterial:
         else:
             sig = np.full((G, 2, 2), np.nan)
         return RelaxedBatch(
-            energy=_ro(np.asarray(out["energy"], float)), piola=_ro(P),
-            tangent=_ro(np.asarray(out["tangent"]).reshape(G, 2, 2, 2, 2)), cauchy=_ro(sig),
+            energy=_ro(np.asarray(out["energy"], float)),
+            piola=_ro(P),
+            tangent=_ro(np.asarray(out["tangent"]).reshape(G, 2, 2, 2, 2)),
+            cauchy=_ro(sig),
             n_contacts=_ro(np.asarray(out["n_contacts"], np.int64)),
             n_newton=_ro(np.asarray(out["n_newton"], np.int64)),
             n_rattlers=_ro(np.asarray(out["n_rattlers"], np.int64)),
             residual=_ro(np.asarray(out["residual"], float)),
-            stable=_ro(np.asarray(out["stable"], bool)))
+            stable=_ro(np.asarray(out["stable"], bool)),
+        )
 
     def commit(self) -> None:
         """Make the fluctuations of the last :meth:`evaluate` the Gauss-point history."""

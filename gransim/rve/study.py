@@ -116,12 +116,8 @@ class StudyResult:
         """Name of the most uniform RVE (by U at 20 degrees), optionally among one size."""
         names = [k for k, n in zip(self.names, self.sizes) if size is None or n == size]
         if not names:
-            raise InputError(
-                f"no RVE with {size} particles (sizes: {sorted(set(self.sizes.tolist()))})"
-            )
-        return min(
-            names, key=lambda k: (self.fabric[k].ranking_uniformity, self.fabric[k].anisotropy)
-        )
+            raise InputError(f"no RVE with {size} particles (sizes: {sorted(set(self.sizes.tolist()))})")
+        return min(names, key=lambda k: (self.fabric[k].ranking_uniformity, self.fabric[k].anisotropy))
 
 
 class RVEStudy:
@@ -175,8 +171,9 @@ class RVEStudy:
             fabric = {k: contact_normal_density(self.packings[k], self.angles_deg) for k in names}
         else:
             Fr = np.ascontiguousarray(F.reshape(-1, 2, 2))
-            parts = self.executor.map(_one_rve, [(self.packings[k], self.normal_stiffness, Fr, self.angles_deg)
-                                                 for k in names])
+            parts = self.executor.map(
+                _one_rve, [(self.packings[k], self.normal_stiffness, Fr, self.angles_deg) for k in names]
+            )
             b = _Stacked(*(np.concatenate([p[i] for p in parts]) for i in range(4)))
             fabric = {k: p[4] for k, p in zip(names, parts)}
         self._result = StudyResult(
@@ -200,8 +197,13 @@ def _one_rve(task):
     """One RVE's states and fabric (a task of :meth:`RVEStudy.run` on an executor)."""
     packing, kn, F, angles = task
     b = TaylorMaterial(packing, kn).evaluate(F, np.zeros(len(F), np.int64))
-    return (np.asarray(b.cauchy), np.asarray(b.piola), np.asarray(b.energy), np.asarray(b.n_contacts),
-            contact_normal_density(packing, angles))
+    return (
+        np.asarray(b.cauchy),
+        np.asarray(b.piola),
+        np.asarray(b.energy),
+        np.asarray(b.n_contacts),
+        contact_normal_density(packing, angles),
+    )
 
 
 @dataclass(frozen=True)
@@ -246,7 +248,7 @@ def write_study(path, result: StudyResult, parameters: dict | None = None) -> Pa
             write_packing_group(g.create_group(k), result.packings[k])
         for q, p in enumerate(result.paths):
             h = f.create_group(f"paths/{p}")
-            h.attrs["driving_component"] = "F%d%d" % tuple(c + 1 for c in DRIVING[p])
+            h.attrs["driving_component"] = "F{}{}".format(*(c + 1 for c in DRIVING[p]))
             h.create_dataset("drive", data=result.drive[q])
             h.create_dataset("F", data=result.F[q])
             h.create_dataset("cauchy", data=result.cauchy[:, q])
@@ -263,18 +265,10 @@ def write_study(path, result: StudyResult, parameters: dict | None = None) -> Pa
         d0 = result.fabric[result.names[0]]
         fb.create_dataset("angles_deg", data=np.degrees(d0.angles_of_influence))
         fb.create_dataset("theta", data=d0.theta)
-        fb.create_dataset(
-            "density", data=np.array([result.fabric[k].density for k in result.names])
-        )
-        fb.create_dataset(
-            "uniformity", data=np.array([result.fabric[k].uniformity for k in result.names])
-        )
-        fb.create_dataset(
-            "anisotropy", data=np.array([result.fabric[k].anisotropy for k in result.names])
-        )
-        fb.create_dataset(
-            "n_contacts", data=np.array([result.fabric[k].n_contacts for k in result.names])
-        )
+        fb.create_dataset("density", data=np.array([result.fabric[k].density for k in result.names]))
+        fb.create_dataset("uniformity", data=np.array([result.fabric[k].uniformity for k in result.names]))
+        fb.create_dataset("anisotropy", data=np.array([result.fabric[k].anisotropy for k in result.names]))
+        fb.create_dataset("n_contacts", data=np.array([result.fabric[k].n_contacts for k in result.names]))
         for n in result.groups():
             fb.attrs[f"most_uniform_{n}"] = result.most_uniform(n)
     return Path(path)
@@ -342,7 +336,7 @@ def plot_study(result: StudyResult, out_dir) -> list[Path]:
                         lw=1.1,
                         label=f"N={n} ({count} RVEs) $\\sigma_{{{comp}}}$",
                     )
-            ax.set_xlabel("F%d%d" % tuple(k + 1 for k in DRIVING[p]))
+            ax.set_xlabel("F{}{}".format(*(k + 1 for k in DRIVING[p])))
             ax.set_ylabel("Cauchy stress (N/m, tension +)")
             ax.set_title(p)
             ax.grid(alpha=0.3)
@@ -370,7 +364,10 @@ def plot_study(result: StudyResult, out_dir) -> list[Path]:
 
 
 def run_study(
-    packings: Mapping, out_dir, normal_stiffness: float = PAPER_NORMAL_STIFFNESS, steps: int = 50,
+    packings: Mapping,
+    out_dir,
+    normal_stiffness: float = PAPER_NORMAL_STIFFNESS,
+    steps: int = 50,
     executor=None,
 ) -> tuple[StudyResult, Path, list[Path]]:
     """Run, write ``out_dir/rve_study.h5`` and the PNGs; returns (result, h5 path, png paths).

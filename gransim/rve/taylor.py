@@ -274,10 +274,7 @@ def check_deformation_gradients(F, name: str = "F") -> np.ndarray:
     if bad.size:
         g = int(bad[0])
         where = "" if arr.shape[0] == 1 else f" at index {g}"
-        raise InputError(
-            f"{name}: det F must be > 0 (the map must keep orientation), "
-            f"got det F = {det[g]:.6g}{where}"
-        )
+        raise InputError(f"{name}: det F must be > 0 (the map must keep orientation), got det F = {det[g]:.6g}{where}")
     return arr
 
 
@@ -350,25 +347,33 @@ def estimate_candidates(packing: Packing, F, skin_fraction: float = DEFAULT_SKIN
             tests = math.inf
     if not math.isfinite(pairs) or not area > 0:
         pairs = math.inf
-    return {"pairs": pairs, "bytes": pairs * BYTES_PER_CANDIDATE, "scan_tests": tests,
-            "shortest_vector": b1, "max_contact_distance": float(2.0 * r.max())}
+    return {
+        "pairs": pairs,
+        "bytes": pairs * BYTES_PER_CANDIDATE,
+        "scan_tests": tests,
+        "shortest_vector": b1,
+        "max_contact_distance": float(2.0 * r.max()),
+    }
 
 
-def check_candidate_budget(packing: Packing, F, skin_fraction: float = DEFAULT_SKIN_FRACTION,
-                           name: str = "F") -> dict:
+def check_candidate_budget(packing: Packing, F, skin_fraction: float = DEFAULT_SKIN_FRACTION, name: str = "F") -> dict:
     """Refuse (:class:`InputError` naming ``name``) an F whose candidate search would not fit into
     the available memory or would scan more than :data:`MAX_SCAN_TESTS` distances."""
     est = estimate_candidates(packing, F, skin_fraction)
-    what = (f"{name}: the contact candidates of {est['pairs']:.3g} periodic image pairs (deformed cell's "
-            f"shortest lattice vector {est['shortest_vector']:.3g} m, largest contact distance "
-            f"{est['max_contact_distance']:.3g} m)")
+    what = (
+        f"{name}: the contact candidates of {est['pairs']:.3g} periodic image pairs (deformed cell's "
+        f"shortest lattice vector {est['shortest_vector']:.3g} m, largest contact distance "
+        f"{est['max_contact_distance']:.3g} m)"
+    )
     check_memory(est["bytes"], what, hint="the deformation squeezes the cell too much")
     if not est["scan_tests"] <= MAX_SCAN_TESTS:
-        raise InputError(f"{name}: the contact search of this deformation would test about "
-                         f"{est['scan_tests']:.3g} distances (more than {MAX_SCAN_TESTS:.3g}); the "
-                         f"deformed cell is too thin or too sheared (shortest lattice vector "
-                         f"{est['shortest_vector']:.3g} m, candidates {est['pairs']:.3g}, about "
-                         f"{format_bytes(est['bytes'])})")
+        raise InputError(
+            f"{name}: the contact search of this deformation would test about "
+            f"{est['scan_tests']:.3g} distances (more than {MAX_SCAN_TESTS:.3g}); the "
+            f"deformed cell is too thin or too sheared (shortest lattice vector "
+            f"{est['shortest_vector']:.3g} m, candidates {est['pairs']:.3g}, about "
+            f"{format_bytes(est['bytes'])})"
+        )
     return est
 
 
@@ -448,8 +453,7 @@ def _as_packings(packings) -> tuple[list[str], list[Packing]]:
         names = [f"rve-{k}" for k in range(len(items))]
     else:
         raise InputError(
-            f"packings: expected a Packing, a sequence or a mapping of Packings, "
-            f"got {type(packings).__name__}"
+            f"packings: expected a Packing, a sequence or a mapping of Packings, got {type(packings).__name__}"
         )
     if not items:
         raise InputError("packings: at least one packing is needed")
@@ -478,9 +482,7 @@ class TaylorMaterial:
     when the validity rule fails; :attr:`n_builds` counts the builds.
     """
 
-    def __init__(
-        self, packings, normal_stiffness: float, skin_fraction: float = DEFAULT_SKIN_FRACTION
-    ):
+    def __init__(self, packings, normal_stiffness: float, skin_fraction: float = DEFAULT_SKIN_FRACTION):
         self.names, items = _as_packings(packings)
         self.normal_stiffness = as_positive_float(normal_stiffness, "normal_stiffness")
         self.skin_fraction = as_positive_float(skin_fraction, "skin_fraction")
@@ -554,18 +556,14 @@ class TaylorMaterial:
         if rve is None:
             if self.n_rve == 1:
                 return np.zeros(G, np.int64)
-            raise InputError(
-                f"rve: this material holds {self.n_rve} RVEs; pass an RVE index per state"
-            )
+            raise InputError(f"rve: this material holds {self.n_rve} RVEs; pass an RVE index per state")
         if np.ndim(rve) == 0:
             rve = np.full(G, rve)
         idx = as_array(rve, "rve", (None,), dtype=np.int64)
         if idx.shape[0] != G:
             raise InputError(f"rve: expected shape ({G},) (one index per F), got {idx.shape}")
         if idx.size and (idx.min() < 0 or idx.max() >= self.n_rve):
-            raise InputError(
-                f"rve: indices must lie in [0, {self.n_rve}), got range [{idx.min()}, {idx.max()}]"
-            )
+            raise InputError(f"rve: indices must lie in [0, {self.n_rve}), got range [{idx.min()}, {idx.max()}]")
         return idx
 
     # -- evaluation ---------------------------------------------------------------------------
@@ -620,9 +618,7 @@ class TaylorMaterial:
             s = int(self._assign(F[None], np.full(1, rve, np.int64))[0])
             self._last = {rve: s}
         L, ri, rj, starts, inv_area, _ = self._flat
-        W, P, A, nc, sig = _taylor_single(
-            F, L, ri, rj, starts[s], starts[s + 1], self.normal_stiffness, inv_area[s]
-        )
+        W, P, A, nc, sig = _taylor_single(F, L, ri, rj, starts[s], starts[s + 1], self.normal_stiffness, inv_area[s])
         return TaylorResult(
             energy=float(W[0]),
             piola=_ro(P[0]),
@@ -657,7 +653,7 @@ class TaylorMaterial:
 # ----------------------------------------------------------------------------------------------
 # functional front end
 # ----------------------------------------------------------------------------------------------
-_MATERIALS: "weakref.WeakKeyDictionary[Packing, dict]" = weakref.WeakKeyDictionary()
+_MATERIALS: weakref.WeakKeyDictionary[Packing, dict] = weakref.WeakKeyDictionary()
 
 
 def material_for(packing: Packing, normal_stiffness: float) -> TaylorMaterial:
@@ -679,8 +675,7 @@ def homogenize(packing: Packing, F, normal_stiffness: float) -> TaylorResult:
     calls on one packing cost only the kernel. Eqs (6)-(12) of Meier, Steinmann & Kuhl.
     """
     res = material_for(packing, normal_stiffness)(F)
-    if not (math.isfinite(res.energy) and np.all(np.isfinite(res.piola))
-            and np.all(np.isfinite(res.tangent))):
+    if not (math.isfinite(res.energy) and np.all(np.isfinite(res.piola)) and np.all(np.isfinite(res.tangent))):
         from ..errors import SimulationError
 
         raise SimulationError(

@@ -9,12 +9,32 @@ Depends only on :mod:`gransim.geometry`.
 from .core import NotComputedError, VoidCells
 from .dcel import DCEL, build_dcel
 from .graph import ParticleGraph, build_graph, find_bridges
-from .measures import (alignment, assembly_average, face_gradients, normalised_vorticity,
-                       polygon_gradient, relative_motion)
+from .measures import (
+    alignment,
+    assembly_average,
+    face_gradients,
+    normalised_vorticity,
+    polygon_gradient,
+    relative_motion,
+)
 from .qmatrix import q_matrix, q_separations
 from .snapshot import Snapshot
 
-__all__ = ["DCEL", "NotComputedError", "ParticleGraph", "Snapshot", "VoidCells", "alignment",
-           "assembly_average", "build_dcel", "build_graph", "face_gradients", "find_bridges",
-           "normalised_vorticity", "polygon_gradient", "q_matrix", "q_separations",
-           "relative_motion"]
+__all__ = [
+    "DCEL",
+    "NotComputedError",
+    "ParticleGraph",
+    "Snapshot",
+    "VoidCells",
+    "alignment",
+    "assembly_average",
+    "build_dcel",
+    "build_graph",
+    "face_gradients",
+    "find_bridges",
+    "normalised_vorticity",
+    "polygon_gradient",
+    "q_matrix",
+    "q_separations",
+    "relative_motion",
+]

@@ -8,8 +8,15 @@ from .._validate import as_positive_float, check_choice
 from ..errors import GransimError, InputError
 from .dcel import DCEL, build_dcel
 from .graph import ParticleGraph, build_graph
-from .measures import (alignment, assembly_average, d50_area_weighted, face_gradients,
-                       halfedge_velocities, normalised_vorticity, relative_motion)
+from .measures import (
+    alignment,
+    assembly_average,
+    d50_area_weighted,
+    face_gradients,
+    halfedge_velocities,
+    normalised_vorticity,
+    relative_motion,
+)
 from .snapshot import Snapshot
 
 #: choices of the reference gradient Lbar in eqs (18)-(21)
@@ -45,15 +52,21 @@ class VoidCells:
         self.d50 = None if d50 is None else as_positive_float(d50, "d50")
         self._r = None
 
-    def compute(self, snapshot: Snapshot) -> "VoidCells":
+    def compute(self, snapshot: Snapshot) -> VoidCells:
         """Build the graph, the faces and the measures of ``snapshot``; returns self."""
         if not isinstance(snapshot, Snapshot):
-            raise InputError("snapshot: expected a gransim.voidcell.Snapshot, got "
-                             f"{type(snapshot).__name__}")
+            raise InputError(f"snapshot: expected a gransim.voidcell.Snapshot, got {type(snapshot).__name__}")
         s = snapshot
         graph = build_graph(s.n_particles, s.contacts_i, s.contacts_j, s.contacts_shift)
-        dcel = build_dcel(s.positions, s.cell, graph.edge_i, graph.edge_j, graph.edge_shift,
-                          graph.n_vertices, check_crossings=self.check_crossings)
+        dcel = build_dcel(
+            s.positions,
+            s.cell,
+            graph.edge_i,
+            graph.edge_j,
+            graph.edge_shift,
+            graph.n_vertices,
+            check_crossings=self.check_crossings,
+        )
         v = s.velocities
         Cd = s.cell_velocity
         dv = halfedge_velocities(dcel.origin, dcel.dest, dcel.shift, v, Cd)  # eq (5)
@@ -72,8 +85,18 @@ class VoidCells:
         else:
             alpha = alignment(L, Lbar)
             w = normalised_vorticity(L, Lbar)
-        self._r = dict(snapshot=s, graph=graph, dcel=dcel, L=L, L_cells=L_cells, L_mean=Lbar,
-                       alpha=alpha, w=w, v_rel=v_rel, d50=d50)
+        self._r = dict(
+            snapshot=s,
+            graph=graph,
+            dcel=dcel,
+            L=L,
+            L_cells=L_cells,
+            L_mean=Lbar,
+            alpha=alpha,
+            w=w,
+            v_rel=v_rel,
+            d50=d50,
+        )
         return self
 
     # -- results --------------------------------------------------------------
@@ -190,6 +213,8 @@ class VoidCells:
     def __repr__(self) -> str:
         if self._r is None:
             return f"VoidCells(reference={self.reference!r}, not computed)"
-        return (f"VoidCells(faces={self.n_faces}, edges={self.n_edges}, "
-                f"vertices={self.n_vertices}, "
-                f"mean_alpha={self.mean_alpha:.3f})")
+        return (
+            f"VoidCells(faces={self.n_faces}, edges={self.n_edges}, "
+            f"vertices={self.n_vertices}, "
+            f"mean_alpha={self.mean_alpha:.3f})"
+        )

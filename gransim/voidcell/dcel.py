@@ -107,7 +107,7 @@ class DCEL:
 
     def face_polygon(self, f: int) -> np.ndarray:
         """Lifted vertex coordinates of face f, (m, 2), counter-clockwise, from its first vertex."""
-        hs = self.face_halfedges[self.face_ptr[f]:self.face_ptr[f + 1]]
+        hs = self.face_halfedges[self.face_ptr[f] : self.face_ptr[f + 1]]
         return np.cumsum(np.vstack([np.zeros(2), self.vec[hs[:-1]]]), axis=0)
 
 
@@ -255,11 +255,10 @@ def _face_cycles(nxt):
             return face, order, ptr[:1], False
         nf += 1
         ptr[nf] = pos
-    return face, order, ptr[:nf + 1], True
+    return face, order, ptr[: nf + 1], True
 
 
-def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,
-               check_crossings: bool = True) -> DCEL:
+def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int, check_crossings: bool = True) -> DCEL:
     """Build the half-edge structure and identify the void-cell faces (see module docstring).
 
     Parameters
@@ -283,8 +282,7 @@ def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,
     C = np.ascontiguousarray(cell, np.float64)
     ei = np.ascontiguousarray(edge_i, np.int64)
     ej = np.ascontiguousarray(edge_j, np.int64)
-    origin, dest, hshift, vec, angle = _halfedges(x, C, ei, ej,
-                                                  np.ascontiguousarray(edge_shift, np.int64))
+    origin, dest, hshift, vec, angle = _halfedges(x, C, ei, ej, np.ascontiguousarray(edge_shift, np.int64))
     if check_crossings:
         hit = find_crossing(x, C, ei, ej, vec[0::2])
         if hit is not None:
@@ -292,17 +290,30 @@ def build_dcel(positions, cell, edge_i, edge_j, edge_shift, n_vertices: int,
             raise InputError(
                 f"contacts: the particle graph is not planar: contact line {int(ei[a])}-"
                 f"{int(ej[a])} crosses {int(ei[c])}-{int(ej[c])} (strongly overlapping "
-                "particles?)")
+                "particles?)"
+            )
     # rotation system: half-edges of each vertex sorted by angle; next = clockwise of the twin
     nxt, dup = _rotation_next(x.shape[0], origin, angle)
     if dup >= 0:
-        raise InputError(f"contacts: two contact lines leave particle {int(dup)} in the same "
-                         "direction (coincident edges: non-planar graph)")
+        raise InputError(
+            f"contacts: two contact lines leave particle {int(dup)} in the same "
+            "direction (coincident edges: non-planar graph)"
+        )
     face, fh, ptr, area, centroid_rel = faces_from_next(nxt, origin, vec, C, n_vertices)
     centroid = x[origin[fh[ptr[:-1]]]] + centroid_rel
-    return DCEL(origin=origin, dest=dest, shift=hshift, vec=vec, next=nxt, face=face, face_ptr=ptr,
-                face_halfedges=fh, face_area=area, face_centroid=centroid,
-                n_vertices=int(n_vertices))
+    return DCEL(
+        origin=origin,
+        dest=dest,
+        shift=hshift,
+        vec=vec,
+        next=nxt,
+        face=face,
+        face_ptr=ptr,
+        face_halfedges=fh,
+        face_area=area,
+        face_centroid=centroid,
+        n_vertices=int(n_vertices),
+    )
 
 
 def faces_from_next(nxt, origin, vec, cell, n_vertices: int):
@@ -337,18 +348,22 @@ def faces_from_next(nxt, origin, vec, cell, n_vertices: int):
         h = bad_next
         g = int(nxt[h])
         leaves = f"leaves particle {int(origin[g])}" if 0 <= g < H else "is not a half-edge"
-        raise InputError(f"contacts: half-edge {h} arrives at particle {int(origin[h ^ 1])} but "
-                         f"its next half-edge {g} {leaves} (inconsistent rotation system)")
+        raise InputError(
+            f"contacts: half-edge {h} arrives at particle {int(origin[h ^ 1])} but "
+            f"its next half-edge {g} {leaves} (inconsistent rotation system)"
+        )
     face, fh, ptr, ok = _face_cycles(nxt)
     if not ok:
-        raise InputError("contacts: the next half-edges are not a permutation (two half-edges "
-                         "share a successor): inconsistent rotation system")
+        raise InputError(
+            "contacts: the next half-edges are not a permutation (two half-edges "
+            "share a successor): inconsistent rotation system"
+        )
     nf = ptr.shape[0] - 1
     area, closure, centroid_rel = _face_geometry(ptr, fh, np.ascontiguousarray(vec, np.float64))
     open_faces = np.flatnonzero(~(closure <= AREA_RTOL))
     if open_faces.size:
         f = int(open_faces[0])
-        hs = fh[ptr[f]:ptr[f + 1]]
+        hs = fh[ptr[f] : ptr[f + 1]]
         gap = vec[hs].sum(axis=0)
         parts = origin[hs]
         shown = ", ".join(str(int(k)) for k in parts[:12]) + (", ..." if parts.size > 12 else "")
@@ -357,19 +372,25 @@ def faces_from_next(nxt, origin, vec, cell, n_vertices: int):
             f"half-edge vectors adding up to ({gap[0]:.9g}, {gap[1]:.9g}) m, not zero "
             f"(|sum| / perimeter = {closure[f]:.3g} > {AREA_RTOL:g}): the face winds around the "
             "torus (inconsistent rotation system: a wrong image shift of a contact, or a "
-            "non-planar graph)")
+            "non-planar graph)"
+        )
     bad = np.flatnonzero(area <= 0)
     if bad.size:
-        raise InputError(f"contacts: {bad.size} face(s) with non-positive area "
-                         f"(face {int(bad[0])}: "
-                         f"{area[bad[0]]:.3g} m^2): crossing contact lines, non-planar graph")
+        raise InputError(
+            f"contacts: {bad.size} face(s) with non-positive area "
+            f"(face {int(bad[0])}: "
+            f"{area[bad[0]]:.3g} m^2): crossing contact lines, non-planar graph"
+        )
     A = cell_area(np.asarray(cell, np.float64))
     if abs(area.sum() - A) > AREA_RTOL * A:
-        raise InputError(f"contacts: face areas add up to {area.sum():.12g} m^2, not the cell area "
-                         f"{A:.12g} m^2 (overlapping faces: non-planar graph)")
+        raise InputError(
+            f"contacts: face areas add up to {area.sum():.12g} m^2, not the cell area "
+            f"{A:.12g} m^2 (overlapping faces: non-planar graph)"
+        )
     ne = H // 2
     euler = nf - ne + int(n_vertices)
     if euler != 0:
-        raise InputError(f"contacts: Euler's formula on the torus fails: F - E + V = {nf} - {ne} + "
-                         f"{n_vertices} = {euler} != 0")
+        raise InputError(
+            f"contacts: Euler's formula on the torus fails: F - E + V = {nf} - {ne} + {n_vertices} = {euler} != 0"
+        )
     return face, fh, ptr, area, centroid_rel

@@ -45,8 +45,7 @@ from ..errors import InputError
 
 #: codes of ``ParticleGraph.removed`` (0 = kept)
 KEPT, ISOLATED, PENDANT, ISLAND, PENINSULAR = 0, 1, 2, 3, 4
-REMOVAL_NAMES = {KEPT: "kept", ISOLATED: "isolated", PENDANT: "pendant", ISLAND: "island",
-                 PENINSULAR: "peninsular"}
+REMOVAL_NAMES = {KEPT: "kept", ISOLATED: "isolated", PENDANT: "pendant", ISLAND: "island", PENINSULAR: "peninsular"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,8 +93,7 @@ class ParticleGraph:
 
     def removal_counts(self) -> dict:
         """Number of particles per removal class, e.g. {"kept": 871, "pendant": 40, ...}."""
-        return {name: int(np.count_nonzero(self.removed == code))
-                for code, name in REMOVAL_NAMES.items()}
+        return {name: int(np.count_nonzero(self.removed == code)) for code, name in REMOVAL_NAMES.items()}
 
 
 @njit
@@ -263,8 +261,7 @@ def _first_duplicate(n, ptr, adj, dest, hshift):
             ha = adj[a]
             for b in range(a + 1, ptr[v + 1]):
                 hb = adj[b]
-                if (dest[ha] == dest[hb] and hshift[ha, 0] == hshift[hb, 0]
-                        and hshift[ha, 1] == hshift[hb, 1]):
+                if dest[ha] == dest[hb] and hshift[ha, 0] == hshift[hb, 0] and hshift[ha, 1] == hshift[hb, 1]:
                     return max(ha, hb) >> 1
     return -1
 
@@ -276,8 +273,10 @@ def check_duplicates(ci, cj, cs, csr=None, hs=None) -> None:
     hs = halfedge_shifts(cs) if hs is None else hs
     k = _first_duplicate(ptr.shape[0] - 1, ptr, adj, dest, hs)
     if k >= 0:
-        raise InputError(f"contacts: contact {k} (particles {int(ci[k])}, {int(cj[k])}, "
-                         f"image shift {cs[k].tolist()}) is listed more than once")
+        raise InputError(
+            f"contacts: contact {k} (particles {int(ci[k])}, {int(cj[k])}, "
+            f"image shift {cs[k].tolist()}) is listed more than once"
+        )
 
 
 def find_bridges(n_particles: int, ci, cj) -> np.ndarray:
@@ -302,8 +301,9 @@ def components(n_particles: int, ci, cj, cs, active=None):
     ptr, adj, dest = _csr(n_particles, ci, cj)
     if active is None:
         active = np.ones(ci.shape[0], np.bool_)
-    return _lift_components(n_particles, ptr, adj, dest, halfedge_shifts(np.asarray(cs, np.int64)),
-                            np.ascontiguousarray(active, np.bool_))
+    return _lift_components(
+        n_particles, ptr, adj, dest, halfedge_shifts(np.asarray(cs, np.int64)), np.ascontiguousarray(active, np.bool_)
+    )
 
 
 @njit
@@ -417,15 +417,18 @@ def build_graph(n_particles: int, contacts_i, contacts_j, contacts_shift) -> Par
         raise InputError(
             f"contacts: no group of particles spans the periodic cell in two directions "
             f"({n} particles, {ci.shape[0]} contacts, {int(bridge.sum())} bridges): the graph "
-            "has no void-cell tessellation")
+            "has no void-cell tessellation"
+        )
     if wrapping.size > 1:
         raise InputError(
             f"contacts: {wrapping.size} separate groups of particles each span the periodic cell; "
             "on a torus that needs crossing contact lines (non-planar graph from strongly "
-            "overlapping particles?)")
+            "overlapping particles?)"
+        )
     # components of the full graph = components of the bridge-free graph joined by the bridges
     comp_full = _join_by_bridges(comp, ci, cj, bridge)
     removed = _classify(n, ptr, adj, dest, comp, int(wrapping[0]), comp_full)
     ei, ej, es, idx = _kept_edges(ci, cj, cs, bridge, comp, int(wrapping[0]))
-    return ParticleGraph(n_particles=n, edge_i=ei, edge_j=ej, edge_shift=es,
-                         edge_contact=idx, removed=removed, bridge=bridge)
+    return ParticleGraph(
+        n_particles=n, edge_i=ei, edge_j=ej, edge_shift=es, edge_contact=idx, removed=removed, bridge=bridge
+    )

@@ -74,9 +74,16 @@ def _read_snapshot(g, radii, cell_rate, add_streaming: bool) -> Snapshot:
     v = g["velocities"][()]
     if add_streaming:
         v = v + x @ (cell_rate @ np.linalg.inv(C)).T
-    return Snapshot(positions=x, cell=C, contacts_i=c["i"][()], contacts_j=c["j"][()],
-                    contacts_shift=c["shift"][()], velocities=v, cell_velocity=cell_rate,
-                    radii=radii)
+    return Snapshot(
+        positions=x,
+        cell=C,
+        contacts_i=c["i"][()],
+        contacts_j=c["j"][()],
+        contacts_shift=c["shift"][()],
+        velocities=v,
+        cell_velocity=cell_rate,
+        radii=radii,
+    )
 
 
 #: shapes of the datasets the reader uses (N particles, M contacts of each snapshot, T series rows)
@@ -97,8 +104,10 @@ def _check(group, shapes, sizes, path, what):
                 e = sizes[e]
             want.append(e)
         if got != tuple(want):
-            raise ResultFileError(f"{path}: {what}: dataset {group.name}/{k} has shape {got}, expected "
-                                  f"{tuple(want)}: truncated or corrupt run file")
+            raise ResultFileError(
+                f"{path}: {what}: dataset {group.name}/{k} has shape {got}, expected "
+                f"{tuple(want)}: truncated or corrupt run file"
+            )
 
 
 def _check_layout(f, path, n):
@@ -113,12 +122,15 @@ def _check_layout(f, path, n):
             raise ResultFileError(f"{path}: dataset /series/{k} has shape {shp}, expected (T,) + {trail}")
         t = shp[0] if t is None else t
         if shp[0] != t or t == 0:
-            raise ResultFileError(f"{path}: dataset /series/{k} has {shp[0]} rows, /series/step has {t}: "
-                                  "truncated or corrupt run file")
+            raise ResultFileError(
+                f"{path}: dataset /series/{k} has {shp[0]} rows, /series/step has {t}: truncated or corrupt run file"
+            )
     for k, d in ser.items():  # every other series (stress, phase, ...) has the same rows
         if hasattr(d, "shape") and (len(d.shape) == 0 or d.shape[0] != t):
-            raise ResultFileError(f"{path}: dataset /series/{k} has shape {tuple(d.shape)}, /series/step "
-                                  f"has {t} rows: truncated or corrupt run file")
+            raise ResultFileError(
+                f"{path}: dataset /series/{k} has shape {tuple(d.shape)}, /series/step "
+                f"has {t} rows: truncated or corrupt run file"
+            )
     for h in f["snapshots"].values():
         sizes = {} if n is None else {"N": n}
         _check(h, _SNAPSHOT_SHAPES, sizes, path, f"snapshot {h.name}")
@@ -139,13 +151,16 @@ def check_complete(f, path, allow_incomplete: bool = False) -> tuple[bool, str]:
         why = f.attrs.get("stop_reason", "")
         why = (why.decode() if isinstance(why, bytes) else str(why)) or "no stop_reason recorded"
     if not complete and not allow_incomplete:
-        raise ResultFileError(f"{path}: incomplete run (complete = False): {why}; --allow-incomplete "
-                              "(allow_incomplete=True) reads it anyway")
+        raise ResultFileError(
+            f"{path}: incomplete run (complete = False): {why}; --allow-incomplete "
+            "(allow_incomplete=True) reads it anyway"
+        )
     return complete, ("" if complete else why)
 
 
-def load_run_snapshots(path, strains, motion: str = "velocity",
-                       velocities: str = "remap", allow_incomplete: bool = False) -> list[RunSnapshot]:
+def load_run_snapshots(
+    path, strains, motion: str = "velocity", velocities: str = "remap", allow_incomplete: bool = False
+) -> list[RunSnapshot]:
     """The snapshots of a DEM run nearest to the requested axial strains.
 
     Parameters
@@ -204,16 +219,14 @@ def load_run_snapshots(path, strains, motion: str = "velocity",
         step0, Ly0 = _strain_origin(series)
         names = sorted(f["snapshots"].keys())
         steps = np.array([int(f["snapshots"][n].attrs.get("step", int(n[1:]))) for n in names])
-        eps = np.array([-np.log(np.linalg.norm(f["snapshots"][n]["cell"][()][:, 1]) / Ly0)
-                        for n in names])
+        eps = np.array([-np.log(np.linalg.norm(f["snapshots"][n]["cell"][()][:, 1]) / Ly0) for n in names])
         eligible = np.flatnonzero(steps >= step0)
         if strains is None:  # every frame, in order (the consolidation phase included)
             picks = [(float(eps[k]), k) for k in range(len(names) - (motion == "displacement"))]
         if motion == "displacement":
             eligible = eligible[eligible < len(names) - 1]
         if eligible.size == 0 and strains is not None:
-            raise ResultFileError(f"{path}: no snapshot in the compression phase "
-                                  f"(from step {step0})")
+            raise ResultFileError(f"{path}: no snapshot in the compression phase (from step {step0})")
         if strains is not None:
             ee = np.sort(eps[eligible])
             gap = float(np.max(np.diff(ee))) if ee.size > 1 else 0.0  # snapshot spacing in strain
@@ -225,7 +238,8 @@ def load_run_snapshots(path, strains, motion: str = "velocity",
                     raise InputError(
                         f"strain {s:g} is outside the range of the run: its compression-phase snapshots "
                         f"cover {eps[eligible].min():.4g} .. {eps[eligible].max():.4g} (spacing up to "
-                        f"{gap:.3g}); nearest snapshot is at strain {eps[k]:.4g} (step {steps[k]})")
+                        f"{gap:.3g}); nearest snapshot is at strain {eps[k]:.4g} (step {steps[k]})"
+                    )
                 picks.append((s, k))
         out = []
         for s, k in picks:
@@ -235,6 +249,5 @@ def load_run_snapshots(path, strains, motion: str = "velocity",
             if motion == "displacement":
                 g1 = f["snapshots"][names[k + 1]]
                 snap = snap.with_displacements_to(g1["positions"][()], g1["cell"][()])
-            out.append(RunSnapshot(requested=s, strain=float(eps[k]), step=int(steps[k]),
-                                   snapshot=snap))
+            out.append(RunSnapshot(requested=s, strain=float(eps[k]), step=int(steps[k]), snapshot=snap))
     return out

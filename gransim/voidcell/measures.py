@@ -99,10 +99,14 @@ def face_gradients(face_ptr, face_halfedges, vec, dv, area) -> np.ndarray:
         Face areas (m^2).
     """
     max_m = int(np.diff(face_ptr).max()) if face_ptr.shape[0] > 1 else 2
-    return _face_gradients(np.ascontiguousarray(face_ptr), np.ascontiguousarray(face_halfedges),
-                           np.ascontiguousarray(vec, dtype=np.float64),
-                           np.ascontiguousarray(dv, dtype=np.float64),
-                           np.ascontiguousarray(area, dtype=np.float64), q_table(max(max_m, 2)))
+    return _face_gradients(
+        np.ascontiguousarray(face_ptr),
+        np.ascontiguousarray(face_halfedges),
+        np.ascontiguousarray(vec, dtype=np.float64),
+        np.ascontiguousarray(dv, dtype=np.float64),
+        np.ascontiguousarray(area, dtype=np.float64),
+        q_table(max(max_m, 2)),
+    )
 
 
 @pjit
@@ -128,10 +132,13 @@ def halfedge_velocities(origin, dest, shift, velocities, cell_velocity) -> np.nd
     origin, dest : (H,) int, shift : (H, 2) int (DCEL); velocities : (N, 2) m/s;
     cell_velocity : (2, 2) dC/dt, lattice-vector velocities as columns (m/s).
     """
-    return _halfedge_velocities(np.ascontiguousarray(origin), np.ascontiguousarray(dest),
-                                np.ascontiguousarray(shift),
-                                np.ascontiguousarray(velocities, np.float64),
-                                np.ascontiguousarray(cell_velocity, np.float64))
+    return _halfedge_velocities(
+        np.ascontiguousarray(origin),
+        np.ascontiguousarray(dest),
+        np.ascontiguousarray(shift),
+        np.ascontiguousarray(velocities, np.float64),
+        np.ascontiguousarray(cell_velocity, np.float64),
+    )
 
 
 def assembly_average(L: np.ndarray, area: np.ndarray) -> np.ndarray:
@@ -152,8 +159,7 @@ def normalised_vorticity(L: np.ndarray, Lbar: np.ndarray) -> np.ndarray:
     return -(L[:, 0, 1] - L[:, 1, 0]) / np.sqrt(np.sum(Lbar * Lbar))
 
 
-def relative_motion(positions: np.ndarray, velocities: np.ndarray, Lbar: np.ndarray,
-                    d50: float) -> np.ndarray:
+def relative_motion(positions: np.ndarray, velocities: np.ndarray, Lbar: np.ndarray, d50: float) -> np.ndarray:
     """Non-dimensional relative particle motion, eq (21), (N, 2).
 
     v_rel^k = (v^k - Lbar x^k - c) / (D50 |Lbar_22|). The constant c is the mean of v - Lbar x over

@@ -40,7 +40,7 @@ def wrapped_face_polygons(vc: VoidCells) -> tuple[list, np.ndarray]:
             show = np.all((hi > 0) & (lo < 1), axis=1)
             off = C @ t
             for f in np.flatnonzero(show):
-                polys.append(pts[ptr[f]:ptr[f + 1]] + off)
+                polys.append(pts[ptr[f] : ptr[f + 1]] + off)
                 owner.append(f)
     return polys, np.asarray(owner, dtype=np.int64)
 
@@ -59,8 +59,17 @@ def _cell_axes(ax, C):
     return clip
 
 
-def plot_cells(vc: VoidCells, values=None, ax=None, cmap="Greys", vmin=None, vmax=None,
-               edgecolor="0.3", linewidth=0.3, colorbar_label=None):
+def plot_cells(
+    vc: VoidCells,
+    values=None,
+    ax=None,
+    cmap="Greys",
+    vmin=None,
+    vmax=None,
+    edgecolor="0.3",
+    linewidth=0.3,
+    colorbar_label=None,
+):
     """Void cells coloured by a per-face value (F,) (or outlined only when ``values`` is None)."""
     import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
@@ -70,8 +79,9 @@ def plot_cells(vc: VoidCells, values=None, ax=None, cmap="Greys", vmin=None, vma
     C = vc.snapshot.cell
     clip = _cell_axes(ax, C)
     polys, owner = wrapped_face_polygons(vc)
-    pc = PolyCollection(polys, edgecolors=edgecolor, linewidths=linewidth,
-                        facecolors="none" if values is None else None, cmap=cmap)
+    pc = PolyCollection(
+        polys, edgecolors=edgecolor, linewidths=linewidth, facecolors="none" if values is None else None, cmap=cmap
+    )
     if values is not None:
         pc.set_array(np.asarray(values, float)[owner])
         pc.set_clim(vmin, vmax)
@@ -95,21 +105,19 @@ def plot_graph(vc: VoidCells, ax=None, title=None):
         idx = np.flatnonzero(removed == code)
         if idx.size:
             xw, _ = wrap(vc.snapshot.positions[idx], vc.snapshot.cell)
-            ax.plot(xw[:, 0], xw[:, 1], "o", ms=3, color=colour,
-                    label=f"{REMOVAL_NAMES[code]} ({idx.size})")
+            ax.plot(xw[:, 0], xw[:, 1], "o", ms=3, color=colour, label=f"{REMOVAL_NAMES[code]} ({idx.size})")
     if np.any(removed > 0):
         ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
-    ax.set_title(title or f"particle graph: {vc.n_faces} faces, {vc.n_edges} edges, "
-                 f"{vc.n_vertices} vertices")
+    ax.set_title(title or f"particle graph: {vc.n_faces} faces, {vc.n_edges} edges, {vc.n_vertices} vertices")
     return ax
 
 
 def plot_alignment(vc: VoidCells, ax=None, title=None):
     """Fig. 8: cells shaded by alignment alpha (eq 18), white for alpha <= 0, black for 1."""
-    ax = plot_cells(vc, vc.alpha, ax=ax, cmap="Greys", vmin=0.0, vmax=1.0,
-                    colorbar_label="alignment alpha (eq 18)")
-    ax.set_title(title or f"alignment: mean {vc.mean_alpha:.2f}, "
-                 f"{100 * vc.fraction_nonpositive_alpha:.0f}% with alpha <= 0")
+    ax = plot_cells(vc, vc.alpha, ax=ax, cmap="Greys", vmin=0.0, vmax=1.0, colorbar_label="alignment alpha (eq 18)")
+    ax.set_title(
+        title or f"alignment: mean {vc.mean_alpha:.2f}, {100 * vc.fraction_nonpositive_alpha:.0f}% with alpha <= 0"
+    )
     return ax
 
 
@@ -118,8 +126,15 @@ def plot_vorticity(vc: VoidCells, ax=None, title=None):
     accentuates direction and de-emphasises magnitude (red counter-clockwise, blue clockwise)."""
     w = vc.w
     scale = float(np.nanmedian(np.abs(w))) or 1.0
-    ax = plot_cells(vc, np.tanh(w / scale), ax=ax, cmap="RdBu_r", vmin=-1, vmax=1,
-                    colorbar_label=f"tanh(w / {scale:.2g}), w of eq (20)")
+    ax = plot_cells(
+        vc,
+        np.tanh(w / scale),
+        ax=ax,
+        cmap="RdBu_r",
+        vmin=-1,
+        vmax=1,
+        colorbar_label=f"tanh(w / {scale:.2g}), w of eq (20)",
+    )
     ax.set_title(title or "normalised vorticity w (red: counter-clockwise)")
     return ax
 
@@ -133,8 +148,17 @@ def plot_relative_motion(vc: VoidCells, ax=None, title=None, scale=None):
     xw, _ = wrap(vc.snapshot.positions[keep], vc.snapshot.cell)
     u = vc.v_rel[keep]
     d50 = vc._get("d50")
-    ax.quiver(xw[:, 0], xw[:, 1], u[:, 0] * d50, u[:, 1] * d50, angles="xy", scale_units="xy",
-              scale=scale or 1.0, width=0.002, color="k")
+    ax.quiver(
+        xw[:, 0],
+        xw[:, 1],
+        u[:, 0] * d50,
+        u[:, 1] * d50,
+        angles="xy",
+        scale_units="xy",
+        scale=scale or 1.0,
+        width=0.002,
+        color="k",
+    )
     ax.set_title(title or "relative particle motion v_rel (eq 21), arrow = D50 x v_rel")
     return ax
 
@@ -146,8 +170,14 @@ def plot_alpha_histogram(vc: VoidCells, ax=None, bins=40, label=None):
     if ax is None:
         _, ax = plt.subplots(figsize=(5, 3.5))
     a = vc.alpha[np.isfinite(vc.alpha)]
-    ax.hist(a, bins=bins, range=(-1, 1), histtype="step", lw=1.5,
-            label=label or f"mean {a.mean():.2f}, {100 * np.mean(a <= 0):.0f}% <= 0")
+    ax.hist(
+        a,
+        bins=bins,
+        range=(-1, 1),
+        histtype="step",
+        lw=1.5,
+        label=label or f"mean {a.mean():.2f}, {100 * np.mean(a <= 0):.0f}% <= 0",
+    )
     ax.axvline(0, color="0.5", lw=0.8)
     ax.set_xlabel("alignment alpha (eq 18)")
     ax.set_ylabel("void cells")

@@ -71,32 +71,42 @@ class Snapshot:
         ci = as_array(self.contacts_i, "contacts_i", (None,), dtype=np.int64)
         m = ci.shape[0]
         cj = as_array(self.contacts_j, "contacts_j", (m,), dtype=np.int64)
-        cs = as_array(np.reshape(self.contacts_shift, (-1, 2)) if np.size(self.contacts_shift) == 0
-                      else self.contacts_shift, "contacts_shift", (m, 2), dtype=np.int64)
+        cs = as_array(
+            np.reshape(self.contacts_shift, (-1, 2)) if np.size(self.contacts_shift) == 0 else self.contacts_shift,
+            "contacts_shift",
+            (m, 2),
+            dtype=np.int64,
+        )
         for name, idx in (("contacts_i", ci), ("contacts_j", cj)):
             bad = np.flatnonzero((idx < 0) | (idx >= n))
             if bad.size:
                 k = int(bad[0])
-                raise InputError(f"{name}: contact {k} refers to missing particle {int(idx[k])} "
-                                 f"(valid indices 0..{n - 1}; {bad.size} such contacts)")
+                raise InputError(
+                    f"{name}: contact {k} refers to missing particle {int(idx[k])} "
+                    f"(valid indices 0..{n - 1}; {bad.size} such contacts)"
+                )
         selfc = np.flatnonzero((ci == cj) & np.all(cs == 0, axis=1))
         if selfc.size:
             k = int(selfc[0])
-            raise InputError(f"contacts: contact {k} joins particle {int(ci[k])} to itself "
-                             "with zero image shift")
+            raise InputError(f"contacts: contact {k} joins particle {int(ci[k])} to itself with zero image shift")
         v = as_array(self.velocities, "velocities", (n, 2))
-        Cd = np.zeros((2, 2)) if self.cell_velocity is None else as_array(self.cell_velocity,
-                                                                          "cell_velocity", (2, 2))
+        Cd = np.zeros((2, 2)) if self.cell_velocity is None else as_array(self.cell_velocity, "cell_velocity", (2, 2))
         r = None
         if self.radii is not None:
             r = as_array(self.radii, "radii", (n,))
             if np.any(r <= 0):
-                raise InputError(f"radii: must be > 0, radius {int(np.argmax(r <= 0))} is "
-                                 f"{r[np.argmax(r <= 0)]!r}")
+                raise InputError(f"radii: must be > 0, radius {int(np.argmax(r <= 0))} is {r[np.argmax(r <= 0)]!r}")
         check_choice(self.motion, "motion", MOTIONS)
-        for name, val in (("positions", x), ("cell", C), ("contacts_i", ci), ("contacts_j", cj),
-                          ("contacts_shift", cs), ("velocities", v), ("cell_velocity", Cd),
-                          ("radii", r)):
+        for name, val in (
+            ("positions", x),
+            ("cell", C),
+            ("contacts_i", ci),
+            ("contacts_j", cj),
+            ("contacts_shift", cs),
+            ("velocities", v),
+            ("cell_velocity", Cd),
+            ("radii", r),
+        ):
             object.__setattr__(self, name, None if val is None else _frozen(val))
 
     @property
@@ -115,11 +125,11 @@ class Snapshot:
         displacements)."""
         return self.cell_velocity @ np.linalg.inv(self.cell)
 
-    def replace(self, **changes) -> "Snapshot":
+    def replace(self, **changes) -> Snapshot:
         """A copy with fields replaced (validated again)."""
         return dataclasses.replace(self, **changes)
 
-    def with_displacements_to(self, positions, cell) -> "Snapshot":
+    def with_displacements_to(self, positions, cell) -> Snapshot:
         """The same graph with motion = displacement increments to a later state.
 
         ``positions`` (N, 2) and ``cell`` (2, 2) describe the later state; particles may have been

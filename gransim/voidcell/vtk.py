@@ -37,11 +37,18 @@ def cells_to_vtu(path, vc: VoidCells, wrap: bool = True) -> Path:
     blocks, order = [], []
     for m in np.unique(counts):
         faces = np.flatnonzero(counts == m)
-        blocks.append(("polygon" if m > 4 else {3: "triangle", 4: "quad"}[int(m)],
-                       ptr[faces][:, None] + np.arange(m)[None, :]))
+        blocks.append(
+            ("polygon" if m > 4 else {3: "triangle", 4: "quad"}[int(m)], ptr[faces][:, None] + np.arange(m)[None, :])
+        )
         order.append(faces)
-    data = {"area": d.face_area, "valence": counts.astype(float), "alpha": vc.alpha, "w": vc.w,
-            "L": vc.L.reshape(-1, 4), "face": np.arange(d.n_faces, dtype=float)}
+    data = {
+        "area": d.face_area,
+        "valence": counts.astype(float),
+        "alpha": vc.alpha,
+        "w": vc.w,
+        "L": vc.L.reshape(-1, 4),
+        "face": np.arange(d.n_faces, dtype=float),
+    }
     cell_data = {k: [np.asarray(v)[f] for f in order] for k, v in data.items()}
     mesh = meshio.Mesh(points, blocks, cell_data=cell_data)
     with atomic_path(path, suffix=".vtu") as tmp:

@@ -71,15 +71,27 @@ def _deform_axis(name: str, ctl, L0: float, dt: float, temp: str = "thermo_temp"
     else:
         k = dt * ctl.gain
         comp = "1" if name == "x" else "2"
-        lines = [f"compute ps{name} all pressure {temp} virial",
-                 f"fix avs{name} all ave/time 1 1 1 c_ps{name}[{comp}]",
-                 f"variable d{name} equal (l{name}-{_g(L0)})+{_g(k)}*(f_avs{name}-{_g(ctl.target)})*l{name}"]
+        lines = [
+            f"compute ps{name} all pressure {temp} virial",
+            f"fix avs{name} all ave/time 1 1 1 c_ps{name}[{comp}]",
+            f"variable d{name} equal (l{name}-{_g(L0)})+{_g(k)}*(f_avs{name}-{_g(ctl.target)})*l{name}",
+        ]
     return lines, f"{name} variable v_d{name} v_zero"
 
 
-def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading: Loading, nsteps: int,
-                       thermo_every: int = 1, dump_every: int = 100, velocities=None, spins=None,
-                       engine: str = "liggghts", law=None) -> Path:
+def write_biaxial_deck(
+    job_dir,
+    packing: Packing,
+    settings: DEMSettings,
+    loading: Loading,
+    nsteps: int,
+    thermo_every: int = 1,
+    dump_every: int = 100,
+    velocities=None,
+    spins=None,
+    engine: str = "liggghts",
+    law=None,
+) -> Path:
     """Write the deck (``in.biaxial`` for LIGGGHTS, ``in.lammps`` for LAMMPS) and
     ``data.biaxial`` into ``job_dir``; return the deck path.
 
@@ -104,8 +116,7 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
     lost = kernels.pbc_wrap(x, np.zeros(2), np.array([packing.cell[0, 0], packing.cell[1, 1]]))
     if lost >= 0:
         raise ValueError(f"particle {lost} lies more than one cell length outside the cell")
-    write_data_file(job / "data.biaxial", packing.replace(positions=x), velocities=velocities, omegas=spins,
-                    wrap=False)
+    write_data_file(job / "data.biaxial", packing.replace(positions=x), velocities=velocities, omegas=spins, wrap=False)
     s = settings
     Lx, Ly = float(packing.cell[0, 0]), float(packing.cell[1, 1])
     temp = "NULL" if engine == "lammps" else "thermo_temp"
@@ -120,30 +131,46 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
     if engine == "lammps":
         lines = [
             "# gransim.dem mirror deck, LAMMPS form (reference_runs/decks/biaxial.py)",
-            "units si", "dimension 2", "atom_style sphere", "atom_modify map array sort 0 0.0",
-            "boundary p p p", "newton off", "comm_modify mode single vel yes",
+            "units si",
+            "dimension 2",
+            "atom_style sphere",
+            "atom_modify map array sort 0 0.0",
+            "boundary p p p",
+            "newton off",
+            "comm_modify mode single vel yes",
             "read_data data.biaxial",
             # read_data takes the density column as 3D in this build: 2D masses pi r^2 rho
             f"set group all density/disc {_g(packing.density)}",
-            f"neighbor {_g(s.skin)} bin", "neigh_modify delay 0 every 1 check yes",
+            f"neighbor {_g(s.skin)} bin",
+            "neigh_modify delay 0 every 1 check yes",
             f"timestep {_g(s.dt)}",
             *law_pair_lines(law, s, engine),
-            "fix integr all nve/sphere disc", "fix e2d all enforce2d",
+            "fix integr all nve/sphere disc",
+            "fix e2d all enforce2d",
             "variable zero equal 0",
-            *pre, *var,
+            *pre,
+            *var,
         ]
     else:
         lines = [
             "# gransim.dem mirror deck (reference_runs/decks/biaxial.py)",
-            "units si", "dimension 2", "atom_style sphere", "atom_modify map array sort 0 0.0",
-            "boundary p p p", "newton off", "communicate single vel yes",
+            "units si",
+            "dimension 2",
+            "atom_style sphere",
+            "atom_modify map array sort 0 0.0",
+            "boundary p p p",
+            "newton off",
+            "communicate single vel yes",
             "read_data data.biaxial",
-            f"neighbor {_g(s.skin)} bin", "neigh_modify delay 0 every 1 check yes",
+            f"neighbor {_g(s.skin)} bin",
+            "neigh_modify delay 0 every 1 check yes",
             f"timestep {_g(s.dt)}",
             *law_pair_lines(law, s, engine),
-            "fix integr all nve/sphere", "fix e2d all enforce2d",
+            "fix integr all nve/sphere",
+            "fix e2d all enforce2d",
             "variable zero equal 0",
-            *pre, *var,
+            *pre,
+            *var,
         ]
     if deform:
         lines.append(deform)
@@ -154,7 +181,7 @@ def write_biaxial_deck(job_dir, packing: Packing, settings: DEMSettings, loading
         "thermo_modify format float %.17g norm no",
         f"thermo {int(thermo_every)}",
         f"dump d1 all custom {int(dump_every)} dump.atoms id x y vx vy omegaz fx fy tqz mass radius",
-        f"dump_modify d1 sort id format {fmt}\"%d" + " %.17g" * 10 + "\"",
+        f'dump_modify d1 sort id format {fmt}"%d' + " %.17g" * 10 + '"',
         f"run {int(nsteps)}",
     ]
     deck = job / DECK_NAMES[engine]
@@ -179,36 +206,49 @@ def law_pair_lines(law, settings: DEMSettings, engine: str) -> list[str]:
     s = settings
     if law is None:
         law = hooke.hooke_law(s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, engine)
-    lig = {hooke.HookeLiggghts: None, rolling.HookeEpsd2Liggghts: "epsd2", rolling.HookeEpsdLiggghts: "epsd",
-           rolling.HookeCdtLiggghts: "cdt", hertz.HertzHistoryLiggghts: "hertz"}
+    lig = {
+        hooke.HookeLiggghts: None,
+        rolling.HookeEpsd2Liggghts: "epsd2",
+        rolling.HookeEpsdLiggghts: "epsd",
+        rolling.HookeCdtLiggghts: "cdt",
+        hertz.HertzHistoryLiggghts: "hertz",
+    }
     lmp = (hooke.HookeLammps, hertz.HertzHistoryLammps, hertz.HertzGranularLammps, rolling.HookeSdsLammps)
     cls = type(law)
     code = "liggghts" if cls in lig else "lammps" if cls in lmp else None
     if code is None:
-        raise InputError(f"law: no deck lines for {cls.__name__} (expected a law of "
-                         "gransim.contacts.laws.make_law)")
+        raise InputError(f"law: no deck lines for {cls.__name__} (expected a law of gransim.contacts.laws.make_law)")
     if code != engine:
-        raise InputError(f"law: {cls.__name__} is a {code} law, the deck is for {engine} "
-                         f"(use the {engine} variant of the law)")
+        raise InputError(
+            f"law: {cls.__name__} is a {code} law, the deck is for {engine} (use the {engine} variant of the law)"
+        )
     if engine == "liggghts":
         prop = "fix m{} all property/global {} peratomtypepair 1 {}"
         if cls is hertz.HertzHistoryLiggghts:
             mat = _MATERIAL.get(law)
             if mat is None:
-                raise InputError("law: a LIGGGHTS Hertz law for a deck must be built by "
-                                 "reference_runs.decks.biaxial.hertz_liggghts (its material constants)")
+                raise InputError(
+                    "law: a LIGGGHTS Hertz law for a deck must be built by "
+                    "reference_runs.decks.biaxial.hertz_liggghts (its material constants)"
+                )
             E, nu, e = mat
-            lines = [f"fix m1 all property/global youngsModulus peratomtype {_g(E)}",
-                     f"fix m2 all property/global poissonsRatio peratomtype {_g(nu)}",
-                     prop.format(3, "coefficientRestitution", _g(e)),
-                     prop.format(4, "coefficientFriction", _g(law.mu))]
+            lines = [
+                f"fix m1 all property/global youngsModulus peratomtype {_g(E)}",
+                f"fix m2 all property/global poissonsRatio peratomtype {_g(nu)}",
+                prop.format(3, "coefficientRestitution", _g(e)),
+                prop.format(4, "coefficientFriction", _g(law.mu)),
+            ]
             if not 5e6 <= E <= 1e9:
                 lines.insert(0, "soft_particles yes" if E < 5e6 else "hard_particles yes")
             tang = "" if law.tdamp else " tangential_damping off"
             return lines + [f"pair_style gran model hertz tangential history{tang}", "pair_coeff * *"]
-        lines = [prop.format(1, "kn", _g(law.kn)), prop.format(2, "kt", _g(law.kt)),
-                 prop.format(3, "gamman", _g(law.gamma_n)), prop.format(4, "gammat", _g(law.gamma_t)),
-                 prop.format(5, "coefficientFriction", _g(law.mu))]
+        lines = [
+            prop.format(1, "kn", _g(law.kn)),
+            prop.format(2, "kt", _g(law.kt)),
+            prop.format(3, "gamman", _g(law.gamma_n)),
+            prop.format(4, "gammat", _g(law.gamma_t)),
+            prop.format(5, "coefficientFriction", _g(law.mu)),
+        ]
         model = lig[cls]
         extra = ""
         if model is not None:
@@ -219,22 +259,37 @@ def law_pair_lines(law, settings: DEMSettings, engine: str) -> list[str]:
         return lines + [f"pair_style gran model hooke/stiffness tangential history{extra}", "pair_coeff * *"]
     if cls is hooke.HookeLammps or cls is hertz.HertzHistoryLammps:
         style = "hooke" if cls is hooke.HookeLammps else "hertz"
-        return [(f"pair_style gran/{style}/history {_g(law.kn)} {_g(law.kt)} {_g(law.gamma_n)} "
-                f"{_g(law.gamma_t)} {_g(law.mu)} 1"), "pair_coeff * *"]
+        return [
+            (
+                f"pair_style gran/{style}/history {_g(law.kn)} {_g(law.kt)} {_g(law.gamma_n)} "
+                f"{_g(law.gamma_t)} {_g(law.mu)} 1"
+            ),
+            "pair_coeff * *",
+        ]
     damping = ("velocity", "mass_velocity", "viscoelastic", "tsuji")
     if cls is hertz.HertzGranularLammps:
         mat = _MATERIAL.get(law)
         if mat is None:
-            raise InputError("law: a LAMMPS granular Hertz law for a deck must be built by "
-                             "reference_runs.decks.biaxial.hertz_granular_lammps (its material constants)")
+            raise InputError(
+                "law: a LAMMPS granular Hertz law for a deck must be built by "
+                "reference_runs.decks.biaxial.hertz_granular_lammps (its material constants)"
+            )
         E, nu, damp = mat
-        return ["pair_style granular",
-                (f"pair_coeff * * hertz/material {_g(E)} {_g(damp)} {_g(nu)} damping "
-                f"{damping[int(law.damping)]} tangential mindlin NULL {_g(law.gammat_ratio)} {_g(law.mu)}")]
-    return ["pair_style granular",
-            (f"pair_coeff * * hooke {_g(law.kn)} {_g(law.damp)} damping {damping[int(law.damping)]} "
+        return [
+            "pair_style granular",
+            (
+                f"pair_coeff * * hertz/material {_g(E)} {_g(damp)} {_g(nu)} damping "
+                f"{damping[int(law.damping)]} tangential mindlin NULL {_g(law.gammat_ratio)} {_g(law.mu)}"
+            ),
+        ]
+    return [
+        "pair_style granular",
+        (
+            f"pair_coeff * * hooke {_g(law.kn)} {_g(law.damp)} damping {damping[int(law.damping)]} "
             f"tangential linear_history {_g(law.kt)} {_g(law.xgammat)} {_g(law.mu)} "
-            f"rolling sds {_g(law.kroll)} {_g(law.gammaroll)} {_g(law.muroll)}")]
+            f"rolling sds {_g(law.kroll)} {_g(law.gammaroll)} {_g(law.muroll)}"
+        ),
+    ]
 
 
 #: law object -> the material constants its deck needs (the law holds only effective values)
@@ -243,23 +298,42 @@ _MATERIAL: dict = {}
 
 def hertz_liggghts(youngs_modulus, poisson_ratio, restitution, friction):
     """``make_law("hertz-liggghts", ...)`` remembering its material constants for the deck."""
-    law = make_law("hertz-liggghts", youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio,
-                   restitution=restitution, friction=friction)
+    law = make_law(
+        "hertz-liggghts",
+        youngs_modulus=youngs_modulus,
+        poisson_ratio=poisson_ratio,
+        restitution=restitution,
+        friction=friction,
+    )
     _MATERIAL[law] = (float(youngs_modulus), float(poisson_ratio), float(restitution))
     return law
 
 
 def hertz_granular_lammps(youngs_modulus, poisson_ratio, damp, friction, gammat_ratio=1.0, damping="tsuji"):
     """``make_law("hertz-granular-lammps", ...)`` remembering E, nu, DAMP for the deck."""
-    law = make_law("hertz-granular-lammps", youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio,
-                   damp=damp, friction=friction, gammat_ratio=gammat_ratio, damping=damping)
+    law = make_law(
+        "hertz-granular-lammps",
+        youngs_modulus=youngs_modulus,
+        poisson_ratio=poisson_ratio,
+        damp=damp,
+        friction=friction,
+        gammat_ratio=gammat_ratio,
+        damping=damping,
+    )
     _MATERIAL[law] = (float(youngs_modulus), float(poisson_ratio), float(damp))
     return law
 
 
 #: the laws of the short case (:func:`short_case_law`), Hooke's contact time and damping
-SHORT_CASE_LAWS = ("hertz-liggghts", "hooke-epsd2-liggghts", "hooke-epsd-liggghts", "hooke-cdt-liggghts",
-                   "hertz-lammps", "hertz-granular-lammps", "hooke-sds-lammps")
+SHORT_CASE_LAWS = (
+    "hertz-liggghts",
+    "hooke-epsd2-liggghts",
+    "hooke-epsd-liggghts",
+    "hooke-cdt-liggghts",
+    "hertz-lammps",
+    "hertz-granular-lammps",
+    "hooke-sds-lammps",
+)
 
 
 def short_case_law(name: str):
@@ -289,8 +363,18 @@ def short_case_law(name: str):
     if name == "hooke-epsd-liggghts":
         return make_law(name, **hooke, mu_r=0.1, eta_r=0.3)
     if name == "hooke-sds-lammps":
-        return make_law(name, kn=1e5, damp=50.0, damping="mass_velocity", kt=1e5, xgammat=1.0, mu=mu,
-                        kroll=1e5, gammaroll=0.2, muroll=0.1)
+        return make_law(
+            name,
+            kn=1e5,
+            damp=50.0,
+            damping="mass_velocity",
+            kt=1e5,
+            xgammat=1.0,
+            mu=mu,
+            kroll=1e5,
+            gammaroll=0.2,
+            muroll=0.1,
+        )
     raise InputError(f"law: expected one of {', '.join(SHORT_CASE_LAWS)}, got {name!r}")
 
 
@@ -303,8 +387,9 @@ def make_stored_law(name: str, out_root, timeout: float | None = 900.0) -> Path:
     p, s, ld, n = short_case()
     law = short_case_law(name)
     with tempfile.TemporaryDirectory(prefix=f"biaxial-short-{name}-") as tmp:
-        deck = write_biaxial_deck(tmp, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY,
-                                  engine=engine, law=law)
+        deck = write_biaxial_deck(
+            tmp, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY, engine=engine, law=law
+        )
         log = run_deck(deck, engine, timeout=timeout)
         for src in (deck, Path(tmp) / "data.biaxial", log, Path(tmp) / "dump.atoms"):
             shutil.copyfile(src, out / src.name)
@@ -314,13 +399,13 @@ def make_stored_law(name: str, out_root, timeout: float | None = 900.0) -> Path:
 - Case: `reference_runs.decks.biaxial.short_case()` (120 disks, servo on x to 100 N/m, y at
   -1 1/s, dt 2e-6 s, skin 2e-5 m), {n} steps, with the law
   `reference_runs.decks.biaxial.short_case_law("{name}")` = `{law!r}`.
-- Code: {head}, `/usr/bin/{'liggghts' if engine == 'liggghts' else 'lmp'}` (Debian package), serial.
+- Code: {head}, `/usr/bin/{"liggghts" if engine == "liggghts" else "lmp"}` (Debian package), serial.
 - Files: `{deck.name}` (deck, `write_biaxial_deck(..., engine="{engine}", law=law)`), `data.biaxial`
   (%.17g), `{log.name}` (thermo every step: box and virial stress), `dump.atoms` (every
   {SHORT_CASE_DUMP_EVERY} steps: id x y vx vy omegaz fx fy tqz mass radius).
 - Regenerate: `python -c "from reference_runs.decks.biaxial import make_stored_law;
   make_stored_law('{name}', 'reference_runs/stored')"`.
-- Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}
+- Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
 - Used by: tests/dem/test_law_runs.py (native `DEMEngine(..., law=law)` with
   `DEMSettings(flavour="{engine}")`; tolerances positions 1e-10 D50, stresses 1e-8 relative).
 """)
@@ -386,8 +471,15 @@ def run_deck(deck: Path, engine: str = "liggghts", np: int = 1, timeout: float |
         raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
     deck = Path(deck)
     data = (deck.parent / "data.biaxial").read_bytes()
-    kw = {"files": {"data.biaxial": data}, "np": np, "timeout": timeout, "outputs": ("dump.atoms",),
-          "expected_runs": 1, "progress": False, "force": True}
+    kw = {
+        "files": {"data.biaxial": data},
+        "np": np,
+        "timeout": timeout,
+        "outputs": ("dump.atoms",),
+        "expected_runs": 1,
+        "progress": False,
+        "force": True,
+    }
     if "engine" in inspect.signature(run_job).parameters:
         return run_job(deck.parent, deck.read_text(), engine=engine, **kw).log_path
     if engine == "liggghts":
@@ -401,22 +493,21 @@ def _run_lmp(deck: Path, np: int, timeout: float | None) -> Path:
     job = deck.parent
     lmp = shutil.which("lmp")
     if lmp is None:
-        raise ReferenceRunError("LAMMPS binary `lmp` not found on PATH (Debian: apt-get install lammps)",
-                                job_dir=job)
+        raise ReferenceRunError("LAMMPS binary `lmp` not found on PATH (Debian: apt-get install lammps)", job_dir=job)
     cmd = [lmp, "-in", deck.name, "-log", "log.lammps", "-screen", "none", "-nocite"]
     if np > 1:
         mpi = ["mpirun", "-np", str(int(np))] + (["--allow-run-as-root"] if os.geteuid() == 0 else [])
         cmd = mpi + cmd
     log = job / "log.lammps"
-    proc = subprocess.Popen(cmd, cwd=job, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            start_new_session=True)
+    proc = subprocess.Popen(cmd, cwd=job, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
     try:
         out, _ = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
-        raise ReferenceRunError(f"LAMMPS job {job}: killed after the timeout of {timeout} s", job_dir=job,
-                                timed_out=True) from None
+        raise ReferenceRunError(
+            f"LAMMPS job {job}: killed after the timeout of {timeout} s", job_dir=job, timed_out=True
+        ) from None
     lines = log.read_text(errors="replace").splitlines() if log.exists() else []
     bad = [ln for ln in lines if ln.startswith(("ERROR", "WARNING"))]
     bad += [ln for ln in out.decode(errors="replace").splitlines() if "ERROR" in ln or "WARNING" in ln]
@@ -430,8 +521,12 @@ def _run_lmp(deck: Path, np: int, timeout: float | None) -> Path:
     if not (job / "dump.atoms").exists():
         problems.append("no dump.atoms")
     if problems:
-        raise ReferenceRunError(f"LAMMPS job {job}: {'; '.join(problems)}", job_dir=job,
-                                log_lines=(bad or lines[-10:])[:20], problems=problems)
+        raise ReferenceRunError(
+            f"LAMMPS job {job}: {'; '.join(problems)}",
+            job_dir=job,
+            log_lines=(bad or lines[-10:])[:20],
+            problems=problems,
+        )
     return log
 
 
@@ -455,8 +550,12 @@ def make_stored(out_dir, timeout: float | None = 600.0, engine: str = "liggghts"
     with tempfile.TemporaryDirectory(prefix="biaxial-short-") as tmp:
         deck = write_biaxial_deck(tmp, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY)
         log = run_liggghts(deck, timeout=timeout)
-        for src, name in ((deck, "in.biaxial"), (Path(tmp) / "data.biaxial", "data.biaxial"),
-                          (log, "log.liggghts"), (Path(tmp) / "dump.atoms", "dump.atoms")):
+        for src, name in (
+            (deck, "in.biaxial"),
+            (Path(tmp) / "data.biaxial", "data.biaxial"),
+            (log, "log.liggghts"),
+            (Path(tmp) / "dump.atoms", "dump.atoms"),
+        ):
             shutil.copyfile(src, out / name)
     version = liggghts_version() or "unknown"  # as the binary reports itself, with its path
     head = (out / "log.liggghts").read_text().splitlines()[0]
@@ -472,7 +571,7 @@ def make_stored(out_dir, timeout: float | None = 600.0, engine: str = "liggghts"
   directory (`reference_runs.runner.run_job`; deck and data as here), log stored as `log.liggghts`.
 - Regenerate: `python -c "from reference_runs.decks.biaxial import make_stored;
   make_stored('reference_runs/stored/biaxial-short')"`.
-- Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}
+- Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
 - Used by: tests/dem/test_liggghts.py (tolerances: positions 1e-10 D50, stresses 1e-8 relative).
 """)
     return out
@@ -483,19 +582,30 @@ def _make_stored_lammps(out: Path, timeout: float | None) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     p, s, ld, n = short_case()
     with tempfile.TemporaryDirectory(prefix="biaxial-short-lammps-") as tmp:
-        deck = write_biaxial_deck(tmp, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY,
-                                  engine="lammps")
+        deck = write_biaxial_deck(tmp, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY, engine="lammps")
         log = run_deck(deck, "lammps", timeout=timeout)
-        for src, name in ((deck, "in.lammps"), (Path(tmp) / "data.biaxial", "data.biaxial"),
-                          (log, "log.lammps"), (Path(tmp) / "dump.atoms", "dump.atoms")):
+        for src, name in (
+            (deck, "in.lammps"),
+            (Path(tmp) / "data.biaxial", "data.biaxial"),
+            (log, "log.lammps"),
+            (Path(tmp) / "dump.atoms", "dump.atoms"),
+        ):
             shutil.copyfile(src, out / name)
     lines = (out / "log.lammps").read_text().splitlines()
     head = lines[0]
     builds = next((ln.split("=")[1].strip() for ln in lines if ln.startswith("Neighbor list builds")), "?")
     lmp = shutil.which("lmp") or "lmp"
     try:
-        pkg = subprocess.run(["dpkg-query", "-W", "-f", "${Version}", "lammps"], capture_output=True,
-                             text=True, timeout=30, check=False).stdout.strip() or "unknown"
+        pkg = (
+            subprocess.run(
+                ["dpkg-query", "-W", "-f", "${Version}", "lammps"],
+                capture_output=True,
+                text=True,
+                timeout=30,
+                check=False,
+            ).stdout.strip()
+            or "unknown"
+        )
     except (OSError, subprocess.SubprocessError):
         pkg = "unknown"
     title = "biaxial-short-lammps: LAMMPS reference for the DEM engine (step for step)"
@@ -514,7 +624,7 @@ def _make_stored_lammps(out: Path, timeout: float | None) -> Path:
   (`reference_runs.decks.biaxial.run_deck(deck, "lammps")`; deck and data as here).
 - Regenerate: `python -c "from reference_runs.decks.biaxial import make_stored;
   make_stored('reference_runs/stored/biaxial-short-lammps', engine='lammps')"`.
-- Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}
+- Date: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
 - Used by: tests/dem/test_lammps.py (native `DEMSettings(flavour="lammps")`; measured: exactly
   equal; tolerances positions 1e-10 D50, stresses 1e-8 relative). Differences of the two codes:
   docs/lammps.md.

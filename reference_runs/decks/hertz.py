@@ -69,11 +69,23 @@ def impact_case() -> dict:
     Y = effective_youngs(E, nu, E, nu)
     G = effective_shear(E, nu, E, nu)
     return {
-        "radii": (r1, r2), "density": 25.0, "positions": (x1, x2),
-        "velocities": ((0.7, 0.35), (-0.4, -0.25)), "spins": (300.0, -500.0),
-        "youngs_modulus": E, "poisson_ratio": nu, "restitution": e, "friction": mu,
-        "dt": 5.0e-7, "nsteps": 220, "skin": 2.0e-3, "box": (0.1, 0.1),
-        "kn": 4.0 / 3.0 * Y, "kt": 8.0 * G, "gamman": 2.0e4, "gammat": 1.0e4,
+        "radii": (r1, r2),
+        "density": 25.0,
+        "positions": (x1, x2),
+        "velocities": ((0.7, 0.35), (-0.4, -0.25)),
+        "spins": (300.0, -500.0),
+        "youngs_modulus": E,
+        "poisson_ratio": nu,
+        "restitution": e,
+        "friction": mu,
+        "dt": 5.0e-7,
+        "nsteps": 220,
+        "skin": 2.0e-3,
+        "box": (0.1, 0.1),
+        "kn": 4.0 / 3.0 * Y,
+        "kt": 8.0 * G,
+        "gamman": 2.0e4,
+        "gammat": 1.0e4,
         "gammat_ratio": math.sqrt(8.0 * G / (2.0 * Y)),
     }
 
@@ -83,13 +95,21 @@ def liggghts_law(case: dict) -> HertzLiggghts:
 
 
 def granular_law(case: dict) -> HertzMaterialLammps:
-    return HertzMaterialLammps(case["youngs_modulus"], case["poisson_ratio"], case["restitution"],
-                               case["friction"], gammat_ratio=case["gammat_ratio"], damping="tsuji")
+    return HertzMaterialLammps(
+        case["youngs_modulus"],
+        case["poisson_ratio"],
+        case["restitution"],
+        case["friction"],
+        gammat_ratio=case["gammat_ratio"],
+        damping="tsuji",
+    )
 
 
 def data_text(case: dict) -> str:
     """The data file (:func:`reference_runs.decks.twodisk.data_text`)."""
-    return twodisk.data_text(case, "two-disk impact written by reference_runs/decks/hertz.py (2D: density = mass per area)")
+    return twodisk.data_text(
+        case, "two-disk impact written by reference_runs/decks/hertz.py (2D: density = mass per area)"
+    )
 
 
 def deck_text(case: dict, law: str) -> str:
@@ -99,29 +119,42 @@ def deck_text(case: dict, law: str) -> str:
     c = case
     if law == "liggghts":
         lines = [
-            *twodisk.preamble("liggghts", "# two-disk Hertz impact, LIGGGHTS form (reference_runs/decks/hertz.py)",
-                              c, DATA_NAME),
+            *twodisk.preamble(
+                "liggghts", "# two-disk Hertz impact, LIGGGHTS form (reference_runs/decks/hertz.py)", c, DATA_NAME
+            ),
             f"fix m1 all property/global youngsModulus peratomtype {_g(c['youngs_modulus'])}",
             f"fix m2 all property/global poissonsRatio peratomtype {_g(c['poisson_ratio'])}",
             f"fix m3 all property/global coefficientRestitution peratomtypepair 1 {_g(c['restitution'])}",
             f"fix m4 all property/global coefficientFriction peratomtypepair 1 {_g(c['friction'])}",
-            "pair_style gran model hertz tangential history", "pair_coeff * *",
-            "fix integr all nve/sphere", "fix e2d all enforce2d",
+            "pair_style gran model hertz tangential history",
+            "pair_coeff * *",
+            "fix integr all nve/sphere",
+            "fix e2d all enforce2d",
         ]
         fmt = ""
     else:
         lines = [
-            *twodisk.preamble("lammps", f"# two-disk Hertz impact, LAMMPS {law} (reference_runs/decks/hertz.py)", c,
-                              DATA_NAME),
+            *twodisk.preamble(
+                "lammps", f"# two-disk Hertz impact, LAMMPS {law} (reference_runs/decks/hertz.py)", c, DATA_NAME
+            ),
         ]
         if law == "gran-hertz-history":
-            lines += [(f"pair_style gran/hertz/history {_g(c['kn'])} {_g(c['kt'])} {_g(c['gamman'])} "
-                       f"{_g(c['gammat'])} {_g(c['friction'])} 1"), "pair_coeff * *"]
+            lines += [
+                (
+                    f"pair_style gran/hertz/history {_g(c['kn'])} {_g(c['kt'])} {_g(c['gamman'])} "
+                    f"{_g(c['gammat'])} {_g(c['friction'])} 1"
+                ),
+                "pair_coeff * *",
+            ]
         else:
-            lines += ["pair_style granular",
-                      (f"pair_coeff * * hertz/material {_g(c['youngs_modulus'])} {_g(c['restitution'])} "
-                       f"{_g(c['poisson_ratio'])} damping tsuji tangential mindlin NULL "
-                       f"{_g(c['gammat_ratio'])} {_g(c['friction'])}")]
+            lines += [
+                "pair_style granular",
+                (
+                    f"pair_coeff * * hertz/material {_g(c['youngs_modulus'])} {_g(c['restitution'])} "
+                    f"{_g(c['poisson_ratio'])} damping tsuji tangential mindlin NULL "
+                    f"{_g(c['gammat_ratio'])} {_g(c['friction'])}"
+                ),
+            ]
         lines += ["fix integr all nve/sphere disc", "fix e2d all enforce2d"]
         fmt = "line "
     lines += twodisk.output_lines("liggghts" if fmt == "" else "lammps", c["nsteps"])

@@ -101,8 +101,17 @@ class HookeLaw:
 
     def dem_settings(self, dt: float, skin: float, flavour: str = "liggghts") -> DEMSettings:
         """The native engine's settings of this law (serial mode, the mode compared step for step)."""
-        return DEMSettings(kn=self.kn, kt=self.kt, gamma_n=self.gamma_n, gamma_t=self.gamma_t, mu=self.mu,
-                           dt=dt, skin=skin, mode="serial", flavour=flavour)
+        return DEMSettings(
+            kn=self.kn,
+            kt=self.kt,
+            gamma_n=self.gamma_n,
+            gamma_t=self.gamma_t,
+            mu=self.mu,
+            dt=dt,
+            skin=skin,
+            mode="serial",
+            flavour=flavour,
+        )
 
     def native_law(self, flavour: str = "liggghts"):
         """None: the engine builds the Hooke law of :meth:`dem_settings` in ``flavour``."""
@@ -111,18 +120,28 @@ class HookeLaw:
     def deck_lines(self, engine: str) -> list[str]:
         """The pair-style lines of the deck for ``engine`` ("liggghts" or "lammps")."""
         if engine == "lammps":
-            return [(f"pair_style gran/hooke/history {_g(self.kn)} {_g(self.kt)} {_g(self.gamma_n)} "
-                 f"{_g(self.gamma_t)} {_g(self.mu)} 1"), "pair_coeff * *"]
-        return ["fix m1 all property/global kn peratomtypepair 1 " + _g(self.kn),
-                "fix m2 all property/global kt peratomtypepair 1 " + _g(self.kt),
-                "fix m3 all property/global gamman peratomtypepair 1 " + _g(self.gamma_n),
-                "fix m4 all property/global gammat peratomtypepair 1 " + _g(self.gamma_t),
-                "fix m5 all property/global coefficientFriction peratomtypepair 1 " + _g(self.mu),
-                "pair_style gran model hooke/stiffness tangential history", "pair_coeff * *"]
+            return [
+                (
+                    f"pair_style gran/hooke/history {_g(self.kn)} {_g(self.kt)} {_g(self.gamma_n)} "
+                    f"{_g(self.gamma_t)} {_g(self.mu)} 1"
+                ),
+                "pair_coeff * *",
+            ]
+        return [
+            "fix m1 all property/global kn peratomtypepair 1 " + _g(self.kn),
+            "fix m2 all property/global kt peratomtypepair 1 " + _g(self.kt),
+            "fix m3 all property/global gamman peratomtypepair 1 " + _g(self.gamma_n),
+            "fix m4 all property/global gammat peratomtypepair 1 " + _g(self.gamma_t),
+            "fix m5 all property/global coefficientFriction peratomtypepair 1 " + _g(self.mu),
+            "pair_style gran model hooke/stiffness tangential history",
+            "pair_coeff * *",
+        ]
 
     def describe(self) -> str:
-        return (f"Hooke + tangential history: kn {self.kn:g} N/m, kt {self.kt:g} N/m, gamma_n {self.gamma_n:.6g} 1/s, "
-                f"gamma_t {self.gamma_t:.6g} 1/s, mu {self.mu:g}")
+        return (
+            f"Hooke + tangential history: kn {self.kn:g} N/m, kt {self.kt:g} N/m, gamma_n {self.gamma_n:.6g} 1/s, "
+            f"gamma_t {self.gamma_t:.6g} 1/s, mu {self.mu:g}"
+        )
 
 
 #: overlap bound (m) of the Hertz time-step check: the engine's stability test needs a linear
@@ -134,16 +153,27 @@ HERTZ_RADIUS_BOUND = 0.01
 
 def _one_code(law, engine: str) -> None:
     if engine not in law.engines:
-        raise InputError(f"law {law.name}: only {', '.join(law.engines)} has it, not {engine!r} (a deck for "
-                         f"{engine} needs another law)")
+        raise InputError(
+            f"law {law.name}: only {', '.join(law.engines)} has it, not {engine!r} (a deck for "
+            f"{engine} needs another law)"
+        )
 
 
 def _hertz_settings(law, y43: float, kt0: float, dt: float, skin: float, flavour: str) -> DEMSettings:
     """Settings of a Hertz law: dt, skin, flavour; kn, kt = the tangent stiffnesses (3/2) y43 a
     and kt0 a at a = sqrt(HERTZ_RADIUS_BOUND HERTZ_DELTA_BOUND): only the time-step check reads them."""
     a = (HERTZ_RADIUS_BOUND * HERTZ_DELTA_BOUND) ** 0.5
-    return DEMSettings(kn=1.5 * y43 * a, kt=kt0 * a, gamma_n=0.0, gamma_t=0.0, mu=law.mu, dt=dt, skin=skin,
-                       mode="serial", flavour=flavour)
+    return DEMSettings(
+        kn=1.5 * y43 * a,
+        kt=kt0 * a,
+        gamma_n=0.0,
+        gamma_t=0.0,
+        mu=law.mu,
+        dt=dt,
+        skin=skin,
+        mode="serial",
+        flavour=flavour,
+    )
 
 
 @dataclass(frozen=True)
@@ -172,8 +202,10 @@ class HertzLiggghtsLaw:
         m = self.material()  # InputError naming the LIGGGHTS property
         lo, hi = 5e6, 1e9
         if not lo <= m.youngs_modulus <= hi:
-            raise InputError(f"HertzLiggghtsLaw.youngs_modulus: expected {lo:g} <= E <= {hi:g} Pa "
-                             f"(LIGGGHTS' SI limits), got {self.youngs_modulus!r}")
+            raise InputError(
+                f"HertzLiggghtsLaw.youngs_modulus: expected {lo:g} <= E <= {hi:g} Pa "
+                f"(LIGGGHTS' SI limits), got {self.youngs_modulus!r}"
+            )
 
     def material(self) -> HertzLiggghts:
         return HertzLiggghts(self.youngs_modulus, self.poisson_ratio, self.restitution, self.mu)
@@ -182,9 +214,13 @@ class HertzLiggghtsLaw:
         """y43 = 4/3 Y*, kt0 = 8 G* (Pa); damping "tsuji" with alpha = -sqrt(5) beta(e): the damping
         coefficient alpha sqrt(m* y43 a) (2 sqrt(5/6) sqrt(2 Y* a m*) = sqrt(5) sqrt(4/3 Y* a m*))."""
         Y, G, beta, _, _ = self.material().coefficients()
-        return {"y43": 4.0 / 3.0 * Y, "kt0": 8.0 * G, "damping": "tsuji" if beta != 0.0 else "none",
-                "alpha": -5.0 ** 0.5 * beta,
-                "kt_damping": beta != 0.0}
+        return {
+            "y43": 4.0 / 3.0 * Y,
+            "kt0": 8.0 * G,
+            "damping": "tsuji" if beta != 0.0 else "none",
+            "alpha": -(5.0**0.5) * beta,
+            "kt_damping": beta != 0.0,
+        }
 
     def native_law(self, flavour: str = "liggghts"):
         return HertzHistoryLiggghts(*self.material().coefficients())
@@ -195,15 +231,20 @@ class HertzLiggghtsLaw:
 
     def deck_lines(self, engine: str) -> list[str]:
         _one_code(self, engine)
-        return [f"fix m1 all property/global youngsModulus peratomtype {_g(self.youngs_modulus)}",
-                f"fix m2 all property/global poissonsRatio peratomtype {_g(self.poisson_ratio)}",
-                f"fix m3 all property/global coefficientRestitution peratomtypepair 1 {_g(self.restitution)}",
-                f"fix m4 all property/global coefficientFriction peratomtypepair 1 {_g(self.mu)}",
-                "pair_style gran model hertz tangential history", "pair_coeff * *"]
+        return [
+            f"fix m1 all property/global youngsModulus peratomtype {_g(self.youngs_modulus)}",
+            f"fix m2 all property/global poissonsRatio peratomtype {_g(self.poisson_ratio)}",
+            f"fix m3 all property/global coefficientRestitution peratomtypepair 1 {_g(self.restitution)}",
+            f"fix m4 all property/global coefficientFriction peratomtypepair 1 {_g(self.mu)}",
+            "pair_style gran model hertz tangential history",
+            "pair_coeff * *",
+        ]
 
     def describe(self) -> str:
-        return (f"LIGGGHTS hertz + tangential history: E {self.youngs_modulus:g} Pa, "
-                f"nu {self.poisson_ratio:g}, e {self.restitution:g}, mu {self.mu:g}")
+        return (
+            f"LIGGGHTS hertz + tangential history: E {self.youngs_modulus:g} Pa, "
+            f"nu {self.poisson_ratio:g}, e {self.restitution:g}, mu {self.mu:g}"
+        )
 
 
 @dataclass(frozen=True)
@@ -237,8 +278,13 @@ class HertzHistoryLammpsLaw:
 
     def hertz(self) -> dict:
         kn, kt = self._kk()
-        return {"y43": kn, "kt0": kt, "damping": "none" if self.gamma_n == 0 else "gran",
-                "alpha": 0.0, "kt_damping": self.gamma_t != 0.0}
+        return {
+            "y43": kn,
+            "kt0": kt,
+            "damping": "none" if self.gamma_n == 0 else "gran",
+            "alpha": 0.0,
+            "kt_damping": self.gamma_t != 0.0,
+        }
 
     def native_law(self, flavour: str = "lammps"):
         kn, kt = self._kk()
@@ -251,14 +297,18 @@ class HertzHistoryLammpsLaw:
     def deck_lines(self, engine: str) -> list[str]:
         _one_code(self, engine)
         kn, kt = self._kk()
-        return [(f"pair_style gran/hertz/history {_g(kn)} {_g(kt)} {_g(self.gamma_n)} {_g(self.gamma_t)} "
-                 f"{_g(self.mu)} 1"), "pair_coeff * *"]
+        return [
+            (f"pair_style gran/hertz/history {_g(kn)} {_g(kt)} {_g(self.gamma_n)} {_g(self.gamma_t)} {_g(self.mu)} 1"),
+            "pair_coeff * *",
+        ]
 
     def describe(self) -> str:
         kn, kt = self._kk()
-        return (f"LAMMPS gran/hertz/history: KN = 4/3 Y* = {kn:.6g} Pa, KT = 8 G* = {kt:.6g} Pa (E "
-                f"{self.youngs_modulus:g} Pa, nu {self.poisson_ratio:g}), GAMMAN {self.gamma_n:g}, GAMMAT "
-                f"{self.gamma_t:g}, mu {self.mu:g}")
+        return (
+            f"LAMMPS gran/hertz/history: KN = 4/3 Y* = {kn:.6g} Pa, KT = 8 G* = {kt:.6g} Pa (E "
+            f"{self.youngs_modulus:g} Pa, nu {self.poisson_ratio:g}), GAMMAN {self.gamma_n:g}, GAMMAT "
+            f"{self.gamma_t:g}, mu {self.mu:g}"
+        )
 
 
 @dataclass(frozen=True)
@@ -285,8 +335,14 @@ class HertzGranularLammpsLaw:
         self.material()
 
     def material(self) -> HertzMaterialLammps:
-        return HertzMaterialLammps(self.youngs_modulus, self.poisson_ratio, self.damp, self.mu,
-                                   gammat_ratio=self.gammat_ratio, damping=self.damping)
+        return HertzMaterialLammps(
+            self.youngs_modulus,
+            self.poisson_ratio,
+            self.damp,
+            self.mu,
+            gammat_ratio=self.gammat_ratio,
+            damping=self.damping,
+        )
 
     def hertz(self) -> dict:
         E43, damp, kt0, _, _, _ = self.material().coefficients()
@@ -296,8 +352,13 @@ class HertzGranularLammpsLaw:
             kind = "none"
         else:
             kind = self.damping
-        return {"y43": E43, "kt0": kt0, "damping": kind, "alpha": damp if kind == "tsuji" else 0.0,
-                "kt_damping": kind != "none" and self.gammat_ratio != 0.0}
+        return {
+            "y43": E43,
+            "kt0": kt0,
+            "damping": kind,
+            "alpha": damp if kind == "tsuji" else 0.0,
+            "kt_damping": kind != "none" and self.gammat_ratio != 0.0,
+        }
 
     def native_law(self, flavour: str = "lammps"):
         E43, damp, kt0, g, mu, model = self.material().coefficients()
@@ -309,19 +370,36 @@ class HertzGranularLammpsLaw:
 
     def deck_lines(self, engine: str) -> list[str]:
         _one_code(self, engine)
-        return ["pair_style granular",
-                (f"pair_coeff * * hertz/material {_g(self.youngs_modulus)} {_g(self.damp)} "
-                 f"{_g(self.poisson_ratio)} damping {self.damping} tangential mindlin NULL "
-                 f"{_g(self.gammat_ratio)} {_g(self.mu)}")]
+        return [
+            "pair_style granular",
+            (
+                f"pair_coeff * * hertz/material {_g(self.youngs_modulus)} {_g(self.damp)} "
+                f"{_g(self.poisson_ratio)} damping {self.damping} tangential mindlin NULL "
+                f"{_g(self.gammat_ratio)} {_g(self.mu)}"
+            ),
+        ]
 
     def describe(self) -> str:
-        return (f"LAMMPS granular hertz/material: E {self.youngs_modulus:g} Pa, DAMP {self.damp:g} "
-                f"(damping {self.damping}), nu {self.poisson_ratio:g}, tangential mindlin NULL, "
-                f"GAMMAT {self.gammat_ratio:g}, mu {self.mu:g}")
+        return (
+            f"LAMMPS granular hertz/material: E {self.youngs_modulus:g} Pa, DAMP {self.damp:g} "
+            f"(damping {self.damping}), nu {self.poisson_ratio:g}, tangential mindlin NULL, "
+            f"GAMMAT {self.gammat_ratio:g}, mu {self.mu:g}"
+        )
 
 
-def write_impact_deck(job_dir, packing: Packing, law, dt: float, skin: float, nsteps: int, velocities,
-                      spins, engine: str = "liggghts", dump_every: int = 1, thermo_every: int = 10) -> Path:
+def write_impact_deck(
+    job_dir,
+    packing: Packing,
+    law,
+    dt: float,
+    skin: float,
+    nsteps: int,
+    velocities,
+    spins,
+    engine: str = "liggghts",
+    dump_every: int = 1,
+    thermo_every: int = 10,
+) -> Path:
     """Write the deck (``in.liggghts`` or ``in.lammps``) and ``data.impact`` into ``job_dir``.
 
     Parameters
@@ -338,8 +416,9 @@ def write_impact_deck(job_dir, packing: Packing, law, dt: float, skin: float, ns
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
     if engine not in getattr(law, "engines", ENGINES):
-        raise InputError(f"law {getattr(law, 'name', law)!r}: {engine} does not have it (only "
-                         f"{', '.join(law.engines)})")
+        raise InputError(
+            f"law {getattr(law, 'name', law)!r}: {engine} does not have it (only {', '.join(law.engines)})"
+        )
     x = np.asarray(packing.positions)
     L = np.array([packing.cell[0, 0], packing.cell[1, 1]])
     if np.any(x < 0) or np.any(x >= L):
@@ -347,25 +426,46 @@ def write_impact_deck(job_dir, packing: Packing, law, dt: float, skin: float, ns
     job = Path(job_dir)
     job.mkdir(parents=True, exist_ok=True)
     write_data_file(job / DATA_NAME, packing, velocities=velocities, omegas=spins, wrap=False)
-    head = ["units si", "dimension 2", "atom_style sphere", "atom_modify map array sort 0 0.0",
-            "boundary p p p", "newton off"]
+    head = [
+        "units si",
+        "dimension 2",
+        "atom_style sphere",
+        "atom_modify map array sort 0 0.0",
+        "boundary p p p",
+        "newton off",
+    ]
     if engine == "lammps":
-        lines = ["# gransim impact scene, LAMMPS form (reference_runs/decks/impact.py)", *head,
-                 "comm_modify mode single vel yes", f"read_data {DATA_NAME}",
-                 f"set group all density/disc {_g(packing.density)}"]
+        lines = [
+            "# gransim impact scene, LAMMPS form (reference_runs/decks/impact.py)",
+            *head,
+            "comm_modify mode single vel yes",
+            f"read_data {DATA_NAME}",
+            f"set group all density/disc {_g(packing.density)}",
+        ]
         integ = "fix integr all nve/sphere disc"
         fmt = "line "
     else:
-        lines = ["# gransim impact scene (reference_runs/decks/impact.py)", *head,
-                 "communicate single vel yes", f"read_data {DATA_NAME}"]
+        lines = [
+            "# gransim impact scene (reference_runs/decks/impact.py)",
+            *head,
+            "communicate single vel yes",
+            f"read_data {DATA_NAME}",
+        ]
         integ = "fix integr all nve/sphere"
         fmt = ""
-    lines += [f"neighbor {_g(skin)} bin", "neigh_modify delay 0 every 1 check yes", f"timestep {_g(dt)}",
-              *law.deck_lines(engine), integ, "fix e2d all enforce2d",
-              "thermo_style custom step atoms", f"thermo {int(thermo_every)}",
-              f"dump d1 all custom {int(dump_every)} {DUMP_NAME} " + " ".join(DUMP_COLUMNS),
-              f"dump_modify d1 sort id format {fmt}\"%d" + " %.17g" * (len(DUMP_COLUMNS) - 1) + "\"",
-              f"run {int(nsteps)}"]
+    lines += [
+        f"neighbor {_g(skin)} bin",
+        "neigh_modify delay 0 every 1 check yes",
+        f"timestep {_g(dt)}",
+        *law.deck_lines(engine),
+        integ,
+        "fix e2d all enforce2d",
+        "thermo_style custom step atoms",
+        f"thermo {int(thermo_every)}",
+        f"dump d1 all custom {int(dump_every)} {DUMP_NAME} " + " ".join(DUMP_COLUMNS),
+        f'dump_modify d1 sort id format {fmt}"%d' + " %.17g" * (len(DUMP_COLUMNS) - 1) + '"',
+        f"run {int(nsteps)}",
+    ]
     deck = job / DECK_NAMES[engine]
     with atomic_path(deck) as tmp:
         Path(tmp).write_text("\n".join(lines) + "\n")
@@ -377,8 +477,13 @@ def read_frames(dump_path) -> dict:
     (rows sorted by id; :func:`reference_runs.parsers.parse_dump_custom`)."""
     out = {}
     for fr in parse_dump_custom(Path(dump_path)):
-        out[int(fr.step)] = {"x": fr.array("x", "y"), "v": fr.array("vx", "vy"), "w": np.array(fr["omegaz"], float),
-                             "f": fr.array("fx", "fy"), "t": np.array(fr["tqz"], float)}
+        out[int(fr.step)] = {
+            "x": fr.array("x", "y"),
+            "v": fr.array("vx", "vy"),
+            "w": np.array(fr["omegaz"], float),
+            "f": fr.array("fx", "fy"),
+            "t": np.array(fr["tqz"], float),
+        }
     return out
 
 
@@ -409,9 +514,7 @@ class RollingLaw:
 
     def __post_init__(self):
         if self.name not in ROLLING_MODELS:
-            raise InputError(
-                f"RollingLaw.name: expected one of {', '.join(ROLLING_MODELS)}, got {self.name!r}"
-            )
+            raise InputError(f"RollingLaw.name: expected one of {', '.join(ROLLING_MODELS)}, got {self.name!r}")
         self.law()  # InputError naming a bad parameter
 
     @property
@@ -513,9 +616,7 @@ class WallLaw:
                     "yplane 0.0 NULL"
                 )
             ]
-        return pair + [
-            "fix wall all wall/gran model hooke/stiffness tangential history primitive type 1 yplane 0.0"
-        ]
+        return pair + ["fix wall all wall/gran model hooke/stiffness tangential history primitive type 1 yplane 0.0"]
 
     def describe(self) -> str:
         what = (

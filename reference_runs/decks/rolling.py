@@ -65,12 +65,24 @@ def rolling_case() -> dict:
     x1 = (0.05, 0.05)
     x2 = (0.05 + dist * math.cos(ang), 0.05 + dist * math.sin(ang))
     return {
-        "radii": (r1, r2), "density": 25.0, "positions": (x1, x2),
-        "velocities": ((0.07, 0.03), (-0.05, -0.02)), "spins": (40.0, -10.0),
-        "kn": 1000.0, "kt": 800.0, "gamman": 2000.0, "gammat": 1000.0, "friction": 0.4,
-        "rolling_friction": 0.2, "rolling_viscous": 0.3,
-        "kroll": 800.0, "gammaroll": 0.002,
-        "dt": 2.5e-6, "nsteps": 300, "skin": 2.0e-3, "box": (0.1, 0.1),
+        "radii": (r1, r2),
+        "density": 25.0,
+        "positions": (x1, x2),
+        "velocities": ((0.07, 0.03), (-0.05, -0.02)),
+        "spins": (40.0, -10.0),
+        "kn": 1000.0,
+        "kt": 800.0,
+        "gamman": 2000.0,
+        "gammat": 1000.0,
+        "friction": 0.4,
+        "rolling_friction": 0.2,
+        "rolling_viscous": 0.3,
+        "kroll": 800.0,
+        "gammaroll": 0.002,
+        "dt": 2.5e-6,
+        "nsteps": 300,
+        "skin": 2.0e-3,
+        "box": (0.1, 0.1),
     }
 
 
@@ -86,31 +98,47 @@ def deck_text(case: dict, law: str) -> str:
     c = case
     if LAWS[law][0] == "liggghts":
         lines = [
-            *twodisk.preamble("liggghts", f"# two-disk rolling resistance, LIGGGHTS rolling_friction {law} "
-                              "(reference_runs/decks/rolling.py)", c, DATA_NAME),
+            *twodisk.preamble(
+                "liggghts",
+                f"# two-disk rolling resistance, LIGGGHTS rolling_friction {law} (reference_runs/decks/rolling.py)",
+                c,
+                DATA_NAME,
+            ),
             f"fix m1 all property/global kn peratomtypepair 1 {_g(c['kn'])}",
             f"fix m2 all property/global kt peratomtypepair 1 {_g(c['kt'])}",
             f"fix m3 all property/global gamman peratomtypepair 1 {_g(c['gamman'])}",
             f"fix m4 all property/global gammat peratomtypepair 1 {_g(c['gammat'])}",
             f"fix m5 all property/global coefficientFriction peratomtypepair 1 {_g(c['friction'])}",
-            ("fix m6 all property/global coefficientRollingFriction peratomtypepair 1 "
-             f"{_g(c['rolling_friction'])}"),
+            (f"fix m6 all property/global coefficientRollingFriction peratomtypepair 1 {_g(c['rolling_friction'])}"),
         ]
         if law == "epsd":
-            lines.append("fix m7 all property/global coefficientRollingViscousDamping peratomtypepair 1 "
-                         f"{_g(c['rolling_viscous'])}")
-        lines += [f"pair_style gran model hooke/stiffness tangential history rolling_friction {law}",
-                  "pair_coeff * *", "fix integr all nve/sphere", "fix e2d all enforce2d"]
+            lines.append(
+                "fix m7 all property/global coefficientRollingViscousDamping peratomtypepair 1 "
+                f"{_g(c['rolling_viscous'])}"
+            )
+        lines += [
+            f"pair_style gran model hooke/stiffness tangential history rolling_friction {law}",
+            "pair_coeff * *",
+            "fix integr all nve/sphere",
+            "fix e2d all enforce2d",
+        ]
         fmt = ""
     else:
         lines = [
-            *twodisk.preamble("lammps", "# two-disk rolling resistance, LAMMPS granular rolling sds "
-                              "(reference_runs/decks/rolling.py)", c, DATA_NAME),
+            *twodisk.preamble(
+                "lammps",
+                "# two-disk rolling resistance, LAMMPS granular rolling sds (reference_runs/decks/rolling.py)",
+                c,
+                DATA_NAME,
+            ),
             "pair_style granular",
-            (f"pair_coeff * * hooke {_g(c['kn'])} {_g(c['gamman'])} damping mass_velocity "
-             f"tangential linear_history {_g(c['kt'])} {_g(c['gammat'] / c['gamman'])} {_g(c['friction'])} "
-             f"rolling sds {_g(c['kroll'])} {_g(c['gammaroll'])} {_g(c['rolling_friction'])}"),
-            "fix integr all nve/sphere disc", "fix e2d all enforce2d",
+            (
+                f"pair_coeff * * hooke {_g(c['kn'])} {_g(c['gamman'])} damping mass_velocity "
+                f"tangential linear_history {_g(c['kt'])} {_g(c['gammat'] / c['gamman'])} {_g(c['friction'])} "
+                f"rolling sds {_g(c['kroll'])} {_g(c['gammaroll'])} {_g(c['rolling_friction'])}"
+            ),
+            "fix integr all nve/sphere disc",
+            "fix e2d all enforce2d",
         ]
         fmt = "line "
     lines += twodisk.output_lines("liggghts" if fmt == "" else "lammps", c["nsteps"])
@@ -149,7 +177,7 @@ def make_stored(out_root, laws=None, timeout: float | None = 120.0) -> dict:
     Returns {law: stored directory}."""
     out = {}
     with tempfile.TemporaryDirectory(prefix="rolling-stored-") as tmp:
-        for law in (LAWS if laws is None else laws):
+        for law in LAWS if laws is None else laws:
             res = run_rolling(Path(tmp) / law, law, timeout=timeout)
             dest = stored_dir(out_root, law)
             dest.mkdir(parents=True, exist_ok=True)

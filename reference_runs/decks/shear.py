@@ -67,9 +67,7 @@ def wrapped_packing(packing: Packing) -> Packing:
     x = np.array(packing.positions, np.float64)
     lost = kernels.pbc_wrap(x, np.zeros(2), np.array([C[0, 0], C[1, 1]]))
     if lost >= 0:
-        raise InputError(
-            f"packing.positions: particle {lost} lies more than one cell length outside the cell"
-        )
+        raise InputError(f"packing.positions: particle {lost} lies more than one cell length outside the cell")
     return packing.replace(positions=x)
 
 
@@ -114,8 +112,10 @@ def deck_text(
     ]
     deform = []
     if loading.xy == "trate":
-        raise InputError("loading: xy trate needs a tilted start, and this deck starts from an orthogonal cell "
-                         "(change_box all triclinic, xy = 0; LAMMPS refuses trate at zero tilt)")
+        raise InputError(
+            "loading: xy trate needs a tilted start, and this deck starts from an orthogonal cell "
+            "(change_box all triclinic, xy = 0; LAMMPS refuses trate at zero tilt)"
+        )
     if loading.moves_tilt:
         deform.append(f"xy {loading.xy} {_g(loading.value)}")
     if loading.y == "servo":

@@ -11,7 +11,8 @@ builds the neighbour list and evaluates the forces once, so the printed virial a
 
 Each state is read from its own data file, written by gransim at ``%.17g`` with centres
 x = F X exactly as numpy computes them (periodic route; the images route translates them by one
-constant vector so that the box starts at 0, which rounds them at 1e-16 of the box size); one job (one process) runs all states of a packing,
+constant vector so that the box starts at 0, which rounds them at 1e-16 of the box size); one job (one
+process) runs all states of a packing,
 separated by ``clear``. Measured (bench/liggghts_reference.py): a LIGGGHTS process costs
 about 0.47 s to start, while one job runs the 306 states of a 728-disk packing in 1.0 s (3 ms a
 state), so one process per state would be ~140 times slower; the ctypes library API is not needed.
@@ -105,16 +106,16 @@ def path_F(path: str, n_steps: int = 50, max_strain: float = 0.1, stride: int = 
 class TaylorState:
     """One state of a Taylor job: its path, route, index along the path and F."""
 
-    index: int          # global index in the deck (the thermo Step of its run)
+    index: int  # global index in the deck (the thermo Step of its run)
     path: str
     route: str
-    k: int              # index along the path
-    F: tuple            # ((F11, F12), (F21, F22))
+    k: int  # index along the path
+    F: tuple  # ((F11, F12), (F21, F22))
     data_file: str
     contacts_file: str | None
     n_central: int
     n_atoms: int
-    frame: tuple = ((1.0, 0.0), (0.0, 1.0))   # Q: x_engine = Q x (LAMMPS shear-21: x and y swapped)
+    frame: tuple = ((1.0, 0.0), (0.0, 1.0))  # Q: x_engine = Q x (LAMMPS shear-21: x and y swapped)
 
 
 def _wrapped_reference(packing: Packing) -> tuple[np.ndarray, np.ndarray]:
@@ -131,8 +132,10 @@ def periodic_state_packing(packing: Packing, F) -> Packing:
     F = np.asarray(F, float)
     C = packing.cell
     if F[0, 1] != 0 or F[1, 0] != 0 or C[0, 1] != 0 or C[1, 0] != 0:
-        raise InputError("the periodic route needs a diagonal F and an orthogonal reference cell "
-                         "(tilted boxes are broken in LIGGGHTS 3.8.0: use route 'images')")
+        raise InputError(
+            "the periodic route needs a diagonal F and an orthogonal reference cell "
+            "(tilted boxes are broken in LIGGGHTS 3.8.0: use route 'images')"
+        )
     _, X = _wrapped_reference(packing)
     x = X @ F.T
     L = np.diag(F @ C)
@@ -164,13 +167,16 @@ def triclinic_state(packing: Packing, F):
         x = x[:, ::-1].copy()
         box = (float(c[1, 1]), float(c[0, 0]), float(c[1, 0]))
     else:
-        raise InputError("periodic route: F C must have a zero off-diagonal entry (compression or simple "
-                         f"shear), got {c.tolist()}")
+        raise InputError(
+            f"periodic route: F C must have a zero off-diagonal entry (compression or simple shear), got {c.tolist()}"
+        )
     if box[0] <= 0 or box[1] <= 0:
         raise InputError("periodic route: F must have positive diagonal entries")
     if abs(box[2]) > 0.5 * box[0]:
-        raise InputError(f"periodic route: tilt {box[2]:.4g} m exceeds half the box length {box[0]:.4g} m "
-                         "(LAMMPS refuses such a skewed box)")
+        raise InputError(
+            f"periodic route: tilt {box[2]:.4g} m exceeds half the box length {box[0]:.4g} m "
+            "(LAMMPS refuses such a skewed box)"
+        )
     return x, box, Q
 
 
@@ -181,9 +187,16 @@ def _write_lammps_data(path, x, radii, density: float, box, types=None) -> None:
     n = len(radii)
     z = max(0.5, 2.0 * float(np.max(radii)))
     t = np.ones(n, np.int64) if types is None else np.asarray(types, np.int64)
-    lines = ["LAMMPS data file written by gransim (reference_runs.decks.taylor; 2D, density = mass per area)",
-             "", f"{n} atoms", f"{int(t.max())} atom types", "",
-             f"0 {_g(lx)} xlo xhi", f"0 {_g(ly)} ylo yhi", f"{_g(-z)} {_g(z)} zlo zhi"]
+    lines = [
+        "LAMMPS data file written by gransim (reference_runs.decks.taylor; 2D, density = mass per area)",
+        "",
+        f"{n} atoms",
+        f"{int(t.max())} atom types",
+        "",
+        f"0 {_g(lx)} xlo xhi",
+        f"0 {_g(ly)} ylo yhi",
+        f"{_g(-z)} {_g(z)} zlo zhi",
+    ]
     if xy != 0:
         lines.append(f"{_g(xy)} 0 0 xy xz yz")
     lines += ["", "Atoms # sphere", ""]
@@ -209,7 +222,7 @@ def image_state_packing(packing: Packing, F, margin: float = 1e-9):
     x = X @ F.T
     r = packing.radii
     A = abs(np.linalg.det(c))
-    h = A / np.linalg.norm(c, axis=0)[::-1]           # heights of the deformed cell
+    h = A / np.linalg.norm(c, axis=0)[::-1]  # heights of the deformed cell
     reach = 2.0 * r.max() * (1.0 + margin)
     if h.min() <= reach:
         raise InputError(f"deformed cell height {h.min():.4g} m below the contact reach {reach:.4g} m")
@@ -228,8 +241,7 @@ def image_state_packing(packing: Packing, F, margin: float = 1e-9):
     lo = pos.min(axis=0) - 2.0 * r.max()
     hi = pos.max(axis=0) + 2.0 * r.max()
     src = np.concatenate(src)
-    box = Packing(pos - lo, r[src], np.diag(hi - lo), density=packing.density,
-                  metadata={"route": "images"})
+    box = Packing(pos - lo, r[src], np.diag(hi - lo), density=packing.density, metadata={"route": "images"})
     return box, len(r), src, np.concatenate(shf)
 
 
@@ -288,7 +300,7 @@ _N_CONTACT_COLS = 13
 
 
 def _g(v: float) -> str:
-    return "%.17g" % v
+    return f"{v:.17g}"
 
 
 _LAMMPS_HEADER = """\
@@ -342,9 +354,19 @@ dump_modify     dc format line "%.17g %.17g %.17g %.17g %.17g %.17g"
 LAMMPS_CONTACT_COLUMNS = ("id1", "id2", "dist", "fx", "fy", "fz")
 
 
-def taylor_job(packing: Packing, kn: float, paths=PATHS, routes=ROUTES, n_steps: int = 50,
-               max_strain: float = 0.1, stride: int = 1, contacts: bool = False, name: str = "packing",
-               skin: float | None = None, engine: str = "liggghts"):
+def taylor_job(
+    packing: Packing,
+    kn: float,
+    paths=PATHS,
+    routes=ROUTES,
+    n_steps: int = 50,
+    max_strain: float = 0.1,
+    stride: int = 1,
+    contacts: bool = False,
+    name: str = "packing",
+    skin: float | None = None,
+    engine: str = "liggghts",
+):
     """Deck text, input files and the state list of one Taylor job (all states of one packing).
 
     Parameters
@@ -403,22 +425,44 @@ def taylor_job(packing: Packing, kn: float, paths=PATHS, routes=ROUTES, n_steps:
                     write_data_file(p, box, types=types, wrap=False)
                     files[data_name] = p.read_bytes()
                     cfile = f"contacts/{path}/{route}_{k:04d}.dump" if contacts else None
-                    st = TaylorState(index, path, route, k, tuple(map(tuple, F.tolist())), data_name, cfile,
-                                     packing.n, n_atoms)
+                    st = TaylorState(
+                        index, path, route, k, tuple(map(tuple, F.tolist())), data_name, cfile, packing.n, n_atoms
+                    )
                     states.append(st)
-                    blocks.append(_STATE.format(
-                        index=index, path=path, route=route, k=k, F11=_g(F[0, 0]), F12=_g(F[0, 1]),
-                        F21=_g(F[1, 0]), F22=_g(F[1, 1]),
-                        boundary="p p" if route == "periodic" else "f f", data_file=data_name, skin=_g(skin),
-                        nt=nt, kn_list=" ".join([_g(kn)] * nt * nt), zero_list=" ".join(["0"] * nt * nt),
-                        contacts=_CONTACTS.format(contacts_file=cfile, cols=cols, fmt=fmt) if contacts else ""))
+                    blocks.append(
+                        _STATE.format(
+                            index=index,
+                            path=path,
+                            route=route,
+                            k=k,
+                            F11=_g(F[0, 0]),
+                            F12=_g(F[0, 1]),
+                            F21=_g(F[1, 0]),
+                            F22=_g(F[1, 1]),
+                            boundary="p p" if route == "periodic" else "f f",
+                            data_file=data_name,
+                            skin=_g(skin),
+                            nt=nt,
+                            kn_list=" ".join([_g(kn)] * nt * nt),
+                            zero_list=" ".join(["0"] * nt * nt),
+                            contacts=_CONTACTS.format(contacts_file=cfile, cols=cols, fmt=fmt) if contacts else "",
+                        )
+                    )
     header = _HEADER.format(n_states=len(states), name=name, n=packing.n, kn=_g(kn))
     deck = header + "\n" + "\n".join(blocks)
-    meta = {"name": name, "kn": kn, "n": packing.n, "reference_cell": packing.cell.tolist(),
-            "reference_area": float(abs(np.linalg.det(packing.cell))), "n_steps": n_steps,
-            "max_strain": max_strain, "stride": stride, "skin": skin,
-            "contact_columns": list(_contact_names()) if contacts else None,
-            "states": [{k: v for k, v in st.__dict__.items() if k != "frame"} for st in states]}
+    meta = {
+        "name": name,
+        "kn": kn,
+        "n": packing.n,
+        "reference_cell": packing.cell.tolist(),
+        "reference_area": float(abs(np.linalg.det(packing.cell))),
+        "n_steps": n_steps,
+        "max_strain": max_strain,
+        "stride": stride,
+        "skin": skin,
+        "contact_columns": list(_contact_names()) if contacts else None,
+        "states": [{k: v for k, v in st.__dict__.items() if k != "frame"} for st in states],
+    }
     files["states.json"] = json.dumps(meta, indent=1).encode()
     return deck, files, states
 
@@ -449,28 +493,66 @@ def _lammps_taylor_job(packing, kn, paths, routes, n_steps, max_strain, stride, 
                     else:
                         ibox, _, _, _ = image_state_packing(packing, F)
                         types = np.where(np.arange(ibox.n) < packing.n, 1, 2)
-                        _write_lammps_data(p, ibox.positions, ibox.radii, packing.density,
-                                           (ibox.cell[0, 0], ibox.cell[1, 1], 0.0), types)
+                        _write_lammps_data(
+                            p,
+                            ibox.positions,
+                            ibox.radii,
+                            packing.density,
+                            (ibox.cell[0, 0], ibox.cell[1, 1], 0.0),
+                            types,
+                        )
                         n_atoms = ibox.n
                     files[data_name] = p.read_bytes()
                     cfile = f"contacts/{path}/{route}_{k:04d}.dump" if contacts else None
-                    st = TaylorState(index, path, route, k, tuple(map(tuple, F.tolist())), data_name, cfile,
-                                     packing.n, n_atoms, tuple(map(tuple, Q.tolist())))
+                    st = TaylorState(
+                        index,
+                        path,
+                        route,
+                        k,
+                        tuple(map(tuple, F.tolist())),
+                        data_name,
+                        cfile,
+                        packing.n,
+                        n_atoms,
+                        tuple(map(tuple, Q.tolist())),
+                    )
                     states.append(st)
                     swap = "; x and y swapped (frame Q = [[0, 1], [1, 0]])" if Q[0, 1] else ""
-                    blocks.append(_LAMMPS_STATE.format(
-                        index=index, path=path, route=route, k=k, F11=_g(F[0, 0]), F12=_g(F[0, 1]),
-                        F21=_g(F[1, 0]), F22=_g(F[1, 1]), swap=swap,
-                        boundary="p p" if route == "periodic" else "f f", data_file=data_name,
-                        density=_g(packing.density), skin=_g(skin), kn=_g(kn),
-                        contacts=_LAMMPS_CONTACTS.format(contacts_file=cfile) if contacts else ""))
+                    blocks.append(
+                        _LAMMPS_STATE.format(
+                            index=index,
+                            path=path,
+                            route=route,
+                            k=k,
+                            F11=_g(F[0, 0]),
+                            F12=_g(F[0, 1]),
+                            F21=_g(F[1, 0]),
+                            F22=_g(F[1, 1]),
+                            swap=swap,
+                            boundary="p p" if route == "periodic" else "f f",
+                            data_file=data_name,
+                            density=_g(packing.density),
+                            skin=_g(skin),
+                            kn=_g(kn),
+                            contacts=_LAMMPS_CONTACTS.format(contacts_file=cfile) if contacts else "",
+                        )
+                    )
     header = _LAMMPS_HEADER.format(n_states=len(states), name=name, n=packing.n, kn=_g(kn))
     deck = header + "\n" + "\n".join(blocks)
-    meta = {"name": name, "engine": "lammps", "kn": kn, "n": packing.n, "reference_cell": packing.cell.tolist(),
-            "reference_area": float(abs(np.linalg.det(packing.cell))), "n_steps": n_steps,
-            "max_strain": max_strain, "stride": stride, "skin": skin,
-            "contact_columns": list(LAMMPS_CONTACT_COLUMNS) if contacts else None,
-            "states": [dict(st.__dict__) for st in states]}
+    meta = {
+        "name": name,
+        "engine": "lammps",
+        "kn": kn,
+        "n": packing.n,
+        "reference_cell": packing.cell.tolist(),
+        "reference_area": float(abs(np.linalg.det(packing.cell))),
+        "n_steps": n_steps,
+        "max_strain": max_strain,
+        "stride": stride,
+        "skin": skin,
+        "contact_columns": list(LAMMPS_CONTACT_COLUMNS) if contacts else None,
+        "states": [dict(st.__dict__) for st in states],
+    }
     files["states.json"] = json.dumps(meta, indent=1).encode()
     return deck, files, states
 

@@ -84,19 +84,29 @@ def run_code(deck: ReplayDeck, job_dir: Path, timeout: float | None):
     files = {}
     if not Path(deck.data_name).is_absolute():
         if ".." in Path(deck.data_name).parts or len(Path(deck.data_name).parts) != 1:
-            raise InputError(f"{deck.path}: read_data {deck.data_name!r}: give the data file as a plain "
-                             "file name next to the deck (the job runs in its own directory)")
+            raise InputError(
+                f"{deck.path}: read_data {deck.data_name!r}: give the data file as a plain "
+                "file name next to the deck (the job runs in its own directory)"
+            )
         files[deck.data_name] = deck.data_path.read_bytes()
-    kw = {"files": files, "timeout": timeout, "outputs": tuple(d.file for d in deck.dumps),
-          "expected_runs": 1, "progress": False, "force": True}
+    kw = {
+        "files": files,
+        "timeout": timeout,
+        "outputs": tuple(d.file for d in deck.dumps),
+        "expected_runs": 1,
+        "progress": False,
+        "force": True,
+    }
     if "engine" in inspect.signature(run_job).parameters:
         kw["engine"] = deck.engine
     elif deck.engine != "liggghts":
-        raise InputError("this gransim's reference_runs.runner.run_job runs LIGGGHTS only; a LAMMPS deck "
-                         "cannot be run (give --reference DIR with a finished LAMMPS job)")
+        raise InputError(
+            "this gransim's reference_runs.runner.run_job runs LIGGGHTS only; a LAMMPS deck "
+            "cannot be run (give --reference DIR with a finished LAMMPS job)"
+        )
     res = run_job(job_dir, "\n".join(deck.lines) + "\n", **kw)
     m = res.manifest
-    version = (m.get("engine_version") or m.get("liggghts_version") or res.log.version or "unknown")
+    version = m.get("engine_version") or m.get("liggghts_version") or res.log.version or "unknown"
     return res.log_path, {d.file: res.path(d.file) for d in deck.dumps}, str(version)
 
 
@@ -135,28 +145,43 @@ def compare_thermo(deck: ReplayDeck, nat: NativeRun, log_path: Path) -> list:
     if log.errors:
         checks.append(Check("log", "ERROR lines", len(log.errors), 0, False, str(log.errors[0])))
     if not log.runs:
-        return checks + [Check("thermo", "incomplete: no thermo table in the log", 1, 0, False,
-                                str(log_path))]
+        return checks + [Check("thermo", "incomplete: no thermo table in the log", 1, 0, False, str(log_path))]
     run = log.runs[-1]
     want = expected_thermo_steps(deck)
     got = [int(s) for s in run.steps]
     missing = sorted(set(want) - set(got))
     extra = sorted(set(got) - set(want))
     ok_steps = not missing and not extra and run.complete
-    detail = (f"missing steps {missing[:5]}{'...' if len(missing) > 5 else ''}; " if missing else "") + \
-             (f"unexpected steps {extra[:5]}; " if extra else "") + \
-             ("" if run.complete else "run not complete")
-    checks.append(Check("thermo steps", "incomplete: thermo rows missing" if not ok_steps else "rows present",
-                        len(missing) + len(extra) + (0 if run.complete else 1), 0, ok_steps,
-                        detail or f"{len(got)} rows"))
+    detail = (
+        (f"missing steps {missing[:5]}{'...' if len(missing) > 5 else ''}; " if missing else "")
+        + (f"unexpected steps {extra[:5]}; " if extra else "")
+        + ("" if run.complete else "run not complete")
+    )
+    checks.append(
+        Check(
+            "thermo steps",
+            "incomplete: thermo rows missing" if not ok_steps else "rows present",
+            len(missing) + len(extra) + (0 if run.complete else 1),
+            0,
+            ok_steps,
+            detail or f"{len(got)} rows",
+        )
+    )
     rows = [k for k, s in enumerate(got) if 0 <= s <= deck.nsteps]
     st = np.array([got[k] for k in rows], np.int64)
     d50 = deck.d50
     tol_x = POSITION_TOL * d50
-    box = {"lx": nat.hi[:, 0] - nat.lo[:, 0], "ly": nat.hi[:, 1] - nat.lo[:, 1], "xlo": nat.lo[:, 0],
-           "xhi": nat.hi[:, 0], "ylo": nat.lo[:, 1], "yhi": nat.hi[:, 1],
-           "xy": nat.xy if nat.xy is not None else np.zeros(nat.lo.shape[0]),
-           "xz": np.zeros(nat.lo.shape[0]), "yz": np.zeros(nat.lo.shape[0])}
+    box = {
+        "lx": nat.hi[:, 0] - nat.lo[:, 0],
+        "ly": nat.hi[:, 1] - nat.lo[:, 1],
+        "xlo": nat.lo[:, 0],
+        "xhi": nat.hi[:, 0],
+        "ylo": nat.lo[:, 1],
+        "yhi": nat.hi[:, 1],
+        "xy": nat.xy if nat.xy is not None else np.zeros(nat.lo.shape[0]),
+        "xz": np.zeros(nat.lo.shape[0]),
+        "yz": np.zeros(nat.lo.shape[0]),
+    }
     for kw in deck.thermo_columns:
         low = kw.lower()
         try:
@@ -166,8 +191,16 @@ def compare_thermo(deck: ReplayDeck, nat: NativeRun, log_path: Path) -> list:
             continue
         if low in box:
             diff = float(np.max(np.abs(col - box[low][st]))) if st.size else 0.0
-            checks.append(Check(f"thermo {kw}", "max |code - native| / D50", diff / d50, POSITION_TOL,
-                                diff <= tol_x, f"bitwise equal: {bool(np.array_equal(col, box[low][st]))}"))
+            checks.append(
+                Check(
+                    f"thermo {kw}",
+                    "max |code - native| / D50",
+                    diff / d50,
+                    POSITION_TOL,
+                    diff <= tol_x,
+                    f"bitwise equal: {bool(np.array_equal(col, box[low][st]))}",
+                )
+            )
         elif low == "atoms":
             bad = int(np.sum(col != deck.packing.n))
             checks.append(Check("thermo atoms", "rows with atoms != N", bad, 0, bad == 0))
@@ -177,11 +210,16 @@ def compare_thermo(deck: ReplayDeck, nat: NativeRun, log_path: Path) -> list:
             scale = float(np.max(np.abs(col))) if col.size else 0.0
             rel = _max_rel(col, nat_col, scale)
             worst = int(st[np.argmax(np.abs(col - nat_col))]) if col.size else 0
-            checks.append(Check(f"thermo {kw} (pressure, virial)",
-                                "max |code - native| / max |code|", rel, STRESS_TOL,
-                                rel <= STRESS_TOL if scale > 0 else rel == 0.0,
-                                f"worst at step {worst}; bitwise equal: "
-                                f"{bool(np.array_equal(col, nat_col))}"))
+            checks.append(
+                Check(
+                    f"thermo {kw} (pressure, virial)",
+                    "max |code - native| / max |code|",
+                    rel,
+                    STRESS_TOL,
+                    rel <= STRESS_TOL if scale > 0 else rel == 0.0,
+                    f"worst at step {worst}; bitwise equal: {bool(np.array_equal(col, nat_col))}",
+                )
+            )
     return checks
 
 
@@ -199,11 +237,17 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
             checks.append(Check(f"dump {d.id}", "incomplete: unreadable dump", 1, 0, False, str(exc)))
             continue
         missing = [s for s in want if s not in frames]
-        checks.append(Check(f"dump {d.id} frames",
-                            "incomplete: frames missing" if missing else "frames present",
-                            len(missing), 0, not missing,
-                            f"{path.name}: expected {len(want)} frames, got {len(frames)}"
-                            + (f"; missing steps {missing[:5]}" if missing else "")))
+        checks.append(
+            Check(
+                f"dump {d.id} frames",
+                "incomplete: frames missing" if missing else "frames present",
+                len(missing),
+                0,
+                not missing,
+                f"{path.name}: expected {len(want)} frames, got {len(frames)}"
+                + (f"; missing steps {missing[:5]}" if missing else ""),
+            )
+        )
         cols = [c for c in d.columns if c in _POS + _RATE + _EXACT]
         worst = {c: 0.0 for c in cols}
         where = {c: None for c in cols}
@@ -237,9 +281,11 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
                 if where[c] is None or diff > worst[c]:
                     worst[c], where[c] = diff, s
         if inc:
-            checks.append(Check(f"dump {d.id} atoms", "incomplete: atoms or frames missing", len(inc), 0,
-                                False,
-                                "; ".join(inc[:5])))
+            checks.append(
+                Check(
+                    f"dump {d.id} atoms", "incomplete: atoms or frames missing", len(inc), 0, False, "; ".join(inc[:5])
+                )
+            )
         for c in cols:
             if c in _POS:
                 v, tol, metric = worst[c] / d50, POSITION_TOL, "max |code - native| / D50"
@@ -250,14 +296,29 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
                 sc = scale[c]
                 v = worst[c] / sc if sc > 0 else worst[c]
                 tol, metric = RATE_TOL, "max |code - native| / max |code|"
-            checks.append(Check(f"dump {d.id} {c}", metric, v, tol, v <= tol if (c in _POS or scale[c] > 0)
-                                else v == 0.0, f"worst at step {where[c]}; bitwise equal: {bitwise[c]}"))
+            checks.append(
+                Check(
+                    f"dump {d.id} {c}",
+                    metric,
+                    v,
+                    tol,
+                    v <= tol if (c in _POS or scale[c] > 0) else v == 0.0,
+                    f"worst at step {where[c]}; bitwise equal: {bitwise[c]}",
+                )
+            )
     return checks
 
 
 # ----------------------------------------------------------------------------- the whole replay
-def replay(deck_path, data=None, engine: str | None = None, outdir=None, timeout: float | None = None,
-           reference=None, echo=None) -> ReplayResult:
+def replay(
+    deck_path,
+    data=None,
+    engine: str | None = None,
+    outdir=None,
+    timeout: float | None = None,
+    reference=None,
+    echo=None,
+) -> ReplayResult:
     """Read, run in its code (or read ``reference``), run natively, compare, write the report.
 
     Parameters
@@ -309,24 +370,37 @@ def write_report(res: ReplayResult, nat: NativeRun) -> None:
     """``report.md``, ``report.html`` and ``replay.h5`` in ``res.outdir`` (each atomically)."""
     d = res.deck
     verdict = "PASS" if res.passed else "FAIL"
-    head = [f"# gransim replay: {d.path.name} ({verdict})", "",
-            f"- deck: `{d.path}` ({d.engine} syntax), data `{d.data_path}`",
-            f"- code: {res.code_version}",
-            (f"- {d.packing.n} disks, box x [{float(d.box_lo[0])!r}, {float(d.box_hi[0])!r}] y "
-             f"[{float(d.box_lo[1])!r}, {float(d.box_hi[1])!r}] m, {d.nsteps} steps of {d.settings.dt!r} s"),
-            f"- native settings: {json.dumps(d.settings.to_dict(), sort_keys=True)}",
-            f"- fix deform: {d.deform if d.deform is not None else 'none (fixed box)'}",
-            (f"- sheared (triclinic) deck, tilt xy {d.tilt!r} m at the start: native run through "
-             f"ShearEngine (flavour lammps), {d.shear}" if d.sheared else "- orthogonal box: native run "
-             "through DEMEngine with the box table of every step (PrescribedBox)"),
-            f"- native neighbour-list builds: {nat.n_rebuilds}",
-            (f"- tolerances: positions {POSITION_TOL:g} D50 (D50 = {d.d50:.6g} m), pressure {STRESS_TOL:g} "
-             f"relative, velocities/forces {RATE_TOL:g} relative; missing evidence fails"), ""]
+    head = [
+        f"# gransim replay: {d.path.name} ({verdict})",
+        "",
+        f"- deck: `{d.path}` ({d.engine} syntax), data `{d.data_path}`",
+        f"- code: {res.code_version}",
+        (
+            f"- {d.packing.n} disks, box x [{float(d.box_lo[0])!r}, {float(d.box_hi[0])!r}] y "
+            f"[{float(d.box_lo[1])!r}, {float(d.box_hi[1])!r}] m, {d.nsteps} steps of {d.settings.dt!r} s"
+        ),
+        f"- native settings: {json.dumps(d.settings.to_dict(), sort_keys=True)}",
+        f"- fix deform: {d.deform if d.deform is not None else 'none (fixed box)'}",
+        (
+            f"- sheared (triclinic) deck, tilt xy {d.tilt!r} m at the start: native run through "
+            f"ShearEngine (flavour lammps), {d.shear}"
+            if d.sheared
+            else "- orthogonal box: native run through DEMEngine with the box table of every step (PrescribedBox)"
+        ),
+        f"- native neighbour-list builds: {nat.n_rebuilds}",
+        (
+            f"- tolerances: positions {POSITION_TOL:g} D50 (D50 = {d.d50:.6g} m), pressure {STRESS_TOL:g} "
+            f"relative, velocities/forces {RATE_TOL:g} relative; missing evidence fails"
+        ),
+        "",
+    ]
     rows = ["| quantity | metric | value | tolerance | pass | detail |", "|---|---|---|---|---|---|"]
     for c in res.checks:
         metric = c.metric.replace("|", "\\|")
-        rows.append(f"| {c.quantity} | {metric} | {_fmt(float(c.value))} | {_fmt(float(c.tolerance))} | "
-                    f"{'yes' if c.passed else 'NO'} | {c.detail} |")
+        rows.append(
+            f"| {c.quantity} | {metric} | {_fmt(float(c.value))} | {_fmt(float(c.tolerance))} | "
+            f"{'yes' if c.passed else 'NO'} | {c.detail} |"
+        )
     notes = ["", "## Notes", ""] + [f"- {n}" for n in res.notes or ["none"]]
     md = "\n".join(head + rows + notes) + "\n"
     with atomic_path(res.outdir / "report.md") as tmp:
@@ -335,21 +409,31 @@ def write_report(res: ReplayResult, nat: NativeRun) -> None:
     trs = "".join(
         f"<tr class={'ok' if c.passed else 'bad'}><td>{esc(c.quantity)}</td><td>{esc(c.metric)}</td>"
         f"<td>{_fmt(float(c.value))}</td><td>{_fmt(float(c.tolerance))}</td>"
-        f"<td>{'yes' if c.passed else 'NO'}</td><td>{esc(c.detail)}</td></tr>" for c in res.checks)
-    page = (f"<!doctype html><html><head><meta charset=utf-8><title>gransim replay {esc(d.path.name)}</title>"
-            "<style>body{font-family:sans-serif}td,th{border:1px solid #ccc;padding:2px 6px}"
-            ".bad{background:#fdd}.ok{background:#efe}</style></head><body>"
-            f"<h1>gransim replay: {esc(d.path.name)} &mdash; {verdict}</h1><ul>"
-            + "".join(f"<li>{esc(h[2:])}</li>" for h in head[2:] if h)
-            + "</ul><table><tr><th>quantity</th><th>metric</th><th>value</th><th>tolerance</th><th>pass</th>"
-            f"<th>detail</th></tr>{trs}</table><h2>Notes</h2><ul>"
-            + "".join(f"<li>{esc(n)}</li>" for n in res.notes or ["none"]) + "</ul></body></html>\n")
+        f"<td>{'yes' if c.passed else 'NO'}</td><td>{esc(c.detail)}</td></tr>"
+        for c in res.checks
+    )
+    page = (
+        f"<!doctype html><html><head><meta charset=utf-8><title>gransim replay {esc(d.path.name)}</title>"
+        "<style>body{font-family:sans-serif}td,th{border:1px solid #ccc;padding:2px 6px}"
+        ".bad{background:#fdd}.ok{background:#efe}</style></head><body>"
+        f"<h1>gransim replay: {esc(d.path.name)} &mdash; {verdict}</h1><ul>"
+        + "".join(f"<li>{esc(h[2:])}</li>" for h in head[2:] if h)
+        + "</ul><table><tr><th>quantity</th><th>metric</th><th>value</th><th>tolerance</th><th>pass</th>"
+        f"<th>detail</th></tr>{trs}</table><h2>Notes</h2><ul>"
+        + "".join(f"<li>{esc(n)}</li>" for n in res.notes or ["none"])
+        + "</ul></body></html>\n"
+    )
     with atomic_path(res.outdir / "report.html") as tmp:
         Path(tmp).write_text(page)
-    params = {"deck": str(d.path), "data": str(d.data_path), "engine": d.engine,
-              "settings": d.settings.to_dict(), "nsteps": d.nsteps, "code_version": res.code_version}
-    with atomic_h5(res.outdir / "replay.h5", kind="replay", parameters=params,
-                   liggghts=d.engine == "liggghts") as f:
+    params = {
+        "deck": str(d.path),
+        "data": str(d.data_path),
+        "engine": d.engine,
+        "settings": d.settings.to_dict(),
+        "nsteps": d.nsteps,
+        "code_version": res.code_version,
+    }
+    with atomic_h5(res.outdir / "replay.h5", kind="replay", parameters=params, liggghts=d.engine == "liggghts") as f:
         f.attrs["passed"] = res.passed
         f.attrs["deck_text"] = "\n".join(d.lines)
         f.attrs["notes"] = json.dumps(res.notes)

@@ -54,35 +54,95 @@ from gransim.geometry import Packing
 from .deform import STYLES, TILT_STYLES, AxisDeform, DeformSpec
 
 #: why a LIGGGHTS deck with a tilt is refused
-LIGGGHTS_TILT = ("LIGGGHTS 3.8.0's triclinic box loses the periodic ghosts (contacts across the tilted "
-                 "boundary are missed; shared notes liggghts-3.8.md), so a sheared LIGGGHTS deck is not "
-                 "replayed: use a LAMMPS deck (`change_box all triclinic`, `fix deform 1 xy erate R remap v`)")
+LIGGGHTS_TILT = (
+    "LIGGGHTS 3.8.0's triclinic box loses the periodic ghosts (contacts across the tilted "
+    "boundary are missed; shared notes liggghts-3.8.md), so a sheared LIGGGHTS deck is not "
+    "replayed: use a LAMMPS deck (`change_box all triclinic`, `fix deform 1 xy erate R remap v`)"
+)
 
 ENGINES = ("liggghts", "lammps")
 
 #: the accepted commands (LIGGGHTS-only and LAMMPS-only ones are marked)
 SUPPORTED = (
-    "units si", "dimension 2", "boundary p p p", "atom_style sphere", "atom_modify",
-    "newton off", "communicate single vel yes (LIGGGHTS)", "comm_modify vel yes (LAMMPS)",
-    "read_data", "set group all density/disc (LAMMPS)", "neighbor SKIN bin",
+    "units si",
+    "dimension 2",
+    "boundary p p p",
+    "atom_style sphere",
+    "atom_modify",
+    "newton off",
+    "communicate single vel yes (LIGGGHTS)",
+    "comm_modify vel yes (LAMMPS)",
+    "read_data",
+    "set group all density/disc (LAMMPS)",
+    "neighbor SKIN bin",
     "neigh_modify delay 0 every 1 check yes",
     "fix property/global kn|kt|gamman|gammat|coefficientFriction peratomtypepair 1 (LIGGGHTS)",
     "pair_style gran model hooke/stiffness tangential history (LIGGGHTS)",
-    "pair_style gran/hooke/history (LAMMPS)", "pair_coeff * *", "timestep",
-    "fix nve/sphere (LAMMPS: nve/sphere disc)", "fix enforce2d",
+    "pair_style gran/hooke/history (LAMMPS)",
+    "pair_coeff * *",
+    "timestep",
+    "fix nve/sphere (LAMMPS: nve/sphere disc)",
+    "fix enforce2d",
     "fix deform (x/y erate|trate|vel|final|delta|scale, remap x)",
     "change_box all triclinic + fix deform N xy erate|trate|vel|final|delta remap v (LAMMPS)",
     "compute pressure TEMP virial",
-    "thermo", "thermo_style custom", "thermo_modify", "dump custom", "dump_modify",
-    "variable equal", "run",
+    "thermo",
+    "thermo_style custom",
+    "thermo_modify",
+    "dump custom",
+    "dump_modify",
+    "variable equal",
+    "run",
 )
 
 #: thermo keywords accepted (besides c_ID[k] of a compute pressure and v_NAME)
-THERMO_KEYWORDS = ("step", "elapsed", "elaplong", "time", "dt", "cpu", "tpcpu", "spcpu", "atoms",
-                   "lx", "ly", "lz", "xlo", "xhi", "ylo", "yhi", "zlo", "zhi", "vol", "xy", "xz", "yz")
+THERMO_KEYWORDS = (
+    "step",
+    "elapsed",
+    "elaplong",
+    "time",
+    "dt",
+    "cpu",
+    "tpcpu",
+    "spcpu",
+    "atoms",
+    "lx",
+    "ly",
+    "lz",
+    "xlo",
+    "xhi",
+    "ylo",
+    "yhi",
+    "zlo",
+    "zhi",
+    "vol",
+    "xy",
+    "xz",
+    "yz",
+)
 #: dump custom columns accepted
-DUMP_COLUMNS = ("id", "type", "x", "y", "z", "vx", "vy", "vz", "omegax", "omegay", "omegaz",
-                "fx", "fy", "fz", "tqx", "tqy", "tqz", "mass", "radius", "diameter")
+DUMP_COLUMNS = (
+    "id",
+    "type",
+    "x",
+    "y",
+    "z",
+    "vx",
+    "vy",
+    "vz",
+    "omegax",
+    "omegay",
+    "omegaz",
+    "fx",
+    "fy",
+    "fz",
+    "tqx",
+    "tqy",
+    "tqz",
+    "mass",
+    "radius",
+    "diameter",
+)
 _LIG_LAW = ("kn", "kt", "gamman", "gammat", "coefficientFriction")
 
 
@@ -275,7 +335,7 @@ class _State:
         self.votes: list = []  # (engine, line, why)
         self.seen: dict = {}
         self.notes: list = []
-        self.variables: dict = {}   # name -> (value or None, expr, line)
+        self.variables: dict = {}  # name -> (value or None, expr, line)
         self.law_lig: dict = {}
         self.law_lmp = None
         self.pair_line = 0
@@ -312,19 +372,21 @@ class _State:
                 raise self.err(lineno, f"${{{name}}}: no variable {name!r} defined before this line")
             val = self.variables[name][0]
             if val is None:
-                raise self.err(lineno, f"${{{name}}}: only variables holding a number may be substituted "
-                                       f"(variable {name} is {self.variables[name][1]!r})")
+                raise self.err(
+                    lineno,
+                    f"${{{name}}}: only variables holding a number may be substituted "
+                    f"(variable {name} is {self.variables[name][1]!r})",
+                )
             return repr(val)
+
         return _VAR.sub(rep, line)
 
     def unsupported(self, lineno, what):
-        return self.err(lineno, f"{what} is not in the supported subset of `gransim replay`; "
-                                + _supported_text())
+        return self.err(lineno, f"{what} is not in the supported subset of `gransim replay`; " + _supported_text())
 
     def once(self, lineno, key):
         if key in self.seen:
-            raise self.err(lineno, f"`{key}` given twice (first at line {self.seen[key]}); the replay "
-                                   "accepts it once")
+            raise self.err(lineno, f"`{key}` given twice (first at line {self.seen[key]}); the replay accepts it once")
         self.seen[key] = lineno
 
     def expect(self, lineno, words, want, cmd):
@@ -342,8 +404,9 @@ class _State:
         if h is None:
             raise self.unsupported(lineno, f"command `{cmd}`")
         if self.run is not None:
-            raise self.err(lineno, f"`{cmd}` after `run` (line {self.run[1]}): the replay supports one "
-                                   "run as the last command")
+            raise self.err(
+                lineno, f"`{cmd}` after `run` (line {self.run[1]}): the replay supports one run as the last command"
+            )
         h(lineno, w)
 
     def c_units(self, n, w):
@@ -374,30 +437,36 @@ class _State:
                 self.sorting = every != 0
                 k += 3
             else:
-                raise self.err(n, f"atom_modify keyword {key!r}: supported are `map array|hash|yes` and "
-                                  "`sort Nfreq binsize`")
+                raise self.err(
+                    n, f"atom_modify keyword {key!r}: supported are `map array|hash|yes` and `sort Nfreq binsize`"
+                )
 
     def c_newton(self, n, w):
         self.once(n, "newton")
         if [x.lower() for x in w[1:]] not in (["off"], ["off", "off"]):
-            raise self.err(n, f"`{' '.join(w)}`: the native engine mirrors `newton off` (granular "
-                              "history needs it in LIGGGHTS); write `newton off`")
+            raise self.err(
+                n,
+                f"`{' '.join(w)}`: the native engine mirrors `newton off` (granular "
+                "history needs it in LIGGGHTS); write `newton off`",
+            )
         self.newton_off = n
 
     def c_communicate(self, n, w):
         self.vote("liggghts", n, "communicate")
         self.once(n, "communicate")
         if w[1:] != ["single", "vel", "yes"]:
-            raise self.err(n, f"`{' '.join(w)}`: the subset needs `communicate single vel yes` "
-                              "(ghost atoms carry velocities)")
+            raise self.err(
+                n, f"`{' '.join(w)}`: the subset needs `communicate single vel yes` (ghost atoms carry velocities)"
+            )
         self.comm_vel = n
 
     def c_comm_modify(self, n, w):
         self.vote("lammps", n, "comm_modify")
         self.once(n, "comm_modify")
         if w[1:] not in (["mode", "single", "vel", "yes"], ["vel", "yes"], ["vel", "yes", "mode", "single"]):
-            raise self.err(n, f"`{' '.join(w)}`: the subset needs `comm_modify mode single vel yes` "
-                              "(ghost atoms carry velocities)")
+            raise self.err(
+                n, f"`{' '.join(w)}`: the subset needs `comm_modify mode single vel yes` (ghost atoms carry velocities)"
+            )
         self.comm_vel = n
 
     def c_read_data(self, n, w):
@@ -448,11 +517,9 @@ class _State:
                 got[key] = val
             elif key in ("one", "page"):
                 _int(self.err, n, val, f"neigh_modify {key}", minimum=1)
-                self.notes.append(f"line {n}: neigh_modify {key} {val} (list memory only; no effect on "
-                                  "the native run)")
+                self.notes.append(f"line {n}: neigh_modify {key} {val} (list memory only; no effect on the native run)")
             else:
-                raise self.err(n, f"neigh_modify keyword {key!r}: supported are delay, every, check, "
-                                  "one, page")
+                raise self.err(n, f"neigh_modify keyword {key!r}: supported are delay, every, check, one, page")
             k += 2
         self.neigh = got
         self.neigh_line = n
@@ -465,11 +532,15 @@ class _State:
         if style == "property/global":
             self.vote("liggghts", n, "fix property/global")
             if len(w) < 6 or w[4] not in _LIG_LAW:
-                raise self.err(n, f"fix property/global {w[4] if len(w) > 4 else ''}: the subset reads "
-                                  f"{', '.join(_LIG_LAW)} (hooke/stiffness)")
+                raise self.err(
+                    n,
+                    f"fix property/global {w[4] if len(w) > 4 else ''}: the subset reads "
+                    f"{', '.join(_LIG_LAW)} (hooke/stiffness)",
+                )
             if len(w) != 8 or w[5] != "peratomtypepair" or w[6] != "1":
-                raise self.err(n, f"fix property/global {w[4]}: expected `{w[4]} peratomtypepair 1 VALUE` "
-                                  "(one atom type)")
+                raise self.err(
+                    n, f"fix property/global {w[4]}: expected `{w[4]} peratomtypepair 1 VALUE` (one atom type)"
+                )
             v = _float(self.err, n, w[7], f"fix property/global {w[4]} coefficient")
             if v < 0:
                 raise self.err(n, f"fix property/global {w[4]} coefficient: expected >= 0, got {w[7]!r}")
@@ -482,8 +553,9 @@ class _State:
             if w[4:] == ["disc"]:
                 self.vote("lammps", n, "nve/sphere disc")
             elif w[4:]:
-                raise self.err(n, f"`{' '.join(w)}`: supported are `nve/sphere` (LIGGGHTS) and "
-                                  "`nve/sphere disc` (LAMMPS)")
+                raise self.err(
+                    n, f"`{' '.join(w)}`: supported are `nve/sphere` (LIGGGHTS) and `nve/sphere disc` (LAMMPS)"
+                )
             self.nve = (w[4:], n)
         elif style == "enforce2d":
             if w[4:]:
@@ -512,15 +584,14 @@ class _State:
                 style = w[k + 1]
                 if style not in STYLES:
                     if style in ("volume", "wiggle", "variable"):
-                        raise self.err(n, f"fix deform {key} {style}: not in the subset (supported styles: "
-                                          f"{', '.join(STYLES)})")
-                    raise self.err(n, f"fix deform {key} {style!r}: unknown style (supported: "
-                                      f"{', '.join(STYLES)})")
+                        raise self.err(
+                            n, f"fix deform {key} {style}: not in the subset (supported styles: {', '.join(STYLES)})"
+                        )
+                    raise self.err(n, f"fix deform {key} {style!r}: unknown style (supported: {', '.join(STYLES)})")
                 m = STYLES[style]
                 if k + 2 + m > len(w):
                     raise self.err(n, f"fix deform {key} {style}: expected {m} number(s)")
-                vals = tuple(_float(self.err, n, v, f"fix deform {key} {style} value")
-                             for v in w[k + 2:k + 2 + m])
+                vals = tuple(_float(self.err, n, v, f"fix deform {key} {style} value") for v in w[k + 2 : k + 2 + m])
                 d = 0 if key == "x" else 1
                 if axes[d] is not None:
                     raise self.err(n, f"fix deform: axis {key} given twice")
@@ -533,9 +604,12 @@ class _State:
             elif key == "xy":
                 style = w[k + 1] if k + 1 < len(w) else None
                 if style not in TILT_STYLES:
-                    raise self.err(n, f"fix deform xy {style}: not in the subset (supported tilt styles: "
-                                      f"{', '.join(TILT_STYLES)}; the triclinic (sheared) periodic cell "
-                                      "runs natively through ShearEngine)")
+                    raise self.err(
+                        n,
+                        f"fix deform xy {style}: not in the subset (supported tilt styles: "
+                        f"{', '.join(TILT_STYLES)}; the triclinic (sheared) periodic cell "
+                        "runs natively through ShearEngine)",
+                    )
                 if k + 2 >= len(w):
                     raise self.err(n, f"fix deform xy {style}: expected 1 number")
                 tilt = (style, _float(self.err, n, w[k + 2], f"fix deform xy {style} value"))
@@ -545,8 +619,11 @@ class _State:
                     raise self.err(n, "fix deform remap: the value is missing")
                 remap = w[k + 1]
                 if remap not in ("x", "v"):
-                    raise self.err(n, f"fix deform remap {remap}: supported are remap x (orthogonal box) "
-                                      "and remap v (sheared box, LAMMPS)")
+                    raise self.err(
+                        n,
+                        f"fix deform remap {remap}: supported are remap x (orthogonal box) "
+                        "and remap v (sheared box, LAMMPS)",
+                    )
                 k += 2
             elif key == "units":
                 if k + 1 >= len(w) or w[k + 1] not in ("box", "lattice"):
@@ -556,8 +633,10 @@ class _State:
             elif key == "flip":
                 if k + 1 >= len(w) or w[k + 1] not in ("yes", "no"):
                     raise self.err(n, "fix deform flip: expected yes or no")
-                self.notes.append(f"line {n}: fix deform flip {w[k + 1]} (no flip happens: a tilt beyond "
-                                  "Lx/2 is refused before the run)")
+                self.notes.append(
+                    f"line {n}: fix deform flip {w[k + 1]} (no flip happens: a tilt beyond "
+                    "Lx/2 is refused before the run)"
+                )
                 k += 2
             else:
                 raise self.err(n, f"fix deform keyword {key!r}: supported are x, y, remap, units, flip")
@@ -571,15 +650,21 @@ class _State:
         if w[1:2] == ["gran"]:
             self.vote("liggghts", n, "pair_style gran model")
             if w[2:] != ["model", "hooke/stiffness", "tangential", "history"]:
-                raise self.err(n, f"`{' '.join(w)}`: the subset needs `pair_style gran model hooke/stiffness "
-                                  "tangential history` (no further model options)")
+                raise self.err(
+                    n,
+                    f"`{' '.join(w)}`: the subset needs `pair_style gran model hooke/stiffness "
+                    "tangential history` (no further model options)",
+                )
             self.law_style = "liggghts"
         elif w[1:2] == ["gran/hooke/history"]:
             self.vote("lammps", n, "pair_style gran/hooke/history")
             a = w[2:]
             if len(a) != 6:
-                raise self.err(n, f"pair_style gran/hooke/history: expected 6 arguments KN KT GAMMAN GAMMAT "
-                                  f"XMU DAMPFLAG, got {len(a)}")
+                raise self.err(
+                    n,
+                    f"pair_style gran/hooke/history: expected 6 arguments KN KT GAMMAN GAMMAT "
+                    f"XMU DAMPFLAG, got {len(a)}",
+                )
             names = ("KN", "KT", "GAMMAN", "GAMMAT", "XMU")
             v = {}
             for name, word in zip(names, a[:5]):
@@ -588,8 +673,7 @@ class _State:
                 else:
                     v[name] = _float(self.err, n, word, f"pair_style gran/hooke/history {name}")
                     if v[name] < 0:
-                        raise self.err(n, f"pair_style gran/hooke/history {name}: expected >= 0, "
-                                          f"got {word!r}")
+                        raise self.err(n, f"pair_style gran/hooke/history {name}: expected >= 0, got {word!r}")
             if a[5] not in ("0", "1"):
                 raise self.err(n, f"pair_style gran/hooke/history DAMPFLAG: expected 0 or 1, got {a[5]!r}")
             # LAMMPS PairGranHookeHistory::settings: NULL kt = kn*2/7, NULL gammat = gamman/2,
@@ -625,8 +709,11 @@ class _State:
         if w[3] != "pressure":
             raise self.unsupported(n, f"compute style `{w[3]}`")
         if len(w) != 6 or w[5] != "virial":
-            raise self.err(n, f"`{' '.join(w)}`: the subset needs `compute ID all pressure TEMP virial` "
-                              "(the virial only, no kinetic part)")
+            raise self.err(
+                n,
+                f"`{' '.join(w)}`: the subset needs `compute ID all pressure TEMP virial` "
+                "(the virial only, no kinetic part)",
+            )
         if w[4] == "NULL":
             self.vote("lammps", n, "compute pressure NULL")
         self.pressure[w[1]] = n
@@ -645,18 +732,23 @@ class _State:
             m = re.fullmatch(r"c_([A-Za-z0-9_]+)(\[(\d+)\])?", kw)
             if m:
                 if m.group(1) not in self.pressure:
-                    raise self.err(n, f"thermo keyword {kw!r}: compute {m.group(1)!r} is not a `compute "
-                                      "pressure ... virial` defined before this line")
+                    raise self.err(
+                        n,
+                        f"thermo keyword {kw!r}: compute {m.group(1)!r} is not a `compute "
+                        "pressure ... virial` defined before this line",
+                    )
                 if m.group(3) is not None and int(m.group(3)) not in (1, 2, 3, 4, 5, 6):
                     raise self.err(n, f"thermo keyword {kw!r}: compute pressure has components 1..6")
             elif kw.startswith("v_"):
                 if kw[2:] not in self.variables:
-                    raise self.err(n, f"thermo keyword {kw!r}: no variable {kw[2:]!r} defined before "
-                                      "this line")
+                    raise self.err(n, f"thermo keyword {kw!r}: no variable {kw[2:]!r} defined before this line")
                 self.notes.append(f"line {n}: thermo column {kw} is printed, not compared")
             elif kw.lower() not in THERMO_KEYWORDS:
-                raise self.err(n, f"thermo keyword {kw!r}: supported are {', '.join(THERMO_KEYWORDS)}, "
-                                  "c_ID[k] of a compute pressure and v_NAME")
+                raise self.err(
+                    n,
+                    f"thermo keyword {kw!r}: supported are {', '.join(THERMO_KEYWORDS)}, "
+                    "c_ID[k] of a compute pressure and v_NAME",
+                )
         self.thermo_columns = tuple(w[2:])
 
     def c_thermo_modify(self, n, w):
@@ -672,12 +764,12 @@ class _State:
                 k += 3
             elif key in ("norm", "flush") and k + 1 < len(w) and w[k + 1] in ("yes", "no"):
                 if key == "norm" and w[k + 1] == "yes":
-                    raise self.err(n, "thermo_modify norm yes: extensive values would be divided by N; "
-                                      "use norm no")
+                    raise self.err(n, "thermo_modify norm yes: extensive values would be divided by N; use norm no")
                 k += 2
             else:
-                raise self.err(n, f"thermo_modify keyword {key!r}: supported are format float|line F, "
-                                  "norm no, flush yes|no")
+                raise self.err(
+                    n, f"thermo_modify keyword {key!r}: supported are format float|line F, norm no, flush yes|no"
+                )
 
     def c_dump(self, n, w):
         if len(w) < 6:
@@ -745,18 +837,18 @@ class _State:
         if len(engines) > 1:
             lig = next(v for v in self.votes if v[0] == "liggghts")
             lmp = next(v for v in self.votes if v[0] == "lammps")
-            raise InputError(f"{self.path}: the deck mixes LIGGGHTS syntax ({lig[2]}, line {lig[1]}) and "
-                             f"LAMMPS syntax ({lmp[2]}, line {lmp[1]})")
+            raise InputError(
+                f"{self.path}: the deck mixes LIGGGHTS syntax ({lig[2]}, line {lig[1]}) and "
+                f"LAMMPS syntax ({lmp[2]}, line {lmp[1]})"
+            )
         found = engines.pop() if engines else None
         if self.engine_given is not None:
             if found is not None and found != self.engine_given:
                 v = next(v for v in self.votes if v[0] == found)
-                raise InputError(f"--engine {self.engine_given}: the deck is written for {found} "
-                                 f"({v[2]}, line {v[1]})")
+                raise InputError(f"--engine {self.engine_given}: the deck is written for {found} ({v[2]}, line {v[1]})")
             return self.engine_given
         if found is None:
-            raise InputError(f"{self.path}: cannot tell LIGGGHTS from LAMMPS syntax (no contact law); "
-                             "give --engine")
+            raise InputError(f"{self.path}: cannot tell LIGGGHTS from LAMMPS syntax (no contact law); give --engine")
         return found
 
     def _need(self, cond, what):
@@ -772,35 +864,47 @@ class _State:
             if atoms["tilt"] is not None:
                 raise InputError(f"{data_path}: a tilted (triclinic) box in a LIGGGHTS deck: {LIGGGHTS_TILT}")
             if d is not None and d.tilt is not None:
-                raise InputError(f"{p}:{d.line}: fix deform xy in a LIGGGHTS deck (needs a triclinic box): "
-                                 f"{LIGGGHTS_TILT}")
+                raise InputError(
+                    f"{p}:{d.line}: fix deform xy in a LIGGGHTS deck (needs a triclinic box): {LIGGGHTS_TILT}"
+                )
             if d is not None and d.remap == "v":
-                raise InputError(f"{p}:{d.line}: fix deform remap v in a LIGGGHTS deck: the Lees-Edwards "
-                                 f"velocity convention is the sheared cell's: {LIGGGHTS_TILT}")
+                raise InputError(
+                    f"{p}:{d.line}: fix deform remap v in a LIGGGHTS deck: the Lees-Edwards "
+                    f"velocity convention is the sheared cell's: {LIGGGHTS_TILT}"
+                )
             return
         if d is None:
             return
         if d.tilt is not None and not sheared:
-            raise InputError(f"{p}:{d.line}: fix deform xy needs a triclinic box (`change_box all triclinic` "
-                             "after read_data, or a data file with an `xy xz yz` line); LAMMPS stops too")
+            raise InputError(
+                f"{p}:{d.line}: fix deform xy needs a triclinic box (`change_box all triclinic` "
+                "after read_data, or a data file with an `xy xz yz` line); LAMMPS stops too"
+            )
         if not sheared:
             if d.remap == "v":
-                raise InputError(f"{p}:{d.line}: fix deform remap v on an orthogonal box: the native "
-                                 "orthogonal engine maps positions (remap x) and ShearEngine (the Lees-Edwards "
-                                 "convention) needs a triclinic box; use remap x, or change_box all triclinic")
+                raise InputError(
+                    f"{p}:{d.line}: fix deform remap v on an orthogonal box: the native "
+                    "orthogonal engine maps positions (remap x) and ShearEngine (the Lees-Edwards "
+                    "convention) needs a triclinic box; use remap x, or change_box all triclinic"
+                )
             return
         if any(a is not None for a in d.axes):
             ax = "x" if d.axes[0] is not None else "y"
-            raise InputError(f"{p}:{d.line}: fix deform {ax} {d.axes[0 if ax == 'x' else 1].style} on a sheared "
-                             "(triclinic) deck: ShearEngine keeps x fixed and moves y only under a normal-"
-                             "stress servo (a `variable` style, not in the subset); only `xy` is replayed")
+            raise InputError(
+                f"{p}:{d.line}: fix deform {ax} {d.axes[0 if ax == 'x' else 1].style} on a sheared "
+                "(triclinic) deck: ShearEngine keeps x fixed and moves y only under a normal-"
+                "stress servo (a `variable` style, not in the subset); only `xy` is replayed"
+            )
         if d.tilt is None:
-            raise InputError(f"{p}:{d.line}: fix deform without xy on a sheared deck: nothing for ShearEngine "
-                             "to move")  # pragma: no cover - the parser needs an x, y or xy setting
+            raise InputError(
+                f"{p}:{d.line}: fix deform without xy on a sheared deck: nothing for ShearEngine to move"
+            )  # pragma: no cover - the parser needs an x, y or xy setting
         if d.remap != "v":
-            raise InputError(f"{p}:{d.line}: fix deform xy with remap {d.remap}: ShearEngine runs the "
-                             "Lees-Edwards convention of remap v (positions are not mapped when the tilt "
-                             "changes); write remap v")
+            raise InputError(
+                f"{p}:{d.line}: fix deform xy with remap {d.remap}: ShearEngine runs the "
+                "Lees-Edwards convention of remap v (positions are not mapped when the tilt "
+                "changes); write remap v"
+            )
 
     def finish(self, text, data):
         eng = self._engine()
@@ -811,39 +915,52 @@ class _State:
             self._need(key in self.seen, f"`{key}`")
         self._need(self.dt is not None, "`timestep DT`")
         self._need(self.skin is not None, "`neighbor SKIN bin`")
-        self._need(self.nve is not None, "the integrator `fix ID all nve/sphere`"
-                   + (" disc" if eng == "lammps" else ""))
+        self._need(
+            self.nve is not None, "the integrator `fix ID all nve/sphere`" + (" disc" if eng == "lammps" else "")
+        )
         self._need(self.enforce2d is not None, "`fix ID all enforce2d`")
-        self._need(self.comm_vel is not None, "`communicate single vel yes` (LIGGGHTS) or `comm_modify "
-                   "mode single vel yes` (LAMMPS)")
+        self._need(
+            self.comm_vel is not None,
+            "`communicate single vel yes` (LIGGGHTS) or `comm_modify mode single vel yes` (LAMMPS)",
+        )
         if self.neigh is None:
-            raise InputError(f"{p}: `neigh_modify delay 0 every 1 check yes` is missing: the native engine "
-                             "rebuilds the neighbour list exactly that way, so the deck must say so")
+            raise InputError(
+                f"{p}: `neigh_modify delay 0 every 1 check yes` is missing: the native engine "
+                "rebuilds the neighbour list exactly that way, so the deck must say so"
+            )
         for key, want in (("delay", "0"), ("every", "1"), ("check", "yes")):
             if self.neigh.get(key) != want:
                 got = self.neigh.get(key)
-                raise InputError(f"{p}:{self.neigh_line}: neigh_modify {key}: expected {want} (the native "
-                                 f"engine's rebuild rule), got {got if got is not None else 'the default'}")
+                raise InputError(
+                    f"{p}:{self.neigh_line}: neigh_modify {key}: expected {want} (the native "
+                    f"engine's rebuild rule), got {got if got is not None else 'the default'}"
+                )
         if self.newton_off is None and eng == "lammps":
-            raise InputError(f"{p}: `newton off` is missing (LAMMPS defaults to newton on; the native "
-                             "engine mirrors newton off)")
+            raise InputError(
+                f"{p}: `newton off` is missing (LAMMPS defaults to newton on; the native engine mirrors newton off)"
+            )
         if eng == "lammps" and self.nve[0] != ["disc"]:
-            raise InputError(f"{p}:{self.nve[1]}: LAMMPS `fix nve/sphere` without `disc` integrates spheres "
-                             "(I = 2/5 m r^2); a 2D disk deck needs `fix ID all nve/sphere disc`")
+            raise InputError(
+                f"{p}:{self.nve[1]}: LAMMPS `fix nve/sphere` without `disc` integrates spheres "
+                "(I = 2/5 m r^2); a 2D disk deck needs `fix ID all nve/sphere disc`"
+            )
         if eng == "lammps" and self.density_disc is None:
-            raise InputError(f"{p}: `set group all density/disc RHO` is missing: LAMMPS read_data takes the "
-                             "density column as 3D (m = 4/3 pi r^3 rho) in this build")
+            raise InputError(
+                f"{p}: `set group all density/disc RHO` is missing: LAMMPS read_data takes the "
+                "density column as 3D (m = 4/3 pi r^3 rho) in this build"
+            )
         if eng == "liggghts" and self.density_disc is not None:
             raise InputError(f"{p}:{self.density_disc[1]}: `set ... density/disc` is LAMMPS syntax")
         # contact law
         if self.law_style != eng:
-            raise InputError(f"{p}:{self.pair_line}: the pair_style is {self.law_style} syntax in a "
-                             f"{eng} deck")
+            raise InputError(f"{p}:{self.pair_line}: the pair_style is {self.law_style} syntax in a {eng} deck")
         if eng == "liggghts":
             missing = [k for k in _LIG_LAW if k not in self.law_lig]
             if missing:
-                raise InputError(f"{p}: fix property/global {', '.join(missing)} missing: hooke/stiffness "
-                                 f"needs all of {', '.join(_LIG_LAW)}")
+                raise InputError(
+                    f"{p}: fix property/global {', '.join(missing)} missing: hooke/stiffness "
+                    f"needs all of {', '.join(_LIG_LAW)}"
+                )
             kn, kt, gn, gt, mu = (self.law_lig[k][0] for k in _LIG_LAW)
         else:
             if self.law_lig:
@@ -856,23 +973,28 @@ class _State:
             units = self.deform.units or ("box" if eng == "liggghts" else "lattice")
             self.deform = dataclasses.replace(self.deform, units=units)
         if self.sorting:
-            self.notes.append("atom sorting is on (atom_modify sort not 0, or the default): the code "
-                              "reorders atoms, so its summation order differs from the native one; "
-                              "agreement only to round-off growth")
+            self.notes.append(
+                "atom sorting is on (atom_modify sort not 0, or the default): the code "
+                "reorders atoms, so its summation order differs from the native one; "
+                "agreement only to round-off growth"
+            )
         if self.thermo_columns is None:
-            raise InputError(f"{p}: `thermo_style custom step ...` is missing (the default style prints "
-                             "keywords LIGGGHTS lacks, and nothing to compare at full precision)")
+            raise InputError(
+                f"{p}: `thermo_style custom step ...` is missing (the default style prints "
+                "keywords LIGGGHTS lacks, and nothing to compare at full precision)"
+            )
         if self.thermo_float is None or not re.fullmatch(r"%\.1[5-7][eg]", self.thermo_float.split()[0]):
-            self.notes.append("thermo floats are not printed with %.17g (thermo_modify format float "
-                              "%.17g): the stress comparison is limited by the printed digits")
+            self.notes.append(
+                "thermo floats are not printed with %.17g (thermo_modify format float "
+                "%.17g): the stress comparison is limited by the printed digits"
+            )
         dumps = tuple(self.dumps.values())
         for d in dumps:
             if not d.sort_id:
                 self.notes.append(f"dump {d.id}: rows are matched by id (no dump_modify sort id)")
         # data file
         name, ln = self.read_data
-        data_path = Path(data) if data is not None else (Path(name) if Path(name).is_absolute()
-                                                         else p.parent / name)
+        data_path = Path(data) if data is not None else (Path(name) if Path(name).is_absolute() else p.parent / name)
         atoms = read_data_file(data_path, where=f"{p}:{ln}" if data is None else "--data")
         if eng == "lammps":
             rho = self.density_disc[0]
@@ -880,8 +1002,10 @@ class _State:
             dens = atoms["density"]
             if np.any(dens != dens[0]):
                 i = int(np.flatnonzero(dens != dens[0])[0])
-                raise InputError(f"{data_path}: atom {int(atoms['ids'][i])} has density {dens[i]!r}, atom "
-                                 f"{int(atoms['ids'][0])} {dens[0]!r}: the native packing needs one density")
+                raise InputError(
+                    f"{data_path}: atom {int(atoms['ids'][i])} has density {dens[i]!r}, atom "
+                    f"{int(atoms['ids'][0])} {dens[0]!r}: the native packing needs one density"
+                )
             rho = float(dens[0])
         lo, hi = atoms["lo"], atoms["hi"]
         tilt = float(atoms["tilt"] or 0.0)
@@ -890,18 +1014,24 @@ class _State:
         cell = np.diag(hi - lo)
         if sheared:
             cell = np.array([[hi[0] - lo[0], tilt], [0.0, hi[1] - lo[1]]])
-        packing = Packing(atoms["x"], 0.5 * atoms["diameter"], cell, density=rho,
-                          metadata={"source": str(data_path), "box_lo": lo.tolist(), "box_hi": hi.tolist()})
-        kw = {"kn": kn, "kt": kt, "gamma_n": gn, "gamma_t": gt, "mu": mu, "dt": self.dt[0],
-              "skin": self.skin[0]}
+        packing = Packing(
+            atoms["x"],
+            0.5 * atoms["diameter"],
+            cell,
+            density=rho,
+            metadata={"source": str(data_path), "box_lo": lo.tolist(), "box_hi": hi.tolist()},
+        )
+        kw = {"kn": kn, "kt": kt, "gamma_n": gn, "gamma_t": gt, "mu": mu, "dt": self.dt[0], "skin": self.skin[0]}
         fields = {f.name for f in dataclasses.fields(DEMSettings)}
         if eng == "lammps":
             if "flavour" in fields:
                 kw["flavour"] = "lammps"
             else:
-                self.notes.append("DEMSettings has no flavour='lammps' in this gransim: the native run uses "
-                                  "the LIGGGHTS arithmetic of the Hooke history law (agreement with LAMMPS "
-                                  "then only to the law's round-off differences)")
+                self.notes.append(
+                    "DEMSettings has no flavour='lammps' in this gransim: the native run uses "
+                    "the LIGGGHTS arithmetic of the Hooke history law (agreement with LAMMPS "
+                    "then only to the law's round-off differences)"
+                )
         try:
             settings = DEMSettings(**kw)
         except InputError as exc:
@@ -909,12 +1039,31 @@ class _State:
         nsteps = self.run[0]
         shear = _shear_loading(self, p, tilt, lo, hi, settings.dt, nsteps) if sheared else None
         return ReplayDeck(
-            engine=eng, path=p, data_path=data_path, data_name=name, packing=packing, box_lo=lo, box_hi=hi,
-            ids=atoms["ids"], velocities=atoms["v"], spins=atoms["w"], settings=settings, deform=self.deform,
-            nsteps=nsteps, thermo_every=self.thermo_every, thermo_columns=self.thermo_columns,
-            thermo_float_format=self.thermo_float, pressure=dict(self.pressure), dumps=dumps,
-            sorting=self.sorting, notes=tuple(self.notes), lines=tuple(text.splitlines()), tilt=tilt,
-            sheared=sheared, shear=shear)
+            engine=eng,
+            path=p,
+            data_path=data_path,
+            data_name=name,
+            packing=packing,
+            box_lo=lo,
+            box_hi=hi,
+            ids=atoms["ids"],
+            velocities=atoms["v"],
+            spins=atoms["w"],
+            settings=settings,
+            deform=self.deform,
+            nsteps=nsteps,
+            thermo_every=self.thermo_every,
+            thermo_columns=self.thermo_columns,
+            thermo_float_format=self.thermo_float,
+            pressure=dict(self.pressure),
+            dumps=dumps,
+            sorting=self.sorting,
+            notes=tuple(self.notes),
+            lines=tuple(text.splitlines()),
+            tilt=tilt,
+            sheared=sheared,
+            shear=shear,
+        )
 
 
 def _shear_loading(st, path, tilt, lo, hi, dt, nsteps):
@@ -930,16 +1079,20 @@ def _shear_loading(st, path, tilt, lo, hi, dt, nsteps):
         return ShearLoading(erate=0.0)
     style, value = d.tilt
     if style == "trate" and tilt == 0.0:
-        raise InputError(f"{path}:{d.line}: fix deform xy trate on a box without tilt: the tilt grows as "
-                         "xy0 exp(rate t) (LAMMPS stops: 'Cannot use fix deform trate on a box with zero "
-                         "tilt'); give the data file a tilt or use xy erate")
+        raise InputError(
+            f"{path}:{d.line}: fix deform xy trate on a box without tilt: the tilt grows as "
+            "xy0 exp(rate t) (LAMMPS stops: 'Cannot use fix deform trate on a box with zero "
+            "tilt'); give the data file a tilt or use xy erate"
+        )
     delt = float(nsteps) * dt
     stop = tilt_stop(style, value, tilt, float(hi[1] - lo[1]), delt)
     lx = float(hi[0] - lo[0])
     if abs(stop) > 0.5 * lx:
-        raise InputError(f"{path}:{d.line}: fix deform xy {style}: the tilt reaches {stop!r} m, beyond Lx/2 = "
-                         f"{0.5 * lx!r} m, where LAMMPS flips the box; ShearEngine does not flip (shorten "
-                         "the run or the rate)")
+        raise InputError(
+            f"{path}:{d.line}: fix deform xy {style}: the tilt reaches {stop!r} m, beyond Lx/2 = "
+            f"{0.5 * lx!r} m, where LAMMPS flips the box; ShearEngine does not flip (shorten "
+            "the run or the rate)"
+        )
     return ShearLoading(xy=style, value=value, every=d.every)
 
 
@@ -996,7 +1149,7 @@ def read_data_file(path, where: str = "read_data") -> dict:
                 raise bad(n, f"{ntypes} atom types: the subset has one atom type (one set of coefficients)")
             continue
         if len(w) == 6 and w[3:] == ["xy", "xz", "yz"]:
-            e = (lambda _n, msg, n=n: bad(n, msg))
+            e = lambda _n, msg, n=n: bad(n, msg)
             t = [_float(e, n, v, name) for v, name in zip(w[:3], ("xy", "xz", "yz"))]
             if t[1] != 0.0 or t[2] != 0.0:
                 raise bad(n, f"xz = {w[1]}, yz = {w[2]}: a 2D triclinic box has only an xy tilt (xz = yz = 0)")
@@ -1021,8 +1174,11 @@ def read_data_file(path, where: str = "read_data") -> dict:
                 raise bad(n, f"section {w[0]}: expected {natoms} rows, got {len(rows)}")
             sections[w[0]] = rows
             continue
-        raise bad(n, f"unsupported data file line {s!r} (supported: atoms, atom types, xlo xhi, ylo yhi, "
-                     "zlo zhi, Atoms, Velocities)")
+        raise bad(
+            n,
+            f"unsupported data file line {s!r} (supported: atoms, atom types, xlo xhi, ylo yhi, "
+            "zlo zhi, Atoms, Velocities)",
+        )
     if natoms is None:
         raise InputError(f"{path}: no `N atoms` header line")
     for ax in "xyz":
@@ -1036,10 +1192,13 @@ def read_data_file(path, where: str = "read_data") -> dict:
     x = np.empty((natoms, 2))
     for i, (n, w) in enumerate(sections["Atoms"]):
         if len(w) not in (7, 10):
-            raise bad(n, "Atoms row: expected `id type diameter density x y z [ix iy iz]` "
-                         "(atom_style sphere), "
-                         f"got {len(w)} fields")
-        e = (lambda _n, msg, n=n: bad(n, msg))
+            raise bad(
+                n,
+                "Atoms row: expected `id type diameter density x y z [ix iy iz]` "
+                "(atom_style sphere), "
+                f"got {len(w)} fields",
+            )
+        e = lambda _n, msg, n=n: bad(n, msg)
         ids[i] = _int(e, n, w[0], "atom id", minimum=1)
         _int(e, n, w[1], "atom type", minimum=1)
         if w[1] != "1":
@@ -1065,8 +1224,10 @@ def read_data_file(path, where: str = "read_data") -> dict:
         out = (lx < 0) | (lx >= 1) | (ly < 0) | (ly >= 1)
         if np.any(out):
             i = int(np.flatnonzero(out)[0])
-            raise InputError(f"{path}: atom {int(ids[i])} at {x[i].tolist()} lies outside the tilted box; "
-                             "the replay needs the atoms of a triclinic data file inside the box")
+            raise InputError(
+                f"{path}: atom {int(ids[i])} at {x[i].tolist()} lies outside the tilted box; "
+                "the replay needs the atoms of a triclinic data file inside the box"
+            )
     for d in range(2 if not tilt else 0):
         L = hi[d] - lo[d]
         c = x[:, d]
@@ -1077,8 +1238,9 @@ def read_data_file(path, where: str = "read_data") -> dict:
         out = (c < lo[d]) | (c >= hi[d])
         if np.any(out):
             i = int(np.flatnonzero(out)[0])
-            raise InputError(f"{path}: atom {int(ids[i])} lies more than one box length outside the box "
-                             f"({'xy'[d]} = {x[i, d]!r})")
+            raise InputError(
+                f"{path}: atom {int(ids[i])} lies more than one box length outside the box ({'xy'[d]} = {x[i, d]!r})"
+            )
     v = np.zeros((natoms, 2))
     wz = np.zeros(natoms)
     if "Velocities" in sections:
@@ -1086,12 +1248,11 @@ def read_data_file(path, where: str = "read_data") -> dict:
         for n, w in sections["Velocities"]:
             if len(w) != 7:
                 raise bad(n, f"Velocities row: expected `id vx vy vz wx wy wz`, got {len(w)} fields")
-            e = (lambda _n, msg, n=n: bad(n, msg))
+            e = lambda _n, msg, n=n: bad(n, msg)
             a = _int(e, n, w[0], "atom id", minimum=1)
             if a not in index:
                 raise bad(n, f"Velocities row of atom {a}, which is not in the Atoms section")
             i = index[a]
             v[i] = [_float(e, n, w[1], "vx"), _float(e, n, w[2], "vy")]
             wz[i] = _float(e, n, w[6], "wz")
-    return {"ids": ids, "diameter": diam, "density": dens, "x": x, "v": v, "w": wz, "lo": lo, "hi": hi,
-            "tilt": tilt}
+    return {"ids": ids, "diameter": diam, "density": dens, "x": x, "v": v, "w": wz, "lo": lo, "hi": hi, "tilt": tilt}

@@ -56,8 +56,9 @@ class AxisDeform:
         if self.style not in STYLES:
             raise InputError(f"fix deform style: expected one of {', '.join(STYLES)}, got {self.style!r}")
         if len(self.params) != STYLES[self.style]:
-            raise InputError(f"fix deform {self.style}: expected {STYLES[self.style]} number(s), "
-                             f"got {len(self.params)}")
+            raise InputError(
+                f"fix deform {self.style}: expected {STYLES[self.style]} number(s), got {len(self.params)}"
+            )
         object.__setattr__(self, "params", tuple(float(p) for p in self.params))
 
 
@@ -105,8 +106,10 @@ def _stop(ax: AxisDeform, lo_start: float, hi_start: float, delt: float, scale: 
     if s == "delta":
         return lo_start + p[0] * scale, hi_start + p[1] * scale
     if s == "scale":
-        return (0.5 * (lo_start + hi_start) - 0.5 * p[0] * (hi_start - lo_start),
-                0.5 * (lo_start + hi_start) + 0.5 * p[0] * (hi_start - lo_start))
+        return (
+            0.5 * (lo_start + hi_start) - 0.5 * p[0] * (hi_start - lo_start),
+            0.5 * (lo_start + hi_start) + 0.5 * p[0] * (hi_start - lo_start),
+        )
     if s == "vel":
         v = p[0] * scale
         return lo_start - 0.5 * delt * v, hi_start + 0.5 * delt * v
@@ -115,14 +118,15 @@ def _stop(ax: AxisDeform, lo_start: float, hi_start: float, delt: float, scale: 
         lo = lo_start - 0.5 * delt * r * (hi_start - lo_start)
         hi = hi_start + 0.5 * delt * r * (hi_start - lo_start)
         if hi <= lo:
-            raise InputError("fix deform erate: the final box dimension would be < 0 "
-                             "(the codes stop with 'Final box dimension due to fix deform is < 0.0')")
+            raise InputError(
+                "fix deform erate: the final box dimension would be < 0 "
+                "(the codes stop with 'Final box dimension due to fix deform is < 0.0')"
+            )
         return lo, hi
     return None, None  # trate: computed per step
 
 
-def box_table(spec: DeformSpec | None, lo0, hi0, dt: float, nsteps: int, engine: str = "liggghts",
-              first_step: int = 0):
+def box_table(spec: DeformSpec | None, lo0, hi0, dt: float, nsteps: int, engine: str = "liggghts", first_step: int = 0):
     """Box (lo, hi) of x and y after every step of one ``run nsteps``.
 
     Parameters
@@ -153,8 +157,7 @@ def box_table(spec: DeformSpec | None, lo0, hi0, dt: float, nsteps: int, engine:
     begin, end = int(first_step), int(first_step) + nsteps
     delt = float(end - begin) * dt
     starts = [(float(lo[0, d]), float(hi[0, d])) for d in range(2)]
-    stops = [(_stop(ax, *starts[d], delt, scale) if ax is not None else (None, None))
-             for d, ax in enumerate(spec.axes)]
+    stops = [(_stop(ax, *starts[d], delt, scale) if ax is not None else (None, None)) for d, ax in enumerate(spec.axes)]
     cur_lo = [float(lo[0, 0]), float(lo[0, 1])]
     cur_hi = [float(hi[0, 0]), float(hi[0, 1])]
     every = int(spec.every)

@@ -36,8 +36,28 @@ from .deck import ReplayDeck
 from .deform import box_table
 
 #: dump columns the native run can produce, in its units (SI)
-NATIVE_COLUMNS = ("id", "type", "x", "y", "z", "vx", "vy", "vz", "omegax", "omegay", "omegaz",
-                  "fx", "fy", "fz", "tqx", "tqy", "tqz", "mass", "radius", "diameter")
+NATIVE_COLUMNS = (
+    "id",
+    "type",
+    "x",
+    "y",
+    "z",
+    "vx",
+    "vy",
+    "vz",
+    "omegax",
+    "omegay",
+    "omegaz",
+    "fx",
+    "fy",
+    "fz",
+    "tqx",
+    "tqy",
+    "tqz",
+    "mass",
+    "radius",
+    "diameter",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,11 +99,28 @@ def dump_steps(deck: ReplayDeck) -> list:
 def _frame(eng: DEMEngine, deck: ReplayDeck) -> dict:
     n = eng.x.shape[0]
     z = np.zeros(n)
-    return {"id": deck.ids.copy(), "type": np.ones(n, np.int64), "x": eng.x[:, 0].copy(),
-            "y": eng.x[:, 1].copy(), "z": z, "vx": eng.v[:, 0].copy(), "vy": eng.v[:, 1].copy(), "vz": z,
-            "omegax": z, "omegay": z, "omegaz": eng.w.copy(), "fx": eng.f[:, 0].copy(),
-            "fy": eng.f[:, 1].copy(), "fz": z, "tqx": z, "tqy": z, "tqz": eng.t.copy(),
-            "mass": eng.m.copy(), "radius": eng.r.copy(), "diameter": 2.0 * eng.r}
+    return {
+        "id": deck.ids.copy(),
+        "type": np.ones(n, np.int64),
+        "x": eng.x[:, 0].copy(),
+        "y": eng.x[:, 1].copy(),
+        "z": z,
+        "vx": eng.v[:, 0].copy(),
+        "vy": eng.v[:, 1].copy(),
+        "vz": z,
+        "omegax": z,
+        "omegay": z,
+        "omegaz": eng.w.copy(),
+        "fx": eng.f[:, 0].copy(),
+        "fy": eng.f[:, 1].copy(),
+        "fz": z,
+        "tqx": z,
+        "tqy": z,
+        "tqz": eng.t.copy(),
+        "mass": eng.m.copy(),
+        "radius": eng.r.copy(),
+        "diameter": 2.0 * eng.r,
+    }
 
 
 def _pressure(vir, lo, hi):
@@ -98,8 +135,14 @@ def _pressure(vir, lo, hi):
 def build_engine(deck: ReplayDeck, threads=None) -> DEMEngine:
     """A DEMEngine in the state of the deck's ``run`` set-up, in the deck's own box."""
     try:
-        return DEMEngine(deck.packing, deck.settings, velocities=deck.velocities, spins=deck.spins,
-                         threads=threads, box=(deck.box_lo, deck.box_hi))
+        return DEMEngine(
+            deck.packing,
+            deck.settings,
+            velocities=deck.velocities,
+            spins=deck.spins,
+            threads=threads,
+            box=(deck.box_lo, deck.box_hi),
+        )
     except InputError as exc:
         raise InputError(f"{deck.path}: the native engine refuses the deck: {exc}") from None
 
@@ -141,10 +184,12 @@ def run_native(deck: ReplayDeck, progress=None) -> NativeRun:
         out = eng.advance(loading, b - a)
         for j, k in enumerate(range(a + 1, b + 1)):
             pres[k], ps[k] = _pressure(out["virial"][j], lo[k], hi[k])
-        nc[a + 1:b + 1] = out["n_contacts"]
+        nc[a + 1 : b + 1] = out["n_contacts"]
         if not (np.array_equal(eng.lo, lo[b]) and np.array_equal(eng.hi, hi[b])):
-            raise SimulationError(f"step {b}: the engine's box {eng.lo.tolist()}..{eng.hi.tolist()} is not "
-                                  f"the prescribed {lo[b].tolist()}..{hi[b].tolist()}")  # pragma: no cover
+            raise SimulationError(
+                f"step {b}: the engine's box {eng.lo.tolist()}..{eng.hi.tolist()} is not "
+                f"the prescribed {lo[b].tolist()}..{hi[b].tolist()}"
+            )  # pragma: no cover
         if b in want:
             frames[b] = _frame(eng, deck)
         if progress is not None:
@@ -157,8 +202,9 @@ def build_shear_engine(deck: ReplayDeck):
     positions and box as they are), before the ``run`` set-up (:meth:`start_run`)."""
     box = (np.array(deck.box_lo, float), np.array(deck.box_hi, float), float(deck.tilt))
     try:
-        return ShearEngine(deck.packing, deck.settings, velocities=deck.velocities, spins=deck.spins,
-                           flavour="lammps", box=box)
+        return ShearEngine(
+            deck.packing, deck.settings, velocities=deck.velocities, spins=deck.spins, flavour="lammps", box=box
+        )
     except InputError as exc:
         raise InputError(f"{deck.path}: the sheared-cell engine refuses the deck: {exc}") from None
 
@@ -191,10 +237,10 @@ def run_sheared(deck: ReplayDeck, progress=None) -> NativeRun:
     for a, b in _chunks(deck):
         out = eng.advance(b - a)
         box = out["box"]  # lx, ly, xy, ylo, yhi
-        lo[a + 1:b + 1, 1], hi[a + 1:b + 1, 1], xy[a + 1:b + 1] = box[:, 3], box[:, 4], box[:, 2]
+        lo[a + 1 : b + 1, 1], hi[a + 1 : b + 1, 1], xy[a + 1 : b + 1] = box[:, 3], box[:, 4], box[:, 2]
         for j, k in enumerate(range(a + 1, b + 1)):
             pres[k], ps[k] = _pressure(out["virial"][j], lo[k], hi[k])
-        nc[a + 1:b + 1] = out["n_contacts"]
+        nc[a + 1 : b + 1] = out["n_contacts"]
         if b in want:
             frames[b] = _frame(eng, deck)
         if progress is not None:

@@ -32,6 +32,7 @@ def _lattice(tmp_path):
 def _datasets(path) -> dict:
     out = {}
     with h5py.File(path) as f:
+
         def grab(name, obj):
             if isinstance(obj, h5py.Dataset):
                 out[name] = obj[()]
@@ -62,8 +63,16 @@ def _rc(argv):
 def test_resume_is_bitwise_the_uninterrupted_run(tmp_path, kind, capsys):
     base = ["slope", "--mesh", "10x5", "--figures", "none"]
     if kind == "taylor":
-        base += ["--protocol", "paper", "--load-steps", "5", "--min-fraction", "0.0625", "--packing",
-                 str(_lattice(tmp_path))]
+        base += [
+            "--protocol",
+            "paper",
+            "--load-steps",
+            "5",
+            "--min-fraction",
+            "0.0625",
+            "--packing",
+            str(_lattice(tmp_path)),
+        ]
         stop, expect = 4, 2  # the paper load on the reduced slope stops at a limit (exit 2, docs/fem.md)
     else:
         base += ["--material", "neo-hookean", "--load-steps", "6"]
@@ -87,8 +96,7 @@ def test_resume_is_bitwise_the_uninterrupted_run(tmp_path, kind, capsys):
 
 
 def test_resume_refuses_a_checkpoint_of_other_parameters(tmp_path, capsys):
-    base = ["slope", "--mesh", "10x5", "--figures", "none", "--material", "neo-hookean",
-            "--out", str(tmp_path)]
+    base = ["slope", "--mesh", "10x5", "--figures", "none", "--material", "neo-hookean", "--out", str(tmp_path)]
     assert _rc(base + ["--load-steps", "4", "--stop-after", "2"]) == 0
     capsys.readouterr()
     assert _rc(base + ["--load-steps", "5", "--resume"]) == 2

@@ -16,14 +16,18 @@ from gransim.contacts.material import HertzLiggghts, HertzMaterialLammps
 def law_call(law: str, case: dict):
     """(pair function, its law parameters) for ``law`` of reference_runs.decks.hertz.LAWS."""
     if law == "liggghts":
-        p = HertzLiggghts(case["youngs_modulus"], case["poisson_ratio"], case["restitution"],
-                          case["friction"])
+        p = HertzLiggghts(case["youngs_modulus"], case["poisson_ratio"], case["restitution"], case["friction"])
         return hertz.hertz_history_liggghts, p.coefficients()
     if law == "gran-hertz-history":
-        return hertz.hertz_history_lammps, (case["kn"], case["kt"], case["gamman"], case["gammat"],
-                                            case["friction"])
-    p = HertzMaterialLammps(case["youngs_modulus"], case["poisson_ratio"], case["restitution"],
-                            case["friction"], gammat_ratio=case["gammat_ratio"], damping="tsuji")
+        return hertz.hertz_history_lammps, (case["kn"], case["kt"], case["gamman"], case["gammat"], case["friction"])
+    p = HertzMaterialLammps(
+        case["youngs_modulus"],
+        case["poisson_ratio"],
+        case["restitution"],
+        case["friction"],
+        gammat_ratio=case["gammat_ratio"],
+        damping="tsuji",
+    )
     return hertz.hertz_mindlin_granular_lammps, p.coefficients()
 
 
@@ -53,9 +57,26 @@ def replay(law: str, case: dict, masses, jit: bool = False) -> dict:
         slide[0] = False
         radsum = r[0] + r[1]
         if rsq < radsum * radsum:
-            fx, fy, ti, tj, s0, s1, sliding, _ = f(delx, dely, rsq, r[0], r[1], v[0][0], v[0][1],
-                                                   v[1][0], v[1][1], w[0], w[1], m[0], m[1], *params,
-                                                   dt, s[0], s[1], update)
+            fx, fy, ti, tj, s0, s1, sliding, _ = f(
+                delx,
+                dely,
+                rsq,
+                r[0],
+                r[1],
+                v[0][0],
+                v[0][1],
+                v[1][0],
+                v[1][1],
+                w[0],
+                w[1],
+                m[0],
+                m[1],
+                *params,
+                dt,
+                s[0],
+                s[1],
+                update,
+            )
             s[0], s[1] = s0, s1
             slide[0] = sliding
             F = [[fx, fy], [-fx, -fy]]
@@ -65,9 +86,18 @@ def replay(law: str, case: dict, masses, jit: bool = False) -> dict:
         return F, T
 
     def frame(F, T):
-        return {"x": [x[0][0], x[1][0]], "y": [x[0][1], x[1][1]], "vx": [v[0][0], v[1][0]],
-                "vy": [v[0][1], v[1][1]], "omegaz": list(w), "fx": [F[0][0], F[1][0]],
-                "fy": [F[0][1], F[1][1]], "tqz": list(T), "s": list(s), "sliding": slide[0]}
+        return {
+            "x": [x[0][0], x[1][0]],
+            "y": [x[0][1], x[1][1]],
+            "vx": [v[0][0], v[1][0]],
+            "vy": [v[0][1], v[1][1]],
+            "omegaz": list(w),
+            "fx": [F[0][0], F[1][0]],
+            "fy": [F[0][1], F[1][1]],
+            "tqz": list(T),
+            "s": list(s),
+            "sliding": slide[0],
+        }
 
     F, T = forces(False)
     out = {0: frame(F, T)}

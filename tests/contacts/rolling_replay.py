@@ -13,8 +13,12 @@ from __future__ import annotations
 
 from gransim.contacts import rolling
 
-FUNCS = {"epsd2": rolling.hooke_epsd2_liggghts, "epsd": rolling.hooke_epsd_liggghts,
-         "cdt": rolling.hooke_cdt_liggghts, "sds": rolling.hooke_sds_granular_lammps}
+FUNCS = {
+    "epsd2": rolling.hooke_epsd2_liggghts,
+    "epsd": rolling.hooke_epsd_liggghts,
+    "cdt": rolling.hooke_cdt_liggghts,
+    "sds": rolling.hooke_sds_granular_lammps,
+}
 
 
 def law_params(law: str, case: dict) -> tuple:
@@ -25,12 +29,22 @@ def law_params(law: str, case: dict) -> tuple:
         return hooke + (c["rolling_friction"],)
     if law == "epsd":
         return hooke + (c["rolling_friction"], c["rolling_viscous"])
-    return (c["kn"], c["gamman"], rolling.DAMPING_MASS_VELOCITY, c["kt"], c["gammat"] / c["gamman"],
-            c["friction"], c["kroll"], c["gammaroll"], c["rolling_friction"])
+    return (
+        c["kn"],
+        c["gamman"],
+        rolling.DAMPING_MASS_VELOCITY,
+        c["kt"],
+        c["gammat"] / c["gamman"],
+        c["friction"],
+        c["kroll"],
+        c["gammaroll"],
+        c["rolling_friction"],
+    )
 
 
-def replay(law: str, case: dict, masses, jit: bool = False, fixed_centres: bool = False,
-           params: tuple | None = None) -> dict:
+def replay(
+    law: str, case: dict, masses, jit: bool = False, fixed_centres: bool = False, params: tuple | None = None
+) -> dict:
     """Run ``case`` with ``law``; {step: frame} for steps 0..nsteps (step 0: set-up forces); a
     frame holds x, y, vx, vy, omegaz, fx, fy, tqz ((2,) lists), the history ``h``, the flags
     ``sliding``, ``rolling``, the normal force ``fn`` and the rolling torque on i ``tr``."""
@@ -57,11 +71,27 @@ def replay(law: str, case: dict, masses, jit: bool = False, fixed_centres: bool 
         info.update(sliding=False, rolling=False, fn=0.0, tr=0.0)
         radsum = r[0] + r[1]
         if rsq < radsum * radsum:
-            out = f(delx, dely, rsq, r[0], r[1], v[0][0], v[0][1], v[1][0], v[1][1], w[0], w[1],
-                    m[0], m[1], *params, dt, *h, update)
-            h[:] = out[4:4 + width]
-            info.update(sliding=out[4 + width], rolling=out[5 + width], fn=out[6 + width],
-                        tr=out[7 + width])
+            out = f(
+                delx,
+                dely,
+                rsq,
+                r[0],
+                r[1],
+                v[0][0],
+                v[0][1],
+                v[1][0],
+                v[1][1],
+                w[0],
+                w[1],
+                m[0],
+                m[1],
+                *params,
+                dt,
+                *h,
+                update,
+            )
+            h[:] = out[4 : 4 + width]
+            info.update(sliding=out[4 + width], rolling=out[5 + width], fn=out[6 + width], tr=out[7 + width])
             F = [[out[0], out[1]], [-out[0], -out[1]]]
             T = [out[2], out[3]]
         elif lammps:  # LAMMPS zeroes the history of a listed pair that does not touch
@@ -69,9 +99,18 @@ def replay(law: str, case: dict, masses, jit: bool = False, fixed_centres: bool 
         return F, T
 
     def frame(F, T):
-        return {"x": [x[0][0], x[1][0]], "y": [x[0][1], x[1][1]], "vx": [v[0][0], v[1][0]],
-                "vy": [v[0][1], v[1][1]], "omegaz": list(w), "fx": [F[0][0], F[1][0]],
-                "fy": [F[0][1], F[1][1]], "tqz": list(T), "h": list(h), **info}
+        return {
+            "x": [x[0][0], x[1][0]],
+            "y": [x[0][1], x[1][1]],
+            "vx": [v[0][0], v[1][0]],
+            "vy": [v[0][1], v[1][1]],
+            "omegaz": list(w),
+            "fx": [F[0][0], F[1][0]],
+            "fy": [F[0][1], F[1][1]],
+            "tqz": list(T),
+            "h": list(h),
+            **info,
+        }
 
     F, T = forces(False)
     out = {0: frame(F, T)}

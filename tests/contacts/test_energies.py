@@ -39,8 +39,16 @@ LAWS = {
     "hooke-epsd2-liggghts": {**_HOOKE, "mu_r": 0.3},
     "hooke-epsd-liggghts": {**_HOOKE, "mu_r": 0.3, "eta_r": 0.2},
     "hooke-cdt-liggghts": {**_HOOKE, "mu_r": 0.3},
-    "hooke-sds-lammps": {"kn": 2e5, "damp": 20.0, "kt": 1.5e5, "xgammat": 0.5, "mu": 50.0, "kroll": 1e5,
-                         "gammaroll": 0.0, "muroll": 50.0},
+    "hooke-sds-lammps": {
+        "kn": 2e5,
+        "damp": 20.0,
+        "kt": 1.5e5,
+        "xgammat": 0.5,
+        "mu": 50.0,
+        "kroll": 1e5,
+        "gammaroll": 0.0,
+        "muroll": 50.0,
+    },
 }
 
 
@@ -58,23 +66,25 @@ def _force(law, hist, delta):
     (no increment: update False)."""
     delx, dely, rsq, _, n = _geometry(delta)
     h = np.array(hist, np.float64).reshape(1, -1).copy()
-    fx, fy, ti, _tj, sl, fn = pair_force(law, h, 0, delx, dely, rsq, RI, RJ, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                                        MI, MJ, DT, False)
+    fx, fy, ti, _tj, sl, fn = pair_force(
+        law, h, 0, delx, dely, rsq, RI, RJ, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, MI, MJ, DT, False
+    )
     assert not sl
     return fn, np.array([fx, fy]) - fn * n, ti
 
 
 def _energy(law, hist, delta):
     _, _, _, ov, _ = _geometry(delta)
-    return law_spec(law).energy(law, np.array([ov]), np.array(hist, np.float64).reshape(1, -1),
-                                np.array([RI]), np.array([RJ]))
+    return law_spec(law).energy(
+        law, np.array([ov]), np.array(hist, np.float64).reshape(1, -1), np.array([RI]), np.array([RJ])
+    )
 
 
 def _hist(law, xi=(0.0, 0.0), rest=()):
     w = law_spec(law).width
     h = np.zeros(w)
     h[:2] = xi
-    h[2:2 + len(rest)] = rest
+    h[2 : 2 + len(rest)] = rest
     return h
 
 
@@ -131,8 +141,7 @@ def test_epsd_rolling_energy_derivative_in_the_rotation_is_the_rolling_torque(na
     def stored(w):
         if name == "hooke-epsd2-liggghts":
             return rolling.epsd2_torque(w, _reff(), law.kt, fn, law.mu_r, DT, m0, True)[1]
-        return rolling.epsd_torque(w, _reff(), law.kn, fn, law.mu_r, law.eta_r, MI, MJ, RI, RJ, DT, m0,
-                                   True)[1]
+        return rolling.epsd_torque(w, _reff(), law.kn, fn, law.mu_r, law.eta_r, MI, MJ, RI, RJ, DT, m0, True)[1]
 
     up = _energy(law, _hist(law, rest=(stored(theta / DT),)), delta)
     dn = _energy(law, _hist(law, rest=(stored(-theta / DT),)), delta)
@@ -149,16 +158,43 @@ def test_sds_rolling_energy_derivative_in_the_rotation_is_minus_the_rolling_torq
     t = np.array([-n[1], n[0]])
     fn, _, _ = _force(law, _hist(law), delta)
     psi = (0.2 * law.muroll * fn / law.kroll / law.muroll) * t
-    tr = rolling.hooke_sds_granular_lammps(delx, dely, rsq, RI, RJ, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, MI, MJ,
-                                           law.kn, law.damp, law.damping, law.kt, law.xgammat, law.mu,
-                                           law.kroll, law.gammaroll, law.muroll, DT, 0.0, 0.0, psi[0], psi[1],
-                                           False)[-1]
+    tr = rolling.hooke_sds_granular_lammps(
+        delx,
+        dely,
+        rsq,
+        RI,
+        RJ,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        MI,
+        MJ,
+        law.kn,
+        law.damp,
+        law.damping,
+        law.kt,
+        law.xgammat,
+        law.mu,
+        law.kroll,
+        law.gammaroll,
+        law.muroll,
+        DT,
+        0.0,
+        0.0,
+        psi[0],
+        psi[1],
+        False,
+    )[-1]
     theta = 1e-4 * np.linalg.norm(psi) / _reff()
 
     def rolled(th):
         vr = _reff() * (th / DT)
-        p0, p1, *_ = spring_dashpot_slider(psi[0], psi[1], n[0], n[1], -vr * n[1], vr * n[0], law.kroll,
-                                           law.gammaroll, law.muroll * fn, DT, True)
+        p0, p1, *_ = spring_dashpot_slider(
+            psi[0], psi[1], n[0], n[1], -vr * n[1], vr * n[0], law.kroll, law.gammaroll, law.muroll * fn, DT, True
+        )
         return _energy(law, _hist(law, rest=(p0, p1)), delta) - _energy(law, _hist(law), delta)
 
     assert (rolled(theta) - rolled(-theta)) / (2 * theta) == pytest.approx(-tr, rel=TOL)
@@ -180,8 +216,7 @@ def test_energy_hook_of_three_arguments_still_registers():
 
     Old = namedtuple("Old", ["kn", "kt", "gamma_n", "gamma_t", "mu"])
     register_law(Old, hooke_pair_liggghts, 2, energy=lambda law, ov, h: float(np.sum(ov)), cache=False)
-    assert elastic_energy(Old(1, 1, 0, 0, 0), np.array([1.0, 2.0]), np.zeros((2, 2)), np.ones(2),
-                          np.ones(2)) == 3.0
+    assert elastic_energy(Old(1, 1, 0, 0, 0), np.array([1.0, 2.0]), np.zeros((2, 2)), np.ones(2), np.ones(2)) == 3.0
     with pytest.raises(InputError, match="law: expected an instance of a registered contact law"):
         elastic_energy(object(), np.zeros(1), np.zeros((1, 2)), np.ones(1), np.ones(1))
 
@@ -201,12 +236,28 @@ def test_split_rolling_torque_sums_to_the_whole_torque():
 
     @njit(cache=False)
     def jitted(law, hist):
-        return pair_force(law, hist, 0, delx, dely, rsq, RI, RJ, 0.1, -0.2, 0.05, 0.3, 40.0, -25.0, MI, MJ,
-                          DT, True)
+        return pair_force(law, hist, 0, delx, dely, rsq, RI, RJ, 0.1, -0.2, 0.05, 0.3, 40.0, -25.0, MI, MJ, DT, True)
 
-    ref = rolling.hooke_sds_granular_lammps(delx, dely, rsq, RI, RJ, *args[5:13], law.kn, law.damp,
-                                            law.damping, law.kt, law.xgammat, law.mu, law.kroll,
-                                            law.gammaroll, law.muroll, DT, *hist0[0], True)
+    ref = rolling.hooke_sds_granular_lammps(
+        delx,
+        dely,
+        rsq,
+        RI,
+        RJ,
+        *args[5:13],
+        law.kn,
+        law.damp,
+        law.damping,
+        law.kt,
+        law.xgammat,
+        law.mu,
+        law.kroll,
+        law.gammaroll,
+        law.muroll,
+        DT,
+        *hist0[0],
+        True,
+    )
     for fn in (jitted, lambda law, h: pair_force(law, h, 0, *args)):
         fx, fy, ti, tj, _, _ = fn(law, hist0.copy())
         assert (fx, fy, ti, tj) == (ref[0], ref[1], ref[2], ref[3])

@@ -29,9 +29,11 @@ sys.path.insert(0, str(Path(__file__).parent))
 import hertz_replay
 
 ROOT = Path(__file__).resolve().parents[2]
-STORED = {"liggghts": ROOT / "reference_runs/stored/hertz-liggghts",
-          "gran-hertz-history": ROOT / "reference_runs/stored/hertz-lammps/gran-hertz-history",
-          "granular": ROOT / "reference_runs/stored/hertz-lammps/granular"}
+STORED = {
+    "liggghts": ROOT / "reference_runs/stored/hertz-liggghts",
+    "gran-hertz-history": ROOT / "reference_runs/stored/hertz-lammps/gran-hertz-history",
+    "granular": ROOT / "reference_runs/stored/hertz-lammps/granular",
+}
 
 E, NU = 7.0e8, 0.3
 R1, R2 = 1.0e-3, 0.8e-3
@@ -48,9 +50,11 @@ def _laws(e=1.0, mu=0.5):
     lig = HertzLiggghts(E, NU, e, mu).coefficients()
     ghh = (4.0 / 3.0 * Y, 8.0 * G, 0.0, 0.0, mu)
     gra = HertzMaterialLammps(E, NU, 0.0, mu, damping="viscoelastic").coefficients()
-    return [("liggghts", hertz.hertz_history_liggghts, lig),
-            ("gran-hertz-history", hertz.hertz_history_lammps, ghh),
-            ("granular", hertz.hertz_mindlin_granular_lammps, gra)]
+    return [
+        ("liggghts", hertz.hertz_history_liggghts, lig),
+        ("gran-hertz-history", hertz.hertz_history_lammps, ghh),
+        ("granular", hertz.hertz_mindlin_granular_lammps, gra),
+    ]
 
 
 def _call(f, params, delta, vt=0.0, vn=0.0, dt=1e-7, s=(0.0, 0.0), update=True, ang=0.3):
@@ -60,8 +64,9 @@ def _call(f, params, delta, vt=0.0, vn=0.0, dt=1e-7, s=(0.0, 0.0), update=True, 
     n = (math.cos(ang), math.sin(ang))
     t = (-n[1], n[0])
     vi = (vn * n[0] + vt * t[0], vn * n[1] + vt * t[1])
-    return f(r * n[0], r * n[1], r * r, R1, R2, vi[0], vi[1], 0.0, 0.0, 0.0, 0.0, M1, M2, *params, dt,
-             s[0], s[1], update)
+    return f(
+        r * n[0], r * n[1], r * r, R1, R2, vi[0], vi[1], 0.0, 0.0, 0.0, 0.0, M1, M2, *params, dt, s[0], s[1], update
+    )
 
 
 def test_effective_properties_and_bad_inputs():
@@ -96,8 +101,9 @@ def test_normal_force_is_gradient_of_hertz_potential(name):
     for delta in (1e-7, 3e-6, 2e-5):
         fn = _call(f, p, delta, update=False)[7]
         h = 1e-4 * delta
-        dU = (hertz.elastic_normal_potential(delta + h, REFF, Y)
-              - hertz.elastic_normal_potential(delta - h, REFF, Y)) / (2 * h)
+        dU = (
+            hertz.elastic_normal_potential(delta + h, REFF, Y) - hertz.elastic_normal_potential(delta - h, REFF, Y)
+        ) / (2 * h)
         assert fn == pytest.approx(dU, rel=1e-7)
         dF = (_call(f, p, delta + h, update=False)[7] - _call(f, p, delta - h, update=False)[7]) / (2 * h)
         assert dF == pytest.approx(2 * Y * math.sqrt(REFF * delta), rel=1e-7)
@@ -169,13 +175,13 @@ def test_undamped_impact_against_hertz_theory(name):
     v))^(1/5) in the brief's form). Tolerances: the discretisation, measured with dt = t_c/400."""
     _, f, p = next(x for x in _laws() if x[0] == name)
     v0 = 1.0
-    dth = (15 * MEFF * v0 ** 2 / (16 * Y * math.sqrt(REFF))) ** 0.4
+    dth = (15 * MEFF * v0**2 / (16 * Y * math.sqrt(REFF))) ** 0.4
     tc = 2 * dth / v0 * 0.4 * math.gamma(0.4) * math.gamma(0.5) / math.gamma(0.9)
-    assert tc == pytest.approx(2.87 * (MEFF ** 2 / (REFF * Y ** 2 * v0)) ** 0.2, rel=2e-3)
+    assert tc == pytest.approx(2.87 * (MEFF**2 / (REFF * Y**2 * v0)) ** 0.2, rel=2e-3)
     res = [_head_on(f, p, v0, tc / n) for n in (400, 800)]
     for (e, dmax, t, err), n in zip(res, (400, 800)):
-        assert abs(e - 1) < 40.0 / n ** 2
-        assert err < 40.0 / n ** 2
+        assert abs(e - 1) < 40.0 / n**2
+        assert err < 40.0 / n**2
         assert dmax == pytest.approx(dth, rel=1e-4)
         assert t == pytest.approx(tc, abs=2 * tc / n)
     ratio = res[0][3] / res[1][3]
@@ -186,12 +192,14 @@ def _restitution_ode(alpha):
     """Restitution of x'' + alpha x^(1/4) x' + x^(3/2) = 0, x(0) = 0, x'(0) = 1 (the Hertz
     contact with damping coefficient alpha sqrt(m* K) delta^(1/4), K = 4/3 Y* sqrt(R*), made
     dimensionless: e depends on alpha alone); DOP853 at rtol 1e-12."""
+
     def rhs(_, y):
         x = max(y[0], 0.0)
-        return [y[1], -x ** 1.5 - alpha * x ** 0.25 * y[1]]
+        return [y[1], -(x**1.5) - alpha * x**0.25 * y[1]]
 
     def out(_, y):
         return y[0]
+
     out.terminal, out.direction = True, -1
     sol = solve_ivp(rhs, (0.0, 50.0), [0.0, 1.0], events=out, rtol=1e-12, atol=1e-14, method="DOP853")
     return -sol.y_events[0][0][1]
@@ -208,7 +216,7 @@ def test_liggghts_restitution_is_the_requested_one():
     for e in E_GRID:
         assert _restitution_ode(-math.sqrt(5.0) * beta_liggghts(e)) == pytest.approx(e, abs=1e-9)
     v0 = 1.0
-    dth = (15 * MEFF * v0 ** 2 / (16 * Y * math.sqrt(REFF))) ** 0.4
+    dth = (15 * MEFF * v0**2 / (16 * Y * math.sqrt(REFF))) ** 0.4
     for e in (0.3, 0.6, 0.9):
         p = HertzLiggghts(E, NU, e, 0.5).coefficients()
         got = _head_on(hertz.hertz_history_liggghts, p, v0, 3 * dth / v0 / 2000)[0]
@@ -221,7 +229,7 @@ def test_lammps_tsuji_restitution_is_the_polynomial_one():
     (dt = t_c/2000, O(dt)), and that restitution is *not* e: it is higher by 0.14 at e = 0.3 and
     0.015 at e = 0.95 (docs/laws.md); LIGGGHTS' alpha = -sqrt(5) beta(e) does give e."""
     v0 = 1.0
-    dth = (15 * MEFF * v0 ** 2 / (16 * Y * math.sqrt(REFF))) ** 0.4
+    dth = (15 * MEFF * v0**2 / (16 * Y * math.sqrt(REFF))) ** 0.4
     for e in (0.3, 0.6, 0.9):
         p = HertzMaterialLammps(E, NU, e, 0.5, damping="tsuji").coefficients()
         got = _head_on(hertz.hertz_mindlin_granular_lammps, p, v0, 3 * dth / v0 / 2000)[0]

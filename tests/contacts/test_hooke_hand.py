@@ -21,8 +21,9 @@ LAWS = [pytest.param(hooke_history, C, id="liggghts"), pytest.param(hooke_histor
 
 
 def pair(law, vi=(0.0, 0.0), wi=0.0, s=(0.0, 0.0), update=False, mu=MU):
-    return law(DX, 0.0, DX * DX, R, R, vi[0], vi[1], 0.0, 0.0, wi, 0.0, M, M, KN, KT, GN, GT, mu, DT,
-               s[0], s[1], update)
+    return law(
+        DX, 0.0, DX * DX, R, R, vi[0], vi[1], 0.0, 0.0, wi, 0.0, M, M, KN, KT, GN, GT, mu, DT, s[0], s[1], update
+    )
 
 
 @pytest.mark.parametrize("law, arm", LAWS)

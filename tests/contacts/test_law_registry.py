@@ -28,14 +28,24 @@ STORED = ROOT / "reference_runs" / "stored"
 def _hertz(name):
     c = impact_case()
     if name == "hertz-liggghts":
-        p = {"youngs_modulus": c["youngs_modulus"], "poisson_ratio": c["poisson_ratio"],
-                 "restitution": c["restitution"], "friction": c["friction"]}
+        p = {
+            "youngs_modulus": c["youngs_modulus"],
+            "poisson_ratio": c["poisson_ratio"],
+            "restitution": c["restitution"],
+            "friction": c["friction"],
+        }
         return c, p, STORED / "hertz-liggghts"
     if name == "hertz-lammps":
         p = {"kn": c["kn"], "kt": c["kt"], "gamma_n": c["gamman"], "gamma_t": c["gammat"], "mu": c["friction"]}
         return c, p, STORED / "hertz-lammps" / "gran-hertz-history"
-    p = {"youngs_modulus": c["youngs_modulus"], "poisson_ratio": c["poisson_ratio"], "damp": c["restitution"],
-             "friction": c["friction"], "gammat_ratio": c["gammat_ratio"], "damping": "tsuji"}
+    p = {
+        "youngs_modulus": c["youngs_modulus"],
+        "poisson_ratio": c["poisson_ratio"],
+        "damp": c["restitution"],
+        "friction": c["friction"],
+        "gammat_ratio": c["gammat_ratio"],
+        "damping": "tsuji",
+    }
     return c, p, STORED / "hertz-lammps" / "granular"
 
 
@@ -43,20 +53,37 @@ def _rolling(name):
     c = rolling_case()
     model = name.split("-")[1]
     if model == "sds":
-        p = {"kn": c["kn"], "damp": c["gamman"], "damping": "mass_velocity", "kt": c["kt"],
-                 "xgammat": c["gammat"] / c["gamman"], "mu": c["friction"], "kroll": c["kroll"],
-                 "gammaroll": c["gammaroll"], "muroll": c["rolling_friction"]}
+        p = {
+            "kn": c["kn"],
+            "damp": c["gamman"],
+            "damping": "mass_velocity",
+            "kt": c["kt"],
+            "xgammat": c["gammat"] / c["gamman"],
+            "mu": c["friction"],
+            "kroll": c["kroll"],
+            "gammaroll": c["gammaroll"],
+            "muroll": c["rolling_friction"],
+        }
         return c, p, STORED / "rolling-lammps" / "sds"
-    p = {"kn": c["kn"], "kt": c["kt"], "gamma_n": c["gamman"], "gamma_t": c["gammat"], "mu": c["friction"],
-             "mu_r": c["rolling_friction"]}
+    p = {
+        "kn": c["kn"],
+        "kt": c["kt"],
+        "gamma_n": c["gamman"],
+        "gamma_t": c["gammat"],
+        "mu": c["friction"],
+        "mu_r": c["rolling_friction"],
+    }
     if model == "epsd":
         p["eta_r"] = c["rolling_viscous"]
     return c, p, STORED / "rolling-liggghts" / model
 
 
 #: law name -> (case, make_law parameters, stored job directory) of its two-disk run
-CASES = {n: (_hertz if n.startswith("hertz") else _rolling)(n) for n in law_names() if n not in
-         ("hooke-liggghts", "hooke-lammps")}
+CASES = {
+    n: (_hertz if n.startswith("hertz") else _rolling)(n)
+    for n in law_names()
+    if n not in ("hooke-liggghts", "hooke-lammps")
+}
 
 
 def read_dump(path) -> dict:
@@ -67,7 +94,7 @@ def read_dump(path) -> dict:
             step = int(lines[k + 1])
             n = int(lines[k + 3])
             cols = lines[k + 8].split()[2:]
-            rows = np.array([[float(v) for v in ln.split()] for ln in lines[k + 9:k + 9 + n]])
+            rows = np.array([[float(v) for v in ln.split()] for ln in lines[k + 9 : k + 9 + n]])
             out[step] = {c: rows[:, i] for i, c in enumerate(cols)}
             k += 9 + n
         else:
@@ -78,17 +105,30 @@ def read_dump(path) -> dict:
 def _engine(name):
     case, params, job = CASES[name]
     law = make_law(name, **params)
-    pk = Packing(positions=np.array(case["positions"]), radii=np.array(case["radii"]),
-                 cell=np.diag(case["box"]), density=case["density"])
+    pk = Packing(
+        positions=np.array(case["positions"]),
+        radii=np.array(case["radii"]),
+        cell=np.diag(case["box"]),
+        density=case["density"],
+    )
     s = DEMSettings(dt=case["dt"], skin=case["skin"], flavour=law_code(name))
-    eng = DEMEngine(pk, s, velocities=np.array(case["velocities"]), spins=np.array(case["spins"]),
-                    law=law, check_dt=False)
+    eng = DEMEngine(
+        pk, s, velocities=np.array(case["velocities"]), spins=np.array(case["spins"]), law=law, check_dt=False
+    )
     return eng, case, job
 
 
 def _frame(eng):
-    return {"x": eng.x[:, 0], "y": eng.x[:, 1], "vx": eng.v[:, 0], "vy": eng.v[:, 1], "omegaz": eng.w,
-            "fx": eng.f[:, 0], "fy": eng.f[:, 1], "tqz": eng.t}
+    return {
+        "x": eng.x[:, 0],
+        "y": eng.x[:, 1],
+        "vx": eng.v[:, 0],
+        "vy": eng.v[:, 1],
+        "omegaz": eng.w,
+        "fx": eng.f[:, 0],
+        "fy": eng.f[:, 1],
+        "tqz": eng.t,
+    }
 
 
 @pytest.mark.parametrize("name", list(CASES))
@@ -119,10 +159,15 @@ def test_engine_plugin_equals_stored_two_disk_run(name):
 def test_names_classes_and_widths():
     """Each name maps to its module's class, the widths and flips of rolling.HISTORY_WIDTH/FLIP,
     and the code that the name says (the LAMMPS laws zero a separated pair's history)."""
-    cls = {"hertz-liggghts": hertz.HertzHistoryLiggghts, "hertz-lammps": hertz.HertzHistoryLammps,
-           "hertz-granular-lammps": hertz.HertzGranularLammps, "hooke-epsd2-liggghts": rolling.HookeEpsd2Liggghts,
-           "hooke-epsd-liggghts": rolling.HookeEpsdLiggghts, "hooke-cdt-liggghts": rolling.HookeCdtLiggghts,
-           "hooke-sds-lammps": rolling.HookeSdsLammps}
+    cls = {
+        "hertz-liggghts": hertz.HertzHistoryLiggghts,
+        "hertz-lammps": hertz.HertzHistoryLammps,
+        "hertz-granular-lammps": hertz.HertzGranularLammps,
+        "hooke-epsd2-liggghts": rolling.HookeEpsd2Liggghts,
+        "hooke-epsd-liggghts": rolling.HookeEpsdLiggghts,
+        "hooke-cdt-liggghts": rolling.HookeCdtLiggghts,
+        "hooke-sds-lammps": rolling.HookeSdsLammps,
+    }
     for name, (_, params, _) in CASES.items():
         law = make_law(name, **params)
         assert type(law) is cls[name]
@@ -179,7 +224,7 @@ def test_energies_of_registered_and_radius_dependent_laws():
     r2 = 2 * R  # two disks of radius 2 R*: R* = R
     up = hertz.hertz_energy(hl, np.array([d + eps]), np.zeros((1, 2)), r2, r2)
     dn = hertz.hertz_energy(hl, np.array([d - eps]), np.zeros((1, 2)), r2, r2)
-    assert (up - dn) / (2 * eps) == pytest.approx(4 / 3 * hl.yeff * math.sqrt(R[0]) * d ** 1.5, rel=1e-8)
+    assert (up - dn) / (2 * eps) == pytest.approx(4 / 3 * hl.yeff * math.sqrt(R[0]) * d**1.5, rel=1e-8)
     e2 = make_law("hooke-epsd2-liggghts", **CASES["hooke-epsd2-liggghts"][1])
     got = rolling.epsd_energy(e2, np.zeros(1), np.array([[0.0, 0.0, 2e-6]]), r2, r2)
     assert got == pytest.approx(0.5 * 4e-12 / (800 * R[0] ** 2), rel=1e-14)

@@ -128,8 +128,27 @@ def _pair(law, delta, w, m, dt=2.5e-6, vn=0.0, update=True, gammaroll=0.002):
     m1, m2 = math.pi * r1 * r1 * 25.0, math.pi * r2 * r2 * 25.0
     params = rolling_replay.law_params(law, dict(case, gammaroll=gammaroll))
     vix, viy = -vn * math.cos(ang), -vn * math.sin(ang)
-    return _py(rolling_replay.FUNCS[law])(delx, dely, delx * delx + dely * dely, r1, r2, vix, viy,
-                                          0.0, 0.0, w, 0.0, m1, m2, *params, dt, 0.0, 0.0, *m, update)
+    return _py(rolling_replay.FUNCS[law])(
+        delx,
+        dely,
+        delx * delx + dely * dely,
+        r1,
+        r2,
+        vix,
+        viy,
+        0.0,
+        0.0,
+        w,
+        0.0,
+        m1,
+        m2,
+        *params,
+        dt,
+        0.0,
+        0.0,
+        *m,
+        update,
+    )
 
 
 def _energy(law, h):
@@ -163,7 +182,7 @@ def test_rolling_resistance_only_dissipates(law):
             w = rng.normal(0.0, 60.0)
             delta = rng.uniform(2e-6, 2e-5)
             out = _pair(law, delta, w, hist, vn=rng.normal(0.0, 0.01))
-            new = list(out[4:4 + width])
+            new = list(out[4 : 4 + width])
             tr = out[7 + width]
             e_old = _energy(law, [0.0, 0.0, *hist])
             e_new = _energy(law, new)
@@ -185,15 +204,27 @@ def test_granular_mass_velocity_normal_is_gran_hooke_history():
     ang = 0.3
     for delta, vn in ((1e-6, 0.05), (1e-5, -0.1), (3e-5, 0.2)):
         dist = r1 + r2 - delta
-        args = (dist * math.cos(ang), dist * math.sin(ang), dist * dist, r1, r2, vn * math.cos(ang),
-                vn * math.sin(ang), 0.0, 0.0, 0.0, 0.0, m1, m2)
-        ref = _py(hooke.hooke_history_lammps)(*args, 1000.0, 800.0, 2000.0, 1000.0, 0.4, 1e-6,
-                                              0.0, 0.0, False)[7]
+        args = (
+            dist * math.cos(ang),
+            dist * math.sin(ang),
+            dist * dist,
+            r1,
+            r2,
+            vn * math.cos(ang),
+            vn * math.sin(ang),
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            m1,
+            m2,
+        )
+        ref = _py(hooke.hooke_history_lammps)(*args, 1000.0, 800.0, 2000.0, 1000.0, 0.4, 1e-6, 0.0, 0.0, False)[7]
         got = {}
         for model in (rolling.DAMPING_VELOCITY, rolling.DAMPING_MASS_VELOCITY, rolling.DAMPING_VISCOELASTIC):
             got[model] = _py(rolling.hooke_sds_granular_lammps)(
-                *args, 1000.0, 2000.0, model, 800.0, 0.5, 0.4, 800.0, 0.0, 0.2, 1e-6, 0.0, 0.0, 0.0,
-                0.0, False)[10]
+                *args, 1000.0, 2000.0, model, 800.0, 0.5, 0.4, 800.0, 0.0, 0.2, 1e-6, 0.0, 0.0, 0.0, 0.0, False
+            )[10]
         assert got[rolling.DAMPING_MASS_VELOCITY] == pytest.approx(ref, rel=1e-13)
         assert got[rolling.DAMPING_VELOCITY] != pytest.approx(ref, rel=1e-3)
         assert got[rolling.DAMPING_VISCOELASTIC] != pytest.approx(ref, rel=1e-3)
@@ -219,8 +250,8 @@ def test_granular_mass_velocity_normal_is_gran_hooke_history():
 
 BR1, BR2, BRHO, BDELTA, BKN, BKT, BMUR = 1.0e-3, 0.8e-3, 25.0, 1.0e-5, 1000.0, 800.0, 0.2
 BREFF = BR1 * BR2 / (BR1 + BR2)
-BM = (math.pi * BR1 ** 2 * BRHO, math.pi * BR2 ** 2 * BRHO)
-BI = (0.5 * BM[0] * BR1 ** 2, 0.5 * BM[1] * BR2 ** 2)
+BM = (math.pi * BR1**2 * BRHO, math.pi * BR2**2 * BRHO)
+BI = (0.5 * BM[0] * BR1**2, 0.5 * BM[1] * BR2**2)
 BIR = BI[0] * BI[1] / (BI[0] + BI[1])
 BCAP = BMUR * BREFF * BKN * BDELTA
 
@@ -228,11 +259,21 @@ BCAP = BMUR * BREFF * BKN * BDELTA
 def _decay(law, w0, dt, nsteps, eta_r=0.3, gammaroll=0.0):
     ang = math.radians(20.0)
     dist = BR1 + BR2 - BDELTA
-    case = {"radii": (BR1, BR2), "positions": ((0.0, 0.0), (dist * math.cos(ang), dist * math.sin(ang))),
-            "velocities": ((0.0, 0.0), (0.0, 0.0)), "spins": (w0, 0.0), "dt": dt, "nsteps": nsteps}
+    case = {
+        "radii": (BR1, BR2),
+        "positions": ((0.0, 0.0), (dist * math.cos(ang), dist * math.sin(ang))),
+        "velocities": ((0.0, 0.0), (0.0, 0.0)),
+        "spins": (w0, 0.0),
+        "dt": dt,
+        "nsteps": nsteps,
+    }
     hk = (BKN, BKT, 2000.0, 0.0, 0.0, BMUR)
-    params = {"epsd2": hk, "cdt": hk, "epsd": hk + (eta_r,),
-              "sds": (BKN, 2000.0, rolling.DAMPING_MASS_VELOCITY, BKT, 0.0, 0.0, BKT, gammaroll, BMUR)}[law]
+    params = {
+        "epsd2": hk,
+        "cdt": hk,
+        "epsd": hk + (eta_r,),
+        "sds": (BKN, 2000.0, rolling.DAMPING_MASS_VELOCITY, BKT, 0.0, 0.0, BKT, gammaroll, BMUR),
+    }[law]
     rep = rolling_replay.replay(law, case, BM, fixed_centres=True, params=params)
     t = np.arange(nsteps + 1) * dt
     wi = np.array([rep[n]["omegaz"][0] for n in range(nsteps + 1)])
@@ -265,7 +306,7 @@ def test_decay_cdt_is_linear():
 def _slider_law(w0, K):
     Om = math.sqrt(K / BIR)
     t1 = math.asin(BCAP / (K * w0 / Om)) / Om
-    w1 = math.sqrt(w0 ** 2 - (BCAP / math.sqrt(K * BIR)) ** 2)
+    w1 = math.sqrt(w0**2 - (BCAP / math.sqrt(K * BIR)) ** 2)
     return t1, w1, t1 + w1 * BIR / BCAP, BCAP / math.sqrt(K * BIR)
 
 
@@ -276,7 +317,7 @@ def test_decay_spring_slider(law):
     amplitude c/sqrt(K I_r) (epsd2 has no dashpot: the spring energy c^2/(2K) stays). Tolerance
     from halving dt (dt = 2.5e-6 s, Omega dt = 0.009): stop-time error measured 3.2e-5 t2 -> 8.1e-6
     t2 (epsd2) and 9.0e-6 -> 2.3e-6 (sds): second order (ratio 4); amplitude within 1.3e-5."""
-    K = BKT * BREFF ** 2
+    K = BKT * BREFF**2
     w0 = 100.0
     t1, _, t2, amp = _slider_law(w0, K)
     errs = []
@@ -301,22 +342,22 @@ def test_decay_damped_below_cap(law):
     9.2e-4 -> 4.6e-4 (epsd), 8.3e-4 -> 4.2e-4 (sds): first order (the dashpot sees the half-kicked
     spin), ratio 2."""
     if law == "epsd":
-        K = 2.25 * BKN * BMUR ** 2 * BREFF ** 2
+        K = 2.25 * BKN * BMUR**2 * BREFF**2
         zeta = 0.3 * math.sqrt(3.0)
         kw = {"eta_r": 0.3}
     else:
-        K = BKT * BREFF ** 2
+        K = BKT * BREFF**2
         zeta = 0.3
-        kw = {"gammaroll": zeta * 2 * math.sqrt(K * BIR) / BREFF ** 2}
+        kw = {"gammaroll": zeta * 2 * math.sqrt(K * BIR) / BREFF**2}
     Om = math.sqrt(K / BIR)
     w0 = 0.3 * BCAP / math.sqrt(K * BIR)  # well below the cap
-    od = Om * math.sqrt(1 - zeta ** 2)
+    od = Om * math.sqrt(1 - zeta**2)
     errs = []
     for dt in (4e-3 / Om, 2e-3 / Om):
         n = int(4 * math.pi / Om / dt)
         t, w, rep = _decay(law, w0, dt, n, **kw)
         assert not any(rep[k]["rolling"] for k in rep)
-        exact = w0 * np.exp(-zeta * Om * t) * (np.cos(od * t) - zeta / math.sqrt(1 - zeta ** 2) * np.sin(od * t))
+        exact = w0 * np.exp(-zeta * Om * t) * (np.cos(od * t) - zeta / math.sqrt(1 - zeta**2) * np.sin(od * t))
         errs.append(np.max(np.abs(w - exact)) / w0)
     assert errs[0] < 2e-3
     assert 1.8 < errs[0] / errs[1] < 2.2

@@ -23,8 +23,22 @@ def packing_file(tmp_path_factory):
 
 
 def _run(packing_file, out, flavour):
-    argv = ["biaxial", "--packing", str(packing_file), "--strain", "0.0005", "--strain-rate", "0.5",
-            "-o", str(out), "--consolidation-steps", "300", "--series-every", "5", "--allow-unsettled"]
+    argv = [
+        "biaxial",
+        "--packing",
+        str(packing_file),
+        "--strain",
+        "0.0005",
+        "--strain-rate",
+        "0.5",
+        "-o",
+        str(out),
+        "--consolidation-steps",
+        "300",
+        "--series-every",
+        "5",
+        "--allow-unsettled",
+    ]
     if flavour is not None:
         argv += ["--flavour", flavour]
     assert main(argv) == 0
@@ -32,8 +46,10 @@ def _run(packing_file, out, flavour):
 
 
 def test_flavour_recorded_and_used(tmp_path, packing_file, capsys):
-    runs = {f: _run(packing_file, tmp_path / f"{f}.h5", None if f == "default" else f)
-            for f in ("default", "liggghts", "lammps")}
+    runs = {
+        f: _run(packing_file, tmp_path / f"{f}.h5", None if f == "default" else f)
+        for f in ("default", "liggghts", "lammps")
+    }
     assert "lammps arithmetic" in capsys.readouterr().out
     for f, run in runs.items():
         want = "liggghts" if f == "default" else f

@@ -43,9 +43,7 @@ def test_hooke_law_by_name_is_the_default_run_bit_for_bit(tmp_path, packing_file
     """The factory's hooke-liggghts law with the protocol's defaults is the engine's built-in law:
     the same numbers in every stress row; the law and its parameters are in the provenance."""
     ref = _run(packing_file, tmp_path / "ref.h5")
-    got = _run(
-        packing_file, tmp_path / "law.h5", "--law", "hooke-liggghts", "--law-param", "mu=0.5"
-    )
+    got = _run(packing_file, tmp_path / "law.h5", "--law", "hooke-liggghts", "--law-param", "mu=0.5")
     assert np.array_equal(ref.series["stress"], got.series["stress"])
     with h5py.File(tmp_path / "law.h5") as h:
         par = json.loads(h.attrs["parameters"])

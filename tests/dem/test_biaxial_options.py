@@ -19,8 +19,7 @@ from gransim.errors import InputError
 from gransim.io import load_packing, save_packing
 
 #: the quick protocol of the other CLI tests (few steps; the consolidation need not settle)
-BASE = ["--consolidation-steps", "200", "--series-every", "50", "--snapshot-every", "100000",
-        "--allow-unsettled"]
+BASE = ["--consolidation-steps", "200", "--series-every", "50", "--snapshot-every", "100000", "--allow-unsettled"]
 
 
 @pytest.fixture(scope="module")
@@ -52,13 +51,17 @@ def test_default_settings_derive_the_rate_from_the_final_pressure(packing_file):
         default_settings(pk, strain_rate=0.1, inertial_number=1e-4)
 
 
-@pytest.mark.parametrize("extra, want_i, density_factor", [
-    ([], 5e-5, 1.0),
-    (["--inertial-number", "4e-4"], 4e-4, 1.0),
-    (["--inertial-number", "4e-4", "--density", "10600"], 4e-4, 4.0),
-])
-def test_cli_run_keeps_the_inertial_number_when_the_pressure_changes(tmp_path, packing_file, extra, want_i,
-                                                                      density_factor):
+@pytest.mark.parametrize(
+    "extra, want_i, density_factor",
+    [
+        ([], 5e-5, 1.0),
+        (["--inertial-number", "4e-4"], 4e-4, 1.0),
+        (["--inertial-number", "4e-4", "--density", "10600"], 4e-4, 4.0),
+    ],
+)
+def test_cli_run_keeps_the_inertial_number_when_the_pressure_changes(
+    tmp_path, packing_file, extra, want_i, density_factor
+):
     """The CLI runs at p = 25 N/m and 4 p = 100 N/m: the run files' strain rate, confining stress
     and packing give the requested I for both (the bug: --confining was applied after the rate
     had been derived from the default p, so I was off by sqrt(4) = 2 at 4 p)."""
@@ -66,14 +69,30 @@ def test_cli_run_keeps_the_inertial_number_when_the_pressure_changes(tmp_path, p
     rates = {}
     for p in (25.0, 100.0):
         out = tmp_path / f"p{p:g}.h5"
-        assert main(["biaxial", "--packing", str(packing_file), "-o", str(out), "--strain", "2e-5",
-                     "--confining", f"{p!r}", *BASE, *extra]) == 0
+        assert (
+            main(
+                [
+                    "biaxial",
+                    "--packing",
+                    str(packing_file),
+                    "-o",
+                    str(out),
+                    "--strain",
+                    "2e-5",
+                    "--confining",
+                    f"{p!r}",
+                    *BASE,
+                    *extra,
+                ]
+            )
+            == 0
+        )
         run = read_run(out)
         bi = run.settings["biaxial"]
         assert bi["confining"] == p
         assert run.packing.density == pytest.approx(density_factor * base.density, rel=1e-15)
         assert hand_inertial_number(run.packing, bi["strain_rate"], p) == pytest.approx(want_i, rel=1e-12)
-        assert np.all(run.series["stress"][run.series["phase"] == 1][:, 0, 0] < 0)   # compressed
+        assert np.all(run.series["stress"][run.series["phase"] == 1][:, 0, 0] < 0)  # compressed
         rates[p] = bi["strain_rate"]
     assert rates[100.0] / rates[25.0] == pytest.approx(2.0, rel=1e-12)
 
@@ -88,10 +107,14 @@ def _sliding_contact(dem, vt_over_vn=20.0):
     sliding velocity along y, undamped; the engine's per-step contact forces, decomposed along the line of centres:
     (|F_n|, |F_t|, sliding flags) of the steps in contact."""
     R = 1e-3
-    pk = Packing(positions=np.array([[0.01, 0.01], [0.01 + 2 * R * 1.0001, 0.01]]), radii=np.array([R, R]),
-                 cell=np.eye(2) * 0.02, density=2650.0)
+    pk = Packing(
+        positions=np.array([[0.01, 0.01], [0.01 + 2 * R * 1.0001, 0.01]]),
+        radii=np.array([R, R]),
+        cell=np.eye(2) * 0.02,
+        density=2650.0,
+    )
     m_eff = 0.5 * pk.masses[0]
-    vn = 1e-3 * R * np.sqrt(dem.kn / m_eff)     # undamped: the largest overlap is vn / omega = 1e-3 R
+    vn = 1e-3 * R * np.sqrt(dem.kn / m_eff)  # undamped: the largest overlap is vn / omega = 1e-3 R
     v = np.array([[0.0, 0.0], [-vn, vt_over_vn * vn]])
     eng = DEMEngine(pk, dem, velocities=v)
     fixed = Loading(x=AxisControl("fixed"), y=AxisControl("fixed"))
@@ -118,8 +141,7 @@ def test_mu_reaches_the_engine(packing_file, flavour):
     every step (Coulomb cap; undamped, so both codes' caps agree), for each mu."""
     ratios = {}
     for mu in (0.2, 0.6):
-        _, _, dem, _, _ = _settings(packing_file, "--mu", f"{mu!r}", "--damping-ratio", "0",
-                                    "--flavour", flavour)
+        _, _, dem, _, _ = _settings(packing_file, "--mu", f"{mu!r}", "--damping-ratio", "0", "--flavour", flavour)
         assert dem.mu == mu and dem.kt == dem.kn
         fn, ft, slide = _sliding_contact(dem)
         assert len(fn) > 20 and slide.all()
@@ -141,14 +163,17 @@ def test_kt_ratio_and_mu_with_a_law(packing_file):
         _settings(packing_file, "--law", "hooke-liggghts", "--law-param", "mu=0.35", "--mu", "0.3")
 
 
-@pytest.mark.parametrize("options, needle", [
-    (["--mu", "-0.1"], "--mu"),
-    (["--kt-ratio", "nan"], "--kt-ratio"),
-    (["--density", "0"], "--density"),
-    (["--inertial-number=-1e-4"], "--inertial-number"),
-    (["--confining", "0"], "--confining"),
-    (["--consolidation-tol", "0"], "--consolidation-tol"),
-])
+@pytest.mark.parametrize(
+    "options, needle",
+    [
+        (["--mu", "-0.1"], "--mu"),
+        (["--kt-ratio", "nan"], "--kt-ratio"),
+        (["--density", "0"], "--density"),
+        (["--inertial-number=-1e-4"], "--inertial-number"),
+        (["--confining", "0"], "--confining"),
+        (["--consolidation-tol", "0"], "--consolidation-tol"),
+    ],
+)
 def test_bad_options_are_one_line_exit_2(tmp_path, packing_file, capsys, options, needle):
     out = tmp_path / "x.h5"
     assert main(["biaxial", "--packing", str(packing_file), "-o", str(out), *options]) == 2
@@ -158,6 +183,17 @@ def test_bad_options_are_one_line_exit_2(tmp_path, packing_file, capsys, options
 
 def test_strain_rate_and_inertial_number_exclude_each_other(tmp_path, packing_file, capsys):
     with pytest.raises(SystemExit) as e:
-        main(["biaxial", "--packing", str(packing_file), "-o", str(tmp_path / "x.h5"), "--strain-rate", "0.1",
-              "--inertial-number", "1e-4"])
+        main(
+            [
+                "biaxial",
+                "--packing",
+                str(packing_file),
+                "-o",
+                str(tmp_path / "x.h5"),
+                "--strain-rate",
+                "0.1",
+                "--inertial-number",
+                "1e-4",
+            ]
+        )
     assert e.value.code == 2 and "not allowed with" in capsys.readouterr().err

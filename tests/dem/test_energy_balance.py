@@ -84,12 +84,16 @@ def _energies(make, law, dt):
 
 
 CASES = {
-    "orthogonal hertz-liggghts": (_orthogonal, "hertz-liggghts",
-                                  {"youngs_modulus": 5e8, "poisson_ratio": 0.3, "restitution": 1.0,
-                                   "friction": 0.0}),
-    "sheared hertz-lammps": (_sheared, "hertz-lammps",
-                             {"kn": KN_LAMMPS, "kt": 2 * KN_LAMMPS / 1.15, "gamma_n": 0.0, "gamma_t": 0.0,
-                              "mu": 0.0}),
+    "orthogonal hertz-liggghts": (
+        _orthogonal,
+        "hertz-liggghts",
+        {"youngs_modulus": 5e8, "poisson_ratio": 0.3, "restitution": 1.0, "friction": 0.0},
+    ),
+    "sheared hertz-lammps": (
+        _sheared,
+        "hertz-lammps",
+        {"kn": KN_LAMMPS, "kt": 2 * KN_LAMMPS / 1.15, "gamma_n": 0.0, "gamma_t": 0.0, "mu": 0.0},
+    ),
 }
 
 

@@ -67,9 +67,7 @@ def test_two_disks_oblique_collision_agrees_with_bitwise_engine():
         assert _rel(fe.velocities, de.v) < 1e-12
         assert _rel(fe.spins, de.w) < 1e-12
         assert _image_diff(fe.positions, de.x, 0.02) < 1e-15
-        assert np.abs(a["stress"] - b["stress"]).max() <= 1e-12 * max(
-            np.abs(b["stress"]).max(), 1e-30
-        )
+        assert np.abs(a["stress"] - b["stress"]).max() <= 1e-12 * max(np.abs(b["stress"]).max(), 1e-30)
     assert touched > 0
 
 
@@ -90,9 +88,7 @@ def test_small_assembly_agrees_with_bitwise_engine_to_round_off(threads, threade
     np.testing.assert_array_equal(a["n_contacts"], b["n_contacts"])
     assert _image_diff(fe.positions, de.x, np.diag(p.cell)) < 1e-12 * p.radii.max()
     assert _rel(fe.velocities, de.v) < 1e-9  # velocities near rest: relative to their own size
-    assert (
-        np.abs(a["kinetic_energy"] - b["kinetic_energy"]).max() < 1e-10 * b["kinetic_energy"].max()
-    )
+    assert np.abs(a["kinetic_energy"] - b["kinetic_energy"]).max() < 1e-10 * b["kinetic_energy"].max()
 
 
 def test_strain_rate_box_agrees_with_bitwise_engine():
@@ -148,9 +144,7 @@ def test_relaxation_of_1000_disks_within_the_chaos_envelope():
         i = rng.integers(p.n)
         x[i, k % 2] *= 1.0 + (1e-12 if k < 2 else -1e-12)
         q = Packing(positions=x, radii=p.radii, cell=p.cell, density=p.density)
-        env = np.maximum(
-            env, _stress_divergence(DEMEngine(q, S).advance(Loading(), steps)["stress"], ref)
-        )
+        env = np.maximum(env, _stress_divergence(DEMEngine(q, S).advance(Loading(), steps)["stress"], ref))
     fast = FastEngine(p, S).advance(steps)
     d = _stress_divergence(fast["stress"], ref)
     assert fast["rebuilds"] > 10

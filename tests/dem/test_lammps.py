@@ -69,11 +69,11 @@ def _compare(settings, thermo, dumps, nsteps, dump_every):
         ww = max(ww, np.abs(eng.w - fr["omegaz"]).max() / np.abs(fr["omegaz"]).max())
     stress = np.concatenate(stress)
     lengths = np.concatenate(lengths)
-    np.testing.assert_array_equal(thermo["step"][1:nsteps + 1], np.arange(1, nsteps + 1))
-    ref = np.stack([thermo["sxx"][1:nsteps + 1], thermo["syy"][1:nsteps + 1], thermo["sxy"][1:nsteps + 1]], 1)
+    np.testing.assert_array_equal(thermo["step"][1 : nsteps + 1], np.arange(1, nsteps + 1))
+    ref = np.stack([thermo["sxx"][1 : nsteps + 1], thermo["syy"][1 : nsteps + 1], thermo["sxy"][1 : nsteps + 1]], 1)
     mine = np.stack([stress[:, 0, 0], stress[:, 1, 1], stress[:, 0, 1]], 1)
     rel = np.abs(mine - ref).max(axis=1) / np.abs(ref).max(axis=1)
-    dl = np.abs(lengths - np.stack([thermo["lx"], thermo["ly"]], 1)[1:nsteps + 1]).max() / p.d50
+    dl = np.abs(lengths - np.stack([thermo["lx"], thermo["ly"]], 1)[1 : nsteps + 1]).max() / p.d50
     return wp, wv, ww, rel.max(), dl
 
 
@@ -111,8 +111,7 @@ def test_flavours_differ_and_liggghts_flavour_misses_lammps():
     n = 500
     _, s_lig, _, _ = short_case()
     s_lmp = dataclasses.replace(s_lig, flavour="lammps")
-    for settings, stored, log in ((s_lig, STORED, "log.lammps"),
-                                  (s_lmp, STORED_LIGGGHTS, "log.liggghts")):
+    for settings, stored, log in ((s_lig, STORED, "log.lammps"), (s_lmp, STORED_LIGGGHTS, "log.liggghts")):
         thermo = read_thermo(stored / log)
         dumps = read_dump(stored / "dump.atoms")
         wp, _, _, wst, _ = _compare(settings, thermo, dumps, n, SHORT_CASE_DUMP_EVERY)
@@ -142,11 +141,20 @@ def test_live_lammps_run_step_for_step(tmp_path):
 def test_lammps_deck_lines(tmp_path):
     p, s, ld, _ = _lammps_case()
     deck = write_biaxial_deck(tmp_path, p, s, ld, 10, engine="lammps").read_text()
-    for line in ("newton off", "atom_modify map array sort 0 0.0", "comm_modify mode single vel yes",
-                 "neigh_modify delay 0 every 1 check yes", f"neighbor {s.skin:.17g} bin",
-                 f"timestep {s.dt:.17g}", "pair_style gran/hooke/history 100000 100000 50 50 0.5 1",
-                 "fix integr all nve/sphere disc", f"set group all density/disc {p.density:.17g}",
-                 "compute pt all pressure NULL virial", "remap x", "thermo_modify format float %.17g"):
+    for line in (
+        "newton off",
+        "atom_modify map array sort 0 0.0",
+        "comm_modify mode single vel yes",
+        "neigh_modify delay 0 every 1 check yes",
+        f"neighbor {s.skin:.17g} bin",
+        f"timestep {s.dt:.17g}",
+        "pair_style gran/hooke/history 100000 100000 50 50 0.5 1",
+        "fix integr all nve/sphere disc",
+        f"set group all density/disc {p.density:.17g}",
+        "compute pt all pressure NULL virial",
+        "remap x",
+        "thermo_modify format float %.17g",
+    ):
         assert line in deck
     # masses: set density/disc must come after read_data (which reads the column as 3D)
     assert deck.index("read_data") < deck.index("set group all density/disc")
@@ -157,13 +165,48 @@ def test_lammps_deck_lines(tmp_path):
 
 def _pair(ri=1e-3, rj=1.2e-3, overlap=2e-5, vty=0.0, wi=0.0):
     d = ri + rj - overlap
-    return d, {"delx": d, "dely": 0.0, "rsq": d * d, "radi": ri, "radj": rj, "vix": 0.0, "viy": vty,
-               "vjx": 0.0, "vjy": 0.0, "wi": wi, "wj": 0.0, "mi": 8e-3, "mj": 1.2e-2}
+    return d, {
+        "delx": d,
+        "dely": 0.0,
+        "rsq": d * d,
+        "radi": ri,
+        "radj": rj,
+        "vix": 0.0,
+        "viy": vty,
+        "vjx": 0.0,
+        "vjy": 0.0,
+        "wi": wi,
+        "wj": 0.0,
+        "mi": 8e-3,
+        "mj": 1.2e-2,
+    }
 
 
 def _call(law, kw, kn=1e5, kt=1e5, gn=0.0, gt=0.0, mu=0.5, dt=1e-5, s0=0.0, s1=0.0, update=True):
-    return law(kw["delx"], kw["dely"], kw["rsq"], kw["radi"], kw["radj"], kw["vix"], kw["viy"], kw["vjx"],
-               kw["vjy"], kw["wi"], kw["wj"], kw["mi"], kw["mj"], kn, kt, gn, gt, mu, dt, s0, s1, update)
+    return law(
+        kw["delx"],
+        kw["dely"],
+        kw["rsq"],
+        kw["radi"],
+        kw["radj"],
+        kw["vix"],
+        kw["viy"],
+        kw["vjx"],
+        kw["vjy"],
+        kw["wi"],
+        kw["wj"],
+        kw["mi"],
+        kw["mj"],
+        kn,
+        kt,
+        gn,
+        gt,
+        mu,
+        dt,
+        s0,
+        s1,
+        update,
+    )
 
 
 def test_lammps_coulomb_cap_includes_tangential_damping():
@@ -211,10 +254,34 @@ def test_lammps_spring_reset_when_a_pair_opens():
     r = np.array([1e-3, 1e-3])
     for lammps, expect in ((True, 0.0), (False, 3e-7)):
         xi = np.array([[0.0, 3e-7]])
-        args = (x, np.zeros((2, 2)), np.zeros(2), r, np.ones(2), np.array([0], np.int32),
-                np.array([1], np.int32), np.zeros(1), np.zeros(1), np.ones(1, np.bool_), xi, 1.0, 1.0,
-                1e5, 1e5, 0.0, 0.0, 0.5, 1e-6, True,
-                np.zeros((2, 2)), np.zeros(2), np.zeros(4), np.zeros(1, np.bool_), np.zeros((1, 2)), True)
+        args = (
+            x,
+            np.zeros((2, 2)),
+            np.zeros(2),
+            r,
+            np.ones(2),
+            np.array([0], np.int32),
+            np.array([1], np.int32),
+            np.zeros(1),
+            np.zeros(1),
+            np.ones(1, np.bool_),
+            xi,
+            1.0,
+            1.0,
+            1e5,
+            1e5,
+            0.0,
+            0.0,
+            0.5,
+            1e-6,
+            True,
+            np.zeros((2, 2)),
+            np.zeros(2),
+            np.zeros(4),
+            np.zeros(1, np.bool_),
+            np.zeros((1, 2)),
+            True,
+        )
         nc, _ = K.forces_half(*args, lammps)
         assert nc == 0.0
         assert xi[0, 1] == expect

@@ -33,8 +33,7 @@ LinearDashpot = namedtuple("LinearDashpot", ["kn", "gamma"])
 
 
 @njit(inline="always")
-def linear_dashpot_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt,
-                        update):
+def linear_dashpot_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
     """F_n = kn delta - m_eff gamma v_n along n = d/|d| (may pull at the end of the contact: the
     textbook linear spring-dashpot); history column 0 = time in contact (s), flip +1 (a scalar)."""
     r = math.sqrt(rsq)
@@ -64,8 +63,12 @@ GAP = 1.0e-6  # m, initial surface gap
 
 
 def _pair(v0=V0):
-    pk = Packing(positions=np.array([[4.0e-3, 5.0e-3], [4.0e-3 + 2 * R + GAP, 5.0e-3]]), radii=np.array([R, R]),
-                 cell=np.diag([1.0e-2, 1.0e-2]), density=RHO)
+    pk = Packing(
+        positions=np.array([[4.0e-3, 5.0e-3], [4.0e-3 + 2 * R + GAP, 5.0e-3]]),
+        radii=np.array([R, R]),
+        cell=np.diag([1.0e-2, 1.0e-2]),
+        density=RHO,
+    )
     return pk, np.array([[v0, 0.0], [-v0, 0.0]])
 
 
@@ -160,7 +163,8 @@ def test_toy_law_equals_frictionless_hooke_to_round_off():
     order: the two trajectories agree to round-off (1e-12 relative in velocity)."""
     _, _, _, e_toy, eng_toy, _, _ = _impact(0.2, 400)
     _, _, _, e_hooke, eng_h, _, _ = _impact(
-        0.2, 400, law_of=lambda s: hooke_law(s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.flavour))
+        0.2, 400, law_of=lambda s: hooke_law(s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.flavour)
+    )
     assert isinstance(eng_h.law, HookeLiggghts)
     np.testing.assert_allclose(eng_toy.v, eng_h.v, rtol=0, atol=1e-12 * V0)
     np.testing.assert_allclose(eng_toy.x, eng_h.x, rtol=0, atol=1e-12 * R)
@@ -225,8 +229,10 @@ def test_checkpoint_round_trip_through_the_run_file_is_bit_for_bit(tmp_path, fla
     assert piece.complete
     for k in ("stress", "cell", "n_contacts", "kinetic_energy"):
         np.testing.assert_array_equal(piece.series[k], full.series[k], err_msg=k)
-    np.testing.assert_array_equal(read_record(out_piece).checkpoint["arrays"]["neighbours/xi"],
-                                  read_record(out_full).checkpoint["arrays"]["neighbours/xi"])
+    np.testing.assert_array_equal(
+        read_record(out_piece).checkpoint["arrays"]["neighbours/xi"],
+        read_record(out_full).checkpoint["arrays"]["neighbours/xi"],
+    )
 
 
 # ----------------------------------------------------------------------------- disk cache
@@ -259,8 +265,9 @@ def test_the_loop_of_a_law_is_loaded_from_the_disk_cache_by_a_second_process(tmp
     env.pop("NUMBA_DISABLE_JIT", None)
     outs = []
     for _ in range(2):
-        r = subprocess.run([sys.executable, "-c", code], check=False, env=env, capture_output=True, text=True,
-                           timeout=900)
+        r = subprocess.run(
+            [sys.executable, "-c", code], check=False, env=env, capture_output=True, text=True, timeout=900
+        )
         assert r.returncode == 0, r.stderr[-2000:]
         outs.append(json.loads(r.stdout.strip().splitlines()[-1]))
     assert outs[0]["misses"] >= 1
@@ -285,9 +292,22 @@ def test_a_law_registered_without_cache_leaves_the_shared_cache_usable(tmp_path)
     code = _CHILD.replace("register_law(T.LinearDashpot", "(lambda *a, **k: None)(T.LinearDashpot")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
     env.pop("NUMBA_DISABLE_JIT", None)
-    r = subprocess.run([sys.executable, "-c", code.format(here=str(Path(__file__).parent))], check=False,
-                       env=env, capture_output=True, text=True, timeout=900)
+    r = subprocess.run(
+        [sys.executable, "-c", code.format(here=str(Path(__file__).parent))],
+        check=False,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert r.returncode == 0, r.stderr[-2000:]
-    r = subprocess.run([sys.executable, "-c", _PLAIN], check=False, env=env, capture_output=True, text=True,
-                       timeout=900, cwd=str(Path(__file__).parents[2]))
+    r = subprocess.run(
+        [sys.executable, "-c", _PLAIN],
+        check=False,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+        cwd=str(Path(__file__).parents[2]),
+    )
     assert r.returncode == 0 and r.stdout.strip().endswith("ok"), r.stderr[-2000:]

@@ -65,11 +65,11 @@ def _compare(name, job: Path):
         wv = max(wv, np.abs(eng.v - vref).max() / np.abs(vref).max())
         ww = max(ww, np.abs(eng.w - fr["omegaz"]).max() / np.abs(fr["omegaz"]).max())
     stress, lengths = np.concatenate(stress), np.concatenate(lengths)
-    np.testing.assert_array_equal(thermo["step"][1:n + 1], np.arange(1, n + 1))
-    ref = np.stack([thermo["sxx"][1:n + 1], thermo["syy"][1:n + 1], thermo["sxy"][1:n + 1]], 1)
+    np.testing.assert_array_equal(thermo["step"][1 : n + 1], np.arange(1, n + 1))
+    ref = np.stack([thermo["sxx"][1 : n + 1], thermo["syy"][1 : n + 1], thermo["sxy"][1 : n + 1]], 1)
     mine = np.stack([stress[:, 0, 0], stress[:, 1, 1], stress[:, 0, 1]], 1)
     rel = np.abs(mine - ref).max(axis=1) / np.abs(ref).max(axis=1)
-    dl = np.abs(lengths - np.stack([thermo["lx"], thermo["ly"]], 1)[1:n + 1]).max() / p.d50
+    dl = np.abs(lengths - np.stack([thermo["lx"], thermo["ly"]], 1)[1 : n + 1]).max() / p.d50
     return wp, wv, ww, rel.max(), dl, eng
 
 
@@ -116,8 +116,9 @@ def test_stored_deck_is_todays_writer(name, tmp_path):
     """The stored deck is the one write_biaxial_deck writes today for the law."""
     p, s, ld, n = short_case()
     engine = law_code(name)
-    deck = write_biaxial_deck(tmp_path, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY,
-                              engine=engine, law=short_case_law(name))
+    deck = write_biaxial_deck(
+        tmp_path, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY, engine=engine, law=short_case_law(name)
+    )
     assert deck.read_text() == (STORED / f"biaxial-short-{name}" / deck.name).read_text()
 
 
@@ -126,8 +127,9 @@ def _live(name, tmp_path):
     if shutil.which("liggghts" if engine == "liggghts" else "lmp") is None:
         pytest.skip(f"{engine} binary not installed")
     p, s, ld, n = short_case()
-    deck = write_biaxial_deck(tmp_path, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY,
-                              engine=engine, law=short_case_law(name))
+    deck = write_biaxial_deck(
+        tmp_path, p, s, ld, n, thermo_every=1, dump_every=SHORT_CASE_DUMP_EVERY, engine=engine, law=short_case_law(name)
+    )
     run_deck(deck, engine)
     _check(name, tmp_path)
 

@@ -54,12 +54,12 @@ def _compare(thermo, dumps, nsteps, dump_every):
             worst_pos = max(worst_pos, np.abs(d).max() / p.d50)
     stress = np.concatenate(stress)
     lengths = np.concatenate(lengths)
-    ref = np.stack([thermo["sxx"][1:nsteps + 1], thermo["syy"][1:nsteps + 1], thermo["sxy"][1:nsteps + 1]], 1)
+    ref = np.stack([thermo["sxx"][1 : nsteps + 1], thermo["syy"][1 : nsteps + 1], thermo["sxy"][1 : nsteps + 1]], 1)
     mine = np.stack([stress[:, 0, 0], stress[:, 1, 1], stress[:, 0, 1]], 1)
     scale = np.abs(ref).max(axis=1)
     rel = np.abs(mine - ref).max(axis=1) / scale
-    np.testing.assert_array_equal(thermo["step"][1:nsteps + 1], np.arange(1, nsteps + 1))
-    dl = np.abs(lengths - np.stack([thermo["lx"], thermo["ly"]], 1)[1:nsteps + 1]).max() / p.d50
+    np.testing.assert_array_equal(thermo["step"][1 : nsteps + 1], np.arange(1, nsteps + 1))
+    dl = np.abs(lengths - np.stack([thermo["lx"], thermo["ly"]], 1)[1 : nsteps + 1]).max() / p.d50
     return worst_pos, rel.max(), dl
 
 
@@ -105,9 +105,15 @@ def test_live_liggghts_run_step_for_step(tmp_path):
 def test_deck_mirrors_engine_settings(tmp_path):
     p, s, ld, _ = short_case()
     deck = write_biaxial_deck(tmp_path, p, s, ld, 10).read_text()
-    for line in ("newton off", "atom_modify map array sort 0 0.0", "neigh_modify delay 0 every 1 check yes",
-                 f"neighbor {s.skin:.17g} bin", f"timestep {s.dt:.17g}",
-                 "pair_style gran model hooke/stiffness tangential history", "remap x"):
+    for line in (
+        "newton off",
+        "atom_modify map array sort 0 0.0",
+        "neigh_modify delay 0 every 1 check yes",
+        f"neighbor {s.skin:.17g} bin",
+        f"timestep {s.dt:.17g}",
+        "pair_style gran model hooke/stiffness tangential history",
+        "remap x",
+    ):
         assert line in deck
     # the servo stress is a fix ave/time defined before fix deform (evaluated first in end_of_step)
     assert deck.index("fix avsx") < deck.index("fix deform")

@@ -18,8 +18,9 @@ FIXED = Loading()
 def two_disks(r1=1e-3, r2=1.5e-3, gap=1e-5, offset=0.0):
     """Two disks in a large cell, touching after a short approach along x."""
     L = 0.02
-    x = np.array([[0.5 * L - r1 - 0.5 * gap, 0.5 * L - 0.5 * offset],
-                  [0.5 * L + r2 + 0.5 * gap, 0.5 * L + 0.5 * offset]])
+    x = np.array(
+        [[0.5 * L - r1 - 0.5 * gap, 0.5 * L - 0.5 * offset], [0.5 * L + r2 + 0.5 * gap, 0.5 * L + 0.5 * offset]]
+    )
     return Packing(positions=x, radii=[r1, r2], cell=np.diag([L, L]), density=2650.0)
 
 
@@ -102,8 +103,7 @@ def test_momentum_conserved_with_friction_and_damping():
 
 def test_angular_momentum_conserved_in_oblique_collision_with_friction():
     p = two_disks(offset=1.2e-3)
-    s = DEMSettings(kn=1e5, kt=1e5, gamma_n=100.0, gamma_t=100.0, mu=0.3, dt=contact_time(p, 1e5) / 200,
-                    skin=1e-5)
+    s = DEMSettings(kn=1e5, kt=1e5, gamma_n=100.0, gamma_t=100.0, mu=0.3, dt=contact_time(p, 1e5) / 200, skin=1e-5)
     m = np.pi * p.radii**2 * p.density
     v0 = np.array([[0.05, 0.0], [-0.05 * m[0] / m[1], 0.0]])
     w0 = np.array([30.0, -10.0])
@@ -132,7 +132,8 @@ def test_tangential_slip_follows_coulomb_cap():
     Ft = []
     for k in range(1, 1001):
         fx, fy, ti, tj, s0, s1, sl, fn = hooke_history(
-            0.0, d, d * d, ri, rj, u, 0.0, 0.0, 0.0, 0.0, 0.0, 1e-3, 1e-3, kn, kt, 0.0, 0.0, mu, dt, s0, s1, True)
+            0.0, d, d * d, ri, rj, u, 0.0, 0.0, 0.0, 0.0, 0.0, 1e-3, 1e-3, kn, kt, 0.0, 0.0, mu, dt, s0, s1, True
+        )
         assert fn == pytest.approx(kn * delta, rel=1e-12)
         assert fy == pytest.approx(fn, rel=1e-12)
         expect = min(kt * u * k * dt, mu * fn)
@@ -158,12 +159,35 @@ def test_cap_is_strict_and_uses_damped_normal_force():
     meff = 0.5e-3
     fn = kn * delta - meff * gamman * vn
     xi = mu * abs(fn) / kt
-    out = hooke_history(d, 0.0, d * d, ri, rj, vn, 0.0, 0.0, 0.0, 0.0, 0.0, 1e-3, 1e-3, kn, kt, gamman, 0.0,
-                        mu, 1e-6, 0.0, -xi, False)
+    out = hooke_history(
+        d, 0.0, d * d, ri, rj, vn, 0.0, 0.0, 0.0, 0.0, 0.0, 1e-3, 1e-3, kn, kt, gamman, 0.0, mu, 1e-6, 0.0, -xi, False
+    )
     assert out[7] == pytest.approx(fn)
     assert not out[6]
-    out = hooke_history(d, 0.0, d * d, ri, rj, vn, 0.0, 0.0, 0.0, 0.0, 0.0, 1e-3, 1e-3, kn, kt, gamman, 0.0,
-                        mu, 1e-6, 0.0, -1.01 * xi, False)
+    out = hooke_history(
+        d,
+        0.0,
+        d * d,
+        ri,
+        rj,
+        vn,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        1e-3,
+        1e-3,
+        kn,
+        kt,
+        gamman,
+        0.0,
+        mu,
+        1e-6,
+        0.0,
+        -1.01 * xi,
+        False,
+    )
     assert out[6] and out[1] == pytest.approx(mu * abs(fn))
 
 

@@ -41,7 +41,7 @@ def test_table_of_a_rate_loading_reproduces_it_bit_for_bit(packing):
     lo, hi = _rate_table(b, -3.0, 2.0, n)
     table = PrescribedBox(lo, hi)
     rb = {}
-    for chunk in (1, 150, 249):   # several calls: the table is indexed by the engine's step
+    for chunk in (1, 150, 249):  # several calls: the table is indexed by the engine's step
         part = b.advance(table, chunk)
         for k, v in part.items():
             rb.setdefault(k, []).append(v)

@@ -35,8 +35,14 @@ def packing():
 
 def test_run_file_layout_and_stress_series(tmp_path, packing):
     out = tmp_path / "run.h5"
-    run_phases(packing, SETTINGS, [Phase("load", LOADING, 600)], out,
-               OutputSettings(series_every=2, snapshot_every=200, checkpoint_every=0), show_progress=False)
+    run_phases(
+        packing,
+        SETTINGS,
+        [Phase("load", LOADING, 600)],
+        out,
+        OutputSettings(series_every=2, snapshot_every=200, checkpoint_every=0),
+        show_progress=False,
+    )
     run = read_run(out)
     assert run.complete and run.stop_reason == ""
     np.testing.assert_array_equal(run.series["step"], np.arange(0, 601, 2))
@@ -52,8 +58,9 @@ def test_run_file_layout_and_stress_series(tmp_path, packing):
     # contacts: l_ij = x_j + C n - x_i gives the stored overlaps
     c = snap.contacts
     lvec = snap.positions[c["j"]] + c["shift"] @ snap.cell.T - snap.positions[c["i"]]
-    np.testing.assert_allclose(snap.radii[c["i"]] + snap.radii[c["j"]] - np.linalg.norm(lvec, axis=1),
-                               c["overlap"], atol=1e-15)
+    np.testing.assert_allclose(
+        snap.radii[c["i"]] + snap.radii[c["j"]] - np.linalg.norm(lvec, axis=1), c["overlap"], atol=1e-15
+    )
     with h5py.File(out) as f:
         assert f.attrs["kind"] == "dem-run"
         assert f["snapshots/s0000000600/contacts/force"].compression == "gzip"
@@ -66,15 +73,30 @@ def test_run_file_layout_and_stress_series(tmp_path, packing):
 def test_resume_is_bit_for_bit_and_refuses_other_runs(tmp_path, packing):
     phases = [Phase("a", LOADING, 500), Phase("b", Loading(x=LOADING.x, y=AxisControl("rate", rate=0.5)), 300)]
     full = tmp_path / "full.h5"
-    run_phases(packing, SETTINGS, phases, full, OutputSettings(snapshot_every=100, checkpoint_every=300),
-               show_progress=False)
+    run_phases(
+        packing, SETTINGS, phases, full, OutputSettings(snapshot_every=100, checkpoint_every=300), show_progress=False
+    )
     part = tmp_path / "part.h5"
     # the same run interrupted at step 650 (second phase), its checkpoint at 650
-    run_phases(packing, SETTINGS, phases, part, OutputSettings(snapshot_every=100, checkpoint_every=300),
-               show_progress=False, stop_at_step=650)
+    run_phases(
+        packing,
+        SETTINGS,
+        phases,
+        part,
+        OutputSettings(snapshot_every=100, checkpoint_every=300),
+        show_progress=False,
+        stop_at_step=650,
+    )
     assert not read_run(part).complete and read_run(part).series["step"][-1] == 650
-    run_phases(packing, SETTINGS, phases, part, OutputSettings(snapshot_every=100, checkpoint_every=300),
-               resume=True, show_progress=False)
+    run_phases(
+        packing,
+        SETTINGS,
+        phases,
+        part,
+        OutputSettings(snapshot_every=100, checkpoint_every=300),
+        resume=True,
+        show_progress=False,
+    )
     a, b = read_run(full), read_run(part)
     for k in ("step", "stress", "cell", "n_contacts"):
         np.testing.assert_array_equal(a.series[k], b.series[k])
@@ -91,8 +113,15 @@ def test_nan_keeps_last_good_snapshot(tmp_path, packing):
     eng_v[5] = [np.inf, 0.0]
     out = tmp_path / "bad.h5"
     with pytest.raises(SimulationError, match="particle 5"):
-        run_phases(packing, SETTINGS, [Phase("load", LOADING, 100)], out, OutputSettings(snapshot_every=50),
-                   velocities=eng_v, show_progress=False)
+        run_phases(
+            packing,
+            SETTINGS,
+            [Phase("load", LOADING, 100)],
+            out,
+            OutputSettings(snapshot_every=50),
+            velocities=eng_v,
+            show_progress=False,
+        )
     run = read_run(out)
     assert not run.complete and "particle 5" in run.stop_reason
     assert run.snapshot_steps == (0,)
@@ -103,8 +132,9 @@ def test_biaxial_protocol_holds_sigma11_and_compresses(tmp_path, packing):
     bi = dataclasses.replace(bi, strain=0.002, strain_rate=0.004, consolidation_steps=20000, check_every=500)
     assert inertial_number(packing, bi.strain_rate, bi.confining) < 1e-4  # quasi-static
     out = tmp_path / "bi.h5"
-    summary = run_biaxial(packing, dem, bi, out, OutputSettings(series_every=5, snapshot_every=0,
-                                                                  checkpoint_every=0), show_progress=False)
+    summary = run_biaxial(
+        packing, dem, bi, out, OutputSettings(series_every=5, snapshot_every=0, checkpoint_every=0), show_progress=False
+    )
     assert summary["complete"]
     assert summary["axial_strain"] == pytest.approx(0.002, rel=0.02)
     assert summary["sigma11_mean_rel_error"] < 0.05
@@ -131,9 +161,26 @@ def test_cli_biaxial_and_export(tmp_path, packing, capsys):
     save_packing(pk, packing)
     out = tmp_path / "b.h5"
     # 2000 steps do not settle this packing: the run goes on only with --allow-unsettled, and says so
-    rc = main(["biaxial", "--packing", str(pk), "--strain", "0.001", "--strain-rate", "0.1", "-o", str(out),
-               "--consolidation-steps", "2000", "--snapshot-every", "1000", "--plot", str(tmp_path / "f.png"),
-               "--allow-unsettled"])
+    rc = main(
+        [
+            "biaxial",
+            "--packing",
+            str(pk),
+            "--strain",
+            "0.001",
+            "--strain-rate",
+            "0.1",
+            "-o",
+            str(out),
+            "--consolidation-steps",
+            "2000",
+            "--snapshot-every",
+            "1000",
+            "--plot",
+            str(tmp_path / "f.png"),
+            "--allow-unsettled",
+        ]
+    )
     assert rc == 0
     text = capsys.readouterr().out
     assert "inertial_number" in text and (tmp_path / "f.png").exists()

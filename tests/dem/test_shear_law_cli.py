@@ -23,10 +23,32 @@ def packing_file(tmp_path_factory):
 
 def test_hertz_law_runs_and_is_recorded(packing_file, tmp_path):
     out = tmp_path / "hertz.h5"
-    assert main(["shear", "--packing", str(packing_file), "--strain", "0.002", "--rate", "5",
-                 "--law", "hertz-granular-lammps", "--law-param", "youngs_modulus=5e8",
-                 "--law-param", "poisson_ratio=0.3", "--law-param", "damp=0.5", "--law-param", "friction=0.5",
-                 "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "shear",
+                "--packing",
+                str(packing_file),
+                "--strain",
+                "0.002",
+                "--rate",
+                "5",
+                "--law",
+                "hertz-granular-lammps",
+                "--law-param",
+                "youngs_modulus=5e8",
+                "--law-param",
+                "poisson_ratio=0.3",
+                "--law-param",
+                "damp=0.5",
+                "--law-param",
+                "friction=0.5",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     with h5py.File(out, "r") as f:
         settings = json.loads(f.attrs["settings"])
         sxy = f["series/stress"][()][:, 0, 1]
@@ -36,14 +58,29 @@ def test_hertz_law_runs_and_is_recorded(packing_file, tmp_path):
     assert abs(sxy[-1]) > 0.0
 
 
-@pytest.mark.parametrize("argv, match", [
-    (["--law", "hertz-liggghts"], "--law hertz-liggghts: a law in LIGGGHTS' arithmetic"),
-    (["--law-param", "kn=1"], "--law-param: given without --law"),
-    (["--law", "hertz-lammps", "--kn", "1e5"], "--kn: not used with the Hertz law"),
-    (["--law", "hooke-lammps", "--law-param", "kn"], "--law-param: expected KEY=VALUE"),
-])
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["--law", "hertz-liggghts"], "--law hertz-liggghts: a law in LIGGGHTS' arithmetic"),
+        (["--law-param", "kn=1"], "--law-param: given without --law"),
+        (["--law", "hertz-lammps", "--kn", "1e5"], "--kn: not used with the Hertz law"),
+        (["--law", "hooke-lammps", "--law-param", "kn"], "--law-param: expected KEY=VALUE"),
+    ],
+)
 def test_bad_law_options_are_refused(packing_file, tmp_path, capsys, argv, match):
-    code = main(["shear", "--packing", str(packing_file), "--strain", "0.002", "--rate", "5",
-                 "-o", str(tmp_path / "x.h5"), *argv])
+    code = main(
+        [
+            "shear",
+            "--packing",
+            str(packing_file),
+            "--strain",
+            "0.002",
+            "--rate",
+            "5",
+            "-o",
+            str(tmp_path / "x.h5"),
+            *argv,
+        ]
+    )
     assert code == 2
     assert match in capsys.readouterr().err

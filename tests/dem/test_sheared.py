@@ -99,9 +99,7 @@ def test_live_lammps_run_step_for_step(tmp_path):
     n = 600
     deck = write_shear_deck(tmp_path, p, s, ld, n, thermo_every=1, dump_every=200)
     log = run_lammps(deck)
-    pos, stress, dbox, _, _ = _compare(
-        "servo", read_thermo(log), read_dump(tmp_path / "dump.atoms"), n, 200
-    )
+    pos, stress, dbox, _, _ = _compare("servo", read_thermo(log), read_dump(tmp_path / "dump.atoms"), n, 200)
     assert pos < POS_TOL and stress < STRESS_TOL and dbox < POS_TOL
 
 
@@ -116,10 +114,7 @@ def test_deck_mirrors_engine_settings(tmp_path):
         "change_box all triclinic",
         f"set group all density/disc {p.density:.17g}",
         "fix integr all nve/sphere disc",
-        (
-            f"pair_style gran/hooke/history {s.kn:.17g} {s.kt:.17g} {s.gamma_n:.17g} "
-            f"{s.gamma_t:.17g} {s.mu:.17g} 1"
-        ),
+        (f"pair_style gran/hooke/history {s.kn:.17g} {s.kt:.17g} {s.gamma_n:.17g} {s.gamma_t:.17g} {s.mu:.17g} 1"),
         "fix def all deform 1 xy erate 2.5 y variable v_dy v_ry remap v",
     ):
         assert line in deck
@@ -164,8 +159,7 @@ def test_zero_tilt_reproduces_orthogonal_engine(flavour):
     np.testing.assert_array_equal(b["n_contacts"], a["n_contacts"])
 
 
-@pytest.mark.parametrize("name", ["hertz-lammps", "hooke-sds-lammps", "hertz-liggghts",
-                                  "hooke-epsd2-liggghts"])
+@pytest.mark.parametrize("name", ["hertz-lammps", "hooke-sds-lammps", "hertz-liggghts", "hooke-epsd2-liggghts"])
 def test_zero_tilt_reproduces_orthogonal_engine_with_any_law(name):
     # the sheared cell on a plug-in law (history widths 2-4, flips -1/+1, reset apart or kept):
     # the same rearranging assembly as above with the law of the biaxial short case in its code's
@@ -177,8 +171,9 @@ def test_zero_tilt_reproduces_orthogonal_engine_with_any_law(name):
     v0, w0 = _relaxing(p)
     law = short_case_law(name)
     code = law_code(name)
-    orth = DEMEngine(p, DEMSettings(**{**s.to_dict(), "flavour": code}), velocities=v0, spins=w0, law=law,
-                     check_dt=False)
+    orth = DEMEngine(
+        p, DEMSettings(**{**s.to_dict(), "flavour": code}), velocities=v0, spins=w0, law=law, check_dt=False
+    )
     shear = ShearEngine(p, s, velocities=v0, spins=w0, flavour=code, law=law, check_dt=False)
     assert shear.xi.shape[1] == orth.xi.shape[1]
     shear.start_run(ShearLoading(), 1000)

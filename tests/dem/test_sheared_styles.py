@@ -44,29 +44,39 @@ def test_box_origin_is_used_as_given(case):
     assert eng.box[0] == 0.25 and eng.box[1] == -0.0417  # the origin stays (y fixed)
 
 
-@pytest.mark.parametrize("which, match", [
-    ("long", "differs from the cell's side lengths"),
-    ("tilt", "differs from the cell's tilt"),
-    ("short", "expected \\(lo, hi\\) or \\(lo, hi, xy\\)"),
-    ("nan", "expected finite lo < hi"),
-])
+@pytest.mark.parametrize(
+    "which, match",
+    [
+        ("long", "differs from the cell's side lengths"),
+        ("tilt", "differs from the cell's tilt"),
+        ("short", "expected \\(lo, hi\\) or \\(lo, hi, xy\\)"),
+        ("nan", "expected finite lo < hi"),
+    ],
+)
 def test_bad_box_is_refused(case, which, match):
     p, s = case
     lo, hi = np.zeros(2), np.diag(p.cell).copy()
-    box = {"long": (lo, hi + [0.01, 0.0]), "tilt": (lo, hi, 1e-3), "short": (lo[:1], hi),
-           "nan": (lo, [hi[0], float("nan")])}[which]
+    box = {
+        "long": (lo, hi + [0.01, 0.0]),
+        "tilt": (lo, hi, 1e-3),
+        "short": (lo[:1], hi),
+        "nan": (lo, [hi[0], float("nan")]),
+    }[which]
     with pytest.raises(InputError, match=match):
         ShearEngine(p, s, box=box)
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    ({"xy": "wiggle", "value": 1.0}, "unknown xy style 'wiggle'"),
-    ({"xy": "final"}, "value: xy final needs its number \\(m\\)"),
-    ({"xy": "vel", "value": 0.1, "erate": 2.0}, "erate: only for xy erate"),
-    ({"erate": 2.0, "value": 3.0}, "xy erate given twice"),
-    ({"erate": 2.0, "every": 0}, "every: expected an integer >= 1"),
-    ({"xy": "delta", "value": "far"}, "value: expected a number"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"xy": "wiggle", "value": 1.0}, "unknown xy style 'wiggle'"),
+        ({"xy": "final"}, "value: xy final needs its number \\(m\\)"),
+        ({"xy": "vel", "value": 0.1, "erate": 2.0}, "erate: only for xy erate"),
+        ({"erate": 2.0, "value": 3.0}, "xy erate given twice"),
+        ({"erate": 2.0, "every": 0}, "every: expected an integer >= 1"),
+        ({"xy": "delta", "value": "far"}, "value: expected a number"),
+    ],
+)
 def test_loading_styles_reject_bad_values(kwargs, match):
     with pytest.raises(InputError, match=match):
         ShearLoading(**kwargs)

@@ -40,7 +40,7 @@ KINDS = ("error", "silent", "hang", "truncate-log", "cut-dumps", "warning", "slo
 #: kinds that run the real binary underneath
 REAL_KINDS = ("truncate-log", "cut-dumps", "warning", "slow")
 
-_SCRIPT = r'''#!{python}
+_SCRIPT = r"""#!{python}
 # fake liggghts, kind {kind!r} (tests/faults/fakes.py)
 import os, subprocess, sys, time
 from pathlib import Path
@@ -122,7 +122,7 @@ elif KIND == "warning":
     lines.insert(head + 1, "WARNING: fake warning inserted by the fake liggghts (tests/faults)")
     Path(log).write_text("\n".join(lines) + "\n")
 sys.exit(rc)
-'''
+"""
 
 
 def pid_alive(pid: int) -> bool:
@@ -135,7 +135,7 @@ def pid_alive(pid: int) -> bool:
         return True
     try:
         stat = Path(f"/proc/{pid}/stat").read_text()
-        return stat[stat.rfind(")") + 2:].split()[0] not in ("Z", "X")
+        return stat[stat.rfind(")") + 2 :].split()[0] not in ("Z", "X")
     except OSError:
         return False
 
@@ -249,8 +249,10 @@ def small_deck(tail: str = "run 10\n", dump_every: int | None = 5, local_every: 
         deck += f"dump d1 all custom {int(dump_every)} dump.atoms id x y\n"
         outputs.append("dump.atoms")
     if local_every:
-        deck += ("compute pl all pair/gran/local id pos force delta\n"
-                 f"dump d2 all local {int(local_every)} dump.contacts c_pl[1] c_pl[2]\n")
+        deck += (
+            "compute pl all pair/gran/local id pos force delta\n"
+            f"dump d2 all local {int(local_every)} dump.contacts c_pl[1] c_pl[2]\n"
+        )
         outputs.append("dump.contacts")
     return deck + tail, {"p.data": data}, outputs
 

@@ -62,9 +62,13 @@ def no_compute(monkeypatch):
     def boom(*a, **k):
         raise AssertionError("the computation started before the inputs were checked")
 
-    for mod, name in ((gransim.generation, "make_packing"), (gransim.generation, "compact_packing"),
-                      (gransim.generation, "standard_packings"), (gransim.rve.study, "run_study"),
-                      (gransim.fem.run, "run_slope_case")):
+    for mod, name in (
+        (gransim.generation, "make_packing"),
+        (gransim.generation, "compact_packing"),
+        (gransim.generation, "standard_packings"),
+        (gransim.rve.study, "run_study"),
+        (gransim.fem.run, "run_slope_case"),
+    ):
         monkeypatch.setattr(mod, name, boom)
 
 
@@ -79,8 +83,12 @@ def packing_file(tmp_path):
 @pytest.mark.parametrize("extra", [["--help"], ["rve-stress", "FILE"]])
 def test_closed_output_pipe_ends_quietly(extra, packing_file):
     argv = [str(packing_file) if a == "FILE" else a for a in extra]
-    proc = subprocess.Popen([sys.executable, "-m", "gransim", *argv], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gransim", *argv],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
     proc.stdout.close()  # the reader is gone before the command writes (like `| head -0`)
     with proc.stderr:
         err = proc.stderr.read().decode()
@@ -93,8 +101,14 @@ def test_shell_pipe_into_head(packing_file):
     gransim = ROOT / ".venv" / "bin" / "gransim"
     if not gransim.exists():
         pytest.skip("no .venv/bin/gransim")
-    r = subprocess.run(f"{gransim} rve-stress {packing_file} | head -1", shell=True, check=False,
-                       capture_output=True, text=True, timeout=120)
+    r = subprocess.run(
+        f"{gransim} rve-stress {packing_file} | head -1",
+        shell=True,
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert r.stdout.startswith("packing: N = 16") and "Traceback" not in r.stderr
 
 
@@ -111,8 +125,9 @@ def test_unexpected_exception_is_one_line(monkeypatch, capsys):
     monkeypatch.delenv("GRANSIM_TRACEBACK", raising=False)
     _failing_handler(monkeypatch, ZeroDivisionError("boom"))
     assert main(["packings"]) == 1
-    one_line_error(capsys, "gransim packings: internal error: ZeroDivisionError: boom",
-                   "GRANSIM_TRACEBACK=1", "please report it")
+    one_line_error(
+        capsys, "gransim packings: internal error: ZeroDivisionError: boom", "GRANSIM_TRACEBACK=1", "please report it"
+    )
 
 
 def test_traceback_on_request(monkeypatch, capsys):
@@ -145,8 +160,10 @@ def test_output_paths_checked_first(tmp_path, capsys, no_compute):
     cases = [
         (["pack", "--n", "50", "-o", str(d)], ["-o/--output", "is a directory"]),
         (["pack", "--n", "50", "-o", str(f / "x.h5")], ["-o/--output", "is not a directory"]),
-        (["pack", "--n", "50", "-o", str(tmp_path / "p.h5"), "--vtu", str(tmp_path / "p.txt")],
-         ["--vtu", "expected one of .vtu"]),
+        (
+            ["pack", "--n", "50", "-o", str(tmp_path / "p.h5"), "--vtu", str(tmp_path / "p.txt")],
+            ["--vtu", "expected one of .vtu"],
+        ),
         (["pack", "--n", "50", "-o", ""], ["-o/--output", "empty"]),
         (["packings", "--out", str(f)], ["--out", "is not a directory"]),
         (["rve-study", "--packing-dir", str(d), "-o", str(f)], ["-o/--out", "is not a directory"]),
@@ -154,8 +171,7 @@ def test_output_paths_checked_first(tmp_path, capsys, no_compute):
         (["rve-check", "--packing-dir", str(f)], ["--packing-dir", "is not a directory"]),
         (["slope", "--out", str(f)], ["--out", "is not a directory"]),
         (["slope", "--out", str(d), "--packing-dir", str(f)], ["--packing-dir"]),
-        (["slope", "--out", str(d), "--packing", str(tmp_path / "missing.h5")],
-         ["--packing", "no such file"]),
+        (["slope", "--out", str(d), "--packing", str(tmp_path / "missing.h5")], ["--packing", "no such file"]),
         (["rve-stress", str(tmp_path / "missing.h5")], ["no such file"]),
         (["rve-stress", str(d)], ["is a directory"]),
     ]
@@ -212,19 +228,22 @@ def _write_packing(path, **override):
     return path
 
 
-@pytest.mark.parametrize("override, fragments", [
-    ({"metadata": "{not json"}, ["packing", "attribute 'metadata' is not valid JSON"]),
-    ({"metadata": "[1, 2]"}, ["attribute 'metadata' must hold a JSON object"]),
-    ({"density": "heavy"}, ["attribute 'density' is not a number"]),
-    ({"positions": np.zeros((16, 3))}, [":/packing", "positions: expected shape (N, 2), got (16, 3)"]),
-    ({"positions": np.zeros(16)}, ["/packing/positions: expected 2 dimension(s)"]),
-    ({"radii": -np.ones(16)}, ["not a valid packing", "radii: must be > 0"]),
-    ({"radii": np.ones(5)}, ["not a valid packing", "radii: expected shape (16), got (5,)"]),
-    ({"cell": np.array([[1.0, 2.0], [2.0, 4.0]])}, ["cell: degenerate"]),
-    ({"positions": np.full((16, 2), np.nan)}, ["positions: contains NaN"]),
-    ({"positions": "group"}, ["/packing/positions: expected a dataset, found a Group"]),
-    ({"radii": np.array([b"a"] * 16)}, ["/packing/radii: expected numbers"]),
-])
+@pytest.mark.parametrize(
+    "override, fragments",
+    [
+        ({"metadata": "{not json"}, ["packing", "attribute 'metadata' is not valid JSON"]),
+        ({"metadata": "[1, 2]"}, ["attribute 'metadata' must hold a JSON object"]),
+        ({"density": "heavy"}, ["attribute 'density' is not a number"]),
+        ({"positions": np.zeros((16, 3))}, [":/packing", "positions: expected shape (N, 2), got (16, 3)"]),
+        ({"positions": np.zeros(16)}, ["/packing/positions: expected 2 dimension(s)"]),
+        ({"radii": -np.ones(16)}, ["not a valid packing", "radii: must be > 0"]),
+        ({"radii": np.ones(5)}, ["not a valid packing", "radii: expected shape (16), got (5,)"]),
+        ({"cell": np.array([[1.0, 2.0], [2.0, 4.0]])}, ["cell: degenerate"]),
+        ({"positions": np.full((16, 2), np.nan)}, ["positions: contains NaN"]),
+        ({"positions": "group"}, ["/packing/positions: expected a dataset, found a Group"]),
+        ({"radii": np.array([b"a"] * 16)}, ["/packing/radii: expected numbers"]),
+    ],
+)
 def test_malformed_packing_file(tmp_path, capsys, override, fragments):
     path = _write_packing(tmp_path / "bad.h5", **override)
     with pytest.raises(ResultFileError) as exc:
@@ -246,8 +265,11 @@ def test_foreign_and_non_hdf5_files(tmp_path, capsys):
     nogroup = tmp_path / "nogroup.h5"
     with atomic_h5(nogroup, kind="packing") as f:
         f["packing"] = 1.0  # a dataset where the group should be
-    for path, frag in ((foreign, "not a gransim results file"), (text, "not a readable HDF5 file"),
-                       (nogroup, "no group 'packing'")):
+    for path, frag in (
+        (foreign, "not a gransim results file"),
+        (text, "not a readable HDF5 file"),
+        (nogroup, "no group 'packing'"),
+    ):
         with pytest.raises(ResultFileError, match=frag):
             load_packing(path)
         assert main(["rve-stress", str(path)]) == 2
@@ -344,8 +366,15 @@ def test_measured_bytes_per_disk_cover_a_real_packing():
         "make_packing('quartz-sand', 10000, 1, residual='rms', force_tol=1e-2)\n"
         "print((own_peak_kib() - base) * 1024 / 10000)\n"
     )
-    r = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=300,
-                       env={**os.environ, "PYTHONPATH": str(ROOT)}, cwd=ROOT)
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+        cwd=ROOT,
+    )
     assert r.returncode == 0, r.stderr
     per_disk = float(r.stdout.split()[-1])
     assert 100 < per_disk < PACKING_BYTES_PER_DISK, per_disk
@@ -369,14 +398,17 @@ def test_coincident_disks(tmp_path, capsys):
     assert out == ""  # no P = nan printed
 
 
-@pytest.mark.parametrize("F, fragments", [
-    (["1e-9", "0", "0", "1"], ["--F", "collapses the RVE", "shortest lattice vector"]),
-    (["0.2", "0", "0", "1"], ["--F", "collapses the RVE"]),  # cell 0.8 mm < disk 1.03 mm
-    (["1", "0", "0", "-1"], ["--F", "det F must be > 0 and finite", "-1"]),
-    (["1", "1", "1", "1"], ["--F", "det F must be > 0 and finite"]),
-    (["nan", "0", "0", "1"], ["--F: expected finite entries"]),
-    (["1e200", "0", "0", "1e200"], ["--F"]),
-])
+@pytest.mark.parametrize(
+    "F, fragments",
+    [
+        (["1e-9", "0", "0", "1"], ["--F", "collapses the RVE", "shortest lattice vector"]),
+        (["0.2", "0", "0", "1"], ["--F", "collapses the RVE"]),  # cell 0.8 mm < disk 1.03 mm
+        (["1", "0", "0", "-1"], ["--F", "det F must be > 0 and finite", "-1"]),
+        (["1", "1", "1", "1"], ["--F", "det F must be > 0 and finite"]),
+        (["nan", "0", "0", "1"], ["--F: expected finite entries"]),
+        (["1e200", "0", "0", "1e200"], ["--F"]),
+    ],
+)
 def test_bad_deformation_gradient(packing_file, capsys, F, fragments):
     assert main(["rve-stress", str(packing_file), "--F", *F]) == 2
     one_line_error(capsys, *fragments)
@@ -416,8 +448,13 @@ def test_non_finite_result_is_an_error(packing_file, capsys, monkeypatch):
     from gransim.rve import TaylorResult
 
     nan = np.full((2, 2), np.nan)
-    monkeypatch.setattr(gransim.rve, "homogenize", lambda *a: TaylorResult(
-        energy=np.nan, piola=nan, tangent=np.full((2, 2, 2, 2), np.nan), cauchy=nan, n_contacts=3))
+    monkeypatch.setattr(
+        gransim.rve,
+        "homogenize",
+        lambda *a: TaylorResult(
+            energy=np.nan, piola=nan, tangent=np.full((2, 2, 2, 2), np.nan), cauchy=nan, n_contacts=3
+        ),
+    )
     assert main(["rve-stress", str(packing_file)]) == 2
     one_line_error(capsys, "non-finite result")
     assert capsys.readouterr().out == ""
@@ -432,32 +469,36 @@ def test_good_rve_stress_still_works(packing_file, capsys):
 # ----------------------------------------------------------------------------------------------
 # 7. numeric options
 # ----------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("argv, fragment", [
-    (["pack", "--n", "-5"], "--n: expected an integer >= 2, got -5"),
-    (["pack", "--n", "50", "--seed", "-1"], "--seed: expected an integer >= 0"),
-    (["pack", "--n", "50", "--seed", "1e30"], "--seed"),
-    (["pack", "--n", "50", "--density", "nan"], "--density: expected a finite number > 0"),
-    (["pack", "--n", "50", "--density", "0"], "--density"),
-    (["pack", "--n", "50", "--mean-diameter", "inf"], "--mean-diameter"),
-    (["pack", "--n", "50", "--mean-overlap", "0.2"],
-     "--mean-overlap: expected a finite number > 0 and <= 0.05"),
-    (["pack", "--n", "50", "--solid-fraction", "nan"], "--solid-fraction"),
-    (["pack", "--n", "50", "--force-tol", "0"], "--force-tol"),
-    (["pack", "--n", "50", "--friction", "nan"], "--friction"),
-    (["pack", "--n", "50", "--friction", "0.1", "--pressure", "2"],
-     "--pressure: expected a finite number > 0 and < 1"),
-    (["rve-study", "--steps", "0"], "--steps: expected an integer >= 1 and <= 100000"),
-    (["rve-study", "--steps", "1e9"], "--steps"),
-    (["rve-study", "--kn", "-1"], "--kn: expected a finite number > 0"),
-    (["rve-study", "--kn", "inf"], "--kn"),
-    (["rve-check", "--tol", "nan"], "--tol: expected a finite number >= 0"),
-    (["rve-check", "--kn", "0"], "--kn"),
-    (["rve-stress", "FILE", "--kn", "nan"], "--kn"),
-    (["slope", "--tol", "nan"], "--tol: expected a finite number > 0 and < 1"),
-    (["slope", "--tol", "0"], "--tol"),
-    (["slope", "--min-fraction", "0"], "--min-fraction"),
-    (["slope", "--min-fraction", "2"], "--min-fraction: expected a finite number > 0 and <= 1"),
-])
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["pack", "--n", "-5"], "--n: expected an integer >= 2, got -5"),
+        (["pack", "--n", "50", "--seed", "-1"], "--seed: expected an integer >= 0"),
+        (["pack", "--n", "50", "--seed", "1e30"], "--seed"),
+        (["pack", "--n", "50", "--density", "nan"], "--density: expected a finite number > 0"),
+        (["pack", "--n", "50", "--density", "0"], "--density"),
+        (["pack", "--n", "50", "--mean-diameter", "inf"], "--mean-diameter"),
+        (["pack", "--n", "50", "--mean-overlap", "0.2"], "--mean-overlap: expected a finite number > 0 and <= 0.05"),
+        (["pack", "--n", "50", "--solid-fraction", "nan"], "--solid-fraction"),
+        (["pack", "--n", "50", "--force-tol", "0"], "--force-tol"),
+        (["pack", "--n", "50", "--friction", "nan"], "--friction"),
+        (
+            ["pack", "--n", "50", "--friction", "0.1", "--pressure", "2"],
+            "--pressure: expected a finite number > 0 and < 1",
+        ),
+        (["rve-study", "--steps", "0"], "--steps: expected an integer >= 1 and <= 100000"),
+        (["rve-study", "--steps", "1e9"], "--steps"),
+        (["rve-study", "--kn", "-1"], "--kn: expected a finite number > 0"),
+        (["rve-study", "--kn", "inf"], "--kn"),
+        (["rve-check", "--tol", "nan"], "--tol: expected a finite number >= 0"),
+        (["rve-check", "--kn", "0"], "--kn"),
+        (["rve-stress", "FILE", "--kn", "nan"], "--kn"),
+        (["slope", "--tol", "nan"], "--tol: expected a finite number > 0 and < 1"),
+        (["slope", "--tol", "0"], "--tol"),
+        (["slope", "--min-fraction", "0"], "--min-fraction"),
+        (["slope", "--min-fraction", "2"], "--min-fraction: expected a finite number > 0 and <= 1"),
+    ],
+)
 def test_bad_numeric_option(argv, fragment, tmp_path, capsys, monkeypatch, no_compute, packing_file):
     monkeypatch.chdir(tmp_path)
     argv = [str(packing_file) if a == "FILE" else a for a in argv]

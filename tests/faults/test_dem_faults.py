@@ -14,7 +14,7 @@ import pytest
 from gransim import Packing
 from gransim.cli import main
 from gransim.dem import DEMEngine, DEMSettings, Loading, contact_time, stability_limit
-from gransim.dem.biaxial import default_settings, run_biaxial
+from gransim.dem.biaxial import default_settings
 from gransim.dem.lattice import lattice_packing
 from gransim.dem.output import (
     OutputSettings,
@@ -48,10 +48,17 @@ def _biaxial(packing, out, stop_at_step=None, allow_unsettled=True, consolidatio
     bi = dataclasses.replace(bi, consolidation_steps=consolidation_steps, check_every=500)
     from gransim.dem.biaxial import biaxial_phases
 
-    run_phases(packing, dem, biaxial_phases(dem, bi), out,
-               OutputSettings(series_every=5, snapshot_every=100, checkpoint_every=0), show_progress=False,
-               metadata={"biaxial": dataclasses.asdict(bi)}, stop_at_step=stop_at_step,
-               allow_unsettled=allow_unsettled)
+    run_phases(
+        packing,
+        dem,
+        biaxial_phases(dem, bi),
+        out,
+        OutputSettings(series_every=5, snapshot_every=100, checkpoint_every=0),
+        show_progress=False,
+        metadata={"biaxial": dataclasses.asdict(bi)},
+        stop_at_step=stop_at_step,
+        allow_unsettled=allow_unsettled,
+    )
     return out
 
 
@@ -131,8 +138,9 @@ def test_engine_refuses_the_undamped_step_when_damped(packing):
 
 def test_cli_refuses_a_step_above_the_damped_limit(packing_file, tmp_path, capsys):
     out = tmp_path / "b.h5"
-    rc = main(["biaxial", "--packing", str(packing_file), "-o", str(out), "--steps-per-contact", "5",
-               "--damping-ratio", "1"])
+    rc = main(
+        ["biaxial", "--packing", str(packing_file), "-o", str(out), "--steps-per-contact", "5", "--damping-ratio", "1"]
+    )
     err = capsys.readouterr().err
     assert rc == 2 and "--steps-per-contact 5 with --damping-ratio 1" in err and "use --steps-per-contact >=" in err
     assert not out.exists()
@@ -162,9 +170,17 @@ def test_resume_an_unsettled_run_with_allow_unsettled(packing, tmp_path, good_ru
     bi = dataclasses.replace(bi, consolidation_steps=2000, check_every=500)
     from gransim.dem.biaxial import biaxial_phases
 
-    run_phases(packing, dem, biaxial_phases(dem, bi), out,
-               OutputSettings(series_every=5, snapshot_every=100, checkpoint_every=0), show_progress=False,
-               metadata={"biaxial": dataclasses.asdict(bi)}, resume=True, allow_unsettled=True)
+    run_phases(
+        packing,
+        dem,
+        biaxial_phases(dem, bi),
+        out,
+        OutputSettings(series_every=5, snapshot_every=100, checkpoint_every=0),
+        show_progress=False,
+        metadata={"biaxial": dataclasses.asdict(bi)},
+        resume=True,
+        allow_unsettled=True,
+    )
     a, b = read_run(out), read_run(good_run)
     assert a.complete and [u["name"] for u in a.unsettled_phases] == ["consolidation"]
     np.testing.assert_array_equal(a.series["stress"], b.series["stress"])  # bit for bit
@@ -172,8 +188,21 @@ def test_resume_an_unsettled_run_with_allow_unsettled(packing, tmp_path, good_ru
 
 def test_cli_unsettled_exit_2_and_info(packing_file, tmp_path, capsys):
     out = tmp_path / "b.h5"
-    args = ["biaxial", "--packing", str(packing_file), "-o", str(out), "--strain", "0.001", "--strain-rate", "0.1",
-            "--consolidation-steps", "1000", "--snapshot-every", "500"]
+    args = [
+        "biaxial",
+        "--packing",
+        str(packing_file),
+        "-o",
+        str(out),
+        "--strain",
+        "0.001",
+        "--strain-rate",
+        "0.1",
+        "--consolidation-steps",
+        "1000",
+        "--snapshot-every",
+        "500",
+    ]
     assert main(args) == 2
     err = capsys.readouterr().err
     assert "consolidation did not settle within 1000 steps: sigma_11/p = " in err and "--allow-unsettled" in err
@@ -239,8 +268,10 @@ def test_library_readers_of_an_unfinished_run(killed_run, tmp_path):
 
 
 def test_cli_readers_of_an_unfinished_run(killed_run, tmp_path, capsys):
-    for argv in (["dem-export", str(killed_run), "--vtu", str(tmp_path / "s.vtu")],
-                 ["voidcells", str(killed_run), "--strain", "0.0001", "--out", str(tmp_path / "vc")]):
+    for argv in (
+        ["dem-export", str(killed_run), "--vtu", str(tmp_path / "s.vtu")],
+        ["voidcells", str(killed_run), "--strain", "0.0001", "--out", str(tmp_path / "vc")],
+    ):
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert str(killed_run) in err and "stopped at step 2400" in err and "--allow-incomplete" in err
@@ -248,16 +279,28 @@ def test_cli_readers_of_an_unfinished_run(killed_run, tmp_path, capsys):
     assert not (tmp_path / "s.vtu").exists() and not (tmp_path / "vc").exists()
     assert main(["dem-export", str(killed_run), "--vtu", str(tmp_path / "s.vtu"), "--allow-incomplete"]) == 0
     assert "WARNING" in capsys.readouterr().out and (tmp_path / "s.vtu").exists()
-    assert main(["voidcells", str(killed_run), "--strain", "0.0001", "--out", str(tmp_path / "vc"),
-                 "--no-vtk", "--allow-incomplete"]) == 0
+    assert (
+        main(
+            [
+                "voidcells",
+                str(killed_run),
+                "--strain",
+                "0.0001",
+                "--out",
+                str(tmp_path / "vc"),
+                "--no-vtk",
+                "--allow-incomplete",
+            ]
+        )
+        == 0
+    )
     assert "incomplete run" in capsys.readouterr().out
     assert main(["info", str(killed_run)]) == 0
     assert "False  INCOMPLETE RUN: stopped at step 2400" in capsys.readouterr().out
 
 
 def test_readers_accept_the_finished_run(good_run, tmp_path, capsys):
-    assert main(["dem-export", str(good_run), "--vtu", str(tmp_path / "s.vtu"), "--plot",
-                 str(tmp_path / "f.png")]) == 0
+    assert main(["dem-export", str(good_run), "--vtu", str(tmp_path / "s.vtu"), "--plot", str(tmp_path / "f.png")]) == 0
     assert main(["voidcells", str(good_run), "--strain", "0.0005", "--out", str(tmp_path / "vc"), "--no-vtk"]) == 0
     capsys.readouterr()
     assert main(["info", str(good_run)]) == 0
@@ -288,9 +331,14 @@ def _bad_settings(f):
     f.attrs["settings"] = '{"dem": {"kn": 1e5'
 
 
-@pytest.mark.parametrize("edit, what", [(_cut_series, r"/series/stress has \d+ rows, /series/step has"),
-                                        (_cut_snapshot, r"/positions has shape \(61, 2\), expected \(64, 2\)"),
-                                        (_bad_settings, r"attribute 'settings' of / is not valid JSON")])
+@pytest.mark.parametrize(
+    "edit, what",
+    [
+        (_cut_series, r"/series/stress has \d+ rows, /series/step has"),
+        (_cut_snapshot, r"/positions has shape \(61, 2\), expected \(64, 2\)"),
+        (_bad_settings, r"attribute 'settings' of / is not valid JSON"),
+    ],
+)
 def test_truncated_or_corrupt_run_files(good_run, tmp_path, capsys, edit, what):
     bad = _copy(good_run, tmp_path / "bad.h5", edit)
     for reader in (read_run, read_record):
@@ -313,13 +361,33 @@ def test_voidcells_series_truncated(good_run, tmp_path, capsys):
 
 
 # ---------------------------------------------------------------- 5. messages for bad options
-@pytest.mark.parametrize("option, value", [
-    ("--kn", "0"), ("--kn", "-1e5"), ("--strain", "0"), ("--strain", "-0.01"), ("--strain", "0.7"),
-    ("--confining", "0"), ("--confining", "-5"), ("--strain-rate", "0"), ("--strain-rate", "-1"),
-    ("--steps-per-contact", "0"), ("--steps-per-contact", "-50"), ("--damping-ratio", "-0.3"),
-    ("--consolidation-steps", "0"), ("--consolidation-steps", "-10"), ("--series-every", "0"),
-    ("--series-every", "-1"), ("--snapshot-every", "0"), ("--snapshot-every", "-5"),
-    ("--checkpoint-every", "-1"), ("--threads", "0"), ("--threads", "-2"), ("--kn", "nan")])
+@pytest.mark.parametrize(
+    "option, value",
+    [
+        ("--kn", "0"),
+        ("--kn", "-1e5"),
+        ("--strain", "0"),
+        ("--strain", "-0.01"),
+        ("--strain", "0.7"),
+        ("--confining", "0"),
+        ("--confining", "-5"),
+        ("--strain-rate", "0"),
+        ("--strain-rate", "-1"),
+        ("--steps-per-contact", "0"),
+        ("--steps-per-contact", "-50"),
+        ("--damping-ratio", "-0.3"),
+        ("--consolidation-steps", "0"),
+        ("--consolidation-steps", "-10"),
+        ("--series-every", "0"),
+        ("--series-every", "-1"),
+        ("--snapshot-every", "0"),
+        ("--snapshot-every", "-5"),
+        ("--checkpoint-every", "-1"),
+        ("--threads", "0"),
+        ("--threads", "-2"),
+        ("--kn", "nan"),
+    ],
+)
 def test_cli_biaxial_bad_numbers_name_the_option(packing_file, tmp_path, capsys, option, value):
     out = tmp_path / "b.h5"
     assert main(["biaxial", "--packing", str(packing_file), "-o", str(out), f"{option}={value}"]) == 2
@@ -328,11 +396,14 @@ def test_cli_biaxial_bad_numbers_name_the_option(packing_file, tmp_path, capsys,
     assert not out.exists()
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["-o", "{tmp}"], "-o/--output: .* is a directory"),
-    (["--plot", "{tmp}/x.txt"], "--plot: .*x.txt' has suffix '.txt'"),
-    (["-o", "{tmp}/nodir/sub/x.h5", "--plot", "{tmp}"], "--plot: .* is a directory"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["-o", "{tmp}"], "-o/--output: .* is a directory"),
+        (["--plot", "{tmp}/x.txt"], "--plot: .*x.txt' has suffix '.txt'"),
+        (["-o", "{tmp}/nodir/sub/x.h5", "--plot", "{tmp}"], "--plot: .* is a directory"),
+    ],
+)
 def test_cli_biaxial_bad_outputs_before_computing(packing_file, tmp_path, capsys, argv, message):
     argv = [a.format(tmp=tmp_path) for a in argv]
     assert main(["biaxial", "--packing", str(packing_file), *argv]) == 2
@@ -358,10 +429,15 @@ def test_dem_export_bad_outputs(good_run, tmp_path, capsys):
     assert "expected one of .vtu" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("strain, message", [("nan", "--strain: nan is not a finite number"),
-                                             ("inf", "--strain: inf is not a finite number"),
-                                             ("0.05", r"strain 0.05 is outside the range of the run: .* cover "),
-                                             ("-0.01", r"strain -0.01 is outside the range")])
+@pytest.mark.parametrize(
+    "strain, message",
+    [
+        ("nan", "--strain: nan is not a finite number"),
+        ("inf", "--strain: inf is not a finite number"),
+        ("0.05", r"strain 0.05 is outside the range of the run: .* cover "),
+        ("-0.01", r"strain -0.01 is outside the range"),
+    ],
+)
 def test_voidcells_rejects_strains_outside_the_run(good_run, tmp_path, capsys, strain, message):
     import re
 
@@ -374,15 +450,30 @@ def test_resume_with_another_sampling_is_refused(packing, tmp_path, packing_file
     s = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, dt=2e-6, skin=2e-5)
     ph = [Phase("load", Loading(), 400)]
     out = tmp_path / "r.h5"
-    run_phases(packing, s, ph, out, OutputSettings(series_every=2, snapshot_every=100), stop_at_step=200,
-               show_progress=False)
+    run_phases(
+        packing, s, ph, out, OutputSettings(series_every=2, snapshot_every=100), stop_at_step=200, show_progress=False
+    )
     with pytest.raises(InputError, match=r"series_every \(--series-every\) = 5 differs from series_every = 2"):
-        run_phases(packing, s, ph, out, OutputSettings(series_every=5, snapshot_every=100), resume=True,
-                   show_progress=False)
+        run_phases(
+            packing, s, ph, out, OutputSettings(series_every=5, snapshot_every=100), resume=True, show_progress=False
+        )
     # through the CLI: a biaxial run cut by a failure, resumed with another --series-every
     b = tmp_path / "b.h5"
-    args = ["biaxial", "--packing", str(packing_file), "-o", str(b), "--strain", "0.001", "--strain-rate", "0.1",
-            "--consolidation-steps", "1000", "--snapshot-every", "500"]
+    args = [
+        "biaxial",
+        "--packing",
+        str(packing_file),
+        "-o",
+        str(b),
+        "--strain",
+        "0.001",
+        "--strain-rate",
+        "0.1",
+        "--consolidation-steps",
+        "1000",
+        "--snapshot-every",
+        "500",
+    ]
     assert main(args) == 2  # unsettled: a checkpoint at step 1000
     capsys.readouterr()
     assert main(args + ["--resume", "--allow-unsettled", "--series-every", "5"]) == 2

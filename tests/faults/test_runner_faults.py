@@ -14,8 +14,8 @@ import time
 from pathlib import Path
 
 import pytest
-
 from fakes import pid_alive, write_fake
+
 from gransim.io.provenance import liggghts_package_version, liggghts_version
 from reference_runs.errors import DirectoryBusyError, ReferenceRunError
 from reference_runs.expect import dump_frame_steps, expected_evidence
@@ -62,29 +62,30 @@ def test_deck_reader_refuses_to_guess():
 
 
 def test_stored_references_verify_and_truncations_are_named(tmp_path):
-    assert verify_job(STORED / "biaxial-short") == []          # no manifest: deck in.biaxial, log.liggghts
-    assert verify_job(STORED / "taylor-lattice-6x6") == []      # 36 runs, 36 contact dumps
+    assert verify_job(STORED / "biaxial-short") == []  # no manifest: deck in.biaxial, log.liggghts
+    assert verify_job(STORED / "taylor-lattice-6x6") == []  # 36 runs, 36 contact dumps
     assert verify_job(STORED / "taylor-rve-70-1") == []
     job = tmp_path / "short"
     shutil.copytree(STORED / "biaxial-short", job)
     steps, cut = dump_frame_steps(job / "dump.atoms")
     assert steps == (0, 500, 1000, 1500, 2000, 2500, 3000) and cut is None
     text = (job / "dump.atoms").read_text()
-    (job / "dump.atoms").write_text(text[:text.index("ITEM: TIMESTEP", 1)])
+    (job / "dump.atoms").write_text(text[: text.index("ITEM: TIMESTEP", 1)])
     assert verify_job(job) == ["dump.atoms: expected 7 frames, got 1"]
     lines = (job / "log.liggghts").read_text().splitlines()
     head = next(k for k, ln in enumerate(lines) if ln.split()[:1] == ["Step"])
-    (job / "log.liggghts").write_text("\n".join(lines[:head + 13]) + "\n")  # 12 of 3000 steps
+    (job / "log.liggghts").write_text("\n".join(lines[: head + 13]) + "\n")  # 12 of 3000 steps
     problems = verify_job(job)
     assert problems[0].startswith("incomplete: log.liggghts holds 0 of 1 runs")
     assert "stops at step 11" in problems[0]
     taylor = tmp_path / "taylor"
     shutil.copytree(STORED / "taylor-lattice-6x6", taylor)
     text = (taylor / "log.lammps").read_text()
-    (taylor / "log.lammps").write_text(text[:text.rindex("Loop time of")])
+    (taylor / "log.lammps").write_text(text[: text.rindex("Loop time of")])
     assert any("holds 35 of 36 runs" in p for p in verify_job(taylor))
-    assert any("log.lammps cannot be checked" in p for p in verify_job(STORED / "taylor-lattice-6x6",
-                                                                      require_hashes=True))
+    assert any(
+        "log.lammps cannot be checked" in p for p in verify_job(STORED / "taylor-lattice-6x6", require_hashes=True)
+    )
 
 
 @pytest.mark.liggghts
@@ -111,11 +112,24 @@ def test_our_biaxial_and_taylor_decks_give_the_expected_frames(tmp_path):
     deck = write_biaxial_deck(tmp_path / "bi", p, s, ld, 120, thermo_every=1, dump_every=50)
     run_liggghts(deck, timeout=120)
     m = read_manifest(tmp_path / "bi")
-    assert m["evidence"]["dumps"]["dump.atoms"] == {"style": "custom", "every": 50, "frames_expected": 3,
-                                                    "frames_got": 3}
+    assert m["evidence"]["dumps"]["dump.atoms"] == {
+        "style": "custom",
+        "every": 50,
+        "frames_expected": 3,
+        "frames_got": 3,
+    }
     assert dump_frame_steps(tmp_path / "bi" / "dump.atoms")[0] == (0, 50, 100)
-    run = run_taylor(perturbed_lattice(4, 4, seed=2), 2.8e7, tmp_path / "ta", paths=("compression-11",),
-                     routes=("periodic",), n_steps=2, contacts=True, progress=False, timeout=120)
+    run = run_taylor(
+        perturbed_lattice(4, 4, seed=2),
+        2.8e7,
+        tmp_path / "ta",
+        paths=("compression-11",),
+        routes=("periodic",),
+        n_steps=2,
+        contacts=True,
+        progress=False,
+        timeout=120,
+    )
     ev = run.manifest["evidence"]
     assert ev["runs_expected"] == ev["runs_complete"] == 3 and ev["last_steps_got"] == [0, 1, 2]
     assert sorted(v["frames_got"] for v in ev["dumps"].values()) == [1, 1, 1]
@@ -161,7 +175,7 @@ def test_fake_hang_times_out_and_leaves_no_process(tmp_path, fake_liggghts, smal
     assert time.monotonic() - t0 < 8
     assert exc.value.timed_out and exc.value.job_dir == tmp_path / "job"
     assert_not_ok(tmp_path / "job")
-    assert len(fake.pids("grandchild")) == 1          # the grandchild ignores SIGTERM: needs SIGKILL
+    assert len(fake.pids("grandchild")) == 1  # the grandchild ignores SIGTERM: needs SIGKILL
     assert [p for p in fake.pids() if pid_alive(p)] == []
 
 
@@ -199,8 +213,7 @@ def test_fake_warning(tmp_path, fake_liggghts, small_liggghts_job):
     with pytest.raises(ReferenceRunError, match="1 unexpected WARNING line.*fake warning inserted"):
         run_job(tmp_path / "job", deck, files, outputs=outputs, progress=False)
     assert_not_ok(tmp_path / "job")
-    ok = run_job(tmp_path / "job", deck, files, outputs=outputs, progress=False,
-                 allowed_warnings=["fake warning"])
+    ok = run_job(tmp_path / "job", deck, files, outputs=outputs, progress=False, allowed_warnings=["fake warning"])
     assert ok.manifest["status"] == "ok" and len(ok.warnings) == 1
     assert fake.wait_gone(2) == []
 
@@ -211,21 +224,22 @@ def test_reuse_verifies_hashes_and_evidence(tmp_path, small_liggghts_job, capsys
     job = tmp_path / "job"
     deck, files, outputs = small_liggghts_job("run 10\nrun 0\nrun 20\n", dump_every=5)
     first = run_job(job, deck, files, outputs=outputs, progress=False)
-    assert run_job(job, deck, files, outputs=outputs, progress=False).skipped   # honest job: reused
+    assert run_job(job, deck, files, outputs=outputs, progress=False).skipped  # honest job: reused
     # an edited log (same length, one digit changed) is not reused: rerun with a WARNING
     text = (job / "log.lammps").read_text()
     k = text.index("Loop time of ") + len("Loop time of ")
-    (job / "log.lammps").write_text(text[:k] + ("1" if text[k] != "1" else "2") + text[k + 1:])
+    (job / "log.lammps").write_text(text[:k] + ("1" if text[k] != "1" else "2") + text[k + 1 :])
     capsys.readouterr()
     again = run_job(job, deck, files, outputs=outputs, progress=False)
     err = capsys.readouterr().err
     assert not again.skipped and "WARNING" in err and "log.lammps changed since the job ran" in err
-    assert again.manifest["rerun_reason"] == ["log.lammps changed since the job ran (SHA-256 differs from "
-                                              "the manifest)"]
+    assert again.manifest["rerun_reason"] == [
+        "log.lammps changed since the job ran (SHA-256 differs from the manifest)"
+    ]
     assert again.manifest["input_sha256"] == first.manifest["input_sha256"]
     # a dump cut to one frame whose hash is made to match: the evidence check still refuses it
     text = (job / "dump.atoms").read_text()
-    (job / "dump.atoms").write_text(text[:text.index("ITEM: TIMESTEP", 1)])
+    (job / "dump.atoms").write_text(text[: text.index("ITEM: TIMESTEP", 1)])
     m = read_manifest(job)
     import hashlib
 
@@ -248,11 +262,12 @@ def test_reuse_of_a_log_cut_to_12_steps_reruns(tmp_path, small_liggghts_job, cap
     run_job(job, deck, files, outputs=outputs, progress=False)
     lines = (job / "log.lammps").read_text().splitlines()
     head = next(k for k, ln in enumerate(lines) if ln.split()[:1] == ["Step"])
-    (job / "log.lammps").write_text("\n".join(lines[:head + 13]) + "\n")
+    (job / "log.lammps").write_text("\n".join(lines[: head + 13]) + "\n")
     problems = verify_job(job)
     assert problems[0] == "log.lammps changed since the job ran (SHA-256 differs from the manifest)"
-    assert problems[1].startswith("incomplete: log.lammps holds 0 of 1 runs; "
-                                  "run 1 (deck line 25, steps 0..1000) stops at step 11")
+    assert problems[1].startswith(
+        "incomplete: log.lammps holds 0 of 1 runs; run 1 (deck line 25, steps 0..1000) stops at step 11"
+    )
     res = run_job(job, deck, files, outputs=outputs, progress=False)
     assert not res.skipped and res.log.runs[0].steps[-1] == 1000 and verify_job(job) == []
     assert "holds 0 of 1 runs" in capsys.readouterr().err
@@ -295,8 +310,7 @@ def test_signal_to_python_kills_the_job_group(tmp_path, fake_liggghts, sig):
     job = tmp_path / "job"
     script = _SIGNAL_SCRIPT.format(faults=str(Path(__file__).parent), job=str(job))
     env = {**os.environ, "NUMBA_CACHE_DIR": os.environ.get("NUMBA_CACHE_DIR", str(tmp_path / "nc"))}
-    py = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, env=env, stderr=subprocess.PIPE,
-                          text=True)
+    py = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, env=env, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 30
         while not fake.pids("grandchild") and time.monotonic() < deadline and py.poll() is None:
@@ -395,7 +409,7 @@ def test_second_writer_waits_then_reuses(tmp_path, fake_liggghts, small_liggghts
     t.join(30)
     assert out["first"].manifest["status"] == "ok" and not out["first"].skipped
     assert second.skipped and second.manifest == out["first"].manifest
-    assert len(fake.pids("fake")) == 1                   # LIGGGHTS ran once
+    assert len(fake.pids("fake")) == 1  # LIGGGHTS ran once
     assert f"waiting for job {job} (pid {os.getpid()}" in capsys.readouterr().err
 
 

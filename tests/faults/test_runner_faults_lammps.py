@@ -32,7 +32,7 @@ def test_fake_lmp_error(tmp_path, fake_lmp, small_lammps_job):
     m = assert_not_ok(tmp_path / "job")
     assert m["engine_version"] == "LAMMPS 29 Sep 2021 - Update 2 fake-error"
     assert m["engine_binary"] == str(fake.path) and m["engine_package"] is None
-    assert "liggghts_version" not in m           # the old keys are for LIGGGHTS jobs only
+    assert "liggghts_version" not in m  # the old keys are for LIGGGHTS jobs only
     assert fake.pids() and fake.wait_gone(2) == []
 
 
@@ -83,17 +83,27 @@ def test_fake_lmp_warning_fails_unless_allowed(tmp_path, fake_lmp, small_lammps_
     deck, files, outputs = small_lammps_job()
     with pytest.raises(ReferenceRunError, match="1 unexpected WARNING line"):
         run_job(tmp_path / "job", deck, files, outputs=outputs, progress=False, engine="lammps")
-    res = run_job(tmp_path / "job2", deck, files, outputs=outputs, progress=False, engine="lammps",
-                  allowed_warnings=[r"fake warning"])
+    res = run_job(
+        tmp_path / "job2",
+        deck,
+        files,
+        outputs=outputs,
+        progress=False,
+        engine="lammps",
+        allowed_warnings=[r"fake warning"],
+    )
     assert res.manifest["status"] == "ok" and len(res.warnings) == 1
 
 
 def test_liggghts_binary_is_not_taken_for_lammps(tmp_path, fake_liggghts, small_lammps_job, monkeypatch):
     # only a (fake) liggghts on PATH: a LAMMPS job asks for lmp and says how to install it
     fake = fake_liggghts("error")
-    monkeypatch.setenv("PATH", str(fake.bindir))   # liggghts there, no lmp
+    monkeypatch.setenv("PATH", str(fake.bindir))  # liggghts there, no lmp
     deck, files, outputs = small_lammps_job()
-    with pytest.raises(ReferenceRunError, match=r"`lmp` binary \(LAMMPS\) was not found on PATH; "
-                                                r"install LAMMPS with `sudo apt-get install lammps`"):
+    with pytest.raises(
+        ReferenceRunError,
+        match=r"`lmp` binary \(LAMMPS\) was not found on PATH; "
+        r"install LAMMPS with `sudo apt-get install lammps`",
+    ):
         run_job(tmp_path / "job", deck, files, outputs=outputs, progress=False, engine="lammps")
     assert read_manifest(tmp_path / "job") is None

@@ -65,7 +65,7 @@ def _first_frame_only(path: Path) -> None:
     """Keep only the first ITEM: TIMESTEP block of a dump (a full disk, a changed dump interval)."""
     lines = path.read_text().splitlines()
     starts = [k for k, line in enumerate(lines) if line.startswith("ITEM: TIMESTEP")]
-    path.write_text("\n".join(lines[:starts[1]]) + "\n")
+    path.write_text("\n".join(lines[: starts[1]]) + "\n")
 
 
 def test_stored_log_cut_to_12_steps_fails(stored_copy, tmp_path):
@@ -73,8 +73,9 @@ def test_stored_log_cut_to_12_steps_fails(stored_copy, tmp_path):
     ok, results = run_validation("quick", tmp_path / "results", only=["biaxial-short"], log=_quiet)
     res = _result(results, "biaxial-short")
     assert not ok and not res.passed
-    assert any("incomplete: expected 3001 LIGGGHTS series steps, got 13" in m for m in _incomplete(res)), \
-        _incomplete(res)
+    assert any("incomplete: expected 3001 LIGGGHTS series steps, got 13" in m for m in _incomplete(res)), _incomplete(
+        res
+    )
 
 
 def test_stored_dump_with_only_the_first_frame_fails(stored_copy, tmp_path):
@@ -84,8 +85,10 @@ def test_stored_dump_with_only_the_first_frame_fails(stored_copy, tmp_path):
     for cid in ("biaxial-short", "voidcell"):
         res = _result(results, cid)
         assert not res.passed, cid
-        assert any("incomplete: expected 7 LIGGGHTS frames, got 1" in m for m in _incomplete(res)), \
-            (cid, _incomplete(res))
+        assert any("incomplete: expected 7 LIGGGHTS frames, got 1" in m for m in _incomplete(res)), (
+            cid,
+            _incomplete(res),
+        )
     html = (tmp_path / "results" / "report" / "index.html").read_text()
     assert "incomplete: expected 7 LIGGGHTS frames, got 1" in html
 
@@ -132,8 +135,7 @@ def test_a_stored_taylor_state_missing_fails(stored_copy, tmp_path, engine):
     assert not res.passed
     if res.error is None:
         code = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}[engine]
-        assert any(f"incomplete: expected 6 {code} states, got 5" in m for m in _incomplete(res)), \
-            _incomplete(res)
+        assert any(f"incomplete: expected 6 {code} states, got 5" in m for m in _incomplete(res)), _incomplete(res)
     else:
         assert "states" in res.error or "runs" in res.error
 
@@ -151,8 +153,9 @@ def test_live_liggghts_leaving_only_the_first_dump_frame_fails(tmp_path, fake_li
     ok, results = run_validation("quick", tmp_path, only=["biaxial-short"], log=_quiet)
     res = _result(results, "biaxial-short")
     assert not ok and not res.passed
-    assert "dump.atoms: expected 5 frames, got 1" in _live(res) or \
-        "incomplete: expected 5 LIGGGHTS frames, got 1" in _live(res), _live(res)
+    assert "dump.atoms: expected 5 frames, got 1" in _live(
+        res
+    ) or "incomplete: expected 5 LIGGGHTS frames, got 1" in _live(res), _live(res)
 
 
 @pytest.mark.liggghts
@@ -186,8 +189,18 @@ def test_hung_liggghts_times_out_names_the_job_and_leaves_no_process(tmp_path, f
 def test_signal_to_validate_leaves_no_liggghts(tmp_path, fake_liggghts, sig):
     fake = fake_liggghts("hang")
     env = {**os.environ}
-    cmd = [sys.executable, "-m", "gransim", "validate", "--suite", "quick", "--case", "biaxial-short",
-           "--results", str(tmp_path / "results")]
+    cmd = [
+        sys.executable,
+        "-m",
+        "gransim",
+        "validate",
+        "--suite",
+        "quick",
+        "--case",
+        "biaxial-short",
+        "--results",
+        str(tmp_path / "results"),
+    ]
     py = subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120

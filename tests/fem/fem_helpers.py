@@ -48,10 +48,12 @@ def linear_small_strain(problem, A, gravity_scale):
     for el in mesh.elements:
         xe = mesh.nodes[el]
         for xi, eta in [(-g, -g), (g, -g), (g, g), (-g, g)]:
-            dN = 0.25 * np.array([[-(1 - eta), -(1 - xi)], [1 - eta, -(1 + xi)], [1 + eta, 1 + xi],
-                                  [-(1 + eta), 1 - xi]])
-            N = 0.25 * np.array([(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta),
-                                 (1 - xi) * (1 + eta)])
+            dN = 0.25 * np.array(
+                [[-(1 - eta), -(1 - xi)], [1 - eta, -(1 + xi)], [1 + eta, 1 + xi], [-(1 + eta), 1 - xi]]
+            )
+            N = 0.25 * np.array(
+                [(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)]
+            )
             J = xe.T @ dN
             dNx = dN @ np.linalg.inv(J)
             Gm = np.zeros((4, 8))  # grad u components (1,1), (1,2), (2,1), (2,2) from nodal dofs

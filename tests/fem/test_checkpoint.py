@@ -20,8 +20,9 @@ def _box(material):
     mesh = rectangle_mesh(2, 2, 3.0, 3.0, distort=0.15, seed=2)
     X = mesh.nodes
     bnd = np.flatnonzero((X[:, 0] == 0) | (X[:, 0] == 3) | (X[:, 1] == 0) | (X[:, 1] == 3))
-    return Problem(mesh, material, DofMap.build(X, np.concatenate([2 * bnd, 2 * bnd + 1])),
-                   body_force=(0.0, -2.5e3 * 9.81))
+    return Problem(
+        mesh, material, DofMap.build(X, np.concatenate([2 * bnd, 2 * bnd + 1])), body_force=(0.0, -2.5e3 * 9.81)
+    )
 
 
 def _relaxed():
@@ -45,8 +46,14 @@ def test_relaxed_path_resumed_from_a_checkpoint_is_bitwise(tmp_path):
         raise _Stop  # the process dies right after step 1's checkpoint
 
     with pytest.raises(_Stop):
-        run_load_steps(_box(_relaxed()), PATH, tol=1e-9, max_iter=2, on_step=on_step,
-                       on_commit=lambda sol: commits.append(np.array(sol.F)))
+        run_load_steps(
+            _box(_relaxed()),
+            PATH,
+            tol=1e-9,
+            max_iter=2,
+            on_step=on_step,
+            on_commit=lambda sol: commits.append(np.array(sol.F)),
+        )
     mat = _relaxed()  # a new process: empty history
     prob = _box(mat)
     state, stored = read_checkpoint(ck, PARAMS)

@@ -18,8 +18,7 @@ from gransim.fem import DofMap, MaterialResult, Problem, newton, rectangle_mesh
 LAM, MU = 1.2e7, 0.8e7  # Pa
 AMP = 1e-4  # m: small displacements, the linear theory is exact for the linear material below
 _I = np.eye(2)
-C4 = (LAM * np.einsum("ij,kl->ijkl", _I, _I)
-      + MU * (np.einsum("ik,jl->ijkl", _I, _I) + np.einsum("il,jk->ijkl", _I, _I)))
+C4 = LAM * np.einsum("ij,kl->ijkl", _I, _I) + MU * (np.einsum("ik,jl->ijkl", _I, _I) + np.einsum("il,jk->ijkl", _I, _I))
 
 
 class LinearElastic:
@@ -50,10 +49,12 @@ def errors(mesh, u_h):
         xe, ue = mesh.nodes[el], u_h[el]
         for xi, wx in zip(gp, gw):
             for eta, wy in zip(gp, gw):
-                N = 0.25 * np.array([(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta),
-                                     (1 - xi) * (1 + eta)])
-                dN = 0.25 * np.array([[-(1 - eta), -(1 - xi)], [1 - eta, -(1 + xi)], [1 + eta, 1 + xi],
-                                      [-(1 + eta), 1 - xi]])
+                N = 0.25 * np.array(
+                    [(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)]
+                )
+                dN = 0.25 * np.array(
+                    [[-(1 - eta), -(1 - xi)], [1 - eta, -(1 + xi)], [1 + eta, 1 + xi], [-(1 + eta), 1 - xi]]
+                )
                 J = xe.T @ dN
                 w = wx * wy * np.linalg.det(J)
                 dNx = dN @ np.linalg.inv(J)

@@ -73,7 +73,9 @@ def test_stiffness_is_derivative_of_residual(continuum, with_footing_rotation):
     for j in range(K.shape[1]):
         e = np.zeros_like(q)
         e[j] = h
-        fd[:, j] = (prob.evaluate(q + e, load, tangent=False)[0] - prob.evaluate(q - e, load, tangent=False)[0]) / (2 * h)
+        fd[:, j] = (prob.evaluate(q + e, load, tangent=False)[0] - prob.evaluate(q - e, load, tangent=False)[0]) / (
+            2 * h
+        )
     err = np.linalg.norm(fd - K, axis=0) / np.linalg.norm(K, axis=0)
     assert err.max() < 1e-6
 

@@ -29,16 +29,18 @@ def test_observed_orders_of_a_quadratic_sequence():
 @pytest.fixture(scope="module")
 def case(tmp_path_factory):
     out = tmp_path_factory.mktemp("slope")
-    summary = run_slope_case("service", material=make_continuum("neo-hookean"), out=out, figures="final",
-                             geometry=SMALL_SLOPE)
+    summary = run_slope_case(
+        "service", material=make_continuum("neo-hookean"), out=out, figures="final", geometry=SMALL_SLOPE
+    )
     return out, summary
 
 
 @pytest.fixture(scope="module")
 def case_all(tmp_path_factory):
     out = tmp_path_factory.mktemp("slope_all")
-    summary = run_slope_case("service", material=make_continuum("neo-hookean"), out=out, figures="all",
-                             geometry=SMALL_SLOPE, load_steps=2)
+    summary = run_slope_case(
+        "service", material=make_continuum("neo-hookean"), out=out, figures="all", geometry=SMALL_SLOPE, load_steps=2
+    )
     return out, summary
 
 
@@ -47,8 +49,9 @@ def test_figures_all_writes_every_step(case_all):
     assert summary["completed"]
     n_steps = len(setup_for("service", load_steps=2).schedule())
     for ext in ("vtu", "png"):
-        assert sorted(p.name for p in out.glob(f"step_*.{ext}")) == [f"step_{k:03d}.{ext}"
-                                                                     for k in range(1, n_steps + 1)]
+        assert sorted(p.name for p in out.glob(f"step_*.{ext}")) == [
+            f"step_{k:03d}.{ext}" for k in range(1, n_steps + 1)
+        ]
     m = meshio.read(out / f"step_{n_steps:03d}.vtu")
     assert [c.type for c in m.cells] == ["quad", "vertex"]
     G = 4 * SMALL_SLOPE.columns * SMALL_SLOPE.rows
@@ -81,10 +84,12 @@ def _q1_internal_forces(nodes, elements, piola):
     for e, el in enumerate(elements):
         xe = nodes[el]
         for k, (xi, eta) in enumerate([(-g, -g), (g, -g), (g, g), (-g, g)]):
-            dN = 0.25 * np.array([[-(1 - eta), -(1 - xi)], [1 - eta, -(1 + xi)], [1 + eta, 1 + xi],
-                                  [-(1 + eta), 1 - xi]])
-            N = 0.25 * np.array([(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta),
-                                 (1 - xi) * (1 + eta)])
+            dN = 0.25 * np.array(
+                [[-(1 - eta), -(1 - xi)], [1 - eta, -(1 + xi)], [1 + eta, 1 + xi], [-(1 + eta), 1 - xi]]
+            )
+            N = 0.25 * np.array(
+                [(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)]
+            )
             J = xe.T @ dN
             w = np.linalg.det(J)
             dNx = dN @ np.linalg.inv(J)
@@ -103,8 +108,11 @@ def test_stored_stress_field_carries_the_applied_load(case):
 
     out, _ = case
     geo = SMALL_SLOPE
-    area = (geo.toe_height * geo.toe_x + 0.5 * (geo.toe_height + geo.crest_height) * (geo.crest_x - geo.toe_x)
-            + geo.crest_height * (geo.length - geo.crest_x))
+    area = (
+        geo.toe_height * geo.toe_x
+        + 0.5 * (geo.toe_height + geo.crest_height) * (geo.crest_x - geo.toe_x)
+        + geo.crest_height * (geo.length - geo.crest_x)
+    )
     with h5py.File(out / "slope.h5") as f:
         assert f.attrs["kind"] == "fem-slope" and bool(f.attrs["completed"])
         nodes, elements = f["mesh/nodes"][()], f["mesh/elements"][()]
@@ -133,10 +141,12 @@ def test_stored_stress_field_carries_the_applied_load(case):
     for el in elements:  # consistent body force vector int N_a b dV, 2 x 2 Gauss (exact for Q1 x det J)
         xe = nodes[el]
         for xi, eta in [(-gp, -gp), (gp, -gp), (gp, gp), (-gp, gp)]:
-            N = 0.25 * np.array([(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta),
-                                 (1 - xi) * (1 + eta)])
-            dN = 0.25 * np.array([[-(1 - eta), -(1 - xi)], [1 - eta, -(1 + xi)], [1 + eta, 1 + xi],
-                                  [-(1 + eta), 1 - xi]])
+            N = 0.25 * np.array(
+                [(1 - xi) * (1 - eta), (1 + xi) * (1 - eta), (1 + xi) * (1 + eta), (1 - xi) * (1 + eta)]
+            )
+            dN = 0.25 * np.array(
+                [[-(1 - eta), -(1 - xi)], [1 - eta, -(1 + xi)], [1 + eta, 1 + xi], [-(1 + eta), 1 - xi]]
+            )
             body[el, 1] -= DENSITY * GRAVITY * N * np.linalg.det(xe.T @ dN)
     assert np.abs(fint[inner] - body[inner]).max() <= 1e-9 * np.abs(body).max()
     # vertical reactions at the base (f_int there minus the body force there) carry weight + footing
@@ -190,10 +200,14 @@ def test_acceptance_checks_fail_for_an_inconsistent_tangent():
     the solver's own convergence)."""
     from gransim.fem.run import acceptance_records
 
-    s = run_slope_case("service", material=_WrongTangent(make_continuum("neo-hookean")), out=None,
-                       figures="none", geometry=SMALL_SLOPE)
-    bad = {(r["quantity"], r["metric"][:20]) for r in acceptance_records({"service": s})
-           if r["kind"] == "check" and not r["pass"]}
+    s = run_slope_case(
+        "service", material=_WrongTangent(make_continuum("neo-hookean")), out=None, figures="none", geometry=SMALL_SLOPE
+    )
+    bad = {
+        (r["quantity"], r["metric"][:20])
+        for r in acceptance_records({"service": s})
+        if r["kind"] == "check" and not r["pass"]
+    }
     assert ("newton", "min over steps of th") in bad
     assert any(q == "small load" for q, _ in bad), bad
 

@@ -47,8 +47,9 @@ def _box(material):
     mesh = rectangle_mesh(2, 2, 3.0, 3.0, distort=0.15, seed=2)
     X = mesh.nodes
     bnd = np.flatnonzero((X[:, 0] == 0) | (X[:, 0] == 3) | (X[:, 1] == 0) | (X[:, 1] == 3))
-    return Problem(mesh, material, DofMap.build(X, np.concatenate([2 * bnd, 2 * bnd + 1])),
-                   body_force=(0.0, -2.5e3 * 9.81))
+    return Problem(
+        mesh, material, DofMap.build(X, np.concatenate([2 * bnd, 2 * bnd + 1])), body_force=(0.0, -2.5e3 * 9.81)
+    )
 
 
 def _relaxed():
@@ -62,9 +63,17 @@ def _arrays(res):
     out = []
     for s in res.steps:
         sol = s.solution
-        out += [sol.q, sol.u, sol.F, np.asarray(sol.material.piola), np.asarray(sol.material.tangent),
-                np.asarray(sol.material.cauchy), np.asarray(sol.material.n_contacts), sol.energy_norms,
-                np.asarray(s.substeps)]
+        out += [
+            sol.q,
+            sol.u,
+            sol.F,
+            np.asarray(sol.material.piola),
+            np.asarray(sol.material.tangent),
+            np.asarray(sol.material.cauchy),
+            np.asarray(sol.material.n_contacts),
+            sol.energy_norms,
+            np.asarray(s.substeps),
+        ]
     if res.limit and res.limit["partial"] is not None:
         out += [res.limit["partial"].q, np.asarray(res.limit["last_converged_load"])]
     return out
@@ -78,8 +87,7 @@ def _assert_same(a, b):
 
 def _taylor_run(material, on_step=None):
     setup = setup_for("paper", SMALL_SLOPE, load_steps=5)
-    return run_load_steps(slope_problem(material, setup), setup.schedule(), min_fraction=1 / 16,
-                          on_step=on_step)
+    return run_load_steps(slope_problem(material, setup), setup.schedule(), min_fraction=1 / 16, on_step=on_step)
 
 
 def test_taylor_slope_bitwise_in_process_and_on_two_workers(dask2):

@@ -75,8 +75,9 @@ def test_small_load_matches_linear_elasticity_with_rve_tangent(taylor):
     mesh = rectangle_mesh(4, 4, 4.0, 4.0, distort=0.15, seed=2)
     X = mesh.nodes
     bnd = np.flatnonzero((X[:, 0] == 0) | (X[:, 0] == 4) | (X[:, 1] == 0) | (X[:, 1] == 4))
-    prob = Problem(mesh, taylor, DofMap.build(X, np.concatenate([2 * bnd, 2 * bnd + 1])),
-                   body_force=(0.0, -2.5e3 * 9.81))
+    prob = Problem(
+        mesh, taylor, DofMap.build(X, np.concatenate([2 * bnd, 2 * bnd + 1])), body_force=(0.0, -2.5e3 * 9.81)
+    )
     res0 = run_load_steps(prob, [(0.0, 0.0)])
     assert np.abs(res0.steps[0].solution.q).max() < 1e-14
     A0 = taylor.evaluate(np.eye(2)[None]).tangent[0]

@@ -6,11 +6,11 @@ from bench import dem
 
 
 def _job(n, rate, peak_mib, steps=10, ranks=None):
-    j = {"n": n, "steps": steps, "loop_s": n * steps / rate, "rate": rate, "rebuilds": 1,
-         "peak_kib": peak_mib * 1024}
+    j = {"n": n, "steps": steps, "loop_s": n * steps / rate, "rate": rate, "rebuilds": 1, "peak_kib": peak_mib * 1024}
     if ranks is not None:
-        j.update(rank_peaks_kib=[r * 1024 for r in ranks], memory_mb_estimate=1.0,
-                 breakdown={"Pair": 0.5, "Other": 0.1})
+        j.update(
+            rank_peaks_kib=[r * 1024 for r in ranks], memory_mb_estimate=1.0, breakdown={"Pair": 0.5, "Other": 0.1}
+        )
     else:
         j["contacts"] = 3
     return j

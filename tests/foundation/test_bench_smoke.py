@@ -10,8 +10,13 @@ import bench
 
 
 def test_bench_quick_runs_every_area(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "bench", "--quick", "--results", str(tmp_path)],
-                          capture_output=True, text=True, timeout=600, cwd=Path(bench.__file__).parents[1])
+    proc = subprocess.run(
+        [sys.executable, "-m", "bench", "--quick", "--results", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=Path(bench.__file__).parents[1],
+    )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     doc = json.loads((tmp_path / "bench.json").read_text())
     areas = {m.name for m in pkgutil.iter_modules(bench.__path__) if not m.name.startswith("_")}

@@ -29,8 +29,26 @@ def test_constant_volume_run_file_holds_the_series(packing_file, tmp_path, capsy
     path, p = packing_file
     out = tmp_path / "run.h5"
     fig = tmp_path / "fig.png"
-    assert main(["shear", "--packing", str(path), "--strain", "0.004", "--rate", "5", "--series-every", "7",
-                 "-o", str(out), "--plot", str(fig)]) == 0
+    assert (
+        main(
+            [
+                "shear",
+                "--packing",
+                str(path),
+                "--strain",
+                "0.004",
+                "--rate",
+                "5",
+                "--series-every",
+                "7",
+                "-o",
+                str(out),
+                "--plot",
+                str(fig),
+            ]
+        )
+        == 0
+    )
     assert fig.stat().st_size > 0 and "wrote" in capsys.readouterr().out
     s, attrs, snaps = _series(out)
     assert attrs["kind"] == "shear-run" and attrs["complete"] and attrs["stop_reason"] == ""
@@ -66,8 +84,24 @@ def test_file_stress_is_the_engine_stress_with_tension_positive(packing_file, tm
 
     path, p = packing_file
     out = tmp_path / "run.h5"
-    assert main(["shear", "--packing", str(path), "--strain", "0.004", "--rate", "20", "--series-every", "1",
-                 "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "shear",
+                "--packing",
+                str(path),
+                "--strain",
+                "0.004",
+                "--rate",
+                "20",
+                "--series-every",
+                "1",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     s, attrs, _ = _series(out)
     par = json.loads(attrs["parameters"])
     ref = simple_shear(p, DEMSettings(**par["dem"]), ShearLoading(**par["loading"]), int(attrs["nsteps"]))
@@ -79,8 +113,10 @@ def test_file_stress_is_the_engine_stress_with_tension_positive(packing_file, tm
 def test_servo_moves_y_and_is_recorded(packing_file, tmp_path):
     path, p = packing_file
     out = tmp_path / "servo.h5"
-    assert main(["shear", "--packing", str(path), "--strain", "0.01", "--rate", "20", "--servo", "1000",
-                 "-o", str(out)]) == 0
+    assert (
+        main(["shear", "--packing", str(path), "--strain", "0.01", "--rate", "20", "--servo", "1000", "-o", str(out)])
+        == 0
+    )
     s, attrs, _ = _series(out)
     par = json.loads(attrs["parameters"])
     assert par["loading"]["y"] == "servo" and par["loading"]["target"] == 1000.0
@@ -88,16 +124,19 @@ def test_servo_moves_y_and_is_recorded(packing_file, tmp_path):
     assert np.all(s["box"][:, 0] == p.cell[0, 0])
 
 
-@pytest.mark.parametrize("argv, needle", [
-    (["--strain", "-0.1"], "--strain: must be finite and > 0"),
-    (["--strain", "0.6"], "beyond Lx/2"),
-    (["--strain", "0.01", "--rate", "0"], "--rate: must be finite and > 0"),
-    (["--strain", "0.01", "--servo", "-5"], "--servo: must be finite and > 0"),
-    (["--strain", "0.01", "--flavour", "liggghts"], "--flavour liggghts: the sheared periodic cell"),
-    (["--strain", "0.01", "--flavour", "yade"], "--flavour: expected lammps"),
-    (["--strain", "0.01", "--series-every", "0"], "--series-every: expected an integer >= 1"),
-    (["--strain", "0.01", "--plot", "fig.xyz"], "--plot:"),
-])
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--strain", "-0.1"], "--strain: must be finite and > 0"),
+        (["--strain", "0.6"], "beyond Lx/2"),
+        (["--strain", "0.01", "--rate", "0"], "--rate: must be finite and > 0"),
+        (["--strain", "0.01", "--servo", "-5"], "--servo: must be finite and > 0"),
+        (["--strain", "0.01", "--flavour", "liggghts"], "--flavour liggghts: the sheared periodic cell"),
+        (["--strain", "0.01", "--flavour", "yade"], "--flavour: expected lammps"),
+        (["--strain", "0.01", "--series-every", "0"], "--series-every: expected an integer >= 1"),
+        (["--strain", "0.01", "--plot", "fig.xyz"], "--plot:"),
+    ],
+)
 def test_bad_input_one_line_exit_2(packing_file, tmp_path, capsys, argv, needle):
     path, _ = packing_file
     out = tmp_path / "run.h5"
@@ -125,6 +164,19 @@ def test_bad_files_one_line_exit_2(packing_file, tmp_path, capsys):
 def test_rate_and_inertial_number_exclude_each_other(packing_file, tmp_path):
     path, _ = packing_file
     with pytest.raises(SystemExit) as e:
-        main(["shear", "--packing", str(path), "--strain", "0.01", "--rate", "1", "--inertial-number", "1e-3",
-              "-o", str(tmp_path / "r.h5")])
+        main(
+            [
+                "shear",
+                "--packing",
+                str(path),
+                "--strain",
+                "0.01",
+                "--rate",
+                "1",
+                "--inertial-number",
+                "1e-3",
+                "-o",
+                str(tmp_path / "r.h5"),
+            ]
+        )
     assert e.value.code == 2

@@ -14,14 +14,19 @@ from gransim.io.hdf5 import atomic_h5
 @pytest.fixture
 def packing(rng):
     C = np.array([[3.0, 0.7], [0.2, 2.5]])
-    return Packing(positions=rng.uniform(-1, 4, (30, 2)), radii=rng.uniform(0.05, 0.2, 30), cell=C,
-                   density=2650.0, metadata={"seed": 7, "distribution": "test"})
+    return Packing(
+        positions=rng.uniform(-1, 4, (30, 2)),
+        radii=rng.uniform(0.05, 0.2, 30),
+        cell=C,
+        density=2650.0,
+        metadata={"seed": 7, "distribution": "test"},
+    )
 
 
 def test_packing_is_immutable_and_validated(packing):
     with pytest.raises(ValueError):
         packing.positions[0, 0] = 1.0
-    with pytest.raises(Exception):
+    with pytest.raises(AttributeError):  # dataclasses.FrozenInstanceError
         packing.radii = np.ones(30)
     for kwargs, match in [
         (dict(positions=np.zeros((1, 2)), radii=[1.0]), "at least 2"),

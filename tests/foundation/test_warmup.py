@@ -29,9 +29,7 @@ def _env(**kw):
 
 def _py(code: str, env: dict, python: str = sys.executable) -> list[str]:
     code = f"import site; site.addsitedir({SITE!r})\n" + textwrap.dedent(code)
-    r = subprocess.run(
-        [python, "-c", code], check=False, env=env, capture_output=True, text=True, timeout=300
-    )
+    r = subprocess.run([python, "-c", code], check=False, env=env, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     return r.stdout.split()
 
@@ -44,13 +42,9 @@ def test_cache_dir_rule(tmp_path):
     assert _numba_cache_dir(str(venv), "/usr", {}) == str(venv / "numba-cache")
     xdg = {"XDG_CACHE_HOME": str(tmp_path / "xdg")}
     assert _numba_cache_dir("/usr", "/usr", xdg) == str(tmp_path / "xdg" / "gransim" / "numba")
-    assert _numba_cache_dir("/usr", "/usr", {}) == os.path.join(
-        os.path.expanduser("~"), ".cache", "gransim", "numba"
-    )
+    assert _numba_cache_dir("/usr", "/usr", {}) == os.path.join(os.path.expanduser("~"), ".cache", "gransim", "numba")
     missing = tmp_path / "no-such-venv"  # not writable (absent): fall back to the user cache
-    assert _numba_cache_dir(str(missing), "/usr", xdg) == str(
-        tmp_path / "xdg" / "gransim" / "numba"
-    )
+    assert _numba_cache_dir(str(missing), "/usr", xdg) == str(tmp_path / "xdg" / "gransim" / "numba")
 
 
 def test_make_and_plain_runs_share_one_cache():
@@ -71,9 +65,7 @@ def test_make_and_plain_runs_share_one_cache():
 
 
 def test_user_choice_is_kept(tmp_path):
-    out = _py(
-        "import gransim, numba; print(numba.config.CACHE_DIR)", _env(NUMBA_CACHE_DIR=str(tmp_path))
-    )
+    out = _py("import gransim, numba; print(numba.config.CACHE_DIR)", _env(NUMBA_CACHE_DIR=str(tmp_path)))
     assert out == [str(tmp_path)]
 
 
@@ -104,9 +96,7 @@ def test_second_process_loads_what_the_first_compiled(tmp_path, numba_first):
     directory must still be the venv's (numba.config.CACHE_DIR set after numba read its
     environment), and survive numba's reload of its configuration at the first compilation."""
     venv = tmp_path / "venv"
-    subprocess.run(
-        [sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True, timeout=120
-    )
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True, timeout=120)
     python = str(venv / "bin" / "python")
     mod = tmp_path / "mod"
     mod.mkdir()
@@ -221,9 +211,7 @@ def test_after_the_warmup_a_larger_run_compiles_nothing(tmp_path):
     )
     assert warm.returncode == 0, warm.stdout + warm.stderr
     assert "warmup: info" in warm.stdout and " ok" in warm.stdout
-    assert any(
-        p.name.endswith(".nbi") for p in (tmp_path / "cache").rglob("*")
-    )  # the cold run saved
+    assert any(p.name.endswith(".nbi") for p in (tmp_path / "cache").rglob("*"))  # the cold run saved
     r = subprocess.run(
         [*cmd, "info", str(tmp_path / "big.h5")],
         env=env,

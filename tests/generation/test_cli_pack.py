@@ -9,15 +9,38 @@ from gransim.io import load_packing
 
 def test_pack_then_info(tmp_path, capsys):
     out = tmp_path / "rve.h5"
-    assert main(["pack", "--distribution", "quartz-sand", "--n", "60", "--seed", "3", "-o", str(out),
-                 "--vtu", str(tmp_path / "rve.vtu")]) == 0
+    assert (
+        main(
+            [
+                "pack",
+                "--distribution",
+                "quartz-sand",
+                "--n",
+                "60",
+                "--seed",
+                "3",
+                "-o",
+                str(out),
+                "--vtu",
+                str(tmp_path / "rve.vtu"),
+            ]
+        )
+        == 0
+    )
     p = load_packing(out)
     assert p.n == 60 and p.metadata["seed"] == 3 and (tmp_path / "rve.vtu").exists()
     capsys.readouterr()
     assert main(["info", str(out)]) == 0
     text = capsys.readouterr().out
-    for key in ("N                      60", "packing fraction", "void ratio", "coordination",
-                "without rattlers", "mean overlap", "max overlap"):
+    for key in (
+        "N                      60",
+        "packing fraction",
+        "void ratio",
+        "coordination",
+        "without rattlers",
+        "mean overlap",
+        "max overlap",
+    ):
         assert key in text
     assert f"{p.solid_fraction:.5f}" in text
 
@@ -44,26 +67,50 @@ def test_pack_method_option(tmp_path, capsys):
 
 def test_pack_by_frictional_compaction(tmp_path, capsys):
     out = tmp_path / "dem.h5"
-    assert main(["pack", "--distribution", "kuhn-1002", "--n", "80", "--seed", "2", "--friction", "0.3",
-                 "--pressure", "2e-4", "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "pack",
+                "--distribution",
+                "kuhn-1002",
+                "--n",
+                "80",
+                "--seed",
+                "2",
+                "--friction",
+                "0.3",
+                "--pressure",
+                "2e-4",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     p = load_packing(out)
     assert p.n == 80 and p.metadata["friction"] == 0.3 and p.metadata["pressure_over_kn"] == 2e-4
     assert "DEM steps" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["pack", "--n", "50", "--friction", "0.1", "--solid-fraction", "0.85", "-o", "x.h5"], "takes no --solid"),
-    (["pack", "--n", "50", "--pressure", "1e-4", "-o", "x.h5"], "--pressure needs --friction"),
-    (["pack", "--n", "50", "--friction", "0.1", "--residual", "rms", "-o", "x.h5"], "belong to the FIRE"),
-    (["pack", "--n", "50", "--friction", "0.1", "--method", "front", "-o", "x.h5"], "belong to the FIRE"),
-    (["pack", "--n", "50", "--force-tol=-1", "-o", "x.h5"], "--force-tol: expected"),
-    (["pack", "--n", "50", "--friction=-1", "-o", "x.h5"], "--friction: expected"),
-    (["pack", "--n", "1", "-o", "x.h5"], "--n: expected an integer >= 2"),
-    (["pack", "--n", "50", "--distribution", "granite", "-o", "x.h5"], "unknown distribution 'granite'"),
-    (["pack", "--n", "50", "--solid-fraction", "0.97", "-o", "x.h5"], "--solid-fraction: expected a finite number > 0 and < 0.95"),
-    (["pack", "--n", "50", "--mean-overlap=-1e-4", "-o", "x.h5"], "--mean-overlap: expected"),
-    (["packings", "--only", "rve-9-9"], "unknown standard packing"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["pack", "--n", "50", "--friction", "0.1", "--solid-fraction", "0.85", "-o", "x.h5"], "takes no --solid"),
+        (["pack", "--n", "50", "--pressure", "1e-4", "-o", "x.h5"], "--pressure needs --friction"),
+        (["pack", "--n", "50", "--friction", "0.1", "--residual", "rms", "-o", "x.h5"], "belong to the FIRE"),
+        (["pack", "--n", "50", "--friction", "0.1", "--method", "front", "-o", "x.h5"], "belong to the FIRE"),
+        (["pack", "--n", "50", "--force-tol=-1", "-o", "x.h5"], "--force-tol: expected"),
+        (["pack", "--n", "50", "--friction=-1", "-o", "x.h5"], "--friction: expected"),
+        (["pack", "--n", "1", "-o", "x.h5"], "--n: expected an integer >= 2"),
+        (["pack", "--n", "50", "--distribution", "granite", "-o", "x.h5"], "unknown distribution 'granite'"),
+        (
+            ["pack", "--n", "50", "--solid-fraction", "0.97", "-o", "x.h5"],
+            "--solid-fraction: expected a finite number > 0 and < 0.95",
+        ),
+        (["pack", "--n", "50", "--mean-overlap=-1e-4", "-o", "x.h5"], "--mean-overlap: expected"),
+        (["packings", "--only", "rve-9-9"], "unknown standard packing"),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(argv, message, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(argv) == 2

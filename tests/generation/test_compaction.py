@@ -119,12 +119,15 @@ def test_kuhn_assembly_has_the_paper_void_ratio_and_is_in_balance():
     assert np.linalg.norm(F, axis=1)[touching].mean() > 5e-3 * fn.mean()
 
 
-@pytest.mark.parametrize("kw, match", [
-    ({"friction": -0.1}, "friction"),
-    ({"friction": 0.1, "phi_gas": 0.85}, "phi_gas"),
-    ({"friction": 0.1, "pressure": 0.1}, "pressure"),
-    ({"friction": 0.1, "check_every": 0}, "check_every"),
-])
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"friction": -0.1}, "friction"),
+        ({"friction": 0.1, "phi_gas": 0.85}, "phi_gas"),
+        ({"friction": 0.1, "pressure": 0.1}, "pressure"),
+        ({"friction": 0.1, "check_every": 0}, "check_every"),
+    ],
+)
 def test_compaction_bad_input(kw, match):
     with pytest.raises(InputError, match=match):
         compact_packing("kuhn-1002", 50, seed=1, **kw)

@@ -5,7 +5,6 @@ import pytest
 from reference_runs.demo_packings import perturbed_lattice
 
 
-
 def pytest_collection_modifyitems(config, items):
     if shutil.which("liggghts") is None:
         skip = pytest.mark.skip(reason="liggghts binary not installed (apt-get install liggghts)")

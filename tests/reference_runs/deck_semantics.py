@@ -59,8 +59,16 @@ def read_data(text: str) -> dict:
     rows = [line.split() for line in lines[start:] if line.strip()][:n]
     a = np.array(rows, float)
     assert a.shape == (n, 7), a.shape
-    return {"lo": lo, "hi": hi, "xy": xy, "id": a[:, 0].astype(int), "type": a[:, 1].astype(int),
-            "diameter": a[:, 2], "density": a[:, 3], "x": a[:, 4:6]}
+    return {
+        "lo": lo,
+        "hi": hi,
+        "xy": xy,
+        "id": a[:, 0].astype(int),
+        "type": a[:, 1].astype(int),
+        "diameter": a[:, 2],
+        "density": a[:, 3],
+        "x": a[:, 4:6],
+    }
 
 
 def lattice_coordinates(cell: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -118,11 +126,11 @@ def check_taylor_job(job, packing, kn: float, engine: str, files: dict) -> int:
         assert cmds["atom_style"] == [["sphere"]]
         assert cmds["boundary"][0][:2] == (["p", "p"] if st["route"] == "periodic" else ["f", "f"])
         assert cmds["read_data"] == [[st["data_file"]]]
-        assert cmds["run"] == [["0"]]                       # no motion: positions stay x = F X
+        assert cmds["run"] == [["0"]]  # no motion: positions stay x = F X
         if engine == "lammps":
             (ps,) = cmds["pair_style"]
             assert ps[0] == "gran/hooke" and float(ps[1]) == kn and [float(v) for v in ps[2:]] == [0.0] * 5
-            (st_set,) = cmds["set"]              # masses m = density pi r^2 (2D)
+            (st_set,) = cmds["set"]  # masses m = density pi r^2 (2D)
             assert st_set[:3] == ["group", "all", "density/disc"] and float(st_set[3]) == packing.density
         else:
             assert cmds["pair_style"] == [["gran", "model", "hooke/stiffness", "tangential", "no_history"]]
@@ -134,7 +142,7 @@ def check_taylor_job(job, packing, kn: float, engine: str, files: dict) -> int:
         check_affine_state(packing, F, Q, data, st["n_central"])
         assert len(data["x"]) == st["n_atoms"]
         box = np.array([[data["hi"][0] - data["lo"][0], data["xy"]], [0.0, data["hi"][1] - data["lo"][1]]])
-        if st["route"] == "periodic":       # the box is the deformed cell (same lattice)
+        if st["route"] == "periodic":  # the box is the deformed cell (same lattice)
             cell = Q @ F @ packing.cell
             s = lattice_coordinates(cell, box.T)
             assert np.abs(s - np.round(s)).max() < 1e-9
@@ -153,12 +161,13 @@ def check_taylor_job(job, packing, kn: float, engine: str, files: dict) -> int:
             else:
                 delta = np.asarray(fr["delta"])
                 branch = np.column_stack([fr["x2"] - fr["x1"], fr["y2"] - fr["y1"]])
-                if st["route"] == "periodic":   # a pair across the boundary: the owned atoms' centres
+                if st["route"] == "periodic":  # a pair across the boundary: the owned atoms' centres
                     branch -= np.round(lattice_coordinates(box, branch)) @ box.T
                 cross = f[:, 0] * branch[:, 1] - f[:, 1] * branch[:, 0]
                 assert np.abs(cross).max() <= 1e-12 * np.abs(f).max() * np.abs(branch).max()
-                np.testing.assert_allclose(delta, r[i1] + r[i2] - np.linalg.norm(branch, axis=1),
-                                           rtol=0, atol=1e-12 * r.max())
+                np.testing.assert_allclose(
+                    delta, r[i1] + r[i2] - np.linalg.norm(branch, axis=1), rtol=0, atol=1e-12 * r.max()
+                )
             assert np.all(delta > 0)
             # |f| = kn delta; delta = r_i + r_j - |l| loses ~4 digits by cancellation (|l|/delta ~ 4e3)
             np.testing.assert_allclose(np.linalg.norm(f, axis=1), kn * delta, rtol=1e-9)
@@ -177,9 +186,16 @@ def stored_inputs(d, packing, engine="liggghts"):
     from reference_runs.store import TAYLOR_CASE, TAYLOR_PARAMS
 
     p = TAYLOR_PARAMS
-    _, files, _ = taylor_job(packing, p["kn"], n_steps=p["n_steps"], stride=p["stride"],
-                             max_strain=p["max_strain"], contacts=(d.name.startswith(TAYLOR_CASE)),
-                             name=d.name, engine=engine)
+    _, files, _ = taylor_job(
+        packing,
+        p["kn"],
+        n_steps=p["n_steps"],
+        stride=p["stride"],
+        max_strain=p["max_strain"],
+        contacts=(d.name.startswith(TAYLOR_CASE)),
+        name=d.name,
+        engine=engine,
+    )
     files = {k: (d / k).read_bytes() if (d / k).exists() else v for k, v in files.items()}
     manifest = json.loads((d / "manifest.json").read_text())
     assert manifest["status"] == "ok"

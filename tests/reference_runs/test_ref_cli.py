@@ -50,8 +50,7 @@ def test_taylor_under_mpirun(tmp_path):
     from reference_runs.cases import compare_taylor
     from reference_runs.taylor import run_taylor
 
-    run = run_taylor(perturbed_lattice(12, 12, seed=4), 2.8e7, tmp_path / "j", stride=25, np_procs=2,
-                     progress=False)
+    run = run_taylor(perturbed_lattice(12, 12, seed=4), 2.8e7, tmp_path / "j", stride=25, np_procs=2, progress=False)
     assert run.manifest["command"][0].endswith("mpirun") and run.manifest["np"] == 2
     assert max(compare_taylor(run).values()) < 1e-10
     assert np.isfinite(run.get("shear-12").cauchy).all()
@@ -59,8 +58,7 @@ def test_taylor_under_mpirun(tmp_path):
 
 def test_missing_lammps_binary_names_its_package(monkeypatch, capsys, tmp_path):
     monkeypatch.setenv("PATH", str(tmp_path / "empty"))
-    rc = main(["reference", "taylor", "--demo", "--engine", "lammps", "--out", str(tmp_path / "o"),
-               "--stride", "50"])
+    rc = main(["reference", "taylor", "--demo", "--engine", "lammps", "--out", str(tmp_path / "o"), "--stride", "50"])
     assert rc == 2
     err = capsys.readouterr().err
     assert "apt-get install lammps" in err and "Traceback" not in err
@@ -71,8 +69,20 @@ def test_taylor_command_on_lammps_records_its_version(capsys, tmp_path):
     import h5py
 
     save_packing(tmp_path / "rve1.h5", perturbed_lattice(8, 8, seed=1))
-    rc = main(["reference", "taylor", "--rves", str(tmp_path), "--stride", "25", "--engine", "lammps",
-               "--out", str(tmp_path / "o")])
+    rc = main(
+        [
+            "reference",
+            "taylor",
+            "--rves",
+            str(tmp_path),
+            "--stride",
+            "25",
+            "--engine",
+            "lammps",
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
     out = capsys.readouterr().out
     assert rc == 0 and "LAMMPS vs numpy" in out and "PASS" in out
     with h5py.File(tmp_path / "o" / "taylor.h5") as f:

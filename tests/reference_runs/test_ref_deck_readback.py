@@ -32,8 +32,17 @@ def test_zero_step_run_reports_the_masses_and_stiffness(engine, tmp_path):
         pytest.skip(f"{eng.binary} not installed ({eng.install_hint})")
     packing = load_packing(STORED / TAYLOR_CASE / "packing.h5")
     kn = TAYLOR_PARAMS["kn"]
-    deck, files, states = taylor_job(packing, kn, paths=("compression-11",), routes=("periodic",),
-                                     n_steps=1, stride=1, contacts=True, name="readback", engine=engine)
+    deck, files, states = taylor_job(
+        packing,
+        kn,
+        paths=("compression-11",),
+        routes=("periodic",),
+        n_steps=1,
+        stride=1,
+        contacts=True,
+        name="readback",
+        engine=engine,
+    )
     st = states[0]
     assert np.array_equal(np.array(st.F), np.eye(2))
     for name, blob in files.items():
@@ -43,13 +52,22 @@ def test_zero_step_run_reports_the_masses_and_stiffness(engine, tmp_path):
     head, first = deck.split("# ---- state ")[:2]
     block = "# ---- state " + first
     fmt = ("line " if engine == "lammps" else "") + '"%d %.17g %.17g %.17g %.17g"'  # LIGGGHTS 3.8: no "line"
-    block = block.replace("\nrun             0",
-                          "\ndump            da all custom 1 atoms.dump id radius mass x y\n"
-                          f"dump_modify     da format {fmt}\nrun             0")
+    block = block.replace(
+        "\nrun             0",
+        "\ndump            da all custom 1 atoms.dump id radius mass x y\n"
+        f"dump_modify     da format {fmt}\nrun             0",
+    )
     assert block.count("dump            da") == 1
     (tmp_path / "in.deck").write_text(head + block)
-    r = subprocess.run(eng.command("in.deck", "log.txt"), cwd=tmp_path, env=eng.env(), capture_output=True,
-                       text=True, timeout=120, check=False)
+    r = subprocess.run(
+        eng.command("in.deck", "log.txt"),
+        cwd=tmp_path,
+        env=eng.env(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert r.returncode == 0, (r.stdout[-2000:], r.stderr[-2000:])
     (frame,) = parse_dump_custom(tmp_path / "atoms.dump")[:1]
     order = np.argsort(frame["id"])
@@ -64,8 +82,11 @@ def test_zero_step_run_reports_the_masses_and_stiffness(engine, tmp_path):
     (fr,) = parse_dump_local(tmp_path / st.contacts_file, names=tuple(meta["contact_columns"]))
     assert len(fr["fx"]) > 0
     i1, i2 = np.asarray(fr["id1"], int) - 1, np.asarray(fr["id2"], int) - 1
-    delta = (np.asarray(fr["delta"]) if engine == "liggghts"
-             else packing.radii[i1] + packing.radii[i2] - np.asarray(fr["dist"]))
+    delta = (
+        np.asarray(fr["delta"])
+        if engine == "liggghts"
+        else packing.radii[i1] + packing.radii[i2] - np.asarray(fr["dist"])
+    )
     f = np.hypot(fr["fx"], fr["fy"])
     np.testing.assert_allclose(f, kn * delta, rtol=1e-9)  # delta loses ~4 digits by cancellation
     assert deck_states(head + block)[0]["run"] == [["0"]]

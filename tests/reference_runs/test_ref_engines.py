@@ -30,8 +30,9 @@ def test_get_engine_names_and_unknown():
         get_engine("lampps")
 
 
-@pytest.mark.parametrize("engine,hint", [("liggghts", "sudo apt-get install liggghts"),
-                                         ("lammps", "sudo apt-get install lammps")])
+@pytest.mark.parametrize(
+    "engine,hint", [("liggghts", "sudo apt-get install liggghts"), ("lammps", "sudo apt-get install lammps")]
+)
 def test_missing_binary_gives_install_hint(engine, hint, tmp_path, monkeypatch):
     monkeypatch.setenv("PATH", str(tmp_path / "empty"))
     e = get_engine(engine)
@@ -53,14 +54,26 @@ def test_store_cli_without_binary_exits_2_with_hint(tmp_path):
     # the command-line entry of the stored outputs: one line, exit 2, nothing written
     env = {"PATH": str(tmp_path), "HOME": str(tmp_path)}
     before = sorted(p.name for p in STORED.iterdir())
-    out = subprocess.run([sys.executable, "-m", "reference_runs.store", "--engine", "lammps"], env=env,
-                         capture_output=True, text=True, timeout=120, cwd=str(STORED.parents[1]))
+    out = subprocess.run(
+        [sys.executable, "-m", "reference_runs.store", "--engine", "lammps"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=str(STORED.parents[1]),
+    )
     assert out.returncode == 2, out.stderr
     assert "Traceback" not in out.stderr and len(out.stderr.strip().splitlines()) == 1
     assert "`lmp` binary (LAMMPS) was not found on PATH" in out.stderr and "apt-get install lammps" in out.stderr
     assert sorted(p.name for p in STORED.iterdir()) == before
-    bad = subprocess.run([sys.executable, "-m", "reference_runs.store", "--engine", "nope"], env=env,
-                         capture_output=True, text=True, timeout=120, cwd=str(STORED.parents[1]))
+    bad = subprocess.run(
+        [sys.executable, "-m", "reference_runs.store", "--engine", "nope"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=str(STORED.parents[1]),
+    )
     assert bad.returncode == 2 and "unknown DEM code 'nope'" in bad.stderr and "Traceback" not in bad.stderr
 
 
@@ -70,8 +83,10 @@ def test_banners_of_both_codes():
     e, v = engine_of_log(LIGGGHTS_BANNER)
     assert e.name == "liggghts" and v == "LIGGGHTS-PUBLIC 3.8.0"
     assert engine_of_log("LAMMPS data file written by gransim") == (None, None)
-    log = parse_log(f"{LAMMPS_BANNER}\nStep Atoms \n       0       36 \nLoop time of 1e-06 on 1 procs for 0 steps "
-                    "with 36 atoms\nERROR: Lost atoms: original 36 current 35 (src/thermo.cpp:487)\n")
+    log = parse_log(
+        f"{LAMMPS_BANNER}\nStep Atoms \n       0       36 \nLoop time of 1e-06 on 1 procs for 0 steps "
+        "with 36 atoms\nERROR: Lost atoms: original 36 current 35 (src/thermo.cpp:487)\n"
+    )
     assert log.engine == "lammps" and log.version == "LAMMPS 29 Sep 2021 - Update 2"
     assert len(log.runs) == 1 and log.runs[0].complete and log.lost_atoms and len(log.errors) == 1
     log = parse_log(f"{LIGGGHTS_BANNER}\nStep Atoms\n 0 36\n")
@@ -91,9 +106,10 @@ def test_version_from_the_binary_banner(tmp_path):
     assert lammps_version(lmp) == f"LAMMPS 29 Sep 2021 - Update 2 ({lmp})"
     assert get_engine("lammps").version(lmp) == lammps_version(lmp)
     (tmp_path / "b").mkdir()
-    other = _script(tmp_path / "b", "lmp", LIGGGHTS_BANNER)      # answers, but not as LAMMPS
+    other = _script(tmp_path / "b", "lmp", LIGGGHTS_BANNER)  # answers, but not as LAMMPS
     assert lammps_version(other).startswith("unknown: no LAMMPS banner") and liggghts_version(other).startswith(
-        "LIGGGHTS-PUBLIC 3.8.0 (")
+        "LIGGGHTS-PUBLIC 3.8.0 ("
+    )
 
 
 @needs_lmp
@@ -172,10 +188,10 @@ def test_lammps_frame_rule_is_the_deck_readers(tmp_path, data):
     exp = expected_evidence(deck)
     got = {f: dump_frame_steps(tmp_path / "job" / f)[0] for f in outputs}
     assert got["dump.a"] == (0, 7, 14, 28, 42, 49) and got["dump.b"] == (0, 3, 6, 9, 12, 15, 24, 27, 30)
-    assert got["dump.c"] == (41, 45, 50)                       # first yes: the first step 41 too
+    assert got["dump.c"] == (41, 45, 50)  # first yes: the first step 41 too
     assert {f: exp.dumps[f].steps for f in outputs} == got
     assert [r.end for r in exp.runs] == [int(r.steps[-1]) for r in res.log.runs]
-    assert res.manifest["warnings"] == []                     # LAMMPS prints no WARNING on this deck
+    assert res.manifest["warnings"] == []  # LAMMPS prints no WARNING on this deck
 
 
 @needs_lmp
@@ -213,10 +229,13 @@ def test_stored_liggghts_job_is_not_reused_as_lammps(tmp_path, monkeypatch):
     assert not is_complete(job, engine="lammps")
     monkeypatch.setenv("PATH", str(tmp_path / "empty"))
     outputs = list(m["outputs"])
-    with pytest.raises(ReferenceRunError, match=r"fails verification: the job was run by liggghts, not lammps[;.].*"
-                                                r"It cannot be rerun here: the `lmp` binary"):
+    with pytest.raises(
+        ReferenceRunError,
+        match=r"fails verification: the job was run by liggghts, not lammps[;.].*"
+        r"It cannot be rerun here: the `lmp` binary",
+    ):
         run_job(job, deck, files, outputs=outputs, progress=False, engine="lammps")
-    assert read_manifest(job) == m and not (job / "in.lammps").exists()     # left untouched
+    assert read_manifest(job) == m and not (job / "in.lammps").exists()  # left untouched
 
 
 LAMMPS_TIMING = """\
@@ -242,7 +261,13 @@ def test_bench_reads_the_lammps_timing_table():
     from bench._dem_job import lammps_breakdown
 
     parts, mem = lammps_breakdown(LAMMPS_TIMING)
-    assert mem == 9.857        # the largest rank
-    assert parts == {"Pair": 0.025219, "Neigh": 0.0067697, "Comm": 0.020895, "Output": 0.002278,
-                     "Modify": 0.0026487, "Other": 0.02199}
+    assert mem == 9.857  # the largest rank
+    assert parts == {
+        "Pair": 0.025219,
+        "Neigh": 0.0067697,
+        "Comm": 0.020895,
+        "Output": 0.002278,
+        "Modify": 0.0026487,
+        "Other": 0.02199,
+    }
     assert lammps_breakdown("Loop time of 1 on 1 procs for 1 steps with 1 atoms\n") == ({}, None)

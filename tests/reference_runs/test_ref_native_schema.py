@@ -19,8 +19,9 @@ def test_stored_biaxial_job_in_native_schema_matches_a_native_run(tmp_path):
     k = np.searchsorted(run.series["step"], out["step"])
     # LIGGGHTS reports xx, yy and xy = (1/A) sum d_x f_y only: the file's [1, 0] repeats [0, 1]
     for a, b in ((0, 0), (1, 1), (0, 1)):
-        np.testing.assert_allclose(run.series["stress"][k][:, a, b], -out["stress"][:, a, b], rtol=0,
-                                   atol=1e-8 * np.abs(out["stress"]).max())
+        np.testing.assert_allclose(
+            run.series["stress"][k][:, a, b], -out["stress"][:, a, b], rtol=0, atol=1e-8 * np.abs(out["stress"]).max()
+        )
     assert np.all(run.series["stress"][k][:, 0, 0] < 0)  # compressive: negative, tension positive
     snap = read_snapshot(path, SHORT_CASE_DUMP_EVERY)
     assert np.abs(snap.positions - eng.x).max() < 1e-10 * p.d50
@@ -38,7 +39,13 @@ def test_voidcells_read_the_converted_liggghts_run(tmp_path):
     snap = read_snapshot(path, 2 * SHORT_CASE_DUMP_EVERY)
     from gransim.voidcell import Snapshot
 
-    vs = Snapshot(positions=snap.positions, cell=snap.cell, contacts_i=snap.contacts["i"],
-                  contacts_j=snap.contacts["j"], contacts_shift=snap.contacts["shift"], velocities=snap.velocities)
+    vs = Snapshot(
+        positions=snap.positions,
+        cell=snap.cell,
+        contacts_i=snap.contacts["i"],
+        contacts_j=snap.contacts["j"],
+        contacts_shift=snap.contacts["shift"],
+        velocities=snap.velocities,
+    )
     vc = VoidCells().compute(vs)
     assert vc.n_faces - vc.n_edges + vc.n_vertices == 0  # Euler on the torus

@@ -112,7 +112,20 @@ def test_dump_errors(tmp_path):
 
 def test_pair_gran_local_names():
     assert pair_gran_local_names(("delta", "id", "pos", "force")) == (
-        "x1", "y1", "z1", "x2", "y2", "z2", "id1", "id2", "periodic", "fx", "fy", "fz", "delta")
+        "x1",
+        "y1",
+        "z1",
+        "x2",
+        "y2",
+        "z2",
+        "id1",
+        "id2",
+        "periodic",
+        "fx",
+        "fy",
+        "fz",
+        "delta",
+    )
     assert len(pair_gran_local_names((), n_history=3)) == 6 + 6 + 3 + 3 + 3 + 3 + 1
     with pytest.raises(ValueError, match="unknown"):
         pair_gran_local_names(("forces",))
@@ -163,8 +176,10 @@ def test_h5_roundtrip(tmp_path):
 def test_stress_series_sign_and_repeated_steps():
     from reference_runs.convert import stress_series
 
-    log = parse_log("    Step    c_p[1]    c_p[2]    c_p[4]\n 0 1 2 3\n 5 4 5 6\nLoop time of 1\n"
-                    "    Step    c_p[1]    c_p[2]    c_p[4]\n 5 4 5 6\n 10 7 8 9\nLoop time of 1\n")
+    log = parse_log(
+        "    Step    c_p[1]    c_p[2]    c_p[4]\n 0 1 2 3\n 5 4 5 6\nLoop time of 1\n"
+        "    Step    c_p[1]    c_p[2]    c_p[4]\n 5 4 5 6\n 10 7 8 9\nLoop time of 1\n"
+    )
     steps, sig = stress_series(log.runs)
     assert steps.tolist() == [0, 5, 10]
     # compression-positive pressure p = (1, 2, 3) is sigma = -[[1, 3], [3, 2]]

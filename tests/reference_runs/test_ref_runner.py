@@ -129,9 +129,11 @@ def test_nonzero_exit_without_error_line(monkeypatch, tmp_path):
     bindir = tmp_path / "bin"
     bindir.mkdir()
     fake = bindir / "liggghts"
-    fake.write_text("#!/bin/sh\necho 'LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, stand-in)' > log.lammps\n"
-                    "echo 'Step Atoms' >> log.lammps\necho '0 36' >> log.lammps\n"
-                    "echo 'Signal: Segmentation fault (11)' >&2\nexit 139\n")
+    fake.write_text(
+        "#!/bin/sh\necho 'LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, stand-in)' > log.lammps\n"
+        "echo 'Step Atoms' >> log.lammps\necho '0 36' >> log.lammps\n"
+        "echo 'Signal: Segmentation fault (11)' >&2\nexit 139\n"
+    )
     fake.chmod(0o755)
     monkeypatch.setenv("PATH", f"{bindir}:/usr/bin:/bin")
     job = tmp_path / "job"

@@ -37,9 +37,16 @@ def test_stored_packing_is_the_documented_one():
 
 def test_all_paths_and_routes_present(stored):
     _, run, _ = stored
-    assert sorted(run.series) == sorted([("compression-11", "images"), ("compression-11", "periodic"),
-                                         ("compression-22", "images"), ("compression-22", "periodic"),
-                                         ("shear-12", "images"), ("shear-21", "images")])
+    assert sorted(run.series) == sorted(
+        [
+            ("compression-11", "images"),
+            ("compression-11", "periodic"),
+            ("compression-22", "images"),
+            ("compression-22", "periodic"),
+            ("shear-12", "images"),
+            ("shear-21", "images"),
+        ]
+    )
     s = run.get("shear-21")
     assert s.k.tolist() == [0, 10, 20, 30, 40, 50]
     assert np.allclose(s.F[:, 1, 0], np.linspace(0, 0.1, 6), rtol=0, atol=1e-15)
@@ -124,7 +131,7 @@ def test_stored_contacts_periodic_route(stored):
     names = tuple(meta["contact_columns"])
     for path in ("compression-11", "compression-22"):
         s = run.get(path, "periodic")
-        for k, F, cf in zip(s.k, s.F, s.contact_files):
+        for _k, F, cf in zip(s.k, s.F, s.contact_files):
             (fr,) = parse_dump_local(STORE / cf, names=names)
             ref = taylor_stress_numpy(packing, F, KN, cand)
             pairs = _numpy_pairs(ref)
@@ -133,7 +140,7 @@ def test_stored_contacts_periodic_route(stored):
             for a, b, fx, fy, d in zip(fr["id1"], fr["id2"], fr["fx"], fr["fy"], fr["delta"]):
                 key = (min(a, b), max(a, b))
                 f, eps = pairs[key]
-                f_on_id1 = f if a == key[0] else -f     # numpy f acts on i (the smaller index)
+                f_on_id1 = f if a == key[0] else -f  # numpy f acts on i (the smaller index)
                 assert np.abs(np.array([fx, fy]) - f_on_id1).max() < RTOL * fscale
                 assert abs(d - eps) < 1e-12 * packing.radii.max()
 

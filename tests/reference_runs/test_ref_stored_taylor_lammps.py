@@ -31,9 +31,18 @@ def lammps_run(request, tmp_path_factory):
     packing = load_packing(STORED / request.param / "packing.h5")
     if HAVE_LMP:
         p = TAYLOR_PARAMS
-        run = run_taylor(packing, KN, tmp_path_factory.mktemp("lmp") / request.param, name=stored.name,
-                         n_steps=p["n_steps"], stride=p["stride"], max_strain=p["max_strain"],
-                         contacts=(request.param == TAYLOR_CASE), progress=False, engine="lammps")
+        run = run_taylor(
+            packing,
+            KN,
+            tmp_path_factory.mktemp("lmp") / request.param,
+            name=stored.name,
+            n_steps=p["n_steps"],
+            stride=p["stride"],
+            max_strain=p["max_strain"],
+            contacts=(request.param == TAYLOR_CASE),
+            progress=False,
+            engine="lammps",
+        )
     else:
         run = read_taylor_job(stored, packing)
     return request.param, packing, run, candidate_pairs(packing, 0.85)
@@ -57,7 +66,7 @@ def test_lammps_stress_equals_numpy_taylor(lammps_run):
             assert ref.n_contacts > 0
             scale = np.abs(ref.cauchy).max()
             assert np.abs(sig - ref.cauchy).max() < RTOL * scale, (path, route, F.tolist())
-            if route == "periodic":     # the box virial, sigma = -p, in the triclinic box too
+            if route == "periodic":  # the box virial, sigma = -p, in the triclinic box too
                 assert np.abs(sp - ref.cauchy).max() < RTOL * scale, (path, route, F.tolist())
 
 
@@ -81,7 +90,7 @@ def test_lammps_contacts_equal_numpy(lammps_run):
             for i, j, f, eps in zip(ref.i, ref.j, ref.force, ref.overlap):
                 pairs[(int(i) + 1, int(j) + 1)] = (f, eps)
             if route == "periodic":
-                assert len(fr) == ref.n_contacts          # every periodic contact once
+                assert len(fr) == ref.n_contacts  # every periodic contact once
                 for a, b, fx, fy, d in zip(fr["id1"], fr["id2"], fr["fx"], fr["fy"], fr["delta"]):
                     key = (min(a, b), max(a, b))
                     f, eps = pairs[key]
@@ -94,7 +103,7 @@ def test_lammps_contacts_equal_numpy(lammps_run):
                 weight = np.where(central == 2, 1.0, np.where(central == 1, 0.5, 0.0))
                 assert weight.sum() == ref.n_contacts
                 # each row with a central particle has the force of a numpy contact of that pair
-                src = run._image_sources(path, route, int(k)) + 1      # atom id -> particle id
+                src = run._image_sources(path, route, int(k)) + 1  # atom id -> particle id
                 for a, b, fx, fy in zip(fr["id1"], fr["id2"], fr["fx"], fr["fy"]):
                     if a > n and b > n:
                         continue

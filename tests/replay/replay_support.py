@@ -30,15 +30,22 @@ CASES = {
 }
 
 _LAW = {
-    "liggghts": ["communicate single vel yes", "read_data data.tiny",
-                 "fix k1 all property/global kn peratomtypepair 1 1e5",
-                 "fix k2 all property/global kt peratomtypepair 1 7e4",
-                 "fix k3 all property/global gamman peratomtypepair 1 50",
-                 "fix k4 all property/global gammat peratomtypepair 1 25",
-                 "fix k5 all property/global coefficientFriction peratomtypepair 1 0.5",
-                 "pair_style gran model hooke/stiffness tangential history"],
-    "lammps": ["comm_modify mode single vel yes", "read_data data.tiny",
-               "set group all density/disc 2500", "pair_style gran/hooke/history 1e5 7e4 50 25 0.5 1"],
+    "liggghts": [
+        "communicate single vel yes",
+        "read_data data.tiny",
+        "fix k1 all property/global kn peratomtypepair 1 1e5",
+        "fix k2 all property/global kt peratomtypepair 1 7e4",
+        "fix k3 all property/global gamman peratomtypepair 1 50",
+        "fix k4 all property/global gammat peratomtypepair 1 25",
+        "fix k5 all property/global coefficientFriction peratomtypepair 1 0.5",
+        "pair_style gran model hooke/stiffness tangential history",
+    ],
+    "lammps": [
+        "comm_modify mode single vel yes",
+        "read_data data.tiny",
+        "set group all density/disc 2500",
+        "pair_style gran/hooke/history 1e5 7e4 50 25 0.5 1",
+    ],
 }
 
 
@@ -46,13 +53,29 @@ def deck_text(engine: str, case: str) -> str:
     args, every, n = CASES[case]
     temp = "thermo_temp" if engine == "liggghts" else "NULL"
     nve = "nve/sphere" if engine == "liggghts" else "nve/sphere disc"
-    lines = ["units si", "dimension 2", "boundary p p p", "atom_style sphere",
-             "atom_modify map array sort 0 0.0", "newton off", *_LAW[engine][:1], _LAW[engine][1],
-             *_LAW[engine][2:], "pair_coeff * *", "neighbor 1e-4 bin", "neigh_modify delay 0 every 1 check yes",
-             "timestep 1e-5", f"fix 1 all {nve}", "fix 2 all enforce2d",
-             f"fix 3 all deform {every} {args} remap x", f"compute p all pressure {temp} virial",
-             "thermo_style custom step lx xlo xhi ly ylo yhi c_p[1]",
-             "thermo_modify format float %.17g norm no", "thermo 1", f"run {n}"]
+    lines = [
+        "units si",
+        "dimension 2",
+        "boundary p p p",
+        "atom_style sphere",
+        "atom_modify map array sort 0 0.0",
+        "newton off",
+        *_LAW[engine][:1],
+        _LAW[engine][1],
+        *_LAW[engine][2:],
+        "pair_coeff * *",
+        "neighbor 1e-4 bin",
+        "neigh_modify delay 0 every 1 check yes",
+        "timestep 1e-5",
+        f"fix 1 all {nve}",
+        "fix 2 all enforce2d",
+        f"fix 3 all deform {every} {args} remap x",
+        f"compute p all pressure {temp} virial",
+        "thermo_style custom step lx xlo xhi ly ylo yhi c_p[1]",
+        "thermo_modify format float %.17g norm no",
+        "thermo 1",
+        f"run {n}",
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -65,7 +88,7 @@ def write(tmp, engine: str, case: str) -> Path:
 
 
 # -- shared by the replay tests ---------------------------------------------------------------
-import shutil
+import shutil  # noqa: E402
 
 HERE = Path(__file__).parent
 DATA = HERE / "data"
@@ -110,13 +133,30 @@ TILT_CASES = {
 
 def tilt_deck_text(case: str) -> str:
     args, every, n = TILT_CASES[case]
-    lines = ["units si", "dimension 2", "boundary p p p", "atom_style sphere", "atom_modify map array sort 0 0.0",
-             "newton off", "comm_modify mode single vel yes", "read_data data.tri",
-             "set group all density/disc 2500", "pair_style gran/hooke/history 1e5 7e4 50 25 0.5 1",
-             "pair_coeff * *", "neighbor 1e-4 bin", "neigh_modify delay 0 every 1 check yes", "timestep 1e-5",
-             "fix 1 all nve/sphere disc", "fix 2 all enforce2d", f"fix 3 all deform {every} {args} remap v",
-             "compute p all pressure NULL virial", "thermo_style custom step lx ly xy xlo xhi ylo yhi c_p[1]",
-             "thermo_modify format float %.17g norm no", "thermo 1", f"run {n}"]
+    lines = [
+        "units si",
+        "dimension 2",
+        "boundary p p p",
+        "atom_style sphere",
+        "atom_modify map array sort 0 0.0",
+        "newton off",
+        "comm_modify mode single vel yes",
+        "read_data data.tri",
+        "set group all density/disc 2500",
+        "pair_style gran/hooke/history 1e5 7e4 50 25 0.5 1",
+        "pair_coeff * *",
+        "neighbor 1e-4 bin",
+        "neigh_modify delay 0 every 1 check yes",
+        "timestep 1e-5",
+        "fix 1 all nve/sphere disc",
+        "fix 2 all enforce2d",
+        f"fix 3 all deform {every} {args} remap v",
+        "compute p all pressure NULL virial",
+        "thermo_style custom step lx ly xy xlo xhi ylo yhi c_p[1]",
+        "thermo_modify format float %.17g norm no",
+        "thermo 1",
+        f"run {n}",
+    ]
     return "\n".join(lines) + "\n"
 
 

@@ -31,8 +31,13 @@ def test_liggghts_deck_a_is_read_completely():
     assert d.packing.density == 2650.0
     assert np.all(d.velocities == 0) and np.all(d.spins == 0)
     ax = d.deform.axes
-    assert (d.deform.every, ax[0].style, ax[0].params, ax[1].style, ax[1].params) == (1, "erate", (-5.0,),
-                                                                                        "trate", (3.0,))
+    assert (d.deform.every, ax[0].style, ax[0].params, ax[1].style, ax[1].params) == (
+        1,
+        "erate",
+        (-5.0,),
+        "trate",
+        (3.0,),
+    )
     assert d.deform.units == "box" and d.nsteps == 500 and d.thermo_every == 1
     assert d.thermo_columns[:3] == ("step", "atoms", "lx") and "press" in d.pressure
     (dump,) = d.dumps
@@ -63,12 +68,15 @@ def test_lammps_null_kt_is_two_sevenths_of_kn():
     assert d.deform.axes[0].params == (0.250004, 0.257992) and d.deform.axes[1].params == (1.002,)
 
 
-@pytest.mark.parametrize("line,needle", [
-    ("region box block 0 1 0 1 -1 1", "command `region`"),
-    ("fix g all gravity 9.81 vector 0 -1 0", "fix style `gravity`"),
-    ("compute ke all ke", "compute style `ke`"),
-    ("dump img all image 10 a.jpg type type", "dump style `image`"),
-])
+@pytest.mark.parametrize(
+    "line,needle",
+    [
+        ("region box block 0 1 0 1 -1 1", "command `region`"),
+        ("fix g all gravity 9.81 vector 0 -1 0", "fix style `gravity`"),
+        ("compute ke all ke", "compute style `ke`"),
+        ("dump img all image 10 a.jpg type type", "dump style `image`"),
+    ],
+)
 def test_unsupported_command_names_file_line_and_lists_the_subset(tmp_path, line, needle):
     p = _copy(tmp_path, "in.deck_a", lambda t: t.replace("timestep        1e-6", f"timestep 1e-6\n{line}"))
     lineno = p.read_text().splitlines().index(line) + 1
@@ -80,21 +88,32 @@ def test_unsupported_command_names_file_line_and_lists_the_subset(tmp_path, line
         assert "supported commands:" in msg and "fix deform" in msg
 
 
-@pytest.mark.parametrize("old,new,needle", [
-    ("kt peratomtypepair 1 7e4", "kt peratomtypepair 1 7e4x", "fix property/global kt coefficient: expected a number, got '7e4x'"),
-    ("gamman peratomtypepair 1 50", "gamman peratomtypepair 2 50", "peratomtypepair 1 VALUE"),
-    ("coefficientFriction peratomtypepair 1 0.4", "coefficientFriction peratomtypepair 1 -0.4", "expected >= 0"),
-    ("timestep        1e-6", "timestep abc", "timestep DT: expected a number"),
-    ("remap x units box", "remap v", "remap v"),
-    ("x erate -5.0 y trate 3.0", "x erate -5.0 y wiggle 1 2", "y wiggle: not in the subset"),
-    ("x erate -5.0 y trate 3.0", "x erate -5.0 xy erate 0.1", "triclinic"),
-    ("neigh_modify    delay 0 every 1 check yes", "neigh_modify delay 10 every 1 check yes", "neigh_modify delay: expected 0"),
-    ("newton          off", "newton on", "newton off"),
-    ("communicate     single vel yes", "comm_modify mode single vel yes", "mixes LIGGGHTS syntax"),
-    ("run             500", "run 500 upto", "run N"),
-    ("model hooke/stiffness tangential history", "model hertz tangential history", "hooke/stiffness"),
-    ("thermo_style    custom step atoms", "thermo_style    custom step pxx atoms", "thermo keyword 'pxx'"),
-])
+@pytest.mark.parametrize(
+    "old,new,needle",
+    [
+        (
+            "kt peratomtypepair 1 7e4",
+            "kt peratomtypepair 1 7e4x",
+            "fix property/global kt coefficient: expected a number, got '7e4x'",
+        ),
+        ("gamman peratomtypepair 1 50", "gamman peratomtypepair 2 50", "peratomtypepair 1 VALUE"),
+        ("coefficientFriction peratomtypepair 1 0.4", "coefficientFriction peratomtypepair 1 -0.4", "expected >= 0"),
+        ("timestep        1e-6", "timestep abc", "timestep DT: expected a number"),
+        ("remap x units box", "remap v", "remap v"),
+        ("x erate -5.0 y trate 3.0", "x erate -5.0 y wiggle 1 2", "y wiggle: not in the subset"),
+        ("x erate -5.0 y trate 3.0", "x erate -5.0 xy erate 0.1", "triclinic"),
+        (
+            "neigh_modify    delay 0 every 1 check yes",
+            "neigh_modify delay 10 every 1 check yes",
+            "neigh_modify delay: expected 0",
+        ),
+        ("newton          off", "newton on", "newton off"),
+        ("communicate     single vel yes", "comm_modify mode single vel yes", "mixes LIGGGHTS syntax"),
+        ("run             500", "run 500 upto", "run N"),
+        ("model hooke/stiffness tangential history", "model hertz tangential history", "hooke/stiffness"),
+        ("thermo_style    custom step atoms", "thermo_style    custom step pxx atoms", "thermo keyword 'pxx'"),
+    ],
+)
 def test_malformed_or_refused_value_names_its_line(tmp_path, old, new, needle):
     p = _copy(tmp_path, "in.deck_a", lambda t: t.replace(old, new))
     assert new in p.read_text()
@@ -106,11 +125,14 @@ def test_malformed_or_refused_value_names_its_line(tmp_path, old, new, needle):
         assert f":{lineno}:" in str(e.value)
 
 
-@pytest.mark.parametrize("drop,needle", [
-    ("set group all density/disc 2650", "density/disc RHO` is missing"),
-    ("newton off", "`newton off` is missing"),
-    ("neigh_modify delay 0 every 1 check yes", "neigh_modify delay 0 every 1 check yes` is missing"),
-])
+@pytest.mark.parametrize(
+    "drop,needle",
+    [
+        ("set group all density/disc 2650", "density/disc RHO` is missing"),
+        ("newton off", "`newton off` is missing"),
+        ("neigh_modify delay 0 every 1 check yes", "neigh_modify delay 0 every 1 check yes` is missing"),
+    ],
+)
 def test_lammps_deck_without_required_command_is_refused(tmp_path, drop, needle):
     p = _copy(tmp_path, "in.deck_b", lambda t: t.replace(drop + "\n", ""), data="disks_b.data")
     with pytest.raises(InputError, match=needle.replace("[", r"\[").replace("`", "`")):

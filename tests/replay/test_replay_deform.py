@@ -24,8 +24,14 @@ def _check(log_path, deck_path):
     run = parse_log(log_path).runs[-1]
     steps = run.steps
     assert steps.tolist() == list(range(deck.nsteps + 1))
-    for name, arr in (("xlo", lo[:, 0]), ("xhi", hi[:, 0]), ("ylo", lo[:, 1]), ("yhi", hi[:, 1]),
-                      ("lx", hi[:, 0] - lo[:, 0]), ("ly", hi[:, 1] - lo[:, 1])):
+    for name, arr in (
+        ("xlo", lo[:, 0]),
+        ("xhi", hi[:, 0]),
+        ("ylo", lo[:, 1]),
+        ("yhi", hi[:, 1]),
+        ("lx", hi[:, 0] - lo[:, 0]),
+        ("ly", hi[:, 1] - lo[:, 1]),
+    ):
         col = run.column(name)
         bad = np.flatnonzero(col != arr)
         assert bad.size == 0, f"{name} differs first at step {steps[bad[0]]}: {col[bad[0]]!r} vs {arr[bad[0]]!r}"
@@ -45,8 +51,12 @@ def test_box_table_matches_stored_log(tmp_path, engine, case):
 def test_box_table_matches_live_code(tmp_path, engine, case):
     need_binary(engine)
     deck = write(tmp_path, engine, case)
-    r = subprocess.run([BINARIES[engine], "-in", deck.name, "-log", "log.out", "-screen", "none", "-nocite"],
-                       cwd=tmp_path, timeout=60, check=False)
+    r = subprocess.run(
+        [BINARIES[engine], "-in", deck.name, "-log", "log.out", "-screen", "none", "-nocite"],
+        cwd=tmp_path,
+        timeout=60,
+        check=False,
+    )
     assert r.returncode == 0
     _check(tmp_path / "log.out", deck)
 

@@ -53,7 +53,7 @@ def _drop_last_frame(text):
 def _drop_thermo_row(text):
     lines = text.splitlines(keepends=True)
     k = next(i for i, ln in enumerate(lines) if ln.split()[:1] == ["250"])
-    return "".join(lines[:k] + lines[k + 1:])
+    return "".join(lines[:k] + lines[k + 1 :])
 
 
 def _nudge_position(text):
@@ -61,20 +61,26 @@ def _nudge_position(text):
     k = text.find("ITEM: TIMESTEP\n300\n")
     k = text.find("ITEM: ATOMS", k)
     e = text.find("\n", k) + 1
-    row = text[e:text.find("\n", e)].split()
+    row = text[e : text.find("\n", e)].split()
     row[1] = repr(float(row[1]) + 1e-9)
-    return text[:e] + " ".join(row) + text[text.find("\n", e):]
+    return text[:e] + " ".join(row) + text[text.find("\n", e) :]
 
 
-@pytest.mark.parametrize("how,needle", [
-    ("frame", "incomplete: frames missing"),
-    ("thermo", "incomplete: thermo rows missing"),
-    ("nudge", "dump snap x"),
-])
+@pytest.mark.parametrize(
+    "how,needle",
+    [
+        ("frame", "incomplete: frames missing"),
+        ("thermo", "incomplete: thermo rows missing"),
+        ("nudge", "dump snap x"),
+    ],
+)
 def test_incomplete_or_wrong_evidence_fails(tmp_path, how, needle):
-    ref = _mutated_reference(tmp_path, "a", edit_dump=_drop_last_frame if how == "frame" else
-                             _nudge_position if how == "nudge" else None,
-                             edit_log=_drop_thermo_row if how == "thermo" else None)
+    ref = _mutated_reference(
+        tmp_path,
+        "a",
+        edit_dump=_drop_last_frame if how == "frame" else _nudge_position if how == "nudge" else None,
+        edit_log=_drop_thermo_row if how == "thermo" else None,
+    )
     res = replay(DATA / "in.deck_a", outdir=tmp_path / "out", reference=ref)
     assert not res.passed
     bad = [c for c in res.checks if not c.passed]
@@ -107,9 +113,23 @@ def test_replay_agrees_with_live_code(tmp_path, name):
     work.mkdir()
     for f in (f"in.deck_{name}", "disks_a.data", "disks_b.data"):
         shutil.copyfile(DATA / f, work / f)
-    r = subprocess.run([sys.executable, "-m", "gransim", "replay", str(work / f"in.deck_{name}"), "-o",
-                        str(tmp_path / "out"), "--timeout", "120"], capture_output=True, text=True,
-                       timeout=300, check=False)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "gransim",
+            "replay",
+            str(work / f"in.deck_{name}"),
+            "-o",
+            str(tmp_path / "out"),
+            "--timeout",
+            "120",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     assert r.returncode == 0, r.stdout + r.stderr
     # the live log is the stored one, step for step
     from reference_runs.parsers import parse_log

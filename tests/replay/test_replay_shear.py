@@ -36,8 +36,12 @@ def test_sheared_replay_agrees_with_stored_lammps_run(tmp_path, name):
     # 1e-6 s of Ly = 0.0069282 m: 2.078e-4 m; xy final from 2e-4 m to -1e-4 m; trate 400 1/s over
     # 500e-6 s from 2e-4 m; vel 0.35 m/s over 450e-6 s), changing on the multiples of N only
     assert lo[0, 0] == 0.25 and lo[0, 1] == -0.0417
-    want = {"d": (0.0, 600e-6 * 50.0 * (-0.0347718 + 0.0417), 1), "e": (2e-4, -1e-4, 1),
-            "f": (2e-4, 2e-4 * np.exp(400.0 * 500e-6), 2), "g": (0.0, 0.35 * 450e-6, 3)}[name]
+    want = {
+        "d": (0.0, 600e-6 * 50.0 * (-0.0347718 + 0.0417), 1),
+        "e": (2e-4, -1e-4, 1),
+        "f": (2e-4, 2e-4 * np.exp(400.0 * 500e-6), 2),
+        "g": (0.0, 0.35 * 450e-6, 3),
+    }[name]
     assert xy[0] == want[0] and abs(xy[-1] - want[1]) < 1e-15
     changed = np.flatnonzero(np.diff(xy) != 0) + 1
     assert np.array_equal(changed, np.arange(want[2], len(xy), want[2]))
@@ -67,7 +71,7 @@ def _cut(tmp_path, name, what):
     if what == "dump":
         p = ref / DECKS[name]
         t = p.read_text()
-        p.write_text(t[:t.rfind("ITEM: TIMESTEP")])
+        p.write_text(t[: t.rfind("ITEM: TIMESTEP")])
     else:  # the log cut in the middle of the run
         p = ref / "log.lammps"
         lines = p.read_text().splitlines(keepends=True)
@@ -76,8 +80,9 @@ def _cut(tmp_path, name, what):
     return ref
 
 
-@pytest.mark.parametrize("what,needle", [("dump", "incomplete: frames missing"),
-                                         ("log", "incomplete: thermo rows missing")])
+@pytest.mark.parametrize(
+    "what,needle", [("dump", "incomplete: frames missing"), ("log", "incomplete: thermo rows missing")]
+)
 def test_truncated_reference_fails(tmp_path, what, needle):
     res = replay(DATA / "in.deck_d", outdir=tmp_path / "out", reference=_cut(tmp_path, "d", what))
     assert not res.passed
@@ -99,15 +104,18 @@ def _deck(tmp_path, old, new, base="in.deck_d", data=None):
 DEFORM = "fix 3 all deform 1 xy erate 50.0 remap v"
 
 
-@pytest.mark.parametrize("new,needle", [
-    ("fix 3 all deform 1 xy trate 50.0 remap v", "xy trate on a box without tilt"),
-    ("fix 3 all deform 1 xy erate 50.0 remap x", "remap x: ShearEngine runs the Lees-Edwards"),
-    ("fix 3 all deform 1 x erate 1.0 xy erate 50.0 remap v", "fix deform x erate on a sheared"),
-    ("fix 3 all deform 1 y vel 0.01 remap v", "fix deform y vel on a sheared"),
-    ("fix 3 all deform 1 xy erate 2000.0 remap v", "beyond Lx/2"),
-    ("fix 3 all deform 1 xy wiggle 1e-4 1e-3 remap v", "xy wiggle: not in the subset"),
-    ("fix 3 all deform 1 xz erate 1.0 remap v", "no xz tilt"),
-])
+@pytest.mark.parametrize(
+    "new,needle",
+    [
+        ("fix 3 all deform 1 xy trate 50.0 remap v", "xy trate on a box without tilt"),
+        ("fix 3 all deform 1 xy erate 50.0 remap x", "remap x: ShearEngine runs the Lees-Edwards"),
+        ("fix 3 all deform 1 x erate 1.0 xy erate 50.0 remap v", "fix deform x erate on a sheared"),
+        ("fix 3 all deform 1 y vel 0.01 remap v", "fix deform y vel on a sheared"),
+        ("fix 3 all deform 1 xy erate 2000.0 remap v", "beyond Lx/2"),
+        ("fix 3 all deform 1 xy wiggle 1e-4 1e-3 remap v", "xy wiggle: not in the subset"),
+        ("fix 3 all deform 1 xz erate 1.0 remap v", "no xz tilt"),
+    ],
+)
 def test_what_shear_engine_cannot_express_is_refused_naming_the_line(tmp_path, new, needle):
     p = _deck(tmp_path, DEFORM, new)
     lineno = p.read_text().splitlines().index(new) + 1
@@ -133,8 +141,13 @@ def test_liggghts_deck_with_a_tilt_is_refused_with_the_reason(tmp_path):
         read_deck(p)
     assert f":{lineno}:" in str(e.value) and "loses the periodic ghosts" in str(e.value)
     # a tilted data file under a LIGGGHTS deck: the data file is named
-    p = _deck(tmp_path, "x erate -5.0", "x erate -5.0", base="in.deck_a",
-              data=("disks_a.data", "zlo zhi\n", "zlo zhi\n1e-4 0 0 xy xz yz\n"))
+    p = _deck(
+        tmp_path,
+        "x erate -5.0",
+        "x erate -5.0",
+        base="in.deck_a",
+        data=("disks_a.data", "zlo zhi\n", "zlo zhi\n1e-4 0 0 xy xz yz\n"),
+    )
     with pytest.raises(InputError) as e:
         read_deck(p)
     assert "disks_a.data" in str(e.value) and "LIGGGHTS 3.8.0's triclinic box" in str(e.value)
@@ -166,9 +179,23 @@ def test_sheared_replay_agrees_with_live_lammps(tmp_path, name):
     work.mkdir()
     for f in (f"in.deck_{name}", "disks_b.data", "disks_e.data"):
         shutil.copyfile(DATA / f, work / f)
-    r = subprocess.run([sys.executable, "-m", "gransim", "replay", str(work / f"in.deck_{name}"), "-o",
-                        str(tmp_path / "out"), "--timeout", "120"], capture_output=True, text=True,
-                       timeout=300, check=False)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "gransim",
+            "replay",
+            str(work / f"in.deck_{name}"),
+            "-o",
+            str(tmp_path / "out"),
+            "--timeout",
+            "120",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     assert r.returncode == 0, r.stdout + r.stderr
     from reference_runs.parsers import parse_log
 

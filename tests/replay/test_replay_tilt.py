@@ -25,8 +25,15 @@ def _check(log_path, deck_path):
     nat = run_native(deck)
     run = parse_log(log_path).runs[-1]
     assert run.steps.tolist() == list(range(deck.nsteps + 1))
-    for name, arr in (("xy", nat.xy), ("xlo", nat.lo[:, 0]), ("xhi", nat.hi[:, 0]), ("ylo", nat.lo[:, 1]),
-                      ("yhi", nat.hi[:, 1]), ("lx", nat.hi[:, 0] - nat.lo[:, 0]), ("ly", nat.hi[:, 1] - nat.lo[:, 1])):
+    for name, arr in (
+        ("xy", nat.xy),
+        ("xlo", nat.lo[:, 0]),
+        ("xhi", nat.hi[:, 0]),
+        ("ylo", nat.lo[:, 1]),
+        ("yhi", nat.hi[:, 1]),
+        ("lx", nat.hi[:, 0] - nat.lo[:, 0]),
+        ("ly", nat.hi[:, 1] - nat.lo[:, 1]),
+    ):
         col = run.column(name)
         bad = np.flatnonzero(col != arr)
         assert bad.size == 0, f"{name} differs first at step {bad[0]}: {col[bad[0]]!r} vs {arr[bad[0]]!r}"
@@ -47,8 +54,12 @@ def test_tilt_matches_stored_lammps_log(tmp_path, case):
 def test_tilt_matches_live_lammps(tmp_path, case):
     need_binary("lammps")
     deck = write_tilt(tmp_path, case)
-    r = subprocess.run(["lmp", "-in", deck.name, "-log", "log.out", "-screen", "none", "-nocite"], cwd=tmp_path,
-                       timeout=60, check=False)
+    r = subprocess.run(
+        ["lmp", "-in", deck.name, "-log", "log.out", "-screen", "none", "-nocite"],
+        cwd=tmp_path,
+        timeout=60,
+        check=False,
+    )
     assert r.returncode == 0
     _check(tmp_path / "log.out", deck)
 

@@ -31,9 +31,7 @@ def lattice_packing(
     r = 0.5 * a * swell * (1 + rng.uniform(-spread, spread, x.shape[0]))
     cell = np.array([[nx * a, 0.0], [0.0, ny * h]])
     S = np.array([[1.0, shear], [0.0, 1.0]])
-    return Packing(
-        positions=x @ S.T, radii=r, cell=S @ cell, metadata={"kind": "test-lattice", "seed": seed}
-    )
+    return Packing(positions=x @ S.T, radii=r, cell=S @ cell, metadata={"kind": "test-lattice", "seed": seed})
 
 
 def random_packing(n: int = 60, seed: int = 1, phi: float = 0.95) -> Packing:
@@ -47,9 +45,7 @@ def random_packing(n: int = 60, seed: int = 1, phi: float = 0.95) -> Packing:
     side = np.sqrt(area)
     cell = np.array([[side, 0.3 * side], [0.0, side]])
     s = rng.uniform(-0.2, 1.2, (n, 2))
-    return Packing(
-        positions=s @ cell.T, radii=r, cell=cell, metadata={"kind": "test-random", "seed": seed}
-    )
+    return Packing(positions=s @ cell.T, radii=r, cell=cell, metadata={"kind": "test-random", "seed": seed})
 
 
 @pytest.fixture(scope="session")

@@ -25,9 +25,7 @@ def test_density_normalised_and_pi_periodic():
     theta = np.linspace(0, 2 * np.pi, 20000, endpoint=False)
     for delta in np.radians([10, 20, 30, 90]):
         rho = normal_density(tc, delta, theta)
-        assert np.mean(rho) * 2 * np.pi == pytest.approx(
-            1.0, abs=2e-3
-        )  # Riemann sum of a step function
+        assert np.mean(rho) * 2 * np.pi == pytest.approx(1.0, abs=2e-3)  # Riemann sum of a step function
         np.testing.assert_array_equal(rho, normal_density(tc, delta, theta + np.pi))
         assert np.all(rho >= 0)
 

@@ -90,8 +90,9 @@ def test_relaxed_energy_never_exceeds_taylor(standard):
     RVEs for compression, shear and extension; W(F, 0) of the relaxed code equals TaylorMaterial's W (an
     independent kernel) to round-off."""
     rng = np.random.default_rng(3)
-    Fs = [np.eye(2), np.diag([0.995, 0.999]), np.array([[1.0, 0.004], [0.0, 0.999]]),
-          np.diag([1.002, 0.997])] + [np.eye(2) + 3e-3 * rng.uniform(-1, 1, (2, 2)) for _ in range(3)]
+    Fs = [np.eye(2), np.diag([0.995, 0.999]), np.array([[1.0, 0.004], [0.0, 0.999]]), np.diag([1.002, 0.997])] + [
+        np.eye(2) + 3e-3 * rng.uniform(-1, 1, (2, 2)) for _ in range(3)
+    ]
     for name, p in standard.items():
         mat, tay = RelaxedMaterial(p, KN), TaylorMaterial(p, KN)
         for F in Fs:
@@ -142,8 +143,7 @@ def test_rattlers_are_reported_and_keep_their_fluctuation():
     the solve, and its start w is kept; the rest is the lattice (Taylor)."""
     base = triangular_lattice()
     hole = (base.positions[0] + base.positions[1] + base.positions[8]) / 3
-    p = Packing(positions=np.vstack([base.positions, hole]),
-                radii=np.append(base.radii, 0.02e-3), cell=base.cell)
+    p = Packing(positions=np.vstack([base.positions, hole]), radii=np.append(base.radii, 0.02e-3), cell=base.cell)
     mat = RelaxedMaterial(p, KN)
     start = np.zeros((p.n, 2))
     start[-1] = [1e-5, -2e-5]

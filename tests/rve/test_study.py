@@ -19,9 +19,7 @@ KN = 2.8e7
 
 @pytest.fixture(scope="module")
 def small_set():
-    return {
-        f"s{n}-{k}": random_packing(n, seed=10 * n + k, phi=0.9) for n in (30, 60) for k in range(3)
-    }
+    return {f"s{n}-{k}": random_packing(n, seed=10 * n + k, phi=0.9) for n in (30, 60) for k in range(3)}
 
 
 def test_load_paths():
@@ -41,7 +39,7 @@ def test_study_values_and_statistics(small_set, tmp_path):
     assert res.cauchy.shape == (6, 4, 9, 2, 2)
     # spot check against the independent brute force (end of each path, one RVE per size)
     for r in (0, 3):
-        for q, p in enumerate(PATHS):
+        for q, _p in enumerate(PATHS):
             ref = homogenize_bruteforce(res.packings[res.names[r]], res.F[q, -1], KN)
             np.testing.assert_allclose(
                 res.cauchy[r, q, -1],
@@ -61,9 +59,7 @@ def test_study_values_and_statistics(small_set, tmp_path):
     with h5py.File(h5) as f:
         assert f.attrs["kind"] == "rve-study"
         np.testing.assert_array_equal(f["paths/shear12/cauchy"][()], res.cauchy[:, 2])
-        np.testing.assert_array_equal(
-            f["summary/compression22/60/cauchy_std"][()], res.summary()[60][1][1]
-        )
+        np.testing.assert_array_equal(f["summary/compression22/60/cauchy_std"][()], res.summary()[60][1][1])
         assert f["fabric/density"].shape == (6, 3, 720)
         assert f["fabric"].attrs["most_uniform_60"] == res.most_uniform(60)
     assert sorted(p.name for p in pngs) == ["compression.png", "fabric.png", "shear.png"]
@@ -73,7 +69,7 @@ def test_study_values_and_statistics(small_set, tmp_path):
 def test_study_compute_object_guards(small_set):
     s = RVEStudy(small_set, steps=2)
     with pytest.raises(InputError, match="run"):
-        s.result
+        _ = s.result
     with pytest.raises(InputError, match="mapping"):
         RVEStudy({})
 
@@ -95,12 +91,8 @@ def test_cli_rve_stress_and_check(tmp_path, capsys):
 
 def test_cli_rve_study(tmp_path, capsys, small_set):
     files = [str(save_packing(tmp_path / f"{k}.h5", p)) for k, p in list(small_set.items())[:2]]
-    assert (
-        main(["rve-study", "--packings", *files, "--steps", "4", "-o", str(tmp_path / "out")]) == 0
-    )
-    assert (tmp_path / "out" / "rve_study.h5").exists() and (
-        tmp_path / "out" / "shear.png"
-    ).exists()
+    assert main(["rve-study", "--packings", *files, "--steps", "4", "-o", str(tmp_path / "out")]) == 0
+    assert (tmp_path / "out" / "rve_study.h5").exists() and (tmp_path / "out" / "shear.png").exists()
     assert main(["rve-stress", str(tmp_path / "out" / "rve_study.h5")]) == 2
     assert "--rve NAME" in capsys.readouterr().err
     assert main(["rve-stress", str(tmp_path / "out" / "rve_study.h5"), "--rve", "nope"]) == 2

@@ -154,9 +154,7 @@ def test_agrees_with_bruteforce(packings, name):
     summation order only), identical contact counts."""
     for rec in crosscheck({name: packings[name]}, KN):
         assert rec["contacts_equal"], rec
-        assert (
-            rec["rel_energy"] < 1e-12 and rec["rel_piola"] < 1e-12 and rec["rel_tangent"] < 1e-12
-        ), rec
+        assert rec["rel_energy"] < 1e-12 and rec["rel_piola"] < 1e-12 and rec["rel_tangent"] < 1e-12, rec
 
 
 def test_tiny_cell_self_images():
@@ -209,12 +207,8 @@ def test_batched_equals_single_and_rve_index(packings):
     for g in range(12):
         one = homogenize(packings[names[idx[g]]], F[g], KN)
         assert b[g].n_contacts == one.n_contacts
-        np.testing.assert_allclose(
-            b.tangent[g], one.tangent, rtol=0, atol=1e-13 * np.abs(one.tangent).max()
-        )
-        np.testing.assert_allclose(
-            b.cauchy[g], one.cauchy, rtol=0, atol=1e-13 * np.abs(one.cauchy).max()
-        )
+        np.testing.assert_allclose(b.tangent[g], one.tangent, rtol=0, atol=1e-13 * np.abs(one.tangent).max())
+        np.testing.assert_allclose(b.cauchy[g], one.cauchy, rtol=0, atol=1e-13 * np.abs(one.cauchy).max())
     assert np.all(b.n_candidates >= b.n_contacts)
 
 
@@ -311,9 +305,7 @@ def standard_rves(tmp_path_factory):
 def test_all_standard_rves_agree_with_bruteforce(standard_rves):
     """Acceptance: numba path = brute force to 1e-12 on all 15 RVEs (contacts identical)."""
     # three states per RVE keep this under ~15 s; ``gransim rve-check`` runs eight
-    Fs = np.array(
-        [[[0.95, 0.0], [0.0, 1.0]], [[1.0, 0.05], [0.0, 1.0]], [[1.08, -0.06], [0.09, 0.93]]]
-    )
+    Fs = np.array([[[0.95, 0.0], [0.0, 1.0]], [[1.0, 0.05], [0.0, 1.0]], [[1.08, -0.06], [0.09, 0.93]]])
     assert len(standard_rves) == 15
     for rec in crosscheck(standard_rves, 2.8e7, Fs):
         assert rec["contacts_equal"], rec

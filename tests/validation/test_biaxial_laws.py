@@ -38,9 +38,7 @@ def test_law_table_keeps_the_protocol_scales(setup):
     for name in ("hertz-liggghts", "hertz-granular-lammps", "hertz-lammps"):
         assert hertz_equivalent_stiffness(pk, name, t[name]) == pytest.approx(dem.kn, rel=1e-12)
     z = 0.3
-    assert t["hertz-liggghts"]["restitution"] == pytest.approx(
-        math.exp(-math.pi * z / math.sqrt(1 - z * z)), rel=1e-9
-    )
+    assert t["hertz-liggghts"]["restitution"] == pytest.approx(math.exp(-math.pi * z / math.sqrt(1 - z * z)), rel=1e-9)
     assert t["hooke-liggghts"] == {
         "kn": dem.kn,
         "kt": dem.kt,
@@ -55,11 +53,7 @@ def test_job_list(tmp_path, setup, ligg, lmp):
     pk, dem, _ = setup
     ctx = Context("full", tmp_path / "results", liggghts=ligg, lammps=lmp)
     jobs = B.law_jobs(ctx, pk, dem)
-    want = [
-        n
-        for n in law_names()
-        if (law_code(n) == "liggghts" and ligg) or (law_code(n) == "lammps" and lmp)
-    ]
+    want = [n for n in law_names() if (law_code(n) == "liggghts" and ligg) or (law_code(n) == "lammps" and lmp)]
     assert sorted({k[0] for k in jobs}) == sorted(want)
     labels = {"reference", *(p[0] for p in B.PERTURB)}
     for name in want:

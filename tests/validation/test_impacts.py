@@ -86,8 +86,9 @@ def test_case_passes_on_stored_outputs(tmp_path):
 def test_fails_when_damping_is_off_by_one_percent(tmp_path, monkeypatch):
     _only(monkeypatch, "normal-z0.35")
     orig = I.native_settings
-    monkeypatch.setattr(I, "native_settings", lambda law, dt, fl: dataclasses.replace(
-        orig(law, dt, fl), gamma_n=1.01 * law.gamma_n))
+    monkeypatch.setattr(
+        I, "native_settings", lambda law, dt, fl: dataclasses.replace(orig(law, dt, fl), gamma_n=1.01 * law.gamma_n)
+    )
     res = I.impacts(_ctx(tmp_path))
     assert not res.passed
     assert _failed(res, "restitution")
@@ -96,8 +97,9 @@ def test_fails_when_damping_is_off_by_one_percent(tmp_path, monkeypatch):
 def test_fails_when_stiffness_is_off_by_one_percent(tmp_path, monkeypatch):
     _only(monkeypatch, "normal-z0")
     orig = I.native_settings
-    monkeypatch.setattr(I, "native_settings", lambda law, dt, fl: dataclasses.replace(
-        orig(law, dt, fl), kn=1.01 * law.kn))
+    monkeypatch.setattr(
+        I, "native_settings", lambda law, dt, fl: dataclasses.replace(orig(law, dt, fl), kn=1.01 * law.kn)
+    )
     res = I.impacts(_ctx(tmp_path))
     assert _failed(res, "contact time")
 
@@ -126,9 +128,10 @@ def test_truncated_stored_log_fails_as_incomplete(tmp_path, monkeypatch):
 def _rk4_hertz(meff, K, c, vn, h):
     """Independent dimensional integration (classical RK4, step h) of m* delta'' = -K delta^(3/2)
     - c delta^(1/4) delta' to the return to delta = 0: (contact time, peak overlap, restitution)."""
+
     def acc(x, v):
         x = max(x, 0.0)
-        return -(K * x ** 1.5 + c * x ** 0.25 * v) / meff
+        return -(K * x**1.5 + c * x**0.25 * v) / meff
 
     x, v, t, peak = 0.0, vn, 0.0, 0.0
     while True:
@@ -148,9 +151,9 @@ def test_hertz_closed_forms_against_integration():
     """H1-H3 (closed forms, Beta function) against the scaled ODE (DOP853) at alpha = 0, and the
     scaled damped solution (H4) against an independent dimensional RK4 integration."""
     o = I.hertz_scaled_ode(0.0)
-    assert o["x_max"] == pytest.approx(1.25 ** 0.4, rel=1e-9)
-    assert o["f_max"] == pytest.approx(1.25 ** 0.6, rel=1e-9)
-    assert o["tau_c"] == pytest.approx(2 * 1.25 ** 0.4 * 1.4716, rel=1e-4)  # int_0^1 dx/sqrt(1 - x^2.5)
+    assert o["x_max"] == pytest.approx(1.25**0.4, rel=1e-9)
+    assert o["f_max"] == pytest.approx(1.25**0.6, rel=1e-9)
+    assert o["tau_c"] == pytest.approx(2 * 1.25**0.4 * 1.4716, rel=1e-4)  # int_0^1 dx/sqrt(1 - x^2.5)
     assert o["restitution"] == pytest.approx(1.0, abs=1e-9)
     meff, reff, y43, vn = 0.157, 0.005, 3.663e8, 0.01
     und = I.hertz_undamped(meff, reff, y43, vn)
@@ -189,7 +192,7 @@ def test_hertz_stick_reference_limits():
 
     def f(y):
         d = max(y[0], 0.0)
-        return [y[1], -K * d ** 1.5 / meff, y[3], -3 * 4.52e8 * math.sqrt(reff * d) * y[2] / meff]
+        return [y[1], -K * d**1.5 / meff, y[3], -3 * 4.52e8 * math.sqrt(reff * d) * y[2] / meff]
 
     y, h = [0.0, vn, 0.0, 1.0], 1e-7
     while True:
@@ -238,8 +241,9 @@ def test_fails_when_hertz_restitution_formula_off_by_one_percent(tmp_path, monke
     assert {r.case.split("/")[1] for r in bad} == {"hertz-liggghts-e0.5", "hertz-granular-tsuji0.3"}
 
 
-@pytest.mark.parametrize("scene, field", [("hertz-liggghts-stick", "geff"), ("hertz-lammps-stick", "kt"),
-                                          ("hertz-granular-stick", "kt0")])
+@pytest.mark.parametrize(
+    "scene, field", [("hertz-liggghts-stick", "geff"), ("hertz-lammps-stick", "kt"), ("hertz-granular-stick", "kt0")]
+)
 def test_fails_when_mindlin_stiffness_off_by_one_percent(tmp_path, monkeypatch, scene, field):
     _only(monkeypatch, scene)
     _perturbed(monkeypatch, lambda law: law._replace(**{field: 1.01 * getattr(law, field)}))

@@ -143,9 +143,7 @@ def test_spin_decay_regimes():
     amp = c["Mc"] / math.sqrt(c["K"] * c["I"])
     assert 2.0 < amp < 10.0
     el = I.spin_decay(c, 2.0, 0.01)
-    assert not el["capped"] and np.max(np.abs(el["w"](np.linspace(0, 0.01, 2001)))) == pytest.approx(
-        2.0, rel=1e-5
-    )
+    assert not el["capped"] and np.max(np.abs(el["w"](np.linspace(0, 0.01, 2001)))) == pytest.approx(2.0, rel=1e-5)
     sl = I.spin_decay(c, 10.0, 0.03)
     late = np.linspace(sl["stop time"] + 1e-6, 0.03, 8001)
     assert np.max(np.abs(sl["w"](late))) == pytest.approx(amp, rel=1e-4)

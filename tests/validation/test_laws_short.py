@@ -3,7 +3,6 @@ the stored runs and fails when the native law is off by 1% (a stiffness) or the 
 
 from __future__ import annotations
 
-import dataclasses
 import shutil
 
 import pytest

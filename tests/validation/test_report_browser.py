@@ -42,8 +42,7 @@ def _results(tmp_path):
 
 
 def test_the_report_renders_with_every_image_and_section(tmp_path):
-    index = write_html(tmp_path / "report", _results(tmp_path), {"liggghts_available": True,
-                                                                "lammps_available": True})
+    index = write_html(tmp_path / "report", _results(tmp_path), {"liggghts_available": True, "lammps_available": True})
     shot = tmp_path / "first-screen.png"
     seen = check_report(index, width=1400, screenshot=shot)
     assert problems(seen) == [], problems(seen)

@@ -23,8 +23,13 @@ def test_position_difference_is_modulo_the_box():
 
 def test_frame_differences_relative_to_the_reference():
     x = np.array([[0.1, 0.2], [0.5, 0.6]])
-    fr = {"x": x, "v": np.array([[1.0, 0.0], [0.0, -2.0]]), "w": np.array([1.0, 4.0]),
-          "f": np.ones((2, 2)), "t": np.array([1.0, -1.0])}
+    fr = {
+        "x": x,
+        "v": np.array([[1.0, 0.0], [0.0, -2.0]]),
+        "w": np.array([1.0, 4.0]),
+        "f": np.ones((2, 2)),
+        "t": np.array([1.0, -1.0]),
+    }
     other = {k: v.copy() for k, v in fr.items()}
     other["v"][1, 1] = -2.2  # 0.2 / max|v| = 0.1
     a = Trajectory(np.array([0]), np.zeros((1, 3)), np.array([[1.0, 1.0]]), {0: other})
@@ -42,8 +47,13 @@ def test_affine_box_motion_gives_perfect_alignment():
     L0 = np.diag(p.cell)
     dt = 1e-3
     lengths = np.array([L0 * (1 + 1e-3 * k * np.array([0.5, -1.0])) for k in range(3)])
-    fr = {"x": np.array(p.positions), "v": np.zeros((p.n, 2)), "w": np.zeros(p.n), "f": np.zeros((p.n, 2)),
-          "t": np.zeros(p.n)}
+    fr = {
+        "x": np.array(p.positions),
+        "v": np.zeros((p.n, 2)),
+        "w": np.zeros(p.n),
+        "f": np.zeros((p.n, 2)),
+        "t": np.zeros(p.n),
+    }
     tr = Trajectory(np.arange(3), np.zeros((3, 3)), lengths, {1: fr})
     snap = snapshot(tr, 1, p.radii, dt)
     vc = VoidCells().compute(snap)
@@ -52,8 +62,9 @@ def test_affine_box_motion_gives_perfect_alignment():
     np.testing.assert_allclose(vc.w, 0.0, atol=1e-9)
     # the cell list does not depend on the order the contacts are given in
     perm = np.random.default_rng(0).permutation(snap.n_contacts)
-    snap2 = snap.replace(contacts_i=snap.contacts_i[perm], contacts_j=snap.contacts_j[perm],
-                         contacts_shift=snap.contacts_shift[perm])
+    snap2 = snap.replace(
+        contacts_i=snap.contacts_i[perm], contacts_j=snap.contacts_j[perm], contacts_shift=snap.contacts_shift[perm]
+    )
     assert cell_signature(VoidCells().compute(snap2)) == cell_signature(vc)
 
 
@@ -72,8 +83,13 @@ def test_envelope_members_of_each_code(tmp_path):
     full = reference_jobs(Context("full", tmp_path, liggghts=True, lammps=True), p, dem, "t", True)
     for engine in ("liggghts", "lammps"):
         labels = {lab for e, lab in full if e == engine}
-        assert labels == {"reference", "x of disk 1 moved by +1e-15 rel", "y of disk 19 moved by -1e-15 rel",
-                          "2 MPI processes", SKIN_LABEL}, (engine, labels)
+        assert labels == {
+            "reference",
+            "x of disk 1 moved by +1e-15 rel",
+            "y of disk 19 moved by -1e-15 rel",
+            "2 MPI processes",
+            SKIN_LABEL,
+        }, (engine, labels)
         for (e, lab), kw in full.items():
             if e != engine:
                 continue
@@ -82,7 +98,7 @@ def test_envelope_members_of_each_code(tmp_path):
             assert kw.get("np_procs", 1) == (2 if lab == "2 MPI processes" else 1)
             moved = np.argwhere(kw["packing"].positions != p.positions)
             if "moved" in lab:
-                (k, ax), = moved
+                ((k, ax),) = moved
                 rel = kw["packing"].positions[k, ax] / p.positions[k, ax] - 1
                 assert 0 < abs(rel) < 3e-15
             else:
@@ -90,6 +106,9 @@ def test_envelope_members_of_each_code(tmp_path):
     dirs = [kw["job_dir"] for kw in full.values()]
     assert len(set(dirs)) == len(dirs)  # no two jobs share a directory
     default = reference_jobs(Context("default", tmp_path, liggghts=True, lammps=False), p, dem, "t", False)
-    assert {lab for _, lab in default} == {"reference", "x of disk 1 moved by +1e-15 rel",
-                                           "y of disk 19 moved by -1e-15 rel"}
+    assert {lab for _, lab in default} == {
+        "reference",
+        "x of disk 1 moved by +1e-15 rel",
+        "y of disk 19 moved by -1e-15 rel",
+    }
     assert {e for e, _ in default} == {"liggghts"}

@@ -18,8 +18,7 @@ from gransim.dem import AxisControl, Loading
 from validation import dem_compare
 from validation.runner import run_validation
 
-CASE_IDS = {"packings", "taylor-rve", "biaxial-short", "biaxial-full", "simple-shear", "voidcell", "slope",
-            "impacts"}
+CASE_IDS = {"packings", "taylor-rve", "biaxial-short", "biaxial-full", "simple-shear", "voidcell", "slope", "impacts"}
 
 
 def _quiet(*_a, **_k):
@@ -36,8 +35,13 @@ def test_quick_suite_passes_and_writes_outputs(tmp_path):
             assert doc["header"][f"{code}_version"].startswith(word), doc["header"]
         else:
             assert doc["header"][f"{code}_version"] == "absent"
-    assert doc["cases"] == {"taylor-rve": "pass", "biaxial-short": "pass", "simple-shear": "pass", "voidcell": "pass",
-                            "impacts": "pass"}
+    assert doc["cases"] == {
+        "taylor-rve": "pass",
+        "biaxial-short": "pass",
+        "simple-shear": "pass",
+        "voidcell": "pass",
+        "impacts": "pass",
+    }
     assert doc["records"]
     for rec in doc["records"]:
         assert {"case", "quantity", "metric", "value", "tolerance", "pass"} <= set(rec)
@@ -55,7 +59,8 @@ def test_quick_suite_passes_and_writes_outputs(tmp_path):
         assert all(p for p, k in zip(f["pass"][()], kinds) if k == "check")
         assert "info" in kinds  # the raw cross-code differences are shown, not judged
         assert {"native-liggghts", "native-lammps", "liggghts-lammps"} <= {
-            p.decode() if isinstance(p, bytes) else p for p in f["pair"][()]}
+            p.decode() if isinstance(p, bytes) else p for p in f["pair"][()]
+        }
     html = (tmp_path / "report" / "index.html").read_text()
     assert html.index("<h2>Summary</h2>") < html.index("Validation matrix")
     assert "All 5 cases pass" in html

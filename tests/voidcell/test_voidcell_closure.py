@@ -40,7 +40,7 @@ def test_independent_rotation_system_equals_the_dcel_and_closes():
     nxt = rotation_next(d.origin, d.vec, len(x))
     np.testing.assert_array_equal(nxt, d.next)
     for f in range(d.n_faces):  # every face closes to round-off (|x| ~ 10 m, eps 2e-16)
-        hs = d.face_halfedges[d.face_ptr[f]:d.face_ptr[f + 1]]
+        hs = d.face_halfedges[d.face_ptr[f] : d.face_ptr[f + 1]]
         assert np.abs(d.vec[hs].sum(axis=0)).max() < 1e-12
 
 
@@ -67,8 +67,11 @@ def test_transposed_rotation_at_one_particle_changes_the_genus(vertex):
     d = VoidCells().compute(Snapshot(x, cell, i, j, s, np.zeros_like(x), radii=r)).dcel
     nxt = rotation_next(d.origin, d.vec, len(x), swap_at=vertex)
     np.testing.assert_array_equal(d.origin[nxt], d.dest)  # still a consistent half-edge map
-    with pytest.raises(InputError, match=rf"F - E \+ V = {d.n_faces - 2} - {d.n_edges} \+ "
-                                         rf"{d.n_vertices} = -2 != 0"):
+    with pytest.raises(
+        InputError,
+        match=rf"F - E \+ V = {d.n_faces - 2} - {d.n_edges} \+ "
+        rf"{d.n_vertices} = -2 != 0",
+    ):
         faces_from_next(nxt, d.origin, d.vec, cell, d.n_vertices)
 
 

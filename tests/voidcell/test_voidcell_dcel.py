@@ -2,11 +2,10 @@
 
 import numpy as np
 import pytest
+from voidcell_fixtures import contacts, lattice_packing, square_lattice
 
 from gransim.voidcell import Snapshot, VoidCells
 from gransim.voidcell.dcel import find_crossing
-
-from voidcell_fixtures import contacts, lattice_packing, square_lattice
 
 
 def analyse(x, r, cell, **kw):
@@ -35,7 +34,7 @@ def test_dcel_invariants(computed):
     np.testing.assert_array_equal(d.face[d.next], d.face)  # next cycles stay in their face
     np.testing.assert_array_equal(np.sort(d.face_halfedges), h)  # each half-edge in one face
     for f in range(d.n_faces):  # cycles close in walk order
-        hs = d.face_halfedges[d.face_ptr[f]:d.face_ptr[f + 1]]
+        hs = d.face_halfedges[d.face_ptr[f] : d.face_ptr[f + 1]]
         np.testing.assert_array_equal(d.next[hs], np.roll(hs, -1))
         assert np.all(d.face[hs] == f)
 
@@ -56,7 +55,7 @@ def test_face_polygons_are_counter_clockwise_and_close(computed):
         q = np.roll(p, -1, axis=0)
         area = 0.5 * np.sum(p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0])
         assert area == pytest.approx(d.face_area[f], rel=1e-12)
-        hs = d.face_halfedges[d.face_ptr[f]:d.face_ptr[f + 1]]
+        hs = d.face_halfedges[d.face_ptr[f] : d.face_ptr[f + 1]]
         np.testing.assert_allclose(d.vec[hs].sum(axis=0), 0, atol=1e-12)
 
 
@@ -64,8 +63,7 @@ def test_square_lattice_counts_and_boundary_faces():
     for n in (1, 2, 5):
         pos, edges = square_lattice(n)
         i, j, s = (np.array([e[k] for e in edges]) for k in range(3))
-        vc = VoidCells().compute(Snapshot(pos, np.diag([n, n]) * 1.0, i, j, s.reshape(-1, 2),
-                                          np.zeros_like(pos)))
+        vc = VoidCells().compute(Snapshot(pos, np.diag([n, n]) * 1.0, i, j, s.reshape(-1, 2), np.zeros_like(pos)))
         assert (vc.n_faces, vc.n_edges, vc.n_vertices) == (n * n, 2 * n * n, n * n)
         np.testing.assert_allclose(vc.face_area, 1.0, rtol=1e-13)
         assert np.all(vc.valence == 4)
@@ -113,13 +111,19 @@ def brute_force_crossings(pos, cell, ei, ej, vec):
             b1 = a1 + off
 
             def orient(p, q, r):
-                return ((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
-                        - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
+                return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (
+                    r[..., 0] - p[..., 0]
+                )
+
             P, Q = a0[:, None], a1[:, None]
             R, S = b0[None, :], b1[None, :]
             hit = (orient(P, Q, R) * orient(P, Q, S) < 0) & (orient(R, S, P) * orient(R, S, Q) < 0)
-            share = ((ei[:, None] == ei[None, :]) | (ei[:, None] == ej[None, :])
-                     | (ej[:, None] == ei[None, :]) | (ej[:, None] == ej[None, :]))
+            share = (
+                (ei[:, None] == ei[None, :])
+                | (ei[:, None] == ej[None, :])
+                | (ej[:, None] == ei[None, :])
+                | (ej[:, None] == ej[None, :])
+            )
             hit &= ~share
             count += int(np.triu(hit, 1).sum() + np.tril(hit, -1).sum())
     return count // 2

@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
+from voidcell_fixtures import contacts, lattice_packing
 
 from gransim.errors import InputError
 from gransim.voidcell import NotComputedError, Snapshot, VoidCells
-from voidcell_fixtures import contacts, lattice_packing
 
 
 def base(lattice):
@@ -86,5 +86,5 @@ def test_v_rel_needs_d50(lattice):
     G = np.array([[0.1, 0.0], [0.0, -0.2]])
     vc = VoidCells().compute(Snapshot(x, cell, i, j, s, x @ G.T, cell_velocity=G @ cell))
     with pytest.raises(InputError, match="D50"):
-        vc.v_rel
+        _ = vc.v_rel
     assert VoidCells(d50=1.0).compute(vc.snapshot).v_rel.shape == x.shape

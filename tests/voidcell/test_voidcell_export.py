@@ -2,11 +2,11 @@
 
 import meshio
 import numpy as np
+from voidcell_fixtures import contacts, lattice_packing
 
 from gransim.voidcell import Snapshot, VoidCells
 from gransim.voidcell.plots import wrapped_face_polygons
 from gransim.voidcell.vtk import cells_to_vtu
-from voidcell_fixtures import contacts, lattice_packing
 
 
 def shoelace(p):

@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from voidcell_fixtures import square_lattice
 
 from gransim.errors import InputError
 from gransim.voidcell import Snapshot, VoidCells, build_graph, find_bridges
 from gransim.voidcell.graph import ISLAND, ISOLATED, KEPT, PENDANT, PENINSULAR, components
-from voidcell_fixtures import square_lattice
 
 
 def add(pos, edges, new_pos, new_edges):
@@ -64,22 +64,24 @@ def test_pendant_chain_isolated_and_island():
     # an island triangle inside the face between particles 5, 6, 9, 10
     pos, edges = add(pos, edges, [[0.5, 0.9], [0.5, 1.2]], [(0, "n0"), ("n0", "n1")])
     pos, edges = add(pos, edges, [[2.9, 2.9]], [])
-    pos, edges = add(pos, edges, [[1.8, 1.8], [2.2, 1.8], [2.0, 2.2]],
-                     [("n0", "n1"), ("n1", "n2"), ("n2", "n0")])
+    pos, edges = add(pos, edges, [[1.8, 1.8], [2.2, 1.8], [2.0, 2.2]], [("n0", "n1"), ("n1", "n2"), ("n2", "n0")])
     g, _ = graph_of(pos, edges)
     assert g.removed[16] == PENDANT and g.removed[17] == PENDANT
     assert g.removed[18] == ISOLATED
     assert np.all(g.removed[19:22] == ISLAND)
     assert np.all(g.removed[:16] == KEPT) and g.n_edges == 32
-    assert g.removal_counts() == {"kept": 16, "isolated": 1, "pendant": 2, "island": 3,
-                                  "peninsular": 0}
+    assert g.removal_counts() == {"kept": 16, "isolated": 1, "pendant": 2, "island": 3, "peninsular": 0}
 
 
 def test_peninsula_on_a_bridge():
     pos, edges = square_lattice(4)
     # a triangle hanging on particle 5 through one contact (and a chain particle in between)
-    pos, edges = add(pos, edges, [[1.7, 1.6], [1.85, 1.55], [2.0, 1.6], [1.9, 1.8]],
-                     [(5, "n0"), ("n0", "n1"), ("n1", "n2"), ("n2", "n3"), ("n3", "n1")])
+    pos, edges = add(
+        pos,
+        edges,
+        [[1.7, 1.6], [1.85, 1.55], [2.0, 1.6], [1.9, 1.8]],
+        [(5, "n0"), ("n0", "n1"), ("n1", "n2"), ("n2", "n3"), ("n3", "n1")],
+    )
     g, _ = graph_of(pos, edges)
     assert np.all(g.removed[16:20] == PENINSULAR)
     assert g.n_vertices == 16 and g.n_edges == 32

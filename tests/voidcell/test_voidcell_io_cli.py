@@ -4,6 +4,7 @@ import csv
 
 import numpy as np
 import pytest
+from voidcell_fixtures import relaxed_packing
 
 from gransim.cli import main
 from gransim.contacts import find_neighbours
@@ -11,7 +12,6 @@ from gransim.errors import InputError, ResultFileError
 from gransim.io import atomic_h5
 from gransim.voidcell import VoidCells
 from gransim.voidcell.io import load_run_snapshots
-from voidcell_fixtures import relaxed_packing
 
 DT = 1e-3
 RATE = 1e-4  # axial strain per step
@@ -71,8 +71,10 @@ def test_load_run_snapshots_picks_strains(run_file):
 
 def test_absolute_velocity_convention(run_file, tmp_path):
     # the same motion stored as absolute velocities reads the same
-    import h5py
     import shutil
+
+    import h5py
+
     p = tmp_path / "abs.h5"
     shutil.copy(run_file, p)
     with h5py.File(p, "r+") as f:
@@ -103,8 +105,7 @@ def test_bad_run_files(run_file, tmp_path):
 
 def test_cli_writes_figures_and_table(run_file, tmp_path, capsys):
     out = tmp_path / "vc"
-    rc = main(["voidcells", str(run_file), "--strain", "0.0001", "0.0016", "--out", str(out),
-               "--all-frames"])
+    rc = main(["voidcells", str(run_file), "--strain", "0.0001", "0.0016", "--out", str(out), "--all-frames"])
     assert rc == 0
     for tag in ("strain_0.0001", "strain_0.0016"):
         for kind in ("graph", "alpha", "w", "hist", "vrel"):
@@ -116,8 +117,7 @@ def test_cli_writes_figures_and_table(run_file, tmp_path, capsys):
         assert int(row["euler"]) == 0
         assert float(row["mean_alpha"]) == pytest.approx(1.0, abs=1e-6)
         assert float(row["fraction_alpha_le_0"]) == 0.0
-        assert float(row["coordination_2M_over_N"]) == pytest.approx(
-            2 * int(row["edges"]) / int(row["vertices"]))
+        assert float(row["coordination_2M_over_N"]) == pytest.approx(2 * int(row["edges"]) / int(row["vertices"]))
     assert "Kuhn (1997)" in capsys.readouterr().out
     frames = list(csv.DictReader(open(out / "frames.csv")))
     assert [int(f["step"]) for f in frames] == [2, 5, 6, 7, 21, 22]

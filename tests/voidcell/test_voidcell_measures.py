@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
+from voidcell_fixtures import contacts, lattice_packing
 
 from gransim.voidcell import Snapshot, VoidCells, alignment, normalised_vorticity
 from gransim.voidcell.measures import d50_area_weighted
-from voidcell_fixtures import contacts, lattice_packing
 
 G = np.array([[0.3, 0.12], [-0.25, -0.5]])
 
@@ -17,8 +17,7 @@ def snapshot(x, r, cell, v, Cdot, **kw):
 
 @pytest.mark.parametrize("case", ["lattice", "relaxed", "sheared"])
 def test_affine_periodic_field_every_cell_exact(case, lattice, relaxed):
-    x, r, cell = {"lattice": lattice, "relaxed": relaxed,
-                  "sheared": lattice_packing(10, 12, seed=5, shear=0.35)}[case]
+    x, r, cell = {"lattice": lattice, "relaxed": relaxed, "sheared": lattice_packing(10, 12, seed=5, shear=0.35)}[case]
     v = x @ G.T + np.array([0.7, -0.2])  # affine field, images move with G C n
     vc = VoidCells().compute(snapshot(x, r, cell, v, G @ cell))
     scale = np.abs(G).max()
@@ -99,7 +98,7 @@ def test_cell_gradients_equal_boundary_integral_on_a_packing(relaxed):
     d = vc.dcel
     assert d.valence.max() >= 9  # large valences are exercised too
     for f in range(d.n_faces):
-        hs = d.face_halfedges[d.face_ptr[f]:d.face_ptr[f + 1]]
+        hs = d.face_halfedges[d.face_ptr[f] : d.face_ptr[f + 1]]
         # velocity of each lifted vertex: the first vertex's, plus the relative velocities so far
         vh = v[d.dest[hs]] + d.shift[hs] @ Cdot.T - v[d.origin[hs]]
         vert_v = v[d.origin[hs[0]]] + np.cumsum(np.vstack([np.zeros(2), vh[:-1]]), axis=0)

@@ -31,8 +31,7 @@ def star_polygon(m, rng, convex):
 def test_table1_rows():
     # Table 1 of the paper (m = 5: the printed last entries are garbled; the recursion and the
     # antisymmetry fix them to -3/5, -9/5)
-    table = {3: [0, 1, -1], 4: [0, 6 / 4, 0, -6 / 4], 5: [0, 9 / 5, 3 / 5, -3 / 5, -9 / 5],
-             6: [0, 2, 1, 0, -1, -2]}
+    table = {3: [0, 1, -1], 4: [0, 6 / 4, 0, -6 / 4], 5: [0, 9 / 5, 3 / 5, -3 / 5, -9 / 5], 6: [0, 2, 1, 0, -1, -2]}
     for m, row in table.items():
         np.testing.assert_allclose(q_separations(m), row, rtol=0, atol=1e-15)
     np.testing.assert_array_equal(q_matrix(3), [[0, 1, -1], [-1, 0, 1], [1, -1, 0]])  # matrix 8_1
@@ -92,6 +91,7 @@ def test_q3_nonunique_alternative_gives_same_gradient():
 
 def test_exact_rationals():
     from gransim.voidcell.qmatrix import _q_row
+
     assert _q_row(5)[1] == Fraction(9, 5) and _q_row(5)[2] == Fraction(3, 5)
 
 

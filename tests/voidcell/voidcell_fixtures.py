@@ -1,6 +1,7 @@
 """Builders of test snapshots for the void-cell analysis (imported by conftest and tests)."""
 
 import numpy as np
+
 from gransim.contacts import find_neighbours
 
 

@@ -56,20 +56,28 @@ from ..dem_compare import (
 )
 
 POS_TOL = 1e-10  # of D50
-POS_REASON = ("the engine does LIGGGHTS' floating-point operations in LIGGGHTS' order (neighbour list, "
-              "ghosts, step order), so the doubles are equal; 1e-10 D50 (issue bound) leaves room for another "
-              "CPU/compiler, whose round-off grows ~10x per 1000 steps (shared notes), yet is 7 decades below the "
-              "8e-4 D50 that 1% stiffer contacts give within 1000 steps (measured, tests/validation)")
+POS_REASON = (
+    "the engine does LIGGGHTS' floating-point operations in LIGGGHTS' order (neighbour list, "
+    "ghosts, step order), so the doubles are equal; 1e-10 D50 (issue bound) leaves room for another "
+    "CPU/compiler, whose round-off grows ~10x per 1000 steps (shared notes), yet is 7 decades below the "
+    "8e-4 D50 that 1% stiffer contacts give within 1000 steps (measured, tests/validation)"
+)
 REL_TOL = 1e-8
-STRESS_REASON = ("virial stress = sum over the same contacts in the same order: equal doubles expected; 1e-8 "
-                 "relative (of the largest component, sigma_xy passes through 0) allows round-off growth on "
-                 "another machine while a 1% stiffness change gives ~1e-2")
-VEL_REASON = ("velocities/spins relative to the largest value: same bound as the stress, as they come from the "
-              "same forces by the same kicks")
-FORCE_REASON = ("per-particle force/torque applied in the step (dump fx fy tqz) relative to the largest: sums of "
-                "the contact forces in the same order. Per-contact rows are not compared: LIGGGHTS' "
-                "pair/gran/local re-evaluates contacts at output time (remapped positions, full-step "
-                "velocities, stale ghosts: up to 3.9% off the applied force, shared notes)")
+STRESS_REASON = (
+    "virial stress = sum over the same contacts in the same order: equal doubles expected; 1e-8 "
+    "relative (of the largest component, sigma_xy passes through 0) allows round-off growth on "
+    "another machine while a 1% stiffness change gives ~1e-2"
+)
+VEL_REASON = (
+    "velocities/spins relative to the largest value: same bound as the stress, as they come from the "
+    "same forces by the same kicks"
+)
+FORCE_REASON = (
+    "per-particle force/torque applied in the step (dump fx fy tqz) relative to the largest: sums of "
+    "the contact forces in the same order. Per-contact rows are not compared: LIGGGHTS' "
+    "pair/gran/local re-evaluates contacts at output time (remapped positions, full-step "
+    "velocities, stale ghosts: up to 3.9% off the applied force, shared notes)"
+)
 BOX_REASON = "box lengths after fix deform (servo/rate) in D50: the servo uses the stress, same bound as positions"
 
 SHORT_KUHN_STEPS = 5000
@@ -95,8 +103,9 @@ def _max(a) -> float:
 CODE = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}
 
 
-def step_records(label: str, nat, lig, d50: float, nsteps: int, dump_every: int,
-                 thermo_every: int = 1, code: str = "LIGGGHTS") -> tuple[list, list]:
+def step_records(
+    label: str, nat, lig, d50: float, nsteps: int, dump_every: int, thermo_every: int = 1, code: str = "LIGGGHTS"
+) -> tuple[list, list]:
     """Records (evidence of both sides, positions, velocities, spins, forces, torques, stress,
     box) and a table row.
 
@@ -106,8 +115,7 @@ def step_records(label: str, nat, lig, d50: float, nsteps: int, dump_every: int,
     are then taken over what both sides hold, and a comparison over nothing is NaN (fails).
     """
     exp_s, exp_f = expected_steps(nsteps, thermo_every), expected_frames(nsteps, dump_every)
-    recs = (trajectory_evidence(label, "native", nat, exp_s, exp_f)
-            + trajectory_evidence(label, code, lig, exp_s, exp_f))
+    recs = trajectory_evidence(label, "native", nat, exp_s, exp_f) + trajectory_evidence(label, code, lig, exp_s, exp_f)
     lig_steps = set(int(s) for s in lig.steps)
     both_f = [int(s) for s in exp_f if s in nat.frames and s in lig.frames and int(s) in lig_steps]
     both_s = np.intersect1d(np.intersect1d(exp_s, nat.steps), lig.steps)
@@ -122,8 +130,15 @@ def step_records(label: str, nat, lig, d50: float, nsteps: int, dump_every: int,
         compare(label, "stress", "max over steps of max|dsigma|/max|sigma|", _max(rel), REL_TOL, STRESS_REASON),
         compare(label, "box", "max|dL|/D50", _max(dl) / d50, POS_TOL, BOX_REASON),
     ]
-    row = [label, int(steps[-1]) if len(steps) else -1, len(fd["steps"]), _max(fd["x"]), _max(fd["v"]),
-           _max(fd["f"]), _max(rel)]
+    row = [
+        label,
+        int(steps[-1]) if len(steps) else -1,
+        len(fd["steps"]),
+        _max(fd["x"]),
+        _max(fd["v"]),
+        _max(fd["f"]),
+        _max(rel),
+    ]
     return recs, row
 
 
@@ -140,23 +155,29 @@ def _stored_log(d):
     return d / "log.lammps"
 
 
-CROSS_SHORT_REASON = ("the two codes' Hooke history laws differ in their arithmetic and in two physical details "
-                      "(LAMMPS resets a spring when its pair stops touching and caps spring plus damping; "
-                      "docs/lammps.md); each native flavour reproduces its code bit for bit, so LIGGGHTS minus LAMMPS "
-                      "must equal native(liggghts) minus native(lammps) to the bitwise bounds: the cross-code "
-                      "difference is explained, term by term, by the documented differences")
-NATIVE_LAMMPS_REASON = ("native flavour lammps does LAMMPS' floating-point operations in LAMMPS' order (docs/lammps.md): "
-                        "positions 1e-10 D50 and stress 1e-8 as for LIGGGHTS")
+CROSS_SHORT_REASON = (
+    "the two codes' Hooke history laws differ in their arithmetic and in two physical details "
+    "(LAMMPS resets a spring when its pair stops touching and caps spring plus damping; "
+    "docs/lammps.md); each native flavour reproduces its code bit for bit, so LIGGGHTS minus LAMMPS "
+    "must equal native(liggghts) minus native(lammps) to the bitwise bounds: the cross-code "
+    "difference is explained, term by term, by the documented differences"
+)
+NATIVE_LAMMPS_REASON = (
+    "native flavour lammps does LAMMPS' floating-point operations in LAMMPS' order (docs/lammps.md): "
+    "positions 1e-10 D50 and stress 1e-8 as for LIGGGHTS"
+)
 
 
-def cross_records(label: str, lig, lmp, nat_l, nat_m, d50: float, nsteps: int, dump_every: int,
-                  thermo_every: int = 1) -> tuple[list, list]:
+def cross_records(
+    label: str, lig, lmp, nat_l, nat_m, d50: float, nsteps: int, dump_every: int, thermo_every: int = 1
+) -> tuple[list, list]:
     """LIGGGHTS vs LAMMPS on one deck: the evidence of both codes, the raw differences (info) and
     the check that they equal the difference of the two native flavours (stress every thermo step,
     positions at every dump)."""
     exp_s, exp_f = expected_steps(nsteps, thermo_every), expected_frames(nsteps, dump_every)
-    recs = (trajectory_evidence(label, "LIGGGHTS", lig, exp_s, exp_f)
-            + trajectory_evidence(label, "LAMMPS", lmp, exp_s, exp_f))
+    recs = trajectory_evidence(label, "LIGGGHTS", lig, exp_s, exp_f) + trajectory_evidence(
+        label, "LAMMPS", lmp, exp_s, exp_f
+    )
     trs = (lig, lmp, nat_l, nat_m)
     steps = exp_s
     for t in trs:
@@ -181,23 +202,53 @@ def cross_records(label: str, lig, lmp, nat_l, nat_m, d50: float, nsteps: int, d
         d_nat = na - nb - np.round((na - nb) / L) * L
         expl_x.append(float(np.abs(d_codes - d_nat).max()) / d50)
     recs += [
-        info(label, "stress", "LIGGGHTS vs LAMMPS: max over steps of max|dsigma|/max|sigma|", _max(raw),
-             "the raw cross-code difference (the size of the law differences), shown for the reader"),
-        info(label, "position", "LIGGGHTS vs LAMMPS: max|dx|/D50 over frames", _max(raw_x),
-             "the raw cross-code difference, shown for the reader"),
-        compare(label, "stress", "max|(LIGGGHTS - LAMMPS) - (native liggghts - native lammps)|/max|sigma|",
-                _max(expl), REL_TOL, CROSS_SHORT_REASON),
-        compare(label, "position", "max|(LIGGGHTS - LAMMPS) - (native liggghts - native lammps)|/D50",
-                _max(expl_x), POS_TOL, CROSS_SHORT_REASON),
+        info(
+            label,
+            "stress",
+            "LIGGGHTS vs LAMMPS: max over steps of max|dsigma|/max|sigma|",
+            _max(raw),
+            "the raw cross-code difference (the size of the law differences), shown for the reader",
+        ),
+        info(
+            label,
+            "position",
+            "LIGGGHTS vs LAMMPS: max|dx|/D50 over frames",
+            _max(raw_x),
+            "the raw cross-code difference, shown for the reader",
+        ),
+        compare(
+            label,
+            "stress",
+            "max|(LIGGGHTS - LAMMPS) - (native liggghts - native lammps)|/max|sigma|",
+            _max(expl),
+            REL_TOL,
+            CROSS_SHORT_REASON,
+        ),
+        compare(
+            label,
+            "position",
+            "max|(LIGGGHTS - LAMMPS) - (native liggghts - native lammps)|/D50",
+            _max(expl_x),
+            POS_TOL,
+            CROSS_SHORT_REASON,
+        ),
     ]
-    return recs, [label, int(steps[-1]) if len(steps) else -1, len(frames), _max(raw_x), _max(raw), _max(expl_x),
-                  _max(expl)]
+    return recs, [
+        label,
+        int(steps[-1]) if len(steps) else -1,
+        len(frames),
+        _max(raw_x),
+        _max(raw),
+        _max(expl_x),
+        _max(expl),
+    ]
 
 
 @case("biaxial-short", "Biaxial test, short horizon: step for step, native vs LIGGGHTS vs LAMMPS", order=20)
 def biaxial_short(ctx: Context) -> CaseResult:
     res = CaseResult(
-        "biaxial-short", "Biaxial test, short horizon: step for step, native vs LIGGGHTS vs LAMMPS",
+        "biaxial-short",
+        "Biaxial test, short horizon: step for step, native vs LIGGGHTS vs LAMMPS",
         "The same deck in each code (LIGGGHTS 3.8.0 and LAMMPS, each in its own syntax), compared at every step "
         "(stress, box) and at every dump (positions, velocities, spins, per-particle forces and torques) with "
         "the native engine in that code's arithmetic (<code>DEMSettings.flavour</code>). <i>stored-120</i>: the "
@@ -205,7 +256,8 @@ def biaxial_short(ctx: Context) -> CaseResult:
         "<code>biaxial-short-lammps</code> (120 disks on a jittered lattice, servo on x, rate on y, ~60 sliding "
         "contacts, 3000 steps). <i>live-120</i>: the same deck run now. <i>kuhn-1002</i>: the Kuhn 1002-disk "
         "assembly with the biaxial default settings (gransim.dem.default_settings), consolidation with the servo "
-        f"on both axes, {SHORT_KUHN_STEPS} steps.")
+        f"on both axes, {SHORT_KUHN_STEPS} steps.",
+    )
     res.declare("native-liggghts", POS_REASON)
     res.declare("native-lammps", NATIVE_LAMMPS_REASON)
     res.declare("liggghts-lammps", CROSS_SHORT_REASON)
@@ -214,8 +266,10 @@ def biaxial_short(ctx: Context) -> CaseResult:
     p, s, ld, n = short_case()
     sl, sm = _flavour(s, "liggghts"), _flavour(s, "lammps")
     traj = {}
-    for engine, stored_name, settings, pair in (("liggghts", "biaxial-short", sl, "native-liggghts"),
-                                                ("lammps", "biaxial-short-lammps", sm, "native-lammps")):
+    for engine, stored_name, settings, pair in (
+        ("liggghts", "biaxial-short", sl, "native-liggghts"),
+        ("lammps", "biaxial-short-lammps", sm, "native-lammps"),
+    ):
         stored = stored_dir(stored_name)
         nat = run_native(p, settings, ld, n, SHORT_CASE_DUMP_EVERY)
         ref = read_reference(_stored_log(stored), stored / "dump.atoms")
@@ -225,20 +279,33 @@ def biaxial_short(ctx: Context) -> CaseResult:
         res.records += in_pair(recs + r2, pair)
         rows.append(row)
         traj[engine] = (nat, ref)
-    r2, row = cross_records("biaxial-short/stored-120/cross", traj["liggghts"][1], traj["lammps"][1],
-                            traj["liggghts"][0], traj["lammps"][0], p.d50, n, SHORT_CASE_DUMP_EVERY)
+    r2, row = cross_records(
+        "biaxial-short/stored-120/cross",
+        traj["liggghts"][1],
+        traj["lammps"][1],
+        traj["liggghts"][0],
+        traj["lammps"][0],
+        p.d50,
+        n,
+        SHORT_CASE_DUMP_EVERY,
+    )
     res.records += in_pair(r2, "liggghts-lammps")
     cross_rows.append(row)
     live = {}
-    for engine, settings, pair, avail in (("liggghts", sl, "native-liggghts", ctx.liggghts),
-                                          ("lammps", sm, "native-lammps", ctx.lammps)):
+    for engine, settings, pair, avail in (
+        ("liggghts", sl, "native-liggghts", ctx.liggghts),
+        ("lammps", sm, "native-lammps", ctx.lammps),
+    ):
         if not avail:
-            res.notes.append(f"{CODE[engine]} is absent: the live runs with it are not made; the stored "
-                             f"{CODE[engine]} reference is compared.")
+            res.notes.append(
+                f"{CODE[engine]} is absent: the live runs with it are not made; the stored "
+                f"{CODE[engine]} reference is compared."
+            )
             continue
         job = ctx.work("reference", "biaxial-short", "live-120" if engine == "liggghts" else "live-120-lammps")
-        ref, _ = run_reference_job(job, p, settings, ld, LIVE_SHORT_STEPS, 250,
-                                   timeout=ctx.job_timeout(p.n * LIVE_SHORT_STEPS), engine=engine)
+        ref, _ = run_reference_job(
+            job, p, settings, ld, LIVE_SHORT_STEPS, 250, timeout=ctx.job_timeout(p.n * LIVE_SHORT_STEPS), engine=engine
+        )
         nat = run_native(p, settings, ld, LIVE_SHORT_STEPS, 250)
         label = f"biaxial-short/live-120/{engine}"
         r2, row = step_records(label, nat, ref, p.d50, LIVE_SHORT_STEPS, 250, code=CODE[engine])
@@ -246,8 +313,16 @@ def biaxial_short(ctx: Context) -> CaseResult:
         rows.append(row)
         live[engine] = (nat, ref)
     if len(live) == 2:
-        r2, row = cross_records("biaxial-short/live-120/cross", live["liggghts"][1], live["lammps"][1],
-                                live["liggghts"][0], live["lammps"][0], p.d50, LIVE_SHORT_STEPS, 250)
+        r2, row = cross_records(
+            "biaxial-short/live-120/cross",
+            live["liggghts"][1],
+            live["lammps"][1],
+            live["liggghts"][0],
+            live["lammps"][0],
+            p.d50,
+            LIVE_SHORT_STEPS,
+            250,
+        )
         res.records += in_pair(r2, "liggghts-lammps")
         cross_rows.append(row)
     if ctx.suite != "quick":
@@ -255,39 +330,72 @@ def biaxial_short(ctx: Context) -> CaseResult:
         dem, bi = dem_defaults(pk)
         ldk = Loading(x=_servo(bi), y=_servo(bi))
         kuhn = {}
-        for engine, pair, avail in (("liggghts", "native-liggghts", ctx.liggghts),
-                                    ("lammps", "native-lammps", ctx.lammps)):
+        for engine, pair, avail in (
+            ("liggghts", "native-liggghts", ctx.liggghts),
+            ("lammps", "native-lammps", ctx.lammps),
+        ):
             if not avail:
                 res.notes.append(f"{CODE[engine]} is absent: the Kuhn 1002-disk run is not compared with it.")
                 continue
             settings = _flavour(dem, engine)
             job = ctx.work("reference", "biaxial-short", "kuhn-1002" if engine == "liggghts" else "kuhn-1002-lammps")
-            ref, man = run_reference_job(job, pk, settings, ldk, SHORT_KUHN_STEPS, SHORT_DUMP_EVERY,
-                                         timeout=ctx.job_timeout(pk.n * SHORT_KUHN_STEPS), engine=engine)
+            ref, man = run_reference_job(
+                job,
+                pk,
+                settings,
+                ldk,
+                SHORT_KUHN_STEPS,
+                SHORT_DUMP_EVERY,
+                timeout=ctx.job_timeout(pk.n * SHORT_KUHN_STEPS),
+                engine=engine,
+            )
             nat = run_native(pk, settings, ldk, SHORT_KUHN_STEPS, SHORT_DUMP_EVERY)
             label = f"biaxial-short/kuhn-1002/{engine}"
             r2, row = step_records(label, nat, ref, pk.d50, SHORT_KUHN_STEPS, SHORT_DUMP_EVERY, code=CODE[engine])
             res.records += in_pair(r2, pair)
             rows.append(row)
             kuhn[engine] = (nat, ref)
-            res.notes.append(f"kuhn-1002 ({CODE[engine]}): native {nat.elapsed:.2f} s, {CODE[engine]} job "
-                             f"{man.get('elapsed_s', 0):.2f} s (<code>{' '.join(man.get('command', []))}</code> in "
-                             f"<code>{job}</code>).")
+            res.notes.append(
+                f"kuhn-1002 ({CODE[engine]}): native {nat.elapsed:.2f} s, {CODE[engine]} job "
+                f"{man.get('elapsed_s', 0):.2f} s (<code>{' '.join(man.get('command', []))}</code> in "
+                f"<code>{job}</code>)."
+            )
         if len(kuhn) == 2:
-            r2, row = cross_records("biaxial-short/kuhn-1002/cross", kuhn["liggghts"][1], kuhn["lammps"][1],
-                                    kuhn["liggghts"][0], kuhn["lammps"][0], pk.d50, SHORT_KUHN_STEPS,
-                                    SHORT_DUMP_EVERY)
+            r2, row = cross_records(
+                "biaxial-short/kuhn-1002/cross",
+                kuhn["liggghts"][1],
+                kuhn["lammps"][1],
+                kuhn["liggghts"][0],
+                kuhn["lammps"][0],
+                pk.d50,
+                SHORT_KUHN_STEPS,
+                SHORT_DUMP_EVERY,
+            )
             res.records += in_pair(r2, "liggghts-lammps")
             cross_rows.append(row)
     res.tables.append(("Largest differences per run and code (0 = bitwise equal)", header, rows))
-    res.tables.append(("LIGGGHTS vs LAMMPS: raw differences and what the native flavours leave unexplained",
-                       ["run", "steps", "frames", "raw max|dx|/D50", "raw max rel stress", "unexplained |dx|/D50",
-                        "unexplained rel stress"], cross_rows))
-    res.notes.append("Per-contact forces: the native snapshot's contact forces are not set against LIGGGHTS' "
-                     "<code>compute pair/gran/local</code>, whose rows are a re-evaluation at output time "
-                     "(remapped positions, full-step velocities, stale ghost state), not the applied forces "
-                     "(shared notes liggghts-3.8.md). Per-particle forces are the sums of the applied contact forces "
-                     "and are compared instead; with equal positions the contact lists are equal (voidcell case).")
+    res.tables.append(
+        (
+            "LIGGGHTS vs LAMMPS: raw differences and what the native flavours leave unexplained",
+            [
+                "run",
+                "steps",
+                "frames",
+                "raw max|dx|/D50",
+                "raw max rel stress",
+                "unexplained |dx|/D50",
+                "unexplained rel stress",
+            ],
+            cross_rows,
+        )
+    )
+    res.notes.append(
+        "Per-contact forces: the native snapshot's contact forces are not set against LIGGGHTS' "
+        "<code>compute pair/gran/local</code>, whose rows are a re-evaluation at output time "
+        "(remapped positions, full-step velocities, stale ghost state), not the applied forces "
+        "(shared notes liggghts-3.8.md). Per-particle forces are the sums of the applied contact forces "
+        "and are compared instead; with equal positions the contact lists are equal (voidcell case)."
+    )
     return res
 
 
@@ -297,12 +405,16 @@ FULL_DUMP_EVERY = 2000  # steps: 2.8e-5 axial strain at the default rate
 FULL_THERMO_EVERY = 10
 PERTURB_REL = 1e-15
 ENVELOPE_FACTOR = 10.0
-ENVELOPE_REASON = ("chaos: LIGGGHTS' own divergence under a round-off perturbation (one coordinate moved by "
-                   "1e-15 relative, two runs; full suite also 2 MPI processes and twice the neighbour skin) is the envelope E(t) = max over those runs at each output step; "
-                   "native-vs-LIGGGHTS must stay within 10 E(t) at every step (a factor 10 = one decade of "
-                   "exponential growth, i.e. the perturbations' onset is uncertain to that)")
-CURVE_REASON = ("band = the largest deviation of the perturbed LIGGGHTS runs from the reference along the "
-                "curve (their spread is the uncertainty of a curve under round-off), in units of the confining p")
+ENVELOPE_REASON = (
+    "chaos: LIGGGHTS' own divergence under a round-off perturbation (one coordinate moved by "
+    "1e-15 relative, two runs; full suite also 2 MPI processes and twice the neighbour skin) is the envelope E(t) = max over those runs at each output step; "  # noqa: E501
+    "native-vs-LIGGGHTS must stay within 10 E(t) at every step (a factor 10 = one decade of "
+    "exponential growth, i.e. the perturbations' onset is uncertain to that)"
+)
+CURVE_REASON = (
+    "band = the largest deviation of the perturbed LIGGGHTS runs from the reference along the "
+    "curve (their spread is the uncertainty of a curve under round-off), in units of the confining p"
+)
 
 
 def _settings_by_suite(suite: str) -> dict:
@@ -346,11 +458,15 @@ def reference_jobs(ctx: Context, common, dem, tag: str, np2: bool) -> dict:
     reference (label "reference") and its envelope members (:func:`ensemble_labels`,
     :func:`lammps_ensemble_labels`): a coordinate moved by 1e-15, 2 MPI processes, twice the skin."""
     n = common.n
-    perturb = {"x of disk 1 moved by +1e-15 rel": (0, 0, 1.0), f"y of disk {n // 2 + 1} moved by -1e-15 rel":
-               (n // 2, 1, -1.0)}
+    perturb = {
+        "x of disk 1 moved by +1e-15 rel": (0, 0, 1.0),
+        f"y of disk {n // 2 + 1} moved by -1e-15 rel": (n // 2, 1, -1.0),
+    }
     jobs = {}
-    for engine, avail, labels in (("liggghts", ctx.liggghts, ensemble_labels(n, np2)),
-                                  ("lammps", ctx.lammps, lammps_ensemble_labels(n, ctx.suite))):
+    for engine, avail, labels in (
+        ("liggghts", ctx.liggghts, ensemble_labels(n, np2)),
+        ("lammps", ctx.lammps, lammps_ensemble_labels(n, ctx.suite)),
+    ):
         if not avail:
             continue
         base = ctx.work("reference", "biaxial-full" if engine == "liggghts" else "biaxial-full-lammps", tag)
@@ -359,11 +475,15 @@ def reference_jobs(ctx: Context, common, dem, tag: str, np2: bool) -> dict:
         for label in labels:
             if label in perturb:
                 k, ax, sign = perturb[label]
-                jobs[(engine, label)] = dict(job_dir=base / f"perturbed-{k}-{ax}", settings=settings,
-                                             packing=_perturbed(common, k, ax, sign))
+                jobs[(engine, label)] = dict(
+                    job_dir=base / f"perturbed-{k}-{ax}", settings=settings, packing=_perturbed(common, k, ax, sign)
+                )
             elif label == SKIN_LABEL:
-                jobs[(engine, label)] = dict(job_dir=base / "skin2", packing=common,
-                                             settings=dataclasses.replace(settings, skin=SKIN_FACTOR * settings.skin))
+                jobs[(engine, label)] = dict(
+                    job_dir=base / "skin2",
+                    packing=common,
+                    settings=dataclasses.replace(settings, skin=SKIN_FACTOR * settings.skin),
+                )
             elif label == "2 MPI processes":
                 jobs[(engine, label)] = dict(job_dir=base / "np2", packing=common, settings=settings, np_procs=2)
             else:
@@ -398,8 +518,9 @@ def full_runs(ctx: Context) -> dict:
     dem, bi = dem_defaults(pk, strain=cfg["strain"])
     servo = _servo(bi)
     eng = DEMEngine(pk, dem)
-    out = eng.advance(Loading(x=servo, y=servo), FULL_CONSOLIDATION_STEPS, phase_step0=0,
-                      phase_box0=(eng.lo.copy(), eng.hi.copy()))
+    out = eng.advance(
+        Loading(x=servo, y=servo), FULL_CONSOLIDATION_STEPS, phase_step0=0, phase_box0=(eng.lo.copy(), eng.hi.copy())
+    )
     cons_err = float(np.abs(out["stress"][-1000:, [0, 1], [0, 1]].mean(axis=0) / bi.confining - 1).max())
     x = eng.x - eng.lo
     L = eng.box_lengths
@@ -407,22 +528,58 @@ def full_runs(ctx: Context) -> dict:
     v, w = eng.v.copy(), eng.w.copy()
     loading = Loading(x=servo, y=AxisControl("rate", rate=-bi.strain_rate))
     nsteps = int(np.ceil(bi.strain / (bi.strain_rate * dem.dt) / FULL_DUMP_EVERY)) * FULL_DUMP_EVERY
-    r = {"packing": common, "settings": dem, "biaxial": bi, "loading": loading, "nsteps": nsteps,
-         "consolidation_error": cons_err, "velocities": v, "spins": w}
+    r = {
+        "packing": common,
+        "settings": dem,
+        "biaxial": bi,
+        "loading": loading,
+        "nsteps": nsteps,
+        "consolidation_error": cons_err,
+        "velocities": v,
+        "spins": w,
+    }
     te = FULL_THERMO_EVERY
     n = common.n
     to = ctx.job_timeout(common.n * nsteps)
     jobs = reference_jobs(ctx, common, dem, f"strain{bi.strain:g}", cfg["np2"])
     with ThreadPoolExecutor(max_workers=max(int(ctx.jobs), 1)) as pool:
-        futures = {k: pool.submit(run_reference_job, loading=loading, nsteps=nsteps, dump_every=FULL_DUMP_EVERY,
-                                  velocities=v, spins=w, thermo_every=te, timeout=to, engine=k[0], **kw)
-                   for k, kw in jobs.items()}
+        futures = {
+            k: pool.submit(
+                run_reference_job,
+                loading=loading,
+                nsteps=nsteps,
+                dump_every=FULL_DUMP_EVERY,
+                velocities=v,
+                spins=w,
+                thermo_every=te,
+                timeout=to,
+                engine=k[0],
+                **kw,
+            )
+            for k, kw in jobs.items()
+        }
         try:
-            r["native"] = run_native(common, _flavour(dem, "liggghts"), loading, nsteps, FULL_DUMP_EVERY,
-                                     velocities=v, spins=w, thermo_every=te)
+            r["native"] = run_native(
+                common,
+                _flavour(dem, "liggghts"),
+                loading,
+                nsteps,
+                FULL_DUMP_EVERY,
+                velocities=v,
+                spins=w,
+                thermo_every=te,
+            )
             if ctx.lammps:
-                nat_m = run_native(common, _flavour(dem, "lammps"), loading, nsteps, FULL_DUMP_EVERY,
-                                   velocities=v, spins=w, thermo_every=te)
+                nat_m = run_native(
+                    common,
+                    _flavour(dem, "lammps"),
+                    loading,
+                    nsteps,
+                    FULL_DUMP_EVERY,
+                    velocities=v,
+                    spins=w,
+                    thermo_every=te,
+                )
             done = {k: f.result() for k, f in futures.items()}
         except BaseException:
             for f in futures.values():
@@ -435,13 +592,26 @@ def full_runs(ctx: Context) -> dict:
         # the reference job in the native run-file schema (read by gransim.dem / gransim voidcells)
         ref_dir = jobs[("liggghts", "reference")]["job_dir"]
         r["liggghts_run_file"] = trajectory_to_run_file(
-            ref_dir / "liggghts-run.h5", common, lig.steps, lig.stress, lig.lengths, lig.frames,
-            dem.dt, settings=dem.to_dict(), source=str(ref_dir))
+            ref_dir / "liggghts-run.h5",
+            common,
+            lig.steps,
+            lig.stress,
+            lig.lengths,
+            lig.frames,
+            dem.dt,
+            settings=dem.to_dict(),
+            source=str(ref_dir),
+        )
     if ctx.lammps:
         lmp, man = done[("lammps", "reference")]
         ens = {lab: done[("lammps", lab)][0] for (e, lab) in jobs if e == "lammps" and lab != "reference"}
-        r["lammps"] = {"native": nat_m, "reference": lmp, "manifest": man, "ensemble": ens,
-                       "expected_ensemble": lammps_ensemble_labels(n, ctx.suite)}
+        r["lammps"] = {
+            "native": nat_m,
+            "reference": lmp,
+            "manifest": man,
+            "ensemble": ens,
+            "expected_ensemble": lammps_ensemble_labels(n, ctx.suite),
+        }
     _FULL_CACHE[key] = r
     return r
 
@@ -477,8 +647,7 @@ def _plots(ctx, div, sdiv, cur) -> list:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for name, (steps, d) in div.items():
         zero = " (exactly 0 at every dump)" if len(d) and not np.any(d) else ""
-        axes[0].semilogy(steps, np.maximum(d, floor), "o-" if "native vs" in name else "-", ms=3,
-                         label=name + zero)
+        axes[0].semilogy(steps, np.maximum(d, floor), "o-" if "native vs" in name else "-", ms=3, label=name + zero)
     axes[0].set_xlabel("step of the compression phase")
     axes[0].set_ylabel("max |x_a - x_b| / D50  (0 drawn at 1e-18)")
     axes[0].legend(fontsize=8)
@@ -492,13 +661,23 @@ def _plots(ctx, div, sdiv, cur) -> list:
     path = ctx.figure_path("biaxial_full_divergence.png")
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    data = _long_csv(path.with_suffix(".csv"), ["run", "series", "step", "value"],
-                     [(n, "position max|dx|/D50", st, v) for n, (sts, d) in div.items() for st, v in zip(sts, d)]
-                     + [(n, "stress rel diff", st, v) for n, (sts, d) in sdiv.items() for st, v in zip(sts, d)])
-    figs.append((path, data, False, "Divergence against each code's serial reference run over time: native in that code's "
-                       "arithmetic, and the code itself under a round-off perturbation (the envelope). Left: positions "
-                       "at every dump; right: "
-                       f"stress every {FULL_THERMO_EVERY} steps."))
+    data = _long_csv(
+        path.with_suffix(".csv"),
+        ["run", "series", "step", "value"],
+        [(n, "position max|dx|/D50", st, v) for n, (sts, d) in div.items() for st, v in zip(sts, d)]
+        + [(n, "stress rel diff", st, v) for n, (sts, d) in sdiv.items() for st, v in zip(sts, d)],
+    )
+    figs.append(
+        (
+            path,
+            data,
+            False,
+            "Divergence against each code's serial reference run over time: native in that code's "
+            "arithmetic, and the code itself under a round-off perturbation (the envelope). Left: positions "
+            "at every dump; right: "
+            f"stress every {FULL_THERMO_EVERY} steps.",
+        )
+    )
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for name, (ea, q, ev) in cur.items():
         ls = "--" if name.startswith("native") else "-"
@@ -514,10 +693,20 @@ def _plots(ctx, div, sdiv, cur) -> list:
     path = ctx.figure_path("biaxial_full_curves.png")
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    data = _long_csv(path.with_suffix(".csv"), ["run", "axial_strain", "q_over_p", "volumetric_strain"],
-                     [(n, a, b, c) for n, (ea, q, ev) in cur.items() for a, b, c in zip(ea, q, ev)])
-    figs.append((path, data, True, "Stress-strain and volumetric curves of the Kuhn assembly: native (dashed), "
-                                   "LIGGGHTS and LAMMPS runs (the perturbed runs lie on top: their spread is the band)."))
+    data = _long_csv(
+        path.with_suffix(".csv"),
+        ["run", "axial_strain", "q_over_p", "volumetric_strain"],
+        [(n, a, b, c) for n, (ea, q, ev) in cur.items() for a, b, c in zip(ea, q, ev)],
+    )
+    figs.append(
+        (
+            path,
+            data,
+            True,
+            "Stress-strain and volumetric curves of the Kuhn assembly: native (dashed), "
+            "LIGGGHTS and LAMMPS runs (the perturbed runs lie on top: their spread is the band).",
+        )
+    )
     return figs
 
 
@@ -549,30 +738,53 @@ def _envelope(label: str, code: str, nat, ref, ensemble: dict, frames, exp_s, d5
     me = f"native vs {code}"
     if len(div[me][0]):
         env_x = np.max([div[k][1] for k in ens], axis=0)
-        recs.append(compare(label, "position", "max_t D_native(t)/E(t)", _ratio(div[me][1], env_x),
-                            ENVELOPE_FACTOR, ENVELOPE_REASON.replace("LIGGGHTS", code)))
-    recs.append(compare(label, "stress", "max_t S_native(t)/E_S(t)", _ratio(sdiv[me][1], env_s), ENVELOPE_FACTOR,
-                        ENVELOPE_REASON.replace("LIGGGHTS", code)))
+        recs.append(
+            compare(
+                label,
+                "position",
+                "max_t D_native(t)/E(t)",
+                _ratio(div[me][1], env_x),
+                ENVELOPE_FACTOR,
+                ENVELOPE_REASON.replace("LIGGGHTS", code),
+            )
+        )
+    recs.append(
+        compare(
+            label,
+            "stress",
+            "max_t S_native(t)/E_S(t)",
+            _ratio(sdiv[me][1], env_s),
+            ENVELOPE_FACTOR,
+            ENVELOPE_REASON.replace("LIGGGHTS", code),
+        )
+    )
     return recs, div, sdiv
 
 
-CROSS_CURVE_REASON = ("the two codes run the same deck with slightly different laws (docs/lammps.md); over the full "
-                      "loading each code's reference lies within its own band of the curve (the largest deviation of "
-                      "its perturbed runs from it), so if both codes follow the same curve their references differ "
-                      "by at most the sum of the two bands")
+CROSS_CURVE_REASON = (
+    "the two codes run the same deck with slightly different laws (docs/lammps.md); over the full "
+    "loading each code's reference lies within its own band of the curve (the largest deviation of "
+    "its perturbed runs from it), so if both codes follow the same curve their references differ "
+    "by at most the sum of the two bands"
+)
 
 
 def _evidence_of(label, who, tr, exp_s, exp_f):
     return trajectory_evidence(label, who, tr, exp_s, exp_f)
 
 
-@case("biaxial-full", "Biaxial test, full loading: divergence envelopes and stress-strain curves",
-      suites=("default", "full"), order=30)
+@case(
+    "biaxial-full",
+    "Biaxial test, full loading: divergence envelopes and stress-strain curves",
+    suites=("default", "full"),
+    order=30,
+)
 def biaxial_full(ctx: Context) -> CaseResult:
     r = full_runs(ctx)
     bi, dem, pk = r["biaxial"], r["settings"], r["packing"]
     res = CaseResult(
-        "biaxial-full", "Biaxial test, full loading: divergence envelopes and stress-strain curves",
+        "biaxial-full",
+        "Biaxial test, full loading: divergence envelopes and stress-strain curves",
         f"Kuhn 1002-disk assembly, default biaxial settings (kn = kt = {dem.kn:g} N/m, mu = {dem.mu:g}, "
         f"dt = {dem.dt:.3g} s, p = {bi.confining:g} N/m, strain rate {bi.strain_rate:.3g} 1/s: inertial "
         f"number 5e-5). Consolidation ({FULL_CONSOLIDATION_STEPS} steps, servo on both axes) in the native engine; "
@@ -582,47 +794,83 @@ def biaxial_full(ctx: Context) -> CaseResult:
         f"Divergence = max |x_a - x_b| / D50 at every dump ({FULL_DUMP_EVERY} steps) and the relative stress "
         f"difference every {FULL_THERMO_EVERY} steps (thermo), against each code's serial run, judged against that "
         "code's own envelope (its runs under a 1e-15 perturbation; full suite: also 2 MPI processes and twice the "
-        "neighbour skin).")
+        "neighbour skin).",
+    )
     res.declare("native-liggghts", ENVELOPE_REASON)
     res.declare("native-lammps", ENVELOPE_REASON.replace("LIGGGHTS", "LAMMPS"))
     res.declare("liggghts-lammps", CROSS_CURVE_REASON)
-    res.notes.append(f"Consolidation: mean sigma_11, sigma_22 over its last 1000 steps within "
-                     f"{100 * r['consolidation_error']:.2f}% of p. Native compression: {r['native'].elapsed:.1f} s.")
+    res.notes.append(
+        f"Consolidation: mean sigma_11, sigma_22 over its last 1000 steps within "
+        f"{100 * r['consolidation_error']:.2f}% of p. Native compression: {r['native'].elapsed:.1f} s."
+    )
     if "liggghts_run_file" in r:
-        res.notes.append("The LIGGGHTS compression job, parsed into the native run-file schema (docs/schema_dem.md; "
-                         "readable by <code>gransim voidcells</code>, <code>gransim dem-export</code>): "
-                         f"<code>{r['liggghts_run_file']}</code>.")
+        res.notes.append(
+            "The LIGGGHTS compression job, parsed into the native run-file schema (docs/schema_dem.md; "
+            "readable by <code>gransim voidcells</code>, <code>gransim dem-export</code>): "
+            f"<code>{r['liggghts_run_file']}</code>."
+        )
     p = bi.confining
     every_nat = FULL_THERMO_EVERY
     sides = {}  # code -> dict(native, reference, ensemble, expected, stored, manifest)
     for engine, code in (("liggghts", "LIGGGHTS"), ("lammps", "LAMMPS")):
-        live = r.get("lammps") if engine == "lammps" else ({"native": r["native"], "reference": r["liggghts"],
-                                                           "ensemble": r["ensemble"], "manifest": r["manifest"],
-                                                           "expected_ensemble": r["expected_ensemble"]}
-                                                          if "liggghts" in r else None)
+        live = (
+            r.get("lammps")
+            if engine == "lammps"
+            else (
+                {
+                    "native": r["native"],
+                    "reference": r["liggghts"],
+                    "ensemble": r["ensemble"],
+                    "manifest": r["manifest"],
+                    "expected_ensemble": r["expected_ensemble"],
+                }
+                if "liggghts" in r
+                else None
+            )
+        )
         if live is not None:
             sides[engine] = {**live, "stored": False}
             continue
         stored = load_stored_full(bi.strain, engine)
         nat = r["native"] if engine == "liggghts" else None
         if stored is None:
-            res.notes.append(f"<b>{code} is absent</b> and no stored {code} series exists for this strain: its cells "
-                             "have no evidence.")
+            res.notes.append(
+                f"<b>{code} is absent</b> and no stored {code} series exists for this strain: its cells "
+                "have no evidence."
+            )
             continue
         if stored["input_sha256"] != input_fingerprint(ctx):
-            res.notes.append(f"The stored {code} series was made from another Kuhn assembly than the one generated here "
-                             "(input fingerprint differs: the packing generator changed); regenerate it with "
-                             "validation.cases.biaxial.store_full_reference where the code is installed.")
+            res.notes.append(
+                f"The stored {code} series was made from another Kuhn assembly than the one generated here "
+                "(input fingerprint differs: the packing generator changed); regenerate it with "
+                "validation.cases.biaxial.store_full_reference where the code is installed."
+            )
             continue
         if nat is None:
-            nat = run_native(pk, _flavour(dem, "lammps"), r["loading"], r["nsteps"], FULL_DUMP_EVERY,
-                             velocities=r["velocities"], spins=r["spins"], thermo_every=FULL_THERMO_EVERY)
-        sides[engine] = {"native": nat, "reference": stored["liggghts"], "ensemble": stored["ensemble"],
-                         "manifest": None, "expected_ensemble": list(stored["ensemble"]), "stored": True}
-        res.notes.append(f"<b>{code} is absent</b>: compared with the stored series "
-                         f"<code>{STORED_FULL}/{_stored_name(bi.strain, engine)}</code> (stress and box every "
-                         f"{STORED_EVERY} steps of the reference and perturbed {code} runs); positions are not "
-                         "stored, so only the stress divergence and the curves are checked.")
+            nat = run_native(
+                pk,
+                _flavour(dem, "lammps"),
+                r["loading"],
+                r["nsteps"],
+                FULL_DUMP_EVERY,
+                velocities=r["velocities"],
+                spins=r["spins"],
+                thermo_every=FULL_THERMO_EVERY,
+            )
+        sides[engine] = {
+            "native": nat,
+            "reference": stored["liggghts"],
+            "ensemble": stored["ensemble"],
+            "manifest": None,
+            "expected_ensemble": list(stored["ensemble"]),
+            "stored": True,
+        }
+        res.notes.append(
+            f"<b>{code} is absent</b>: compared with the stored series "
+            f"<code>{STORED_FULL}/{_stored_name(bi.strain, engine)}</code> (stress and box every "
+            f"{STORED_EVERY} steps of the reference and perturbed {code} runs); positions are not "
+            "stored, so only the stress divergence and the curves are checked."
+        )
     cur = {}
     bands = {}
     divs, sdivs = {}, {}
@@ -634,22 +882,33 @@ def biaxial_full(ctx: Context) -> CaseResult:
         exp_s = expected_steps(r["nsteps"], every)
         exp_f = None if sd["stored"] else expected_frames(r["nsteps"], FULL_DUMP_EVERY)
         lab = f"biaxial-full/evidence/{engine}"
-        recs = _evidence_of(lab, f"native ({engine})", nat, expected_steps(r["nsteps"], every_nat),
-                            expected_frames(r["nsteps"], FULL_DUMP_EVERY))
+        recs = _evidence_of(
+            lab,
+            f"native ({engine})",
+            nat,
+            expected_steps(r["nsteps"], every_nat),
+            expected_frames(r["nsteps"], FULL_DUMP_EVERY),
+        )
         recs += _evidence_of(lab, f"{code} reference", ref, exp_s, exp_f)
-        want = sd["expected_ensemble"] if not sd["stored"] else (
-            ensemble_labels(pk.n, False) if engine == "liggghts" else lammps_ensemble_labels(pk.n, "default"))
+        want = (
+            sd["expected_ensemble"]
+            if not sd["stored"]
+            else (ensemble_labels(pk.n, False) if engine == "liggghts" else lammps_ensemble_labels(pk.n, "default"))
+        )
         recs.append(evidence(lab, f"perturbed {code} runs (the envelope)", want, list(sd["ensemble"])))
         for k, t in sd["ensemble"].items():
             recs += _evidence_of(lab, f"{code} {k}", t, exp_s, exp_f)
         res.records += in_pair(recs, pair[engine])
         if not all(x.passed for x in recs):
-            res.notes.append(f"<b>Incomplete evidence</b> ({code}): a run the comparison needs is missing steps, frames "
-                             "or ensemble members (records above); no envelope verdict is made on what remains.")
+            res.notes.append(
+                f"<b>Incomplete evidence</b> ({code}): a run the comparison needs is missing steps, frames "
+                "or ensemble members (records above); no envelope verdict is made on what remains."
+            )
             continue
         frames = exp_f if exp_f is not None else []
-        recs, div, sdiv = _envelope(f"biaxial-full/divergence/{engine}", code, nat, ref, sd["ensemble"], frames,
-                                    exp_s, pk.d50)
+        recs, div, sdiv = _envelope(
+            f"biaxial-full/divergence/{engine}", code, nat, ref, sd["ensemble"], frames, exp_s, pk.d50
+        )
         res.records += in_pair(recs, pair[engine])
         divs[engine], sdivs[engine] = div, sdiv
         if len(nat.steps) != len(ref.steps):  # stored series: every STORED_EVERY steps
@@ -659,16 +918,32 @@ def biaxial_full(ctx: Context) -> CaseResult:
         for k, t in sd["ensemble"].items():
             cur[f"{code} {k}"] = curves(t, p)
         q_l, ev_l = cur[code][1], cur[code][2]
-        bands[engine] = (max(float(np.abs(cur[f"{code} {k}"][1] - q_l).max()) for k in sd["ensemble"]),
-                         max(float(np.abs(cur[f"{code} {k}"][2] - ev_l).max()) for k in sd["ensemble"]))
+        bands[engine] = (
+            max(float(np.abs(cur[f"{code} {k}"][1] - q_l).max()) for k in sd["ensemble"]),
+            max(float(np.abs(cur[f"{code} {k}"][2] - ev_l).max()) for k in sd["ensemble"]),
+        )
         _, q_n, ev_n = cur[f"native ({engine})"]
-        res.records += in_pair([
-            compare(f"biaxial-full/curve/{engine}", "deviator", "max|dq|/p along the curve", np.abs(q_n - q_l).max(),
-                    bands[engine][0], CURVE_REASON.replace("LIGGGHTS", code)),
-            compare(f"biaxial-full/curve/{engine}", "volumetric_strain", "max|d eps_v| along the curve",
-                    np.abs(ev_n - ev_l).max(), bands[engine][1],
-                    CURVE_REASON.replace("LIGGGHTS", code).replace(", in units of the confining p", ""))],
-            pair[engine])
+        res.records += in_pair(
+            [
+                compare(
+                    f"biaxial-full/curve/{engine}",
+                    "deviator",
+                    "max|dq|/p along the curve",
+                    np.abs(q_n - q_l).max(),
+                    bands[engine][0],
+                    CURVE_REASON.replace("LIGGGHTS", code),
+                ),
+                compare(
+                    f"biaxial-full/curve/{engine}",
+                    "volumetric_strain",
+                    "max|d eps_v| along the curve",
+                    np.abs(ev_n - ev_l).max(),
+                    bands[engine][1],
+                    CURVE_REASON.replace("LIGGGHTS", code).replace(", in units of the confining p", ""),
+                ),
+            ],
+            pair[engine],
+        )
     if len(bands) == 2:
         lig, lmp = sides["liggghts"]["reference"], sides["lammps"]["reference"]
         steps = np.intersect1d(lig.steps, lmp.steps)
@@ -677,19 +952,39 @@ def biaxial_full(ctx: Context) -> CaseResult:
         (_, qa, eva), (_, qb, evb) = curves(a, p), curves(b, p)
         bq = bands["liggghts"][0] + bands["lammps"][0]
         bv = bands["liggghts"][1] + bands["lammps"][1]
-        n_exp = len(expected_steps(r["nsteps"], max(STORED_EVERY if sides[e]["stored"] else FULL_THERMO_EVERY
-                                                     for e in sides)))
-        recs = [evidence("biaxial-full/cross", "common series steps of LIGGGHTS and LAMMPS", n_exp,
-                         min(len(steps), n_exp)),
-                compare("biaxial-full/cross", "deviator", "max|q_LIGGGHTS - q_LAMMPS|/p along the curve",
-                        float(np.abs(qa - qb).max()) if len(steps) else float("nan"), bq, CROSS_CURVE_REASON),
-                compare("biaxial-full/cross", "volumetric_strain", "max|eps_v LIGGGHTS - eps_v LAMMPS| along the curve",
-                        float(np.abs(eva - evb).max()) if len(steps) else float("nan"), bv, CROSS_CURVE_REASON)]
+        n_exp = len(
+            expected_steps(r["nsteps"], max(STORED_EVERY if sides[e]["stored"] else FULL_THERMO_EVERY for e in sides))
+        )
+        recs = [
+            evidence("biaxial-full/cross", "common series steps of LIGGGHTS and LAMMPS", n_exp, min(len(steps), n_exp)),
+            compare(
+                "biaxial-full/cross",
+                "deviator",
+                "max|q_LIGGGHTS - q_LAMMPS|/p along the curve",
+                float(np.abs(qa - qb).max()) if len(steps) else float("nan"),
+                bq,
+                CROSS_CURVE_REASON,
+            ),
+            compare(
+                "biaxial-full/cross",
+                "volumetric_strain",
+                "max|eps_v LIGGGHTS - eps_v LAMMPS| along the curve",
+                float(np.abs(eva - evb).max()) if len(steps) else float("nan"),
+                bv,
+                CROSS_CURVE_REASON,
+            ),
+        ]
         _, rel, _ = stress_differences(a, b)
-        recs.append(info("biaxial-full/cross", "stress", "LIGGGHTS vs LAMMPS: max over steps of max|dsigma|/max|sigma|",
-                         float(rel.max()) if rel.size else float("nan"),
-                         "the codes' laws differ (docs/lammps.md): their step-by-step divergence starts at the law "
-                         "difference, far above the 1e-15 perturbations, so it is shown, not judged; the curves are"))
+        recs.append(
+            info(
+                "biaxial-full/cross",
+                "stress",
+                "LIGGGHTS vs LAMMPS: max over steps of max|dsigma|/max|sigma|",
+                float(rel.max()) if rel.size else float("nan"),
+                "the codes' laws differ (docs/lammps.md): their step-by-step divergence starts at the law "
+                "difference, far above the 1e-15 perturbations, so it is shown, not judged; the curves are",
+            )
+        )
         res.records += in_pair(recs, "liggghts-lammps")
     if not cur:
         res.error = "no code's reference (live or stored) is available for this suite"
@@ -703,29 +998,61 @@ def biaxial_full(ctx: Context) -> CaseResult:
         rows = []
         ref = sides[engine]["reference"]
         for k in range(0, len(steps), max(1, len(steps) // 12)):
-            rows.append([int(steps[k]), float(100 * curves(ref, p)[0][ref.at([steps[k]])[0]]),
-                         *[float(div[n][1][k]) for n in div]])
+            rows.append(
+                [
+                    int(steps[k]),
+                    float(100 * curves(ref, p)[0][ref.at([steps[k]])[0]]),
+                    *[float(div[n][1][k]) for n in div],
+                ]
+            )
         if rows:
-            res.tables.append((f"Divergence max|dx|/D50 against the serial {code} run (selected dumps)",
-                               ["step", "axial strain %", *div.keys()], rows))
+            res.tables.append(
+                (
+                    f"Divergence max|dx|/D50 against the serial {code} run (selected dumps)",
+                    ["step", "axial strain %", *div.keys()],
+                    rows,
+                )
+            )
     k_end = len(ea_ref) - 1
-    res.tables.append(("End of compression", ["run", "axial strain %", "q/p", "eps_v %", "peak q/p"],
-                       [[n, float(100 * c[0][min(k_end, len(c[0]) - 1)]), float(c[1][-1]), float(100 * c[2][-1]),
-                         float(c[1].max())] for n, c in cur.items()]))
-    for path, data, head, cap in _plots(ctx, {f"{e}: {k}": v for e, d in divs.items() for k, v in d.items()},
-                                        {f"{e}: {k}": v for e, d in sdivs.items() for k, v in d.items()}, cur):
+    res.tables.append(
+        (
+            "End of compression",
+            ["run", "axial strain %", "q/p", "eps_v %", "peak q/p"],
+            [
+                [
+                    n,
+                    float(100 * c[0][min(k_end, len(c[0]) - 1)]),
+                    float(c[1][-1]),
+                    float(100 * c[2][-1]),
+                    float(c[1].max()),
+                ]
+                for n, c in cur.items()
+            ],
+        )
+    )
+    for path, data, head, cap in _plots(
+        ctx,
+        {f"{e}: {k}": v for e, d in divs.items() for k, v in d.items()},
+        {f"{e}: {k}": v for e, d in sdivs.items() for k, v in d.items()},
+        cur,
+    ):
         res.add_figure(path, cap, data=data, headline=head)
     for engine, sd in sides.items():
         man = sd["manifest"]
         if not man:
             continue
-        res.notes.append(f"{CODE[engine]} reference: <code>{' '.join(man.get('command', []))}</code> "
-                         f"({man.get('engine_version') or man.get('liggghts_version', '')}), job "
-                         f"<code>{man.get('job_dir', '')}</code>, {man.get('elapsed_s', 0):.1f} s.")
+        res.notes.append(
+            f"{CODE[engine]} reference: <code>{' '.join(man.get('command', []))}</code> "
+            f"({man.get('engine_version') or man.get('liggghts_version', '')}), job "
+            f"<code>{man.get('job_dir', '')}</code>, {man.get('elapsed_s', 0):.1f} s."
+        )
     for engine, div in divs.items():
         final = {n: float(d[1][-1]) for n, d in div.items() if len(d[1])}
-        res.notes.append(f"Divergence at the last dump ({CODE[engine]}): "
-                         + ", ".join(f"{n} {v:.2e} D50" for n, v in final.items()) + ".")
+        res.notes.append(
+            f"Divergence at the last dump ({CODE[engine]}): "
+            + ", ".join(f"{n} {v:.2e} D50" for n, v in final.items())
+            + "."
+        )
     return res
 
 
@@ -759,8 +1086,11 @@ def store_full_reference(ctx: Context, engine: str = "liggghts") -> None:
     else:
         ref, ensemble, man = r[engine]["reference"], r[engine]["ensemble"], r[engine]["manifest"]
     steps = ref.steps[ref.steps % STORED_EVERY == 0]
-    arrays = {"steps": steps, "reference/stress": ref.stress[ref.at(steps)],
-              "reference/lengths": ref.lengths[ref.at(steps)]}
+    arrays = {
+        "steps": steps,
+        "reference/stress": ref.stress[ref.at(steps)],
+        "reference/lengths": ref.lengths[ref.at(steps)],
+    }
     names = []
     for k, (name, tr) in enumerate(ensemble.items()):
         arrays[f"ensemble{k}/stress"] = tr.stress[tr.at(steps)]
@@ -784,7 +1114,8 @@ def store_full_reference(ctx: Context, engine: str = "liggghts") -> None:
         f"- Arrays (npz): `steps` (every {STORED_EVERY} steps), `<run>/stress` (T, 3) xx yy xy of `compute "
         "pressure ... virial` (compression positive, N/m), `<run>/lengths` (T, 2) box lengths (m); `names` = "
         "JSON list of the ensemble runs; `input_sha256` the fingerprint of the assembly "
-        "(`validation.cases.biaxial.input_fingerprint`).\n")
+        "(`validation.cases.biaxial.input_fingerprint`).\n"
+    )
 
 
 def input_fingerprint(ctx: Context) -> str:
@@ -810,5 +1141,4 @@ def load_stored_full(strain: float, engine: str = "liggghts"):
     lig = Trajectory(steps, z["reference/stress"], z["reference/lengths"], {})
     names = json.loads(str(z["names"]))
     ens = {n: Trajectory(steps, z[f"ensemble{k}/stress"], z[f"ensemble{k}/lengths"], {}) for k, n in enumerate(names)}
-    return {"liggghts": lig, "ensemble": ens,
-            "input_sha256": str(z["input_sha256"]) if "input_sha256" in z else None}
+    return {"liggghts": lig, "ensemble": ens, "input_sha256": str(z["input_sha256"]) if "input_sha256" in z else None}

@@ -143,9 +143,7 @@ def build_law(name: str, params: dict):
 def _perturbed(common, k: int, ax: int, sign: float):
     xp = np.array(common.positions)
     xp[k, ax] *= 1.0 + sign * PERTURB_REL
-    return Packing(
-        positions=xp, radii=common.radii, cell=common.cell, density=common.density, metadata={}
-    )
+    return Packing(positions=xp, radii=common.radii, cell=common.cell, density=common.density, metadata={})
 
 
 def law_jobs(ctx: Context, common, dem, table: dict | None = None) -> dict:
@@ -162,7 +160,11 @@ def law_jobs(ctx: Context, common, dem, table: dict | None = None) -> dict:
         settings = dataclasses.replace(dem, flavour=code, mode="serial")
         base = ctx.work("reference", "biaxial-laws", name, f"strain{STRAIN:g}")
         jobs[(name, "reference")] = {
-            "job_dir": base / "reference", "packing": common, "settings": settings, "law": law, "engine": code
+            "job_dir": base / "reference",
+            "packing": common,
+            "settings": settings,
+            "law": law,
+            "engine": code,
         }
         for label, k, ax, sign in PERTURB:
             k = common.n // 2 if k is None else k
@@ -176,9 +178,7 @@ def law_jobs(ctx: Context, common, dem, table: dict | None = None) -> dict:
     return jobs
 
 
-def write_job_deck(
-    tmp, job: dict, loading, nsteps: int, velocities, spins, dump_every: int, thermo_every: int
-):
+def write_job_deck(tmp, job: dict, loading, nsteps: int, velocities, spins, dump_every: int, thermo_every: int):
     """Deck of one job of :func:`law_jobs` in ``tmp``: (deck path, {file name: bytes})."""
     deck = write_biaxial_deck(
         tmp,
@@ -209,9 +209,7 @@ def run_code_job(
 ):
     """Run one job (reused when complete); (Trajectory, manifest)."""
     with tempfile.TemporaryDirectory() as tmp:
-        deck, files = write_job_deck(
-            tmp, job, loading, nsteps, velocities, spins, dump_every, thermo_every
-        )
+        deck, files = write_job_deck(tmp, job, loading, nsteps, velocities, spins, dump_every, thermo_every)
         res = run_job(
             job["job_dir"],
             deck.read_text(),
@@ -312,7 +310,7 @@ def biaxial_laws(ctx: Context) -> CaseResult:
         "rolling resistance), run by the native engine in the law's code's arithmetic and by that "
         "code; the native run's divergence from the code's serial reference must stay within 10 "
         "times the code's own round-off envelope (two runs with one coordinate moved by 1e-15), "
-        "positions at every dump and stress at every thermo row."
+        "positions at every dump and stress at every thermo row.",
     )
     c = common_start(ctx)
     pk, dem = c["packing"], c["settings"]
@@ -320,9 +318,7 @@ def biaxial_laws(ctx: Context) -> CaseResult:
     for code in ("liggghts", "lammps"):
         if any(law_code(n) == code for n in table):
             if ctx.liggghts if code == "liggghts" else ctx.lammps:
-                res.declare(
-                    f"native-{code}", f"each {code} law: native within 10x the code's envelope"
-                )
+                res.declare(f"native-{code}", f"each {code} law: native within 10x the code's envelope")
             else:
                 res.skip_pair(
                     f"native-{code}",
@@ -338,9 +334,7 @@ def biaxial_laws(ctx: Context) -> CaseResult:
     exp_s, exp_f = expected_steps(n, te), expected_frames(n, de)
     with ThreadPoolExecutor(max_workers=max(int(ctx.jobs), 1)) as pool:
         fut = {
-            k: pool.submit(
-                run_code_job, j, c["loading"], n, de, c["velocities"], c["spins"], te, to
-            )
+            k: pool.submit(run_code_job, j, c["loading"], n, de, c["velocities"], c["spins"], te, to)
             for k, j in jobs.items()
         }
         nat = {}
@@ -366,9 +360,7 @@ def biaxial_laws(ctx: Context) -> CaseResult:
             continue
         lab = f"biaxial-laws/{name}"
         ref, man = done[(name, "reference")]
-        ens = {
-            lab_: done[(name, lab_)][0] for (nm, lab_) in jobs if nm == name and lab_ != "reference"
-        }
+        ens = {lab_: done[(name, lab_)][0] for (nm, lab_) in jobs if nm == name and lab_ != "reference"}
         recs = [
             *_evidence_of(lab, f"{code} reference", ref, exp_s, exp_f),
             *_evidence_of(lab, f"native ({code})", nat[name], exp_s, exp_f),

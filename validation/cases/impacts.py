@@ -147,67 +147,122 @@ CODES = ("liggghts", "lammps")
 CODE = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}
 
 # -- the common material and geometry ------------------------------------------------------
-R = 0.01              # disk radius (m)
-RHO = 1000.0          # mass per area (kg/m^2): m = pi r^2 rho = 0.314 kg
-R_WALL = 25.0 * R     # the disk standing in for a wall (625 m)
-KN = 1.0e6            # N/m
-V = 1.0e-3            # impact speed (m/s): delta_max/r ~ 4e-5
-DT = 5.0e-6           # s: contact time of two equal disks / 249 (the damping's O(dt) error, docs/impacts.md)
-EVERY = 5             # frames (dumps) every 5 steps: sampling interval 2.5e-5 s = t_c / 50
-GAP_SAMPLES = 2.3     # the disks touch 2.3 sampling intervals after the start (a generic phase)
+R = 0.01  # disk radius (m)
+RHO = 1000.0  # mass per area (kg/m^2): m = pi r^2 rho = 0.314 kg
+R_WALL = 25.0 * R  # the disk standing in for a wall (625 m)
+KN = 1.0e6  # N/m
+V = 1.0e-3  # impact speed (m/s): delta_max/r ~ 4e-5
+DT = 5.0e-6  # s: contact time of two equal disks / 249 (the damping's O(dt) error, docs/impacts.md)
+EVERY = 5  # frames (dumps) every 5 steps: sampling interval 2.5e-5 s = t_c / 50
+GAP_SAMPLES = 2.3  # the disks touch 2.3 sampling intervals after the start (a generic phase)
 SKIN = 0.1 * R
 #: analytic tolerances (relative unless stated): the time-step error at DT measured by halving dt
 #: (docs/impacts.md, "Measured") with a margin of about 3
 TOL = {
-    "contact time": (3.0e-3, ("time-step error, first order from the damping's half-step lag: measured 6e-6 (zeta 0), "
-                             "4.5e-4 (zeta 0.1) to 1.9e-3 (zeta 0.35 between equal disks) at dt = 5e-6 s, halved at "
-                             "dt/2 (order 1.0); 1% stiffness changes it by 5e-3")),
-    "restitution": (1.0e-2, ("time-step error (relative): measured <= 7.9e-3 at dt = 5e-6 s (zeta 0.5), 5e-7 undamped; "
-                            "order 0.2-3 (the sub-step phase of the contact end moves with dt); 1% damping changes "
-                            "it by 1.3e-2 (zeta 0.35) to 2.4e-2 (zeta 0.5)")),
+    "contact time": (
+        3.0e-3,
+        (
+            "time-step error, first order from the damping's half-step lag: measured 6e-6 (zeta 0), "
+            "4.5e-4 (zeta 0.1) to 1.9e-3 (zeta 0.35 between equal disks) at dt = 5e-6 s, halved at "
+            "dt/2 (order 1.0); 1% stiffness changes it by 5e-3"
+        ),
+    ),
+    "restitution": (
+        1.0e-2,
+        (
+            "time-step error (relative): measured <= 7.9e-3 at dt = 5e-6 s (zeta 0.5), 5e-7 undamped; "
+            "order 0.2-3 (the sub-step phase of the contact end moves with dt); 1% damping changes "
+            "it by 1.3e-2 (zeta 0.35) to 2.4e-2 (zeta 0.5)"
+        ),
+    ),
     "peak overlap": (5.0e-3, ("time-step error: measured <= 3.3e-3 (zeta 0.5), 1e-7 undamped")),
-    "friction impulse": (2.0e-4, ("gross sliding: measured <= 4.1e-5 (85 deg) at dt = 5e-6 s, about order 0.1-1 "
-                                 "(dominated by the lever arm r - delta/2 in LIGGGHTS, O(delta/r))")),
+    "friction impulse": (
+        2.0e-4,
+        (
+            "gross sliding: measured <= 4.1e-5 (85 deg) at dt = 5e-6 s, about order 0.1-1 "
+            "(dominated by the lever arm r - delta/2 in LIGGGHTS, O(delta/r))"
+        ),
+    ),
     "exit slip": (1.0e-4, ("|s' - s'_analytic|/|s0|: measured <= 1.2e-5 (LIGGGHTS lever arm), LAMMPS <= 7e-6")),
     "exit spin": (1.0e-4, ("r1 |w1' - w1'_analytic|/|s0|: measured <= 1.1e-5")),
-    "friction impulse (stick)": (2.0e-2, ("sticking oscillator: first-order time-step error of the tangential damping "
-                                         "(w_t = sqrt(3) w0, zeta_t = 0.17): measured <= 1.4e-2 at dt = 5e-6 s")),
+    "friction impulse (stick)": (
+        2.0e-2,
+        (
+            "sticking oscillator: first-order time-step error of the tangential damping "
+            "(w_t = sqrt(3) w0, zeta_t = 0.17): measured <= 1.4e-2 at dt = 5e-6 s"
+        ),
+    ),
     "exit slip (stick)": (1.5e-2, ("|s'/s0 - eq (8)|: measured <= 8.4e-3 at dt = 5e-6 s")),
     "exit spin (stick)": (1.0e-2, ("r1 |w1' - w1'_analytic|/|s0|: measured <= 3.0e-3 at dt = 5e-6 s")),
-    "energy gain": (1.0e-6, ("KE'/KE - 1 (positive part), both bodies: no energy source in an undamped "
-                            "spring-slider; velocity-Verlet energy error of the undamped normal spring "
-                            "below 1e-6 (restitution measured 5e-7)")),
-    "coulomb bound": (1.0e-9, ("max over contact frames of |F_t|/(mu |F_n|) - 1 (instantaneous normal): the cap is exact "
-                              "in both codes")),
+    "energy gain": (
+        1.0e-6,
+        (
+            "KE'/KE - 1 (positive part), both bodies: no energy source in an undamped "
+            "spring-slider; velocity-Verlet energy error of the undamped normal spring "
+            "below 1e-6 (restitution measured 5e-7)"
+        ),
+    ),
+    "coulomb bound": (
+        1.0e-9,
+        ("max over contact frames of |F_t|/(mu |F_n|) - 1 (instantaneous normal): the cap is exact in both codes"),
+    ),
 }
 #: Hertz scenes (V_H = 0.01 m/s, t_c = 840-970 steps): the time-step error at DT, measured by halving dt
 #: (docs/impacts.md, "Measured"), with a margin of about 3
 TOL_HERTZ = {
-    "contact time": (1.5e-3, (
-        "normal: time-step error <= 3.4e-4 (damped, order 0.9), 7e-7 undamped (order 2); oblique: "
-        "the rotation of the normal during a 4.8e-3 s contact (v_t t_c/(r1 + r2) = 1.8e-4 rad), "
-        "dt-independent, <= 4.0e-4 (85 deg); 1% stiffness changes it by 4e-3")),
-    "restitution": (1.5e-3, (
-        "time-step error <= 4.1e-4 (damped, DAMP 0.3), 6e-9 undamped; oblique <= 5.8e-5 "
-        "(geometric); a restitution formula off by 1% changes it by 1e-2")),
-    "peak overlap": (3.0e-3, (
-        "time-step error <= 4.9e-4 (damped), 6e-7 undamped; oblique <= 9.5e-4 (geometric, 85 deg)")),
-    "peak force": (4.0e-3, (
-        "time-step error <= 4.0e-4 (damped), 9e-7 undamped; oblique <= 1.4e-3 (geometric, 85 deg)")),
-    "friction impulse": (5.0e-3, (
-        "gross sliding: mu int |F_n| dt with P = 2 m* v_n; measured <= 1.7e-3 (85 deg), "
-        "dt-independent: the normal impulse of the curved path")),
-    "exit slip": (1.0e-3, (
-        "|s' - s'_rigid|/|s0|: measured <= 3.4e-4, dt-independent: the lever arm r - delta/2 "
-        "(delta/r = 1.6e-3) and the rotation of the normal")),
+    "contact time": (
+        1.5e-3,
+        (
+            "normal: time-step error <= 3.4e-4 (damped, order 0.9), 7e-7 undamped (order 2); oblique: "
+            "the rotation of the normal during a 4.8e-3 s contact (v_t t_c/(r1 + r2) = 1.8e-4 rad), "
+            "dt-independent, <= 4.0e-4 (85 deg); 1% stiffness changes it by 4e-3"
+        ),
+    ),
+    "restitution": (
+        1.5e-3,
+        (
+            "time-step error <= 4.1e-4 (damped, DAMP 0.3), 6e-9 undamped; oblique <= 5.8e-5 "
+            "(geometric); a restitution formula off by 1% changes it by 1e-2"
+        ),
+    ),
+    "peak overlap": (
+        3.0e-3,
+        ("time-step error <= 4.9e-4 (damped), 6e-7 undamped; oblique <= 9.5e-4 (geometric, 85 deg)"),
+    ),
+    "peak force": (
+        4.0e-3,
+        ("time-step error <= 4.0e-4 (damped), 9e-7 undamped; oblique <= 1.4e-3 (geometric, 85 deg)"),
+    ),
+    "friction impulse": (
+        5.0e-3,
+        (
+            "gross sliding: mu int |F_n| dt with P = 2 m* v_n; measured <= 1.7e-3 (85 deg), "
+            "dt-independent: the normal impulse of the curved path"
+        ),
+    ),
+    "exit slip": (
+        1.0e-3,
+        (
+            "|s' - s'_rigid|/|s0|: measured <= 3.4e-4, dt-independent: the lever arm r - delta/2 "
+            "(delta/r = 1.6e-3) and the rotation of the normal"
+        ),
+    ),
     "exit spin": (1.0e-3, "r1 |w1' - w1'_rigid|/|s0|: measured <= 3.4e-4 (as the exit slip)"),
-    "friction impulse (stick)": (2.0e-2, (
-        "sticking Mindlin oscillator (reference integrated): measured <= 7.2e-3 at dt = 5e-6 s "
-        "(erratic order: k_t ~ sqrt(delta) ends the contact with a square-root singularity); "
-        "1% Mindlin stiffness changes it by 6.7e-2")),
-    "exit slip (stick)": (6.0e-3, (
-        "|s'/s0 - s'/s0 integrated|: measured <= 2.2e-3 at dt = 5e-6 s, 1.9e-3 at dt/2; "
-        "1% Mindlin stiffness changes it by 2.1e-2")),
+    "friction impulse (stick)": (
+        2.0e-2,
+        (
+            "sticking Mindlin oscillator (reference integrated): measured <= 7.2e-3 at dt = 5e-6 s "
+            "(erratic order: k_t ~ sqrt(delta) ends the contact with a square-root singularity); "
+            "1% Mindlin stiffness changes it by 6.7e-2"
+        ),
+    ),
+    "exit slip (stick)": (
+        6.0e-3,
+        (
+            "|s'/s0 - s'/s0 integrated|: measured <= 2.2e-3 at dt = 5e-6 s, 1.9e-3 at dt/2; "
+            "1% Mindlin stiffness changes it by 2.1e-2"
+        ),
+    ),
     "exit spin (stick)": (4.0e-3, "r1 |w1' - w1'_reference|/|s0|: measured <= 1.4e-3 at dt = 5e-6 s"),
     "coulomb bound": TOL["coulomb bound"],
 }
@@ -241,8 +296,15 @@ def normal_linear(meff: float, kn: float, gamma_n: float, vn: float) -> dict:
         a = z * w0
         ts = (math.pi - math.atan(2.0 * a * wd / (wd * wd - a * a))) / wd
         ustar = -math.exp(-a * ts) * (math.cos(wd * ts) - a / wd * math.sin(wd * ts))
-    return {"w0": w0, "zeta": z, "wd": wd, "contact time": math.pi / wd, "restitution": e,
-            "peak overlap": dmax, "impulse factor": 1.0 - e + 2.0 * ustar}
+    return {
+        "w0": w0,
+        "zeta": z,
+        "wd": wd,
+        "contact time": math.pi / wd,
+        "restitution": e,
+        "peak overlap": dmax,
+        "impulse factor": 1.0 - e + 2.0 * ustar,
+    }
 
 
 def tangential_exit(m1, m2, r1, r2, s0: float, J: float) -> dict:
@@ -250,8 +312,14 @@ def tangential_exit(m1, m2, r1, r2, s0: float, J: float) -> dict:
     s0 (eq 5-6): {"exit slip", "dw1", "dw2", "dv1t", "dv2t"} (m/s, rad/s)."""
     meff = m1 * m2 / (m1 + m2)
     sg = math.copysign(1.0, s0) if s0 != 0 else 0.0
-    return {"exit slip": s0 - sg * 3.0 * J / meff, "dw1": -sg * 2.0 * J / (m1 * r1), "dw2": -sg * 2.0 * J / (m2 * r2),
-            "dv1t": -sg * J / m1, "dv2t": sg * J / m2, "friction impulse": J}
+    return {
+        "exit slip": s0 - sg * 3.0 * J / meff,
+        "dw1": -sg * 2.0 * J / (m1 * r1),
+        "dw2": -sg * 2.0 * J / (m2 * r2),
+        "dv1t": -sg * J / m1,
+        "dv2t": sg * J / m2,
+        "friction impulse": J,
+    }
 
 
 def oblique_rigid(m1, m2, r1, r2, vn, s0, mu, P) -> dict:
@@ -288,8 +356,13 @@ def hertz_undamped(meff: float, reff: float, y43: float, vn: float) -> dict:
     K = y43 * math.sqrt(reff)
     dmax = (5.0 * meff * vn * vn / (4.0 * K)) ** 0.4
     beta = math.gamma(0.4) * math.gamma(0.5) / math.gamma(0.9)
-    return {"peak overlap": dmax, "peak force": K * dmax ** 1.5, "contact time": 2.0 * dmax / vn * 0.4 * beta,
-            "restitution": 1.0, "impulse factor": 2.0}
+    return {
+        "peak overlap": dmax,
+        "peak force": K * dmax**1.5,
+        "contact time": 2.0 * dmax / vn * 0.4 * beta,
+        "restitution": 1.0,
+        "impulse factor": 2.0,
+    }
 
 
 def hertz_scaled_ode(alpha: float, rtol: float = 1e-12) -> dict:
@@ -305,15 +378,24 @@ def hertz_scaled_ode(alpha: float, rtol: float = 1e-12) -> dict:
 
     def rhs(t, y):
         x = max(y[0], 0.0)
-        f = x ** 1.5 + alpha * x ** 0.25 * y[1]
+        f = x**1.5 + alpha * x**0.25 * y[1]
         return [y[1], -f, abs(f)]
 
     def back(t, y):
         return y[0]
 
     back.terminal, back.direction = True, -1
-    sol = solve_ivp(rhs, (0.0, 20.0), [0.0, 1.0, 0.0], method="DOP853", rtol=rtol, atol=1e-14,
-                    events=back, dense_output=True, first_step=1e-6)
+    sol = solve_ivp(
+        rhs,
+        (0.0, 20.0),
+        [0.0, 1.0, 0.0],
+        method="DOP853",
+        rtol=rtol,
+        atol=1e-14,
+        events=back,
+        dense_output=True,
+        first_step=1e-6,
+    )
     tc = float(sol.t_events[0][0])
     yc = sol.y_events[0][0]
     ts = np.linspace(0.0, tc, 20001)
@@ -321,19 +403,26 @@ def hertz_scaled_ode(alpha: float, rtol: float = 1e-12) -> dict:
     f = np.clip(y[0], 0, None) ** 1.5 + alpha * np.clip(y[0], 0, None) ** 0.25 * y[1]
     k = int(np.argmax(y[0]))
 
-    xm = -minimize_scalar(lambda t: -sol.sol(t)[0], bounds=(ts[max(k - 1, 0)], ts[min(k + 1, len(ts) - 1)]),
-                          method="bounded", options={"xatol": 1e-13}).fun
+    xm = -minimize_scalar(
+        lambda t: -sol.sol(t)[0],
+        bounds=(ts[max(k - 1, 0)], ts[min(k + 1, len(ts) - 1)]),
+        method="bounded",
+        options={"xatol": 1e-13},
+    ).fun
     kf = int(np.argmax(f))
 
     def force(t):
         yy = sol.sol(t)
         x = max(yy[0], 0.0)
-        return x ** 1.5 + alpha * x ** 0.25 * yy[1]
+        return x**1.5 + alpha * x**0.25 * yy[1]
 
-    fm = -minimize_scalar(lambda t: -force(t), bounds=(ts[max(kf - 1, 0)], ts[min(kf + 1, len(ts) - 1)]),
-                          method="bounded", options={"xatol": 1e-13}).fun
-    return {"tau_c": tc, "x_max": float(xm), "f_max": float(fm), "restitution": float(-yc[1]),
-            "impulse": float(yc[2])}
+    fm = -minimize_scalar(
+        lambda t: -force(t),
+        bounds=(ts[max(kf - 1, 0)], ts[min(kf + 1, len(ts) - 1)]),
+        method="bounded",
+        options={"xatol": 1e-13},
+    ).fun
+    return {"tau_c": tc, "x_max": float(xm), "f_max": float(fm), "restitution": float(-yc[1]), "impulse": float(yc[2])}
 
 
 def normal_hertz(meff: float, reff: float, y43: float, vn: float, alpha: float = 0.0) -> dict:
@@ -345,9 +434,14 @@ def normal_hertz(meff: float, reff: float, y43: float, vn: float, alpha: float =
     K = y43 * math.sqrt(reff)
     D = (meff * vn * vn / K) ** 0.4
     o = hertz_scaled_ode(alpha)
-    return {"peak overlap": D * o["x_max"], "peak force": K * D ** 1.5 * o["f_max"],
-            "contact time": D / vn * o["tau_c"], "restitution": o["restitution"],
-            "impulse factor": o["impulse"], "source": "integrated (DOP853)"}
+    return {
+        "peak overlap": D * o["x_max"],
+        "peak force": K * D**1.5 * o["f_max"],
+        "contact time": D / vn * o["tau_c"],
+        "restitution": o["restitution"],
+        "impulse factor": o["impulse"],
+        "source": "integrated (DOP853)",
+    }
 
 
 def hertz_stick(meff: float, reff: float, y43: float, kt0: float, vn: float, rtol: float = 1e-12) -> float:
@@ -359,15 +453,23 @@ def hertz_stick(meff: float, reff: float, y43: float, kt0: float, vn: float, rto
 
     def rhs(t, y):
         d = max(y[0], 0.0)
-        return [y[1], -K * d ** 1.5 / meff, y[3], -3.0 * kt0 * math.sqrt(reff * d) * y[2] / meff]
+        return [y[1], -K * d**1.5 / meff, y[3], -3.0 * kt0 * math.sqrt(reff * d) * y[2] / meff]
 
     def back(t, y):
         return y[0]
 
     back.terminal, back.direction = True, -1
     tc = hertz_undamped(meff, reff, y43, vn)["contact time"]
-    sol = solve_ivp(rhs, (0.0, 2.0 * tc), [0.0, vn, 0.0, 1.0], method="DOP853", rtol=rtol, atol=1e-16,
-                    events=back, first_step=tc * 1e-6)
+    sol = solve_ivp(
+        rhs,
+        (0.0, 2.0 * tc),
+        [0.0, vn, 0.0, 1.0],
+        method="DOP853",
+        rtol=rtol,
+        atol=1e-16,
+        events=back,
+        first_step=tc * 1e-6,
+    )
     return float(sol.y_events[0][0][3])
 
 
@@ -431,35 +533,88 @@ def scenes(suite: str = "default") -> list[Scene]:
     for z in ZETAS_WALL:
         g = 2.0 * z * w0_wall
         law = HookeLaw(kn=KN, kt=KN, gamma_n=g, gamma_t=0.0, mu=MU_OBLIQUE)
-        imps = (_head_on("disks", "normal", R, R, V, note="Chung & Ooi test 1 (two equal disks, head on)"),
-                _head_on("wall", "normal", R, R_WALL, V, note="Chung & Ooi tests 2-3 (disk on a wall)"))
-        out.append(Scene(f"normal-z{z:g}", law, imps, ("quick", "default", "full") if z in (0.0, 0.35)
-                         else ("default", "full"),
-                         f"normal impacts, zeta = {z:g} against the wall disk ({z / math.sqrt(2):.3g} between "
-                         "equal disks: m_eff is half)"))
+        imps = (
+            _head_on("disks", "normal", R, R, V, note="Chung & Ooi test 1 (two equal disks, head on)"),
+            _head_on("wall", "normal", R, R_WALL, V, note="Chung & Ooi tests 2-3 (disk on a wall)"),
+        )
+        out.append(
+            Scene(
+                f"normal-z{z:g}",
+                law,
+                imps,
+                ("quick", "default", "full") if z in (0.0, 0.35) else ("default", "full"),
+                f"normal impacts, zeta = {z:g} against the wall disk ({z / math.sqrt(2):.3g} between "
+                "equal disks: m_eff is half)",
+            )
+        )
     law = HookeLaw(kn=KN, kt=KN, gamma_n=0.0, gamma_t=0.0, mu=MU_OBLIQUE)
     imps = []
     for a in ANGLES:
         vn, vt = V * math.cos(math.radians(a)), V * math.sin(math.radians(a))
         kind = "sliding" if vt / (MU_OBLIQUE * vn) >= 6.0 else "microslip"
-        imps.append(_head_on(f"angle{a:g}", kind, R, R_WALL, vn, vt,
-                             note=f"Chung & Ooi test 4: {a:g} deg from the normal, |v| = {V:g} m/s"))
+        imps.append(
+            _head_on(
+                f"angle{a:g}",
+                kind,
+                R,
+                R_WALL,
+                vn,
+                vt,
+                note=f"Chung & Ooi test 4: {a:g} deg from the normal, |v| = {V:g} m/s",
+            )
+        )
     for psi in (3.0, 8.0, 16.0, -8.0):  # test 6: spinning disk on the wall
         w = psi * MU_OBLIQUE * V / R
-        imps.append(_head_on(f"spin-wall{psi:g}", "sliding" if abs(psi) >= 6 else "microslip", R, R_WALL, V, w1=w,
-                             note=f"Chung & Ooi test 6: w1 = {w:.4g} rad/s (Psi1 = {psi:g})"))
+        imps.append(
+            _head_on(
+                f"spin-wall{psi:g}",
+                "sliding" if abs(psi) >= 6 else "microslip",
+                R,
+                R_WALL,
+                V,
+                w1=w,
+                note=f"Chung & Ooi test 6: w1 = {w:.4g} rad/s (Psi1 = {psi:g})",
+            )
+        )
     for psi in (3.0, 10.0):  # test 7: two equal disks with equal spins
         w = psi * MU_OBLIQUE * V / (2 * R)
-        imps.append(_head_on(f"spin-disks{psi:g}", "sliding" if psi >= 6 else "microslip", R, R, V, w1=w, w2=w,
-                             note=f"Chung & Ooi test 7: w1 = w2 = {w:.4g} rad/s (Psi1 = {psi:g})"))
+        imps.append(
+            _head_on(
+                f"spin-disks{psi:g}",
+                "sliding" if psi >= 6 else "microslip",
+                R,
+                R,
+                V,
+                w1=w,
+                w2=w,
+                note=f"Chung & Ooi test 7: w1 = w2 = {w:.4g} rad/s (Psi1 = {psi:g})",
+            )
+        )
     for psi in (3.0, 10.0):  # test 8: different disks (radius 1:2), zero momentum, disk 1 spinning
         m1, m2 = _mass(R), _mass(2 * R)
         w = psi * MU_OBLIQUE * V / R
-        imps.append(Impact(f"spin-unequal{psi:g}", "sliding" if psi >= 6 else "microslip", R, 2 * R,
-                           (V * m2 / (m1 + m2), 0.0), (-V * m1 / (m1 + m2), 0.0), w, 0.0,
-                           f"Chung & Ooi test 8: radii 1:2, w1 = {w:.4g} rad/s (Psi1 = {psi:g})"))
-    out.append(Scene("oblique", law, tuple(imps), ("quick", "default", "full"),
-                     f"oblique and spinning impacts, mu = {MU_OBLIQUE}, no damping (e = 1)"))
+        imps.append(
+            Impact(
+                f"spin-unequal{psi:g}",
+                "sliding" if psi >= 6 else "microslip",
+                R,
+                2 * R,
+                (V * m2 / (m1 + m2), 0.0),
+                (-V * m1 / (m1 + m2), 0.0),
+                w,
+                0.0,
+                f"Chung & Ooi test 8: radii 1:2, w1 = {w:.4g} rad/s (Psi1 = {psi:g})",
+            )
+        )
+    out.append(
+        Scene(
+            "oblique",
+            law,
+            tuple(imps),
+            ("quick", "default", "full"),
+            f"oblique and spinning impacts, mu = {MU_OBLIQUE}, no damping (e = 1)",
+        )
+    )
     zs = 0.1
     g = 2.0 * zs * w0_wall
     law = HookeLaw(kn=KN, kt=KN, gamma_n=g, gamma_t=g, mu=1.0e3)
@@ -469,25 +624,43 @@ def scenes(suite: str = "default") -> list[Scene]:
         imps.append(_head_on(f"angle{a:g}", "stick", R, R_WALL, vn, vt, note=f"{a:g} deg, sticking (mu = 1e3)"))
     imps.append(_head_on("spin-wall", "stick", R, R_WALL, V, w1=0.3, note="spinning disk, sticking"))
     imps.append(_head_on("spin-disks", "stick", R, R, V, w1=0.15, w2=0.15, note="two spinning disks, sticking"))
-    out.append(Scene("stick", law, tuple(imps), ("default", "full"),
-                     f"sticking contacts (mu = 1e3), zeta = {zs} (wall), gamma_t = gamma_n"))
+    out.append(
+        Scene(
+            "stick",
+            law,
+            tuple(imps),
+            ("default", "full"),
+            f"sticking contacts (mu = 1e3), zeta = {zs} (wall), gamma_t = gamma_n",
+        )
+    )
     out += hertz_scenes()
     law = HookeLaw(kn=KN, kt=KN, gamma_n=0.0, gamma_t=0.0, mu=MU_WALL)
     imps = []
     for a in ANGLES_WALL:
         vn, vt = V * math.cos(math.radians(a)), V * math.sin(math.radians(a))
         kind = "sliding" if vt / (MU_WALL * vn) >= 6.0 else "microslip"
-        imps.append(_head_on(f"angle{a:g}", kind, R, R_WALL, vn, vt,
-                             note=f"grazing on the wall disk: {a:g} deg, mu {MU_WALL:g}"))
-    out.append(Scene("grazing", law, tuple(imps), ("default", "full"),
-                     f"the flat-wall angles on the disk wall (pair styles), mu = {MU_WALL}, no damping: "
-                     "energy bound and rigid-body limit", meta={"energy": True}))
+        imps.append(
+            _head_on(
+                f"angle{a:g}", kind, R, R_WALL, vn, vt, note=f"grazing on the wall disk: {a:g} deg, mu {MU_WALL:g}"
+            )
+        )
+    out.append(
+        Scene(
+            "grazing",
+            law,
+            tuple(imps),
+            ("default", "full"),
+            f"the flat-wall angles on the disk wall (pair styles), mu = {MU_WALL}, no damping: "
+            "energy bound and rigid-body limit",
+            meta={"energy": True},
+        )
+    )
     out += rolling_scenes() + wall_scenes()
     return [s for s in out if suite in s.suites]
 
 
-E_H, NU_H = 5.0e8, 0.3    # Young's modulus (Pa; inside LIGGGHTS' SI limits) and Poisson's ratio
-V_H = 0.01                # impact speed of the Hertz scenes (m/s): t_c ~ 4.2e-3 to 4.8e-3 s = 840-970 steps
+E_H, NU_H = 5.0e8, 0.3  # Young's modulus (Pa; inside LIGGGHTS' SI limits) and Poisson's ratio
+V_H = 0.01  # impact speed of the Hertz scenes (m/s): t_c ~ 4.2e-3 to 4.8e-3 s = 840-970 steps
 ANGLES_H = (30.0, 60.0, 70.0, 80.0, 85.0)
 MU_STICK = 1.0e3
 
@@ -500,38 +673,68 @@ def hertz_scenes() -> list[Scene]:
         "hertz-liggghts": lambda mu, damped: HertzLiggghtsLaw(E_H, NU_H, 0.5 if damped else 1.0, mu),
         "hertz-lammps": lambda mu, damped: HertzHistoryLammpsLaw(E_H, NU_H, mu),
         "hertz-granular": lambda mu, damped: (
-            HertzGranularLammpsLaw(E_H, NU_H, 0.3, mu, 0.0, "tsuji") if damped
-            else HertzGranularLammpsLaw(E_H, NU_H, 0.0, mu)),
+            HertzGranularLammpsLaw(E_H, NU_H, 0.3, mu, 0.0, "tsuji")
+            if damped
+            else HertzGranularLammpsLaw(E_H, NU_H, 0.0, mu)
+        ),
     }
-    normal = (_head_on("disks", "normal", R, R, V_H, note="Chung & Ooi test 1 (Hertz: equal disks)"),
-              _head_on("wall", "normal", R, R_WALL, V_H, note="Chung & Ooi tests 2-3 (Hertz: wall)"))
+    normal = (
+        _head_on("disks", "normal", R, R, V_H, note="Chung & Ooi test 1 (Hertz: equal disks)"),
+        _head_on("wall", "normal", R, R_WALL, V_H, note="Chung & Ooi tests 2-3 (Hertz: wall)"),
+    )
     out = []
     for name, make in laws.items():
         imps = list(normal)
         for a in ANGLES_H:
             vn, vt = V_H * math.cos(math.radians(a)), V_H * math.sin(math.radians(a))
             kind = "sliding" if vt / (MU_OBLIQUE * vn) >= 6.0 else "microslip"
-            imps.append(_head_on(f"angle{a:g}", kind, R, R_WALL, vn, vt,
-                                 note=f"Chung & Ooi test 4 (Hertz): {a:g} deg"))
+            imps.append(_head_on(f"angle{a:g}", kind, R, R_WALL, vn, vt, note=f"Chung & Ooi test 4 (Hertz): {a:g} deg"))
         for psi in (8.0, 16.0):
-            imps.append(_head_on(f"spin-wall{psi:g}", "sliding", R, R_WALL, V_H,
-                                 w1=psi * MU_OBLIQUE * V_H / R,
-                                 note=f"Chung & Ooi test 6 (Hertz): Psi1 = {psi:g}"))
-        out.append(Scene(name, make(MU_OBLIQUE, False), tuple(imps),
-                         ("quick", "default", "full") if name == "hertz-liggghts" else ("default", "full"),
-                         f"{name}: undamped, mu = {MU_OBLIQUE}: normal, oblique and spinning impacts"))
+            imps.append(
+                _head_on(
+                    f"spin-wall{psi:g}",
+                    "sliding",
+                    R,
+                    R_WALL,
+                    V_H,
+                    w1=psi * MU_OBLIQUE * V_H / R,
+                    note=f"Chung & Ooi test 6 (Hertz): Psi1 = {psi:g}",
+                )
+            )
+        out.append(
+            Scene(
+                name,
+                make(MU_OBLIQUE, False),
+                tuple(imps),
+                ("quick", "default", "full") if name == "hertz-liggghts" else ("default", "full"),
+                f"{name}: undamped, mu = {MU_OBLIQUE}: normal, oblique and spinning impacts",
+            )
+        )
         imps = []
         for a in (20.0, 45.0):
             vn, vt = V_H * math.cos(math.radians(a)), V_H * math.sin(math.radians(a))
-            imps.append(_head_on(f"angle{a:g}", "stick", R, R_WALL, vn, vt,
-                                 note=f"{a:g} deg, sticking (mu 1e3)"))
+            imps.append(_head_on(f"angle{a:g}", "stick", R, R_WALL, vn, vt, note=f"{a:g} deg, sticking (mu 1e3)"))
         imps.append(_head_on("spin-wall", "stick", R, R_WALL, V_H, w1=3.0, note="spinning disk, sticking"))
-        out.append(Scene(f"{name}-stick", make(MU_STICK, False), tuple(imps), ("default", "full"),
-                         f"{name}: undamped, sticking (mu 1e3): the Mindlin stiffness 8 G* a"))
+        out.append(
+            Scene(
+                f"{name}-stick",
+                make(MU_STICK, False),
+                tuple(imps),
+                ("default", "full"),
+                f"{name}: undamped, sticking (mu 1e3): the Mindlin stiffness 8 G* a",
+            )
+        )
         tag = "e0.5" if name == "hertz-liggghts" else ("tsuji0.3" if name == "hertz-granular" else None)
         if tag:
-            out.append(Scene(f"{name}-{tag}", make(MU_OBLIQUE, True), normal, ("default", "full"),
-                             f"{name}: damped ({tag}), normal impacts"))
+            out.append(
+                Scene(
+                    f"{name}-{tag}",
+                    make(MU_OBLIQUE, True),
+                    normal,
+                    ("default", "full"),
+                    f"{name}: damped ({tag}), normal impacts",
+                )
+            )
     return out
 
 
@@ -600,8 +803,9 @@ def run_native(scene: Scene, flavour: str, dt: float = DT) -> dict:
         return run_native_wall(scene, dt)
     p, v, w, n, _ = layout(scene, dt)
     every = round(EVERY * DT / dt)
-    eng = DEMEngine(p, native_settings(scene.law, dt, flavour), velocities=v, spins=w,
-                    law=native_law(scene.law, flavour))
+    eng = DEMEngine(
+        p, native_settings(scene.law, dt, flavour), velocities=v, spins=w, law=native_law(scene.law, flavour)
+    )
     ld = Loading()
     frames = {0: _frame(eng)}
     for k in range(every, n + 1, every):
@@ -618,11 +822,11 @@ def write_job_deck(job_dir, scene: Scene, engine: str) -> tuple[str, dict]:
     """(deck text, input files) of the scene's job for ``engine``."""
     p, v, w, n, _ = layout(scene)
     if isinstance(scene, WallScene):
-        deck = write_wall_deck(job_dir, p, scene.law, DT, SKIN, n, v, w, dump_every=EVERY,
-                               thermo_every=EVERY * 10)
+        deck = write_wall_deck(job_dir, p, scene.law, DT, SKIN, n, v, w, dump_every=EVERY, thermo_every=EVERY * 10)
     else:
-        deck = write_impact_deck(job_dir, p, scene.law, DT, SKIN, n, v, w, engine=engine, dump_every=EVERY,
-                                 thermo_every=EVERY * 10)
+        deck = write_impact_deck(
+            job_dir, p, scene.law, DT, SKIN, n, v, w, engine=engine, dump_every=EVERY, thermo_every=EVERY * 10
+        )
     return deck.read_text(), {DATA_NAME: (Path(job_dir) / DATA_NAME).read_bytes()}
 
 
@@ -634,8 +838,16 @@ def run_code(ctx: Context, scene: Scene, engine: str) -> tuple[dict, Path, bool]
         p, _, _, n, _ = layout(scene)
         with tempfile.TemporaryDirectory() as tmp:
             text, files = write_job_deck(tmp, scene, engine)
-        res = run_job(job, text, files=files, outputs=(DUMP_NAME,), expected_runs=1, progress=False,
-                      timeout=ctx.job_timeout(p.n * n), engine=engine)
+        res = run_job(
+            job,
+            text,
+            files=files,
+            outputs=(DUMP_NAME,),
+            expected_runs=1,
+            progress=False,
+            timeout=ctx.job_timeout(p.n * n),
+            engine=engine,
+        )
         job = res.job_dir
     else:
         job = stored_dir(f"impacts-{engine}") / scene.name
@@ -662,8 +874,18 @@ def measure(frames: dict, scene: Scene, pairs, dt: float) -> list[dict]:
     the largest sampled overlap), exit slip and spin, friction impulse m1 |dv1.t|, and the largest
     |F_t|/(mu |F_n|) - 1 over the contact frames. NaN where the contact did not start or end
     between frames."""
-    keys = ("contact time", "restitution", "peak overlap", "peak force", "exit slip", "w1'",
-            "friction impulse", "coulomb bound", "s0", "energy ratio")
+    keys = (
+        "contact time",
+        "restitution",
+        "peak overlap",
+        "peak force",
+        "exit slip",
+        "w1'",
+        "friction impulse",
+        "coulomb bound",
+        "s0",
+        "energy ratio",
+    )
     if len(frames) < 4:
         return [{k: math.nan for k in keys} for _ in scene.impacts]
     steps = np.array(sorted(frames))
@@ -701,13 +923,15 @@ def measure(frames: dict, scene: Scene, pairs, dt: float) -> list[dict]:
         q["friction impulse"] = abs(_mass(im.r1) * float((Vv[-1, i] - Vv[0, i]) @ t))
 
         def ke(s, i=i, j=j, im=im):
-            return sum(0.5 * _mass(rr) * float(Vv[s, k] @ Vv[s, k])
-                       + 0.25 * _mass(rr) * rr * rr * W[s, k] ** 2 for k, rr in ((i, im.r1), (j, im.r2)))
+            return sum(
+                0.5 * _mass(rr) * float(Vv[s, k] @ Vv[s, k]) + 0.25 * _mass(rr) * rr * rr * W[s, k] ** 2
+                for k, rr in ((i, im.r1), (j, im.r2))
+            )
 
         q["energy ratio"] = ke(-1) / ke(0)
-        nn = d[a:b + 1] / dist[a:b + 1, None]
-        fn = np.einsum("ij,ij->i", F[a:b + 1, i], nn)
-        ft = F[a:b + 1, i, 1] * nn[:, 0] - F[a:b + 1, i, 0] * nn[:, 1]
+        nn = d[a : b + 1] / dist[a : b + 1, None]
+        fn = np.einsum("ij,ij->i", F[a : b + 1, i], nn)
+        ft = F[a : b + 1, i, 1] * nn[:, 0] - F[a : b + 1, i, 0] * nn[:, 1]
         kf = int(np.argmax(-fn))
         if 0 < kf < len(fn) - 1:
             f0, f1, f2 = -fn[kf - 1], -fn[kf], -fn[kf + 1]
@@ -754,9 +978,11 @@ def analytic(scene: Scene, im: Impact) -> dict:
 
 def errors(q: dict, an: dict, im: Impact) -> dict:
     """Errors of measured ``q`` against ``an`` per checked quantity (see TOL)."""
-    e = {"contact time": abs(q["contact time"] / an["contact time"] - 1.0),
-         "restitution": abs(q["restitution"] / an["restitution"] - 1.0),
-         "peak overlap": abs(q["peak overlap"] / an["peak overlap"] - 1.0)}
+    e = {
+        "contact time": abs(q["contact time"] / an["contact time"] - 1.0),
+        "restitution": abs(q["restitution"] / an["restitution"] - 1.0),
+        "peak overlap": abs(q["peak overlap"] / an["peak overlap"] - 1.0),
+    }
     if "peak force" in an:
         e["peak force"] = abs(q["peak force"] / an["peak force"] - 1.0)
     if im.kind in ("sliding", "stick"):
@@ -974,9 +1200,7 @@ def spin_decay(cst: dict, w0: float, t_end: float) -> dict:
                 tz = _first_root(lambda tt, f=f, t=t: f(tt - t)[1], t, t_end if tc is None else tc, per)
                 if math.isnan(stop) and tz is not None:
                     stop = tz
-                segs.append(
-                    (t, t_end if tc is None else tc, "elastic", lambda tt, f=f, t=t: s * f(tt - t)[1])
-                )
+                segs.append((t, t_end if tc is None else tc, "elastic", lambda tt, f=f, t=t: s * f(tt - t)[1]))
                 if tc is None:
                     break
             th_c, u_c = (float(v) for v in f(tc - t))
@@ -1085,11 +1309,7 @@ def roll_errors(q: dict, an: dict) -> dict:
     e = {"spin trajectory": q["spin trajectory"]}
     if math.isfinite(an["stop time"]):
         e["stop time"] = abs(q["stop time"] / an["stop time"] - 1.0)
-    if (
-        math.isfinite(an["deceleration"])
-        and an["capped"]
-        and an["capped"][0][1] - an["capped"][0][0] > 10 * EVERY * DT
-    ):
+    if math.isfinite(an["deceleration"]) and an["capped"] and an["capped"][0][1] - an["capped"][0][0] > 10 * EVERY * DT:
         e["deceleration"] = abs(q["deceleration"] / an["deceleration"] - 1.0)
     return {k: (v if math.isfinite(v) else math.nan) for k, v in e.items()}
 
@@ -1142,9 +1362,7 @@ def wall_scenes() -> list[WallScene]:
         imps = []
         for a in ANGLES_WALL:
             kind = "sliding" if math.tan(math.radians(a)) >= 6.0 * MU_WALL else "microslip"
-            imps.append(
-                WallImpact(f"angle{a:g}", a, kind, f"{a:g} deg from the wall normal, |v| = {V:g} m/s")
-            )
+            imps.append(WallImpact(f"angle{a:g}", a, kind, f"{a:g} deg from the wall normal, |v| = {V:g} m/s"))
         out.append(
             WallScene(
                 f"wall-{code}",
@@ -1173,9 +1391,7 @@ def wall_layout(scene: WallScene, dt: float = DT):
     every = round(EVERY * DT / dt)
     nsteps = (math.ceil(tmax / (every * dt)) + 3) * every
     n = len(scene.impacts)
-    p = Packing(
-        np.array(pos), np.full(n, R), np.diag([S * n, 8.0 * R]), density=RHO, metadata={"scene": scene.name}
-    )
+    p = Packing(np.array(pos), np.full(n, R), np.diag([S * n, 8.0 * R]), density=RHO, metadata={"scene": scene.name})
     return p, np.array(vel, float), np.zeros(n), nsteps, list(range(n))
 
 
@@ -1428,9 +1644,7 @@ def run_native_roll(scene: RollScene, dt: float = DT) -> dict:
     """The native engine's frames of a rolling scene (as :func:`run_native`)."""
     p, v, w, n, _ = roll_layout(scene, dt)
     every = round(EVERY * DT / dt)
-    eng = DEMEngine(
-        p, scene.law.dem_settings(dt, SKIN), velocities=v, spins=w, law=native_roll_law(scene.law)
-    )
+    eng = DEMEngine(p, scene.law.dem_settings(dt, SKIN), velocities=v, spins=w, law=native_roll_law(scene.law))
     ld = Loading()
     frames = {0: _frame(eng)}
     for k in range(every, n + 1, every):
@@ -1444,9 +1658,7 @@ def _code_part(ctx, res, sc, lab, nat, code, label_every=None):
     _, _, _, nsteps, _ = layout(sc)
     frames, job, live = run_code(ctx, sc, code)
     recs = [] if live else [stored_job_record(f"{lab}/{code}", job)]
-    recs.append(
-        evidence(f"{lab}/{code}", f"{CODE[code]} frames", list(range(0, nsteps + 1, EVERY)), list(frames))
-    )
+    recs.append(evidence(f"{lab}/{code}", f"{CODE[code]} frames", list(range(0, nsteps + 1, EVERY)), list(frames)))
     if nat is not None:
         recs += bitwise_records(f"{lab}/{code}", nat, frames, CODE[code])
     res.records += in_pair(recs, f"native-{code}")
@@ -1547,9 +1759,7 @@ def wall_part(ctx, res, sc: WallScene, dt_rows: list, wall_rows: list) -> None:
             src = {"energy gain": "energy ratio", "exit spin": "w1'"}.get(qn, qn)
             shown = ", ".join(f"{w} {_fmt(meas[w][k][src])}" for w in got)
             aval = "1 (bound)" if qn == "energy gain" else _fmt(an.get(src, math.nan))
-            res.records.append(
-                compare(f"{lab}/{im.label}", qn, f"error (analytic {aval}; {shown})", val, tol, why)
-            )
+            res.records.append(compare(f"{lab}/{im.label}", qn, f"error (analytic {aval}; {shown})", val, tol, why))
         gains.append((meas[code][k]["energy ratio"] - 1.0, im.angle))
         if mh is not None:
             eh = wall_errors(mh[k], an, im)
@@ -1595,19 +1805,43 @@ def bitwise_records(label: str, a: dict, b: dict, who: str) -> list:
     """Step-for-step records of two trajectories over the steps both hold (evidence separately)."""
     common = sorted(set(a) & set(b))
     if not common:
-        return [compare(label, "positions", f"max |dx|/D (native vs {who}, no common frames)", math.nan,
-                        BIT_POS, "nothing to compare")]
+        return [
+            compare(
+                label,
+                "positions",
+                f"max |dx|/D (native vs {who}, no common frames)",
+                math.nan,
+                BIT_POS,
+                "nothing to compare",
+            )
+        ]
     out = []
     D = 2 * R
     dx = max(float(np.max(np.abs(a[s]["x"] - b[s]["x"]))) for s in common) / D
-    out.append(compare(label, "positions", f"max |dx|/D over {len(common)} frames (native vs {who})", dx, BIT_POS,
-                       "the native engine in this code's arithmetic reproduces it bit for bit (docs/lammps.md); "
-                       "1e-10 D as biaxial-short"))
+    out.append(
+        compare(
+            label,
+            "positions",
+            f"max |dx|/D over {len(common)} frames (native vs {who})",
+            dx,
+            BIT_POS,
+            "the native engine in this code's arithmetic reproduces it bit for bit (docs/lammps.md); "
+            "1e-10 D as biaxial-short",
+        )
+    )
     for key, name in (("v", "velocities"), ("w", "spins"), ("f", "forces"), ("t", "torques")):
         top = max(float(np.max(np.abs(b[s][key]))) for s in common) or 1.0
         diff = max(float(np.max(np.abs(a[s][key] - b[s][key]))) for s in common) / top
-        out.append(compare(label, name, f"max |d{key}|/max|{key}| (native vs {who})", diff, BIT_REL,
-                           "bit for bit expected; 1e-8 relative as biaxial-short"))
+        out.append(
+            compare(
+                label,
+                name,
+                f"max |d{key}|/max|{key}| (native vs {who})",
+                diff,
+                BIT_REL,
+                "bit for bit expected; 1e-8 relative as biaxial-short",
+            )
+        )
     return out
 
 
@@ -1615,11 +1849,16 @@ def _fmt(v):
     return "nan" if not math.isfinite(v) else f"{v:.6g}"
 
 
-@case("impacts", "Analytic 2D impact benchmarks: normal, oblique and spinning disks (native, LIGGGHTS, LAMMPS)",
-      suites=("quick", "default", "full"), order=15)
+@case(
+    "impacts",
+    "Analytic 2D impact benchmarks: normal, oblique and spinning disks (native, LIGGGHTS, LAMMPS)",
+    suites=("quick", "default", "full"),
+    order=15,
+)
 def impacts(ctx: Context) -> CaseResult:
     res = CaseResult(
-        "impacts", "Analytic 2D impact benchmarks: normal, oblique and spinning disks (native, LIGGGHTS, LAMMPS)",
+        "impacts",
+        "Analytic 2D impact benchmarks: normal, oblique and spinning disks (native, LIGGGHTS, LAMMPS)",
         "Binary disk impacts (Chung &amp; Ooi 2011 tests 1-8 adapted to disks, I = m r<sup>2</sup>/2; a disk of 25 "
         "radii standing in for the wall) with the linear Hooke law with tangential history, run by the native engine "
         "in both flavours, LIGGGHTS 3.8.0 and LAMMPS 29Sep2021, against the closed forms of docs/impacts.md: contact "
@@ -1628,22 +1867,33 @@ def impacts(ctx: Context) -> CaseResult:
         "laws; the spin decay under each rolling-resistance law (epsd2, epsd, cdt, sds); each code's own "
         "flat wall against the rigid-body limit and the energy bound (lammps/lammps PR #5007). "
         "Each analytic record's value is "
-        "the largest error over the implementations; its metric lists the analytic value and each one's value.")
-    res.declare("native-liggghts", "bit for bit: every step of every impact of the Hooke scenes, "
-                                   "of LIGGGHTS' hertz scenes and of its rolling laws epsd2, epsd, cdt "
-                                   "(native flavour liggghts); its primitive flat wall: evidence only")
-    res.declare("native-lammps", "bit for bit: every step of every impact of the Hooke scenes, of "
-                                 "LAMMPS' gran/hertz/history and granular hertz/material scenes, of "
-                                 "granular rolling sds (native flavour lammps) and of fix wall/gran "
-                                 "(the native two-body integrator of its 2021 arithmetic)")
+        "the largest error over the implementations; its metric lists the analytic value and each one's value.",
+    )
+    res.declare(
+        "native-liggghts",
+        "bit for bit: every step of every impact of the Hooke scenes, "
+        "of LIGGGHTS' hertz scenes and of its rolling laws epsd2, epsd, cdt "
+        "(native flavour liggghts); its primitive flat wall: evidence only",
+    )
+    res.declare(
+        "native-lammps",
+        "bit for bit: every step of every impact of the Hooke scenes, of "
+        "LAMMPS' gran/hertz/history and granular hertz/material scenes, of "
+        "granular rolling sds (native flavour lammps) and of fix wall/gran "
+        "(the native two-body integrator of its 2021 arithmetic)",
+    )
     all_scenes = scenes(ctx.suite)
     if any(len(s.law.engines) == 2 for s in all_scenes):
-        res.declare("liggghts-lammps", "Hooke scenes: the codes' answers differ by at most the sum of "
-                                       "their analytic tolerances (both lie within them); their "
-                                       "difference equals the native flavours' difference")
+        res.declare(
+            "liggghts-lammps",
+            "Hooke scenes: the codes' answers differ by at most the sum of "
+            "their analytic tolerances (both lie within them); their "
+            "difference equals the native flavours' difference",
+        )
     else:
-        res.skip_pair("liggghts-lammps", "only single-code (Hertz) scenes selected: each is judged "
-                                         "against its own closed forms")
+        res.skip_pair(
+            "liggghts-lammps", "only single-code (Hertz) scenes selected: each is judged against its own closed forms"
+        )
     table_rows, dt_rows = [], []
     cross = {}
     nat_key = {"liggghts": "native", "lammps": "native-lammps"}
@@ -1666,8 +1916,9 @@ def impacts(ctx: Context) -> CaseResult:
             frames, job, live = run_code(ctx, sc, code)
             pair = f"native-{code}"
             recs = [] if live else [stored_job_record(f"{lab}/{code}", job)]
-            recs.append(evidence(f"{lab}/{code}", f"{CODE[code]} frames", list(range(0, nsteps + 1, EVERY)),
-                                  list(frames)))
+            recs.append(
+                evidence(f"{lab}/{code}", f"{CODE[code]} frames", list(range(0, nsteps + 1, EVERY)), list(frames))
+            )
             recs += bitwise_records(f"{lab}/{code}", got[nat_key[code]], frames, CODE[code])
             res.records += in_pair(recs, pair)
             got[code] = frames
@@ -1691,14 +1942,19 @@ def impacts(ctx: Context) -> CaseResult:
                     src = "energy ratio"
                 aval = an.get(src, math.nan)
                 shown = ", ".join(f"{w} {_fmt(meas[w][k][src])}" for w in got)
-                kind = an.get("source", "analytic") if src in ("contact time", "peak overlap", "peak force",
-                                                               "restitution") else "analytic"
+                kind = (
+                    an.get("source", "analytic")
+                    if src in ("contact time", "peak overlap", "peak force", "restitution")
+                    else "analytic"
+                )
                 if src == "restitution" and "restitution (ODE)" in an:
                     kind = f"requested e; DOP853 gives {an['restitution (ODE)']:.10g}"
                 if im.kind == "stick" and hasattr(sc.law, "hertz") and src != qn:
                     kind = "Mindlin oscillator integrated (DOP853)"
-                metric = (f"error ({kind if qn != 'coulomb bound' else 'bound'} "
-                          f"{_fmt(aval) if qn != 'coulomb bound' else 'mu |F_n|'}; {shown})")
+                metric = (
+                    f"error ({kind if qn != 'coulomb bound' else 'bound'} "
+                    f"{_fmt(aval) if qn != 'coulomb bound' else 'mu |F_n|'}; {shown})"
+                )
                 res.records.append(compare(f"{lab}/{im.label}", qn, metric, val, tol, why))
                 e1, e2 = errs[ref][qn], eh[qn]
                 w_ = worst.setdefault(qn, [0.0, 0.0])
@@ -1706,31 +1962,58 @@ def impacts(ctx: Context) -> CaseResult:
                     w_[0], w_[1] = max(w_[0], e1), max(w_[1], e2)
                 if len(codes) == 2:
                     cross.setdefault((sc.name, qn), []).append(
-                        (meas["liggghts"][k][src], meas["lammps"][k][src], meas["native"][k][src],
-                         meas["native-lammps"][k][src], tol))
+                        (
+                            meas["liggghts"][k][src],
+                            meas["lammps"][k][src],
+                            meas["native"][k][src],
+                            meas["native-lammps"][k][src],
+                            tol,
+                        )
+                    )
             if im.kind == "microslip":
-                res.records.append(info(f"{lab}/{im.label}", "exit slip vs rigid-body limit",
-                                        f"s'/s0: rigid limit 0 (rolling; Psi1 = {an['psi1']:.3g} < 6); "
-                                        + ", ".join(f"{w} {_fmt(meas[w][k]['exit slip'] / an['s0'])}" for w in got),
-                                        meas[codes[0]][k]["exit slip"] / an["s0"],
-                                        "microslip: the compliant tangential spring leaves a residual slip the rigid "
-                                        "limit has not; no closed form for the discrete cap"))
+                res.records.append(
+                    info(
+                        f"{lab}/{im.label}",
+                        "exit slip vs rigid-body limit",
+                        f"s'/s0: rigid limit 0 (rolling; Psi1 = {an['psi1']:.3g} < 6); "
+                        + ", ".join(f"{w} {_fmt(meas[w][k]['exit slip'] / an['s0'])}" for w in got),
+                        meas[codes[0]][k]["exit slip"] / an["s0"],
+                        "microslip: the compliant tangential spring leaves a residual slip the rigid "
+                        "limit has not; no closed form for the discrete cap",
+                    )
+                )
 
             def cell(code, key, k=k, meas=meas):
                 return _fmt(meas[code][k][key]) if code in meas else "-"
 
-            table_rows.append([sc.name, im.label, im.kind, f"{an['contact time']:.6g}",
-                               cell("liggghts", "contact time"), cell("lammps", "contact time"),
-                               f"{an['restitution']:.6g}", cell("liggghts", "restitution"),
-                               cell("lammps", "restitution"),
-                               _fmt(an.get("exit slip", math.nan)), cell("liggghts", "exit slip"),
-                               cell("lammps", "exit slip")])
+            table_rows.append(
+                [
+                    sc.name,
+                    im.label,
+                    im.kind,
+                    f"{an['contact time']:.6g}",
+                    cell("liggghts", "contact time"),
+                    cell("lammps", "contact time"),
+                    f"{an['restitution']:.6g}",
+                    cell("liggghts", "restitution"),
+                    cell("lammps", "restitution"),
+                    _fmt(an.get("exit slip", math.nan)),
+                    cell("liggghts", "exit slip"),
+                    cell("lammps", "exit slip"),
+                ]
+            )
         for qn, (e1, e2) in worst.items():
             order = math.log2(e1 / e2) if e1 > 1e-12 and e2 > 0 else math.nan
-            res.records.append(info(lab, f"{qn}: time-step order", f"max error {e1:.3g} at dt = {DT:g} s, {e2:.3g} "
-                                    f"at dt/2: observed order log2(ratio)", order,
-                                    f"native engine ({codes[0]} arithmetic) at dt and dt/2: the "
-                                    "discretisation error the tolerance covers"))
+            res.records.append(
+                info(
+                    lab,
+                    f"{qn}: time-step order",
+                    f"max error {e1:.3g} at dt = {DT:g} s, {e2:.3g} at dt/2: observed order log2(ratio)",
+                    order,
+                    f"native engine ({codes[0]} arithmetic) at dt and dt/2: the "
+                    "discretisation error the tolerance covers",
+                )
+            )
             dt_rows.append([sc.name, qn, f"{e1:.3g}", f"{e2:.3g}", _fmt(order)])
     # -- LIGGGHTS vs LAMMPS
     for (name, qn), rows in cross.items():
@@ -1744,33 +2027,100 @@ def impacts(ctx: Context) -> CaseResult:
         unexpl = np.abs((a[:, 0] - a[:, 1]) - (a[:, 2] - a[:, 3])) / np.maximum(np.abs(a[:, 0]), 1e-300)
         un = float(np.max(unexpl)) if np.all(np.isfinite(unexpl)) else math.nan
         lab = f"impacts/{name}/cross"
-        res.records += in_pair([
-            info(lab, f"{qn}: LIGGGHTS - LAMMPS", "raw max difference (relative; absolute for slips and spins)", raw,
-                 "LAMMPS' lever arm is r (LIGGGHTS r - delta/2) and its Coulomb cap includes the damping "
-                 "(docs/lammps.md A-B): the spinning and oblique answers differ by O(delta/r)"),
-            compare(lab, f"{qn}: difference explained by the native flavours",
-                    "max |(LIGGGHTS - LAMMPS) - (native liggghts - native lammps)| / |value|", un, 1e-9,
-                    "the codes' difference is the difference of the two laws, nothing else")], "liggghts-lammps")
+        res.records += in_pair(
+            [
+                info(
+                    lab,
+                    f"{qn}: LIGGGHTS - LAMMPS",
+                    "raw max difference (relative; absolute for slips and spins)",
+                    raw,
+                    "LAMMPS' lever arm is r (LIGGGHTS r - delta/2) and its Coulomb cap includes the damping "
+                    "(docs/lammps.md A-B): the spinning and oblique answers differ by O(delta/r)",
+                ),
+                compare(
+                    lab,
+                    f"{qn}: difference explained by the native flavours",
+                    "max |(LIGGGHTS - LAMMPS) - (native liggghts - native lammps)| / |value|",
+                    un,
+                    1e-9,
+                    "the codes' difference is the difference of the two laws, nothing else",
+                ),
+            ],
+            "liggghts-lammps",
+        )
         if qn not in ("coulomb bound", "energy gain"):  # bounds, not values: no common answer to differ from
-            res.records += in_pair([compare(lab, f"{qn}: LIGGGHTS vs LAMMPS", "max |LIGGGHTS - LAMMPS| over impacts",
-                                            raw, 2 * tol, "both lie within the analytic tolerance, so they differ by "
-                                            "at most twice it")], "liggghts-lammps")
-    res.tables.append(("Impacts: analytic value and each code's value (contact time s, restitution, exit slip m/s)",
-                       ["scene", "impact", "kind", "t_c analytic", "t_c LIGGGHTS", "t_c LAMMPS", "e analytic",
-                        "e LIGGGHTS", "e LAMMPS", "s' analytic", "s' LIGGGHTS", "s' LAMMPS"], table_rows))
+            res.records += in_pair(
+                [
+                    compare(
+                        lab,
+                        f"{qn}: LIGGGHTS vs LAMMPS",
+                        "max |LIGGGHTS - LAMMPS| over impacts",
+                        raw,
+                        2 * tol,
+                        "both lie within the analytic tolerance, so they differ by at most twice it",
+                    )
+                ],
+                "liggghts-lammps",
+            )
+    res.tables.append(
+        (
+            "Impacts: analytic value and each code's value (contact time s, restitution, exit slip m/s)",
+            [
+                "scene",
+                "impact",
+                "kind",
+                "t_c analytic",
+                "t_c LIGGGHTS",
+                "t_c LAMMPS",
+                "e analytic",
+                "e LIGGGHTS",
+                "e LAMMPS",
+                "s' analytic",
+                "s' LIGGGHTS",
+                "s' LAMMPS",
+            ],
+            table_rows,
+        )
+    )
     if roll_rows:
-        res.tables.append((("Rolling resistance: spin decay of a pinched disk (R1-R3; stop time s, "
-                            "deceleration "
-                           "rad/s^2)"), ["scene", "column", "w0", "stop analytic", "stop native", "stop code",
-                                        "decel. analytic", "decel. code", "trajectory error (code)"],
-                           roll_rows))
+        res.tables.append(
+            (
+                ("Rolling resistance: spin decay of a pinched disk (R1-R3; stop time s, deceleration rad/s^2)"),
+                [
+                    "scene",
+                    "column",
+                    "w0",
+                    "stop analytic",
+                    "stop native",
+                    "stop code",
+                    "decel. analytic",
+                    "decel. code",
+                    "trajectory error (code)",
+                ],
+                roll_rows,
+            )
+        )
     if wall_rows:
-        res.tables.append((("Flat walls: kinetic-energy ratio after/before (rigid-body limit W1; below gross "
-                           "sliding the rigid limit is not the answer, only the bound 1 is checked)"),
-                           ["scene", "impact", "kind", "KE'/KE rigid limit", "native", "code"], wall_rows))
-    res.tables.append((("Time-step error (native, in the arithmetic of the scene's first code): "
-                        "largest error over the scene's impacts"),
-                       ["scene", "quantity", f"dt = {DT:g} s", "dt/2", "order"], dt_rows))
+        res.tables.append(
+            (
+                (
+                    "Flat walls: kinetic-energy ratio after/before (rigid-body limit W1; below gross "
+                    "sliding the rigid limit is not the answer, only the bound 1 is checked)"
+                ),
+                ["scene", "impact", "kind", "KE'/KE rigid limit", "native", "code"],
+                wall_rows,
+            )
+        )
+    res.tables.append(
+        (
+            (
+                "Time-step error (native, in the arithmetic of the scene's first code): "
+                "largest error over the scene's impacts"
+            ),
+            ["scene", "quantity", f"dt = {DT:g} s", "dt/2", "order"],
+            dt_rows,
+        )
+    )
     return res
 
 
@@ -1793,16 +2143,26 @@ def make_stored(root=None, suite: str = "full", timeout: float = 600.0, names=No
                 shutil.rmtree(job)
             with tempfile.TemporaryDirectory() as tmp:
                 text, files = write_job_deck(tmp, sc, code)
-                res = run_job(Path(tmp) / "job", text, files=files, outputs=(DUMP_NAME,), expected_runs=1,
-                              progress=False, timeout=timeout, engine=code, force=True)
+                res = run_job(
+                    Path(tmp) / "job",
+                    text,
+                    files=files,
+                    outputs=(DUMP_NAME,),
+                    expected_runs=1,
+                    progress=False,
+                    timeout=timeout,
+                    engine=code,
+                    force=True,
+                )
                 shutil.copytree(res.job_dir, job)
             out.append(job)
         laws = {s.name: s.law.describe() for s in scenes("full") if code in s.law.engines}
         rows, versions = [], set()
         for d in sorted(x for x in base.iterdir() if x.is_dir()):
             man = json.loads((d / "manifest.json").read_text()) if (d / "manifest.json").exists() else {}
-            versions.add(f"{man.get('engine_version')} ({man.get('engine_binary')}, "
-                         f"Debian {man.get('engine_package')})")
+            versions.add(
+                f"{man.get('engine_version')} ({man.get('engine_binary')}, Debian {man.get('engine_package')})"
+            )
             rows.append(f"| `{d.name}` | {laws.get(d.name, '?')} | {man.get('end', '?')} |")
         (base / "README.md").write_text(f"""# impacts-{code}: {CODE[code]} outputs of the impact benchmarks
 
@@ -1815,12 +2175,12 @@ def make_stored(root=None, suite: str = "full", timeout: float = 600.0, names=No
   |---|---|---|
 {chr(10).join("  " + r for r in rows)}
 
-- Code: {'; '.join(sorted(versions))}, serial.
-- Command: `{'liggghts -in in.liggghts' if code == 'liggghts' else 'lmp -in in.lammps'} -log log.lammps -screen none
+- Code: {"; ".join(sorted(versions))}, serial.
+- Command: `{"liggghts -in in.liggghts" if code == "liggghts" else "lmp -in in.lammps"} -log log.lammps -screen none
   -nocite` in the job directory.
 - Regenerate: `python -c "from validation.cases.impacts import make_stored; make_stored()"` (one scene:
   `make_stored(names=["<scene>"])`).
-- Written: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}
+- Written: {datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
 - Used by: the `impacts` validation case when {CODE[code]} is not installed, and
   tests/validation/test_impacts.py.
 """)

@@ -25,27 +25,47 @@ from ..core import CaseResult, Context, Record, case, in_pair, stored_dir, store
 from ..dem_compare import read_reference, run_native, run_reference_job
 from .biaxial import CODE, _stored_log, step_records
 
-REASON = ("bit for bit: the native engine runs each law in its code's floating-point order (docs/laws.md), so "
-          "the doubles are equal; 1e-10 D50 / 1e-8 relative (the biaxial-short bounds) leaves room for another "
-          "CPU or compiler and still lies decades below what a 1% change of any law parameter moves")
+REASON = (
+    "bit for bit: the native engine runs each law in its code's floating-point order (docs/laws.md), so "
+    "the doubles are equal; 1e-10 D50 / 1e-8 relative (the biaxial-short bounds) leaves room for another "
+    "CPU or compiler and still lies decades below what a 1% change of any law parameter moves"
+)
 
 
-@case("laws-short", "Every contact law step for step on the periodic short case: native vs its code",
-      suites=("default", "full"), order=21)
+@case(
+    "laws-short",
+    "Every contact law step for step on the periodic short case: native vs its code",
+    suites=("default", "full"),
+    order=21,
+)
 def laws_short(ctx: Context) -> CaseResult:
     res = CaseResult(
-        "laws-short", "Every contact law step for step on the periodic short case: native vs its code",
-        __doc__.split("\n\n", 1)[1].replace("\n", " "))
+        "laws-short",
+        "Every contact law step for step on the periodic short case: native vs its code",
+        __doc__.split("\n\n", 1)[1].replace("\n", " "),
+    )
     codes = {law_code(name) for name in SHORT_CASE_LAWS}
     for engine in ("liggghts", "lammps"):
         if engine in codes:
             res.declare(f"native-{engine}", REASON)
         else:
             res.skip_pair(f"native-{engine}", f"no law of {CODE[engine]} in this run")
-    res.skip_pair("liggghts-lammps", "each of these laws is one code's (its parametrisation and arithmetic); "
-                                     "the two codes' Hertz laws meet in the impacts case against Hertz theory")
-    header = ["law", "code", "run", "steps", "frames", "max|dx|/D50", "max|dv|/max|v|", "max|df|/max|f|",
-              "max rel stress"]
+    res.skip_pair(
+        "liggghts-lammps",
+        "each of these laws is one code's (its parametrisation and arithmetic); "
+        "the two codes' Hertz laws meet in the impacts case against Hertz theory",
+    )
+    header = [
+        "law",
+        "code",
+        "run",
+        "steps",
+        "frames",
+        "max|dx|/D50",
+        "max|dv|/max|v|",
+        "max|df|/max|f|",
+        "max rel stress",
+    ]
     rows = []
     p, s, ld, n = short_case()
     for name in SHORT_CASE_LAWS:
@@ -58,9 +78,21 @@ def laws_short(ctx: Context) -> CaseResult:
         try:
             ref = read_reference(_stored_log(stored), stored / "dump.atoms")
         except ResultFileError as exc:  # a cut or corrupt stored output is missing evidence, not a crash
-            res.records += in_pair([stored_job_record(label, stored),
-                                    Record(label, "evidence", f"unreadable stored run: {exc}", 1.0, 0.0, False,
-                                           "every stored frame and step must be readable")], f"native-{engine}")
+            res.records += in_pair(
+                [
+                    stored_job_record(label, stored),
+                    Record(
+                        label,
+                        "evidence",
+                        f"unreadable stored run: {exc}",
+                        1.0,
+                        0.0,
+                        False,
+                        "every stored frame and step must be readable",
+                    ),
+                ],
+                f"native-{engine}",
+            )
             continue
         recs, row = step_records(label, nat, ref, p.d50, n, SHORT_CASE_DUMP_EVERY, code=CODE[engine])
         res.records += in_pair([stored_job_record(label, stored)] + recs, f"native-{engine}")
@@ -69,8 +101,9 @@ def laws_short(ctx: Context) -> CaseResult:
             res.notes.append(f"{CODE[engine]} is absent: {name} is compared with its stored run only.")
             continue
         job = ctx.work("reference", "laws-short", name)
-        live, man = run_reference_job(job, p, settings, ld, n, SHORT_CASE_DUMP_EVERY,
-                                      timeout=ctx.job_timeout(p.n * n), engine=engine, law=law)
+        live, man = run_reference_job(
+            job, p, settings, ld, n, SHORT_CASE_DUMP_EVERY, timeout=ctx.job_timeout(p.n * n), engine=engine, law=law
+        )
         label = f"laws-short/{name}/live"
         recs, row = step_records(label, nat, live, p.d50, n, SHORT_CASE_DUMP_EVERY, code=CODE[engine])
         res.records += in_pair(recs, f"native-{engine}")

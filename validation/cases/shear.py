@@ -178,9 +178,7 @@ def run_native_shear(
     N/m) and box (lx, ly, xy) every ``thermo_every`` steps from the set-up (step 0), frames every
     ``dump_every`` steps. The settings pass through :func:`validation.dem_compare.native_setup`
     (the hook the validation tests perturb)."""
-    settings, loading = dem_compare.native_setup(
-        dataclasses.replace(settings, flavour="lammps"), loading
-    )
+    settings, loading = dem_compare.native_setup(dataclasses.replace(settings, flavour="lammps"), loading)
     t0 = time.perf_counter()
     eng = ShearEngine(packing, settings, velocities=velocities, spins=spins, flavour="lammps")
     b = eng.box
@@ -301,9 +299,7 @@ def sheared_frame_differences(a, b, d50: float, steps) -> dict:
     return {"steps": steps, **out}
 
 
-def step_records(
-    label: str, nat, ref, d50: float, nsteps: int, dump_every: int
-) -> tuple[list, list]:
+def step_records(label: str, nat, ref, d50: float, nsteps: int, dump_every: int) -> tuple[list, list]:
     """Evidence of both sides (every thermo step, every dump frame) and the step-for-step checks;
     returns (records, table row)."""
     exp_s, exp_f = expected_steps(nsteps), expected_frames(nsteps, dump_every)
@@ -314,10 +310,7 @@ def step_records(
     frames = [
         int(s)
         for s in exp_f
-        if s in nat.frames
-        and s in ref.frames
-        and int(s) in have
-        and len(ref.frames[s]["x"]) == len(nat.frames[s]["x"])
+        if s in nat.frames and s in ref.frames and int(s) in have and len(ref.frames[s]["x"]) == len(nat.frames[s]["x"])
     ]
     both = np.intersect1d(np.intersect1d(exp_s, nat.steps), ref.steps)
     fd = sheared_frame_differences(nat, ref, d50, frames)
@@ -343,9 +336,7 @@ def step_records(
             REL_TOL,
             STRESS_REASON,
         ),
-        compare(
-            label, "box", "max|d(lx, ly, xy)|/D50 over steps", _max(dl) / d50, POS_TOL, BOX_REASON
-        ),
+        compare(label, "box", "max|d(lx, ly, xy)|/D50 over steps", _max(dl) / d50, POS_TOL, BOX_REASON),
     ]
     row = [
         label,
@@ -404,9 +395,7 @@ def compare_cells(nat, ref, steps, radii, dt) -> dict:
         for tr in (nat, ref):
             try:
                 vcs.append(_cells(sheared_snapshot(tr, s, radii, dt)))
-            except (
-                InputError
-            ) as exc:  # no framework spanning the cell: must then hold on both sides
+            except InputError as exc:  # no framework spanning the cell: must then hold on both sides
                 vcs.append(str(exc))
         a, b = vcs
         if isinstance(a, str) or isinstance(b, str):
@@ -420,9 +409,7 @@ def compare_cells(nat, ref, steps, radii, dt) -> dict:
         if same:
             ia, ib = _face_order(a), _face_order(b)
             da = float(np.nanmax(np.abs(a.alpha[ia] - b.alpha[ib])))
-            dw = float(np.nanmax(np.abs(a.w[ia] - b.w[ib]))) / (
-                float(np.nanmax(np.abs(b.w))) or 1.0
-            )
+            dw = float(np.nanmax(np.abs(a.w[ia] - b.w[ib]))) / (float(np.nanmax(np.abs(b.w))) or 1.0)
         out["steps"].append(int(s))
         out["same"].append(same)
         out["alpha"].append(da)
@@ -655,8 +642,7 @@ def load_stored_long():
     return {
         "reference": Trajectory(steps, z["reference/stress"], z["reference/box"], {}),
         "ensemble": {
-            n: Trajectory(steps, z[f"ensemble{k}/stress"], z[f"ensemble{k}/box"], {})
-            for k, n in enumerate(names)
+            n: Trajectory(steps, z[f"ensemble{k}/stress"], z[f"ensemble{k}/box"], {}) for k, n in enumerate(names)
         },
         "input_sha256": str(z["input_sha256"]),
     }
@@ -731,9 +717,7 @@ def envelope_records(label: str, nat, ref, ensemble: dict, frames, steps, d50: f
     ens = [k for k in runs if k != "native vs LAMMPS"]
     recs = []
     if frames:
-        env = windowed_max(
-            div["native vs LAMMPS"][0], np.max([div[k][1] for k in ens], axis=0), ENVELOPE_WINDOW
-        )
+        env = windowed_max(div["native vs LAMMPS"][0], np.max([div[k][1] for k in ens], axis=0), ENVELOPE_WINDOW)
         recs.append(
             compare(
                 label,
@@ -856,11 +840,7 @@ def simple_shear_case(ctx: Context) -> CaseResult:
         ev = trajectory_evidence(vlab, "native", nat, None, frames) + trajectory_evidence(
             vlab, "LAMMPS", ref, None, frames
         )
-        present = [
-            k
-            for k in frames
-            if k in nat.frames and k in ref.frames and int(k) in set(ref.steps.tolist())
-        ]
+        present = [k for k in frames if k in nat.frames and k in ref.frames and int(k) in set(ref.steps.tolist())]
         cmp = compare_cells(nat, ref, present, p.radii, s.dt)
         res.records += in_pair(ev + cell_records(vlab, cmp), "native-lammps")
         if cmp["no_tessellation"]:
@@ -884,9 +864,7 @@ def simple_shear_case(ctx: Context) -> CaseResult:
                 timeout=ctx.job_timeout(p.n * LIVE_STEPS),
             )
             nat = run_native_shear(p, s, ld, LIVE_STEPS, LIVE_DUMP_EVERY)
-            r2, row = step_records(
-                f"{CASE}/live-120/{name}", nat, ref, p.d50, LIVE_STEPS, LIVE_DUMP_EVERY
-            )
+            r2, row = step_records(f"{CASE}/live-120/{name}", nat, ref, p.d50, LIVE_STEPS, LIVE_DUMP_EVERY)
             res.records += in_pair(r2, "native-lammps")
             rows.append(row)
             res.notes.append(
@@ -897,9 +875,7 @@ def simple_shear_case(ctx: Context) -> CaseResult:
         res.notes.append(
             "<b>LAMMPS is absent</b>: the live short runs are not made; the stored LAMMPS runs are compared."
         )
-    res.tables.append(
-        ("Step for step, native vs LAMMPS: largest differences per run", header, rows)
-    )
+    res.tables.append(("Step for step, native vs LAMMPS: largest differences per run", header, rows))
     if vc_fig is not None:
         res.figures.append(
             (
@@ -957,9 +933,7 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
                 f"<b>LAMMPS is absent</b> and no stored series <code>reference_runs/stored/{STORED_LONG}"
                 "</code> exists: the long horizon has no evidence."
             )
-            res.records += in_pair(
-                [evidence(f"{CASE}/kuhn-1002", "stored LAMMPS series", 1, 0)], "native-lammps"
-            )
+            res.records += in_pair([evidence(f"{CASE}/kuhn-1002", "stored LAMMPS series", 1, 0)], "native-lammps")
             return
         if stored["input_sha256"] != input_fingerprint(ctx):
             res.notes.append(
@@ -968,11 +942,7 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
                 "validation.cases.shear.store_long_reference where LAMMPS is installed."
             )
             res.records += in_pair(
-                [
-                    evidence(
-                        f"{CASE}/kuhn-1002", "stored LAMMPS series with this run's inputs", 1, 0
-                    )
-                ],
+                [evidence(f"{CASE}/kuhn-1002", "stored LAMMPS series with this run's inputs", 1, 0)],
                 "native-lammps",
             )
             return
@@ -1006,9 +976,7 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
             "(records above); no envelope verdict is made on what remains."
         )
         return
-    recs, div, sdiv = envelope_records(
-        f"{CASE}/kuhn-1002/divergence", nat, ref, ens, frames, exp_s, pk.d50
-    )
+    recs, div, sdiv = envelope_records(f"{CASE}/kuhn-1002/divergence", nat, ref, ens, frames, exp_s, pk.d50)
     res.records += in_pair(recs, "native-lammps")
     sub = Trajectory(ref.steps, nat.stress[nat.at(ref.steps)], nat.lengths[nat.at(ref.steps)], {})
     cur = {
@@ -1056,10 +1024,7 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
             st[f"LAMMPS {k}"] = cell_stats(t, frames, pk.radii, s["settings"].dt)
         recs = []
         for col, qty in ((0, "mean_alpha"), (1, "fraction_alpha_le_0")):
-            band = max(
-                float(np.nanmax(np.abs(st[f"LAMMPS {k}"][:, col] - st["LAMMPS"][:, col])))
-                for k in ens
-            )
+            band = max(float(np.nanmax(np.abs(st[f"LAMMPS {k}"][:, col] - st["LAMMPS"][:, col]))) for k in ens)
             diff = float(np.nanmax(np.abs(st["native"][:, col] - st["LAMMPS"][:, col])))
             recs.append(
                 compare(
@@ -1118,8 +1083,7 @@ def _cell_maps(ctx, fig_data):
     for ax, vc, who in ((axes[0], a, "native"), (axes[1], b, "LAMMPS")):
         plot_alignment(vc, ax=ax)
         ax.set_title(
-            f"{who}, step {step}: mean alpha {vc.mean_alpha:.3f}, "
-            f"{100 * vc.fraction_nonpositive_alpha:.1f}% <= 0",
+            f"{who}, step {step}: mean alpha {vc.mean_alpha:.3f}, {100 * vc.fraction_nonpositive_alpha:.1f}% <= 0",
             fontsize=9,
         )
     fig.tight_layout()

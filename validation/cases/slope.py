@@ -20,16 +20,21 @@ def slope(ctx: Context) -> CaseResult:
     from gransim.fem.run import acceptance_records, run_slope_case
 
     res = CaseResult(
-        "slope", "FE2 slope stability: Taylor RVE at every Gauss point",
+        "slope",
+        "FE2 slope stability: Taylor RVE at every Gauss point",
         "Plane-strain slope (20 x 19 Q1 elements, 1520 Gauss points), the most uniform 700-disk RVE "
         "(contact normal density measure) as the material at every Gauss point (E_n = 2.8e7), dead load "
         "in step 1 then the eccentric footing force in 20 steps, Newton-Raphson on the relative energy "
         "norm. <i>service</i>: footing -5.0e6 N/m, must run to the end. <i>paper</i>: -4.0e7 N/m, "
         "expected to stop at a crest mechanism near 94% of the load (measured 0.943; the Taylor RVE "
-        "carries no tension).")
+        "carries no tension).",
+    )
     for pair in PAIRS:
-        res.skip_pair(pair, "no DEM code solves this problem: the FE2 checks are set against Newton's rate, the "
-                            "linear solution and the patch test (Taylor stresses are cross-checked in taylor-rve)")
+        res.skip_pair(
+            pair,
+            "no DEM code solves this problem: the FE2 checks are set against Newton's rate, the "
+            "linear solution and the patch test (Taylor stresses are cross-checked in taylor-rve)",
+        )
     summaries = {}
     for protocol in ("service", "paper"):
         out = ctx.work("slope", protocol)
@@ -38,13 +43,22 @@ def slope(ctx: Context) -> CaseResult:
         res.notes.append(f"<pre>{html.escape(s['report'])}</pre>")
         # the run drew each figure once (summary["files"]): the report copies those files, it never redraws
         state = "final state" if s["completed"] else "limit state (last converged step)"
-        for key, cap in (("state_png", state),
-                         ("load_settlement_png", "load-settlement curve of the footing")):
+        for key, cap in (("state_png", state), ("load_settlement_png", "load-settlement curve of the footing")):
             src = s["files"].get(key)
             if src is not None and src.exists():
                 dest = ctx.copy_figure(src, f"slope_{protocol}_{src.name}")
                 res.figures.append((dest, f"slope, protocol {protocol}: {cap}"))
     for r in acceptance_records(summaries):
-        res.records.append(Record(r["case"], r["quantity"], r["metric"], float(r["value"]), float(r["tolerance"]),
-                                  bool(r["pass"]), r.get("note", ""), kind=r.get("kind", "check")))
+        res.records.append(
+            Record(
+                r["case"],
+                r["quantity"],
+                r["metric"],
+                float(r["value"]),
+                float(r["tolerance"]),
+                bool(r["pass"]),
+                r.get("note", ""),
+                kind=r.get("kind", "check"),
+            )
+        )
     return res

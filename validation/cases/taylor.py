@@ -28,15 +28,23 @@ from ..core import CaseResult, Context, Record, case, compare, evidence, in_pair
 #: 2D normal contact stiffness of the RVE study (N/m): E_n of Meier et al. Table 1 per m of thickness
 KN = KN_2D
 STRESS_TOL = 1e-10
-STRESS_REASON = ("same closed-form Love/Taylor sum in both codes; only summation order differs, so round-off "
-                 "(~1e-13 measured) is all that may remain; 1e-10 leaves 1000x margin and still catches "
-                 "any missed contact (~1e-3)")
+STRESS_REASON = (
+    "same closed-form Love/Taylor sum in both codes; only summation order differs, so round-off "
+    "(~1e-13 measured) is all that may remain; 1e-10 leaves 1000x margin and still catches "
+    "any missed contact (~1e-3)"
+)
 FORCE_TOL = 1e-9
-FORCE_REASON = ("per-contact force kn*eps*n from the same positions; eps = r_i + r_j - |l| loses digits by "
-                "cancellation (|l|/eps ~ 4e3), so 1e-9 of the largest force is round-off with margin")
+FORCE_REASON = (
+    "per-contact force kn*eps*n from the same positions; eps = r_i + r_j - |l| loses digits by "
+    "cancellation (|l|/eps ~ 4e3), so 1e-9 of the largest force is round-off with margin"
+)
 
-PATH_NAMES = {"compression-11": "compression11", "compression-22": "compression22", "shear-12": "shear12",
-              "shear-21": "shear21"}
+PATH_NAMES = {
+    "compression-11": "compression11",
+    "compression-22": "compression22",
+    "shear-12": "shear12",
+    "shear-21": "shear21",
+}
 
 
 def _suite_settings(suite: str) -> dict:
@@ -91,33 +99,57 @@ def compare_contact_forces(packing, F, frame, contact_state_fn=None) -> dict:
             worst = max(worst, float(np.abs(f - other[k][1]).max()) / fmax)
             other.pop(k)
         un_lig += [(a, tuple(float(c) for c in lo)) for lo, _ in other]
-    return {"worst": worst, "n_native": sum(len(v) for v in native.values()),
-            "n_liggghts": sum(len(v) for v in lig.values()), "unmatched_native": un_nat,
-            "unmatched_liggghts": un_lig}
+    return {
+        "worst": worst,
+        "n_native": sum(len(v) for v in native.values()),
+        "n_liggghts": sum(len(v) for v in lig.values()),
+        "unmatched_native": un_nat,
+        "unmatched_liggghts": un_lig,
+    }
 
 
-CONTACT_REASON = ("two-sided: every contact end of gransim must be a LIGGGHTS row and every LIGGGHTS row with a "
-                  "central particle a gransim contact end (same positions, same contact test), so both counts "
-                  "are equal and nothing is left unmatched on either side")
+CONTACT_REASON = (
+    "two-sided: every contact end of gransim must be a LIGGGHTS row and every LIGGGHTS row with a "
+    "central particle a gransim contact end (same positions, same contact test), so both counts "
+    "are equal and nothing is left unmatched on either side"
+)
 
 
 def contact_records(label: str, cmp: dict, code: str = "LIGGGHTS") -> list:
     """Records of one state's two-sided contact comparison: the two counts, the unmatched ends on
     each side (listed in the metric), and the force difference over the matched ends."""
+
     def shown(lst):
         s = "; ".join(f"disk {a} l=({b[0]:.3g}, {b[1]:.3g})" for a, b in lst[:4])
         return s + (" ..." if len(lst) > 4 else "")
 
     nn, nl = cmp["n_native"], cmp["n_liggghts"]
     un, ul = cmp["unmatched_native"], cmp["unmatched_liggghts"]
-    recs = [Record(label, "contact_count", f"|n_gransim - n_{code}| (gransim {nn}, {code} {nl} ends)",
-                   float(abs(nn - nl)), 0.0, nn == nl and nn > 0, CONTACT_REASON.replace("LIGGGHTS", code))]
+    recs = [
+        Record(
+            label,
+            "contact_count",
+            f"|n_gransim - n_{code}| (gransim {nn}, {code} {nl} ends)",
+            float(abs(nn - nl)),
+            0.0,
+            nn == nl and nn > 0,
+            CONTACT_REASON.replace("LIGGGHTS", code),
+        )
+    ]
     for side, lst in (("gransim", un), (code, ul)):
         metric = f"{side} contact ends without a partner" + (f": {shown(lst)}" if lst else "")
         recs.append(Record(label, "contact_unmatched", metric, float(len(lst)), 0.0, not lst, CONTACT_REASON))
     matched = nn - len(un)
-    recs.append(compare(label, "contact_force", f"max_abs_diff/max_force over {matched} matched ends",
-                        cmp["worst"] if matched > 0 else float("nan"), FORCE_TOL, FORCE_REASON))
+    recs.append(
+        compare(
+            label,
+            "contact_force",
+            f"max_abs_diff/max_force over {matched} matched ends",
+            cmp["worst"] if matched > 0 else float("nan"),
+            FORCE_TOL,
+            FORCE_REASON,
+        )
+    )
     return recs
 
 
@@ -140,8 +172,14 @@ def series_evidence(label: str, run, expected: dict | None = None) -> list:
     every expected state."""
     code = CODE.get(getattr(run, "engine", "liggghts"), "LIGGGHTS")
     expected = expected_series(run) if expected is None else expected
-    recs = [evidence(label, f"{code} (path, route) series", [f"{p}/{r}" for p, r in expected],
-                     [f"{p}/{r}" for p, r in run.series])]
+    recs = [
+        evidence(
+            label,
+            f"{code} (path, route) series",
+            [f"{p}/{r}" for p, r in expected],
+            [f"{p}/{r}" for p, r in run.series],
+        )
+    ]
     for (p, r), ks in expected.items():
         have = [int(k) for k in run.series[(p, r)].k] if (p, r) in run.series else []
         recs.append(evidence(f"{label}/{PATH_NAMES[p]}/{r}", f"{code} states", ks, have))
@@ -150,9 +188,11 @@ def series_evidence(label: str, run, expected: dict | None = None) -> list:
 
 CODE = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}
 PAIR = {"liggghts": "native-liggghts", "lammps": "native-lammps"}
-CROSS_REASON = ("both codes evaluate the same closed-form sum on the same positions (LAMMPS in a true periodic "
-                "triclinic box, LIGGGHTS through explicit images where its box cannot be sheared): round-off only, "
-                "as against the native stress")
+CROSS_REASON = (
+    "both codes evaluate the same closed-form sum on the same positions (LAMMPS in a true periodic "
+    "triclinic box, LIGGGHTS through explicit images where its box cannot be sheared): round-off only, "
+    "as against the native stress"
+)
 
 
 def compare_contact_forces_by_pair(packing, F, frame, contact_state_fn=None) -> dict:
@@ -186,9 +226,13 @@ def compare_contact_forces_by_pair(packing, F, frame, contact_state_fn=None) -> 
             worst = max(worst, float(np.abs(f - rest[k][1]).max()) / fmax)
             rest.pop(k)
         un_oth += [(key[0], (float(key[1]), do)) for do, _ in rest]
-    return {"worst": worst, "n_native": sum(len(v) for v in native.values()),
-            "n_liggghts": sum(len(v) for v in other.values()), "unmatched_native": un_nat,
-            "unmatched_liggghts": un_oth}
+    return {
+        "worst": worst,
+        "n_native": sum(len(v) for v in native.values()),
+        "n_liggghts": sum(len(v) for v in other.values()),
+        "unmatched_native": un_nat,
+        "unmatched_liggghts": un_oth,
+    }
 
 
 def _code_runs(ctx: Context, packings: dict, stride: int, engine: str = "liggghts") -> tuple[dict, str]:
@@ -196,9 +240,19 @@ def _code_runs(ctx: Context, packings: dict, stride: int, engine: str = "liggght
     code = CODE[engine]
     if getattr(ctx, engine):
         jobs = ctx.work("reference", "taylor" if engine == "liggghts" else "taylor-lammps")
-        runs = {name: run_taylor(p, KN, jobs / name, name=name, stride=stride, progress=False, engine=engine,
-                                 timeout=ctx.job_timeout(_taylor_work(p, 50 // stride + 1)))
-                for name, p in packings.items()}
+        runs = {
+            name: run_taylor(
+                p,
+                KN,
+                jobs / name,
+                name=name,
+                stride=stride,
+                progress=False,
+                engine=engine,
+                timeout=ctx.job_timeout(_taylor_work(p, 50 // stride + 1)),
+            )
+            for name, p in packings.items()
+        }
         return runs, f"live {code} jobs (one job per RVE, all states of the four paths)"
     runs = {}
     for base in (RVE_CASE, TAYLOR_CASE):
@@ -227,9 +281,21 @@ def _contact_runs(ctx: Context, packings: dict, engine: str = "liggghts"):
     if getattr(ctx, engine):
         names = [n for n in packings if n.endswith("-1")]
         jobs = ctx.work("reference", "taylor-contacts" if engine == "liggghts" else "taylor-contacts-lammps")
-        return {n: run_taylor(packings[n], KN, jobs / n, name=n, routes=(route,), stride=25, contacts=True,
-                              progress=False, timeout=ctx.job_timeout(_taylor_work(packings[n], 3)), engine=engine)
-                for n in names}, route
+        return {
+            n: run_taylor(
+                packings[n],
+                KN,
+                jobs / n,
+                name=n,
+                routes=(route,),
+                stride=25,
+                contacts=True,
+                progress=False,
+                timeout=ctx.job_timeout(_taylor_work(packings[n], 3)),
+                engine=engine,
+            )
+            for n in names
+        }, route
     d = Path(store.STORED) / taylor_case(TAYLOR_CASE, engine)
     return {taylor_case(TAYLOR_CASE, engine): read_taylor_job(d, load_packing(d / "packing.h5"))}, route
 
@@ -238,7 +304,8 @@ def _contact_runs(ctx: Context, packings: dict, engine: str = "liggghts"):
 def taylor_rve(ctx: Context) -> CaseResult:
     s = _suite_settings(ctx.suite)
     res = CaseResult(
-        "taylor-rve", "Taylor RVE stresses: 15 RVEs, compression 11/22 and simple shear 12/21",
+        "taylor-rve",
+        "Taylor RVE stresses: 15 RVEs, compression 11/22 and simple shear 12/21",
         "Every RVE is mapped affinely (x = F X) along F11, F22: 1 -> 0.9 and F12, F21: 0 -> 0.1 (50 steps). "
         "gransim's Cauchy stress (numba Taylor kernel, tension positive) is compared state by state with "
         "the virial stress of LIGGGHTS and of LAMMPS for the same configuration (elastic normal contact, "
@@ -248,7 +315,8 @@ def taylor_rve(ctx: Context) -> CaseResult:
         "shear in a triclinic box), <i>images</i> = explicit periodic image copies in an open box. Metric: max "
         "over states of max|sigma_a - sigma_b| / max|sigma_b|. Contact forces: LIGGGHTS images route (matched by "
         "branch vector), LAMMPS periodic route (matched by pair and distance), both two-sided; and LIGGGHTS "
-        "against LAMMPS on every state both ran.")
+        "against LAMMPS on every state both ran.",
+    )
     names = s["names"]
     paths = generation.standard_packings(ctx.results / "packings", names=names)
     packings = {n: load_packing(p) for n, p in paths.items()}
@@ -290,10 +358,14 @@ def taylor_rve(ctx: Context) -> CaseResult:
                     continue
                 for k, F in zip(ser.k, ser.F):
                     frame = run.contacts(path, route, int(k))
-                    cmp = (compare_contact_forces(run.packing, F, frame) if engine == "liggghts"
-                           else compare_contact_forces_by_pair(run.packing, F, frame))
-                    recs += contact_records(f"taylor-rve/{engine}/{name.replace('rve-', '')}/{PATH_NAMES[path]}/k{k}",
-                                            cmp, code)
+                    cmp = (
+                        compare_contact_forces(run.packing, F, frame)
+                        if engine == "liggghts"
+                        else compare_contact_forces_by_pair(run.packing, F, frame)
+                    )
+                    recs += contact_records(
+                        f"taylor-rve/{engine}/{name.replace('rve-', '')}/{PATH_NAMES[path]}/k{k}", cmp, code
+                    )
         res.records += in_pair(recs, PAIR[engine])
     # the two codes against each other on every state both ran (same packing, path, route, k)
     lig, lmp = code_runs["liggghts"], code_runs["lammps"]
@@ -306,29 +378,57 @@ def taylor_rve(ctx: Context) -> CaseResult:
             continue
         for key, ser in sorted(run.series.items()):
             if key not in other.series:
-                recs.append(evidence(f"taylor-rve/cross/{name}", "LAMMPS series of the LIGGGHTS series",
-                                     [f"{key[0]}/{key[1]}"], []))
+                recs.append(
+                    evidence(
+                        f"taylor-rve/cross/{name}", "LAMMPS series of the LIGGGHTS series", [f"{key[0]}/{key[1]}"], []
+                    )
+                )
                 continue
             o = other.series[key]
             common = np.intersect1d(ser.k, o.k)
-            recs.append(evidence(f"taylor-rve/cross/{name}/{PATH_NAMES[key[0]]}/{key[1]}", "states of both codes",
-                                 [int(k) for k in ser.k], [int(k) for k in common]))
+            recs.append(
+                evidence(
+                    f"taylor-rve/cross/{name}/{PATH_NAMES[key[0]]}/{key[1]}",
+                    "states of both codes",
+                    [int(k) for k in ser.k],
+                    [int(k) for k in common],
+                )
+            )
             ia, ib = np.searchsorted(ser.k, common), np.searchsorted(o.k, common)
             a, b = ser.cauchy[ia], o.cauchy[ib]
             scale = np.abs(a).reshape(len(a), -1).max(axis=1)
             rel = np.abs(a - b).reshape(len(a), -1).max(axis=1) / np.where(scale > 0, scale, 1.0)
-            recs.append(compare(f"taylor-rve/cross/{name.replace('rve-', '')}/{PATH_NAMES[key[0]]}/{key[1]}", "stress",
-                                "max_rel_diff LIGGGHTS vs LAMMPS", float(rel.max()) if rel.size else float("nan"),
-                                STRESS_TOL, CROSS_REASON))
+            recs.append(
+                compare(
+                    f"taylor-rve/cross/{name.replace('rve-', '')}/{PATH_NAMES[key[0]]}/{key[1]}",
+                    "stress",
+                    "max_rel_diff LIGGGHTS vs LAMMPS",
+                    float(rel.max()) if rel.size else float("nan"),
+                    STRESS_TOL,
+                    CROSS_REASON,
+                )
+            )
             n_states += len(common)
     res.records += in_pair(recs, "liggghts-lammps")
     res.notes.append(f"LIGGGHTS vs LAMMPS: {n_states} states compared directly.")
-    res.tables.append(("Stress agreement per code, RVE, path and route",
-                       ["code", "packing", "path", "route", "states", "max rel diff"], rows))
+    res.tables.append(
+        (
+            "Stress agreement per code, RVE, path and route",
+            ["code", "packing", "path", "route", "states", "max rel diff"],
+            rows,
+        )
+    )
     if s["study"]:
         _, _, pngs = run_study(packings, ctx.work("rve_study"), normal_stiffness=KN)
         for png in pngs:
             dest = ctx.copy_figure(png, f"rve_study_{Path(png).name}")
-            res.figures.append((dest, (f"RVE study (Figs 3-5 of Meier et al.): {Path(png).stem}; mean and "
-                                       "standard deviation over the 5 RVEs of each size")))
+            res.figures.append(
+                (
+                    dest,
+                    (
+                        f"RVE study (Figs 3-5 of Meier et al.): {Path(png).stem}; mean and "
+                        "standard deviation over the 5 RVEs of each size"
+                    ),
+                )
+            )
     return res

@@ -31,18 +31,30 @@ from .biaxial import (
 )
 
 ALPHA_TOL = 1e-6
-ALPHA_REASON = ("same inputs give the same cells; 1e-6 (alpha in [-1, 1]) admits the velocity tolerance of "
-                "biaxial-short (1e-8 of max|v|) amplified by the ratio max|v| / (velocity difference across a "
-                "cell) ~ 1e2")
+ALPHA_REASON = (
+    "same inputs give the same cells; 1e-6 (alpha in [-1, 1]) admits the velocity tolerance of "
+    "biaxial-short (1e-8 of max|v|) amplified by the ratio max|v| / (velocity difference across a "
+    "cell) ~ 1e2"
+)
 W_REASON = "w relative to max|w|: as alpha"
-LIST_REASON = ("cell lists (faces as particle cycles, valences, edges, vertices) must be identical: a contact "
-               "differs only if positions differ by the overlap's round-off, which biaxial-short excludes")
-STATS_REASON = ("band = the largest deviation of the perturbed LIGGGHTS runs (one coordinate moved by 1e-15) "
-                "from the reference over the frames: the statistics' own spread under round-off (instantaneous "
-                "velocity fields decorrelate once positions differ by ~1e-4 D50)")
+LIST_REASON = (
+    "cell lists (faces as particle cycles, valences, edges, vertices) must be identical: a contact "
+    "differs only if positions differ by the overlap's round-off, which biaxial-short excludes"
+)
+STATS_REASON = (
+    "band = the largest deviation of the perturbed LIGGGHTS runs (one coordinate moved by 1e-15) "
+    "from the reference over the frames: the statistics' own spread under round-off (instantaneous "
+    "velocity fields decorrelate once positions differ by ~1e-4 D50)"
+)
 #: strains of the paper's statistics (Kuhn 1997, sec. 4): 0.01% and 0.16%
-PAPER = {"mean_alpha_0.01%": 0.73, "alpha_le_0_0.16%": 0.22, "faces": 762, "edges": 1633, "vertices": 871,
-         "coordination": 3.75}
+PAPER = {
+    "mean_alpha_0.01%": 0.73,
+    "alpha_le_0_0.16%": 0.22,
+    "faces": 762,
+    "edges": 1633,
+    "vertices": 871,
+    "coordination": 3.75,
+}
 #: compression steps of the Kuhn runs counted as the short horizon (perturbations still < 1e-10 D50)
 SHORT_HORIZON = 24000
 
@@ -56,7 +68,7 @@ def cell_signature(vc) -> tuple:
     d = vc.dcel
     faces = []
     for f in range(d.n_faces):
-        cyc = [int(v) for v in d.origin[d.face_halfedges[d.face_ptr[f]:d.face_ptr[f + 1]]]]
+        cyc = [int(v) for v in d.origin[d.face_halfedges[d.face_ptr[f] : d.face_ptr[f + 1]]]]
         k = int(np.argmin(cyc))
         faces.append(tuple(cyc[k:] + cyc[:k]))
     return (d.n_faces, d.n_edges, d.n_vertices, tuple(sorted(faces)))
@@ -66,7 +78,7 @@ def _face_order(vc) -> np.ndarray:
     sig = []
     d = vc.dcel
     for f in range(d.n_faces):
-        cyc = [int(v) for v in d.origin[d.face_halfedges[d.face_ptr[f]:d.face_ptr[f + 1]]]]
+        cyc = [int(v) for v in d.origin[d.face_halfedges[d.face_ptr[f] : d.face_ptr[f + 1]]]]
         k = int(np.argmin(cyc))
         sig.append(tuple(cyc[k:] + cyc[:k]))
     return np.array(sorted(range(len(sig)), key=lambda i: sig[i]))
@@ -111,8 +123,7 @@ def _records(label, cmp) -> list:
     if not cmp["same"]:
         return [compare(label, "cell_list", "frames with a tessellation", 0, -1, LIST_REASON)]
     return [
-        compare(label, "cell_list", f"frames with different cell lists (of {len(cmp['same'])})", ndiff, 0,
-                LIST_REASON),
+        compare(label, "cell_list", f"frames with different cell lists (of {len(cmp['same'])})", ndiff, 0, LIST_REASON),
         compare(label, "alpha", "max|d alpha| over cells and frames", max(cmp["alpha"]), ALPHA_TOL, ALPHA_REASON),
         compare(label, "w", "max|d w|/max|w| over frames", max(cmp["w"]), ALPHA_TOL, W_REASON),
     ]
@@ -151,8 +162,10 @@ def _maps(ctx, pairs, name) -> tuple:
     for row, (title, a, b) in enumerate(pairs):
         for col, (vc, who) in enumerate(((a, "native"), (b, "LIGGGHTS"))):
             plot_alignment(vc, ax=axes[row, col])
-            axes[row, col].set_title(f"{who}, {title}: mean alpha {vc.mean_alpha:.3f}, "
-                                     f"{100 * vc.fraction_nonpositive_alpha:.1f}% <= 0", fontsize=9)
+            axes[row, col].set_title(
+                f"{who}, {title}: mean alpha {vc.mean_alpha:.3f}, {100 * vc.fraction_nonpositive_alpha:.1f}% <= 0",
+                fontsize=9,
+            )
     fig.tight_layout()
     path = ctx.figure_path(name)
     fig.savefig(path, dpi=90)
@@ -160,39 +173,50 @@ def _maps(ctx, pairs, name) -> tuple:
     return path
 
 
-CROSS_STATS_REASON = ("LIGGGHTS and LAMMPS differ in their laws (docs/lammps.md), so their instantaneous cells differ "
-                      "once positions decorrelate; if both follow the same statistics, each code's reference lies within "
-                      "its own band (its perturbed runs' largest deviation), so the two differ by at most the sum of "
-                      "the two bands")
-CROSS_SHORT_REASON = ("on the 3000-step stored runs the two codes' positions differ by the documented law differences "
-                      "(docs/lammps.md; the lever arm alone moves them by 1.6e-2 D50), enough to change cells: shown "
-                      "for the reader, not judged; the codes' cells are judged by their statistics on the Kuhn "
-                      "assembly, against each code's own band")
+CROSS_STATS_REASON = (
+    "LIGGGHTS and LAMMPS differ in their laws (docs/lammps.md), so their instantaneous cells differ "
+    "once positions decorrelate; if both follow the same statistics, each code's reference lies within "
+    "its own band (its perturbed runs' largest deviation), so the two differ by at most the sum of "
+    "the two bands"
+)
+CROSS_SHORT_REASON = (
+    "on the 3000-step stored runs the two codes' positions differ by the documented law differences "
+    "(docs/lammps.md; the lever arm alone moves them by 1.6e-2 D50), enough to change cells: shown "
+    "for the reader, not judged; the codes' cells are judged by their statistics on the Kuhn "
+    "assembly, against each code's own band"
+)
 
 
 @case("voidcell", "Void-cell measures (Kuhn) from native, LIGGGHTS and LAMMPS snapshots", order=40)
 def voidcell(ctx: Context) -> CaseResult:
     res = CaseResult(
-        "voidcell", "Void-cell measures (Kuhn) from native, LIGGGHTS and LAMMPS snapshots",
+        "voidcell",
+        "Void-cell measures (Kuhn) from native, LIGGGHTS and LAMMPS snapshots",
         "Particle graph, void cells, alignment alpha (eqs 18-19) and normalised vorticity w (eq 20) of Kuhn "
         "(1997), computed by gransim.voidcell from snapshots of every code built identically: contacts = "
         "overlapping pairs of the dumped positions, velocities = dumped v + (dC/dt) C^-1 x (every code uses "
         "<code>remap x</code>, whose velocities exclude the box's affine motion), dC/dt by central differences of "
         "the box lengths. <i>stored-120</i>: every dump of the stored 120-disk biaxial-short runs (LIGGGHTS and "
         "LAMMPS; the native engine in each code's arithmetic). <i>kuhn-1002</i> (default suite, with the codes "
-        "installed): the compression of biaxial-full.")
+        "installed): the compression of biaxial-full.",
+    )
     res.declare("native-liggghts", LIST_REASON)
     res.declare("native-lammps", LIST_REASON)
     if ctx.suite != "quick" and ctx.liggghts and ctx.lammps:
         res.declare("liggghts-lammps", CROSS_STATS_REASON)
     else:
-        res.skip_pair("liggghts-lammps", "the codes' cells are judged by their statistics over the Kuhn compression, "
-                                         "which needs both codes live (default and full suites); " + CROSS_SHORT_REASON)
+        res.skip_pair(
+            "liggghts-lammps",
+            "the codes' cells are judged by their statistics over the Kuhn compression, "
+            "which needs both codes live (default and full suites); " + CROSS_SHORT_REASON,
+        )
     p, s, ld, n = short_case()
     frames = expected_frames(n, SHORT_CASE_DUMP_EVERY)
     refs = {}
-    for engine, stored_name, pair in (("liggghts", "biaxial-short", "native-liggghts"),
-                                      ("lammps", "biaxial-short-lammps", "native-lammps")):
+    for engine, stored_name, pair in (
+        ("liggghts", "biaxial-short", "native-liggghts"),
+        ("lammps", "biaxial-short-lammps", "native-lammps"),
+    ):
         stored = stored_dir(stored_name)
         nat = run_native(p, _flavour(s, engine), ld, n, SHORT_CASE_DUMP_EVERY)
         ref = read_reference(_stored_log(stored), stored / "dump.atoms")
@@ -203,23 +227,37 @@ def voidcell(ctx: Context) -> CaseResult:
         recs += _records(label, cmp)
         res.records += in_pair(recs, pair)
         if cmp["no_tessellation"]:
-            res.notes.append(f"stored-120 ({CODE[engine]}): steps {cmp['no_tessellation']} have no framework spanning "
-                             "the cell (the pruned graph does not wrap the torus) on either side: identical outcome, no "
-                             "cells to compare there.")
+            res.notes.append(
+                f"stored-120 ({CODE[engine]}): steps {cmp['no_tessellation']} have no framework spanning "
+                "the cell (the pruned graph does not wrap the torus) on either side: identical outcome, no "
+                "cells to compare there."
+            )
         if cmp["vc"] and cmp["vc"][-1][0] is not None and engine == "liggghts":
             a, b = cmp["vc"][-1]
-            res.figures.append((_maps(ctx, [(f"step {cmp['steps'][-1]}", a, b)], "voidcell_stored120.png"),
-                                "stored-120, last compared dump: cells shaded by alpha (white <= 0), native left, "
-                                "LIGGGHTS right"))
+            res.figures.append(
+                (
+                    _maps(ctx, [(f"step {cmp['steps'][-1]}", a, b)], "voidcell_stored120.png"),
+                    "stored-120, last compared dump: cells shaded by alpha (white <= 0), native left, LIGGGHTS right",
+                )
+            )
     # the two codes' own snapshots: the same cells on the short horizon
-    cmp = compare_frames(refs["liggghts"], refs["lammps"], _present(frames, refs["liggghts"], refs["lammps"]),
-                         p.radii, s.dt)
+    cmp = compare_frames(
+        refs["liggghts"], refs["lammps"], _present(frames, refs["liggghts"], refs["lammps"]), p.radii, s.dt
+    )
     ndiff = sum(not x for x in cmp["same"])
 
     res.records += in_pair(
-        [info("voidcell/stored-120/cross", "cell_list",
-              f"frames with different cell lists, LIGGGHTS vs LAMMPS (of {len(cmp['same'])})",
-              ndiff if cmp["same"] else float("nan"), CROSS_SHORT_REASON)], "liggghts-lammps")
+        [
+            info(
+                "voidcell/stored-120/cross",
+                "cell_list",
+                f"frames with different cell lists, LIGGGHTS vs LAMMPS (of {len(cmp['same'])})",
+                ndiff if cmp["same"] else float("nan"),
+                CROSS_SHORT_REASON,
+            )
+        ],
+        "liggghts-lammps",
+    )
     if ctx.suite == "quick":
         return res
 
@@ -232,14 +270,22 @@ def voidcell(ctx: Context) -> CaseResult:
     steps = [int(k) for k in frames]
     sides = {}
     if "liggghts" in r:
-        sides["liggghts"] = (r["native"], r["liggghts"], r["ensemble"],
-                             r.get("expected_ensemble") or ensemble_labels(pk.n, ctx.suite == "full"))
+        sides["liggghts"] = (
+            r["native"],
+            r["liggghts"],
+            r["ensemble"],
+            r.get("expected_ensemble") or ensemble_labels(pk.n, ctx.suite == "full"),
+        )
     else:
         res.notes.append("LIGGGHTS is absent: its Kuhn-assembly comparison is not made.")
     if "lammps" in r:
         lm = r["lammps"]
-        sides["lammps"] = (lm["native"], lm["reference"], lm["ensemble"],
-                           lm.get("expected_ensemble") or lammps_ensemble_labels(pk.n, ctx.suite))
+        sides["lammps"] = (
+            lm["native"],
+            lm["reference"],
+            lm["ensemble"],
+            lm.get("expected_ensemble") or lammps_ensemble_labels(pk.n, ctx.suite),
+        )
     else:
         res.notes.append("LAMMPS is absent: its Kuhn-assembly comparison is not made.")
 
@@ -247,8 +293,9 @@ def voidcell(ctx: Context) -> CaseResult:
         rows = []
         for k in steps:
             vc = _cells(snapshot(tr, k, pk.radii, dem.dt))
-            rows.append([vc.mean_alpha, vc.fraction_nonpositive_alpha, vc.n_faces, vc.n_edges, vc.n_vertices,
-                         vc.coordination])
+            rows.append(
+                [vc.mean_alpha, vc.fraction_nonpositive_alpha, vc.n_faces, vc.n_edges, vc.n_vertices, vc.coordination]
+            )
         return np.array(rows)
 
     st, bands, complete = {}, {}, {}
@@ -263,8 +310,10 @@ def voidcell(ctx: Context) -> CaseResult:
         res.records += in_pair(recs, pair[engine])
         complete[engine] = all(x.passed for x in recs)
         if not complete[engine]:
-            res.notes.append(f"<b>Incomplete evidence</b> for the Kuhn assembly ({code}; records above): no statistics "
-                             "are compared on what remains.")
+            res.notes.append(
+                f"<b>Incomplete evidence</b> for the Kuhn assembly ({code}; records above): no statistics "
+                "are compared on what remains."
+            )
             continue
         cmp = compare_frames(nat, ref, [k for k in steps if k <= SHORT_HORIZON], pk.radii, dem.dt)
         recs = _records(f"{lab}/first {SHORT_HORIZON} steps", cmp)
@@ -279,16 +328,32 @@ def voidcell(ctx: Context) -> CaseResult:
             band = max(float(np.abs(st[k][:, col] - st[code][:, col]).max()) for k in pert)
             bands[engine][qty] = band
             diff = float(np.abs(st[f"native ({engine})"][:, col] - st[code][:, col]).max())
-            recs.append(compare(f"{lab}/full test", qty, f"max over {len(steps)} frames |native - {code}|", diff, band,
-                                STATS_REASON.replace("LIGGGHTS", code)))
+            recs.append(
+                compare(
+                    f"{lab}/full test",
+                    qty,
+                    f"max over {len(steps)} frames |native - {code}|",
+                    diff,
+                    band,
+                    STATS_REASON.replace("LIGGGHTS", code),
+                )
+            )
         res.records += in_pair(recs, pair[engine])
     if len(bands) == 2:
         recs = []
         for col, qty in ((0, "mean_alpha"), (1, "fraction_alpha_le_0")):
             band = bands["liggghts"][qty] + bands["lammps"][qty]
             diff = float(np.abs(st["LIGGGHTS"][:, col] - st["LAMMPS"][:, col]).max())
-            recs.append(compare("voidcell/kuhn-1002/cross", qty, f"max over {len(steps)} frames |LIGGGHTS - LAMMPS|",
-                                diff, band, CROSS_STATS_REASON))
+            recs.append(
+                compare(
+                    "voidcell/kuhn-1002/cross",
+                    qty,
+                    f"max over {len(steps)} frames |LIGGGHTS - LAMMPS|",
+                    diff,
+                    band,
+                    CROSS_STATS_REASON,
+                )
+            )
         res.records += in_pair(recs, "liggghts-lammps")
     if "liggghts" in sides and complete.get("liggghts"):
         nat, lig = sides["liggghts"][0], sides["liggghts"][1]
@@ -301,19 +366,41 @@ def voidcell(ctx: Context) -> CaseResult:
             vl = _cells(snapshot(lig, steps[k], pk.radii, dem.dt))
             pairs.append((f"strain {100 * strains[k]:.3f}% (step {steps[k]})", vn, vl))
             for who, vc in (("native", vn), ("LIGGGHTS", vl)):
-                rows.append([f"{who} @ {tag}", float(100 * strains[k]), vc.mean_alpha,
-                             float(100 * vc.fraction_nonpositive_alpha), vc.n_faces, vc.n_edges, vc.n_vertices,
-                             vc.coordination])
+                rows.append(
+                    [
+                        f"{who} @ {tag}",
+                        float(100 * strains[k]),
+                        vc.mean_alpha,
+                        float(100 * vc.fraction_nonpositive_alpha),
+                        vc.n_faces,
+                        vc.n_edges,
+                        vc.n_vertices,
+                        vc.coordination,
+                    ]
+                )
         rows.append(["Kuhn (1997): 0.01% / 0.16%", "", "0.73 (0.01%)", "about 22 (0.16%)", 762, 1633, 871, 3.75])
-        res.tables.append(("Beside the paper (reported, not pass/fail: another packing, another contact law)",
-                           ["source", "strain %", "mean alpha", "alpha <= 0 (%)", "faces", "edges", "vertices",
-                            "2M/N"], rows))
+        res.tables.append(
+            (
+                "Beside the paper (reported, not pass/fail: another packing, another contact law)",
+                ["source", "strain %", "mean alpha", "alpha <= 0 (%)", "faces", "edges", "vertices", "2M/N"],
+                rows,
+            )
+        )
         maps = _maps(ctx, pairs, "voidcell_kuhn_maps.png")
-        res.add_figure(maps, "Kuhn assembly: cells shaded by alignment alpha (Fig. 8 of Kuhn; white <= 0) at the "
-                       "frames nearest 0.01% and 0.16% axial strain; native left, LIGGGHTS right",
-                       data=_maps_data(maps, pairs), headline=True)
-        res.figures.append((_stats_plot(ctx, strains, st), "Mean alpha and fraction alpha <= 0 over the compression: "
-                            "native, LIGGGHTS, LAMMPS and the perturbed runs"))
+        res.add_figure(
+            maps,
+            "Kuhn assembly: cells shaded by alignment alpha (Fig. 8 of Kuhn; white <= 0) at the "
+            "frames nearest 0.01% and 0.16% axial strain; native left, LIGGGHTS right",
+            data=_maps_data(maps, pairs),
+            headline=True,
+        )
+        res.figures.append(
+            (
+                _stats_plot(ctx, strains, st),
+                "Mean alpha and fraction alpha <= 0 over the compression: "
+                "native, LIGGGHTS, LAMMPS and the perturbed runs",
+            )
+        )
     return res
 
 
