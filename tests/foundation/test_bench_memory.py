@@ -79,7 +79,10 @@ def test_sampler_filters_by_command_name(match):
     proc.wait()
     peaks = sampler.stop()
     if match:
-        assert list(peaks) == [proc.pid] and peaks[proc.pid][1] >= 20 * MIB
+        # the child is seen with its peak; any other descendant sampled has the same name (a test worker
+        # may hold other python children, e.g. a Dask cluster of another test module)
+        assert proc.pid in peaks and peaks[proc.pid][1] >= 20 * MIB
+        assert all(name == comm for name, _ in peaks.values())
     else:
         assert peaks == {}
 
