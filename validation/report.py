@@ -64,6 +64,7 @@ def write_h5(path: Path, results: list[CaseResult], header: dict) -> None:
 
 _CSS = """
 body{font-family:sans-serif;max-width:1200px;margin:2em auto;color:#222}
+pre{overflow-x:auto;max-width:100%}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 7px;font-size:90%}
 th{background:#eee}.pass{color:#080;font-weight:bold}.fail{color:#b00;font-weight:bold}
 .info{color:#555;font-style:italic}

@@ -47,7 +47,13 @@ def slope(ctx: Context) -> CaseResult:
             src = s["files"].get(key)
             if src is not None and src.exists():
                 dest = ctx.copy_figure(src, f"slope_{protocol}_{src.name}")
-                res.figures.append((dest, f"slope, protocol {protocol}: {cap}"))
+                h5 = out / "slope.h5"
+                res.add_figure(
+                    dest,
+                    f"slope, protocol {protocol}: {cap}",
+                    data=h5 if h5.exists() else None,
+                    headline=(protocol == "paper" and key == "state_png"),
+                )
     for r in acceptance_records(summaries):
         res.records.append(
             Record(
