@@ -18,11 +18,19 @@ from .compaction import compact_packing, compaction_run
 from .fire import FireParameters, Minimiser
 from .gsd import GrainSizeDistribution, distribution_names, get_distribution
 from .pack import make_packing
-from .standard import RVE_MEAN_OVERLAP, STANDARD_PACKINGS, build_standard, standard_packings
+from .standard import (
+    RVE_MEAN_OVERLAP,
+    SHIPPED_DIR,
+    STANDARD_PACKINGS,
+    build_standard,
+    shipped_packing,
+    standard_packings,
+)
 from .stats import packing_stats, rattlers
 
 __all__ = [
     "RVE_MEAN_OVERLAP",
+    "SHIPPED_DIR",
     "STANDARD_PACKINGS",
     "FireParameters",
     "GrainSizeDistribution",
@@ -35,5 +43,6 @@ __all__ = [
     "make_packing",
     "packing_stats",
     "rattlers",
+    "shipped_packing",
     "standard_packings",
 ]

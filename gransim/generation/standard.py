@@ -4,7 +4,12 @@ The catalogue (:data:`STANDARD_PACKINGS`) names each assembly by its request to 
 protocols, :func:`gransim.generation.make_packing` (frictionless FIRE) or
 :func:`gransim.generation.compact_packing` (frictional DEM compaction), and
 :func:`standard_packings` generates them into HDF5 files, reusing a file whose request and
-generator version match.
+generator version match. The 16 files ship with the package (``gransim/generation/data/standard/``,
+made by ``gransim packings --force`` at :data:`GENERATOR_VERSION`, provenance inside each file):
+a missing file is copied from there instead of regenerated, which saves about a minute of a fresh
+``make run``. That the shipped files are what the generator makes is checked, not assumed:
+``tests/generation/test_pack.py`` and the ``packings`` validation case regenerate some of them and
+compare bit for bit (the full suite regenerates all 16).
 
 The RVEs are made by the original random-start method of :func:`make_packing` (``method="random"``,
 :data:`STANDARD_METHOD`): the stored reference runs of ``reference_runs/stored/`` (e.g.
@@ -13,11 +18,12 @@ The RVEs are made by the original random-start method of :func:`make_packing` (`
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 from ..errors import InputError, ResultFileError
 from ..geometry import Packing
-from ..io import read_provenance, save_packing
+from ..io import atomic_path, read_provenance, save_packing
 from ..progress import progress
 from .compaction import compact_packing
 from .pack import DEFAULT_MEAN_OVERLAP, make_packing
@@ -40,6 +46,9 @@ STANDARD_METHOD = "random"
 KUHN_SEED = 1
 KUHN_FRICTION = 0.05
 KUHN_PRESSURE = 1e-4
+
+#: where the shipped copies of the standard assemblies live (``<name>.h5``)
+SHIPPED_DIR = Path(__file__).resolve().parent / "data" / "standard"
 
 
 def _standard_requests() -> dict:
@@ -79,12 +88,34 @@ def build_standard(name: str) -> Packing:
     return make_packing(**req, method=STANDARD_METHOD)
 
 
-def standard_packings(out_dir="results/packings", names=None, force: bool = False) -> dict:
-    """Generate the standard assemblies into ``out_dir/<name>.h5`` (HDF5, :func:`gransim.io.save_packing`).
+def _request(name: str) -> dict:
+    """The provenance ``parameters`` a file of standard assembly ``name`` must carry."""
+    return {"name": name, "generator_version": GENERATOR_VERSION, **STANDARD_PACKINGS[name]}
+
+
+def _matches(path: Path, params: dict) -> bool:
+    try:
+        return read_provenance(path).get("parameters") == params
+    except ResultFileError:
+        return False  # unreadable or foreign
+
+
+def shipped_packing(name: str) -> Path | None:
+    """The shipped copy of standard assembly ``name`` if it is there and made by this generator version."""
+    if name not in STANDARD_PACKINGS:
+        raise InputError(f"unknown standard packing {name!r}; choose from: {', '.join(STANDARD_PACKINGS)}")
+    path = SHIPPED_DIR / f"{name}.h5"
+    return path if path.is_file() and _matches(path, _request(name)) else None
+
+
+def standard_packings(out_dir="results/packings", names=None, force: bool = False, shipped: bool = True) -> dict:
+    """Provide the standard assemblies as ``out_dir/<name>.h5`` (HDF5, :func:`gransim.io.save_packing`).
 
     A file that exists with the same request parameters (and generator version) is kept, so a
-    rerun is cheap; ``force`` regenerates. ``names`` restricts the set (default: all 16 of
-    :data:`STANDARD_PACKINGS`). Returns {name: Path} in the order of :data:`STANDARD_PACKINGS`.
+    rerun is cheap. A missing (or outdated) file is copied from the shipped copy
+    (:data:`SHIPPED_DIR`, when ``shipped`` and its version matches) or else generated; ``force``
+    always regenerates. ``names`` restricts the set (default: all 16 of :data:`STANDARD_PACKINGS`).
+    Returns {name: Path} in the order of :data:`STANDARD_PACKINGS`.
     """
     out_dir = Path(out_dir)
     names = list(STANDARD_PACKINGS) if names is None else list(names)
@@ -97,15 +128,18 @@ def standard_packings(out_dir="results/packings", names=None, force: bool = Fals
     bar = progress(names, total=len(names), desc="packings")
     for name in bar:
         req = STANDARD_PACKINGS[name]
-        params = {"name": name, "generator_version": GENERATOR_VERSION, **req}
+        params = _request(name)
         path = out_dir / f"{name}.h5"
-        if path.exists() and not force:
-            try:
-                if read_provenance(path).get("parameters") == params:
-                    out[name] = path
-                    continue
-            except ResultFileError:
-                pass  # unreadable or foreign: regenerate
+        if not force:
+            if path.exists() and _matches(path, params):
+                out[name] = path
+                continue
+            src = shipped_packing(name) if shipped else None
+            if src is not None and src.resolve() != path.resolve():
+                with atomic_path(path, suffix=".h5") as tmp:  # a crash leaves no half-copied file
+                    shutil.copyfile(src, tmp)
+                out[name] = path
+                continue
         packing = build_standard(name)
         save_packing(path, packing, parameters=params, seed=req["seed"])
         out[name] = path

@@ -4,6 +4,8 @@ Independent checks use the brute-force O(N^2) periodic search (find_neighbours_b
 numpy force sums, not the generator's kernels.
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -171,6 +173,42 @@ def test_errors():
     # not reached within the step budget: the message names the reached state
     with pytest.raises(ConvergenceError, match=r"reached phi = 0\.\d+, mean overlap"):
         make_packing("quartz-sand", 50, 1, max_steps=20)
+
+
+def test_shipped_standard_packings_are_what_the_generator_makes(tmp_path):
+    """The shipped copies (gransim/generation/data/standard) are a cache of the generator, not data of
+    their own: a regenerated RVE and the shipped file agree bit for bit, in every array."""
+    from gransim.generation import SHIPPED_DIR, build_standard, shipped_packing
+    from gransim.io import load_packing, read_provenance
+
+    assert sorted(p.stem for p in SHIPPED_DIR.glob("*.h5")) == sorted(STANDARD_PACKINGS)
+    for name in ("rve-70-1", "rve-350-3"):
+        src = shipped_packing(name)
+        assert src is not None, f"{name}: no shipped copy of this generator version"
+        prov = read_provenance(src)
+        assert prov["parameters"]["name"] == name and prov["gransim_version"]
+        shipped, fresh = load_packing(src), build_standard(name)
+        for field in ("positions", "radii", "cell"):
+            assert np.array_equal(getattr(shipped, field), getattr(fresh, field)), (name, field)
+
+
+def test_outdated_or_foreign_shipped_copy_is_regenerated(tmp_path, monkeypatch):
+    """A shipped file whose provenance does not match the request (another generator version, or not
+    a packing file at all) is never copied: the packing is generated instead."""
+    import gransim.generation.standard as standard
+    from gransim.io import load_packing, save_packing
+
+    fake = tmp_path / "shipped"
+    fake.mkdir()
+    real = load_packing(standard.shipped_packing("rve-70-4"))
+    moved = dataclasses.replace(real, positions=real.positions + 1e-3 * real.cell[0, 0])
+    params = {**standard._request("rve-70-4"), "generator_version": standard.GENERATOR_VERSION - 1}
+    save_packing(fake / "rve-70-4.h5", moved, parameters=params, seed=4)
+    (fake / "rve-70-5.h5").write_bytes(b"not an HDF5 file")
+    monkeypatch.setattr(standard, "SHIPPED_DIR", fake)
+    assert standard.shipped_packing("rve-70-4") is None and standard.shipped_packing("rve-70-5") is None
+    out = standard_packings(tmp_path / "out", names=["rve-70-4"])
+    assert np.array_equal(load_packing(out["rve-70-4"]).positions, real.positions)
 
 
 def test_standard_packings_set_and_cheap_rerun(tmp_path):
