@@ -15,10 +15,10 @@ LocalCluster of N worker processes, one thread each, no dashboard) or
   comes back; ``commit`` / ``revert`` are forwarded to every block.
 
 Bitwise reproducibility. The response at a Gauss point depends only on its own F and its own
-committed history: the Taylor kernel sums the active contacts of a candidate set in the order of
-the neighbour list, which is sorted by (i, j, image) whatever F the set was built at, so any valid
-candidate set gives the same bits; the relaxed RVE warm-starts each point from its own committed
-state. So the result is the same, bit for bit, for any number of workers and any block cut
+committed history: the Taylor kernel sums the active contacts of a candidate set in the set's
+order, and :class:`gransim.rve.TaylorMaterial` sorts every set by (i, j, image) whatever F it was
+built at, so any valid candidate set gives the same bits; the relaxed RVE warm-starts each point
+from its own committed state. So the result is the same, bit for bit, for any number of workers and any block cut
 (tests/fem/test_parallel.py checks in process against a 2-worker LocalCluster).
 
 A lost worker. The driver keeps the F of every commit (G x 4 floats each, only for a material

@@ -53,7 +53,7 @@ completeness: a multiscale approach of confined particulate systems" (Figs 4-5):
 (F11, F22 = 1 -> 0.9) and shear-12/21 (F12, F21 = 0 -> 0.1), states k = 0, 10, ..., 50 of 50 steps,
 by the periodic-box route (compression only) and the explicit-image route (all paths).
 
-- LIGGGHTS: {version} (`/usr/bin/liggghts`, Debian package `liggghts`); banner: `{banner}`
+- LIGGGHTS: {version}, Debian package `liggghts`: {package}; banner: `{banner}`
 - Contact: `pair_style gran model hooke/stiffness tangential no_history`, kn = E_n = {kn:g} N/m,
   kt = 0, gamman = gammat = 0, `run 0` per state (no motion).
 - Deck: `in.liggghts` (written by `reference_runs.decks.taylor.taylor_job`); per-state data files
@@ -136,7 +136,7 @@ def regenerate_taylor(
         timeout=timeout,
         engine=eng.name,
     )
-    for junk in ("stdout.txt", "stderr.txt"):
+    for junk in ("stdout.txt", "stderr.txt", ".lock"):  # .lock: the runner's job lock, released by now
         (tmp / junk).unlink(missing_ok=True)
     if not keep_data:
         shutil.rmtree(tmp / "states", ignore_errors=True)

@@ -176,12 +176,11 @@ def make_material(
         raise InputError(f"unknown material {kind!r}; choose taylor or neo-hookean")
     if rve not in RVE_KINDS:
         raise InputError(f"--rve: unknown RVE material {rve!r}; choose taylor or relaxed")
-    from ..rve import RelaxedMaterial
-    from .materials import OrderedTaylorMaterial
+    from ..rve import RelaxedMaterial, TaylorMaterial
 
-    # same constructor (packings, kn); the Taylor sets sorted: bitwise the same for any history,
-    # block or worker (gransim.parallel)
-    cls = RelaxedMaterial if rve == "relaxed" else OrderedTaylorMaterial
+    # same constructor (packings, kn); the Taylor response at F is bitwise the same for any
+    # history, block or worker (its candidate sets are sorted, gransim.rve.taylor)
+    cls = RelaxedMaterial if rve == "relaxed" else TaylorMaterial
 
     if assignment == "five":
         from .materials import AssignedRVEs

@@ -43,6 +43,11 @@ set anchored at F is built (a state may use any cached set the rule accepts). St
 never invalidates a set, only compression along some direction does. For F0 = I the rule
 implies the displacement bound |(F - I) L| <= f/(1 + f) |L| of every candidate-excluded
 pair, and it is sharper than bounding |(F - I) L| by the norm of F - I.
+
+Every set is sorted by (i, j, image shift n). Two sets that cover F differ only in pairs out of
+contact at F, which the kernel skips, so they sum the same contacts in the same order: W, P and A
+at F are bitwise the same whatever was evaluated before (whichever set the cache picks), in
+any batch, block or worker.
 """
 
 from __future__ import annotations
@@ -403,6 +408,15 @@ class _RVE:
         nl = find_neighbours(self.X @ F0.T, self.r, F0 @ self.C, skin)
         c = (1.0 + self.f) * (self.r[nl.i] + self.r[nl.j])
         keep = np.einsum("ij,ij->i", nl.branch, nl.branch) < c * c
+        # canonical order (i, j, n1, n2): the kernel sums a state's active contacts in the set's
+        # order, and the cell list's order follows the bins at F0. Sorted, every set that covers F
+        # lists its active contacts in one order (the inactive extras are skipped), so the response
+        # at F is bitwise the same whichever anchor's set evaluates it: independent of what was
+        # evaluated before, of the batch, block or worker (gransim.parallel, checkpoint/resume).
+        # The key is canonical: find_neighbours returns each pair once (i < j, or i == j with
+        # n lexicographically positive) with n relative to the fixed reference positions X.
+        keep = np.flatnonzero(keep)
+        keep = keep[np.lexsort((nl.shift[keep, 1], nl.shift[keep, 0], nl.j[keep], nl.i[keep]))]
         i, j, shift = nl.i[keep], nl.j[keep], nl.shift[keep]
         L = self.X[j] + shift @ self.C.T - self.X[i]
         zero = np.flatnonzero(~np.any(L != 0.0, axis=1))

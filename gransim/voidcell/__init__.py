@@ -1,4 +1,5 @@
-"""Kuhn's void-cell deformation measures (002_f27a7752e0b7c34e.txt, secs 2-4).
+"""Kuhn's void-cell deformation measures: M.R. Kuhn 1997, "Deformation measures for granular
+materials" (Mechanics of Deformation and Flow of Particulate Materials, ASCE, pp. 91-104), secs 2-4.
 
 Particle graph on the torus (:mod:`.graph`), half-edge structure and faces (:mod:`.dcel`), the
 consistent Q^m (:mod:`.qmatrix`), per-cell velocity gradients and statistics (:mod:`.measures`),

@@ -249,7 +249,8 @@ _HEADER = """\
 # LIGGGHTS-PUBLIC 3.8.0 deck written by gransim (reference_runs.decks.taylor)
 # Taylor (affine) RVE states: {n_states} states of packing '{name}' ({n} disks), one 'run 0' each.
 # Contact: hooke/stiffness, tangential no_history, kn = E_n = {kn} N/m, kt = 0, gamman = gammat = 0:
-#   f = -E_n eps n (000_6d950a6f5c65e7b0.txt eqs 3-5). No integrator: positions are exactly x = F X.
+#   f = -E_n eps n, eqs (3)-(5) of Meier, Steinmann & Kuhl 2007, "Towards completeness: a multiscale
+#   approach of confined particulate systems". No integrator: positions are exactly x = F X.
 # Output per state (one thermo row, Step = state index):
 #   c_p[1] c_p[2] c_p[4]   virial pressure of the box, compression positive (periodic route)
 #   c_sc[1] c_sc[2] c_sc[3] sum of stress/atom (xx yy xy) over the central particles (type 1),
@@ -307,7 +308,8 @@ _LAMMPS_HEADER = """\
 # LAMMPS deck written by gransim (reference_runs.decks.taylor), for LAMMPS 29 Sep 2021 (Debian lammps)
 # Taylor (affine) RVE states: {n_states} states of packing '{name}' ({n} disks), one 'run 0' each.
 # Contact: pair_style gran/hooke KN 0 0 0 0 0 with KN = E_n = {kn} N/m (kt = gamman = gammat = mu = 0):
-#   f = -E_n eps n (the elastic normal contact). No integrator: positions are exactly x = F X.
+#   f = -E_n eps n, eqs (3)-(5) of Meier, Steinmann & Kuhl 2007, "Towards completeness: a multiscale
+#   approach of confined particulate systems". No integrator: positions are exactly x = F X.
 # Periodic route: orthogonal box (compression) or true periodic triclinic box = the sheared cell (shear);
 # shear-21 runs with x and y swapped (states.json: frame). Images route as in the LIGGGHTS deck.
 # Output per state (one thermo row, Step = state index):

@@ -83,9 +83,14 @@ def test_stored_references_verify_and_truncations_are_named(tmp_path):
     text = (taylor / "log.lammps").read_text()
     (taylor / "log.lammps").write_text(text[: text.rindex("Loop time of")])
     assert any("holds 35 of 36 runs" in p for p in verify_job(taylor))
-    assert any(
-        "log.lammps cannot be checked" in p for p in verify_job(STORED / "taylor-lattice-6x6", require_hashes=True)
-    )
+    # the stored cases carry every hash; a manifest of an older runner (no log_sha256) is named
+    assert verify_job(STORED / "taylor-lattice-6x6", require_hashes=True) == []
+    old = tmp_path / "old-manifest"
+    shutil.copytree(STORED / "taylor-lattice-6x6", old)
+    manifest = json.loads((old / "manifest.json").read_text())
+    del manifest["log_sha256"]
+    (old / "manifest.json").write_text(json.dumps(manifest))
+    assert any("log.lammps cannot be checked" in p for p in verify_job(old, require_hashes=True))
 
 
 @pytest.mark.liggghts

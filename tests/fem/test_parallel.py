@@ -37,9 +37,7 @@ def dask2():
 
 
 def _taylor():
-    from gransim.fem.materials import OrderedTaylorMaterial
-
-    mat = OrderedTaylorMaterial([triangular_packing(5, 6, 1.0005, 0.0002, seed=s) for s in (1, 2)], KN)
+    mat = rve.TaylorMaterial([triangular_packing(5, 6, 1.0005, 0.0002, seed=s) for s in (1, 2)], KN)
     return RVEMaterial(AssignedRVEs(mat, np.arange(200) % 2))
 
 

@@ -212,6 +212,50 @@ def test_batched_equals_single_and_rve_index(packings):
     assert np.all(b.n_candidates >= b.n_contacts)
 
 
+def _rotation(t):
+    return np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+def test_response_depends_on_F_alone_bitwise(seed):
+    """The Taylor response is a function of F alone (x = F X, no history), bit for bit.
+
+    F2 evaluated on a fresh material (candidate set anchored at F2), after F1 (a rotation: its
+    set covers F2, sigma_min(F2 F1^-1) = sigma_min(F2), and is reused) and after F1 then F3 (beyond
+    the skin of F1's set: a rebuild, whose set then evaluates F2) gives the same W, P, A, sigma
+    and contact count to the last bit. The sets come from cell lists at other anchors, which list
+    the pairs in other orders; the kernel adds the active contacts in the set's order, so only a
+    canonical order of every set makes the sums identical. Without it (cell-list order) seeds 1
+    and 2 differ after F1 and seeds 3 and 4 after F3 (in P and A, ~1e-16 relative).
+    """
+    p = random_packing(120, seed=seed, phi=0.9)
+    F1 = _rotation(0.5)
+    F2 = np.array([[0.965, 0.02], [0.01, 1.0]])  # sigma_min 0.96 > 1/1.1: inside the skin of F1's set
+    F3 = _rotation(-0.9) @ np.array([[0.88, 0.04], [-0.02, 1.01]])  # sigma_min 0.88 < 1/1.1: a rebuild
+    ref = TaylorMaterial(p, KN).evaluate(F2)
+    after1 = TaylorMaterial(p, KN)
+    after1(F1)
+    got1 = after1.evaluate(F2)
+    assert after1.n_builds == 1  # F2 used F1's set
+    after3 = TaylorMaterial(p, KN)
+    after3(F1)
+    after3(F3)
+    assert after3.n_builds == 2  # F3 forced a rebuild
+    got3 = after3.evaluate(F2)
+    assert after3.n_builds == 2  # F2 used a cached set (the latest valid one: F3's)
+    assert got3.n_candidates[0] != ref.n_candidates[0]  # another set than the fresh one
+    assert ref.n_contacts[0] > 100
+    for got in (got1, got3):
+        for name in ("energy", "piola", "tangent", "cauchy", "n_contacts"):
+            assert np.array_equal(getattr(got, name), getattr(ref, name)), name
+    # the single-state path (serial kernel) too
+    one_fresh = TaylorMaterial(p, KN)(F2)
+    for mat in (after1, after3):
+        one = mat(F2)
+        assert one.energy == one_fresh.energy
+        assert np.array_equal(one.piola, one_fresh.piola) and np.array_equal(one.tangent, one_fresh.tangent)
+
+
 def test_contact_state_forces_reproduce_piola(packings):
     """P = 1/V sum f (x) L (eq 10) from the per-contact forces."""
     p = packings["sheared"]
