@@ -205,9 +205,23 @@ def regenerate(dest: Path | None = None, timeout: float | None = 600.0) -> Path:
     stdout/stderr) with ``packing.h5`` and a README under ``dest`` (default
     ``reference_runs/stored/relaxation-lattice-8x8``). Needs ``liggghts`` and ``lmp``."""
     dest = Path(dest) if dest else STORED / STORED_CASE
+    for engine in ENGINE_STATES:
+        get_engine(engine).find()  # both binaries, before anything is written
     tmp = dest.parent / (dest.name + ".job")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
+    try:
+        _regenerate_into(tmp, timeout)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    shutil.rmtree(dest, ignore_errors=True)
+    tmp.rename(dest)
+    return dest
+
+
+def _regenerate_into(tmp: Path, timeout) -> None:
+    dest_name = tmp.name[: -len(".job")]
     p = relaxation_packing()
     save_packing(tmp / "packing.h5", p, parameters={**LATTICE, "kn": KN_2D, "relaxed_at_identity": True}, seed=7)
     p = load_packing(tmp / "packing.h5")
@@ -225,7 +239,7 @@ def regenerate(dest: Path | None = None, timeout: float | None = 600.0) -> Path:
     s = relaxation_settings(p)
     (tmp / "README.md").write_text(
         _README.format(
-            case=dest.name,
+            case=dest_name,
             date=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
             n=p.n,
             lx=p.cell[0, 0],
@@ -242,9 +256,6 @@ def regenerate(dest: Path | None = None, timeout: float | None = 600.0) -> Path:
             lmp_version=versions.get("lammps"),
         )
     )
-    shutil.rmtree(dest, ignore_errors=True)
-    tmp.rename(dest)
-    return dest
 
 
 def main(argv=None) -> int:  # pragma: no cover - thin CLI

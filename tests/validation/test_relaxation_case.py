@@ -107,3 +107,23 @@ def test_a_dem_that_never_settles_fails_at_rest(tmp_path, monkeypatch):
     assert not res.passed
     rest = _failing(res, "at_rest", "")
     assert rest and all("not at rest" in r.metric and r.value > 1e3 * R.KE_REST for r in rest)
+
+
+def test_store_cli_without_binaries_exits_2_and_writes_nothing(tmp_path):
+    import subprocess
+    import sys
+
+    from reference_runs.store import STORED
+
+    before = sorted(p.name for p in STORED.iterdir())
+    out = subprocess.run(
+        [sys.executable, "-m", "reference_runs.store", "--case", "relaxation"],
+        env={"PATH": str(tmp_path), "HOME": str(tmp_path), "PYTHONPATH": str(STORED.parents[1])},
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=str(STORED.parents[1]),
+    )
+    assert out.returncode == 2, out.stderr
+    assert "Traceback" not in out.stderr and "not found on PATH" in out.stderr
+    assert sorted(p.name for p in STORED.iterdir()) == before
