@@ -2,6 +2,7 @@
 
     python -m reference_runs.store                   # LIGGGHTS: rewrites reference_runs/stored/taylor-*
     python -m reference_runs.store --engine lammps   # LAMMPS: rewrites reference_runs/stored/taylor-*-lammps
+    python -m reference_runs.store --case relaxation # both codes: reference_runs/stored/relaxation-lattice-8x8
 
 The stored outputs let tests compare against LIGGGHTS where the binary is absent. Each case
 directory holds the job files exactly as run (deck, data files, states.json, log.lammps,
@@ -207,9 +208,21 @@ def main(argv=None) -> int:
         prog="python -m reference_runs.store", description="Regenerate the stored Taylor reference outputs."
     )
     ap.add_argument("--engine", default="liggghts", help="liggghts (default) or lammps")
+    ap.add_argument(
+        "--case",
+        default="taylor",
+        choices=("taylor", "relaxation"),
+        help="taylor (default: the Taylor cases of --engine) or relaxation (the relaxation case, both codes)",
+    )
     args = ap.parse_args(argv)
 
     try:
+        if args.case == "relaxation":
+            # lazy: reference_runs.decks.relaxation imports this module (STORED)
+            from .decks.relaxation import regenerate
+
+            print(regenerate())
+            return 0
         get_engine(args.engine).find()  # before anything is written
         print(regenerate_taylor(engine=args.engine))
         print(regenerate_taylor_rve(engine=args.engine))
