@@ -21,8 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import paper
 from .._validate import as_positive_float
 from ..errors import InputError
+from ..paper import stress_2d_to_pa, tangent_2d_to_pa
 
 _I2 = np.eye(2)
 
@@ -175,8 +177,6 @@ class RVEMaterial:
     """
 
     def __init__(self, rve, thickness: float | None = None):
-        from .. import paper
-
         self.rve = rve
         self.thickness = paper.THICKNESS if thickness is None else as_positive_float(thickness, "thickness")
 
@@ -204,8 +204,6 @@ class RVEMaterial:
 
     def evaluate(self, F) -> MaterialResult:
         """Batched response in Pa (piola (G,2,2), tangent (G,2,2,2,2), cauchy (G,2,2)), J/m^3, contacts."""
-        from ..paper import stress_2d_to_pa, tangent_2d_to_pa
-
         b = self.rve.evaluate(F)
         t = self.thickness
         return MaterialResult(
@@ -241,7 +239,7 @@ class _SortedSet(tuple):
 
 
 def _ordered_taylor_class():
-    from ..rve import TaylorMaterial
+    from ..rve import TaylorMaterial  # noqa: PLC0415 - start-up: keeps gransim.rve (numba) out of import gransim.fem
 
     class OrderedTaylorMaterial(TaylorMaterial):
         """:class:`gransim.rve.TaylorMaterial` whose candidate sets are sorted by (i, j, image shift).
