@@ -110,8 +110,8 @@ def handler(args) -> int:
     # the energy norm of a Newton correction, relative to the first: below 1 to mean anything
     check_number(args.tol, "--tol", low=0, high=1, low_open=True, high_open=True)
     check_number(args.min_fraction, "--min-fraction", low=0, high=1, low_open=True)
+    from ..fem.materials import RVE_KINDS  # noqa: PLC0415 - start-up: scipy
     from ..fem.mesh import SlopeGeometry  # noqa: PLC0415 - start-up: scipy
-    from ..fem.run import RVE_KINDS  # noqa: PLC0415 - start-up: numba
 
     if args.rve not in RVE_KINDS:
         raise InputError(f"--rve: expected taylor or relaxed, got {args.rve!r}")

@@ -28,6 +28,10 @@ from ..paper import stress_2d_to_pa, tangent_2d_to_pa
 
 _I2 = np.eye(2)
 
+#: the RVE materials of the FE2 slope (``--rve``): the affine Taylor RVE and the relaxed RVE (here, not
+#: in gransim.fem.run, so that ``gransim slope`` checks its options without importing the run's modules)
+RVE_KINDS = ("taylor", "relaxed")
+
 
 @dataclass(frozen=True, eq=False)
 class MaterialResult:

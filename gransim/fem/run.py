@@ -20,7 +20,7 @@ from ..rve.fabric import most_uniform
 from .checkpoint import NAME as CKPT
 from .checkpoint import clear_checkpoint, read_checkpoint, replay_history, write_checkpoint
 from .constraints import DofMap
-from .materials import AssignedRVEs, NeoHookean, OrderedTaylorMaterial, RVEMaterial, lame
+from .materials import RVE_KINDS, AssignedRVEs, NeoHookean, OrderedTaylorMaterial, RVEMaterial, lame
 from .mesh import rectangle_mesh
 from .output import (
     TABLE2_STEPS,
@@ -90,7 +90,6 @@ def default_rve_packing(packing_dir="results/packings"):
     return packings[name]
 
 
-RVE_KINDS = ("taylor", "relaxed")
 FIGURES = ("final", "all", "none")
 
 
