@@ -52,7 +52,7 @@ def __getattr__(name: str):
     """``gransim.Packing`` on first use: importing it imports numpy (0.1-0.4 s here), which
     ``gransim --help`` and the commands' argument checks do not need (PEP 562)."""
     if name == "Packing":
-        from .geometry import Packing
+        from .geometry import Packing  # noqa: PLC0415 - start-up: numpy, see the docstring
 
         globals()["Packing"] = Packing
         return Packing

@@ -36,6 +36,9 @@ import contextlib
 import os
 
 import numba
+from numba.core import caching
+
+from ._validate import as_int
 
 if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]
@@ -75,7 +78,6 @@ def disk_cache_off(off: bool = True):
     if not off:
         yield
         return
-    from numba.core import caching
 
     orig = caching.Cache.save_overload
     caching.Cache.save_overload = lambda self, sig, data: None
@@ -111,6 +113,5 @@ def check_threads(n, name: str = "threads") -> int | None:
     """``None`` or an integer in [1, NUMBA_NUM_THREADS]; :class:`InputError` otherwise."""
     if n is None:
         return None
-    from ._validate import as_int
 
     return as_int(n, name, 1, numba.config.NUMBA_NUM_THREADS, " (NUMBA_NUM_THREADS)")

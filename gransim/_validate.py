@@ -6,6 +6,8 @@ produce them or raise :class:`~gransim.errors.InputError` naming what is wrong.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from .errors import InputError
@@ -80,8 +82,6 @@ def available_memory() -> int | None:
     physical memory (``os.sysconf('SC_PHYS_PAGES') * SC_PAGE_SIZE``) and the cgroup v2 limit
     ``memory.max`` minus ``memory.current`` (containers).
     """
-    import os
-
     found = []
     try:
         with open("/proc/meminfo") as fh:

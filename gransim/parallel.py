@@ -32,6 +32,7 @@ checkpoint of a slope run (:mod:`gransim.fem.checkpoint`) restores the history t
 from __future__ import annotations
 
 import itertools
+import os
 import time
 
 import numpy as np
@@ -98,8 +99,6 @@ class GaussBlock:
 
     def pid(self) -> int:
         """The worker's process id (tests use it to kill the worker)."""
-        import os
-
         return os.getpid()
 
 
@@ -225,7 +224,7 @@ class DistributedMaterial:
         if isinstance(exc, GransimError):
             return False
         try:
-            from distributed.comm.core import CommClosedError
+            from distributed.comm.core import CommClosedError  # noqa: PLC0415 - start-up: distributed (~1 s)
         except ImportError:  # pragma: no cover
             CommClosedError = OSError
         if isinstance(exc, (OSError, CommClosedError)) or "Actor was lost" in str(exc):
@@ -285,7 +284,7 @@ class DaskExecutor:
     kind = "dask"
 
     def __init__(self, workers: int | None = None, scheduler: str | None = None, timeout: float = 30.0):
-        from distributed import Client, LocalCluster
+        from distributed import Client, LocalCluster  # noqa: PLC0415 - start-up: distributed (~1 s)
 
         self.cluster = None
         if scheduler is not None:

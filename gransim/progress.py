@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 
 def progress(iterable=None, total=None, desc: str = "", **kw):
     """A tqdm progress bar on a terminal; silent when stderr is not a TTY or CI is set."""
-    import os
-
-    from tqdm.auto import tqdm
+    from tqdm.auto import tqdm  # noqa: PLC0415 - start-up: tqdm.auto (~0.2 s)
 
     disable = (not sys.stderr.isatty()) or bool(os.environ.get("CI"))
     return tqdm(iterable, total=total, desc=desc, disable=disable, leave=False, **kw)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import ast
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -154,3 +155,45 @@ def test_builtin_commands_do_not_read_the_plugins(monkeypatch):
     assert calls == []
     assert "validate" in cli.build_parser(["validate"])._subparsers._group_actions[0].choices
     assert calls == [1]
+
+
+#: a function-local import in gransim is allowed (ruff PLC0415, pyproject.toml) only with its reason:
+#: ``# noqa: PLC0415 - start-up: <the heavy module kept off a start-up path>`` or ``- cycle: <which>``
+LAZY_REASON = re.compile(r"#\s*noqa:\s*PLC0415\s+-\s+(start-up|cycle):\s*\S")
+
+
+def test_the_lazy_import_reason_pattern_is_not_vacuous():
+    assert LAZY_REASON.search("    import meshio  # noqa: PLC0415 - start-up: meshio (~0.1 s)")
+    assert LAZY_REASON.search("    from .hertz import X  # noqa: PLC0415 - cycle: .hertz imports this module")
+    assert not LAZY_REASON.search("    import meshio  # noqa: PLC0415")
+    assert not LAZY_REASON.search("    import meshio  # noqa: PLC0415 - because")
+
+
+def test_every_local_import_in_gransim_says_why():
+    """ruff enforces PLC0415 but accepts a bare ``# noqa: PLC0415``; issue 19 asks that each
+    import kept inside a function say why (start-up time or an import cycle)."""
+    files = sorted((ROOT / "gransim").rglob("*.py"))
+    hits = [
+        (f, n, line)
+        for f in files
+        for n, line in enumerate(f.read_text().splitlines(), 1)
+        if re.search(r"noqa:[^#]*PLC0415", line)
+    ]
+    assert len(hits) > 10, "no kept local imports found: the scan is broken"
+    bad = [f"{f.relative_to(ROOT)}:{n}: {line.strip()}" for f, n, line in hits if not LAZY_REASON.search(line)]
+    assert not bad, "local imports without their reason (start-up: MODULE or cycle: WHICH):\n" + "\n".join(bad)
+
+
+def test_every_public_name_of_every_gransim_package_exists():
+    """``__all__`` is the package's promise: every name it lists must be importable (a stale entry
+    makes ``from gransim.fem import *`` raise AttributeError)."""
+    import importlib
+
+    missing = {}
+    for init in sorted((ROOT / "gransim").rglob("__init__.py")):
+        name = ".".join(init.parent.relative_to(ROOT).parts)
+        mod = importlib.import_module(name)
+        bad = [n for n in getattr(mod, "__all__", ()) if not hasattr(mod, n)]
+        if bad:
+            missing[name] = bad
+    assert not missing, f"__all__ names that do not exist: {missing}"

@@ -9,7 +9,9 @@ entry-point group :data:`ENTRY_POINT_GROUP` of their distribution's metadata (``
 never imports them (tests/test_boundaries.py). A plug-in that fails to load is named on stderr and
 left out; the other commands work.
 
-Heavy imports stay inside the handlers (``gransim --help`` is fast).
+Heavy imports (numpy, numba, h5py, matplotlib: every ``cmd_*`` module is imported by ``gransim --help``
+and by every command) stay inside the handlers, each marked ``# noqa: PLC0415 - start-up: <module>``;
+the light ones (the standard library, :mod:`gransim.errors`, ``_paths``) are at the top.
 Errors derived from :class:`gransim.errors.GransimError` are printed as one line
 and exit with status 2; any other exception is one line too (``internal error``, status 1; the
 traceback with ``GRANSIM_TRACEBACK=1``); a closed output pipe ends quietly (status 141).
@@ -24,6 +26,9 @@ import pkgutil
 import sys
 import traceback
 
+from .. import __version__
+from ..errors import GransimError
+
 #: the entry-point group in which packages register ``gransim`` sub-commands: each entry point is a
 #: callable ``register(subparsers)`` that adds one sub-command (its name is the entry point's)
 ENTRY_POINT_GROUP = "gransim.commands"
@@ -33,8 +38,6 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     """The parser of every command: the built-in ``cmd_*`` modules, then the plug-ins of
     :data:`ENTRY_POINT_GROUP`. With ``argv`` whose command is a built-in one the plug-ins are not
     read (reading the installed distributions' metadata is most of a plug-in's start-up cost)."""
-    from .. import __version__
-
     parser = argparse.ArgumentParser(
         prog="gransim",
         description="Micromechanics of 2D granular materials: packings, Taylor RVEs, DEM, void cells, "
@@ -72,7 +75,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
 def plugin_commands() -> list:
     """The entry points of :data:`ENTRY_POINT_GROUP` in the installed distributions, by name
     (:class:`importlib.metadata.EntryPoint`; one per name, the first distribution's)."""
-    from importlib.metadata import entry_points
+    from importlib.metadata import entry_points  # noqa: PLC0415 - start-up: only when the plug-ins are read
 
     seen = {}
     for ep in entry_points(group=ENTRY_POINT_GROUP):
@@ -114,8 +117,6 @@ def _internal_error(command: str, exc: BaseException) -> int:
 
 
 def _main(argv) -> int:
-    from ..errors import GransimError
-
     parser = build_parser(sys.argv[1:] if argv is None else argv)
     try:
         args = parser.parse_args(argv)

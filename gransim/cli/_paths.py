@@ -9,6 +9,7 @@ message.
 
 from __future__ import annotations
 
+import argparse
 import math
 import os
 from pathlib import Path
@@ -120,8 +121,6 @@ def check_number(
 def integer(text: str) -> int:
     """argparse ``type`` of a count: an integer, also written as ``1e5`` or ``100_000`` when its
     value is integral (``1.5`` and ``nan`` are refused)."""
-    import argparse
-
     t = str(text).strip()
     try:
         return int(t)
@@ -138,8 +137,6 @@ def integer(text: str) -> int:
 
 def number(text: str) -> float:
     """argparse ``type`` of a real option: a finite float (``nan``, ``inf`` refused)."""
-    import argparse
-
     try:
         v = float(text)
     except ValueError:

@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import dataclasses
 
+from ..errors import InputError
+from ._paths import check_figure, check_output
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -123,9 +126,7 @@ def register(sub) -> None:
 
 def _check_options(args) -> None:
     """Every numeric option and output path, named as on the command line, before any work."""
-    from .._validate import as_int, as_positive_float
-    from ..errors import InputError
-    from ._paths import check_figure, check_output
+    from .._validate import as_int, as_positive_float  # noqa: PLC0415 - start-up: numpy
 
     check_output(args.output, "-o/--output")
     if args.plot:
@@ -154,14 +155,14 @@ def _check_options(args) -> None:
         ("--checkpoint-every", args.checkpoint_every, 0),
     ):
         as_int(v, name, minimum=lo)
-    from ..dem.settings import FLAVOURS
+    from ..dem.settings import FLAVOURS  # noqa: PLC0415 - start-up: numba
 
     if args.flavour is not None and args.flavour not in FLAVOURS:
         raise InputError(f"--flavour: expected one of {', '.join(FLAVOURS)}, got {args.flavour!r}")
     if args.law_param and not args.law:
         raise InputError("--law-param: given without --law (name the law the parameters belong to)")
     if args.law:
-        from ..contacts.laws import law_code
+        from ..contacts.laws import law_code  # noqa: PLC0415 - start-up: numba
 
         try:
             code = law_code(args.law)
@@ -171,7 +172,7 @@ def _check_options(args) -> None:
             raise InputError(f"--flavour {args.flavour}: the law {args.law} is {code}'s; drop --flavour or give {code}")
         parse_law_params(args.law_param)
     if args.threads is not None:
-        from .._numba import check_threads
+        from .._numba import check_threads  # noqa: PLC0415 - start-up: numba
 
         check_threads(args.threads, "--threads")
 
@@ -179,8 +180,6 @@ def _check_options(args) -> None:
 def parse_law_params(items) -> dict:
     """``KEY=VALUE`` strings of --law-param as a dict: numbers as floats, true/false as bools,
     other values (``damping=tsuji``) as strings; InputError for a malformed or repeated item."""
-    from ..errors import InputError
-
     out = {}
     for it in items:
         key, sep, val = str(it).partition("=")
@@ -204,9 +203,8 @@ def protocol_settings(args, packing):
     from the parsed options: every physical parameter from its option, the derived ones (strain
     rate from the inertial number, servo gain, dt) from the final values. InputError naming the
     option."""
-    from ..dem.biaxial import default_settings, law_settings
-    from ..dem.engine import contact_time, damping_ratio, stability_limit
-    from ..errors import InputError
+    from ..dem.biaxial import default_settings, law_settings  # noqa: PLC0415 - start-up: numba
+    from ..dem.engine import contact_time, damping_ratio, stability_limit  # noqa: PLC0415 - start-up: numba
 
     if args.density is not None:
         packing = packing.replace(density=args.density)
@@ -255,9 +253,9 @@ def protocol_settings(args, packing):
 
 
 def _run(args) -> int:
-    from ..dem.biaxial import inertial_number, run_biaxial
-    from ..dem.output import OutputSettings, plot_stress_strain
-    from ..io import load_packing
+    from ..dem.biaxial import inertial_number, run_biaxial  # noqa: PLC0415 - start-up: numba
+    from ..dem.output import OutputSettings, plot_stress_strain  # noqa: PLC0415 - start-up: numba
+    from ..io import load_packing  # noqa: PLC0415 - start-up: h5py
 
     _check_options(args)
     packing, law, dem, bi, law_options = protocol_settings(args, load_packing(args.packing))
@@ -293,9 +291,7 @@ def _run(args) -> int:
 
 
 def _export(args) -> int:
-    from ..dem.output import plot_stress_strain, read_run, require_complete, snapshot_to_vtu
-    from ..errors import InputError
-    from ._paths import check_figure, check_output
+    from ..dem.output import plot_stress_strain, read_run, require_complete, snapshot_to_vtu  # noqa: PLC0415 - start-up: numba
 
     if not (args.vtu or args.plot):
         raise InputError("dem-export: give --vtu and/or --plot")

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import json
+
+from ..errors import ResultFileError
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -42,10 +46,7 @@ def format_stats(s: dict) -> str:
 def _dem_run_status(path, prov: dict) -> None:
     """complete / stop_reason / unsettled phases / sampling of a DEM run file, then its structure
     check (a truncated or corrupt file raises ResultFileError after these lines)."""
-    import json
-
-    from ..dem.output import read_run
-    from ..errors import ResultFileError
+    from ..dem.output import read_run  # noqa: PLC0415 - start-up: numba
 
     complete = prov.get("complete")
     why = prov.get("stop_reason") or ""
@@ -81,9 +82,8 @@ def _dem_run_status(path, prov: dict) -> None:
 
 
 def _run(args) -> int:
-    from ..errors import ResultFileError
-    from ..generation import packing_stats
-    from ..io import load_packing, open_result, read_provenance
+    from ..generation import packing_stats  # noqa: PLC0415 - start-up: numba
+    from ..io import load_packing, open_result, read_provenance  # noqa: PLC0415 - start-up: h5py
 
     prov = read_provenance(args.file)
     print(f"file                   {args.file}")

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import sys
 
+from ..errors import InputError
 from ._paths import check_number, check_output, integer
+from .cmd_info import format_stats
 
 
 def register(sub) -> None:
@@ -65,9 +67,8 @@ def register(sub) -> None:
 def _check(args) -> None:
     """Every option checked before the packing starts (names in the messages are the options)."""
     # imports here, not at the top: `gransim --help` must not load numba and h5py (start-up time)
-    from ..errors import InputError
-    from ..generation import get_distribution
-    from ..generation.pack import (
+    from ..generation import get_distribution  # noqa: PLC0415 - start-up: numba
+    from ..generation.pack import (  # noqa: PLC0415 - start-up: numba
         MAX_MEAN_OVERLAP,
         MAX_SOLID_FRACTION,
         MEMORY_WARN_FRACTION,
@@ -101,10 +102,8 @@ def _check(args) -> None:
 
 
 def _run(args) -> int:
-    from ..errors import InputError
-    from ..generation import compact_packing, make_packing, packing_stats
-    from ..io import packing_to_vtu, save_packing
-    from .cmd_info import format_stats
+    from ..generation import compact_packing, make_packing, packing_stats  # noqa: PLC0415 - start-up: numba
+    from ..io import packing_to_vtu, save_packing  # noqa: PLC0415 - start-up: h5py
 
     _check(args)
     if args.friction is not None:

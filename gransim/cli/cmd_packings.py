@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ._paths import check_output_dir
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -19,9 +21,8 @@ def register(sub) -> None:
 
 def _run(args) -> int:
     # imports here, not at the top: `gransim --help` must not load numba and h5py (start-up time)
-    from ..generation import packing_stats, standard_packings
-    from ..io import load_packing
-    from ._paths import check_output_dir
+    from ..generation import packing_stats, standard_packings  # noqa: PLC0415 - start-up: numba
+    from ..io import load_packing  # noqa: PLC0415 - start-up: h5py
 
     check_output_dir(args.out, "--out")
     paths = standard_packings(args.out, names=args.only, force=args.force)

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
+from ..errors import InputError, SimulationError
+from ..parallel import add_options, make_executor  # register() needs add_options: loaded by --help either way
 from ._paths import check_input, check_number, check_output, check_output_dir, integer
 
 #: most load steps per path of rve-study (the paper uses 50)
@@ -41,7 +44,6 @@ def register(subparsers) -> None:
         default="results/rve_study",
         help="output directory (default results/rve_study)",
     )
-    from ..parallel import add_options
 
     add_options(p)  # --workers N / --scheduler ADDRESS: one task per RVE (gransim.parallel)
     p.set_defaults(func=_study)
@@ -84,8 +86,6 @@ def register(subparsers) -> None:
 
 def _check_packing_options(args) -> None:
     """--packings files exist and have distinct names; --packing-dir can hold the standard RVEs."""
-    from ..errors import InputError
-
     if args.packings:
         seen = {}
         for f in args.packings:
@@ -103,13 +103,12 @@ def _check_packing_options(args) -> None:
 
 
 def _packings(args) -> dict:
-    from ..errors import InputError
-    from ..rve.study import load_packings
+    from ..rve.study import load_packings  # noqa: PLC0415 - start-up: numba
 
     if args.packings:
         return load_packings({Path(f).stem: f for f in args.packings})
     try:
-        from ..generation import standard_packings
+        from ..generation import standard_packings  # noqa: PLC0415 - start-up: numba
     except ImportError:
         raise InputError(
             "no --packings given and gransim.generation (the standard 15 RVEs) is not "
@@ -120,21 +119,19 @@ def _packings(args) -> dict:
 
 def standard_rve_names() -> list[str]:
     """The 15 RVEs of the paper's section 4 among the standard packings (rve-70-1 .. rve-700-5)."""
-    from ..generation import STANDARD_PACKINGS
+    from ..generation import STANDARD_PACKINGS  # noqa: PLC0415 - start-up: numba
 
     return [k for k in STANDARD_PACKINGS if k.startswith("rve-")]
 
 
 def _kn(args) -> float:
-    from ..rve.study import PAPER_NORMAL_STIFFNESS
+    from ..rve.study import PAPER_NORMAL_STIFFNESS  # noqa: PLC0415 - start-up: numba
 
     return PAPER_NORMAL_STIFFNESS if args.kn is None else args.kn
 
 
 def _study(args) -> int:
-    import time
-
-    from ..rve.study import run_study
+    from ..rve.study import run_study  # noqa: PLC0415 - start-up: numba
 
     _check_packing_options(args)
     check_number(args.steps, "--steps", low=1, high=MAX_STEPS, integer=True)
@@ -142,8 +139,6 @@ def _study(args) -> int:
     check_output(out / "rve_study.h5", "-o/--out")
     for name in ("compression", "shear", "fabric"):
         check_output(out / f"{name}.png", "-o/--out")
-    from ..errors import InputError
-    from ..parallel import make_executor
 
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers: expected an integer >= 1 (Dask worker processes), got {args.workers}")
@@ -171,10 +166,9 @@ def _study(args) -> int:
 def check_F(values, packing, option: str = "--F"):
     """The deformation gradient of rve-stress: finite, det F > 0, the deformed cell still larger
     than the largest disk, and a candidate search that fits into memory. Returns F (2, 2)."""
-    import numpy as np
+    import numpy as np  # noqa: PLC0415 - start-up: numpy
 
-    from ..errors import InputError
-    from ..rve.taylor import check_candidate_budget, shortest_lattice_vector
+    from ..rve.taylor import check_candidate_budget, shortest_lattice_vector  # noqa: PLC0415 - start-up: numba
 
     F = np.array(values, dtype=float).reshape(2, 2)
     if not np.all(np.isfinite(F)):
@@ -204,9 +198,8 @@ def check_F(values, packing, option: str = "--F"):
 
 
 def _read_stress_packing(args):
-    from ..errors import InputError
-    from ..io import load_packing, open_result
-    from ..rve.study import read_study_packing, study_rve_names
+    from ..io import load_packing, open_result  # noqa: PLC0415 - start-up: h5py
+    from ..rve.study import read_study_packing, study_rve_names  # noqa: PLC0415 - start-up: numba
 
     check_input(args.file, "FILE.h5")
     with open_result(args.file) as f:
@@ -228,10 +221,9 @@ def _read_stress_packing(args):
 
 
 def _stress(args) -> int:
-    import numpy as np
+    import numpy as np  # noqa: PLC0415 - start-up: numpy
 
-    from ..errors import SimulationError
-    from ..rve import homogenize
+    from ..rve import homogenize  # noqa: PLC0415 - start-up: numba
 
     check_number(args.kn, "--kn", low=0, low_open=True)
     packing = _read_stress_packing(args)
@@ -257,7 +249,7 @@ def _stress(args) -> int:
 
 
 def _check(args) -> int:
-    from ..rve.reference import crosscheck
+    from ..rve.reference import crosscheck  # noqa: PLC0415 - start-up: numba
 
     _check_packing_options(args)
     check_number(args.tol, "--tol", low=0)

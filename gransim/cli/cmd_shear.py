@@ -3,6 +3,13 @@ native DEM engine in LAMMPS' arithmetic (``gransim.dem.sheared``, docs/shear.md)
 
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
+
+from ..errors import InputError
+from ._paths import check_figure, check_input, check_output
+from .cmd_biaxial import parse_law_params
+
 #: default inertial number when neither --rate nor --inertial-number is given
 DEFAULT_INERTIAL_NUMBER = 1e-3
 
@@ -77,9 +84,7 @@ def register(sub) -> None:
 
 def _check_options(args) -> None:
     """Every option and path, named as on the command line, before any work."""
-    from .._validate import as_int, as_positive_float
-    from ..errors import InputError
-    from ._paths import check_figure, check_input, check_output
+    from .._validate import as_int, as_positive_float  # noqa: PLC0415 - start-up: numpy
 
     check_input(args.packing, "--packing")
     check_output(args.output, "-o/--output", (".h5", ".hdf5"))
@@ -99,7 +104,7 @@ def _check_options(args) -> None:
     as_int(args.series_every, "--series-every", 1)
     as_int(args.snapshot_every, "--snapshot-every", 0)
     if args.flavour != "lammps":
-        from ..dem.settings import FLAVOURS
+        from ..dem.settings import FLAVOURS  # noqa: PLC0415 - start-up: numba
 
         if args.flavour in FLAVOURS:
             raise InputError(
@@ -111,8 +116,7 @@ def _check_options(args) -> None:
     if args.law_param and not args.law:
         raise InputError("--law-param: given without --law (name the law the parameters belong to)")
     if args.law:
-        from ..contacts.laws import law_code
-        from .cmd_biaxial import parse_law_params
+        from ..contacts.laws import law_code  # noqa: PLC0415 - start-up: numba
 
         try:
             code = law_code(args.law)
@@ -132,14 +136,11 @@ def _check_options(args) -> None:
 
 
 def _run(args) -> int:
-    import dataclasses
+    import numpy as np  # noqa: PLC0415 - start-up: numpy
 
-    import numpy as np
-
-    from ..dem.biaxial import default_settings, inertial_number
-    from ..dem.sheared import ShearEngine, ShearLoading, run_shear_file
-    from ..errors import InputError
-    from ..io import load_packing
+    from ..dem.biaxial import default_settings, inertial_number  # noqa: PLC0415 - start-up: numba
+    from ..dem.sheared import ShearEngine, ShearLoading, run_shear_file  # noqa: PLC0415 - start-up: numba
+    from ..io import load_packing  # noqa: PLC0415 - start-up: h5py
 
     _check_options(args)
     packing = load_packing(args.packing)
@@ -150,8 +151,7 @@ def _run(args) -> int:
         )
     law = law_options = None
     if args.law:
-        from ..dem.biaxial import law_settings
-        from .cmd_biaxial import parse_law_params
+        from ..dem.biaxial import law_settings  # noqa: PLC0415 - start-up: numba
 
         opts = {"damping_ratio": args.damping_ratio, "steps_per_contact": args.steps_per_contact}
         if args.kn is not None:
@@ -237,15 +237,13 @@ def _run(args) -> int:
 
 
 def _plot(run_path, out) -> None:
-    from pathlib import Path
-
-    import h5py
-    import matplotlib
+    import h5py  # noqa: PLC0415 - start-up: h5py
+    import matplotlib  # noqa: PLC0415 - start-up: matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
 
-    from ..io import atomic_path
+    from ..io import atomic_path  # noqa: PLC0415 - start-up: h5py
 
     out = Path(out)
     with h5py.File(run_path, "r") as f:

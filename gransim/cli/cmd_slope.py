@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+import sys
+
+from ..errors import ConvergenceError, InputError
+from ..parallel import add_options, make_executor  # register() needs add_options: loaded by --help either way
+from ._paths import check_input, check_number, check_output_dir
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -81,7 +87,6 @@ def register(subparsers) -> None:
         metavar="K",
         help="stop after load step K, its checkpoint written (to test --resume)",
     )
-    from ..parallel import add_options
 
     add_options(p)
     p.add_argument("--tol", type=float, default=1e-20, help="relative energy norm tolerance")
@@ -95,23 +100,18 @@ def register(subparsers) -> None:
 
 
 def handler(args) -> int:
-    import sys
-
-    from ._paths import check_input, check_number, check_output_dir
-
     out = check_output_dir(args.out or f"results/slope-{args.protocol}", "--out")
     check_output_dir(args.packing_dir, "--packing-dir")
     if args.packing is not None:
-        from ..io import load_packing
+        from ..io import load_packing  # noqa: PLC0415 - start-up: h5py
 
         check_input(args.packing, "--packing")
         load_packing(args.packing)  # a bad file is refused now, not after the mesh is built
     # the energy norm of a Newton correction, relative to the first: below 1 to mean anything
     check_number(args.tol, "--tol", low=0, high=1, low_open=True, high_open=True)
     check_number(args.min_fraction, "--min-fraction", low=0, high=1, low_open=True)
-    from ..errors import InputError
-    from ..fem.mesh import SlopeGeometry
-    from ..fem.run import RVE_KINDS
+    from ..fem.materials import RVE_KINDS  # noqa: PLC0415 - start-up: scipy
+    from ..fem.mesh import SlopeGeometry  # noqa: PLC0415 - start-up: scipy
 
     if args.rve not in RVE_KINDS:
         raise InputError(f"--rve: expected taylor or relaxed, got {args.rve!r}")
@@ -145,8 +145,7 @@ def handler(args) -> int:
         "geometry": geometry,
         "load_steps": args.load_steps,
     }
-    from ..fem.run import SlopeInterrupted
-    from ..parallel import make_executor
+    from ..fem.run import SlopeInterrupted  # noqa: PLC0415 - start-up: numba
 
     with make_executor(args.workers, args.scheduler) as executor:
         kw["executor"] = executor
@@ -158,10 +157,7 @@ def handler(args) -> int:
 
 
 def _run(args, out, kw) -> int:
-    import sys
-
-    from ..errors import ConvergenceError, InputError
-    from ..fem.run import compare_slope, run_slope_case
+    from ..fem.run import compare_slope, run_slope_case  # noqa: PLC0415 - start-up: numba
 
     if args.compare:
         if args.material != "taylor":

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import csv
+import math
 from pathlib import Path
+
+from ..errors import InputError
+from ._paths import check_output
 
 #: the paper's figures (Kuhn 1997, sec. 4) set beside ours in the table
 PAPER = {
@@ -93,16 +98,11 @@ def format_table(rows: list) -> str:
 
 
 def handler(args) -> int:
-    import csv
-    import math
-
-    from ..errors import InputError
-    from ..io.hdf5 import atomic_path
-    from ..voidcell import VoidCells
-    from ..voidcell.io import load_run_snapshots
-    from ..voidcell.plots import save_figures
-    from ..voidcell.vtk import cells_to_vtu
-    from ._paths import check_output
+    from ..io.hdf5 import atomic_path  # noqa: PLC0415 - start-up: h5py
+    from ..voidcell import VoidCells  # noqa: PLC0415 - start-up: numba
+    from ..voidcell.io import load_run_snapshots  # noqa: PLC0415 - start-up: numba
+    from ..voidcell.plots import save_figures  # noqa: PLC0415 - start-up: numba
+    from ..voidcell.vtk import cells_to_vtu  # noqa: PLC0415 - start-up: numba
 
     run = Path(args.run)
     out = Path(args.out) if args.out else run.with_name(run.stem + "_voidcells")
@@ -123,8 +123,8 @@ def handler(args) -> int:
             run, None, motion=args.motion, velocities=args.velocities, allow_incomplete=args.allow_incomplete
         )
     if args.allow_incomplete:
-        from ..io.hdf5 import open_result
-        from ..voidcell.io import check_complete
+        from ..io.hdf5 import open_result  # noqa: PLC0415 - start-up: h5py
+        from ..voidcell.io import check_complete  # noqa: PLC0415 - start-up: numba
 
         with open_result(run, kind="dem-run") as f:
             complete, why = check_complete(f, run, allow_incomplete=True)

@@ -18,6 +18,7 @@ numba's (``NUMBA_CACHE_DIR``; unset, the one :mod:`gransim` picks, see :mod:`gra
 
 from __future__ import annotations
 
+import argparse
 import os
 import shutil
 import subprocess
@@ -27,6 +28,9 @@ import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, replace
+
+from ..errors import InputError
+from . import build_parser
 
 #: a value for each law parameter that the protocol does not fill (biaxial --law-param: kn, kt,
 #: gamma_n, gamma_t, mu/friction default to the protocol's), SI, plausible for the 60-disk packing
@@ -113,7 +117,7 @@ def law_names() -> tuple[tuple[str, str, tuple], ...]:
     """``(name, code, required parameters)`` of every contact law ``--law`` accepts (empty when the
     registry is gone: the default laws are still warmed)."""
     try:
-        from ..contacts import laws
+        from ..contacts import laws  # noqa: PLC0415 - start-up: numba; ImportError tolerated
     except ImportError:  # pragma: no cover
         return ()
     table = getattr(laws, "LAWS", {})
@@ -259,10 +263,6 @@ def plan(laws: str = "all", own_packing: bool = False) -> list[Step]:
 
 def command_options() -> dict[str, set[str]]:
     """``{command: option strings}`` of every built-in command, read from its parser."""
-    import argparse
-
-    from . import build_parser
-
     parser = build_parser(["warmup"])
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     return {name: {s for a in p._actions for s in a.option_strings} for name, p in sub.choices.items()}
@@ -291,8 +291,6 @@ def _selected(steps: list[Step], only) -> list[Step]:
     by_name = {s.name: s for s in steps}
     unknown = [n for n in only if n not in by_name]
     if unknown:
-        from ..errors import InputError
-
         raise InputError(f"--only: expected step names from --list, got {', '.join(map(repr, unknown))}")
     keep, todo = set(), list(only)
     while todo:
@@ -423,11 +421,11 @@ def run_steps(steps: list[Step], cwd: str, jobs: int, timeout: float, out=None) 
 
 
 def _run(args) -> int:
-    from .._validate import as_int
+    from .._validate import as_int  # noqa: PLC0415 - start-up: numpy
 
     packing = None
     if args.packing is not None:
-        from ..io import load_packing
+        from ..io import load_packing  # noqa: PLC0415 - start-up: h5py
 
         packing = os.path.abspath(args.packing)
         load_packing(packing)  # a bad file is refused now (InputError naming it), not by each step
@@ -440,8 +438,6 @@ def _run(args) -> int:
         return 0
     jobs = as_int(args.jobs, "--jobs", 1, 64) if args.jobs is not None else min(2, os.cpu_count() or 1)
     if not args.timeout > 0:
-        from ..errors import InputError
-
         raise InputError(f"--timeout: expected seconds > 0, got {args.timeout!r}")
     steps = _selected(steps, args.only)
     cache = os.environ.get("NUMBA_CACHE_DIR") or "numba's default (__pycache__ beside the sources)"

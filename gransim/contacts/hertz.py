@@ -58,6 +58,7 @@ from collections import namedtuple
 import numpy as np
 
 from .._numba import njit
+from ..errors import InputError
 
 # damping models of pair_style granular (pair_granular.cpp:56 enum order), re-exported: the laws'
 # damping argument
@@ -507,7 +508,6 @@ def hertz_coefficients(law):
         return law.kn, law.kt
     if isinstance(law, HertzGranularLammps):
         return law.E, law.kt0
-    from ..errors import InputError
 
     raise InputError(
         "law: expected a Hertz law (HertzHistoryLiggghts, HertzHistoryLammps, "

@@ -76,6 +76,7 @@ from collections import namedtuple
 import numpy as np
 
 from .._numba import njit
+from ..errors import InputError
 
 # damping models of pair_style granular (pair_granular.cpp:56 enum order), re-exported: the laws'
 # damping argument
@@ -477,7 +478,6 @@ def rolling_stiffness(
         return kroll * reff * reff
     if law == "cdt":
         return 0.0
-    from ..errors import InputError
 
     raise InputError(f"law: expected one of epsd2, epsd, cdt, sds, got {law!r}")
 

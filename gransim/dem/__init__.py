@@ -2,6 +2,8 @@
 biaxial test of Kuhn (1997), section 4. See docs/dem.md and docs/schema_dem.md; the reordering fast path
 (FastEngine): docs/performance.md."""
 
+import importlib
+
 from .biaxial import BiaxialSettings, default_settings, inertial_number, run_biaxial
 from .engine import DEMEngine, contact_time, damping_ratio, fingerprint, stability_limit
 from .output import (
@@ -22,8 +24,6 @@ _LAZY = {"FastEngine": ".fast", "ShearEngine": ".sheared", "ShearLoading": ".she
 
 def __getattr__(name):
     if name in _LAZY:
-        import importlib  # lazy: see _LAZY
-
         return getattr(importlib.import_module(_LAZY[name], __name__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 

@@ -18,6 +18,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .._validate import as_int, as_positive_float
+from ..contacts.laws import LAWS, law_code, make_law
+from ..contacts.material import check_poisson, check_youngs, effective_youngs
 from ..errors import InputError
 from ..geometry import Packing
 from .engine import contact_time
@@ -158,8 +160,6 @@ def hertz_equivalent_stiffness(packing: Packing, name: str, params: dict) -> flo
     hertz-granular-lammps: youngs_modulus, poisson_ratio; hertz-lammps: kn = 4/3 Y*). The
     protocol's time step, confining stress and servo gain follow from it as from kn of the
     Hooke law (:func:`default_settings`)."""
-    from ..contacts.material import check_poisson, check_youngs, effective_youngs
-
     if name == "hertz-lammps":
         y = 0.75 * as_positive_float(params.get("kn", float("nan")), f"law {name}: kn")
     else:
@@ -191,8 +191,6 @@ def law_settings(packing: Packing, name: str, params: dict | None = None, **defa
     the default confining stress, time step and servo gain). ``options`` = {"name", "params"} as
     run (for the provenance). InputError for an unknown name or a bad, missing or unknown parameter.
     """
-    from ..contacts.laws import LAWS, law_code, make_law
-
     params = dict(params or {})
     code = law_code(name)  # InputError naming the known laws
     defaults.pop("flavour", None)

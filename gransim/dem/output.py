@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import InputError, ResultFileError
 from ..geometry import Packing
-from ..io import atomic_h5, open_result, read_packing_group, write_packing_group
+from ..io import atomic_h5, atomic_path, open_result, particles_to_vtu, read_packing_group, write_packing_group
 
 KIND = "dem-run"
 SERIES_KEYS = ("step", "time", "cell", "stress", "n_contacts", "mean_overlap", "kinetic_energy", "phase")
@@ -416,8 +416,6 @@ def snapshot_to_vtu(path, step: int | None, out, allow_incomplete: bool = False)
     """Write one snapshot as a ParaView .vtu (points with radius, velocity, spin, contact count).
 
     An unfinished run (``complete`` False) is refused unless ``allow_incomplete``."""
-    from ..io import particles_to_vtu
-
     run = read_run(path)
     if not allow_incomplete:
         require_complete(run, path)
@@ -438,12 +436,10 @@ def plot_stress_strain(path, out, allow_incomplete: bool = False) -> Path:
 
     An unfinished run (``complete`` False) is refused unless ``allow_incomplete``; its plot then
     says so in the title, with the stop reason."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 - start-up: matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ..io import atomic_path
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
 
     run = read_run(path)
     if not allow_incomplete:

@@ -49,6 +49,7 @@ docs/shear.md.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from dataclasses import dataclass
 
@@ -60,6 +61,8 @@ from ..contacts.hooke import hooke_law
 from ..contacts.laws import elastic_energy, flip_signs, law_spec
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
+from ..io import atomic_h5, write_packing_group
+from ..progress import progress
 from . import kernels as K
 from . import sheared_kernels as SK
 from .engine import (
@@ -720,11 +723,6 @@ def run_shear_file(
     message as ``stop_reason``. Stresses in the file are tension positive (the engine's are
     compression positive: ``sigma_file = -stress``).
     """
-    import json
-
-    from ..io import atomic_h5, write_packing_group
-    from ..progress import progress
-
     nsteps = as_int(nsteps, "nsteps", 1)
     series_every = as_int(series_every, "series_every", 1)
     snapshot_every = as_int(snapshot_every, "snapshot_every", 0)

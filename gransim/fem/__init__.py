@@ -16,6 +16,7 @@ from .materials import (
     lame,
 )
 from .mesh import Mesh, SlopeGeometry, rectangle_mesh, slope_mesh
+from .slope import PROTOCOLS, SlopeSetup, limit_message, run_slope, setup_for, slope_problem
 from .solver import (
     LoadPathResult,
     NewtonFailure,

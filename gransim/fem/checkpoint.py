@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, ResultFileError
+from ..io import atomic_h5, open_result
 from .materials import MaterialResult
 from .solver import NewtonResult, ResumeState, StepRecord
 
@@ -47,8 +48,6 @@ def write_checkpoint(directory, parameters: dict, record, failures: list, commit
     temporary file, fsync, rename; the provenance carries ``parameters``), so the cost per step
     does not grow with the number of steps; a resume reads steps 1, 2, ... up to the first missing one.
     """
-    from ..io import atomic_h5
-
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     path = step_path(directory, record.step)
@@ -98,8 +97,6 @@ def clear_checkpoint(directory) -> None:
 
 def read_checkpoint(directory, parameters: dict) -> tuple[ResumeState, np.ndarray]:
     """(ResumeState, commits (C, G, 2, 2)) of the checkpoint in ``directory`` written with ``parameters``."""
-    from ..io import open_result
-
     directory = Path(directory)
     if not step_path(directory, 1).exists():
         raise InputError(f"--resume: no checkpoint in {directory} (a run writes one after its first converged step)")

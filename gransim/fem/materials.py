@@ -21,10 +21,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import paper
 from .._validate import as_positive_float
 from ..errors import InputError
+from ..paper import stress_2d_to_pa, tangent_2d_to_pa
 
 _I2 = np.eye(2)
+
+#: the RVE materials of the FE2 slope (``--rve``): the affine Taylor RVE and the relaxed RVE (here, not
+#: in gransim.fem.run, so that ``gransim slope`` checks its options without importing the run's modules)
+RVE_KINDS = ("taylor", "relaxed")
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,8 +181,6 @@ class RVEMaterial:
     """
 
     def __init__(self, rve, thickness: float | None = None):
-        from .. import paper
-
         self.rve = rve
         self.thickness = paper.THICKNESS if thickness is None else as_positive_float(thickness, "thickness")
 
@@ -204,8 +208,6 @@ class RVEMaterial:
 
     def evaluate(self, F) -> MaterialResult:
         """Batched response in Pa (piola (G,2,2), tangent (G,2,2,2,2), cauchy (G,2,2)), J/m^3, contacts."""
-        from ..paper import stress_2d_to_pa, tangent_2d_to_pa
-
         b = self.rve.evaluate(F)
         t = self.thickness
         return MaterialResult(

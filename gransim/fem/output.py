@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..contacts import find_neighbours
 from ..io import atomic_h5, atomic_path
 from .solver import LoadPathResult, NewtonResult, Problem
 
@@ -59,7 +60,7 @@ def write_vtu(path, problem: Problem, solution: NewtonResult) -> Path:
     quads the element means, for the vertices the Gauss point values: ``cauchy`` (xx, yy, zz, xy, yz,
     xz; zz = 0), ``von_mises``, ``det_F``, ``n_contacts``, ``contact_free``.
     """
-    import meshio
+    import meshio  # noqa: PLC0415 - start-up: meshio (~0.1 s)
 
     geom = problem.geometry
     fields = gauss_fields(solution)
@@ -115,7 +116,6 @@ def rve_network(material, F: np.ndarray, gauss: int = 0):
         return None
     index = getattr(material, "rve_index", None)
     packing = packings[int(index[gauss]) if index is not None else 0]
-    from ..contacts import find_neighbours
 
     p = packing.deformed(F)
     pos = p.positions
@@ -147,11 +147,11 @@ def render_png(
     Returns (path, renderer) where renderer is "pyvista" or "matplotlib" (fallback when pyvista
     cannot render).
     """
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 - start-up: matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.collections import LineCollection, PolyCollection
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
+    from matplotlib.collections import LineCollection, PolyCollection  # noqa: PLC0415 - start-up: matplotlib
 
     fields = gauss_fields(solution)
     vm_nodes = nodal_average(problem, fields["von_mises"])
@@ -169,7 +169,7 @@ def render_png(
             # no X server: render with EGL directly instead of trying X first (VTK >= 9.4 reads this
             # when it makes the window; without it every render prints a "bad X server" warning)
             os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-        import pyvista as pv
+        import pyvista as pv  # noqa: PLC0415 - start-up: pyvista (~2 s)
 
         pv.OFF_SCREEN = True
         cells = np.hstack([np.full((problem.mesh.n_elements, 1), 4), problem.mesh.elements]).ravel()
@@ -298,10 +298,10 @@ def load_settlement(problem: Problem, setup, result: LoadPathResult):
 
 def plot_load_settlement(path, problem: Problem, setup, result: LoadPathResult) -> Path:
     """PNG of footing force against settlement of the footing centre."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 - start-up: matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
 
     d = load_settlement(problem, setup, result)[1:]  # from the dead-load state on
     if len(d) == 0:
@@ -367,11 +367,11 @@ def plot_compare(out, summaries: dict, n_worst: int = 3) -> dict:
     ``compare_map.png`` (relative Cauchy stress difference per Gauss point at each run's last
     converged state, the ``n_worst`` largest marked, with the Taylor and the relaxed RVE of each
     drawn at its own F) and ``compare.md``. Returns {"worst": [(g, difference)], "paths": [...]}."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 - start-up: matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.collections import LineCollection
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
+    from matplotlib.collections import LineCollection  # noqa: PLC0415 - start-up: matplotlib
 
     out = Path(out)
     fig, ax = plt.subplots(figsize=(7, 5))

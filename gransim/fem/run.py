@@ -2,19 +2,33 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 import time
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse.linalg as spla
 
 from ..errors import GransimError, InputError
-from .materials import NeoHookean, lame
+from ..generation import standard_packings
+from ..io import atomic_path, load_packing
+from ..parallel import DistributedMaterial
+from ..progress import progress
+from ..rve import RelaxedMaterial, TaylorMaterial
+from ..rve.fabric import most_uniform
+from .checkpoint import NAME as CKPT
+from .checkpoint import clear_checkpoint, read_checkpoint, replay_history, write_checkpoint
+from .constraints import DofMap
+from .materials import RVE_KINDS, AssignedRVEs, NeoHookean, RVEMaterial, lame
+from .mesh import rectangle_mesh
 from .output import (
     TABLE2_STEPS,
     convergence_table,
     gauss_fields,
     load_settlement,
     observed_orders,
+    plot_compare,
     plot_load_settlement,
     render_png,
     write_h5,
@@ -27,26 +41,18 @@ from .slope import (
     setup_for,
     slope_problem,
 )
-from .solver import history, run_load_steps
+from .solver import NewtonFailure, Problem, history, newton, run_load_steps
 
 #: The continuum stand-in material (tests and runs without the RVE branch).
 NEO_HOOKEAN_E, NEO_HOOKEAN_NU = 3.0e7, 0.3
 
 
 def _rve_700_paths(packing_dir) -> dict:
-    try:
-        from ..generation import standard_packings
-    except ImportError as exc:
-        raise InputError(
-            f"the standard RVEs need gransim.generation ({exc}); pass --packing FILE.h5 or --material neo-hookean"
-        ) from None
     return standard_packings(packing_dir, names=[f"rve-700-{s}" for s in range(1, 6)])
 
 
 def rve_700_packings(packing_dir="results/packings") -> dict:
     """The five standard 700-particle quartz-sand RVEs {name: Packing} (generated once, then cached)."""
-    from ..io import load_packing
-
     return {name: load_packing(path) for name, path in _rve_700_paths(packing_dir).items()}
 
 
@@ -62,10 +68,6 @@ def default_rve_packing(packing_dir="results/packings"):
     The choice is computed once and kept in ``packing_dir/most_uniform_rve-700.json`` (a figure is
     measured once and reused: issue 17), keyed by the five files' sizes and modification times.
     """
-    import json
-
-    from ..io import atomic_path, load_packing
-
     paths = _rve_700_paths(packing_dir)
     key = {name: [Path(p).stat().st_size, Path(p).stat().st_mtime_ns] for name, p in paths.items()}
     cache = Path(packing_dir) / MOST_UNIFORM_CACHE
@@ -75,7 +77,6 @@ def default_rve_packing(packing_dir="results/packings"):
             return load_packing(paths[stored["choice"]])
     except (OSError, ValueError, AttributeError):
         pass
-    from ..rve.fabric import most_uniform
 
     packings = {name: load_packing(path) for name, path in paths.items()}
     name, _ = most_uniform(packings)
@@ -89,7 +90,6 @@ def default_rve_packing(packing_dir="results/packings"):
     return packings[name]
 
 
-RVE_KINDS = ("taylor", "relaxed")
 FIGURES = ("final", "all", "none")
 
 
@@ -124,9 +124,6 @@ def fresh_material(material):
     """The same material with an empty Gauss-point history, in this process (the relaxed RVE; others
     are returned as they are): for checks on another mesh that must not start from the slope's
     history."""
-    from ..parallel import DistributedMaterial
-    from .materials import AssignedRVEs, RVEMaterial
-
     if isinstance(material, RVEMaterial):
         return RVEMaterial(fresh_material(material.rve), material.thickness)
     if isinstance(material, DistributedMaterial):
@@ -168,23 +165,18 @@ def make_material(
     uniform standard 700-particle RVE) or ``five`` (the five standard 700-particle RVEs assigned to
     the Gauss points in turn, g mod 5).
     """
-    from .materials import RVEMaterial
-
     if kind == "neo-hookean":
         return NeoHookean(*lame(NEO_HOOKEAN_E, NEO_HOOKEAN_NU))
     if kind != "taylor":
         raise InputError(f"unknown material {kind!r}; choose taylor or neo-hookean")
     if rve not in RVE_KINDS:
         raise InputError(f"--rve: unknown RVE material {rve!r}; choose taylor or relaxed")
-    from ..rve import RelaxedMaterial, TaylorMaterial
 
     # same constructor (packings, kn); the Taylor response at F is bitwise the same for any
     # history, block or worker (its candidate sets are sorted, gransim.rve.taylor)
     cls = RelaxedMaterial if rve == "relaxed" else TaylorMaterial
 
     if assignment == "five":
-        from .materials import AssignedRVEs
-
         five = rve_700_packings(packing_dir)
         return RVEMaterial(AssignedRVEs(cls(five, NORMAL_STIFFNESS), np.arange(n_gauss) % len(five)))
     if assignment != "most-uniform":
@@ -192,8 +184,6 @@ def make_material(
     if packing is None:
         packing = default_rve_packing(packing_dir)
     elif isinstance(packing, (str, Path)):
-        from ..io import load_packing
-
         packing = load_packing(packing)
     return RVEMaterial(cls(packing, NORMAL_STIFFNESS))
 
@@ -201,8 +191,6 @@ def make_material(
 def distribute(material, executor, n_gauss: int):
     """The material evaluated by ``executor`` (:mod:`gransim.parallel`) at ``n_gauss`` Gauss points; the
     units boundary :class:`gransim.fem.materials.RVEMaterial` stays in this process, outermost."""
-    from .materials import RVEMaterial
-
     if executor is None or getattr(executor, "kind", "") == "in-process":
         return material
     if isinstance(material, RVEMaterial):
@@ -212,8 +200,6 @@ def distribute(material, executor, n_gauss: int):
 
 def packing_fingerprint(material) -> str:
     """SHA-256 (16 hex digits) of the RVE packings' positions, radii and cells ("" for a continuum)."""
-    import hashlib
-
     packings = getattr(unwrap(material), "packings", None)
     if packings is None:
         return ""
@@ -228,10 +214,6 @@ def linear_check(problem, scale: float = 1e-3) -> dict:
     """Small-load check: the Newton solution under ``scale`` of the dead load against the linear
     solution with the RVE tangent at F = 1, q_lin = -K(0)^-1 r(0) (r includes the prestress release,
     so q_lin is linear in the load). Returns the relative difference and the displacement size."""
-    import scipy.sparse.linalg as spla
-
-    from .solver import newton
-
     q0 = np.zeros(problem.dofs.n_reduced)
     r0, K0, *_ = problem.evaluate(q0, (scale, 0.0))
     q_lin = -spla.spsolve(K0, r0)
@@ -296,10 +278,6 @@ def run_slope_case(
     Returns a summary dict: ``completed``, ``message``, ``report`` (markdown), ``timing``,
     ``table`` (Table 2), ``load_settlement`` (rows force, settlement, rotation), ``steps``.
     """
-    from ..progress import progress
-    from .checkpoint import NAME as CKPT
-    from .checkpoint import clear_checkpoint, read_checkpoint, replay_history, write_checkpoint
-
     if figures not in FIGURES:
         raise InputError(f"--figures: expected one of {', '.join(FIGURES)}, got {figures!r}")
     if resume and out is None:
@@ -500,10 +478,6 @@ def patch_check(material, F0=None) -> dict:
     error relative to max|P(F0)|: round-off (~1e-13) for a correct element, assembly and material
     interface; any error in them gives O(1).
     """
-    from .constraints import DofMap
-    from .mesh import rectangle_mesh
-    from .solver import NewtonFailure, Problem, newton
-
     F0 = np.array([[0.995, 0.004], [-0.002, 0.990]]) if F0 is None else np.asarray(F0, float)
     mesh = rectangle_mesh(3, 3, 2.0, 1.0, distort=0.2, seed=5)
     X = mesh.nodes
@@ -541,8 +515,6 @@ def acceptance_records(summaries: dict) -> list[dict]:
     completed, the last converged footing fraction of the paper protocol (the paper gives no
     limit load to compare with) and the final energy norms (the stopping criterion itself).
     """
-    from .output import observed_orders
-
     out = []
     for prot, s in summaries.items():
         # the Taylor records keep their names; the relaxed material's are slope-relaxed/<protocol>
@@ -668,7 +640,5 @@ def compare_slope(protocol: str = "service", out=None, **kwargs) -> dict:
     for kind in RVE_KINDS:
         summaries[kind] = run_slope_case(protocol, out=None if out is None else out / kind, rve=kind, **kwargs)
     if out is not None:
-        from .output import plot_compare
-
         plot_compare(out, summaries)
     return summaries

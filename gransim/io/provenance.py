@@ -190,7 +190,7 @@ def provenance(parameters: dict | None = None, seed=None, liggghts: bool = False
     ``liggghts`` is true, ``liggghts_version``; when ``lammps`` is true, ``lammps_version``
     (``"absent"`` when the binary is not installed).
     """
-    import numba
+    import numba  # noqa: PLC0415 - start-up: keeps numba out of import gransim.io
 
     rec = {
         "gransim_version": __version__,

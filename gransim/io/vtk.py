@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry import Packing
+from ..geometry.cell import wrap as wrap_points
 from .hdf5 import atomic_path
 
 
@@ -17,9 +18,7 @@ def particles_to_vtu(path, positions, radii, point_data: dict | None = None, cel
     the centres are wrapped into the primary cell first. Use ParaView's "Point
     Gaussian" or a Glyph filter scaled by ``radius`` to draw disks.
     """
-    import meshio
-
-    from ..geometry.cell import wrap as wrap_points
+    import meshio  # noqa: PLC0415 - start-up: meshio (~0.1 s)
 
     x = np.asarray(positions, float)
     if cell is not None and wrap:

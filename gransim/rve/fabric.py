@@ -42,6 +42,8 @@ from .._validate import as_array
 from ..contacts import find_neighbours
 from ..errors import InputError
 from ..geometry import Packing
+from ..io import atomic_path
+from .taylor import check_deformation_gradients
 
 #: the paper's angles of influence (degrees)
 DEFAULT_ANGLES_DEG = (10.0, 20.0, 30.0)
@@ -52,8 +54,6 @@ TWO_PI = 2.0 * np.pi
 
 def contact_normal_angles(packing: Packing, F=None) -> np.ndarray:
     """Directions theta in [0, 2 pi) of the normals of the overlapping pairs at x = F X (M,)."""
-    from .taylor import check_deformation_gradients
-
     if not isinstance(packing, Packing):
         raise InputError(f"packing: expected a gransim.Packing, got {type(packing).__name__}")
     p = packing if F is None else packing.deformed(check_deformation_gradients(F)[0])
@@ -201,12 +201,10 @@ def plot_normal_densities(densities: Mapping, path, ncols: int = 5, title: str |
     Colours follow the paper: black 10 degrees, blue 20, red 30 (others from the colour cycle).
     The dashed circle is the uniform density 1/(2 pi). Writes a PNG atomically; returns the path.
     """
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 - start-up: matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ..io import atomic_path
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
 
     names = list(densities)
     n = len(names)

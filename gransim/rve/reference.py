@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import Packing
+from .taylor import TaylorMaterial
 
 
 def homogenize_bruteforce(packing: Packing, F, normal_stiffness: float) -> dict:
@@ -91,8 +92,6 @@ def crosscheck(packings, normal_stiffness: float, deformations=None, seed: int =
     (packing, F): relative differences of W, P, A (max-norm relative to the brute force's
     max-norm) and whether the contact counts agree.
     """
-    from .taylor import TaylorMaterial
-
     if isinstance(packings, Packing):
         packings = {"rve": packings}
     if deformations is None:

@@ -25,13 +25,15 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from .. import paper
 from .._validate import as_positive_float
 from ..errors import InputError, ResultFileError
 from ..geometry import Packing
-from .fabric import DEFAULT_ANGLES_DEG, NormalDensity, contact_normal_density, most_uniform
+from ..io import atomic_h5, atomic_path, load_packing, open_result, read_packing_group, write_packing_group
+from .fabric import DEFAULT_ANGLES_DEG, NormalDensity, contact_normal_density, most_uniform, plot_normal_densities
 from .taylor import TaylorMaterial
 
 PATHS = ("compression11", "compression22", "shear12", "shear21")
@@ -216,8 +218,6 @@ class _Stacked:
 
 def load_packings(packings) -> dict:
     """Mapping name -> Packing from a mapping whose values are Packings or packing-file paths."""
-    from ..io import load_packing
-
     if isinstance(packings, Packing):
         return {"rve": packings}
     if not isinstance(packings, Mapping) or not packings:
@@ -230,8 +230,6 @@ def load_packings(packings) -> dict:
 
 def write_study(path, result: StudyResult, parameters: dict | None = None) -> Path:
     """Write a :class:`StudyResult` to HDF5 (layout in docs/schema_rve.md), atomically."""
-    from ..io import atomic_h5, write_packing_group
-
     params = {
         "normal_stiffness": result.normal_stiffness,
         "paths": list(result.paths),
@@ -276,10 +274,6 @@ def write_study(path, result: StudyResult, parameters: dict | None = None) -> Pa
 
 def study_rve_names(path) -> list[str]:
     """Names of the RVEs stored in a study file (the packing groups under ``/rves``)."""
-    import h5py
-
-    from ..io import open_result
-
     with open_result(path, kind="rve-study") as f:
         if "rves" not in f or not isinstance(f["rves"], h5py.Group):
             raise ResultFileError(f"{path}: rve-study file without a /rves group")
@@ -288,8 +282,6 @@ def study_rve_names(path) -> list[str]:
 
 def read_study_packing(path, name: str) -> Packing:
     """The packing of RVE ``name`` stored in a study file."""
-    from ..io import open_result, read_packing_group
-
     names = study_rve_names(path)
     if name not in names:
         raise ResultFileError(f"{path}: no RVE {name!r} (has {', '.join(names) or 'none'})")
@@ -302,13 +294,10 @@ _COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple")
 
 def plot_study(result: StudyResult, out_dir) -> list[Path]:
     """PNG figures: compression.png (Fig. 4), shear.png (Fig. 5), fabric.png (Fig. 3)."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 - start-up: matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ..io import atomic_path
-    from .fabric import plot_normal_densities
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
 
     out_dir = Path(out_dir)
     summ = result.summary()

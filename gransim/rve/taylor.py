@@ -64,7 +64,7 @@ from .._validate import as_array, as_positive_float, check_memory, format_bytes
 from ..contacts import find_neighbours
 from ..contacts.law import force_magnitude, overlap, potential, stiffness
 from ..contacts.neighbours import bin_layout
-from ..errors import InputError
+from ..errors import InputError, SimulationError
 from ..geometry import Packing
 
 #: relative safety margin of the candidate validity rule (round-off in sigma_min)
@@ -690,8 +690,6 @@ def homogenize(packing: Packing, F, normal_stiffness: float) -> TaylorResult:
     """
     res = material_for(packing, normal_stiffness)(F)
     if not (math.isfinite(res.energy) and np.all(np.isfinite(res.piola)) and np.all(np.isfinite(res.tangent))):
-        from ..errors import SimulationError
-
         raise SimulationError(
             f"homogenize: non-finite result at F = {np.asarray(F).tolist()} (W = {res.energy!r}, "
             f"P = {res.piola.tolist()}); the contact stiffness or F is out of the range of float64"

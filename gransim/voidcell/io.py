@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError, ResultFileError
+from ..io.hdf5 import open_result
 from .snapshot import Snapshot
 
 #: compression phase code of /series/phase (biaxial protocol)
@@ -191,8 +192,6 @@ def load_run_snapshots(
     than the largest strain gap between snapshots (outside the range the run covers; the message
     gives the range). The strain actually used is returned with each snapshot.
     """
-    from ..io.hdf5 import open_result
-
     if motion not in ("velocity", "displacement"):
         raise InputError(f"motion: choose 'velocity' or 'displacement', got {motion!r}")
     if velocities not in ("remap", "absolute"):

@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.cell import wrap
+from ..io.hdf5 import atomic_path
 from .core import VoidCells
+from .graph import REMOVAL_NAMES
 
 
 def wrapped_face_polygons(vc: VoidCells) -> tuple[list, np.ndarray]:
@@ -46,7 +49,7 @@ def wrapped_face_polygons(vc: VoidCells) -> tuple[list, np.ndarray]:
 
 
 def _cell_axes(ax, C):
-    from matplotlib.patches import Polygon
+    from matplotlib.patches import Polygon  # noqa: PLC0415 - start-up: matplotlib
 
     corners = np.array([[0, 0], C[:, 0], C[:, 0] + C[:, 1], C[:, 1]])
     clip = Polygon(corners, closed=True, facecolor="none", edgecolor="k", lw=0.8, zorder=5)
@@ -71,8 +74,8 @@ def plot_cells(
     colorbar_label=None,
 ):
     """Void cells coloured by a per-face value (F,) (or outlined only when ``values`` is None)."""
-    import matplotlib.pyplot as plt
-    from matplotlib.collections import PolyCollection
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
+    from matplotlib.collections import PolyCollection  # noqa: PLC0415 - start-up: matplotlib
 
     if ax is None:
         _, ax = plt.subplots(figsize=(6, 6))
@@ -95,9 +98,6 @@ def plot_cells(
 def plot_graph(vc: VoidCells, ax=None, title=None):
     """Fig. 6b: the particle graph (void-cell outlines) with the removed particles of Fig. 4
     marked by class (isolated, pendant, island, peninsular)."""
-    from ..geometry.cell import wrap
-    from .graph import REMOVAL_NAMES
-
     ax = plot_cells(vc, None, ax=ax, edgecolor="k", linewidth=0.5)
     removed = vc.graph.removed
     colours = {1: "tab:blue", 2: "tab:orange", 3: "tab:green", 4: "tab:red"}
@@ -141,8 +141,6 @@ def plot_vorticity(vc: VoidCells, ax=None, title=None):
 
 def plot_relative_motion(vc: VoidCells, ax=None, title=None, scale=None):
     """Fig. 10: arrows of v_rel (eq 21) at the (wrapped) particle centres over the cells."""
-    from ..geometry.cell import wrap
-
     ax = plot_cells(vc, None, ax=ax, edgecolor="0.75")
     keep = vc.graph.vertices
     xw, _ = wrap(vc.snapshot.positions[keep], vc.snapshot.cell)
@@ -165,7 +163,7 @@ def plot_relative_motion(vc: VoidCells, ax=None, title=None, scale=None):
 
 def plot_alpha_histogram(vc: VoidCells, ax=None, bins=40, label=None):
     """Histogram of alpha over the cells with the mean and the alpha <= 0 fraction."""
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
 
     if ax is None:
         _, ax = plt.subplots(figsize=(5, 3.5))
@@ -187,12 +185,10 @@ def plot_alpha_histogram(vc: VoidCells, ax=None, bins=40, label=None):
 
 def save_figures(vc: VoidCells, prefix, label: str = "") -> list:
     """Write the figures of one snapshot: ``{prefix}_{graph,alpha,w,hist,vrel}.png``."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 - start-up: matplotlib
 
     matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    from ..io.hdf5 import atomic_path
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
 
     out = []
     makers = [("graph", plot_graph), ("alpha", plot_alignment), ("w", plot_vorticity), ("hist", plot_alpha_histogram)]
