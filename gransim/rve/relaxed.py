@@ -136,7 +136,6 @@ RATTLER_LOCAL_ITER = 30
 RATTLER_PASSES = 30
 #: largest group of touching rattlers moved together (a larger one: the network fell apart)
 RATTLER_GROUP = 16
-_DEBUG = False
 #: default most Newton iterations per state
 DEFAULT_MAX_ITER = 200
 #: default fewest contacts of a non-rattler (d + 1 in 2D)
@@ -777,11 +776,12 @@ class _Candidates:
         "cmax",
         "cmin",
         "csum",
-        "order",
+        "_order",
         "ri",
         "rj",
         "s",
         "w0",
+        "n",
     )
 
     def __init__(self, rve, F0, w0):
@@ -799,17 +799,30 @@ class _Candidates:
         self.s = s
         self.cmin = 2.0 * float(rve.r.min())
         self.cmax = 2.0 * float(rve.r.max())
-        self.order = _particle_order(rve.n, self.ci, self.cj)
+        self.n = rve.n
+        self._order = None
         self.aptr, self.am, self.asg = _adjacency(rve.n, self.ci, self.cj)
+
+    @property
+    def order(self) -> np.ndarray:
+        """Minimum-degree order (N,) of the candidate graph (computed on first use)."""
+        if self._order is None:
+            self._order = _particle_order(self.n, self.ci, self.cj)
+        return self._order
 
     def valid(self, F, w) -> bool:
         G = F @ self.F0inv
         sig = float(_smallest_singular_value(G))
         dw = w - self.w0 @ G.T
-        delta = math.sqrt(float(np.max(np.einsum("ij,ij->i", dw, dw)))) if dw.size else 0.0
+        d2 = np.einsum("ij,ij->i", dw, dw)
+        if d2.size >= 2:  # the two largest moves bound |dw_i| + |dw_j| of any pair
+            top = np.partition(d2, d2.size - 2)[-2:]
+            delta2 = math.sqrt(float(top[0])) + math.sqrt(float(top[1]))
+        else:
+            delta2 = 2.0 * math.sqrt(float(d2.max())) if d2.size else 0.0
         margin = 1e-12 * self.cmax
         for c in (self.cmin, self.cmax):
-            if (sig - 1.0) * c + sig * self.s - 2.0 * delta < margin:
+            if (sig - 1.0) * c + sig * self.s - delta2 < margin:
                 return False
         return True
 
@@ -840,6 +853,7 @@ class _RVE:
         self.area = float(np.linalg.det(self.C))
         self.skin = 2.0 * skin_fraction * float(self.r.max())
         self.cmax = 2.0 * float(self.r.max())
+        self.cand0 = None  # candidates anchored at w = 0 (the Taylor check of a warm start)
 
 
 @njit
@@ -990,9 +1004,10 @@ class _LDL:
     :func:`_particle_order`), so no further permutation is needed. If W_ww is not positive
     definite (a pivot block D_k not positive definite) it is shifted, W_ww + mu diag|W_ww| with
     mu = 1e-8, 1e-7, ... (a Levenberg-Marquardt / trust-region step); ``shifted`` records it.
+    The ladder starts at a tenth of ``mu_hint`` (the shift the previous iterate needed) when given.
     """
 
-    def __init__(self, Hd, Ap, Ai, Ax):
+    def __init__(self, Hd, Ap, Ai, Ax, mu_hint: float = 0.0):
         n = Hd.shape[0]
         parent, Lp = _ldl_symbolic(n, Ap, Ai)
         self.Lp = Lp
@@ -1004,7 +1019,7 @@ class _LDL:
         mu = 0.0
         while _ldl_numeric(n, Ap, Ai, Ax, Hd, mu, parent, Lp, self.Li, self.Lx, self.Dinv) < n:
             self.shifted = True
-            mu = 1e-8 if mu == 0.0 else 10.0 * mu
+            mu = max(1e-8, 0.1 * mu_hint) if mu == 0.0 else 10.0 * mu
             self.mu = mu
             if mu > 1e12:
                 raise ConvergenceError("relaxed RVE: no positive definite shift of W_ww found")
@@ -1143,6 +1158,7 @@ class RelaxedMaterial:
         shifted_final = False
         cap = 0.25 * R.skin  # longest step of one disk (m): keeps a step inside the skin
         floor = FORCE_FLOOR * kn * R.cmax  # round-off of one disk's net force (N)
+        lu = None
         tol = max(self.force_tol * kn * 1e-3 * R.cmax, floor)  # until the first assembly
         for it in range(self.max_iter + 1):
             cand = self._cand(R, F, w, cand)
@@ -1158,7 +1174,7 @@ class RelaxedMaterial:
                 if rres <= tol or it == self.max_iter:
                     break
                 continue
-            lu = _LDL(Hd, Ap, Ai, Ax)
+            lu = _LDL(Hd, Ap, Ai, Ax, lu.mu if lu is not None else 0.0)
             n_newton += 1
             if gmax <= tol and rres <= tol:
                 shifted_final = lu.shifted
@@ -1177,6 +1193,9 @@ class RelaxedMaterial:
             slope = float(np.sum(grad.reshape(-1, 2)[dof[free] // 2] * step))
             t = 1.0
             W0 = W
+            # round-off of W (J): each overlap eps = c - |l| carries the rounding of |l| ~ c, so
+            # E_n eps^2 / 2 is known to E_n eps ulp(c): a few eps_machine c_max times the force sum
+            w_round = max(FORCE_FLOOR * R.cmax * fsum, ENERGY_ROUNDOFF * abs(W0))
             while True:
                 wt = w.copy()
                 wt[free] += t * step
@@ -1185,16 +1204,14 @@ class RelaxedMaterial:
                 Wt = _energy(F, wt, ct.ci, ct.cj, ct.L, ct.ri, ct.rj, kn)
                 if Wt <= W0 + ARMIJO * t * slope:
                     break
-                if abs(Wt - W0) <= ENERGY_ROUNDOFF * abs(W0) and t == 1.0:
-                    break  # at round-off level: take the Newton step (quadratic phase)
+                if t == 1.0 and -slope <= w_round and abs(Wt - W0) <= w_round:
+                    break  # W cannot resolve the step (round-off): take the Newton step (quadratic phase)
                 t *= 0.5
                 if t < 1e-12:
                     raise ConvergenceError(
                         f"relaxed RVE: the line search found no decrease of W at iteration {it} "
                         f"(max |W_w| V = {gmax:.3g} N, tolerance {tol:.3g} N)"
                     )
-            if _DEBUG:
-                print(f"it {it} W {W:.12e} gmax {gmax:.3e} tol {tol:.2e} t {t:.3g} ndof {ndof} rat {int(rat.sum())} held {held} rres {rres:.3e} shifted {lu.mu:.0e} nb {self.n_builds} longest {longest:.3e} cap {cap:.3e}")
             w, cand = wt, ct
         inv = 1.0 / R.area
         S = np.zeros((R.n, 2, 4))
@@ -1231,7 +1248,7 @@ class RelaxedMaterial:
             return res, st
         res, st = self._relax(R, F, start.predict(F), start.cand)
         zero = np.zeros((R.n, 2))
-        c0 = self._cand(R, F, zero, st.cand)
+        c0 = R.cand0 = self._cand(R, F, zero, R.cand0)  # anchored at w = 0, kept for the next check
         W_taylor = _energy(F, zero, c0.ci, c0.cj, c0.L, c0.ri, c0.rj, self.normal_stiffness) / R.area
         if res["energy"] > W_taylor * (1.0 + ENERGY_ROUNDOFF * 10):  # another, higher minimum
             res, st = self._relax(R, F, zero, c0)
