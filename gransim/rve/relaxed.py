@@ -52,39 +52,59 @@ backbone keeps its w). Rattlers are found in the current configuration at every 
 disks with fewer than ``min_contacts`` (default 3, d + 1 in 2D) active contacts are removed
 repeatedly with their contacts (a disk with two contacts has no tangential stiffness, the
 geometric term b is even negative under compression); of the remaining disks only the largest
-connected component of the contact graph (the backbone) is relaxed, smaller clusters float (their
-translation and rotation are further zero modes) and are counted as rattlers. Rattlers are
-**excluded from the solve and keep their w**; their contacts still count in W, P and W_FF (with w
-held), so P and A are the exact derivatives of the W that is minimised. ``RelaxedResult.rattlers``
-reports them. The fixed disk carries the reaction to the held rattlers' contact forces. Limitation:
-a held rattler is not pushed out of its 1-2 contacts, so where the network falls apart (extension
-beyond the overlap strain, every disk a rattler) W_rel stays at the Taylor value of those contacts
-rather than dropping to the separated minimum.
+connected component of the contact graph (the backbone) is in the Newton solve, smaller clusters
+(floating, further zero modes) count as rattlers. ``RelaxedResult.rattlers`` reports them.
+
+**Rattlers are expelled to zero force** at every Newton iterate and at every line-search trial
+(:func:`_expel`): a rattler's minimum-energy position, the backbone held, is force-free when its
+cage has room, so a rattler that overlaps something is moved (a 2 x 2 Newton step on its own
+contact energy with the contact distance widened by a clearance of 1e-6 (r_i + r_j): one contact
+is left in one step, the corner of two in a few; a disk pinched between two opposite neighbours
+leaves along its negative curvature). Rattlers that touch each other move together (a group of
+<= 16, one small dense Newton). A group without room (jammed outside the backbone) is moved to
+the minimum of its true energy instead: its disks then carry force through >= 3 contacts each
+and join the backbone at the next classification. At the converged state no rattler carries a
+force, so W, P and A do not depend on where the rattlers are (they are somewhere in their void,
+which depends on the start) and P is a function of F alone (for the same backbone minimum);
+P and A are the exact derivatives of W_rel. A rattler without any contact keeps its w.
+
+Held rattlers (fallback). Where the network falls apart (extension beyond the overlap strain:
+no backbone, one large group of touching rattlers) each disk is freed alone where it has room and
+the others are **held** with their contact forces (``n_held``, ``held_force``): there W_rel is
+that of the held contacts, above the separated minimum, P depends on the start and is only
+piecewise smooth in F. Rattlers in a small group that cannot reach its minimum in one expulsion
+are held too; the Newton iteration continues until their net force is below the tolerance.
 
 Contact changes and Newton
 --------------------------
 Phi = E_n/2 <eps>^2 is C1 in l with a jump of Phi'' at eps = 0 (H(eps) in eq 4), so W is C1 and
 piecewise smooth: contacts open and close during the relaxation. Newton's method is applied to the
 current active set (the Hessian of the contacts with eps > 0) and globalised by an Armijo
-backtracking line search on W itself; an indefinite W_ww (compressive contacts have negative
-tangential stiffness b, buckling) is shifted, W_ww + mu diag|W_ww|, mu = 1e-8, x10, until
-every 2 x 2 pivot block of the LDL^T is positive definite (Sylvester's inertia; a
-Levenberg-Marquardt / trust-region step). Once the active set settles the iteration is plain
-Newton and converges quadratically.
-Convergence: max |W_w| <= force_tol * (mean contact force) over the relaxed disks. At the converged
-state the factorisation of the unshifted W_ww gives A; if it is not positive definite
-(a floppy or unstable network) ``stable`` is False and A uses the smallest shift that is.
+backtracking line search on W itself (with the rattlers expelled at the trial point); no disk
+moves by more than a quarter of the skin per step; an indefinite W_ww (compressive contacts have
+negative tangential stiffness b, buckling) is shifted, W_ww + mu diag|W_ww|, mu = 1e-8, x10 (from
+a tenth of the previous iterate's shift), until every 2 x 2 pivot block of the LDL^T is positive
+definite (Sylvester's inertia; a Levenberg-Marquardt / trust-region step). Once the active set
+settles the iteration is plain Newton and converges quadratically. W itself is known only to
+about E_n eps ulp(c) per contact (the overlap eps = c - |l| cancels), ~1e-12 relative: a full
+Newton step whose energy change is below that is taken without the Armijo test.
+Convergence: max |W_w| V <= max(force_tol * mean contact force, 8 eps_machine E_n c_max) over
+the backbone, and no rattler left with a net force above it. At the converged state the
+factorisation of the unshifted W_ww gives A; if it is not positive definite (a floppy or unstable
+network) ``stable`` is False and A uses the smallest shift that is.
 
 Contact candidates (skin)
 -------------------------
 Candidates are built by the periodic cell list at an anchor (F0, w0): all pairs with
 |l0| < r_i + r_j + s, s = 2 f r_max (f = ``skin_fraction``). With G = F F0^-1 and
-delta = max_k |w_k - G w0_k|, every excluded pair has l = G l0 + (w_j - G w0_j) - (w_i - G w0_i), so
+delta_1 >= delta_2 the two largest moves |w_k - G w0_k|, every excluded pair has
+l = G l0 + (w_j - G w0_j) - (w_i - G w0_i), so
 
-    |l| >= sigma_min(G) (c + s) - 2 delta >= c      for all c = r_i + r_j in [c_min, c_max]
+    |l| >= sigma_min(G) (c + s) - (delta_1 + delta_2) >= c      for all c = r_i + r_j in [c_min, c_max]
 
-when (sigma_min - 1) c + sigma_min s - 2 delta >= 0 at c = c_min and c = c_max (validity rule; linear
-in c). A candidate set is reused while the rule holds at the trial (F, w) of every line-search step,
+when (sigma_min - 1) c + sigma_min s - (delta_1 + delta_2) >= 0 at c = c_min and c = c_max
+(validity rule; linear in c; one expelled rattler moving far does not invalidate the set). A
+candidate set is reused while the rule holds at the trial (F, w) of every line-search step,
 otherwise rebuilt there; ``n_builds`` counts the builds.
 
 Gauss-point history
