@@ -52,39 +52,59 @@ backbone keeps its w). Rattlers are found in the current configuration at every 
 disks with fewer than ``min_contacts`` (default 3, d + 1 in 2D) active contacts are removed
 repeatedly with their contacts (a disk with two contacts has no tangential stiffness, the
 geometric term b is even negative under compression); of the remaining disks only the largest
-connected component of the contact graph (the backbone) is relaxed, smaller clusters float (their
-translation and rotation are further zero modes) and are counted as rattlers. Rattlers are
-**excluded from the solve and keep their w**; their contacts still count in W, P and W_FF (with w
-held), so P and A are the exact derivatives of the W that is minimised. ``RelaxedResult.rattlers``
-reports them. The fixed disk carries the reaction to the held rattlers' contact forces. Limitation:
-a held rattler is not pushed out of its 1-2 contacts, so where the network falls apart (extension
-beyond the overlap strain, every disk a rattler) W_rel stays at the Taylor value of those contacts
-rather than dropping to the separated minimum.
+connected component of the contact graph (the backbone) is in the Newton solve, smaller clusters
+(floating, further zero modes) count as rattlers. ``RelaxedResult.rattlers`` reports them.
+
+**Rattlers are expelled to zero force** at every Newton iterate and at every line-search trial
+(:func:`_expel`): a rattler's minimum-energy position, the backbone held, is force-free when its
+cage has room, so a rattler that overlaps something is moved (a 2 x 2 Newton step on its own
+contact energy with the contact distance widened by a clearance of 1e-6 (r_i + r_j): one contact
+is left in one step, the corner of two in a few; a disk pinched between two opposite neighbours
+leaves along its negative curvature). Rattlers that touch each other move together (a group of
+<= 16, one small dense Newton). A group without room (jammed outside the backbone) is moved to
+the minimum of its true energy instead: its disks then carry force through >= 3 contacts each
+and join the backbone at the next classification. At the converged state no rattler carries a
+force, so W, P and A do not depend on where the rattlers are (they are somewhere in their void,
+which depends on the start) and P is a function of F alone (for the same backbone minimum);
+P and A are the exact derivatives of W_rel. A rattler without any contact keeps its w.
+
+Held rattlers (fallback). Where the network falls apart (extension beyond the overlap strain:
+no backbone, one large group of touching rattlers) each disk is freed alone where it has room and
+the others are **held** with their contact forces (``n_held``, ``held_force``): there W_rel is
+that of the held contacts, above the separated minimum, P depends on the start and is only
+piecewise smooth in F. Rattlers in a small group that cannot reach its minimum in one expulsion
+are held too; the Newton iteration continues until their net force is below the tolerance.
 
 Contact changes and Newton
 --------------------------
 Phi = E_n/2 <eps>^2 is C1 in l with a jump of Phi'' at eps = 0 (H(eps) in eq 4), so W is C1 and
 piecewise smooth: contacts open and close during the relaxation. Newton's method is applied to the
 current active set (the Hessian of the contacts with eps > 0) and globalised by an Armijo
-backtracking line search on W itself; an indefinite W_ww (compressive contacts have negative
-tangential stiffness b, buckling) is shifted, W_ww + mu diag|W_ww|, mu = 1e-8, x10, until
-every 2 x 2 pivot block of the LDL^T is positive definite (Sylvester's inertia; a
-Levenberg-Marquardt / trust-region step). Once the active set settles the iteration is plain
-Newton and converges quadratically.
-Convergence: max |W_w| <= force_tol * (mean contact force) over the relaxed disks. At the converged
-state the factorisation of the unshifted W_ww gives A; if it is not positive definite
-(a floppy or unstable network) ``stable`` is False and A uses the smallest shift that is.
+backtracking line search on W itself (with the rattlers expelled at the trial point); no disk
+moves by more than a quarter of the skin per step; an indefinite W_ww (compressive contacts have
+negative tangential stiffness b, buckling) is shifted, W_ww + mu diag|W_ww|, mu = 1e-8, x10 (from
+a tenth of the previous iterate's shift), until every 2 x 2 pivot block of the LDL^T is positive
+definite (Sylvester's inertia; a Levenberg-Marquardt / trust-region step). Once the active set
+settles the iteration is plain Newton and converges quadratically. W itself is known only to
+about E_n eps ulp(c) per contact (the overlap eps = c - |l| cancels), ~1e-12 relative: a full
+Newton step whose energy change is below that is taken without the Armijo test.
+Convergence: max |W_w| V <= max(force_tol * mean contact force, 8 eps_machine E_n c_max) over
+the backbone, and no rattler left with a net force above it. At the converged state the
+factorisation of the unshifted W_ww gives A; if it is not positive definite (a floppy or unstable
+network) ``stable`` is False and A uses the smallest shift that is.
 
 Contact candidates (skin)
 -------------------------
 Candidates are built by the periodic cell list at an anchor (F0, w0): all pairs with
 |l0| < r_i + r_j + s, s = 2 f r_max (f = ``skin_fraction``). With G = F F0^-1 and
-delta = max_k |w_k - G w0_k|, every excluded pair has l = G l0 + (w_j - G w0_j) - (w_i - G w0_i), so
+delta_1 >= delta_2 the two largest moves |w_k - G w0_k|, every excluded pair has
+l = G l0 + (w_j - G w0_j) - (w_i - G w0_i), so
 
-    |l| >= sigma_min(G) (c + s) - 2 delta >= c      for all c = r_i + r_j in [c_min, c_max]
+    |l| >= sigma_min(G) (c + s) - (delta_1 + delta_2) >= c      for all c = r_i + r_j in [c_min, c_max]
 
-when (sigma_min - 1) c + sigma_min s - 2 delta >= 0 at c = c_min and c = c_max (validity rule; linear
-in c). A candidate set is reused while the rule holds at the trial (F, w) of every line-search step,
+when (sigma_min - 1) c + sigma_min s - (delta_1 + delta_2) >= 0 at c = c_min and c = c_max
+(validity rule; linear in c; one expelled rattler moving far does not invalidate the set). A
+candidate set is reused while the rule holds at the trial (F, w) of every line-search step,
 otherwise rebuilt there; ``n_builds`` counts the builds.
 
 Gauss-point history
@@ -114,7 +134,7 @@ from .._numba import njit
 from .._validate import as_array, as_int, as_positive_float
 from ..contacts import find_neighbours
 from ..contacts.law import force_magnitude, overlap, potential, stiffness
-from ..errors import InputError, SimulationError
+from ..errors import ConvergenceError, InputError
 from .taylor import (
     DEFAULT_SKIN_FRACTION,
     _as_packings,
@@ -124,10 +144,20 @@ from .taylor import (
     check_deformation_gradients,
 )
 
-#: default Newton tolerance: max |W_w| relative to the mean contact force of the relaxed disks
-DEFAULT_FORCE_TOL = 1e-10
+#: default Newton tolerance: max |W_w| V relative to the mean contact force
+DEFAULT_FORCE_TOL = 1e-12
+#: round-off floor of the tolerance, times E_n c_max (N): the overlap eps = c - |l| of a contact
+#: carries the rounding of |l| ~ c, so a net force is not known better than a few E_n ulp(c)
+FORCE_FLOOR = 8 * np.finfo(float).eps
+#: clearance (relative to r_i + r_j) a rattler is given from every candidate when it is expelled
+RATTLER_CLEARANCE = 1e-6
+#: most Gauss-Newton steps of one rattler and passes over the rattlers per expulsion
+RATTLER_LOCAL_ITER = 30
+RATTLER_PASSES = 30
+#: largest group of touching rattlers moved together (a larger one: the network fell apart)
+RATTLER_GROUP = 16
 #: default most Newton iterations per state
-DEFAULT_MAX_ITER = 60
+DEFAULT_MAX_ITER = 200
 #: default fewest contacts of a non-rattler (d + 1 in 2D)
 DEFAULT_MIN_CONTACTS = 3
 #: Armijo constant of the line search
@@ -181,7 +211,7 @@ def _assemble(F, w, ci, cj, L, ri, rj, kn, dof, ndof):
     rattler). W_ww is returned as its diagonal blocks Hd (nb, 2, 2) and the strictly upper
     off-diagonal blocks in block-CSC form (Ap (nb + 1,), Ai, Ax (., 2, 2); duplicates allowed,
     they add). Returns W, P (2, 2), WFF (4, 4), grad (ndof,), B (ndof, 4), Hd, Ap, Ai, Ax,
-    n_contacts.
+    n_contacts, fsum (the sum of the contact force magnitudes, N).
     """
     M = ci.shape[0]
     nb = ndof // 2
@@ -197,6 +227,7 @@ def _assemble(F, w, ci, cj, L, ri, rj, kn, dof, ndof):
     g = np.empty(2)
     Lm = np.empty(2)
     count = 0
+    fsum = 0.0
     for m in range(M):
         i = ci[m]
         j = cj[m]
@@ -214,6 +245,7 @@ def _assemble(F, w, ci, cj, L, ri, rj, kn, dof, ndof):
             continue
         count += 1
         fm = force_magnitude(eps, kn)
+        fsum += fm
         a = stiffness(eps, kn) + fm / d
         b = -fm / d
         n0 = l0 / d
@@ -265,7 +297,7 @@ def _assemble(F, w, ci, cj, L, ri, rj, kn, dof, ndof):
             for r in range(2):
                 for c2 in range(2):
                     Ax[p, r, c2] = -Ks[m, r, c2]  # s_i s_j K, K symmetric
-    return W, P, WFF, grad, B, Hd, Ap, Ai, Ax, count
+    return W, P, WFF, grad, B, Hd, Ap, Ai, Ax, count, fsum
 
 
 @njit
@@ -352,6 +384,314 @@ def _classify_kernel(N, ci, cj, active, min_contacts, order):
     return rat, dof, fixed, ndof
 
 
+@njit
+def _adjacency(N, ci, cj):
+    """Candidates of each disk in CSR form (self-image pairs i = j left out: they do not depend
+    on w). Returns aptr (N + 1,), am (nnz,) candidate index, asg (nnz,) +-1: the disk's sign s in
+    l = F L + w_j - w_i (-1 on the i side, +1 on the j side)."""
+    aptr = np.zeros(N + 1, np.int64)
+    for m in range(ci.shape[0]):
+        if ci[m] != cj[m]:
+            aptr[ci[m] + 1] += 1
+            aptr[cj[m] + 1] += 1
+    for k in range(N):
+        aptr[k + 1] += aptr[k]
+    am = np.empty(aptr[N], np.int64)
+    asg = np.empty(aptr[N], np.float64)
+    fill = aptr[:N].copy()
+    for m in range(ci.shape[0]):
+        i = ci[m]
+        j = cj[m]
+        if i == j:
+            continue
+        am[fill[i]] = m
+        asg[fill[i]] = -1.0
+        fill[i] += 1
+        am[fill[j]] = m
+        asg[fill[j]] = 1.0
+        fill[j] += 1
+    return aptr, am, asg
+
+
+@njit
+def _disk_terms(F, w, k, aptr, am, asg, ci, cj, L, csum, grow, out):
+    """Contact terms of disk k against its candidates (the others held) for the contact distance
+    c' = c (1 + grow) (grow = 0: the true contacts; grow > 0 widens each by a clearance).
+
+    With r = <c' - d> per pair (m) and the energy e = 1/2 sum r^2 (m^2; E_n e is the disk's
+    contact energy for grow = 0), writes out[0] = e, out[1:3] = de/dw_k = -sum r s n (m),
+    out[3:6] = the Hessian d^2 e/dw_k^2 = sum (1 + r/d) n n^T - (r/d) 1 (H00, H01, H11; its
+    tangential part is negative under compression), out[6] = max r / c (0 when nothing overlaps),
+    out[7] = the c of that pair (m)."""
+    for q in range(8):
+        out[q] = 0.0
+    for p in range(aptr[k], aptr[k + 1]):
+        m = am[p]
+        s = asg[p]
+        i = ci[m]
+        j = cj[m]
+        l0 = F[0, 0] * L[m, 0] + F[0, 1] * L[m, 1] + w[j, 0] - w[i, 0]
+        l1 = F[1, 0] * L[m, 0] + F[1, 1] * L[m, 1] + w[j, 1] - w[i, 1]
+        d = np.sqrt(l0 * l0 + l1 * l1)
+        c = csum[m]
+        r = c * (1.0 + grow) - d
+        if r <= 0.0 or d == 0.0:
+            continue
+        n0 = l0 / d
+        n1 = l1 / d
+        q = r / d
+        out[0] += 0.5 * r * r
+        out[1] -= r * s * n0
+        out[2] -= r * s * n1
+        out[3] += (1.0 + q) * n0 * n0 - q
+        out[4] += (1.0 + q) * n0 * n1
+        out[5] += (1.0 + q) * n1 * n1 - q
+        if r > out[6] * c:
+            out[6] = r / c
+            out[7] = c
+
+
+@njit
+def _group_terms(F, w, members, pos, aptr, am, asg, ci, cj, L, csum, grow, g, H):
+    """Contact terms of a group of disks (members (n,), pos (N,) their index in the group or -1)
+    against their candidates, the other disks held, for the contact distance c' = c (1 + grow).
+
+    With r = <c' - d> per pair (m), returns e = 1/2 sum r^2 (m^2; E_n e is the group's contact
+    energy for grow = 0) and the largest r / c (0 when nothing overlaps); writes the gradient
+    g (2n,) = de/dw (m) and the Hessian H (2n, 2n) (dimensionless; per pair K = (1 + r/d) n n^T -
+    (r/d) 1 in the blocks s_a s_b K, its tangential part negative under compression)."""
+    g[:] = 0.0
+    H[:, :] = 0.0
+    e = 0.0
+    rel = 0.0
+    for t in range(members.shape[0]):
+        k = members[t]
+        for p in range(aptr[k], aptr[k + 1]):
+            m = am[p]
+            s = asg[p]
+            i = ci[m]
+            j = cj[m]
+            o = j if s < 0.0 else i
+            if pos[o] >= 0 and s > 0.0:
+                continue  # a pair inside the group: counted once, from its i side
+            l0 = F[0, 0] * L[m, 0] + F[0, 1] * L[m, 1] + w[j, 0] - w[i, 0]
+            l1 = F[1, 0] * L[m, 0] + F[1, 1] * L[m, 1] + w[j, 1] - w[i, 1]
+            d = np.sqrt(l0 * l0 + l1 * l1)
+            c = csum[m]
+            r = c * (1.0 + grow) - d
+            if r <= 0.0 or d == 0.0:
+                continue
+            n0 = l0 / d
+            n1 = l1 / d
+            q = r / d
+            e += 0.5 * r * r
+            rel = max(rel, r / c)
+            k00 = (1.0 + q) * n0 * n0 - q
+            k01 = (1.0 + q) * n0 * n1
+            k11 = (1.0 + q) * n1 * n1 - q
+            for side in range(2):
+                a = pos[i] if side == 0 else pos[j]
+                if a < 0:
+                    continue
+                sa = -1.0 if side == 0 else 1.0
+                g[2 * a] -= r * sa * n0
+                g[2 * a + 1] -= r * sa * n1
+                for side2 in range(2):
+                    b = pos[i] if side2 == 0 else pos[j]
+                    if b < 0:
+                        continue
+                    sab = 1.0 if side == side2 else -1.0
+                    H[2 * a, 2 * b] += sab * k00
+                    H[2 * a, 2 * b + 1] += sab * k01
+                    H[2 * a + 1, 2 * b] += sab * k01
+                    H[2 * a + 1, 2 * b + 1] += sab * k11
+    return e, rel
+
+
+@njit
+def _group_min(F, w, members, pos, aptr, am, asg, ci, cj, L, csum, grow, cap, gtol, max_local):
+    """Minimise the contact energy e of a group of disks (:func:`_group_terms`, the others held)
+    over their w, in place: Newton steps with the Hessian's eigenvalues replaced by their absolute
+    values (floored at 1e-8 of the largest; a descent direction that meets one contact exactly
+    in one step and the corner of two quadratically), a step along the most negative curvature
+    where the gradient vanishes at a saddle (a disk pinched between two opposite neighbours leaves
+    sideways), no disk moved by more than ``cap`` (m) per step, Armijo backtracking.
+
+    Returns 1 when nothing overlaps by more than half the widening (grow > 0) or at all
+    (grow = 0); 0 at a local minimum with overlaps (|de/dw| <= gtol (m), no negative curvature)
+    or when no step decreases e."""
+    n2 = 2 * members.shape[0]
+    g = np.empty(n2)
+    H = np.empty((n2, n2))
+    gt = np.empty(n2)
+    Ht = np.empty((n2, n2))
+    x0 = np.empty(n2)
+    for _ in range(max_local):
+        e, rel = _group_terms(F, w, members, pos, aptr, am, asg, ci, cj, L, csum, grow, g, H)
+        if rel <= 0.5 * grow:
+            return 1
+        lam, V = np.linalg.eigh(H)
+        floor = 1e-8 * max(abs(lam[0]), abs(lam[n2 - 1]))
+        gv = V.T @ g
+        d = np.zeros(n2)
+        for q in range(n2):
+            d -= (gv[q] / max(abs(lam[q]), floor)) * V[:, q]
+        if np.sqrt(np.sum(g * g)) <= gtol:
+            if lam[0] >= -floor:
+                return 0  # a local minimum with overlaps: held
+            # a saddle: leave along the most negative curvature, as far as opens the deepest overlap
+            a = np.sqrt(2.0 * rel) * np.max(csum)
+            u = V[:, 0]
+            d = (-a if gv[0] > 0.0 else a) * u / max(np.max(np.abs(u)), 1e-300)
+        longest = 0.0
+        for t in range(members.shape[0]):
+            longest = max(longest, np.sqrt(d[2 * t] ** 2 + d[2 * t + 1] ** 2))
+        if longest > cap:
+            d *= cap / longest
+        slope = min(np.sum(g * d), 0.0)
+        for t in range(members.shape[0]):
+            x0[2 * t] = w[members[t], 0]
+            x0[2 * t + 1] = w[members[t], 1]
+        step = 1.0
+        ok = False
+        for _h in range(40):
+            for t in range(members.shape[0]):
+                w[members[t], 0] = x0[2 * t] + step * d[2 * t]
+                w[members[t], 1] = x0[2 * t + 1] + step * d[2 * t + 1]
+            et, _r = _group_terms(F, w, members, pos, aptr, am, asg, ci, cj, L, csum, grow, gt, Ht)
+            if et < e and et <= e + 1e-4 * step * slope:
+                ok = True
+                break
+            step *= 0.5
+        if not ok:
+            for t in range(members.shape[0]):
+                w[members[t], 0] = x0[2 * t]
+                w[members[t], 1] = x0[2 * t + 1]
+            return 0
+    return 0
+
+
+@njit
+def _expel(F, w, ci, cj, L, csum, aptr, am, asg, rat, kn, ftol, clear, cap, max_local, max_pass, max_group):
+    """Relax the rattlers (rat (N,) bool) that overlap something, in place on w (N, 2), the other
+    disks held.
+
+    The overlapping rattlers are grouped by their overlaps with each other (a group moves
+    together: a chain of rattlers in one cage). Each group is first moved to where it clears
+    every candidate by ``clear`` (relative to r_i + r_j; :func:`_group_min` on the widened
+    contacts): a rattler with room in its cage ends force-free (eps < 0 everywhere), one contact
+    in one Newton step, two in a few. A group without room (a jammed group outside the backbone)
+    is moved to the minimum of its true contact energy instead, |net force| <= ftol / 10 (N); its
+    disks then carry force through >= 3 contacts each and join the backbone at the next
+    classification. No group move raises the energy, so W never rises. The passes repeat (up to
+    ``max_pass``) while a move created new overlaps with other rattlers.
+    Returns (moved, held, residual): groups moved, rattlers left overlapping ("held") and the
+    largest net contact force on one (N)."""
+    N = w.shape[0]
+    buf = np.empty(8)
+    ov = np.zeros(N, np.bool_)
+    pos = np.full(N, -1, np.int64)
+    lab = np.full(N, -1, np.int64)
+    queue = np.empty(N, np.int64)
+    moved = 0
+    gtol = 0.1 * ftol / kn  # (m): stationarity of a held group, below the Newton tolerance
+    big = np.zeros(N, np.bool_)  # disks of a group larger than max_group
+    g2 = np.empty(2 * max_group)
+    H2 = np.empty((2 * max_group, 2 * max_group))
+    for it in range(max_pass):
+        n_ov = 0
+        for k in range(N):
+            ov[k] = False
+            if rat[k] and aptr[k + 1] > aptr[k]:
+                _disk_terms(F, w, k, aptr, am, asg, ci, cj, L, csum, 0.0, buf)
+                if buf[6] > 0.0 and (it == 0 or kn * np.sqrt(buf[1] * buf[1] + buf[2] * buf[2]) > ftol):
+                    ov[k] = True
+                    n_ov += 1
+        if n_ov == 0:
+            break
+        lab[:] = -1
+        changed = 0
+        for s0 in range(N):
+            if not ov[s0] or lab[s0] >= 0:
+                continue
+            # the group of s0: overlapping rattlers connected through overlaps
+            lab[s0] = s0
+            head = 0
+            tail = 1
+            queue[0] = s0
+            while head < tail:
+                k = queue[head]
+                head += 1
+                for p in range(aptr[k], aptr[k + 1]):
+                    m = am[p]
+                    o = cj[m] if asg[p] < 0.0 else ci[m]
+                    if not rat[o] or lab[o] >= 0:
+                        continue
+                    i = ci[m]
+                    j = cj[m]
+                    l0 = F[0, 0] * L[m, 0] + F[0, 1] * L[m, 1] + w[j, 0] - w[i, 0]
+                    l1 = F[1, 0] * L[m, 0] + F[1, 1] * L[m, 1] + w[j, 1] - w[i, 1]
+                    if l0 * l0 + l1 * l1 < csum[m] * csum[m]:
+                        lab[o] = s0
+                        queue[tail] = o
+                        tail += 1
+            members = queue[:tail].copy()
+            for t in range(tail):
+                pos[members[t]] = t
+            old = np.empty((tail, 2))
+            for t in range(tail):
+                old[t, 0] = w[members[t], 0]
+                old[t, 1] = w[members[t], 1]
+            if tail <= max_group:
+                e0, _r = _group_terms(F, w, members, pos, aptr, am, asg, ci, cj, L, csum, 0.0, g2, H2)
+                if _group_min(F, w, members, pos, aptr, am, asg, ci, cj, L, csum, clear, cap, 0.0, max_local) == 0:
+                    _group_min(F, w, members, pos, aptr, am, asg, ci, cj, L, csum, 0.0, cap, gtol, max_local)
+                e1, _r = _group_terms(F, w, members, pos, aptr, am, asg, ci, cj, L, csum, 0.0, g2, H2)
+                if e1 > e0:  # never raise the energy
+                    for t in range(tail):
+                        w[members[t], 0] = old[t, 0]
+                        w[members[t], 1] = old[t, 1]
+            else:
+                # a large group (the network fell apart): each disk is freed alone where it has room,
+                # the others stay where they are (held)
+                one = np.empty(1, np.int64)
+                for t in range(tail):
+                    k = members[t]
+                    pos[k] = -1
+                for t in range(tail):
+                    k = members[t]
+                    one[0] = k
+                    pos[k] = 0
+                    if _group_min(F, w, one, pos, aptr, am, asg, ci, cj, L, csum, clear, cap, 0.0, max_local) == 0:
+                        w[k, 0] = old[t, 0]
+                        w[k, 1] = old[t, 1]
+                    pos[k] = -1
+                for t in range(tail):
+                    big[members[t]] = True
+                    pos[members[t]] = t
+            same = True
+            for t in range(tail):
+                if w[members[t], 0] != old[t, 0] or w[members[t], 1] != old[t, 1]:
+                    same = False
+            for t in range(tail):
+                pos[members[t]] = -1
+            if not same:
+                changed += 1
+        moved += changed
+        if changed == 0:
+            break
+    held = 0
+    res = 0.0
+    for k in range(N):
+        if rat[k] and aptr[k + 1] > aptr[k]:
+            _disk_terms(F, w, k, aptr, am, asg, ci, cj, L, csum, 0.0, buf)
+            if buf[6] > 0.0:
+                held += 1
+                if not big[k]:
+                    res = max(res, kn * np.sqrt(buf[1] * buf[1] + buf[2] * buf[2]))
+    return moved, held, res
+
+
 # ----------------------------------------------------------------------------------------------
 # results and state
 # ----------------------------------------------------------------------------------------------
@@ -383,6 +723,11 @@ class RelaxedResult:
         W_ww (translation fixed) was positive definite at w*.
     fixed : int
         Index of the disk fixed against rigid translation (-1: nothing relaxed).
+    n_held : int
+        Rattlers that could not be expelled (no room in their cage: held where the expulsion left
+        them, with their contact forces; 0 normally, see "Gauge and rattlers").
+    held_force : float
+        Largest net contact force on a held rattler (N; 0 when none is held).
     """
 
     energy: float
@@ -396,6 +741,8 @@ class RelaxedResult:
     residual: float
     stable: bool
     fixed: int
+    n_held: int = 0
+    held_force: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -403,7 +750,8 @@ class RelaxedBatch:
     """Relaxed response at G states; fields as :class:`RelaxedResult` with a leading (G,) axis.
 
     energy (G,), piola (G, 2, 2), tangent (G, 2, 2, 2, 2), cauchy (G, 2, 2), n_contacts (G,),
-    n_newton (G,), n_rattlers (G,), residual (G,) (N), stable (G,) bool.
+    n_newton (G,), n_rattlers (G,), residual (G,) (N), stable (G,) bool, n_held (G,) (rattlers
+    that could not be expelled).
     """
 
     energy: np.ndarray
@@ -415,6 +763,7 @@ class RelaxedBatch:
     n_rattlers: np.ndarray
     residual: np.ndarray
     stable: np.ndarray
+    n_held: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.energy.shape[0]
@@ -439,16 +788,20 @@ class _Candidates:
     __slots__ = (
         "F0inv",
         "L",
+        "aptr",
+        "am",
+        "asg",
         "ci",
         "cj",
         "cmax",
         "cmin",
         "csum",
-        "order",
+        "_order",
         "ri",
         "rj",
         "s",
         "w0",
+        "n",
     )
 
     def __init__(self, rve, F0, w0):
@@ -466,16 +819,30 @@ class _Candidates:
         self.s = s
         self.cmin = 2.0 * float(rve.r.min())
         self.cmax = 2.0 * float(rve.r.max())
-        self.order = _particle_order(rve.n, self.ci, self.cj)
+        self.n = rve.n
+        self._order = None
+        self.aptr, self.am, self.asg = _adjacency(rve.n, self.ci, self.cj)
+
+    @property
+    def order(self) -> np.ndarray:
+        """Minimum-degree order (N,) of the candidate graph (computed on first use)."""
+        if self._order is None:
+            self._order = _particle_order(self.n, self.ci, self.cj)
+        return self._order
 
     def valid(self, F, w) -> bool:
         G = F @ self.F0inv
         sig = float(_smallest_singular_value(G))
         dw = w - self.w0 @ G.T
-        delta = math.sqrt(float(np.max(np.einsum("ij,ij->i", dw, dw)))) if dw.size else 0.0
+        d2 = np.einsum("ij,ij->i", dw, dw)
+        if d2.size >= 2:  # the two largest moves bound |dw_i| + |dw_j| of any pair
+            top = np.partition(d2, d2.size - 2)[-2:]
+            delta2 = math.sqrt(float(top[0])) + math.sqrt(float(top[1]))
+        else:
+            delta2 = 2.0 * math.sqrt(float(d2.max())) if d2.size else 0.0
         margin = 1e-12 * self.cmax
         for c in (self.cmin, self.cmax):
-            if (sig - 1.0) * c + sig * self.s - 2.0 * delta < margin:
+            if (sig - 1.0) * c + sig * self.s - delta2 < margin:
                 return False
         return True
 
@@ -505,6 +872,8 @@ class _RVE:
         self.n = self.r.size
         self.area = float(np.linalg.det(self.C))
         self.skin = 2.0 * skin_fraction * float(self.r.max())
+        self.cmax = 2.0 * float(self.r.max())
+        self.cand0 = None  # candidates anchored at w = 0 (the Taylor check of a warm start)
 
 
 @njit
@@ -655,9 +1024,10 @@ class _LDL:
     :func:`_particle_order`), so no further permutation is needed. If W_ww is not positive
     definite (a pivot block D_k not positive definite) it is shifted, W_ww + mu diag|W_ww| with
     mu = 1e-8, 1e-7, ... (a Levenberg-Marquardt / trust-region step); ``shifted`` records it.
+    The ladder starts at a tenth of ``mu_hint`` (the shift the previous iterate needed) when given.
     """
 
-    def __init__(self, Hd, Ap, Ai, Ax):
+    def __init__(self, Hd, Ap, Ai, Ax, mu_hint: float = 0.0):
         n = Hd.shape[0]
         parent, Lp = _ldl_symbolic(n, Ap, Ai)
         self.Lp = Lp
@@ -665,12 +1035,14 @@ class _LDL:
         self.Lx = np.empty((Lp[-1], 2, 2))
         self.Dinv = np.empty((n, 2, 2))
         self.shifted = False
+        self.mu = 0.0
         mu = 0.0
         while _ldl_numeric(n, Ap, Ai, Ax, Hd, mu, parent, Lp, self.Li, self.Lx, self.Dinv) < n:
             self.shifted = True
-            mu = 1e-8 if mu == 0.0 else 10.0 * mu
+            mu = max(1e-8, 0.1 * mu_hint) if mu == 0.0 else 10.0 * mu
+            self.mu = mu
             if mu > 1e12:
-                raise RuntimeError("relaxed RVE: no positive definite shift of W_ww found")
+                raise ConvergenceError("relaxed RVE: no positive definite shift of W_ww found")
 
     def solve(self, b):
         """x = W_ww^-1 b for b (ndof,) or (ndof, m)."""
@@ -768,55 +1140,97 @@ class RelaxedMaterial:
         return _classify_kernel(R.n, cand.ci, cand.cj, act, self.min_contacts, cand.order)
 
     # -- the relaxation -------------------------------------------------------------------------
+    def _expel_rattlers(self, R: _RVE, F, w, cand, rat, ftol):
+        """Rattlers out of contact at (F, w), in place on w (see "Gauge and rattlers"); a move that
+        invalidates the candidates rebuilds them and expels again with the new set.
+        Returns (cand, held, residual): held rattlers and the largest net force on one (N)."""
+        held, res = 0, 0.0
+        for _ in range(4):
+            moved, held, res = _expel(
+                F,
+                w,
+                cand.ci,
+                cand.cj,
+                cand.L,
+                cand.csum,
+                cand.aptr,
+                cand.am,
+                cand.asg,
+                rat,
+                self.normal_stiffness,
+                ftol,
+                RATTLER_CLEARANCE,
+                0.25 * R.skin,
+                RATTLER_LOCAL_ITER,
+                RATTLER_PASSES,
+                RATTLER_GROUP,
+            )
+            if moved == 0 or cand.valid(F, w):
+                break
+            cand = self._cand(R, F, w, None)
+        return self._cand(R, F, w, cand), int(held), float(res)
+
     def _relax(self, R: _RVE, F, w, cand):
         """Newton on (R3) from w; returns the result fields and the final state."""
         kn = self.normal_stiffness
         w = w.copy()
         n_newton = 0
         shifted_final = False
+        cap = 0.25 * R.skin  # longest step of one disk (m): keeps a step inside the skin
+        floor = FORCE_FLOOR * kn * R.cmax  # round-off of one disk's net force (N)
+        lu = None
+        tol = max(self.force_tol * kn * 1e-3 * R.cmax, floor)  # until the first assembly
         for it in range(self.max_iter + 1):
             cand = self._cand(R, F, w, cand)
             rat, dof, fixed, ndof = self._classify(R, F, w, cand)
-            W, P, WFF, grad, B, Hd, Ap, Ai, Ax, nc = _assemble(
+            cand, held, rres = self._expel_rattlers(R, F, w, cand, rat, tol)
+            W, P, WFF, grad, B, Hd, Ap, Ai, Ax, nc, fsum = _assemble(
                 F, w, cand.ci, cand.cj, cand.L, cand.ri, cand.rj, kn, dof, ndof
             )
             gmax = float(np.max(np.abs(grad))) if ndof else 0.0
-            fscale = self._force_scale(F, w, cand)
+            tol = max(self.force_tol * (fsum / nc if nc else 1.0), floor)
             if ndof == 0:
                 lu = None
-                break
-            lu = _LDL(Hd, Ap, Ai, Ax)
-            shifted = lu.shifted
+                if rres <= tol or it == self.max_iter:
+                    break
+                continue
+            lu = _LDL(Hd, Ap, Ai, Ax, lu.mu if lu is not None else 0.0)
             n_newton += 1
-            if gmax <= self.force_tol * fscale:
-                shifted_final = shifted
+            if gmax <= tol and rres <= tol:
+                shifted_final = lu.shifted
                 break
             if it == self.max_iter:
-                raise SimulationError(
+                raise ConvergenceError(
                     f"relaxed RVE: Newton did not converge in max_iter = {self.max_iter} iterations "
-                    f"(max |W_w| V = {gmax:.3g} N, tolerance {self.force_tol * fscale:.3g} N)"
+                    f"(max |W_w| V = {gmax:.3g} N, tolerance {tol:.3g} N)"
                 )
-            step = -lu.solve(grad)
-            slope = float(grad @ step)
+            step = -lu.solve(grad).reshape(-1, 2)
+            longest = float(np.sqrt(np.max(np.einsum("ij,ij->i", step, step))))
+            if longest > cap:
+                step *= cap / longest
             free = np.flatnonzero(dof >= 0)
-            base = dof[free]
+            step = step[dof[free] // 2]  # (n_free, 2) in the order of free
+            slope = float(np.sum(grad.reshape(-1, 2)[dof[free] // 2] * step))
             t = 1.0
             W0 = W
+            # round-off of W (J): each overlap eps = c - |l| carries the rounding of |l| ~ c, so
+            # E_n eps^2 / 2 is known to E_n eps ulp(c): a few eps_machine c_max times the force sum
+            w_round = max(FORCE_FLOOR * R.cmax * fsum, ENERGY_ROUNDOFF * abs(W0))
             while True:
                 wt = w.copy()
-                wt[free, 0] += t * step[base]
-                wt[free, 1] += t * step[base + 1]
+                wt[free] += t * step
                 ct = self._cand(R, F, wt, cand)
+                ct, _, _ = self._expel_rattlers(R, F, wt, ct, rat, tol)  # W with the rattlers relaxed
                 Wt = _energy(F, wt, ct.ci, ct.cj, ct.L, ct.ri, ct.rj, kn)
                 if Wt <= W0 + ARMIJO * t * slope:
                     break
-                if abs(Wt - W0) <= ENERGY_ROUNDOFF * abs(W0) and t == 1.0:
-                    break  # at round-off level: take the Newton step (quadratic phase)
+                if t == 1.0 and -slope <= w_round and abs(Wt - W0) <= w_round:
+                    break  # W cannot resolve the step (round-off): take the Newton step (quadratic phase)
                 t *= 0.5
                 if t < 1e-12:
-                    raise SimulationError(
+                    raise ConvergenceError(
                         f"relaxed RVE: the line search found no decrease of W at iteration {it} "
-                        f"(max |W_w| V = {gmax:.3g} N, tolerance {self.force_tol * fscale:.3g} N)"
+                        f"(max |W_w| V = {gmax:.3g} N, tolerance {tol:.3g} N)"
                     )
             w, cand = wt, ct
         inv = 1.0 / R.area
@@ -842,18 +1256,10 @@ class RelaxedMaterial:
             "residual": gmax,
             "stable": not shifted_final,
             "fixed": fixed,
+            "n_held": held,
+            "held_force": rres,
         }
         return res, _State(w, cand, F.copy(), S)
-
-    def _force_scale(self, F, w, cand) -> float:
-        """Mean contact force magnitude E_n <eps> (N) of the active contacts (1 N if none)."""
-        act = _active(F, w, cand.ci, cand.cj, cand.L, cand.csum)
-        if not act.any():
-            return 1.0
-        ci, cj, L = cand.ci[act], cand.cj[act], cand.L[act]
-        l = L @ F.T + w[cj] - w[ci]
-        eps = cand.csum[act] - np.sqrt(np.einsum("ij,ij->i", l, l))
-        return self.normal_stiffness * float(np.mean(eps))
 
     def _solve(self, R, F, start: _State | None):
         """Relax from the start state; redo from w = 0 if the result exceeds W(F, 0)."""
@@ -862,7 +1268,7 @@ class RelaxedMaterial:
             return res, st
         res, st = self._relax(R, F, start.predict(F), start.cand)
         zero = np.zeros((R.n, 2))
-        c0 = self._cand(R, F, zero, st.cand)
+        c0 = R.cand0 = self._cand(R, F, zero, R.cand0)  # anchored at w = 0, kept for the next check
         W_taylor = _energy(F, zero, c0.ci, c0.cj, c0.L, c0.ri, c0.rj, self.normal_stiffness) / R.area
         if res["energy"] > W_taylor * (1.0 + ENERGY_ROUNDOFF * 10):  # another, higher minimum
             res, st = self._relax(R, F, zero, c0)
@@ -899,6 +1305,8 @@ class RelaxedMaterial:
             residual=float(res["residual"]),
             stable=bool(res["stable"]),
             fixed=res["fixed"],
+            n_held=int(res["n_held"]),
+            held_force=float(res["held_force"]),
         )
 
     def evaluate(self, F, rve=None, cauchy: bool = True) -> RelaxedBatch:
@@ -919,7 +1327,18 @@ class RelaxedMaterial:
         G = F.shape[0]
         idx = self._rve_index(rve, G)
         out = {
-            k: [] for k in ("energy", "piola", "tangent", "n_contacts", "n_newton", "n_rattlers", "residual", "stable")
+            k: []
+            for k in (
+                "energy",
+                "piola",
+                "tangent",
+                "n_contacts",
+                "n_newton",
+                "n_rattlers",
+                "residual",
+                "stable",
+                "n_held",
+            )
         }
         trial = {}
         for g in range(G):
@@ -928,7 +1347,7 @@ class RelaxedMaterial:
             start = prev[1] if prev is not None and prev[0] == k else None
             res, st = self._solve(self._rves[k], F[g], start)
             trial[g] = (k, st)
-            for key in ("energy", "piola", "tangent", "n_contacts", "n_newton", "residual", "stable"):
+            for key in ("energy", "piola", "tangent", "n_contacts", "n_newton", "residual", "stable", "n_held"):
                 out[key].append(res[key])
             out["n_rattlers"].append(int(np.count_nonzero(res["rattlers"])))
         self._trial = trial
@@ -948,7 +1367,25 @@ class RelaxedMaterial:
             n_rattlers=_ro(np.asarray(out["n_rattlers"], np.int64)),
             residual=_ro(np.asarray(out["residual"], float)),
             stable=_ro(np.asarray(out["stable"], bool)),
+            n_held=_ro(np.asarray(out["n_held"], np.int64)),
         )
+
+    def fresh(self) -> RelaxedMaterial:
+        """The same material (RVEs and every parameter) with an empty Gauss-point history."""
+        return type(self)(
+            dict(zip(self.names, self.packings, strict=True)),
+            self.normal_stiffness,
+            skin_fraction=self.skin_fraction,
+            force_tol=self.force_tol,
+            max_iter=self.max_iter,
+            min_contacts=self.min_contacts,
+        )
+
+    def reset(self) -> None:
+        """Forget the Gauss-point history (committed and trial fluctuations): every state starts
+        from w = 0 again."""
+        self._committed = {}
+        self._trial = None
 
     def commit(self) -> None:
         """Make the fluctuations of the last :meth:`evaluate` the Gauss-point history."""
