@@ -110,10 +110,11 @@ RVE_ENGINE_STATES = {
 #: network at iso 0.1% (softest mode 2.6e-2 of the median contact frequency) decays fastest near a
 #: ratio of 10 (8.9e-3, 1.7e-2, 8.0e-3 of that frequency at 5, 10, 20; 3.5e-3 at 2). The engines'
 #: explicit step is stable for the lightest pair's ratio (0.54 times this one) up to about 9 at
-#: dt = t_c / 50; 8 keeps a 13% margin
+#: dt = t_c / 50; 8 keeps a 15% margin
 RVE_DAMPING_RATIO = 8.0
-#: steps of each rve-70-1 relaxation: every state at rest (network kinetic / elastic energy below
-#: 1e-16, rho ~ 1e-9) from 40000-60000 steps on (measured, docs/validation.md)
+#: steps of each rve-70-1 relaxation: every state at rest (kinetic energy of the disks in contact
+#: <= 1e-16 of the elastic energy, rho <= 1e-8) by 40000-60000 steps (measured, docs/validation.md;
+#: a free rattler hitting a neighbour later can stir the network again, e.g. iso at ~70000)
 RVE_NSTEPS = 60000
 #: thermo interval of the rve-70-1 jobs (61 rows a log, as the lattice's 51)
 RVE_THERMO_EVERY = 1000

@@ -92,7 +92,7 @@ TOL_REASON = (
     "both sides are minima of the same energy up to their residual forces r: the stress error of a state "
     "with residual r is the linear response B^T H^-1 r (H the Hessian over the fluctuations, B the mixed "
     "derivative), i.e. rho = max|r|/mean contact force times an amplification, measured on rve-70-1 over "
-    "460 native snapshots at rest (every 500 steps of 100000, the three states) against Newton's stress: "
+    "438 native snapshots at rest (every 500 steps of 100000, the three states) against Newton's stress: "
     "<= 0.62 for the codes' virial stress, <= 0.94 for the elastic (Love) stress; far less on the lattice. "
     "Tolerance C (rho_a + rho_b) + 1e-12 with C = 10 (a margin of 10); 1e-12 is the round-off of the "
     "contact sums in another order. A 1% stiffer kn moves every stress by 1%"
@@ -103,9 +103,9 @@ RHO_REST = 1e-6
 REST_REASON = (
     "the damped run must end at rest: the kinetic energy of the disks in contact, in their centre-of-mass "
     "frame, over the elastic energy <= 1e-12 (lattice: ~4e-27 after 2000 of the 5000 steps, the same run "
-    "without damping keeps 2.7e-7; rve-70-1: ~1e-22 from 40000-60000 steps on), and max |net force| <= 1e-6 "
-    "of the mean contact force (recomputed from the final positions with the potential's law, independently "
-    "of the code's own force output)"
+    "without damping keeps 2.7e-7; rve-70-1: <= 1e-16 by 40000-60000 steps, ~1e-22 at 60000), and max "
+    "|net force| <= 1e-6 of the mean contact force (recomputed from the final positions with the "
+    "potential's law, independently of the code's own force output)"
 )
 FREE_REASON = (
     "information: a rattler pushed out of the affine start leaves its last contact with a velocity and, "
