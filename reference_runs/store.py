@@ -3,6 +3,7 @@
     python -m reference_runs.store                   # LIGGGHTS: rewrites reference_runs/stored/taylor-*
     python -m reference_runs.store --engine lammps   # LAMMPS: rewrites reference_runs/stored/taylor-*-lammps
     python -m reference_runs.store --case relaxation # both codes: reference_runs/stored/relaxation-lattice-8x8
+    python -m reference_runs.store --case relaxation-rve  # both codes: reference_runs/stored/relaxation-rve-70-1
 
 The stored outputs let tests compare against LIGGGHTS where the binary is absent. Each case
 directory holds the job files exactly as run (deck, data files, states.json, log.lammps,
@@ -211,17 +212,18 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--case",
         default="taylor",
-        choices=("taylor", "relaxation"),
-        help="taylor (default: the Taylor cases of --engine) or relaxation (the relaxation case, both codes)",
+        choices=("taylor", "relaxation", "relaxation-rve"),
+        help="taylor (default: the Taylor cases of --engine), relaxation (the relaxation case's lattice RVE, "
+        "both codes) or relaxation-rve (its standard random RVE rve-70-1, both codes)",
     )
     args = ap.parse_args(argv)
 
     try:
-        if args.case == "relaxation":
+        if args.case in ("relaxation", "relaxation-rve"):
             # lazy: reference_runs.decks.relaxation imports this module (STORED)
-            from .decks.relaxation import regenerate
+            from .decks.relaxation import RVE_NAME, regenerate
 
-            print(regenerate())
+            print(regenerate(key="lattice" if args.case == "relaxation" else RVE_NAME))
             return 0
         get_engine(args.engine).find()  # before anything is written
         print(regenerate_taylor(engine=args.engine))
