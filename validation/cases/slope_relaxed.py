@@ -1,6 +1,6 @@
 """Case ``slope-relaxed``: the FE2 slope with the relaxed RVE beside the Taylor RVE (issue #18 (a), (b)).
 
-Full suite only (about 4-5 minutes on the loaded 2-core machine: most of it the relaxed paper
+Full suite only (3.5 minutes wall at load average ~10 on the 2-core machine: most of it the relaxed paper
 protocol's limit search on the reduced mesh).
 
 1. **Full mesh, standard RVE (why the full relaxed slope stops in the dead-load step).** The
