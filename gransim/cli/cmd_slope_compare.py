@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..errors import InputError
 from ._paths import check_input, check_output_dir
 
 
@@ -24,8 +25,6 @@ def register(subparsers) -> None:
 
 
 def handler(args) -> int:
-    from ..errors import InputError  # noqa: PLC0415
-
     if len(args.results) < 2:
         raise InputError(f"slope-compare: expected at least two slope.h5 files, got {len(args.results)}")
     if args.points < 0:

@@ -25,14 +25,20 @@ against the stored one (reported in ``compare.md``).
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from ..contacts import find_neighbours
 from ..errors import InputError, ResultFileError
-from ..io import atomic_path, open_result
+from ..io import atomic_path, load_packing, open_result
+from .checkpoint import KIND, step_path
+from .materials import RVEMaterial
+from .run import _rve_700_paths, default_rve_packing
+from .slope import NORMAL_STIFFNESS
 
 #: energy norms at or below this are round-off: no order is taken from them. The FE residual of the
 #: Taylor slope reaches its round-off at ~1e-7 N/m of a ~5e6 N/m load increment, and e ~ (r / r_1)^2,
@@ -190,8 +196,6 @@ def committed_history(result: SlopeResult, step: int, g: int) -> tuple[np.ndarra
     they come from: the run's checkpoint (``<dir>/checkpoint/step_NNN.h5``, ``commits``: every
     committed sub-increment) when present, otherwise the converged steps of ``slope.h5`` (the same
     when no step up to ``step`` was cut)."""
-    from .checkpoint import KIND, step_path  # noqa: PLC0415 - only the relaxed replay needs it
-
     ck = result.path.parent / "checkpoint"
     if all(step_path(ck, k).exists() for k in range(1, step + 1)):
         Fs = []
@@ -208,9 +212,6 @@ def rve_packings(result: SlopeResult, packing=None, packing_dir="results/packing
     """The reference packings of ``result``'s RVEs: ``packing`` when given, else the standard
     700-disk packings of its assignment in ``packing_dir``; checked against the run's SHA-256
     fingerprint (InputError when they are not the run's)."""
-    from ..io import load_packing  # noqa: PLC0415
-    from .run import _rve_700_paths, default_rve_packing  # noqa: PLC0415
-
     p = result.parameters
     if packing is not None:
         packs = [load_packing(packing) if isinstance(packing, (str, Path)) else packing]
@@ -228,8 +229,6 @@ def rve_packings(result: SlopeResult, packing=None, packing_dir="results/packing
 
 
 def _fingerprint(packs) -> str:
-    import hashlib  # noqa: PLC0415
-
     h = hashlib.sha256()
     for pk in packs:
         for a in (pk.positions, pk.radii, pk.cell):
@@ -242,8 +241,6 @@ def rve_state(result: SlopeResult, step: int, g: int, packings: list) -> dict:
     the Taylor RVE; for the relaxed one replayed from the committed F, :func:`committed_history`),
     and the replayed Cauchy stress (Pa) beside the stored one."""
     from ..rve import RelaxedMaterial, TaylorMaterial  # noqa: PLC0415 - start-up: numba
-    from .materials import RVEMaterial  # noqa: PLC0415
-    from .slope import NORMAL_STIFFNESS  # noqa: PLC0415
 
     p = result.parameters
     kn = float(p.get("normal_stiffness", NORMAL_STIFFNESS))
@@ -271,8 +268,6 @@ def rve_state(result: SlopeResult, step: int, g: int, packings: list) -> dict:
 def network(state: dict):
     """Contact network of an :func:`rve_state`: (segments (M, 2, 2) m, forces (M,) N/m, cell (2, 2)),
     centres x = F X + w, forces f = E_n eps (Meier et al. eq 5)."""
-    from ..contacts import find_neighbours  # noqa: PLC0415
-
     p = state["packing"].deformed(state["F"])
     pos = p.positions + state["w"]
     nl = find_neighbours(pos, p.radii, p.cell, 0.0)
@@ -321,7 +316,7 @@ def plot_curves(path, results: list[SlopeResult]) -> Path:
 def plot_map(path, a: SlopeResult, b: SlopeResult, step: int, d: np.ndarray, points, states=None) -> Path:
     """d over the Gauss points (reference positions) with ``points`` numbered, and under it the
     RVE of each at both results' states (``states``: {(label, g): rve_state}; one force scale)."""
-    from matplotlib.collections import LineCollection, PolyCollection  # noqa: PLC0415
+    from matplotlib.collections import LineCollection, PolyCollection  # noqa: PLC0415 - start-up: matplotlib
 
     plt = _plt()
     n = len(points) if states else 0
