@@ -75,6 +75,15 @@ that of the held contacts, above the separated minimum, P depends on the start a
 piecewise smooth in F. Rattlers in a small group that cannot reach its minimum in one expulsion
 are held too; the Newton iteration continues until their net force is below the tolerance.
 
+Continuation. A start can lose the backbone although the relaxed network at F has one (simple
+shear F = [[1, g], [0, 1]] with g/2 above the mean overlap: the stretched contacts open at w = 0
+and the rattler cascade empties the network). A relaxation that ends with held rattlers or no
+backbone is therefore redone along F(t) = F0 + t (F - F0), t in [0, 1], from the warm start's
+(F0, w0), else from (1, 0): adaptive sub-steps (first 1/CONT_FIRST, doubled after success, halved
+after a sub-step with held rattlers), each from the previous minimiser. Its result is kept if it
+holds no rattler and its energy is not higher; it is the minimiser at F (the path chooses the
+basin only), so P is the same as along any other path into that basin.
+
 Contact changes and Newton
 --------------------------
 Phi = E_n/2 <eps>^2 is C1 in l with a jump of Phi'' at eps = 0 (H(eps) in eq 4), so W is C1 and
@@ -160,6 +169,11 @@ RATTLER_GROUP = 16
 DEFAULT_MAX_ITER = 200
 #: default fewest contacts of a non-rattler (d + 1 in 2D)
 DEFAULT_MIN_CONTACTS = 3
+#: continuation in F where the start has no backbone: first sub-steps (of t in [0, 1]), smallest
+#: sub-step 1/2**CONT_DEPTH, most relaxations per continuation
+CONT_FIRST = 8
+CONT_DEPTH = 8
+CONT_STEPS = 64
 #: Armijo constant of the line search
 ARMIJO = 1e-4
 #: relative energy change below which a step counts as round-off (accepted if |W_w| shrinks)
@@ -1262,17 +1276,58 @@ class RelaxedMaterial:
         return res, _State(w, cand, F.copy(), S)
 
     def _solve(self, R, F, start: _State | None):
-        """Relax from the start state; redo from w = 0 if the result exceeds W(F, 0)."""
+        """Relax from the start state; redo from w = 0 if the result exceeds W(F, 0); continue in F
+        (:meth:`_continue`) where the start has no backbone."""
         if start is None:
             res, st = self._relax(R, F, np.zeros((R.n, 2)), None)
-            return res, st
-        res, st = self._relax(R, F, start.predict(F), start.cand)
-        zero = np.zeros((R.n, 2))
-        c0 = R.cand0 = self._cand(R, F, zero, R.cand0)  # anchored at w = 0, kept for the next check
-        W_taylor = _energy(F, zero, c0.ci, c0.cj, c0.L, c0.ri, c0.rj, self.normal_stiffness) / R.area
-        if res["energy"] > W_taylor * (1.0 + ENERGY_ROUNDOFF * 10):  # another, higher minimum
-            res, st = self._relax(R, F, zero, c0)
+        else:
+            res, st = self._relax(R, F, start.predict(F), start.cand)
+            zero = np.zeros((R.n, 2))
+            c0 = R.cand0 = self._cand(R, F, zero, R.cand0)  # anchored at w = 0, kept for the next check
+            W_taylor = _energy(F, zero, c0.ci, c0.cj, c0.L, c0.ri, c0.rj, self.normal_stiffness) / R.area
+            if res["energy"] > W_taylor * (1.0 + ENERGY_ROUNDOFF * 10):  # another, higher minimum
+                res, st = self._relax(R, F, zero, c0)
+        if res["n_held"] > 0 or (res["n_contacts"] > 0 and bool(np.all(res["rattlers"]))):
+            anchors = [start] if start is not None and start.F is not None else []
+            for anchor in [*anchors, None]:
+                got = self._continue(R, F, anchor)
+                if got is not None and got[0]["energy"] <= res["energy"] * (1.0 + ENERGY_ROUNDOFF * 10):
+                    got[0]["n_newton"] += res["n_newton"]
+                    res, st = got
+                    break
         return res, st
+
+    def _continue(self, R, F, anchor: _State | None):
+        """Continuation in F from the anchor's (F0, w0) (None: F0 = 1, w0 = 0), see "Continuation".
+
+        F(t) = F0 + t (F - F0), t from 0 to 1 in sub-steps, each relaxed from the previous minimiser
+        (with the first-order predictor); a sub-step that ends with held rattlers or without a
+        backbone is halved (down to 1/2**CONT_DEPTH). Returns (res, state) at F, or None when no
+        sub-step path without held rattlers was found within CONT_STEPS relaxations."""
+        F0 = np.eye(2) if anchor is None else anchor.F
+        st = _State(np.zeros((R.n, 2)), None, F0.copy()) if anchor is None else anchor
+        t, dt, n, its = 0.0, 1.0 / CONT_FIRST, 0, 0
+        while t < 1.0:
+            dt = min(dt, 1.0 - t)
+            Ft = F0 + (t + dt) * (F - F0)
+            res, new = self._relax(R, Ft, st.predict(Ft), st.cand)
+            n += 1
+            its += res["n_newton"]
+            ok = res["n_held"] == 0 and not (res["n_contacts"] > 0 and bool(np.all(res["rattlers"])))
+            if ok:
+                t = 1.0 if t + dt >= 1.0 else t + dt
+                st = new
+                dt *= 2.0
+                if t >= 1.0:
+                    res["n_newton"] = its  # every Newton iteration of the path
+                    return res, new
+            else:
+                dt *= 0.5
+                if dt < 0.5**CONT_DEPTH:
+                    return None
+            if n >= CONT_STEPS:
+                return None
+        return None
 
     # -- public -------------------------------------------------------------------------------
     def __call__(self, F, rve: int = 0, start=None) -> RelaxedResult:
