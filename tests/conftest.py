@@ -29,6 +29,10 @@ PLAIN_PYTHON = os.environ.get("NUMBA_DISABLE_JIT", "0") not in ("", "0")
 _STEPS = "a DEM run of thousands of steps compared step for step"
 _CACHE = "compiles numba kernels into a fresh cache in child processes (a JIT test by design)"
 _LONG = "a long DEM run (hundreds of disks or thousands of steps)"
+_CASE = "a validation case run on stored outputs: thousands of DEM steps compared step for step"
+_PACK = "FIRE packings of hundreds of disks"
+_COMPACTION = "a frictional DEM compaction (tens of thousands of steps)"
+_RELAXED = "relaxed RVEs of 70-350 disks at many states (Newton with rattler expulsion)"
 
 #: ``(node-id pattern, reason)``: tests too slow as plain Python. Each pattern's tests exceeded a
 #: 20 s budget in one plain-Python run of the suite (docs/coverage.md, "How the rule was measured")
@@ -64,6 +68,30 @@ JIT_HEAVY: tuple[tuple[str, str], ...] = (
         "finite differences of the relaxed (equilibrated) energy of a 70-disk RVE: > 3 min",
     ),
     ("tests/reference_runs/test_ref_native_schema.py::test_stored_biaxial_job_in_native_*", _STEPS),
+    # found by the first complete plain-Python run (docs/coverage.md, 60 s budget): each exceeded it
+    ("tests/faults/test_cli_faults.py::test_measured_bytes_per_disk_cover_a_real_packing", _PACK),
+    ("tests/faults/test_validation_faults.py::test_*liggghts*", _CASE + " (and LIGGGHTS live)"),
+    ("tests/faults/test_validation_faults.py::test_stored_*", _CASE),
+    ("tests/fem/test_parallel.py::test_*taylor*", "FE2 slope runs with a Taylor RVE at every Gauss point"),
+    ("tests/fem/test_slope_relaxed.py::test_rejected_step_leaves_gauss_point_history_unchanged", _RELAXED),
+    ("tests/foundation/test_bench_smoke.py::test_bench_quick_runs_every_area", "every benchmark area, quick"),
+    ("tests/foundation/test_warmup.py::test_after_the_warmup_*", _CACHE),
+    ("tests/foundation/test_warmup.py::test_outside_a_venv_the_user_cache_is_used", _CACHE),
+    ("tests/foundation/test_warmup.py::test_second_process_loads_what_the_first_compiled*", _CACHE),
+    ("tests/generation/test_cli_pack.py::test_pack_by_frictional_compaction", _COMPACTION),
+    ("tests/generation/test_compaction.py::*", _COMPACTION),
+    ("tests/generation/test_pack.py::test_front_method_meets_the_targets_of_the_random_start", _PACK),
+    ("tests/generation/test_pack.py::test_rms_residual_option_is_checked_independently", _PACK),
+    ("tests/generation/test_pack.py::test_threaded_minimiser_gives_the_serial_result_bit_for_bit", _PACK),
+    ("tests/generation/test_pack.py::test_*standard_packings*", _PACK + " (the standard assemblies regenerated)"),
+    ("tests/generation/test_pack.py::test_outdated_or_foreign_shipped_copy_is_regenerated", _PACK),
+    ("tests/rve/test_relaxed.py::test_relaxed_energy_never_exceeds_taylor", _RELAXED),
+    ("tests/rve/test_relaxed.py::test_warm_start_history_commit_and_revert", _RELAXED),
+    ("tests/validation/test_impacts_rolling_wall.py::test_rolling_and_wall_scenes_pass_on_stored_outputs", _CASE),
+    ("tests/validation/test_laws_short.py::test_*", _CASE),
+    ("tests/validation/test_relaxation_case.py::test_*", _CASE + " (DEM relaxations of 60,000 steps)"),
+    ("tests/validation/test_shear_case.py::test_*", _CASE),
+    ("tests/validation/test_validation_suite.py::test_*", _CASE),
 )
 
 
