@@ -559,8 +559,15 @@ class _RVE:
         """(G, S) bool: set s covers F[g] by the validity rule."""
         if not self.sets:
             return np.zeros((F.shape[0], 0), bool)
-        F0inv = np.stack([s[0] for s in self.sets])  # (S, 2, 2)
-        G = np.einsum("gij,sjk->gsik", F, F0inv)
+        B = np.stack([s[0] for s in self.sets])  # F0^-1 of every set (S, 2, 2)
+        # G = F F0^-1 (G, S, 2, 2) component by component (an einsum of 2 x 2 products is ~10x slower)
+        f = [F[:, i, j][:, None] for i in range(2) for j in range(2)]
+        b = [B[:, i, j][None, :] for i in range(2) for j in range(2)]
+        G = np.empty((F.shape[0], B.shape[0], 2, 2))
+        G[..., 0, 0] = f[0] * b[0] + f[1] * b[2]
+        G[..., 0, 1] = f[0] * b[1] + f[1] * b[3]
+        G[..., 1, 0] = f[2] * b[0] + f[3] * b[2]
+        G[..., 1, 1] = f[2] * b[1] + f[3] * b[3]
         return _smallest_singular_value(G) >= self.threshold
 
 
