@@ -618,6 +618,7 @@ class TaylorMaterial:
         self.n_builds = 0
         self._flat = None  # concatenated candidate arrays, rebuilt when a set is added
         self._last = {}  # rve -> global set index of the last single-state call
+        self._last_batch = None  # (F, rve index, cauchy, TaylorBatch) of the last evaluate call
         self._out = {}
 
     # -- bookkeeping ------------------------------------------------------------------------
@@ -710,6 +711,18 @@ class TaylorMaterial:
         F = check_deformation_gradients(F)
         G = F.shape[0]
         idx = self._check_rve_index(rve, G)
+        last = self._last_batch
+        if (
+            last is not None
+            and last[0].shape == F.shape
+            and last[2] == cauchy
+            and np.array_equal(last[0], F)
+            and np.array_equal(last[1], idx)
+        ):
+            # the response depends on F alone (module docstring): the same states again (a Newton
+            # solve starting where the previous one converged: 20% of the slope's evaluations)
+            # give the same read-only arrays
+            return last[3]
         set_of = self._assign(F, idx)
         L, ri, rj, starts, inv_area, _ = self._flat
         W = np.empty(G)
@@ -723,7 +736,7 @@ class TaylorMaterial:
         else:
             sig = np.full((G, 2, 2), np.nan)
         ncand = starts[set_of + 1] - starts[set_of]
-        return TaylorBatch(
+        res = TaylorBatch(
             energy=_ro(W),
             piola=_ro(P),
             tangent=_ro(A),
@@ -731,6 +744,8 @@ class TaylorMaterial:
             n_contacts=_ro(nc),
             n_candidates=_ro(ncand),
         )
+        self._last_batch = (F.copy(), idx.copy(), cauchy, res)
+        return res
 
     def __call__(self, F, rve: int = 0) -> TaylorResult:
         """One state: F (2, 2) of RVE ``rve`` (serial kernel, no thread start-up).

@@ -283,6 +283,25 @@ def test_blocked_batch_is_bitwise_the_serial_kernel(packings):
             assert np.array_equal(getattr(one, name), getattr(b, name)[g]), (g, name)
 
 
+def test_the_same_states_again_reuse_the_last_batch():
+    """evaluate() keeps its last batch: the same F (and RVE indices) again returns it without a
+    kernel call (a Newton solve starts where the previous one converged); any other F, even one
+    changed in place in the caller's array by one ulp, is evaluated, and equals a fresh material's."""
+    p = random_packing(40, seed=4, phi=0.9)
+    mat = TaylorMaterial(p, KN)
+    F = np.stack([np.eye(2), np.diag([0.99, 1.0])])
+    a = mat.evaluate(F)
+    assert mat.evaluate(F.copy()) is a
+    F[1, 0, 0] = np.nextafter(0.99, 1.0)  # the caller's array changed in place
+    b = mat.evaluate(F)
+    assert b is not a
+    ref = TaylorMaterial(p, KN).evaluate(F)
+    for name in ("energy", "piola", "tangent", "cauchy", "n_contacts"):
+        assert np.array_equal(getattr(b, name), getattr(ref, name)), name
+    assert not np.array_equal(b.piola[1], a.piola[1])
+    assert mat.evaluate(F, cauchy=False) is not b  # another request: evaluated
+
+
 def test_contact_state_forces_reproduce_piola(packings):
     """P = 1/V sum f (x) L (eq 10) from the per-contact forces."""
     p = packings["sheared"]
