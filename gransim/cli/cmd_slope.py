@@ -145,8 +145,10 @@ def handler(args) -> int:
         "geometry": geometry,
         "load_steps": args.load_steps,
     }
+    from .._numba import wait_passively  # noqa: PLC0415 - start-up: numba
     from ..fem.run import SlopeInterrupted  # noqa: PLC0415 - start-up: numba
 
+    wait_passively()  # before any parallel kernel starts the OpenMP runtime, and before the workers start
     with make_executor(args.workers, args.scheduler) as executor:
         kw["executor"] = executor
         try:

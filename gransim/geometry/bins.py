@@ -69,9 +69,20 @@ def wrap_fractional(x: np.ndarray, cell: np.ndarray):
     (to round-off), s = C^{-1} x. One compiled pass (no BLAS call: a (N, 2) x (2, 2) product in
     BLAS threads is slow on a busy machine and rounds differently from machine to machine).
     """
-    x = np.ascontiguousarray(x, np.float64)
-    cell = np.ascontiguousarray(cell, np.float64)
+    x = _writable(x)
+    cell = _writable(cell)
     return _wrap(x, cell, np.ascontiguousarray(np.linalg.inv(cell)))
+
+
+def _writable(a) -> np.ndarray:
+    """``a`` as a writeable C-contiguous float64 array (a copy only when it is not one already).
+
+    numba compiles a read-only array (a frozen :class:`gransim.geometry.Packing`'s positions or
+    cell) as another type than a writeable one: the same kernels twice, each loaded from the cache
+    (or compiled when it misses) on first use. One type for every caller halves that (the slope's
+    pictures, which pass a packing's arrays, loaded 3 kernels more than its candidate sets).
+    """
+    return np.require(a, np.float64, ["C", "W"])
 
 
 @pjit
@@ -350,6 +361,7 @@ def pair_list(xw, s, reach, C, skin, nb1, nb2, k1, k2, img, by_label=True, half=
     i in increasing order (``by_label``), else in bin order; in each group in walk order.
     """
     start, order, xs, rs = bin_points(xw, s, reach, nb1, nb2)
+    C = _writable(C)
     n = xw.shape[0]
     counts = walk_pairs(_PairCount(0), xs, rs, order, C, skin, start, nb1, nb2, k1, k2, np.zeros(n, np.int64), half)
     base, m = _slots(counts, order, by_label)

@@ -189,12 +189,119 @@ def _taylor_single(F, L, ri, rj, lo, hi, kn, inv_area):
     return W, P, A, nc, sig
 
 
+#: states evaluated together by one pass over their shared candidate set (:func:`_taylor_block`)
+LANES = 8
+
+
+@njit
+def _taylor_block(F, gs, L, ri, rj, lo, hi, kn, inv_area, W, P, A, nc):
+    """:func:`_taylor_point` for up to LANES states gs (n,) sharing the candidates lo:hi, in one pass.
+
+    The loop over the states inside the loop over the candidates has no dependence between its
+    iterations, so the compiler evaluates the states in SIMD lanes (8 doubles with AVX-512, measured
+    2.4x less CPU time than one state after the other on the slope's states). Each state adds the
+    same terms in the same (candidate) order as :func:`_taylor_point`, so the results are bitwise
+    the same: a candidate out of contact adds -0.0 to a sum (x + -0.0 = x for every x, +0.0
+    included) and subtracts +0.0 from a difference, where the serial kernel skips it. No
+    fused multiply-add: gransim compiles without fastmath.
+
+    ``acc`` holds the sums, one row per quantity and one column per state (rows 0 W, 1-4 P, 5-13
+    the material part of A, 14-16 its geometric part, 17 the contact count, 20-23 F): one array,
+    so that the compiler proves the lanes independent with one alias check.
+    """
+    n = gs.shape[0]
+    acc = np.zeros((24, LANES))
+    for b in range(LANES):
+        g = gs[min(b, n - 1)]  # unused lanes repeat the last state; their sums are not stored
+        acc[20, b] = F[g, 0, 0]
+        acc[21, b] = F[g, 0, 1]
+        acc[22, b] = F[g, 1, 0]
+        acc[23, b] = F[g, 1, 1]
+    for m in range(lo, hi):
+        L0 = L[m, 0]
+        L1 = L[m, 1]
+        rim = ri[m]
+        rjm = rj[m]
+        c = rim + rjm
+        cc = c * c
+        LL00 = L0 * L0
+        LL01 = L0 * L1
+        LL11 = L1 * L1
+        for b in range(LANES):
+            l0 = acc[20, b] * L0 + acc[21, b] * L1
+            l1 = acc[22, b] * L0 + acc[23, b] * L1
+            d2 = l0 * l0 + l1 * l1
+            d = np.sqrt(d2)
+            eps = overlap(rim, rjm, d)
+            on = (d2 < cc) & (eps > 0.0)  # the two tests by which _taylor_point skips a candidate
+            fm = force_magnitude(eps, kn)
+            k = stiffness(eps, kn)
+            n0 = l0 / d
+            n1 = l1 / d
+            a = k + fm / d
+            bg = -fm / d
+            an00 = a * n0 * n0
+            an01 = a * n0 * n1
+            an11 = a * n1 * n1
+            acc[0, b] += potential(eps, kn) if on else -0.0
+            acc[1, b] -= fm * n0 * L0 if on else 0.0
+            acc[2, b] -= fm * n0 * L1 if on else 0.0
+            acc[3, b] -= fm * n1 * L0 if on else 0.0
+            acc[4, b] -= fm * n1 * L1 if on else 0.0
+            acc[5, b] += an00 * LL00 if on else -0.0
+            acc[6, b] += an00 * LL01 if on else -0.0
+            acc[7, b] += an00 * LL11 if on else -0.0
+            acc[8, b] += an01 * LL00 if on else -0.0
+            acc[9, b] += an01 * LL01 if on else -0.0
+            acc[10, b] += an01 * LL11 if on else -0.0
+            acc[11, b] += an11 * LL00 if on else -0.0
+            acc[12, b] += an11 * LL01 if on else -0.0
+            acc[13, b] += an11 * LL11 if on else -0.0
+            acc[14, b] += bg * LL00 if on else -0.0
+            acc[15, b] += bg * LL01 if on else -0.0
+            acc[16, b] += bg * LL11 if on else -0.0
+            acc[17, b] += 1.0 if on else 0.0
+    s = inv_area
+    for b in range(n):
+        g = gs[b]
+        W[g] = acc[0, b] * s
+        P[g, 0, 0] = acc[1, b] * s
+        P[g, 0, 1] = acc[2, b] * s
+        P[g, 1, 0] = acc[3, b] * s
+        P[g, 1, 1] = acc[4, b] * s
+        for i in range(2):
+            for k in range(2):
+                r0 = 5 + 3 * (i + k)  # the rows of (n n)_ik: 00 -> 5, 01 and 10 -> 8, 11 -> 11
+                for J in range(2):
+                    for Lx in range(2):
+                        q = J + Lx  # 0: (0,0), 1: (0,1)/(1,0), 2: (1,1)
+                        v = acc[r0 + q, b]
+                        if i == k:
+                            v += acc[14 + q, b]
+                        A[g, i, J, k, Lx] = v * s
+        nc[g] = int(acc[17, b])
+
+
 @pjit
-def _taylor_batch(F, set_of, starts, L, ri, rj, kn, inv_area, W, P, A, nc):
-    """All states g in parallel; state g uses set s = set_of[g], rows starts[s]:starts[s+1]."""
-    for g in prange(F.shape[0]):
-        s = set_of[g]
-        _taylor_point(F[g], L, ri, rj, starts[s], starts[s + 1], kn, inv_area[s], g, W, P, A, nc)
+def _taylor_batch(F, order, block_starts, block_set, starts, L, ri, rj, kn, inv_area, W, P, A, nc):
+    """All states in parallel, in blocks of up to LANES states that share a candidate set: block k
+    holds the states order[block_starts[k]:block_starts[k+1]], all of set s = block_set[k] (rows
+    starts[s]:starts[s+1])."""
+    for k in prange(block_set.shape[0]):
+        s = block_set[k]
+        gs = order[block_starts[k] : block_starts[k + 1]]
+        _taylor_block(F, gs, L, ri, rj, starts[s], starts[s + 1], kn, inv_area[s], W, P, A, nc)
+
+
+def _blocks(set_of: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(order, block_starts, block_set): the states grouped by candidate set, cut into blocks of at
+    most LANES states of one set (:func:`_taylor_batch`)."""
+    order = np.argsort(set_of, kind="stable")
+    so = set_of[order]
+    new_run = np.flatnonzero(np.r_[True, so[1:] != so[:-1]])  # first state of each set's run
+    run_of = np.cumsum(np.r_[True, so[1:] != so[:-1]]) - 1
+    first = np.flatnonzero((np.arange(so.size) - new_run[run_of]) % LANES == 0)
+    return order, np.append(first, so.size).astype(np.int64), so[first]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -452,8 +559,15 @@ class _RVE:
         """(G, S) bool: set s covers F[g] by the validity rule."""
         if not self.sets:
             return np.zeros((F.shape[0], 0), bool)
-        F0inv = np.stack([s[0] for s in self.sets])  # (S, 2, 2)
-        G = np.einsum("gij,sjk->gsik", F, F0inv)
+        B = np.stack([s[0] for s in self.sets])  # F0^-1 of every set (S, 2, 2)
+        # G = F F0^-1 (G, S, 2, 2) component by component (an einsum of 2 x 2 products is ~10x slower)
+        f = [F[:, i, j][:, None] for i in range(2) for j in range(2)]
+        b = [B[:, i, j][None, :] for i in range(2) for j in range(2)]
+        G = np.empty((F.shape[0], B.shape[0], 2, 2))
+        G[..., 0, 0] = f[0] * b[0] + f[1] * b[2]
+        G[..., 0, 1] = f[0] * b[1] + f[1] * b[3]
+        G[..., 1, 0] = f[2] * b[0] + f[3] * b[2]
+        G[..., 1, 1] = f[2] * b[1] + f[3] * b[3]
         return _smallest_singular_value(G) >= self.threshold
 
 
@@ -504,6 +618,7 @@ class TaylorMaterial:
         self.n_builds = 0
         self._flat = None  # concatenated candidate arrays, rebuilt when a set is added
         self._last = {}  # rve -> global set index of the last single-state call
+        self._last_batch = None  # (F, rve index, cauchy, TaylorBatch) of the last evaluate call
         self._out = {}
 
     # -- bookkeeping ------------------------------------------------------------------------
@@ -596,20 +711,32 @@ class TaylorMaterial:
         F = check_deformation_gradients(F)
         G = F.shape[0]
         idx = self._check_rve_index(rve, G)
+        last = self._last_batch
+        if (
+            last is not None
+            and last[0].shape == F.shape
+            and last[2] == cauchy
+            and np.array_equal(last[0], F)
+            and np.array_equal(last[1], idx)
+        ):
+            # the response depends on F alone (module docstring): the same states again (a Newton
+            # solve starting where the previous one converged: 20% of the slope's evaluations)
+            # give the same read-only arrays
+            return last[3]
         set_of = self._assign(F, idx)
         L, ri, rj, starts, inv_area, _ = self._flat
         W = np.empty(G)
         P = np.empty((G, 2, 2))
         A = np.empty((G, 2, 2, 2, 2))
         nc = np.empty(G, np.int64)
-        _taylor_batch(F, set_of, starts, L, ri, rj, self.normal_stiffness, inv_area, W, P, A, nc)
+        _taylor_batch(F, *_blocks(set_of), starts, L, ri, rj, self.normal_stiffness, inv_area, W, P, A, nc)
         if cauchy:
             J = F[:, 0, 0] * F[:, 1, 1] - F[:, 0, 1] * F[:, 1, 0]
             sig = np.einsum("giJ,gkJ->gik", P, F) / J[:, None, None]
         else:
             sig = np.full((G, 2, 2), np.nan)
         ncand = starts[set_of + 1] - starts[set_of]
-        return TaylorBatch(
+        res = TaylorBatch(
             energy=_ro(W),
             piola=_ro(P),
             tangent=_ro(A),
@@ -617,6 +744,8 @@ class TaylorMaterial:
             n_contacts=_ro(nc),
             n_candidates=_ro(ncand),
         )
+        self._last_batch = (F.copy(), idx.copy(), cauchy, res)
+        return res
 
     def __call__(self, F, rve: int = 0) -> TaylorResult:
         """One state: F (2, 2) of RVE ``rve`` (serial kernel, no thread start-up).

@@ -256,6 +256,52 @@ def test_response_depends_on_F_alone_bitwise(seed):
         assert np.array_equal(one.piola, one_fresh.piola) and np.array_equal(one.tangent, one_fresh.tangent)
 
 
+def test_blocked_batch_is_bitwise_the_serial_kernel(packings):
+    """The batch kernel evaluates up to LANES states per pass over a shared candidate set (SIMD
+    lanes, out-of-contact candidates added as -0.0); the single-state path sums one state's
+    contacts one after the other. Both must give the same W, P, A, sigma and contact count to the
+    last bit, for any mix of RVEs and candidate sets in a batch: here three RVEs in random order,
+    a batch of 45 states (not a multiple of LANES), states far enough apart to need several sets
+    per RVE, and states with no contact at all (stretched apart)."""
+    from gransim.rve import taylor
+
+    names = list(packings)
+    rng = np.random.default_rng(11)
+    F = np.array([_random_F(rng, 0.12) for _ in range(40)] + [np.diag([1.3, 1.3])] * 5)
+    idx = rng.integers(0, len(names), F.shape[0])
+    mat = TaylorMaterial(packings, KN, skin_fraction=0.03)
+    b = mat.evaluate(F, idx)
+    assert mat.n_builds > len(names)  # several candidate sets per RVE in one batch
+    assert np.any(b.n_contacts == 0) and b.n_contacts.max() > 20
+    order, block_starts, block_set = taylor._blocks(mat._assign(F, idx))
+    assert np.diff(block_starts).max() == taylor.LANES and np.diff(block_starts).min() < taylor.LANES
+    for g in range(F.shape[0]):
+        one = TaylorMaterial(packings, KN, skin_fraction=0.03)(F[g], int(idx[g]))
+        assert one.n_contacts == b.n_contacts[g]
+        assert one.energy == b.energy[g]
+        for name in ("piola", "tangent", "cauchy"):
+            assert np.array_equal(getattr(one, name), getattr(b, name)[g]), (g, name)
+
+
+def test_the_same_states_again_reuse_the_last_batch():
+    """evaluate() keeps its last batch: the same F (and RVE indices) again returns it without a
+    kernel call (a Newton solve starts where the previous one converged); any other F, even one
+    changed in place in the caller's array by one ulp, is evaluated, and equals a fresh material's."""
+    p = random_packing(40, seed=4, phi=0.9)
+    mat = TaylorMaterial(p, KN)
+    F = np.stack([np.eye(2), np.diag([0.99, 1.0])])
+    a = mat.evaluate(F)
+    assert mat.evaluate(F.copy()) is a
+    F[1, 0, 0] = np.nextafter(0.99, 1.0)  # the caller's array changed in place
+    b = mat.evaluate(F)
+    assert b is not a
+    ref = TaylorMaterial(p, KN).evaluate(F)
+    for name in ("energy", "piola", "tangent", "cauchy", "n_contacts"):
+        assert np.array_equal(getattr(b, name), getattr(ref, name)), name
+    assert not np.array_equal(b.piola[1], a.piola[1])
+    assert mat.evaluate(F, cauchy=False) is not b  # another request: evaluated
+
+
 def test_contact_state_forces_reproduce_piola(packings):
     """P = 1/V sum f (x) L (eq 10) from the per-contact forces."""
     p = packings["sheared"]
