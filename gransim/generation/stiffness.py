@@ -19,13 +19,15 @@ l_c = x_j + L n - x_i, length d_c, normal n_c = l_c / d_c and overlap eps_c = r_
 The Newton step on (x, lambda) solves the bordered system [[K, c], [c^T, h]] [dx; lambda] = -[g; g_l]
 by the Schur complement on the cell mode: two solves with K (one factorisation).
 
-Measured use (docs/generation.md, "Newton and the last pass"): the exact stationary point of the
-current contact network is not where the FIRE criterion stops. From a 1000-disk packing that meets
-the default criterion (largest residual 9.6e-4 of the mean contact force), the Newton step moves
-disks by a median of 1.3e-3 mean diameters (5 mean overlaps) and closes new contacts at 1 % of its
-length: the soft modes of a jammed packing (lowest non-zero eigenvalue of K 8e-6 k_n) turn a residual
-force of 1e-3 <f> into a position error of 1e-2 d_mean. So Newton does not replace the last FIRE
-pass; this module is kept for the stability analysis of packings and the tests of that finding.
+Measured use (docs/generation.md, "Newton and the last pass"; ``python -m bench --only generation``):
+the exact stationary point of the current contact network is not where the FIRE criterion stops.
+From a 1000-disk packing that meets the default criterion (largest residual 9.6e-4 of the mean
+contact force), the Newton step on the backbone moves disks by a median of 1.3e-3 mean diameters
+(4.8 mean overlaps, largest 5.6e-3) and has closed 5 new contacts at 1 % of its length: the soft
+modes of a jammed packing (lowest non-zero eigenvalue of the backbone stiffness 2.4e-5 k_n) turn a
+residual force of 1e-3 <f> into a position error of ~1e-2 d_mean. So Newton does not replace the
+last FIRE pass; this module is kept for the stability analysis of packings and the tests of that
+finding.
 """
 
 from __future__ import annotations
