@@ -12,6 +12,9 @@ Modules (imports flow one way: gsd, fire, stats -> pack, compaction -> standard)
   compaction of a granular gas: the Kuhn assembly).
 * :mod:`.standard`: the standard assemblies of the papers (:data:`STANDARD_PACKINGS`,
   :func:`standard_packings`).
+* :mod:`.stiffness` (imported on its own, ``from gransim.generation.stiffness import ...``: it loads
+  scipy.sparse.linalg, which ``import gransim.generation`` does not need): the enthalpy Hessian of a
+  packing and the Newton step (stability analysis; docs/generation.md).
 """
 
 from .compaction import compact_packing, compaction_run
