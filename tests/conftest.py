@@ -92,6 +92,12 @@ JIT_HEAVY: tuple[tuple[str, str], ...] = (
     ("tests/validation/test_relaxation_case.py::test_*", _CASE + " (DEM relaxations of 60,000 steps)"),
     ("tests/validation/test_shear_case.py::test_*", _CASE),
     ("tests/validation/test_validation_suite.py::test_*", _CASE),
+    # over the budget in the second complete run (tests merged since the first)
+    ("tests/faults/test_dem_faults.py::test_*_readers_of_an_unfinished_run", _LONG + " (its fixture)"),
+    ("tests/fem/test_compare.py::*", "two FE2 slope runs (Taylor and relaxed RVEs) as the fixture"),
+    ("tests/fem/test_slope_relaxed.py::*", _RELAXED + " at every Gauss point of an FE2 box"),
+    ("tests/fem/test_checkpoint.py::test_relaxed_path_resumed_from_a_checkpoint_is_bitwise", _RELAXED),
+    ("tests/rve/test_relaxed.py::test_stress_does_not_depend_on_the_start", _RELAXED),
 )
 
 
