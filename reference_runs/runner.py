@@ -46,6 +46,7 @@ import re
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
@@ -477,6 +478,19 @@ def _job_inputs(deck, files):
     return deck_text, blobs, _sha256(deck_text.encode()), h.hexdigest()
 
 
+def job_env(eng, private_tmp) -> dict:
+    """Environment of one reference job: the engine's (:meth:`Engine.env`) with its own temporary
+    directory. Debian's codes are Open MPI programs: even a serial run starts an MPI singleton that
+    creates a session directory ``$TMPDIR/ompi.<host>.<uid>``, and two jobs starting at the same
+    moment (``--jobs 2``) can race on creating it ("A call to mkdir was unable to create the desired
+    directory ... File exists", the job exits 1; seen in a fresh ``make run``). A private ``TMPDIR``
+    (and Open MPI's own ``orte_tmpdir_base``) per job removes the shared directory."""
+    env = eng.env()
+    env["TMPDIR"] = str(private_tmp)
+    env["OMPI_MCA_orte_tmpdir_base"] = str(private_tmp)
+    return env
+
+
 def run_job(
     job_dir,
     deck,
@@ -654,9 +668,19 @@ def _run_locked(
     if progress:
         bar = _progress(total=total, desc=desc or f"{eng.name} {job_dir.name}", unit="run")
     timed_out = False
-    with open(job_dir / "stdout.txt", "wb") as out, open(job_dir / "stderr.txt", "wb") as err:
+    with (
+        open(job_dir / "stdout.txt", "wb") as out,
+        open(job_dir / "stderr.txt", "wb") as err,
+        tempfile.TemporaryDirectory(prefix="gransim-job-") as private_tmp,
+    ):
         proc = subprocess.Popen(
-            cmd, cwd=job_dir, stdout=out, stderr=err, stdin=subprocess.DEVNULL, start_new_session=True, env=eng.env()
+            cmd,
+            cwd=job_dir,
+            stdout=out,
+            stderr=err,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+            env=job_env(eng, private_tmp),
         )
         with _LIVE_LOCK:
             _LIVE[proc.pid] = proc

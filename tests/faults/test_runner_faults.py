@@ -441,3 +441,41 @@ def test_version_is_what_the_binary_says(tmp_path, monkeypatch):
     if os.path.exists(real):
         assert liggghts_version(real) == f"LIGGGHTS-PUBLIC 3.8.0 ({real})"
         assert liggghts_version(real) != v
+
+
+@pytest.mark.liggghts
+def test_concurrent_jobs_get_private_temporary_directories(tmp_path, small_liggghts_job, monkeypatch):
+    """Two jobs started together (``--jobs 2``) must not share Open MPI's session directory under
+    $TMPDIR (a race on creating it made a job exit 1 in a fresh ``make run``): each job runs with
+    its own TMPDIR and orte_tmpdir_base, which exist while it runs and are removed after."""
+    real = shutil.which("liggghts")
+    bindir = tmp_path / "bin"
+    bindir.mkdir()
+    wrapper = bindir / "liggghts"
+    wrapper.write_text(
+        "#!/bin/sh\n"
+        'if [ "$1" = "-in" ] && [ "$2" = "/dev/null" ]; then exec "' + real + '" "$@"; fi\n'
+        'test -d "$TMPDIR" && echo "$TMPDIR $OMPI_MCA_orte_tmpdir_base" >> "' + str(tmp_path / "seen.txt") + '"\n'
+        'exec "' + real + '" "$@"\n'
+    )
+    wrapper.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bindir}{os.pathsep}{os.environ['PATH']}")
+    deck, files, outputs = small_liggghts_job("run 10\n", dump_every=5)
+    errors = []
+
+    def one(k):
+        try:
+            run_job(tmp_path / f"job{k}", deck, files, outputs=outputs, progress=False)
+        except Exception as exc:  # reported below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=one, args=(k,)) for k in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors
+    seen = [line.split() for line in (tmp_path / "seen.txt").read_text().splitlines()]
+    assert len(seen) == 2 and all(a == b for a, b in seen)
+    dirs = {a for a, _ in seen}
+    assert len(dirs) == 2 and not any(Path(d).exists() for d in dirs)
