@@ -2,7 +2,7 @@
 
 A tool run on its own, not a bench area (no ``run()``)::
 
-    python -m bench.slope_profile [--json FILE] -- slope --protocol service [--out DIR ...]
+    python -m bench._slope_profile [--json FILE] -- slope --protocol service [--out DIR ...]
 
 runs the command line in this process with wrappers around the functions that make up a run and
 prints, per phase, the CPU time of the process (``time.process_time``: user + sys of all threads,
@@ -174,7 +174,7 @@ def table(res: dict) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m bench.slope_profile", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m bench._slope_profile", description=__doc__.split("\n")[0])
     ap.add_argument("--json", help="also write the per-phase figures here")
     ap.add_argument("command", nargs=argparse.REMAINDER, help="-- slope --protocol P ... (gransim's arguments)")
     args = ap.parse_args(argv)

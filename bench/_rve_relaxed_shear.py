@@ -3,7 +3,7 @@
 For each standard RVE and g: rho = max net contact force on a disk / mean contact force (an
 independent numpy force sum at x = F X + w*), the energy W_rel (J/m^2), held and rattler counts,
 Newton iterations and wall time of the cold call; then the same for the warm path and the relative
-differences of W_rel and P. Usage: ``PYTHONPATH=. python bench/rve_relaxed_shear.py rve-70-1 rve-70-2``.
+differences of W_rel and P. Usage: ``PYTHONPATH=. python bench/_rve_relaxed_shear.py rve-70-1 rve-70-2``.
 """
 
 import sys
