@@ -98,17 +98,21 @@ def test_one_percent_stiffer_relaxed_material_fails(tmp_path, monkeypatch):
     assert any("native DEM at rest vs Newton" in r.metric for r in _failing(res, "stress", ""))
 
 
-@pytest.mark.parametrize("job, name", [("liggghts-iso", "log.lammps"), ("lammps-iso", "dump.atoms")])
-def test_cut_stored_output_is_incomplete(tmp_path, monkeypatch, job, name):
-    _only(monkeypatch, "iso")
-    src = R.stored_dir(R.STORED_CASE)
-    cut = tmp_path / "stored" / R.STORED_CASE
-    shutil.copytree(src, cut)
+def _run_with_half_of(tmp_path, monkeypatch, case, job, name):
+    """Run the case on a copy of stored ``case`` whose ``job/name`` is cut to its first half."""
+    cut = tmp_path / "stored" / case
+    shutil.copytree(R.stored_dir(case), cut)
     f = cut / job / name
     text = f.read_text()
     f.write_text(text[: len(text) // 2])
     monkeypatch.setattr(R, "stored_dir", lambda _name: cut)
-    res = R.relaxation(_ctx(tmp_path))
+    return R.relaxation(_ctx(tmp_path))
+
+
+@pytest.mark.parametrize("job, name", [("liggghts-iso", "log.lammps"), ("lammps-iso", "dump.atoms")])
+def test_cut_stored_output_is_incomplete(tmp_path, monkeypatch, job, name):
+    _only(monkeypatch, "iso")
+    res = _run_with_half_of(tmp_path, monkeypatch, R.STORED_CASE, job, name)
     assert not res.passed
     pair = "native-" + job.split("-")[0]
     bad = _failing(res, "evidence", pair)
@@ -169,14 +173,7 @@ def test_standard_rve_one_percent_stiffer_relaxed_material_fails(tmp_path, monke
 )
 def test_standard_rve_cut_stored_output_is_incomplete(tmp_path, monkeypatch, state, job, name):
     _only_rve(monkeypatch, state)
-    src = R.stored_dir(R.RVE_STORED_CASE)
-    cut = tmp_path / "stored" / R.RVE_STORED_CASE
-    shutil.copytree(src, cut)
-    f = cut / job / name
-    text = f.read_text()
-    f.write_text(text[: len(text) // 2])
-    monkeypatch.setattr(R, "stored_dir", lambda _name: cut)
-    res = R.relaxation(_ctx(tmp_path))
+    res = _run_with_half_of(tmp_path, monkeypatch, R.RVE_STORED_CASE, job, name)
     assert not res.passed
     engine = job.split("-")[0]
     bad = _failing(res, "evidence", "native-" + engine)
