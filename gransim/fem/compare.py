@@ -25,7 +25,6 @@ against the stored one (reported in ``compare.md``).
 
 from __future__ import annotations
 
-import hashlib
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,7 +36,7 @@ from ..errors import InputError, ResultFileError
 from ..io import atomic_path, load_packing, open_result
 from .checkpoint import KIND, step_path
 from .materials import RVEMaterial
-from .run import _rve_700_paths, default_rve_packing
+from .run import _rve_700_paths, default_rve_packing, packings_fingerprint
 from .slope import NORMAL_STIFFNESS
 
 #: energy norms at or below this are round-off: no order is taken from them. The FE residual of the
@@ -219,21 +218,13 @@ def rve_packings(result: SlopeResult, packing=None, packing_dir="results/packing
         packs = [load_packing(q) for q in _rve_700_paths(packing_dir).values()]
     else:
         packs = [default_rve_packing(packing_dir)]
-    fp = _fingerprint(packs)
+    fp = packings_fingerprint(packs)
     if p.get("packings") and fp != p["packings"]:
         raise InputError(
             f"{result.path}: its RVE packings have fingerprint {p['packings']}, the packings given have "
             f"{fp}; pass the run's packing (--packing) or its --packing-dir"
         )
     return packs
-
-
-def _fingerprint(packs) -> str:
-    h = hashlib.sha256()
-    for pk in packs:
-        for a in (pk.positions, pk.radii, pk.cell):
-            h.update(np.ascontiguousarray(a, dtype=float).tobytes())
-    return h.hexdigest()[:16]
 
 
 def rve_state(result: SlopeResult, step: int, g: int, packings: list) -> dict:

@@ -201,8 +201,11 @@ def distribute(material, executor, n_gauss: int):
 def packing_fingerprint(material) -> str:
     """SHA-256 (16 hex digits) of the RVE packings' positions, radii and cells ("" for a continuum)."""
     packings = getattr(unwrap(material), "packings", None)
-    if packings is None:
-        return ""
+    return "" if packings is None else packings_fingerprint(packings)
+
+
+def packings_fingerprint(packings) -> str:
+    """SHA-256 (16 hex digits) of a sequence of packings' positions, radii and cells."""
     h = hashlib.sha256()
     for p in packings:
         for a in (p.positions, p.radii, p.cell):
