@@ -176,7 +176,8 @@ class FastEngine:
         # the list (capacity grows) and the hand-over table
         self.nj = np.zeros(0, np.int32)
         self.code = np.zeros(0, np.uint8)
-        self.hist = np.zeros((0, 2))
+        self.ni = np.zeros(0, np.int32)
+        self.hist = np.zeros((2, 0))  # rows: the two spring components (h0, h1 of fast_kernels)
         self._hstart = np.zeros(n + 1, np.int32)
         self._hj = np.zeros(0, np.int32)
         self._hh = np.zeros((0, 2))
@@ -196,22 +197,21 @@ class FastEngine:
     # ------------------------------------------------------------------ internals
     @contextlib.contextmanager
     def _kernels(self):
-        if not self._parallel:
-            yield
-            return
-        with num_threads(self._threads), dynamic_chunks(1):
+        # the force kernel is a parallel one even when serial (fast_kernels.forces_v): one thread
+        with num_threads(self._threads if self._parallel else 1), dynamic_chunks(1):
             yield
 
     def _forces(self, update: bool):
         L = self.hi - self.lo
-        kern = FK.forces_parallel if self._parallel else FK.forces_serial
         s = self.settings
-        kern(
+        FK.forces_v(
             self.cstart,
             self.start,
+            self.ni,
             self.nj,
             self.code,
-            self.hist,
+            self.hist[0],
+            self.hist[1],
             self.x,
             self.y,
             self.vx,
@@ -224,12 +224,7 @@ class FastEngine:
             self.t,
             L[0],
             L[1],
-            s.dt,
-            s.kn,
-            s.kt,
-            s.gamma_n,
-            s.gamma_t,
-            s.mu,
+            (s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt),
             update,
             self._sp_start,
             *self._spill(),
@@ -259,11 +254,11 @@ class FastEngine:
         FK.bin_sort(self.x, self.y, self.lo, self.hi, nbx, nby, self._order, binstart, self._key)
         # hand-over table of the current list (old order)
         if carry and self.n_entries:
-            k = FK.count_history(self.start, self.hist, n)
+            k = FK.count_history(self.start, self.hist[0], self.hist[1], n)
             if self._hj.size < k:
                 cap = int(k * GROWTH) + 16
                 self._hj, self._hh = np.zeros(cap, np.int32), np.zeros((cap, 2))
-            FK.compact_history(self.start, self.nj, self.hist, n, self._hstart, self._hj, self._hh)
+            FK.compact_history(self.start, self.nj, self.hist[0], self.hist[1], n, self._hstart, self._hj, self._hh)
         else:
             self._hstart[:] = 0
         o = self._order
@@ -292,7 +287,7 @@ class FastEngine:
             self._cnt,
             self.start,
         )
-        tail = (self.nj, self.code, self.hist, sp_cnt, o, self._hstart, self._hj, self._hh)
+        tail = (self.nj, self.code, self.hist[0], self.hist[1], sp_cnt, o, self._hstart, self._hj, self._hh)
         m = -1
         if not self._parallel:  # one pass into the buffers as they are; -1: too small
             m = FK.pairs_direct(*args[:-2], self.start, *tail)
@@ -305,9 +300,9 @@ class FastEngine:
                     self.nj, self.code, self.hist = (
                         np.zeros(cap, np.int32),
                         np.zeros(cap, np.uint8),
-                        np.zeros((cap, 2)),
+                        np.zeros((2, cap)),
                     )
-                tail = (self.nj, self.code, self.hist, sp_cnt, o, self._hstart, self._hj, self._hh)
+                tail = (self.nj, self.code, self.hist[0], self.hist[1], sp_cnt, o, self._hstart, self._hj, self._hh)
                 pairs(1, *args, *tail)  # fill
         np.cumsum(sp_cnt, out=self._sp_start[1:])
         ns = int(self._sp_start[-1])
@@ -315,6 +310,9 @@ class FastEngine:
             cap = int(ns * GROWTH) + 16
             self._sp_j, self._sp_f = np.zeros(cap, np.int32), np.zeros((cap, 3))
         self.n_entries = int(m)
+        if self.ni.size < self.nj.size:
+            self.ni = np.zeros(self.nj.size, np.int32)
+        FK.entry_owners(self.start, n, self.ni)
         self._nspill = ns
         self.xh[:] = self.x
         self.yh[:] = self.y
@@ -386,9 +384,11 @@ class FastEngine:
                     self._parallel,
                     self.cstart,
                     self.start,
+                    self.ni,
                     self.nj,
                     self.code,
-                    self.hist,
+                    self.hist[0],
+                    self.hist[1],
                     self.x,
                     self.y,
                     self.vx,
@@ -530,7 +530,7 @@ class FastEngine:
                 self.perm,
             )
         )
-        lst = self.nj.nbytes + self.code.nbytes + self.hist.nbytes + self.start.nbytes
+        lst = self.ni.nbytes + self.nj.nbytes + self.code.nbytes + self.hist.nbytes + self.start.nbytes
         hand = self._hj.nbytes + self._hh.nbytes + self._hstart.nbytes
         rest = sum(
             a.nbytes

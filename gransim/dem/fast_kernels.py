@@ -4,14 +4,17 @@ Layout (all structure-of-arrays, particles in *sorted* order, see :func:`bin_sor
 x, y, vx, vy, w, fx, fy, t, r, m (N,) float64; perm (N,) int32 the original index of each sorted
 particle. Half neighbour list, each pair once with i < j in the sorted order, CSR by i:
 start (N+1,) int32, nj (M,) int32, code (M,) uint8 the periodic image of j
-(code = (sx + 1) + 3 (sy + 1), image x_j + sx Lx, y_j + sy Ly), hist (M, 2) float64 the tangential
-spring in the frame of i (m).
+(code = (sx + 1) + 3 (sy + 1), image x_j + sx Lx, y_j + sy Ly), ni (M,) int32 the owner i of each
+entry (for the vectorised force loop), h0, h1 (M,) float64 the two components of the tangential
+spring in the frame of i (m; two arrays, not one (M, 2): a strided pair of loads and stores stops
+LLVM's loop vectoriser).
 
 Chunks. The particles are grouped in bands of whole bin rows (``cstart`` (C+1,) int32): the bins
 are at least a neighbour cut-off wide, so every partner j > i of a particle of band c lies in band
 c or c + 1, except the pairs across the periodic y boundary (i in the first bin row, j in the
 last), which are *spilled*: their j-side force goes to a small buffer scattered serially after
-the force loop. The force loop runs the even bands, then the odd bands (two ``prange`` regions):
+the force loop. The force loop (:func:`forces_v`) runs the even bands, then the odd bands (two
+``prange`` regions; serially, one region of one iteration):
 within a region no two bands write the same particle, so the symmetric (Newton's third law)
 update needs no atomics and no per-thread copy of the force arrays. Every sum has a fixed order
 (band by band, entry by entry, spills last, per-band partial sums reduced in band order), so the
@@ -23,7 +26,8 @@ Contact law: LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history`` (the ar
 :func:`gransim.contacts.hooke.hooke_history`, eq (5) of Meier et al. for the elastic normal
 part), written without branches: the touch test and the Coulomb cap are selects, so the loop has
 no data-dependent jump (an entry that does not touch computes a force that is masked to zero and
-keeps its spring, as LIGGGHTS keeps it until the next list build).
+keeps its spring, as LIGGGHTS keeps it until the next list build). That is what lets the law run
+as SIMD code over the entries of a block (:func:`_band_forces_v`).
 """
 
 from __future__ import annotations
@@ -64,9 +68,11 @@ def hooke_select(
 ):
     """Branch-free LIGGGHTS Hooke pair (same operations as ``hooke_history``, masked).
 
-    Returns (touch, fx, fy, ti, tj, s0, s1, overlap): force on i (N; zero when the disks do not
-    touch, rsq >= radsum^2), torques on i and j (N m), the spring (m; unchanged when apart) and
-    the overlap radsum - |d| (m; zero when apart).
+    Returns (touch, fx, fy, ti, tj, s0, s1, overlap): touch 1.0 when the disks touch
+    (rsq < radsum^2) else 0.0 (a float, not a bool: a bool taken out of the returned tuple counts
+    as an alias to numba's parfor analysis and keeps the caller's loop from vectorising), force on
+    i (N; zero when apart), torques on i and j (N m), the spring (m; unchanged when apart) and the
+    overlap radsum - |d| (m; zero when apart).
     """
     touch = rsq < radsum * radsum
     r = math.sqrt(rsq)
@@ -117,7 +123,7 @@ def hooke_select(
     fy = fn * eny + ft2
     mask = 1.0 if touch else 0.0
     return (
-        touch,
+        mask,
         mask * fx,
         mask * fy,
         mask * (-cri * tor3),
@@ -129,129 +135,6 @@ def hooke_select(
 
 
 # ----------------------------------------------------------------------------------- forces
-@njit(inline="always")
-def _band_forces(
-    c,
-    cstart,
-    start,
-    nj,
-    code,
-    hist,
-    x,
-    y,
-    vx,
-    vy,
-    w,
-    r,
-    m,
-    fx,
-    fy,
-    t,
-    Lx,
-    Ly,
-    dt,
-    kn,
-    kt,
-    gn,
-    gt,
-    mu,
-    update,
-    sp_start,
-    sp_j,
-    sp_f,
-    acc,
-):
-    """Forces of the entries of band ``c``: i-side summed in registers, j-side written to
-    fx/fy/t when j lies in band c or c + 1, else into the spill rows ``sp_start[c]..``.
-    ``acc[c]`` receives the band's virial sums xx, yy, xy, yx (N m), contacts and overlap sum."""
-    nch = cstart.shape[0] - 1
-    i0 = cstart[c]
-    i1 = cstart[c + 1]
-    jmax = cstart[min(c + 2, nch)]
-    k = sp_start[c]
-    v0 = 0.0
-    v1 = 0.0
-    v2 = 0.0
-    v3 = 0.0
-    nc = 0.0
-    ov = 0.0
-    for i in range(i0, i1):
-        xi = x[i]
-        yi = y[i]
-        ri = r[i]
-        vix = vx[i]
-        viy = vy[i]
-        wi = w[i]
-        mi = m[i]
-        fxi = 0.0
-        fyi = 0.0
-        ti = 0.0
-        for e in range(start[i], start[i + 1]):
-            j = nj[e]
-            cd = np.uint32(code[e])  # unsigned: % and // without Python's sign fix-ups
-            sx = float(np.int32(cd % np.uint32(3)) - 1)
-            sy = float(np.int32(cd // np.uint32(3)) - 1)
-            delx = xi - (x[j] + sx * Lx)
-            dely = yi - (y[j] + sy * Ly)
-            rsq = delx * delx + dely * dely
-            radsum = ri + r[j]
-            touch, fxe, fye, tie, tje, s0, s1, dn = hooke_select(
-                delx,
-                dely,
-                rsq,
-                radsum,
-                ri,
-                r[j],
-                vix,
-                viy,
-                vx[j],
-                vy[j],
-                wi,
-                w[j],
-                mi,
-                m[j],
-                kn,
-                kt,
-                gn,
-                gt,
-                mu,
-                dt,
-                hist[e, 0],
-                hist[e, 1],
-                update,
-            )
-            hist[e, 0] = s0
-            hist[e, 1] = s1
-            fxi += fxe
-            fyi += fye
-            ti += tie
-            if j < jmax:
-                fx[j] -= fxe
-                fy[j] -= fye
-                t[j] += tje
-            else:
-                sp_j[k] = j
-                sp_f[k, 0] = -fxe
-                sp_f[k, 1] = -fye
-                sp_f[k, 2] = tje
-                k += 1
-            v0 += delx * fxe
-            v1 += dely * fye
-            v2 += delx * fye
-            v3 += dely * fxe
-            nc += 1.0 if touch else 0.0
-            ov += dn
-        fx[i] += fxi
-        fy[i] += fyi
-        t[i] += ti
-    acc[c, 0] = v0
-    acc[c, 1] = v1
-    acc[c, 2] = v2
-    acc[c, 3] = v3
-    acc[c, 4] = nc
-    acc[c, 5] = ov
-
-
 @njit
 def _scatter(sp_j, sp_f, fx, fy, t):
     for k in range(sp_j.shape[0]):
@@ -261,83 +144,21 @@ def _scatter(sp_j, sp_f, fx, fy, t):
         t[j] += sp_f[k, 2]
 
 
-@njit
-def forces_serial(
-    cstart,
-    start,
-    nj,
-    code,
-    hist,
-    x,
-    y,
-    vx,
-    vy,
-    w,
-    r,
-    m,
-    fx,
-    fy,
-    t,
-    Lx,
-    Ly,
-    dt,
-    kn,
-    kt,
-    gn,
-    gt,
-    mu,
-    update,
-    sp_start,
-    sp_j,
-    sp_f,
-    acc,
-):
-    """All bands in the order of the threaded loop (even, odd, spills): the same sums as
-    :func:`forces_parallel` bit for bit. ``fx``, ``fy``, ``t`` must be zero on entry."""
-    nch = cstart.shape[0] - 1
-    for colour in range(2):
-        for h in range((nch - colour + 1) // 2):
-            _band_forces(
-                2 * h + colour,
-                cstart,
-                start,
-                nj,
-                code,
-                hist,
-                x,
-                y,
-                vx,
-                vy,
-                w,
-                r,
-                m,
-                fx,
-                fy,
-                t,
-                Lx,
-                Ly,
-                dt,
-                kn,
-                kt,
-                gn,
-                gt,
-                mu,
-                update,
-                sp_start,
-                sp_j,
-                sp_f,
-                acc,
-            )
-    _scatter(sp_j, sp_f, fx, fy, t)
+# ------------------------------------------------------------------- forces, vectorised (SIMD)
+#: particles per block of the vectorised force loop: the block's per-entry results (8 float64 per
+#: entry, about 2.7 entries per particle) stay in the first-level caches between the two loops
+SIMD_BLOCK = 128
 
 
 @pjit
-def forces_parallel(
+def forces_v(
     cstart,
     start,
+    ni,
     nj,
     code,
-    hist,
+    h0,
+    h1,
     x,
     y,
     vx,
@@ -350,54 +171,159 @@ def forces_parallel(
     t,
     Lx,
     Ly,
-    dt,
-    kn,
-    kt,
-    gn,
-    gt,
-    mu,
+    law,
     update,
     sp_start,
     sp_j,
     sp_f,
     acc,
 ):
-    """:func:`forces_serial` with the bands of each colour spread over the threads."""
+    """All forces: the even bands, then the odd bands (a ``prange`` over each colour), then the
+    spills (:func:`_scatter`). Each band in two loops per block of :data:`SIMD_BLOCK` particles:
+    the pair law over the block's entries as one flat loop (``ni`` (M,) int32 the owner i of each entry) with
+    no dependence between iterations, which LLVM turns into SIMD code (gathers of the partners,
+    vector square roots and divisions: IEEE operations, so each lane gives the bits of the scalar
+    law), results into block buffers; then the sums, entry by entry in list order: the i side in
+    registers, the j side into fx/fy/t when j lies in band c or c + 1, else into the spill rows
+    ``sp_start[c]..``; ``acc[c]`` receives the band's virial sums xx, yy, xy, yx (N m), contacts
+    and overlap sum. The sums have a fixed order, so the results do not depend on the thread count
+    (the serial engine runs this kernel on one thread), and they are those of the scalar loop that
+    computed and summed each entry in turn (before commit "vectorised force loop") bit for bit.
+    ``law`` = (kn, kt, gamma_n, gamma_t, mu, dt) (N/m, N/m, 1/s, 1/s, -, s). ``fx``, ``fy``, ``t``
+    zero on entry.
+
+    Why it is written this way: the law loop vectorises only inside a ``parallel=True`` kernel
+    (numba marks the array arguments of a parallel loop body ``noalias`` when it finds no alias
+    among them; in a plain ``njit`` kernel the gathers might alias the stores), only when the loop
+    body is not an ``inline="always"`` function taking arrays (the inlined argument copies count
+    as aliases), with unsigned indices (no negative-index wrap-around) and with the spring in two
+    (M,) arrays (a stride-2 pair of loads and stores is not vectorised). Checked by
+    tests/dem/test_fast.py (the SIMD instructions in the compiled kernel)."""
     nch = cstart.shape[0] - 1
+    kn, kt, gn, gt, mu, dt = law
     for colour in range(2):
         for h in prange((nch - colour + 1) // 2):
-            _band_forces(
-                2 * h + colour,
-                cstart,
-                start,
-                nj,
-                code,
-                hist,
-                x,
-                y,
-                vx,
-                vy,
-                w,
-                r,
-                m,
-                fx,
-                fy,
-                t,
-                Lx,
-                Ly,
-                dt,
-                kn,
-                kt,
-                gn,
-                gt,
-                mu,
-                update,
-                sp_start,
-                sp_j,
-                sp_f,
-                acc,
-            )
+            c = 2 * h + colour
+            i0 = cstart[c]
+            i1 = cstart[c + 1]
+            jmax = cstart[min(c + 2, nch)]
+            cap = 0
+            for ia in range(i0, i1, SIMD_BLOCK):
+                ib = min(ia + SIMD_BLOCK, i1)
+                cap = max(cap, start[ib] - start[ia])
+            bfx = np.empty(cap)
+            bfy = np.empty(cap)
+            bti = np.empty(cap)
+            btj = np.empty(cap)
+            bdx = np.empty(cap)
+            bdy = np.empty(cap)
+            bov = np.empty(cap)
+            bto = np.empty(cap)
+            k = sp_start[c]
+            v0 = 0.0
+            v1 = 0.0
+            v2 = 0.0
+            v3 = 0.0
+            nc = 0.0
+            ov = 0.0
+            for ia in range(i0, i1, SIMD_BLOCK):
+                ib = min(ia + SIMD_BLOCK, i1)
+                ea = start[ia]
+                eb = start[ib]
+                for e_ in range(ea, eb):
+                    e = np.uint64(e_)
+                    q = np.uint64(e_ - ea)
+                    i = ni[e]
+                    j = nj[e]
+                    cd = np.uint32(code[e])
+                    sx = float(np.int32(cd % np.uint32(3)) - 1)
+                    sy = float(np.int32(cd // np.uint32(3)) - 1)
+                    delx = x[i] - (x[j] + sx * Lx)
+                    dely = y[i] - (y[j] + sy * Ly)
+                    rsq = delx * delx + dely * dely
+                    touch, fxe, fye, tie, tje, s0, s1, dn = hooke_select(
+                        delx,
+                        dely,
+                        rsq,
+                        r[i] + r[j],
+                        r[i],
+                        r[j],
+                        vx[i],
+                        vy[i],
+                        vx[j],
+                        vy[j],
+                        w[i],
+                        w[j],
+                        m[i],
+                        m[j],
+                        kn,
+                        kt,
+                        gn,
+                        gt,
+                        mu,
+                        dt,
+                        h0[e],
+                        h1[e],
+                        update,
+                    )
+                    h0[e] = s0
+                    h1[e] = s1
+                    bfx[q] = fxe
+                    bfy[q] = fye
+                    bti[q] = tie
+                    btj[q] = tje
+                    bdx[q] = delx
+                    bdy[q] = dely
+                    bov[q] = dn
+                    bto[q] = touch
+                for i in range(ia, ib):
+                    fxi = 0.0
+                    fyi = 0.0
+                    ti = 0.0
+                    for e in range(start[i], start[i + 1]):
+                        q = e - ea
+                        fxe = bfx[q]
+                        fye = bfy[q]
+                        fxi += fxe
+                        fyi += fye
+                        ti += bti[q]
+                        j = nj[e]
+                        if j < jmax:
+                            fx[j] -= fxe
+                            fy[j] -= fye
+                            t[j] += btj[q]
+                        else:
+                            sp_j[k] = j
+                            sp_f[k, 0] = -fxe
+                            sp_f[k, 1] = -fye
+                            sp_f[k, 2] = btj[q]
+                            k += 1
+                        delx = bdx[q]
+                        dely = bdy[q]
+                        v0 += delx * fxe
+                        v1 += dely * fye
+                        v2 += delx * fye
+                        v3 += dely * fxe
+                        nc += bto[q]
+                        ov += bov[q]
+                    fx[i] += fxi
+                    fy[i] += fyi
+                    t[i] += ti
+            acc[c, 0] = v0
+            acc[c, 1] = v1
+            acc[c, 2] = v2
+            acc[c, 3] = v3
+            acc[c, 4] = nc
+            acc[c, 5] = ov
     _scatter(sp_j, sp_f, fx, fy, t)
+
+
+@njit
+def entry_owners(start, n, ni):
+    """ni[e] = i for the entries start[i] <= e < start[i + 1] of the CSR list."""
+    for i in range(n):
+        for e in range(start[i], start[i + 1]):
+            ni[e] = i
 
 
 # ----------------------------------------------------------------------------------- integration
@@ -600,9 +526,11 @@ def run_steps(
     parallel,
     cstart,
     start,
+    ni,
     nj,
     code,
-    hist,
+    h0,
+    h1,
     x,
     y,
     vx,
@@ -697,68 +625,33 @@ def run_steps(
         step = step0 + k + 1
         Lx = hi[0] - lo[0]
         Ly = hi[1] - lo[1]
-        if parallel:
-            forces_parallel(
-                cstart,
-                start,
-                nj,
-                code,
-                hist,
-                x,
-                y,
-                vx,
-                vy,
-                w,
-                r,
-                m,
-                fx,
-                fy,
-                t,
-                Lx,
-                Ly,
-                dt,
-                kn,
-                kt,
-                gn,
-                gt,
-                mu,
-                True,
-                sp_start,
-                sp_j,
-                sp_f,
-                acc,
-            )
-        else:
-            forces_serial(
-                cstart,
-                start,
-                nj,
-                code,
-                hist,
-                x,
-                y,
-                vx,
-                vy,
-                w,
-                r,
-                m,
-                fx,
-                fy,
-                t,
-                Lx,
-                Ly,
-                dt,
-                kn,
-                kt,
-                gn,
-                gt,
-                mu,
-                True,
-                sp_start,
-                sp_j,
-                sp_f,
-                acc,
-            )
+        forces_v(
+            cstart,
+            start,
+            ni,
+            nj,
+            code,
+            h0,
+            h1,
+            x,
+            y,
+            vx,
+            vy,
+            w,
+            r,
+            m,
+            fx,
+            fy,
+            t,
+            Lx,
+            Ly,
+            (kn, kt, gn, gt, mu, dt),
+            True,
+            sp_start,
+            sp_j,
+            sp_f,
+            acc,
+        )
         for q in range(6):
             s = 0.0
             for c in range(nch):
@@ -1002,17 +895,17 @@ def permute_i(a, order, tmp):
 
 
 @njit
-def count_history(start, hist, n):
+def count_history(start, h0, h1, n):
     """Entries of the list whose spring is not zero (the size of the hand-over table)."""
     k = 0
     for e in range(start[n]):
-        if hist[e, 0] != 0.0 or hist[e, 1] != 0.0:
+        if h0[e] != 0.0 or h1[e] != 0.0:
             k += 1
     return k
 
 
 @njit
-def compact_history(start, nj, hist, n, hstart, hj, hh):
+def compact_history(start, nj, h0, h1, n, hstart, hj, hh):
     """The hand-over table: the entries of the current list whose spring is not zero, CSR by i
     (``hstart`` (N+1,) int32, ``hj`` int32, ``hh`` (K, 2)); returns K. Only these can pass a
     spring on (an entry with a zero spring hands over zero)."""
@@ -1020,10 +913,10 @@ def compact_history(start, nj, hist, n, hstart, hj, hh):
     for i in range(n):
         hstart[i] = k
         for e in range(start[i], start[i + 1]):
-            if hist[e, 0] != 0.0 or hist[e, 1] != 0.0:
+            if h0[e] != 0.0 or h1[e] != 0.0:
                 hj[k] = nj[e]
-                hh[k, 0] = hist[e, 0]
-                hh[k, 1] = hist[e, 1]
+                hh[k, 0] = h0[e]
+                hh[k, 1] = h1[e]
                 k += 1
     hstart[n] = k
     return k
@@ -1048,7 +941,8 @@ def _band_pairs(
     start,
     nj,
     code,
-    hist,
+    h0,
+    h1,
     sp_cnt,
     order,
     hstart,
@@ -1114,8 +1008,8 @@ def _band_pairs(
                                 return -1
                             nj[e] = j
                             code[e] = (ix + 1) + 3 * (iy + 1)
-                            h0 = 0.0
-                            h1 = 0.0
+                            g0 = 0.0
+                            g1 = 0.0
                             if rsq < rs * rs and hstart.shape[0] > 1:
                                 oi = order[i]
                                 oj = order[j]
@@ -1124,11 +1018,11 @@ def _band_pairs(
                                 sg = 1.0 if oi < oj else -1.0
                                 for q in range(hstart[a], hstart[a + 1]):
                                     if hj[q] == bb:
-                                        h0 = sg * hh[q, 0]
-                                        h1 = sg * hh[q, 1]
+                                        g0 = sg * hh[q, 0]
+                                        g1 = sg * hh[q, 1]
                                         break
-                            hist[e, 0] = h0
-                            hist[e, 1] = h1
+                            h0[e] = g0
+                            h1[e] = g1
                             e += 1
         if fill == 0:
             cnt[i] = ncount
@@ -1152,7 +1046,8 @@ def pairs_direct(
     start,
     nj,
     code,
-    hist,
+    h0,
+    h1,
     sp_cnt,
     order,
     hstart,
@@ -1183,7 +1078,8 @@ def pairs_direct(
             start,
             nj,
             code,
-            hist,
+            h0,
+            h1,
             sp_cnt,
             order,
             hstart,
@@ -1213,7 +1109,8 @@ def pairs_serial(
     start,
     nj,
     code,
-    hist,
+    h0,
+    h1,
     sp_cnt,
     order,
     hstart,
@@ -1240,7 +1137,8 @@ def pairs_serial(
             start,
             nj,
             code,
-            hist,
+            h0,
+            h1,
             sp_cnt,
             order,
             hstart,
@@ -1266,7 +1164,8 @@ def pairs_parallel(
     start,
     nj,
     code,
-    hist,
+    h0,
+    h1,
     sp_cnt,
     order,
     hstart,
@@ -1293,7 +1192,8 @@ def pairs_parallel(
             start,
             nj,
             code,
-            hist,
+            h0,
+            h1,
             sp_cnt,
             order,
             hstart,

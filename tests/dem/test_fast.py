@@ -249,3 +249,123 @@ def test_bad_input_is_refused():
         FastEngine(small, S)
     with pytest.raises(InputError, match="dt"):
         FastEngine(p, DEMSettings(kn=1e9, dt=1e-3))
+
+
+def _scalar_forces(eng):
+    """An independent scalar implementation of the fast path's force sums (plain Python, one
+    entry at a time: the pair law of :func:`fast_kernels.hooke_select` as Python floats, then the
+    i side, j side or spill, virial, contacts and overlap in list order, band by band: even bands,
+    odd bands, then the spills in band order). Python floats are IEEE doubles and ``math.sqrt`` is correctly rounded, so
+    the vectorised kernel must give these sums bit for bit."""
+    from gransim.dem import fast_kernels as FK
+
+    law = FK.hooke_select.py_func
+    s = eng.settings
+    L = eng.hi - eng.lo
+    n = eng.n
+    fx, fy, t = np.zeros(n), np.zeros(n), np.zeros(n)
+    h0, h1 = eng.hist[0].copy(), eng.hist[1].copy()
+    cs, st = eng.cstart, eng.start
+    nch = cs.size - 1
+    acc = np.zeros((nch, 6))
+    spills = [[] for _ in range(nch)]  # per band: _scatter adds them in band order
+    x, y, vx, vy, w, r, m = (eng.x, eng.y, eng.vx, eng.vy, eng.w, eng.r, eng.m)
+    for colour in range(2):
+        for c in range(colour, nch, 2):
+            jmax = cs[min(c + 2, nch)]
+            sums = [0.0] * 6
+            for i in range(cs[c], cs[c + 1]):
+                fi = [0.0, 0.0, 0.0]
+                for e in range(st[i], st[i + 1]):
+                    j = int(eng.nj[e])
+                    sx, sy = int(eng.code[e]) % 3 - 1, int(eng.code[e]) // 3 - 1
+                    dx = float(x[i]) - (float(x[j]) + sx * float(L[0]))
+                    dy = float(y[i]) - (float(y[j]) + sy * float(L[1]))
+                    rsq = dx * dx + dy * dy
+                    args = (float(r[i]) + float(r[j]), float(r[i]), float(r[j]), float(vx[i]), float(vy[i]))
+                    args += (float(vx[j]), float(vy[j]), float(w[i]), float(w[j]), float(m[i]), float(m[j]))
+                    args += (s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, float(h0[e]), float(h1[e]), True)
+                    tc, fxe, fye, tie, tje, s0, s1, dn = law(dx, dy, rsq, *args)
+                    h0[e], h1[e] = s0, s1
+                    fi[0] += fxe
+                    fi[1] += fye
+                    fi[2] += tie
+                    if j < jmax:
+                        fx[j] -= fxe
+                        fy[j] -= fye
+                        t[j] += tje
+                    else:
+                        spills[c].append((j, -fxe, -fye, tje))
+                    sums[0] += dx * fxe
+                    sums[1] += dy * fye
+                    sums[2] += dx * fye
+                    sums[3] += dy * fxe
+                    sums[4] += tc
+                    sums[5] += dn
+                fx[i] += fi[0]
+                fy[i] += fi[1]
+                t[i] += fi[2]
+            acc[c] = sums
+    for j, a, b, d in (q for band in spills for q in band):
+        fx[j] += a
+        fy[j] += b
+        t[j] += d
+    return fx, fy, t, h0, h1, acc
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_vectorised_forces_equal_the_scalar_loop_bit_for_bit(threads, threaded_small):
+    # the force kernel runs the pair law over a block's entries as SIMD code (vector square
+    # roots and divisions, exact IEEE operations) and sums in list order: it must give the
+    # scalar one-entry-at-a-time sums exactly, in a state with sliding, sticking and separated
+    # list entries, springs carried over and pairs across both periodic boundaries
+    from bench.dem import assembly
+
+    p = assembly(1000)
+    rng = np.random.default_rng(11)
+    fe = FastEngine(p, S, velocities=rng.normal(0.0, 0.02, (p.n, 2)), spins=rng.normal(0.0, 30.0, p.n), threads=threads)
+    fe.advance(40)
+    ref = _scalar_forces(fe)
+    touch = ref[5][:, 4].sum()
+    assert 0 < touch < fe.n_entries  # some entries touch, some do not
+    assert fe._nspill > 0  # pairs across the periodic y boundary
+    h0 = fe.hist[0].copy()
+    fe.fx[:] = fe.fy[:] = fe.t[:] = 0.0
+    with fe._kernels():
+        fe._forces(update=True)
+    got = (fe.fx, fe.fy, fe.t, fe.hist[0][: fe.n_entries], fe.hist[1][: fe.n_entries], fe._acc)
+    want = (*ref[:3], ref[3][: fe.n_entries], ref[4][: fe.n_entries], ref[5])
+    for name, a, b in zip(("fx", "fy", "t", "h0", "h1", "acc"), got, want):
+        np.testing.assert_array_equal(a, b, err_msg=name)
+    slid = np.sum((np.abs(fe.hist[0] - h0) > 0) & (fe.hist[0] != 0))
+    assert slid > 0  # the springs moved
+
+
+def test_the_force_kernel_is_compiled_to_simd_code():
+    # the speed of the fast path rests on LLVM vectorising the pair law (docs/performance.md);
+    # numba gives up silently when the loop body changes shape (a bool out of the law's tuple,
+    # an inlined helper taking arrays, a 2D spring array), so the compiled kernel is checked for
+    # packed square roots and gathers. Compiled afresh (inspection is off for cached code).
+    import re
+
+    import numba
+
+    from gransim._numba import JIT_OPTIONS
+    from gransim.dem import fast_kernels as FK
+
+    flags = open("/proc/cpuinfo").read() if __import__("os").path.exists("/proc/cpuinfo") else ""
+    if " avx2" not in flags:
+        pytest.skip("no AVX2 on this CPU: the gathers need it")
+    opts = {**JIT_OPTIONS, "cache": False, "parallel": True}
+    k = numba.njit(**opts)(FK.forces_v.py_func)
+    fe = FastEngine(lattice_packing(10, 12), S)
+    with fe._kernels():
+        s = fe.settings
+        L = fe.hi - fe.lo
+        k(fe.cstart, fe.start, fe.ni, fe.nj, fe.code, fe.hist[0], fe.hist[1], fe.x, fe.y, fe.vx, fe.vy, fe.w,
+          fe.r, fe.m, fe.fx, fe.fy, fe.t, L[0], L[1], (s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt), False,
+          fe._sp_start, *fe._spill(), fe._acc)  # fmt: skip
+    asm = k.inspect_asm(k.signatures[0])
+    assert re.search(r"\bvsqrtpd\b", asm), "the pair law is not vectorised (no packed square root)"
+    assert re.search(r"\bvdivpd\b", asm)
+    assert re.search(r"\bvgather[dq]pd\b", asm), "the partners' loads are not gathers"
