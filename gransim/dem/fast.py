@@ -205,6 +205,7 @@ class FastEngine:
         L = self.hi - self.lo
         s = self.settings
         FK.forces_v(
+            self._parallel,
             self.cstart,
             self.start,
             self.ni,

@@ -152,6 +152,7 @@ SIMD_BLOCK = 128
 
 @pjit
 def forces_v(
+    parallel,
     cstart,
     start,
     ni,
@@ -201,120 +202,131 @@ def forces_v(
     tests/dem/test_fast.py (the SIMD instructions in the compiled kernel)."""
     nch = cstart.shape[0] - 1
     kn, kt, gn, gt, mu, dt = law
-    for colour in range(2):
-        for h in prange((nch - colour + 1) // 2):
-            c = 2 * h + colour
-            i0 = cstart[c]
-            i1 = cstart[c + 1]
-            jmax = cstart[min(c + 2, nch)]
-            cap = 0
-            for ia in range(i0, i1, SIMD_BLOCK):
-                ib = min(ia + SIMD_BLOCK, i1)
-                cap = max(cap, start[ib] - start[ia])
-            bfx = np.empty(cap)
-            bfy = np.empty(cap)
-            bti = np.empty(cap)
-            btj = np.empty(cap)
-            bdx = np.empty(cap)
-            bdy = np.empty(cap)
-            bov = np.empty(cap)
-            bto = np.empty(cap)
-            k = sp_start[c]
-            v0 = 0.0
-            v1 = 0.0
-            v2 = 0.0
-            v3 = 0.0
-            nc = 0.0
-            ov = 0.0
-            for ia in range(i0, i1, SIMD_BLOCK):
-                ib = min(ia + SIMD_BLOCK, i1)
-                ea = start[ia]
-                eb = start[ib]
-                for e_ in range(ea, eb):
-                    e = np.uint64(e_)
-                    q = np.uint64(e_ - ea)
-                    i = ni[e]
-                    j = nj[e]
-                    cd = np.uint32(code[e])
-                    sx = float(np.int32(cd % np.uint32(3)) - 1)
-                    sy = float(np.int32(cd // np.uint32(3)) - 1)
-                    delx = x[i] - (x[j] + sx * Lx)
-                    dely = y[i] - (y[j] + sy * Ly)
-                    rsq = delx * delx + dely * dely
-                    touch, fxe, fye, tie, tje, s0, s1, dn = hooke_select(
-                        delx,
-                        dely,
-                        rsq,
-                        r[i] + r[j],
-                        r[i],
-                        r[j],
-                        vx[i],
-                        vy[i],
-                        vx[j],
-                        vy[j],
-                        w[i],
-                        w[j],
-                        m[i],
-                        m[j],
-                        kn,
-                        kt,
-                        gn,
-                        gt,
-                        mu,
-                        dt,
-                        h0[e],
-                        h1[e],
-                        update,
-                    )
-                    h0[e] = s0
-                    h1[e] = s1
-                    bfx[q] = fxe
-                    bfy[q] = fye
-                    bti[q] = tie
-                    btj[q] = tje
-                    bdx[q] = delx
-                    bdy[q] = dely
-                    bov[q] = dn
-                    bto[q] = touch
-                for i in range(ia, ib):
-                    fxi = 0.0
-                    fyi = 0.0
-                    ti = 0.0
-                    for e in range(start[i], start[i + 1]):
-                        q = e - ea
-                        fxe = bfx[q]
-                        fye = bfy[q]
-                        fxi += fxe
-                        fyi += fye
-                        ti += bti[q]
+    ne = (nch + 1) // 2  # even bands
+    ncol = 2 if parallel else 1
+    nper = 1 if parallel else nch
+    for colour in range(ncol):
+        # parallel: one task per band of this colour; serial: one task, every band (even then odd)
+        ntask = (nch - colour + 1) // 2 if parallel else 1
+        for h in prange(ntask):
+            for b in range(nper):
+                if parallel:
+                    c = 2 * h + colour
+                elif b < ne:
+                    c = 2 * b
+                else:
+                    c = 2 * (b - ne) + 1
+                i0 = cstart[c]
+                i1 = cstart[c + 1]
+                jmax = cstart[min(c + 2, nch)]
+                cap = 0
+                for ia in range(i0, i1, SIMD_BLOCK):
+                    ib = min(ia + SIMD_BLOCK, i1)
+                    cap = max(cap, start[ib] - start[ia])
+                bfx = np.empty(cap)
+                bfy = np.empty(cap)
+                bti = np.empty(cap)
+                btj = np.empty(cap)
+                bdx = np.empty(cap)
+                bdy = np.empty(cap)
+                bov = np.empty(cap)
+                bto = np.empty(cap)
+                k = sp_start[c]
+                v0 = 0.0
+                v1 = 0.0
+                v2 = 0.0
+                v3 = 0.0
+                nc = 0.0
+                ov = 0.0
+                for ia in range(i0, i1, SIMD_BLOCK):
+                    ib = min(ia + SIMD_BLOCK, i1)
+                    ea = start[ia]
+                    eb = start[ib]
+                    for e_ in range(ea, eb):
+                        e = np.uint64(e_)
+                        q = np.uint64(e_ - ea)
+                        i = ni[e]
                         j = nj[e]
-                        if j < jmax:
-                            fx[j] -= fxe
-                            fy[j] -= fye
-                            t[j] += btj[q]
-                        else:
-                            sp_j[k] = j
-                            sp_f[k, 0] = -fxe
-                            sp_f[k, 1] = -fye
-                            sp_f[k, 2] = btj[q]
-                            k += 1
-                        delx = bdx[q]
-                        dely = bdy[q]
-                        v0 += delx * fxe
-                        v1 += dely * fye
-                        v2 += delx * fye
-                        v3 += dely * fxe
-                        nc += bto[q]
-                        ov += bov[q]
-                    fx[i] += fxi
-                    fy[i] += fyi
-                    t[i] += ti
-            acc[c, 0] = v0
-            acc[c, 1] = v1
-            acc[c, 2] = v2
-            acc[c, 3] = v3
-            acc[c, 4] = nc
-            acc[c, 5] = ov
+                        cd = np.uint32(code[e])
+                        sx = float(np.int32(cd % np.uint32(3)) - 1)
+                        sy = float(np.int32(cd // np.uint32(3)) - 1)
+                        delx = x[i] - (x[j] + sx * Lx)
+                        dely = y[i] - (y[j] + sy * Ly)
+                        rsq = delx * delx + dely * dely
+                        touch, fxe, fye, tie, tje, s0, s1, dn = hooke_select(
+                            delx,
+                            dely,
+                            rsq,
+                            r[i] + r[j],
+                            r[i],
+                            r[j],
+                            vx[i],
+                            vy[i],
+                            vx[j],
+                            vy[j],
+                            w[i],
+                            w[j],
+                            m[i],
+                            m[j],
+                            kn,
+                            kt,
+                            gn,
+                            gt,
+                            mu,
+                            dt,
+                            h0[e],
+                            h1[e],
+                            update,
+                        )
+                        h0[e] = s0
+                        h1[e] = s1
+                        bfx[q] = fxe
+                        bfy[q] = fye
+                        bti[q] = tie
+                        btj[q] = tje
+                        bdx[q] = delx
+                        bdy[q] = dely
+                        bov[q] = dn
+                        bto[q] = touch
+                    for i in range(ia, ib):
+                        fxi = 0.0
+                        fyi = 0.0
+                        ti = 0.0
+                        for e in range(start[i], start[i + 1]):
+                            q = e - ea
+                            fxe = bfx[q]
+                            fye = bfy[q]
+                            fxi += fxe
+                            fyi += fye
+                            ti += bti[q]
+                            j = nj[e]
+                            if j < jmax:
+                                fx[j] -= fxe
+                                fy[j] -= fye
+                                t[j] += btj[q]
+                            else:
+                                sp_j[k] = j
+                                sp_f[k, 0] = -fxe
+                                sp_f[k, 1] = -fye
+                                sp_f[k, 2] = btj[q]
+                                k += 1
+                            delx = bdx[q]
+                            dely = bdy[q]
+                            v0 += delx * fxe
+                            v1 += dely * fye
+                            v2 += delx * fye
+                            v3 += dely * fxe
+                            nc += bto[q]
+                            ov += bov[q]
+                        fx[i] += fxi
+                        fy[i] += fyi
+                        t[i] += ti
+                acc[c, 0] = v0
+                acc[c, 1] = v1
+                acc[c, 2] = v2
+                acc[c, 3] = v3
+                acc[c, 4] = nc
+                acc[c, 5] = ov
     _scatter(sp_j, sp_f, fx, fy, t)
 
 
@@ -327,9 +339,9 @@ def entry_owners(start, n, ni):
 
 
 # ----------------------------------------------------------------------------------- integration
-@njit(inline="always")
-def _band_integrate(
-    c,
+@pjit
+def integrate_v(
+    parallel,
     cstart,
     x,
     y,
@@ -354,171 +366,93 @@ def _band_integrate(
     deltasq,
     red,
 ):
-    """One band of the fused pass: [final half step (v, w) and its kinetic energy] [remap x
+    """The fused pass, band by band: [final half step (v, w) and its kinetic energy] [remap x
     affinely from box (lo_old, hi_old) to (lo_new, hi_new)] [first half step, position update,
-    rebuild test |x - x_hold|^2 > deltasq, forces zeroed]. ``red[c]`` = (kinetic energy (J), rebuild
-    flag, first non-finite particle + 1 or 0)."""
+    rebuild test |x - x_hold|^2 > deltasq, forces zeroed]. ``red[c]`` = (kinetic energy (J),
+    rebuild flag, first non-finite particle + 1 or 0).
+
+    Written as SIMD code: per block of :data:`SIMD_BLOCK` particles one loop whose only
+    reductions are integer ones (the rebuild flag, a non-finite flag), the kinetic energies into a
+    block buffer summed afterwards in particle order, the first non-finite particle of a band
+    looked up only when there is one; the arithmetic and its order are those of the scalar pass
+    before it, bit for bit. ``parallel`` True: the bands spread over the threads; False: one task
+    holding every band in order (a parallel kernel on one thread: only there does the loop
+    vectorise, :func:`forces_v`)."""
+    nch = cstart.shape[0] - 1
     dtf = 0.5 * dt
     dtfrot = dtf / 0.5
-    ke = 0.0
-    flag = 0.0
-    bad = 0.0
     hx = 1.0 / (hi_old[0] - lo_old[0])
     hy = 1.0 / (hi_old[1] - lo_old[1])
     Hx = hi_new[0] - lo_new[0]
     Hy = hi_new[1] - lo_new[1]
-    for i in range(cstart[c], cstart[c + 1]):
-        dtfm = dtf / m[i]
-        rot = dtfrot / (r[i] * r[i] * m[i])
-        a = vx[i]
-        b = vy[i]
-        s = w[i]
-        if final:
-            a += dtfm * fx[i]
-            b += dtfm * fy[i]
-            s += rot * t[i]
-            ke += 0.5 * m[i] * (a * a + b * b) + 0.25 * m[i] * r[i] * r[i] * s * s
-        px = x[i]
-        py = y[i]
-        if remap:
-            px = Hx * (hx * (px - lo_old[0])) + lo_new[0]
-            py = Hy * (hy * (py - lo_old[1])) + lo_new[1]
-        if initial:
-            a += dtfm * fx[i]
-            b += dtfm * fy[i]
-            px += dt * a
-            py += dt * b
-            s += rot * t[i]
-            fx[i] = 0.0
-            fy[i] = 0.0
-            t[i] = 0.0
-            dx = px - xh[i]
-            dy = py - yh[i]
-            d2 = dx * dx + dy * dy
-            if d2 > deltasq:
-                flag = 1.0
-            if not (math.isfinite(px) and math.isfinite(py)) and bad == 0.0:
-                bad = float(i + 1)
-        vx[i] = a
-        vy[i] = b
-        w[i] = s
-        x[i] = px
-        y[i] = py
-    red[c, 0] = ke
-    red[c, 1] = flag
-    red[c, 2] = bad
-
-
-@njit
-def integrate_serial(
-    cstart,
-    x,
-    y,
-    vx,
-    vy,
-    w,
-    fx,
-    fy,
-    t,
-    m,
-    r,
-    xh,
-    yh,
-    dt,
-    final,
-    initial,
-    remap,
-    lo_old,
-    hi_old,
-    lo_new,
-    hi_new,
-    deltasq,
-    red,
-):
-    """The fused pass (:func:`_band_integrate`) over all bands."""
-    for c in range(cstart.shape[0] - 1):
-        _band_integrate(
-            c,
-            cstart,
-            x,
-            y,
-            vx,
-            vy,
-            w,
-            fx,
-            fy,
-            t,
-            m,
-            r,
-            xh,
-            yh,
-            dt,
-            final,
-            initial,
-            remap,
-            lo_old,
-            hi_old,
-            lo_new,
-            hi_new,
-            deltasq,
-            red,
-        )
-
-
-@pjit
-def integrate_parallel(
-    cstart,
-    x,
-    y,
-    vx,
-    vy,
-    w,
-    fx,
-    fy,
-    t,
-    m,
-    r,
-    xh,
-    yh,
-    dt,
-    final,
-    initial,
-    remap,
-    lo_old,
-    hi_old,
-    lo_new,
-    hi_new,
-    deltasq,
-    red,
-):
-    """:func:`integrate_serial` with the bands spread over the threads."""
-    for c in prange(cstart.shape[0] - 1):
-        _band_integrate(
-            c,
-            cstart,
-            x,
-            y,
-            vx,
-            vy,
-            w,
-            fx,
-            fy,
-            t,
-            m,
-            r,
-            xh,
-            yh,
-            dt,
-            final,
-            initial,
-            remap,
-            lo_old,
-            hi_old,
-            lo_new,
-            hi_new,
-            deltasq,
-            red,
-        )
+    lox = lo_old[0]
+    loy = lo_old[1]
+    lnx = lo_new[0]
+    lny = lo_new[1]
+    ntask = nch if parallel else 1
+    nper = 1 if parallel else nch
+    for h in prange(ntask):
+        bke = np.empty(SIMD_BLOCK)
+        for b in range(nper):
+            c = h + b  # one of the two is 0
+            i0 = cstart[c]
+            i1 = cstart[c + 1]
+            ke = 0.0
+            flag = 0
+            nonfinite = 0
+            for ia in range(i0, i1, SIMD_BLOCK):
+                ib = min(ia + SIMD_BLOCK, i1)
+                for i_ in range(ia, ib):
+                    i = np.uint64(i_)
+                    q = np.uint64(i_ - ia)
+                    dtfm = dtf / m[i]
+                    rot = dtfrot / (r[i] * r[i] * m[i])
+                    a = vx[i]
+                    bv = vy[i]
+                    sp = w[i]
+                    kei = 0.0
+                    if final:
+                        a += dtfm * fx[i]
+                        bv += dtfm * fy[i]
+                        sp += rot * t[i]
+                        kei = 0.5 * m[i] * (a * a + bv * bv) + 0.25 * m[i] * r[i] * r[i] * sp * sp
+                    bke[q] = kei
+                    px = x[i]
+                    py = y[i]
+                    if remap:
+                        px = Hx * (hx * (px - lox)) + lnx
+                        py = Hy * (hy * (py - loy)) + lny
+                    if initial:
+                        a += dtfm * fx[i]
+                        bv += dtfm * fy[i]
+                        px += dt * a
+                        py += dt * bv
+                        sp += rot * t[i]
+                        fx[i] = 0.0
+                        fy[i] = 0.0
+                        t[i] = 0.0
+                        dx = px - xh[i]
+                        dy = py - yh[i]
+                        d2 = dx * dx + dy * dy
+                        flag |= 1 if d2 > deltasq else 0
+                        nonfinite |= 0 if (math.isfinite(px) and math.isfinite(py)) else 1
+                    vx[i] = a
+                    vy[i] = bv
+                    w[i] = sp
+                    x[i] = px
+                    y[i] = py
+                if final:
+                    for k in range(ib - ia):
+                        ke += bke[k]
+            bad = 0.0
+            if nonfinite:
+                for i in range(i0, i1):
+                    if not (math.isfinite(x[i]) and math.isfinite(y[i])):
+                        bad = float(i + 1)
+                        break
+            red[c, 0] = ke
+            red[c, 1] = float(flag)
+            red[c, 2] = bad
 
 
 @njit
@@ -626,6 +560,7 @@ def run_steps(
         Lx = hi[0] - lo[0]
         Ly = hi[1] - lo[1]
         forces_v(
+            parallel,
             cstart,
             start,
             ni,
@@ -744,58 +679,32 @@ def _integrate(
     dsq,
     red,
 ):
-    if parallel:
-        integrate_parallel(
-            cstart,
-            x,
-            y,
-            vx,
-            vy,
-            w,
-            fx,
-            fy,
-            t,
-            m,
-            r,
-            xh,
-            yh,
-            dt,
-            final,
-            initial,
-            remap,
-            lo_old,
-            hi_old,
-            lo_new,
-            hi_new,
-            dsq,
-            red,
-        )
-    else:
-        integrate_serial(
-            cstart,
-            x,
-            y,
-            vx,
-            vy,
-            w,
-            fx,
-            fy,
-            t,
-            m,
-            r,
-            xh,
-            yh,
-            dt,
-            final,
-            initial,
-            remap,
-            lo_old,
-            hi_old,
-            lo_new,
-            hi_new,
-            dsq,
-            red,
-        )
+    integrate_v(
+        parallel,
+        cstart,
+        x,
+        y,
+        vx,
+        vy,
+        w,
+        fx,
+        fy,
+        t,
+        m,
+        r,
+        xh,
+        yh,
+        dt,
+        final,
+        initial,
+        remap,
+        lo_old,
+        hi_old,
+        lo_new,
+        hi_new,
+        dsq,
+        red,
+    )
 
 
 @njit

@@ -362,7 +362,7 @@ def test_the_force_kernel_is_compiled_to_simd_code():
     with fe._kernels():
         s = fe.settings
         L = fe.hi - fe.lo
-        k(fe.cstart, fe.start, fe.ni, fe.nj, fe.code, fe.hist[0], fe.hist[1], fe.x, fe.y, fe.vx, fe.vy, fe.w,
+        k(False, fe.cstart, fe.start, fe.ni, fe.nj, fe.code, fe.hist[0], fe.hist[1], fe.x, fe.y, fe.vx, fe.vy, fe.w,
           fe.r, fe.m, fe.fx, fe.fy, fe.t, L[0], L[1], (s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt), False,
           fe._sp_start, *fe._spill(), fe._acc)  # fmt: skip
     asm = k.inspect_asm(k.signatures[0])
