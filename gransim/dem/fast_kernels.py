@@ -209,6 +209,21 @@ def forces_v(
         # parallel: one task per band of this colour; serial: one task, every band (even then odd)
         ntask = (nch - colour + 1) // 2 if parallel else 1
         for h in prange(ntask):
+            # block buffers, once per task (on one thread: once per call, not per band; at 1e3
+            # disks 8 allocations per band were a tenth of a step)
+            cap = 0
+            for b in range(nper):
+                c = 2 * h + colour if parallel else b
+                for ia in range(cstart[c], cstart[c + 1], SIMD_BLOCK):
+                    cap = max(cap, start[min(ia + SIMD_BLOCK, cstart[c + 1])] - start[ia])
+            bfx = np.empty(cap)
+            bfy = np.empty(cap)
+            bti = np.empty(cap)
+            btj = np.empty(cap)
+            bdx = np.empty(cap)
+            bdy = np.empty(cap)
+            bov = np.empty(cap)
+            bto = np.empty(cap)
             for b in range(nper):
                 if parallel:
                     c = 2 * h + colour
@@ -219,18 +234,6 @@ def forces_v(
                 i0 = cstart[c]
                 i1 = cstart[c + 1]
                 jmax = cstart[min(c + 2, nch)]
-                cap = 0
-                for ia in range(i0, i1, SIMD_BLOCK):
-                    ib = min(ia + SIMD_BLOCK, i1)
-                    cap = max(cap, start[ib] - start[ia])
-                bfx = np.empty(cap)
-                bfy = np.empty(cap)
-                bti = np.empty(cap)
-                btj = np.empty(cap)
-                bdx = np.empty(cap)
-                bdy = np.empty(cap)
-                bov = np.empty(cap)
-                bto = np.empty(cap)
                 k = sp_start[c]
                 v0 = 0.0
                 v1 = 0.0
