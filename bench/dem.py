@@ -473,7 +473,8 @@ def stream_triad(n: int = 20_000_000, repeats: int = 5) -> float:
 #: read and written; fused pass 12 float64 read, 8 written. The partners' gathers are cache hits
 #: (bin order) and not counted.
 def fast_bytes_per_particle_step(entries_per_particle: float) -> float:
-    return 7 * 8 + 4 + 3 * 16 + entries_per_particle * (4 + 1 + 32) + 12 * 8 + 8 * 8
+    # per entry: owner i and partner j (int32), image code, spring read and written (2 x 16)
+    return 7 * 8 + 4 + 3 * 16 + entries_per_particle * (4 + 4 + 1 + 32) + 12 * 8 + 8 * 8
 
 
 def _bandwidth_records(res: dict, sizes_n) -> list:
