@@ -103,7 +103,7 @@ FORCE_TOL = 1e-3
 #: enthalpy in the cell-shear direction: the fixed-cell minimum next to it (what the relaxed RVE
 #: finds) keeps a shear stress of ~1e-2 p and has a negative relaxed shear stiffness (quartz-sand,
 #: seed 4, N = 120: mu = -7.4e5 N/m; N = 350, seed 1: -1.5e4 N/m). At 1e-5 the same seeds end at
-#: a minimum (mu = +9.2e5, +3.2e5 N/m; shear stress after relaxation <= 2e-5 p) for ~1.1-2x the
+#: a minimum (mu = +9.2e5, +3.2e5 N/m; shear stress after relaxation <= 2e-5 p) for 1.0-2.1x the
 #: FIRE steps (docs/generation.md, "Shear-stabilised packings").
 SHAPE_FORCE_TOL = 1e-5
 #: the FIRE settings of make_packing (frozen: one shared instance)
