@@ -28,7 +28,7 @@ available; gransim uses its own, a standard route to jammed packings of soft dis
    conjugate to A sigma - p A I, :mod:`.fire_shape`), so that the returned packing is
    shear-stress free, sigma_virial = p I to ``force_tol`` p (the "shear-stabilised" packings of
    Dagois-Bohy, Tighe, Simon, Henkes & van Hecke, "Soft-sphere packings at finite pressure but
-   unstable to shear", PRL 109, 095703, 2012); the cell then comes out sheared and rectangular.
+   unstable to shear", PRL 109, 095703, 2012); the cell then comes out sheared (not square).
    **Decompression ladder**: H is minimised at p_k = p 3^k, k = K, ..., 1 (rms residual <= 1e-2
    each), p_K the first at or above the virial pressure of the quenched state: the well-connected
    compressed network is unloaded step by step, which is nearly elastic. Expanding the quenched
