@@ -47,6 +47,13 @@ def register(sub) -> None:
         "RVEs) or an advancing front of touching disks (a dense contact-free start)",
     )
     p.add_argument(
+        "--cell",
+        choices=("scale", "shape"),
+        help="cell degrees of freedom of the FIRE protocol: the side of a square cell (default; the "
+        "standard RVEs) or the whole cell shape (a shear-stress-free packing in a sheared cell, "
+        "stable to shear; default --force-tol 1e-5)",
+    )
+    p.add_argument(
         "--friction",
         type=float,
         help="make the packing by isotropic frictional DEM compaction of a granular gas with this "
@@ -112,9 +119,9 @@ def _run(args) -> int:
                 "--friction (DEM compaction) takes no --solid-fraction or --mean-overlap target: "
                 "the friction sets the density and --pressure the overlaps"
             )
-        if args.force_tol is not None or args.residual is not None or args.method is not None:
+        if args.force_tol is not None or args.residual is not None or args.method is not None or args.cell is not None:
             raise InputError(
-                "--force-tol, --residual and --method belong to the FIRE protocol, not to "
+                "--force-tol, --residual, --method and --cell belong to the FIRE protocol, not to "
                 "--friction (the compaction stops at an unbalanced force ratio of 1e-3)"
             )
         kw = {} if args.pressure is None else {"pressure": args.pressure}
@@ -133,7 +140,12 @@ def _run(args) -> int:
             raise InputError("--pressure needs --friction (it is the stress of the DEM compaction)")
         kw = {
             k: v
-            for k, v in (("force_tol", args.force_tol), ("residual", args.residual), ("method", args.method))
+            for k, v in (
+                ("force_tol", args.force_tol),
+                ("residual", args.residual),
+                ("method", args.method),
+                ("cell", args.cell),
+            )
             if v is not None
         }
         packing = make_packing(

@@ -1,10 +1,12 @@
 """Grain size distributions and periodic disk packings generated from them.
 
-Modules (imports flow one way: gsd, fire, stats -> pack, compaction -> standard):
+Modules (imports flow one way: gsd, fire -> fire_shape, stats -> pack, compaction -> standard):
 
 * :mod:`.gsd`: :class:`GrainSizeDistribution` (sieve curves, sampling by area fraction),
   :func:`get_distribution` for the shipped curves ``quartz-sand`` and ``kuhn-1002``.
 * :mod:`.fire`: the FIRE 2.0 enthalpy minimiser (:class:`Minimiser`, :class:`FireParameters`).
+* :mod:`.fire_shape`: its variant over the full cell shape (:class:`ShapeMinimiser`; the
+  shear-stress-free packings of ``make_packing(..., cell="shape")``).
 * :mod:`.stats`: :func:`packing_stats` and :func:`rattlers`.
 * :mod:`.pack`: :func:`make_packing` (jammed periodic packings by pressure-controlled FIRE
   minimisation of the contact potential).
@@ -19,6 +21,7 @@ Modules (imports flow one way: gsd, fire, stats -> pack, compaction -> standard)
 
 from .compaction import compact_packing, compaction_run
 from .fire import FireParameters, Minimiser
+from .fire_shape import ShapeMinimiser
 from .gsd import GrainSizeDistribution, distribution_names, get_distribution
 from .pack import make_packing
 from .standard import (
@@ -38,6 +41,7 @@ __all__ = [
     "FireParameters",
     "GrainSizeDistribution",
     "Minimiser",
+    "ShapeMinimiser",
     "build_standard",
     "compact_packing",
     "compaction_run",

@@ -483,6 +483,11 @@ class Minimiser:
         return np.array([[self.L, 0.0], [0.0, self.L]])
 
     @property
+    def area(self) -> float:
+        """Cell area L^2 (mean diameters squared)."""
+        return self.L**2
+
+    @property
     def phi(self) -> float:
         return float(np.pi * np.sum(self.r**2) / self.L**2)
 

@@ -23,7 +23,12 @@ available; gransim uses its own, a standard route to jammed packings of soft dis
    2006; Guénolé et al. 2020) over the centres *and* the cell scale L (the cell stays square:
    isotropic expansion or compression). The generalised force on ln L is sum_c f_c |l_c| - 2 p A
    (virial pressure minus imposed pressure); the cell "mass" is N d_mean^2 so that the cell mode
-   has the frequency of the particle modes.
+   has the frequency of the particle modes. ``cell="shape"``: every stage minimises over the full
+   cell shape instead (an upper-triangular cell h = [[h11, h12], [0, h22]], three strain DOFs
+   conjugate to A sigma - p A I, :mod:`.fire_shape`), so that the returned packing is
+   shear-stress free, sigma_virial = p I to ``force_tol`` p (the "shear-stabilised" packings of
+   Dagois-Bohy, Tighe, Simon, Henkes & van Hecke, "Soft-sphere packings at finite pressure but
+   unstable to shear", PRL 109, 095703, 2012); the cell then comes out sheared (not square).
    **Decompression ladder**: H is minimised at p_k = p 3^k, k = K, ..., 1 (rms residual <= 1e-2
    each), p_K the first at or above the virial pressure of the quenched state: the well-connected
    compressed network is unloaded step by step, which is nearly elastic. Expanding the quenched
@@ -38,8 +43,10 @@ available; gransim uses its own, a standard route to jammed packings of soft dis
    fixed cell; a target below the jamming fraction of the protocol is a :class:`ConvergenceError`
    (no contact network exists there).
 5. **Stop criterion.** Residual force <= ``force_tol`` times the mean contact force and, with the
-   cell free, |p_virial - p| <= ``force_tol`` p. The residual is the largest net force on any disk
-   (``residual="max"``, default) or the root-mean-square net force (``residual="rms"``).
+   cell free, |p_virial - p| <= ``force_tol`` p (``cell="shape"``: |sigma_xx - p|, |sigma_yy - p|,
+   |sigma_xx - sigma_yy| and |sigma_xy| all <= ``force_tol`` p, default 1e-5). The residual is the
+   largest net force on any disk (``residual="max"``, default) or the root-mean-square net force
+   (``residual="rms"``).
 
 The minimiser (neighbour lists, kernels) is :mod:`.fire`, the statistics :mod:`.stats`. The
 packing fraction counts disk areas without subtracting overlaps (as :class:`Packing` does).
@@ -61,6 +68,7 @@ from ..errors import ConvergenceError, InputError
 from ..geometry import Packing
 from ..progress import progress
 from .fire import FireParameters, Minimiser
+from .fire_shape import ShapeMinimiser
 from .front import FRONT_PHI, front_packing
 from .gsd import get_distribution
 from .stats import packing_stats
@@ -86,6 +94,18 @@ LADDER_FACTOR = 3.0
 #: the start methods of make_packing: "random" (uniform centres at phi_start, the original method:
 #: the standard RVEs and the stored references), "front" (the advancing front of :mod:`.front`)
 METHODS = ("random", "front")
+#: the cell degrees of freedom of make_packing: "scale" (a square cell, its side only: the standard RVEs
+#: and the stored references) or "shape" (the full upper-triangular cell: shear-stress-free packings)
+CELL_MODES = ("scale", "shape")
+#: default force_tol of make_packing with cell="scale" (the standard RVEs)
+FORCE_TOL = 1e-3
+#: default force_tol with cell="shape". At 1e-3 a shape-relaxed packing can stop near a saddle of the
+#: enthalpy in the cell-shear direction: the fixed-cell minimum next to it (what the relaxed RVE
+#: finds) keeps a shear stress of ~1e-2 p and has a negative relaxed shear stiffness (quartz-sand,
+#: seed 4, N = 120: mu = -7.4e5 N/m; N = 350, seed 1: -1.5e4 N/m). At 1e-5 the same seeds end at
+#: a minimum (mu = +9.2e5, +3.2e5 N/m; shear stress after relaxation <= 2e-5 p) for 1.0-2.1x the
+#: FIRE steps (docs/generation.md, "Shear-stabilised packings").
+SHAPE_FORCE_TOL = 1e-5
 #: the FIRE settings of make_packing (frozen: one shared instance)
 DEFAULT_FIRE = FireParameters()
 #: decompression stages after the advancing-front start (it is below jamming: the first stage at
@@ -136,13 +156,14 @@ def make_packing(
     density: float = 2650.0,
     phi_start: float = 0.86,
     skin: float = 0.3,
-    force_tol: float = 1e-3,
+    force_tol: float | None = None,
     overlap_tol: float = 0.02,
     max_steps: int = 400_000,
     max_passes: int = 12,
     residual: str = "max",
     fire: FireParameters = DEFAULT_FIRE,
     method: str = "random",
+    cell: str = "scale",
 ) -> Packing:
     """A dense, isotropic, periodic packing of ``n`` disks (algorithm: module docstring).
 
@@ -169,9 +190,11 @@ def make_packing(
         Solid fraction of the random start, in (0, 0.95) (unused by ``method="front"``).
     skin : float
         Neighbour-list skin in mean diameters.
-    force_tol : float
+    force_tol : float, optional
         Convergence: residual force <= force_tol x mean contact force (and the pressure to the
-        same relative tolerance).
+        same relative tolerance). Default: :data:`FORCE_TOL` = 1e-3 with ``cell="scale"``,
+        :data:`SHAPE_FORCE_TOL` = 1e-5 with ``cell="shape"`` (see there: at 1e-3 the shape
+        mode can stop near a saddle of the enthalpy, unstable to shear).
     residual : {"max", "rms"}
         The residual of ``force_tol``: the largest net force on any disk (default: every disk in
         balance) or the root-mean-square net force over all disks. The largest of N fluctuating
@@ -189,11 +212,20 @@ def make_packing(
         The start (module docstring, step 2): uniform random centres (default; the standard RVEs)
         or the advancing front of :func:`gransim.generation.front.front_packing`. Both draw the
         same sizes for a seed; the packings differ.
+    cell : {"scale", "shape"}
+        The cell degrees of freedom of the enthalpy minimisation (module docstring, step 3):
+        ``"scale"`` (default; the standard RVEs, unchanged bit for bit) keeps the cell square and
+        relaxes its side, which leaves a residual shear stress of the finite network (|sigma_xy|
+        or |sigma_xx - sigma_yy| / 2 up to 0.18 p in the 70- and 350-disk standard RVEs,
+        docs/generation.md); ``"shape"`` relaxes the upper-triangular cell h = [[h11, h12], [0,
+        h22]] as well (:mod:`gransim.generation.fire_shape`): the virial stress is isotropic,
+        sigma = p I to ``force_tol`` p, and the cell is sheared (lattice-reduced, |h12| <= h11/2).
+        Both draw the same sizes and start for a seed.
 
     Returns
     -------
     Packing
-        Positions wrapped into the square cell; ``metadata`` holds the request, the algorithm
+        Positions wrapped into the cell (square with ``cell="scale"``); ``metadata`` holds the request, the algorithm
         parameters and the achieved state (phi, mean overlap relative to d_mean and D50,
         coordination with and without rattlers, FIRE steps, residual).
 
@@ -235,6 +267,9 @@ def make_packing(
     if phi_start >= MAX_SOLID_FRACTION:
         raise InputError(f"phi_start: must be < {MAX_SOLID_FRACTION}, got {phi_start}")
     skin = as_positive_float(skin, "skin")
+    check_choice(cell, "cell", CELL_MODES)
+    if force_tol is None:
+        force_tol = FORCE_TOL if cell == "scale" else SHAPE_FORCE_TOL
     force_tol = as_positive_float(force_tol, "force_tol")
     overlap_tol = as_positive_float(overlap_tol, "overlap_tol")
     max_steps = as_int(max_steps, "max_steps", minimum=1)
@@ -255,7 +290,7 @@ def make_packing(
     else:
         L = float(np.sqrt(np.pi * np.sum(r**2) / phi_start))
         x = rng.random((n, 2)) * L
-    m = Minimiser(x, r, L, skin, fire)
+    m = Minimiser(x, r, L, skin, fire) if cell == "scale" else ShapeMinimiser(x, r, L, skin, fire)
     if n >= PROGRESS_FROM:  # long runs: one tick per stage on a terminal (silent in CI)
         m.bar = progress(total=None, desc=f"packing {n} disks", unit="stage")
 
@@ -285,7 +320,7 @@ def make_packing(
     # factors of LADDER_FACTOR, each stage relaxed to PASS_TOL (rms). Unloading a relaxed network is
     # nearly elastic; expanding the quenched state in one go overshoots into a loose state that then
     # creeps back slowly (at 1e5 disks: 84,000 steps instead of ~4,000).
-    p_quench = m.diag[1] / (2.0 * m.L**2)
+    p_quench = m.diag[1] / (2.0 * m.area)
     ladder = int(np.ceil(np.log(p_quench / P) / np.log(LADDER_FACTOR))) if p_quench > P else 0
     if method == "front":
         ladder = FRONT_LADDER  # the front is below jamming: compact under P 3^K first, then unload
@@ -338,9 +373,11 @@ def make_packing(
         "generator": "gransim.generation.make_packing",
         "algorithm": (
             ("advancing-front start" if method == "front" else "random start")
-            + " + pressure-controlled FIRE 2.0 (enthalpy U + pA, square cell)"
+            + " + pressure-controlled FIRE 2.0 (enthalpy U + pA, "
+            + ("square cell)" if cell == "scale" else "cell shape: upper-triangular cell, shear-stress free)")
         ),
         "method": method,
+        "cell": cell,
         "front_placed": placed,
         "distribution": dist.name,
         "distribution_d50": dist.d50,

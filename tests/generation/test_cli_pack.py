@@ -65,6 +65,15 @@ def test_pack_method_option(tmp_path, capsys):
     assert m["method"] == "front" and m["residual"] <= 1e-3
 
 
+def test_pack_cell_option(tmp_path, capsys):
+    out = tmp_path / "shape.h5"
+    assert main(["pack", "--n", "80", "--seed", "2", "--cell", "shape", "-o", str(out)]) == 0
+    p = load_packing(out)
+    m = p.metadata
+    assert m["cell"] == "shape" and m["force_tol"] == 1e-5 and m["residual"] <= 1e-5
+    assert p.cell[0, 1] != 0.0 and p.cell[1, 0] == 0.0  # the sheared cell is written as it is
+
+
 def test_pack_by_frictional_compaction(tmp_path, capsys):
     out = tmp_path / "dem.h5"
     assert (
