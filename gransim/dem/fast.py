@@ -289,32 +289,32 @@ class FastEngine:
             self._cnt,
             self.start,
         )
-        tail = (self.nj, self.code, self.hist[0], self.hist[1], sp_cnt, o, self._hstart, self._hj, self._hh)
+
+        def tail():  # the list buffers (replaced when they grow) and the hand-over table
+            return (self.ni, self.nj, self.code, *self.hist, sp_cnt, o, self._hstart, self._hj, self._hh)
+
         m = -1
         if not self._parallel:  # one pass into the buffers as they are; -1: too small
-            m = FK.pairs_direct(*args[:-2], self.start, *tail)
+            m = FK.pairs_direct(*args[:-2], self.start, *tail())
         if m < 0:
             with self._kernels():
-                pairs(0, *args, *tail)  # count
+                pairs(0, *args, *tail())  # count
                 m = FK.prefix(self._cnt, self.start)
                 if self.nj.size < m:
                     cap = int(m * GROWTH) + 16
-                    self.nj, self.code, self.hist = (
+                    self.ni, self.nj, self.code, self.hist = (
+                        np.zeros(cap, np.int32),
                         np.zeros(cap, np.int32),
                         np.zeros(cap, np.uint8),
                         np.zeros((2, cap)),
                     )
-                tail = (self.nj, self.code, self.hist[0], self.hist[1], sp_cnt, o, self._hstart, self._hj, self._hh)
-                pairs(1, *args, *tail)  # fill
+                pairs(1, *args, *tail())  # fill
         np.cumsum(sp_cnt, out=self._sp_start[1:])
         ns = int(self._sp_start[-1])
         if self._sp_j.size < ns:
             cap = int(ns * GROWTH) + 16
             self._sp_j, self._sp_f = np.zeros(cap, np.int32), np.zeros((cap, 3))
         self.n_entries = int(m)
-        if self.ni.size < self.nj.size:
-            self.ni = np.zeros(self.nj.size, np.int32)
-        FK.entry_owners(self.start, n, self.ni)
         self._nspill = ns
         self.xh[:] = self.x
         self.yh[:] = self.y

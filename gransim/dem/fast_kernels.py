@@ -5,9 +5,9 @@ x, y, vx, vy, w, fx, fy, t, r, m (N,) float64; perm (N,) int32 the original inde
 particle. Half neighbour list, each pair once with i < j in the sorted order, CSR by i:
 start (N+1,) int32, nj (M,) int32, code (M,) uint8 the periodic image of j
 (code = (sx + 1) + 3 (sy + 1), image x_j + sx Lx, y_j + sy Ly), ni (M,) int32 the owner i of each
-entry (for the vectorised force loop), h0, h1 (M,) float64 the two components of the tangential
-spring in the frame of i (m; two arrays, not one (M, 2): a strided pair of loads and stores stops
-LLVM's loop vectoriser).
+entry (written by the list build, for the vectorised force loop), h0, h1 (M,) float64 the two
+components of the tangential spring in the frame of i (m; two arrays, not one (M, 2): a strided
+pair of loads and stores stops LLVM's loop vectoriser).
 
 Chunks. The particles are grouped in bands of whole bin rows (``cstart`` (C+1,) int32): the bins
 are at least a neighbour cut-off wide, so every partner j > i of a particle of band c lies in band
@@ -27,7 +27,7 @@ Contact law: LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history`` (the ar
 part), written without branches: the touch test and the Coulomb cap are selects, so the loop has
 no data-dependent jump (an entry that does not touch computes a force that is masked to zero and
 keeps its spring, as LIGGGHTS keeps it until the next list build). That is what lets the law run
-as SIMD code over the entries of a block (:func:`_band_forces_v`).
+as SIMD code over the entries of a block (:func:`forces_v`).
 """
 
 from __future__ import annotations
@@ -333,15 +333,6 @@ def forces_v(
     _scatter(sp_j, sp_f, fx, fy, t)
 
 
-@njit
-def entry_owners(start, n, ni):
-    """ni[e] = i for the entries start[i] <= e < start[i + 1] of the CSR list."""
-    for i in range(n):
-        for e in range(start[i], start[i + 1]):
-            ni[e] = i
-
-
-# ----------------------------------------------------------------------------------- integration
 @pjit
 def integrate_v(
     parallel,
@@ -529,7 +520,7 @@ def run_steps(
     k = 0
     if not resume:
         dsq = _deltasq(lo, hi, lo_hold, hi_hold, skin)
-        _integrate(
+        integrate_v(
             parallel,
             cstart,
             x,
@@ -615,7 +606,7 @@ def run_steps(
                 lo[d] = lo_new[d]
                 hi[d] = hi_new[d]
         dsq = _deltasq(lo, hi, lo_hold, hi_hold, skin)
-        _integrate(
+        integrate_v(
             parallel,
             cstart,
             x,
@@ -653,61 +644,6 @@ def run_steps(
             if st != 0:
                 return k, st, _bad(red, nch)
     return nsteps, 0, -1
-
-
-@njit
-def _integrate(
-    parallel,
-    cstart,
-    x,
-    y,
-    vx,
-    vy,
-    w,
-    fx,
-    fy,
-    t,
-    m,
-    r,
-    xh,
-    yh,
-    dt,
-    final,
-    initial,
-    remap,
-    lo_old,
-    hi_old,
-    lo_new,
-    hi_new,
-    dsq,
-    red,
-):
-    integrate_v(
-        parallel,
-        cstart,
-        x,
-        y,
-        vx,
-        vy,
-        w,
-        fx,
-        fy,
-        t,
-        m,
-        r,
-        xh,
-        yh,
-        dt,
-        final,
-        initial,
-        remap,
-        lo_old,
-        hi_old,
-        lo_new,
-        hi_new,
-        dsq,
-        red,
-    )
 
 
 @njit
@@ -851,6 +787,7 @@ def _band_pairs(
     skin,
     cnt,
     start,
+    ni,
     nj,
     code,
     h0,
@@ -863,7 +800,8 @@ def _band_pairs(
 ):
     """Partners j > i of the particles of band ``c`` within r_i + r_j + skin (the 9 bins around
     i's bin, periodic). ``fill`` 0: per-particle counts into ``cnt`` and the band's spill count
-    into ``sp_cnt[c]``; 1: the entries at ``start[i]..`` with the spring handed over from the
+    into ``sp_cnt[c]``; 1: the entries (owner ``ni``, partner ``nj``, image ``code``) at
+    ``start[i]..`` with the spring handed over from the
     old list when the pair touches now (old indices ``order``, table hstart/hj/hh; a pair stored
     as (j, i) before takes minus the spring); 2: counting and filling in one pass, the entries
     from ``e0`` on (``start[i]`` written), returns the next free entry or -1 when the buffers are
@@ -918,6 +856,7 @@ def _band_pairs(
                         if fill != 0:
                             if e >= cap:
                                 return -1
+                            ni[e] = i
                             nj[e] = j
                             code[e] = (ix + 1) + 3 * (iy + 1)
                             g0 = 0.0
@@ -956,6 +895,7 @@ def pairs_direct(
     nby,
     skin,
     start,
+    ni,
     nj,
     code,
     h0,
@@ -988,6 +928,7 @@ def pairs_direct(
             skin,
             start,
             start,
+            ni,
             nj,
             code,
             h0,
@@ -1019,6 +960,7 @@ def pairs_serial(
     skin,
     cnt,
     start,
+    ni,
     nj,
     code,
     h0,
@@ -1047,6 +989,7 @@ def pairs_serial(
             skin,
             cnt,
             start,
+            ni,
             nj,
             code,
             h0,
@@ -1074,6 +1017,7 @@ def pairs_parallel(
     skin,
     cnt,
     start,
+    ni,
     nj,
     code,
     h0,
@@ -1102,6 +1046,7 @@ def pairs_parallel(
             skin,
             cnt,
             start,
+            ni,
             nj,
             code,
             h0,
