@@ -315,6 +315,41 @@ def _particles(parallel, op, x, v, f, x_ref, part, a, b, s, dt):
         _particles_serial(op, x, v, f, x_ref, part, a, b, s, dt)
 
 
+@njit(inline="always")
+def fire_status(status, res, ftol, dmax2, shrink, skin, steps, max_steps):
+    """The stop decision of a FIRE pass, before each step: 3 (non-finite state, kept), 0 converged
+    (``res`` <= ``ftol``), 1 list rebuild needed (twice the largest displacement since the build
+    plus the cell's ``shrink`` of the cut-off above the ``skin``), 2 out of steps, else
+    ``status`` (-1: go on). Shared by the square-cell and the cell-shape kernels."""
+    if status == 3:
+        return 3
+    if res <= ftol:
+        return 0
+    if 2.0 * np.sqrt(dmax2) + shrink > skin:
+        return 1
+    if steps >= max_steps:
+        return 2
+    return status
+
+
+@njit(inline="always")
+def fire_adapt(power, npos, dt, alpha, prm):
+    """FIRE 2.0's time step and mixing adaptation (Guenole et al. 2020, Algorithm 2): with P =
+    F.v > 0 count the downhill steps and, after ``n_delay`` of them, grow dt (to dt_max) and
+    shrink alpha; else reset the count, shrink dt (not below dt_min) and restart alpha. Returns
+    (npos, dt, alpha, uphill): ``uphill`` True when the caller must step half back and stop the
+    motion (that part differs between the square-cell and the cell-shape kernels)."""
+    if power > 0.0:
+        npos += 1
+        if npos > int(prm[K_N_DELAY]):
+            dt = min(dt * prm[K_F_INC], prm[K_DT_MAX])
+            alpha *= prm[K_F_ALPHA]
+        return npos, dt, alpha, False
+    if dt * prm[K_F_DEC] >= prm[K_DT_MIN]:
+        dt *= prm[K_F_DEC]
+    return 0, dt, prm[K_ALPHA0], True
+
+
 @njit
 def _fire_run(x, v, r, pi, pj, off, pcut, x_ref, st, prm, diag, parallel):
     """FIRE 2.0 minimisation of H = U + P A over centres (and the cell scale when cell free).
@@ -341,13 +376,6 @@ def _fire_run(x, v, r, pi, pj, off, pcut, x_ref, st, prm, diag, parallel):
     skin = prm[K_SKIN]
     rmax = prm[K_RMAX]
     max_steps = int(prm[K_MAX_STEPS])
-    dt_max = prm[K_DT_MAX]
-    dt_min = prm[K_DT_MIN]
-    f_inc = prm[K_F_INC]
-    f_dec = prm[K_F_DEC]
-    alpha0 = prm[K_ALPHA0]
-    f_alpha = prm[K_F_ALPHA]
-    n_delay = int(prm[K_N_DELAY])
     sq = np.sqrt(me)
     L = st[S_L]
     vq = st[S_VQ]
@@ -389,14 +417,7 @@ def _fire_run(x, v, r, pi, pj, off, pcut, x_ref, st, prm, diag, parallel):
             res = 0.0 if not cell_free else np.inf
         st[S_RES] = res
         shrink = (1.0 - lam) * (2.0 * rmax + skin) if lam < 1.0 else 0.0
-        if status == 3:
-            pass
-        elif res <= ftol:
-            status = 0
-        elif 2.0 * np.sqrt(dmax2) + shrink > skin:
-            status = 1
-        elif steps >= max_steps:
-            status = 2
+        status = fire_status(status, res, ftol, dmax2, shrink, skin, steps, max_steps)
         if status >= 0:
             st[S_L] = L
             st[S_VQ] = vq
@@ -406,16 +427,8 @@ def _fire_run(x, v, r, pi, pj, off, pcut, x_ref, st, prm, diag, parallel):
             st[S_STEPS] = steps
             return status
         # -- one FIRE 2.0 step (semi-implicit Euler, unit masses) --
-        if power > 0.0:
-            npos += 1
-            if npos > n_delay:
-                dt = min(dt * f_inc, dt_max)
-                alpha *= f_alpha
-        else:
-            npos = 0
-            if dt * f_dec >= dt_min:
-                dt *= f_dec
-            alpha = alpha0
+        npos, dt, alpha, uphill = fire_adapt(power, npos, dt, alpha, prm)
+        if uphill:
             s = np.exp(-0.5 * dt * vq / sq) if cell_free else 1.0
             _particles(parallel, _STOP, x, v, f, x_ref, part, 0.0, 0.0, s, dt)  # step half back, stop
             L *= s

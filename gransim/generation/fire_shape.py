@@ -73,17 +73,10 @@ from .fire import (
     _SCAN,
     _STOP,
     CHUNKS,
-    K_ALPHA0,
     K_CELL_FREE,
-    K_DT_MAX,
-    K_DT_MIN,
-    K_F_ALPHA,
-    K_F_DEC,
-    K_F_INC,
     K_FTOL,
     K_MAX_STEPS,
     K_ME,
-    K_N_DELAY,
     K_P,
     K_RMAX,
     K_RMS,
@@ -92,6 +85,8 @@ from .fire import (
     UNJAMMED_ENERGY,
     FireParameters,
     _particles,
+    fire_adapt,
+    fire_status,
     kernel_parameters,
 )
 
@@ -238,13 +233,6 @@ def _fire_run_shape(x, v, r, pi, pj, off, x_ref, h, h_ref, hv, st, prm, diag):
     skin = prm[K_SKIN]
     rmax = prm[K_RMAX]
     max_steps = int(prm[K_MAX_STEPS])
-    dt_max = prm[K_DT_MAX]
-    dt_min = prm[K_DT_MIN]
-    f_inc = prm[K_F_INC]
-    f_dec = prm[K_F_DEC]
-    alpha0 = prm[K_ALPHA0]
-    f_alpha = prm[K_F_ALPHA]
-    n_delay = int(prm[K_N_DELAY])
     dt = st[T_DT]
     alpha = st[T_ALPHA]
     npos = int(st[T_NPOS])
@@ -298,14 +286,7 @@ def _fire_run_shape(x, v, r, pi, pj, off, x_ref, h, h_ref, hv, st, prm, diag):
         st[T_RES] = res
         smin = _sigma_min(Gb)
         shrink = (1.0 - smin) * (2.0 * rmax + skin) if smin < 1.0 else 0.0
-        if status == 3:
-            pass
-        elif res <= ftol:
-            status = 0
-        elif 2.0 * np.sqrt(dmax2) + shrink > skin:
-            status = 1
-        elif steps >= max_steps:
-            status = 2
+        status = fire_status(status, res, ftol, dmax2, shrink, skin, steps, max_steps)
         if status >= 0:
             st[T_DT] = dt
             st[T_ALPHA] = alpha
@@ -313,16 +294,8 @@ def _fire_run_shape(x, v, r, pi, pj, off, x_ref, h, h_ref, hv, st, prm, diag):
             st[T_STEPS] = steps
             return status
         # -- one FIRE 2.0 step (semi-implicit Euler, unit masses) --
-        if power > 0.0:
-            npos += 1
-            if npos > n_delay:
-                dt = min(dt * f_inc, dt_max)
-                alpha *= f_alpha
-        else:
-            npos = 0
-            if dt * f_dec >= dt_min:
-                dt *= f_dec
-            alpha = alpha0
+        npos, dt, alpha, uphill = fire_adapt(power, npos, dt, alpha, prm)
+        if uphill:
             _particles(False, _STOP, x, v, f, x_aff, part, 0.0, 0.0, 1.0, dt)  # step half back, stop
             if cell_free:
                 w = -0.5 * dt / sq
