@@ -296,3 +296,168 @@ def hooke_energy(law, overlap, hist, radi=None, radj=None) -> float:
 
 register_law(HookeLiggghts, hooke_pair_liggghts, 2, energy=hooke_energy)
 register_law(HookeLammps, hooke_pair_lammps, 2, apart=spring_reset, energy=hooke_energy)
+
+
+# ------------------------------------------------------------------ branch-free twins (SIMD loops)
+@njit(inline="always")
+def hooke_select_liggghts(
+    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+):
+    """:func:`hooke_history` for any entry, touching or not, without a data-dependent jump.
+
+    The same floating-point operations as :func:`hooke_history` on the path that function takes,
+    the branches (contact, ``force_magnitude``'s sign test, the Coulomb cap, a zero spring) written
+    as selects between values that are all computed, so a loop over list entries calling it can
+    run as SIMD code: every lane gives the bits of the scalar law (IEEE square root and division,
+    no fused multiply-add: ``fastmath`` is off, gransim/_numba.py). What a select throws away may be
+    inf or nan (a zero spring's ratio); it never reaches a result.
+
+    Returns (touch, fx, fy, ti, tj, s0, s1, sliding, overlap): touch 1.0 when rsq < (r_i + r_j)^2
+    (the loops' contact test) else 0.0, sliding 1.0 or 0.0 (floats, not bools: a bool taken out of
+    a returned tuple counts as an alias to numba's parfor analysis and keeps the caller's loop from
+    vectorising); fx, fy, ti, tj, sliding as :func:`hooke_history` when touching (meaningless
+    otherwise); the spring updated when touching, the stored one otherwise (LIGGGHTS keeps a
+    spring while its pair is in the list); overlap r_i + r_j - |d| (m).
+    """
+    radsum = radi + radj
+    touch = rsq < radsum * radsum
+    r = math.sqrt(rsq)
+    rinv = 1.0 / r
+    enx = delx * rinv
+    eny = dely * rinv
+    meff = mi * mj / (mi + mj)
+    vr1 = vix - vjx
+    vr2 = viy - vjy
+    vn = vr1 * enx + vr2 * eny
+    vt1 = vr1 - vn * enx
+    vt2 = vr2 - vn * eny
+    deltan = radsum - r
+    cri = radi - 0.5 * deltan
+    crj = radj - 0.5 * deltan
+    wr3 = (cri * wi + crj * wj) * rinv
+    vtr1 = vt1 + dely * wr3
+    vtr2 = vt2 - delx * wr3
+    eps = radsum - r
+    kne = kn * eps
+    fe = kne if eps > 0.0 else 0.0  # force_magnitude(eps, kn)
+    fn = -(meff * gamman) * vn + fe
+    if update:  # uniform over a loop (False only in the set-up evaluation)
+        u0 = s0 + vtr1 * dt
+        u1 = s1 + vtr2 * dt
+        rsht = u0 * enx + u1 * eny
+        u0 -= rsht * enx
+        u1 -= rsht * eny
+    else:
+        u0 = s0
+        u1 = s1
+    shrmag = math.sqrt(u0 * u0 + u1 * u1)
+    ft1 = -(kt * u0)
+    ft2 = -(kt * u1)
+    ft_shear = kt * shrmag
+    ft_friction = mu * abs(fn)
+    sl = ft_shear > ft_friction
+    nz = shrmag != 0.0
+    ratio = ft_friction / ft_shear
+    ft1c = ft1 * ratio
+    ft2c = ft2 * ratio
+    gt = meff * gammat
+    ft1d = ft1 - gt * vtr1
+    ft2d = ft2 - gt * vtr2
+    z1 = ft1c if nz else 0.0
+    z2 = ft2c if nz else 0.0
+    ft1 = z1 if sl else ft1d
+    ft2 = z2 if sl else ft2d
+    # every value computed before the selects (an expensive operation inside a conditional arm
+    # stays a branch, which stops the vectoriser); & not `and` (no short circuit)
+    capped = sl & nz
+    k0 = -ft1c / kt
+    k1 = -ft2c / kt
+    u0 = k0 if capped else u0
+    u1 = k1 if capped else u1
+    tor3 = enx * ft2 - eny * ft1
+    fx = fn * enx + ft1
+    fy = fn * eny + ft2
+    return (
+        1.0 if touch else 0.0,
+        fx,
+        fy,
+        -cri * tor3,
+        -crj * tor3,
+        u0 if touch else s0,
+        u1 if touch else s1,
+        1.0 if sl else 0.0,
+        deltan,
+    )
+
+
+@njit(inline="always")
+def hooke_select_lammps(
+    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+):
+    """:func:`hooke_history_lammps` for any entry without a data-dependent jump (as
+    :func:`hooke_select_liggghts`: the same operations, the branches as selects; bit for bit the
+    scalar law in every lane). A pair that does not touch gets its spring zeroed (LAMMPS'
+    ``PairGranHookeHistory::compute``, :func:`spring_reset`). Returns as
+    :func:`hooke_select_liggghts` (overlap r_i + r_j - |d|, m)."""
+    radsum = radi + radj
+    touch = rsq < radsum * radsum
+    r = math.sqrt(rsq)
+    rinv = 1.0 / r
+    rsqinv = 1.0 / rsq
+    vr1 = vix - vjx
+    vr2 = viy - vjy
+    vnnr = vr1 * delx + vr2 * dely
+    vn1 = delx * vnnr * rsqinv
+    vn2 = dely * vnnr * rsqinv
+    vt1 = vr1 - vn1
+    vt2 = vr2 - vn2
+    wr3 = (radi * wi + radj * wj) * rinv
+    meff = mi * mj / (mi + mj)
+    damp = meff * gamman * vnnr * rsqinv
+    ccel = kn * ((radi + radj) - r) * rinv - damp
+    vtr1 = vt1 + dely * wr3
+    vtr2 = vt2 - delx * wr3
+    if update:
+        u0 = s0 + vtr1 * dt
+        u1 = s1 + vtr2 * dt
+    else:
+        u0 = s0
+        u1 = s1
+    shrmag = math.sqrt(u0 * u0 + u1 * u1)
+    rsht = (u0 * delx + u1 * dely) * rsqinv
+    if update:
+        u0 -= rsht * delx
+        u1 -= rsht * dely
+    gt = meff * gammat
+    fs1 = -(kt * u0 + gt * vtr1)
+    fs2 = -(kt * u1 + gt * vtr2)
+    fs = math.sqrt(fs1 * fs1 + fs2 * fs2)
+    fn = mu * abs(ccel * r)
+    sl = fs > fn
+    nz = shrmag != 0.0
+    q = fn / fs
+    capped = sl & nz
+    c0 = q * (u0 + gt * vtr1 / kt) - gt * vtr1 / kt
+    c1 = q * (u1 + gt * vtr2 / kt) - gt * vtr2 / kt
+    u0 = c0 if capped else u0
+    u1 = c1 if capped else u1
+    fq1 = fs1 * q
+    fq2 = fs2 * q
+    z1 = fq1 if nz else 0.0
+    z2 = fq2 if nz else 0.0
+    fs1 = z1 if sl else fs1
+    fs2 = z2 if sl else fs2
+    fx = delx * ccel + fs1
+    fy = dely * ccel + fs2
+    tor3 = rinv * (delx * fs2 - dely * fs1)
+    return (
+        1.0 if touch else 0.0,
+        fx,
+        fy,
+        -(radi * tor3),
+        -(radj * tor3),
+        u0 if touch else 0.0,
+        u1 if touch else 0.0,
+        1.0 if sl else 0.0,
+        radsum - r,
+    )

@@ -29,7 +29,14 @@ import numpy as np
 from numba.extending import overload
 
 from .._numba import njit, pjit, prange
-from ..contacts.hooke import HookeLammps, HookeLiggghts, hooke_history, hooke_history_lammps  # noqa: F401
+from ..contacts.hooke import (  # noqa: F401
+    HookeLammps,
+    HookeLiggghts,
+    hooke_history,
+    hooke_history_lammps,
+    hooke_select_lammps,
+    hooke_select_liggghts,
+)
 from ..contacts.laws import pair_apart, pair_force_split
 
 #: particle state: x (N, 2) m, v (N, 2) m/s, w (N,) rad/s, f (N, 2) N, t (N,) N m, m (N,) kg, r (N,) m
@@ -317,8 +324,194 @@ def _entry(law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update):
 def forces(p, nb, law, Lx, Ly, dt, update, vir, store):
     """Serial force loop over the half list ``nb`` (LIGGGHTS ``newton off``) with the contact law
     ``law`` (any registered law: :mod:`gransim.contacts.laws`; one compiled copy per law type) in
-    the orthogonal cell of side lengths (Lx, Ly) (m): :func:`forces_in` with :data:`OrthoImage`."""
+    the orthogonal cell of side lengths (Lx, Ly) (m): :func:`forces_in` with :data:`OrthoImage`;
+    for the two Hooke laws the same loop as SIMD code (:func:`_forces_hooke_v`, bit for bit the
+    same results)."""
+    return ortho_forces(p, nb, law, Lx, Ly, dt, update, vir, store)
+
+
+def ortho_forces(p, nb, law, Lx, Ly, dt, update, vir, store):
+    """The serial orthogonal-cell force loop for ``law`` (resolved at compile time by its type):
+    :func:`_forces_hooke_v` for :class:`HookeLiggghts` and :class:`HookeLammps`, the generic
+    :func:`_serial_loop` otherwise. Interpreted fallback."""
     return _serial_loop(p, nb, law, OrthoImage(Lx, Ly), dt, update, vir, store)
+
+
+def _is_hooke(law):
+    return getattr(law, "instance_class", None) in (HookeLiggghts, HookeLammps)
+
+
+@overload(ortho_forces, inline="always")
+def _ov_ortho_forces(p, nb, law, Lx, Ly, dt, update, vir, store):
+    if _is_hooke(law):
+
+        def simd(p, nb, law, Lx, Ly, dt, update, vir, store):
+            acc = np.empty(2)
+            _forces_hooke_v(
+                p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.a, nb.b, nb.sx, nb.sy, nb.both.view(np.uint8), nb.hist,
+                nb.slide.view(np.uint8), nb.ef,
+                law, Lx, Ly, dt, update, vir, store, acc,
+            )  # fmt: skip
+            return acc[0], acc[1]
+
+        return simd
+
+    def generic(p, nb, law, Lx, Ly, dt, update, vir, store):
+        return _serial_loop(p, nb, law, OrthoImage(Lx, Ly), dt, update, vir, store)
+
+    return generic
+
+
+def hooke_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
+    """The branch-free pair of a Hooke law (:func:`gransim.contacts.hooke.hooke_select_liggghts` or
+    ``hooke_select_lammps`` by the law's type, at compile time). Interpreted fallback."""
+    fn = hooke_select_lammps if isinstance(law, HookeLammps) else hooke_select_liggghts
+    return fn(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, s0, s1, update,
+    )  # fmt: skip
+
+
+@overload(hooke_select, inline="always")
+def _ov_hooke_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
+    fn = hooke_select_lammps if getattr(law, "instance_class", None) is HookeLammps else hooke_select_liggghts
+
+    def impl(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
+        return fn(
+            delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+            law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, s0, s1, update,
+        )  # fmt: skip
+
+    return impl
+
+
+#: list entries per block of the SIMD force loop (:func:`_forces_hooke_v`)
+ENTRY_BLOCK = 256
+
+
+@pjit
+def _forces_hooke_v(
+    x, v, w, f, t, m, r, ea, eb, esx, esy, both, hist, slide, ef, law, Lx, Ly, dt, update, vir, store, acc
+):
+    """:func:`_serial_loop` of the orthogonal cell for a Hooke law, as SIMD code, bit for bit.
+
+    Per block of :data:`ENTRY_BLOCK` list entries: the pair law over the block as one flat loop
+    (:func:`hooke_select`: every entry evaluated, contact and Coulomb cap as selects, spring
+    written back unconditionally) into block buffers, which LLVM turns into SIMD code (gathers of
+    both partners, packed square roots and divisions: IEEE operations, so each lane has the bits
+    of the scalar law); then the sums of the touching entries in list order, exactly as
+    :func:`_serial_loop` adds them (force and torque on a, on b for an owned pair, the virial, the
+    contact count and overlap). Touching entries get the same values in the same order and the
+    others contribute nothing there either, so forces, torques, springs, virial and the two sums
+    are those of :func:`_serial_loop` bit for bit (tests/dem/test_simd_bitwise.py).
+
+    The one-iteration ``prange`` is what lets the law loop vectorise: numba marks the arrays of a
+    parallel loop body ``noalias`` when it finds no alias among them (in a plain ``njit`` kernel
+    the gathers might alias the stores), docs/performance.md "The SIMD force loop". The arrays are
+    arguments (not taken out of namedtuples here: see :func:`_forces_threaded`), the bool arrays
+    ``both`` and ``slide`` as uint8 views (reading a bool array argument turns numba's ``noalias``
+    off, measured in the compiled code), the spring copied through two contiguous block buffers.
+    ``acc`` (2,) receives (contacts, sum of overlaps); ``vir`` (4,) the virial.
+    """
+    n = x.shape[0]
+    ne = ea.shape[0]
+    for _ in prange(1):
+        for i in range(n):
+            f[i, 0] = 0.0
+            f[i, 1] = 0.0
+            t[i] = 0.0
+        bfx = np.empty(ENTRY_BLOCK)
+        bfy = np.empty(ENTRY_BLOCK)
+        bta = np.empty(ENTRY_BLOCK)
+        btb = np.empty(ENTRY_BLOCK)
+        bdx = np.empty(ENTRY_BLOCK)
+        bdy = np.empty(ENTRY_BLOCK)
+        bov = np.empty(ENTRY_BLOCK)
+        bto = np.empty(ENTRY_BLOCK)
+        bsl = np.empty(ENTRY_BLOCK)
+        bh0 = np.empty(ENTRY_BLOCK)
+        bh1 = np.empty(ENTRY_BLOCK)
+        v0 = 0.0
+        v1 = 0.0
+        v2 = 0.0
+        v3 = 0.0
+        ncontact = 0.0
+        sum_overlap = 0.0
+        for e0 in range(0, ne, ENTRY_BLOCK):
+            e1 = min(e0 + ENTRY_BLOCK, ne)
+            # the spring in two contiguous block buffers: the (M, 2) rows' stride-2 loads and
+            # stores keep LLVM from vectorising the law loop (measured in the compiled code)
+            for e in range(e0, e1):
+                bh0[e - e0] = hist[e, 0]
+                bh1[e - e0] = hist[e, 1]
+            for e_ in range(e0, e1):
+                u = np.uint64(e_)
+                q = np.uint64(e_ - e0)
+                a = np.uint64(ea[u])
+                b = np.uint64(eb[u])
+                delx = x[a, 0] - (x[b, 0] + esx[u] * Lx)
+                dely = x[a, 1] - (x[b, 1] + esy[u] * Ly)
+                rsq = delx * delx + dely * dely
+                touch, fx, fy, ta, tb, s0, s1, sl, dn = hooke_select(
+                    law, delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b], m[a], m[b],
+                    dt, bh0[q], bh1[q], update,
+                )  # fmt: skip
+                bh0[q] = s0
+                bh1[q] = s1
+                bfx[q] = fx
+                bfy[q] = fy
+                bta[q] = ta
+                btb[q] = tb
+                bdx[q] = delx
+                bdy[q] = dely
+                bov[q] = dn
+                bto[q] = touch
+                bsl[q] = sl
+            for e in range(e0, e1):
+                k = e - e0
+                hist[e, 0] = bh0[k]
+                hist[e, 1] = bh1[k]
+                if bto[k] != 0.0:
+                    ia = ea[e]
+                    gx = bfx[k]
+                    gy = bfy[k]
+                    if store:
+                        slide[e] = 1 if bsl[k] != 0.0 else 0
+                        ef[e, 0] = gx
+                        ef[e, 1] = gy
+                    # _serial_loop also adds the law's second torques, -0.0 for Hooke: x + -0.0 is x
+                    f[ia, 0] += gx
+                    f[ia, 1] += gy
+                    t[ia] += bta[k]
+                    gdx = bdx[k]
+                    gdy = bdy[k]
+                    wgt = 0.5
+                    if both[e] != 0:
+                        ib = eb[e]
+                        f[ib, 0] += -gx
+                        f[ib, 1] += -gy
+                        t[ib] += btb[k]
+                        v0 += 0.5 * (gdx * gx)
+                        v1 += 0.5 * (gdy * gy)
+                        v2 += 0.5 * (gdx * gy)
+                        v3 += 0.5 * (gdy * gx)
+                        wgt = 1.0
+                    v0 += 0.5 * (gdx * gx)
+                    v1 += 0.5 * (gdy * gy)
+                    v2 += 0.5 * (gdx * gy)
+                    v3 += 0.5 * (gdy * gx)
+                    ncontact += wgt
+                    sum_overlap += wgt * bov[k]
+                elif store:
+                    slide[e] = 0
+                    ef[e, 0] = 0.0
+                    ef[e, 1] = 0.0
+        vir[0] = v0
+        vir[1] = v1
+        vir[2] = v2
+        vir[3] = v3
+        acc[0] = ncontact
+        acc[1] = sum_overlap
 
 
 @njit
