@@ -14,6 +14,10 @@ within each repeat, with the 1-minute load average beside it:
 * whole-process overhead for 1e5 disks at 60 steps, native against LIGGGHTS on the ``bench.dem``
   deck (same assembly, law and steps; bench/dem.py's job helpers): overhead = whole process -
   loop time. Target: native overhead below LIGGGHTS';
+* the floor numba sets to any whole-process overhead: a fresh interpreter that imports numpy and
+  numba and calls one trivial ``cache=True`` kernel already in the disk cache (numba's one-time
+  set-up of its typing and target registries happens at that first call, loaded or compiled),
+  against the same interpreter importing numpy only;
 * where ``import`` time goes (``python -X importtime``, self time summed per top-level package)
   for ``import gransim`` and for the imports of ``gransim biaxial``.
 
@@ -317,6 +321,7 @@ def run(quick: bool):
     with tempfile.TemporaryDirectory(prefix="bench-startup-") as tmp:
         out += _biaxial_records(Path(tmp), repeats, log, quick)
         out += _overhead_records(Path(tmp), QUICK_OVERHEAD if quick else OVERHEAD, repeats, log)
+    out += _numba_floor_records(3 if not quick else 1)
     for label, code in (
         ("import gransim", "import gransim"),
         ("imports of gransim biaxial", BIAXIAL_IMPORTS),
@@ -332,3 +337,47 @@ def run(quick: bool):
             }
         )
     return out
+
+
+#: a trivial kernel in the disk cache: its first call in a fresh process costs numba's one-time
+#: initialisation of the typing and target contexts (about 250 builtin registries, and
+#: numba.np.arraymath's BLAS probe, which imports scipy.linalg when SciPy is installed)
+_TRIVIAL = "import numba\n\n\n@numba.njit(cache=True)\ndef f(x):\n    return x + 1.0\n"
+_FLOOR = (
+    "import time,sys;t0=time.perf_counter();import numpy;t1=time.perf_counter();import numba;"
+    "t2=time.perf_counter();sys.path.insert(0,{d!r});import trivial_kernel as k;k.f(1.0);"
+    "t3=time.perf_counter();print(t1-t0,t2-t1,t3-t2)"
+)
+
+
+def _numba_floor_records(repeats: int) -> list[dict]:
+    """numba's own start-up, measured in fresh interpreters (whole process, the interpreter start
+    included), interleaved with a numpy-only interpreter: the floor under the native overhead."""
+    with tempfile.TemporaryDirectory(prefix="bench-numba-floor-") as d:
+        Path(d, "trivial_kernel.py").write_text(_TRIVIAL)
+        env = {**os.environ, "NUMBA_CACHE_DIR": str(Path(d, "cache"))}
+        code = _FLOOR.format(d=d)
+        subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, env=env)  # compile, cache
+        whole, parts, base = [], [], []
+        for _ in range(repeats):
+            t = time.perf_counter()
+            r = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, env=env)
+            whole.append(time.perf_counter() - t)
+            parts.append([float(v) for v in r.stdout.split()])
+            t = time.perf_counter()
+            subprocess.run([sys.executable, "-c", "import numpy"], check=True, env=env)
+            base.append(time.perf_counter() - t)
+    k = sorted(range(repeats), key=whole.__getitem__)[repeats // 2]
+    np_s, nb_s, first_s = parts[k]
+    return [
+        {
+            "name": "numba floor: whole process importing numpy and numba, one cached trivial kernel called",
+            "value": statistics.median(whole),
+            "unit": "s",
+            "note": (
+                f"median of {repeats}; of the median run: numpy {np_s:.2f} s, import numba {nb_s:.2f} s, "
+                f"first call of the cached kernel {first_s:.2f} s (numba's one-time registry set-up); "
+                f"a numpy-only interpreter {statistics.median(base):.2f} s; load {_load():.2f}"
+            ),
+        }
+    ]
