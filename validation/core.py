@@ -297,16 +297,21 @@ class Case:
     suites: tuple[str, ...]
     func: Callable[[Context], CaseResult]
     order: int
+    #: starts the case's long background work (reference jobs) at the beginning of a run, so that
+    #: it overlaps the cases before it; the case collects it (None: nothing to start early)
+    prefetch: Callable[[Context], None] | None = None
+    #: cancels what ``prefetch`` started and the case did not collect (a run that ends early)
+    cancel: Callable[[], None] | None = None
 
 
 _REGISTRY: dict[str, Case] = {}
 
 
-def case(case_id: str, title: str, suites=SUITES, order: int = 100):
-    """Register a validation case (decorator)."""
+def case(case_id: str, title: str, suites=SUITES, order: int = 100, prefetch=None, cancel=None):
+    """Register a validation case (decorator); ``prefetch``/``cancel``: :class:`Case`."""
 
     def deco(func):
-        _REGISTRY[case_id] = Case(case_id, title, tuple(suites), func, order)
+        _REGISTRY[case_id] = Case(case_id, title, tuple(suites), func, order, prefetch, cancel)
         return func
 
     return deco

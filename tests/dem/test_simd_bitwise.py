@@ -196,3 +196,46 @@ def test_simd_loop_is_compiled_to_simd_code():
     assert re.search(r"\bvsqrtpd\b", asm), "the pair law is not vectorised (no packed square root)"
     assert re.search(r"\bvdivpd\b", asm)
     assert re.search(r"\bvgather[dq]pd\b", asm), "the partners' loads are not gathers"
+
+
+_SPIN_CHECK = r"""
+import os, sys
+import numpy as np
+from gransim.dem import AxisControl, DEMEngine, DEMSettings, Loading
+from gransim.dem.lattice import lattice_packing
+
+def cpu(tid):
+    with open(f"/proc/self/task/{tid}/stat") as fh:
+        f = fh.read().rsplit(")", 1)[1].split()
+    return int(f[11]) + int(f[12])  # utime + stime, clock ticks
+
+s = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e-6, skin=2e-5, mode="serial")
+e = DEMEngine(lattice_packing(30, 30), s)
+fixed = Loading(x=AxisControl("fixed"), y=AxisControl("fixed"))
+e.advance(fixed, 200)  # kernels loaded, OpenMP runtime started
+main = os.getpid()
+before = {t: cpu(t) for t in os.listdir("/proc/self/task")}
+e.advance(fixed, 6000)
+after = {t: cpu(t) for t in os.listdir("/proc/self/task")}
+mine = after[str(main)] - before[str(main)]
+others = sum(after[t] - before.get(t, 0) for t in after if t != str(main))
+print(mine, others)
+"""
+
+
+def test_the_serial_engine_keeps_to_one_core(tmp_path):
+    # the SIMD loop is a one-iteration parallel loop: on more than one numba thread, libgomp's
+    # default wait policy lets the idle thread spin beside every step, a second core burnt by a
+    # serial run (found in a validation run beside the codes' jobs). Checked in a fresh
+    # interpreter with libgomp's defaults (no OMP_WAIT_POLICY), on 2 numba threads.
+    import subprocess
+    import sys
+
+    if not os.path.isdir("/proc/self/task") or (os.cpu_count() or 1) < 2:
+        pytest.skip("needs /proc and two cores")
+    env = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT")}
+    env["NUMBA_NUM_THREADS"] = "2"
+    out = subprocess.run([sys.executable, "-c", _SPIN_CHECK], capture_output=True, text=True, env=env, check=True)
+    mine, others = (int(v) for v in out.stdout.split()[-2:])
+    assert mine > 20, f"the run was too short to judge ({mine} ticks)"
+    assert others < 0.2 * mine, f"other threads used {others} clock ticks beside the main thread's {mine}"

@@ -491,26 +491,14 @@ def reference_jobs(ctx: Context, common, dem, tag: str, np2: bool) -> dict:
     return jobs
 
 
-def full_runs(ctx: Context) -> dict:
-    """The compression runs of ``biaxial-full`` (cached per results dir and suite): native,
-    reference and perturbed runs of each available code, from one common consolidated state.
+def _full_key(ctx: Context) -> tuple:
+    return (str(ctx.results.resolve()), ctx.suite, ctx.liggghts, ctx.lammps)
 
-    Design: the native engine consolidates the Kuhn assembly (both axes servo-controlled to p,
-    ``FULL_CONSOLIDATION_STEPS``: the short case shows this phase bit for bit); its final state
-    (positions shifted to a box at the origin, velocities, spins) is the packing every code
-    starts the compression from (each reads it as a data file, which carries no contact
-    history, and the native engine starts with zero springs too). Compression: y at the default
-    rate, sigma_11 = p held by the servo, up to the suite's strain.
 
-    The reference jobs run in a pool of ``max(ctx.jobs, 1)`` worker threads (each a code process)
-    while the native runs (flavour liggghts, and flavour lammps when LAMMPS is there) proceed in
-    this thread. Keys: ``native``, ``liggghts``, ``manifest``, ``ensemble``, ``expected_ensemble``
-    (LIGGGHTS) and ``lammps`` = {``native``, ``reference``, ``manifest``, ``ensemble``,
-    ``expected_ensemble``} when LAMMPS is installed.
-    """
-    key = (str(ctx.results.resolve()), ctx.suite, ctx.liggghts, ctx.lammps)
-    if key in _FULL_CACHE:
-        return _FULL_CACHE[key]
+def _full_setup(ctx: Context) -> dict:
+    """The consolidation of ``biaxial-full`` (native, bit for bit the short case's arithmetic) and
+    the reference jobs of its compression: the run dict of :func:`full_runs` before any compression
+    run, plus ``jobs`` (:func:`reference_jobs`) and the keyword arguments every job shares."""
     cfg = _settings_by_suite(ctx.suite)
     if not ctx.liggghts:  # only the stored series can be compared: run to its strain
         cfg["strain"] = _settings_by_suite("default")["strain"]
@@ -538,29 +526,93 @@ def full_runs(ctx: Context) -> dict:
         "velocities": v,
         "spins": w,
     }
-    te = FULL_THERMO_EVERY
-    n = common.n
-    to = ctx.job_timeout(common.n * nsteps)
-    jobs = reference_jobs(ctx, common, dem, f"strain{bi.strain:g}", cfg["np2"])
-    with ThreadPoolExecutor(max_workers=max(int(ctx.jobs), 1)) as pool:
-        futures = {
-            k: pool.submit(
-                run_reference_job,
-                loading=loading,
-                nsteps=nsteps,
-                dump_every=FULL_DUMP_EVERY,
-                velocities=v,
-                spins=w,
-                thermo_every=te,
-                timeout=to,
-                engine=k[0],
-                **kw,
+    r["jobs"] = reference_jobs(ctx, common, dem, f"strain{bi.strain:g}", cfg["np2"])
+    r["np2"] = cfg["np2"]
+    r["job_common"] = dict(
+        loading=loading,
+        nsteps=nsteps,
+        dump_every=FULL_DUMP_EVERY,
+        velocities=v,
+        spins=w,
+        thermo_every=FULL_THERMO_EVERY,
+        timeout=ctx.job_timeout(common.n * nsteps),
+    )
+    return r
+
+
+#: reference jobs of ``biaxial-full`` started ahead of the case (:func:`prefetch_full`): key of
+#: :func:`_full_key` -> (run dict of :func:`_full_setup`, {job key: future}, executor)
+_FULL_PENDING: dict = {}
+
+
+def prefetch_full(ctx: Context) -> None:
+    """Start the long reference jobs of ``biaxial-full`` now, on ``ctx.jobs - 1`` worker threads
+    (each a code process), so that they run while the cases before it use the other core(s).
+
+    The jobs are those :func:`full_runs` would start (same decks, same inputs, same directories);
+    it collects them and starts the rest. Nothing starts with ``ctx.jobs`` < 2 (the user asked for
+    one reference job at a time) or without a code installed (the stored series are compared then).
+    """
+    key = _full_key(ctx)
+    if key in _FULL_CACHE or key in _FULL_PENDING or int(ctx.jobs) < 2 or not (ctx.liggghts or ctx.lammps):
+        return
+    r = _full_setup(ctx)
+    pool = ThreadPoolExecutor(max_workers=int(ctx.jobs) - 1, thread_name_prefix="biaxial-full-prefetch")
+    futures = {k: pool.submit(run_reference_job, engine=k[0], **r["job_common"], **kw) for k, kw in r["jobs"].items()}
+    _FULL_PENDING[key] = (r, futures, pool)
+
+
+def cancel_prefetch() -> None:
+    """Cancel the prefetched jobs not yet started and wait for the running ones (a validation
+    run that ends early: an error, a signal)."""
+    while _FULL_PENDING:
+        _, (_, futures, pool) = _FULL_PENDING.popitem()
+        for f in futures.values():
+            f.cancel()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def full_runs(ctx: Context) -> dict:
+    """The compression runs of ``biaxial-full`` (cached per results dir and suite): native,
+    reference and perturbed runs of each available code, from one common consolidated state.
+
+    Design: the native engine consolidates the Kuhn assembly (both axes servo-controlled to p,
+    ``FULL_CONSOLIDATION_STEPS``: the short case shows this phase bit for bit); its final state
+    (positions shifted to a box at the origin, velocities, spins) is the packing every code
+    starts the compression from (each reads it as a data file, which carries no contact
+    history, and the native engine starts with zero springs too). Compression: y at the default
+    rate, sigma_11 = p held by the servo, up to the suite's strain.
+
+    The reference jobs run in a pool of ``max(ctx.jobs, 1)`` worker threads (each a code process)
+    while the native runs (flavour liggghts, and flavour lammps when LAMMPS is there) proceed in
+    this thread; jobs that :func:`prefetch_full` started earlier are collected (those it had not
+    started yet move to this pool). Keys: ``native``, ``liggghts``, ``manifest``, ``ensemble``,
+    ``expected_ensemble`` (LIGGGHTS) and ``lammps`` = {``native``, ``reference``, ``manifest``,
+    ``ensemble``, ``expected_ensemble``} when LAMMPS is installed.
+    """
+    key = _full_key(ctx)
+    if key in _FULL_CACHE:
+        return _FULL_CACHE[key]
+    pending = _FULL_PENDING.pop(key, None)
+    if pending is None:
+        r, early, early_pool = _full_setup(ctx), {}, None
+    else:
+        r, early, early_pool = pending
+    jobs, common = r.pop("jobs"), r.pop("job_common")
+    cfg = {"np2": r.pop("np2")}
+    common_pk, dem, loading, nsteps = r["packing"], r["settings"], r["loading"], r["nsteps"]
+    v, w, te, n = r["velocities"], r["spins"], FULL_THERMO_EVERY, r["packing"].n
+    pool = ThreadPoolExecutor(max_workers=max(int(ctx.jobs), 1))
+    try:
+        futures = {}
+        for k, kw in jobs.items():
+            f = early.get(k)
+            futures[k] = (
+                f if f is not None and not f.cancel() else pool.submit(run_reference_job, engine=k[0], **common, **kw)
             )
-            for k, kw in jobs.items()
-        }
         try:
             r["native"] = run_native(
-                common,
+                common_pk,
                 _flavour(dem, "liggghts"),
                 loading,
                 nsteps,
@@ -571,7 +623,7 @@ def full_runs(ctx: Context) -> dict:
             )
             if ctx.lammps:
                 nat_m = run_native(
-                    common,
+                    common_pk,
                     _flavour(dem, "lammps"),
                     loading,
                     nsteps,
@@ -585,6 +637,10 @@ def full_runs(ctx: Context) -> dict:
             for f in futures.values():
                 f.cancel()
             raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+        if early_pool is not None:
+            early_pool.shutdown(wait=True, cancel_futures=True)
     if ctx.liggghts:
         lig, man = done[("liggghts", "reference")]
         ens = {lab: done[("liggghts", lab)][0] for (e, lab) in jobs if e == "liggghts" and lab != "reference"}
@@ -593,7 +649,7 @@ def full_runs(ctx: Context) -> dict:
         ref_dir = jobs[("liggghts", "reference")]["job_dir"]
         r["liggghts_run_file"] = trajectory_to_run_file(
             ref_dir / "liggghts-run.h5",
-            common,
+            common_pk,
             lig.steps,
             lig.stress,
             lig.lengths,
@@ -778,6 +834,8 @@ def _evidence_of(label, who, tr, exp_s, exp_f):
     "Biaxial test, full loading: divergence envelopes and stress-strain curves",
     suites=("default", "full"),
     order=30,
+    prefetch=prefetch_full,
+    cancel=cancel_prefetch,
 )
 def biaxial_full(ctx: Context) -> CaseResult:
     r = full_runs(ctx)

@@ -1,0 +1,142 @@
+"""Background reference jobs: ``biaxial-full`` starts its long code runs at the beginning of a
+validation run (validation.runner, ``Case.prefetch``) and collects them when its turn comes.
+
+The jobs themselves are the real case's (checked by the default suite); here the scheduling is
+checked with stand-ins for the code runs and the native runs: every job runs exactly once, a job
+already running is collected (not run twice), a job not yet started moves to the case's own pool,
+nothing starts early with one job allowed, and what a run leaves uncollected is cancelled.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from types import SimpleNamespace
+
+import pytest
+
+from validation import core, runner
+from validation.cases import biaxial
+from validation.core import CaseResult, Context
+
+
+def _ctx(tmp_path, jobs=2):
+    return Context(suite="default", results=tmp_path, jobs=jobs, liggghts=True, lammps=True)
+
+
+@pytest.fixture
+def fake_full(monkeypatch):
+    """_full_setup, run_reference_job and run_native replaced by stand-ins that record calls."""
+    calls = []
+    lock = threading.Lock()
+    release = threading.Event()
+
+    class _Pk:
+        n = 3
+
+    def setup(ctx):
+        jobs = {
+            (e, lab): {"label": lab, "job_dir": ctx.results / e / lab}
+            for e in ("liggghts", "lammps")
+            for lab in ("reference", "perturbed", "p2")
+        }
+        return {
+            "packing": _Pk(),
+            "settings": SimpleNamespace(dt=1.0, to_dict=dict),
+            "loading": None,
+            "nsteps": 10,
+            "velocities": None,
+            "spins": None,
+            "jobs": jobs,
+            "np2": False,
+            "job_common": {},
+        }
+
+    def job(engine, label, job_dir):
+        with lock:
+            calls.append((engine, label, threading.current_thread().name))
+        release.wait(10)
+        tr = SimpleNamespace(name=f"{engine}-{label}", steps=None, stress=None, lengths=None, frames=None)
+        return (tr, {"manifest": label})
+
+    monkeypatch.setattr(biaxial, "_full_setup", setup)
+    monkeypatch.setattr(biaxial, "run_reference_job", job)
+    monkeypatch.setattr(biaxial, "run_native", lambda *a, **k: "native")
+    monkeypatch.setattr(biaxial, "_flavour", lambda settings, engine: settings)
+    monkeypatch.setattr(biaxial, "trajectory_to_run_file", lambda *a, **k: "run.h5")
+    monkeypatch.setattr(biaxial, "ensemble_labels", lambda n, np2: ["perturbed", "p2"])
+    monkeypatch.setattr(biaxial, "lammps_ensemble_labels", lambda n, suite: ["perturbed", "p2"])
+    monkeypatch.setattr(biaxial, "_FULL_CACHE", {})
+    monkeypatch.setattr(biaxial, "_FULL_PENDING", {})
+    return calls, release
+
+
+def test_prefetched_jobs_are_collected_once_and_the_rest_moved(tmp_path, fake_full):
+    calls, release = fake_full
+    ctx = _ctx(tmp_path, jobs=2)
+    biaxial.prefetch_full(ctx)
+    time.sleep(0.2)
+    # one background worker (jobs - 1): exactly one job running, five waiting
+    assert len(calls) == 1 and calls[0][2].startswith("biaxial-full-prefetch")
+    release.set()
+    r = biaxial.full_runs(ctx)
+    ran = sorted((e, lab) for e, lab, _ in calls)
+    assert ran == sorted(
+        biaxial_jobs := [(e, lab) for e in ("liggghts", "lammps") for lab in ("reference", "perturbed", "p2")]
+    )
+    assert len(ran) == len(set(ran)) == len(biaxial_jobs), "a job ran twice or not at all"
+    assert r["liggghts"].name == "liggghts-reference" and r["lammps"]["reference"].name == "lammps-reference"
+    assert set(r["ensemble"]) == {"perturbed", "p2"}
+    assert not biaxial._FULL_PENDING
+
+
+def test_nothing_starts_early_with_one_job(tmp_path, fake_full):
+    calls, release = fake_full
+    release.set()
+    biaxial.prefetch_full(_ctx(tmp_path, jobs=1))
+    assert not biaxial._FULL_PENDING and not calls
+
+
+def test_cancel_stops_the_jobs_not_yet_started(tmp_path, fake_full):
+    calls, release = fake_full
+    biaxial.prefetch_full(_ctx(tmp_path, jobs=2))
+    time.sleep(0.2)
+    t = threading.Timer(0.3, release.set)
+    t.start()
+    biaxial.cancel_prefetch()
+    assert len(calls) == 1, "jobs not yet started must not run after a cancel"
+    assert not biaxial._FULL_PENDING
+
+
+def test_runner_prefetches_first_and_cancels_what_a_failing_case_left(tmp_path, monkeypatch):
+    order = []
+
+    def pre(ctx):
+        order.append("prefetch")
+
+    def cancel():
+        order.append("cancel")
+
+    def first(ctx):
+        order.append("first")
+        return CaseResult("a", "A", "")
+
+    def second(ctx):
+        order.append("second")
+        raise RuntimeError("the case broke")
+
+    def bad_prefetch(ctx):
+        raise OSError("no room")
+
+    cases = [
+        core.Case("a", "A", ("default",), first, 1),
+        core.Case("b", "B", ("default",), second, 2, pre, cancel),
+        core.Case("c", "C", ("default",), first, 3, bad_prefetch, None),
+    ]
+    monkeypatch.setattr(runner, "registered_cases", lambda suite: cases)
+    logs = []
+    ok, out = runner._run_cases(_ctx(tmp_path), "default", None, logs.append, None)
+    assert order == ["prefetch", "first", "second", "first", "cancel"]
+    assert not ok and out[1].error.startswith("RuntimeError")
+    assert any("could not start its jobs early (OSError: no room)" in m for m in logs)
+    assert any("Wall time of this case" in n and "at the start of the run" in n for n in out[1].notes)
