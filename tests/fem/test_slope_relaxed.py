@@ -207,3 +207,18 @@ def test_cli_rejects_bad_rve(capsys):
     err = capsys.readouterr().err.strip()
     assert rc == 2
     assert len(err.splitlines()) == 1 and "--rve" in err and "taylor or relaxed" in err
+
+
+def test_bad_relaxed_start_is_refused(capsys):
+    from gransim.cli import main
+    from gransim.errors import InputError
+    from gransim.fem.run import make_material
+
+    try:
+        rc = main(["slope", "--rve", "relaxed", "--relaxed-start", "previous", "--figures", "none"])
+    except SystemExit as exc:
+        rc = exc.code
+    err = capsys.readouterr().err
+    assert rc == 2 and "--relaxed-start" in err and "committed" in err
+    with pytest.raises(InputError, match="--relaxed-start"):
+        make_material("taylor", rve="relaxed", relaxed_start="previous")
