@@ -28,7 +28,8 @@ those since the last commit or revert. When a block's worker is lost (the Actor'
 block is rebuilt on a live worker from its pristine copy and the history is replayed (per commit:
 evaluate at each of its F, commit; then the pending evaluations): the relaxed state depends only
 on the previous committed state and the F evaluated since (each evaluation warm-starts from the
-previous trial), so the replay restores it exactly; then the interrupted call is repeated. The
+previous trial; from the committed state, the default, only on the committed F, and then only
+that is replayed), so the replay restores it exactly; then the interrupted call is repeated. The
 checkpoint of a slope run (:mod:`gransim.fem.checkpoint`) restores the history the same way.
 """
 
@@ -140,7 +141,11 @@ class DistributedMaterial:
         self.index = [np.arange(a, b) for a, b in itertools.pairwise(edges)]
         self.starts = edges[:-1]
         self._blocks = [split_material(material, ix) for ix in self.index]
-        self.has_history = callable(getattr(getattr(material, "material", material), "commit", None))
+        inner = getattr(material, "material", material)
+        self.has_history = callable(getattr(inner, "commit", None))
+        # a material started from its committed state (the relaxed RVE's default) depends on the
+        # committed F alone: its replay skips the other evaluations
+        self._replay_every = getattr(inner, "warm_start", "trial") != "committed"
         # per commit the F (G, 2, 2) of every evaluation of its attempt; the evaluations since the
         # last commit or revert (materials with history; the replay of a recovery)
         self._log: list[list[np.ndarray]] = []
@@ -247,10 +252,10 @@ class DistributedMaterial:
                 ix = self.index[i]
                 a = self._actors[i]
                 for seq in self._log:  # replay the committed history (module docstring)
-                    for Fc in seq:
+                    for Fc in seq if self._replay_every else seq[-1:]:
                         a.evaluate(Fc[ix]).result()
                     a.commit().result()
-                for Fc in self._pending:  # and the trial of the current attempt
+                for Fc in self._pending if self._replay_every else []:  # the current attempt's trial
                     a.evaluate(Fc[ix]).result()
                 return getattr(a, method)(*args).result()
             except Exception as exc:

@@ -187,14 +187,18 @@ def read_checkpoint(directory, parameters: dict) -> tuple[ResumeState, list]:
     return ResumeState(steps, failures), commits
 
 
-def replay_history(material, commits) -> None:
+def replay_history(material, commits, every_iterate: bool = True) -> None:
     """Restore a material's Gauss-point history: per commit, evaluate at each of its F in order
-    (an item (n, G, 2, 2): its iterates; (G, 2, 2): the committed F alone), then commit."""
+    (an item (n, G, 2, 2): its iterates; (G, 2, 2): the committed F alone), then commit.
+    ``every_iterate`` False evaluates only the committed F of each: enough, and exact, for a
+    material that starts every evaluation from its committed state (the relaxed RVE's default
+    ``warm_start="committed"``)."""
     if not callable(getattr(material, "commit", None)):
         return
     for seq in commits:
         seq = np.asarray(seq, dtype=float)
-        for F in seq[None] if seq.ndim == 3 else seq:
+        seq = seq[None] if seq.ndim == 3 else seq
+        for F in seq if every_iterate else seq[-1:]:
             material.evaluate(np.ascontiguousarray(F))
         material.commit()
 

@@ -357,7 +357,9 @@ def run_slope_case(
         lc_error = str(exc)
     history(mat_fe, "revert")
     if state is not None:
-        replay_history(mat_fe, commits)  # the Gauss-point history of the last checkpointed step
+        # the Gauss-point history of the last checkpointed step; a relaxed RVE started from its
+        # committed state needs only the committed F, one started from its trial every FE iterate
+        replay_history(mat_fe, commits, every_iterate=params.get("relaxed_start", "trial") != "committed")
     t0 = time.perf_counter()
     bar = progress(total=len(setup.schedule()), desc=f"slope {protocol}")
     try:

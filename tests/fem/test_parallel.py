@@ -63,8 +63,8 @@ def rve70(tmp_path_factory):
     return load_packing(paths["rve-70-1"])
 
 
-def _relaxed(packing):
-    return rve.RelaxedMaterial(packing, KN, warm_start="trial")  # the history follows the FE iterates
+def _relaxed(packing, ws="trial"):
+    return rve.RelaxedMaterial(packing, KN, warm_start=ws)  # trial: the history follows the FE iterates
 
 
 RELAXED_PATH = [(0.03, 0.0), (0.06, 0.0)]
@@ -154,14 +154,16 @@ class _KillBefore:
         self.dist.revert()
 
 
+@pytest.mark.parametrize("ws", ["trial", "committed"])
 @pytest.mark.parametrize("when", ["after step 1", "between FE iterates"])
-def test_lost_worker_is_recovered_relaxed(dask2, rve70, when):
+def test_lost_worker_is_recovered_relaxed(dask2, rve70, when, ws):
     """Kill the worker holding block 0 after step 1, or in step 2 between its 2nd and 3rd FE
-    iterates: the block is rebuilt from the history (replay) on a live worker; the run ends with
-    the in-process arrays and history."""
-    local = _relaxed(rve70)
+    iterates: the block is rebuilt from the history (replay: every FE iterate for the trial start,
+    the committed F for the committed start) on a live worker; the run ends with the in-process
+    arrays and history."""
+    local = _relaxed(rve70, ws)
     ref = _relaxed_run(local)
-    dist = DistributedMaterial(_relaxed(rve70), dask2, 16)
+    dist = DistributedMaterial(_relaxed(rve70, ws), dask2, 16)
     n1 = len(ref.steps[0].energy_norms) + 1  # evaluations up to step 1's commit, with F = 1 at set-up
 
     def on_step(rec):
