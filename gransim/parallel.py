@@ -18,14 +18,18 @@ Bitwise reproducibility. The response at a Gauss point depends only on its own F
 committed history: the Taylor kernel sums the active contacts of a candidate set in the set's
 order, and :class:`gransim.rve.TaylorMaterial` sorts every set by (i, j, image) whatever F it was
 built at, so any valid candidate set gives the same bits; the relaxed RVE warm-starts each point
-from its own committed state. So the result is the same, bit for bit, for any number of workers and any block cut
-(tests/fem/test_parallel.py checks in process against a 2-worker LocalCluster).
+from its own trial or committed state. So the result is the same, bit for bit, for any number of
+workers and any block cut (tests/fem/test_parallel.py checks in process against a 2-worker
+LocalCluster).
 
-A lost worker. The driver keeps the F of every commit (G x 4 floats each, only for a material
-with history). When a block's worker is lost (the Actor's calls fail), the block is rebuilt on a
-live worker from its pristine copy and the commits are replayed (evaluate at each committed F,
-commit): the relaxed state at a commit depends only on the previous committed state and the
-committed F, so the replay restores it exactly; then the interrupted call is repeated. The
+A lost worker. The driver keeps the F of every evaluation since the first one (G x 4 floats
+each, only for a material with history): per commit the evaluations of the committed attempt, and
+those since the last commit or revert. When a block's worker is lost (the Actor's calls fail), the
+block is rebuilt on a live worker from its pristine copy and the history is replayed (per commit:
+evaluate at each of its F, commit; then the pending evaluations): the relaxed state depends only
+on the previous committed state and the F evaluated since (each evaluation warm-starts from the
+previous trial; from the committed state, the default, only on the committed F, and then only
+that is replayed), so the replay restores it exactly; then the interrupted call is repeated. The
 checkpoint of a slope run (:mod:`gransim.fem.checkpoint`) restores the history the same way.
 """
 
@@ -137,9 +141,15 @@ class DistributedMaterial:
         self.index = [np.arange(a, b) for a, b in itertools.pairwise(edges)]
         self.starts = edges[:-1]
         self._blocks = [split_material(material, ix) for ix in self.index]
-        self.has_history = callable(getattr(getattr(material, "material", material), "commit", None))
-        self._log: list[np.ndarray] = []  # F (G, 2, 2) of every commit (materials with history)
-        self._trial: np.ndarray | None = None
+        inner = getattr(material, "material", material)
+        self.has_history = callable(getattr(inner, "commit", None))
+        # a material started from its committed state (the relaxed RVE's default) depends on the
+        # committed F alone: its replay skips the other evaluations
+        self._replay_every = getattr(inner, "warm_start", "trial") != "committed"
+        # per commit the F (G, 2, 2) of every evaluation of its attempt; the evaluations since the
+        # last commit or revert (materials with history; the replay of a recovery)
+        self._log: list[list[np.ndarray]] = []
+        self._pending: list[np.ndarray] = []
         self.recoveries = 0
         workers = executor.workers()
         self._actors = [self._spawn(i, workers[i % len(workers)]) for i in range(nb)]
@@ -166,21 +176,22 @@ class DistributedMaterial:
         if F.shape != (self.n_gauss, 2, 2):
             raise InputError(f"F: expected shape ({self.n_gauss}, 2, 2) (the distributed Gauss points), got {F.shape}")
         parts = self._call_all("evaluate", [F[ix] for ix in self.index])
-        self._trial = F.copy()
+        if self.has_history:
+            self._pending.append(F.copy())
         return BatchResult(*(np.concatenate([p[k] for p in parts]) for k in range(5)))
 
     def commit(self) -> None:
         """Commit every block's trial history (and log the committed F for a recovery)."""
-        if self.has_history:
-            if self._trial is None:
-                raise InputError("commit: no trial state (call evaluate first, or it was reverted)")
-            self._log.append(self._trial)
-        self._trial = None
+        if self.has_history and not self._pending:
+            raise InputError("commit: no trial state (call evaluate first, or it was reverted)")
         self._call_all("commit", [() for _ in self.index], star=True)
+        if self.has_history:
+            self._log.append(self._pending)
+        self._pending = []
 
     def revert(self) -> None:
         """Drop every block's trial history."""
-        self._trial = None
+        self._pending = []
         self._call_all("revert", [() for _ in self.index], star=True)
 
     def committed_fluctuation(self, g: int):
@@ -240,9 +251,12 @@ class DistributedMaterial:
                 self.recoveries += 1
                 ix = self.index[i]
                 a = self._actors[i]
-                for Fc in self._log:  # replay the committed history (module docstring)
-                    a.evaluate(Fc[ix]).result()
+                for seq in self._log:  # replay the committed history (module docstring)
+                    for Fc in seq if self._replay_every else seq[-1:]:
+                        a.evaluate(Fc[ix]).result()
                     a.commit().result()
+                for Fc in self._pending if self._replay_every else []:  # the current attempt's trial
+                    a.evaluate(Fc[ix]).result()
                 return getattr(a, method)(*args).result()
             except Exception as exc:
                 if attempt == MAX_RECOVERIES - 1 or not self._lost(i, exc):

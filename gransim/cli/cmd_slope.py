@@ -40,6 +40,15 @@ def register(subparsers) -> None:
         "tangent; Gauss-point history committed at every converged load step)",
     )
     p.add_argument(
+        "--relaxed-start",
+        choices=["committed", "trial"],
+        default="committed",
+        help="--rve relaxed: where each FE Newton iteration's RVE relaxation starts at a Gauss point: "
+        "committed (default), its last committed state; trial, its previous FE iterate of the same "
+        "attempt (back to the committed state after a failed attempt): 1-2 RVE Newton iterations near "
+        "FE convergence, but where an RVE rearranges its state follows the FE iterates (docs/slope.md)",
+    )
+    p.add_argument(
         "--mesh",
         default="20x19",
         help="COLUMNSxROWS of the slope mesh (default 20x19, 1520 Gauss points; e.g. 10x5 for a feasible relaxed run)",
@@ -144,6 +153,7 @@ def handler(args) -> int:
         "packing_dir": args.packing_dir,
         "geometry": geometry,
         "load_steps": args.load_steps,
+        "relaxed_start": args.relaxed_start,
     }
     from .._numba import wait_passively  # noqa: PLC0415 - start-up: numba
     from ..fem.run import SlopeInterrupted  # noqa: PLC0415 - start-up: numba

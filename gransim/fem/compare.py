@@ -17,10 +17,10 @@ approach of confined particulate systems", eq 1: affine, an upper bound) against
   of every result, the energy-norm sequences with their observed orders).
 
 The relaxed fluctuation w of a marked Gauss point is not in ``slope.h5``: it is rebuilt by
-replaying that point's committed F (the run's checkpoint ``commits``, exact; without the
-checkpoint, the F of each converged step from ``slope.h5``, exact when no step was cut) through a
-fresh one-point :class:`gransim.rve.RelaxedMaterial`, and the replayed Cauchy stress is checked
-against the stored one (reported in ``compare.md``).
+replaying that point's history (the run's checkpoint: every committed attempt's FE iterates, then
+the commit, exact; without the checkpoint, the F of each converged step from ``slope.h5``) through
+a fresh one-point :class:`gransim.rve.RelaxedMaterial` with the run's ``relaxed_start``, and the
+replayed Cauchy stress is checked against the stored one (reported in ``compare.md``).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ import numpy as np
 from ..contacts import find_neighbours
 from ..errors import InputError, ResultFileError
 from ..io import atomic_path, load_packing, open_result
-from .checkpoint import KIND, step_path
+from .checkpoint import KIND, commit_sequences, step_path
 from .materials import RVEMaterial
 from .run import _rve_700_paths, default_rve_packing, packings_fingerprint
 from .slope import NORMAL_STIFFNESS
@@ -190,21 +190,23 @@ def most_different(d: np.ndarray, n: int = 4) -> list[int]:
 # -- the RVEs of a Gauss point --------------------------------------------------------------------
 
 
-def committed_history(result: SlopeResult, step: int, g: int) -> tuple[np.ndarray, str]:
-    """The F (C, 2, 2) committed at Gauss point ``g`` up to and including load ``step``, and where
-    they come from: the run's checkpoint (``<dir>/checkpoint/step_NNN.h5``, ``commits``: every
-    committed sub-increment) when present, otherwise the converged steps of ``slope.h5`` (the same
-    when no step up to ``step`` was cut)."""
+def committed_history(result: SlopeResult, step: int, g: int) -> tuple[list, str]:
+    """The history of Gauss point ``g`` up to and including load ``step``: per commit the F (n, 2, 2)
+    evaluated in its attempt (the committed F last), and where they come from: the run's checkpoint
+    (``<dir>/checkpoint/step_NNN.h5``: every committed sub-increment with its FE iterates,
+    :func:`gransim.fem.checkpoint.commit_sequences`) when present, otherwise the converged steps of
+    ``slope.h5`` (their F alone: exact for the committed start when no step up to ``step`` was cut,
+    to the start-independence of the relaxation otherwise)."""
     ck = result.path.parent / "checkpoint"
     if all(step_path(ck, k).exists() for k in range(1, step + 1)):
-        Fs = []
+        seqs = []
         for k in range(1, step + 1):
             with open_result(step_path(ck, k), kind=KIND) as f:
-                Fs.extend(f["commits"][:, g])
-        return np.asarray(Fs, dtype=float).reshape(-1, 2, 2), "checkpoint commits"
+                seqs.extend(np.asarray(q[:, g], dtype=float) for q in commit_sequences(f))
+        return seqs, "checkpoint commits"
     cut = [k for k in range(1, step + 1) if result.steps[k].cuts]
     note = "converged steps of slope.h5" + (f" (steps {cut} were cut: approximate)" if cut else "")
-    return np.array([result.steps[k].F[g] for k in range(1, step + 1)]), note
+    return [np.array(result.steps[k].F[g])[None] for k in range(1, step + 1)], note
 
 
 def rve_packings(result: SlopeResult, packing=None, packing_dir="results/packings") -> list:
@@ -239,10 +241,12 @@ def rve_state(result: SlopeResult, step: int, g: int, packings: list) -> dict:
     F = result.steps[step].F[g]
     source = "affine (Taylor)"
     if p.get("rve") == "relaxed":
-        rve = RelaxedMaterial(packing, kn)
-        Fs, source = committed_history(result, step, g)
-        for Fc in Fs:
-            rve.evaluate(Fc[None])
+        # the run's start rule (runs before the parameter existed started from the committed state)
+        rve = RelaxedMaterial(packing, kn, warm_start=p.get("relaxed_start", "committed"))
+        seqs, source = committed_history(result, step, g)
+        for seq in seqs:
+            for Fc in seq:
+                rve.evaluate(Fc[None])
             rve.commit()
         w = rve.committed_fluctuation(0)
         replay = RVEMaterial(rve).evaluate(F[None])

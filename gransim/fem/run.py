@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import time
@@ -17,6 +18,7 @@ from ..parallel import DistributedMaterial
 from ..progress import progress
 from ..rve import RelaxedMaterial, TaylorMaterial
 from ..rve.fabric import most_uniform
+from ..rve.relaxed import WARM_STARTS
 from .checkpoint import NAME as CKPT
 from .checkpoint import clear_checkpoint, read_checkpoint, replay_history, write_checkpoint
 from .constraints import DofMap
@@ -151,6 +153,7 @@ def make_material(
     n_gauss: int = 1520,
     packing_dir="results/packings",
     rve: str = "taylor",
+    relaxed_start: str = "committed",
 ):
     """The material of a run: ``taylor`` (an RVE material behind the units boundary
     :class:`gransim.fem.materials.RVEMaterial`, kn = E_n x thickness = :data:`gransim.paper.KN_2D`)
@@ -159,7 +162,9 @@ def make_material(
     ``rve``: ``taylor`` (:class:`gransim.rve.TaylorMaterial`, affine, Meier et al. eqs 6-12) or
     ``relaxed`` (:class:`gransim.rve.RelaxedMaterial`, periodic fluctuations minimising the energy
     at fixed F with the condensed tangent, Miehe & Dettmar 2004; Gauss-point history committed by
-    the load stepper).
+    the load stepper; ``relaxed_start``: where each FE iteration's relaxation starts, its
+    ``warm_start``: ``committed``, the Gauss point's committed state, or ``trial``, its previous FE
+    iterate of the attempt).
 
     ``assignment``: ``most-uniform`` (one RVE at every Gauss point: ``packing``, default the most
     uniform standard 700-particle RVE) or ``five`` (the five standard 700-particle RVEs assigned to
@@ -174,7 +179,11 @@ def make_material(
 
     # same constructor (packings, kn); the Taylor response at F is bitwise the same for any
     # history, block or worker (its candidate sets are sorted, gransim.rve.taylor)
-    cls = RelaxedMaterial if rve == "relaxed" else TaylorMaterial
+    cls = TaylorMaterial
+    if rve == "relaxed":
+        if relaxed_start not in WARM_STARTS:
+            raise InputError(f"--relaxed-start: expected one of {', '.join(WARM_STARTS)}, got {relaxed_start!r}")
+        cls = functools.partial(RelaxedMaterial, warm_start=relaxed_start)
 
     if assignment == "five":
         five = rve_700_packings(packing_dir)
@@ -231,6 +240,7 @@ def linear_check(problem, scale: float = 1e-3) -> dict:
 def run_parameters(protocol, setup, material, rve_label, tol, min_fraction, max_iter, assignment) -> dict:
     """The parameters a slope run's results depend on (slope.h5 provenance; the checkpoint refuses others)."""
     inner = unwrap(material)
+    extra = {"relaxed_start": inner.warm_start} if rve_label == "relaxed" and hasattr(inner, "warm_start") else {}
     return {
         "protocol": protocol,
         "footing_force": setup.footing_force,
@@ -246,6 +256,7 @@ def run_parameters(protocol, setup, material, rve_label, tol, min_fraction, max_
         "gravity": setup.gravity,
         "mesh": [setup.geometry.columns, setup.geometry.rows],
         "load_steps": setup.load_steps,
+        **extra,
     }
 
 
@@ -267,6 +278,7 @@ def run_slope_case(
     stop_after: int | None = None,
     checkpoint: bool = True,
     max_iter: int = 12,
+    relaxed_start: str = "committed",
 ) -> dict:
     """Solve one protocol and write its outputs to ``out`` (None: no files).
 
@@ -288,7 +300,7 @@ def run_slope_case(
     setup = setup_for(protocol, geometry, load_steps)
     G = 4 * setup.geometry.columns * setup.geometry.rows
     if isinstance(material, str):
-        mat = make_material(material, packing, assignment, G, packing_dir, rve)
+        mat = make_material(material, packing, assignment, G, packing_dir, rve, relaxed_start)
     else:
         mat = material
     label = rve_kind(mat)
@@ -308,8 +320,8 @@ def run_slope_case(
     has_history = label == "relaxed"
 
     def on_commit(sol):
-        if has_history:
-            commits.append(np.array(sol.F))
+        if has_history:  # every evaluation of the committed attempt: the replay repeats them
+            commits.append(np.array(sol.iterates))
 
     def on_step(rec):
         if out is None:
@@ -345,7 +357,9 @@ def run_slope_case(
         lc_error = str(exc)
     history(mat_fe, "revert")
     if state is not None:
-        replay_history(mat_fe, commits)  # the Gauss-point history of the last checkpointed step
+        # the Gauss-point history of the last checkpointed step; a relaxed RVE started from its
+        # committed state needs only the committed F, one started from its trial every FE iterate
+        replay_history(mat_fe, commits, every_iterate=params.get("relaxed_start", "trial") != "committed")
     t0 = time.perf_counter()
     bar = progress(total=len(setup.schedule()), desc=f"slope {protocol}")
     try:

@@ -161,7 +161,13 @@ class Problem:
 
 @dataclass(frozen=True, eq=False)
 class NewtonResult:
-    """A converged Newton solve: state, the relative energy norms e_k (Table 2) and the residual norms."""
+    """A converged Newton solve: state, the relative energy norms e_k (Table 2) and the residual norms.
+
+    ``iterates`` holds the F (G, 2, 2) of every material evaluation of the solve, in order (the last
+    is ``F``): a material whose trial history follows the iterates (the relaxed RVE warm-started
+    from its previous trial) is restored exactly by evaluating them again before the commit
+    (:func:`gransim.fem.checkpoint.replay_history`). Empty for a solve read back from a checkpoint.
+    """
 
     q: np.ndarray
     u: np.ndarray
@@ -169,6 +175,7 @@ class NewtonResult:
     material: MaterialResult
     energy_norms: np.ndarray
     residual_norms: np.ndarray
+    iterates: tuple = ()
 
 
 def _solve(K, r, timer: Timer, enorms=()):
@@ -207,13 +214,14 @@ def newton(
     """
     timer = timer or Timer()
     q = np.array(q0, dtype=float)
-    enorms, rnorms = [], []
+    enorms, rnorms, iterates = [], [], []
     e0 = None
     for _ in range(max_iter):
         try:
             r, K, mat, u, F, scale = problem.evaluate(q, load, timer=timer)
         except (GransimError, RuntimeError) as exc:  # det F <= 0, or an RVE relaxation that fails
             raise NewtonFailure(f"material evaluation failed: {exc}", enorms) from None
+        iterates.append(F)
         at_roundoff = np.linalg.norm(r) <= ROUNDOFF * scale
         if at_roundoff and e0 is None:  # already in equilibrium: nothing to record
             break
@@ -240,7 +248,7 @@ def newton(
         raise NewtonFailure(
             f"no convergence in {max_iter} iterations (relative energy norm {enorms[-1]:.3e} > {tol:.1e})", enorms
         )
-    return NewtonResult(q, u, F, mat, np.array(enorms), np.array(rnorms))
+    return NewtonResult(q, u, F, mat, np.array(enorms), np.array(rnorms), tuple(iterates))
 
 
 @dataclass(frozen=True, eq=False)
@@ -322,7 +330,8 @@ def run_load_steps(
     after every converged (sub-)increment, i.e. at the state the Newton solve returned, and
     reverted after every failed attempt, so a rejected increment leaves the history as it was and
     the retry starts from the last converged state. Materials without these methods are unaffected.
-    ``on_commit(solution)`` is called after every commit (the checkpoint records the committed F).
+    ``on_commit(solution)`` is called after every commit (the checkpoint records the solution's
+    ``iterates``: the F of every evaluation since the last revert, the committed F last).
 
     ``start`` (:class:`ResumeState`) continues a path after its converged steps: the steps it holds
     are skipped and the path goes on from the last one's state, exactly as the uninterrupted run

@@ -118,12 +118,25 @@ otherwise rebuilt there; ``n_builds`` counts the builds.
 
 Gauss-point history
 -------------------
-:meth:`RelaxedMaterial.evaluate` (the FE interface) starts every state g from the *committed*
-fluctuation of slot g (zero at first) and keeps the converged one as a *trial*;
+:meth:`RelaxedMaterial.evaluate` (the FE interface) keeps every converged state g as a *trial*;
 :meth:`RelaxedMaterial.commit` makes the trials the history (call it when the global load step
-has converged), :meth:`RelaxedMaterial.revert` drops them. A warm start that ends above the Taylor
-energy W(F, 0) by more than 1e-12 relative (another local minimum) is redone from w = 0, so
-W_rel <= W_Taylor (1 + 1e-12) always.
+has converged), :meth:`RelaxedMaterial.revert` drops them. Where a state starts
+(``warm_start``): ``"committed"`` (default) from the committed state of slot g; ``"trial"``
+from slot g's trial of the previous :meth:`evaluate` since the last commit or revert (the
+previous FE Newton iterate of the same attempt, whose F differs by the last FE correction only),
+else from the committed state. Both add the first-order predictor dw*/dF : (F - F_start) of the
+start. In one energy basin the two give the same minimiser w*(F), so P and A agree to the
+start-independence of the relaxation (~1e-12); the trial start needs 1-2 Newton iterations near
+FE convergence where the committed start needs as many as the whole load increment asks. Where
+the RVE rearranges (another basin between the committed F and F), the trial start ends in the
+basin the FE iterates led it to: the response is then no longer a function of (committed state,
+F) alone but of the FE iterate path, which differs from one Gauss point to the next (a patch
+under an affine boundary field then gets different stresses at its Gauss points). Hence the
+committed start is the default.
+The history of a step is reproduced by evaluating the same sequence of F (the accepted
+attempt's FE iterates) and committing (:func:`gransim.fem.checkpoint.replay_history`). A warm
+start that ends above the Taylor energy W(F, 0) by more than 1e-12 relative (another local
+minimum) is redone from w = 0, so W_rel <= W_Taylor (1 + 1e-12) always.
 :meth:`RelaxedMaterial.__call__` is stateless: it starts from a given fluctuation and returns the
 converged one in the result.
 
@@ -167,6 +180,9 @@ RATTLER_PASSES = 30
 RATTLER_GROUP = 16
 #: default most Newton iterations per state
 DEFAULT_MAX_ITER = 200
+#: where :meth:`RelaxedMaterial.evaluate` starts a Gauss point (``warm_start``): its trial of the
+#: previous evaluate (the previous FE iterate of the attempt), or its committed state
+WARM_STARTS = ("committed", "trial")
 #: default fewest contacts of a non-rattler (d + 1 in 2D)
 DEFAULT_MIN_CONTACTS = 3
 #: continuation in F where the start has no backbone: first sub-steps (of t in [0, 1]), smallest
@@ -1088,6 +1104,10 @@ class RelaxedMaterial:
         Most Newton iterations per state.
     min_contacts : int
         Fewest active contacts of a relaxed disk (rattler rule), 2 or 3.
+    warm_start : {"committed", "trial"}
+        Where :meth:`evaluate` starts Gauss point g: ``"committed"`` (default) from its committed
+        state, ``"trial"`` from its trial of the previous evaluate since the last commit or revert
+        (else the committed state) (module docstring, "Gauss-point history").
 
     :meth:`evaluate` (G states, Gauss-point history with :meth:`commit` / :meth:`revert`) and
     :meth:`stress_and_tangent` are the FE interface; :meth:`__call__` is one stateless state;
@@ -1102,6 +1122,7 @@ class RelaxedMaterial:
         force_tol: float = DEFAULT_FORCE_TOL,
         max_iter: int = DEFAULT_MAX_ITER,
         min_contacts: int = DEFAULT_MIN_CONTACTS,
+        warm_start: str = "committed",
     ):
         self.names, items = _as_packings(packings)
         self.normal_stiffness = as_positive_float(normal_stiffness, "normal_stiffness")
@@ -1109,6 +1130,9 @@ class RelaxedMaterial:
         self.force_tol = as_positive_float(force_tol, "force_tol")
         self.max_iter = as_int(max_iter, "max_iter", 1)
         self.min_contacts = as_int(min_contacts, "min_contacts", 2, 3)
+        if warm_start not in WARM_STARTS:
+            raise InputError(f"warm_start: expected one of {', '.join(WARM_STARTS)}, got {warm_start!r}")
+        self.warm_start = warm_start
         self._rves = [_RVE(p, self.skin_fraction) for p in items]
         self.n_builds = 0
         self._committed: dict[int, tuple[int, _State]] = {}
@@ -1365,7 +1389,8 @@ class RelaxedMaterial:
         )
 
     def evaluate(self, F, rve=None, cauchy: bool = True) -> RelaxedBatch:
-        """W, P, A, sigma at G Gauss points, each warm-started from its committed fluctuation.
+        """W, P, A, sigma at G Gauss points, each warm-started from its committed fluctuation or
+        (``warm_start`` = "trial") its trial of the previous evaluate since the last commit or revert.
 
         Parameters
         ----------
@@ -1396,9 +1421,12 @@ class RelaxedMaterial:
             )
         }
         trial = {}
+        chain = self._trial if (self.warm_start == "trial" and self._trial is not None) else {}
         for g in range(G):
             k = int(idx[g])
-            prev = self._committed.get(g)
+            prev = chain.get(g)
+            if prev is None or prev[0] != k:
+                prev = self._committed.get(g)
             start = prev[1] if prev is not None and prev[0] == k else None
             res, st = self._solve(self._rves[k], F[g], start)
             trial[g] = (k, st)
@@ -1434,6 +1462,7 @@ class RelaxedMaterial:
             force_tol=self.force_tol,
             max_iter=self.max_iter,
             min_contacts=self.min_contacts,
+            warm_start=self.warm_start,
         )
 
     def reset(self) -> None:
@@ -1450,7 +1479,8 @@ class RelaxedMaterial:
         self._trial = None
 
     def revert(self) -> None:
-        """Drop the trial fluctuations; the next :meth:`evaluate` starts from the committed ones."""
+        """Drop the trial fluctuations: the trial goes back to the committed state, the next
+        :meth:`evaluate` starts from the committed fluctuations."""
         self._trial = None
 
     def committed_fluctuation(self, g: int) -> np.ndarray | None:

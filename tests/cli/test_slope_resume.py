@@ -3,8 +3,11 @@
 The interruption is the ``--stop-after K`` hook (the run stops right after step K's checkpoint is
 written, as a kill after that step would leave it). Every dataset of slope.h5 (mesh, every step's
 q, u, F, P, sigma, von Mises, det F, contacts, energy and residual norms, load-settlement) must be
-equal, bit for bit, to the uninterrupted run's: with the continuum stand-in, and with a Taylor
-lattice RVE under the paper load, whose path ends in a limit search (halved increments) (exit 2).
+equal, bit for bit, to the uninterrupted run's: with the continuum stand-in, with a Taylor
+lattice RVE under the paper load, whose path ends in a limit search (halved increments) (exit 2),
+and with the relaxed lattice RVE (service load) started from the previous FE iterate's trial
+(``--relaxed-start trial``), whose Gauss-point history at a commit depends on every FE iterate of
+the committed attempt: the checkpoint stores and the resume replays them.
 """
 
 import h5py
@@ -59,7 +62,7 @@ def _rc(argv):
         return exc.code
 
 
-@pytest.mark.parametrize("kind", ["neo-hookean", "taylor"])
+@pytest.mark.parametrize("kind", ["neo-hookean", "taylor", "relaxed"])
 def test_resume_is_bitwise_the_uninterrupted_run(tmp_path, kind, capsys):
     base = ["slope", "--mesh", "10x5", "--figures", "none"]
     if kind == "taylor":
@@ -74,6 +77,10 @@ def test_resume_is_bitwise_the_uninterrupted_run(tmp_path, kind, capsys):
             str(_lattice(tmp_path)),
         ]
         stop, expect = 4, 2  # the paper load on the reduced slope stops at a limit (exit 2, docs/fem.md)
+    elif kind == "relaxed":
+        base += ["--rve", "relaxed", "--relaxed-start", "trial", "--load-steps", "2"]
+        base += ["--packing", str(_lattice(tmp_path))]
+        stop, expect = 2, 0
     else:
         base += ["--material", "neo-hookean", "--load-steps", "6"]
         stop, expect = 3, 0

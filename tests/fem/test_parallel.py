@@ -4,8 +4,11 @@ One LocalCluster for the module (processes, 2 workers, 1 thread each, no dashboa
 The reduced slope with two lattice RVEs in turn (Taylor, the paper load: cut steps and a limit) and a
 clamped box with a relaxed RVE (Gauss-point history on the workers) are solved in process and on
 the cluster; every array of every converged step must be equal, bit for bit. A worker is killed
-(SIGKILL) mid-run: its Gauss-point block is rebuilt on a live worker from the committed history and
-the run ends with the same arrays.
+(SIGKILL) mid-run, after a step or between two FE iterates of an attempt: its Gauss-point block is
+rebuilt on a live worker from the history (every committed attempt's iterates, then the current
+attempt's) and the run ends with the same arrays. The relaxed RVE is the standard rve-70-1 started from the
+previous FE iterate's trial (``warm_start="trial"``): its fluctuations at a commit depend on the
+FE iterates before it, not only on the committed F, so the replay must repeat the iterates.
 """
 
 import os
@@ -50,12 +53,21 @@ def _box(material):
     )
 
 
-def _relaxed():
-    # jammed (all 108 contacts, no rattlers), so the relaxation moves every disk: the history is not empty
-    return rve.RelaxedMaterial(triangular_packing(6, 6, swell=1.01, jitter=0.002, seed=1), KN)
+@pytest.fixture(scope="module")
+def rve70(tmp_path_factory):
+    pytest.importorskip("gransim.generation")
+    from gransim.generation import standard_packings
+    from gransim.io import load_packing
+
+    paths = standard_packings(tmp_path_factory.mktemp("packings"), names=["rve-70-1"])
+    return load_packing(paths["rve-70-1"])
 
 
-RELAXED_PATH = [(1e-4, 0.0), (2e-4, 0.0)]
+def _relaxed(packing, ws="trial"):
+    return rve.RelaxedMaterial(packing, KN, warm_start=ws)  # trial: the history follows the FE iterates
+
+
+RELAXED_PATH = [(0.03, 0.0), (0.06, 0.0)]
 
 
 def _arrays(res):
@@ -99,14 +111,14 @@ def test_taylor_slope_bitwise_in_process_and_on_two_workers(dask2):
 
 
 def _relaxed_run(material, on_step=None):
-    return run_load_steps(_box(material), RELAXED_PATH, tol=1e-9, max_iter=2, on_step=on_step)
+    return run_load_steps(_box(material), RELAXED_PATH, on_step=on_step)
 
 
-def test_relaxed_history_stays_on_workers_and_is_bitwise(dask2):
-    local = _relaxed()
+def test_relaxed_history_stays_on_workers_and_is_bitwise(dask2, rve70):
+    local = _relaxed(rve70)
     ref = _relaxed_run(local)
     assert ref.completed
-    dist = DistributedMaterial(_relaxed(), dask2, 16)
+    dist = DistributedMaterial(_relaxed(rve70), dask2, 16)
     res = _relaxed_run(dist)
     _assert_same(_arrays(ref), _arrays(res))
     moved = 0
@@ -123,18 +135,47 @@ def _kill_worker_of_block(dist, block=0):
     os.kill(pid, signal.SIGKILL)
 
 
-def test_lost_worker_is_recovered_relaxed(dask2):
-    """Kill the worker holding block 0 after step 1: step 2 rebuilds the block from the committed
-    history (replay) on a live worker; the run ends with the in-process arrays and history."""
-    local = _relaxed()
+class _KillBefore:
+    """Forwards to a DistributedMaterial and kills block 0's worker before its ``n``-th evaluate."""
+
+    def __init__(self, dist, n):
+        self.dist, self.n, self.k = dist, n, 0
+
+    def evaluate(self, F):
+        self.k += 1
+        if self.k == self.n:
+            _kill_worker_of_block(self.dist, 0)
+        return self.dist.evaluate(F)
+
+    def commit(self):
+        self.dist.commit()
+
+    def revert(self):
+        self.dist.revert()
+
+
+@pytest.mark.parametrize("ws", ["trial", "committed"])
+@pytest.mark.parametrize("when", ["after step 1", "between FE iterates"])
+def test_lost_worker_is_recovered_relaxed(dask2, rve70, when, ws):
+    """Kill the worker holding block 0 after step 1, or in step 2 between its 2nd and 3rd FE
+    iterates: the block is rebuilt from the history (replay: every FE iterate for the trial start,
+    the committed F for the committed start) on a live worker; the run ends with the in-process
+    arrays and history."""
+    local = _relaxed(rve70, ws)
     ref = _relaxed_run(local)
-    dist = DistributedMaterial(_relaxed(), dask2, 16)
+    dist = DistributedMaterial(_relaxed(rve70, ws), dask2, 16)
+    n1 = len(ref.steps[0].energy_norms) + 1  # evaluations up to step 1's commit, with F = 1 at set-up
 
     def on_step(rec):
         if rec.step == 1:
             _kill_worker_of_block(dist, 0)
 
-    res = _relaxed_run(dist, on_step)
+    if when == "after step 1":
+        res = _relaxed_run(dist, on_step)
+    else:
+        res = _relaxed_run(_KillBefore(dist, n1 + 3))
+        # the log: F = 1 at set-up, step 1, step 2 (every FE iterate of each)
+        assert len(dist._log) == 3 and len(dist._log[2]) == len(ref.steps[1].energy_norms) >= 3
     assert dist.recoveries >= 1
     _assert_same(_arrays(ref), _arrays(res))
     for g in range(16):

@@ -220,6 +220,46 @@ def test_warm_start_history_commit_and_revert(standard):
     assert np.array_equal(mat.committed_fluctuation(0), w_committed)
 
 
+def test_trial_start_follows_the_iterates_revert_returns_to_committed(standard):
+    """warm_start="trial": within an attempt each evaluate starts from the previous evaluate's
+    trial. An FE-like sequence (a load increment, then corrections of 1e-6 and 1e-10) needs at
+    most 2 Newton iterations at the corrections (1 for the factorisation of A at a converged
+    start), where a start from the committed state needs as many as at the first iterate; the
+    final P and A equal the committed start's to 1e-10 relative (the relaxation's tolerance
+    1e-12 x mean contact force, measured 2e-12: both are the same minimiser, whereas another
+    basin differs by 1e-4 or more). After revert() the next evaluate starts from the committed
+    state (bitwise the committed-start material's result); commit() copies the last trial (an
+    evaluate at the same F then starts converged: 1 iteration, bitwise the same P)."""
+    p = standard["rve-70-1"]
+    F0 = np.eye(2)[None]
+    F1 = np.array([[[0.9995, 2e-4], [1e-4, 0.9997]]])
+    dF = np.array([[[1.0, 0.3], [-0.2, -0.6]]])
+    seq = [F1, F1 + 1e-6 * dF, F1 + 1e-6 * dF + 1e-10 * dF]
+    runs = {}
+    for ws in ("trial", "committed"):
+        mat = RelaxedMaterial(p, KN, warm_start=ws)
+        mat.evaluate(F0)
+        mat.commit()
+        runs[ws] = (mat, [mat.evaluate(F) for F in seq])
+    warm, cold = runs["trial"][1], runs["committed"][1]
+    assert warm[0].n_newton[0] == cold[0].n_newton[0] >= 3  # the same start at the first iterate
+    assert warm[1].n_newton[0] <= 2 and warm[2].n_newton[0] <= 2, [b.n_newton for b in warm]
+    assert cold[2].n_newton[0] >= 3, [b.n_newton for b in cold]
+    assert _rel(warm[2].piola, cold[2].piola) < 1e-10 and _rel(warm[2].tangent, cold[2].tangent) < 1e-10
+    mat, cmat = runs["trial"][0], runs["committed"][0]
+    mat.evaluate(np.array([[[0.99, 3e-3], [0.0, 0.995]]]))  # a failed attempt's far iterate
+    mat.revert()
+    cmat.revert()
+    a, b = mat.evaluate(seq[1]), cmat.evaluate(seq[1])
+    assert np.array_equal(a.piola, b.piola) and np.array_equal(a.tangent, b.tangent)
+    mat.commit()
+    again = mat.evaluate(seq[1])
+    assert again.n_newton[0] == 1 and np.array_equal(again.piola, a.piola)
+    with pytest.raises(InputError, match="warm_start"):
+        RelaxedMaterial(p, KN, warm_start="previous")
+    assert RelaxedMaterial(p, KN, warm_start="committed").fresh().warm_start == "committed"
+
+
 def test_bad_inputs_name_the_option(standard):
     p = standard["rve-70-1"]
     with pytest.raises(InputError, match="normal_stiffness"):
