@@ -451,7 +451,49 @@ def _fire_run(x, v, r, pi, pj, off, pcut, x_ref, st, prm, diag, parallel):
 # --------------------------------------------------------------------------------------------
 # the minimiser (Python side: neighbour lists, FIRE state)
 # --------------------------------------------------------------------------------------------
-class Minimiser:
+class StagedMinimiser:
+    """The stage loop shared by :class:`Minimiser` and
+    :class:`gransim.generation.fire_shape.ShapeMinimiser`: :meth:`run` times one FIRE stage of
+    the subclass's ``_run`` and records it (the subclass keeps ``steps``, ``rebuilds``, ``bar`` and
+    ``log``)."""
+
+    def run(
+        self,
+        P: float,
+        cell_free: bool,
+        ftol: float,
+        max_steps: int,
+        skin: float | None = None,
+        stage: str = "",
+        rms: bool = False,
+    ) -> str:
+        """Minimise H = U + P A (cell free) or U (cell fixed) from the current state, until the
+        largest (or, with ``rms``, the root-mean-square) net force is below ``ftol`` times the
+        mean contact force; returns "converged", "max_steps" or "diverged" (:data:`STATUS`).
+
+        Appends {stage, pressure, tol, residual norm, steps, builds, seconds} to ``self.log``."""
+        t0 = time.perf_counter()
+        s0, b0 = self.steps, self.rebuilds
+        if self.bar is not None:
+            self.bar.set_postfix_str(f"{stage}, {self.steps} FIRE steps so far")
+        status = self._run(P, cell_free, ftol, max_steps, skin, rms)
+        self.log.append(
+            {
+                "stage": stage,
+                "pressure": float(P),
+                "tol": float(ftol),
+                "norm": "rms" if rms else "max",
+                "steps": self.steps - s0,
+                "builds": self.rebuilds - b0,
+                "seconds": round(time.perf_counter() - t0, 4),
+            }
+        )
+        if self.bar is not None:
+            self.bar.update(1)
+        return status
+
+
+class Minimiser(StagedMinimiser):
     """Positions, cell scale and FIRE state of a packing being minimised (reduced units).
 
     Parameters
@@ -530,41 +572,6 @@ class Minimiser:
         self.v = np.ascontiguousarray(self.v[perm])
         self.r = np.ascontiguousarray(self.r[perm])
         self.order = self.order[perm]
-
-    def run(
-        self,
-        P: float,
-        cell_free: bool,
-        ftol: float,
-        max_steps: int,
-        skin: float | None = None,
-        stage: str = "",
-        rms: bool = False,
-    ) -> str:
-        """Minimise H = U + P A (cell free) or U (cell fixed) from the current state, until the
-        largest (or, with ``rms``, the root-mean-square) net force is below ``ftol`` times the
-        mean contact force; returns "converged", "max_steps" or "diverged" (:data:`STATUS`).
-
-        Appends {stage, pressure, tol, residual norm, steps, builds, seconds} to ``self.log``."""
-        t0 = time.perf_counter()
-        s0, b0 = self.steps, self.rebuilds
-        if self.bar is not None:
-            self.bar.set_postfix_str(f"{stage}, {self.steps} FIRE steps so far")
-        status = self._run(P, cell_free, ftol, max_steps, skin, rms)
-        self.log.append(
-            {
-                "stage": stage,
-                "pressure": float(P),
-                "tol": float(ftol),
-                "norm": "rms" if rms else "max",
-                "steps": self.steps - s0,
-                "builds": self.rebuilds - b0,
-                "seconds": round(time.perf_counter() - t0, 4),
-            }
-        )
-        if self.bar is not None:
-            self.bar.update(1)
-        return status
 
     def _run(self, P, cell_free, ftol, max_steps, skin, rms):
         skin = self.skin if skin is None else float(skin)

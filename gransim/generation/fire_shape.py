@@ -60,8 +60,6 @@ The kernel is serial (the cell-shape mode is meant for RVE-sized packings; the t
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from .._numba import njit
@@ -84,6 +82,7 @@ from .fire import (
     STATUS,
     UNJAMMED_ENERGY,
     FireParameters,
+    StagedMinimiser,
     _particles,
     fire_adapt,
     fire_status,
@@ -337,7 +336,7 @@ def enthalpy_and_cell_forces(x, r, cell, P: float, skin: float = 0.0):
     return float(diag[0] + P * A), np.array(cell_forces(diag, float(P), A)), f, diag
 
 
-class ShapeMinimiser:
+class ShapeMinimiser(StagedMinimiser):
     """Centres, cell matrix and FIRE state of a packing minimised over the cell shape (reduced units).
 
     The interface of :class:`gransim.generation.fire.Minimiser` (``run``, ``cell``, ``phi``,
@@ -412,29 +411,6 @@ class ShapeMinimiser:
         self.v = np.ascontiguousarray(self.v[perm])
         self.r = np.ascontiguousarray(self.r[perm])
         self.order = self.order[perm]
-
-    def run(self, P, cell_free, ftol, max_steps, skin=None, stage: str = "", rms: bool = False) -> str:
-        """Minimise H = U + P A over centres and cell shape (cell free) or U (cell fixed): as
-        :meth:`gransim.generation.fire.Minimiser.run`, with the cell residual of the module docstring."""
-        t0 = time.perf_counter()
-        s0, b0 = self.steps, self.rebuilds
-        if self.bar is not None:
-            self.bar.set_postfix_str(f"{stage}, {self.steps} FIRE steps so far")
-        status = self._run(P, cell_free, ftol, max_steps, skin, rms)
-        self.log.append(
-            {
-                "stage": stage,
-                "pressure": float(P),
-                "tol": float(ftol),
-                "norm": "rms" if rms else "max",
-                "steps": self.steps - s0,
-                "builds": self.rebuilds - b0,
-                "seconds": round(time.perf_counter() - t0, 4),
-            }
-        )
-        if self.bar is not None:
-            self.bar.update(1)
-        return status
 
     def _run(self, P, cell_free, ftol, max_steps, skin, rms):
         skin = self.skin if skin is None else float(skin)
