@@ -330,15 +330,26 @@ def forces(p, nb, law, Lx, Ly, dt, update, vir, store):
     return ortho_forces(p, nb, law, Lx, Ly, dt, update, vir, store)
 
 
-def ortho_forces(p, nb, law, Lx, Ly, dt, update, vir, store):
-    """The serial orthogonal-cell force loop for ``law`` (resolved at compile time by its type):
-    :func:`_forces_hooke_v` for :class:`HookeLiggghts` and :class:`HookeLammps`, the generic
-    :func:`_serial_loop` otherwise. Interpreted fallback."""
+def _ortho_simd(p, nb, law, Lx, Ly, dt, update, vir, store):
+    acc = np.empty(2)
+    _forces_hooke_v(
+        p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.a, nb.b, nb.sx, nb.sy, nb.both.view(np.uint8), nb.hist,
+        nb.slide.view(np.uint8), nb.ef,
+        law, Lx, Ly, dt, update, vir, store, acc,
+    )  # fmt: skip
+    return acc[0], acc[1]
+
+
+def _ortho_generic(p, nb, law, Lx, Ly, dt, update, vir, store):
     return _serial_loop(p, nb, law, OrthoImage(Lx, Ly), dt, update, vir, store)
 
 
-def _is_hooke(law):
-    return getattr(law, "instance_class", None) in (HookeLiggghts, HookeLammps)
+def ortho_forces(p, nb, law, Lx, Ly, dt, update, vir, store):
+    """The serial orthogonal-cell force loop for ``law`` (resolved at compile time by its type):
+    :func:`_forces_hooke_v` for :class:`HookeLiggghts` and :class:`HookeLammps`, the generic
+    :func:`_serial_loop` otherwise. Interpreted (NUMBA_DISABLE_JIT): the same choice."""
+    fn = _ortho_simd if isinstance(law, (HookeLiggghts, HookeLammps)) else _ortho_generic
+    return fn(p, nb, law, Lx, Ly, dt, update, vir, store)
 
 
 # not inline="always": inlined at numba's IR level, this overload doubled the compile time of every
@@ -346,38 +357,13 @@ def _is_hooke(law):
 # nothing measurable per step
 @overload(ortho_forces)
 def _ov_ortho_forces(p, nb, law, Lx, Ly, dt, update, vir, store):
-    if _is_hooke(law):
-
-        def simd(p, nb, law, Lx, Ly, dt, update, vir, store):
-            acc = np.empty(2)
-            _forces_hooke_v(
-                p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.a, nb.b, nb.sx, nb.sy, nb.both.view(np.uint8), nb.hist,
-                nb.slide.view(np.uint8), nb.ef,
-                law, Lx, Ly, dt, update, vir, store, acc,
-            )  # fmt: skip
-            return acc[0], acc[1]
-
-        return simd
-
-    def generic(p, nb, law, Lx, Ly, dt, update, vir, store):
-        return _serial_loop(p, nb, law, OrthoImage(Lx, Ly), dt, update, vir, store)
-
-    return generic
+    hooke = getattr(law, "instance_class", None) in (HookeLiggghts, HookeLammps)
+    return _ortho_simd if hooke else _ortho_generic
 
 
-def hooke_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
-    """The branch-free pair of a Hooke law (:func:`gransim.contacts.hooke.hooke_select_liggghts` or
-    ``hooke_select_lammps`` by the law's type, at compile time). Interpreted fallback."""
-    fn = hooke_select_lammps if isinstance(law, HookeLammps) else hooke_select_liggghts
-    return fn(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, s0, s1, update,
-    )  # fmt: skip
-
-
-@overload(hooke_select, inline="always")
-def _ov_hooke_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
-    fn = hooke_select_lammps if getattr(law, "instance_class", None) is HookeLammps else hooke_select_liggghts
+def _hooke_select_of(cls):
+    """The branch-free pair function of the Hooke law class ``cls``, taking the law object."""
+    fn = hooke_select_lammps if cls is HookeLammps else hooke_select_liggghts
 
     def impl(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
         return fn(
@@ -386,6 +372,19 @@ def _ov_hooke_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, w
         )  # fmt: skip
 
     return impl
+
+
+def hooke_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
+    """The branch-free pair of a Hooke law (:func:`gransim.contacts.hooke.hooke_select_liggghts` or
+    ``hooke_select_lammps`` by the law's type, at compile time). Interpreted fallback."""
+    return _hooke_select_of(type(law))(
+        law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update
+    )
+
+
+@overload(hooke_select, inline="always")
+def _ov_hooke_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
+    return _hooke_select_of(getattr(law, "instance_class", None))
 
 
 #: list entries per block of the SIMD force loop (:func:`_forces_hooke_v`)

@@ -242,3 +242,23 @@ def test_the_serial_engine_keeps_to_one_core(tmp_path):
     mine, others = (int(v) for v in out.stdout.split()[-2:])
     assert mine >= 100, f"the run was too short to judge ({mine} ticks)"
     assert others < 0.2 * mine, f"other threads used {others} clock ticks beside the main thread's {mine}"
+
+
+@pytest.mark.parametrize("flavour", FLAVOURS)
+def test_the_hooke_laws_take_the_simd_loop_and_the_others_the_generic_one(flavour):
+    # the equality tests above compare kernels.forces with the generic loop: they would also pass if
+    # the dispatch fell back to the generic loop for Hooke, so the compiled code of forces is read
+    import numba
+
+    from gransim._numba import JIT_OPTIONS
+    from gransim.contacts.laws import law_spec, make_law
+
+    e, s = _engine(flavour)
+    L = e.box_lengths
+    other = make_law("hertz-liggghts", youngs_modulus=5e8, poisson_ratio=0.3, restitution=0.5, friction=0.5)
+    for law, simd in ((e.law, True), (other, False)):
+        k = numba.njit(**{**JIT_OPTIONS, "cache": False})(K.forces.py_func)
+        nb = e.nb if simd else e.nb._replace(hist=np.zeros((e.nb.a.shape[0], law_spec(other).width)))
+        k(_copy(e.p), _copy(nb), law, L[0], L[1], s.dt, True, np.zeros(4), True)
+        ir = k.inspect_llvm(k.signatures[0])
+        assert ("_forces_hooke_v" in ir) == simd, f"{type(law).__name__}: SIMD loop {'missing' if simd else 'used'}"
