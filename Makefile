@@ -7,7 +7,7 @@ STAMP := $(VENV)/.gransim-installed
 # numba's on-disk cache lives outside the source tree so a clean clone stays clean
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba-cache
 
-.PHONY: run test bench setup engines browser liggghts clean help lint
+.PHONY: run test bench setup setup-test system-test warm engines browser liggghts clean help lint
 
 help:
 	@echo "make run   - set up, run the default validation suite, write results/report/index.html"
@@ -30,7 +30,20 @@ WARM := $(VENV)/.gransim-warm
 $(WARM): $(STAMP) $(shell find gransim -name '*.py' 2>/dev/null)
 	@t=$$(date +%s.%N); $(VENV)/bin/gransim warmup && touch -d "@$$t" $@
 
-setup: $(STAMP) $(WARM) engines browser
+warm: $(WARM)
+
+# the set-up: the venv and the numba warm-up (CPU-bound) beside the apt install of the codes (mostly
+# waiting on the network and the disk), at the same time; `make test` also installs Chromium, after
+# the codes (one apt-get at a time: they share dpkg's lock). `make run` does not need Chromium.
+setup:
+	@$(MAKE) --no-print-directory -j2 warm engines
+
+setup-test:
+	@$(MAKE) --no-print-directory -j2 warm system-test
+
+system-test:
+	@$(MAKE) --no-print-directory engines
+	@$(MAKE) --no-print-directory browser
 
 # the two established DEM codes the validation compares with: LIGGGHTS (binary `liggghts`, Debian
 # package `liggghts`) and LAMMPS (binary `lmp`, Debian package `lammps`). As root, the missing ones
@@ -80,7 +93,7 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check $(LINT_DIRS)
 	$(VENV)/bin/ruff format --check $(LINT_DIRS)
 
-test: setup lint
+test: setup-test lint
 	$(PY) -m pytest -q -n 2 --dist loadfile
 
 bench: setup
