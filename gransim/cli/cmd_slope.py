@@ -55,6 +55,14 @@ def register(subparsers) -> None:
     )
     p.add_argument("--load-steps", type=int, default=20, help="footing load steps after the dead load")
     p.add_argument(
+        "--dead-load-steps",
+        type=int,
+        default=1,
+        help="apply the dead load in this many equal steps (default 1, the paper's protocol); two "
+        "runs with the same value share the converged loads k/K, which slope-compare maps when "
+        "one material cannot carry the whole dead load",
+    )
+    p.add_argument(
         "--compare",
         action="store_true",
         help="run both RVE materials (taylor, relaxed) into OUT/taylor and OUT/relaxed and "
@@ -134,6 +142,8 @@ def handler(args) -> int:
         raise InputError(f"--mesh: expected at least 2 columns and 2 rows, got {args.mesh!r}")
     if args.load_steps < 1:
         raise InputError(f"--load-steps: expected an integer >= 1, got {args.load_steps}")
+    if args.dead_load_steps < 1:
+        raise InputError(f"--dead-load-steps: expected an integer >= 1, got {args.dead_load_steps}")
     if args.stop_after is not None and args.stop_after < 1:
         raise InputError(f"--stop-after: expected a load step >= 1, got {args.stop_after}")
     if args.workers is not None and args.workers < 1:
@@ -153,6 +163,7 @@ def handler(args) -> int:
         "packing_dir": args.packing_dir,
         "geometry": geometry,
         "load_steps": args.load_steps,
+        "dead_load_steps": args.dead_load_steps,
         "relaxed_start": args.relaxed_start,
     }
     from .._numba import wait_passively  # noqa: PLC0415 - start-up: numba

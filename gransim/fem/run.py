@@ -256,6 +256,8 @@ def run_parameters(protocol, setup, material, rve_label, tol, min_fraction, max_
         "gravity": setup.gravity,
         "mesh": [setup.geometry.columns, setup.geometry.rows],
         "load_steps": setup.load_steps,
+        # only when not the paper's single dead-load step, so that earlier checkpoints still resume
+        **({"dead_load_steps": setup.dead_load_steps} if setup.dead_load_steps != 1 else {}),
         **extra,
     }
 
@@ -279,6 +281,7 @@ def run_slope_case(
     checkpoint: bool = True,
     max_iter: int = 12,
     relaxed_start: str = "committed",
+    dead_load_steps: int = 1,
 ) -> dict:
     """Solve one protocol and write its outputs to ``out`` (None: no files).
 
@@ -289,6 +292,9 @@ def run_slope_case(
     checkpoint is written after every converged load step (:mod:`gransim.fem.checkpoint`);
     ``resume`` continues from it (bitwise as the uninterrupted run); ``stop_after`` = k stops after
     step k's checkpoint (raises :class:`SlopeInterrupted`, for tests of the resume).
+    ``dead_load_steps`` = K applies the dead load in K equal steps before the footing (default 1,
+    the paper's protocol; runs of two materials with the same K share the converged loads k/K, so
+    ``gransim slope-compare`` can map them where one of them cannot carry the whole dead load).
 
     Returns a summary dict: ``completed``, ``message``, ``report`` (markdown), ``timing``,
     ``table`` (Table 2), ``load_settlement`` (rows force, settlement, rotation), ``steps``.
@@ -297,7 +303,7 @@ def run_slope_case(
         raise InputError(f"--figures: expected one of {', '.join(FIGURES)}, got {figures!r}")
     if resume and out is None:
         raise InputError("--resume: needs the output directory of the interrupted run (--out)")
-    setup = setup_for(protocol, geometry, load_steps)
+    setup = setup_for(protocol, geometry, load_steps, dead_load_steps)
     G = 4 * setup.geometry.columns * setup.geometry.rows
     if isinstance(material, str):
         mat = make_material(material, packing, assignment, G, packing_dir, rve, relaxed_start)

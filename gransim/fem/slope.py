@@ -17,6 +17,7 @@ import numpy as np
 
 from .. import paper
 from .._validate import check_choice
+from ..errors import InputError
 from .constraints import DofMap, RigidBody
 from .mesh import SlopeGeometry, slope_mesh
 from .solver import LoadPathResult, Problem, run_load_steps
@@ -41,6 +42,7 @@ class SlopeSetup:
     load_steps: int = 20
     density: float = RHO
     gravity: float = G
+    dead_load_steps: int = 1  # the dead load in this many equal steps (the paper: 1)
 
     @property
     def footing_centre(self) -> np.ndarray:
@@ -55,14 +57,28 @@ class SlopeSetup:
         return np.array([x, float(self.geometry.surface(x))])
 
     def schedule(self) -> list[tuple[float, float]]:
-        """(gravity factor, footing factor) per step: dead load, then the footing in equal steps."""
-        return [(1.0, 0.0)] + [(1.0, k / self.load_steps) for k in range(1, self.load_steps + 1)]
+        """(gravity factor, footing factor) per step: the dead load (in ``dead_load_steps`` equal
+        steps; Meier, Steinmann & Kuhl apply it in the first load step), then the footing in
+        ``load_steps`` equal steps."""
+        nd = self.dead_load_steps
+        dead = [(k / nd, 0.0) for k in range(1, nd + 1)]
+        return dead + [(1.0, k / self.load_steps) for k in range(1, self.load_steps + 1)]
 
 
-def setup_for(protocol: str, geometry: SlopeGeometry | None = None, load_steps: int = 20) -> SlopeSetup:
+def setup_for(
+    protocol: str, geometry: SlopeGeometry | None = None, load_steps: int = 20, dead_load_steps: int = 1
+) -> SlopeSetup:
     """The setup of a named protocol (``paper`` or ``service``)."""
     check_choice(protocol, "protocol", PROTOCOLS)
-    return SlopeSetup(geometry=geometry or SlopeGeometry(), footing_force=PROTOCOLS[protocol], load_steps=load_steps)
+    for name, v in (("load_steps", load_steps), ("dead_load_steps", dead_load_steps)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            raise InputError(f"{name}: expected an integer >= 1, got {v!r}")
+    return SlopeSetup(
+        geometry=geometry or SlopeGeometry(),
+        footing_force=PROTOCOLS[protocol],
+        load_steps=int(load_steps),
+        dead_load_steps=int(dead_load_steps),
+    )
 
 
 def slope_problem(material, setup: SlopeSetup) -> Problem:
@@ -119,7 +135,7 @@ def limit_message(problem: Problem, setup: SlopeSetup, result: LoadPathResult) -
     lim = result.limit
     lam_g, lam_f = lim["last_converged_load"]
     state = lim["partial"] if lim["partial"] is not None else (result.steps[-1].solution if result.steps else None)
-    tgt = lim["target"][1]
+    tgt_g, tgt = lim["target"]
     if state is not None:
         nc = np.asarray(state.material.n_contacts)
         free = np.flatnonzero(nc == 0)
@@ -127,7 +143,8 @@ def limit_message(problem: Problem, setup: SlopeSetup, result: LoadPathResult) -
     else:
         where = "no converged state"
     return (
-        f"load limit: step {lim['step']} (footing {tgt:.0%} of {setup.footing_force:.3g} N/m) did not "
+        f"load limit: step {lim['step']} (dead load {tgt_g:.0%}, footing {tgt:.0%} of "
+        f"{setup.footing_force:.3g} N/m) did not "
         f"converge with the increment cut to {lim['min_fraction']:.3g} of a step (last failure: "
         f"{lim['reason']}). Last converged load: dead load {lam_g:.0%}, footing {lam_f:.4f} of the "
         f"target = {lam_f * setup.footing_force:.4g} N/m. Gauss points without contacts (the Taylor "

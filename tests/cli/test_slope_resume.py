@@ -111,6 +111,9 @@ def test_resume_refuses_a_checkpoint_of_other_parameters(tmp_path, capsys):
     assert len(err.splitlines()) == 1 and "load_steps = 4" in err and "load_steps = 5" in err
     assert _rc(base + ["--load-steps", "4", "--tol", "1e-12", "--resume"]) == 2
     assert "tol" in capsys.readouterr().err
+    # the dead load in other steps is another load path
+    assert _rc(base + ["--load-steps", "4", "--dead-load-steps", "2", "--resume"]) == 2
+    assert "dead_load_steps" in capsys.readouterr().err
 
 
 def test_resume_without_checkpoint_and_bad_options(tmp_path, capsys):
@@ -119,6 +122,8 @@ def test_resume_without_checkpoint_and_bad_options(tmp_path, capsys):
     assert "no checkpoint" in capsys.readouterr().err
     assert _rc(base + ["--out", str(tmp_path), "--stop-after", "0"]) == 2
     assert "--stop-after" in capsys.readouterr().err
+    assert _rc(base + ["--out", str(tmp_path), "--dead-load-steps", "0"]) == 2
+    assert "--dead-load-steps" in capsys.readouterr().err
     assert _rc(base + ["--out", str(tmp_path), "--workers", "0"]) == 2
     assert "--workers" in capsys.readouterr().err
     assert _rc(base + ["--out", str(tmp_path), "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"]) == 2

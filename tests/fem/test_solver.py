@@ -95,3 +95,26 @@ def test_rigid_footing_moves_rigidly_for_large_rotation():
         e[j] = h
         fd = (dm.displacement(q + e) - dm.displacement(q - e)).ravel() / (2 * h)
         assert np.allclose(fd, T[:, j], atol=1e-8)
+
+
+def test_dead_load_in_steps_reaches_the_single_step_state():
+    """``dead_load_steps`` = K splits the dead load into K equal steps before the footing: the
+    schedule holds k/K, and for a path-independent (hyperelastic) material the state at the full
+    dead load is the single-step one (the same equilibrium, to Newton's tolerance); bad K refused."""
+    from gransim.errors import InputError
+
+    one = setup_for("service", SMALL_SLOPE, load_steps=2)
+    three = setup_for("service", SMALL_SLOPE, load_steps=2, dead_load_steps=3)
+    assert one.schedule() == [(1.0, 0.0), (1.0, 0.5), (1.0, 1.0)]
+    assert three.schedule() == [(1 / 3, 0.0), (2 / 3, 0.0), (1.0, 0.0), (1.0, 0.5), (1.0, 1.0)]
+    mat = make_continuum("neo-hookean")
+    ra = run_load_steps(slope_problem(mat, one), one.schedule()[:1])
+    rb = run_load_steps(slope_problem(mat, three), three.schedule()[:3])
+    assert ra.completed and rb.completed and [s.load for s in rb.steps] == three.schedule()[:3]
+    qa, qb = ra.steps[-1].solution.q, rb.steps[-1].solution.q
+    assert np.linalg.norm(qb - qa) <= 1e-9 * np.linalg.norm(qa)
+    # a third of the dead load is not the full one (the steps are really applied in turn)
+    assert np.linalg.norm(rb.steps[0].solution.q - qa) > 0.5 * np.linalg.norm(qa)
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(InputError, match="dead_load_steps"):
+            setup_for("service", SMALL_SLOPE, dead_load_steps=bad)
