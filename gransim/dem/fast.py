@@ -63,6 +63,12 @@ MIN_PER_THREAD = 20000
 #: growth factor of the list buffers when a build needs more room than they have
 GROWTH = 1.25
 
+#: the threaded list build gives each band room for its particles times the last list's entries
+#: per particle times BAND_SLACK, plus BAND_PAD entries; a band that needs more sends the build to
+#: the count and fill passes
+BAND_SLACK = 1.15
+BAND_PAD = 64
+
 
 @contextlib.contextmanager
 def dynamic_chunks(size: int = 1):
@@ -187,6 +193,7 @@ class FastEngine:
         self.n_entries = 0
         self.step = 0
         self.n_rebuilds = 0
+        self.n_banded_builds = 0  # threaded builds done in one pass per band (the others: count and fill)
         ny = math.floor(C[1, 1] / self._cut)
         self._rows = max(1, round(ny / TARGET_BANDS))
         self._rebuild(carry=False)
@@ -254,16 +261,33 @@ class FastEngine:
             self._binstart = np.zeros(nbx * nby + 1, np.int32)
         binstart = self._binstart[: nbx * nby + 1]
         FK.bin_sort(self.x, self.y, self.lo, self.hi, nbx, nby, self._order, binstart, self._key)
-        # hand-over table of the current list (old order)
+        # hand-over table of the current list (old order; on the threads by the old list's bands)
         if carry and self.n_entries:
-            k = FK.count_history(self.start, self.hist[0], self.hist[1], n)
+            if self._parallel:
+                bcount = np.zeros(self.cstart.size - 1, np.int64)
+                with self._kernels():
+                    FK.history_counts(self.cstart, self.start, self.hist[0], self.hist[1], bcount)
+                k = int(bcount.sum())
+            else:
+                k = FK.count_history(self.start, self.hist[0], self.hist[1], n)
             if self._hj.size < k:
                 cap = int(k * GROWTH) + 16
                 self._hj, self._hh = np.zeros(cap, np.int32), np.zeros((cap, 2))
-            FK.compact_history(self.start, self.nj, self.hist[0], self.hist[1], n, self._hstart, self._hj, self._hh)
+            if self._parallel:
+                with self._kernels():
+                    h = (self._hstart, self._hj, self._hh)
+                    FK.compact_history_banded(self.cstart, self.start, self.nj, *self.hist, bcount, *h)
+            else:
+                FK.compact_history(self.start, self.nj, self.hist[0], self.hist[1], n, self._hstart, self._hj, self._hh)
         else:
             self._hstart[:] = 0
+        # entries per particle of each band of the last list (the threaded build sizes its regions
+        # with them: the first band also holds the pairs across the periodic y boundary)
+        per_band = None
+        if self._parallel and self.n_entries:
+            per_band = np.diff(self.start[self.cstart]) / np.maximum(np.diff(self.cstart), 1)
         o = self._order
+        # serial also on threads: seven short parallel regions cost more than they save (measured)
         for a in (self.x, self.y, self.vx, self.vy, self.w, self.r, self.m):  # f, t are zero here
             FK.permute_f(a, o, self._tmpf)
         FK.permute_i(self.perm, o, self._tmpi)
@@ -296,18 +320,29 @@ class FastEngine:
         m = -1
         if not self._parallel:  # one pass into the buffers as they are; -1: too small
             m = FK.pairs_direct(*args[:-2], self.start, *tail())
+        elif per_band is not None:
+            # one pass per band on the threads, each band into a region sized from the last list's
+            # entries per particle of that band (of the whole list when the bands changed) times
+            # BAND_SLACK plus BAND_PAD, then the bands moved together; a band that does not fit
+            # sends the whole build to the count and fill passes below
+            per = per_band if per_band.size == nb else np.full(nb, self.n_entries / n)
+            cap = (np.diff(self.cstart) * (per * BAND_SLACK)).astype(np.int64) + BAND_PAD
+            base = np.zeros(nb + 1, np.int64)
+            np.cumsum(cap, out=base[1:])
+            if self.nj.size < base[-1]:
+                self._grow(int(base[-1] * GROWTH) + 16)
+            used = np.zeros(nb, np.int64)
+            with self._kernels():
+                FK.pairs_banded(*args[:-2], self.start, *tail(), base, used)
+            if used.min() >= 0:
+                m = FK.close_gaps(self.cstart, base, used, self.start, self.ni, self.nj, self.code, *self.hist)
+                self.n_banded_builds += 1
         if m < 0:
             with self._kernels():
                 pairs(0, *args, *tail())  # count
                 m = FK.prefix(self._cnt, self.start)
                 if self.nj.size < m:
-                    cap = int(m * GROWTH) + 16
-                    self.ni, self.nj, self.code, self.hist = (
-                        np.zeros(cap, np.int32),
-                        np.zeros(cap, np.int32),
-                        np.zeros(cap, np.uint8),
-                        np.zeros((2, cap)),
-                    )
+                    self._grow(int(m * GROWTH) + 16)
                 pairs(1, *args, *tail())  # fill
         np.cumsum(sp_cnt, out=self._sp_start[1:])
         ns = int(self._sp_start[-1])
@@ -321,6 +356,16 @@ class FastEngine:
         self.lo_hold[:] = self.lo
         self.hi_hold[:] = self.hi
         self.n_rebuilds += 1
+
+    def _grow(self, cap: int):
+        """New list buffers of ``cap`` entries (the old list is not needed any more: its springs
+        are in the hand-over table)."""
+        self.ni, self.nj, self.code, self.hist = (
+            np.zeros(cap, np.int32),
+            np.zeros(cap, np.int32),
+            np.zeros(cap, np.uint8),
+            np.zeros((2, cap)),
+        )
 
     def _spill(self):
         return self._sp_j[: self._nspill], self._sp_f[: self._nspill]

@@ -122,6 +122,62 @@ def test_threads_do_not_change_the_result(threaded_small):
     np.testing.assert_array_equal(e1.velocities, e2.velocities)
 
 
+def _lists(e):
+    m = e.n_entries
+    return (e.start.copy(), e.ni[:m].copy(), e.nj[:m].copy(), e.code[:m].copy(), e.hist[:, :m].copy())
+
+
+@pytest.mark.parametrize("slack", ["room", "overflow"])
+def test_threaded_list_build_is_the_serial_list(threaded_small, monkeypatch, slack):
+    """The threaded build (one pass per band into its own region, then the bands moved together)
+    gives the serial one-pass list entry for entry: partners, owners, images and the springs
+    handed over; when a band's region is too small, the count and fill passes give it too."""
+    from bench.dem import assembly
+
+    if slack == "overflow":
+        monkeypatch.setattr(fast, "BAND_SLACK", 0.5)
+        monkeypatch.setattr(fast, "BAND_PAD", 0)
+    p = assembly(5000)
+    e1 = FastEngine(p, S, threads=1)
+    e2 = FastEngine(p, S, threads=2)
+    for _ in range(3):
+        a = e1.advance(60)
+        b = e2.advance(60)
+        assert a["rebuilds"] == b["rebuilds"] > 0
+        for u, v in zip(_lists(e1), _lists(e2)):
+            np.testing.assert_array_equal(u, v)
+        assert np.count_nonzero(e1.hist[:, : e1.n_entries]) > 0  # springs were handed over
+    if slack == "room":
+        assert e2.n_banded_builds == e2.n_rebuilds - 1  # all but the first build (no last list)
+    else:
+        assert e2.n_banded_builds == 0
+
+
+def test_threaded_hand_over_table_is_the_serial_one():
+    """The hand-over table (entries with a non-zero spring, CSR by particle) built band by band on
+    the threads equals :func:`fast_kernels.compact_history`'s, and the per-band counts add up to
+    :func:`fast_kernels.count_history`."""
+    from bench.dem import assembly
+    from gransim.dem import fast_kernels as FK
+
+    p = assembly(3000)
+    e = FastEngine(p, S, threads=1)
+    e.advance(80)
+    n = e.n
+    k = FK.count_history(e.start, e.hist[0], e.hist[1], n)
+    assert k > 0
+    want = (np.zeros(n + 1, np.int32), np.zeros(k, np.int32), np.zeros((k, 2)))
+    FK.compact_history(e.start, e.nj, e.hist[0], e.hist[1], n, *want)
+    bc = np.zeros(e.cstart.size - 1, np.int64)
+    with fast.dynamic_chunks(1):
+        FK.history_counts(e.cstart, e.start, e.hist[0], e.hist[1], bc)
+        got = (np.zeros(n + 1, np.int32), np.zeros(k, np.int32), np.zeros((k, 2)))
+        assert FK.compact_history_banded(e.cstart, e.start, e.nj, e.hist[0], e.hist[1], bc, *got) == k
+    assert int(bc.sum()) == k
+    for u, v in zip(want, got):
+        np.testing.assert_array_equal(u, v)
+
+
 def _stress_divergence(s, ref):
     """Relative stress difference at every step: max over components |s - ref| / max |ref|."""
     return np.abs(s - ref).reshape(len(ref), -1).max(axis=1) / np.abs(ref).max()
