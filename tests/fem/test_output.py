@@ -220,3 +220,20 @@ def test_cli_slope_end_to_end(tmp_path, capsys):
     assert "completed all 21 steps" in capsys.readouterr().out
     assert not list(tmp_path.glob("*.vtu")) and not list(tmp_path.glob("*.png"))
     assert (tmp_path / "slope.h5").exists() and (tmp_path / "checkpoint" / "step_021.h5").exists()
+
+
+def test_table2_columns_follow_the_dead_load_steps(case):
+    """With K dead-load steps the paper's Table 2 steps (2, 6, 10, 15, 18: step 1 is the dead load)
+    are run steps K - 1 later, and the footing's load-settlement rows are those of one dead-load step
+    (a hyperelastic material: the same equilibria)."""
+    _, one = case
+    three = run_slope_case(
+        "service", material=make_continuum("neo-hookean"), out=None, geometry=SMALL_SLOPE, dead_load_steps=3
+    )
+    assert three["completed"]
+    head = [ln for ln in three["table"].splitlines() if ln.startswith("| iter")][0]
+    assert head == "| iter | step 4 | step 8 | step 12 | step 17 | step 20 |"
+    assert [ln for ln in one["table"].splitlines() if ln.startswith("| iter")][0].startswith("| iter | step 2 |")
+    a, b = np.asarray(one["load_settlement"]), np.asarray(three["load_settlement"])
+    assert len(b) == len(a) + 2
+    np.testing.assert_allclose(b[3:], a[1:], rtol=1e-8, atol=1e-12)
