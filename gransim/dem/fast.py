@@ -66,7 +66,7 @@ GROWTH = 1.25
 #: the threaded list build gives each band room for its particles times the last list's entries
 #: per particle times BAND_SLACK, plus BAND_PAD entries; a band that needs more sends the build to
 #: the count and fill passes
-BAND_SLACK = 1.15
+BAND_SLACK = 1.05
 BAND_PAD = 64
 
 
@@ -287,9 +287,14 @@ class FastEngine:
         if self._parallel and self.n_entries:
             per_band = np.diff(self.start[self.cstart]) / np.maximum(np.diff(self.cstart), 1)
         o = self._order
-        # serial also on threads: seven short parallel regions cost more than they save (measured)
-        for a in (self.x, self.y, self.vx, self.vy, self.w, self.r, self.m):  # f, t are zero here
-            FK.permute_f(a, o, self._tmpf)
+        # each array gathered into the scratch, which then takes its place (one pass, not a gather
+        # and a copy back); serial also on threads: seven short parallel regions cost more than
+        # they saved (measured)
+        for name in ("x", "y", "vx", "vy", "w", "r", "m"):  # f, t are zero here
+            a = getattr(self, name)
+            FK.gather_f(a, o, self._tmpf)
+            setattr(self, name, self._tmpf)
+            self._tmpf = a
         FK.permute_i(self.perm, o, self._tmpi)
         rows = self._rows
         nb = -(-nby // rows)
@@ -359,13 +364,13 @@ class FastEngine:
 
     def _grow(self, cap: int):
         """New list buffers of ``cap`` entries (the old list is not needed any more: its springs
-        are in the hand-over table)."""
-        self.ni, self.nj, self.code, self.hist = (
-            np.zeros(cap, np.int32),
-            np.zeros(cap, np.int32),
-            np.zeros(cap, np.uint8),
-            np.zeros((2, cap)),
-        )
+        are in the hand-over table). The old buffers are released first, so the two never
+        coexist (the peak memory of a build that grows the list)."""
+        self.ni = self.nj = self.code = self.hist = None
+        self.ni = np.zeros(cap, np.int32)
+        self.nj = np.zeros(cap, np.int32)
+        self.code = np.zeros(cap, np.uint8)
+        self.hist = np.zeros((2, cap))
 
     def _spill(self):
         return self._sp_j[: self._nspill], self._sp_f[: self._nspill]

@@ -725,6 +725,13 @@ def bin_sort(x, y, lo, hi, nbx, nby, order, binstart, key):
 
 
 @njit
+def gather_f(a, order, out):
+    """out[:] = a[order] (float64): the permuted array in a second buffer (the caller swaps them)."""
+    for i in range(order.shape[0]):
+        out[i] = a[order[i]]
+
+
+@njit
 def permute_f(a, order, tmp):
     """a[:] = a[order] through the scratch ``tmp`` (float64)."""
     for i in range(order.shape[0]):
