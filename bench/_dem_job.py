@@ -36,15 +36,15 @@ from pathlib import Path
 
 from bench._memory import PeakSampler, own_peak_kib
 
-#: threads waiting at the end of a parallel region sleep instead of spinning (GNU OpenMP's default
-#: spins): on a machine whose cores are shared, a spinning thread burns the time slice that the
-#: descheduled one needs, and a 2-thread step collapsed 10x (measured, docs/performance.md). Set
-#: before numba loads its OpenMP layer; an OMP_WAIT_POLICY in the environment wins.
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+# The OpenMP wait policy is gransim's own (gransim._numba: a short spin, GOMP_SPINCOUNT, then
+# sleep), set when gransim is imported, before numba loads its OpenMP layer: the bench measures what
+# a user's run gets. An OMP_WAIT_POLICY or GOMP_SPINCOUNT in the environment wins, as for a user.
+# (Until 2026-12-04 this job forced OMP_WAIT_POLICY=PASSIVE: libgomp's default spinning had made a
+# 2-thread step collapse 10x on a shared machine, docs/performance.md.)
 
 
 def _packing(path):
-    # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
+    # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
     import numpy as np
 
     from gransim import Packing
@@ -54,12 +54,12 @@ def _packing(path):
 
 
 def _warm(mode: str, threads: int):
-    # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
+    # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
     from bench.dem import LOADING, SETTINGS, assembly
     from gransim.dem import DEMEngine, DEMSettings
 
     if mode == "fast":
-        # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
+        # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
         from gransim.dem import fast
 
         low, fast.MIN_PER_THREAD = fast.MIN_PER_THREAD, 0  # the threaded kernels too, on 110 disks
@@ -74,14 +74,14 @@ def _warm(mode: str, threads: int):
 
 
 def native(path, steps: int, mode: str, threads: int, warm: int = 0) -> dict:
-    # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
+    # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
     from bench.dem import LOADING
     from gransim.dem import DEMEngine
 
     s = _warm(mode, threads)
     p = _packing(path)
     if mode == "fast":
-        # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
+        # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
         from gransim.dem.fast import FastEngine
 
         eng = FastEngine(p, s, threads=threads)
@@ -106,6 +106,7 @@ def native(path, steps: int, mode: str, threads: int, warm: int = 0) -> dict:
         "rebuilds": eng.n_rebuilds - r0,
         "peak_kib": own_peak_kib(),
         "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
+        "gomp_spincount": os.environ.get("GOMP_SPINCOUNT"),
     }
     if mode == "fast":
         out["engine_bytes"] = eng.memory_bytes()
@@ -119,7 +120,7 @@ def baseline(mode: str, threads: int) -> dict:
 
 
 def profile(path, steps: int) -> dict:
-    # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
+    # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
     import numpy as np
 
     from bench.dem import LOADING
@@ -225,7 +226,7 @@ def lammps_breakdown(log_text: str) -> tuple[dict, float | None]:
 
 
 def engine_job(job_dir, nprocs: int, timeout: float, engine: str = "liggghts") -> dict:
-    # lazy: imports gransim (numpy, numba), which must load after OMP_WAIT_POLICY is set above
+    # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
     from reference_runs.engines import get_engine
     from reference_runs.runner import run_job
     from reference_runs.timing import parse_loop_timings

@@ -21,6 +21,15 @@ Every kernel in the package is compiled through :func:`njit` (serial) or
 * ``error_model="numpy"``: division by zero gives inf/nan instead of raising
   inside a kernel; the Python boundary checks results.
 
+* Idle OpenMP threads spin briefly, then sleep: ``import gransim`` sets ``GOMP_SPINCOUNT`` to
+  :data:`SPIN_COUNT` (~10 us by libgomp's estimate of 1e5 spins per ms) unless the user set
+  ``OMP_WAIT_POLICY`` or ``GOMP_SPINCOUNT``. libgomp's default (300,000 spins, ~3 ms) burns the
+  time slice a descheduled partner needs when another process holds a core: 2 threads then ran
+  the fast DEM path at 0.57x of one thread (1e5 disks). Sleeping at once (``PASSIVE``) costs a
+  wake-up (~40 us on this VM) for each of a DEM step's three parallel regions. Measured at 1e5
+  disks, 2 threads / 1 thread, quiet and with one core held by a spinning process: PASSIVE 1.69-1.71x
+  and 0.91-0.94x; 1000 spins 1.78-1.83x and 0.93-0.94x; 3000 spins 1.83x and 0.86x
+  (docs/performance.md).
 * Threading layer: OpenMP first, then TBB, then numba's workqueue (``NUMBA_THREADING_LAYER``
   overrides). Launching a ``prange`` loop costs ~4x less time with OpenMP than with TBB (18 against
   82 us measured here), which is what a threaded DEM step of a small assembly pays many times.
@@ -42,6 +51,14 @@ from ._validate import as_int
 
 if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]
+
+#: libgomp's spin count before an idle thread sleeps, set at import unless the user chose a policy
+SPIN_COUNT = "1000"
+#: True when gransim set GOMP_SPINCOUNT (libgomp reads it when numba first loads its OpenMP layer,
+#: at the first parallel kernel: importing numba does not)
+_SPIN_SET = "OMP_WAIT_POLICY" not in os.environ and "GOMP_SPINCOUNT" not in os.environ
+if _SPIN_SET:
+    os.environ["GOMP_SPINCOUNT"] = SPIN_COUNT
 
 JIT_OPTIONS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
 
@@ -105,6 +122,8 @@ def wait_passively() -> None:
     depend on it (every state is summed by one thread in a fixed order).
     """
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    if _SPIN_SET and os.environ.get("GOMP_SPINCOUNT") == SPIN_COUNT:
+        del os.environ["GOMP_SPINCOUNT"]  # the spin count would take precedence over the policy
 
 
 def set_num_threads(n: int | None) -> None:
