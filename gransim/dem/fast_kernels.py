@@ -732,15 +732,6 @@ def gather_f(a, order, out):
 
 
 @njit
-def permute_f(a, order, tmp):
-    """a[:] = a[order] through the scratch ``tmp`` (float64)."""
-    for i in range(order.shape[0]):
-        tmp[i] = a[order[i]]
-    for i in range(order.shape[0]):
-        a[i] = tmp[i]
-
-
-@njit
 def permute_i(a, order, tmp):
     """a[:] = a[order] through the scratch ``tmp`` (int32)."""
     for i in range(order.shape[0]):
@@ -752,11 +743,8 @@ def permute_i(a, order, tmp):
 @njit
 def count_history(start, h0, h1, n):
     """Entries of the list whose spring is not zero (the size of the hand-over table)."""
-    k = 0
-    for e in range(start[n]):
-        if h0[e] != 0.0 or h1[e] != 0.0:
-            k += 1
-    return k
+    m = start[n]
+    return _nonzero_springs(h0[:m], h1[:m])
 
 
 @njit
@@ -764,15 +752,7 @@ def compact_history(start, nj, h0, h1, n, hstart, hj, hh):
     """The hand-over table: the entries of the current list whose spring is not zero, CSR by i
     (``hstart`` (N+1,) int32, ``hj`` int32, ``hh`` (K, 2)); returns K. Only these can pass a
     spring on (an entry with a zero spring hands over zero)."""
-    k = 0
-    for i in range(n):
-        hstart[i] = k
-        for e in range(start[i], start[i + 1]):
-            if h0[e] != 0.0 or h1[e] != 0.0:
-                hj[k] = nj[e]
-                hh[k, 0] = h0[e]
-                hh[k, 1] = h1[e]
-                k += 1
+    k = _compact_band(0, n, 0, start, nj, h0, h1, hstart, hj, hh)
     hstart[n] = k
     return k
 
@@ -1192,7 +1172,8 @@ def compact_history_banded(cstart, start, nj, h0, h1, bcount, hstart, hj, hh):
 
 @njit
 def _compact_band(i0, i1, k, start, nj, h0, h1, hstart, hj, hh):
-    # the rows i0..i1 of compact_history from entry k on (a plain kernel: see _nonzero_springs)
+    # the rows i0..i1 of the hand-over table from entry k on; returns the next free entry (a plain
+    # kernel, also inside the parallel loop: see _nonzero_springs)
     for i in range(i0, i1):
         hstart[i] = k
         for e in range(start[i], start[i + 1]):
@@ -1201,6 +1182,7 @@ def _compact_band(i0, i1, k, start, nj, h0, h1, hstart, hj, hh):
                 hh[k, 0] = h0[e]
                 hh[k, 1] = h1[e]
                 k += 1
+    return k
 
 
 @njit
