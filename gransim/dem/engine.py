@@ -271,7 +271,10 @@ class DEMEngine:
                 f"box {self.lo.tolist()}..{self.hi.tolist()})"
             )
         L = self.box_lengths
-        a, b, esx, esy, both, selfimg = K.build_list_liggghts(self.x, self.r, self.lo, self.hi, self.settings.skin)
+        with num_threads(self._threads):  # mode "parallel": the pair passes on the threads
+            a, b, esx, esy, both, selfimg = K.build_list_liggghts(
+                self.x, self.r, self.lo, self.hi, self.settings.skin, self._parallel
+            )
         if selfimg != -1:
             raise SimulationError(
                 f"step {self.step}: particle {selfimg} is near its own image (or too many ghosts); "

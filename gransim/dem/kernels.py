@@ -113,15 +113,9 @@ def final_integrate(v, w, f, t, m, r, dt):
 
 
 @njit
-def check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin, clamp=True):
-    """Neighbor::check_distance with box check. Returns (rebuild, bad particle or -1).
-
-    Trigger: some |x - x_hold|^2 > delta^2 (strictly), delta = 0.5 (skin - |d lo| - |d hi|).
-    ``clamp``: LAMMPS sets a negative delta (the box moved more than the skin since the build) to
-    0, so every step then rebuilds (29Sep2021 neighbor.cpp:2133-2135); LIGGGHTS 3.8.0 squares the
-    negative delta as it is (neighbor.cpp:1400-1401): pass ``clamp=False`` for its flavour. A NaN
-    or infinite coordinate returns its particle index as ``bad``.
-    """
+def rebuild_deltasq(lo, hi, lo_hold, hi_hold, skin, clamp):
+    """delta^2 of :func:`check_rebuild`: delta = 0.5 (skin - |d lo| - |d hi|) (m), 0 when negative
+    and ``clamp`` (LAMMPS)."""
     dx = lo[0] - lo_hold[0]
     dy = lo[1] - lo_hold[1]
     d1 = math.sqrt(dx * dx + dy * dy)
@@ -131,7 +125,110 @@ def check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin, clamp=True):
     delta = 0.5 * (skin - (d1 + d2))
     if clamp and delta < 0.0:
         delta = 0.0
-    deltasq = delta * delta
+    return delta * delta
+
+
+#: particles per task of the threaded kernels of mode "parallel" (:func:`initial_check_threaded`,
+#: :func:`final_threaded`, :func:`_forces_threaded_hooke_v`): fixed, so that the results do not
+#: depend on the thread count
+PARTICLE_BLOCK = 1024
+
+
+@pjit
+def initial_check_threaded(x, v, w, f, t, m, r, dt, xhold, deltasq):
+    """:func:`initial_integrate` then the particle test of :func:`check_rebuild` in one pass,
+    tasks of :data:`PARTICLE_BLOCK` particles over the threads: the same arithmetic per particle
+    (positions and velocities bit for bit those of the two serial kernels) and the same answer
+    (rebuild, first non-finite particle or -1)."""
+    dtf = 0.5 * dt
+    dtfrot = dtf / 0.5
+    n = x.shape[0]
+    ntask = (n + PARTICLE_BLOCK - 1) // PARTICLE_BLOCK
+    flags = np.zeros(ntask, np.int64)
+    bads = np.full(ntask, -1, np.int64)
+    for c in prange(ntask):
+        fl = 0
+        bad = -1
+        for i in range(c * PARTICLE_BLOCK, min((c + 1) * PARTICLE_BLOCK, n)):
+            dtfm = dtf / m[i]
+            v[i, 0] += dtfm * f[i, 0]
+            v[i, 1] += dtfm * f[i, 1]
+            x[i, 0] += dt * v[i, 0]
+            x[i, 1] += dt * v[i, 1]
+            w[i] += dtfrot / (r[i] * r[i] * m[i]) * t[i]
+            if bad < 0 and not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1])):
+                bad = i
+            dx = x[i, 0] - xhold[i, 0]
+            dy = x[i, 1] - xhold[i, 1]
+            if dx * dx + dy * dy > deltasq:
+                fl = 1
+        flags[c] = fl
+        bads[c] = bad
+    for c in range(ntask):
+        if bads[c] >= 0:
+            return True, bads[c]
+    return flags.sum() > 0, -1
+
+
+@pjit
+def final_threaded(v, w, f, t, m, r, dt, pvir, pcont, vir):
+    """:func:`final_integrate` (velocities bit for bit) and the sums of the per-particle virial
+    ``pvir`` (N, 4) into ``vir`` (4,) and of ``pcont`` (N, 2), tasks of :data:`PARTICLE_BLOCK`
+    particles over the threads, each task's partial sums added in task order (deterministic; the
+    order differs from the serial sums: round-off). Returns (kinetic energy (J), contacts, sum of
+    overlaps (m))."""
+    dtf = 0.5 * dt
+    dtfrot = dtf / 0.5
+    n = v.shape[0]
+    ntask = (n + PARTICLE_BLOCK - 1) // PARTICLE_BLOCK
+    part = np.zeros((ntask, 7))
+    for c in prange(ntask):
+        ke = 0.0
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        s3 = 0.0
+        nc = 0.0
+        so = 0.0
+        for i in range(c * PARTICLE_BLOCK, min((c + 1) * PARTICLE_BLOCK, n)):
+            dtfm = dtf / m[i]
+            v[i, 0] += dtfm * f[i, 0]
+            v[i, 1] += dtfm * f[i, 1]
+            w[i] += dtfrot / (r[i] * r[i] * m[i]) * t[i]
+            ke += 0.5 * m[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]) + 0.25 * m[i] * r[i] * r[i] * w[i] * w[i]
+            s0 += pvir[i, 0]
+            s1 += pvir[i, 1]
+            s2 += pvir[i, 2]
+            s3 += pvir[i, 3]
+            nc += pcont[i, 0]
+            so += pcont[i, 1]
+        part[c, 0] = ke
+        part[c, 1] = s0
+        part[c, 2] = s1
+        part[c, 3] = s2
+        part[c, 4] = s3
+        part[c, 5] = nc
+        part[c, 6] = so
+    tot = np.zeros(7)
+    for c in range(ntask):
+        for k in range(7):
+            tot[k] += part[c, k]
+    for k in range(4):
+        vir[k] = tot[1 + k]
+    return tot[0], tot[5], tot[6]
+
+
+@njit
+def check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin, clamp=True):
+    """Neighbor::check_distance with box check. Returns (rebuild, bad particle or -1).
+
+    Trigger: some |x - x_hold|^2 > delta^2 (strictly), delta = 0.5 (skin - |d lo| - |d hi|).
+    ``clamp``: LAMMPS sets a negative delta (the box moved more than the skin since the build) to
+    0, so every step then rebuilds (29Sep2021 neighbor.cpp:2133-2135); LIGGGHTS 3.8.0 squares the
+    negative delta as it is (neighbor.cpp:1400-1401): pass ``clamp=False`` for its flavour. A NaN
+    or infinite coordinate returns its particle index as ``bad``.
+    """
+    deltasq = rebuild_deltasq(lo, hi, lo_hold, hi_hold, skin, clamp)
     flag = False
     for i in range(x.shape[0]):
         if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1])):
@@ -602,36 +699,11 @@ def forces_threaded(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
     torque on b ``nb.tb``), own sums; pass 2 (threads over q): minus the forces and the torques of
     incoming entries. No two threads write the same particle; deterministic; the summation order
     differs from the serial loop (round-off). ``pvir`` (N, 4), ``pcont`` (N, 2) per-particle
-    virial and contact count/overlap sums (owned pairs weight 1, boundary copies 1/2).
+    virial and contact count/overlap sums (owned pairs weight 1, boundary copies 1/2). For the two
+    Hooke laws the pair law runs as SIMD code (:func:`_forces_threaded_hooke_v`, the same results
+    bit for bit), for the other laws :func:`_forces_threaded`.
     """
-    _forces_threaded(
-        p.x,
-        p.v,
-        p.w,
-        p.f,
-        p.t,
-        p.m,
-        p.r,
-        nb.start,
-        nb.b,
-        nb.sx,
-        nb.sy,
-        nb.both,
-        nb.hist,
-        nb.slide,
-        nb.ef,
-        nb.tb,
-        nb.in_start,
-        nb.in_e,
-        law,
-        Lx,
-        Ly,
-        dt,
-        update,
-        pvir,
-        pcont,
-        store,
-    )
+    threaded_forces(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store)
 
 
 @pjit
@@ -727,6 +799,193 @@ def _forces_threaded(
         f[q, 0] -= fx
         f[q, 1] -= fy
         t[q] += tq
+
+
+@pjit
+def _forces_threaded_hooke_v(
+    x, v, w, f, t, m, r, ea, start, eb, esx, esy, both, hist, slide, ef, tb, in_start, in_e,
+    law, Lx, Ly, dt, update, pvir, pcont, store,
+):  # fmt: skip
+    """:func:`_forces_threaded` for a Hooke law, its pair law as SIMD code, bit for bit.
+
+    Tasks of :data:`PARTICLE_BLOCK` particles spread over the threads; in each, the entries of its
+    particles (contiguous: the list is sorted by a) in blocks of :data:`ENTRY_BLOCK`: the
+    branch-free law over the block into block buffers (:func:`hooke_select`, as
+    :func:`_forces_hooke_v`), then the block's entries in list order: the per-entry outputs, and
+    the sums of each particle a (force, torque, virial, contacts, overlap) in the order and with
+    the operations of :func:`_forces_threaded`, written when its last entry is passed. The second
+    pass (minus the forces and torques of the incoming entries) is that of
+    :func:`_forces_threaded`. The results equal :func:`_forces_threaded`'s bit for bit
+    (tests/dem/test_simd_bitwise.py); ``both`` and ``slide`` as uint8 views (see
+    :func:`_forces_hooke_v`)."""
+    n = x.shape[0]
+    ntask = (n + PARTICLE_BLOCK - 1) // PARTICLE_BLOCK
+    for c in prange(ntask):
+        a0 = c * PARTICLE_BLOCK
+        a1 = min(a0 + PARTICLE_BLOCK, n)
+        bfx = np.empty(ENTRY_BLOCK)
+        bfy = np.empty(ENTRY_BLOCK)
+        bta = np.empty(ENTRY_BLOCK)
+        btb = np.empty(ENTRY_BLOCK)
+        bdx = np.empty(ENTRY_BLOCK)
+        bdy = np.empty(ENTRY_BLOCK)
+        bov = np.empty(ENTRY_BLOCK)
+        bto = np.empty(ENTRY_BLOCK)
+        bsl = np.empty(ENTRY_BLOCK)
+        bh0 = np.empty(ENTRY_BLOCK)
+        bh1 = np.empty(ENTRY_BLOCK)
+        # particles without entries get zero sums: every particle of the task written first
+        for a in range(a0, a1):
+            f[a, 0] = 0.0
+            f[a, 1] = 0.0
+            t[a] = 0.0
+            pvir[a, 0] = 0.0
+            pvir[a, 1] = 0.0
+            pvir[a, 2] = 0.0
+            pvir[a, 3] = 0.0
+            pcont[a, 0] = 0.0
+            pcont[a, 1] = 0.0
+        cur = a0
+        fxa = 0.0
+        fya = 0.0
+        ta = 0.0
+        v0 = 0.0
+        v1 = 0.0
+        v2 = 0.0
+        v3 = 0.0
+        nca = 0.0
+        ova = 0.0
+        for e0 in range(start[a0], start[a1], ENTRY_BLOCK):
+            e1 = min(e0 + ENTRY_BLOCK, start[a1])
+            for e in range(e0, e1):
+                bh0[e - e0] = hist[e, 0]
+                bh1[e - e0] = hist[e, 1]
+            for e_ in range(e0, e1):
+                u = np.uint64(e_)
+                q = np.uint64(e_ - e0)
+                a = np.uint64(ea[u])
+                b = np.uint64(eb[u])
+                delx = x[a, 0] - (x[b, 0] + esx[u] * Lx)
+                dely = x[a, 1] - (x[b, 1] + esy[u] * Ly)
+                rsq = delx * delx + dely * dely
+                touch, gx, gy, tqa, tqb, s0, s1, sl, dn = hooke_select(
+                    law, delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b], m[a], m[b],
+                    dt, bh0[q], bh1[q], update,
+                )  # fmt: skip
+                bh0[q] = s0
+                bh1[q] = s1
+                bfx[q] = gx
+                bfy[q] = gy
+                bta[q] = tqa
+                btb[q] = tqb
+                bdx[q] = delx
+                bdy[q] = dely
+                bov[q] = dn
+                bto[q] = touch
+                bsl[q] = sl
+            for e in range(e0, e1):
+                k = e - e0
+                hist[e, 0] = bh0[k]
+                hist[e, 1] = bh1[k]
+                ia = ea[e]
+                if ia != cur:  # the entries of cur are done
+                    f[cur, 0] = fxa
+                    f[cur, 1] = fya
+                    t[cur] = ta
+                    pvir[cur, 0] = v0
+                    pvir[cur, 1] = v1
+                    pvir[cur, 2] = v2
+                    pvir[cur, 3] = v3
+                    pcont[cur, 0] = nca
+                    pcont[cur, 1] = ova
+                    cur = ia
+                    fxa = 0.0
+                    fya = 0.0
+                    ta = 0.0
+                    v0 = 0.0
+                    v1 = 0.0
+                    v2 = 0.0
+                    v3 = 0.0
+                    nca = 0.0
+                    ova = 0.0
+                if bto[k] != 0.0:
+                    gx = bfx[k]
+                    gy = bfy[k]
+                    if store:
+                        slide[e] = 1 if bsl[k] != 0.0 else 0
+                    ef[e, 0] = gx
+                    ef[e, 1] = gy
+                    # _forces_threaded adds the law's second torques, -0.0 for Hooke: x + -0.0 is x
+                    tb[e] = btb[k]
+                    fxa += gx
+                    fya += gy
+                    ta += bta[k]
+                    wgt = 1.0 if both[e] != 0 else 0.5
+                    gdx = bdx[k]
+                    gdy = bdy[k]
+                    v0 += wgt * (gdx * gx)
+                    v1 += wgt * (gdy * gy)
+                    v2 += wgt * (gdx * gy)
+                    v3 += wgt * (gdy * gx)
+                    nca += wgt
+                    ova += wgt * bov[k]
+                else:
+                    if store:
+                        slide[e] = 0
+                    ef[e, 0] = 0.0
+                    ef[e, 1] = 0.0
+                    tb[e] = 0.0
+        if start[a1] > start[a0]:  # the last particle with entries
+            f[cur, 0] = fxa
+            f[cur, 1] = fya
+            t[cur] = ta
+            pvir[cur, 0] = v0
+            pvir[cur, 1] = v1
+            pvir[cur, 2] = v2
+            pvir[cur, 3] = v3
+            pcont[cur, 0] = nca
+            pcont[cur, 1] = ova
+    for q in prange(n):
+        fx = 0.0
+        fy = 0.0
+        tq = 0.0
+        for k in range(in_start[q], in_start[q + 1]):
+            e = in_e[k]
+            fx += ef[e, 0]
+            fy += ef[e, 1]
+            tq += tb[e]
+        f[q, 0] -= fx
+        f[q, 1] -= fy
+        t[q] += tq
+
+
+def _threaded_simd(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
+    _forces_threaded_hooke_v(
+        p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.a, nb.start, nb.b, nb.sx, nb.sy, nb.both.view(np.uint8),
+        nb.hist, nb.slide.view(np.uint8), nb.ef, nb.tb, nb.in_start, nb.in_e,
+        law, Lx, Ly, dt, update, pvir, pcont, store,
+    )  # fmt: skip
+
+
+def _threaded_generic(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
+    _forces_threaded(
+        p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.start, nb.b, nb.sx, nb.sy, nb.both, nb.hist, nb.slide, nb.ef,
+        nb.tb, nb.in_start, nb.in_e, law, Lx, Ly, dt, update, pvir, pcont, store,
+    )  # fmt: skip
+
+
+def threaded_forces(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
+    """The threaded force loop for ``law`` (resolved at compile time by its type, as
+    :func:`ortho_forces`): :func:`_forces_threaded_hooke_v` for :class:`HookeLiggghts` and
+    :class:`HookeLammps`, the generic :func:`_forces_threaded` otherwise."""
+    fn = _threaded_simd if isinstance(law, (HookeLiggghts, HookeLammps)) else _threaded_generic
+    fn(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store)
+
+
+@overload(threaded_forces)
+def _ov_threaded_forces(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
+    hooke = getattr(law, "instance_class", None) in (HookeLiggghts, HookeLammps)
+    return _threaded_simd if hooke else _threaded_generic
 
 
 @njit
@@ -835,8 +1094,9 @@ def run_block(p, nb, box, ctl, law, sc, out, dt, skin, clamp, parallel, step0, n
     (:mod:`gransim.contacts.laws`): each law type compiles its own copy of this loop;
     sc : :class:`Scratch` (virial (4,), per-particle sums of the threaded loop);
     out : :class:`Series` (rows >= nsteps); dt (s), skin (m); clamp : the rebuild rule of LAMMPS
-    (:func:`check_rebuild`); parallel : the threaded :func:`forces_threaded` instead of
-    :func:`forces` (same list, summation order differs).
+    (:func:`check_rebuild`); parallel : the threaded kernels (:func:`initial_check_threaded`,
+    :func:`forces_threaded`, :func:`final_threaded`) instead of the serial ones (same list, same
+    arithmetic per particle and pair, summation order differs).
 
     Box of each step: with ``ctl.presc`` False from the loading of each axis (:func:`box_target`;
     the positions are remapped only when the box changes). With ``ctl.presc`` True from the table
@@ -861,8 +1121,12 @@ def run_block(p, nb, box, ctl, law, sc, out, dt, skin, clamp, parallel, step0, n
     for k in range(nsteps):
         step = step0 + k + 1
         if not (resume and k == 0):
-            initial_integrate(x, v, w, f, t, m, r, dt)
-            rebuild, bad = check_rebuild(x, nb.xhold, lo, hi, box.lo_hold, box.hi_hold, skin, clamp)
+            if parallel:
+                dsq = rebuild_deltasq(lo, hi, box.lo_hold, box.hi_hold, skin, clamp)
+                rebuild, bad = initial_check_threaded(x, v, w, f, t, m, r, dt, nb.xhold, dsq)
+            else:
+                initial_integrate(x, v, w, f, t, m, r, dt)
+                rebuild, bad = check_rebuild(x, nb.xhold, lo, hi, box.lo_hold, box.hi_hold, skin, clamp)
             if bad >= 0:
                 return k, 2, bad
             if rebuild:
@@ -871,18 +1135,10 @@ def run_block(p, nb, box, ctl, law, sc, out, dt, skin, clamp, parallel, step0, n
         Ly = hi[1] - lo[1]
         if parallel:
             forces_threaded(p, nb, law, Lx, Ly, dt, True, pvir, pcont, k == nsteps - 1)
-            for c in range(4):
-                vir[c] = 0.0
-            nc = 0.0
-            so = 0.0
-            for i in range(x.shape[0]):
-                for c in range(4):
-                    vir[c] += pvir[i, c]
-                nc += pcont[i, 0]
-                so += pcont[i, 1]
+            ke, nc, so = final_threaded(v, w, f, t, m, r, dt, pvir, pcont, vir)
         else:
             nc, so = forces(p, nb, law, Lx, Ly, dt, True, vir, k == nsteps - 1)
-        ke = final_integrate(v, w, f, t, m, r, dt)
+            ke = final_integrate(v, w, f, t, m, r, dt)
         inv = 1.0 / (Lx * Ly)
         L_old[0] = Lx
         L_old[1] = Ly
@@ -993,8 +1249,115 @@ def hand_over_history(x, r, a_new, b_new, sx_new, sy_new, L0, L1, start_old, eb_
                     h_new[e, c] = flip[c] * h_old[k, c]
 
 
+@njit(inline="always")
+def _liggghts_partners(a, fill, m, n, xa, r, gown, gsx, gsy, binhead, bins, ibin, stencil, skin, ao, bo, sxo, syo, bto):
+    """The entries of owned atom ``a`` in LIGGGHTS' order (:func:`build_list_liggghts`): partners
+    j > a (ghosts after owned atoms) in stencil order then bin-list order, kept when
+    rsq <= (r_a + r_j + skin)^2; written from entry ``m`` on when ``fill``. Returns m + their
+    count. The loop body of :func:`_liggghts_pairs_threaded` (:func:`_liggghts_pairs_serial` has
+    it written out)."""
+    for k in range(stencil.shape[0]):
+        j = binhead[ibin[a] + stencil[k]]
+        while j >= 0:
+            if j > a:
+                delx = xa[a, 0] - xa[j, 0]
+                dely = xa[a, 1] - xa[j, 1]
+                rj = r[j] if j < n else r[gown[j - n]]
+                radsum = r[a] + rj
+                cutsq = (radsum + skin) * (radsum + skin)
+                if delx * delx + dely * dely <= cutsq:
+                    if fill:
+                        ao[m] = a
+                        if j < n:
+                            bo[m] = j
+                            sxo[m] = 0.0
+                            syo[m] = 0.0
+                            bto[m] = True
+                        else:
+                            bo[m] = gown[j - n]
+                            sxo[m] = gsx[j - n]
+                            syo[m] = gsy[j - n]
+                            bto[m] = False
+                    m += 1
+            j = bins[j]
+    return m
+
+
 @njit
-def build_list_liggghts(x, r, lo, hi, skin):
+def _liggghts_pairs_serial(n, xa, r, gown, gsx, gsy, binhead, bins, ibin, stencil, skin):
+    """The pair passes of :func:`build_list_liggghts`: count, then fill, atom after atom.
+    Returns (a, b, sx, sy, both). The walk of :func:`_liggghts_partners` written out here: as a
+    call of the inlined helper the serial build was 5-15 % slower (measured at 1e5 disks)."""
+    ns = stencil.shape[0]
+    m = 0
+    for pass_ in range(2):
+        if pass_ == 1:
+            a_out = np.empty(m, np.int32)
+            b_out = np.empty(m, np.int32)
+            sx_out = np.empty(m)
+            sy_out = np.empty(m)
+            both_out = np.empty(m, np.bool_)
+        m = 0
+        for a in range(n):
+            for k in range(ns):
+                j = binhead[ibin[a] + stencil[k]]
+                while j >= 0:
+                    if j > a:
+                        delx = xa[a, 0] - xa[j, 0]
+                        dely = xa[a, 1] - xa[j, 1]
+                        rj = r[j] if j < n else r[gown[j - n]]
+                        radsum = r[a] + rj
+                        cutsq = (radsum + skin) * (radsum + skin)
+                        if delx * delx + dely * dely <= cutsq:
+                            if pass_ == 1:
+                                a_out[m] = a
+                                if j < n:
+                                    b_out[m] = j
+                                    sx_out[m] = 0.0
+                                    sy_out[m] = 0.0
+                                    both_out[m] = True
+                                else:
+                                    b_out[m] = gown[j - n]
+                                    sx_out[m] = gsx[j - n]
+                                    sy_out[m] = gsy[j - n]
+                                    both_out[m] = False
+                            m += 1
+                    j = bins[j]
+    return a_out, b_out, sx_out, sy_out, both_out
+
+
+@pjit
+def _liggghts_pairs_threaded(n, xa, r, gown, gsx, gsy, binhead, bins, ibin, stencil, skin):
+    """:func:`_liggghts_pairs_serial` on numba's threads: each atom's count (prange), their prefix
+    sums, then each atom's entries from its offset (prange): the same list, entry for entry."""
+    cnt = np.zeros(n + 1, np.int64)
+    ao = np.empty(0, np.int32)
+    bo = np.empty(0, np.int32)
+    sxo = np.empty(0)
+    syo = np.empty(0)
+    bto = np.empty(0, np.bool_)
+    for a in prange(n):
+        cnt[a + 1] = _liggghts_partners(
+            a, False, 0, n, xa, r, gown, gsx, gsy, binhead, bins, ibin, stencil, skin, ao, bo, sxo, syo, bto
+        )
+    for a in range(n):
+        cnt[a + 1] += cnt[a]
+    m = cnt[n]
+    a_out = np.empty(m, np.int32)
+    b_out = np.empty(m, np.int32)
+    sx_out = np.empty(m)
+    sy_out = np.empty(m)
+    both_out = np.empty(m, np.bool_)
+    for a in prange(n):
+        _liggghts_partners(
+            a, True, cnt[a], n, xa, r, gown, gsx, gsy, binhead, bins, ibin, stencil, skin,
+            a_out, b_out, sx_out, sy_out, both_out,
+        )  # fmt: skip
+    return a_out, b_out, sx_out, sy_out, both_out
+
+
+@njit
+def build_list_liggghts(x, r, lo, hi, skin, threaded=False):
     """The neighbour list of LIGGGHTS 3.8.0 (1 process, ``newton off``, ``bin``), in its order.
 
     Ghost atoms as ``Comm::borders`` makes them (x swaps then y swaps; slab tests with <=/>=;
@@ -1005,7 +1368,9 @@ def build_list_liggghts(x, r, lo, hi, skin):
     makes the force sums (and so trajectories) agree with LIGGGHTS to the last bit.
     Returns (a, b, sx, sy, both, self_image): entry (a, b, s) is b's image x_b + s L; ``both``
     for owned pairs (s = 0); self_image >= 0 a particle near its own image (cell too small), -2
-    when the ghost buffer overflowed.
+    when the ghost buffer overflowed. ``threaded``: the pair passes on numba's threads
+    (:func:`_liggghts_pairs_threaded`; the ghosts and bins stay serial), the same list entry for
+    entry.
     """
     n = x.shape[0]
     rmax = 0.0
@@ -1136,41 +1501,15 @@ def build_list_liggghts(x, r, lo, hi, skin):
             if dx * dx + dy * dy < cutsq_max:
                 stencil[ns] = j * mb[0] + i
                 ns += 1
-    # pairs: count, then fill in LIGGGHTS order
-    m = 0
-    for pass_ in range(2):
-        if pass_ == 1:
-            a_out = np.empty(m, np.int32)
-            b_out = np.empty(m, np.int32)
-            sx_out = np.empty(m)
-            sy_out = np.empty(m)
-            both_out = np.empty(m, np.bool_)
-        m = 0
-        for a in range(n):
-            for k in range(ns):
-                j = binhead[ibin[a] + stencil[k]]
-                while j >= 0:
-                    if j > a:
-                        delx = xa[a, 0] - xa[j, 0]
-                        dely = xa[a, 1] - xa[j, 1]
-                        rj = r[j] if j < n else r[gown[j - n]]
-                        radsum = r[a] + rj
-                        cutsq = (radsum + skin) * (radsum + skin)
-                        if delx * delx + dely * dely <= cutsq:
-                            if pass_ == 1:
-                                a_out[m] = a
-                                if j < n:
-                                    b_out[m] = j
-                                    sx_out[m] = 0.0
-                                    sy_out[m] = 0.0
-                                    both_out[m] = True
-                                else:
-                                    b_out[m] = gown[j - n]
-                                    sx_out[m] = gsx[j - n]
-                                    sy_out[m] = gsy[j - n]
-                                    both_out[m] = False
-                            m += 1
-                    j = bins[j]
+    # pairs: count, then fill in LIGGGHTS order (on the threads: counts per a, then each a's
+    # entries filled from its offset, the same list)
+    st = stencil[:ns]
+    if threaded:
+        out = _liggghts_pairs_threaded(n, xa, r, gown, gsx, gsy, binhead, bins, ibin, st, skin)
+    else:
+        out = _liggghts_pairs_serial(n, xa, r, gown, gsx, gsy, binhead, bins, ibin, st, skin)
+    a_out, b_out, sx_out, sy_out, both_out = out
+    m = a_out.shape[0]
     self_image = -1
     for e in range(m):
         if a_out[e] == b_out[e]:
