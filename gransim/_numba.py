@@ -148,6 +148,20 @@ def num_threads(n: int | None):
         numba.set_num_threads(old)
 
 
+@contextlib.contextmanager
+def dynamic_chunks(size: int = 1):
+    """numba's parallel loops inside the block hand out their iterations dynamically in chunks of
+    ``size`` (numba >= 0.57 ``set_parallel_chunksize``; 0 restores static scheduling). Loops run
+    so are written over tasks of many particles (a thread descheduled by another process then
+    holds back one task, not a fixed share of the loop)."""
+    old = numba.get_parallel_chunksize()
+    numba.set_parallel_chunksize(int(size))
+    try:
+        yield
+    finally:
+        numba.set_parallel_chunksize(old)
+
+
 def check_threads(n, name: str = "threads") -> int | None:
     """``None`` or an integer in [1, NUMBA_NUM_THREADS]; :class:`InputError` otherwise."""
     if n is None:

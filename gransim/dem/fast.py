@@ -40,10 +40,9 @@ from __future__ import annotations
 import contextlib
 import math
 
-import numba
 import numpy as np
 
-from .._numba import check_threads, num_threads
+from .._numba import check_threads, dynamic_chunks, num_threads
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import fast_kernels as FK
@@ -68,18 +67,6 @@ GROWTH = 1.25
 #: the count and fill passes
 BAND_SLACK = 1.05
 BAND_PAD = 64
-
-
-@contextlib.contextmanager
-def dynamic_chunks(size: int = 1):
-    """numba's parallel loops inside the block hand out their iterations dynamically in chunks of
-    ``size`` (numba >= 0.57 ``set_parallel_chunksize``; 0 restores static scheduling)."""
-    old = numba.get_parallel_chunksize()
-    numba.set_parallel_chunksize(int(size))
-    try:
-        yield
-    finally:
-        numba.set_parallel_chunksize(old)
 
 
 class FastEngine:

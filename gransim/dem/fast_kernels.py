@@ -19,7 +19,7 @@ within a region no two bands write the same particle, so the symmetric (Newton's
 update needs no atomics and no per-thread copy of the force arrays. Every sum has a fixed order
 (band by band, entry by entry, spills last, per-band partial sums reduced in band order), so the
 results do not depend on the number of threads or on the scheduling: the chunks are many more
-than the threads and are handed out dynamically (:func:`gransim.dem.fast.dynamic_chunks`), so a
+than the threads and are handed out dynamically (:func:`gransim._numba.dynamic_chunks`), so a
 descheduled thread holds back only the band it is working on.
 
 Contact law: LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history`` (the arithmetic of

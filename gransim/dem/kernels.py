@@ -740,65 +740,91 @@ def _forces_threaded(
     (1e-5 N m off the serial loop and the interpreted kernel, measured; presumably its parfor pass
     merging the two ``prange`` loops); as arguments, as here, the result is right."""
     n = x.shape[0]
-    for a in prange(n):
-        fxa = 0.0
-        fya = 0.0
-        ta = 0.0
-        v0 = 0.0
-        v1 = 0.0
-        v2 = 0.0
-        v3 = 0.0
-        nca = 0.0
-        ova = 0.0
-        for e in range(start[a], start[a + 1]):
-            b = eb[e]
-            touch, delx, dely, rsq, radsum, fx, fy, tq, tqb, sl, tq2, tqb2 = _entry(
-                law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update
-            )
-            if touch:
-                if store:
-                    slide[e] = sl
-                ef[e, 0] = fx
-                ef[e, 1] = fy
-                tb[e] = tqb + tqb2
-                fxa += fx
-                fya += fy
-                ta += tq
-                ta += tq2
-                wgt = 1.0 if both[e] else 0.5
-                v0 += wgt * (delx * fx)
-                v1 += wgt * (dely * fy)
-                v2 += wgt * (delx * fy)
-                v3 += wgt * (dely * fx)
-                nca += wgt
-                ova += wgt * (radsum - math.sqrt(rsq))
-            else:
-                if store:
-                    slide[e] = False
-                ef[e, 0] = 0.0
-                ef[e, 1] = 0.0
-                tb[e] = 0.0
-        f[a, 0] = fxa
-        f[a, 1] = fya
-        t[a] = ta
-        pvir[a, 0] = v0
-        pvir[a, 1] = v1
-        pvir[a, 2] = v2
-        pvir[a, 3] = v3
-        pcont[a, 0] = nca
-        pcont[a, 1] = ova
-    for q in prange(n):
-        fx = 0.0
-        fy = 0.0
-        tq = 0.0
-        for k in range(in_start[q], in_start[q + 1]):
-            e = in_e[k]
-            fx += ef[e, 0]
-            fy += ef[e, 1]
-            tq += tb[e]
-        f[q, 0] -= fx
-        f[q, 1] -= fy
-        t[q] += tq
+    ntask = (n + PARTICLE_BLOCK - 1) // PARTICLE_BLOCK
+    for c in prange(ntask):
+        for a in range(c * PARTICLE_BLOCK, min((c + 1) * PARTICLE_BLOCK, n)):
+            _threaded_particle(
+                a, x, v, w, f, t, m, r, start, eb, esx, esy, both, hist, slide, ef, tb, law, Lx, Ly, dt, update,
+                pvir, pcont, store,
+            )  # fmt: skip
+    _incoming_forces(f, t, ef, tb, in_start, in_e)
+
+
+@njit(inline="always")
+def _threaded_particle(
+    a, x, v, w, f, t, m, r, start, eb, esx, esy, both, hist, slide, ef, tb, law, Lx, Ly, dt, update, pvir, pcont, store
+):
+    # the first pass of _forces_threaded for particle a: its entries, its sums
+    fxa = 0.0
+    fya = 0.0
+    ta = 0.0
+    v0 = 0.0
+    v1 = 0.0
+    v2 = 0.0
+    v3 = 0.0
+    nca = 0.0
+    ova = 0.0
+    for e in range(start[a], start[a + 1]):
+        b = eb[e]
+        touch, delx, dely, rsq, radsum, fx, fy, tq, tqb, sl, tq2, tqb2 = _entry(
+            law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update
+        )
+        if touch:
+            if store:
+                slide[e] = sl
+            ef[e, 0] = fx
+            ef[e, 1] = fy
+            tb[e] = tqb + tqb2
+            fxa += fx
+            fya += fy
+            ta += tq
+            ta += tq2
+            wgt = 1.0 if both[e] else 0.5
+            v0 += wgt * (delx * fx)
+            v1 += wgt * (dely * fy)
+            v2 += wgt * (delx * fy)
+            v3 += wgt * (dely * fx)
+            nca += wgt
+            ova += wgt * (radsum - math.sqrt(rsq))
+        else:
+            if store:
+                slide[e] = False
+            ef[e, 0] = 0.0
+            ef[e, 1] = 0.0
+            tb[e] = 0.0
+    f[a, 0] = fxa
+    f[a, 1] = fya
+    t[a] = ta
+    pvir[a, 0] = v0
+    pvir[a, 1] = v1
+    pvir[a, 2] = v2
+    pvir[a, 3] = v3
+    pcont[a, 0] = nca
+    pcont[a, 1] = ova
+
+
+@pjit
+def _incoming_forces(f, t, ef, tb, in_start, in_e):
+    """The second pass of the threaded force loops: minus the forces and plus the torques of the
+    owned entries whose b is q, particle by particle, in tasks of :data:`PARTICLE_BLOCK`. A
+    function of its own, not a second loop in the caller: numba's parfor pass may fuse two
+    ``prange`` loops of one length in one function, and this one reads what every task of the
+    first pass wrote."""
+    n = f.shape[0]
+    ntask = (n + PARTICLE_BLOCK - 1) // PARTICLE_BLOCK
+    for c in prange(ntask):
+        for q in range(c * PARTICLE_BLOCK, min((c + 1) * PARTICLE_BLOCK, n)):
+            fx = 0.0
+            fy = 0.0
+            tq = 0.0
+            for k in range(in_start[q], in_start[q + 1]):
+                e = in_e[k]
+                fx += ef[e, 0]
+                fy += ef[e, 1]
+                tq += tb[e]
+            f[q, 0] -= fx
+            f[q, 1] -= fy
+            t[q] += tq
 
 
 @pjit
@@ -945,18 +971,7 @@ def _forces_threaded_hooke_v(
             pvir[cur, 3] = v3
             pcont[cur, 0] = nca
             pcont[cur, 1] = ova
-    for q in prange(n):
-        fx = 0.0
-        fy = 0.0
-        tq = 0.0
-        for k in range(in_start[q], in_start[q + 1]):
-            e = in_e[k]
-            fx += ef[e, 0]
-            fy += ef[e, 1]
-            tq += tb[e]
-        f[q, 0] -= fx
-        f[q, 1] -= fy
-        t[q] += tq
+    _incoming_forces(f, t, ef, tb, in_start, in_e)
 
 
 def _threaded_simd(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
@@ -1328,18 +1343,21 @@ def _liggghts_pairs_serial(n, xa, r, gown, gsx, gsy, binhead, bins, ibin, stenci
 
 @pjit
 def _liggghts_pairs_threaded(n, xa, r, gown, gsx, gsy, binhead, bins, ibin, stencil, skin):
-    """:func:`_liggghts_pairs_serial` on numba's threads: each atom's count (prange), their prefix
-    sums, then each atom's entries from its offset (prange): the same list, entry for entry."""
+    """:func:`_liggghts_pairs_serial` on numba's threads: each atom's count (tasks of
+    :data:`PARTICLE_BLOCK` atoms), their prefix sums, then each atom's entries from its offset:
+    the same list, entry for entry."""
     cnt = np.zeros(n + 1, np.int64)
     ao = np.empty(0, np.int32)
     bo = np.empty(0, np.int32)
     sxo = np.empty(0)
     syo = np.empty(0)
     bto = np.empty(0, np.bool_)
-    for a in prange(n):
-        cnt[a + 1] = _liggghts_partners(
-            a, False, 0, n, xa, r, gown, gsx, gsy, binhead, bins, ibin, stencil, skin, ao, bo, sxo, syo, bto
-        )
+    ntask = (n + PARTICLE_BLOCK - 1) // PARTICLE_BLOCK
+    for c in prange(ntask):
+        for a in range(c * PARTICLE_BLOCK, min((c + 1) * PARTICLE_BLOCK, n)):
+            cnt[a + 1] = _liggghts_partners(
+                a, False, 0, n, xa, r, gown, gsx, gsy, binhead, bins, ibin, stencil, skin, ao, bo, sxo, syo, bto
+            )
     for a in range(n):
         cnt[a + 1] += cnt[a]
     m = cnt[n]
@@ -1348,11 +1366,12 @@ def _liggghts_pairs_threaded(n, xa, r, gown, gsx, gsy, binhead, bins, ibin, sten
     sx_out = np.empty(m)
     sy_out = np.empty(m)
     both_out = np.empty(m, np.bool_)
-    for a in prange(n):
-        _liggghts_partners(
-            a, True, cnt[a], n, xa, r, gown, gsx, gsy, binhead, bins, ibin, stencil, skin,
-            a_out, b_out, sx_out, sy_out, both_out,
-        )  # fmt: skip
+    for c in prange(ntask):
+        for a in range(c * PARTICLE_BLOCK, min((c + 1) * PARTICLE_BLOCK, n)):
+            _liggghts_partners(
+                a, True, cnt[a], n, xa, r, gown, gsx, gsy, binhead, bins, ibin, stencil, skin,
+                a_out, b_out, sx_out, sy_out, both_out,
+            )  # fmt: skip
     return a_out, b_out, sx_out, sy_out, both_out
 
 
