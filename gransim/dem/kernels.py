@@ -1,8 +1,11 @@
 """Numba kernels of the DEM step (contiguous float64/int64 arrays; no validation here).
 
 Order of one step (LIGGGHTS 3.8.0 ``verlet.cpp``, serial; shared notes liggghts-3.8.md):
-``initial_integrate`` -> ``check_rebuild`` (-> ``pbc_wrap`` + new list) -> ``forces`` /
-``forces_threaded`` -> ``final_integrate`` -> box change with ``remap_x``.
+``initial_integrate`` -> ``check_rebuild`` (-> ``pbc_wrap`` + new list) -> ``forces`` ->
+``final_integrate`` -> box change with ``remap_x``. Mode "parallel" runs the same step on numba's
+threads in tasks of :data:`PARTICLE_BLOCK` particles: ``initial_check_threaded`` ->
+(``pbc_wrap`` + new list, its pair passes threaded) -> ``forces_threaded`` -> ``final_threaded``
+-> ``remap_x``; the same arithmetic per particle and pair, the sums in another (fixed) order.
 
 The step loop :func:`run_block` and the force loops take a few namedtuples of arrays
 (:class:`Particles`, :class:`Neighbours`, :class:`Box`, :class:`Control`, :class:`Scratch`,
