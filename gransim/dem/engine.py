@@ -114,6 +114,13 @@ def _check_box(box, C):
     return lo, hi
 
 
+#: contacts per call of the law's energy (:meth:`DEMEngine.elastic_energy`)
+ENERGY_CHUNK = 1 << 16
+
+#: the Neighbours field ``shift`` of the engine's lists (the shifts are kept as floats only)
+_NO_SHIFT = np.zeros((0, 2), np.int64)
+
+
 class DEMEngine:
     """State and stepping of one DEM run (arrays are updated in place for speed).
 
@@ -210,7 +217,9 @@ class DEMEngine:
         # loop, and a second OpenMP thread would spin-wait beside every step (libgomp's default
         # policy), burning a core that the user's other work (the codes' jobs) needs
         self._threads = check_threads(threads) if self._parallel else 1
-        self.sc = K.Scratch(np.zeros(4), np.zeros((n, 4)), np.zeros((n, 2)))
+        # the per-particle sums of the threaded loop exist in mode "parallel" only
+        m = n if self._parallel else 0
+        self.sc = K.Scratch(np.zeros(4), np.zeros((m, 4)), np.zeros((m, 2)))
         self.nb = self._neighbours(
             np.zeros(0, np.int32),
             np.zeros(0, np.int32),
@@ -240,12 +249,17 @@ class DEMEngine:
         L = self.box_lengths
         return np.diag(L)
 
-    def _neighbours(self, a, b, shift, both, hist, xhold):
+    def _neighbours(self, a, b, shift, both, hist, xhold, sx=None, sy=None):
         """A :class:`~gransim.dem.kernels.Neighbours` of the list (a, b, shift, both) with history
-        ``hist`` and build positions ``xhold``: float shifts, CSR offsets of the entries of each a
-        (sorted by a), the incoming CSR of the threaded loop, zeroed per-entry outputs."""
+        ``hist`` and build positions ``xhold``: the image shifts as floats ``sx``, ``sy`` (given by
+        the list build; else from the integer ``shift`` (M, 2), a checkpoint's), CSR offsets of
+        the entries of each a (sorted by a), the incoming CSR and the per-entry torques of the
+        threaded loop (mode "parallel" only), zeroed per-entry outputs."""
         n = self.packing.n
-        shift = np.ascontiguousarray(shift, np.int64).reshape(-1, 2)
+        if sx is None:  # from the integer shifts (a checkpoint)
+            shift = np.ascontiguousarray(shift, np.int64).reshape(-1, 2)
+            sx = np.ascontiguousarray(shift[:, 0], np.float64)
+            sy = np.ascontiguousarray(shift[:, 1], np.float64)
         start = np.zeros(n + 1, np.int64)  # CSR offsets of the entries of each a (sorted)
         np.cumsum(np.bincount(a, minlength=n), out=start[1:])
         if self._parallel:
@@ -256,9 +270,9 @@ class DEMEngine:
         return K.Neighbours(
             a,
             b,
-            shift,
-            np.ascontiguousarray(shift[:, 0], np.float64),
-            np.ascontiguousarray(shift[:, 1], np.float64),
+            _NO_SHIFT,  # the integer shifts are sx, sy (:attr:`eshift`): not stored twice
+            sx,
+            sy,
             both,
             hist,
             start,
@@ -267,7 +281,7 @@ class DEMEngine:
             xhold,
             np.zeros(a.size, np.bool_),
             np.zeros((a.size, 2)),
-            np.zeros(a.size),
+            np.zeros(a.size if self._parallel else 0),
         )
 
     def _rebuild(self, carry: bool):
@@ -278,6 +292,15 @@ class DEMEngine:
                 f"box {self.lo.tolist()}..{self.hi.tolist()})"
             )
         L = self.box_lengths
+        # the old list keeps only what the hand-over reads (CSR, partners, owned flags, history):
+        # its other arrays are released before the new list exists (peak memory of a rebuild)
+        old = self.nb
+        keep = (old.start, old.b, old.both, old.hist) if carry and old.a.size else None
+        z = np.zeros(0)
+        self.nb = old = old._replace(
+            a=np.zeros(0, old.a.dtype), shift=np.zeros((0, 2), np.int64), sx=z, sy=z,
+            in_e=np.zeros(0, np.int64), slide=np.zeros(0, np.bool_), ef=np.zeros((0, 2)), tb=z,
+        )  # fmt: skip
         with self._on_threads():  # mode "parallel": the pair passes on the threads
             a, b, esx, esy, both, selfimg = K.build_list_liggghts(
                 self.x, self.r, self.lo, self.hi, self.settings.skin, self._parallel
@@ -288,12 +311,11 @@ class DEMEngine:
                 "the cell is too small"
             )
         hist = np.zeros((a.size, self._width))
-        old = self.nb
-        if carry and old.a.size:
-            K.hand_over_history(
-                self.x, self.r, a, b, esx, esy, L[0], L[1], old.start, old.b, old.both, old.hist, hist, self._flip
-            )
-        self.nb = self._neighbours(a, b, np.stack([esx, esy], axis=1).astype(np.int64), both, hist, self.x.copy())
+        if keep is not None:
+            K.hand_over_history(self.x, self.r, a, b, esx, esy, L[0], L[1], *keep, hist, self._flip)
+        del old, keep
+        self.nb = None
+        self.nb = self._neighbours(a, b, None, both, hist, self.x.copy(), esx, esy)
         self.box.lo_hold[:] = self.lo
         self.box.hi_hold[:] = self.hi
         self._build_step = self.step
@@ -320,7 +342,13 @@ class DEMEngine:
         rolling laws add their rolling spring; docs/laws.md)."""
         e, ov = self._touching()
         nb = self.nb
-        return elastic_energy(self.law, ov, nb.hist[e], self.r[nb.a[e]], self.r[nb.b[e]])
+        # in chunks of ENERGY_CHUNK contacts (the law's energy takes gathered (K,) arrays: at 1e6
+        # disks all of them at once were the peak memory of a run); one chunk: the plain sum
+        total = 0.0
+        for k in range(0, e.size, ENERGY_CHUNK):
+            c = e[k : k + ENERGY_CHUNK]
+            total += elastic_energy(self.law, ov[k : k + ENERGY_CHUNK], nb.hist[c], self.r[nb.a[c]], self.r[nb.b[c]])
+        return total
 
     def _reset_energy_budget(self):
         """Start of the energy balance of the divergence check: E0 = kinetic + elastic energy now."""
@@ -513,11 +541,7 @@ class DEMEngine:
         """Entries of the touching pairs, each physical contact once (a < b), and their overlaps (m)."""
         nb = self.nb
         L = self.box_lengths
-        touch = K.overlapping(self.x, self.r, nb.a, nb.b, nb.sx, nb.sy, L[0], L[1])
-        e = np.nonzero(touch & (nb.a < nb.b))[0]
-        a, b = nb.a[e], nb.b[e]
-        d = self.x[a] - (self.x[b] + nb.shift[e] * L)
-        return e, self.r[a] + self.r[b] - np.sqrt(np.einsum("ij,ij->i", d, d))
+        return K.touching_overlaps(self.x, self.r, nb.a, nb.b, nb.sx, nb.sy, L[0], L[1])
 
     def contacts(self):
         """Touching pairs, each once (i < j): dict of i, j, shift (l_ij = x_j + C n - x_i), force on
@@ -530,7 +554,7 @@ class DEMEngine:
         return {
             "i": nb.a[e].astype(np.int64),
             "j": nb.b[e].astype(np.int64),
-            "shift": nb.shift[e].astype(np.int64),
+            "shift": self._shifts(e),
             "force": -nb.ef[e],
             "overlap": ov,
             "tangential_spring": spring,
@@ -540,7 +564,10 @@ class DEMEngine:
     def state_arrays(self) -> dict:
         """Everything needed to continue bit for bit (checkpoint): the saved fields of the state
         objects ``p``, ``box``, ``nb``, ``sc`` under their dataset names (:data:`CHECKPOINT`)."""
-        return {name: getattr(getattr(self, obj), field) for name, (obj, field, _) in CHECKPOINT.items()}
+        return {
+            name: getattr(self if obj == "self" else getattr(self, obj), field)
+            for name, (obj, field, _) in CHECKPOINT.items()
+        }
 
     def restore(self, arrays: dict, step: int):
         """Inverse of :meth:`state_arrays`: new state objects from ``arrays`` (the derived arrays of
@@ -594,7 +621,15 @@ class DEMEngine:
     xhold = property(lambda self: self.nb.xhold, doc="positions at the last neighbour build (N, 2), m")
     ea = property(lambda self: self.nb.a, doc="first particle of each list entry (M,) int32")
     eb = property(lambda self: self.nb.b, doc="second particle of each list entry (M,) int32")
-    eshift = property(lambda self: self.nb.shift, doc="image shift s of each entry (M, 2) int64")
+    eshift = property(lambda self: self._shifts(), doc="image shift s of each entry (M, 2) int64")
+
+    def _shifts(self, e=slice(None)) -> np.ndarray:
+        """Image shifts s (K, 2) int64 of the entries ``e`` (default all), from ``nb.sx, nb.sy``."""
+        out = np.empty((self.nb.sx[e].size, 2), np.int64)
+        out[:, 0] = self.nb.sx[e]
+        out[:, 1] = self.nb.sy[e]
+        return out
+
     esx = property(lambda self: self.nb.sx, doc="s_x as float64 (M,)")
     esy = property(lambda self: self.nb.sy, doc="s_y as float64 (M,)")
     both = property(lambda self: self.nb.both, doc="owned pair (force on both particles) (M,) bool")
@@ -605,7 +640,8 @@ class DEMEngine:
     virial = property(lambda self: self.sc.vir, doc="virial sums xx, yy, xy, yx of the last step (4,), N m")
 
 
-#: checkpoint datasets (docs/schema_dem.md ``/checkpoint``): name -> (state object, field, dtype)
+#: checkpoint datasets (docs/schema_dem.md ``/checkpoint``): name -> (state object, field, dtype);
+#: object "self": a property of the engine (the integer shifts, derived from ``nb.sx``, ``nb.sy``)
 CHECKPOINT = {
     "positions": ("p", "x", np.float64),
     "velocities": ("p", "v", np.float64),
@@ -619,7 +655,7 @@ CHECKPOINT = {
     "box_hi_hold": ("box", "hi_hold", np.float64),
     "neighbours/a": ("nb", "a", np.int32),
     "neighbours/b": ("nb", "b", np.int32),
-    "neighbours/shift": ("nb", "shift", np.int64),
+    "neighbours/shift": ("self", "eshift", np.int64),
     "neighbours/owned_both": ("nb", "both", np.bool_),
     "neighbours/xi": ("nb", "hist", np.float64),
     "virial": ("sc", "vir", np.float64),

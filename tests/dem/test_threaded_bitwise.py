@@ -241,3 +241,50 @@ def test_parallel_mode_matches_the_serial_mode_to_round_off_with_several_tasks()
     assert np.abs(a.p.x - b.p.x).max() < 1e-10 * d50
     np.testing.assert_allclose(rb["stress"], ra["stress"], rtol=0, atol=1e-9 * np.abs(ra["stress"]).max())
     np.testing.assert_array_equal(ra["n_contacts"], rb["n_contacts"])
+
+
+# ----------------------------------------------------------------- memory-saving rewrites (issue 17)
+def test_ghost_room_grown_from_a_small_guess_gives_the_same_list():
+    # the ghosts' room starts from a guess and is doubled until they fit: from 1, several times
+    p = _assembly(seed=11)
+    x, lo, hi = p.positions, np.zeros(2), np.diag(p.cell).copy()
+    want = K.build_list_liggghts(x, p.radii, lo, hi, 2e-5, False)
+    for room in (1, 5, 300):
+        got = K.build_list_liggghts(x, p.radii, lo, hi, 2e-5, False, room)
+        for name, a, b in zip(("a", "b", "sx", "sy", "both"), want[:5], got[:5]):
+            assert np.array_equal(_bits(a), _bits(b)), f"room {room}: list column {name} differs"
+        assert got[5] == -1
+    ghosts = K._liggghts_ghosts(x, lo, 2 * p.radii.max() + 2e-5, hi[0], hi[1], hi[0], hi[1], 3)
+    assert ghosts[4] == -1, "three places cannot hold the ghosts of this cell"
+
+
+def test_touching_overlaps_equal_the_array_expression():
+    # the engine's contact queries: an independent numpy evaluation of the same definition
+    e, s = _engine(mode="serial", threads=1)
+    e.advance(FIXED, 60)
+    nb, L, x, r = e.nb, e.box_lengths, e.p.x, e.p.r
+    shift = np.stack([nb.sx, nb.sy], axis=1)
+    d = x[nb.a] - (x[nb.b] + shift * L)
+    rsq = np.einsum("ij,ij->i", d, d)
+    touch = (rsq < (r[nb.a] + r[nb.b]) ** 2) & (nb.a < nb.b)
+    want_e = np.nonzero(touch)[0]
+    want_ov = r[nb.a[want_e]] + r[nb.b[want_e]] - np.sqrt(rsq[want_e])
+    got_e, got_ov = K.touching_overlaps(x, r, nb.a, nb.b, nb.sx, nb.sy, L[0], L[1])
+    assert want_e.size > 1000
+    assert np.array_equal(got_e, want_e) and np.array_equal(_bits(got_ov), _bits(want_ov))
+    assert np.array_equal(e.eshift, shift.astype(np.int64)) and e.eshift.dtype == np.int64
+
+
+def test_elastic_energy_in_chunks_is_the_sum_over_all_contacts(monkeypatch):
+    from gransim.contacts.laws import elastic_energy
+    from gransim.dem import engine as engine_module
+
+    e, s = _engine(mode="serial", threads=1)
+    e.advance(FIXED, 60)
+    idx, ov = e._touching()
+    nb = e.nb
+    whole = elastic_energy(e.law, ov, nb.hist[idx], e.p.r[nb.a[idx]], e.p.r[nb.b[idx]])
+    assert idx.size > engine_module.ENERGY_CHUNK / 100 and whole > 0
+    assert e.elastic_energy() == whole  # one chunk: the plain sum, bit for bit
+    monkeypatch.setattr(engine_module, "ENERGY_CHUNK", 97)
+    assert e.elastic_energy() == pytest.approx(whole, rel=1e-13)
