@@ -131,7 +131,9 @@ class DEMEngine:
     settings : DEMSettings.
     velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
     threads : numba threads of mode "parallel" (None: numba's current count), set around each kernel
-        call and restored afterwards, so an engine leaves the process's thread count alone.
+        call and restored afterwards, so an engine leaves the process's thread count alone; one
+        thread when the packing fits in one task (``kernels.PARTICLE_BLOCK`` disks), which gives
+        the same result.
     box : optional (lo, hi), each (2,) (m): the box with its own origin, as a data file's ``xlo xhi
         ylo yhi`` (the positions are taken as they are, in that box; no translation, which would
         round them). hi - lo must equal the diagonal of ``packing.cell`` (to 1e-12 relative).
@@ -217,6 +219,10 @@ class DEMEngine:
         # loop, and a second OpenMP thread would spin-wait beside every step (libgomp's default
         # policy), burning a core that the user's other work (the codes' jobs) needs
         self._threads = check_threads(threads) if self._parallel else 1
+        if self._parallel and n <= K.PARTICLE_BLOCK:
+            # one task of the threaded kernels: the result is the same on any thread count, and a
+            # second thread would only wait at every loop's end (0.6x of one thread at 1,020 disks)
+            self._threads = 1
         # the per-particle sums of the threaded loop exist in mode "parallel" only
         m = n if self._parallel else 0
         self.sc = K.Scratch(np.zeros(4), np.zeros((m, 4)), np.zeros((m, 2)))

@@ -288,3 +288,21 @@ def test_elastic_energy_in_chunks_is_the_sum_over_all_contacts(monkeypatch):
     assert e.elastic_energy() == whole  # one chunk: the plain sum, bit for bit
     monkeypatch.setattr(engine_module, "ENERGY_CHUNK", 97)
     assert e.elastic_energy() == pytest.approx(whole, rel=1e-13)
+
+
+def test_a_parallel_engine_of_one_task_runs_on_one_thread_with_the_same_bits():
+    # below PARTICLE_BLOCK disks the threaded kernels have one task: the engine runs them on one
+    # thread (a second would only wait), which the thread-count independence makes invisible
+    p = _assembly(seed=5, nx=20, ny=20)
+    assert p.n <= K.PARTICLE_BLOCK
+    s = DEMSettings(kn=1e5, kt=8e4, gamma_n=200.0, gamma_t=100.0, mu=0.5, dt=1e-6, skin=2e-5, mode="parallel")
+    ld = Loading(x=AxisControl("servo", target=50.0, gain=1e-2), y=AxisControl("rate", rate=-2.0))
+    runs = []
+    for threads in (1, 2):
+        e = DEMEngine(p, s, threads=threads)
+        assert e._threads == 1
+        e.advance(ld, 200)
+        runs.append((e.p.x.copy(), e.p.v.copy(), e.nb.hist.copy()))
+    for a, b in zip(*runs):
+        assert np.array_equal(_bits(a), _bits(b))
+    assert DEMEngine(_assembly(seed=5), s, threads=2)._threads == 2
