@@ -306,3 +306,25 @@ def test_a_parallel_engine_of_one_task_runs_on_one_thread_with_the_same_bits():
     for a, b in zip(*runs):
         assert np.array_equal(_bits(a), _bits(b))
     assert DEMEngine(_assembly(seed=5), s, threads=2)._threads == 2
+
+
+def test_handing_free_memory_back_changes_no_result(monkeypatch):
+    # the rebuild calls glibc's malloc_trim (engine.release_free_memory): it may free only what is
+    # not in use, so a run with it and one without give the same bits
+    import platform
+
+    from gransim.dem import engine as engine_module
+
+    if platform.libc_ver()[0] == "glibc":
+        assert engine_module._MALLOC_TRIM is not None, "glibc's malloc_trim was not found"
+    ld = Loading(x=AxisControl("servo", target=50.0, gain=1e-2), y=AxisControl("rate", rate=-2.0))
+    runs = []
+    for trim in (True, False):
+        if not trim:
+            monkeypatch.setattr(engine_module, "_MALLOC_TRIM", None)
+        e, _ = _engine(mode="serial", threads=1)
+        out = e.advance(ld, 200)
+        assert e.n_rebuilds >= 3
+        runs.append((e.p.x.copy(), e.p.v.copy(), e.nb.hist.copy(), out["stress"].copy()))
+    for a, b in zip(*runs):
+        assert np.array_equal(_bits(a), _bits(b))
