@@ -81,7 +81,9 @@ def register(sub) -> None:
         "--mode",
         choices=("serial", "parallel"),
         default="serial",
-        help="serial (LIGGGHTS order) or parallel force loop (default serial)",
+        help="serial (LIGGGHTS order, the codes' bits) or parallel (the step on numba threads, the "
+        "same bits on any thread count, sums in another order: 1.3-1.6x on 2 threads from 1e4 "
+        "disks; default serial)",
     )
     p.add_argument("--threads", type=int, help="numba threads for --mode parallel")
     p.add_argument(
