@@ -137,7 +137,8 @@ def release_free_memory() -> None:
     stay resident, so the peak memory grew by about 80 MiB over 13 rebuilds. Called at the steps
     of a rebuild where the most memory has just been freed, it keeps the peak at the live arrays
     (docs/performance.md, "The bitwise engine's memory"). It frees nothing that is in use and
-    changes no result."""
+    changes no result. Also after the energy budget of the divergence check (its gathered
+    contact arrays)."""
     if _MALLOC_TRIM is not None:
         _MALLOC_TRIM(0)
 
@@ -327,13 +328,15 @@ class DEMEngine:
             )
         L = self.box_lengths
         # the old list keeps only what the hand-over reads (CSR, partners, owned flags, history):
-        # its other arrays are released before the new list exists (peak memory of a rebuild)
+        # its other arrays and the build positions are released before the new list exists (the
+        # peak memory of a run at 1e6 disks is a rebuild's)
         old = self.nb
         keep = (old.start, old.b, old.both, old.hist) if carry and old.a.size else None
         z = np.zeros(0)
         self.nb = old = old._replace(
             a=np.zeros(0, old.a.dtype), shift=np.zeros((0, 2), np.int64), sx=z, sy=z,
             in_e=np.zeros(0, np.int64), slide=np.zeros(0, np.bool_), ef=np.zeros((0, 2)), tb=z,
+            xhold=np.zeros((0, 2)),
         )  # fmt: skip
         release_free_memory()  # the old list's released arrays
         with self._on_threads():  # mode "parallel": the pair passes on the threads
@@ -353,6 +356,7 @@ class DEMEngine:
         self.nb = None
         release_free_memory()  # the rest of the old list
         self.nb = self._neighbours(a, b, None, both, hist, self.x.copy(), esx, esy)
+        release_free_memory()  # the new list's temporaries
         self.box.lo_hold[:] = self.lo
         self.box.hi_hold[:] = self.hi
         self._build_step = self.step
@@ -390,6 +394,7 @@ class DEMEngine:
     def _reset_energy_budget(self):
         """Start of the energy balance of the divergence check: E0 = kinetic + elastic energy now."""
         e0 = self.kinetic_energy() + self.elastic_energy()
+        release_free_memory()  # the gathered contact arrays of the energy
         self._energy0 = e0 if np.isfinite(e0) else np.inf  # a non-finite state is caught as NaN
         self._work = 0.0
 
@@ -434,12 +439,11 @@ class DEMEngine:
     def _check_lost(self):
         """Before a rebuild: a particle that moved more than LOST_DISPLACEMENT_SKINS skins since the
         last build crossed more than a skin in one step (the build rule allows skin/2 in between)."""
-        d = np.sqrt(np.einsum("ij,ij->i", self.x - self.xhold, self.x - self.xhold))
-        i = int(np.argmax(d)) if d.size else 0
+        i, di = K.largest_displacement(self.x, self.xhold)
         skin = self.settings.skin
-        if d.size and d[i] > LOST_DISPLACEMENT_SKINS * skin:
+        if di > LOST_DISPLACEMENT_SKINS * skin:
             raise SimulationError(
-                f"step {self.step + 1}: particle {i} lost: it moved {d[i]:.4g} m = {d[i] / skin:.3g} "
+                f"step {self.step + 1}: particle {i} lost: it moved {di:.4g} m = {di / skin:.3g} "
                 f"skins since "
                 f"the neighbour build of step {self._build_step}, more than a skin ({skin:.4g} m) in "
                 f"one step "

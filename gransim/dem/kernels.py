@@ -244,6 +244,25 @@ def check_rebuild(x, xhold, lo, hi, lo_hold, hi_hold, skin, clamp=True):
 
 
 @njit
+def largest_displacement(x, xhold):
+    """(i, |x_i - xhold_i|) of the particle that moved most (m), the first one of equal moves; a
+    NaN distance wins, as in ``numpy.argmax`` (the engine's lost-particle check, without (N, 2)
+    temporaries)."""
+    best = -1.0
+    k = 0
+    for i in range(x.shape[0]):
+        dx = x[i, 0] - xhold[i, 0]
+        dy = x[i, 1] - xhold[i, 1]
+        d = math.sqrt(dx * dx + dy * dy)
+        if d != d:
+            return i, d
+        if d > best:
+            best = d
+            k = i
+    return k, best
+
+
+@njit
 def pbc_wrap(x, lo, hi):
     """Domain::pbc: x < lo -> x += L; x >= hi -> x -= L, then max(x, lo). Returns a lost
     particle (still outside after one wrap) or -1."""
@@ -1537,9 +1556,9 @@ def build_list_liggghts(x, r, lo, hi, skin, threaded=False, ghost_room=-1):
         m_hi += 1
         mlo[d] = m_lo
         mb[d] = m_hi - m_lo + 1
-    binhead = -np.ones(mb[0] * mb[1], np.int64)
-    bins = -np.ones(nall, np.int64)
-    ibin = np.empty(nall, np.int64)
+    binhead = -np.ones(mb[0] * mb[1], np.int32)  # int32: indices < 2^31 (4 bytes a particle less)
+    bins = -np.ones(nall, np.int32)
+    ibin = np.empty(nall, np.int32)
     for i in range(nall - 1, -1, -1):
         idx = 0
         for d in range(2):

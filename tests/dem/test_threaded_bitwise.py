@@ -328,3 +328,20 @@ def test_handing_free_memory_back_changes_no_result(monkeypatch):
         runs.append((e.p.x.copy(), e.p.v.copy(), e.nb.hist.copy(), out["stress"].copy()))
     for a, b in zip(*runs):
         assert np.array_equal(_bits(a), _bits(b))
+
+
+def test_largest_displacement_is_numpys_argmax_of_the_distances():
+    # the lost-particle check's kernel against the array expression it replaced: ties give the
+    # first particle, a NaN distance wins
+    rng = np.random.default_rng(2)
+    x = rng.normal(0.0, 1e-3, (5000, 2))
+    hold = x + rng.normal(0.0, 1e-5, x.shape)
+    hold[[17, 4000]] = x[[17, 4000]] + 3e-5  # two equal largest moves
+    for case in ("plain", "nan"):
+        if case == "nan":
+            hold[2500, 1] = np.nan
+        d = np.sqrt(np.einsum("ij,ij->i", x - hold, x - hold))
+        i, di = K.largest_displacement(x, hold)
+        assert i == int(np.argmax(d)), case
+        assert np.array_equal(_bits(np.float64(di)), _bits(d[i])), case
+    assert K.largest_displacement(x[:0], hold[:0])[1] < 0  # no particles: nothing moved
