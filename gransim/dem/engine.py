@@ -264,6 +264,7 @@ class DEMEngine:
             x.copy(),
         )
         self._build_step = 0
+        self._failed = ""  # why a rebuild failed (the engine has no list then), or ""
         self._setup()
         self._reset_energy_budget()
 
@@ -329,7 +330,8 @@ class DEMEngine:
         L = self.box_lengths
         # the old list keeps only what the hand-over reads (CSR, partners, owned flags, history):
         # its other arrays and the build positions are released before the new list exists (the
-        # peak memory of a run at 1e6 disks is a rebuild's)
+        # peak memory of a run at 1e6 disks is a rebuild's). A SimulationError below leaves the
+        # engine without a list: advance refuses it until restore (``_failed``)
         old = self.nb
         keep = (old.start, old.b, old.both, old.hist) if carry and old.a.size else None
         z = np.zeros(0)
@@ -344,10 +346,11 @@ class DEMEngine:
                 self.x, self.r, self.lo, self.hi, self.settings.skin, self._parallel
             )
         if selfimg != -1:
-            raise SimulationError(
+            self._failed = (
                 f"step {self.step}: particle {selfimg} is near its own image (or too many ghosts); "
                 "the cell is too small"
             )
+            raise SimulationError(self._failed)
         release_free_memory()  # the build's ghosts and bins
         hist = np.zeros((a.size, self._width))
         if keep is not None:
@@ -491,6 +494,11 @@ class DEMEngine:
         cell); a collapsed cell. These checks only read the state: the step's arithmetic is untouched.
         """
         s = self.settings
+        if self._failed:
+            raise SimulationError(
+                f"the engine stopped at a failed neighbour build ({self._failed}); restore a "
+                "checkpoint or make a new engine"
+            )
         nsteps = int(nsteps)
         if phase_box0 is None:
             phase_box0 = (self.lo.copy(), self.hi.copy())
@@ -642,6 +650,7 @@ class DEMEngine:
             got["x_hold"].reshape(n, 2),
         )
         self.sc.vir[:] = got["virial"].reshape(4)
+        self._failed = ""
         self.step = int(step)
         self.stress = self.stress_tensor(self.box_lengths)
         self._build_step = self.step

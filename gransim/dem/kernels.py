@@ -132,8 +132,9 @@ def rebuild_deltasq(lo, hi, lo_hold, hi_hold, skin, clamp):
 
 
 #: particles per task of the threaded kernels of mode "parallel" (:func:`initial_check_threaded`,
-#: :func:`final_threaded`, :func:`_forces_threaded_hooke_v`): fixed, so that the results do not
-#: depend on the thread count
+#: :func:`final_threaded`, :func:`_forces_threaded_hooke_v`, :func:`_forces_threaded`,
+#: :func:`_incoming_forces`, :func:`_liggghts_pairs_threaded`): fixed, so that the results do not
+#: depend on the thread count (the engine runs a packing of one task on one thread)
 PARTICLE_BLOCK = 1024
 
 

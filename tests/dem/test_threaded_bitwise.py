@@ -345,3 +345,24 @@ def test_largest_displacement_is_numpys_argmax_of_the_distances():
         assert i == int(np.argmax(d)), case
         assert np.array_equal(_bits(np.float64(di)), _bits(d[i])), case
     assert K.largest_displacement(x[:0], hold[:0])[1] < 0  # no particles: nothing moved
+
+
+def test_after_a_failed_neighbour_build_the_engine_refuses_to_step_until_restored(monkeypatch):
+    # a rebuild releases the old list before building the new one: when the build fails (a
+    # particle near its own image) the engine has no list, so advance must refuse, not read it
+    from gransim.errors import SimulationError
+
+    e, _ = _engine(mode="serial", threads=1)
+    e.advance(FIXED, 5)
+    saved = {k: np.array(v) for k, v in e.state_arrays().items()}
+    step = e.step
+    real = K.build_list_liggghts
+    monkeypatch.setattr(K, "build_list_liggghts", lambda *a: (*real(*a)[:5], 7))
+    with pytest.raises(SimulationError, match="particle 7 is near its own image"):
+        e._rebuild(carry=True)
+    with pytest.raises(SimulationError, match="failed neighbour build"):
+        e.advance(FIXED, 1)
+    monkeypatch.setattr(K, "build_list_liggghts", real)
+    e.restore(saved, step)
+    e.advance(FIXED, 5)  # steps again from the checkpoint
+    assert e.step == step + 5 and np.all(np.isfinite(e.p.x))
