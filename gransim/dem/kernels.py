@@ -539,8 +539,49 @@ def _ov_hooke_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, w
     return _hooke_select_of(getattr(law, "instance_class", None))
 
 
-#: list entries per block of the SIMD force loop (:func:`_forces_hooke_v`)
+#: list entries per block of the SIMD force loops (:func:`_forces_hooke_v`,
+#: :func:`_forces_threaded_hooke_v`)
 ENTRY_BLOCK = 256
+
+
+@njit(inline="always")
+def _hooke_block(
+    law, e0, e1, ea, eb, x, v, w, r, m, esx, esy, Lx, Ly, dt, update, hist,
+    bh0, bh1, bfx, bfy, bta, btb, bdx, bdy, bov, bto, bsl,
+):  # fmt: skip
+    """The Hooke law over the list entries e0..e1 (at most :data:`ENTRY_BLOCK`) as one flat loop
+    into the block buffers (:func:`hooke_select`: every entry evaluated, contact and cap as
+    selects), which LLVM turns into SIMD code: force, torques on a and b, branch, overlap, contact
+    and cap flags, and the new spring in ``bh0``, ``bh1`` (not yet written back to ``hist``). The
+    block law of both SIMD force loops."""
+    # the spring in two contiguous block buffers: the (M, 2) rows' stride-2 loads and stores keep
+    # LLVM from vectorising the law loop (measured in the compiled code)
+    for e in range(e0, e1):
+        bh0[e - e0] = hist[e, 0]
+        bh1[e - e0] = hist[e, 1]
+    for e_ in range(e0, e1):
+        u = np.uint64(e_)
+        q = np.uint64(e_ - e0)
+        a = np.uint64(ea[u])
+        b = np.uint64(eb[u])
+        delx = x[a, 0] - (x[b, 0] + esx[u] * Lx)
+        dely = x[a, 1] - (x[b, 1] + esy[u] * Ly)
+        rsq = delx * delx + dely * dely
+        touch, fx, fy, ta, tb, s0, s1, sl, dn = hooke_select(
+            law, delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b], m[a], m[b],
+            dt, bh0[q], bh1[q], update,
+        )  # fmt: skip
+        bh0[q] = s0
+        bh1[q] = s1
+        bfx[q] = fx
+        bfy[q] = fy
+        bta[q] = ta
+        btb[q] = tb
+        bdx[q] = delx
+        bdy[q] = dely
+        bov[q] = dn
+        bto[q] = touch
+        bsl[q] = sl
 
 
 @pjit
@@ -593,34 +634,10 @@ def _forces_hooke_v(
         sum_overlap = 0.0
         for e0 in range(0, ne, ENTRY_BLOCK):
             e1 = min(e0 + ENTRY_BLOCK, ne)
-            # the spring in two contiguous block buffers: the (M, 2) rows' stride-2 loads and
-            # stores keep LLVM from vectorising the law loop (measured in the compiled code)
-            for e in range(e0, e1):
-                bh0[e - e0] = hist[e, 0]
-                bh1[e - e0] = hist[e, 1]
-            for e_ in range(e0, e1):
-                u = np.uint64(e_)
-                q = np.uint64(e_ - e0)
-                a = np.uint64(ea[u])
-                b = np.uint64(eb[u])
-                delx = x[a, 0] - (x[b, 0] + esx[u] * Lx)
-                dely = x[a, 1] - (x[b, 1] + esy[u] * Ly)
-                rsq = delx * delx + dely * dely
-                touch, fx, fy, ta, tb, s0, s1, sl, dn = hooke_select(
-                    law, delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b], m[a], m[b],
-                    dt, bh0[q], bh1[q], update,
-                )  # fmt: skip
-                bh0[q] = s0
-                bh1[q] = s1
-                bfx[q] = fx
-                bfy[q] = fy
-                bta[q] = ta
-                btb[q] = tb
-                bdx[q] = delx
-                bdy[q] = dely
-                bov[q] = dn
-                bto[q] = touch
-                bsl[q] = sl
+            _hooke_block(
+                law, e0, e1, ea, eb, x, v, w, r, m, esx, esy, Lx, Ly, dt, update, hist,
+                bh0, bh1, bfx, bfy, bta, btb, bdx, bdy, bov, bto, bsl,
+            )  # fmt: skip
             for e in range(e0, e1):
                 k = e - e0
                 hist[e, 0] = bh0[k]
@@ -847,15 +864,22 @@ def _threaded_particle(
             ef[e, 0] = 0.0
             ef[e, 1] = 0.0
             tb[e] = 0.0
-    f[a, 0] = fxa
-    f[a, 1] = fya
+    _put_sums(a, f, t, pvir, pcont, fxa, fya, ta, v0, v1, v2, v3, nca, ova)
+
+
+@njit(inline="always")
+def _put_sums(a, f, t, pvir, pcont, fx, fy, ta, v0, v1, v2, v3, nc, ov):
+    # particle a's sums of the first pass of the threaded force loops: force, torque, virial
+    # (xx, yy, xy, yx), contacts and overlap
+    f[a, 0] = fx
+    f[a, 1] = fy
     t[a] = ta
     pvir[a, 0] = v0
     pvir[a, 1] = v1
     pvir[a, 2] = v2
     pvir[a, 3] = v3
-    pcont[a, 0] = nca
-    pcont[a, 1] = ova
+    pcont[a, 0] = nc
+    pcont[a, 1] = ov
 
 
 @pjit
@@ -938,47 +962,17 @@ def _forces_threaded_hooke_v(
         ova = 0.0
         for e0 in range(start[a0], start[a1], ENTRY_BLOCK):
             e1 = min(e0 + ENTRY_BLOCK, start[a1])
-            for e in range(e0, e1):
-                bh0[e - e0] = hist[e, 0]
-                bh1[e - e0] = hist[e, 1]
-            for e_ in range(e0, e1):
-                u = np.uint64(e_)
-                q = np.uint64(e_ - e0)
-                a = np.uint64(ea[u])
-                b = np.uint64(eb[u])
-                delx = x[a, 0] - (x[b, 0] + esx[u] * Lx)
-                dely = x[a, 1] - (x[b, 1] + esy[u] * Ly)
-                rsq = delx * delx + dely * dely
-                touch, gx, gy, tqa, tqb, s0, s1, sl, dn = hooke_select(
-                    law, delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b], m[a], m[b],
-                    dt, bh0[q], bh1[q], update,
-                )  # fmt: skip
-                bh0[q] = s0
-                bh1[q] = s1
-                bfx[q] = gx
-                bfy[q] = gy
-                bta[q] = tqa
-                btb[q] = tqb
-                bdx[q] = delx
-                bdy[q] = dely
-                bov[q] = dn
-                bto[q] = touch
-                bsl[q] = sl
+            _hooke_block(
+                law, e0, e1, ea, eb, x, v, w, r, m, esx, esy, Lx, Ly, dt, update, hist,
+                bh0, bh1, bfx, bfy, bta, btb, bdx, bdy, bov, bto, bsl,
+            )  # fmt: skip
             for e in range(e0, e1):
                 k = e - e0
                 hist[e, 0] = bh0[k]
                 hist[e, 1] = bh1[k]
                 ia = ea[e]
                 if ia != cur:  # the entries of cur are done
-                    f[cur, 0] = fxa
-                    f[cur, 1] = fya
-                    t[cur] = ta
-                    pvir[cur, 0] = v0
-                    pvir[cur, 1] = v1
-                    pvir[cur, 2] = v2
-                    pvir[cur, 3] = v3
-                    pcont[cur, 0] = nca
-                    pcont[cur, 1] = ova
+                    _put_sums(cur, f, t, pvir, pcont, fxa, fya, ta, v0, v1, v2, v3, nca, ova)
                     cur = ia
                     fxa = 0.0
                     fya = 0.0
@@ -1017,15 +1011,7 @@ def _forces_threaded_hooke_v(
                     ef[e, 1] = 0.0
                     tb[e] = 0.0
         if start[a1] > start[a0]:  # the last particle with entries
-            f[cur, 0] = fxa
-            f[cur, 1] = fya
-            t[cur] = ta
-            pvir[cur, 0] = v0
-            pvir[cur, 1] = v1
-            pvir[cur, 2] = v2
-            pvir[cur, 3] = v3
-            pcont[cur, 0] = nca
-            pcont[cur, 1] = ova
+            _put_sums(cur, f, t, pvir, pcont, fxa, fya, ta, v0, v1, v2, v3, nca, ova)
     _incoming_forces(f, t, ef, tb, in_start, in_e)
 
 
