@@ -88,30 +88,40 @@ Series = namedtuple("Series", ["stress", "L", "nc", "ov", "ke", "vir"])
 @njit
 def initial_integrate(x, v, w, f, t, m, r, dt):
     """nve/sphere first half: v += dt/2 f/m; x += dt v; w += dt/2 T/I with I = m r^2/2."""
-    dtf = 0.5 * dt
-    dtfrot = dtf / 0.5
     for i in range(x.shape[0]):
-        dtfm = dtf / m[i]
-        v[i, 0] += dtfm * f[i, 0]
-        v[i, 1] += dtfm * f[i, 1]
-        x[i, 0] += dt * v[i, 0]
-        x[i, 1] += dt * v[i, 1]
-        w[i] += dtfrot / (r[i] * r[i] * m[i]) * t[i]
+        _first_half(i, x, v, w, f, t, m, r, dt)
+
+
+@njit(inline="always")
+def _first_half(i, x, v, w, f, t, m, r, dt):
+    # particle i's first half step (initial_integrate, initial_check_threaded)
+    dtf = 0.5 * dt
+    dtfm = dtf / m[i]
+    v[i, 0] += dtfm * f[i, 0]
+    v[i, 1] += dtfm * f[i, 1]
+    x[i, 0] += dt * v[i, 0]
+    x[i, 1] += dt * v[i, 1]
+    w[i] += (dtf / 0.5) / (r[i] * r[i] * m[i]) * t[i]
+
+
+@njit(inline="always")
+def _second_half(i, v, w, f, t, m, r, dt):
+    # particle i's second half step and its kinetic energy (J) (final_integrate, final_threaded)
+    dtf = 0.5 * dt
+    dtfm = dtf / m[i]
+    v[i, 0] += dtfm * f[i, 0]
+    v[i, 1] += dtfm * f[i, 1]
+    w[i] += (dtf / 0.5) / (r[i] * r[i] * m[i]) * t[i]
+    return 0.5 * m[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]) + 0.25 * m[i] * r[i] * r[i] * w[i] * w[i]
 
 
 @njit
 def final_integrate(v, w, f, t, m, r, dt):
     """nve/sphere second half: v += dt/2 f/m; w += dt/2 T/I. Returns the kinetic energy
     sum m v^2/2 + m r^2 w^2/4 (J) of the full-step velocities."""
-    dtf = 0.5 * dt
-    dtfrot = dtf / 0.5
     ke = 0.0
     for i in range(v.shape[0]):
-        dtfm = dtf / m[i]
-        v[i, 0] += dtfm * f[i, 0]
-        v[i, 1] += dtfm * f[i, 1]
-        w[i] += dtfrot / (r[i] * r[i] * m[i]) * t[i]
-        ke += 0.5 * m[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]) + 0.25 * m[i] * r[i] * r[i] * w[i] * w[i]
+        ke += _second_half(i, v, w, f, t, m, r, dt)
     return ke
 
 
@@ -144,8 +154,6 @@ def initial_check_threaded(x, v, w, f, t, m, r, dt, xhold, deltasq):
     tasks of :data:`PARTICLE_BLOCK` particles over the threads: the same arithmetic per particle
     (positions and velocities bit for bit those of the two serial kernels) and the same answer
     (rebuild, first non-finite particle or -1)."""
-    dtf = 0.5 * dt
-    dtfrot = dtf / 0.5
     n = x.shape[0]
     ntask = (n + PARTICLE_BLOCK - 1) // PARTICLE_BLOCK
     flags = np.zeros(ntask, np.int64)
@@ -154,12 +162,7 @@ def initial_check_threaded(x, v, w, f, t, m, r, dt, xhold, deltasq):
         fl = 0
         bad = -1
         for i in range(c * PARTICLE_BLOCK, min((c + 1) * PARTICLE_BLOCK, n)):
-            dtfm = dtf / m[i]
-            v[i, 0] += dtfm * f[i, 0]
-            v[i, 1] += dtfm * f[i, 1]
-            x[i, 0] += dt * v[i, 0]
-            x[i, 1] += dt * v[i, 1]
-            w[i] += dtfrot / (r[i] * r[i] * m[i]) * t[i]
+            _first_half(i, x, v, w, f, t, m, r, dt)
             if bad < 0 and not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1])):
                 bad = i
             dx = x[i, 0] - xhold[i, 0]
@@ -181,8 +184,6 @@ def final_threaded(v, w, f, t, m, r, dt, pvir, pcont, vir):
     particles over the threads, each task's partial sums added in task order (deterministic; the
     order differs from the serial sums: round-off). Returns (kinetic energy (J), contacts, sum of
     overlaps (m))."""
-    dtf = 0.5 * dt
-    dtfrot = dtf / 0.5
     n = v.shape[0]
     ntask = (n + PARTICLE_BLOCK - 1) // PARTICLE_BLOCK
     part = np.zeros((ntask, 7))
@@ -195,11 +196,7 @@ def final_threaded(v, w, f, t, m, r, dt, pvir, pcont, vir):
         nc = 0.0
         so = 0.0
         for i in range(c * PARTICLE_BLOCK, min((c + 1) * PARTICLE_BLOCK, n)):
-            dtfm = dtf / m[i]
-            v[i, 0] += dtfm * f[i, 0]
-            v[i, 1] += dtfm * f[i, 1]
-            w[i] += dtfrot / (r[i] * r[i] * m[i]) * t[i]
-            ke += 0.5 * m[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]) + 0.25 * m[i] * r[i] * r[i] * w[i] * w[i]
+            ke += _second_half(i, v, w, f, t, m, r, dt)
             s0 += pvir[i, 0]
             s1 += pvir[i, 1]
             s2 += pvir[i, 2]
