@@ -248,6 +248,8 @@ class DEMEngine:
         # loop, and a second OpenMP thread would spin-wait beside every step (libgomp's default
         # policy), burning a core that the user's other work (the codes' jobs) needs
         self._threads = check_threads(threads) if self._parallel else 1
+        # (numba's static schedule: the tasks handed out dynamically, gransim._numba.dynamic_chunks,
+        # made the step 1.3x and the threaded list build 3x slower at 1e5 disks, measured)
         if self._parallel and n <= K.PARTICLE_BLOCK:
             # one task of the threaded kernels: the result is the same on any thread count, and a
             # second thread would only wait at every loop's end (0.6x of one thread at 1,020 disks)
@@ -267,13 +269,6 @@ class DEMEngine:
         self._failed = ""  # why a rebuild failed (the engine has no list then), or ""
         self._setup()
         self._reset_energy_budget()
-
-    def _on_threads(self):
-        """The engine's thread count around its kernels. Mode "parallel" keeps numba's static
-        schedule: its tasks handed out dynamically (``dynamic_chunks(1)``) made the step 1.3x
-        and the threaded list build 3x slower at 1e5 disks (measured), and with another process
-        on one core 2 threads ran at 0.64x of one thread against 0.71x with the static schedule."""
-        return num_threads(self._threads)
 
     # ------------------------------------------------------------------ neighbours
     @property
@@ -341,7 +336,7 @@ class DEMEngine:
             xhold=np.zeros((0, 2)),
         )  # fmt: skip
         release_free_memory()  # the old list's released arrays
-        with self._on_threads():  # mode "parallel": the pair passes on the threads
+        with num_threads(self._threads):  # mode "parallel": the pair passes on the threads
             a, b, esx, esy, both, selfimg = K.build_list_liggghts(
                 self.x, self.r, self.lo, self.hi, self.settings.skin, self._parallel
             )
@@ -369,7 +364,7 @@ class DEMEngine:
         dt = self.settings.dt
         L = self.box_lengths
         if self._parallel:
-            with self._on_threads(), disk_cache_off(self._no_cache):
+            with num_threads(self._threads), disk_cache_off(self._no_cache):
                 K.forces_threaded(self.p, self.nb, self.law, L[0], L[1], dt, update, self.sc.pvir, self.sc.pcont, True)
             self.virial[:] = self.sc.pvir.sum(axis=0)
             nc, so = self.sc.pcont.sum(axis=0)
@@ -519,7 +514,7 @@ class DEMEngine:
         step_start = self.step
         while done < nsteps:
             L_before = self.box_lengths.copy()
-            with self._on_threads(), disk_cache_off(self._no_cache):
+            with num_threads(self._threads), disk_cache_off(self._no_cache):
                 k, status, bad = K.run_block(
                     self.p,
                     self.nb,
