@@ -27,6 +27,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import re
@@ -55,7 +56,7 @@ def _packing(path):
 
 def _warm(mode: str, threads: int):
     # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
-    from bench.dem import LOADING, SETTINGS, assembly
+    from bench._deck import LOADING, SETTINGS, assembly
     from gransim.dem import DEMEngine, DEMSettings
 
     if mode == "fast":
@@ -75,7 +76,7 @@ def _warm(mode: str, threads: int):
 
 def native(path, steps: int, mode: str, threads: int, warm: int = 0) -> dict:
     # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
-    from bench.dem import LOADING
+    from bench._deck import LOADING
     from gransim.dem import DEMEngine
 
     s = _warm(mode, threads)
@@ -123,7 +124,7 @@ def profile(path, steps: int) -> dict:
     # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
     import numpy as np
 
-    from bench.dem import LOADING
+    from bench._deck import LOADING
     from gransim.dem import DEMEngine
     from gransim.dem import kernels as K
 
@@ -294,4 +295,6 @@ def main(argv) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    rc = main(sys.argv[1:])
+    gc.freeze()  # the exit of the `gransim` command (gransim.cli.entry): no final walk of numba's objects
+    sys.exit(rc)

@@ -67,13 +67,7 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np
 
-from gransim.dem import DEMSettings, Loading
-from gransim.dem.lattice import lattice_packing
-
-SETTINGS = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e-6, skin=2e-5)
-# fixed box: under a strain rate or servo the box displacement eats the skin (LIGGGHTS' rebuild
-# rule) faster in larger boxes, so rebuilds per step would grow with N in both codes alike
-LOADING = Loading()
+from bench._deck import LOADING, SETTINGS, assembly  # noqa: F401 - the deck, re-exported
 
 #: (nominal disks, warm-up steps, timed steps). The warm-up holds the first 2 to 3 rebuilds (the
 #: first comes at about step 36), the window 10 to 15 steps per rebuild: 3000 steps at 1e3 (~6e6
@@ -110,14 +104,6 @@ CONFIGS = {
 }
 ALL_CONFIGS = [FAST_1, FAST_2, NATIVE_1, NATIVE_2, LMP_1, LMP_2, LIG_1, LIG_2]
 MIB = 1024.0
-
-
-def assembly(n: int):
-    """The benchmark assembly nearest to ``n`` disks (triangular lattice, even rows)."""
-    nx = max(3, round(math.sqrt(n * 2 / math.sqrt(3))))
-    ny = max(4, round(n / nx))
-    ny += ny % 2
-    return lattice_packing(nx, ny, seed=1, spread=0.1, compression=0.08)
 
 
 def write_bench_deck(job_dir, packing, steps: int, engine: str = "liggghts", warm: int = 0) -> Path:

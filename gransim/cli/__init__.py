@@ -20,6 +20,7 @@ traceback with ``GRANSIM_TRACEBACK=1``); a closed output pipe ends quietly (stat
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import os
 import pkgutil
@@ -153,5 +154,23 @@ def main(argv=None) -> int:
         return 141
 
 
+def entry() -> None:
+    """The ``gransim`` console script and ``python -m gransim``: :func:`main`, then exit.
+
+    Before the interpreter's teardown every object still alive is moved to the collector's
+    permanent generation (:func:`gc.freeze`), so the final collections do not walk numba's
+    hundreds of thousands of objects: 0.10-0.20 s of the exit at 1e5 disks, measured
+    (docs/startup.md). Unlike ``os._exit`` it keeps the rest of the exit: ``atexit`` handlers
+    run, non-daemon threads are joined, standard streams are flushed, objects freed by reference
+    counting are finalized. What it gives up is finalizing objects caught in reference cycles
+    (a file object left open inside a cycle would not be flushed); gransim writes every result
+    atomically and closes it before returning, so no result depends on that. Only :func:`main` is
+    for in-process callers (tests): freezing belongs to the process's end.
+    """
+    rc = main()
+    gc.freeze()
+    sys.exit(rc)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    entry()
