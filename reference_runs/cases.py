@@ -9,6 +9,7 @@ status) with a one-line description. The cases are the two Taylor sets defined h
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,31 +30,48 @@ class Case:
 
 
 def compare_taylor(run, rtol: float = TAYLOR_RTOL) -> dict:
-    """Largest relative difference between a LIGGGHTS TaylorRun and the numpy Taylor stress.
+    """Largest relative difference between a LIGGGHTS/LAMMPS TaylorRun and the numpy Taylor stress.
 
-    For every state: max |sigma_liggghts - sigma_numpy| / max |sigma_numpy| (componentwise),
-    and the same for the periodic route's pressure column. Returns ``{(path, route): max}``.
+    For every state: max |sigma_code - sigma_numpy| / max |sigma_numpy| (componentwise; the
+    difference itself when the numpy stress is zero), and the same for the periodic route's
+    pressure column. Returns ``{(path, route): max}``.
+
+    Raises :class:`reference_runs.judge.JudgeError` naming the state and the side when a stress
+    or a deformation gradient is NaN or inf on either side (``stress of state 3 of shear-12,
+    periodic route of lattice-8x8-seed1 (liggghts) is NaN``), and when the run holds no state at
+    all: such a run fails, it is never compared on what remains.
     """
     # lazy: `gransim reference list` imports this module; numba, h5py (~1.8 s) wait for a run
     import numpy as np
 
+    from .judge import NoEvidenceError, max_rel_diff, require_finite
     from .taylor_numpy import candidate_pairs, taylor_stress_numpy
 
+    code = getattr(run, "engine", "liggghts")
+    states = [(key, i) for key, s in sorted(run.series.items()) for i in range(len(s.k))]
+    if not states:
+        raise NoEvidenceError(f"Taylor states of {run.name}: none in the job, nothing to compare")
+
+    def what(key, k):
+        return f"of state {int(k)} of {key[0]}, {key[1]} route of {run.name}"
+
+    for key, s in sorted(run.series.items()):
+        for k, F in zip(s.k, s.F):
+            require_finite(F, f"deformation gradient {what(key, k)}")
     s_min = min(float(np.linalg.svd(F, compute_uv=False).min()) for s in run.series.values() for F in s.F)
     cand = candidate_pairs(run.packing, min(1.0, s_min))
     out = {}
     for key, s in sorted(run.series.items()):
-        worst = 0.0
-        for F, sig, sp in zip(s.F, s.cauchy, s.cauchy_pressure):
+        if len(s.k) == 0:
+            raise NoEvidenceError(f"Taylor states of {key[0]}, {key[1]} route of {run.name}: none in the job")
+        rel = []
+        for k, F, sig, sp in zip(s.k, s.F, s.cauchy, s.cauchy_pressure):
             ref = taylor_stress_numpy(run.packing, F, run.kn, cand).cauchy
-            scale = np.abs(ref).max()
-            if scale == 0:
-                worst = max(worst, float(np.abs(sig).max()))
-                continue
-            worst = max(worst, float(np.abs(sig - ref).max() / scale))
+            sides = (code, "numpy")
+            rel.append(max_rel_diff(sig, ref, f"stress {what(key, k)}", sides))
             if key[1] == "periodic":
-                worst = max(worst, float(np.abs(sp - ref).max() / scale))
-        out[key] = worst
+                rel.append(max_rel_diff(sp, ref, f"pressure stress {what(key, k)}", sides))
+        out[key] = max(rel)  # every entry finite (max_rel_diff refuses NaN and inf)
     return out
 
 
@@ -78,11 +96,15 @@ def run_taylor_set(
     each) and compare with numpy.
 
     ``kn``: the 2D normal contact stiffness (N/m; default the paper's, :data:`gransim.paper.KN_2D`).
-    Returns ``(runs, worst)``: the TaylorRun objects and the largest relative difference.
+    Returns ``(runs, worst)``: the TaylorRun objects and the largest relative difference; NaN
+    (which fails every ``worst <= tolerance``) when a packing could not be judged (a NaN or inf
+    stress on either side, no states: the reason is echoed, naming the state and the side) or
+    when ``check`` found nothing to compare (no packings).
     """
     # lazy: `gransim reference list` imports this module; numba, h5py (~1.8 s) wait for a run
     from gransim.progress import progress as _progress
 
+    from .judge import JudgeError
     from .runner import MANIFEST_NAME
     from .taylor import run_taylor, write_taylor_h5
 
@@ -108,13 +130,19 @@ def run_taylor_set(
         )
         runs.append(run)
         if check:
-            diffs = compare_taylor(run)
-            w = max(diffs.values())
-            worst = max(worst, w)
-            echo(
+            head = (
                 f"{name}: N = {packing.n}, {sum(len(s.k) for s in run.series.values())} states "
-                f"({run.manifest.get('elapsed_s', 0):.2f} s), max rel. diff vs numpy Taylor = {w:.3e}"
+                f"({run.manifest.get('elapsed_s', 0):.2f} s)"
             )
+            try:
+                w = max(compare_taylor(run).values())
+            except JudgeError as exc:  # NaN/inf on either side, or no state: a failure, named
+                worst = math.nan
+                echo(f"{head}: FAIL: {exc}")
+                continue
+            if not math.isnan(worst):
+                worst = max(worst, w)
+            echo(f"{head}, max rel. diff vs numpy Taylor = {w:.3e}")
     h5 = write_taylor_h5(
         out_dir / h5_name,
         runs,
@@ -128,7 +156,20 @@ def run_taylor_set(
         },
     )
     echo(f"wrote {h5}")
+    if check and not runs:
+        echo("no packings: nothing was compared (FAIL)")
+        worst = math.nan
     return runs, worst
+
+
+def _verdict(case: str, worst: float) -> int:
+    """Print the verdict of a Taylor set; 0 when ``worst`` is within :data:`TAYLOR_RTOL`, else 1
+    (NaN: a packing could not be judged, its reason printed above)."""
+    from .judge import within
+
+    ok = within(worst, TAYLOR_RTOL)
+    print(f"{case}: largest relative difference {worst:.3e} ({'PASS' if ok else 'FAIL'}, tolerance {TAYLOR_RTOL:g})")
+    return 0 if ok else 1
 
 
 def _taylor_demo(out_dir, np_procs=1, timeout=600.0, force=False, progress=True, engine="liggghts") -> int:
@@ -139,8 +180,7 @@ def _taylor_demo(out_dir, np_procs=1, timeout=600.0, force=False, progress=True,
     _, worst = run_taylor_set(
         packings, out_dir, np_procs=np_procs, timeout=timeout, force=force, progress=progress, engine=engine
     )
-    print(f"taylor-demo: largest relative difference {worst:.3e} (tolerance {TAYLOR_RTOL:g})")
-    return 0 if worst <= TAYLOR_RTOL else 1
+    return _verdict("taylor-demo", worst)
 
 
 def standard_rves(packings_dir="results/packings") -> dict:
@@ -158,8 +198,7 @@ def _taylor_rves(out_dir, np_procs=1, timeout=3600.0, force=False, progress=True
     _, worst = run_taylor_set(
         standard_rves(), out_dir, np_procs=np_procs, timeout=timeout, force=force, progress=progress, engine=engine
     )
-    print(f"taylor-rves: largest relative difference {worst:.3e} (tolerance {TAYLOR_RTOL:g})")
-    return 0 if worst <= TAYLOR_RTOL else 1
+    return _verdict("taylor-rves", worst)
 
 
 #: every named case, by name

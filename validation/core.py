@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from reference_runs import store
+from reference_runs.judge import finite_problem, peak, verdict_problem, within  # noqa: F401 (peak: for the cases)
 from reference_runs.runner import verify_job
 
 SUITES = ("quick", "default", "full")
@@ -28,7 +29,9 @@ class Record:
 
     ``case`` is a case id optionally followed by a suffix (``taylor-rve/700-3/shear12``);
     ``metric`` names how ``value`` was computed (e.g. ``max_rel_diff``); ``passed`` is
-    ``value <= tolerance`` unless the case states another rule in ``reason``.
+    ``value <= tolerance`` unless the case states another rule in ``reason``. Whatever the rule, a
+    check whose value or tolerance is NaN or inf (or whose tolerance is negative) is a failure:
+    ``passed`` is forced to False and the metric names the problem (``... [FAIL: stress is NaN]``).
 
     ``kind`` is ``"check"`` (a verdict against something independent: the other code, an exact
     or analytic value, a bound) or ``"info"`` (a figure shown for the reader, never a verdict:
@@ -50,6 +53,13 @@ class Record:
             raise ValueError(f"Record.kind: expected one of {RECORD_KINDS}, got {self.kind!r}")
         if self.pair and self.pair not in PAIRS:
             raise ValueError(f"Record.pair: expected one of {tuple(PAIRS)}, got {self.pair!r}")
+        if self.kind == "check" and self.passed:
+            # whatever rule set ``passed``, a check never passes on a NaN or inf value or tolerance
+            # (``nan <= tol`` is False but ``not nan > tol`` is True; max() drops a NaN after a number)
+            problem = verdict_problem(self.value, self.tolerance, self.quantity)
+            if problem:
+                object.__setattr__(self, "passed", False)
+                object.__setattr__(self, "metric", f"{self.metric} [FAIL: {problem}]")
 
     @property
     def verdict(self) -> str:
@@ -99,12 +109,29 @@ def default_job_timeout(particle_steps: float) -> float:
     return JOB_TIMEOUT_BASE + JOB_TIMEOUT_PER_PSTEP * float(particle_steps)
 
 
-def compare(case: str, quantity: str, metric: str, value: float, tolerance: float, reason: str) -> Record:
-    """A record that passes when ``value <= tolerance`` (NaN fails)."""
-    value = float(value)
-    return Record(
-        case, quantity, metric, value, float(tolerance), bool(math.isfinite(value) and value <= tolerance), reason
-    )
+def compare(case: str, quantity: str, metric: str, value: float, tolerance: float, reason: str, inputs=None) -> Record:
+    """A record that passes when ``value <= tolerance``, both finite (and the tolerance >= 0).
+
+    A NaN or inf value or tolerance fails (:func:`reference_runs.judge.within`), and the metric
+    then says why, naming the quantity: ``max_rel_diff [stress is NaN]``. ``inputs``: optional
+    ``{side: array}`` the value was computed from (e.g. ``{"native": a, "LIGGGHTS": b}``); the
+    first side holding a NaN or inf is named (``stress (LIGGGHTS) is NaN at entry 3``) and the
+    record fails even if the value itself came out finite (a ``max`` that dropped the NaN).
+    """
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        value = math.nan
+    try:
+        tol = float(tolerance)
+    except (TypeError, ValueError):
+        tol = math.nan
+    problem = next(
+        (p for side, arr in (inputs or {}).items() if (p := finite_problem(arr, quantity, side))), None
+    ) or verdict_problem(value, tol, quantity)
+    if problem:
+        return Record(case, quantity, f"{metric} [FAIL: {problem}]", value, tol, False, reason)
+    return Record(case, quantity, metric, value, tol, within(value, tol), reason)
 
 
 def info(case: str, quantity: str, metric: str, value: float, reason: str) -> Record:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import html
 import inspect
 import json
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +31,7 @@ import numpy as np
 
 from gransim.errors import InputError, ResultFileError
 from gransim.io import atomic_h5, atomic_path
+from reference_runs.judge import finite_problem, peak, verdict_problem
 from reference_runs.parsers import parse_dump_custom, parse_log
 from reference_runs.runner import run_job
 
@@ -60,6 +62,18 @@ class Check:
     tolerance: float
     passed: bool
     detail: str = ""
+
+    def __post_init__(self):
+        # whatever rule set ``passed``, a check never passes on a NaN or inf value or tolerance
+        problem = verdict_problem(self.value, self.tolerance, self.quantity)
+        if problem:
+            self.passed = False
+            self.detail = f"FAIL: {problem}" + (f"; {self.detail}" if self.detail else "")
+
+
+def _sides_problem(quantity: str, sides: dict) -> str | None:
+    """The first ``{side: values}`` entry holding a NaN or inf, named (None when all are finite)."""
+    return next((p for side, v in sides.items() if (p := finite_problem(v, quantity, side))), None)
 
 
 @dataclass
@@ -134,8 +148,10 @@ def expected_thermo_steps(deck: ReplayDeck) -> list:
 
 
 def _max_rel(a, b, scale):
-    d = np.max(np.abs(np.asarray(a, float) - np.asarray(b, float))) if np.size(a) else 0.0
-    return float(d / scale) if scale > 0 else float(d)
+    """max |a - b| / scale (the difference itself for a zero scale); NaN (failing) for empty arrays
+    or a NaN anywhere, never 0.0 (``scale > 0`` is False for a NaN scale)."""
+    d = peak([np.abs(np.asarray(a, float) - np.asarray(b, float))])
+    return float(d / scale) if scale > 0 else (d if scale == 0 else math.nan)
 
 
 def compare_thermo(deck: ReplayDeck, nat: NativeRun, log_path: Path) -> list:
@@ -190,15 +206,16 @@ def compare_thermo(deck: ReplayDeck, nat: NativeRun, log_path: Path) -> list:
             checks.append(Check(f"thermo {kw}", "incomplete: column missing in the log", 1, 0, False))
             continue
         if low in box:
-            diff = float(np.max(np.abs(col - box[low][st]))) if st.size else 0.0
+            diff = peak([np.abs(col - box[low][st])])  # NaN when no row or any NaN: fails
+            problem = _sides_problem(f"thermo {kw}", {deck.engine: col, "native": box[low][st]})
             checks.append(
                 Check(
                     f"thermo {kw}",
                     "max |code - native| / D50",
                     diff / d50,
                     POSITION_TOL,
-                    diff <= tol_x,
-                    f"bitwise equal: {bool(np.array_equal(col, box[low][st]))}",
+                    diff <= tol_x and not problem,
+                    problem or f"bitwise equal: {bool(np.array_equal(col, box[low][st]))}",
                 )
             )
         elif low == "atoms":
@@ -207,17 +224,18 @@ def compare_thermo(deck: ReplayDeck, nat: NativeRun, log_path: Path) -> list:
         elif low.startswith("c_"):
             m = re.fullmatch(r"c_([A-Za-z0-9_]+)(\[(\d+)\])?", kw)
             nat_col = nat.p[st] if m.group(3) is None else nat.pressure[st, int(m.group(3)) - 1]
-            scale = float(np.max(np.abs(col))) if col.size else 0.0
+            scale = peak([np.abs(col)])  # NaN for no row or a NaN: fails
             rel = _max_rel(col, nat_col, scale)
             worst = int(st[np.argmax(np.abs(col - nat_col))]) if col.size else 0
+            problem = _sides_problem(f"thermo {kw}", {deck.engine: col, "native": nat_col})
             checks.append(
                 Check(
                     f"thermo {kw} (pressure, virial)",
                     "max |code - native| / max |code|",
                     rel,
                     STRESS_TOL,
-                    rel <= STRESS_TOL if scale > 0 else rel == 0.0,
-                    f"worst at step {worst}; bitwise equal: {bool(np.array_equal(col, nat_col))}",
+                    (rel <= STRESS_TOL if scale > 0 else rel == 0.0) and not problem,
+                    problem or f"worst at step {worst}; bitwise equal: {bool(np.array_equal(col, nat_col))}",
                 )
             )
     return checks
@@ -253,6 +271,7 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
         where = {c: None for c in cols}
         scale = {c: 0.0 for c in cols}
         bitwise = {c: True for c in cols}
+        problem = {c: None for c in cols}  # the first NaN or inf of a column, named
         inc = []
         pairs = []
         for s in want:
@@ -270,7 +289,7 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
             pairs.append((s, fr, order))
             for c in cols:
                 if c not in _POS:
-                    scale[c] = max(scale[c], float(np.max(np.abs(fr[c]))))
+                    scale[c] = peak([scale[c], np.abs(fr[c])])  # a NaN sticks (max() would drop it)
         for s, fr, order in pairs:
             nf = nat.frames[s]
             for c in cols:
@@ -278,6 +297,7 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
                 b = np.asarray(nf[c], float)[order]
                 diff = float(np.max(np.abs(a - b)))
                 bitwise[c] &= bool(np.array_equal(a, b))
+                problem[c] = problem[c] or _sides_problem(f"dump {d.id} {c} at step {s}", {deck.engine: a, "native": b})
                 if where[c] is None or diff > worst[c]:
                     worst[c], where[c] = diff, s
         if inc:
@@ -296,14 +316,16 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
                 sc = scale[c]
                 v = worst[c] / sc if sc > 0 else worst[c]
                 tol, metric = RATE_TOL, "max |code - native| / max |code|"
+            if not pairs:  # no frame compared: nothing to judge (the evidence checks say why)
+                v = math.nan
             checks.append(
                 Check(
                     f"dump {d.id} {c}",
                     metric,
                     v,
                     tol,
-                    v <= tol if (c in _POS or scale[c] > 0) else v == 0.0,
-                    f"worst at step {where[c]}; bitwise equal: {bitwise[c]}",
+                    (v <= tol if (c in _POS or scale[c] > 0) else v == 0.0) and not problem[c],
+                    problem[c] or f"worst at step {where[c]}; bitwise equal: {bitwise[c]}",
                 )
             )
     return checks

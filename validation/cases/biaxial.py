@@ -39,6 +39,7 @@ from ..core import (
     evidence,
     in_pair,
     info,
+    peak,
     stored_dir,
     stored_job_record,
 )
@@ -95,9 +96,8 @@ def _servo(bi):
 
 
 def _max(a) -> float:
-    """Largest entry, NaN for an empty array (a comparison over nothing fails)."""
-    a = np.asarray(a, float)
-    return float(a.max()) if a.size else float("nan")
+    """Largest entry, NaN for an empty array or any NaN (a comparison over nothing fails)."""
+    return peak([a])
 
 
 CODE = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}
@@ -127,7 +127,15 @@ def step_records(
         compare(label, "spin", "max|dw|/max|w|", _max(fd["w"]), REL_TOL, VEL_REASON),
         compare(label, "particle_force", "max|df|/max|f|", _max(fd["f"]), REL_TOL, FORCE_REASON),
         compare(label, "particle_torque", "max|dT|/max|T|", _max(fd["t"]), REL_TOL, FORCE_REASON),
-        compare(label, "stress", "max over steps of max|dsigma|/max|sigma|", _max(rel), REL_TOL, STRESS_REASON),
+        compare(
+            label,
+            "stress",
+            "max over steps of max|dsigma|/max|sigma|",
+            _max(rel),
+            REL_TOL,
+            STRESS_REASON,
+            inputs={"native": nat.stress[nat.at(both_s)], code: lig.stress[lig.at(both_s)]},
+        ),
         compare(label, "box", "max|dL|/D50", _max(dl) / d50, POS_TOL, BOX_REASON),
     ]
     row = [
@@ -683,7 +691,10 @@ def curves(tr, p: float):
 
 
 def _ratio(d: np.ndarray, env: np.ndarray) -> float:
-    """max over steps of d/env where d > 0 (inf when the envelope is 0 there)."""
+    """max over steps of d/env where d > 0 (inf when the envelope is 0 there; NaN, a failing
+    value, when d or the envelope holds a NaN or inf: ``d > 0`` would drop a NaN step)."""
+    if not (np.isfinite(d).all() and np.isfinite(env).all()):
+        return float("nan")
     m = d > 0
     if not np.any(m):
         return 0.0
@@ -977,8 +988,8 @@ def biaxial_full(ctx: Context) -> CaseResult:
             cur[f"{code} {k}"] = curves(t, p)
         q_l, ev_l = cur[code][1], cur[code][2]
         bands[engine] = (
-            max(float(np.abs(cur[f"{code} {k}"][1] - q_l).max()) for k in sd["ensemble"]),
-            max(float(np.abs(cur[f"{code} {k}"][2] - ev_l).max()) for k in sd["ensemble"]),
+            peak(np.abs(cur[f"{code} {k}"][1] - q_l) for k in sd["ensemble"]),  # NaN stays NaN
+            peak(np.abs(cur[f"{code} {k}"][2] - ev_l) for k in sd["ensemble"]),
         )
         _, q_n, ev_n = cur[f"native ({engine})"]
         res.records += in_pair(

@@ -139,6 +139,7 @@ from ..core import (
     evidence,
     in_pair,
     info,
+    peak,
     stored_dir,
     stored_job_record,
 )
@@ -1817,7 +1818,7 @@ def bitwise_records(label: str, a: dict, b: dict, who: str) -> list:
         ]
     out = []
     D = 2 * R
-    dx = max(float(np.max(np.abs(a[s]["x"] - b[s]["x"]))) for s in common) / D
+    dx = peak(np.abs(a[s]["x"] - b[s]["x"]) for s in common) / D  # NaN stays NaN (max() drops it)
     out.append(
         compare(
             label,
@@ -1830,8 +1831,8 @@ def bitwise_records(label: str, a: dict, b: dict, who: str) -> list:
         )
     )
     for key, name in (("v", "velocities"), ("w", "spins"), ("f", "forces"), ("t", "torques")):
-        top = max(float(np.max(np.abs(b[s][key]))) for s in common) or 1.0
-        diff = max(float(np.max(np.abs(a[s][key] - b[s][key]))) for s in common) / top
+        top = peak(np.abs(b[s][key]) for s in common) or 1.0
+        diff = peak(np.abs(a[s][key] - b[s][key]) for s in common) / top
         out.append(
             compare(
                 label,

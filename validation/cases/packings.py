@@ -36,7 +36,7 @@ from gransim.io import load_packing
 from reference_runs.parsers import parse_log
 from reference_runs.runner import LOG_NAME
 
-from ..core import CaseResult, Context, case, compare, in_pair
+from ..core import CaseResult, Context, case, compare, in_pair, peak
 from ..dem_compare import (
     expected_frames,
     expected_steps,
@@ -69,7 +69,7 @@ def _sieve_error(p) -> tuple[float, float]:
     g = get_distribution(p.metadata["distribution"])
     a = (2.0 * p.radii) ** 2
     d = 2.0 * p.radii
-    err = max(abs(100.0 * a[d <= dk].sum() / a.sum() - pk) for dk, pk in zip(g.diameters, g.passing))
+    err = peak([abs(100.0 * a[d <= dk].sum() / a.sum() - pk) for dk, pk in zip(g.diameters, g.passing)])
     return float(err), float(100.0 * a.max() / a.sum())
 
 
@@ -273,10 +273,7 @@ def _regenerated(ctx: Context, res: CaseResult, paths: dict) -> None:
         same_shape = all(getattr(have, f).shape == getattr(fresh, f).shape for f in ("positions", "radii", "cell"))
         if same_shape:
             d50 = float(np.median(2.0 * fresh.radii))
-            diff = max(
-                float(np.max(np.abs(getattr(have, f) - getattr(fresh, f)))) / d50
-                for f in ("positions", "radii", "cell")
-            )
+            diff = peak(np.abs(getattr(have, f) - getattr(fresh, f)) / d50 for f in ("positions", "radii", "cell"))
         else:
             diff = float("inf")
         res.records.append(

@@ -50,6 +50,7 @@ from reference_runs.decks.shear import (
     wrapped_packing,
     write_shear_deck,
 )
+from reference_runs.judge import defined_diff, defined_peak
 from reference_runs.parsers import parse_dump_custom
 from reference_runs.runner import run_job
 
@@ -63,6 +64,7 @@ from ..core import (
     evidence,
     in_pair,
     info,
+    peak,
     stored_dir,
     stored_job_record,
 )
@@ -144,8 +146,8 @@ def _perturbation(label: str, n: int) -> tuple[int, int, float]:
 
 
 def _max(a) -> float:
-    a = np.asarray(a, float)
-    return float(a.max()) if a.size else float("nan")
+    """Largest entry, NaN for an empty array or any NaN (a comparison over nothing fails)."""
+    return peak([a])
 
 
 # ------------------------------------------------------------------ trajectories
@@ -408,8 +410,9 @@ def compare_cells(nat, ref, steps, radii, dt) -> dict:
         da = dw = float("inf")
         if same:
             ia, ib = _face_order(a), _face_order(b)
-            da = float(np.nanmax(np.abs(a.alpha[ia] - b.alpha[ib])))
-            dw = float(np.nanmax(np.abs(a.w[ia] - b.w[ib]))) / (float(np.nanmax(np.abs(b.w))) or 1.0)
+            # NaN marks a cell whose alignment is undefined (zero gradient): it must be so on both sides
+            da = defined_diff(a.alpha[ia], b.alpha[ib])
+            dw = defined_diff(a.w[ia], b.w[ib]) / (defined_peak(b.w) or 1.0)
         out["steps"].append(int(s))
         out["same"].append(same)
         out["alpha"].append(da)
@@ -676,8 +679,9 @@ STATS_REASON = (
 
 
 def _floor_ratio(d: np.ndarray, env: np.ndarray, floor: float, factor: float) -> float:
-    """max_t d(t) / max(env(t), floor/factor): <= factor iff d <= max(factor env, floor) everywhere."""
-    if not len(d):
+    """max_t d(t) / max(env(t), floor/factor): <= factor iff d <= max(factor env, floor) everywhere.
+    NaN (a failing value) when there is no step or d or the envelope holds a NaN or inf."""
+    if not len(d) or not (np.isfinite(d).all() and np.isfinite(env).all()):
         return float("nan")
     return float(np.max(d / np.maximum(env, floor / factor)))
 
@@ -986,7 +990,7 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
     }
     recs = []
     for col, qty, unit in ((1, "shear_stress", "tau/p"), (2, "normal_strain", "ln(ly/ly0)")):
-        band = max(float(np.abs(cur[f"LAMMPS {k}"][col] - cur["LAMMPS"][col]).max()) for k in ens)
+        band = peak(np.abs(cur[f"LAMMPS {k}"][col] - cur["LAMMPS"][col]) for k in ens)  # NaN stays NaN
         recs.append(
             compare(
                 f"{CASE}/kuhn-1002/curve",
@@ -1024,8 +1028,9 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
             st[f"LAMMPS {k}"] = cell_stats(t, frames, pk.radii, s["settings"].dt)
         recs = []
         for col, qty in ((0, "mean_alpha"), (1, "fraction_alpha_le_0")):
-            band = max(float(np.nanmax(np.abs(st[f"LAMMPS {k}"][:, col] - st["LAMMPS"][:, col]))) for k in ens)
-            diff = float(np.nanmax(np.abs(st["native"][:, col] - st["LAMMPS"][:, col])))
+            # a frame without cells is NaN on a side: it must be so on the other (defined_diff)
+            band = peak(defined_diff(st[f"LAMMPS {k}"][:, col], st["LAMMPS"][:, col]) for k in ens)
+            diff = defined_diff(st["native"][:, col], st["LAMMPS"][:, col])
             recs.append(
                 compare(
                     f"{CASE}/kuhn-1002/voidcells",

@@ -25,7 +25,7 @@ import html
 
 import numpy as np
 
-from ..core import PAIRS, CaseResult, Context, Record, case
+from ..core import PAIRS, CaseResult, Context, Record, case, peak
 
 
 def lattice_packing():
@@ -183,7 +183,7 @@ def slope_relaxed(ctx: Context) -> CaseResult:
                 f"must show it too ({len(judged)} of {len(orders)} steps judged)",
             )
         )
-    worst_replay = max(cmp["replay_errors"].values()) if cmp["replay_errors"] else float("nan")
+    worst_replay = peak(cmp["replay_errors"].values())  # NaN when none or any is NaN
     res.records.append(
         _rec(
             "slope-relaxed/reduced/compare",

@@ -23,7 +23,7 @@ from reference_runs.decks.taylor import PATHS, ROUTES
 from reference_runs.store import RVE_CASE, TAYLOR_CASE, taylor_case
 from reference_runs.taylor import read_taylor_job, run_taylor
 
-from ..core import CaseResult, Context, Record, case, compare, evidence, in_pair, stored_job_record
+from ..core import CaseResult, Context, Record, case, compare, evidence, in_pair, peak, stored_job_record
 
 #: 2D normal contact stiffness of the RVE study (N/m): E_n of Meier et al. Table 1 per m of thickness
 KN = KN_2D
@@ -86,21 +86,20 @@ def compare_contact_forces(packing, F, frame, contact_state_fn=None) -> dict:
             lig.setdefault(int(b), []).append((xa - xb, -fa))
     fmax = float(np.abs(cs.force).max()) if len(cs.force) else 1.0
     tol = 1e-9 * float(np.mean(packing.radii))
-    worst = 0.0
-    un_nat, un_lig = [], []
+    diffs, un_nat, un_lig = [], [], []
     for a in sorted(set(native) | set(lig)):
         mine, other = native.get(a, []), list(lig.get(a, []))
         for l, f in mine:
             d = [float(np.linalg.norm(l - lo)) for lo, _ in other]
             k = int(np.argmin(d)) if d else -1
-            if k < 0 or d[k] > tol:
+            if k < 0 or not d[k] <= tol:  # a NaN distance matches nothing
                 un_nat.append((a, tuple(float(c) for c in l)))
                 continue
-            worst = max(worst, float(np.abs(f - other[k][1]).max()) / fmax)
+            diffs.append(float(np.abs(f - other[k][1]).max()) / fmax)
             other.pop(k)
         un_lig += [(a, tuple(float(c) for c in lo)) for lo, _ in other]
     return {
-        "worst": worst,
+        "worst": peak(diffs),  # NaN when a force is NaN (max() would drop it) or none matched
         "n_native": sum(len(v) for v in native.values()),
         "n_liggghts": sum(len(v) for v in lig.values()),
         "unmatched_native": un_nat,
@@ -214,20 +213,20 @@ def compare_contact_forces_by_pair(packing, F, frame, contact_state_fn=None) -> 
         other.setdefault((int(b), int(a)), []).append((float(d), -f))
     fmax = float(np.abs(cs.force).max()) if len(cs.force) else 1.0
     tol = 1e-9 * float(np.mean(packing.radii))
-    worst, un_nat, un_oth = 0.0, [], []
+    diffs, un_nat, un_oth = [], [], []
     for key in sorted(set(native) | set(other)):
         rest = list(other.get(key, []))
         for d, f in native.get(key, []):
             dd = [abs(d - do) for do, _ in rest]
             k = int(np.argmin(dd)) if dd else -1
-            if k < 0 or dd[k] > tol:
+            if k < 0 or not dd[k] <= tol:  # a NaN distance matches nothing
                 un_nat.append((key[0], (float(key[1]), d)))
                 continue
-            worst = max(worst, float(np.abs(f - rest[k][1]).max()) / fmax)
+            diffs.append(float(np.abs(f - rest[k][1]).max()) / fmax)
             rest.pop(k)
         un_oth += [(key[0], (float(key[1]), do)) for do, _ in rest]
     return {
-        "worst": worst,
+        "worst": peak(diffs),  # NaN when a force is NaN (max() would drop it) or none matched
         "n_native": sum(len(v) for v in native.values()),
         "n_liggghts": sum(len(v) for v in other.values()),
         "unmatched_native": un_nat,
@@ -345,9 +344,10 @@ def taylor_rve(ctx: Context) -> CaseResult:
                 sig_n = mat.evaluate(np.asarray(ser.F)).cauchy
                 scale = np.abs(ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
                 diff = np.abs(sig_n - ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
-                rel = float(np.max(diff / np.where(scale > 0, scale, 1.0)))
+                rel = peak(diff / np.where(scale > 0, scale, 1.0))
                 label = f"taylor-rve/{engine}/{name.replace('rve-', '')}/{PATH_NAMES[path]}/{route}"
-                recs.append(compare(label, "stress", "max_rel_diff", rel, STRESS_TOL, STRESS_REASON))
+                sides = {"native": sig_n, code: ser.cauchy}
+                recs.append(compare(label, "stress", "max_rel_diff", rel, STRESS_TOL, STRESS_REASON, inputs=sides))
                 rows.append([code, name, path, route, len(ser.F), rel])
         contact_runs, croute = _contact_runs(ctx, packings, engine)
         for name, run in contact_runs.items():
@@ -403,9 +403,10 @@ def taylor_rve(ctx: Context) -> CaseResult:
                     f"taylor-rve/cross/{name.replace('rve-', '')}/{PATH_NAMES[key[0]]}/{key[1]}",
                     "stress",
                     "max_rel_diff LIGGGHTS vs LAMMPS",
-                    float(rel.max()) if rel.size else float("nan"),
+                    peak(rel),
                     STRESS_TOL,
                     CROSS_REASON,
+                    inputs={"LIGGGHTS": a, "LAMMPS": b},
                 )
             )
             n_states += len(common)

@@ -17,8 +17,9 @@ from gransim.errors import InputError
 from gransim.io import atomic_path
 from gransim.voidcell import VoidCells
 from reference_runs.decks.biaxial import SHORT_CASE_DUMP_EVERY, short_case
+from reference_runs.judge import defined_diff, defined_peak
 
-from ..core import CaseResult, Context, case, compare, evidence, in_pair, info, stored_dir
+from ..core import CaseResult, Context, case, compare, evidence, in_pair, info, peak, stored_dir
 from ..dem_compare import expected_frames, read_reference, run_native, snapshot, trajectory_evidence
 from .biaxial import (
     CODE,
@@ -107,9 +108,10 @@ def compare_frames(nat, lig, steps, radii, dt) -> dict:
         da = dw = float("inf")
         if same:
             ia, ib = _face_order(a), _face_order(b)
-            da = float(np.nanmax(np.abs(a.alpha[ia] - b.alpha[ib])))
-            wscale = float(np.nanmax(np.abs(b.w))) or 1.0
-            dw = float(np.nanmax(np.abs(a.w[ia] - b.w[ib]))) / wscale
+            # NaN marks a cell whose alignment is undefined (zero gradient): it must be so on both sides
+            da = defined_diff(a.alpha[ia], b.alpha[ib])
+            wscale = defined_peak(b.w) or 1.0
+            dw = defined_diff(a.w[ia], b.w[ib]) / wscale
         out["steps"].append(int(s))
         out["same"].append(same)
         out["alpha"].append(da)
@@ -124,8 +126,8 @@ def _records(label, cmp) -> list:
         return [compare(label, "cell_list", "frames with a tessellation", 0, -1, LIST_REASON)]
     return [
         compare(label, "cell_list", f"frames with different cell lists (of {len(cmp['same'])})", ndiff, 0, LIST_REASON),
-        compare(label, "alpha", "max|d alpha| over cells and frames", max(cmp["alpha"]), ALPHA_TOL, ALPHA_REASON),
-        compare(label, "w", "max|d w|/max|w| over frames", max(cmp["w"]), ALPHA_TOL, W_REASON),
+        compare(label, "alpha", "max|d alpha| over cells and frames", peak(cmp["alpha"]), ALPHA_TOL, ALPHA_REASON),
+        compare(label, "w", "max|d w|/max|w| over frames", peak(cmp["w"]), ALPHA_TOL, W_REASON),
     ]
 
 
@@ -325,7 +327,7 @@ def voidcell(ctx: Context) -> CaseResult:
             pert.append(f"{code} {name}")
         bands[engine] = {}
         for col, qty in ((0, "mean_alpha"), (1, "fraction_alpha_le_0")):
-            band = max(float(np.abs(st[k][:, col] - st[code][:, col]).max()) for k in pert)
+            band = peak(np.abs(st[k][:, col] - st[code][:, col]) for k in pert)  # NaN stays NaN
             bands[engine][qty] = band
             diff = float(np.abs(st[f"native ({engine})"][:, col] - st[code][:, col]).max())
             recs.append(
