@@ -1,4 +1,4 @@
-"""One-way package boundaries (issue 19): gransim imports none of the packages built on it, and the
+"""One-way package boundaries: gransim imports none of the packages built on it, and the
 ``gransim`` command still offers their sub-commands through the ``gransim.commands`` entry points.
 
 The layers, lowest first: ``gransim`` -> ``reference_runs`` -> ``validation``; ``bench`` and
@@ -170,8 +170,8 @@ def test_the_lazy_import_reason_pattern_is_not_vacuous():
 
 
 def test_every_local_import_in_gransim_says_why():
-    """ruff enforces PLC0415 but accepts a bare ``# noqa: PLC0415``; issue 19 asks that each
-    import kept inside a function say why (start-up time or an import cycle)."""
+    """ruff enforces PLC0415 but accepts a bare ``# noqa: PLC0415``; the project's rule (pyproject.toml) is that
+    each import kept inside a function say why (start-up time or an import cycle)."""
     files = sorted((ROOT / "gransim").rglob("*.py"))
     hits = [
         (f, n, line)

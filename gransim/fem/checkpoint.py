@@ -1,4 +1,4 @@
-"""Checkpoint and resume of a slope run at each converged load step (issue 18 item 5).
+"""Checkpoint and resume of a slope run at each converged load step.
 
 The checkpoint (``OUT/checkpoint/step_NNN.h5``, kind ``fem-slope-checkpoint``, one file per step) is
 written atomically after every converged load step (temporary file, fsync, rename:

@@ -1,4 +1,4 @@
-"""Two or more slope results side by side, read from their ``slope.h5`` files (issue #18 (a)).
+"""Two or more slope results side by side, read from their ``slope.h5`` files.
 
 Typically the Taylor RVE (Meier, Steinmann & Kuhl 2007, "Towards completeness: a multiscale
 approach of confined particulate systems", eq 1: affine, an upper bound) against the relaxed RVE

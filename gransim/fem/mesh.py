@@ -89,7 +89,8 @@ def rectangle_mesh(nx: int, ny: int, lx: float = 1.0, ly: float = 1.0, distort: 
 
 @dataclass(frozen=True)
 class SlopeGeometry:
-    """The documented slope geometry (issue 8; the seed's Fig. 6 is lost).
+    """The slope geometry of Meier, Steinmann & Kuhl, section 5, whose Fig. 6 did not survive the text
+    extraction: the dimensions below are gransim's reading of it.
 
     20 columns of width 3.875 m; the ground surface is at ``toe_height`` for x <= ``toe_x``, rises
     linearly to ``crest_height`` at ``crest_x`` (45 degrees) and stays there up to ``length``; each

@@ -68,7 +68,7 @@ def default_rve_packing(packing_dir="results/packings"):
     gransim.rve.fabric: smallest deviation from the uniform density at 20 degrees).
 
     The choice is computed once and kept in ``packing_dir/most_uniform_rve-700.json`` (a figure is
-    measured once and reused: issue 17), keyed by the five files' sizes and modification times.
+    measured once and reused), keyed by the five files' sizes and modification times.
     """
     paths = _rve_700_paths(packing_dir)
     key = {name: [Path(p).stat().st_size, Path(p).stat().st_mtime_ns] for name, p in paths.items()}

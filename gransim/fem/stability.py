@@ -1,4 +1,4 @@
-"""Is the slope's reference state stable with a given RVE material? (issue #18: why the relaxed slope stops)
+"""Is the slope's reference state stable with a given RVE material? (why the relaxed slope stops)
 
 Two measures, both at the reference state F = 1 where every Gauss point holds the same RVE (so one
 RVE evaluation serves all of them):

@@ -1,10 +1,9 @@
-"""The registered ``energy`` of every contact law against the law's own forces (issue 16 item 2,
-task H1): the finite-difference derivative of the energy with respect to the overlap is the
-law's elastic normal force, with respect to the tangential spring xi minus its spring force, and
-with respect to the relative rotation (advanced through the law's own rolling update) its
-rolling torque. Independent of how the energy is written: the forces come from the jitted pair
-functions of :mod:`gransim.contacts` (hooke, hertz, rolling), at rest (no damping) and below the
-Coulomb caps (mu large).
+"""The registered ``energy`` of every contact law against the law's own forces: the finite-difference
+derivative of the energy with respect to the overlap is the law's elastic normal force, with respect
+to the tangential spring xi minus its spring force, and with respect to the relative rotation
+(advanced through the law's own rolling update) its rolling torque. Independent of how the energy
+is written: the forces come from the jitted pair functions of :mod:`gransim.contacts` (hooke, hertz,
+rolling), at rest (no damping) and below the Coulomb caps (mu large).
 
 Tolerance: central differences with a step 1e-4 of the variable have a truncation error ~1e-8
 relative (quadratic: exact) and round-off ~1e-12; 1e-7 relative (tangential force: from fx - F_n

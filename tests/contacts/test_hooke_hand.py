@@ -1,4 +1,4 @@
-"""The Hooke history pair law alone, against cases computed by hand (issue 19).
+"""The Hooke history pair law alone, against cases computed by hand.
 
 Two disks of radius 1 mm, masses 2 g (m_eff = 1 g), kn = kt = 1e5 N/m, gamma_n = gamma_t = 50 1/s,
 mu = 0.5, dt = 1e-6 s; i sits at d = x_i - x_j = (1.9 mm, 0), so n = (1, 0), the overlap is

@@ -1,4 +1,4 @@
-"""The contact laws of gransim.contacts as plug-ins of the DEM engine (issue 16 items 2-3): every
+"""The contact laws of gransim.contacts as plug-ins of the DEM engine: every
 law built by name (gransim.contacts.laws.make_law) runs the stored two-disk impact of its code
 through DEMEngine (its integrator, neighbour list and history hand-over, not a test-local loop)
 and reproduces every dumped number of every step of LIGGGHTS 3.8.0 / LAMMPS 29 Sep 2021 exactly

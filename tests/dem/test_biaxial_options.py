@@ -1,5 +1,5 @@
 """Every physical parameter of ``gransim biaxial`` is an option and the derived ones follow the final
-values (issue 19): the inertial number I = rate D50 sqrt(rho / p) of a run stays at the requested
+values: the inertial number I = rate D50 sqrt(rho / p) of a run stays at the requested
 value when the confining stress or the density changes, and the friction coefficient reaches the
 engine (a sliding contact obeys |F_t| = mu |F_n| for the mu given, two values)."""
 

@@ -1,4 +1,4 @@
-"""Energy balance of the DEM engines with a Hertz law (issue 16 item 2, task H1): kinetic energy
+"""Energy balance of the DEM engines with a Hertz law: kinetic energy
 plus the law's registered elastic energy (:func:`gransim.contacts.hertz.hertz_energy`, with the
 radii of every contact) of a periodic assembly of 36 disks (a jittered square lattice with gaps
 of 5 % of a diameter and random velocities: collisions across the periodic boundary, list

@@ -2,7 +2,7 @@
 
 Stored reference: reference_runs/stored/biaxial-short-lammps (LAMMPS 29 Sep 2021 - Update 2,
 Debian ``lmp``; README: provenance), the case of reference_runs/stored/biaxial-short run by
-LAMMPS. Tolerances as for LIGGGHTS (issue 15): positions within 1e-10 D50, stresses within 1e-8
+LAMMPS. Tolerances as for LIGGGHTS: positions within 1e-10 D50, stresses within 1e-8
 relative (of the largest component at that step). Measured on this machine: exactly equal at
 every step and dump over the 3000 steps (docs/lammps.md lists the arithmetic differences of the
 two codes that the flavour reproduces).

@@ -1,4 +1,4 @@
-"""Contact laws as plug-ins (issue 16 item 1): a law registered here, in a test module only, runs
+"""Contact laws as plug-ins: a law registered here, in a test module only, runs
 through the unchanged integrator and neighbour list of gransim.dem and gives the analytic two-disk
 impact; the Hooke laws still are plug-ins of the same loop; checkpoints round-trip bit for bit
 through the run file in both flavours; the compiled loop of a law is loaded from numba's disk cache

@@ -1,5 +1,5 @@
-"""Each contact law of gransim.contacts, native vs its code, step for step on a periodic assembly
-(issue 16 item 2): the biaxial short case (reference_runs.decks.biaxial.short_case(): 120 disks,
+"""Each contact law of gransim.contacts, native vs its code, step for step on a periodic assembly:
+the biaxial short case (reference_runs.decks.biaxial.short_case(): 120 disks,
 servo on x, compression on y, contacts across the boundary, neighbour-list rebuilds) with the law
 of reference_runs.decks.biaxial.short_case_law(name), 3000 steps at dt = 2e-6 s (every law).
 Stored runs: reference_runs/stored/biaxial-short-<name>/ (README: code, command, date).

@@ -1,4 +1,4 @@
-"""``gransim shear --law``: the sheared cell on a plug-in law from the command line (task H1). A
+"""``gransim shear --law``: the sheared cell on a plug-in law from the command line. A
 Hertz run (hertz-granular-lammps from material constants) records the law in its run file and
 its shear stress builds up; a law in LIGGGHTS' arithmetic and --law-param without --law are
 refused (exit 2, the message naming the option)."""

@@ -1,10 +1,11 @@
 """True periodic simple shear (gransim.dem.sheared): the sheared cell with LAMMPS' ``remap v``
 (Lees-Edwards) convention, step for step against LAMMPS 29 Sep 2021, and its physics.
 
-Stored reference: reference_runs/stored/shear-short-lammps (README: provenance). Tolerances
-(issue 15): positions within 1e-10 D50, stress within 1e-8 relative (of the largest component at
-that step). Measured on this machine over the 3000 steps: constant volume 2.5e-13 D50 / 3.1e-13,
-servo 7e-14 D50 / 1.3e-13 (summation order of the neighbour list differs from LAMMPS').
+Stored reference: reference_runs/stored/shear-short-lammps (README: provenance). Tolerances (those
+of every step-for-step comparison, docs/validation.md): positions within 1e-10 D50, stress within
+1e-8 relative (of the largest component at that step). Measured on this machine over the 3000
+steps: constant volume 2.5e-13 D50 / 3.1e-13, servo 7e-14 D50 / 1.3e-13 (summation order of the
+neighbour list differs from LAMMPS').
 """
 
 from __future__ import annotations

@@ -243,7 +243,7 @@ def test_parallel_mode_matches_the_serial_mode_to_round_off_with_several_tasks()
     np.testing.assert_array_equal(ra["n_contacts"], rb["n_contacts"])
 
 
-# ----------------------------------------------------------------- memory-saving rewrites (issue 17)
+# ----------------------------------------------------------------------------------- memory-saving rewrites
 def test_ghost_room_grown_from_a_small_guess_gives_the_same_list():
     # the ghosts' room starts from a guess and is doubled until they fit: from 1, several times
     p = _assembly(seed=11)

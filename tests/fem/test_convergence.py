@@ -1,4 +1,4 @@
-"""Q1 mesh convergence against an exact linear-elastic solution (issue 19: a rate, not a number).
+"""Q1 mesh convergence against an exact linear-elastic solution (a convergence rate, not a single number).
 
 Exact solution of the Navier equations (lam + mu) grad div u + mu lap u = 0 without body force:
 u = a grad phi with the harmonic phi = exp(x) cos(y), i.e. u = a (exp(x) cos y, -exp(x) sin y)

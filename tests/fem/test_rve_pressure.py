@@ -1,6 +1,6 @@
 """The RVE's stress scale on the FE side, and shear-stabilised (sheared-cell) RVEs in the slope.
 
-Issue 18 (docs/slope.md, "Pressure-scaled shear-stabilised RVEs"): the FE2 slope sees the RVE's
+From docs/slope.md, "Pressure-scaled shear-stabilised RVEs": the FE2 slope sees the RVE's
 Taylor stress at F = 1 as its prestress, in Pa at unit thickness (gransim.fem.materials.RVEMaterial).
 These checks tie that stress to the packing's generation pressure and to its contacts, independently
 of the RVE kernels, and check that a packing in a sheared cell (``make_packing(..., cell="shape")``)

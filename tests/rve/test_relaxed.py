@@ -1,4 +1,4 @@
-"""Physics checks of the relaxed periodic RVE (gransim.rve.relaxed, issue #18 items 1-2).
+"""Physics checks of the relaxed periodic RVE (gransim.rve.relaxed).
 
 Derivative consistency (P = dW_rel/dF, A = dP/dF by central differences on states whose active
 set does not change within the step), major symmetry, the Taylor bound W_rel <= W_Taylor on the

@@ -1,4 +1,4 @@
-"""The DCEL face-closure check (issue 19): a face whose half-edge vectors do not add up to zero
+"""The DCEL face-closure check: a face whose half-edge vectors do not add up to zero
 winds around the torus; ``faces_from_next`` and ``build_dcel`` must refuse it, naming the face and
 its particles. The rotation systems are built here independently of gransim (sort by angle)."""
 
