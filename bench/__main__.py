@@ -23,8 +23,9 @@ from gransim.io import git_commit, liggghts_version
 
 
 def _num(v) -> str:
-    """A record's value for the tables: 4 significant digits, or "not measured" (None)."""
-    return "not measured" if v is None else f"{v:.4g}"
+    """A record's value for the tables: 4 significant digits, "not measured" (None), or "NaN (FAIL)"
+    (:func:`bench.show`)."""
+    return bench.show(v)
 
 
 def machine() -> dict:
@@ -64,7 +65,7 @@ def main(argv=None) -> int:
             print(f"bench: unknown area(s) {sorted(unknown)}; known: {areas}", file=sys.stderr)
             return 2
         areas = [a for a in areas if a in args.only]
-    records, failures = [], []
+    records, failures, bad_records = [], [], []
     for area in areas:
         t0 = time.perf_counter()
 
@@ -77,6 +78,9 @@ def main(argv=None) -> int:
                 continue
             for r in mod.run(quick=args.quick):
                 r.setdefault("area", area)
+                problem = bench.judge_record(r)  # a NaN or inf figure is a failure, not a number
+                if problem:
+                    bad_records.append(f"{area}: {problem}")
                 records.append(r)
                 print(
                     f"[bench]   {r['name']}: {_num(r['value'])} {r.get('unit', '')} (target {r.get('target')})",
@@ -88,13 +92,21 @@ def main(argv=None) -> int:
         print(f"[bench] {area} done in {time.perf_counter() - t0:.1f} s", flush=True)
     out = Path(args.results)
     out.mkdir(parents=True, exist_ok=True)
-    doc = {"machine": machine(), "quick": args.quick, "records": records, "failed_areas": failures}
+    doc = {
+        "machine": machine(),
+        "quick": args.quick,
+        "records": records,
+        "failed_areas": failures,
+        "failed_records": bad_records,
+    }
     tmp = out / ".bench.json.tmp"
     tmp.write_text(json.dumps(doc, indent=1, default=str))
     os.replace(tmp, out / "bench.json")
     _html(out / "report", doc)
     print(f"[bench] wrote {out / 'bench.json'}")
-    return 1 if failures else 0
+    for msg in bad_records:
+        print(f"[bench] FAIL: {msg}", file=sys.stderr)
+    return 1 if failures or bad_records else 0
 
 
 def _html(report: Path, doc: dict) -> None:

@@ -21,14 +21,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import shutil
-import statistics
 import subprocess
 import sys
 import tarfile
 import tempfile
 from pathlib import Path
+
+from bench import median, show
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -143,7 +145,7 @@ def compare(
     npart = ready["head"]["n"]
 
     def tput(side):
-        return statistics.median(npart * window / w["loop_s"] for w in per[side])
+        return median(npart * window / w["loop_s"] for w in per[side])
 
     out = {
         "base": base,
@@ -154,7 +156,7 @@ def compare(
         "window_steps": window,
         "windows": windows,
         "warm_steps": warm,
-        "ratio_median": statistics.median(ratios),
+        "ratio_median": median(ratios),
         "ratio_min": min(ratios),
         "ratio_max": max(ratios),
         "base_pstep_per_s": tput("base"),
@@ -231,6 +233,9 @@ def main(argv=None) -> int:
         raise SystemExit("ab_dem: git is needed to check out the base revision")
     res = compare(a.base, a.head, a.n, a.window, a.windows, a.warm, a.mode, a.threads)
     print(json.dumps(res, indent=1))
+    if not math.isfinite(res["ratio_median"]):  # a NaN window (a zero or NaN loop time): no figure
+        print(f"[ab] head/base throughput ratio: {show(res['ratio_median'])}: a window's ratio is not a finite number")
+        return 1
     print(
         f"[ab] head/base throughput: median {res['ratio_median']:.3f} (min {res['ratio_min']:.3f}, max "
         f"{res['ratio_max']:.3f}) over {a.windows} interleaved windows; load {res['load_before'][0]:.2f} -> "

@@ -52,13 +52,13 @@ import json
 import math
 import os
 import shutil
-import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+from bench import median, print_records
 from bench._memory import run_child
 from reference_runs.decks.biaxial import write_biaxial_deck
 
@@ -221,8 +221,8 @@ def _busy_records(size, tmp: Path, log, repeats: int) -> list:
     for two, one in ((FAST_2, FAST_1), (NATIVE_2, NATIVE_1)):
         if two not in res:
             continue
-        r2 = statistics.median(j["rate"] for j in res[two])
-        r1 = statistics.median(j["rate"] for j in res[one])
+        r2 = median(j["rate"] for j in res[two])
+        r1 = median(j["rate"] for j in res[one])
         loads = [j["load"] for j in res[two] + res[one]]
         recs.append(
             {
@@ -288,7 +288,7 @@ def _records(
             recs.append(
                 {
                     "name": f"{c}, {n:,} disks",
-                    "value": statistics.median(rates),
+                    "value": median(rates),
                     "unit": "particle-steps/s",
                     "target": None,
                     "n": n,
@@ -307,13 +307,13 @@ def _records(
                 recs.append(
                     {
                         "name": f"{c} whole process, {n:,} disks",
-                        "value": statistics.median(whole),
+                        "value": median(whole),
                         "unit": "s",
                         "target": None,
                         "n": n,
                         "samples": whole,
                         "note": f"{_spread(whole)}; wall time of the job's process from start to exit "
-                        f"(loop {statistics.median(j['loop_s'] for j in jobs):.3g} s of it)" + _loads(jobs),
+                        f"(loop {median(j['loop_s'] for j in jobs):.3g} s of it)" + _loads(jobs),
                     }
                 )
             mem = [j["peak_kib"] / MIB for j in jobs]
@@ -325,7 +325,7 @@ def _records(
                 how = (
                     f"VmHWM of the {'lmp' if code == 'lammps' else 'liggghts'} process"
                     if CONFIGS[c][1] == 1
-                    else f"sum of the VmHWM of the {CONFIGS[c][1]} ranks (largest rank {statistics.median(ranks):.0f} MiB)"  # noqa: E501
+                    else f"sum of the VmHWM of the {CONFIGS[c][1]} ranks (largest rank {median(ranks):.0f} MiB)"  # noqa: E501
                 )
                 how += (
                     f", sampled at 20 Hz (lower bound); {'LAMMPS' if code == 'lammps' else 'LIGGGHTS'}' own "
@@ -337,7 +337,7 @@ def _records(
             recs.append(
                 {
                     "name": f"{c} peak memory, {n:,} disks",
-                    "value": statistics.median(mem),
+                    "value": median(mem),
                     "unit": "MiB",
                     "target": None,
                     "n": n,
@@ -346,7 +346,7 @@ def _records(
                 }
             )
             if baselines and c in baselines:
-                v = statistics.median(mem) - baselines[c]
+                v = median(mem) - baselines[c]
                 above[(n, c)] = v
                 what = (
                     "the same process without packing"
@@ -360,15 +360,14 @@ def _records(
                         "unit": "MiB",
                         "target": None,
                         "n": n,
-                        "note": f"median peak {statistics.median(mem):.0f} MiB minus the baseline "
-                        f"{baselines[c]:.0f} MiB ({what})",
+                        "note": f"median peak {median(mem):.0f} MiB minus the baseline {baselines[c]:.0f} MiB ({what})",
                     }
                 )
         for num, den, target in RATIOS:
             a, b = res.get((n, num)), res.get((n, den))
             if not a or not b:
                 continue
-            ratio = statistics.median(j["rate"] for j in a) / statistics.median(j["rate"] for j in b)
+            ratio = median(j["rate"] for j in a) / median(j["rate"] for j in b)
             paired = [x["rate"] / y["rate"] for x, y in zip(a, b)]
             recs.append(
                 {
@@ -399,7 +398,7 @@ def _records(
                 }
             )
     for c in configs:
-        pts = [(n, 1e9 / statistics.median(j["rate"] for j in res[(n, c)])) for n in sizes_n if (n, c) in res]
+        pts = [(n, 1e9 / median(j["rate"] for j in res[(n, c)])) for n in sizes_n if (n, c) in res]
         if not pts:
             continue
         ys = [y for _, y in pts]
@@ -482,7 +481,7 @@ def _bandwidth_records(res: dict, sizes_n) -> list:
         e = jobs[0]["entries"] / n
         byt = fast_bytes_per_particle_step(e)
         floor = byt / bw * 1e9
-        meas = 1e9 / statistics.median(j["rate"] for j in jobs)
+        meas = 1e9 / median(j["rate"] for j in jobs)
         recs.append(
             {
                 "name": f"fast 1 thread: memory-bound floor, {n:,} disks",
@@ -546,7 +545,7 @@ def _profile_records(prof: dict, res: dict, n_lig: int | None) -> list:
             recs.append(
                 {
                     "name": f"{c} profile, {n_lig:,} disks: {part}",
-                    "value": statistics.median(pct),
+                    "value": median(pct),
                     "unit": "% of loop",
                     "target": None,
                     "note": note,
@@ -589,11 +588,11 @@ def run(quick: bool = False) -> list[dict]:
     )
     for mode, threads, c in bases:
         base = [_child("baseline", mode, threads)["peak_kib"] / MIB for _ in range(1 if quick else 2)]
-        baselines[c] = statistics.median(base)
+        baselines[c] = median(base)
         recs.append(
             {
                 "name": f"{c} baseline peak memory (no packing)",
-                "value": statistics.median(base),
+                "value": median(base),
                 "unit": "MiB",
                 "target": None,
                 "note": "the native job's process with its imports (numpy, numba, gransim.dem), kernels loaded "
@@ -639,7 +638,7 @@ def run(quick: bool = False) -> list[dict]:
         for c in (LIG_1, LIG_2, LMP_1, LMP_2):  # a code's baseline: its peak on the smallest assembly
             small = [n for n in sizes_n if (n, c) in res]
             if small:
-                baselines[c] = statistics.median(j["peak_kib"] / MIB for j in res[(small[0], c)])
+                baselines[c] = median(j["peak_kib"] / MIB for j in res[(small[0], c)])
         recs += _records(res, sizes_n, ALL_CONFIGS, judge=not quick, baselines=baselines, rerun=_rerun(quick))
         recs += _busy_records(QUICK_BUSY if quick else BUSY, Path(tmp), log, repeats)
         recs += _bandwidth_records(res, sizes_n)
@@ -708,6 +707,4 @@ if __name__ == "__main__":
         recs = sweep([float(x) for x in args.sizes.split(",")], args.configs.split(","), args.repeats)
     else:
         recs = run(quick=args.quick)
-    for r in recs:
-        tgt = "" if r["target"] is None else f"  (target {r['target']})"
-        print(f"{r['name']:56s} {r['value']:12.4g} {r['unit']}{tgt}  [{r['note']}]")
+    sys.exit(print_records(recs))  # a NaN or inf figure: printed as NaN (FAIL), exit 1

@@ -284,5 +284,6 @@ def run(quick: bool = False) -> list[dict]:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    for r in run(quick="--quick" in sys.argv):
-        print(f"{r['name']:44s} {r['value']:10.4f} {r['unit']:3s} {r['target']:6s} {r['note']}")
+    from bench import print_records
+
+    sys.exit(print_records(run(quick="--quick" in sys.argv)))  # a NaN or inf figure: FAIL, exit 1

@@ -26,7 +26,6 @@ Run alone: ``python -m bench --only generation``.
 
 import json
 import os
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -35,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench import median
 from gransim.generation import get_distribution, make_packing
 from gransim.generation.front import FRONT_PHI, front_packing
 from gransim.generation.stiffness import backbone, contact_pairs, enthalpy_derivatives, newton_step
@@ -198,7 +198,7 @@ def run(quick: bool):
     for seed in (1, 2, 3):
         t, meta = _time(700, seed)
         times.append(t)
-    med = statistics.median(times)
+    med = median(times)
     out.append(
         {
             "name": "packing 700 disks (quartz-sand)",

@@ -57,5 +57,8 @@ def run(quick: bool = True) -> list[dict]:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    for rec in run(quick=False):
-        print(rec)
+    import sys
+
+    from bench import print_records
+
+    sys.exit(print_records(run(quick=False)))  # a NaN or inf figure: FAIL, exit 1

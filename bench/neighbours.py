@@ -119,5 +119,10 @@ if __name__ == "__main__":
     import json
     import sys
 
+    from bench import judge_record
+
+    failed = False
     for rec in run(quick="--quick" in sys.argv):
+        failed |= judge_record(rec) is not None  # a NaN or inf figure: marked failed in its record
         print(json.dumps(rec))
+    sys.exit(1 if failed else 0)

@@ -108,5 +108,6 @@ def run(quick: bool = False) -> list[dict]:
 if __name__ == "__main__":
     import sys
 
-    for rec in run(quick="--quick" in sys.argv):
-        print(f"{rec['name']:34s} {rec['value']:12.4g} {rec['unit']:30s} target {rec['target']:8s} {rec['note']}")
+    from bench import print_records
+
+    sys.exit(print_records(run(quick="--quick" in sys.argv)))  # a NaN or inf figure: FAIL, exit 1

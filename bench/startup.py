@@ -30,12 +30,13 @@ from __future__ import annotations
 
 import os
 import shutil
-import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from bench import median
 
 ROOT = Path(__file__).resolve().parents[1]
 GRANSIM = [sys.executable, "-m", "gransim"]
@@ -180,7 +181,7 @@ def _biaxial_records(tmp: Path, repeats: int, log, quick: bool = False) -> list[
             wall, cpu = _timed(run, env=_env(cache), cwd=tmp)
             res[kind].append((wall, cpu, load))
             log(f"first gransim biaxial, {kind}: {wall:.2f} s wall, {cpu:.2f} s cpu, load {load:.2f}")
-    med = {k: (statistics.median(w for w, _, _ in v), statistics.median(c for _, c, _ in v)) for k, v in res.items()}
+    med = {k: (median(w for w, _, _ in v), median(c for _, c, _ in v)) for k, v in res.items()}
     loads = [ld for v in res.values() for _, _, ld in v]
     note = f"1,020-disk lattice, gransim biaxial {' '.join(BIAXIAL)}; load {min(loads):.1f}..{max(loads):.1f}"
     out = [
@@ -251,20 +252,20 @@ def _overhead_records(tmp: Path, size, repeats: int, log) -> list[dict]:
         if not v:
             continue
         over = [w - lp for w, lp, _ in v]
-        med[kind] = statistics.median(over)
+        med[kind] = median(over)
         out.append(
             {
                 "name": f"whole-process overhead (whole - loop), {kind}, {p.n} disks, {steps} steps",
                 "value": med[kind],
                 "unit": "s",
-                "note": f"{_spread(over)}; whole {statistics.median(w for w, _, _ in v):.2f} s, loop "
-                f"{statistics.median(lp for _, lp, _ in v):.2f} s; load "
+                "note": f"{_spread(over)}; whole {median(w for w, _, _ in v):.2f} s, loop "
+                f"{median(lp for _, lp, _ in v):.2f} s; load "
                 f"{min(x[2] for x in v):.1f}..{max(x[2] for x in v):.1f}",
             }
         )
     if len(med) == 2:
-        wn = statistics.median(w for w, _, _ in res["native"])
-        wl = statistics.median(w for w, _, _ in res["LIGGGHTS"])
+        wn = median(w for w, _, _ in res["native"])
+        wl = median(w for w, _, _ in res["LIGGGHTS"])
         out.append(
             {
                 "name": f"whole-process overhead native / LIGGGHTS, {p.n} disks, {steps} steps",
@@ -372,12 +373,12 @@ def _numba_floor_records(repeats: int) -> list[dict]:
     return [
         {
             "name": "numba floor: whole process importing numpy and numba, one cached trivial kernel called",
-            "value": statistics.median(whole),
+            "value": median(whole),
             "unit": "s",
             "note": (
                 f"median of {repeats}; of the median run: numpy {np_s:.2f} s, import numba {nb_s:.2f} s, "
                 f"first call of the cached kernel {first_s:.2f} s (numba's one-time registry set-up); "
-                f"a numpy-only interpreter {statistics.median(base):.2f} s; load {_load():.2f}"
+                f"a numpy-only interpreter {median(base):.2f} s; load {_load():.2f}"
             ),
         }
     ]
