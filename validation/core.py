@@ -53,7 +53,7 @@ class Record:
             raise ValueError(f"Record.kind: expected one of {RECORD_KINDS}, got {self.kind!r}")
         if self.pair and self.pair not in PAIRS:
             raise ValueError(f"Record.pair: expected one of {tuple(PAIRS)}, got {self.pair!r}")
-        if self.kind == "check" and self.passed:
+        if self.kind == "check" and "[FAIL: " not in self.metric:
             # whatever rule set ``passed``, a check never passes on a NaN or inf value or tolerance
             # (``nan <= tol`` is False but ``not nan > tol`` is True; max() drops a NaN after a number)
             problem = verdict_problem(self.value, self.tolerance, self.quantity)
@@ -126,12 +126,10 @@ def compare(case: str, quantity: str, metric: str, value: float, tolerance: floa
         tol = float(tolerance)
     except (TypeError, ValueError):
         tol = math.nan
-    problem = next(
-        (p for side, arr in (inputs or {}).items() if (p := finite_problem(arr, quantity, side))), None
-    ) or verdict_problem(value, tol, quantity)
+    problem = next((p for side, arr in (inputs or {}).items() if (p := finite_problem(arr, quantity, side))), None)
     if problem:
         return Record(case, quantity, f"{metric} [FAIL: {problem}]", value, tol, False, reason)
-    return Record(case, quantity, metric, value, tol, within(value, tol), reason)
+    return Record(case, quantity, metric, value, tol, within(value, tol), reason)  # NaN, inf: named by Record
 
 
 def info(case: str, quantity: str, metric: str, value: float, reason: str) -> Record:
