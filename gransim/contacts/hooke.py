@@ -5,7 +5,7 @@ The elastic part of the normal force is :func:`gransim.contacts.law.force_magnit
 (eq (5) of Meier et al.: F = E_n eps with E_n = kn); this module adds what the DEM needs:
 mass-scaled viscous damping, the incremental tangential spring and the Coulomb cap, in the
 exact floating-point order of LIGGGHTS-PUBLIC 3.8.0 (surface_model_default.h,
-normal_model_hooke_stiffness.h, tangential_model_history.h; see shared notes liggghts-3.8.md).
+normal_model_hooke_stiffness.h, tangential_model_history.h; docs/liggghts.md).
 
 Conventions (2D, all SI): the pair is (i, j) with d = x_i - x_j (j possibly a periodic image),
 n = d/|d| pointing from j to i, overlap delta = r_i + r_j - |d| > 0. Forces returned act on i;

@@ -1,8 +1,8 @@
 """The elastic normal contact of Meier, Steinmann & Kuhl, eqs (3)-(5), as scalar jitted functions.
 
 These are the single source of the normal law: the Taylor RVE (gransim.rve) and the
-DEM (gransim.dem, whose LIGGGHTS ``hooke/stiffness`` normal spring is the same law
-plus damping) call them inside their loops.
+DEM (gransim.dem, whose Hooke normal spring, LIGGGHTS' ``hooke/stiffness`` or LAMMPS'
+``gran/hooke/history``, is the same law plus damping) call them inside their loops.
 
 Symbols: r_i, r_j radii (m); dist = |l_ij| centre distance (m); eps = r_i + r_j - dist
 overlap (m), positive in contact; kn = E_n normal stiffness (N/m).

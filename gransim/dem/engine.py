@@ -1,8 +1,10 @@
 """The DEM engine: disks in an orthogonal periodic cell whose side lengths change each step.
 
 It follows the step of LIGGGHTS-PUBLIC 3.8.0 (serial, ``newton off``, ``neigh_modify delay 0
-every 1 check yes``, ``fix deform ... remap x``) so that, with the same settings, trajectories
-agree to round-off (shared notes liggghts-3.8.md). Step n:
+every 1 check yes``, ``fix deform ... remap x``; docs/liggghts.md), which LAMMPS 29 Sep 2021 shares,
+so that, with the same settings, trajectories agree with either code to round-off:
+``DEMSettings.flavour`` picks the code's contact-law arithmetic and rebuild rule ("liggghts", the
+default, or "lammps": docs/lammps.md). Step n:
 
 1. nve/sphere first half step (kernels.initial_integrate);
 2. neighbour check with the skin and the box displacement; on a rebuild: wrap into the box,
@@ -12,7 +14,7 @@ agree to round-off (shared notes liggghts-3.8.md). Step n:
 5. loading: the box moves to its value at step n (servo uses the stress of step n divided by
    the area of box n-1, as a ``fix ave/time`` of ``compute pressure`` evaluated before
    ``fix deform``), positions remapped affinely;
-6. stress of step n = virial / area of box n (LIGGGHTS thermo at step n).
+6. stress of step n = virial / area of box n (the thermo of either code at step n).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Numba kernels of the DEM step (contiguous float64/int64 arrays; no validation here).
 
-Order of one step (LIGGGHTS 3.8.0 ``verlet.cpp``, serial; shared notes liggghts-3.8.md):
+Order of one step (LIGGGHTS 3.8.0 ``verlet.cpp``, serial; docs/liggghts.md; LAMMPS' is the same):
 ``initial_integrate`` -> ``check_rebuild`` (-> ``pbc_wrap`` + new list) -> ``forces`` ->
 ``final_integrate`` -> box change with ``remap_x``. Mode "parallel" runs the same step on numba's
 threads in tasks of :data:`PARTICLE_BLOCK` particles: ``initial_check_threaded`` ->

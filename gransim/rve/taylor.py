@@ -18,7 +18,7 @@ Every pair is counted once (the paper's double sum with its factor 1/2). Units a
 of a 2D model: E_n in N/m, so stresses are forces per length (N/m) and W is J/m^2.
 
 **Sign convention: tension positive** (continuum mechanics): a compressed RVE has negative
-normal stresses. LIGGGHTS' ``compute pressure`` is compression positive, p = -tr(sigma)/2.
+normal stresses. ``compute pressure`` of LIGGGHTS and of LAMMPS is compression positive, p = -tr(sigma)/2.
 
 **Tangent index convention:** ``A[i, J, k, L] = dP[i, J] / dF[k, L]``; it has the major
 symmetry A_iJkL = A_kLiJ (it is the Hessian of W).

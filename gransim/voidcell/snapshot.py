@@ -1,7 +1,8 @@
 """The input of the void-cell analysis: a frozen snapshot of particle centres, contacts, motion.
 
-A later adapter builds it from native DEM HDF5 output or from parsed LIGGGHTS dumps
-(:func:`gransim.voidcell.io.load_run_snapshots` reads the DEM schema of docs/schema_dem.md).
+Built from native DEM HDF5 output (:func:`gransim.voidcell.io.load_run_snapshots` reads the DEM
+schema of docs/schema_dem.md), from parsed LIGGGHTS dumps, or from LAMMPS dumps (the simple-shear
+validation builds the native and the LAMMPS snapshots the same way).
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ A *state* is a name and F. The deformed assembly is the reference RVE mapped aff
   (``gran/hooke/history``, ``fix nve/sphere disc``). The native engine
   (:class:`gransim.dem.DEMEngine` in that code's flavour) mirrors each deck step for step.
 * simple shear F = [[1, g], [0, 1]] (LAMMPS only: LIGGGHTS 3.8.0's triclinic boxes have no periodic
-  ghosts, shared notes): a true periodic triclinic box F C (data file with its ``xy`` tilt, centres
+  ghosts, docs/liggghts.md): a true periodic triclinic box F C (data file with its ``xy`` tilt, centres
   x = F X, :func:`reference_runs.decks.taylor.triclinic_state`), the deck of
   :func:`reference_runs.decks.shear.deck_text` with ``ShearLoading()`` (no ``fix deform``: the box
   stays); native :class:`gransim.dem.sheared.ShearEngine` (flavour lammps).
@@ -230,7 +230,7 @@ def write_job(
         if engine != "lammps":
             raise InputError(
                 "engine: a sheared (triclinic) periodic box runs in LAMMPS only (LIGGGHTS 3.8.0 loses the "
-                "periodic ghosts of tilted boxes, shared notes liggghts-3.8.md)"
+                "periodic ghosts of tilted boxes, docs/liggghts.md)"
             )
         data = "data.shear"
         c = q.cell

@@ -56,7 +56,7 @@ from .deform import STYLES, TILT_STYLES, AxisDeform, DeformSpec
 #: why a LIGGGHTS deck with a tilt is refused
 LIGGGHTS_TILT = (
     "LIGGGHTS 3.8.0's triclinic box loses the periodic ghosts (contacts across the tilted "
-    "boundary are missed; shared notes liggghts-3.8.md), so a sheared LIGGGHTS deck is not "
+    "boundary are missed; docs/liggghts.md), so a sheared LIGGGHTS deck is not "
     "replayed: use a LAMMPS deck (`change_box all triclinic`, `fix deform 1 xy erate R remap v`)"
 )
 

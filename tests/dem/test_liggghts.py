@@ -1,11 +1,12 @@
 """Step-for-step agreement of gransim.dem with LIGGGHTS 3.8.0 on the same deck.
 
-Stored reference: reference_runs/stored/biaxial-short (README: provenance). Tolerances (issue 4):
-positions within 1e-10 D50, stresses within 1e-8 relative (of the largest stress component at
-that step: sigma_xy passes through zero). The engine does the same floating-point operations in
-the same order as LIGGGHTS, including its neighbour-list order (ghosts, bins, stencil), so the
-measured difference is exactly zero over the 3000 steps on this machine; the tolerances leave
-room for another CPU or compiler (round-off then grows with the dynamics, shared notes).
+Stored reference: reference_runs/stored/biaxial-short (README: provenance). Tolerances (those of
+every step-for-step comparison, docs/validation.md): positions within 1e-10 D50, stresses within
+1e-8 relative (of the largest stress component at that step: sigma_xy passes through zero). The
+engine does the same floating-point operations in the same order as LIGGGHTS, including its
+neighbour-list order (ghosts, bins, stencil), so the measured difference is exactly zero over the
+3000 steps on this machine; the tolerances leave room for another CPU or compiler (round-off then
+grows with the dynamics: docs/liggghts.md, "How fast round-off grows").
 """
 
 from __future__ import annotations

@@ -46,7 +46,7 @@ def test_memory_estimate_belongs_to_its_run():
 
 
 def test_neighbour_builds_match_the_native_engine():
-    # independent implementation: gransim.dem follows LIGGGHTS' rebuild rule (shared notes), so over the
+    # independent implementation: gransim.dem follows LIGGGHTS' rebuild rule (docs/liggghts.md), so over the
     # first run it rebuilds as often as LIGGGHTS reports (its own count includes the set-up build, which
     # LIGGGHTS leaves out)
     from bench.dem import LOADING, SETTINGS, assembly
