@@ -430,3 +430,198 @@ def test_reference_taylor_on_two_coincident_disks_fails_naming_the_nan(real_ligg
     assert "PASS" not in out
     assert "FAIL: stress of state 0 of compression-11, images route of coincident (liggghts) is NaN" in out
     assert "= nan (FAIL" in out
+
+
+# ----------------------------------------------------------------------------- replay
+def _replay_fakes(monkeypatch, tmp_path, code_frames, nat_frames, thermo):
+    """A deck of 3 disks, 2 steps, thermo every step (lx, c_p[1]) and one dump every step
+    (x y vx fx); the code's log and dump are ``thermo`` {column: values} and ``code_frames``."""
+    from reference_runs.replay import compare as rc
+
+    ids = [1, 2, 3]
+    dump = types.SimpleNamespace(file="dump.atoms", every=1, id="d1", columns=["id", "x", "y", "vx", "fx"])
+    deck = types.SimpleNamespace(
+        nsteps=2,
+        thermo_every=1,
+        thermo_columns=["lx", "c_p[1]"],
+        d50=1e-3,
+        packing=types.SimpleNamespace(n=3),
+        engine="liggghts",
+        dumps=[dump],
+        ids=ids,
+    )
+    steps = np.arange(3)
+    nat = types.SimpleNamespace(
+        lo=np.zeros((3, 2)),
+        hi=np.ones((3, 2)) * 0.01,
+        xy=None,
+        p=np.ones(3),
+        pressure=np.ones((3, 6)),
+        frames=nat_frames,
+    )
+
+    class Run:
+        complete = True
+
+        def __init__(self):
+            self.steps = steps
+
+        def column(self, kw):
+            return np.asarray(thermo[kw], float)
+
+    log = types.SimpleNamespace(errors=[], runs=[Run()], version="x")
+
+    class Frame(dict):
+        def __init__(self, step, cols):
+            super().__init__(cols)
+            self.step = step
+
+    monkeypatch.setattr(rc, "parse_log", lambda path: log)
+    monkeypatch.setattr(rc, "parse_dump_custom", lambda path: [Frame(s, c) for s, c in code_frames.items()])
+    (tmp_path / "dump.atoms").write_text("")
+    return rc, deck, nat, {"dump.atoms": tmp_path / "dump.atoms"}
+
+
+def _frames(n_steps=3):
+    rng = np.random.default_rng(0)
+    return {
+        s: {"id": np.array([1, 2, 3]), "x": rng.uniform(0, 1e-2, 3), "y": rng.uniform(0, 1e-2, 3),
+            "vx": rng.normal(size=3), "fx": rng.normal(size=3)}
+        for s in range(n_steps)
+    }  # fmt: skip
+
+
+def _copy(frames):
+    return {s: {k: v.copy() for k, v in f.items()} for s, f in frames.items()}
+
+
+@pytest.mark.parametrize("side", ["liggghts", "native"])
+@pytest.mark.parametrize("col", ["x", "vx", "fx"])
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_replay_dump_check_fails_on_a_nan_in_a_later_frame(monkeypatch, tmp_path, side, col, bad):
+    code = _frames()
+    nat = _copy(code)
+    (code if side == "liggghts" else nat)[2][col][1] = bad  # frame 2 after two equal frames
+    thermo = {"lx": np.full(3, 0.01), "c_p[1]": np.ones(3)}
+    rc, deck, natrun, paths = _replay_fakes(monkeypatch, tmp_path, code, nat, thermo)
+    checks = {c.quantity: c for c in rc.compare_dumps(deck, natrun, paths)}
+    c = checks[f"dump d1 {col}"]
+    assert not c.passed
+    assert f"dump d1 {col} at step 2 ({side}) is {_word(bad)}" in c.detail, c.detail
+    others = [k for k in ("x", "vx", "fx") if k != col]
+    assert all(checks[f"dump d1 {k}"].passed for k in others)
+
+
+@pytest.mark.parametrize("side", ["liggghts", "native"])
+@pytest.mark.parametrize("column", ["lx", "c_p[1]"])
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_replay_thermo_check_fails_naming_the_column(monkeypatch, tmp_path, side, column, bad):
+    code = _frames()
+    thermo = {"lx": np.full(3, 0.01), "c_p[1]": np.ones(3)}
+    if side == "liggghts":
+        thermo[column] = thermo[column].copy()
+        thermo[column][2] = bad
+    rc, deck, natrun, paths = _replay_fakes(monkeypatch, tmp_path, code, _copy(code), thermo)
+    if side == "native":
+        if column == "lx":
+            natrun.hi[2, 0] = bad
+        else:
+            natrun.pressure[2, 0] = bad
+    checks = {c.quantity.split(" (")[0]: c for c in rc.compare_thermo(deck, natrun, tmp_path / "log")}
+    c = checks[f"thermo {column}"]
+    assert not c.passed and f"thermo {column} ({side}) is" in c.detail, c.detail
+    other = "c_p[1]" if column == "lx" else "lx"
+    assert checks[f"thermo {other}"].passed
+
+
+def test_replay_without_frames_or_checks_fails(monkeypatch, tmp_path):
+    rc, deck, natrun, paths = _replay_fakes(monkeypatch, tmp_path, {}, _frames(), {})
+    checks = rc.compare_dumps(deck, natrun, paths)
+    assert checks and not any(c.passed for c in checks)  # frames missing, and nothing compared
+    assert not rc.ReplayResult(deck, [], tmp_path, "x").passed  # no check at all: not a pass
+    c = rc.Check("stress", "max rel", math.nan, 1e-8, True)  # whatever rule set passed
+    assert not c.passed and "stress is NaN" in c.detail
+
+
+# ----------------------------------------------------------------------------- benchmarks
+def _bench_job(n, rate, peak_mib=100.0, steps=10, code=False):
+    j = {"n": n, "steps": steps, "loop_s": n * steps / rate, "rate": rate, "rebuilds": 1, "peak_kib": peak_mib * 1024}
+    if code:  # a LIGGGHTS/LAMMPS job (as tests/foundation/test_bench_dem_records.py builds them)
+        j.update(rank_peaks_kib=[peak_mib * 1024], memory_mb_estimate=1.0, breakdown={"Pair": 0.5, "Other": 0.1})
+    else:
+        j["contacts"] = 3
+    return j
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_bench_ratio_over_a_nan_rate_is_a_failure_not_a_number(bad):
+    """A NaN rate in the middle of three repeats: statistics.median sorted it anywhere and the
+    ratio of medians came out a plausible number."""
+    import bench
+    from bench import dem
+
+    n = 100
+    res = {
+        (n, dem.NATIVE_1): [_bench_job(n, r) for r in (3e6, bad, 2e6)],
+        (n, dem.LIG_1): [_bench_job(n, r, code=True) for r in (1e6, 2e6, 1.5e6)],
+    }
+    recs = dem._records(res, [n], [dem.NATIVE_1, dem.LIG_1])
+    ratio = next(r for r in recs if r["name"] == f"{dem.NATIVE_1} / {dem.LIG_1}, 100 disks")
+    problem = bench.judge_record(ratio)
+    assert problem == f"{dem.NATIVE_1} / {dem.LIG_1}, 100 disks is NaN"
+    assert ratio["meets"] is False and ratio["note"].startswith("FAIL: ") and ratio["value"] == "NaN"
+    assert bench.show(ratio["value"]) == "NaN (FAIL)"
+    series = next(r for r in recs if r.get("series"))
+    assert bench.judge_record(series) and "is NaN" in series["failed"] and series["meets"] is False
+    pts = {"name": "scaling", "value": 1.2, "series": [(100, 500.0), (1000, bad)]}
+    assert bench.judge_record(pts) == f"scaling: a point of its series is {_word(bad)} ((1000, {bad!r}))"
+
+
+@FAST
+@given(st.lists(st.floats(0.1, 1e9), min_size=0, max_size=6), st.integers(0, 6), BAD)
+def test_bench_median_never_hides_a_nan_or_inf(values, pos, bad):
+    import bench
+
+    vals = list(values)
+    vals.insert(min(pos, len(vals)), bad)
+    assert math.isnan(bench.median(vals))
+    assert math.isnan(bench.median([]))
+    if values:
+        assert bench.median(values) == pytest.approx(float(np.median(values)))
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf, np.float64("nan")])
+def test_bench_record_and_its_printout_fail_on_nan(bad, capsys):
+    import bench
+
+    rec = {"name": "fast / LAMMPS, 1e6 disks", "value": bad, "unit": "x", "target": ">= 1", "note": "n"}
+    assert bench.print_records([rec, {"name": "ok", "value": 1.0, "unit": "s", "target": None, "note": ""}]) == 1
+    out = capsys.readouterr().out
+    assert "(FAIL)" in out and "FAIL: fast / LAMMPS, 1e6 disks is" in out
+    assert bench.judge_record({"name": "ok", "value": 2.0}) is None
+    assert bench.judge_record({"name": "unmeasured", "value": None}) is None  # not measured: not a NaN
+    other = {"name": "gen", "value": 1.0, "ratio": bad}  # another figure of the record
+    assert bench.judge_record(other) == f"gen: its ratio is {_word(float(bad))}"
+
+
+def test_bench_suite_exits_1_naming_a_nan_record(monkeypatch, tmp_path, capsys):
+    import json
+    import sys
+
+    from bench import __main__ as bm
+
+    area = types.ModuleType("bench.zz_nan")
+    area.run = lambda quick: [
+        {"name": "zz ratio", "value": math.nan, "unit": "x", "target": ">= 1", "note": ""},
+        {"name": "zz time", "value": 1.5, "unit": "s", "target": None, "note": ""},
+    ]
+    monkeypatch.setitem(sys.modules, "bench.zz_nan", area)
+    monkeypatch.setattr(bm.pkgutil, "iter_modules", lambda path: [types.SimpleNamespace(name="zz_nan")])
+    monkeypatch.setattr(bm, "machine", lambda: {"host": "test"})
+    assert bm.main(["--results", str(tmp_path)]) == 1
+    captured = capsys.readouterr()
+    assert "zz ratio: NaN (FAIL)" in captured.out and "FAIL: zz_nan: zz ratio is NaN" in captured.err
+    doc = json.loads((tmp_path / "bench.json").read_text())  # still valid JSON (no bare NaN)
+    assert doc["failed_records"] == ["zz_nan: zz ratio is NaN"]
+    rec = doc["records"][0]
+    assert rec["meets"] is False and rec["value"] == "NaN"
