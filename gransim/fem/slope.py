@@ -1,5 +1,5 @@
 """The slope stability problem of Meier, Steinmann & Kuhl section 5 (their Fig. 6 did not survive the
-text extraction: the geometry, footing and supports are gransim's reading of it, :class:`SlopeGeometry`).
+text extraction: the slope's dimensions are gransim's reading of it, :class:`SlopeGeometry`).
 
 Plane strain, unit thickness, units m, N, kg. 20 x 19 Q1 elements (1520 Gauss points); base fixed,
 vertical sides on rollers; a rigid massless strip footing (x = 42.625 ... 65.875 m on the crest)
@@ -33,8 +33,9 @@ PROTOCOLS = {"paper": paper.FOOTING_LOAD_PAPER, "service": paper.FOOTING_LOAD_SE
 
 @dataclass(frozen=True)
 class SlopeSetup:
-    """Footing and loading data of the slope problem (defaults: gransim's reading of Meier, Steinmann &
-    Kuhl, section 5: footing 23.25 m wide on the crest, the load 3.875 m off its centre towards the slope)."""
+    """Footing and loading data of the slope problem (defaults: the problem of Meier, Steinmann & Kuhl,
+    section 5, as gransim reads it without their Fig. 6: a footing 23.25 m wide on the crest, loaded
+    3.875 m off its centre towards the slope)."""
 
     geometry: SlopeGeometry = field(default_factory=SlopeGeometry)
     footing_left: float = 42.625
