@@ -6,17 +6,117 @@ by step: :mod:`reference_runs.replay`, docs/replay.md).
 
 gransim never imports this package: ``pyproject.toml`` names :func:`register_reference` and
 :func:`register_replay` in the entry-point group ``gransim.commands`` and :mod:`gransim.cli`
-discovers them (:func:`gransim.cli.build_parser`). Module level imports only the standard library
-and :mod:`gransim.paper` (``gransim --help`` stays fast); the work is imported in the handlers.
+discovers them (:func:`gransim.cli.build_parser`). Module level imports only the standard library,
+:mod:`gransim.paper`, :mod:`gransim.errors` and :mod:`gransim.cli._paths` (``gransim --help`` stays
+fast); the work is imported in the handlers. Every option and output path is checked in the
+handler before anything runs (an :class:`~gransim.errors.InputError` naming the option: exit 2),
+and the reference jobs a command starts die with it (:func:`jobs_die_with_us`; a SIGKILL is
+covered by each job's watchdog, :func:`reference_runs.runner.start_watched`).
 """
 
 from __future__ import annotations
 
+import contextlib
+import math
+import os
 import sys
+import tempfile
+from pathlib import Path
 
+from gransim.cli._paths import integer, number
+from gransim.errors import InputError
 from gransim.paper import KN_2D
 
 DEFAULT_OUT = "results/reference"
+
+
+# ----------------------------------------------------------------------------- checks at the boundary
+# Every option is checked here, once, before anything runs: a bad value is an InputError naming the
+# option (exit 2). gransim.errors is light (no numpy), so this module keeps `gransim --help` fast.
+def _bad(option: str, want: str, value) -> Exception:
+    return InputError(f"{option}: expected {want}, got {value!r}")
+
+
+def check_count(value, option: str, low: int = 1) -> int:
+    """An integer option >= ``low`` (argparse gave an int), else InputError naming ``option``."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise _bad(option, f"an integer >= {low}", value)
+    return value
+
+
+def check_seconds(value, option: str):
+    """A duration option: None (no limit) or a finite number of seconds > 0."""
+    if value is None:
+        return None
+    v = float(value)
+    if not (math.isfinite(v) and v > 0):
+        raise _bad(option, "a finite number of seconds > 0", value)
+    return v
+
+
+def check_between(value, option: str, low: float, high: float | None = None) -> float:
+    """A real option in the open interval (low, high) (high None: no upper bound), finite."""
+    v = float(value)
+    if not (math.isfinite(v) and v > low and (high is None or v < high)):
+        want = f"a finite number > {low:g}" + ("" if high is None else f" and < {high:g}")
+        raise _bad(option, want, value)
+    return v
+
+
+def check_input_file(path, option: str) -> Path:
+    """An existing, readable regular file."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{option}: {str(p)!r} is not a file" + ("" if p.exists() else " (no such file)"))
+    if not os.access(p, os.R_OK):
+        raise InputError(f"{option}: {str(p)!r} is not readable")
+    return p
+
+
+def check_input_dir(path, option: str) -> Path:
+    """An existing, readable directory."""
+    p = Path(path)
+    if not p.is_dir():
+        raise InputError(f"{option}: {str(p)!r} is not a directory" + ("" if p.exists() else " (no such directory)"))
+    if not os.access(p, os.R_OK | os.X_OK):
+        raise InputError(f"{option}: directory {str(p)!r} is not readable")
+    return p
+
+
+def check_writable_dir(path, option: str) -> Path:
+    """An output directory: created now (with its parents) and a file written into it and removed,
+    so that a path below a file, on a read-only file system or in a directory without write
+    permission (which ``os.access`` does not see for root) is refused before any work, naming
+    ``option``."""
+    if str(path).strip() == "":
+        raise InputError(f"{option}: expected a directory name, got an empty string")
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise InputError(f"{option}: {str(p)!r} exists and is not a directory")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=p, prefix=".gransim-write-check-"):
+            pass
+    except OSError as exc:
+        raise InputError(f"{option}: cannot write into {str(p)!r}: {exc.strerror or exc}") from None
+    return p
+
+
+@contextlib.contextmanager
+def jobs_die_with_us(command: str):
+    """SIGTERM, SIGINT, SIGHUP kill the reference jobs before the command ends
+    (:func:`reference_runs.runner.kill_children_on_signals`); a termination is said in one line.
+    The command's temporary files go to a directory of its own, removed on every exit, a SIGKILL
+    included (:func:`reference_runs.runner.private_tempdir`)."""
+    # lazy: this module is imported when `gransim` builds its parser (start-up time)
+    from reference_runs.runner import Terminated, kill_children_on_signals, private_tempdir
+
+    try:
+        with kill_children_on_signals(), private_tempdir(f"gransim-{command}-"):
+            yield
+    except Terminated as exc:
+        print(f"gransim {command}: {exc}; its reference jobs were killed", file=sys.stderr, flush=True)
+        raise
 
 
 def register_reference(subparsers) -> None:
@@ -62,18 +162,23 @@ def register_reference(subparsers) -> None:
     pt.add_argument("--packings-dir", default="results/packings", help="where the standard RVEs live")
     pt.add_argument(
         "--kn",
-        type=float,
+        type=number,
         default=None,
         help=f"2D normal contact stiffness kn = E_n * thickness, N/m (default {KN_2D:g}, "
         "gransim.paper.KN_2D: E_n of Meier et al. Table 1)",
     )
-    pt.add_argument("--n-steps", type=int, default=50, help="states per path after the reference (50)")
-    pt.add_argument("--stride", type=int, default=1, help="run every STRIDE-th state (and the last)")
-    pt.add_argument("--max-strain", type=float, default=0.1, help="final |F - I| component (0.1)")
+    pt.add_argument("--n-steps", type=integer, default=50, help="states per path after the reference (50)")
+    pt.add_argument("--stride", type=integer, default=1, help="run every STRIDE-th state (and the last)")
+    pt.add_argument("--max-strain", type=number, default=0.1, help="final |F - I| component (0.1)")
     pt.add_argument("--contacts", action="store_true", help="also dump per-contact forces of every state")
     pt.add_argument("--out", default=f"{DEFAULT_OUT}/taylor", help="output directory")
     _job_options(pt)
     pt.set_defaults(func=_taylor)
+
+
+def _check_job_options(args) -> None:
+    check_count(args.np, "--np")
+    args.timeout = check_seconds(args.timeout, "--timeout")
 
 
 def _job_options(p) -> None:
@@ -83,8 +188,8 @@ def _job_options(p) -> None:
         default="liggghts",
         help="the code that runs the jobs (default liggghts)",
     )
-    p.add_argument("--np", type=int, default=1, help="MPI processes (mpirun -np N)")
-    p.add_argument("--timeout", type=float, default=3600.0, help="seconds per job")
+    p.add_argument("--np", type=integer, default=1, help="MPI processes (mpirun -np N), >= 1")
+    p.add_argument("--timeout", type=number, default=3600.0, help="seconds per job (> 0)")
     p.add_argument(
         "--force",
         action="store_true",
@@ -105,14 +210,12 @@ def _list(args) -> int:
 
 def _run(args) -> int:
     # lazy: this module is imported when `gransim` builds its parser (start-up time)
-    from pathlib import Path
-
     from reference_runs.cases import get_case
-    from reference_runs.runner import kill_children_on_signals
 
     case = get_case(args.case)
-    out = Path(args.out or f"{DEFAULT_OUT}/{case.name}")
-    with kill_children_on_signals():  # SIGTERM/SIGINT/SIGHUP: no reference process outlives us
+    _check_job_options(args)
+    out = check_writable_dir(args.out or f"{DEFAULT_OUT}/{case.name}", "--out")
+    with jobs_die_with_us("reference"):  # SIGTERM/SIGINT/SIGHUP: no reference process outlives us
         return case.run(
             out, np_procs=args.np, timeout=args.timeout, force=args.force, progress=True, engine=args.engine
         )
@@ -120,17 +223,23 @@ def _run(args) -> int:
 
 def _taylor(args) -> int:
     # lazy: this module is imported when `gransim` builds its parser (start-up time)
-    from pathlib import Path
-
-    from gransim._validate import as_positive_float
-    from gransim.errors import InputError
+    kn = KN_2D if args.kn is None else check_between(args.kn, "--kn (N/m)", 0.0)
+    check_count(args.n_steps, "--n-steps")
+    check_count(args.stride, "--stride")
+    check_between(args.max_strain, "--max-strain", 0.0, 1.0)  # F11 = 1 - max-strain > 0
+    _check_job_options(args)
+    files = [check_input_file(p, "PACKINGS") for p in args.packings]
+    if args.rves:
+        files += sorted(check_input_dir(args.rves, "--rves").glob("*.h5"))
+    if args.standard:
+        check_writable_dir(args.packings_dir, "--packings-dir")  # missing RVEs are generated there
+    if not (files or args.demo or args.standard):
+        raise InputError("no packings: give packing files, --rves DIR, --standard or --demo")
+    out = check_writable_dir(args.out, "--out")
+    # lazy: this module is imported when `gransim` builds its parser (start-up time)
     from gransim.io import load_packing
     from reference_runs.cases import TAYLOR_RTOL, run_taylor_set
 
-    kn = KN_2D if args.kn is None else as_positive_float(args.kn, "--kn (N/m)")
-    files = [Path(p) for p in args.packings]
-    if args.rves:
-        files += sorted(Path(args.rves).glob("*.h5"))
     packings = {}
     for f in files:
         packings[f.stem] = load_packing(f)
@@ -145,14 +254,11 @@ def _taylor(args) -> int:
 
         packings.update(standard_rves(args.packings_dir))
     if not packings:
-        raise InputError("no packings: give packing files, --rves DIR, --standard or --demo")
-    # lazy: this module is imported when `gransim` builds its parser (start-up time)
-    from reference_runs.runner import kill_children_on_signals
-
-    with kill_children_on_signals():  # SIGTERM/SIGINT/SIGHUP: no LIGGGHTS process outlives us
+        raise InputError(f"no packings: --rves {args.rves} holds no *.h5 file")
+    with jobs_die_with_us("reference"):  # SIGTERM/SIGINT/SIGHUP: no reference process outlives us
         _, worst = run_taylor_set(
             packings,
-            args.out,
+            out,
             kn=kn,
             n_steps=args.n_steps,
             stride=args.stride,
@@ -196,10 +302,10 @@ def register_replay(sub) -> None:
     )
     p.add_argument(
         "--timeout",
-        type=float,
+        type=number,
         default=None,
         metavar="S",
-        help="kill the code's run after S seconds (default: no limit)",
+        help="kill the code's run after S seconds (> 0; default: no limit)",
     )
     p.add_argument(
         "--reference",
@@ -212,17 +318,13 @@ def register_replay(sub) -> None:
 
 def _replay(args) -> int:
     # lazy: this module is imported when `gransim` builds its parser (start-up time)
-    from pathlib import Path
-
-    from gransim.errors import InputError
-
-    deck = Path(args.deck)
-    if not deck.is_file():
-        raise InputError(f"DECK: {deck} is not a file")
-    if args.data is not None and not Path(args.data).is_file():
-        raise InputError(f"--data: {args.data} is not a file")
-    if args.timeout is not None and not args.timeout > 0:
-        raise InputError(f"--timeout: expected seconds > 0, got {args.timeout!r}")
+    deck = check_input_file(args.deck, "DECK")
+    if args.data is not None:
+        check_input_file(args.data, "--data")
+    timeout = check_seconds(args.timeout, "--timeout")
+    if args.reference is not None:
+        check_input_dir(args.reference, "--reference")
+    out = check_writable_dir(args.out if args.out is not None else Path("results/replay") / deck.name, "-o/--out")
     # lazy: this module is imported when `gransim` builds its parser (start-up time)
     from reference_runs.errors import ReferenceRunError
     from reference_runs.replay.compare import replay
@@ -231,15 +333,16 @@ def _replay(args) -> int:
         print(f"gransim replay: {msg}", file=sys.stderr, flush=True)
 
     try:
-        res = replay(
-            deck,
-            data=args.data,
-            engine=args.engine,
-            outdir=args.out,
-            timeout=args.timeout,
-            reference=args.reference,
-            echo=echo,
-        )
+        with jobs_die_with_us("replay"):  # SIGTERM/SIGINT/SIGHUP: no process of the code outlives us
+            res = replay(
+                deck,
+                data=args.data,
+                engine=args.engine,
+                outdir=out,
+                timeout=timeout,
+                reference=args.reference,
+                echo=echo,
+            )
     except ReferenceRunError as exc:
         print(f"gransim replay: error: the code's run failed: {exc}", file=sys.stderr)
         return 1

@@ -27,11 +27,17 @@ One writer at a time: :func:`run_job` holds ``flock`` on ``job_dir/.lock``
 (:class:`reference_runs.locks.DirectoryLock`); a second writer of the same job waits (one line
 ``waiting for job ...``), then finds the finished job and reuses it.
 
-No orphans: the code (or ``mpirun``) runs in a new session; its process group is killed
-(SIGTERM, then SIGKILL after :data:`KILL_GRACE_S`) on timeout, on any exception, and when it exits
-leaving members behind. Live groups are registered; :func:`terminate_children` kills them all
-(also at interpreter exit), and :func:`kill_children_on_signals` turns SIGTERM, SIGINT and SIGHUP
-into "kill the children, then raise".
+No orphans (:func:`start_watched`): the code (or ``mpirun``) runs in a new session, its
+environment marked ``GRANSIM_JOB=<unique>`` (:data:`JOB_MARKER`), which every process it starts
+inherits (``mpirun``'s ranks in groups of their own, the ``orted`` a serial run's MPI singleton
+forks into a session of its own). The job's processes (its group, its session and the marked
+processes) are killed (SIGTERM, then SIGKILL after :data:`KILL_GRACE_S`) on timeout, on any
+exception, and when it exits leaving members behind; its private ``TMPDIR`` is removed. Live jobs
+are registered; :func:`terminate_children` kills them all (also at interpreter exit), and
+:func:`kill_children_on_signals` turns SIGTERM, SIGINT and SIGHUP into "kill the children, then
+raise". A watchdog process per job, started before the code, covers what no handler can: when
+this process dies with the job running (SIGKILL, a crash), it kills every marked process and
+removes the private ``TMPDIR``.
 """
 
 from __future__ import annotations
@@ -43,6 +49,7 @@ import hashlib
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -73,8 +80,6 @@ FORCE_HINT = (
 )
 #: how many lines of log context to show in an error
 CONTEXT_LINES = 12
-#: seconds between SIGTERM and SIGKILL when a job's process group is killed
-KILL_GRACE_S = 5.0
 
 
 def _echo(msg: str) -> None:
@@ -82,8 +87,100 @@ def _echo(msg: str) -> None:
 
 
 # ----------------------------------------------------------------------------- children
-_LIVE: dict = {}  # process group id -> Popen of its leader
+#: environment variable that marks every process of a job: the code, ``mpirun`` and its ranks (in
+#: process groups of their own), Open MPI's ``orted`` (forked by a serial run's MPI singleton into a
+#: session of its own). Its value is unique per job, so each process is found in
+#: ``/proc/<pid>/environ`` wherever it went.
+JOB_MARKER = "GRANSIM_JOB"
+
+
+def _grace_from_env() -> float:
+    """:data:`KILL_GRACE_S` from ``GRANSIM_KILL_GRACE_S`` (seconds >= 0), else 5."""
+    text = os.environ.get("GRANSIM_KILL_GRACE_S", "").strip()
+    if not text:
+        return 5.0
+    try:
+        v = float(text)
+    except ValueError:
+        v = -1.0
+    if not 0.0 <= v < float("inf"):
+        _echo(f"WARNING: GRANSIM_KILL_GRACE_S={text!r} is not a number of seconds >= 0; using 5")
+        return 5.0
+    return v
+
+
+#: seconds between SIGTERM and SIGKILL when a job's processes are killed (``GRANSIM_KILL_GRACE_S``)
+KILL_GRACE_S = _grace_from_env()
+
+#: the watchdog of one job, run as ``python -I -S -c _WATCHDOG MARKER DIR``: it reads its stdin, a
+#: pipe whose only writer is the process that started the job. ``done`` then end of file: the job
+#: ended normally. End of file without ``done``: that process died (SIGKILL, a crash) with the job
+#: running, so every process marked ``GRANSIM_JOB=MARKER`` is killed (again and again until none is
+#: seen for 0.25 s: a process forked but not yet executed carries the mark only after its exec) and
+#: DIR, the job's private temporary directory, is removed.
+_WATCHDOG = r"""
+import os, shutil, signal, sys, time
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+signal.signal(signal.SIGHUP, signal.SIG_IGN)
+want = ("GRANSIM_JOB=" + sys.argv[1]).encode()
+said = b""
+while True:
+    try:
+        chunk = os.read(0, 64)
+    except OSError:
+        break
+    if not chunk:
+        break
+    said += chunk
+if said.endswith(b"done"):
+    sys.exit(0)
+def marked():
+    out = []
+    for name in os.listdir("/proc"):
+        if name.isdigit() and int(name) != os.getpid():
+            try:
+                with open("/proc/" + name + "/environ", "rb") as fh:
+                    if want in fh.read().split(b"\0"):
+                        out.append(int(name))
+            except OSError:
+                pass
+    return out
+quiet, deadline = 0, time.monotonic() + 60
+while quiet < 5 and time.monotonic() < deadline:
+    pids = marked()
+    for pid in pids:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except OSError:
+            pass
+    quiet = 0 if pids else quiet + 1
+    time.sleep(0.05)
+if sys.argv[2]:
+    shutil.rmtree(sys.argv[2], ignore_errors=True)
+"""
+
+
+class _Job:
+    """A started (or starting) child of this process: its mark, its Popen (None until started),
+    its watchdog and the private directory the watchdog removes."""
+
+    def __init__(self, tmp: Path | None = None, prefix: str = "gransim-job-"):
+        self.marker = os.urandom(6).hex()  # short: Open MPI's socket paths below TMPDIR must fit 107 bytes
+        self.proc: subprocess.Popen | None = None
+        self.tmp = tmp if tmp is None else Path(tmp) / f"{prefix}{self.marker}"
+        self.watchdog: subprocess.Popen | None = None
+
+    @property
+    def pgid(self) -> int | None:
+        return None if self.proc is None else self.proc.pid
+
+    def env(self, env: dict) -> dict:
+        return {**env, JOB_MARKER: self.marker}
+
+
+_LIVE: dict = {}  # marker -> _Job, from before its process is started until it is cleaned up
 _LIVE_LOCK = threading.Lock()
+_STOPPING = threading.Event()  # set by the signal handler: a job started from now on is killed at once
 
 
 class Terminated(SystemExit):
@@ -99,68 +196,225 @@ class Terminated(SystemExit):
         return f"terminated by {signal.Signals(self.signum).name}"
 
 
-def _group_alive(pgid: int) -> bool:
-    """True while any non-zombie process of group ``pgid`` exists."""
-    proc = Path("/proc")
-    if proc.is_dir():
-        for d in proc.iterdir():
-            if not d.name.isdigit():
-                continue
+def _job_pids(pgid: int | None, marker: str | None) -> list:
+    """Live (non-zombie) processes of a job: those of process group or session ``pgid`` (the code
+    or ``mpirun`` leads a session of its own) and those whose environment holds
+    ``GRANSIM_JOB=marker``. Without ``/proc``: ``[pgid]`` while the group exists."""
+    if not Path("/proc").is_dir():
+        try:
+            os.killpg(pgid, 0)
+            return [pgid]
+        except (ProcessLookupError, PermissionError, TypeError):
+            return []
+    want = f"{JOB_MARKER}={marker}".encode() if marker else None
+    me, group = os.getpid(), str(pgid)
+    out = []
+    for d in os.scandir("/proc"):
+        if not d.name.isdigit() or int(d.name) == me:
+            continue
+        try:
+            with open(f"/proc/{d.name}/stat") as fh:
+                stat = fh.read()
+        except OSError:
+            continue
+        fields = stat[stat.rfind(")") + 2 :].split()  # state ppid pgrp session ...
+        if len(fields) < 4 or fields[0] in ("Z", "X"):
+            continue
+        if pgid is not None and group in (fields[2], fields[3]):
+            out.append(int(d.name))
+        elif want is not None:
             try:
-                stat = (d / "stat").read_text()
+                with open(f"/proc/{d.name}/environ", "rb") as fh:
+                    if want in fh.read().split(b"\0"):
+                        out.append(int(d.name))
             except OSError:
                 continue
-            fields = stat[stat.rfind(")") + 2 :].split()  # state ppid pgrp ...
-            if len(fields) > 2 and fields[2] == str(pgid) and fields[0] not in ("Z", "X"):
-                return True
-        return False
-    try:
-        os.killpg(pgid, 0)
-        return True
-    except (ProcessLookupError, PermissionError):
-        return False
+    return out
 
 
-def _kill_groups(items, grace: float | None = None) -> None:
-    """SIGTERM every group of ``items`` ([(pgid, Popen)]), wait up to ``grace`` s for all of them
-    (reaping the leaders), then SIGKILL whatever is left."""
-    grace = KILL_GRACE_S if grace is None else grace
-    items = list(items)
-    for pgid, _ in items:
+def _group_alive(pgid: int, marker: str | None = None) -> bool:
+    """True while any non-zombie process of group or session ``pgid`` (or marked ``marker``) exists."""
+    return bool(_job_pids(pgid, marker))
+
+
+def _signal_job(job: _Job, sig: int) -> list:
+    pids = _job_pids(job.pgid, job.marker)
+    if job.pgid is not None:
         with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(pgid, signal.SIGTERM)
+            os.killpg(job.pgid, sig)
+    for pid in pids:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.kill(pid, sig)
+    return pids
+
+
+def _kill_jobs(jobs, grace: float | None = None) -> None:
+    """SIGTERM every process of ``jobs`` (their groups, sessions and marked processes: ``mpirun``'s
+    ranks, ``orted``), wait up to ``grace`` s for all of them (reaping the leaders), then SIGKILL
+    whatever is left, until nothing is left."""
+    grace = KILL_GRACE_S if grace is None else grace
+    jobs = list(jobs)
+    for job in jobs:
+        _signal_job(job, signal.SIGTERM)
     deadline = time.monotonic() + grace
     while True:
-        for _, proc in items:
-            if proc is not None:
-                proc.poll()
-        left = [(g, p) for g, p in items if _group_alive(g)]
+        for job in jobs:
+            if job.proc is not None:
+                job.proc.poll()
+        left = [j for j in jobs if _job_pids(j.pgid, j.marker)]
         if not left or time.monotonic() > deadline:
             break
         time.sleep(0.05)
-    for pgid, proc in left:
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(pgid, signal.SIGKILL)
-        if proc is not None:
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                proc.wait(timeout=5)
+    for _ in range(100):  # a member may fork while it is being killed
+        left = [j for j in left if _signal_job(j, signal.SIGKILL)]
+        for job in jobs:
+            if job.proc is not None:
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    job.proc.wait(timeout=0.05 if left else 5)
+        if not left:
+            break
+        time.sleep(0.02)
+
+
+def _start_watchdog(job: _Job) -> None:
+    exe = sys.executable
+    if not exe or not Path("/proc").is_dir():
+        return
+    job.watchdog = subprocess.Popen(
+        [exe, "-I", "-S", "-c", _WATCHDOG, job.marker, str(job.tmp or "")],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        cwd="/",
+        start_new_session=True,  # the terminal's Ctrl-C or a kill of our group does not reach it
+    )
+
+
+def _release_watchdog(job: _Job) -> None:
+    w = job.watchdog
+    if w is None:
+        return
+    with contextlib.suppress(OSError, ValueError):
+        w.stdin.write(b"done")
+    with contextlib.suppress(OSError, ValueError):
+        w.stdin.close()
+    try:
+        w.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        w.kill()
+        w.wait()
+
+
+def start_watched(cmd, *, env: dict | None = None, private_tmp: bool = False, **popen_kw) -> _Job:
+    """Start ``cmd`` so that no process of it can outlive this process.
+
+    The program runs in a session of its own (``start_new_session``), its environment marked
+    ``GRANSIM_JOB=<unique>`` (inherited by everything it starts). Before it starts, a watchdog
+    process is started that kills every marked process (and removes the private directory) when
+    this process dies before :func:`finish_watched` (SIGKILL, a crash). The job is registered, so
+    :func:`terminate_children` (signals, exit) kills it. ``private_tmp``: the program's
+    ``TMPDIR`` (and Open MPI's ``orte_tmpdir_base``) is a new directory
+    ``$TMPDIR/gransim-job-<mark>`` (``job.tmp``), removed at the end. Debian's codes are Open MPI
+    programs: even a serial run starts an MPI singleton that creates a session directory
+    ``$TMPDIR/ompi.<host>.<uid>``, and two jobs starting at the same moment (``--jobs 2``) raced
+    on creating a shared one ("A call to mkdir was unable to create the desired directory ...
+    File exists", the job exits 1; seen in a fresh ``make run``).
+    ``popen_kw`` go to :class:`subprocess.Popen`. Returns the job; its ``proc`` is the Popen.
+    End it with :func:`finish_watched` in a ``finally``.
+    """
+    job = _Job((_OUTER_TMP or tempfile.gettempdir()) if private_tmp else None)
+    with _LIVE_LOCK:
+        _LIVE[job.marker] = job  # from here on a signal kills whatever carries the mark
+    try:
+        _start_watchdog(job)  # first: whatever happens from here on, it cleans up
+        env = dict(os.environ if env is None else env)
+        if job.tmp is not None:
+            job.tmp.mkdir(mode=0o700)
+            env["TMPDIR"] = str(job.tmp)
+            env["OMPI_MCA_orte_tmpdir_base"] = str(job.tmp)
+        job.proc = subprocess.Popen(cmd, env=job.env(env), start_new_session=True, **popen_kw)
+        if _STOPPING.is_set():  # a signal arrived while it started (this thread is not the main one)
+            _kill_jobs([job])
+    except BaseException:
+        finish_watched(job)
+        raise
+    return job
+
+
+def finish_watched(job: _Job, grace: float | None = None) -> None:
+    """End a job of :func:`start_watched`: kill whatever of it is left (with ``grace``), remove its
+    private directory, release its watchdog, unregister it."""
+    try:
+        if job.proc is not None and _job_pids(job.pgid, job.marker):
+            _kill_jobs([job], grace)
+        if job.tmp is not None:
+            shutil.rmtree(job.tmp, ignore_errors=True)
+    finally:
+        _release_watchdog(job)
+        with _LIVE_LOCK:
+            _LIVE.pop(job.marker, None)
+
+
+_OUTER_TMP: str | None = None  # the temporary directory outside :func:`private_tempdir`
+
+
+@contextlib.contextmanager
+def private_tempdir(prefix: str = "gransim-"):
+    """Within the block, Python's temporary files and directories (:mod:`tempfile`: decks written
+    before a job, scratch copies) go to a new directory ``$TMPDIR/<prefix><mark>``, removed at the
+    end and, by a watchdog process, when this process dies inside the block (SIGKILL) and cannot
+    remove them itself. Yields the directory. Jobs' private ``TMPDIR`` stay beside it (not below:
+    Open MPI's socket paths must stay short)."""
+    global _OUTER_TMP
+    job = _Job(tempfile.gettempdir(), prefix=prefix)
+    _start_watchdog(job)
+    old, outer = tempfile.tempdir, _OUTER_TMP
+    try:
+        job.tmp.mkdir(mode=0o700)
+        _OUTER_TMP, tempfile.tempdir = tempfile.gettempdir(), str(job.tmp)
+        yield job.tmp
+    finally:
+        tempfile.tempdir, _OUTER_TMP = old, outer
+        shutil.rmtree(job.tmp, ignore_errors=True)
+        _release_watchdog(job)
+
+
+def run_watched(cmd, timeout: float | None = None, **kw) -> subprocess.CompletedProcess:
+    """:func:`subprocess.run` (``capture_output``, ``text``...) through :func:`start_watched`: on a
+    timeout every process of the program is killed (not just the first), and none outlives this
+    process. Raises :class:`subprocess.TimeoutExpired` on a timeout."""
+    capture = kw.pop("capture_output", False)
+    if capture:
+        kw["stdout"] = kw["stderr"] = subprocess.PIPE
+    kw.setdefault("stdin", subprocess.DEVNULL)
+    job = start_watched(cmd, **kw)
+    try:
+        try:
+            out, err = job.proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            _kill_jobs([job], 0.5)
+            job.proc.communicate()
+            raise
+        return subprocess.CompletedProcess(job.proc.args, job.proc.returncode, out, err)
+    finally:
+        finish_watched(job, 0.5)
 
 
 def live_children() -> list:
     """Process group ids of the LIGGGHTS and LAMMPS jobs this process is running."""
     with _LIVE_LOCK:
-        return list(_LIVE)
+        return [j.pgid for j in _LIVE.values() if j.pgid is not None]
 
 
 def terminate_children(grace: float | None = None) -> int:
-    """Kill the process group of every live LIGGGHTS or LAMMPS job of this process (SIGTERM, then SIGKILL
-    after ``grace`` s, default :data:`KILL_GRACE_S`). Returns how many groups were signalled.
-    Safe to call from a signal handler or at exit; also registered with :mod:`atexit`."""
+    """Kill every process of every live job of this process (SIGTERM, then SIGKILL after ``grace``
+    s, default :data:`KILL_GRACE_S`), also one still starting. Returns how many jobs were
+    signalled. Safe to call from a signal handler or at exit; also registered with :mod:`atexit`."""
     with _LIVE_LOCK:
-        items = list(_LIVE.items())
-    if items:
-        _kill_groups(items, grace)
-    return len(items)
+        jobs = list(_LIVE.values())
+    if jobs:
+        _kill_jobs(jobs, grace)
+    return len(jobs)
 
 
 atexit.register(terminate_children)
@@ -170,8 +424,9 @@ atexit.register(terminate_children)
 def kill_children_on_signals(signals=(signal.SIGTERM, signal.SIGINT, signal.SIGHUP)):
     """Within the block, SIGTERM, SIGINT and SIGHUP kill the live LIGGGHTS and LAMMPS jobs
     (:func:`terminate_children`) and then raise: :class:`KeyboardInterrupt` for SIGINT,
-    :class:`Terminated` (a ``SystemExit(128 + signum)``) for the others. The previous handlers are
-    restored on exit. Off the main thread (where Python cannot install handlers) it does nothing.
+    :class:`Terminated` (a ``SystemExit(128 + signum)``) for the others. A job another thread
+    starts after the signal is killed at once. The previous handlers are restored on exit. Off the
+    main thread (where Python cannot install handlers) it does nothing.
 
     Usage::
 
@@ -183,6 +438,7 @@ def kill_children_on_signals(signals=(signal.SIGTERM, signal.SIGINT, signal.SIGH
         return
 
     def handler(signum, frame):
+        _STOPPING.set()
         terminate_children()
         if signum == signal.SIGINT:
             raise KeyboardInterrupt
@@ -196,6 +452,7 @@ def kill_children_on_signals(signals=(signal.SIGTERM, signal.SIGINT, signal.SIGH
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+        _STOPPING.clear()
 
 
 # ----------------------------------------------------------------------------- results
@@ -478,19 +735,6 @@ def _job_inputs(deck, files):
     return deck_text, blobs, _sha256(deck_text.encode()), h.hexdigest()
 
 
-def job_env(eng, private_tmp) -> dict:
-    """Environment of one reference job: the engine's (:meth:`Engine.env`) with its own temporary
-    directory. Debian's codes are Open MPI programs: even a serial run starts an MPI singleton that
-    creates a session directory ``$TMPDIR/ompi.<host>.<uid>``, and two jobs starting at the same
-    moment (``--jobs 2``) can race on creating it ("A call to mkdir was unable to create the desired
-    directory ... File exists", the job exits 1; seen in a fresh ``make run``). A private ``TMPDIR``
-    (and Open MPI's own ``orte_tmpdir_base``) per job removes the shared directory."""
-    env = eng.env()
-    env["TMPDIR"] = str(private_tmp)
-    env["OMPI_MCA_orte_tmpdir_base"] = str(private_tmp)
-    return env
-
-
 def run_job(
     job_dir,
     deck,
@@ -668,22 +912,12 @@ def _run_locked(
     if progress:
         bar = _progress(total=total, desc=desc or f"{eng.name} {job_dir.name}", unit="run")
     timed_out = False
-    with (
-        open(job_dir / "stdout.txt", "wb") as out,
-        open(job_dir / "stderr.txt", "wb") as err,
-        tempfile.TemporaryDirectory(prefix="gransim-job-") as private_tmp,
-    ):
-        proc = subprocess.Popen(
-            cmd,
-            cwd=job_dir,
-            stdout=out,
-            stderr=err,
-            stdin=subprocess.DEVNULL,
-            start_new_session=True,
-            env=job_env(eng, private_tmp),
+    with open(job_dir / "stdout.txt", "wb") as out, open(job_dir / "stderr.txt", "wb") as err:
+        # own session, marked, watched: no process of the job outlives this one, whatever ends it
+        job = start_watched(
+            cmd, cwd=job_dir, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=eng.env(), private_tmp=True
         )
-        with _LIVE_LOCK:
-            _LIVE[proc.pid] = proc
+        proc = job.proc
         try:
             while True:
                 try:
@@ -702,7 +936,7 @@ def _run_locked(
                     timed_out = True
                     break
         except BaseException as exc:
-            _kill_groups([(proc.pid, proc)])
+            _kill_jobs([job])
             manifest.update(
                 status="failed",
                 end=_now(),
@@ -717,10 +951,9 @@ def _run_locked(
         finally:
             if bar is not None:
                 bar.close()
-            if timed_out or _group_alive(proc.pid):  # the job, or members it left behind
-                _kill_groups([(proc.pid, proc)])
-            with _LIVE_LOCK:
-                _LIVE.pop(proc.pid, None)
+            if timed_out:
+                _kill_jobs([job])
+            finish_watched(job)  # members it left behind, its private TMPDIR, the watchdog
     rc = proc.returncode
     manifest["end"] = _now()
     manifest["elapsed_s"] = round(time.monotonic() - t0, 3)
@@ -807,11 +1040,6 @@ def _run_locked(
     return JobResult(job_dir, manifest, log, skipped=False, warnings=tuple(manifest["warnings"]))
 
 
-def _kill(proc: subprocess.Popen) -> None:
-    """Kill the job's own process group (it was started in a new session), members included."""
-    _kill_groups([(proc.pid, proc)])
-
-
 __all__ = [
     "DECK_NAMES",
     "FORCE_HINT",
@@ -826,6 +1054,10 @@ __all__ = [
     "job_evidence",
     "kill_children_on_signals",
     "live_children",
+    "private_tempdir",
+    "run_watched",
+    "start_watched",
+    "finish_watched",
     "read_manifest",
     "run_job",
     "terminate_children",

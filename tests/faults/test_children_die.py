@@ -1,0 +1,184 @@
+"""No reference code outlives the ``gransim`` process that started it, whatever ends that process.
+
+SIGTERM, SIGINT and SIGKILL are sent to ``gransim replay``, ``gransim reference run`` and
+``gransim validate`` while the code runs (the fake ``liggghts`` of kind ``hang``: a process that
+sleeps, with a grandchild in its group that ignores SIGTERM), and to a job of the real codes
+(LIGGGHTS, whose MPI singleton starts Open MPI's ``orted`` in a session of its own; LAMMPS on two
+ranks under ``mpirun``, whose ranks sit in process groups of their own). Afterwards no process of
+the code is alive and the job's private temporary directory is gone: every command runs with
+``TMPDIR`` pointing at a directory of the test, which must be left empty.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from fakes import pid_alive
+
+REPO = Path(__file__).resolve().parents[2]
+FAULTS = Path(__file__).resolve().parent
+REPLAY_DATA = REPO / "tests" / "replay" / "data"
+SIGNALS = [signal.SIGTERM, signal.SIGINT, signal.SIGKILL]
+#: exit status of gransim for each signal (SIGKILL: the kernel's -9)
+RC = {signal.SIGTERM: 128 + signal.SIGTERM, signal.SIGINT: 130, signal.SIGKILL: -signal.SIGKILL}
+
+
+def _commands(tmp_path: Path) -> dict:
+    return {
+        "replay": ["replay", str(REPLAY_DATA / "in.deck_a"), "-o", str(tmp_path / "replay")],
+        "reference": ["reference", "run", "taylor-demo", "--out", str(tmp_path / "ref")],
+        "validate": ["validate", "--suite", "quick", "--case", "biaxial-short", "--results", str(tmp_path / "res")],
+    }
+
+
+def _env(tmp_path: Path) -> tuple[dict, Path]:
+    """The environment of the gransim process: its own TMPDIR, a short SIGTERM-to-SIGKILL grace."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    return {**os.environ, "TMPDIR": str(tmp), "GRANSIM_KILL_GRACE_S": "0.5"}, tmp
+
+
+def _wait_for(cond, timeout: float, proc: subprocess.Popen) -> None:
+    deadline = time.monotonic() + timeout
+    while not cond():
+        if proc.poll() is not None:
+            raise AssertionError(f"gransim ended (status {proc.returncode}) before the code ran: {proc.stderr.read()}")
+        if time.monotonic() > deadline:
+            raise AssertionError("the code did not start")
+        time.sleep(0.05)
+
+
+def _signal_and_wait(proc: subprocess.Popen, sig: int) -> str:
+    try:
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return err
+
+
+def _left_in(tmp: Path, timeout: float = 5.0) -> list:
+    """What is still in ``tmp`` after up to ``timeout`` s (the watchdog removes it after a SIGKILL)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        left = sorted(p.name for p in tmp.iterdir())
+        if not left or time.monotonic() > deadline:
+            return left
+        time.sleep(0.05)
+
+
+@pytest.mark.parametrize("sig", SIGNALS, ids=lambda s: signal.Signals(s).name)
+@pytest.mark.parametrize("command", ["replay", "reference", "validate"])
+def test_signal_to_gransim_leaves_no_code_and_no_temporary_directory(tmp_path, fake_liggghts, command, sig):
+    fake = fake_liggghts("hang")
+    env, tmp = _env(tmp_path)
+    argv = [sys.executable, "-m", "gransim", *_commands(tmp_path)[command]]
+    proc = subprocess.Popen(argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    _wait_for(lambda: fake.pids("grandchild"), 60, proc)
+    err = _signal_and_wait(proc, sig)
+    assert proc.returncode == RC[sig], err
+    if sig != signal.SIGKILL:
+        assert "Traceback" not in err and all(len(line) < 300 for line in err.splitlines()), err
+    assert fake.wait_gone(5) == [], f"still running after {signal.Signals(sig).name} to gransim {command}"
+    assert _left_in(tmp) == []
+
+
+# ----------------------------------------------------------------------------- the real codes
+def _job_processes(tmp: Path) -> list:
+    """Live processes whose environment has TMPDIR below ``tmp`` (each job's private TMPDIR: the
+    code, mpirun, its ranks, orted), with their command names."""
+    want = str(tmp).encode()
+    out = []
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit() or int(d.name) == os.getpid():
+            continue
+        try:
+            env = (d / "environ").read_bytes().split(b"\0")
+            name = (d / "comm").read_text().strip()
+        except OSError:
+            continue
+        if any(e.startswith(b"TMPDIR=" + want + b"/") for e in env) and pid_alive(int(d.name)):
+            out.append((int(d.name), name))
+    return out
+
+
+def _still_running(tmp: Path, timeout: float = 5.0) -> list:
+    deadline = time.monotonic() + timeout
+    while True:
+        left = _job_processes(tmp)
+        if not left or time.monotonic() > deadline:
+            return left
+        time.sleep(0.05)
+
+
+_RUN_FOREVER = """\
+import sys
+sys.path.insert(0, {faults!r})
+from fakes import small_deck, small_lammps_deck
+from reference_runs.runner import run_job
+make = small_lammps_deck if {engine!r} == "lammps" else small_deck
+deck, files, _ = make(tail="run 1000000000\\n", dump_every=None)
+run_job({job!r}, deck, files, np={np}, engine={engine!r}, progress=False, timeout=None)
+"""
+
+
+def _kill_a_running_job(tmp_path, engine: str, np: int, want: set) -> None:
+    env, tmp = _env(tmp_path)
+    script = _RUN_FOREVER.format(faults=str(FAULTS), engine=engine, job=str(tmp_path / "job"), np=np)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script], cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        _wait_for(lambda: want <= {n for _, n in _job_processes(tmp)}, 60, proc)
+        seen = _job_processes(tmp)
+        _signal_and_wait(proc, signal.SIGKILL)
+        assert _still_running(tmp) == [], f"alive after SIGKILL of their starter (of {seen})"
+        assert _left_in(tmp) == []
+    finally:
+        for pid, _ in _job_processes(tmp):
+            os.kill(pid, signal.SIGKILL)
+
+
+@pytest.mark.liggghts
+def test_sigkill_leaves_neither_liggghts_nor_its_orted(tmp_path):
+    """LIGGGHTS' MPI singleton forks ``orted`` into a session of its own: measured alive, reparented
+    to PID 1, after the starter was killed, before the watchdog."""
+    _kill_a_running_job(tmp_path, "liggghts", 1, {"liggghts", "orted"})
+
+
+def test_sigkill_leaves_no_mpirun_and_no_rank(tmp_path):
+    import shutil
+
+    if shutil.which("lmp") is None or shutil.which("mpirun") is None:
+        pytest.skip("needs lmp and mpirun (apt-get install lammps)")
+    _kill_a_running_job(tmp_path, "lammps", 2, {"mpirun", "lmp"})
+
+
+@pytest.mark.liggghts
+def test_sigterm_to_replay_leaves_neither_liggghts_nor_orted(tmp_path):
+    """The reported case: ``gransim replay`` of a long LIGGGHTS deck, SIGTERM while it runs."""
+    import shutil
+
+    text = (REPLAY_DATA / "in.deck_a").read_text().replace("run             500", "run 1000000000")
+    (tmp_path / "in.long").write_text(text)
+    shutil.copy(REPLAY_DATA / "disks_a.data", tmp_path / "disks_a.data")
+    env, tmp = _env(tmp_path)
+    argv = [sys.executable, "-m", "gransim", "replay", str(tmp_path / "in.long"), "-o", str(tmp_path / "out")]
+    proc = subprocess.Popen(argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(lambda: {"liggghts", "orted"} <= {n for _, n in _job_processes(tmp)}, 60, proc)
+        err = _signal_and_wait(proc, signal.SIGTERM)
+        assert proc.returncode == 128 + signal.SIGTERM, err
+        assert _still_running(tmp) == []
+        assert _left_in(tmp) == []
+    finally:
+        for pid, _ in _job_processes(tmp):
+            os.kill(pid, signal.SIGKILL)
