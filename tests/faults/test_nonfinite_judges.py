@@ -90,6 +90,13 @@ def test_max_rel_diff_of_nothing_fails(shape):
         judge.max_rel_diff(np.zeros(shape), np.zeros(shape), "stress")
 
 
+@FAST
+@given(hnp.array_shapes(min_dims=1, max_dims=3, min_side=0, max_side=3).filter(lambda s: 0 in s))
+def test_max_rel_diff_of_any_empty_shape_fails(shape):
+    with pytest.raises(judge.NoEvidenceError, match="stress: nothing to compare"):
+        judge.max_rel_diff(np.zeros(shape), np.zeros(shape), "stress")
+
+
 def test_max_rel_diff_of_different_shapes_fails():
     with pytest.raises(judge.JudgeError, match="stress: native has shape"):
         judge.max_rel_diff(np.zeros(3), np.zeros(4), "stress")

@@ -337,6 +337,7 @@ def step_records(label: str, nat, ref, d50: float, nsteps: int, dump_every: int)
             _max(rel),
             REL_TOL,
             STRESS_REASON,
+            inputs={"native": nat.stress[nat.at(both)], "LAMMPS": ref.stress[ref.at(both)]},
         ),
         compare(label, "box", "max|d(lx, ly, xy)|/D50 over steps", _max(dl) / d50, POS_TOL, BOX_REASON),
     ]
