@@ -15,7 +15,7 @@ help:
 	@echo "make lint  - ruff check and ruff format --check"
 	@echo "make coverage - the suite as plain Python under coverage (docs/coverage.md)"
 	@echo "make bench - set up, run the benchmark suite (results/bench.json)"
-	@echo "make engines - install LIGGGHTS and LAMMPS with apt-get when root (else say how)"
+	@echo "make engines - install LIGGGHTS, LAMMPS and YADE with apt-get when root (else say how)"
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -45,26 +45,30 @@ system-test:
 	@$(MAKE) --no-print-directory engines
 	@$(MAKE) --no-print-directory browser
 
-# the two established DEM codes the validation compares with: LIGGGHTS (binary `liggghts`, Debian
-# package `liggghts`) and LAMMPS (binary `lmp`, Debian package `lammps`). As root, the missing ones
-# are installed with apt-get; otherwise make says how. Neither is required: without one, the
-# comparisons use its stored outputs in reference_runs/stored/.
+# the DEM codes the validation compares with: LIGGGHTS (binary `liggghts`, Debian package
+# `liggghts`), LAMMPS (binary `lmp`, Debian package `lammps`) and YADE, the independent third code
+# (binary `yade`, Debian package `yade`, docs/yade.md). As root, the missing ones are installed with
+# apt-get; otherwise make says how. None is required: without LIGGGHTS or LAMMPS the comparisons use
+# their stored outputs in reference_runs/stored/; the tests that need YADE are skipped without it.
 engines:
 	@missing=""; \
 	if command -v liggghts >/dev/null 2>&1; then echo "LIGGGHTS found: $$(command -v liggghts)"; \
 	  else missing="$$missing liggghts"; fi; \
 	if command -v lmp >/dev/null 2>&1; then echo "LAMMPS found: $$(command -v lmp)"; \
 	  else missing="$$missing lammps"; fi; \
+	if command -v yade >/dev/null 2>&1; then echo "YADE found: $$(command -v yade)"; \
+	  else missing="$$missing yade"; fi; \
 	if [ -z "$$missing" ]; then \
 	  :; \
 	elif [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
 	  echo "missing:$$missing; installing Debian's package(s)$$missing with apt-get"; \
 	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null) \
-	    || echo "WARNING: apt-get install$$missing failed; those comparisons will use stored reference outputs only"; \
+	    || echo "WARNING: apt-get install$$missing failed; those comparisons will use stored reference outputs only (YADE's tests are skipped)"; \
 	else \
-	  echo "WARNING: not installed:$$missing (binaries 'liggghts', 'lmp'), and this user cannot install them."; \
-	  echo "         Install them with:  sudo apt-get install liggghts lammps"; \
-	  echo "         Until then, comparisons use the stored reference outputs in reference_runs/stored/."; \
+	  echo "WARNING: not installed:$$missing (binaries 'liggghts', 'lmp', 'yade'), and this user cannot install them."; \
+	  echo "         Install them with:  sudo apt-get install$$missing"; \
+	  echo "         Until then, comparisons use the stored reference outputs in reference_runs/stored/"; \
+	  echo "         and the tests that need YADE are skipped."; \
 	fi
 
 # the former name of the target
