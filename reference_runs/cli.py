@@ -37,6 +37,16 @@ def _bad(option: str, want: str, value) -> Exception:
     return InputError(f"{option}: expected {want}, got {value!r}")
 
 
+def _real(value) -> float:
+    """``float(value)``, NaN for what is no number (argparse gives ``[]`` for ``--option=--``)."""
+    if isinstance(value, bool):
+        return math.nan
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
 def check_count(value, option: str, low: int = 1) -> int:
     """An integer option >= ``low`` (argparse gave an int), else InputError naming ``option``."""
     if isinstance(value, bool) or not isinstance(value, int) or value < low:
@@ -48,7 +58,7 @@ def check_seconds(value, option: str):
     """A duration option: None (no limit) or a finite number of seconds > 0."""
     if value is None:
         return None
-    v = float(value)
+    v = _real(value)
     if not (math.isfinite(v) and v > 0):
         raise _bad(option, "a finite number of seconds > 0", value)
     return v
@@ -56,7 +66,7 @@ def check_seconds(value, option: str):
 
 def check_between(value, option: str, low: float, high: float | None = None) -> float:
     """A real option in the open interval (low, high) (high None: no upper bound), finite."""
-    v = float(value)
+    v = _real(value)
     if not (math.isfinite(v) and v > low and (high is None or v < high)):
         want = f"a finite number > {low:g}" + ("" if high is None else f" and < {high:g}")
         raise _bad(option, want, value)
