@@ -27,10 +27,7 @@ mirrors it with ``DEMSettings(flavour="lammps")``.
 from __future__ import annotations
 
 import datetime
-import inspect
-import os
 import shutil
-import signal
 import subprocess
 import tempfile
 from pathlib import Path
@@ -47,7 +44,6 @@ from gransim.errors import InputError
 from gransim.geometry import Packing
 from gransim.io import atomic_path, liggghts_version
 from reference_runs.datafile import write_data_file
-from reference_runs.errors import ReferenceRunError
 from reference_runs.parsers import parse_dump_custom, parse_log
 from reference_runs.runner import run_job
 
@@ -460,74 +456,28 @@ def run_deck(deck: Path, engine: str = "liggghts", np: int = 1, timeout: float |
     ``engine``: "liggghts" or "lammps" (the code the deck was written for). Through
     :func:`reference_runs.runner.run_job` (job directory = the deck's directory, ``np`` MPI
     processes, always rerun; the deck is copied to the runner's deck name, the log is
-    ``log.lammps`` and a ``manifest.json`` records command, version and hashes) when the runner
-    takes ``engine=``, else (LAMMPS with a runner that only knows LIGGGHTS)
-    ``lmp -in in.lammps -log log.lammps -screen none -nocite`` directly, with the same checks.
-    ``timeout`` (s, None: no limit) kills the job after that time (``ReferenceRunError`` with
-    ``timed_out=True``). Raises :class:`~reference_runs.errors.ReferenceRunError` (binary missing,
-    non-zero exit, ERROR or WARNING lines, no ``dump.atoms``, a log short of the run) quoting the log.
+    ``log.lammps`` and a ``manifest.json`` records command, version and hashes): no process of the
+    job outlives the caller (:func:`reference_runs.runner.start_watched`). ``timeout`` (s, None: no
+    limit) kills the job after that time (``ReferenceRunError`` with ``timed_out=True``). Raises
+    :class:`~reference_runs.errors.ReferenceRunError` (binary missing, non-zero exit, ERROR or
+    WARNING lines, no ``dump.atoms``, a log short of the run) quoting the log.
     """
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
     deck = Path(deck)
     data = (deck.parent / "data.biaxial").read_bytes()
-    kw = {
-        "files": {"data.biaxial": data},
-        "np": np,
-        "timeout": timeout,
-        "outputs": ("dump.atoms",),
-        "expected_runs": 1,
-        "progress": False,
-        "force": True,
-    }
-    if "engine" in inspect.signature(run_job).parameters:
-        return run_job(deck.parent, deck.read_text(), engine=engine, **kw).log_path
-    if engine == "liggghts":
-        return run_job(deck.parent, deck.read_text(), **kw).log_path
-    return _run_lmp(deck, np, timeout)
-
-
-def _run_lmp(deck: Path, np: int, timeout: float | None) -> Path:
-    """``lmp -in DECK -log log.lammps -screen none -nocite`` in the deck's directory (own process
-    group, killed on timeout); checks exit status, ERROR/WARNING lines, the loop and the dump."""
-    job = deck.parent
-    lmp = shutil.which("lmp")
-    if lmp is None:
-        raise ReferenceRunError("LAMMPS binary `lmp` not found on PATH (Debian: apt-get install lammps)", job_dir=job)
-    cmd = [lmp, "-in", deck.name, "-log", "log.lammps", "-screen", "none", "-nocite"]
-    if np > 1:
-        mpi = ["mpirun", "-np", str(int(np))] + (["--allow-run-as-root"] if os.geteuid() == 0 else [])
-        cmd = mpi + cmd
-    log = job / "log.lammps"
-    proc = subprocess.Popen(cmd, cwd=job, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
-    try:
-        out, _ = proc.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-        raise ReferenceRunError(
-            f"LAMMPS job {job}: killed after the timeout of {timeout} s", job_dir=job, timed_out=True
-        ) from None
-    lines = log.read_text(errors="replace").splitlines() if log.exists() else []
-    bad = [ln for ln in lines if ln.startswith(("ERROR", "WARNING"))]
-    bad += [ln for ln in out.decode(errors="replace").splitlines() if "ERROR" in ln or "WARNING" in ln]
-    problems = []
-    if proc.returncode != 0:
-        problems.append(f"exit status {proc.returncode}")
-    if bad:
-        problems.append("ERROR or WARNING lines")
-    if not any(ln.startswith("Loop time") for ln in lines):
-        problems.append("log.lammps has no `Loop time` line (the run did not finish)")
-    if not (job / "dump.atoms").exists():
-        problems.append("no dump.atoms")
-    if problems:
-        raise ReferenceRunError(
-            f"LAMMPS job {job}: {'; '.join(problems)}",
-            job_dir=job,
-            log_lines=(bad or lines[-10:])[:20],
-            problems=problems,
-        )
-    return log
+    return run_job(
+        deck.parent,
+        deck.read_text(),
+        engine=engine,
+        files={"data.biaxial": data},
+        np=np,
+        timeout=timeout,
+        outputs=("dump.atoms",),
+        expected_runs=1,
+        progress=False,
+        force=True,
+    ).log_path
 
 
 def run_liggghts(deck: Path, np: int = 1, timeout: float | None = 600.0) -> Path:
