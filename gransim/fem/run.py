@@ -521,6 +521,12 @@ def patch_check(material, F0=None) -> dict:
     }
 
 
+def _finite_or_nan(value, *parts) -> float:
+    """``value`` (a max or min of ``parts``), or NaN when any part is NaN or infinite: Python's
+    ``max``/``min`` keep or drop a NaN depending on where it stands, so a check would pass on it."""
+    return float(value) if all(np.isfinite(p) for p in parts) else float("nan")
+
+
 def acceptance_records(summaries: dict) -> list[dict]:
     """Validation-style records {case, quantity, metric, value, tolerance, pass, kind, note} of slope runs.
 
@@ -587,7 +593,11 @@ def acceptance_records(summaries: dict) -> list[dict]:
             }
         )
         orders = [observed_orders(st.energy_norms) for st in res.steps if len(st.energy_norms) >= 4]
-        worst = min(max(o[-2:]) for o in orders) if orders else float("nan")
+        worst = (
+            _finite_or_nan(min(max(o[-2:]) for o in orders), *(v for o in orders for v in o[-2:]))
+            if orders
+            else float("nan")
+        )
         out.append(
             {
                 "case": case,
@@ -635,7 +645,7 @@ def acceptance_records(summaries: dict) -> list[dict]:
             )
         pc = s.get("patch_check")
         if pc is not None:
-            worst_p = max(pc["displacement"], pc["stress"])
+            worst_p = _finite_or_nan(max(pc["displacement"], pc["stress"]), pc["displacement"], pc["stress"])
             out.append(
                 {
                     "case": case,

@@ -237,3 +237,24 @@ def test_table2_columns_follow_the_dead_load_steps(case):
     a, b = np.asarray(one["load_settlement"]), np.asarray(three["load_settlement"])
     assert len(b) == len(a) + 2
     np.testing.assert_allclose(b[3:], a[1:], rtol=1e-8, atol=1e-12)
+
+
+@pytest.mark.parametrize("where", ["displacement", "stress", "order"])
+def test_acceptance_checks_fail_on_a_nan(case, where):
+    """A NaN in a patch-test error or a Newton order fails its check: Python's max() keeps the
+    finite of (finite, NaN) in that order, so a NaN stress error behind a finite displacement
+    error would have passed."""
+    import copy
+
+    from gransim.fem.run import acceptance_records
+
+    s = copy.deepcopy(case[1])
+    if where == "order":
+        step = next(st for st in s["result"].steps if len(st.energy_norms) >= 4)
+        step.energy_norms[-1] = float("nan")  # the last observed order is NaN
+        quantity = "newton"
+    else:
+        s["patch_check"] = dict(s["patch_check"], **{where: float("nan")})
+        quantity = "patch test"
+    rec = next(r for r in acceptance_records({"service": s}) if r["quantity"] == quantity and r["kind"] == "check")
+    assert not rec["pass"] and rec["value"] != rec["value"], rec
