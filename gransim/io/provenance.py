@@ -7,6 +7,7 @@ Debian's package database (:func:`package_version`).
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import functools
 import json
@@ -14,6 +15,7 @@ import os
 import platform
 import re
 import shutil
+import signal
 import subprocess
 import tempfile
 from pathlib import Path
@@ -50,21 +52,59 @@ _BANNER = re.compile(r"LIGGGHTS \(Version ([^,)]*)")
 LAMMPS_BANNER = re.compile(r"^LAMMPS \(([^)]*)\)", re.MULTILINE)
 
 
+def _die_with_parent():
+    """A ``preexec_fn`` that makes the child get SIGKILL when the thread that started it ends (the
+    process killed, even by SIGKILL): Linux ``prctl(PR_SET_PDEATHSIG, SIGKILL)``, through ctypes
+    (None elsewhere). The flag survives the exec of the code."""
+    import ctypes  # noqa: PLC0415 - start-up: ctypes, only when a DEM code is asked for its version
+
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    parent = os.getpid()
+
+    def preexec():
+        prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        if os.getppid() != parent:  # the parent died before the flag was set
+            os.kill(os.getpid(), signal.SIGKILL)
+
+    return preexec
+
+
+def _run_probe(cmd: list, cwd: str, timeout: float) -> subprocess.CompletedProcess:
+    """Run a DEM code's version query so that it cannot outlive gransim: in a session of its own,
+    killed when gransim dies (:func:`_die_with_parent`; the ``orted`` of an MPI singleton follows
+    the code), its whole process group killed on a timeout (:class:`subprocess.TimeoutExpired`),
+    Open MPI's session files in ``cwd`` (a temporary directory) rather than the shared TMPDIR."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "TMPDIR": cwd, "OMPI_MCA_orte_tmpdir_base": cwd}
+    proc = subprocess.Popen(
+        cmd,
+        cwd=cwd,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        env=env,
+        preexec_fn=_die_with_parent(),  # noqa: PLW1509 - only prctl in the child, no lock taken
+    )
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except BaseException:  # a timeout, a signal: the whole group goes
+        with contextlib.suppress(OSError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        raise
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+
+
 @functools.lru_cache(maxsize=32)
 def _banner_of(path: str, mtime_ns: int, size: int, pattern: str, label: str, prefix: str) -> str:
     """What the binary at ``path`` prints about itself (one call per binary and modification)."""
     with tempfile.TemporaryDirectory(prefix="dem-version-") as tmp:
         try:
-            out = subprocess.run(
-                [path, "-in", os.devnull, "-log", "none", "-nocite"],
-                cwd=tmp,
-                capture_output=True,
-                text=True,
-                timeout=20,
-                stdin=subprocess.DEVNULL,
-                start_new_session=True,
-                env={**os.environ, "OMP_NUM_THREADS": "1"},
-            )
+            out = _run_probe([path, "-in", os.devnull, "-log", "none", "-nocite"], tmp, 20)
         except subprocess.TimeoutExpired:
             return f"unknown: `{path} -in /dev/null` did not answer within 20 s"
         except OSError as exc:

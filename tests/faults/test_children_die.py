@@ -182,3 +182,29 @@ def test_sigterm_to_replay_leaves_neither_liggghts_nor_orted(tmp_path):
     finally:
         for pid, _ in _job_processes(tmp):
             os.kill(pid, signal.SIGKILL)
+
+
+def test_sigkill_during_a_version_probe_leaves_no_probe(tmp_path):
+    """The version query of a code (``liggghts -in /dev/null``) that does not answer dies with the
+    process that asked, SIGKILL included (before: it ran on, up to its 20 s timeout and beyond)."""
+    bindir = tmp_path / "bin"
+    bindir.mkdir()
+    pids = tmp_path / "pids.txt"
+    fake = bindir / "liggghts"
+    fake.write_text(f'#!/bin/sh\necho $$ >> "{pids}"\nexec sleep 1000\n')
+    fake.chmod(0o755)
+    env = {**os.environ, "PATH": f"{bindir}{os.pathsep}{os.environ['PATH']}"}
+    script = "from gransim.io import liggghts_version; liggghts_version()"
+    proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, env=env, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(lambda: pids.exists() and pids.read_text().strip(), 30, proc)
+        probe = int(pids.read_text().split()[0])
+        _signal_and_wait(proc, signal.SIGKILL)
+        deadline = time.monotonic() + 5
+        while pid_alive(probe) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not pid_alive(probe)
+    finally:
+        for p in pids.read_text().split() if pids.exists() else []:
+            if pid_alive(int(p)):
+                os.kill(int(p), signal.SIGKILL)
