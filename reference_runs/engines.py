@@ -10,13 +10,23 @@ Both codes write the same log format (LIGGGHTS is a fork of LAMMPS): a banner as
 the echoed deck, one thermo table per ``run`` headed by ``Step ...`` and ended by ``Loop time of
 ...``, and ``ERROR``/``WARNING`` lines (LAMMPS appends the source location, ``(src/...cpp:431)``).
 Both take ``-in DECK -log LOG -screen none -nocite`` and run under ``mpirun -np N``.
+
+YADE (``yade``, Debian package ``yade``; docs/yade.md) is an independent code driven by a Python
+script, not a deck: :class:`YadeEngine` runs ``yade -n -x -j1 -L gransim_yade_quiet SCRIPT`` (one
+process; the ``-L`` module, written into the job directory by :mod:`reference_runs.yade.job`, keeps
+YADE from opening its TCP servers), takes its version from ``yade --version`` and the job's own
+``Welcome to Yade ...`` line, and its jobs have their own output accounting
+(:func:`reference_runs.yade.job.run_yade_job`, which :func:`reference_runs.runner.run_job` hands
+them to).
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import shutil
+import subprocess
 from dataclasses import dataclass
 
 from gransim.errors import InputError
@@ -141,8 +151,77 @@ LAMMPS = Engine(
     ),
 )
 
+#: the module ``yade -L`` imports first (written into each YADE job directory): it replaces
+#: ``yade.remote.runServers``, which opens a Python prompt (port 9000+) and an XML-RPC server
+#: (21000+) on every interface, by a function that opens nothing (docs/yade.md)
+YADE_QUIET_MODULE = "gransim_yade_quiet"
+
+
+@functools.lru_cache(maxsize=8)
+def _yade_version(path: str, mtime_ns: int, size: int, banner: str) -> str:
+    try:
+        out = subprocess.run(
+            [path, "--version"], capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL, cwd="/"
+        )
+        text = out.stdout + out.stderr
+    except (OSError, subprocess.SubprocessError) as exc:
+        return f"unknown: `{path} --version` failed ({exc})"
+    for line in text.splitlines():
+        m = re.match(banner, line.strip())
+        if m:
+            return "YADE " + m.group(1)
+    return f"unknown: `{path} --version` printed no 'Yade version:' line"
+
+
+@dataclass(frozen=True)
+class YadeEngine(Engine):
+    """YADE: a Python script run by ``yade -n -x -j1 -L gransim_yade_quiet SCRIPT`` in the job
+    directory (no display, exit at the script's end with status 1 on an exception, one OpenMP
+    thread). Its jobs are run by :func:`reference_runs.yade.job.run_yade_job`."""
+
+    def version(self, binary=None) -> str | None:
+        """``YADE 2023.02a (/usr/bin/yade)`` from ``yade --version`` (cached per binary path,
+        modification time and size), None when absent."""
+        path = shutil.which(str(binary)) if binary is not None else shutil.which(self.binary)
+        if path is None:
+            return None
+        path = os.path.abspath(path)
+        try:
+            st = os.stat(path)
+        except OSError:
+            return None
+        return f"{_yade_version(path, st.st_mtime_ns, st.st_size, self.banner)} ({path})"
+
+    def command(self, deck: str, log: str | None = None, np: int = 1, exe: str | None = None) -> list:
+        """``yade -n -x -j1 -L gransim_yade_quiet SCRIPT`` (``log`` is unused: YADE writes to
+        stdout and stderr); :class:`ReferenceRunError` for ``np > 1`` (a YADE job is one process)."""
+        if int(np) != 1:
+            raise ReferenceRunError(f"np={np}: a YADE job runs as one process (np=1)")
+        return [exe or self.find(), "-n", "-x", "-j1", "-L", YADE_QUIET_MODULE, deck]
+
+    def env(self) -> dict:
+        """The caller's environment without ``DISPLAY`` and with ``OMP_NUM_THREADS=1``."""
+        env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+        env["OMP_NUM_THREADS"] = "1"
+        return env
+
+
+YADE = YadeEngine(
+    name="yade",
+    label="YADE",
+    binary="yade",
+    deck_name="yade_job.py",
+    package="yade",
+    package_label="YADE",
+    banner=r"^(?:Welcome to Yade|Yade version:) (\S+)",
+    version_prefix="YADE ",
+    install_hint=(
+        "install YADE 2023.02a with `sudo apt-get install yade` (Debian/Ubuntu), or put a `yade` binary on PATH"
+    ),
+)
+
 #: the known engines by name
-ENGINES = {e.name: e for e in (LIGGGHTS, LAMMPS)}
+ENGINES = {e.name: e for e in (LIGGGHTS, LAMMPS, YADE)}
 
 
 def get_engine(name) -> Engine:
@@ -165,4 +244,4 @@ def engine_of_log(line: str) -> tuple[Engine, str] | tuple[None, None]:
     return None, None
 
 
-__all__ = ["ENGINES", "Engine", "LAMMPS", "LIGGGHTS", "engine_of_log", "get_engine"]
+__all__ = ["ENGINES", "Engine", "LAMMPS", "LIGGGHTS", "YADE", "YadeEngine", "engine_of_log", "get_engine"]

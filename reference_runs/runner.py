@@ -772,7 +772,10 @@ def run_job(
         WARNING line fails it (granular decks should run warning-free).
     force : run even when complete outputs already exist.
     engine : the code, ``"liggghts"`` (default) or ``"lammps"`` (:func:`reference_runs.engines.get_engine`;
-        :class:`~gransim.errors.InputError` for another name).
+        :class:`~gransim.errors.InputError` for another name). ``"yade"``: ``deck`` is a YADE
+        Python script, run by :func:`reference_runs.yade.job.run_yade_job` (its own evidence:
+        exit status, banner, no TCP server opened, the outputs; ``progress``, ``allowed_warnings``
+        and ``desc`` do not apply).
 
     Returns
     -------
@@ -794,6 +797,12 @@ def run_job(
         message names ``--force``).
     """
     eng = get_engine(engine)
+    if eng.name == "yade":  # a Python script with no LAMMPS-style log: YADE's own job accounting
+        if expected_runs is not None or int(np) != 1:
+            raise ReferenceRunError(f"YADE job {job_dir}: a script has no runs to expect and runs as one process")
+        from .yade.job import run_yade_job  # noqa: PLC0415 - import cycle (reference_runs.yade.job uses this module)
+
+        return run_yade_job(job_dir, deck, files, timeout=timeout, outputs=outputs, force=force, engine=eng)
     job_dir = Path(job_dir)
     deck_text, blobs, deck_sha, input_sha = _job_inputs(deck, files)
     outputs = [str(o) for o in outputs]
