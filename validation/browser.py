@@ -17,11 +17,11 @@ import json
 import os
 import re
 import shutil
-import subprocess
 import tempfile
 from pathlib import Path
 
 from gransim.errors import GransimError
+from reference_runs.runner import run_watched
 
 #: the flags of a quiet, offline, throw-away headless Chromium
 CHROMIUM_FLAGS = (
@@ -97,11 +97,13 @@ def check_report(index, width: int = 1400, height: int = 1000, timeout: float = 
                 f"--window-size={width},{height}",
                 "--virtual-time-budget=15000",
             ]
-            run = subprocess.run(
+            # Chromium starts a tree of processes (zygote, renderer...): run_watched kills all of
+            # them on a timeout, and none outlives this process, even after a SIGKILL
+            run = run_watched(
                 [*base, "--dump-dom", probe.resolve().as_uri()], capture_output=True, text=True, timeout=timeout
             )
             if screenshot is not None:
-                subprocess.run(
+                run_watched(
                     [*base, f"--screenshot={Path(screenshot).resolve()}", index.resolve().as_uri()],
                     capture_output=True,
                     timeout=timeout,

@@ -208,3 +208,20 @@ def test_sigkill_during_a_version_probe_leaves_no_probe(tmp_path):
         for p in pids.read_text().split() if pids.exists() else []:
             if pid_alive(int(p)):
                 os.kill(int(p), signal.SIGKILL)
+
+
+def test_run_watched_timeout_kills_the_whole_tree(tmp_path):
+    """What the report check runs Chromium through: on a timeout every process of the program goes
+    (``subprocess.run`` kills only the first: the two background sleeps here would run on)."""
+    from reference_runs.runner import run_watched
+
+    pids = tmp_path / "pids.txt"
+    cmd = ["sh", "-c", f'sleep 1000 & echo $! >> "{pids}"; setsid sleep 1000 & echo $! >> "{pids}"; wait']
+    t0 = time.monotonic()
+    with pytest.raises(subprocess.TimeoutExpired):
+        run_watched(cmd, capture_output=True, timeout=0.5)
+    left = [int(p) for p in pids.read_text().split() if pid_alive(int(p))]
+    for p in left:
+        os.kill(p, signal.SIGKILL)
+    assert len(pids.read_text().split()) == 2 and left == []
+    assert time.monotonic() - t0 < 5
