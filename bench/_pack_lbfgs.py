@@ -1,4 +1,4 @@
-"""Experiment (issue 17, item 5): L-BFGS instead of FIRE for a packing's last pass.
+"""Experiment: L-BFGS instead of FIRE for a packing's last pass (docs/generation.md).
 
 ``PYTHONPATH=. python bench/_pack_lbfgs.py N SEED``
 

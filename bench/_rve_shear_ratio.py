@@ -1,4 +1,4 @@
-"""The stress ratio tau / p a relaxed frictionless RVE can carry (issue 18, docs/slope.md).
+"""The stress ratio tau / p a relaxed frictionless RVE can carry (docs/slope.md).
 
 Isochoric-to-first-order pure shear F = 1 + g D, D = sym(e1 x e2) (``gransim.fem.stability.SHEAR``),
 ramped in steps of ``dg`` from F = 1, each state relaxed warm from the previous minimiser

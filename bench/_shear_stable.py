@@ -1,5 +1,5 @@
 """Relaxed shear stiffness of RVEs jammed with a square cell (cell="scale") and over the cell shape
-(cell="shape"), same seeds and target (issue 18; docs/generation.md, "Shear-stabilised packings").
+(cell="shape"), same seeds and target (docs/generation.md, "Shear-stabilised packings").
 
 For each N and seed, the request of the standard RVEs (quartz-sand, mean overlap 2.7e-4 d_mean,
 :mod:`gransim.generation.standard`) is made in four variants: cell "scale" at force_tol 1e-3 (the

@@ -1,4 +1,4 @@
-"""The RVE's stress scale against the slope's in-situ stresses (issue 18, docs/slope.md).
+"""The RVE's stress scale against the slope's in-situ stresses (docs/slope.md).
 
 Prints, for a packing (default: the standard default RVE of the slope), its mean overlap strain and
 Taylor pressure p = -tr P(F = 1) / 2 (N/m = Pa at unit thickness, gransim.paper), p / (kn <eps>/c),

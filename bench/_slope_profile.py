@@ -1,4 +1,4 @@
-"""Where the CPU time of one ``gransim slope`` process goes (issue 17.6): a phase split.
+"""Where the CPU time of one ``gransim slope`` process goes: a phase split.
 
 A tool run on its own, not a bench area (no ``run()``)::
 

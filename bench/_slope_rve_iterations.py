@@ -1,4 +1,4 @@
-"""RVE Newton iterations per FE Newton iteration of a relaxed slope run (issue 18, docs/slope.md).
+"""RVE Newton iterations per FE Newton iteration of a relaxed slope run (docs/slope.md).
 
 Runs ``gransim.fem.run.run_slope_case`` in process (no output files) with the relaxed RVE and
 counts, at every material evaluation of the load path (one per FE Newton iteration), the Newton

@@ -1,4 +1,4 @@
-"""Stability of the slope's reference state with given RVE packings (issue 18, docs/slope.md).
+"""Stability of the slope's reference state with given RVE packings (docs/slope.md).
 
 For each packing: mean overlap strain, Taylor pressure p = -tr P(1) / 2 (Pa at unit thickness),
 mu = D:A:D relaxed and Taylor (``gransim.fem.stability.rve_shear_stiffness``), and per RVE kind the

@@ -1,4 +1,4 @@
-"""A slope run that prints every Newton iteration as it happens (issue 18, docs/slope.md).
+"""A slope run that prints every Newton iteration as it happens (docs/slope.md).
 
 ``gransim slope`` writes its tables at the end; on a slow relaxed run this shows where it is:
 per RVE evaluation the wall time, the residual norm |r| (N/m), and (relaxed RVE) the Newton

@@ -175,8 +175,8 @@ def compare(
     return out
 
 
-#: the commit before the DEM redesign of issue 16 (laws as plug-ins, namedtuple state): the baseline of
-#: the "no slowdown beyond 5%" figure
+#: the commit before the DEM redesign that made the contact laws plug-ins and the state namedtuples: the
+#: baseline of the "no slowdown beyond 5%" figure
 REDESIGN_BASE = "e658bc0"
 
 

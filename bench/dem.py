@@ -1,7 +1,7 @@
 """DEM throughput and memory: the native fast path (gransim.dem.fast, 1 and 2 threads) and the
 bitwise engine (DEMEngine, 1 and 2 threads) vs LAMMPS (29 Sep 2021, Debian ``lammps``, the speed
 anchor) and LIGGGHTS 3.8.0, each serial and ``mpirun -np 2``, on the same assembly, contact law
-and steps, at about 1e3, 1e4, 1e5 and 1e6 disks (issue 17; docs/performance.md).
+and steps, at about 1e3, 1e4, 1e5 and 1e6 disks (docs/performance.md).
 
 LAMMPS runs the LAMMPS form of the same deck (``write_biaxial_deck(..., engine="lammps")``:
 ``pair_style gran/hooke/history`` with the same kn, kt, dampings and friction, 2D masses by
@@ -29,11 +29,12 @@ disks, arrays < 1 MB). The configurations are interleaved within each repeat (th
 because the 2 cores are shared; records give the median over repeats with min..max, and each
 job's 1-minute load average (os.getloadavg) is kept in its record's note.
 
-Targets (issue 17): fast 1 thread >= 2 x LAMMPS serial; bitwise 1 thread >= 1.3 x LAMMPS serial;
-fast 2 threads >= 1.8 x fast 1 thread; ns per particle-step flat within 20% from 1e3 to 1e6;
-fast peak above baseline <= 0.6 x LAMMPS serial at 1e6. Also "a core taken": fast and bitwise on
-2 threads while a spinning process (started and stopped here) holds one core, against 1 thread
-under the same condition; and a profile at 1e5 disks (native phases and the codes' own tables).
+Targets (docs/performance.md, "Performance targets and where they stand"): fast 1 thread >= 2 x
+LAMMPS serial; bitwise 1 thread >= 1.3 x LAMMPS serial; fast 2 threads >= 1.8 x fast 1 thread; ns
+per particle-step flat within 20% from 1e3 to 1e6; fast peak above baseline <= 0.6 x LAMMPS serial
+at 1e6. Also "a core taken": fast and bitwise on 2 threads while a spinning process (started and
+stopped here) holds one core, against 1 thread under the same condition; and a profile at 1e5 disks
+(native phases and the codes' own tables).
 
 Assembly: jittered triangular lattice of polydisperse disks overlapping ~8% of a radius
 (coordination ~4.9, gransim.dem.lattice) relaxing in a fixed periodic box (sizes are the nearest
@@ -253,7 +254,7 @@ RATIOS = (
     (NATIVE_2, LIG_2, None),
     (LMP_1, LIG_1, None),
 )
-#: flat cost per particle-step: max/min over N at most this (issue 17: within 20%)
+#: flat cost per particle-step: max/min over N at most this (the target: within 20%)
 FLAT = 1.2
 #: peak memory above baseline: fast path / LAMMPS serial at 1e6 disks at most this
 MEMORY_TARGET = 0.6

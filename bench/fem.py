@@ -1,15 +1,15 @@
-"""Benchmark of the slope (issues 8, 17.6, 18.4): what a user waits for, the solver split, Dask overhead.
+"""Benchmark of the slope: what a user waits for, the solver split, Dask overhead.
 
 * ``fem.slope.<protocol>.process``: the whole ``gransim slope --protocol P`` process (start-up, packing
   loading, the small-load and patch checks, the load path, the default ``--figures final`` outputs,
   the checkpoint files), wall and CPU time (user + sys of the child), targets < 5 s (service) and
-  < 8 s (paper) (issue 17.6); the median of ``REPEATS`` runs, every run in the note. The machine's
+  < 8 s (paper); the median of ``REPEATS`` runs, every run in the note. The machine's
   load average is in every note: on this shared 2-core machine the wall time grows with the load;
   the CPU time bounds the wall time an idle machine would take. The phase split of that time
   (imports, kernel, assembly, solve, outputs) is in docs/slope.md.
 * ``fem.slope.<protocol>.wall`` ...: the load path alone, in process, split into RVE evaluation,
   assembly and the linear solve (compilation excluded: one warm-up evaluation).
-* ``fem.dask.*``: Dask overhead per Newton iteration (issue 18.4, target < 10%): one material
+* ``fem.dask.*``: Dask overhead per Newton iteration (target < 10%): one material
   evaluation of the 1520 Gauss points through a 2-worker LocalCluster (F in; P, A, sigma, W,
   contacts out) against the same evaluation in process, interleaved, with a material that returns
   stored arrays (so only the transport is measured), beside the Taylor slope's own iteration time

@@ -15,7 +15,7 @@ Records (each with the 1-minute load average of the machine beside it, ``load``)
   non-zero eigenvalue of the backbone stiffness; why Newton does not replace the last FIRE pass;
 * (not quick) **100,000 disks**, ``residual="rms"`` 1e-3, both methods interleaved, with the split
   of FIRE steps and time per kind of stage;
-* (not quick) **the issue's targets**: ``gransim pack --n 100000`` (default tolerance: largest
+* (not quick) **the packing targets**: ``gransim pack --n 100000`` (default tolerance: largest
   residual <= 1e-3 of the mean contact force; target < 10 s) and ``gransim pack --n 1000000
   --method front`` (target < 2 min), each a whole process (``bench/_pack_job.py``) with a time
   budget (:data:`BUDGET_1E5`, :data:`BUDGET_1E6`); the record holds the stage split as far as the
@@ -41,7 +41,7 @@ from gransim.generation.stiffness import backbone, contact_pairs, enthalpy_deriv
 
 #: Feng, Han & Owen (2003): 1e6 disks packed by the advancing front in 3.8 s (2003 PC)
 FENG_1E6_SECONDS = 3.8
-#: wall-time budgets (s) of the whole-process runs at the issue's sizes (stopped beyond: not measured)
+#: wall-time budgets (s) of the whole-process runs at 1e5 and 1e6 disks (stopped beyond: not measured)
 BUDGET_1E5 = 3600
 BUDGET_1E6 = 3600
 ROOT = Path(__file__).resolve().parents[1]
@@ -247,7 +247,7 @@ def run(quick: bool):
                 f"{_split(meta)}",
             }
         )
-    # -- the targets: whole processes at the default tolerance, stage split as far as they got --
+    # -- the packing targets: whole processes at the default tolerance, stage split as far as they got --
     for n, method, budget, target in (
         (100_000, "random", BUDGET_1E5, 10.0),
         (1_000_000, "front", BUDGET_1E6, 120.0),

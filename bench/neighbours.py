@@ -1,4 +1,4 @@
-"""Neighbour search at 1e4..1e6 disks (issue 17 item 7: 1e6 disks in < 1 s after compilation).
+"""Neighbour search at 1e4..1e6 disks (target: 1e6 disks in < 1 s after compilation).
 
 Figures: the whole ``find_neighbours`` call (input checks, wrap, bins, two walks, output) and its
 kernel (the two passes of the shared bin-stencil walk of :mod:`gransim.geometry.bins` on binned

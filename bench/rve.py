@@ -1,4 +1,4 @@
-"""Benchmarks of the Taylor RVE (issue 3): W, P, A of a 700-particle RVE and batched throughput.
+"""Benchmarks of the Taylor RVE: W, P, A of a 700-particle RVE and batched throughput.
 
 ``run(quick)`` returns records {"name", "value", "unit", "target", "note"}. The RVE is one of
 the standard 700-particle RVEs when gransim.generation is available (``rve-700-1`` in

@@ -1,6 +1,6 @@
 """Benchmark: one relaxed-RVE evaluation (P and A) of a 700-disk RVE from a warm start.
 
-Issue #18 target: < 5 ms per evaluation from a warm start (committed state at a nearby F).
+Target: < 5 ms per evaluation from a warm start (committed state at a nearby F).
 
     PYTHONPATH=. python bench/rve_relaxed.py [--packing results/packings/rve-700-1.h5] [--repeat 20]
     python -m bench --only rve_relaxed          # as an area of the benchmark suite (run())

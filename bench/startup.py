@@ -1,4 +1,4 @@
-"""Start-up: what a user waits for before gransim computes (issue 17 item 4; docs/startup.md).
+"""Start-up: what a user waits for before gransim computes (docs/startup.md).
 
 Records, every figure a whole process (interpreter start to exit) and every comparison interleaved
 within each repeat, with the 1-minute load average beside it:

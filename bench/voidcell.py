@@ -1,6 +1,6 @@
 """Benchmark of the void-cell analysis: particle graph, faces and measures for 1e4..1e6 disks.
 
-Target (issue 17 item 7): what ``gransim voidcells`` computes per snapshot -- the pruned particle
+Target: what ``gransim voidcells`` computes per snapshot -- the pruned particle
 graph, the DCEL with its checks (crossings, closure, areas, Euler) and the measures (eqs 3, 7,
 18-21), ``VoidCells().compute`` -- for 1,000,000 disks in under 2 s after compilation. The kernel
 figures (graph, faces + checks, measures) are reported beside the whole call, the first call of

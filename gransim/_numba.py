@@ -17,7 +17,7 @@ Every kernel in the package is compiled through :func:`njit` (serial) or
   keep numba's default. ``make`` fills the cache for every command (``gransim warmup``,
   docs/startup.md).
 * ``fastmath=False``: floating point follows IEEE order exactly. The DEM engine
-  is compared with LIGGGHTS bit for bit, which re-association would break.
+  is compared with LIGGGHTS and LAMMPS bit for bit, which re-association would break.
 * ``error_model="numpy"``: division by zero gives inf/nan instead of raising
   inside a kernel; the Python boundary checks results.
 

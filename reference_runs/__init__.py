@@ -1,4 +1,5 @@
-"""LIGGGHTS-PUBLIC 3.8.0 reference runs: deck generators, a job runner and output parsers.
+"""Reference runs of LIGGGHTS-PUBLIC 3.8.0, LAMMPS 29 Sep 2021 and YADE: deck generators, a job runner
+and output parsers.
 
 This package imports gransim; gransim never imports it.
 """

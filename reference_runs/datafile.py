@@ -1,9 +1,10 @@
-"""LIGGGHTS data files written by gransim (not by LIGGGHTS' ``write_data``).
+"""Data files for LIGGGHTS and LAMMPS written by gransim (not by LIGGGHTS' ``write_data``).
 
 ``write_data`` in 2D writes density as m / (4/3 pi r^3), which changes masses when read
-back (see shared notes). Here the density column is mass per area, the convention of
-``dimension 2`` with ``atom_style sphere`` (m = pi r^2 rho), and every number is printed
-with ``%.17g`` so the data file round-trips float64 exactly.
+back (docs/liggghts.md). LAMMPS reads the density column as 3D; its decks reset it with
+``set group all density/disc`` (docs/lammps.md). Here the density column is mass per area, the
+convention of ``dimension 2`` with ``atom_style sphere`` (m = pi r^2 rho), and every number is
+printed with ``%.17g`` so the data file round-trips float64 exactly.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ def write_data_file(
     ----------
     path : output file (written atomically).
     packing : the packing; its cell must be orthogonal (a1 = (Lx, 0), a2 = (0, Ly)),
-        because tilted boxes are broken in LIGGGHTS 3.8.0 (shared notes).
+        because tilted boxes are broken in LIGGGHTS 3.8.0 (docs/liggghts.md).
     velocities : (N, 2) m/s, optional (written as a Velocities section with spins).
     omegas : (N,) rad/s, optional spin about z.
     types : (N,) int >= 1, optional atom types (default all 1).

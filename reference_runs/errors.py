@@ -1,4 +1,4 @@
-"""The errors of LIGGGHTS reference jobs: a failed or untrustworthy job, a busy directory."""
+"""The errors of reference jobs (LIGGGHTS, LAMMPS or YADE): a failed or untrustworthy job, a busy directory."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""What a LIGGGHTS deck must leave behind: its runs (first and last step) and its dump frames.
+"""What a reference deck (LIGGGHTS or LAMMPS) must leave behind: its runs (first and last step) and its
+dump frames.
 
 :func:`expected_evidence` reads a deck the way LIGGGHTS 3.8.0 executes it, command by command,
 tracking the time step (``run``, ``reset_timestep``, ``clear``) and the dumps defined

@@ -1,4 +1,5 @@
-"""Directory locks: one writer at a time for a LIGGGHTS job directory or a results directory.
+"""Directory locks: one writer at a time for a reference job directory (LIGGGHTS, LAMMPS or YADE) or a
+results directory.
 
 :class:`DirectoryLock` takes ``fcntl.flock`` on ``<dir>/.lock`` (created if missing). ``flock``
 locks belong to the open file, so the kernel releases them when the holder exits or is killed:

@@ -10,7 +10,7 @@ does not output cleanly is marked, not invented:
 * snapshot contacts: the touching pairs recomputed from the dumped positions (i, j, image
   shift, overlap); ``force``, ``tangential_spring`` are NaN and ``sliding`` False, because
   ``compute pair/gran/local`` re-evaluates contacts at output time instead of reporting the
-  applied forces (shared LIGGGHTS notes);
+  applied forces (docs/liggghts.md, "Stress and other output");
 * series ``n_contacts`` (-1), ``mean_overlap`` and ``kinetic_energy`` (NaN) between dumps.
 """
 

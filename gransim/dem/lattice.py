@@ -1,5 +1,5 @@
 """Small test assemblies: a perturbed triangular lattice of polydisperse disks (for tests and
-LIGGGHTS cross-checks; the Kuhn assembly comes from gransim.generation)."""
+cross-checks with LIGGGHTS and LAMMPS; the Kuhn assembly comes from gransim.generation)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Two-disk oblique impact decks for the Hertz-Mindlin laws, one per code and law (issue #16 item 2).
+"""Two-disk oblique impact decks for the Hertz-Mindlin laws, one per code and law.
 
 Three decks of the same impact (:func:`impact_case`: two spinning disks meeting obliquely in a
 large periodic 2D box, far from its edges so no periodic image comes near, skin large enough

@@ -1,4 +1,4 @@
-"""Two-disk decks for the rolling-resistance laws, one per code and model (issue #16 item 2).
+"""Two-disk decks for the rolling-resistance laws, one per code and model.
 
 The same oblique impact of two spinning disks (:func:`rolling_case`: counter-spinning disks that
 meet along a normal 20 degrees off x, stick, roll against each other and part; a large periodic

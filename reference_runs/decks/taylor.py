@@ -7,7 +7,7 @@ Contact law: ``pair_style gran model hooke/stiffness tangential no_history`` wit
 kn = E_n, kt = 0, gamman = gammat = 0 (the elastic normal contact of Meier, Steinmann & Kuhl (2007),
 eqs 3-5: f = -E_n eps n), no integrator, one ``run 0`` per state. The set-up of ``run 0``
 builds the neighbour list and evaluates the forces once, so the printed virial and the
-``compute pair/gran/local`` rows are the clean evaluation at the given positions (shared notes).
+``compute pair/gran/local`` rows are the clean evaluation at the given positions (docs/liggghts.md).
 
 Each state is read from its own data file, written by gransim at ``%.17g`` with centres
 x = F X exactly as numpy computes them (periodic route; the images route translates them by one

@@ -59,8 +59,8 @@ from ..dem_compare import (
 POS_TOL = 1e-10  # of D50
 POS_REASON = (
     "the engine does LIGGGHTS' floating-point operations in LIGGGHTS' order (neighbour list, "
-    "ghosts, step order), so the doubles are equal; 1e-10 D50 (issue bound) leaves room for another "
-    "CPU/compiler, whose round-off grows ~10x per 1000 steps (shared notes), yet is 7 decades below the "
+    "ghosts, step order), so the doubles are equal; 1e-10 D50 (the step-for-step bound) leaves room for another "
+    "CPU/compiler, whose round-off grows ~10x per 1000 steps (docs/liggghts.md), yet is 7 decades below the "
     "8e-4 D50 that 1% stiffer contacts give within 1000 steps (measured, tests/validation)"
 )
 REL_TOL = 1e-8
@@ -77,7 +77,7 @@ FORCE_REASON = (
     "per-particle force/torque applied in the step (dump fx fy tqz) relative to the largest: sums of "
     "the contact forces in the same order. Per-contact rows are not compared: LIGGGHTS' "
     "pair/gran/local re-evaluates contacts at output time (remapped positions, full-step "
-    "velocities, stale ghosts: up to 3.9% off the applied force, shared notes)"
+    "velocities, stale ghosts: up to 3.9% off the applied force, docs/liggghts.md)"
 )
 BOX_REASON = "box lengths after fix deform (servo/rate) in D50: the servo uses the stress, same bound as positions"
 
@@ -401,7 +401,7 @@ def biaxial_short(ctx: Context) -> CaseResult:
         "Per-contact forces: the native snapshot's contact forces are not set against LIGGGHTS' "
         "<code>compute pair/gran/local</code>, whose rows are a re-evaluation at output time "
         "(remapped positions, full-step velocities, stale ghost state), not the applied forces "
-        "(shared notes liggghts-3.8.md). Per-particle forces are the sums of the applied contact forces "
+        "(docs/liggghts.md). Per-particle forces are the sums of the applied contact forces "
         "and are compared instead; with equal positions the contact lists are equal (voidcell case)."
     )
     return res

@@ -1,5 +1,5 @@
 """The biaxial test on the Kuhn assembly with each contact law, native vs its code (case
-``biaxial-laws``, full suite only; issue #16 item 3).
+``biaxial-laws``, full suite only).
 
 For every law of :func:`gransim.contacts.laws.law_names` the compression phase of biaxial-full is
 run by the native engine with that law (in its code's arithmetic, ``law_code``) and by the code

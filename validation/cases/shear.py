@@ -88,7 +88,7 @@ POS_REASON = (
     "the sheared-cell engine does LAMMPS' floating-point operations (fix nve/sphere, triclinic neighbour "
     "check, lamda wrap with the remap v velocity jumps, gran/hooke/history, fix deform; docs/shear.md); only "
     "the summation order of the neighbour list differs (measured 2.5e-13 D50 over 3000 steps), so 1e-10 "
-    "D50 (issue bound) is 3 decades above round-off and 7 below what 1% stiffer contacts give"
+    "D50 (the step-for-step bound) is 3 decades above round-off and 7 below what 1% stiffer contacts give"
 )
 VEL_REASON = (
     "velocities (lab frame on both sides: remap v keeps the streaming velocity in v), spins: relative to "
@@ -108,7 +108,7 @@ BOX_REASON = (
 )
 LIGGGHTS_NA = (
     "LIGGGHTS 3.8.0's triclinic box has no periodic ghost atoms (Domain sets prd_lamda to 0, "
-    "shared notes liggghts-3.8.md): contacts across the boundary are lost and simple shear loses "
+    "domain.cpp:144-145, docs/liggghts.md): contacts across the boundary are lost and simple shear loses "
     "atoms, so LIGGGHTS cannot run this case; its sheared states are checked through explicit image "
     "copies in taylor-rve"
 )

@@ -1,4 +1,4 @@
-"""Case ``slope-relaxed``: the FE2 slope with the relaxed RVE beside the Taylor RVE (issue #18 (a), (b)).
+"""Case ``slope-relaxed``: the FE2 slope with the relaxed RVE beside the Taylor RVE.
 
 Full suite only (3.5 minutes wall at load average ~10 on the 2-core machine: most of it the relaxed paper
 protocol's limit search on the reduced mesh).
