@@ -29,6 +29,7 @@ import traceback
 
 from .. import __version__
 from ..errors import GransimError
+from ..progress import stop_signals
 
 #: the entry-point group in which packages register ``gransim`` sub-commands: each entry point is a
 #: callable ``register(subparsers)`` that adds one sub-command (its name is the entry point's)
@@ -105,6 +106,8 @@ def _internal_error(command: str, exc: BaseException) -> int:
             "reduce the problem size or free memory",
             file=sys.stderr,
         )
+    elif isinstance(exc, OSError) and type(exc).__name__ == "OutputWriteError":
+        print(f"gransim {command}: error: {exc}", file=sys.stderr)  # names the file and the cause
     elif isinstance(exc, OSError) and exc.errno is not None:
         # the system refused something (disk full, permissions changed during the run...): not a bug
         print(f"gransim {command}: error: {type(exc).__name__}: {exc}", file=sys.stderr)
@@ -125,14 +128,18 @@ def _main(argv) -> int:
         sys.stdout.flush()  # --help / --version into a closed pipe: BrokenPipeError, handled in main
         raise
     try:
-        rc = args.func(args)
+        with stop_signals():
+            rc = args.func(args)
         sys.stdout.flush()
     except GransimError as exc:
         print(f"gransim {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"gransim {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        # SIGINT (Ctrl-C) or SIGTERM: 128 + the signal's number, what a shell reports for it
+        signum = getattr(exc, "signum", 2)
+        msg = getattr(exc, "message", "")
+        print(f"gransim {args.command}: interrupted" + (f": {msg}" if msg else ""), file=sys.stderr)
+        return 128 + int(signum)
     except BrokenPipeError:
         raise
     except Exception as exc:  # noqa: BLE001 - no traceback reaches a user (see _internal_error)
@@ -143,9 +150,12 @@ def _main(argv) -> int:
 def main(argv=None) -> int:
     """Run the command line; returns the exit status.
 
-    0 success, 1 failure of the computation (or an internal error, printed as one line), 2 bad
-    input (:class:`~gransim.errors.GransimError`, argparse usage errors), 130 interrupted, 141
-    output pipe closed by the reader (``gransim ... | head``: stops quietly, like SIGPIPE).
+    0 success, 1 failure of the computation (or an internal error, printed as one line; a full
+    disk), 2 bad input (:class:`~gransim.errors.GransimError`, argparse usage errors), 130
+    interrupted (SIGINT, Ctrl-C), 143 terminated (SIGTERM), 141 output pipe closed by the reader
+    (``gransim ... | head``: stops quietly, like SIGPIPE). A DEM run stopped by SIGINT or SIGTERM
+    writes its file as an incomplete run with a checkpoint at the step it stopped at
+    (:mod:`gransim.progress`: the signal is acted on between chunks of steps, never lost).
     """
     try:
         return _main(argv)

@@ -4,14 +4,18 @@ stress-strain plot (Fig. 7b of Kuhn (1997))."""
 from __future__ import annotations
 
 import json
+import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from ..errors import InputError, ResultFileError
 from ..geometry import Packing
 from ..io import atomic_h5, atomic_path, open_result, particles_to_vtu, read_packing_group, write_packing_group
+from ..io.hdf5 import remove_stale_temporaries
 
 KIND = "dem-run"
 SERIES_KEYS = ("step", "time", "cell", "stress", "n_contacts", "mean_overlap", "kinetic_energy", "phase")
@@ -53,11 +57,32 @@ class RunRecord:
     unsettled: list = field(default_factory=list)  # phases that ended unsettled (allow_unsettled)
     output: dict | None = None  # OutputSettings.to_dict() of the run (None: not stored)
     allow_unsettled: bool = False
+    #: what is on disk of this record (written by :func:`write_run` / :func:`write_checkpoint` or
+    #: read by :func:`read_record`): the run file's path, os.stat key and write token, the series
+    #: rows and snapshot steps in it (``file_rows``, ``file_snapshots``) and with its checkpoint
+    #: parts (``rows``, ``snapshots``), the parts' number and bytes; lets the next write copy or
+    #: skip them instead of encoding them again (None: write everything)
+    stored: dict | None = field(default=None, repr=False, compare=False)
 
-    def series_arrays(self) -> dict:
+    def truncate(self, step: int) -> None:
+        """Keep the series rows and snapshots up to ``step`` (a resume from the checkpoint there)."""
+        keep = int(np.searchsorted(np.asarray(self.series["step"], np.int64), step, side="right"))  # rows ascend
+        for k in self.series:
+            del self.series[k][keep:]
+        self.snapshots = {s: v for s, v in self.snapshots.items() if s <= step}
+        if self.stored is not None:
+            st = dict(self.stored)
+            for rows, snaps in (("rows", "snapshots"), ("file_rows", "file_snapshots")):
+                st[rows] = min(int(st[rows]), keep)
+                st[snaps] = frozenset(s for s in st[snaps] if s <= step)
+            st["compact"] = True  # the next write is a whole run file (its parts end here)
+            self.stored = st
+
+    def series_arrays(self, start: int = 0) -> dict:
+        """The series rows from ``start`` on as arrays (the engine's compression-positive stress)."""
         out = {}
         for k in SERIES_KEYS:
-            v = self.series[k]
+            v = self.series[k][start:]
             if k in ("cell", "stress"):
                 out[k] = np.array(v, np.float64).reshape(-1, 2, 2)
             elif k in ("step", "n_contacts"):
@@ -69,9 +94,65 @@ class RunRecord:
         return out
 
 
+#: rows of a chunk of the /series datasets (fixed, so that a checkpoint appends rows to the chunks
+#: a previous write stored instead of re-encoding the series)
+SERIES_CHUNK = 1024
+
+
+def _stat_key(path) -> tuple | None:
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def _reusable(path: Path, rec: RunRecord) -> dict | None:
+    """What the file at ``path`` already holds of ``rec`` (its first ``rows`` series rows and the
+    snapshots of ``snapshots``), when it is the file this process last wrote or read for ``rec``
+    (same device, inode, size and modification time) and its fingerprint is ``rec``'s."""
+    st = rec.stored
+    if not st or st.get("path") != str(path.resolve()) or st.get("stat") != _stat_key(path):
+        return None
+    return st
+
+
+def _write_series(g, arrays: dict) -> None:
+    for k, v in arrays.items():
+        g.create_dataset(k, data=v, chunks=(SERIES_CHUNK,) + v.shape[1:], maxshape=(None,) + v.shape[1:], **_GZ)
+
+
+def _write_snapshot(sg, step: int, snap: dict) -> None:
+    h = sg.create_group(f"s{step:010d}")
+    h.attrs["step"] = step
+    h.attrs["time"] = snap["time"]
+    for k in ("cell", "positions", "velocities", "spins"):
+        h.create_dataset(k, data=snap[k], **(_GZ if np.ndim(snap[k]) and len(snap[k]) > 1 else {}))
+    c = h.create_group("contacts")
+    for k, v in snap["contacts"].items():
+        v = np.asarray(v)
+        c.create_dataset(
+            k,
+            data=v,
+            chunks=(min(max(len(v), 1), 65536),) + v.shape[1:] if len(v) else None,
+            **(_GZ if len(v) else {}),
+        )
+
+
 def write_run(path, rec: RunRecord, parameters: dict | None = None, seed=None) -> Path:
-    """Write the whole record atomically (a crash never leaves a half-written file)."""
+    """Write the whole record atomically (a crash never leaves a half-written file).
+
+    A new file is always written beside the old one and renamed over it, but what the previous
+    write of ``rec`` by this process (or :func:`read_record`) already stored is not encoded again:
+    its series rows and snapshots are copied from that file as stored (compressed chunks, nothing
+    decoded) and only the new rows and snapshots are compressed. So a checkpoint costs a copy of
+    the stored bytes plus the encoding of what is new, not a re-encoding of the whole run."""
+    path = Path(path)
+    base = _reusable(path, rec)
+    arrays_from = 0
+    token = os.urandom(8).hex()
     with atomic_h5(path, kind=KIND, parameters=parameters or json.loads(rec.settings_text), seed=seed) as f:
+        f.attrs["write_token"] = token
         f.attrs["fingerprint"] = rec.fingerprint
         f.attrs["settings"] = rec.settings_text
         f.attrs["n_particles"] = rec.packing.n
@@ -81,40 +162,251 @@ def write_run(path, rec: RunRecord, parameters: dict | None = None, seed=None) -
         f.attrs["unsettled_phases"] = json.dumps(rec.unsettled)
         if rec.output is not None:
             f.attrs["output_settings"] = json.dumps(rec.output, sort_keys=True)
-        write_packing_group(f.create_group("packing"), rec.packing)
-        g = f.create_group("series")
-        g.attrs["stress_sign"] = "tension positive (gransim convention; = -LIGGGHTS compute pressure)"
-        for k, v in rec.series_arrays().items():
-            if k == "stress":
-                v = -v  # the engine works in LIGGGHTS' compression-positive virial; files are tension positive
-            chunks = (min(max(len(v), 1), 4096),) + v.shape[1:]
-            g.create_dataset(
-                k, data=v, chunks=chunks if len(v) else None, maxshape=(None,) + v.shape[1:], **(_GZ if len(v) else {})
-            )
-        sg = f.create_group("snapshots")
-        for step in sorted(rec.snapshots):
-            snap = rec.snapshots[step]
-            h = sg.create_group(f"s{step:010d}")
-            h.attrs["step"] = step
-            h.attrs["time"] = snap["time"]
-            for k in ("cell", "positions", "velocities", "spins"):
-                h.create_dataset(k, data=snap[k], **(_GZ if np.ndim(snap[k]) and len(snap[k]) > 1 else {}))
-            c = h.create_group("contacts")
-            for k, v in snap["contacts"].items():
-                v = np.asarray(v)
-                c.create_dataset(
-                    k,
-                    data=v,
-                    chunks=(min(max(len(v), 1), 65536),) + v.shape[1:] if len(v) else None,
-                    **(_GZ if len(v) else {}),
-                )
+        n_rows = len(rec.series["step"])
+        src = None
+        if base is not None:
+            try:
+                src = h5py.File(path, "r")
+                if src.attrs.get("fingerprint") != rec.fingerprint or not _extendable(src, base["file_rows"]):
+                    src.close()
+                    src = None
+            except OSError:
+                src = None
+        try:
+            kept = set()
+            if src is not None:
+                src.copy(src["packing"], f, name="packing")
+                src.copy(src["series"], f, name="series")
+                arrays_from = min(int(base["file_rows"]), n_rows)
+                g = f["series"]
+                new = rec.series_arrays(arrays_from)
+                for k in SERIES_KEYS:
+                    v = -new[k] if k == "stress" else new[k]
+                    d = g[k]
+                    d.resize(arrays_from + len(v), axis=0)
+                    if len(v):
+                        d[arrays_from:] = v
+                have = set(src["snapshots"].keys())
+                kept = {s for s in base["file_snapshots"] if s in rec.snapshots and f"s{s:010d}" in have}
+            else:
+                write_packing_group(f.create_group("packing"), rec.packing)
+                g = f.create_group("series")
+                g.attrs["stress_sign"] = "tension positive (gransim convention; = -LIGGGHTS compute pressure)"
+                arrays = rec.series_arrays()
+                arrays["stress"] = -arrays["stress"]  # the engine works in LIGGGHTS' compression-positive
+                _write_series(g, arrays)  # virial; files are tension positive
+            sg = f.create_group("snapshots")
+            for step in sorted(rec.snapshots):
+                if step in kept:
+                    name = f"s{step:010d}"
+                    src.copy(src["snapshots"][name], sg, name=name)
+                else:
+                    _write_snapshot(sg, step, rec.snapshots[step])
+        finally:
+            if src is not None:
+                src.close()
         if rec.checkpoint is not None:
-            ck = f.create_group("checkpoint")
-            ck.attrs["step"] = int(rec.checkpoint["step"])
-            ck.attrs["protocol_state"] = json.dumps(rec.checkpoint["protocol_state"])
-            for k, v in rec.checkpoint["arrays"].items():
-                ck.create_dataset(k, data=np.asarray(v))
+            _write_checkpoint_group(f, rec.checkpoint)
+    remove_parts(path)  # the run file now holds everything they held
+    rec.stored = _stored(path, token, n_rows, frozenset(rec.snapshots))
     return Path(path)
+
+
+def _stored(path: Path, token, rows: int, snapshots: frozenset) -> dict:
+    return {
+        "path": str(Path(path).resolve()),
+        "stat": _stat_key(path),
+        "token": token,
+        "file_rows": rows,
+        "file_snapshots": snapshots,
+        "rows": rows,
+        "snapshots": snapshots,
+        "parts": 0,
+        "parts_bytes": 0,
+        "compact": False,
+    }
+
+
+# ------------------------------------------------------------------------------ checkpoint parts
+#: kind of a checkpoint part file (``.<run file>.part-<seq>.h5``, beside the run file)
+PART_KIND = "dem-run-part"
+#: a checkpoint is written as a part file while the parts since the last whole write of the run
+#: file total at most this fraction of its size; the next one rewrites the run file (and removes
+#: the parts). The run file is rewritten each time the run's data grew by this fraction: its
+#: rewrites cost a bounded multiple of the final file's writing, whatever the checkpoint interval
+COMPACT_FRACTION = 0.25
+_PART = re.compile(r"^\.(?P<name>.+)\.part-(?P<seq>\d{6})\.h5$")
+
+
+def part_path(path, seq: int) -> Path:
+    """The checkpoint part ``seq`` (1, 2, ...) of the run file ``path``."""
+    path = Path(path)
+    return path.parent / f".{path.name}.part-{int(seq):06d}.h5"
+
+
+def part_paths(path) -> list[Path]:
+    """The checkpoint part files of the run file ``path`` on disk, in order."""
+    path = Path(path)
+    try:
+        names = os.listdir(path.parent if str(path.parent) else ".")
+    except OSError:
+        return []
+    out = []
+    for name in names:
+        m = _PART.match(name)
+        if m and m.group("name") == path.name:
+            out.append((int(m.group("seq")), path.parent / name))
+    return [p for _, p in sorted(out)]
+
+
+def remove_stale_run_temporaries(path) -> None:
+    """Remove the temporaries a killed run left beside its run file ``path`` (of the run file and
+    of its checkpoint parts; :func:`gransim.io.hdf5.stale_temporaries`: never a live process's)."""
+    path = Path(path)
+    remove_stale_temporaries(path)
+    try:
+        names = os.listdir(path.parent if str(path.parent) else ".")
+    except OSError:
+        return
+    pre = f"..{path.name}.part-"
+    for name in {n[1 : len(pre) + 6 + 3] for n in names if n.startswith(pre)}:
+        remove_stale_temporaries(path.parent / name)
+
+
+def remove_parts(path) -> None:
+    """Remove the checkpoint parts of ``path`` (and the temporaries of parts a killed run left)."""
+    for p in part_paths(path):
+        p.unlink(missing_ok=True)
+    remove_stale_run_temporaries(path)
+
+
+def write_checkpoint(path, rec: RunRecord, parameters: dict | None = None, seed=None) -> Path:
+    """A checkpoint of a run in progress: what is new since the last write (series rows,
+    snapshots) and the checkpoint, in a small part file beside the run file, written atomically
+    (:func:`part_path`); or, when the parts have grown past :data:`COMPACT_FRACTION` of the run
+    file (or there is no run file of this record yet), the whole run file (:func:`write_run`,
+    which removes the parts). Its cost is that of the new data, not of the whole run.
+
+    The run file alone stays a complete, consistent dem-run file (every reader reads it); after a
+    kill it holds the run up to its last whole write, and :func:`read_record` (a resume) adds the
+    parts written after it."""
+    path = Path(path)
+    st = _reusable(path, rec)
+    if (
+        st is None
+        or st.get("compact")
+        or st.get("token") is None
+        or st["parts_bytes"] > COMPACT_FRACTION * st["stat"][2]
+        or st["rows"] > len(rec.series["step"])
+    ):
+        return write_run(path, rec, parameters, seed)
+    seq = int(st["parts"]) + 1
+    row0 = int(st["rows"])
+    new_snaps = sorted(s for s in rec.snapshots if s not in st["snapshots"])
+    out = part_path(path, seq)
+    with atomic_h5(out, kind=PART_KIND, parameters={"run_file": path.name, "seq": seq}) as f:
+        f.attrs["fingerprint"] = rec.fingerprint
+        f.attrs["base_token"] = st["token"]
+        f.attrs["seq"] = seq
+        f.attrs["row0"] = row0
+        f.attrs["stop_reason"] = rec.stop_reason
+        f.attrs["unsettled_phases"] = json.dumps(rec.unsettled)
+        g = f.create_group("series")
+        for k, v in rec.series_arrays(row0).items():
+            g.create_dataset(k, data=-v if k == "stress" else v)
+        sg = f.create_group("snapshots")
+        for step in new_snaps:
+            _write_snapshot(sg, step, rec.snapshots[step])
+        if rec.checkpoint is not None:
+            _write_checkpoint_group(f, rec.checkpoint)
+    ck_bytes = sum(np.asarray(v).nbytes for v in rec.checkpoint["arrays"].values()) if rec.checkpoint else 0
+    rec.stored = {
+        **st,
+        "rows": len(rec.series["step"]),
+        "snapshots": frozenset(rec.snapshots),
+        "parts": seq,
+        # the data the parts add (their checkpoints are superseded by the next one)
+        "parts_bytes": int(st["parts_bytes"]) + max(out.stat().st_size - ck_bytes, 0),
+    }
+    return out
+
+
+def _write_checkpoint_group(f, checkpoint: dict) -> None:
+    ck = f.create_group("checkpoint")
+    ck.attrs["step"] = int(checkpoint["step"])
+    ck.attrs["protocol_state"] = json.dumps(checkpoint["protocol_state"])
+    for k, v in checkpoint["arrays"].items():
+        ck.create_dataset(k, data=np.asarray(v))
+
+
+def _read_checkpoint_group(f, path, n: int) -> dict:
+    ck = f["checkpoint"]
+    if "step" not in ck.attrs:
+        raise ResultFileError(f"{path}: /checkpoint has no attribute 'step'")
+    _check_shapes(ck, CHECKPOINT_SHAPES, {"N": n}, path, "checkpoint")
+    state = _json_attr(f, path, "protocol_state", where=ck, want=dict)
+    arrays = {}
+    ck.visititems(lambda name, obj: arrays.__setitem__(name, obj[()]) if hasattr(obj, "shape") else None)
+    return {"step": int(ck.attrs["step"]), "protocol_state": state, "arrays": arrays}
+
+
+def _apply_parts(path: Path, rec: RunRecord, token) -> tuple[int, int]:
+    """Add the checkpoint parts of ``path`` written after its last whole write (same token, seq
+    1, 2, ... without a gap, each starting at the row the previous one ended) to ``rec``. Returns
+    (parts applied, their bytes). Parts of another write of the file (a run killed between its
+    rewrite and the removal of the parts) are ignored."""
+    if token is None:
+        return 0, 0
+    applied, nbytes = 0, 0
+    for p in part_paths(path):
+        try:
+            with h5py.File(p, "r") as f:
+                if (
+                    f.attrs.get("kind") != PART_KIND
+                    or f.attrs.get("base_token") != token
+                    or f.attrs.get("fingerprint") != rec.fingerprint
+                    or int(f.attrs.get("seq", -1)) != applied + 1
+                    or int(f.attrs.get("row0", -1)) != len(rec.series["step"])
+                ):
+                    continue
+                g = f["series"]
+                cols = {k: g[k][()] for k in SERIES_KEYS}
+                snaps = {}
+                for h in f["snapshots"].values():
+                    _check_snapshot(h, rec.packing.n, p)
+                    snaps[int(h.attrs["step"])] = {
+                        "time": float(h.attrs["time"]),
+                        **{k: h[k][()] for k in ("cell", "positions", "velocities", "spins")},
+                        "contacts": {k: v[()] for k, v in h["contacts"].items()},
+                    }
+                ck = _read_checkpoint_group(f, p, rec.packing.n) if "checkpoint" in f else rec.checkpoint
+                reason = f.attrs.get("stop_reason", "")
+                unsettled = _json_attr(f, p, "unsettled_phases", default=[], want=list)
+        except (OSError, KeyError, ValueError, ResultFileError):
+            break  # an unreadable part ends the chain: resume from the one before
+        for k in SERIES_KEYS:
+            rec.series[k].extend(-cols[k] if k == "stress" else cols[k])
+        rec.snapshots.update(snaps)
+        rec.checkpoint = ck
+        rec.stop_reason = reason.decode() if isinstance(reason, bytes) else str(reason)
+        rec.unsettled = unsettled
+        applied += 1
+        nbytes += p.stat().st_size
+    return applied, nbytes
+
+
+def _extendable(src, rows: int) -> bool:
+    """The stored /series can take appended rows (chunked, unlimited, at least ``rows`` rows; files
+    of older versions have chunks as small as their first write) and /packing and /snapshots exist."""
+    if "packing" not in src or "snapshots" not in src or "series" not in src:
+        return False
+    for k in SERIES_KEYS:
+        d = src["series"].get(k)
+        if not isinstance(d, h5py.Dataset) or d.chunks is None or d.maxshape[0] is not None:
+            return False
+        if d.chunks[0] < SERIES_CHUNK // 4 or d.shape[0] < rows:
+            return False
+    return True
 
 
 #: trailing shape of each /series dataset (all have the same number of rows T)
@@ -297,14 +589,18 @@ def read_record(path) -> RunRecord:
                 "contacts": {k: v[()] for k, v in h["contacts"].items()},
             }
         if "checkpoint" in f:
-            ck = f["checkpoint"]
-            if "step" not in ck.attrs:
-                raise ResultFileError(f"{path}: /checkpoint has no attribute 'step'")
-            _check_shapes(ck, CHECKPOINT_SHAPES, {"N": rec.packing.n}, path, "checkpoint")
-            state = _json_attr(f, path, "protocol_state", where=ck, want=dict)
-            arrays = {}
-            ck.visititems(lambda name, obj: arrays.__setitem__(name, obj[()]) if hasattr(obj, "shape") else None)
-            rec.checkpoint = {"step": int(ck.attrs["step"]), "protocol_state": state, "arrays": arrays}
+            rec.checkpoint = _read_checkpoint_group(f, path, rec.packing.n)
+        token = f.attrs.get("write_token")
+        token = token.decode() if isinstance(token, bytes) else token
+    file_rows, file_snaps = len(rec.series["step"]), frozenset(rec.snapshots)
+    parts, nbytes = _apply_parts(Path(path), rec, token)
+    rec.stored = {
+        **_stored(path, token, file_rows, file_snaps),
+        "rows": len(rec.series["step"]),
+        "snapshots": frozenset(rec.snapshots),
+        "parts": parts,
+        "parts_bytes": nbytes,
+    }
     return rec
 
 

@@ -13,9 +13,9 @@ from .._validate import as_int, as_positive_float
 from ..contacts.laws import law_spec
 from ..errors import ConvergenceError, InputError, ResultFileError, SimulationError
 from ..geometry import Packing
-from ..progress import progress
+from ..progress import Interrupted, check_interrupt, deferred_interrupts, pending_interrupt, progress
 from .engine import DEMEngine, fingerprint
-from .output import OutputSettings, RunRecord, read_record, write_run
+from .output import OutputSettings, RunRecord, read_record, remove_stale_run_temporaries, write_checkpoint, write_run
 from .settings import DEMSettings, Loading, settings_json
 
 
@@ -137,6 +137,7 @@ def run_phases(
     text = settings_json(settings, None, phases=[p.to_dict() for p in phases], **extra)
     fp = fingerprint(packing, text)
     out_path = Path(out_path)
+    remove_stale_run_temporaries(out_path)  # of a run of this file killed while it wrote a checkpoint
     eng = DEMEngine(packing, settings, velocities=velocities, threads=threads, law=law)
     state = {"phase": 0, "phase_step0": 0, "lo0": eng.lo.tolist(), "hi0": eng.hi.tolist(), "settled": 0}
     if resume and out_path.exists():
@@ -155,10 +156,7 @@ def run_phases(
         step = rec.checkpoint["step"]
         eng.restore(rec.checkpoint["arrays"], step)
         state = rec.checkpoint["protocol_state"]
-        keep = [k for k, s in enumerate(rec.series["step"]) if s <= step]
-        for k in rec.series:
-            rec.series[k] = [rec.series[k][i] for i in keep]
-        rec.snapshots = {s: v for s, v in rec.snapshots.items() if s <= step}
+        rec.truncate(step)
         rec.unsettled = [u for u in rec.unsettled if u["step"] <= step]
         rec.stop_reason = ""
     else:
@@ -182,122 +180,159 @@ def run_phases(
     bar = progress(total=total, desc="dem") if show_progress else None
     if bar is not None:
         bar.update(sum(p.max_steps for p in phases[: state["phase"]]) + eng.step - state["phase_step0"])
-    try:
-        while state["phase"] < len(phases):
-            ph = phases[state["phase"]]
-            lo0, hi0 = np.array(state["lo0"]), np.array(state["hi0"])
-            end = state["phase_step0"] + ph.max_steps
-            settled = False
-            last_mean = None
-            tail = None
-            while eng.step < end:
-                nxt = [end]
-                for every in (output.snapshot_every, output.checkpoint_every):
-                    if every:
-                        nxt.append((eng.step // every + 1) * every)
-                if ph.stop_tol > 0:
-                    nxt.append(
-                        state["phase_step0"]
-                        + ((eng.step - state["phase_step0"]) // ph.check_every + 1) * ph.check_every
+    with deferred_interrupts():
+        try:
+            while state["phase"] < len(phases):
+                ph = phases[state["phase"]]
+                lo0, hi0 = np.array(state["lo0"]), np.array(state["hi0"])
+                end = state["phase_step0"] + ph.max_steps
+                settled = False
+                last_mean = None
+                tail = None
+                while eng.step < end:
+                    check_interrupt()
+                    nxt = [end]
+                    for every in (output.snapshot_every, output.checkpoint_every):
+                        if every:
+                            nxt.append((eng.step // every + 1) * every)
+                    if ph.stop_tol > 0:
+                        nxt.append(
+                            state["phase_step0"]
+                            + ((eng.step - state["phase_step0"]) // ph.check_every + 1) * ph.check_every
+                        )
+                    if stop_at_step is not None and stop_at_step > eng.step:
+                        nxt.append(int(stop_at_step))
+                    stop = min(nxt)
+                    out = _advance(eng, ph.loading, stop - eng.step, state["phase_step0"], (lo0, hi0))
+                    tail = out["stress"]  # the last steps of the phase, for the message of an unsettled end
+                    sel = out["step"] % output.series_every == 0
+                    L = out["lengths"][sel]
+                    cells = np.zeros((len(L), 2, 2))
+                    cells[:, 0, 0], cells[:, 1, 1] = L[:, 0], L[:, 1]
+                    _append(
+                        rec,
+                        eng,
+                        out["step"][sel],
+                        out["stress"][sel],
+                        cells,
+                        out["n_contacts"][sel],
+                        out["mean_overlap"][sel],
+                        out["kinetic_energy"][sel],
+                        min(state["phase"], 1),
                     )
-                if stop_at_step is not None and stop_at_step > eng.step:
-                    nxt.append(int(stop_at_step))
-                stop = min(nxt)
-                out = eng.advance(ph.loading, stop - eng.step, phase_step0=state["phase_step0"], phase_box0=(lo0, hi0))
-                tail = out["stress"]  # the last steps of the phase, for the message of an unsettled end
-                sel = out["step"] % output.series_every == 0
-                L = out["lengths"][sel]
-                cells = np.zeros((len(L), 2, 2))
-                cells[:, 0, 0], cells[:, 1, 1] = L[:, 0], L[:, 1]
-                _append(
-                    rec,
-                    eng,
-                    out["step"][sel],
-                    out["stress"][sel],
-                    cells,
-                    out["n_contacts"][sel],
-                    out["mean_overlap"][sel],
-                    out["kinetic_energy"][sel],
-                    min(state["phase"], 1),
-                )
-                if bar is not None:
-                    bar.update(len(out["step"]))
-                if output.snapshot_every and eng.step % output.snapshot_every == 0:
-                    rec.snapshots[eng.step] = _snapshot(eng)
-                if ph.stop_tol > 0 and (eng.step - state["phase_step0"]) % ph.check_every == 0:
-                    last_mean = out["stress"].mean(axis=0)
-                    state["last_mean_stress"] = last_mean.tolist()
-                    state["settled"] = state["settled"] + 1 if _settled(ph, last_mean) else 0
-                    if state["settled"] >= ph.settle_checks:
-                        settled = True
-                        break
-                if output.checkpoint_every and eng.step % output.checkpoint_every == 0:
-                    _checkpoint(rec, eng, state)
-                    rec.stop_reason = (
-                        f"run in progress, or killed: last checkpoint at step {eng.step} (continue with resume)"
-                    )
-                    write_run(out_path, rec)
-                if stop_at_step is not None and eng.step == stop_at_step:
-                    _checkpoint(rec, eng, state)
+                    if bar is not None:
+                        bar.update(len(out["step"]))
+                    if eng.step < stop:  # _advance stopped early: SIGINT or SIGTERM
+                        check_interrupt()
+                    if output.snapshot_every and eng.step % output.snapshot_every == 0:
+                        rec.snapshots[eng.step] = _snapshot(eng)
+                    if ph.stop_tol > 0 and (eng.step - state["phase_step0"]) % ph.check_every == 0:
+                        last_mean = out["stress"].mean(axis=0)
+                        state["last_mean_stress"] = last_mean.tolist()
+                        state["settled"] = state["settled"] + 1 if _settled(ph, last_mean) else 0
+                        if state["settled"] >= ph.settle_checks:
+                            settled = True
+                            break
+                    if output.checkpoint_every and eng.step % output.checkpoint_every == 0:
+                        _checkpoint(rec, eng, state)
+                        rec.stop_reason = (
+                            f"run in progress, or killed: last checkpoint at step {eng.step} (continue with "
+                            "resume; later checkpoints, if any, are in the .part files beside this file)"
+                        )
+                        write_checkpoint(out_path, rec)
+                    if stop_at_step is not None and eng.step == stop_at_step:
+                        _checkpoint(rec, eng, state)
+                        rec.stop_reason = (
+                            f"stopped at step {eng.step} by stop_at_step (a piece of a longer run; "
+                            "continue with resume)"
+                        )
+                        write_run(out_path, rec)
+                        return out_path
+                if ph.stop_tol > 0 and not settled:
+                    if last_mean is None and state.get("last_mean_stress") is not None:
+                        last_mean = np.array(state["last_mean_stress"])  # resumed right at the phase end
+                    window = "the last window"
+                    if last_mean is None and tail is not None and len(tail):
+                        last_mean, window = tail.mean(axis=0), f"the last {len(tail)} steps"
+                        if ph.max_steps < ph.check_every:
+                            window += f"; no settle check ran: max_steps {ph.max_steps} < check_every {ph.check_every}"
+                    reason = _unsettled_reason(ph, last_mean, window)
+                    if not allow_unsettled:
+                        _checkpoint(rec, eng, state)
+                        rec.stop_reason = reason + ("; pass allow_unsettled=True (--allow-unsettled) to go on anyway")
+                        write_run(out_path, rec)
+                        raise ConvergenceError(f"{out_path}: {rec.stop_reason}")
+                    if not any(u["phase"] == state["phase"] for u in rec.unsettled):
+                        rec.unsettled.append(
+                            {"phase": int(state["phase"]), "name": ph.name, "step": int(eng.step), "reason": reason}
+                        )
+                state = {
+                    "phase": state["phase"] + 1,
+                    "phase_step0": eng.step,
+                    "lo0": eng.lo.tolist(),
+                    "hi0": eng.hi.tolist(),
+                    "settled": 0,
+                }
+                if stop_at_step is not None and eng.step == stop_at_step and state["phase"] < len(phases):
+                    _checkpoint(rec, eng, state)  # the phase ended early right at stop_at_step
                     rec.stop_reason = (
                         f"stopped at step {eng.step} by stop_at_step (a piece of a longer run; continue with resume)"
                     )
                     write_run(out_path, rec)
                     return out_path
-            if ph.stop_tol > 0 and not settled:
-                if last_mean is None and state.get("last_mean_stress") is not None:
-                    last_mean = np.array(state["last_mean_stress"])  # resumed right at the phase end
-                window = "the last window"
-                if last_mean is None and tail is not None and len(tail):
-                    last_mean, window = tail.mean(axis=0), f"the last {len(tail)} steps"
-                    if ph.max_steps < ph.check_every:
-                        window += f"; no settle check ran: max_steps {ph.max_steps} < check_every {ph.check_every}"
-                reason = _unsettled_reason(ph, last_mean, window)
-                if not allow_unsettled:
-                    _checkpoint(rec, eng, state)
-                    rec.stop_reason = reason + ("; pass allow_unsettled=True (--allow-unsettled) to go on anyway")
-                    write_run(out_path, rec)
-                    raise ConvergenceError(f"{out_path}: {rec.stop_reason}")
-                if not any(u["phase"] == state["phase"] for u in rec.unsettled):
-                    rec.unsettled.append(
-                        {"phase": int(state["phase"]), "name": ph.name, "step": int(eng.step), "reason": reason}
-                    )
-            state = {
-                "phase": state["phase"] + 1,
-                "phase_step0": eng.step,
-                "lo0": eng.lo.tolist(),
-                "hi0": eng.hi.tolist(),
-                "settled": 0,
-            }
-            if stop_at_step is not None and eng.step == stop_at_step and state["phase"] < len(phases):
-                _checkpoint(rec, eng, state)  # the phase ended early right at stop_at_step
-                rec.stop_reason = (
-                    f"stopped at step {eng.step} by stop_at_step (a piece of a longer run; continue with resume)"
-                )
-                write_run(out_path, rec)
-                return out_path
-    except SimulationError as exc:
-        rec.stop_reason = str(exc)
-        write_run(out_path, rec)
-        raise
-    except KeyboardInterrupt:
-        rec.stop_reason = f"interrupted at step {eng.step}" + (
-            f"; resume continues from the checkpoint at step {rec.checkpoint['step']}"
-            if rec.checkpoint is not None
-            else ""
-        )
-        write_run(out_path, rec)
-        raise
-    finally:
-        if bar is not None:
-            bar.close()
-    if eng.step not in rec.snapshots and output.snapshot_every:
-        rec.snapshots[eng.step] = _snapshot(eng)
-    rec.complete = True
-    rec.stop_reason = ""
-    _checkpoint(rec, eng, state)
-    write_run(out_path, rec)
+            check_interrupt()  # a signal during the last chunk
+            if eng.step not in rec.snapshots and output.snapshot_every:
+                rec.snapshots[eng.step] = _snapshot(eng)
+            rec.complete = True
+            rec.stop_reason = ""
+            _checkpoint(rec, eng, state)
+            write_run(out_path, rec)  # a signal during this write abandons it: the except below
+        except SimulationError as exc:
+            rec.stop_reason = str(exc)
+            write_run(out_path, rec)
+            raise
+        except KeyboardInterrupt as exc:
+            signum = getattr(exc, "signum", 2)  # a plain KeyboardInterrupt: SIGINT's default handler
+            how = exc.signal_name if isinstance(exc, Interrupted) else "SIGINT"
+            rec.complete = False
+            if getattr(exc, "clean", False):
+                # raised by check_interrupt between two chunks of steps: the engine's state is a
+                # step's end, so it is the checkpoint a resume continues from, bit for bit
+                _checkpoint(rec, eng, state)
+            rec.stop_reason = f"interrupted by {how} at step {eng.step}" + (
+                f"; resume continues from the checkpoint at step {rec.checkpoint['step']}"
+                if rec.checkpoint is not None
+                else "; no checkpoint: rerun it without resume"
+            )
+            write_run(out_path, rec)
+            raise Interrupted(signum, f"{out_path}: {rec.stop_reason} (an incomplete run file)") from None
+        finally:
+            if bar is not None:
+                bar.close()
     return out_path
+
+
+#: particle-steps of the engine between two checks for SIGINT / SIGTERM (about 0.2 s): a run
+#: stops within that time of the signal
+CHECK_PARTICLE_STEPS = 2_000_000
+
+
+def _advance(eng: DEMEngine, loading, nsteps: int, phase_step0: int, phase_box0) -> dict:
+    """``eng.advance`` of ``nsteps`` steps in pieces of about :data:`CHECK_PARTICLE_STEPS`; stops
+    early (fewer steps) when SIGINT or SIGTERM arrived. The pieces do not change the trajectory
+    (the engine's state carries over from one ``advance`` to the next, bit for bit)."""
+    cap = max(16, CHECK_PARTICLE_STEPS // max(len(eng.x), 1))
+    parts = []
+    done = 0
+    while done < nsteps:
+        k = min(cap, nsteps - done)
+        parts.append(eng.advance(loading, k, phase_step0=phase_step0, phase_box0=phase_box0))
+        done += k
+        if pending_interrupt() is not None:
+            break
+    if len(parts) == 1:
+        return parts[0]
+    return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
 
 
 def _check_same_flavour(path, settings_text: str, settings: DEMSettings):
