@@ -7,7 +7,15 @@ from __future__ import annotations
 import dataclasses
 
 from ..errors import InputError
-from ._paths import check_figure, check_output
+from ._paths import (
+    check_count,
+    check_distinct,
+    check_figure,
+    check_given_values,
+    check_input,
+    check_number,
+    check_output,
+)
 
 
 def register(sub) -> None:
@@ -115,7 +123,7 @@ def register(sub) -> None:
 
     e = sub.add_parser("dem-export", help="VTK of a DEM snapshot and/or the stress-strain plot of a run file")
     e.add_argument("run", help="dem-run HDF5 file")
-    e.add_argument("--step", type=int, help="snapshot step (default: the last)")
+    e.add_argument("--step", type=int, help="snapshot step, >= 0 (default: the last)")
     e.add_argument("--vtu", help="write the snapshot to this .vtu file")
     e.add_argument("--plot", help="write the stress-strain plot to this image")
     e.add_argument(
@@ -128,11 +136,14 @@ def register(sub) -> None:
 
 def _check_options(args) -> None:
     """Every numeric option and output path, named as on the command line, before any work."""
-    from .._validate import as_int, as_positive_float  # noqa: PLC0415 - start-up: numpy
+    from .._validate import as_positive_float  # noqa: PLC0415 - start-up: numpy
 
+    check_given_values(args)
+    check_input(args.packing, "--packing")
     check_output(args.output, "-o/--output")
     if args.plot:
         check_figure(args.plot, "--plot")
+    check_distinct((("-o/--output", args.output), ("--plot", args.plot)), (("--packing", args.packing),))
     for name, v in (
         ("--kn (N/m)", args.kn),
         ("--strain", args.strain),
@@ -141,12 +152,13 @@ def _check_options(args) -> None:
         ("--inertial-number", args.inertial_number),
         ("--density (kg/m^2)", args.density),
         ("--steps-per-contact", args.steps_per_contact),
-        ("--consolidation-tol", args.consolidation_tol),
     ):
         if v is not None:
             as_positive_float(v, name)
     if args.strain >= 0.5:
         raise InputError(f"--strain: expected a small strain < 0.5, got {args.strain!r}")
+    # |sigma - p| / p below it ends the consolidation: 1 or more would accept any stress
+    check_number(args.consolidation_tol, "--consolidation-tol", low=0, high=1, low_open=True, high_open=True)
     for name, v in (("--damping-ratio", args.damping_ratio), ("--kt-ratio", args.kt_ratio), ("--mu", args.mu)):
         if v is not None:
             as_positive_float(v, name, allow_zero=True)
@@ -156,7 +168,13 @@ def _check_options(args) -> None:
         ("--snapshot-every", args.snapshot_every, 1),
         ("--checkpoint-every", args.checkpoint_every, 0),
     ):
-        as_int(v, name, minimum=lo)
+        check_count(v, name, lo)  # within 64 bits too (the step counters)
+    check_count(args.threads, "--threads", 1)
+    if args.threads is not None and args.mode != "parallel":
+        raise InputError(
+            f"--threads {args.threads}: only --mode parallel runs on threads (--mode {args.mode} runs on "
+            "one); drop --threads or give --mode parallel"
+        )
     from ..dem.settings import FLAVOURS  # noqa: PLC0415 - start-up: numba
 
     if args.flavour is not None and args.flavour not in FLAVOURS:
@@ -295,12 +313,16 @@ def _run(args) -> int:
 def _export(args) -> int:
     from ..dem.output import plot_stress_strain, read_run, require_complete, snapshot_to_vtu  # noqa: PLC0415 - start-up: numba
 
+    check_given_values(args)
     if not (args.vtu or args.plot):
         raise InputError("dem-export: give --vtu and/or --plot")
+    check_input(args.run, "RUN")
+    check_count(args.step, "--step", 0)
     if args.vtu:
         check_output(args.vtu, "--vtu", (".vtu",))
     if args.plot:
         check_figure(args.plot, "--plot")
+    check_distinct((("--vtu", args.vtu), ("--plot", args.plot)), (("RUN", args.run),))
     run = read_run(args.run)
     if not args.allow_incomplete:
         require_complete(run, args.run, hint="--allow-incomplete reads it anyway")

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import json
 
-from ..errors import ResultFileError
+from ..errors import InputError, ResultFileError
+from ._paths import check_given_values, check_input
 
 
 def register(sub) -> None:
@@ -85,6 +86,10 @@ def _run(args) -> int:
     from ..generation import packing_stats  # noqa: PLC0415 - start-up: numba
     from ..io import load_packing, open_result, read_provenance  # noqa: PLC0415 - start-up: h5py
 
+    check_given_values(args)
+    check_input(args.file, "FILE")
+    if not args.group.strip("/ "):
+        raise InputError(f"--group: expected the name of an HDF5 group (e.g. packing), got {args.group!r}")
     prov = read_provenance(args.file)
     print(f"file                   {args.file}")
     print(

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 from ..errors import InputError
-from ._paths import check_number, check_output, integer
+from ._paths import check_distinct, check_given_values, check_number, check_output, integer
 from .cmd_info import format_stats
 
 
@@ -82,14 +83,19 @@ def _check(args) -> None:
         check_packing_memory,
     )
 
-    get_distribution(args.distribution)  # unknown name, missing or malformed CSV
+    check_given_values(args)
+    try:
+        get_distribution(args.distribution)  # unknown name, missing or malformed CSV
+    except InputError as exc:
+        raise InputError(f"--distribution: {exc}") from None
     check_number(args.n, "--n", low=2, integer=True)
     check_number(args.seed, "--seed", low=0, high=2**63 - 1, integer=True)
     check_output(args.output, "-o/--output")
     if args.vtu is not None:
         check_output(args.vtu, "--vtu", (".vtu",))
-        if args.vtu == args.output:
-            raise InputError(f"--vtu and -o/--output name the same file {args.output!r}")
+    # a --distribution CSV sieve curve is an input file (a name like quartz-sand is not a file)
+    curve = args.distribution if os.path.isfile(args.distribution) else None
+    check_distinct((("-o/--output", args.output), ("--vtu", args.vtu)), (("--distribution", curve),))
     check_number(args.solid_fraction, "--solid-fraction", low=0, high=MAX_SOLID_FRACTION, low_open=True, high_open=True)
     check_number(args.mean_overlap, "--mean-overlap", low=0, high=MAX_MEAN_OVERLAP, low_open=True)
     check_number(args.force_tol, "--force-tol", low=0, low_open=True)

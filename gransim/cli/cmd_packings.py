@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from ._paths import check_output_dir
+from ..errors import InputError
+from ._paths import check_given_values, check_output_dir, same_file
 
 
 def register(sub) -> None:
@@ -21,10 +22,22 @@ def register(sub) -> None:
 
 def _run(args) -> int:
     # imports here, not at the top: `gransim --help` must not load numba and h5py (start-up time)
-    from ..generation import packing_stats, standard_packings  # noqa: PLC0415 - start-up: numba
+    from ..generation import STANDARD_PACKINGS, packing_stats, standard_packings  # noqa: PLC0415 - start-up: numba
+    from ..generation.standard import SHIPPED_DIR  # noqa: PLC0415 - start-up: numba
     from ..io import load_packing  # noqa: PLC0415 - start-up: h5py
 
+    check_given_values(args)
+    unknown = [n for n in args.only or () if n not in STANDARD_PACKINGS]
+    if unknown:
+        raise InputError(
+            f"--only: unknown standard packing {unknown[0]!r}; choose from: {', '.join(STANDARD_PACKINGS)}"
+        )
     check_output_dir(args.out, "--out")
+    if same_file(args.out, SHIPPED_DIR):
+        raise InputError(
+            f"--out: {args.out!r} is gransim's shipped copy of the standard packings (the source "
+            "of every other --out); choose another directory"
+        )
     paths = standard_packings(args.out, names=args.only, force=args.force)
     head = (
         f"{'name':<11} {'N':>5} {'phi':>7} {'e':>7} {'Z':>6} {'Z_nr':>6} {'ratt%':>6} "

@@ -7,10 +7,21 @@ from pathlib import Path
 
 from ..errors import InputError, SimulationError
 from ..parallel import add_options, make_executor  # register() needs add_options: loaded by --help either way
-from ._paths import check_input, check_number, check_output, check_output_dir, integer
+from ._paths import (
+    check_distinct,
+    check_executor_options,
+    check_given_values,
+    check_input,
+    check_number,
+    check_output,
+    check_output_dir,
+    integer,
+)
 
 #: most load steps per path of rve-study (the paper uses 50)
 MAX_STEPS = 100_000
+#: where rve-study and rve-check keep the standard RVEs when no --packings are given
+DEFAULT_PACKING_DIR = "results/packings"
 
 
 def register(subparsers) -> None:
@@ -27,9 +38,8 @@ def register(subparsers) -> None:
     p.add_argument("--packings", nargs="+", metavar="FILE.h5", help="packing files (default: the 15 RVEs)")
     p.add_argument(
         "--packing-dir",
-        default="results/packings",
         metavar="DIR",
-        help="where the standard RVEs are stored/generated (default: results/packings)",
+        help=f"where the standard RVEs are stored/generated, without --packings (default: {DEFAULT_PACKING_DIR})",
     )
     p.add_argument(
         "--kn",
@@ -78,14 +88,22 @@ def register(subparsers) -> None:
         "above --tol relative.",
     )
     c.add_argument("--packings", nargs="+", metavar="FILE.h5", help="packing files (default: the 15 RVEs)")
-    c.add_argument("--packing-dir", default="results/packings", metavar="DIR")
+    c.add_argument(
+        "--packing-dir",
+        metavar="DIR",
+        help=f"where the standard RVEs are stored/generated, without --packings (default: {DEFAULT_PACKING_DIR})",
+    )
     c.add_argument("--kn", type=float, default=None, help="normal stiffness E_n in N/m (default 2.8e7)")
     c.add_argument("--tol", type=float, default=1e-12, help="relative tolerance, >= 0 (default 1e-12)")
     c.set_defaults(func=_check)
 
 
 def _check_packing_options(args) -> None:
-    """--packings files exist and have distinct names; --packing-dir can hold the standard RVEs."""
+    """--packings files exist and have distinct names; --packing-dir (only without --packings: it
+    is where the standard RVEs are kept) can hold the standard RVEs."""
+    check_given_values(args)
+    if args.packings and args.packing_dir is not None:
+        raise InputError("--packing-dir: holds the standard RVEs, not used with --packings; give one of them")
     if args.packings:
         seen = {}
         for f in args.packings:
@@ -98,6 +116,7 @@ def _check_packing_options(args) -> None:
                 )
             seen[stem] = f
     else:
+        args.packing_dir = DEFAULT_PACKING_DIR if args.packing_dir is None else args.packing_dir
         check_output_dir(args.packing_dir, "--packing-dir")
     check_number(args.kn, "--kn", low=0, low_open=True)
 
@@ -136,12 +155,11 @@ def _study(args) -> int:
     _check_packing_options(args)
     check_number(args.steps, "--steps", low=1, high=MAX_STEPS, integer=True)
     out = check_output_dir(args.out, "-o/--out")
-    check_output(out / "rve_study.h5", "-o/--out")
-    for name in ("compression", "shear", "fabric"):
-        check_output(out / f"{name}.png", "-o/--out")
-
-    if args.workers is not None and args.workers < 1:
-        raise InputError(f"--workers: expected an integer >= 1 (Dask worker processes), got {args.workers}")
+    written = [out / "rve_study.h5"] + [out / f"{name}.png" for name in ("compression", "shear", "fabric")]
+    for path in written:
+        check_output(path, "-o/--out")
+    check_distinct([("-o/--out", w) for w in written], [("--packings", f) for f in args.packings or ()])
+    check_executor_options(args.workers, args.scheduler)
     packings = _packings(args)
     with make_executor(args.workers, args.scheduler) as executor:
         t0 = time.perf_counter()
@@ -225,6 +243,7 @@ def _stress(args) -> int:
 
     from ..rve import homogenize  # noqa: PLC0415 - start-up: numba
 
+    check_given_values(args)
     check_number(args.kn, "--kn", low=0, low_open=True)
     packing = _read_stress_packing(args)
     F = check_F(args.F, packing)

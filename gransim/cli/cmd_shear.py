@@ -7,7 +7,7 @@ import dataclasses
 from pathlib import Path
 
 from ..errors import InputError
-from ._paths import check_figure, check_input, check_output
+from ._paths import check_count, check_distinct, check_figure, check_given_values, check_input, check_output
 from .cmd_biaxial import parse_law_params
 
 #: default inertial number when neither --rate nor --inertial-number is given
@@ -84,12 +84,14 @@ def register(sub) -> None:
 
 def _check_options(args) -> None:
     """Every option and path, named as on the command line, before any work."""
-    from .._validate import as_int, as_positive_float  # noqa: PLC0415 - start-up: numpy
+    from .._validate import as_positive_float  # noqa: PLC0415 - start-up: numpy
 
+    check_given_values(args)
     check_input(args.packing, "--packing")
     check_output(args.output, "-o/--output", (".h5", ".hdf5"))
     if args.plot:
         check_figure(args.plot, "--plot")
+    check_distinct((("-o/--output", args.output), ("--plot", args.plot)), (("--packing", args.packing),))
     for name, v in (
         ("--strain", args.strain),
         ("--rate", args.rate),
@@ -101,8 +103,8 @@ def _check_options(args) -> None:
         if v is not None:
             as_positive_float(v, name)
     as_positive_float(args.damping_ratio, "--damping-ratio", allow_zero=True)
-    as_int(args.series_every, "--series-every", 1)
-    as_int(args.snapshot_every, "--snapshot-every", 0)
+    check_count(args.series_every, "--series-every", 1)
+    check_count(args.snapshot_every, "--snapshot-every", 0)
     if args.flavour != "lammps":
         from ..dem.settings import FLAVOURS  # noqa: PLC0415 - start-up: numba
 

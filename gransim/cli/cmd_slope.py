@@ -3,10 +3,19 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from ..errors import ConvergenceError, InputError
 from ..parallel import add_options, make_executor  # register() needs add_options: loaded by --help either way
-from ._paths import check_input, check_number, check_output_dir
+from ._paths import (
+    check_count,
+    check_distinct,
+    check_executor_options,
+    check_given_values,
+    check_input,
+    check_number,
+    check_output_dir,
+)
 
 
 def register(subparsers) -> None:
@@ -116,13 +125,29 @@ def register(subparsers) -> None:
     p.set_defaults(func=handler)
 
 
+#: most load steps (--load-steps, --dead-load-steps): the schedule is a list of that length
+MAX_LOAD_STEPS = 100_000
+#: most elements of --mesh: 4 Gauss points each, every one an RVE (the default mesh has 380)
+MAX_ELEMENTS = 1_000_000
+
+
 def handler(args) -> int:
+    check_given_values(args)
     out = check_output_dir(args.out or f"results/slope-{args.protocol}", "--out")
     check_output_dir(args.packing_dir, "--packing-dir")
     if args.packing is not None:
         from ..io import load_packing  # noqa: PLC0415 - start-up: h5py
 
         check_input(args.packing, "--packing")
+        # the HDF5 files a run writes into --out (--compare: one run per RVE material in a sub-folder)
+        runs = [out, out / "taylor", out / "relaxed"]
+        check_distinct([("--out", r / "slope.h5") for r in runs], [("--packing", args.packing)])
+        for r in runs:
+            if Path(args.packing).resolve().is_relative_to((r / "checkpoint").resolve()):
+                raise InputError(
+                    f"--packing: {args.packing!r} is in the checkpoint folder of --out "
+                    f"({str(r / 'checkpoint')!r}), which the run rewrites; keep the packing elsewhere"
+                )
         load_packing(args.packing)  # a bad file is refused now, not after the mesh is built
     # the energy norm of a Newton correction, relative to the first: below 1 to mean anything
     check_number(args.tol, "--tol", low=0, high=1, low_open=True, high_open=True)
@@ -140,16 +165,18 @@ def handler(args) -> int:
         raise InputError(f"--mesh: expected COLUMNSxROWS (two integers, e.g. 20x19), got {args.mesh!r}") from None
     if cols < 2 or rows < 2:
         raise InputError(f"--mesh: expected at least 2 columns and 2 rows, got {args.mesh!r}")
-    if args.load_steps < 1:
-        raise InputError(f"--load-steps: expected an integer >= 1, got {args.load_steps}")
-    if args.dead_load_steps < 1:
-        raise InputError(f"--dead-load-steps: expected an integer >= 1, got {args.dead_load_steps}")
-    if args.stop_after is not None and args.stop_after < 1:
-        raise InputError(f"--stop-after: expected a load step >= 1, got {args.stop_after}")
-    if args.workers is not None and args.workers < 1:
-        raise InputError(f"--workers: expected an integer >= 1 (Dask worker processes), got {args.workers}")
-    if args.workers is not None and args.scheduler is not None:
-        raise InputError("--workers and --scheduler: give one of them")
+    if cols * rows > MAX_ELEMENTS:
+        raise InputError(f"--mesh: expected at most {MAX_ELEMENTS} elements (COLUMNS x ROWS), got {args.mesh!r}")
+    check_count(args.load_steps, "--load-steps", 1, MAX_LOAD_STEPS)
+    check_count(args.dead_load_steps, "--dead-load-steps", 1, MAX_LOAD_STEPS)
+    total = args.dead_load_steps + args.load_steps
+    check_count(args.stop_after, "--stop-after", 1)
+    if args.stop_after is not None and args.stop_after > total:
+        raise InputError(
+            f"--stop-after {args.stop_after}: the run has {total} load steps (--dead-load-steps "
+            f"{args.dead_load_steps} + --load-steps {args.load_steps}), so it would never stop there"
+        )
+    check_executor_options(args.workers, args.scheduler)
     if args.resume and args.compare:
         raise InputError("--resume: resumes one run; not with --compare")
     geometry = SlopeGeometry(columns=cols, rows=rows)

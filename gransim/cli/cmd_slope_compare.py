@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..errors import InputError
-from ._paths import check_input, check_output_dir
+from ._paths import check_count, check_distinct, check_given_values, check_input, check_output, check_output_dir
 
 
 def register(subparsers) -> None:
@@ -25,15 +25,23 @@ def register(subparsers) -> None:
 
 
 def handler(args) -> int:
+    check_given_values(args)
     if len(args.results) < 2:
         raise InputError(f"slope-compare: expected at least two slope.h5 files, got {len(args.results)}")
-    if args.points < 0:
-        raise InputError(f"--points: expected an integer >= 0, got {args.points}")
+    check_count(args.points, "--points", 0)
     for r in args.results:
         check_input(r, "slope result")
     if args.packing is not None:
         check_input(args.packing, "--packing")
     out = check_output_dir(args.out, "--out")
+    written = [out / n for n in ("compare_load_settlement.png", "compare_map.png", "compare.md")]
+    for w in written:
+        check_output(w, "--out")
+    check_distinct(
+        [("--out", w) for w in written],
+        [("slope result", r) for r in args.results] + [("--packing", args.packing)],
+    )
+    check_output_dir(args.packing_dir, "--packing-dir")  # the standard RVEs are generated there when missing
     from ..fem.compare import compare_slopes  # noqa: PLC0415 - start-up: numba
 
     res = compare_slopes(args.results, out, args.points, args.packing, args.packing_dir)

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from ..errors import InputError
-from ._paths import check_output
+from ._paths import check_distinct, check_given_values, check_input, check_output
 
 #: the paper's figures (Kuhn 1997, sec. 4) set beside ours in the table
 PAPER = {
@@ -104,12 +104,15 @@ def handler(args) -> int:
     from ..voidcell.plots import save_figures  # noqa: PLC0415 - start-up: numba
     from ..voidcell.vtk import cells_to_vtu  # noqa: PLC0415 - start-up: numba
 
-    run = Path(args.run)
+    check_given_values(args)
+    run = check_input(args.run, "RUN")
     out = Path(args.out) if args.out else run.with_name(run.stem + "_voidcells")
     if out.exists() and not out.is_dir():
         raise InputError(f"--out: {str(out)!r} exists and is not a directory; expected an output folder")
     for name in ("voidcells.csv", "voidcells.md"):  # the folder (or its first existing parent) is writable
         check_output(out / name, "--out")
+    # the tables written into --out (the maps are strain_*.png / .vtu: not a run file's name)
+    check_distinct([("--out", out / n) for n in ("voidcells.csv", "voidcells.md", "frames.csv")], [("RUN", run)])
     for v in args.strain:
         if not math.isfinite(v):
             raise InputError(f"--strain: {v!r} is not a finite number")

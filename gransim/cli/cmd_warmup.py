@@ -28,9 +28,11 @@ import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 from ..errors import InputError
 from . import build_parser
+from ._paths import check_count, check_given_values, check_input, check_number, check_output_dir, same_file
 
 #: a value for each law parameter that the protocol does not fill (biaxial --law-param: kn, kt,
 #: gamma_n, gamma_t, mu/friction default to the protocol's), SI, plausible for the 60-disk packing
@@ -421,25 +423,35 @@ def run_steps(steps: list[Step], cwd: str, jobs: int, timeout: float, out=None) 
 
 
 def _run(args) -> int:
-    from .._validate import as_int  # noqa: PLC0415 - start-up: numpy
-
+    # every option first, --list or not
+    check_given_values(args)
+    jobs = check_count(args.jobs, "--jobs", 1, 64) if args.jobs is not None else min(2, os.cpu_count() or 1)
+    check_number(args.timeout, "--timeout", low=0, low_open=True)
+    if args.keep is not None:
+        check_output_dir(args.keep, "--keep")
     packing = None
     if args.packing is not None:
         from ..io import load_packing  # noqa: PLC0415 - start-up: h5py
 
-        packing = os.path.abspath(args.packing)
+        packing = os.path.abspath(check_input(args.packing, "--packing"))
+        if args.keep is not None and (
+            Path(packing).resolve().is_relative_to(Path(args.keep).resolve())
+            or same_file(packing, Path(args.keep) / "p.h5")  # a hard link to the copy's name
+        ):
+            raise InputError(
+                f"--packing: {args.packing!r} is inside --keep {args.keep!r}, where the warm-up writes its "
+                "files (p.h5, b.h5, ...); keep the packing elsewhere"
+            )
         load_packing(packing)  # a bad file is refused now (InputError naming it), not by each step
     steps = plan(args.laws, own_packing=packing is not None)
+    steps_only = _selected(steps, args.only)
     if args.list:
         options = command_options()
         for s in steps:
             argv = argv_of(s, options)
             print(f"{s.name:<36s} " + ("(skipped: not available)" if argv is None else "gransim " + " ".join(argv)))
         return 0
-    jobs = as_int(args.jobs, "--jobs", 1, 64) if args.jobs is not None else min(2, os.cpu_count() or 1)
-    if not args.timeout > 0:
-        raise InputError(f"--timeout: expected seconds > 0, got {args.timeout!r}")
-    steps = _selected(steps, args.only)
+    steps = steps_only
     cache = os.environ.get("NUMBA_CACHE_DIR") or "numba's default (__pycache__ beside the sources)"
     print(f"warmup: {len(steps)} commands, {jobs} at once, numba cache {cache}", flush=True)
     t0 = time.perf_counter()
