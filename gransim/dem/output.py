@@ -234,7 +234,7 @@ PART_KIND = "dem-run-part"
 #: file total at most this fraction of its size; the next one rewrites the run file (and removes
 #: the parts). The run file is rewritten each time the run's data grew by this fraction: its
 #: rewrites cost a bounded multiple of the final file's writing, whatever the checkpoint interval
-COMPACT_FRACTION = 0.25
+COMPACT_FRACTION = 0.5
 _PART = re.compile(r"^\.(?P<name>.+)\.part-(?P<seq>\d{6})\.h5$")
 
 

@@ -62,7 +62,7 @@ from ..contacts.laws import elastic_energy, flip_signs, law_spec
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from ..io import atomic_h5, write_packing_group
-from ..progress import progress
+from ..progress import Interrupted, check_interrupt, deferred_interrupts, progress
 from . import kernels as K
 from . import sheared_kernels as SK
 from .engine import (
@@ -757,18 +757,28 @@ def run_shear_file(
         stops |= set(range(snapshot_every, nsteps + 1, snapshot_every))
     stops = sorted(stops)
     reason = ""
+    interrupted = None
     bar = progress(total=nsteps, desc="shear") if show_progress else None
     try:
-        for stop in stops:
-            out = eng.advance(stop - eng.step)
-            if bar is not None:
-                bar.update(len(out["step"]))
-            if stop % series_every == 0 or stop == nsteps:
-                row(stop, out["box"][-1], out["stress"][-1], out["n_contacts"][-1], out["kinetic_energy"][-1])
-            if (snapshot_every and stop % snapshot_every == 0) or stop == nsteps:
-                snap()
+        # SIGINT / SIGTERM are acted on between two series rows (gransim.progress): the file is
+        # then written with the rows so far, complete = False
+        with deferred_interrupts():
+            for stop in stops:
+                check_interrupt()
+                out = eng.advance(stop - eng.step)
+                if bar is not None:
+                    bar.update(len(out["step"]))
+                if stop % series_every == 0 or stop == nsteps:
+                    row(stop, out["box"][-1], out["stress"][-1], out["n_contacts"][-1], out["kinetic_energy"][-1])
+                if (snapshot_every and stop % snapshot_every == 0) or stop == nsteps:
+                    snap()
+            check_interrupt()
     except SimulationError as exc:
         reason = str(exc)
+    except KeyboardInterrupt as exc:
+        interrupted = exc
+        how = exc.signal_name if isinstance(exc, Interrupted) else "SIGINT"
+        reason = f"interrupted by {how} at step {eng.step} of {nsteps} (a shear run has no resume: rerun it)"
     finally:
         if bar is not None:
             bar.close()
@@ -804,6 +814,10 @@ def run_shear_file(
             h.attrs["step"] = step
             for k, v in d.items():
                 h[k] = v
+    if interrupted is not None:
+        raise Interrupted(
+            getattr(interrupted, "signum", 2), f"{out_path}: {reason} (an incomplete run file, complete = False)"
+        ) from None
     if reason:
         raise SimulationError(f"{reason} (the run file {out_path} holds the steps before, complete = False)")
     last = rows["stress"][-1]

@@ -42,7 +42,7 @@ from ..dem.engine import DEMEngine
 from ..dem.settings import AxisControl, DEMSettings, Loading
 from ..errors import ConvergenceError, InputError
 from ..geometry import Packing
-from ..progress import progress
+from ..progress import check_interrupt, progress
 from .fire import UNJAMMED_ENERGY, FireParameters, Minimiser
 from .gsd import get_distribution
 from .stats import packing_stats
@@ -208,6 +208,7 @@ def compact_packing(
     blocks = -(-max_steps // check_every)
     bar = progress(range(blocks), total=blocks, desc="compaction")
     for _ in bar:
+        check_interrupt()  # SIGINT / SIGTERM: stop between two checks
         eng.advance(loading, check_every, phase_step0=0, phase_box0=box0)
         s = eng.stress
         on_target = abs(s[0, 0] / p - 1.0) <= stress_tol and abs(s[1, 1] / p - 1.0) <= stress_tol

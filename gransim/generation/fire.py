@@ -33,6 +33,7 @@ import numpy as np
 from .._numba import njit, pjit, prange
 from ..contacts import find_neighbours
 from ..contacts.law import force_magnitude, overlap, potential
+from ..progress import check_interrupt
 
 #: The pair list and the particle loops are cut into this many chunks, summed in a fixed order.
 CHUNKS = 2
@@ -579,6 +580,7 @@ class Minimiser(StagedMinimiser):
         state = FireState(self.L, self.fire)
         st = state.vector
         while True:
+            check_interrupt()  # SIGINT / SIGTERM: stop between two neighbour builds
             self._sort(skin)
             nl = find_neighbours(self.x, self.r, self.cell, skin)
             self.rebuilds += 1

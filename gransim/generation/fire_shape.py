@@ -65,6 +65,7 @@ import numpy as np
 from .._numba import njit
 from ..contacts import find_neighbours
 from ..contacts.law import force_magnitude, overlap, potential
+from ..progress import check_interrupt
 from .fire import (
     _DRIFT,
     _KICK,
@@ -418,6 +419,7 @@ class ShapeMinimiser(StagedMinimiser):
         hv = np.zeros(3)
         st = np.array([self.fire.dt_start, self.fire.alpha_start, 0.0, 0.0, np.inf])
         while True:
+            check_interrupt()  # SIGINT / SIGTERM: stop between two neighbour builds
             self._sort(skin)
             nl = find_neighbours(self.x, self.r, self.h, skin)
             self.rebuilds += 1
