@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import sys
+import threading
 
 
 def progress(iterable=None, total=None, desc: str = "", **kw):
@@ -47,8 +49,6 @@ class Interrupted(KeyboardInterrupt):
 
     @property
     def signal_name(self) -> str:
-        import signal  # noqa: PLC0415 - start-up: only on an interrupt
-
         try:
             return signal.Signals(self.signum).name
         except ValueError:
@@ -85,8 +85,6 @@ def check_interrupt(message: str = "") -> None:
 def _install():
     """Install :func:`_on_signal` for :data:`STOP_SIGNALS` (main thread only; a signal the
     process ignores stays ignored). Returns the previous handlers."""
-    import signal  # noqa: PLC0415 - start-up: signal is cheap, but only needed here
-    import threading  # noqa: PLC0415
 
     old = {}
     if threading.current_thread() is not threading.main_thread():
@@ -101,8 +99,6 @@ def _install():
 
 
 def _restore(old: dict) -> None:
-    import signal  # noqa: PLC0415
-
     for s, h in old.items():
         signal.signal(s, h)
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..errors import GransimError, InputError, ResultFileError
 from ..geometry import Packing
+from ..progress import check_interrupt
 from .provenance import provenance
 
 FORMAT = "gransim"
@@ -188,7 +189,6 @@ def atomic_path(path, suffix: str | None = None):
     :class:`OutputWriteError`, one line naming the file. A SIGINT or SIGTERM received during the
     write (:mod:`gransim.progress`) abandons it before the rename (:class:`~gransim.progress.Interrupted`).
     """
-    from ..progress import check_interrupt  # noqa: PLC0415 - light, but keep the import graph flat
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
