@@ -5,6 +5,7 @@ materials" (1997), section 4, with the native DEM engine;
 from __future__ import annotations
 
 import dataclasses
+import os
 
 from ..errors import InputError
 from ._paths import (
@@ -170,6 +171,14 @@ def _check_options(args) -> None:
     ):
         check_count(v, name, lo)  # within 64 bits too (the step counters)
     check_count(args.threads, "--threads", 1)
+    if args.resume:
+        from ..dem.output import part_paths  # noqa: PLC0415 - start-up: numba
+
+        if not os.path.exists(args.output) and not part_paths(args.output):
+            raise InputError(
+                f"--resume: {args.output!r} (-o/--output) does not exist: no run to continue; drop "
+                "--resume to start one"
+            )
     if args.threads is not None and args.mode != "parallel":
         raise InputError(
             f"--threads {args.threads}: only --mode parallel runs on threads (--mode {args.mode} runs on "
@@ -318,12 +327,20 @@ def _export(args) -> int:
         raise InputError("dem-export: give --vtu and/or --plot")
     check_input(args.run, "RUN")
     check_count(args.step, "--step", 0)
+    if args.step is not None and not args.vtu:
+        raise InputError("--step: picks the snapshot of --vtu (the plot shows the whole run); give --vtu")
     if args.vtu:
         check_output(args.vtu, "--vtu", (".vtu",))
     if args.plot:
         check_figure(args.plot, "--plot")
     check_distinct((("--vtu", args.vtu), ("--plot", args.plot)), (("RUN", args.run),))
     run = read_run(args.run)
+    if args.step is not None and args.step not in run.snapshot_steps:
+        have = run.snapshot_steps
+        raise InputError(
+            f"--step {args.step}: {args.run} has no snapshot at that step (it has {len(have)}: "
+            f"{', '.join(map(str, have[:5]))}{' ... ' + str(have[-1]) if len(have) > 5 else ''})"
+        )
     if not args.allow_incomplete:
         require_complete(run, args.run, hint="--allow-incomplete reads it anyway")
     elif not run.complete:

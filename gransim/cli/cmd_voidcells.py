@@ -118,9 +118,14 @@ def handler(args) -> int:
             raise InputError(f"--strain: {v!r} is not a finite number")
     rows = []
     strains = list(args.strain) if args.no_initial else [0.0] + list(args.strain)
-    picked = load_run_snapshots(
-        run, strains, motion=args.motion, velocities=args.velocities, allow_incomplete=args.allow_incomplete
-    )
+    try:
+        picked = load_run_snapshots(
+            run, strains, motion=args.motion, velocities=args.velocities, allow_incomplete=args.allow_incomplete
+        )
+    except InputError as exc:
+        if str(exc).startswith("strain "):  # a requested strain outside the run: name the option
+            raise InputError(f"--{exc}") from None
+        raise
     if args.all_frames:  # read (and check) every frame before the long computation
         frames_in = load_run_snapshots(
             run, None, motion=args.motion, velocities=args.velocities, allow_incomplete=args.allow_incomplete

@@ -569,3 +569,36 @@ def test_a_dash_dash_value_is_refused(command, option, files, no_compute):
     as "not given" and float() failed on with an internal error."""
     rc, err = run(base_argv(command, files) + [f"{option}=--"])
     assert rc == 2 and option in err and "Traceback" not in err, (command, option, rc, err)
+
+
+@pytest.fixture(scope="module")
+def run_file(tmp_path_factory):
+    """A short biaxial run of 30 disks (under a second)."""
+    d = tmp_path_factory.mktemp("run")
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(["pack", "--n", "30", "--seed", "1", "-o", str(d / "p.h5")]) == 0
+        argv = ["biaxial", "--packing", str(d / "p.h5"), "-o", str(d / "b.h5"), "--strain", "1e-4"]
+        argv += ["--inertial-number", "1e-2", "--consolidation-steps", "200", "--allow-unsettled"]
+        argv += ["--snapshot-every", "10", "--checkpoint-every", "0"]
+        assert main(argv) == 0
+    return d / "b.h5"
+
+
+def test_values_checked_against_the_run_file_name_the_option(run_file, tmp_path):
+    """A --step the run has no snapshot at, --step without --vtu (the plot ignored it), a
+    voidcells --strain outside the run: exit 2 naming the option, nothing written."""
+    cases = [
+        (["dem-export", run_file, "--vtu", tmp_path / "s.vtu", "--step", "123456789"], "--step"),
+        (["dem-export", run_file, "--plot", tmp_path / "f.png", "--step", "0"], "--step"),
+        (["voidcells", run_file, "--strain", "0.5", "--out", tmp_path / "vc"], "--strain"),
+    ]
+    for argv, option in cases:
+        rc, err = run(argv)
+        assert rc == 2 and option in err and err.count("\n") == 1, (argv, rc, err)
+    assert not any(tmp_path.iterdir())
+
+
+def test_resume_without_a_run_file_is_refused(files, no_compute, tmp_path):
+    """biaxial --resume with no -o file to continue: it started a new run (exit 0) instead."""
+    rc, err = run(["biaxial", "--packing", files["P"], "-o", tmp_path / "none.h5", "--resume"])
+    assert rc == 2 and "--resume" in err and "none.h5" in err, err
