@@ -244,6 +244,8 @@ COMPUTATIONS = (
     ("gransim.voidcell.io", "load_run_snapshots"),
     ("gransim.io", "read_provenance"),
     ("gransim.cli.cmd_warmup", "run_steps"),
+    ("gransim.cli.cmd_rve", "make_executor"),  # a LocalCluster of --workers processes
+    ("gransim.cli.cmd_slope", "make_executor"),
 )
 
 
