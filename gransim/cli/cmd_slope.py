@@ -51,8 +51,7 @@ def register(subparsers) -> None:
     p.add_argument(
         "--relaxed-start",
         choices=["committed", "trial"],
-        default="committed",
-        help="--rve relaxed: where each FE Newton iteration's RVE relaxation starts at a Gauss point: "
+        help="--rve relaxed (or --compare): where each FE Newton iteration's RVE relaxation starts at a Gauss point: "
         "committed (default), its last committed state; trial, its previous FE iterate of the same "
         "attempt (back to the committed state after a failed attempt): 1-2 RVE Newton iterations near "
         "FE convergence, but where an RVE rearranges its state follows the FE iterates (docs/slope.md)",
@@ -177,6 +176,12 @@ def handler(args) -> int:
             f"{args.dead_load_steps} + --load-steps {args.load_steps}), so it would never stop there"
         )
     check_executor_options(args.workers, args.scheduler)
+    if args.relaxed_start is not None and args.rve != "relaxed" and not args.compare:
+        raise InputError(
+            f"--relaxed-start {args.relaxed_start}: applies to the relaxed RVE only (--rve relaxed or "
+            f"--compare), not to --rve {args.rve}"
+        )
+    args.relaxed_start = args.relaxed_start or "committed"
     if args.resume and args.compare:
         raise InputError("--resume: resumes one run; not with --compare")
     geometry = SlopeGeometry(columns=cols, rows=rows)

@@ -533,6 +533,7 @@ def test_options_a_command_would_ignore_are_refused(files, no_compute, tmp_path)
         ),
         (["rve-check", "--packings", files["P"], "--packing-dir", tmp_path / "std"], "--packing-dir"),
         (["slope", "--out", tmp_path / "sl", "--load-steps", "2", "--stop-after", "4"], "--stop-after"),
+        (["slope", "--out", tmp_path / "sl", "--relaxed-start", "trial"], "--relaxed-start"),
         (["rve-study", "--packings", files["P"], "--workers", "2", "--scheduler", "tcp://h:1"], "--workers"),
     ]
     for argv, option in cases:
