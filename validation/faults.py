@@ -25,6 +25,12 @@ _D = "tests/faults/test_dem_faults.py::"
 _C = "tests/faults/test_cli_faults.py::"
 _S = "tests/validation/test_validation_suite.py::"
 _F = "tests/fem/test_output.py::"
+_N = "tests/faults/test_nonfinite_judges.py::"
+_K = "tests/faults/test_children_die.py::"
+_H = "tests/faults/test_harness_options.py::"
+_L = "tests/faults/test_run_lifecycle.py::"
+_Y = "tests/faults/test_yade_faults.py::"
+_O = "tests/foundation/test_cli_options.py::"
 
 FAULT_KINDS: tuple[FaultKind, ...] = (
     # reference code broken or evidence cut
@@ -166,5 +172,90 @@ FAULT_KINDS: tuple[FaultKind, ...] = (
     FaultKind("coincident disks in an RVE", "error naming the two disks", _C + "test_coincident_disks"),
     FaultKind(
         "a closed output pipe (gransim ... | head)", "quiet exit, no traceback", _C + "test_shell_pipe_into_head"
+    ),
+    # NaN and inf evidence
+    FaultKind(
+        "NaN or inf on either side of any comparison, or nothing to compare",
+        "the judge fails, naming the quantity and side",
+        _N + "test_max_rel_diff_refuses_nan_or_inf_on_either_side",
+    ),
+    FaultKind(
+        "two coincident disks: every Taylor stress NaN in the code and in numpy",
+        "gransim reference taylor exits 1 naming the NaN",
+        _N + "test_reference_taylor_on_two_coincident_disks_fails_naming_the_nan",
+    ),
+    FaultKind(
+        "a NaN in a later replay dump frame",
+        "the dump check fails naming column, step and side",
+        _N + "test_replay_dump_check_fails_on_a_nan_in_a_later_frame",
+    ),
+    FaultKind(
+        "a NaN rate in a benchmark", "a failed record, exit 1", _N + "test_bench_suite_exits_1_naming_a_nan_record"
+    ),
+    FaultKind(
+        "a NaN patch-test error or Newton order of the slope",
+        "the acceptance check fails",
+        _F + "test_acceptance_checks_fail_on_a_nan",
+    ),
+    # signals, kills and full disks
+    FaultKind(
+        "SIGTERM, SIGINT or SIGKILL to replay, reference or validate while the code runs",
+        "no code process, no MPI daemon, no temporary directory left",
+        _K + "test_signal_to_gransim_leaves_no_code_and_no_temporary_directory",
+    ),
+    FaultKind(
+        "SIGKILL of gransim during an MPI job (mpirun, 2 ranks)",
+        "the watchdog kills mpirun and every rank",
+        _K + "test_sigkill_leaves_no_mpirun_and_no_rank",
+    ),
+    FaultKind(
+        "SIGINT at a random moment of a DEM run",
+        "exit 130, the file incomplete, --resume gives the same bits",
+        _L + "test_sigint_at_random_moments_always_stops_and_resumes_to_the_same_bits",
+    ),
+    FaultKind(
+        "a full disk while pack or biaxial writes",
+        "one error naming the file and the cause, nothing partial left",
+        _L + "test_full_disk_is_one_error_naming_the_file",
+    ),
+    FaultKind(
+        "temporaries left by a killed writer",
+        "removed by the next run or resume of that file, never a live writer's",
+        _L + "test_stale_temporaries_of_the_run_are_removed_never_a_live_ones",
+    ),
+    FaultKind(
+        "a kill between two checkpoint parts",
+        "--resume from the last whole part, the same bits",
+        _L + "test_checkpoints_append_parts_and_a_kill_between_them_resumes_bitwise",
+    ),
+    # YADE evidence
+    FaultKind(
+        "a YADE output cut short, a state or contact missing",
+        "refused as incomplete",
+        _Y + "test_damaged_yade_output_is_refused_as_incomplete",
+    ),
+    FaultKind(
+        "a hung YADE job",
+        "killed at its timeout, nothing left running or listening",
+        _Y + "test_hung_yade_job_is_killed_with_nothing_left",
+    ),
+    # options
+    FaultKind(
+        "bad numbers for the options of replay, reference and validate (0, negative, NaN, inf, no number)",
+        "exit 2 naming the option, no job started",
+        _H + "test_bad_numeric_option_exits_2_naming_it",
+    ),
+    FaultKind(
+        "bad values for every option of every gransim command",
+        "exit 2 naming the option, nothing computed",
+        _O + "test_bad_value_exits_2_naming_the_option",
+    ),
+    FaultKind(
+        "-o naming the input packing (same path, relative, symlink, hard link)",
+        "exit 2, the input unchanged",
+        _O + "test_output_equal_to_the_packing_is_refused",
+    ),
+    FaultKind(
+        "--threads without the parallel mode", "exit 2 naming --threads", _O + "test_threads_need_the_parallel_mode"
     ),
 )
