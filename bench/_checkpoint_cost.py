@@ -3,8 +3,8 @@
 The same biaxial run (the ``gransim biaxial`` protocol and output defaults: a series row every 10
 steps, a snapshot every 10000) with ``checkpoint_every`` 0, 20000, 5000 and 1000: wall and CPU time of
 the run, and the time spent writing the run file (every checkpoint plus the final write), measured
-around :func:`gransim.dem.run.write_run` and ``write_checkpoint``. Interleaved over the repeats, so a change of the machine's
-load hits every setting alike. Run from the repository root::
+around :func:`gransim.dem.run.write_run` and ``write_checkpoint``. Interleaved over the repeats,
+so a change of the machine's load hits every setting alike. Run from the repository root::
 
     NUMBA_CACHE_DIR=.venv/numba-cache .venv/bin/python -m bench._checkpoint_cost [--n 200] [--repeats 2]
 

@@ -22,7 +22,8 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "slope",
         help="FE2-style slope stability: Q1 total-Lagrangian FE with an RVE (Taylor or relaxed) per Gauss point",
-        description="Solve the slope of Meier, Steinmann & Kuhl section 5 (geometry of issue 8): dead load "
+        description="Solve the slope of Meier, Steinmann & Kuhl section 5 (geometry: gransim's reading of "
+        "their lost Fig. 6): dead load "
         "in step 1, then the footing force in 20 steps. Writes per-step VTU and PNG, the "
         "convergence table (Table 2), the load-settlement curve and an HDF5 file; a "
         "checkpoint after every converged step (--resume continues). --workers N / --scheduler ADDRESS evaluate "

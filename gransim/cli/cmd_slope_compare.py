@@ -1,4 +1,4 @@
-"""``gransim slope-compare``: slope results side by side (Taylor vs relaxed RVE, issue #18)."""
+"""``gransim slope-compare``: slope results side by side (Taylor vs relaxed RVE)."""
 
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 Same contact law (``hooke/stiffness`` + ``tangential history``, mass-scaled damping), time step,
 skin and neighbour rule (``neigh_modify delay 0 every 1 check yes``), no atom sorting
 (``atom_modify map array sort 0 0.0``), ``newton off``, and the loading as ``fix deform``
-``variable`` style with ``remap x`` (shared notes liggghts-3.8.md):
+``variable`` style with ``remap x`` (docs/liggghts.md, "The biaxial test's stress servo"):
 
 * rate axis: ``del = c*step`` with c = rate L0 dt written as one literal (%.17g), so that the
   box lo = lo0 - del/2, hi = hi0 + del/2 is the same double as the engine's;

@@ -1,5 +1,5 @@
 """Bad input on the command line (outside the DEM commands): one line, exit 2, before any long
-computation; no traceback ever; resource limits (issue #14)."""
+computation; no traceback ever; resource limits."""
 
 from __future__ import annotations
 

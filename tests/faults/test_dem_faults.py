@@ -1,4 +1,4 @@
-"""Faults of the DEM (issue #14): the stability limit with damping, unsettled consolidations,
+"""Faults of the DEM: the stability limit with damping, unsettled consolidations,
 divergence detection, readers that refuse unfinished or truncated run files, and clear messages
 (exit 2) for bad options, all on small packings (<= 100 disks, a few thousand steps)."""
 
