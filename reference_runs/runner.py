@@ -676,6 +676,21 @@ def is_complete(job_dir, input_sha256: str | None = None, engine: str | None = N
     return not verify_job(job_dir, require_hashes=True, engine=engine)
 
 
+def _record_interrupted(job, job_dir: Path, manifest: dict, t0: float, exc: BaseException, killed: str) -> None:
+    """A job interrupted by ``exc`` (a signal, an error of the caller): kill its processes and
+    write its manifest as failed, saying what interrupted it and ``killed`` (what was killed)."""
+    _kill_jobs([job])
+    manifest.update(
+        status="failed",
+        end=_now(),
+        elapsed_s=round(time.monotonic() - t0, 3),
+        returncode=job.proc.returncode,
+        error=f"interrupted ({type(exc).__name__}{': ' + str(exc) if str(exc) else ''}); {killed}",
+    )
+    with contextlib.suppress(Exception):
+        _write_manifest(job_dir, manifest)
+
+
 def _write_manifest(job_dir: Path, manifest: dict) -> None:
     with atomic_path(job_dir / MANIFEST_NAME, suffix=".json.tmp") as tmp:
         Path(tmp).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
@@ -945,17 +960,7 @@ def _run_locked(
                     timed_out = True
                     break
         except BaseException as exc:
-            _kill_jobs([job])
-            manifest.update(
-                status="failed",
-                end=_now(),
-                elapsed_s=round(time.monotonic() - t0, 3),
-                returncode=proc.returncode,
-                error=f"interrupted ({type(exc).__name__}{': ' + str(exc) if str(exc) else ''}); "
-                f"the {label} process group was killed",
-            )
-            with contextlib.suppress(Exception):
-                _write_manifest(job_dir, manifest)
+            _record_interrupted(job, job_dir, manifest, t0, exc, f"the {label} process group was killed")
             raise
         finally:
             if bar is not None:

@@ -30,7 +30,6 @@ and of every output match the manifest and ``check`` still finds nothing.
 
 from __future__ import annotations
 
-import contextlib
 import re
 import subprocess
 import time
@@ -49,6 +48,7 @@ from ..runner import (
     _job_inputs,
     _kill_jobs,
     _now,
+    _record_interrupted,
     _sha256,
     _sha256_file,
     _write_manifest,
@@ -257,17 +257,7 @@ def _run_locked(job_dir, eng, script_text, blobs, script_sha, input_sha, timeout
                 timed_out = True
                 _kill_jobs([job])
         except BaseException as exc:
-            _kill_jobs([job])
-            manifest.update(
-                status="failed",
-                end=_now(),
-                elapsed_s=round(time.monotonic() - t0, 3),
-                returncode=proc.returncode,
-                error=f"interrupted ({type(exc).__name__}{': ' + str(exc) if str(exc) else ''}); "
-                f"the {label} processes were killed",
-            )
-            with contextlib.suppress(Exception):
-                _write_manifest(job_dir, manifest)
+            _record_interrupted(job, job_dir, manifest, t0, exc, f"the {label} processes were killed")
             raise
         finally:
             finish_watched(job)  # members it left behind, its private TMPDIR, the watchdog
