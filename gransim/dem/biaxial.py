@@ -274,6 +274,25 @@ def run_biaxial(
     return summarize(out_path)
 
 
+def compression_steps(run) -> int:
+    """DEM steps of the compression phase of a biaxial run (``read_run``), not its series rows.
+
+    A complete run did all ``max_steps`` of its compression phase (it has no stop criterion), as
+    recorded in the settings JSON (``phases[1].max_steps``). A run stopped during the compression
+    counts the steps from the last consolidation row of ``/series`` to the last compression row:
+    exact when the consolidation ended on a series row, else up to ``series_every - 1`` more.
+    """
+    s = run.series
+    phases = run.settings.get("phases") or []
+    if run.complete and len(phases) > 1 and all(not p.get("stop_tol") for p in phases[1:]):
+        return int(sum(int(p["max_steps"]) for p in phases[1:]))
+    comp = s["phase"] == 1
+    if not np.any(comp):
+        return 0
+    cons = s["step"][~comp]
+    return int(s["step"][comp].max() - (cons.max() if cons.size else 0))
+
+
 def summarize(path) -> dict:
     """Key figures of a finished biaxial run."""
     run = read_run(path)
@@ -296,7 +315,7 @@ def summarize(path) -> dict:
         k = int(np.argmax(ratio))
         out.update(
             {
-                "compression_steps": int(comp.sum()),
+                "compression_steps": compression_steps(run),
                 "axial_strain": float(-(eps[-1, 1] - eps[0, 1])),
                 "sigma11_mean_rel_error": float(np.mean(np.abs(st[:, 0, 0] / p - 1))),
                 "stress_ratio_peak": float(ratio[k]),
