@@ -1,6 +1,7 @@
 """The command-line sub-commands of reference_runs, registered with ``gransim`` as plug-ins.
 
-``gransim reference`` (list, run CASE, taylor: LIGGGHTS or LAMMPS reference runs) and ``gransim
+``gransim reference`` (list, run CASE, taylor: LIGGGHTS or LAMMPS reference runs; taylor also on
+YADE, :mod:`reference_runs.yade.taylor_set`) and ``gransim
 replay DECK`` (a user's LIGGGHTS or LAMMPS 2D disk deck run in its code and natively, compared step
 by step: :mod:`reference_runs.replay`, docs/replay.md).
 
@@ -132,8 +133,9 @@ def jobs_die_with_us(command: str):
 def register_reference(subparsers) -> None:
     p = subparsers.add_parser(
         "reference",
-        help="LIGGGHTS or LAMMPS reference runs (needs the binary)",
-        description="Run reference jobs of LIGGGHTS-PUBLIC 3.8.0 (`liggghts`) or LAMMPS (`lmp`) and parse them.",
+        help="LIGGGHTS, LAMMPS or YADE reference runs (needs the binary)",
+        description="Run reference jobs of LIGGGHTS-PUBLIC 3.8.0 (`liggghts`) or LAMMPS (`lmp`), and the "
+        "Taylor states also of YADE 2023.02a (`yade`), and parse them.",
     )
     sub = p.add_subparsers(dest="reference_command", metavar="ACTION")
     sub.required = True
@@ -152,9 +154,12 @@ def register_reference(subparsers) -> None:
         help="Taylor RVE states of packings along the study paths, vs numpy",
         description="Run the Taylor (affine) states of each packing along compression "
         "11/22 (F11, F22 from 1 to 1 - max-strain) and simple shear 12/21 "
-        "(F12, F21 from 0 to max-strain) through LIGGGHTS, one job per "
+        "(F12, F21 from 0 to max-strain) through LIGGGHTS, LAMMPS or YADE, one job per "
         "packing, and compare the stresses with an independent numpy Taylor "
-        "stress. Jobs already complete are skipped.",
+        "stress (YADE: also its getStressAndTangent tangent with the material part of "
+        "gransim's Taylor tangent, and the contacts). Jobs already complete are skipped. "
+        "Exit status 0 when everything agrees, 1 when not (YADE: also when a job failed), 2 "
+        "for bad input or a missing code.",
     )
     pt.add_argument("packings", nargs="*", help="HDF5 files holding a /packing group (gransim save_packing)")
     pt.add_argument(
@@ -180,9 +185,13 @@ def register_reference(subparsers) -> None:
     pt.add_argument("--n-steps", type=integer, default=50, help="states per path after the reference (50)")
     pt.add_argument("--stride", type=integer, default=1, help="run every STRIDE-th state (and the last)")
     pt.add_argument("--max-strain", type=number, default=0.1, help="final |F - I| component (0.1)")
-    pt.add_argument("--contacts", action="store_true", help="also dump per-contact forces of every state")
+    pt.add_argument(
+        "--contacts",
+        action="store_true",
+        help="also dump per-contact forces of every state (YADE writes them always, in taylor.out)",
+    )
     pt.add_argument("--out", default=f"{DEFAULT_OUT}/taylor", help="output directory")
-    _job_options(pt)
+    _job_options(pt, engines=("liggghts", "lammps", "yade"))
     pt.set_defaults(func=_taylor)
 
 
@@ -191,14 +200,15 @@ def _check_job_options(args) -> None:
     args.timeout = check_seconds(args.timeout, "--timeout")
 
 
-def _job_options(p) -> None:
+def _job_options(p, engines=("liggghts", "lammps")) -> None:
     p.add_argument(
         "--engine",
-        choices=("liggghts", "lammps"),
+        choices=engines,
         default="liggghts",
         help="the code that runs the jobs (default liggghts)",
     )
-    p.add_argument("--np", type=integer, default=1, help="MPI processes (mpirun -np N), >= 1")
+    one = " (YADE: 1, a YADE job is one process)" if "yade" in engines else ""
+    p.add_argument("--np", type=integer, default=1, help=f"MPI processes (mpirun -np N), >= 1{one}")
     p.add_argument("--timeout", type=number, default=3600.0, help="seconds per job (> 0)")
     p.add_argument(
         "--force",
@@ -238,6 +248,8 @@ def _taylor(args) -> int:
     check_count(args.stride, "--stride")
     check_between(args.max_strain, "--max-strain", 0.0, 1.0)  # F11 = 1 - max-strain > 0
     _check_job_options(args)
+    if args.engine == "yade" and args.np != 1:
+        raise InputError(f"--np: a YADE job runs as one process (1), got {args.np}")
     files = [check_input_file(p, "PACKINGS") for p in args.packings]
     if args.rves:
         files += sorted(check_input_dir(args.rves, "--rves").glob("*.h5"))
@@ -265,6 +277,8 @@ def _taylor(args) -> int:
         packings.update(standard_rves(args.packings_dir))
     if not packings:
         raise InputError(f"no packings: --rves {args.rves} holds no *.h5 file")
+    if args.engine == "yade":
+        return _taylor_yade(args, packings, out, kn)
     with jobs_die_with_us("reference"):  # SIGTERM/SIGINT/SIGHUP: no reference process outlives us
         _, worst = run_taylor_set(
             packings,
@@ -286,6 +300,46 @@ def _taylor(args) -> int:
         f"{worst:.3e} ({'PASS' if ok else 'FAIL'}, tolerance {TAYLOR_RTOL:g})"
     )
     return 0 if ok else 1
+
+
+def _taylor_yade(args, packings: dict, out: Path, kn: float) -> int:
+    """``reference taylor --engine yade``: the stresses against numpy, the tangent against the
+    material part of gransim's (:mod:`reference_runs.yade.taylor_set`). A missing ``yade`` is an
+    error of the set-up (status 2, naming the package); a YADE job that fails (exit status,
+    timeout, incomplete output) is a failed computation (status 1, the job's own message)."""
+    # lazy: this module is imported when `gransim` builds its parser (start-up time)
+    from reference_runs.cases import TAYLOR_RTOL
+    from reference_runs.engines import YADE
+    from reference_runs.errors import ReferenceRunError
+    from reference_runs.judge import within
+    from reference_runs.yade.compare import TANGENT_RTOL
+    from reference_runs.yade.taylor_set import run_yade_taylor_set
+
+    try:
+        with jobs_die_with_us("reference"):  # SIGTERM/SIGINT/SIGHUP: no YADE process outlives us
+            res = run_yade_taylor_set(
+                packings,
+                out,
+                kn=kn,
+                n_steps=args.n_steps,
+                stride=args.stride,
+                max_strain=args.max_strain,
+                timeout=args.timeout,
+                force=args.force,
+            )
+    except ReferenceRunError as exc:
+        if not YADE.available():
+            raise  # the binary is missing: the message says how to install it (status 2)
+        print(f"gransim reference: error: the YADE run failed: {exc}", file=sys.stderr)
+        return 1
+    ok_s, ok_t = within(res.stress, TAYLOR_RTOL), within(res.tangent, TANGENT_RTOL)
+    print(
+        f"{len(packings)} packings: largest relative difference YADE vs numpy Taylor stress = "
+        f"{res.stress:.3e} ({'PASS' if ok_s else 'FAIL'}, tolerance {TAYLOR_RTOL:g}); YADE tangent vs "
+        f"the material part of gransim's = {res.tangent:.3e} ({'PASS' if ok_t else 'FAIL'}, tolerance "
+        f"{TANGENT_RTOL:g}); contacts {'the same' if res.contacts_match else 'DIFFER (FAIL)'}"
+    )
+    return 0 if ok_s and ok_t and res.contacts_match else 1
 
 
 def register_replay(sub) -> None:

@@ -24,6 +24,7 @@ from gransim.io import atomic_h5, open_result, write_packing_group
 
 from .conventions import cauchy_from_pressure, cauchy_from_stress_atom_sum
 from .decks.taylor import LAMMPS_CONTACT_COLUMNS, PATHS, ROUTES, image_state_packing, taylor_job
+from .engines import YADE
 from .errors import ReferenceRunError
 from .parsers import pair_gran_local_names, parse_dump_local, parse_log
 from .runner import run_job
@@ -229,6 +230,8 @@ def write_taylor_h5(path, runs, parameters: dict | None = None):
     with atomic_h5(
         path, kind="liggghts-taylor", parameters=params, liggghts="liggghts" in engines, lammps="lammps" in engines
     ) as f:
+        if "yade" in engines:  # as gransim.io's provenance records LIGGGHTS' and LAMMPS' versions
+            f.attrs["yade_version"] = YADE.version() or "absent"
         f.attrs["sign_convention"] = "tension positive (sigma = -p_liggghts)"
         f.attrs["units"] = "F dimensionless; stress N/m (2D); kn N/m"
         for run in runs:

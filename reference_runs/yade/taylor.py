@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import math
+import types
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,6 +36,7 @@ from gransim.geometry import Packing
 
 from ..decks.taylor import PATHS, _wrapped_reference, path_F
 from ..errors import ReferenceRunError
+from ..taylor import TaylorRun, TaylorSeries
 from .job import run_yade_job
 from .script import OUTPUT_MAGIC, OUTPUT_VERSION, TAYLOR_SCRIPT
 
@@ -279,8 +281,40 @@ def run_yade_taylor(
     )
 
 
+def as_taylor_run(run: YadeTaylorRun, name: str):
+    """The YADE run as a :class:`reference_runs.taylor.TaylorRun` (``engine="yade"``), the form
+    the LIGGGHTS and LAMMPS Taylor runs take, so that :func:`reference_runs.cases.compare_taylor`
+    and :func:`reference_runs.taylor.write_taylor_h5` serve all three codes.
+
+    Every path is on the ``periodic`` route (YADE's periodic cell may be sheared): ``cauchy`` = z
+    times the (x, y) block of ``getStress()``, ``cauchy_pressure`` = z times that of the stress of
+    ``getStressAndTangent()`` (the code's second stress, in the place of LIGGGHTS' and LAMMPS'
+    ``compute pressure``), ``stress_atom_sum`` = (xx, yy, xy) of ``getStress()`` times
+    ``O.cell.volume``, the contact sum sum f (x) l (N m), tension positive like gransim's.
+    """
+    groups: dict = {}
+    for t, st in enumerate(run.states):
+        groups.setdefault(st["path"], []).append(t)
+    series = {}
+    for path, idx in groups.items():
+        raw = [run.raw[t] for t in idx]
+        series[(path, "periodic")] = TaylorSeries(
+            path,
+            "periodic",
+            np.array([run.states[t]["k"] for t in idx]),
+            run.F[idx],
+            run.cauchy[idx],
+            np.array([s.stress_t[:2, :2] * run.z for s in raw]),
+            np.array([[s.stress[0, 0] * s.volume, s.stress[1, 1] * s.volume, s.stress[0, 1] * s.volume] for s in raw]),
+            (None,) * len(idx),
+            tuple(((1.0, 0.0), (0.0, 1.0)) for _ in idx),
+        )
+    return TaylorRun(name, run.packing, run.kn, run.job_dir, types.MappingProxyType(series), run.manifest, "yade")
+
+
 __all__ = [
     "OUTPUT_NAME",
+    "as_taylor_run",
     "YadeState",
     "YadeTaylorRun",
     "cell_z",
