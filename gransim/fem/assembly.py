@@ -14,24 +14,26 @@ import scipy.sparse as sp
 
 @dataclass(frozen=True, eq=False)
 class Assembler:
-    """Assembly of element vectors (E, 4, 2) and matrices (E, 8, 8) for 2 dofs per node.
+    """Assembly of element vectors (E, n, 2) and matrices (E, 2n, 2n) for 2 dofs per node, n nodes
+    per element (4 for the slope's Q1; 8 or 9 for :mod:`gransim.fem.isoparametric`).
 
     Global dof of node n, direction i: ``2 n + i``.
     """
 
     n_dofs: int
-    element_dofs: np.ndarray  # (E, 8)
+    element_dofs: np.ndarray  # (E, 2n)
     indptr: np.ndarray
     indices: np.ndarray
-    slot: np.ndarray  # (E*64,) CSR data position of each element entry
+    slot: np.ndarray  # (E*4n^2,) CSR data position of each element entry
 
     @classmethod
     def from_elements(cls, elements: np.ndarray, n_nodes: int) -> Assembler:
         """Build the CSR pattern of a mesh's stiffness matrix."""
         elements = np.asarray(elements, dtype=np.int64)
-        edofs = (2 * elements[:, :, None] + np.arange(2)[None, None, :]).reshape(-1, 8)
-        rows = np.repeat(edofs, 8, axis=1).ravel()
-        cols = np.tile(edofs, (1, 8)).ravel()
+        m = 2 * elements.shape[1]
+        edofs = (2 * elements[:, :, None] + np.arange(2)[None, None, :]).reshape(-1, m)
+        rows = np.repeat(edofs, m, axis=1).ravel()
+        cols = np.tile(edofs, (1, m)).ravel()
         n = 2 * n_nodes
         key = rows * n + cols
         uniq, slot = np.unique(key, return_inverse=True)
@@ -42,10 +44,10 @@ class Assembler:
         return cls(n, edofs, indptr, c.astype(np.int64), slot.ravel())
 
     def vector(self, fe: np.ndarray) -> np.ndarray:
-        """Global vector (n_dofs,) from element vectors (E, 4, 2)."""
+        """Global vector (n_dofs,) from element vectors (E, n, 2)."""
         return np.bincount(self.element_dofs.ravel(), weights=fe.ravel(), minlength=self.n_dofs)
 
     def matrix(self, Ke: np.ndarray) -> sp.csr_matrix:
-        """Global CSR matrix from element matrices (E, 8, 8)."""
+        """Global CSR matrix from element matrices (E, 2n, 2n)."""
         data = np.bincount(self.slot, weights=Ke.ravel(), minlength=self.indices.size)
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n_dofs, self.n_dofs))
