@@ -16,6 +16,7 @@ from .measures import (
     halfedge_velocities,
     normalised_vorticity,
     relative_motion,
+    relative_motion_undefined,
 )
 from .snapshot import Snapshot
 
@@ -77,7 +78,10 @@ class VoidCells:
         if d50 is None and s.radii is not None:
             d50 = d50_area_weighted(s.radii)
         v_rel = None
-        if d50 is not None and Lbar[1, 1] != 0:
+        v_rel_undefined = relative_motion_undefined(Lbar)
+        if d50 is None:
+            v_rel_undefined = "undefined (no D50: the snapshot has no radii and no d50 was given)"
+        if v_rel_undefined is None:
             v_rel = relative_motion(s.positions, v, Lbar, d50)
         if np.all(Lbar == 0):
             alpha = np.full(dcel.n_faces, np.nan)
@@ -95,6 +99,7 @@ class VoidCells:
             alpha=alpha,
             w=w,
             v_rel=v_rel,
+            v_rel_undefined=v_rel_undefined,
             d50=d50,
         )
         return self
@@ -176,11 +181,26 @@ class VoidCells:
 
     @property
     def v_rel(self) -> np.ndarray:
-        """Relative particle motion, eq (21), (N, 2); needs radii or ``d50`` and Lbar_22 != 0."""
+        """Relative particle motion, eq (21), (N, 2) (dimensionless). It needs D50 (radii or
+        ``d50``) and a mean L_22 that is not round-off (:func:`~.measures.relative_motion_undefined`);
+        otherwise :class:`InputError` with :attr:`v_rel_undefined` as the message."""
         v = self._get("v_rel")
         if v is None:
-            raise InputError("v_rel needs D50 (radii in the snapshot or d50=...) and Lbar_22 != 0")
+            raise InputError(f"v_rel: relative motion (eq 21) {self.v_rel_undefined}")
         return v
+
+    @property
+    def v_rel_undefined(self) -> str | None:
+        """Why eq (21) has no value here ("undefined (mean L_22 = ... against |L| = ...)" or
+        "undefined (no D50 ...)"), None when :attr:`v_rel` holds it."""
+        return self._get("v_rel_undefined")
+
+    @property
+    def v_rel_rms(self) -> float | str:
+        """Root mean square |v_rel| over the particles (eq 21), or :attr:`v_rel_undefined`."""
+        if self.v_rel_undefined is not None:
+            return self.v_rel_undefined
+        return float(np.sqrt(np.mean(np.sum(self.v_rel**2, axis=1))))
 
     @property
     def mean_alpha(self) -> float:
@@ -196,7 +216,11 @@ class VoidCells:
         return float(np.count_nonzero(a <= 0) / a.shape[0]) if a.size else float("nan")
 
     def summary(self) -> dict:
-        """Counts and statistics as a flat dict (one table row)."""
+        """Counts and statistics as a flat dict (one table row). A measure the loading leaves
+        undefined is the text saying why instead of a number: alpha (eqs 18-19) when Lbar = 0,
+        the relative motion (eq 21) as :attr:`v_rel_undefined`."""
+        lbar = bool(np.any(self.L_mean != 0))
+        undefined = "undefined (|L| = 0: the mean gradient vanishes)"
         return {
             "n_particles": self.snapshot.n_particles,
             "n_contacts": self.snapshot.n_contacts,
@@ -205,8 +229,9 @@ class VoidCells:
             "vertices": self.n_vertices,
             "euler": self.dcel.euler_characteristic,
             "coordination_2M_over_N": self.coordination,
-            "mean_alpha": self.mean_alpha,
-            "fraction_alpha_le_0": self.fraction_nonpositive_alpha,
+            "mean_alpha": self.mean_alpha if lbar else undefined,
+            "fraction_alpha_le_0": self.fraction_nonpositive_alpha if lbar else undefined,
+            "rms_v_rel": self.v_rel_rms,
             **{f"removed_{k}": v for k, v in self.graph.removal_counts().items() if k != "kept"},
         }
 

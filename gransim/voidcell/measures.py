@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._numba import pjit, prange
+from ..errors import InputError
 from .qmatrix import q_matrix, q_separations
 
 
@@ -159,14 +160,46 @@ def normalised_vorticity(L: np.ndarray, Lbar: np.ndarray) -> np.ndarray:
     return -(L[:, 0, 1] - L[:, 1, 0]) / np.sqrt(np.sum(Lbar * Lbar))
 
 
+#: eq (21) is undefined when |Lbar_22| <= RELATIVE_MOTION_RTOL |Lbar| (:func:`relative_motion_undefined`)
+RELATIVE_MOTION_RTOL = 1e-8
+
+
+def relative_motion_undefined(Lbar: np.ndarray) -> str | None:
+    """Why eq (21) has no value for the mean gradient ``Lbar`` (2, 2), or None when it has one.
+
+    Eq (21) scales the non-affine velocity by D50 |Lbar_22|, the loading rate of Kuhn's biaxial
+    test. A loading that imposes no L_22 leaves only round-off there: simple shear at constant
+    volume gives, for the area-weighted mean of the cells (eq 3), |Lbar_22| / |Lbar| up to 2e-16
+    (120 disks, `gransim shear --strain 0.004 --rate 5`) and 4.6e-17 (the 1002-disk Kuhn packing,
+    58 snapshots to gamma = 0.002), and exactly 0 for the cell's own gradient: the "relative
+    motion" would be the velocity fluctuations times 1e16 (about 1e17 printed). The measure is
+    undefined when |Lbar_22| <= RELATIVE_MOTION_RTOL |Lbar| (|.| the norm of eq 19): 1e-8 is
+    eight decades above that round-off, and a genuine |Lbar_22| below it would make eq (21) at
+    least 1e8 times the same fluctuations measured against |Lbar| (a statement about the
+    loading, not about the particles). |Lbar| = 0 (no deformation) is undefined too.
+
+    Returns "undefined (mean L_22 = ... against |L| = ...)" or None.
+    """
+    Lbar = np.asarray(Lbar, float)
+    norm = float(np.sqrt(np.sum(Lbar * Lbar)))
+    l22 = float(Lbar[1, 1])
+    if abs(l22) > RELATIVE_MOTION_RTOL * norm:
+        return None
+    return f"undefined (mean L_22 = {l22:.3g} against |L| = {norm:.3g})"
+
+
 def relative_motion(positions: np.ndarray, velocities: np.ndarray, Lbar: np.ndarray, d50: float) -> np.ndarray:
     """Non-dimensional relative particle motion, eq (21), (N, 2).
 
     v_rel^k = (v^k - Lbar x^k - c) / (D50 |Lbar_22|). The constant c is the mean of v - Lbar x over
     the particles: in a periodic cell the rigid translation of the assembly is arbitrary (it
     depends on where the origin is), so it is removed; eq (21) has c = 0 for a cell whose centre
-    does not move.
+    does not move. Call it only when :func:`relative_motion_undefined` returns None (InputError
+    otherwise).
     """
+    why = relative_motion_undefined(Lbar)
+    if why is not None:
+        raise InputError(f"relative motion (eq 21): {why}")
     x = positions
     w = np.empty_like(velocities)
     w[:, 0] = velocities[:, 0] - (Lbar[0, 0] * x[:, 0] + Lbar[0, 1] * x[:, 1])

@@ -140,8 +140,23 @@ def plot_vorticity(vc: VoidCells, ax=None, title=None):
 
 
 def plot_relative_motion(vc: VoidCells, ax=None, title=None, scale=None):
-    """Fig. 10: arrows of v_rel (eq 21) at the (wrapped) particle centres over the cells."""
+    """Fig. 10: arrows of v_rel (eq 21) at the (wrapped) particle centres over the cells; where the
+    loading leaves eq (21) undefined (:attr:`VoidCells.v_rel_undefined`) the cells carry that text
+    instead of arrows."""
     ax = plot_cells(vc, None, ax=ax, edgecolor="0.75")
+    if vc.v_rel_undefined is not None:
+        ax.text(
+            0.5,
+            0.5,
+            f"relative motion (eq 21)\n{vc.v_rel_undefined}",
+            transform=ax.transAxes,
+            ha="center",
+            va="center",
+            fontsize=10,
+            bbox={"facecolor": "white", "edgecolor": "k"},
+        )
+        ax.set_title(title or "relative particle motion v_rel (eq 21): undefined")
+        return ax
     keep = vc.graph.vertices
     xw, _ = wrap(vc.snapshot.positions[keep], vc.snapshot.cell)
     u = vc.v_rel[keep]
@@ -184,16 +199,21 @@ def plot_alpha_histogram(vc: VoidCells, ax=None, bins=40, label=None):
 
 
 def save_figures(vc: VoidCells, prefix, label: str = "") -> list:
-    """Write the figures of one snapshot: ``{prefix}_{graph,alpha,w,hist,vrel}.png``."""
+    """Write the figures of one snapshot: ``{prefix}_{graph,alpha,w,hist,vrel}.png`` (the vrel map
+    says so when eq (21) is undefined for the loading)."""
     import matplotlib  # noqa: PLC0415 - start-up: matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
 
     out = []
-    makers = [("graph", plot_graph), ("alpha", plot_alignment), ("w", plot_vorticity), ("hist", plot_alpha_histogram)]
-    if vc._get("v_rel") is not None:
-        makers.append(("vrel", plot_relative_motion))
+    makers = [
+        ("graph", plot_graph),
+        ("alpha", plot_alignment),
+        ("w", plot_vorticity),
+        ("hist", plot_alpha_histogram),
+        ("vrel", plot_relative_motion),
+    ]
     for name, fn in makers:
         fig, ax = plt.subplots(figsize=(6.5, 6) if name != "hist" else (5, 3.5))
         fn(vc, ax=ax)
