@@ -122,11 +122,15 @@ def register(sub) -> None:
     p.add_argument("--plot", help="also write the stress-strain plot (Fig. 7b) to this image")
     p.set_defaults(func=_run)
 
-    e = sub.add_parser("dem-export", help="VTK of a DEM snapshot and/or the stress-strain plot of a run file")
-    e.add_argument("run", help="dem-run HDF5 file")
+    e = sub.add_parser(
+        "dem-export", help="VTK of a DEM snapshot and/or the stress-strain plot of a run file (biaxial or shear)"
+    )
+    e.add_argument("run", help="DEM run file: dem-run (gransim biaxial) or shear-run (gransim shear)")
     e.add_argument("--step", type=int, help="snapshot step, >= 0 (default: the last)")
     e.add_argument("--vtu", help="write the snapshot to this .vtu file")
-    e.add_argument("--plot", help="write the stress-strain plot to this image")
+    e.add_argument(
+        "--plot", help="write the stress-strain plot to this image (shear run: sigma_xy and -sigma_yy against gamma)"
+    )
     e.add_argument(
         "--allow-incomplete",
         action="store_true",

@@ -12,7 +12,8 @@ def register(sub) -> None:
     p = sub.add_parser(
         "info",
         help="describe a gransim HDF5 file (packing statistics, provenance)",
-        description="Print the provenance of a gransim results file and, when it holds a "
+        description="Print the provenance of a gransim results file; for a DEM run (biaxial or "
+        "shear) whether it is complete, its series and snapshots; and, when it holds a "
         "packing, N, cell, packing fraction, void ratio, coordination and overlap "
         "statistics.",
     )
@@ -45,8 +46,9 @@ def format_stats(s: dict) -> str:
 
 
 def _dem_run_status(path, prov: dict) -> None:
-    """complete / stop_reason / unsettled phases / sampling of a DEM run file, then its structure
-    check (a truncated or corrupt file raises ResultFileError after these lines)."""
+    """complete / stop_reason / unsettled phases / sampling of a DEM run file (a biaxial "dem-run"
+    or a simple-shear "shear-run"), then its structure check (a truncated or corrupt file raises
+    ResultFileError after these lines)."""
     from ..dem.output import read_run  # noqa: PLC0415 - start-up: numba
 
     complete = prov.get("complete")
@@ -66,7 +68,7 @@ def _dem_run_status(path, prov: dict) -> None:
     if unsettled:
         for u in unsettled:
             print(f"UNSETTLED phase        {u.get('name')}: {u.get('reason')} (continued with allow_unsettled)")
-    elif complete:
+    elif complete and prov.get("kind") == "dem-run":  # a shear run has no settling phase
         print("unsettled phases       none")
     if prov.get("output_settings"):
         print(f"output settings        {prov['output_settings']}")
@@ -80,6 +82,10 @@ def _dem_run_status(path, prov: dict) -> None:
         f"series                 {len(s['step'])} rows, steps {int(s['step'][0])}..{int(s['step'][-1])}; "
         f"{len(run.snapshot_steps)} snapshots"
     )
+    c = s["cell"][-1]
+    print(f"last cell (columns, m) a1 = ({c[0, 0]:.6g}, {c[1, 0]:.6g})  a2 = ({c[0, 1]:.6g}, {c[1, 1]:.6g})")
+    if "shear_strain" in s:
+        print(f"shear strain reached   {float(s['shear_strain'][-1]):.6g} (gamma = (xy - xy0)/Ly0)")
 
 
 def _run(args) -> int:
@@ -98,7 +104,7 @@ def _run(args) -> int:
     )
     if prov.get("parameters"):
         print(f"parameters             {prov['parameters']}")
-    if prov.get("kind") == "dem-run":
+    if prov.get("kind") in ("dem-run", "shear-run"):
         _dem_run_status(args.file, prov)
     with open_result(args.file) as f:
         has_packing = args.group in f

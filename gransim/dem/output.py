@@ -12,12 +12,17 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from ..contacts.neighbours import find_neighbours
 from ..errors import InputError, ResultFileError
 from ..geometry import Packing
 from ..io import atomic_h5, atomic_path, open_result, particles_to_vtu, read_packing_group, write_packing_group
 from ..io.hdf5 import remove_stale_temporaries
 
 KIND = "dem-run"
+#: kind of the simple-shear run file (``gransim.dem.sheared.run_shear_file``, layout: docs/shear.md),
+#: read by :func:`read_run` and :func:`read_snapshot` as well
+SHEAR_KIND = "shear-run"
+RUN_KINDS = (KIND, SHEAR_KIND)
 SERIES_KEYS = ("step", "time", "cell", "stress", "n_contacts", "mean_overlap", "kinetic_energy", "phase")
 _GZ = {"compression": "gzip", "compression_opts": 4}
 
@@ -632,6 +637,7 @@ class RunResult:
     stop_reason: str
     unsettled_phases: tuple = ()  # dicts (phase, name, step, reason) of phases that ended unsettled
     output_settings: dict | None = None  # series_every, snapshot_every, checkpoint_every (None: not stored)
+    kind: str = KIND  # "dem-run" or "shear-run" (series of a shear run: box, shear_strain; no phase)
 
     def strain(self) -> np.ndarray:
         """Logarithmic strains ln(L/L0) of the two axes, (T, 2) (compression negative)."""
@@ -645,8 +651,12 @@ def read_run(path) -> RunResult:
 
     The structure is checked as by :func:`read_record`; ``complete`` and ``stop_reason`` are
     returned as stored (an unfinished run is read: callers that need a finished one call
-    :func:`require_complete`)."""
-    with open_result(path, kind=KIND) as f:
+    :func:`require_complete`). A shear run (kind "shear-run", docs/shear.md) is read the same way:
+    its ``series`` has ``cell`` (T, 2, 2) = [[lx, xy], [0, ly]] from ``/series/box``, beside
+    ``box``, ``shear_strain``, ``stress``, ``n_contacts``, ``kinetic_energy`` (no ``phase``)."""
+    with _open_run(path) as f:
+        if f.attrs.get("kind") == SHEAR_KIND:
+            return _read_shear_run(f, path)
         settings = _check_run_file(f, path)
         fl = _run_flags(f, path)
         series = {k: f["series"][k][()] for k in SERIES_KEYS}
@@ -661,6 +671,79 @@ def read_run(path) -> RunResult:
             unsettled_phases=tuple(fl["unsettled"]),
             output_settings=fl["output"],
         )
+
+
+def _open_run(path):
+    """The run file ``path`` open for reading, of a kind in :data:`RUN_KINDS` (ResultFileError otherwise)."""
+    f = open_result(path)
+    kind = f.attrs.get("kind")
+    if kind not in RUN_KINDS:
+        f.close()
+        raise ResultFileError(f"{path}: holds {kind!r}, expected {KIND!r} or {SHEAR_KIND!r}")
+    return f
+
+
+#: trailing shapes of the /series datasets of a shear run, and of its snapshots' datasets
+SHEAR_SERIES_SHAPES = {
+    "step": (),
+    "time": (),
+    "box": (5,),
+    "shear_strain": (),
+    "stress": (2, 2),
+    "n_contacts": (),
+    "kinetic_energy": (),
+}
+SHEAR_SNAPSHOT_SHAPES = {"cell": (2, 2), "positions": ("N", 2), "velocities": ("N", 2), "spins": ("N",)}
+
+
+def _check_shear_file(f, path) -> int:
+    """Structure of a shear-run file (docs/shear.md); returns N. ResultFileError naming the dataset."""
+    for name in ("complete", "stop_reason", "settings"):
+        _attr(f, path, name)
+    for g in ("packing", "series", "snapshots"):
+        if g not in f:
+            raise ResultFileError(f"{path}: no /{g} group: not a complete shear-run file (docs/shear.md)")
+    if "radii" not in f["packing"] or f["packing/radii"].ndim != 1:
+        raise ResultFileError(f"{path}: no /packing/radii of shape (N,)")
+    n = int(f["packing/radii"].shape[0])
+    ser = f["series"]
+    t = None
+    for k, trail in SHEAR_SERIES_SHAPES.items():
+        if k not in ser:
+            raise ResultFileError(f"{path}: dataset /series/{k} is missing")
+        shp = ser[k].shape
+        if len(shp) != 1 + len(trail) or tuple(shp[1:]) != trail or shp[0] < 1:
+            raise ResultFileError(f"{path}: dataset /series/{k} has shape {shp}, expected (T,) + {trail}")
+        t = shp[0] if t is None else t
+        if shp[0] != t:
+            raise ResultFileError(
+                f"{path}: dataset /series/{k} has {shp[0]} rows, /series/step has {t}: truncated or corrupt run file"
+            )
+    for h in f["snapshots"].values():
+        if "step" not in h.attrs:
+            raise ResultFileError(f"{path}: snapshot {h.name} has no attribute 'step'")
+        _check_shapes(h, SHEAR_SNAPSHOT_SHAPES, {"N": n}, path, f"snapshot of step {int(h.attrs['step'])}")
+    return n
+
+
+def _read_shear_run(f, path) -> RunResult:
+    _check_shear_file(f, path)
+    fl = _run_flags(f, path)
+    series = {k: f["series"][k][()] for k in SHEAR_SERIES_SHAPES}
+    box = series["box"]
+    cell = np.zeros((box.shape[0], 2, 2))
+    cell[:, 0, 0], cell[:, 0, 1], cell[:, 1, 1] = box[:, 0], box[:, 2], box[:, 1]
+    series["cell"] = cell
+    return RunResult(
+        path=Path(path),
+        packing=read_packing_group(f["packing"]),
+        settings=_json_attr(f, path, "settings", want=dict),
+        series=series,
+        snapshot_steps=tuple(sorted(int(h.attrs["step"]) for h in f["snapshots"].values())),
+        complete=fl["complete"],
+        stop_reason=fl["stop_reason"],
+        kind=SHEAR_KIND,
+    )
 
 
 @dataclass(frozen=True)
@@ -679,8 +762,13 @@ class Snapshot:
 
 
 def read_snapshot(path, step: int | None = None) -> Snapshot:
-    """The snapshot at ``step`` (None = the last one)."""
-    with open_result(path, kind=KIND) as f:
+    """The snapshot at ``step`` (None = the last one). A shear run's snapshot (no contact list, no
+    time attribute) has the contacts i, j, shift of its overlapping disks
+    (:func:`gransim.contacts.find_neighbours`, skin 0: the engine's contact test) and the time of
+    its step from the settings' dt."""
+    with _open_run(path) as f:
+        if f.attrs.get("kind") == SHEAR_KIND:
+            return _read_shear_snapshot(f, path, step)
         g = f["snapshots"]
         names = sorted(g.keys())
         if not names:
@@ -706,6 +794,33 @@ def read_snapshot(path, step: int | None = None) -> Snapshot:
             radii=f["packing/radii"][()],
             contacts={k: v[()] for k, v in h["contacts"].items()},
         )
+
+
+def _read_shear_snapshot(f, path, step) -> Snapshot:
+    _check_shear_file(f, path)
+    g = f["snapshots"]
+    by_step = {int(h.attrs["step"]): name for name, h in g.items()}
+    if not by_step:
+        raise ResultFileError(f"{path}: no snapshots")
+    have = sorted(by_step)
+    if step is None:
+        step = have[-1]
+    if int(step) not in by_step:
+        raise ResultFileError(f"{path}: no snapshot at step {step} (have {have[:5]}...{have[-3:]})")
+    h = g[by_step[int(step)]]
+    x, C, r = h["positions"][()], h["cell"][()], f["packing/radii"][()]
+    nl = find_neighbours(x, r, C, skin=0.0)
+    dt = _json_attr(f, path, "settings", want=dict).get("dem", {}).get("dt", float("nan"))
+    return Snapshot(
+        step=int(step),
+        time=float(step) * float(dt),
+        cell=C,
+        positions=x,
+        velocities=h["velocities"][()],
+        spins=h["spins"][()],
+        radii=r,
+        contacts={"i": nl.i, "j": nl.j, "shift": nl.shift},
+    )
 
 
 def snapshot_to_vtu(path, step: int | None, out, allow_incomplete: bool = False) -> Path:
@@ -740,6 +855,8 @@ def plot_stress_strain(path, out, allow_incomplete: bool = False) -> Path:
     run = read_run(path)
     if not allow_incomplete:
         require_complete(run, path)
+    if run.kind == SHEAR_KIND:
+        return _plot_shear(run, path, out, plt)
     sel = run.series["phase"] == 1
     if not np.any(sel):
         sel = np.ones_like(run.series["phase"], bool)
@@ -763,6 +880,28 @@ def plot_stress_strain(path, out, allow_incomplete: bool = False) -> Path:
     elif run.unsettled_phases:
         title = f"UNSETTLED: {', '.join(u['name'] for u in run.unsettled_phases)} (allow_unsettled)\n" + title
     fig.suptitle(title, color="red" if not run.complete or run.unsettled_phases else "black")
+    fig.tight_layout()
+    out = Path(out)
+    with atomic_path(out, suffix=out.suffix) as tmp:
+        fig.savefig(tmp, dpi=120, format=out.suffix.lstrip(".") or "png")
+    plt.close(fig)
+    return out
+
+
+def _plot_shear(run: RunResult, path, out, plt) -> Path:
+    """Shear stress sigma_xy and normal stress -sigma_yy (tension positive) against gamma."""
+    gam, st = run.series["shear_strain"], run.series["stress"]
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    ax.plot(gam, st[:, 0, 1], label=r"$\sigma_{xy}$")
+    ax.plot(gam, -st[:, 1, 1], label=r"$-\sigma_{yy}$")
+    ax.set_xlabel(r"shear strain $\gamma$")
+    ax.set_ylabel("stress (N/m, tension positive)")
+    ax.legend()
+    title = f"simple shear, {run.packing.n} disks ({Path(path).name})"
+    if not run.complete:
+        why = run.stop_reason if len(run.stop_reason) < 90 else run.stop_reason[:87] + "..."
+        title = f"INCOMPLETE RUN: {why}\n" + title
+    fig.suptitle(title, color="red" if not run.complete else "black", fontsize=9)
     fig.tight_layout()
     out = Path(out)
     with atomic_path(out, suffix=out.suffix) as tmp:
