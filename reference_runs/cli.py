@@ -377,7 +377,31 @@ def register_replay(sub) -> None:
         metavar="DIR",
         help="a finished job directory of this deck (log.lammps and dumps) to compare with instead of running the code",
     )
+    p.add_argument(
+        "--var",
+        nargs=2,
+        action="append",
+        default=None,
+        metavar=("NAME", "VALUE"),
+        help="a variable of the deck, as the codes' -var NAME VALUE (index style; repeatable): "
+        "substituted natively and passed to the code's command line",
+    )
     p.set_defaults(func=_replay)
+
+
+def check_variables(pairs) -> dict:
+    """``--var NAME VALUE`` pairs as {NAME: VALUE}: a name of letters, digits and underscores,
+    given once; a value of one word (the codes' ``-var`` reads one argument per value)."""
+    out = {}
+    for name, value in pairs or ():
+        if not name or not all(c.isalnum() or c == "_" for c in name) or not name.isascii():
+            raise _bad("--var NAME", "letters, digits and underscores", name)
+        if name in out:
+            raise InputError(f"--var {name}: given twice")
+        if not value or any(c.isspace() for c in value):
+            raise _bad(f"--var {name} VALUE", "one word", value)
+        out[name] = value
+    return out
 
 
 def _replay(args) -> int:
@@ -388,6 +412,7 @@ def _replay(args) -> int:
     timeout = check_seconds(args.timeout, "--timeout")
     if args.reference is not None:
         check_input_dir(args.reference, "--reference")
+    variables = check_variables(args.var)
     out = check_writable_dir(args.out if args.out is not None else Path("results/replay") / deck.name, "-o/--out")
     # lazy: this module is imported when `gransim` builds its parser (start-up time)
     from reference_runs.errors import ReferenceRunError
@@ -406,6 +431,7 @@ def _replay(args) -> int:
                 timeout=timeout,
                 reference=args.reference,
                 echo=echo,
+                variables=variables,
             )
     except ReferenceRunError as exc:
         print(f"gransim replay: error: the code's run failed: {exc}", file=sys.stderr)

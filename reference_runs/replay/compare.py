@@ -19,6 +19,7 @@ failure named ``incomplete``. Output: ``OUTDIR/report.html``, ``OUTDIR/report.md
 
 from __future__ import annotations
 
+import dataclasses
 import html
 import inspect
 import json
@@ -26,17 +27,21 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
 from gransim.errors import InputError, ResultFileError
 from gransim.io import atomic_h5, atomic_path
+from reference_runs.engines import Engine, get_engine
 from reference_runs.judge import finite_problem, peak, verdict_problem
-from reference_runs.parsers import parse_dump_custom, parse_log
+from reference_runs.parsers import parse_dump_custom, parse_dump_local, parse_log
 from reference_runs.runner import run_job
 
+from .contacts import PGL_EXACT, PGL_POSITION, PL_EXACT, local_columns, local_style, native_rows
 from .deck import ReplayDeck, read_deck
-from .drive import NativeRun, run_native
+from .drive import NativeRun, dump_frames, frame, run_native
+from .thermo import thermo_value
 
 #: positions (and box bounds): |difference| <= POSITION_TOL * D50
 POSITION_TOL = 1e-10
@@ -92,6 +97,28 @@ class ReplayResult:
 
 
 # ----------------------------------------------------------------------------- running the code
+@dataclass(frozen=True)
+class _EngineWithVariables(Engine):
+    """An :class:`~reference_runs.engines.Engine` whose job command line ends with ``-var NAME
+    VALUE`` for each command-line variable (both codes' ``-var``, index style)."""
+
+    variables: tuple = ()
+
+    def command(self, deck: str, log: str, np: int = 1, exe: str | None = None) -> list:
+        cmd = super().command(deck, log, np, exe=exe)
+        for name, value in self.variables:
+            cmd += ["-var", name, value]
+        return cmd
+
+
+def with_variables(eng: Engine, variables: dict) -> Engine:
+    """``eng`` itself without variables, else the same code with ``-var NAME VALUE`` appended."""
+    if not variables:
+        return eng
+    base = {f.name: getattr(eng, f.name) for f in dataclasses.fields(Engine)}
+    return _EngineWithVariables(**base, variables=tuple((str(k), str(v)) for k, v in variables.items()))
+
+
 def run_code(deck: ReplayDeck, job_dir: Path, timeout: float | None):
     """Run the deck unchanged in its code in ``job_dir``; returns (log path, {dump file: path},
     version text). Raises ReferenceRunError (binary missing, error, timeout, incomplete)."""
@@ -107,13 +134,13 @@ def run_code(deck: ReplayDeck, job_dir: Path, timeout: float | None):
         "files": files,
         "timeout": timeout,
         "outputs": tuple(d.file for d in deck.dumps),
-        "expected_runs": 1,
+        "expected_runs": len(deck.runs),
         "progress": False,
         "force": True,
     }
     if "engine" in inspect.signature(run_job).parameters:
-        kw["engine"] = deck.engine
-    elif deck.engine != "liggghts":
+        kw["engine"] = with_variables(get_engine(deck.engine), deck.variables)
+    elif deck.engine != "liggghts" or deck.variables:
         raise InputError(
             "this gransim's reference_runs.runner.run_job runs LIGGGHTS only; a LAMMPS deck "
             "cannot be run (give --reference DIR with a finished LAMMPS job)"
@@ -140,11 +167,9 @@ def read_reference(deck: ReplayDeck, ref_dir: Path):
 
 # ----------------------------------------------------------------------------- comparing
 def expected_thermo_steps(deck: ReplayDeck) -> list:
-    """Steps of the thermo rows of ``run N``: 0, multiples of ``thermo`` N, and the last step."""
-    n = deck.nsteps
-    steps = set(range(0, n + 1, deck.thermo_every)) if deck.thermo_every else {0}
-    steps.add(n)
-    return sorted(steps)
+    """Steps of the thermo rows of every ``run``, run after run (a later run repeats its first
+    step: the row of its set-up)."""
+    return [s for run in deck.runs for s in run.thermo_steps()]
 
 
 def _max_rel(a, b, scale):
@@ -154,101 +179,169 @@ def _max_rel(a, b, scale):
     return float(d / scale) if scale > 0 else (d if scale == 0 else math.nan)
 
 
+_BOX = ("lx", "ly", "xlo", "xhi", "ylo", "yhi", "xy", "xz", "yz")
+
+
+def _light_state(part, step):
+    """What the thermo needs of a step without a kept state: box, tilt and virial of the step."""
+    k = step - part.start
+    return SimpleNamespace(step=step, lo=part.lo[k], hi=part.hi[k], xy=float(part.xy[k]), virial=part.virial[k], v=None)
+
+
+def _native_thermo(deck, nat, k, step, kw):
+    part = nat.parts[k]
+    st = part.states.get(step)
+    if st is None:
+        st = _light_state(part, step)
+    return thermo_value(kw, deck, st, nat.m)
+
+
 def compare_thermo(deck: ReplayDeck, nat: NativeRun, log_path: Path) -> list:
-    """Checks of the thermo table (see the module docstring)."""
+    """Checks of the thermo tables of every run (see the module docstring)."""
     checks = []
     log = parse_log(Path(log_path))
     if log.errors:
         checks.append(Check("log", "ERROR lines", len(log.errors), 0, False, str(log.errors[0])))
     if not log.runs:
         return checks + [Check("thermo", "incomplete: no thermo table in the log", 1, 0, False, str(log_path))]
-    run = log.runs[-1]
-    want = expected_thermo_steps(deck)
-    got = [int(s) for s in run.steps]
-    missing = sorted(set(want) - set(got))
-    extra = sorted(set(got) - set(want))
-    ok_steps = not missing and not extra and run.complete
-    detail = (
-        (f"missing steps {missing[:5]}{'...' if len(missing) > 5 else ''}; " if missing else "")
-        + (f"unexpected steps {extra[:5]}; " if extra else "")
-        + ("" if run.complete else "run not complete")
-    )
-    checks.append(
-        Check(
-            "thermo steps",
-            "incomplete: thermo rows missing" if not ok_steps else "rows present",
-            len(missing) + len(extra) + (0 if run.complete else 1),
-            0,
-            ok_steps,
-            detail or f"{len(got)} rows",
+    nruns = len(deck.runs)
+    if len(log.runs) != nruns:
+        checks.append(
+            Check(
+                "thermo runs",
+                "incomplete: thermo tables missing" if len(log.runs) < nruns else "thermo tables",
+                abs(len(log.runs) - nruns),
+                0,
+                False,
+                f"{len(log.runs)} thermo tables in the log, the deck has {nruns} run commands",
+            )
         )
-    )
-    rows = [k for k, s in enumerate(got) if 0 <= s <= deck.nsteps]
-    st = np.array([got[k] for k in rows], np.int64)
     d50 = deck.d50
-    tol_x = POSITION_TOL * d50
-    box = {
-        "lx": nat.hi[:, 0] - nat.lo[:, 0],
-        "ly": nat.hi[:, 1] - nat.lo[:, 1],
-        "xlo": nat.lo[:, 0],
-        "xhi": nat.hi[:, 0],
-        "ylo": nat.lo[:, 1],
-        "yhi": nat.hi[:, 1],
-        "xy": nat.xy if nat.xy is not None else np.zeros(nat.lo.shape[0]),
-        "xz": np.zeros(nat.lo.shape[0]),
-        "yz": np.zeros(nat.lo.shape[0]),
-    }
-    for kw in deck.thermo_columns:
-        low = kw.lower()
-        try:
-            col = run.column(kw)[rows]
-        except KeyError:
-            checks.append(Check(f"thermo {kw}", "incomplete: column missing in the log", 1, 0, False))
+    values: dict = {}  # column index -> (code values, native values, steps)
+    for k, (spec, run) in enumerate(zip(deck.runs, log.runs)):
+        want = spec.thermo_steps()
+        got = [int(s) for s in run.steps]
+        missing = sorted(set(want) - set(got))
+        extra = sorted(set(got) - set(want))
+        ok_steps = not missing and not extra and run.complete
+        detail = (
+            (f"missing steps {missing[:5]}{'...' if len(missing) > 5 else ''}; " if missing else "")
+            + (f"unexpected steps {extra[:5]}; " if extra else "")
+            + ("" if run.complete else "run not complete")
+        )
+        checks.append(
+            Check(
+                f"thermo steps (run {k + 1}, deck line {spec.line})",
+                "incomplete: thermo rows missing" if not ok_steps else "rows present",
+                len(missing) + len(extra) + (0 if run.complete else 1),
+                0,
+                ok_steps,
+                detail or f"{len(got)} rows",
+            )
+        )
+        if len(run.columns) != len(spec.thermo_columns):
+            checks.append(
+                Check(
+                    f"thermo columns (run {k + 1})",
+                    "incomplete: columns missing in the log",
+                    abs(len(run.columns) - len(spec.thermo_columns)),
+                    0,
+                    False,
+                    f"log header {list(run.columns)}",
+                )
+            )
             continue
-        if low in box:
-            diff = peak([np.abs(col - box[low][st])])  # NaN when no row or any NaN: fails
-            problem = _sides_problem(f"thermo {kw}", {deck.engine: col, "native": box[low][st]})
+        for c, kw in enumerate(spec.thermo_columns):
+            for row, s in enumerate(got):
+                if not spec.start <= s <= spec.end:
+                    continue
+                nv = _native_thermo(deck, nat, k, s, kw)
+                if nv is None:
+                    continue
+                rec = values.setdefault(kw, ([], [], []))
+                rec[0].append(float(run.data[row, c]))
+                rec[1].append(nv)
+                rec[2].append(s)
+    for kw, (code, native, steps) in values.items():
+        code, native = np.array(code), np.array(native)
+        low = kw.lower()
+        problem = _sides_problem(f"thermo {kw}", {deck.engine: code, "native": native})
+        bitwise = bool(np.array_equal(code, native))
+        if low in ("step", "atoms"):
+            bad = int(np.sum(code != native))
+            checks.append(Check(f"thermo {kw}", f"rows with {kw} != native", bad, 0, bad == 0 and not problem))
+            continue
+        worst = steps[int(np.argmax(np.abs(code - native)))] if code.size else 0
+        if low in _BOX:
+            diff = peak([np.abs(code - native)])  # NaN when no row or any NaN: fails
             checks.append(
                 Check(
                     f"thermo {kw}",
                     "max |code - native| / D50",
                     diff / d50,
                     POSITION_TOL,
-                    diff <= tol_x and not problem,
-                    problem or f"bitwise equal: {bool(np.array_equal(col, box[low][st]))}",
+                    diff <= POSITION_TOL * d50 and not problem,
+                    problem or f"bitwise equal: {bitwise}",
                 )
             )
-        elif low == "atoms":
-            bad = int(np.sum(col != deck.packing.n))
-            checks.append(Check("thermo atoms", "rows with atoms != N", bad, 0, bad == 0))
-        elif low.startswith("c_"):
-            m = re.fullmatch(r"c_([A-Za-z0-9_]+)(\[(\d+)\])?", kw)
-            nat_col = nat.p[st] if m.group(3) is None else nat.pressure[st, int(m.group(3)) - 1]
-            scale = peak([np.abs(col)])  # NaN for no row or a NaN: fails
-            rel = _max_rel(col, nat_col, scale)
-            worst = int(st[np.argmax(np.abs(col - nat_col))]) if col.size else 0
-            problem = _sides_problem(f"thermo {kw}", {deck.engine: col, "native": nat_col})
-            checks.append(
-                Check(
-                    f"thermo {kw} (pressure, virial)",
-                    "max |code - native| / max |code|",
-                    rel,
-                    STRESS_TOL,
-                    (rel <= STRESS_TOL if scale > 0 else rel == 0.0) and not problem,
-                    problem or f"worst at step {worst}; bitwise equal: {bool(np.array_equal(col, nat_col))}",
-                )
+            continue
+        scale = peak([np.abs(code)])
+        rel = _max_rel(code, native, scale)
+        what = _pressure_label(deck, kw)
+        checks.append(
+            Check(
+                f"thermo {kw}{what}",
+                "max |code - native| / max |code|",
+                rel,
+                STRESS_TOL,
+                (rel <= STRESS_TOL if scale > 0 else rel == 0.0) and not problem,
+                problem or f"worst at step {worst}; bitwise equal: {bitwise}",
             )
+        )
     return checks
 
 
+def _pressure_label(deck, kw) -> str:
+    """`` (pressure, virial)``, `` (pressure, kinetic + virial)`` ... for a compute pressure column."""
+    m = re.fullmatch(r"c_([A-Za-z0-9_]+)(\[(\d+)\])?", kw)
+    c = deck.computes.get(m.group(1)) if m else None
+    if c is None or c.style != "pressure":
+        return ""
+    return " (pressure, " + " + ".join(p for p, on in (("kinetic", c.keflag), ("virial", c.virial)) if on) + ")"
+
+
+def _custom_columns(deck: ReplayDeck, d) -> dict:
+    """{dump column: native frame column} of the columns that can be compared (``c_ID[k]`` of a
+    compute property/atom maps to the attribute it names)."""
+    out = {}
+    for c in d.columns:
+        if c in _POS + _RATE + _EXACT:
+            out[c] = c
+            continue
+        m = re.fullmatch(r"c_([A-Za-z0-9_]+)(\[(\d+)\])?", c)
+        comp = deck.computes.get(m.group(1)) if m else None
+        if comp is not None and comp.style == "property/atom":
+            attr = comp.args[int(m.group(3)) - 1 if m.group(3) else 0]
+            if attr in _POS + _RATE + _EXACT:
+                out[c] = attr
+    return out
+
+
+def _frame_state(nat, k, s):
+    return nat.parts[k].states.get(s)
+
+
 def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
-    """Checks of every dump frame (see the module docstring)."""
+    """Checks of every ``dump custom`` frame (see the module docstring)."""
     checks = []
     d50 = deck.d50
     index = {int(a): i for i, a in enumerate(deck.ids)}
     for d in deck.dumps:
+        if d.style != "custom":
+            continue
         path = Path(dump_paths[d.file])
-        want = list(range(0, deck.nsteps + 1, d.every))
+        sched = dump_frames(deck, d)
+        want = [s for s, _, _ in sched]
         try:
             frames = {int(f.step): f for f in parse_dump_custom(path)} if path.exists() else {}
         except ResultFileError as exc:
@@ -266,7 +359,7 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
                 + (f"; missing steps {missing[:5]}" if missing else ""),
             )
         )
-        cols = [c for c in d.columns if c in _POS + _RATE + _EXACT]
+        cols = _custom_columns(deck, d)
         worst = {c: 0.0 for c in cols}
         where = {c: None for c in cols}
         scale = {c: 0.0 for c in cols}
@@ -274,11 +367,12 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
         problem = {c: None for c in cols}  # the first NaN or inf of a column, named
         inc = []
         pairs = []
-        for s in want:
+        for s, k, _ in sched:
             if s not in frames:
                 continue
             fr = frames[s]
-            if s not in nat.frames:
+            st = _frame_state(nat, k, s)
+            if st is None:
                 inc.append(f"native frame {s} missing")
                 continue
             ids = np.asarray(fr["id"], np.int64)
@@ -286,15 +380,14 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
                 inc.append(f"step {s}: {len(ids)} of {len(index)} atoms")
                 continue
             order = np.array([index[int(a)] for a in ids])
-            pairs.append((s, fr, order))
-            for c in cols:
-                if c not in _POS:
+            pairs.append((s, fr, frame(st, nat), order))
+            for c, a in cols.items():
+                if a not in _POS:
                     scale[c] = peak([scale[c], np.abs(fr[c])])  # a NaN sticks (max() would drop it)
-        for s, fr, order in pairs:
-            nf = nat.frames[s]
-            for c in cols:
+        for s, fr, nf, order in pairs:
+            for c, attr in cols.items():
                 a = np.asarray(fr[c], float)
-                b = np.asarray(nf[c], float)[order]
+                b = np.asarray(nf[attr], float)[order]
                 diff = float(np.max(np.abs(a - b)))
                 bitwise[c] &= bool(np.array_equal(a, b))
                 problem[c] = problem[c] or _sides_problem(f"dump {d.id} {c} at step {s}", {deck.engine: a, "native": b})
@@ -306,10 +399,10 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
                     f"dump {d.id} atoms", "incomplete: atoms or frames missing", len(inc), 0, False, "; ".join(inc[:5])
                 )
             )
-        for c in cols:
-            if c in _POS:
+        for c, attr in cols.items():
+            if attr in _POS:
                 v, tol, metric = worst[c] / d50, POSITION_TOL, "max |code - native| / D50"
-            elif c in _EXACT:
+            elif attr in _EXACT:
                 sc = scale[c] or 1.0
                 v, tol, metric = worst[c] / sc, EXACT_TOL, "max |code - native| / max |code|"
             else:
@@ -324,8 +417,140 @@ def compare_dumps(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
                     metric,
                     v,
                     tol,
-                    (v <= tol if (c in _POS or scale[c] > 0) else v == 0.0) and not problem[c],
+                    (v <= tol if (attr in _POS or scale[c] > 0) else v == 0.0) and not problem[c],
                     problem[c] or f"worst at step {where[c]}; bitwise equal: {bitwise[c]}",
+                )
+            )
+    return checks
+
+
+def compare_local(deck: ReplayDeck, nat: NativeRun, dump_paths: dict) -> list:
+    """Checks of every ``dump local`` of contact rows (:mod:`reference_runs.replay.contacts`).
+
+    Per dump: every frame the deck asks for is present (else ``incomplete``); in each frame the
+    rows of the native touching pairs are all present, matched by (id1, id2) (LIGGGHTS) or
+    (patom1, patom2) (LAMMPS) (a missing row: ``incomplete``), a row the native run has no
+    contact for holds no force (LAMMPS lists non-touching neighbours with zeros); each compared
+    column's largest difference relative to its largest magnitude (positions: over D50).
+    """
+    checks = []
+    for d in deck.dumps:
+        if d.style != "local":
+            continue
+        style = local_style(deck, d)
+        names = local_columns(deck, d)
+        keys = ("id1", "id2") if style == "pair/gran/local" else ("patom1", "patom2")
+        path = Path(dump_paths[d.file])
+        sched = dump_frames(deck, d)
+        want = [s for s, _, _ in sched]
+        if not all(k in names for k in keys):
+            checks.append(
+                Check(
+                    f"dump {d.id} rows",
+                    "incomplete: rows cannot be matched",
+                    1,
+                    0,
+                    False,
+                    f"the dump needs the columns {' and '.join(keys)} (compute "
+                    + ("pair/gran/local id" if style == "pair/gran/local" else "property/local patom1 patom2")
+                    + ") to match its rows with the native contacts",
+                )
+            )
+            continue
+        try:
+            frames = {int(f.step): f for f in parse_dump_local(path, names=names, sort=False)} if path.exists() else {}
+        except ResultFileError as exc:
+            checks.append(Check(f"dump {d.id}", "incomplete: unreadable dump", 1, 0, False, str(exc)))
+            continue
+        missing = [s for s in want if s not in frames]
+        checks.append(
+            Check(
+                f"dump {d.id} frames",
+                "incomplete: frames missing" if missing else "frames present",
+                len(missing),
+                0,
+                not missing,
+                f"{path.name}: expected {len(want)} frames, got {len(frames)}"
+                + (f"; missing steps {missing[:5]}" if missing else ""),
+            )
+        )
+        exact = [c for c in names if c in (PGL_EXACT if style == "pair/gran/local" else PL_EXACT)]
+        posc = [c for c in names if style == "pair/gran/local" and c in PGL_POSITION]
+        code_v = {c: [] for c in exact + posc}
+        nat_v = {c: [] for c in exact + posc}
+        inc, stray, compared, skipped = [], [], 0, 0
+        for s, k, setup in sched:
+            if s not in frames:
+                continue
+            st = _frame_state(nat, k, s)
+            if st is None or st.contacts is None:
+                inc.append(f"native state of step {s} missing")
+                continue
+            rows = native_rows(st, deck, style, nat.ids, nat.m, nat.r)
+            fr = frames[s]
+            got = {}
+            for r in range(len(fr[keys[0]])):
+                got[(int(fr[keys[0]][r]), int(fr[keys[1]][r]))] = r
+            lost = [key for key in rows if key not in got]
+            if lost:
+                inc.append(f"step {s}: {len(lost)} of {len(rows)} native contacts have no row, e.g. {lost[0]}")
+            for key, r in got.items():
+                if key not in rows:
+                    force = [abs(float(fr[c][r])) for c in ("fx", "fy", "force") if c in names]
+                    if any(f != 0.0 for f in force):
+                        stray.append(f"step {s}: row {key} holds a force, the native pair does not touch")
+                    continue
+                nr = rows[key]
+                if nr["_periodic"] and not setup:
+                    skipped += 1
+                    continue
+                compared += 1
+                for c in exact + posc:
+                    code_v[c].append(float(fr[c][r]))
+                    nat_v[c].append(nr[c])
+        if inc:
+            checks.append(
+                Check(f"dump {d.id} rows", "incomplete: rows or frames missing", len(inc), 0, False, "; ".join(inc[:3]))
+            )
+        checks.append(
+            Check(
+                f"dump {d.id} rows without a native contact",
+                "rows holding a force",
+                len(stray),
+                0,
+                not stray,
+                "; ".join(stray[:3])
+                or f"{compared} rows compared"
+                + (
+                    f"; {skipped} periodic rows of frames written after a step checked for presence only "
+                    "(the codes evaluate them against ghost atoms not updated since the step's communication)"
+                    if skipped
+                    else ""
+                ),
+            )
+        )
+        d50 = deck.d50
+        for c in exact + posc:
+            a, b = np.array(code_v[c]), np.array(nat_v[c])
+            problem = _sides_problem(f"dump {d.id} {c}", {deck.engine: a, "native": b})
+            bitwise = bool(np.array_equal(a, b))
+            if c in posc:
+                diff = peak([np.abs(a - b)]) if a.size else math.nan
+                v, tol, metric = diff / d50, POSITION_TOL, "max |code - native| / D50"
+                ok = v <= tol
+            else:
+                scale = peak([np.abs(a)]) if a.size else math.nan
+                v = _max_rel(a, b, scale) if a.size else math.nan
+                tol, metric = RATE_TOL, "max |code - native| / max |code|"
+                ok = v <= tol if scale > 0 else v == 0.0
+            checks.append(
+                Check(
+                    f"dump {d.id} {c}",
+                    metric,
+                    v,
+                    tol,
+                    bool(ok) and not problem,
+                    problem or f"{a.size} rows; bitwise equal: {bitwise}",
                 )
             )
     return checks
@@ -340,6 +565,7 @@ def replay(
     timeout: float | None = None,
     reference=None,
     echo=None,
+    variables=None,
 ) -> ReplayResult:
     """Read, run in its code (or read ``reference``), run natively, compare, write the report.
 
@@ -350,6 +576,8 @@ def replay(
         ``results/replay/<deck name>``). timeout : seconds for the code's run (None: no limit).
     reference : a finished job directory (log + dumps of this deck) used instead of running
         the code. echo : callable for progress lines (default: silent).
+    variables : {NAME: VALUE} given on the command line (``--var``): substituted natively and
+        passed to the code as ``-var NAME VALUE``.
 
     Returns
     -------
@@ -361,7 +589,7 @@ def replay(
     ReferenceRunError when the code fails; SimulationError when the native run diverges.
     """
     say = echo or (lambda msg: None)
-    deck = read_deck(deck_path, data=data, engine=engine)
+    deck = read_deck(deck_path, data=data, engine=engine, variables=variables)
     out = Path(outdir) if outdir is not None else Path("results/replay") / Path(deck_path).name
     if out.exists() and not out.is_dir():
         raise InputError(f"-o: {out} exists and is not a directory")
@@ -378,7 +606,7 @@ def replay(
         log, dumps, version = run_code(deck, out / "job", timeout)
     say(f"running the deck natively ({deck.packing.n} disks, {deck.nsteps} steps)")
     nat = run_native(deck)
-    checks = compare_thermo(deck, nat, log) + compare_dumps(deck, nat, dumps)
+    checks = compare_thermo(deck, nat, log) + compare_dumps(deck, nat, dumps) + compare_local(deck, nat, dumps)
     res = ReplayResult(deck, checks, out, version, list(deck.notes))
     write_report(res, nat)
     return res

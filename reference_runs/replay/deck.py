@@ -50,6 +50,7 @@ from gransim.dem.settings import DEMSettings
 from gransim.dem.sheared import ShearLoading, tilt_stop
 from gransim.errors import InputError
 from gransim.geometry import Packing
+from reference_runs.parsers import pair_gran_local_names
 
 from .deform import STYLES, TILT_STYLES, AxisDeform, DeformSpec
 
@@ -85,13 +86,32 @@ SUPPORTED = (
     "fix enforce2d",
     "fix deform (x/y erate|trate|vel|final|delta|scale, remap x)",
     "change_box all triclinic + fix deform N xy erate|trate|vel|final|delta remap v (LAMMPS)",
-    "compute pressure TEMP virial",
+    "compute pressure TEMP [ke] [pair|virial]",
+    "compute temp",
+    "compute property/atom",
+    "compute pair/gran/local (LIGGGHTS)",
+    "compute pair/local, compute property/local (LAMMPS)",
     "thermo",
     "thermo_style custom",
     "thermo_modify",
     "dump custom",
+    "dump local",
     "dump_modify",
-    "variable equal",
+    "undump",
+    "variable equal|index",
+    "run (several; output commands between them)",
+)
+
+#: commands accepted after the first ``run``: they change what is printed, not the dynamics
+BETWEEN_RUNS = (
+    "thermo",
+    "thermo_style",
+    "thermo_modify",
+    "dump",
+    "dump_modify",
+    "undump",
+    "compute",
+    "variable",
     "run",
 )
 
@@ -105,7 +125,19 @@ THERMO_KEYWORDS = (
     "cpu",
     "tpcpu",
     "spcpu",
+    "cpuremain",
     "atoms",
+    "ke",
+    "temp",
+    "pe",
+    "etotal",
+    "press",
+    "pxx",
+    "pyy",
+    "pzz",
+    "pxy",
+    "pxz",
+    "pyz",
     "lx",
     "ly",
     "lz",
@@ -120,6 +152,14 @@ THERMO_KEYWORDS = (
     "xz",
     "yz",
 )
+#: thermo keywords LIGGGHTS 3.8.0 does not have (thermo.cpp: no temp/pressure/energy keywords
+#: beyond ``ke``; it stops with "Invalid keyword in thermo_style custom command")
+LAMMPS_ONLY_THERMO = ("temp", "pe", "etotal", "press", "pxx", "pyy", "pzz", "pxy", "pxz", "pyz")
+#: thermo keywords that are printed and not compared (timings; the native run has its own)
+UNCOMPARED_THERMO = ("elapsed", "elaplong", "cpu", "tpcpu", "spcpu", "cpuremain")
+#: keywords of ``compute pair/local`` (LAMMPS) and ``compute property/local`` accepted
+PAIR_LOCAL_KEYWORDS = ("dist", "eng", "force", "fx", "fy", "fz")
+PROPERTY_LOCAL_KEYWORDS = ("patom1", "patom2", "ptype1", "ptype2")
 #: dump custom columns accepted
 DUMP_COLUMNS = (
     "id",
@@ -148,9 +188,11 @@ _LIG_LAW = ("kn", "kt", "gamman", "gammat", "coefficientFriction")
 
 @dataclass(frozen=True)
 class DumpSpec:
-    """One ``dump ID all custom N FILE cols``: ``every`` N steps, the file name as in the deck,
-    the columns, ``sort_id`` (``dump_modify ID sort id``), ``format`` (``dump_modify`` format
-    text or None), the deck line."""
+    """One ``dump ID all custom|local N FILE cols``: ``every`` N steps, the file name as in the
+    deck, the columns, ``sort_id`` (``dump_modify ID sort id``), ``format`` (``dump_modify`` format
+    text or None), the deck line, ``style`` (custom or local), ``first_run`` (index of the first
+    ``run`` after the definition) and ``last_run`` (index of the last run it is active in: the
+    run before its ``undump``; None: to the end)."""
 
     id: str
     every: int
@@ -159,6 +201,64 @@ class DumpSpec:
     sort_id: bool = False
     format: str | None = None
     line: int = 0
+    style: str = "custom"
+    first_run: int = 0
+    last_run: int | None = None
+
+    def active_in(self, k: int) -> bool:
+        """The dump writes during run ``k`` (0-based)."""
+        return self.first_run <= k and (self.last_run is None or k <= self.last_run)
+
+
+@dataclass(frozen=True)
+class ComputeSpec:
+    """One ``compute ID all STYLE ARGS`` of the subset: style, arguments, deck line.
+
+    ``pressure``: args (TEMP, keyword...); ``keflag``/``virial`` say whether the kinetic and the
+    virial parts are included (no keyword: both; ``compute_pressure.cpp``). ``temp``: no args.
+    ``property/atom``, ``pair/gran/local``, ``pair/local``, ``property/local``: the keywords.
+    """
+
+    id: str
+    style: str
+    args: tuple
+    line: int
+
+    @property
+    def keflag(self) -> bool:
+        kw = self.args[1:]
+        return self.style == "pressure" and (not kw or "ke" in kw)
+
+    @property
+    def virial(self) -> bool:
+        kw = self.args[1:]
+        return self.style == "pressure" and (not kw or "virial" in kw or "pair" in kw)
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One ``run N``: its length, deck line, first step, and the output in force during it:
+    ``thermo_every`` (0: first and last step only), ``thermo_columns`` (keywords of ``thermo_style
+    custom``)."""
+
+    nsteps: int
+    line: int
+    start: int
+    thermo_every: int
+    thermo_columns: tuple
+
+    @property
+    def end(self) -> int:
+        return self.start + self.nsteps
+
+    def thermo_steps(self) -> list:
+        """Steps of the thermo rows: the first step, the multiples of ``thermo N`` within the
+        run, and the last step (``Output::setup``, ``Output::write``; ``run 0``: one row)."""
+        steps = {self.start, self.end}
+        if self.thermo_every:
+            e = self.thermo_every
+            steps.update(range((self.start + e - 1) // e * e, self.end + 1, e))
+        return sorted(steps)
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,6 +291,9 @@ class ReplayDeck:
         :class:`gransim.dem.sheared.ShearEngine`; then ``packing.cell`` is [[Lx, xy], [0, Ly]].
     shear : for a sheared deck, the :class:`gransim.dem.sheared.ShearLoading` of the run (the
         ``xy`` style expressed as the engine's erate, see :func:`_shear_loading`), else None.
+    runs : the ``run`` commands in order (:class:`RunSpec`); ``nsteps`` is the last step.
+    computes : {ID: :class:`ComputeSpec`} of every compute of the deck.
+    variables : the command-line variables (``--var NAME VALUE``, the codes' ``-var``) as given.
     """
 
     engine: str
@@ -217,6 +320,9 @@ class ReplayDeck:
     tilt: float = 0.0
     sheared: bool = False
     shear: object = None
+    runs: tuple = ()
+    computes: dict = field(default_factory=dict)
+    variables: dict = field(default_factory=dict)
 
     @property
     def d50(self) -> float:
@@ -295,7 +401,7 @@ def _strip_comment(line: str) -> str:
 _VAR = re.compile(r"\$\{([A-Za-z0-9_]+)\}|\$([A-Za-z0-9_])")
 
 
-def read_deck(path, data=None, engine: str | None = None) -> ReplayDeck:
+def read_deck(path, data=None, engine: str | None = None, variables=None) -> ReplayDeck:
     """Read and check a deck of the supported subset (see the module docstring).
 
     Parameters
@@ -303,6 +409,10 @@ def read_deck(path, data=None, engine: str | None = None) -> ReplayDeck:
     path : the deck file.
     data : the data file to use instead of the one ``read_data`` names (optional).
     engine : "liggghts" or "lammps" to insist on one syntax (default: detected).
+    variables : {NAME: VALUE} (or (NAME, VALUE) pairs) given on the command line, as the codes'
+        ``-var NAME VALUE``: index-style variables defined before the deck's first line
+        (``Variable::set`` of ``-var``), substituted as text; a deck's ``variable NAME index ...``
+        of the same name is then ignored, as the codes do.
 
     Raises
     ------
@@ -318,6 +428,7 @@ def read_deck(path, data=None, engine: str | None = None) -> ReplayDeck:
         raise InputError(f"{path}: cannot read the deck ({exc})") from None
     err = _Err(path)
     st = _State(path, err, engine)
+    st.command_line(variables)
     for lineno, line in _logical_lines(text):
         line = st.substitute(lineno, line)
         try:
@@ -335,7 +446,8 @@ class _State:
         self.votes: list = []  # (engine, line, why)
         self.seen: dict = {}
         self.notes: list = []
-        self.variables: dict = {}  # name -> (value or None, expr, line)
+        self.variables: dict = {}  # name -> (substitution text or None, expr, line, style)
+        self.cmdline: dict = {}  # the --var variables, as given
         self.law_lig: dict = {}
         self.law_lmp = None
         self.pair_line = 0
@@ -348,12 +460,17 @@ class _State:
         self.enforce2d = None
         self.deform = None
         self.pressure: dict = {}
+        self.computes: dict = {}
+        self.runs: list = []  # RunSpec
+        self.step = 0
+        self.undumped: dict = {}  # dump id -> line of its undump
         self.thermo_every = 0
         self.thermo_columns = None
+        self.thermo_line = 0
+        self.lammps_thermo: dict = {}  # LAMMPS-only thermo keyword -> line
         self.thermo_float = None
         self.dumps: dict = {}
         self.dump_mod: dict = {}
-        self.run = None
         self.sorting = True
         self.newton_off = None
         self.comm_vel = None
@@ -365,19 +482,37 @@ class _State:
     def vote(self, engine, lineno, why):
         self.votes.append((engine, lineno, why))
 
+    def command_line(self, variables):
+        """The ``--var NAME VALUE`` variables: index style, defined before the deck's first line."""
+        pairs = list(variables.items()) if isinstance(variables, dict) else list(variables or ())
+        for name, value in pairs:
+            if not re.fullmatch(r"[A-Za-z0-9_]+", str(name)):
+                raise InputError(f"--var {name!r}: a variable name is letters, digits and underscores")
+            if name in self.cmdline:
+                raise InputError(f"--var {name}: given twice")
+            value = str(value)
+            if not value or any(c.isspace() for c in value):
+                raise InputError(f"--var {name} {value!r}: the value is one word (as the codes' -var)")
+            self.cmdline[name] = value
+            self.variables[name] = (value, value, 0, "index")
+
     def substitute(self, lineno, line):
+        if "$(" in line:
+            raise self.err(lineno, "immediate variables $(...) are not in the supported subset")
+
         def rep(m):
             name = m.group(1) or m.group(2)
             if name not in self.variables:
-                raise self.err(lineno, f"${{{name}}}: no variable {name!r} defined before this line")
+                hint = " (give it with --var NAME VALUE, as the codes' -var)" if not self.variables else ""
+                raise self.err(lineno, f"${{{name}}}: no variable {name!r} defined before this line{hint}")
             val = self.variables[name][0]
             if val is None:
                 raise self.err(
                     lineno,
-                    f"${{{name}}}: only variables holding a number may be substituted "
-                    f"(variable {name} is {self.variables[name][1]!r})",
+                    f"${{{name}}}: only variables holding a number or an index value may be "
+                    f"substituted (variable {name} is {self.variables[name][1]!r})",
                 )
-            return repr(val)
+            return val
 
         return _VAR.sub(rep, line)
 
@@ -403,9 +538,11 @@ class _State:
         h = getattr(self, "c_" + cmd.replace("/", "_"), None)
         if h is None:
             raise self.unsupported(lineno, f"command `{cmd}`")
-        if self.run is not None:
+        if self.runs and cmd not in BETWEEN_RUNS:
             raise self.err(
-                lineno, f"`{cmd}` after `run` (line {self.run[1]}): the replay supports one run as the last command"
+                lineno,
+                f"`{cmd}` after a `run` (line {self.runs[0].line}) may change the dynamics between "
+                f"runs; the replay accepts only output commands there ({', '.join(BETWEEN_RUNS)})",
             )
         h(lineno, w)
 
@@ -706,50 +843,118 @@ class _State:
         if len(w) < 4:
             raise self.err(n, f"`{' '.join(w)}`: a compute needs ID group style")
         self.group_all(n, w)
-        if w[3] != "pressure":
-            raise self.unsupported(n, f"compute style `{w[3]}`")
-        if len(w) != 6 or w[5] != "virial":
+        cid, style, args = w[1], w[3], tuple(w[4:])
+        if cid in self.computes:
+            raise self.err(n, f"compute {cid} defined twice (line {self.computes[cid].line})")
+        if style == "pressure":
+            self._compute_pressure(n, w, cid, args)
+        elif style == "temp":
+            if args:
+                raise self.err(n, f"`{' '.join(w)}`: the subset has `compute ID all temp` without keywords")
+        elif style == "property/atom":
+            if not args:
+                raise self.err(n, f"compute {cid} property/atom: no attribute given")
+            quiet = [a for a in args if a not in DUMP_COLUMNS]
+            if quiet:
+                self.notes.append(f"line {n}: compute {cid} property/atom {' '.join(quiet)}: printed, not compared")
+        elif style == "pair/gran/local":
+            self.vote("liggghts", n, "compute pair/gran/local")
+            if self.runs:
+                raise self.err(
+                    n,
+                    "compute pair/gran/local after a run: LIGGGHTS stops ('Need to define this compute "
+                    "before first run', compute_pair_gran_local.cpp); define it before the first run",
+                )
+            try:
+                pair_gran_local_names(args, 3)
+            except ValueError as exc:
+                raise self.err(n, f"compute {cid} pair/gran/local: {exc}") from None
+        elif style == "pair/local":
+            self.vote("lammps", n, "compute pair/local")
+            bad = [a for a in args if a not in PAIR_LOCAL_KEYWORDS and not re.fullmatch(r"p([1-9]|10)", a)]
+            if not args or bad:
+                raise self.err(
+                    n,
+                    f"compute {cid} pair/local {' '.join(bad)}: supported are {', '.join(PAIR_LOCAL_KEYWORDS)} "
+                    "and p1..p10 (gran/hooke/history's single())",
+                )
+        elif style == "property/local":
+            self.vote("lammps", n, "compute property/local")
+            bad = [a for a in args if a not in PROPERTY_LOCAL_KEYWORDS]
+            if not args or bad:
+                raise self.err(
+                    n,
+                    f"compute {cid} property/local {' '.join(bad)}: supported are "
+                    f"{', '.join(PROPERTY_LOCAL_KEYWORDS)} (pairs of the neighbour list)",
+                )
+        else:
+            raise self.unsupported(n, f"compute style `{style}`")
+        self.computes[cid] = ComputeSpec(cid, style, args, n)
+
+    def _compute_pressure(self, n, w, cid, args):
+        if not args:
+            raise self.err(n, f"`{' '.join(w)}`: compute pressure needs a temperature compute ID (or NULL)")
+        temp, kw = args[0], args[1:]
+        bad = [k for k in kw if k not in ("ke", "pair", "virial")]
+        if bad or len(set(kw)) != len(kw):
             raise self.err(
                 n,
-                f"`{' '.join(w)}`: the subset needs `compute ID all pressure TEMP virial` "
-                "(the virial only, no kinetic part)",
+                f"`{' '.join(w)}`: compute pressure keywords {' '.join(bad or kw)}: the subset has ke, pair "
+                "and virial (the pair virial is the whole virial of a granular deck without bonds or "
+                "fix virials)",
             )
-        if w[4] == "NULL":
+        ke = not kw or "ke" in kw
+        if temp == "NULL":
             self.vote("lammps", n, "compute pressure NULL")
-        self.pressure[w[1]] = n
+            if ke:
+                raise self.err(n, f"`{' '.join(w)}`: a kinetic part needs a temperature compute, not NULL")
+        elif temp != "thermo_temp" and (temp not in self.computes or self.computes[temp].style != "temp"):
+            raise self.err(
+                n,
+                f"compute pressure {temp}: no `compute {temp} all temp` defined before this line "
+                "(the pressure names its temperature compute)",
+            )
+        self.pressure[cid] = n
 
     def c_thermo(self, n, w):
-        self.once(n, "thermo")
         if len(w) != 2:
             raise self.err(n, "thermo: expected one value N")
         self.thermo_every = _int(self.err, n, w[1], "thermo N", minimum=0)
 
     def c_thermo_style(self, n, w):
-        self.once(n, "thermo_style")
         if len(w) < 3 or w[1] != "custom" or w[2] != "step":
             raise self.err(n, "thermo_style: the subset needs `thermo_style custom step ...` (step first)")
         for kw in w[2:]:
-            m = re.fullmatch(r"c_([A-Za-z0-9_]+)(\[(\d+)\])?", kw)
-            if m:
-                if m.group(1) not in self.pressure:
-                    raise self.err(
-                        n,
-                        f"thermo keyword {kw!r}: compute {m.group(1)!r} is not a `compute "
-                        "pressure ... virial` defined before this line",
-                    )
-                if m.group(3) is not None and int(m.group(3)) not in (1, 2, 3, 4, 5, 6):
-                    raise self.err(n, f"thermo keyword {kw!r}: compute pressure has components 1..6")
-            elif kw.startswith("v_"):
-                if kw[2:] not in self.variables:
-                    raise self.err(n, f"thermo keyword {kw!r}: no variable {kw[2:]!r} defined before this line")
-                self.notes.append(f"line {n}: thermo column {kw} is printed, not compared")
-            elif kw.lower() not in THERMO_KEYWORDS:
+            self._thermo_keyword(n, kw)
+        self.thermo_columns = tuple(w[2:])
+        self.thermo_line = n
+
+    def _thermo_keyword(self, n, kw):
+        m = re.fullmatch(r"c_([A-Za-z0-9_]+)(\[(\d+)\])?", kw)
+        if m:
+            c = self.computes.get(m.group(1))
+            if c is None or c.style not in ("pressure", "temp"):
                 raise self.err(
                     n,
-                    f"thermo keyword {kw!r}: supported are {', '.join(THERMO_KEYWORDS)}, "
-                    "c_ID[k] of a compute pressure and v_NAME",
+                    f"thermo keyword {kw!r}: compute {m.group(1)!r} is not a `compute pressure` or "
+                    "`compute temp` defined before this line (the global values of the subset)",
                 )
-        self.thermo_columns = tuple(w[2:])
+            if m.group(3) is not None and int(m.group(3)) not in (1, 2, 3, 4, 5, 6):
+                raise self.err(n, f"thermo keyword {kw!r}: compute {c.style} has components 1..6")
+        elif kw.startswith("v_"):
+            if kw[2:] not in self.variables:
+                raise self.err(n, f"thermo keyword {kw!r}: no variable {kw[2:]!r} defined before this line")
+            self.notes.append(f"line {n}: thermo column {kw} is printed, not compared")
+        elif kw.lower() not in THERMO_KEYWORDS:
+            raise self.err(
+                n,
+                f"thermo keyword {kw!r}: supported are {', '.join(THERMO_KEYWORDS)}, "
+                "c_ID[k] of a compute pressure or temp, and v_NAME",
+            )
+        elif kw.lower() in UNCOMPARED_THERMO:
+            self.notes.append(f"line {n}: thermo column {kw} (a timing) is printed, not compared")
+        if kw.lower() in LAMMPS_ONLY_THERMO:
+            self.lammps_thermo.setdefault(kw.lower(), n)
 
     def c_thermo_modify(self, n, w):
         k = 1
@@ -773,24 +978,55 @@ class _State:
 
     def c_dump(self, n, w):
         if len(w) < 6:
-            raise self.err(n, f"`{' '.join(w)}`: expected `dump ID all custom N FILE columns`")
+            raise self.err(n, f"`{' '.join(w)}`: expected `dump ID all custom|local N FILE columns`")
         self.group_all(n, w)
-        if w[3] != "custom":
+        if w[3] not in ("custom", "local"):
             raise self.unsupported(n, f"dump style `{w[3]}`")
-        if w[1] in self.dumps:
+        if w[1] in self.dumps or w[1] in self.undumped:
             raise self.err(n, f"dump {w[1]} defined twice")
         every = _int(self.err, n, w[4], f"dump {w[1]} N", minimum=1)
         cols = tuple(w[6:])
         if not cols:
             raise self.err(n, f"dump {w[1]}: no columns")
-        for c in cols:
-            if c not in DUMP_COLUMNS:
-                raise self.err(n, f"dump {w[1]} column {c!r}: supported are {', '.join(DUMP_COLUMNS)}")
-        if "id" not in cols:
-            raise self.err(n, f"dump {w[1]}: the column `id` is needed to compare atoms")
         if "*" in w[5] or "%" in w[5] or w[5].endswith((".gz", ".bin")):
             raise self.err(n, f"dump {w[1]} file {w[5]!r}: one plain text file is supported (no *, %, .gz)")
-        self.dumps[w[1]] = DumpSpec(w[1], every, w[5], cols, line=n)
+        if any(d.file == w[5] for d in self.dumps.values()):
+            raise self.err(n, f"dump {w[1]} file {w[5]!r} is written by another dump of the deck")
+        if w[3] == "custom":
+            for c in cols:
+                if c not in DUMP_COLUMNS and not self._compute_column(c, ("property/atom",)):
+                    raise self.err(
+                        n,
+                        f"dump {w[1]} column {c!r}: supported are {', '.join(DUMP_COLUMNS)} and c_ID[k] of a "
+                        "compute property/atom",
+                    )
+            if "id" not in cols:
+                raise self.err(n, f"dump {w[1]}: the column `id` is needed to compare atoms")
+        else:
+            for c in cols:
+                if c != "index" and not self._compute_column(c, ("pair/gran/local", "pair/local", "property/local")):
+                    raise self.err(
+                        n,
+                        f"dump {w[1]} local column {c!r}: supported are index and c_ID[k] of a compute "
+                        "pair/gran/local (LIGGGHTS), pair/local or property/local (LAMMPS)",
+                    )
+        self.dumps[w[1]] = DumpSpec(w[1], every, w[5], cols, line=n, style=w[3], first_run=len(self.runs))
+
+    def _compute_column(self, col, styles) -> bool:
+        """``col`` is c_ID or c_ID[k] of a compute of one of ``styles``, k within its values."""
+        m = re.fullmatch(r"c_([A-Za-z0-9_]+)(\[(\d+)\])?", col)
+        c = self.computes.get(m.group(1)) if m else None
+        if c is None or c.style not in styles:
+            return False
+        width = len(pair_gran_local_names(c.args, 3)) if c.style == "pair/gran/local" else len(c.args)
+        k = int(m.group(3)) if m.group(3) else None
+        return (k is None and width == 1) or (k is not None and 1 <= k <= width)
+
+    def c_undump(self, n, w):
+        if len(w) != 2 or w[1] not in self.dumps:
+            raise self.err(n, f"undump: no dump {w[1] if len(w) > 1 else ''!r} defined before this line")
+        d = self.dumps.pop(w[1])
+        self.undumped[w[1]] = dataclasses.replace(d, last_run=len(self.runs) - 1)
 
     def c_dump_modify(self, n, w):
         if len(w) < 2 or w[1] not in self.dumps:
@@ -814,22 +1050,51 @@ class _State:
         self.dumps[w[1]] = d
 
     def c_variable(self, n, w):
-        if len(w) < 4 or w[2] != "equal":
-            raise self.err(n, f"`{' '.join(w[:3])}`: only `variable NAME equal EXPR` is supported")
-        expr = " ".join(w[3:])
-        try:
-            val = float(expr)
-        except ValueError:
-            val = None
-        if w[1] in self.variables:
-            raise self.err(n, f"variable {w[1]} defined twice (line {self.variables[w[1]][2]})")
-        self.variables[w[1]] = (val, expr, n)
+        if len(w) < 4 or w[2] not in ("equal", "index"):
+            raise self.err(
+                n, f"`{' '.join(w[:3])}`: only `variable NAME equal EXPR` and `variable NAME index V` are supported"
+            )
+        name, style = w[1], w[2]
+        old = self.variables.get(name)
+        if style == "index":
+            if old is not None and old[3] == "index":
+                # Variable::set: an index variable that exists (from -var) keeps its value
+                self.notes.append(f"line {n}: variable {name} index ignored: {name} = {old[0]} (already defined)")
+                return
+            if len(w) != 4:
+                raise self.err(n, f"variable {name} index: one value (loops over several values need next/jump)")
+            val = w[3]
+        else:
+            expr = " ".join(w[3:])
+            try:
+                val = f"{float(expr):.15g}"  # Variable::retrieve prints an equal-style value with %.15g
+            except ValueError:
+                val = None
+        if old is not None:
+            if old[3] != style:
+                raise self.err(
+                    n,
+                    f"variable {name} {style}: {name} is an {old[3]}-style variable"
+                    + (" (given with --var)" if old[2] == 0 else f" (line {old[2]})")
+                    + "; the codes stop ('Cannot redefine variable as a different style')",
+                )
+            raise self.err(n, f"variable {name} defined twice (line {old[2]})")
+        self.variables[name] = (val, " ".join(w[3:]), n, style)
 
     def c_run(self, n, w):
         if len(w) != 2:
-            raise self.err(n, f"`{' '.join(w)}`: the subset needs `run N` without keywords")
-        nsteps = _int(self.err, n, w[1], "run N", minimum=1)
-        self.run = (nsteps, n)
+            raise self.err(
+                n, f"`{' '.join(w)}`: the subset needs `run N` without keywords (upto, start/stop, pre/post, every)"
+            )
+        nsteps = _int(self.err, n, w[1], "run N", minimum=0)
+        if self.thermo_columns is None:
+            raise self.err(
+                n,
+                "`run` before `thermo_style custom step ...`: the default style prints keywords "
+                "LIGGGHTS lacks, and nothing to compare at full precision",
+            )
+        self.runs.append(RunSpec(nsteps, n, self.step, self.thermo_every, self.thermo_columns))
+        self.step += nsteps
 
     # ---------------------------------------------------------------- finish
     def _engine(self):
@@ -909,7 +1174,7 @@ class _State:
     def finish(self, text, data):
         eng = self._engine()
         p = self.path
-        self._need(self.run is not None, "`run N`")
+        self._need(bool(self.runs), "`run N`")
         self._need(self.read_data is not None, "`read_data FILE`")
         for key in ("units", "dimension", "boundary", "atom_style", "pair_style", "pair_coeff"):
             self._need(key in self.seen, f"`{key}`")
@@ -978,19 +1243,21 @@ class _State:
                 "reorders atoms, so its summation order differs from the native one; "
                 "agreement only to round-off growth"
             )
-        if self.thermo_columns is None:
+        if eng == "liggghts" and self.lammps_thermo:
+            kw, ln = next(iter(self.lammps_thermo.items()))
             raise InputError(
-                f"{p}: `thermo_style custom step ...` is missing (the default style prints "
-                "keywords LIGGGHTS lacks, and nothing to compare at full precision)"
+                f"{p}:{ln}: thermo keyword {kw!r}: LIGGGHTS 3.8.0 has no such keyword (thermo.cpp; it "
+                "stops with 'Invalid keyword in thermo_style custom command'): use c_ID of a compute "
+                "temp or pressure"
             )
         if self.thermo_float is None or not re.fullmatch(r"%\.1[5-7][eg]", self.thermo_float.split()[0]):
             self.notes.append(
                 "thermo floats are not printed with %.17g (thermo_modify format float "
                 "%.17g): the stress comparison is limited by the printed digits"
             )
-        dumps = tuple(self.dumps.values())
+        dumps = tuple(sorted([*self.dumps.values(), *self.undumped.values()], key=lambda d: d.line))
         for d in dumps:
-            if not d.sort_id:
+            if d.style == "custom" and not d.sort_id:
                 self.notes.append(f"dump {d.id}: rows are matched by id (no dump_modify sort id)")
         # data file
         name, ln = self.read_data
@@ -1036,7 +1303,12 @@ class _State:
             settings = DEMSettings(**kw)
         except InputError as exc:
             raise InputError(f"{p}: contact law or step: {exc}") from None
-        nsteps = self.run[0]
+        nsteps = self.step
+        if sheared and len(self.runs) > 1:
+            raise InputError(
+                f"{p}:{self.runs[1].line}: a second `run` in a sheared (triclinic) deck: the "
+                "sheared-cell replay runs one `run` (ShearEngine.start_run); split the deck"
+            )
         shear = _shear_loading(self, p, tilt, lo, hi, settings.dt, nsteps) if sheared else None
         return ReplayDeck(
             engine=eng,
@@ -1052,8 +1324,8 @@ class _State:
             settings=settings,
             deform=self.deform,
             nsteps=nsteps,
-            thermo_every=self.thermo_every,
-            thermo_columns=self.thermo_columns,
+            thermo_every=self.runs[0].thermo_every,
+            thermo_columns=self.runs[0].thermo_columns,
             thermo_float_format=self.thermo_float,
             pressure=dict(self.pressure),
             dumps=dumps,
@@ -1063,6 +1335,9 @@ class _State:
             tilt=tilt,
             sheared=sheared,
             shear=shear,
+            runs=tuple(self.runs),
+            computes=dict(self.computes),
+            variables=dict(self.cmdline),
         )
 
 
