@@ -122,8 +122,7 @@ def law_names() -> tuple[tuple[str, str, tuple], ...]:
         from ..contacts import laws  # noqa: PLC0415 - start-up: numba; ImportError tolerated
     except ImportError:  # pragma: no cover
         return ()
-    table = getattr(laws, "LAWS", {})
-    return tuple((n, laws.law_code(n), tuple(table[n][1]) if n in table else ()) for n in laws.law_names())
+    return tuple((n, laws.law_code(n), tuple(laws.law_parameters(n)[0])) for n in laws.law_names())
 
 
 def _law_args(name: str, required: tuple) -> tuple:

@@ -70,7 +70,8 @@ from .granular import (  # noqa: F401
     damp_normal,
     spring_dashpot_slider,
 )
-from .laws import register_law
+from .laws import as_law_float, deck_float, lightest_pair_mass, register_law
+from .material import LIGGGHTS_YOUNGS_SI, HertzLiggghts, HertzMaterialLammps
 
 #: floats of per-contact history of every law in this module (the tangential spring xi, m)
 HISTORY_WIDTH = 2
@@ -372,14 +373,25 @@ def elastic_normal_potential(delta, reff, yeff):
 # ----------------------------------------------------------------------------- plug-ins
 #: LIGGGHTS ``gran model hertz tangential history``: Y*, G* (Pa), beta (-), tangential damping
 #: flag (1.0/0.0), mu (-) (:func:`hertz_history_liggghts`)
-HertzHistoryLiggghts = namedtuple("HertzHistoryLiggghts", ["yeff", "geff", "betaeff", "tdamp", "mu"])
+#: and the material constants its deck lines give the code (E (Pa), nu, e; NaN: built from the
+#: coefficients alone, no deck)
+HertzHistoryLiggghts = namedtuple(
+    "HertzHistoryLiggghts",
+    ["yeff", "geff", "betaeff", "tdamp", "mu", "youngs_modulus", "poisson_ratio", "restitution"],
+    defaults=(math.nan,) * 3,
+)
 #: LAMMPS ``gran/hertz/history KN KT GAMMAN GAMMAT MU 1``: kn, kt (Pa), gamma_n, gamma_t
 #: (1/(s m)), mu (:func:`hertz_history_lammps`)
 HertzHistoryLammps = namedtuple("HertzHistoryLammps", ["kn", "kt", "gamma_n", "gamma_t", "mu"])
 #: LAMMPS ``granular hertz/material ... tangential mindlin NULL``: E = 4/3 Y* (Pa), damp, kt0 =
 #: 8 G* (Pa), gammat_ratio, mu, damping (model index as a float, ``DAMPING_*``)
 #: (:func:`hertz_mindlin_granular_lammps`)
-HertzGranularLammps = namedtuple("HertzGranularLammps", ["E", "damp", "kt0", "gammat_ratio", "mu", "damping"])
+#: and the deck's E (Pa), NU and DAMP as given (tsuji: the restitution; NaN: no deck)
+HertzGranularLammps = namedtuple(
+    "HertzGranularLammps",
+    ["E", "damp", "kt0", "gammat_ratio", "mu", "damping", "youngs_modulus", "poisson_ratio", "damp_given"],
+    defaults=(math.nan,) * 3,
+)
 
 
 @njit(inline="always")
@@ -540,6 +552,155 @@ def hertz_energy(law, overlap, hist, radi, radj) -> float:
     return float(np.sum(un) + np.sum(ut))
 
 
-register_law(HertzHistoryLiggghts, hertz_pair_liggghts, HISTORY_WIDTH, energy=hertz_energy)
-register_law(HertzHistoryLammps, hertz_pair_lammps, HISTORY_WIDTH, apart=history_reset, energy=hertz_energy)
-register_law(HertzGranularLammps, hertz_pair_granular_lammps, HISTORY_WIDTH, apart=history_reset, energy=hertz_energy)
+# ------------------------------------------------------------------ time scale, deck lines, names
+def _lightest_pair(packing):
+    """(m*, R*) of the two lightest disks (kg, m): the highest frequency sqrt(k/m*) of a Hertz
+    contact, whose stiffness grows as sqrt(R*) while m* grows as R*^2 (2D masses pi r^2 rho)."""
+    r = np.sort(np.asarray(packing.radii, np.float64))
+    return lightest_pair_mass(packing), float(r[0] * r[1] / (r[0] + r[1]))
+
+
+def hertz_timescale(law, packing, overlap=0.0):
+    """(contact time, damping ratio) of the two lightest disks at the overlap ``overlap`` (m), the
+    largest present: the tangent stiffnesses k_n = dF_n/d delta = 3/2 c_n a and k_t = c_t a
+    (a = sqrt(R* delta), c_n, c_t of :func:`hertz_coefficients`; Johnson 1985, eq (4.23)
+    differentiated), k = max(k_n, k_t), contact time pi sqrt(m*/k) of the linearised contact;
+    damping ratio c/(2 sqrt(k m*)) of the larger damping coefficient c of the law at that overlap
+    (LIGGGHTS: sqrt(5/6) |beta| for both, normal_model_hertz.h:231-238; gran/hertz/history: m* GN a,
+    m* GT a; granular: DAMP times the prefactor of its damping model, GAMMAT times that). No
+    overlap (inf, 0): a Hertz contact has no stiffness at zero overlap, the check then has nothing
+    to bound (the divergence check of the engine still watches the run)."""
+    if not overlap > 0.0:
+        return math.inf, 0.0
+    meff, reff = _lightest_pair(packing)
+    a = math.sqrt(reff * overlap)
+    cn, ct = hertz_coefficients(law)
+    k = max(1.5 * cn * a, ct * a)
+    if isinstance(law, HertzHistoryLiggghts):
+        zeta = SQRT_FIVE_OVER_SIX * abs(law.betaeff)
+    else:
+        if isinstance(law, HertzHistoryLammps):
+            c = meff * max(law.gamma_n, law.gamma_t) * a
+        else:
+            eta = law.damp * damp_normal.py_func(law.damping, meff, a, law.E * a)
+            c = eta * max(1.0, law.gammat_ratio)
+        zeta = c / (2.0 * math.sqrt(k * meff))
+    return math.pi * math.sqrt(meff / k), float(zeta)
+
+
+def hertz_liggghts_lines(law) -> list[str]:
+    """LIGGGHTS 3.8.0 ``gran model hertz tangential history`` with the material constants of the
+    law (youngsModulus, poissonsRatio per type; coefficientRestitution, coefficientFriction per
+    type pair); ``soft_particles``/``hard_particles`` for a modulus outside 5e6..1e9 Pa (LIGGGHTS
+    refuses it otherwise, docs/liggghts.md), ``tangential_damping off`` when the flag is 0."""
+    E, nu, e = law.youngs_modulus, law.poisson_ratio, law.restitution
+    if not (math.isfinite(E) and math.isfinite(nu) and math.isfinite(e)):
+        raise InputError(
+            "law: a LIGGGHTS Hertz law for a deck needs its material constants (build it by name: "
+            "make_law('hertz-liggghts', youngs_modulus=..., poisson_ratio=..., restitution=..., friction=...))"
+        )
+    prop = "fix m{} all property/global {} peratomtypepair 1 {}"
+    lines = [
+        f"fix m1 all property/global youngsModulus peratomtype {deck_float(E)}",
+        f"fix m2 all property/global poissonsRatio peratomtype {deck_float(nu)}",
+        prop.format(3, "coefficientRestitution", deck_float(e)),
+        prop.format(4, "coefficientFriction", deck_float(law.mu)),
+    ]
+    lo, hi = LIGGGHTS_YOUNGS_SI
+    if not lo <= E <= hi:
+        lines.insert(0, "soft_particles yes" if E < lo else "hard_particles yes")
+    tang = "" if law.tdamp else " tangential_damping off"
+    return lines + [f"pair_style gran model hertz tangential history{tang}", "pair_coeff * *"]
+
+
+def hertz_lammps_lines(law) -> list[str]:
+    """LAMMPS 29 Sep 2021 ``pair_style gran/hertz/history KN KT GAMMAN GAMMAT MU 1``."""
+    v = " ".join(deck_float(getattr(law, k)) for k in ("kn", "kt", "gamma_n", "gamma_t", "mu"))
+    return [f"pair_style gran/hertz/history {v} 1", "pair_coeff * *"]
+
+
+def hertz_granular_lines(law) -> list[str]:
+    """LAMMPS 29 Sep 2021 ``pair_style granular`` + ``pair_coeff * * hertz/material E DAMP NU
+    damping MODEL tangential mindlin NULL GAMMAT MU`` with the constants the law was built from."""
+    E, nu, damp = law.youngs_modulus, law.poisson_ratio, law.damp_given
+    if not (math.isfinite(E) and math.isfinite(nu) and math.isfinite(damp)):
+        raise InputError(
+            "law: a LAMMPS granular Hertz law for a deck needs its material constants (build it by name: "
+            "make_law('hertz-granular-lammps', youngs_modulus=..., poisson_ratio=..., damp=..., friction=...))"
+        )
+    model = HertzMaterialLammps.DAMPING_MODELS[int(law.damping)]
+    return [
+        "pair_style granular",
+        (
+            f"pair_coeff * * hertz/material {deck_float(E)} {deck_float(damp)} {deck_float(nu)} damping "
+            f"{model} tangential mindlin NULL {deck_float(law.gammat_ratio)} {deck_float(law.mu)}"
+        ),
+    ]
+
+
+def build_hertz_liggghts(youngs_modulus, poisson_ratio, restitution, friction, tangential_damping=True):
+    """:class:`HertzHistoryLiggghts` of the material constants (checked by
+    :class:`gransim.contacts.material.HertzLiggghts`)."""
+    m = HertzLiggghts(youngs_modulus, poisson_ratio, restitution, friction, tangential_damping=tangential_damping)
+    return HertzHistoryLiggghts(*m.coefficients(), m.youngs_modulus, m.poisson_ratio, m.restitution)
+
+
+def build_hertz_lammps(**p):
+    """:class:`HertzHistoryLammps` of KN, KT (Pa, > 0 resp. >= 0), GAMMAN, GAMMAT (1/(s m)), MU."""
+    name = "hertz-lammps"
+    return HertzHistoryLammps(
+        *(as_law_float(name, k, p[k], allow_zero=k != "kn") for k in ("kn", "kt", "gamma_n", "gamma_t", "mu"))
+    )
+
+
+def build_hertz_granular(youngs_modulus, poisson_ratio, damp, friction, gammat_ratio=1.0, damping="tsuji"):
+    """:class:`HertzGranularLammps` of the material constants (checked by
+    :class:`gransim.contacts.material.HertzMaterialLammps`)."""
+    m = HertzMaterialLammps(youngs_modulus, poisson_ratio, damp, friction, gammat_ratio=gammat_ratio, damping=damping)
+    E, d, kt0, g, mu, idx = m.coefficients()
+    return HertzGranularLammps(E, d, kt0, g, mu, float(idx), m.youngs_modulus, m.poisson_ratio, m.damp)
+
+
+register_law(
+    HertzHistoryLiggghts,
+    hertz_pair_liggghts,
+    HISTORY_WIDTH,
+    energy=hertz_energy,
+    name="hertz-liggghts",
+    code="liggghts",
+    required=("youngs_modulus", "poisson_ratio", "restitution", "friction"),
+    optional={"tangential_damping": True},
+    build=build_hertz_liggghts,
+    description="gran model hertz tangential history",
+    timescale=hertz_timescale,
+    deck=hertz_liggghts_lines,
+)
+register_law(
+    HertzHistoryLammps,
+    hertz_pair_lammps,
+    HISTORY_WIDTH,
+    apart=history_reset,
+    energy=hertz_energy,
+    name="hertz-lammps",
+    code="lammps",
+    required=("kn", "kt", "gamma_n", "gamma_t", "mu"),
+    build=build_hertz_lammps,
+    description="gran/hertz/history KN KT GAMMAN GAMMAT MU 1",
+    timescale=hertz_timescale,
+    deck=hertz_lammps_lines,
+)
+register_law(
+    HertzGranularLammps,
+    hertz_pair_granular_lammps,
+    HISTORY_WIDTH,
+    apart=history_reset,
+    energy=hertz_energy,
+    name="hertz-granular-lammps",
+    code="lammps",
+    required=("youngs_modulus", "poisson_ratio", "damp", "friction"),
+    optional={"gammat_ratio": 1.0, "damping": "tsuji"},
+    build=build_hertz_granular,
+    description="granular hertz/material E DAMP NU damping MODEL tangential mindlin NULL",
+    timescale=hertz_timescale,
+    deck=hertz_granular_lines,
+)

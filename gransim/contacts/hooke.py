@@ -11,9 +11,11 @@ Conventions (2D, all SI): the pair is (i, j) with d = x_i - x_j (j possibly a pe
 n = d/|d| pointing from j to i, overlap delta = r_i + r_j - |d| > 0. Forces returned act on i;
 j receives minus the force (and its own torque, of the same sign, see below).
 
-As plug-ins of the DEM loop (:mod:`gransim.contacts.laws`): :class:`HookeLiggghts` and
-:class:`HookeLammps` (parameters kn, kt, gamma_n, gamma_t, mu; history width 2, the spring xi),
-built by :func:`hooke_law` from the ``DEMSettings`` and its ``flavour``.
+As plug-ins of the DEM loop (:mod:`gransim.contacts.laws`), this module declares the laws
+"hooke-liggghts" (:class:`HookeLiggghts`) and "hooke-lammps" (:class:`HookeLammps`) whole:
+parameters kn, kt, gamma_n, gamma_t, mu; history width 2 (the spring xi); the scalar pair
+function and its branch-free twin (the block path of the force loops); the contact time and
+damping ratio of the time-step check; the elastic energy; the deck lines of each code.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from .._numba import njit
 from .._validate import as_positive_float
 from ..errors import InputError
 from .law import force_magnitude
-from .laws import register_law
+from .laws import deck_float, lightest_pair_mass, register_law
 
 
 @njit(inline="always")
@@ -294,10 +296,6 @@ def hooke_energy(law, overlap, hist, radi=None, radj=None) -> float:
     return float(0.5 * law.kn * np.sum(overlap**2) + 0.5 * law.kt * np.sum(hist[:, :2] ** 2))
 
 
-register_law(HookeLiggghts, hooke_pair_liggghts, 2, energy=hooke_energy)
-register_law(HookeLammps, hooke_pair_lammps, 2, apart=spring_reset, energy=hooke_energy)
-
-
 # ------------------------------------------------------------------ branch-free twins (SIMD loops)
 @njit(inline="always")
 def hooke_select_liggghts(
@@ -461,3 +459,99 @@ def hooke_select_lammps(
         1.0 if sl else 0.0,
         radsum - r,
     )
+
+
+@njit(inline="always")
+def hooke_block_liggghts(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
+    """Block path of :class:`HookeLiggghts` (:func:`hooke_select_liggghts` with the law's parameters)."""
+    return hooke_select_liggghts(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, s0, s1, update,
+    )  # fmt: skip
+
+
+@njit(inline="always")
+def hooke_block_lammps(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
+    """Block path of :class:`HookeLammps` (:func:`hooke_select_lammps` with the law's parameters)."""
+    return hooke_select_lammps(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, s0, s1, update,
+    )  # fmt: skip
+
+
+# ------------------------------------------------------------------ time scale, deck lines, names
+#: parameters of both Hooke laws
+HOOKE_PARAMETERS = ("kn", "kt", "gamma_n", "gamma_t", "mu")
+
+
+def hooke_timescale(law, packing, overlap=0.0):
+    """(contact time, damping ratio) of the two lightest disks (m_eff = m_1 m_2/(m_1 + m_2)) for a
+    Hooke law (any law with fields kn, kt, gamma_n, gamma_t; ``overlap`` is not needed: the
+    stiffness is constant). Contact time pi sqrt(m_eff/k) (s) of the undamped normal contact with
+    k = max(kn, kt) (N/m); damping ratio zeta = max(gamma_n, gamma_t)/(2 omega), omega =
+    sqrt(k/m_eff): the relative normal motion obeys m_eff d'' + m_eff gamma d' + k d = 0 with the
+    mass-scaled rate gamma (1/s, LIGGGHTS ``gamman``), i.e. d'' + 2 zeta omega d' + omega^2 d = 0.
+    The larger of the stiffnesses and of the dampings: the conservative choice for the limit of
+    :func:`gransim.dem.engine.stability_limit`."""
+    meff = lightest_pair_mass(packing)
+    k = max(law.kn, law.kt)
+    tc = float(np.pi * np.sqrt(meff / k))
+    omega = np.sqrt(k / meff)
+    return tc, float(max(law.gamma_n, law.gamma_t) / (2.0 * omega))
+
+
+def liggghts_hooke_lines(law, rolling: str = "") -> list[str]:
+    """LIGGGHTS 3.8.0 ``gran model hooke/stiffness tangential history`` (kn, kt, gamman, gammat,
+    coefficientFriction as ``fix property/global ... peratomtypepair 1``; ``rolling`` the
+    ``rolling_friction`` model of gransim.contacts.rolling, its coefficients after these)."""
+    prop = "fix m{} all property/global {} peratomtypepair 1 {}"
+    lines = [
+        prop.format(1, "kn", deck_float(law.kn)),
+        prop.format(2, "kt", deck_float(law.kt)),
+        prop.format(3, "gamman", deck_float(law.gamma_n)),
+        prop.format(4, "gammat", deck_float(law.gamma_t)),
+        prop.format(5, "coefficientFriction", deck_float(law.mu)),
+    ]
+    if rolling:
+        lines.append(prop.format(6, "coefficientRollingFriction", deck_float(law.mu_r)))
+        if rolling == "epsd":
+            lines.append(prop.format(7, "coefficientRollingViscousDamping", deck_float(law.eta_r)))
+        rolling = f" rolling_friction {rolling}"
+    return lines + [f"pair_style gran model hooke/stiffness tangential history{rolling}", "pair_coeff * *"]
+
+
+def lammps_gran_history_lines(law, style: str = "hooke") -> list[str]:
+    """LAMMPS 29 Sep 2021 ``pair_style gran/<style>/history KN KT GAMMAN GAMMAT MU 1``."""
+    v = " ".join(deck_float(getattr(law, k)) for k in HOOKE_PARAMETERS)
+    return [f"pair_style gran/{style}/history {v} 1", "pair_coeff * *"]
+
+
+register_law(
+    HookeLiggghts,
+    hooke_pair_liggghts,
+    2,
+    energy=hooke_energy,
+    select=hooke_block_liggghts,
+    name="hooke-liggghts",
+    code="liggghts",
+    required=HOOKE_PARAMETERS,
+    build=lambda **p: hooke_law(*(p[k] for k in HOOKE_PARAMETERS), flavour="liggghts"),
+    description="hooke/stiffness tangential history",
+    timescale=hooke_timescale,
+    deck=liggghts_hooke_lines,
+)
+register_law(
+    HookeLammps,
+    hooke_pair_lammps,
+    2,
+    apart=spring_reset,
+    energy=hooke_energy,
+    select=hooke_block_lammps,
+    name="hooke-lammps",
+    code="lammps",
+    required=HOOKE_PARAMETERS,
+    build=lambda **p: hooke_law(*(p[k] for k in HOOKE_PARAMETERS), flavour="lammps"),
+    description="gran/hooke/history",
+    timescale=hooke_timescale,
+    deck=lammps_gran_history_lines,
+)

@@ -1,37 +1,35 @@
-"""Contact laws as plug-ins of the DEM loop: a law = its parameters (a namedtuple class, one numba
-type per law) + a jitted pair function + the width of its per-contact history.
+"""The registry of contact laws: a law is one module that declares, and registers here, everything
+about itself; this module names no concrete law.
 
-The force loops of :mod:`gransim.dem.kernels` call :func:`pair_force` and :func:`pair_apart` with
-the law object as their first argument. Both are ``numba.extending.overload``-ed: numba types the
-call by the law's namedtuple class, looks the class up in the registry below and inlines that
-law's pair function. Each law therefore gets its own specialised copy of the loop, compiled once
-and kept in numba's disk cache (the cache key is the argument types, i.e. the law's class, which
-is pickled by reference: register laws from module level of an importable module). No closure is
-created at run time; the integrator and the neighbour list never name a law.
+A law module (``gransim/contacts/hooke.py``, ``hertz.py``, ``rolling.py``; a new law is one more
+file, docs/laws.md "Adding a law") calls :func:`register_law` once per law with
 
-Registering a law (e.g. in ``gransim/contacts/hertz.py``)::
+* its **parameters**: a namedtuple class of floats (its numba type selects the law at compile
+  time) and, for a law usable by name, ``name``, ``code`` (whose arithmetic: "liggghts" or
+  "lammps"), ``required`` and ``optional`` parameter names and ``build`` (keywords -> the law
+  object, values checked there: InputError naming the law and the parameter);
+* its **time scale**: ``timescale(law, packing, overlap) -> (contact time (s), damping ratio)``
+  of the two lightest disks at the largest overlap ``overlap`` (m) present, from which the engine's
+  time-step check (:func:`gransim.dem.engine.stability_limit`) takes its limit;
+* its **kernel**: the jitted ``pair`` function (below), the optional ``apart`` (an entry whose
+  disks do not touch), the history ``width`` and ``flip`` signs, optionally ``select``: a
+  branch-free twin of ``pair`` that the force loops run as SIMD code over blocks of list entries
+  (:func:`pair_select`; the law *offers* it, the loops do not test for a class), and ``energy``;
+* its **deck lines**: ``deck(law) -> list[str]``, the material / ``pair_style`` / ``pair_coeff``
+  lines of its code's input deck (:func:`deck_lines`; reference_runs writes them as they are).
 
-    HertzLiggghts = namedtuple("HertzLiggghts", ["E", "nu", "e", "mu"])   # floats only
+The force loops of :mod:`gransim.dem.kernels` call :func:`pair_force_split` and
+:func:`pair_apart` with the law object as their first argument. Both are
+``numba.extending.overload``-ed: numba types the call by the law's namedtuple class, looks the
+class up in the registry and inlines that law's pair function. Each law therefore gets its own
+specialised copy of the loop, compiled once and kept in numba's disk cache (the cache key is the
+argument types, i.e. the law's class, which is pickled by reference: register laws from module
+level of an importable module; a law defined in a test module or a script registers with
+``cache=False``, :class:`LawSpec`).
 
-    @njit(inline="always")
-    def hertz_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj,
-                   mi, mj, dt, update):
-        s0 = hist[e, 0]; ...                     # read the entry's history row
-        ...                                      # the scalar law
-        hist[e, 0] = s0; ...                     # write it back (in place)
-        return fx, fy, ti, tj, sliding, fn       # force on i, torques on i and j, cap flag, F_n
-
-    def hertz_energy(law, overlap, hist, radi, radj):   # (K,) arrays -> J
-        ...
-
-    register_law(HertzLiggghts, hertz_pair, width=2, energy=hertz_energy)
-
-A law defined in a test module or a script registers with ``cache=False`` (:class:`LawSpec`).
-
-**By name**: :func:`make_law` builds a law object of the package from a name of :func:`law_names`
-and its parameters as keywords (checked once: InputError naming the law, the parameter and what
-was expected); :func:`law_code` says whose arithmetic a name follows ("liggghts" or "lammps",
-the ``DEMSettings.flavour`` to run it with: the rebuild rule belongs to the code).
+The built-in laws register when their modules are imported; :func:`make_law`, :func:`law_names`,
+:func:`law_code` and :func:`law_parameters` import the modules listed in
+:data:`gransim.contacts.LAW_MODULES` first.
 
 Arguments of a pair function (all SI): ``law`` the parameters; ``hist`` (M, width) float64, the
 history of every list entry, row ``e`` the entry's (frame of i; update in place); d = (delx, dely)
@@ -47,22 +45,32 @@ to i and j after ti and tj, each on its own (LAMMPS' ``granular`` rolling torque
 (torques summed), :func:`pair_force_split` (the loops) always eight (-0.0 for the other laws, an
 addition the compiler removes).
 
+A ``select`` function (laws of width 2 only) takes ``(law, delx, dely, rsq, radi, radj, vix, viy,
+vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update)`` for *any* list entry, touching or not, and returns
+``(touch, fx, fy, ti, tj, s0, s1, sliding, overlap)`` with touch and sliding as floats 1.0/0.0 and
+the spring (s0, s1) as the entry keeps it (updated when touching; kept or zeroed as ``apart``
+when not): the same floating-point operations as ``pair`` on the path ``pair`` takes, the branches
+written as selects (gransim.contacts.hooke.hooke_select_liggghts).
+
 **Energy**: ``energy(law, overlap, hist, radi, radj)`` (arrays over the K touching contacts) the
 elastic energy (J) stored in them (:class:`LawSpec`, :func:`elastic_energy`; docs/laws.md).
 """
 
 from __future__ import annotations
 
+import importlib
 import inspect
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numba.extending import overload
 
 from .._validate import as_positive_float
 from ..errors import InputError
-from .material import HertzLiggghts, HertzMaterialLammps
+
+#: the codes whose arithmetic a law follows (its ``code``; the engine's ``flavour``)
+CODES = ("liggghts", "lammps")
 
 
 @dataclass(frozen=True)
@@ -81,19 +89,25 @@ class LawSpec:
     energy : optional Python ``energy(law, overlap (K,), hist (K, width), radi (K,), radj (K,))
         -> float``: the elastic energy (J) stored in the K touching contacts with overlaps (m),
         histories and the radii of their two disks (m; R* = r_i r_j/(r_i + r_j) of a Hertz or a
-        rolling law), for the engine's energy balance; None: 0. A function of the first three
-        arguments only (the former hook) is accepted by :func:`register_law` and called without
-        the radii.
-    split_torque : the pair function returns two more floats, (..., fn, tqa2, tqb2): torques the
-        loop adds to a and b *after* ti and tj, each on its own (LAMMPS ``pair_style granular``
-        adds the rolling torque to the particle's torque after the tangential one,
-        pair_granular.cpp:664-686, 693-705; one sum ti would round differently). False: the
-        loop adds -0.0 (folded away by the compiler: no work for the other laws).
+        rolling law), for the engine's energy balance; None: 0.
     cache : the kernels compiled for this law go to numba's disk cache. Only for a class defined
         in a module every process can import (a ``gransim`` module): the cache index of a kernel
         lists the classes of all its compiled signatures and every process unpickles all of it,
         so a class from a test module or a script would break every other process sharing the
         cache (ModuleNotFoundError). Register such laws with ``cache=False``.
+    split_torque : the pair function returns two more floats, (..., fn, tqa2, tqb2): torques the
+        loop adds to a and b *after* ti and tj, each on its own (LAMMPS ``pair_style granular``
+        adds the rolling torque to the particle's torque after the tangential one,
+        pair_granular.cpp:664-686, 693-705; one sum ti would round differently). False: the
+        loop adds -0.0 (folded away by the compiler: no work for the other laws).
+    select : optional jitted branch-free twin of ``pair`` (module docstring): the force loops of
+        the orthogonal cell run it over blocks of entries as SIMD code, bit for bit ``pair``.
+    name, code, required, optional, build, description : a law usable by name (:func:`make_law`):
+        its name, its code ("liggghts" or "lammps"), parameter names, defaults of the optional
+        ones, ``build(**params) -> law`` (checks the values), one line of description.
+    timescale : ``timescale(law, packing, overlap) -> (contact time (s), damping ratio)`` for the
+        time-step check (:func:`stable_time_step`); None: the law sets no limit.
+    deck : ``deck(law) -> list[str]``: the deck lines of the law in its code (:func:`deck_lines`).
     """
 
     params: type
@@ -104,9 +118,19 @@ class LawSpec:
     energy: Callable | None
     cache: bool = True
     split_torque: bool = False
+    select: Callable | None = None
+    name: str | None = None
+    code: str | None = None
+    required: tuple = ()
+    optional: dict = field(default_factory=dict)
+    build: Callable | None = None
+    description: str = ""
+    timescale: Callable | None = None
+    deck: Callable | None = None
 
 
 _REGISTRY: dict[type, LawSpec] = {}
+_NAMES: dict[str, LawSpec] = {}
 
 
 def register_law(
@@ -119,13 +143,23 @@ def register_law(
     energy: Callable | None = None,
     cache: bool = True,
     split_torque: bool = False,
+    select: Callable | None = None,
+    name: str | None = None,
+    code: str | None = None,
+    required=(),
+    optional: dict | None = None,
+    build: Callable | None = None,
+    description: str = "",
+    timescale: Callable | None = None,
+    deck: Callable | None = None,
 ) -> LawSpec:
-    """Register ``params`` (a namedtuple class of floats) with its jitted ``pair`` function.
+    """Register ``params`` (a namedtuple class of floats) with its jitted ``pair`` function and
+    what else the law declares (:class:`LawSpec`; ``flip`` defaults to -1 for every column).
 
-    ``width`` >= 0 history columns; ``apart``, ``flip`` (default -1 for every column), ``energy``
-    and ``cache`` (False for a law defined outside an importable package module): :class:`LawSpec`.
-    Registering the same class again replaces its entry (a module
-    reloaded); raises InputError for a class that is not a namedtuple or a bad width/flip.
+    A law with a ``name`` needs its ``code`` and ``build``. Registering the same class (or name)
+    again replaces its entry (a module reloaded); raises InputError for a class that is not a
+    namedtuple, a bad width/flip, a ``select`` on a law whose history is not 2 wide, or a named
+    law without code or build.
     """
     if not (isinstance(params, type) and issubclass(params, tuple) and hasattr(params, "_fields")):
         raise InputError(f"register_law: params must be a namedtuple class, got {params!r}")
@@ -136,8 +170,32 @@ def register_law(
         energy = _energy_hook(energy)
     if len(flip) != width or any(s not in (-1.0, 1.0) for s in flip):
         raise InputError(f"register_law: flip must hold {width} signs (+1 or -1), got {flip!r}")
-    spec = LawSpec(params, pair, int(width), apart, flip, energy, bool(cache), bool(split_torque))
+    if select is not None and width != 2:
+        raise InputError(f"register_law: a select function needs a history of width 2 (the spring), got {width}")
+    if name is not None and (code not in CODES or build is None):
+        raise InputError(f"register_law: law {name!r} needs its code (one of {', '.join(CODES)}) and a build function")
+    spec = LawSpec(
+        params,
+        pair,
+        int(width),
+        apart,
+        flip,
+        energy,
+        bool(cache),
+        bool(split_torque),
+        select,
+        name,
+        code,
+        tuple(required),
+        dict(optional or {}),
+        build,
+        description,
+        timescale,
+        deck,
+    )
     _REGISTRY[params] = spec
+    if name is not None:
+        _NAMES[name] = spec
     return spec
 
 
@@ -272,6 +330,36 @@ def _ov_pair_apart(law, hist, e):
     return impl
 
 
+def pair_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
+    """The branch-free pair function ``select`` that ``law``'s class offers (``LawSpec.select``):
+    (touch, fx, fy, ti, tj, s0, s1, sliding, overlap) for any list entry (interpreted:
+    NUMBA_DISABLE_JIT)."""
+    return _REGISTRY[type(law)].select(
+        law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update
+    )
+
+
+@overload(pair_select, inline="always")
+def _ov_pair_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
+    spec = _spec_of_type(law)
+    if spec is None or spec.select is None:
+        return None
+    fn = spec.select
+
+    def impl(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
+        return fn(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update)
+
+    return impl
+
+
+def offers_select(law_type) -> bool:
+    """Does the law of ``law_type`` (a law class or its numba type) offer a branch-free block
+    path (``LawSpec.select``)? Read at compile time by the force loops' dispatch."""
+    cls = getattr(law_type, "instance_class", law_type)
+    spec = _REGISTRY.get(cls)
+    return spec is not None and spec.select is not None
+
+
 def flip_signs(law) -> np.ndarray:
     """(width,) float64 signs of the history of ``law`` seen from the other particle."""
     return np.array(law_spec(law).flip, np.float64).reshape(-1)
@@ -302,73 +390,68 @@ def effective_radius(radi, radj) -> np.ndarray:
     return radi * radj / (radi + radj)
 
 
-# ----------------------------------------------------------------------------- factory
-_HOOKE = ("kn", "kt", "gamma_n", "gamma_t", "mu")
-_DAMPING = ("velocity", "mass_velocity", "viscoelastic", "tsuji")
+# ----------------------------------------------------------------------------- by name
+def _load_builtin() -> None:
+    """Import the law modules of the package (:data:`gransim.contacts.LAW_MODULES`): they register."""
+    from . import LAW_MODULES  # noqa: PLC0415 - the package lists its law modules; imported on demand
 
-#: name -> (code, required parameters, optional parameters with defaults, one-line description)
-LAWS = {
-    "hooke-liggghts": ("liggghts", _HOOKE, {}, "hooke/stiffness tangential history"),
-    "hooke-lammps": ("lammps", _HOOKE, {}, "gran/hooke/history"),
-    "hertz-liggghts": (
-        "liggghts",
-        ("youngs_modulus", "poisson_ratio", "restitution", "friction"),
-        {"tangential_damping": True},
-        "gran model hertz tangential history",
-    ),
-    "hertz-lammps": ("lammps", _HOOKE, {}, "gran/hertz/history KN KT GAMMAN GAMMAT MU 1"),
-    "hertz-granular-lammps": (
-        "lammps",
-        ("youngs_modulus", "poisson_ratio", "damp", "friction"),
-        {"gammat_ratio": 1.0, "damping": "tsuji"},
-        "granular hertz/material E DAMP NU damping MODEL tangential mindlin NULL",
-    ),
-    "hooke-epsd2-liggghts": ("liggghts", _HOOKE + ("mu_r",), {}, "hooke/stiffness ... rolling_friction epsd2"),
-    "hooke-epsd-liggghts": ("liggghts", _HOOKE + ("mu_r", "eta_r"), {}, "hooke/stiffness ... rolling_friction epsd"),
-    "hooke-cdt-liggghts": ("liggghts", _HOOKE + ("mu_r",), {}, "hooke/stiffness ... rolling_friction cdt"),
-    "hooke-sds-lammps": (
-        "lammps",
-        ("kn", "damp", "kt", "xgammat", "mu", "kroll", "gammaroll", "muroll"),
-        {"damping": "mass_velocity"},
-        "granular hooke ... tangential linear_history ... rolling sds",
-    ),
-}
+    for mod in LAW_MODULES:
+        importlib.import_module(f"{__package__}.{mod}")
+
+
+def _named() -> dict[str, LawSpec]:
+    """The named laws, those of :data:`gransim.contacts.LAW_MODULES` first in that module order
+    (each module's laws as it registers them), then any other in the order they registered."""
+    _load_builtin()
+    from . import LAW_MODULES  # noqa: PLC0415 - see _load_builtin
+
+    mods = [f"{__package__}.{m}" for m in LAW_MODULES]
+    order = list(_NAMES)
+
+    def key(name):
+        mod = _NAMES[name].params.__module__
+        return (mods.index(mod) if mod in mods else len(mods), order.index(name))
+
+    return {k: _NAMES[k] for k in sorted(_NAMES, key=key)}
 
 
 def law_names() -> tuple[str, ...]:
-    """Names :func:`make_law` knows."""
-    return tuple(LAWS)
+    """Names :func:`make_law` knows (in the order their modules registered them)."""
+    return tuple(_named())
+
+
+def _entry(name) -> LawSpec:
+    named = _named()
+    spec = named.get(name)
+    if spec is None:
+        raise InputError(f"law: expected one of {', '.join(named)}, got {name!r}")
+    return spec
 
 
 def law_code(name: str) -> str:
     """ "liggghts" or "lammps": whose arithmetic the law ``name`` follows (its DEMSettings.flavour)."""
-    return _entry(name)[0]
+    return _entry(name).code
 
 
-def _entry(name):
-    ent = LAWS.get(name)
-    if ent is None:
-        raise InputError(f"law: expected one of {', '.join(LAWS)}, got {name!r}")
-    return ent
+def law_parameters(name: str) -> tuple[tuple[str, ...], dict]:
+    """(required parameter names, optional parameters with their defaults) of the law ``name``."""
+    spec = _entry(name)
+    return spec.required, dict(spec.optional)
 
 
-def _pos(name, key, v, zero=True):
-    return as_positive_float(v, f"law {name}: {key}", allow_zero=zero)
+def law_description(name: str) -> str:
+    """One line on the law ``name`` (its code's pair style)."""
+    return _entry(name).description
 
 
 def make_law(name: str, **params):
-    """The law object of ``name`` (:func:`law_names`) with checked parameters (SI).
-
-    hooke-liggghts, hooke-lammps, hertz-lammps: kn, kt, gamma_n, gamma_t, mu (hertz-lammps: kn, kt
-    in Pa, dampings in 1/(s m)); hooke-epsd2/cdt-liggghts: those + mu_r; hooke-epsd-liggghts:
-    + mu_r, eta_r; hertz-liggghts: youngs_modulus, poisson_ratio, restitution, friction
-    [tangential_damping=True] (material constants, :class:`gransim.contacts.material.HertzLiggghts`);
-    hertz-granular-lammps: youngs_modulus, poisson_ratio, damp, friction [gammat_ratio=1,
-    damping="tsuji"] (:class:`~gransim.contacts.material.HertzMaterialLammps`); hooke-sds-lammps:
-    kn, damp, kt, xgammat, mu, kroll, gammaroll, muroll [damping="mass_velocity"]. Raises
-    InputError for an unknown name, a missing or unknown parameter or a bad value.
+    """The law object of ``name`` (:func:`law_names`) with checked parameters (SI): the law
+    module's ``build`` with the optional parameters' defaults filled in. Raises InputError for an
+    unknown name, a missing or unknown parameter (listing what the law expects) or a bad value
+    (from ``build``, naming the law and the parameter). The parameters of each law: docs/laws.md.
     """
-    code, req, opt, _ = _entry(name)
+    spec = _entry(name)
+    req, opt = spec.required, spec.optional
     unknown = sorted(set(params) - set(req) - set(opt))
     missing = [k for k in req if k not in params]
     if unknown or missing:
@@ -382,79 +465,74 @@ def make_law(name: str, **params):
             + (f" [optional {', '.join(opt)}]" if opt else "")
             + f", got {what}"
         )
-    p = {**opt, **params}
-    if name in ("hooke-liggghts", "hooke-lammps"):
-        from .hooke import hooke_law  # noqa: PLC0415 - cycle: .hooke imports this module
+    return spec.build(**{**opt, **params})
 
-        return hooke_law(*(p[k] for k in _HOOKE), flavour=code)
-    if name == "hertz-liggghts":
-        from .hertz import HertzHistoryLiggghts  # noqa: PLC0415 - cycle: .hertz imports this module
 
-        m = HertzLiggghts(
-            p["youngs_modulus"],
-            p["poisson_ratio"],
-            p["restitution"],
-            p["friction"],
-            tangential_damping=p["tangential_damping"],
+def deck_lines(law, engine: str) -> list[str]:
+    """The deck lines of ``law`` for ``engine`` ("liggghts" or "lammps"): material properties,
+    ``pair_style`` and ``pair_coeff``, as the law module declares them (``LawSpec.deck``).
+    InputError for a law of the other code or a law without deck lines."""
+    spec = law_spec(law)
+    cls = type(law).__name__
+    if spec.deck is None or spec.code is None:
+        raise InputError(f"law: no deck lines for {cls} (its module registers no deck function)")
+    if spec.code != engine:
+        raise InputError(
+            f"law: {cls} is a {spec.code} law, the deck is for {engine} (use the {engine} variant of the law)"
         )
-        return HertzHistoryLiggghts(*m.coefficients())
-    if name == "hertz-granular-lammps":
-        from .hertz import HertzGranularLammps  # noqa: PLC0415 - cycle: .hertz imports this module
+    return list(spec.deck(law))
 
-        m = HertzMaterialLammps(
-            p["youngs_modulus"],
-            p["poisson_ratio"],
-            p["damp"],
-            p["friction"],
-            gammat_ratio=p["gammat_ratio"],
-            damping=p["damping"],
-        )
-        E, damp, kt0, g, mu, idx = m.coefficients()
-        return HertzGranularLammps(E, damp, kt0, g, mu, float(idx))
-    if name == "hooke-sds-lammps":
-        from .rolling import HookeSdsLammps  # noqa: PLC0415 - cycle: .rolling imports this module
 
-        if p["damping"] not in _DAMPING:
-            raise InputError(f"law {name}: damping: expected one of {', '.join(_DAMPING)}, got {p['damping']!r}")
-        vals = {k: _pos(name, k, p[k], zero=k != "kn") for k in req}
-        for k in ("kt", "kroll"):
-            if vals[k] == 0.0:
-                raise InputError(f"law {name}: {k}: expected a stiffness > 0 N/m (the cap divides by it), got 0")
-        return HookeSdsLammps(
-            vals["kn"],
-            vals["damp"],
-            float(_DAMPING.index(p["damping"])),
-            vals["kt"],
-            vals["xgammat"],
-            vals["mu"],
-            vals["kroll"],
-            vals["gammaroll"],
-            vals["muroll"],
-        )
-    vals = [_pos(name, k, p[k], zero=k != "kn") for k in req]
-    if name == "hertz-lammps":
-        from .hertz import HertzHistoryLammps as cls  # noqa: PLC0415 - cycle: .hertz imports this module
-    elif name == "hooke-epsd2-liggghts":
-        from .rolling import HookeEpsd2Liggghts as cls  # noqa: PLC0415 - cycle: .rolling imports this module
-    elif name == "hooke-epsd-liggghts":
-        from .rolling import HookeEpsdLiggghts as cls  # noqa: PLC0415 - cycle: .rolling imports this module
-    else:
-        from .rolling import HookeCdtLiggghts as cls  # noqa: PLC0415 - cycle: .rolling imports this module
-    return cls(*vals)
+def time_scale(law, packing, overlap: float = 0.0) -> tuple[float, float]:
+    """(contact time (s), damping ratio) of ``law`` for the two lightest disks of ``packing`` at
+    the largest overlap ``overlap`` (m) present: the law's ``timescale`` (``LawSpec``), (inf, 0)
+    for a law without one (it sets no limit)."""
+    fn = law_spec(law).timescale
+    if fn is None:
+        return float("inf"), 0.0
+    tc, zeta = fn(law, packing, float(overlap))
+    return float(tc), float(zeta)
+
+
+def as_law_float(name: str, key: str, value, allow_zero: bool = True) -> float:
+    """``value`` as a finite float >= 0 (> 0 unless ``allow_zero``); InputError naming the law
+    ``name`` and its parameter ``key`` otherwise (the check of a law module's ``build``)."""
+    return as_positive_float(value, f"law {name}: {key}", allow_zero=allow_zero)
+
+
+def deck_float(v) -> str:
+    """A number of a deck line: %.17g, the double read back exactly by either code."""
+    return f"{float(v):.17g}"
+
+
+def lightest_pair_mass(packing) -> float:
+    """m* = m_1 m_2/(m_1 + m_2) (kg) of the two lightest disks of ``packing`` (the shortest
+    contact time of a law whose stiffness does not depend on the disks' size)."""
+    m = np.sort(packing.masses)
+    return float(m[0] * m[1] / (m[0] + m[1]))
 
 
 __all__ = [
-    "LAWS",
+    "CODES",
+    "as_law_float",
     "LawSpec",
+    "deck_float",
+    "deck_lines",
     "effective_radius",
     "elastic_energy",
     "flip_signs",
     "law_code",
+    "law_description",
     "law_names",
+    "law_parameters",
     "law_spec",
+    "lightest_pair_mass",
     "make_law",
     "pair_apart",
     "pair_force",
     "pair_force_split",
+    "offers_select",
+    "pair_select",
     "register_law",
+    "time_scale",
 ]

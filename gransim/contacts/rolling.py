@@ -88,8 +88,8 @@ from .granular import (  # noqa: F401
     damp_normal,
     spring_dashpot_slider,
 )
-from .hooke import hooke_history
-from .laws import register_law
+from .hooke import hooke_history, hooke_timescale, liggghts_hooke_lines
+from .laws import as_law_float, deck_float, lightest_pair_mass, register_law
 
 #: history floats per law (tangential spring first)
 HISTORY_WIDTH = {"epsd2": 3, "epsd": 3, "cdt": 2, "sds": 4}
@@ -692,9 +692,85 @@ def epsd_energy(law, overlap, hist, radi, radj) -> float:
     return _spring_energy(law, overlap, hist) + float(np.sum(ur))
 
 
-register_law(HookeEpsd2Liggghts, epsd2_pair, HISTORY_WIDTH["epsd2"], flip=HISTORY_FLIP["epsd2"], energy=epsd_energy)
-register_law(HookeEpsdLiggghts, epsd_pair, HISTORY_WIDTH["epsd"], flip=HISTORY_FLIP["epsd"], energy=epsd_energy)
-register_law(HookeCdtLiggghts, cdt_pair, HISTORY_WIDTH["cdt"], flip=HISTORY_FLIP["cdt"], energy=cdt_energy)
+# ------------------------------------------------------------------ time scale, deck lines, names
+#: ``damping`` models of ``pair_style granular`` (pair_granular.cpp:849-866), by their index
+DAMPING_MODELS = ("velocity", "mass_velocity", "viscoelastic", "tsuji")
+
+
+def sds_timescale(law, packing, overlap=0.0):
+    """(contact time, damping ratio) of :class:`HookeSdsLammps` for the two lightest disks: contact
+    time pi sqrt(m*/k), k = max(KN, KT) (N/m); damping ratio c/(2 sqrt(k m*)) with c the larger of
+    the normal damping DAMP eta(MODEL) (:func:`gransim.contacts.granular.damp_normal` at the
+    overlap ``overlap``, m) and the tangential XGAMMAT times it."""
+    meff = lightest_pair_mass(packing)
+    k = max(law.kn, law.kt)
+    r = np.sort(np.asarray(packing.radii, np.float64))
+    reff = float(r[0] * r[1] / (r[0] + r[1]))
+    a = math.sqrt(reff * max(float(overlap), 0.0))
+    c = law.damp * damp_normal.py_func(law.damping, meff, a, law.kn)
+    c = c * max(1.0, law.xgammat)
+    return float(np.pi * np.sqrt(meff / k)), float(c / (2.0 * math.sqrt(k * meff)))
+
+
+def sds_lines(law) -> list[str]:
+    """LAMMPS 29 Sep 2021 ``pair_style granular`` + ``pair_coeff * * hooke KN DAMP damping MODEL
+    tangential linear_history KT XGAMMAT MU rolling sds KROLL GAMMAROLL MUROLL``."""
+    g = deck_float
+    return [
+        "pair_style granular",
+        (
+            f"pair_coeff * * hooke {g(law.kn)} {g(law.damp)} damping {DAMPING_MODELS[int(law.damping)]} "
+            f"tangential linear_history {g(law.kt)} {g(law.xgammat)} {g(law.mu)} "
+            f"rolling sds {g(law.kroll)} {g(law.gammaroll)} {g(law.muroll)}"
+        ),
+    ]
+
+
+def _build_liggghts(cls, name):
+    def build(**p):
+        return cls(*(as_law_float(name, k, p[k], allow_zero=k != "kn") for k in cls._fields))
+
+    return build
+
+
+def build_sds(damping="mass_velocity", **p):
+    """:class:`HookeSdsLammps` with checked values (KT and KROLL > 0: the caps divide by them)."""
+    name = "hooke-sds-lammps"
+    if damping not in DAMPING_MODELS:
+        raise InputError(f"law {name}: damping: expected one of {', '.join(DAMPING_MODELS)}, got {damping!r}")
+    keys = ("kn", "damp", "kt", "xgammat", "mu", "kroll", "gammaroll", "muroll")
+    v = {k: as_law_float(name, k, p[k], allow_zero=k != "kn") for k in keys}
+    for k in ("kt", "kroll"):
+        if v[k] == 0.0:
+            raise InputError(f"law {name}: {k}: expected a stiffness > 0 N/m (the cap divides by it), got 0")
+    return HookeSdsLammps(
+        v["kn"], v["damp"], float(DAMPING_MODELS.index(damping)), v["kt"], v["xgammat"], v["mu"],
+        v["kroll"], v["gammaroll"], v["muroll"],
+    )  # fmt: skip
+
+
+for _model, _cls, _energy in (
+    ("epsd2", HookeEpsd2Liggghts, epsd_energy),
+    ("epsd", HookeEpsdLiggghts, epsd_energy),
+    ("cdt", HookeCdtLiggghts, cdt_energy),
+):
+    _name = f"hooke-{_model}-liggghts"
+    register_law(
+        _cls,
+        {"epsd2": epsd2_pair, "epsd": epsd_pair, "cdt": cdt_pair}[_model],
+        HISTORY_WIDTH[_model],
+        flip=HISTORY_FLIP[_model],
+        energy=_energy,
+        name=_name,
+        code="liggghts",
+        required=_cls._fields,
+        build=_build_liggghts(_cls, _name),
+        description=f"hooke/stiffness ... rolling_friction {_model}",
+        # the normal and tangential springs of the Hooke law; the rolling spring of two equal disks
+        # oscillates at sqrt(kt/(2 m*)) (epsd2) or slower (epsd, mu_r < 2/3): not the limit
+        timescale=hooke_timescale,
+        deck=lambda law, _m=_model: liggghts_hooke_lines(law, rolling=_m),
+    )
 register_law(
     HookeSdsLammps,
     sds_pair,
@@ -703,4 +779,12 @@ register_law(
     flip=HISTORY_FLIP["sds"],
     energy=sds_energy,
     split_torque=True,
+    name="hooke-sds-lammps",
+    code="lammps",
+    required=("kn", "damp", "kt", "xgammat", "mu", "kroll", "gammaroll", "muroll"),
+    optional={"damping": "mass_velocity"},
+    build=build_sds,
+    description="granular hooke ... tangential linear_history ... rolling sds",
+    timescale=sds_timescale,
+    deck=sds_lines,
 )

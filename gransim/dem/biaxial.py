@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .._validate import as_int, as_positive_float
-from ..contacts.laws import LAWS, law_code, make_law
+from ..contacts.laws import law_code, law_parameters, make_law
 from ..contacts.material import check_poisson, check_youngs, effective_youngs
 from ..errors import InputError
 from ..geometry import Packing
@@ -205,7 +205,7 @@ def law_settings(packing: Packing, name: str, params: dict | None = None, **defa
     if name.startswith("hertz"):
         defaults["kn"] = hertz_equivalent_stiffness(packing, name, params)
     dem, bi = default_settings(packing, flavour=code, **defaults)
-    _, req, _, _ = LAWS[name]
+    req, _ = law_parameters(name)
     for k, field in _HOOKE_DEFAULTS.items():
         if k in req and k not in params and not (name == "hertz-lammps" and k != "mu"):
             params[k] = float(getattr(dem, field))

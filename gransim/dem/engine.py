@@ -25,12 +25,11 @@ import hashlib
 import numpy as np
 
 from .._numba import check_threads, disk_cache_off, num_threads
-from ..contacts.hooke import hooke_law
-from ..contacts.laws import elastic_energy, flip_signs, law_spec
+from ..contacts.laws import elastic_energy, flip_signs, law_spec, time_scale
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import kernels as K
-from .settings import AxisControl, DEMSettings, Loading, PrescribedBox
+from .settings import AxisControl, DEMSettings, Integration, Loading, PrescribedBox
 
 #: the time step must not exceed contact time / this (stability of the rotational + normal modes)
 STEPS_PER_CONTACT_MIN = 5.0
@@ -51,23 +50,26 @@ def contact_time(packing: Packing, kn: float) -> float:
     return float(np.pi * np.sqrt(meff / kn))
 
 
-def damping_ratio(packing: Packing, settings: DEMSettings) -> float:
-    """Damping ratio zeta of the normal contact of the two lightest disks (dimensionless).
-
-    ``gamma_n`` (like ``gamma_t``) is a mass-scaled rate (1/s): the damping coefficient of a
-    contact is c = m_eff gamma (LIGGGHTS ``gamman``), so the relative normal motion obeys
-    m_eff d'' + m_eff gamma d' + k d = 0, i.e. d'' + 2 zeta omega d' + omega^2 d = 0 with
-    omega = sqrt(k/m_eff) and zeta = gamma / (2 omega). The larger of gamma_n, gamma_t and of
-    kn, kt are used (the conservative choice for the limit below).
-    """
-    m = np.sort(packing.masses)
-    meff = m[0] * m[1] / (m[0] + m[1])
-    omega = np.sqrt(max(settings.kn, settings.kt) / meff)
-    return float(max(settings.gamma_n, settings.gamma_t) / (2.0 * omega))
+def _law_of(law_or_settings):
+    """A law object: ``law_or_settings`` itself, or the Hooke law of a :class:`DEMSettings`."""
+    if isinstance(law_or_settings, DEMSettings):
+        return law_or_settings.hooke_law()
+    return law_or_settings
 
 
-def stability_limit(packing: Packing, settings: DEMSettings) -> float:
-    """Largest accepted time step (s): contact_time / STEPS_PER_CONTACT_MIN * (sqrt(1 + zeta^2) - zeta).
+def damping_ratio(packing: Packing, law, overlap: float = 0.0) -> float:
+    """Damping ratio zeta of the contact of the two lightest disks (dimensionless), as the law
+    ``law`` declares it (:func:`gransim.contacts.laws.time_scale`; a :class:`DEMSettings`: its
+    Hooke law, zeta = max(gamma_n, gamma_t)/(2 omega), omega = sqrt(max(kn, kt)/m_eff)), at the
+    largest overlap ``overlap`` (m) present (a law whose stiffness depends on it: Hertz)."""
+    return time_scale(_law_of(law), packing, overlap)[1]
+
+
+def stability_limit(packing: Packing, law, overlap: float = 0.0) -> float:
+    """Largest accepted time step (s): t_c / STEPS_PER_CONTACT_MIN * (sqrt(1 + zeta^2) - zeta), with
+    the contact time t_c and the damping ratio zeta that the law ``law`` declares for the two
+    lightest disks at the largest overlap ``overlap`` (m) present (:func:`gransim.contacts.laws.
+    time_scale`; a :class:`DEMSettings` stands for its Hooke law: t_c = pi sqrt(m_eff/max(kn, kt))).
 
     Derivation. The engine integrates as LIGGGHTS' nve/sphere: v(n+1/2) = v(n) + dt f(n)/2m,
     x(n+1) = x(n) + dt v(n+1/2), f(n+1) = -k x(n+1) - c v(n+1/2) (the damping sees the half-step
@@ -86,11 +88,27 @@ def stability_limit(packing: Packing, settings: DEMSettings) -> float:
     covers the tangential spring acting on the rotation (effective mass m_eff/3 for disks,
     frequency sqrt(3) omega, damping ratio sqrt(3) zeta): (pi/5) g(zeta) <= (2/sqrt 3) g(sqrt 3 zeta)
     for every zeta >= 0, g(z) = sqrt(1 + z^2) - z. The lightest pair gives the smallest limit
-    (dt_c grows with 1/omega at fixed gamma), zeta from :func:`damping_ratio`.
+    (dt_c grows with 1/omega at fixed gamma). A Hertz law linearised at the overlap: its tangent
+    stiffness (docs/laws.md).
     """
-    k = max(settings.kn, settings.kt)
-    z = damping_ratio(packing, settings)
-    return contact_time(packing, k) / STEPS_PER_CONTACT_MIN * (float(np.sqrt(1.0 + z * z)) - z)
+    tc, z = time_scale(_law_of(law), packing, overlap)
+    return tc / STEPS_PER_CONTACT_MIN * (float(np.sqrt(1.0 + z * z)) - z)
+
+
+def check_time_step(packing: Packing, dt: float, law, overlap: float = 0.0) -> None:
+    """InputError when ``dt`` (s) is above :func:`stability_limit` of ``law`` (the check of every
+    engine, before any step), naming the law's contact time and damping ratio."""
+    law = _law_of(law)
+    tc, z = time_scale(law, packing, overlap)
+    lim = stability_limit(packing, law, overlap)
+    if dt > lim:
+        at = f" at the largest overlap {overlap:.4g} m" if overlap > 0 else ""
+        raise InputError(
+            f"dt = {dt:.4g} s is above the stability limit {lim:.4g} s "
+            f"(contact time {tc:.4g} s of the two lightest disks with the law {type(law).__name__}{at}, "
+            f"/ {STEPS_PER_CONTACT_MIN:g}, times sqrt(1 + zeta^2) - zeta = {np.sqrt(1 + z * z) - z:.4g} "
+            f"for the damping ratio zeta = {z:.4g})"
+        )
 
 
 def fingerprint(packing: Packing, settings_text: str) -> str:
@@ -159,7 +177,8 @@ class DEMEngine:
     ----------
     packing : initial packing (orthogonal cell; the box is [0, Lx] x [0, Ly] as in the
         LIGGGHTS data file gransim writes, unless ``box`` is given).
-    settings : DEMSettings.
+    settings : :class:`~gransim.dem.settings.Integration` (dt, skin, mode, flavour) with a ``law``,
+        or :class:`DEMSettings` (the integration and the parameters of its Hooke law).
     velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
     threads : numba threads of mode "parallel" (None: numba's current count), set around each kernel
         call and restored afterwards, so an engine leaves the process's thread count alone; one
@@ -169,9 +188,10 @@ class DEMEngine:
         ylo yhi`` (the positions are taken as they are, in that box; no translation, which would
         round them). hi - lo must equal the diagonal of ``packing.cell`` (to 1e-12 relative).
     law : optional contact law object (an instance of a class registered with
-        :func:`gransim.contacts.laws.register_law`); None: the Hooke law of ``settings`` in its
-        ``flavour`` (:func:`gransim.contacts.hooke.hooke_law`). ``settings.kn``, ``kt`` and the
-        dampings still set the time-step check (``check_dt``).
+        :func:`gransim.contacts.laws.register_law`); None: the Hooke law of a :class:`DEMSettings`
+        in its ``flavour`` (:meth:`DEMSettings.hooke_law`). The time-step check (``check_dt``,
+        :func:`check_time_step`) asks the law for its contact time and damping ratio, at the
+        largest overlap after the set-up for a law whose stiffness depends on it (Hertz).
 
     State: ``p`` (:class:`~gransim.dem.kernels.Particles`), ``nb`` (``Neighbours``: list, history of
     the law's width, CSR), ``box`` (``Box``), ``sc`` (``Scratch``: the virial), small namedtuples of
@@ -200,18 +220,15 @@ class DEMEngine:
         self.packing = packing
         self.settings = s = settings
         n = packing.n
+        # the contact law (gransim.contacts.laws): the Hooke law of DEMSettings unless given
+        if law is None:
+            if not isinstance(s, DEMSettings):
+                raise InputError("law: an engine with Integration settings needs its contact law (law=...)")
+            law = s.hooke_law()
+        self.law = law
+        spec = law_spec(law)
         if check_dt:
-            lim = stability_limit(packing, s)
-            if s.dt > lim:
-                z = damping_ratio(packing, s)
-                raise InputError(
-                    f"dt = {s.dt:.4g} s is above the stability limit {lim:.4g} s "
-                    f"(contact time pi sqrt(m_eff/k) = {contact_time(packing, max(s.kn, s.kt)):.4g}"
-                    f" s of the two lightest disks, / {STEPS_PER_CONTACT_MIN:g}, times "
-                    f"sqrt(1 + zeta^2) - zeta = {np.sqrt(1 + z * z) - z:.4g} for the "
-                    f"damping ratio "
-                    f"zeta = {z:.4g})"
-                )
+            check_time_step(packing, s.dt, law)
         cut = 2 * 2.0 * float(packing.radii.max()) + 2 * s.skin
         if min(C[0, 0], C[1, 1]) <= cut:
             raise InputError(
@@ -231,9 +248,6 @@ class DEMEngine:
         if box is not None:
             lo, hi = _check_box(box, C)
         self.box = K.Box(lo, hi, lo.copy(), hi.copy())
-        # the contact law (gransim.contacts.laws): Hooke in the settings' flavour unless given
-        self.law = hooke_law(s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.flavour) if law is None else law
-        spec = law_spec(self.law)
         self._width = spec.width
         # kernels compiled for a law of a test module / script stay out of the disk cache
         self._no_cache = not spec.cache
@@ -270,6 +284,10 @@ class DEMEngine:
         self._build_step = 0
         self._failed = ""  # why a rebuild failed (the engine has no list then), or ""
         self._setup()
+        if check_dt and not np.isfinite(time_scale(law, packing)[0]):
+            # a law whose stiffness grows with the overlap (Hertz): checked at the largest one now
+            e, ov = self._touching()
+            check_time_step(packing, s.dt, law, float(ov.max()) if ov.size else 0.0)
         self._reset_energy_budget()
 
     # ------------------------------------------------------------------ neighbours
@@ -757,9 +775,11 @@ def _control(loading, step: int, nsteps: int, lo0, hi0, phase_step0: int):
 __all__ = [
     "STEPS_PER_CONTACT_MIN",
     "AxisControl",
+    "Integration",
     "DEMEngine",
     "DEMSettings",
     "Loading",
+    "check_time_step",
     "PrescribedBox",
     "contact_time",
     "damping_ratio",

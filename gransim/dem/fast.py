@@ -46,7 +46,7 @@ from .._numba import check_threads, dynamic_chunks, num_threads
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import fast_kernels as FK
-from .engine import STEPS_PER_CONTACT_MIN, contact_time, damping_ratio, stability_limit
+from .engine import check_time_step
 from .settings import DEMSettings, Loading
 
 #: bands of bin rows wanted per list build (the chunks of the threaded loops; fixed by N, not by
@@ -119,14 +119,7 @@ class FastEngine:
         n = self.n = packing.n
         self._parallel = self._threads > 1 and n >= MIN_PER_THREAD * self._threads
         if check_dt:
-            lim = stability_limit(packing, s)
-            if s.dt > lim:
-                z = damping_ratio(packing, s)
-                raise InputError(
-                    f"settings.dt = {s.dt:.4g} s is above the stability limit {lim:.4g} s "
-                    f"(contact time {contact_time(packing, max(s.kn, s.kt)):.4g} s / "
-                    f"{STEPS_PER_CONTACT_MIN:g} times sqrt(1 + zeta^2) - zeta, zeta = {z:.4g})"
-                )
+            check_time_step(packing, s.dt, s)
         self._cut = 2.0 * float(packing.radii.max()) + s.skin
         if min(C[0, 0], C[1, 1]) < 3.0 * self._cut:
             raise InputError(

@@ -1,4 +1,8 @@
-"""Settings of a DEM run: contact law, integration and loading (frozen dataclasses, checked once)."""
+"""Settings of a DEM run (frozen dataclasses, checked once): the integration (:class:`Integration`:
+time step, skin, threads mode, whose arithmetic), apart from the contact law (a law object of
+:mod:`gransim.contacts.laws`: stiffness, damping, friction, rolling), and the loading.
+:class:`DEMSettings` is the integration together with the parameters of the Hooke law of Kuhn's
+protocol (its :meth:`~DEMSettings.hooke_law`), the law of a run that is given no other."""
 
 from __future__ import annotations
 
@@ -14,6 +18,42 @@ from ..geometry import Packing
 
 #: the established DEM codes whose arithmetic the engine can follow (DEMSettings.flavour)
 FLAVOURS = ("liggghts", "lammps")
+
+
+@dataclass(frozen=True)
+class Integration:
+    """How a DEM run integrates, whatever its contact law (SI).
+
+    Attributes
+    ----------
+    dt : time step (s). Must be below the law's stability limit
+        (:func:`gransim.dem.engine.stability_limit`, which asks the law for its time scale).
+    skin : neighbour-list skin (m). Part of the contact bookkeeping (history hand-over at rebuilds).
+    mode : "serial" (half list, the code's order: the mode that is compared step for step) or
+        "parallel" (the same half list over numba threads: each pair once, then a per-particle
+        gather of the partner forces; deterministic, summation order differs).
+    flavour : whose arithmetic the engine reproduces bit for bit: "liggghts" (LIGGGHTS-PUBLIC
+        3.8.0; the default) or "lammps" (LAMMPS 29 Sep 2021: its rebuild rule, docs/lammps.md).
+        The law's own arithmetic is the law's (``gransim.contacts.laws.law_code``).
+    """
+
+    dt: float = 1.0e-6
+    skin: float = 1.0e-4
+    mode: str = "serial"
+    flavour: str = "liggghts"
+
+    def __post_init__(self):
+        for name in ("dt", "skin"):
+            object.__setattr__(self, name, as_positive_float(getattr(self, name), name))
+        check_choice(self.mode, "mode", ("serial", "parallel"))
+        check_choice(self.flavour, "flavour", FLAVOURS)
+
+    @property
+    def integration(self) -> Integration:
+        return self
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
 
 
 @dataclass(frozen=True)
@@ -57,6 +97,19 @@ class DEMSettings:
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
+
+    @property
+    def integration(self) -> Integration:
+        """The integration part (dt, skin, mode, flavour)."""
+        return Integration(self.dt, self.skin, self.mode, self.flavour)
+
+    def hooke_law(self, flavour: str | None = None):
+        """The Hooke law of these stiffnesses, dampings and friction in the arithmetic of
+        ``flavour`` (default: :attr:`flavour`): the law ``hooke-liggghts`` or ``hooke-lammps``."""
+        from ..contacts.laws import make_law  # noqa: PLC0415 - the laws' numba kernels, on demand
+
+        f = self.flavour if flavour is None else flavour
+        return make_law(f"hooke-{f}", kn=self.kn, kt=self.kt, gamma_n=self.gamma_n, gamma_t=self.gamma_t, mu=self.mu)
 
     @classmethod
     def for_packing(

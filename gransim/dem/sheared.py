@@ -57,7 +57,6 @@ import numpy as np
 
 from .._numba import disk_cache_off
 from .._validate import as_int, check_choice
-from ..contacts.hooke import hooke_law
 from ..contacts.laws import elastic_energy, flip_signs, law_spec
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
@@ -65,14 +64,8 @@ from ..io import atomic_h5, write_packing_group
 from ..progress import Interrupted, check_interrupt, deferred_interrupts, progress
 from . import kernels as K
 from . import sheared_kernels as SK
-from .engine import (
-    LOST_DISPLACEMENT_SKINS,
-    STEPS_PER_CONTACT_MIN,
-    contact_time,
-    damping_ratio,
-    stability_limit,
-)
-from .settings import DEMSettings
+from .engine import LOST_DISPLACEMENT_SKINS, check_time_step
+from .settings import DEMSettings, Integration
 
 FLAVOURS = ("lammps", "liggghts")
 
@@ -214,18 +207,19 @@ class ShearEngine:
     packing : initial packing; its cell [[Lx, xy], [0, Ly]] (a1 = (Lx, 0), a2 = (xy, Ly), |xy| <=
         Lx/2, as a LAMMPS triclinic box); the box is [0, Lx] x [0, Ly] with tilt xy unless ``box``
         is given.
-    settings : DEMSettings (kn, kt, gamma_n, gamma_t, mu, dt, skin; ``mode`` must be "serial").
+    settings : :class:`~gransim.dem.settings.Integration` with a ``law``, or DEMSettings (its Hooke
+        law: kn, kt, gamma_n, gamma_t, mu); dt, skin; ``mode`` must be "serial".
     velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
     flavour : "lammps" (default) or "liggghts" (see the module docstring).
-    check_dt : refuse a time step above :func:`gransim.dem.engine.stability_limit`.
+    check_dt : refuse a time step above :func:`gransim.dem.engine.stability_limit` of the law.
     box : optional (lo, hi) or (lo, hi, xy), lo and hi (2,) (m): the box with its own origin, as a
         LAMMPS data file's ``xlo xhi ylo yhi`` (and ``xy xz yz``) lines. The values are used as
         given (bit for bit, like ``DEMEngine(box=...)``) and the positions are taken as they are
         in that box (no translation, which would round them). hi - lo must equal the diagonal of
         ``packing.cell`` and xy its cell[0, 1] (to 1e-12 relative).
     law : optional contact law object (a registered law, :func:`gransim.contacts.laws.make_law`);
-        None: the Hooke law of ``settings`` in this engine's ``flavour``. ``settings.kn``, ``kt``
-        and the dampings still set the time-step check (``check_dt``).
+        None: the Hooke law of a DEMSettings in this engine's ``flavour``. The time-step check
+        (``check_dt``) asks the law (:func:`gransim.dem.engine.check_time_step`).
 
     Attributes (after construction = LAMMPS ``run`` set-up: list built, forces without spring
     increment): x (N, 2), v, w, f, t, box (lo_x, lo_y, hi_x, hi_y, xy), h_rate (h_rate[0],
@@ -244,8 +238,8 @@ class ShearEngine:
         law=None,
     ):
         check_choice(flavour, "flavour", FLAVOURS)
-        if not isinstance(settings, DEMSettings):
-            raise InputError(f"settings: expected a DEMSettings, got {type(settings).__name__}")
+        if not isinstance(settings, (DEMSettings, Integration)):
+            raise InputError(f"settings: expected a DEMSettings or an Integration, got {type(settings).__name__}")
         if settings.mode != "serial":
             raise InputError(f"settings.mode: the sheared cell runs the serial loop only, got {settings.mode!r}")
         C = np.asarray(packing.cell, np.float64)
@@ -265,15 +259,12 @@ class ShearEngine:
                 f"flavour 'liggghts': needs a cell without tilt (LIGGGHTS' bookkeeping is orthogonal), got xy = {xy!r}"
             )
         s = settings
+        if law is None:
+            if not isinstance(s, DEMSettings):
+                raise InputError("law: an engine with Integration settings needs its contact law (law=...)")
+            law = s.hooke_law(flavour)
         if check_dt:
-            lim = stability_limit(packing, s)
-            if s.dt > lim:
-                z = damping_ratio(packing, s)
-                raise InputError(
-                    f"dt = {s.dt:.4g} s is above the stability limit {lim:.4g} s (contact time "
-                    f"{contact_time(packing, max(s.kn, s.kt)):.4g} s / {STEPS_PER_CONTACT_MIN:g}, "
-                    f"damping ratio {z:.4g})"
-                )
+            check_time_step(packing, s.dt, law)
         heights = np.array([Lx * Ly / np.hypot(Ly, xy), Ly])
         cut = 2 * (2.0 * float(packing.radii.max()) + s.skin)
         if heights.min() <= cut:
@@ -286,7 +277,7 @@ class ShearEngine:
         self.flavour = flavour
         self._lmp = flavour == "lammps"
         # the contact law (gransim.contacts.laws): Hooke in this engine's flavour unless given
-        self.law = hooke_law(s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, flavour) if law is None else law
+        self.law = law
         spec = law_spec(self.law)
         self._width = spec.width
         self._flip = flip_signs(self.law)

@@ -34,8 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gransim.contacts import hertz, hooke, rolling
-from gransim.contacts.laws import law_code, make_law
+from gransim.contacts.laws import deck_lines, law_code, make_law
 from gransim.contacts.material import effective_shear, effective_youngs
 from gransim.dem import kernels
 from gransim.dem.lattice import lattice_packing
@@ -187,137 +186,16 @@ def write_biaxial_deck(
 
 
 def law_pair_lines(law, settings: DEMSettings, engine: str) -> list[str]:
-    """The deck lines of a contact law for ``engine`` (material properties, pair_style, pair_coeff).
+    """The deck lines of a contact law for ``engine`` (material properties, pair_style, pair_coeff),
+    as the law's module declares them (:func:`gransim.contacts.laws.deck_lines`).
 
-    ``law`` None: the Hooke law of ``settings`` (``hooke/stiffness tangential history`` /
-    ``gran/hooke/history``). Otherwise an object of :func:`gransim.contacts.laws.make_law`:
-    LIGGGHTS ``gran model hertz tangential history`` (youngsModulus, poissonsRatio,
-    coefficientRestitution, coefficientFriction: the law keeps its material constants in
-    :data:`_MATERIAL`), ``hooke/stiffness tangential history rolling_friction epsd2|epsd|cdt``
-    (+ coefficientRollingFriction, coefficientRollingViscousDamping); LAMMPS
-    ``gran/hooke/history``, ``gran/hertz/history``, ``granular hertz/material ... tangential mindlin
-    NULL``, ``granular hooke ... tangential linear_history ... rolling sds``. InputError for a law
-    of the other code or one without deck lines.
+    ``law`` None: the Hooke law of ``settings`` in ``engine``'s arithmetic (``hooke/stiffness
+    tangential history`` / ``gran/hooke/history``). InputError for a law of the other code or one
+    without deck lines.
     """
-    s = settings
     if law is None:
-        law = hooke.hooke_law(s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, engine)
-    lig = {
-        hooke.HookeLiggghts: None,
-        rolling.HookeEpsd2Liggghts: "epsd2",
-        rolling.HookeEpsdLiggghts: "epsd",
-        rolling.HookeCdtLiggghts: "cdt",
-        hertz.HertzHistoryLiggghts: "hertz",
-    }
-    lmp = (hooke.HookeLammps, hertz.HertzHistoryLammps, hertz.HertzGranularLammps, rolling.HookeSdsLammps)
-    cls = type(law)
-    code = "liggghts" if cls in lig else "lammps" if cls in lmp else None
-    if code is None:
-        raise InputError(f"law: no deck lines for {cls.__name__} (expected a law of gransim.contacts.laws.make_law)")
-    if code != engine:
-        raise InputError(
-            f"law: {cls.__name__} is a {code} law, the deck is for {engine} (use the {engine} variant of the law)"
-        )
-    if engine == "liggghts":
-        prop = "fix m{} all property/global {} peratomtypepair 1 {}"
-        if cls is hertz.HertzHistoryLiggghts:
-            mat = _MATERIAL.get(law)
-            if mat is None:
-                raise InputError(
-                    "law: a LIGGGHTS Hertz law for a deck must be built by "
-                    "reference_runs.decks.biaxial.hertz_liggghts (its material constants)"
-                )
-            E, nu, e = mat
-            lines = [
-                f"fix m1 all property/global youngsModulus peratomtype {_g(E)}",
-                f"fix m2 all property/global poissonsRatio peratomtype {_g(nu)}",
-                prop.format(3, "coefficientRestitution", _g(e)),
-                prop.format(4, "coefficientFriction", _g(law.mu)),
-            ]
-            if not 5e6 <= E <= 1e9:
-                lines.insert(0, "soft_particles yes" if E < 5e6 else "hard_particles yes")
-            tang = "" if law.tdamp else " tangential_damping off"
-            return lines + [f"pair_style gran model hertz tangential history{tang}", "pair_coeff * *"]
-        lines = [
-            prop.format(1, "kn", _g(law.kn)),
-            prop.format(2, "kt", _g(law.kt)),
-            prop.format(3, "gamman", _g(law.gamma_n)),
-            prop.format(4, "gammat", _g(law.gamma_t)),
-            prop.format(5, "coefficientFriction", _g(law.mu)),
-        ]
-        model = lig[cls]
-        extra = ""
-        if model is not None:
-            lines.append(prop.format(6, "coefficientRollingFriction", _g(law.mu_r)))
-            if model == "epsd":
-                lines.append(prop.format(7, "coefficientRollingViscousDamping", _g(law.eta_r)))
-            extra = f" rolling_friction {model}"
-        return lines + [f"pair_style gran model hooke/stiffness tangential history{extra}", "pair_coeff * *"]
-    if cls is hooke.HookeLammps or cls is hertz.HertzHistoryLammps:
-        style = "hooke" if cls is hooke.HookeLammps else "hertz"
-        return [
-            (
-                f"pair_style gran/{style}/history {_g(law.kn)} {_g(law.kt)} {_g(law.gamma_n)} "
-                f"{_g(law.gamma_t)} {_g(law.mu)} 1"
-            ),
-            "pair_coeff * *",
-        ]
-    damping = ("velocity", "mass_velocity", "viscoelastic", "tsuji")
-    if cls is hertz.HertzGranularLammps:
-        mat = _MATERIAL.get(law)
-        if mat is None:
-            raise InputError(
-                "law: a LAMMPS granular Hertz law for a deck must be built by "
-                "reference_runs.decks.biaxial.hertz_granular_lammps (its material constants)"
-            )
-        E, nu, damp = mat
-        return [
-            "pair_style granular",
-            (
-                f"pair_coeff * * hertz/material {_g(E)} {_g(damp)} {_g(nu)} damping "
-                f"{damping[int(law.damping)]} tangential mindlin NULL {_g(law.gammat_ratio)} {_g(law.mu)}"
-            ),
-        ]
-    return [
-        "pair_style granular",
-        (
-            f"pair_coeff * * hooke {_g(law.kn)} {_g(law.damp)} damping {damping[int(law.damping)]} "
-            f"tangential linear_history {_g(law.kt)} {_g(law.xgammat)} {_g(law.mu)} "
-            f"rolling sds {_g(law.kroll)} {_g(law.gammaroll)} {_g(law.muroll)}"
-        ),
-    ]
-
-
-#: law object -> the material constants its deck needs (the law holds only effective values)
-_MATERIAL: dict = {}
-
-
-def hertz_liggghts(youngs_modulus, poisson_ratio, restitution, friction):
-    """``make_law("hertz-liggghts", ...)`` remembering its material constants for the deck."""
-    law = make_law(
-        "hertz-liggghts",
-        youngs_modulus=youngs_modulus,
-        poisson_ratio=poisson_ratio,
-        restitution=restitution,
-        friction=friction,
-    )
-    _MATERIAL[law] = (float(youngs_modulus), float(poisson_ratio), float(restitution))
-    return law
-
-
-def hertz_granular_lammps(youngs_modulus, poisson_ratio, damp, friction, gammat_ratio=1.0, damping="tsuji"):
-    """``make_law("hertz-granular-lammps", ...)`` remembering E, nu, DAMP for the deck."""
-    law = make_law(
-        "hertz-granular-lammps",
-        youngs_modulus=youngs_modulus,
-        poisson_ratio=poisson_ratio,
-        damp=damp,
-        friction=friction,
-        gammat_ratio=gammat_ratio,
-        damping=damping,
-    )
-    _MATERIAL[law] = (float(youngs_modulus), float(poisson_ratio), float(damp))
-    return law
+        law = settings.hooke_law(engine)
+    return deck_lines(law, engine)
 
 
 #: the laws of the short case (:func:`short_case_law`), Hooke's contact time and damping
@@ -347,10 +225,12 @@ def short_case_law(name: str):
     E, nu, e, mu = 6.0e8, 0.3, 0.98, 0.5
     hooke = {"kn": 1e5, "kt": 1e5, "gamma_n": 50.0, "gamma_t": 50.0, "mu": mu}
     if name == "hertz-liggghts":
-        return hertz_liggghts(E, nu, e, mu)
+        return make_law(name, youngs_modulus=E, poisson_ratio=nu, restitution=e, friction=mu)
     if name == "hertz-granular-lammps":
         Y, G = effective_youngs(E, nu, E, nu), effective_shear(E, nu, E, nu)
-        return hertz_granular_lammps(E, nu, e, mu, gammat_ratio=(8.0 * G / (2.0 * Y)) ** 0.5)
+        return make_law(
+            name, youngs_modulus=E, poisson_ratio=nu, damp=e, friction=mu, gammat_ratio=(8.0 * G / (2.0 * Y)) ** 0.5
+        )
     if name == "hertz-lammps":
         Y, G = effective_youngs(E, nu, E, nu), effective_shear(E, nu, E, nu)
         return make_law(name, kn=4.0 / 3.0 * Y, kt=8.0 * G, gamma_n=3.5e5, gamma_t=3.5e5, mu=mu)

@@ -14,7 +14,8 @@ that no neighbour list is rebuilt during the run):
   LIGGGHTS' gamma_t/gamma_n = sqrt(S_t/S_n) has).
 
 Each deck dumps ``id x y vx vy omegaz fx fy tqz mass radius`` every step at %.17g and writes
-thermo every step. Run them with :func:`run_impact` (``reference_runs.runner.run_job(...,
+thermo every step. The law lines come from the law itself (:func:`native_law`,
+:func:`gransim.contacts.laws.deck_lines`). Run them with :func:`run_impact` (``reference_runs.runner.run_job(...,
 engine=...)``); :func:`make_stored` writes ``reference_runs/stored/hertz-<code>/`` with a README.
 """
 
@@ -25,6 +26,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from gransim.contacts.laws import deck_lines, make_law
 from gransim.contacts.material import (
     HertzLiggghts,
     HertzMaterialLammps,
@@ -105,6 +107,33 @@ def granular_law(case: dict) -> HertzMaterialLammps:
     )
 
 
+def native_law(case: dict, law: str):
+    """The law object of ``law`` (one of :data:`LAWS`) with the case's parameters, built by name
+    (:func:`gransim.contacts.laws.make_law`): its deck lines are the deck's."""
+    c = case
+    if law == "liggghts":
+        return make_law(
+            "hertz-liggghts",
+            youngs_modulus=c["youngs_modulus"],
+            poisson_ratio=c["poisson_ratio"],
+            restitution=c["restitution"],
+            friction=c["friction"],
+        )
+    if law == "gran-hertz-history":
+        return make_law(
+            "hertz-lammps", kn=c["kn"], kt=c["kt"], gamma_n=c["gamman"], gamma_t=c["gammat"], mu=c["friction"]
+        )
+    return make_law(
+        "hertz-granular-lammps",
+        youngs_modulus=c["youngs_modulus"],
+        poisson_ratio=c["poisson_ratio"],
+        damp=c["restitution"],
+        friction=c["friction"],
+        gammat_ratio=c["gammat_ratio"],
+        damping="tsuji",
+    )
+
+
 def data_text(case: dict) -> str:
     """The data file (:func:`reference_runs.decks.twodisk.data_text`)."""
     return twodisk.data_text(
@@ -117,46 +146,15 @@ def deck_text(case: dict, law: str) -> str:
     if law not in LAWS:
         raise InputError(f"law: expected one of {', '.join(LAWS)}, got {law!r}")
     c = case
-    if law == "liggghts":
-        lines = [
-            *twodisk.preamble(
-                "liggghts", "# two-disk Hertz impact, LIGGGHTS form (reference_runs/decks/hertz.py)", c, DATA_NAME
-            ),
-            f"fix m1 all property/global youngsModulus peratomtype {_g(c['youngs_modulus'])}",
-            f"fix m2 all property/global poissonsRatio peratomtype {_g(c['poisson_ratio'])}",
-            f"fix m3 all property/global coefficientRestitution peratomtypepair 1 {_g(c['restitution'])}",
-            f"fix m4 all property/global coefficientFriction peratomtypepair 1 {_g(c['friction'])}",
-            "pair_style gran model hertz tangential history",
-            "pair_coeff * *",
-            "fix integr all nve/sphere",
-            "fix e2d all enforce2d",
-        ]
-        fmt = ""
-    else:
-        lines = [
-            *twodisk.preamble(
-                "lammps", f"# two-disk Hertz impact, LAMMPS {law} (reference_runs/decks/hertz.py)", c, DATA_NAME
-            ),
-        ]
-        if law == "gran-hertz-history":
-            lines += [
-                (
-                    f"pair_style gran/hertz/history {_g(c['kn'])} {_g(c['kt'])} {_g(c['gamman'])} "
-                    f"{_g(c['gammat'])} {_g(c['friction'])} 1"
-                ),
-                "pair_coeff * *",
-            ]
-        else:
-            lines += [
-                "pair_style granular",
-                (
-                    f"pair_coeff * * hertz/material {_g(c['youngs_modulus'])} {_g(c['restitution'])} "
-                    f"{_g(c['poisson_ratio'])} damping tsuji tangential mindlin NULL "
-                    f"{_g(c['gammat_ratio'])} {_g(c['friction'])}"
-                ),
-            ]
-        lines += ["fix integr all nve/sphere disc", "fix e2d all enforce2d"]
-        fmt = "line "
+    engine = LAWS[law][0]
+    head = "LIGGGHTS form" if engine == "liggghts" else f"LAMMPS {law}"
+    lines = [
+        *twodisk.preamble(engine, f"# two-disk Hertz impact, {head} (reference_runs/decks/hertz.py)", c, DATA_NAME),
+        *deck_lines(native_law(c, law), engine),
+        "fix integr all nve/sphere" + ("" if engine == "liggghts" else " disc"),
+        "fix e2d all enforce2d",
+    ]
+    fmt = "" if engine == "liggghts" else "line "
     lines += twodisk.output_lines("liggghts" if fmt == "" else "lammps", c["nsteps"])
     return "\n".join(lines) + "\n"
 

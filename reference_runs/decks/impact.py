@@ -9,7 +9,8 @@ share one contact law with one set of parameters (the law is a parameter of the 
 :class:`HertzLiggghtsLaw`, :class:`HertzHistoryLammpsLaw`, :class:`HertzGranularLammpsLaw`).
 
 Every law class has ``engines`` (the codes that have it), ``mu``, ``dem_settings(dt, skin,
-flavour)`` (the native engine's settings), ``native_law(flavour)`` (the plug-in law object of
+flavour)`` (the native engine's settings: the integration; the Hooke law's with it),
+``native_law(flavour)`` (the plug-in law object of
 :mod:`gransim.contacts.laws`, or None: the Hooke law of the settings), ``deck_lines(engine)``
 and ``describe()``. The Hertz classes add ``hertz()``: the constants of the closed forms
 (``y43`` = 4/3 Y* in Pa, ``kt0`` = 8 G* in Pa, the damping form and its dimensionless
@@ -33,8 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gransim.contacts.hertz import HertzGranularLammps, HertzHistoryLammps, HertzHistoryLiggghts
-from gransim.contacts.laws import law_code, make_law
+from gransim.contacts.laws import deck_lines, law_code, make_law
 from gransim.contacts.material import (
     HertzLiggghts,
     HertzMaterialLammps,
@@ -42,14 +42,12 @@ from gransim.contacts.material import (
     effective_shear,
     effective_youngs,
 )
-from gransim.dem.settings import DEMSettings
+from gransim.dem.settings import DEMSettings, Integration
 from gransim.errors import InputError
 from gransim.geometry import Packing
 from gransim.io import atomic_path
 from reference_runs.datafile import write_data_file
 from reference_runs.parsers import parse_dump_custom
-
-from .biaxial import law_pair_lines
 
 ENGINES = ("liggghts", "lammps")
 #: deck file name written by :func:`write_impact_deck` (run_job copies it to its own deck name)
@@ -118,37 +116,15 @@ class HookeLaw:
         return
 
     def deck_lines(self, engine: str) -> list[str]:
-        """The pair-style lines of the deck for ``engine`` ("liggghts" or "lammps")."""
-        if engine == "lammps":
-            return [
-                (
-                    f"pair_style gran/hooke/history {_g(self.kn)} {_g(self.kt)} {_g(self.gamma_n)} "
-                    f"{_g(self.gamma_t)} {_g(self.mu)} 1"
-                ),
-                "pair_coeff * *",
-            ]
-        return [
-            "fix m1 all property/global kn peratomtypepair 1 " + _g(self.kn),
-            "fix m2 all property/global kt peratomtypepair 1 " + _g(self.kt),
-            "fix m3 all property/global gamman peratomtypepair 1 " + _g(self.gamma_n),
-            "fix m4 all property/global gammat peratomtypepair 1 " + _g(self.gamma_t),
-            "fix m5 all property/global coefficientFriction peratomtypepair 1 " + _g(self.mu),
-            "pair_style gran model hooke/stiffness tangential history",
-            "pair_coeff * *",
-        ]
+        """The pair-style lines of the deck for ``engine`` ("liggghts" or "lammps"): those of the
+        Hooke law of that code (:func:`gransim.contacts.laws.deck_lines`)."""
+        return deck_lines(self.dem_settings(1.0, 1.0).hooke_law(engine), engine)
 
     def describe(self) -> str:
         return (
             f"Hooke + tangential history: kn {self.kn:g} N/m, kt {self.kt:g} N/m, gamma_n {self.gamma_n:.6g} 1/s, "
             f"gamma_t {self.gamma_t:.6g} 1/s, mu {self.mu:g}"
         )
-
-
-#: overlap bound (m) of the Hertz time-step check: the engine's stability test needs a linear
-#: stiffness; the Hertz scenes' peak overlaps are below 2e-5 m (validation/cases/impacts.py)
-HERTZ_DELTA_BOUND = 1.0e-4
-#: effective radius bound (m) of the same check (the wall pair: 0.0096 m)
-HERTZ_RADIUS_BOUND = 0.01
 
 
 def _one_code(law, engine: str) -> None:
@@ -159,21 +135,10 @@ def _one_code(law, engine: str) -> None:
         )
 
 
-def _hertz_settings(law, y43: float, kt0: float, dt: float, skin: float, flavour: str) -> DEMSettings:
-    """Settings of a Hertz law: dt, skin, flavour; kn, kt = the tangent stiffnesses (3/2) y43 a
-    and kt0 a at a = sqrt(HERTZ_RADIUS_BOUND HERTZ_DELTA_BOUND): only the time-step check reads them."""
-    a = (HERTZ_RADIUS_BOUND * HERTZ_DELTA_BOUND) ** 0.5
-    return DEMSettings(
-        kn=1.5 * y43 * a,
-        kt=kt0 * a,
-        gamma_n=0.0,
-        gamma_t=0.0,
-        mu=law.mu,
-        dt=dt,
-        skin=skin,
-        mode="serial",
-        flavour=flavour,
-    )
+def _hertz_settings(dt: float, skin: float, flavour: str) -> Integration:
+    """The integration of a Hertz law's run (dt, skin, serial, ``flavour``): the time-step check
+    asks the law itself (:func:`gransim.dem.engine.check_time_step`)."""
+    return Integration(dt=dt, skin=skin, mode="serial", flavour=flavour)
 
 
 @dataclass(frozen=True)
@@ -223,22 +188,20 @@ class HertzLiggghtsLaw:
         }
 
     def native_law(self, flavour: str = "liggghts"):
-        return HertzHistoryLiggghts(*self.material().coefficients())
+        return make_law(
+            "hertz-liggghts",
+            youngs_modulus=self.youngs_modulus,
+            poisson_ratio=self.poisson_ratio,
+            restitution=self.restitution,
+            friction=self.mu,
+        )
 
-    def dem_settings(self, dt: float, skin: float, flavour: str = "liggghts") -> DEMSettings:
-        h = self.hertz()
-        return _hertz_settings(self, h["y43"], h["kt0"], dt, skin, flavour)
+    def dem_settings(self, dt: float, skin: float, flavour: str = "liggghts") -> Integration:
+        return _hertz_settings(dt, skin, flavour)
 
     def deck_lines(self, engine: str) -> list[str]:
         _one_code(self, engine)
-        return [
-            f"fix m1 all property/global youngsModulus peratomtype {_g(self.youngs_modulus)}",
-            f"fix m2 all property/global poissonsRatio peratomtype {_g(self.poisson_ratio)}",
-            f"fix m3 all property/global coefficientRestitution peratomtypepair 1 {_g(self.restitution)}",
-            f"fix m4 all property/global coefficientFriction peratomtypepair 1 {_g(self.mu)}",
-            "pair_style gran model hertz tangential history",
-            "pair_coeff * *",
-        ]
+        return deck_lines(self.native_law(), engine)
 
     def describe(self) -> str:
         return (
@@ -288,19 +251,14 @@ class HertzHistoryLammpsLaw:
 
     def native_law(self, flavour: str = "lammps"):
         kn, kt = self._kk()
-        return HertzHistoryLammps(kn, kt, float(self.gamma_n), float(self.gamma_t), float(self.mu))
+        return make_law("hertz-lammps", kn=kn, kt=kt, gamma_n=self.gamma_n, gamma_t=self.gamma_t, mu=self.mu)
 
-    def dem_settings(self, dt: float, skin: float, flavour: str = "lammps") -> DEMSettings:
-        kn, kt = self._kk()
-        return _hertz_settings(self, kn, kt, dt, skin, flavour)
+    def dem_settings(self, dt: float, skin: float, flavour: str = "lammps") -> Integration:
+        return _hertz_settings(dt, skin, flavour)
 
     def deck_lines(self, engine: str) -> list[str]:
         _one_code(self, engine)
-        kn, kt = self._kk()
-        return [
-            (f"pair_style gran/hertz/history {_g(kn)} {_g(kt)} {_g(self.gamma_n)} {_g(self.gamma_t)} {_g(self.mu)} 1"),
-            "pair_coeff * *",
-        ]
+        return deck_lines(self.native_law(), engine)
 
     def describe(self) -> str:
         kn, kt = self._kk()
@@ -361,23 +319,22 @@ class HertzGranularLammpsLaw:
         }
 
     def native_law(self, flavour: str = "lammps"):
-        E43, damp, kt0, g, mu, model = self.material().coefficients()
-        return HertzGranularLammps(E43, damp, kt0, g, mu, float(model))
+        return make_law(
+            "hertz-granular-lammps",
+            youngs_modulus=self.youngs_modulus,
+            poisson_ratio=self.poisson_ratio,
+            damp=self.damp,
+            friction=self.mu,
+            gammat_ratio=self.gammat_ratio,
+            damping=self.damping,
+        )
 
-    def dem_settings(self, dt: float, skin: float, flavour: str = "lammps") -> DEMSettings:
-        h = self.hertz()
-        return _hertz_settings(self, h["y43"], h["kt0"], dt, skin, flavour)
+    def dem_settings(self, dt: float, skin: float, flavour: str = "lammps") -> Integration:
+        return _hertz_settings(dt, skin, flavour)
 
     def deck_lines(self, engine: str) -> list[str]:
         _one_code(self, engine)
-        return [
-            "pair_style granular",
-            (
-                f"pair_coeff * * hertz/material {_g(self.youngs_modulus)} {_g(self.damp)} "
-                f"{_g(self.poisson_ratio)} damping {self.damping} tangential mindlin NULL "
-                f"{_g(self.gammat_ratio)} {_g(self.mu)}"
-            ),
-        ]
+        return deck_lines(self.native_law(), engine)
 
     def describe(self) -> str:
         return (
@@ -505,7 +462,7 @@ class RollingLaw:
 
     ``params``: the make_law parameters as a tuple of (name, value) pairs (a frozen dataclass
     must hash), SI. The deck lines are those of the biaxial decks
-    (:func:`reference_runs.decks.biaxial.law_pair_lines`), so the two cases share one law block.
+    (the law's own, :func:`gransim.contacts.laws.deck_lines`), so the two cases share one law block.
     :meth:`rolling` gives the constants of the closed forms of validation/cases/impacts.py.
     """
 
@@ -568,7 +525,7 @@ class RollingLaw:
 
     def deck_lines(self, engine: str) -> list[str]:
         _one_code(self, engine)
-        return law_pair_lines(self.law(), self.dem_settings(1.0, 1.0), engine)
+        return deck_lines(self.law(), engine)
 
     def describe(self) -> str:
         return f"{self.name}: " + ", ".join(

@@ -28,6 +28,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from gransim.contacts.laws import deck_lines, make_law
 from gransim.errors import InputError
 
 from . import twodisk
@@ -86,6 +87,30 @@ def rolling_case() -> dict:
     }
 
 
+def native_law(case: dict, law: str):
+    """The law object of ``law`` (one of :data:`LAWS`) with the case's parameters, built by name
+    (:func:`gransim.contacts.laws.make_law`): its deck lines are the deck's."""
+    c = case
+    if law == "sds":
+        return make_law(
+            "hooke-sds-lammps",
+            kn=c["kn"],
+            damp=c["gamman"],
+            damping="mass_velocity",
+            kt=c["kt"],
+            xgammat=c["gammat"] / c["gamman"],
+            mu=c["friction"],
+            kroll=c["kroll"],
+            gammaroll=c["gammaroll"],
+            muroll=c["rolling_friction"],
+        )
+    p = {"kn": c["kn"], "kt": c["kt"], "gamma_n": c["gamman"], "gamma_t": c["gammat"], "mu": c["friction"]}
+    p["mu_r"] = c["rolling_friction"]
+    if law == "epsd":
+        p["eta_r"] = c["rolling_viscous"]
+    return make_law(f"hooke-{law}-liggghts", **p)
+
+
 def data_text(case: dict) -> str:
     """The data file (:func:`reference_runs.decks.twodisk.data_text`)."""
     return twodisk.data_text(case, "two disks written by reference_runs/decks/rolling.py (2D: density = mass per area)")
@@ -96,51 +121,17 @@ def deck_text(case: dict, law: str) -> str:
     if law not in LAWS:
         raise InputError(f"law: expected one of {', '.join(LAWS)}, got {law!r}")
     c = case
-    if LAWS[law][0] == "liggghts":
-        lines = [
-            *twodisk.preamble(
-                "liggghts",
-                f"# two-disk rolling resistance, LIGGGHTS rolling_friction {law} (reference_runs/decks/rolling.py)",
-                c,
-                DATA_NAME,
-            ),
-            f"fix m1 all property/global kn peratomtypepair 1 {_g(c['kn'])}",
-            f"fix m2 all property/global kt peratomtypepair 1 {_g(c['kt'])}",
-            f"fix m3 all property/global gamman peratomtypepair 1 {_g(c['gamman'])}",
-            f"fix m4 all property/global gammat peratomtypepair 1 {_g(c['gammat'])}",
-            f"fix m5 all property/global coefficientFriction peratomtypepair 1 {_g(c['friction'])}",
-            (f"fix m6 all property/global coefficientRollingFriction peratomtypepair 1 {_g(c['rolling_friction'])}"),
-        ]
-        if law == "epsd":
-            lines.append(
-                "fix m7 all property/global coefficientRollingViscousDamping peratomtypepair 1 "
-                f"{_g(c['rolling_viscous'])}"
-            )
-        lines += [
-            f"pair_style gran model hooke/stiffness tangential history rolling_friction {law}",
-            "pair_coeff * *",
-            "fix integr all nve/sphere",
-            "fix e2d all enforce2d",
-        ]
-        fmt = ""
-    else:
-        lines = [
-            *twodisk.preamble(
-                "lammps",
-                "# two-disk rolling resistance, LAMMPS granular rolling sds (reference_runs/decks/rolling.py)",
-                c,
-                DATA_NAME,
-            ),
-            "pair_style granular",
-            (
-                f"pair_coeff * * hooke {_g(c['kn'])} {_g(c['gamman'])} damping mass_velocity "
-                f"tangential linear_history {_g(c['kt'])} {_g(c['gammat'] / c['gamman'])} {_g(c['friction'])} "
-                f"rolling sds {_g(c['kroll'])} {_g(c['gammaroll'])} {_g(c['rolling_friction'])}"
-            ),
-            "fix integr all nve/sphere disc",
-            "fix e2d all enforce2d",
-        ]
-        fmt = "line "
+    engine = LAWS[law][0]
+    head = f"LIGGGHTS rolling_friction {law}" if engine == "liggghts" else "LAMMPS granular rolling sds"
+    lines = [
+        *twodisk.preamble(
+            engine, f"# two-disk rolling resistance, {head} (reference_runs/decks/rolling.py)", c, DATA_NAME
+        ),
+        *deck_lines(native_law(c, law), engine),
+        "fix integr all nve/sphere" + ("" if engine == "liggghts" else " disc"),
+        "fix e2d all enforce2d",
+    ]
+    fmt = "" if engine == "liggghts" else "line "
     lines += twodisk.output_lines("liggghts" if fmt == "" else "lammps", c["nsteps"])
     return "\n".join(lines) + "\n"
 

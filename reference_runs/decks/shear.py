@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gransim.contacts.laws import deck_lines
 from gransim.dem import kernels
 from gransim.dem.lattice import lattice_packing
 from gransim.dem.settings import DEMSettings
@@ -78,8 +79,11 @@ def deck_text(
     nsteps: int,
     thermo_every: int = 1,
     dump_every: int = 100,
+    law=None,
 ) -> str:
-    """The LAMMPS input deck (text) of a simple-shear run of ``nsteps`` steps (see the module)."""
+    """The LAMMPS input deck (text) of a simple-shear run of ``nsteps`` steps (see the module).
+    ``law``: a LAMMPS contact law (:func:`gransim.contacts.laws.make_law`) whose deck lines replace
+    those of the Hooke law of ``settings`` (``gran/hooke/history``)."""
     if not isinstance(loading, ShearLoading):
         raise InputError(f"loading: expected a ShearLoading, got {type(loading).__name__}")
     s = settings
@@ -105,8 +109,7 @@ def deck_text(
         f"neighbor {_g(s.skin)} bin",
         "neigh_modify delay 0 every 1 check yes",
         f"timestep {_g(s.dt)}",
-        f"pair_style gran/hooke/history {_g(s.kn)} {_g(s.kt)} {_g(s.gamma_n)} {_g(s.gamma_t)} {_g(s.mu)} 1",
-        "pair_coeff * *",
+        *deck_lines(s.hooke_law("lammps") if law is None else law, "lammps"),
         "fix integr all nve/sphere disc",
         "fix e2d all enforce2d",
     ]

@@ -42,7 +42,6 @@ from gransim.dem import AxisControl, DEMEngine, Loading
 from gransim.dem import default_settings as dem_defaults
 from gransim.dem.biaxial import PAPER_INDENTATION
 from gransim.geometry import Packing
-from reference_runs.decks import biaxial as deck
 from reference_runs.decks.biaxial import write_biaxial_deck
 from reference_runs.runner import run_job
 
@@ -130,13 +129,8 @@ def law_table(packing, dem) -> dict:
 
 
 def build_law(name: str, params: dict):
-    """The law object of ``name``: :func:`gransim.contacts.laws.make_law`, through the deck module's
-    builders for the laws whose deck needs their material constants (hertz-liggghts,
-    hertz-granular-lammps: ``reference_runs.decks.biaxial.hertz_liggghts`` / ``hertz_granular_lammps``)."""
-    if name == "hertz-liggghts":
-        return deck.hertz_liggghts(**params)
-    if name == "hertz-granular-lammps":
-        return deck.hertz_granular_lammps(**params)
+    """The law object of ``name``: :func:`gransim.contacts.laws.make_law` (a law built by name
+    keeps the constants its deck lines need)."""
     return make_law(name, **params)
 
 
