@@ -32,6 +32,9 @@ def progress(iterable=None, total=None, desc: str = "", **kw):
 STOP_SIGNALS = ("SIGINT", "SIGTERM")
 
 _INTERRUPT = {"pending": None, "depth": 0}
+#: the command's results written complete so far (:func:`result_written`): an interrupt after them
+#: says they are whole, so nobody redoes or distrusts a run that had ended
+_WRITTEN: list[str] = []
 
 
 class Interrupted(KeyboardInterrupt):
@@ -66,6 +69,17 @@ def _on_signal(signum, frame):
         # outside a run loop (or a second signal: the user insists): stop at once; the signal stays
         # pending, so should this exception be lost in a finalizer the next check still stops
         raise Interrupted(signum)
+
+
+def result_written(path) -> None:
+    """Record that the command's result ``path`` is now written complete: should SIGINT or SIGTERM
+    still stop the command (130 / 143), its message names ``path`` as complete."""
+    _WRITTEN.append(str(path))
+
+
+def written_results() -> tuple[str, ...]:
+    """The results recorded by :func:`result_written` since the command started."""
+    return tuple(_WRITTEN)
 
 
 def pending_interrupt() -> int | None:
@@ -125,6 +139,7 @@ def stop_signals():
     (raised inside a finalizer, where Python ignores it) is raised when the block ends, so an
     interrupted command never reports success."""
     _INTERRUPT["pending"] = None
+    _WRITTEN.clear()
     old = _install()
     try:
         yield

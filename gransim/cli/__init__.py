@@ -29,7 +29,7 @@ import traceback
 
 from .. import __version__
 from ..errors import GransimError
-from ..progress import stop_signals
+from ..progress import stop_signals, written_results
 
 #: the entry-point group in which packages register ``gransim`` sub-commands: each entry point is a
 #: callable ``register(subparsers)`` that adds one sub-command (its name is the entry point's)
@@ -138,6 +138,9 @@ def _main(argv) -> int:
         # SIGINT (Ctrl-C) or SIGTERM: 128 + the signal's number, what a shell reports for it
         signum = getattr(exc, "signum", 2)
         msg = getattr(exc, "message", "")
+        done = written_results()
+        if done:  # the signal came after the result was written: it is whole
+            msg = (msg + "; " if msg else "") + f"written complete before the signal: {', '.join(done)}"
         print(f"gransim {args.command}: interrupted" + (f": {msg}" if msg else ""), file=sys.stderr)
         return 128 + int(signum)
     except BrokenPipeError:

@@ -6,6 +6,7 @@ import os
 import sys
 
 from ..errors import InputError
+from ..progress import deferred_interrupts, result_written
 from ._paths import check_distinct, check_given_values, check_number, check_output, integer
 from .cmd_info import format_stats
 
@@ -165,7 +166,9 @@ def _run(args) -> int:
             **kw,
         )
         how = f"{packing.metadata['fire_steps']} FIRE steps"
-    save_packing(args.output, packing)
+    with deferred_interrupts():  # a signal during the write abandons it; after it, the packing is whole
+        save_packing(args.output, packing)
+        result_written(args.output)
     if args.vtu:
         packing_to_vtu(args.vtu, packing)
     m = packing.metadata

@@ -7,6 +7,7 @@ import dataclasses
 from pathlib import Path
 
 from ..errors import InputError
+from ..progress import result_written
 from ._paths import check_count, check_distinct, check_figure, check_given_values, check_input, check_output
 from .cmd_biaxial import parse_law_params
 
@@ -225,6 +226,7 @@ def _run(args) -> int:
         law=law,
         law_options=law_options,
     )
+    result_written(args.output)
     y = f"servo sigma_yy = {args.servo:g} N/m" if args.servo is not None else "constant volume"
     print(
         f"wrote {args.output}: {packing.n} disks, {nsteps} steps of {dem.dt:.3g} s, shear rate {rate:.4g} 1/s, "

@@ -13,7 +13,7 @@ from .._validate import as_int, as_positive_float
 from ..contacts.laws import law_spec
 from ..errors import ConvergenceError, InputError, ResultFileError, SimulationError
 from ..geometry import Packing
-from ..progress import Interrupted, check_interrupt, deferred_interrupts, pending_interrupt, progress
+from ..progress import Interrupted, check_interrupt, deferred_interrupts, pending_interrupt, progress, result_written
 from .engine import DEMEngine, fingerprint
 from .output import OutputSettings, RunRecord, read_record, remove_stale_run_temporaries, write_checkpoint, write_run
 from .settings import DEMSettings, Loading, settings_json
@@ -287,6 +287,7 @@ def run_phases(
             rec.stop_reason = ""
             _checkpoint(rec, eng, state)
             write_run(out_path, rec)  # a signal during this write abandons it: the except below
+            result_written(out_path)
         except SimulationError as exc:
             rec.stop_reason = str(exc)
             write_run(out_path, rec)
