@@ -503,8 +503,11 @@ class _State:
         def rep(m):
             name = m.group(1) or m.group(2)
             if name not in self.variables:
-                hint = " (give it with --var NAME VALUE, as the codes' -var)" if not self.variables else ""
-                raise self.err(lineno, f"${{{name}}}: no variable {name!r} defined before this line{hint}")
+                raise self.err(
+                    lineno,
+                    f"${{{name}}}: no variable {name!r} defined before this line (one given on the "
+                    "command line: --var NAME VALUE, as the codes' -var)",
+                )
             val = self.variables[name][0]
             if val is None:
                 raise self.err(
@@ -1304,6 +1307,12 @@ class _State:
         except InputError as exc:
             raise InputError(f"{p}: contact law or step: {exc}") from None
         nsteps = self.step
+        local = next((d for d in dumps if d.style == "local"), None)
+        if sheared and local is not None:
+            raise InputError(
+                f"{p}:{local.line}: dump local of contact rows in a sheared (triclinic) deck: the "
+                "native rows are evaluated in the orthogonal cell only"
+            )
         if sheared and len(self.runs) > 1:
             raise InputError(
                 f"{p}:{self.runs[1].line}: a second `run` in a sheared (triclinic) deck: the "

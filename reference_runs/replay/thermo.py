@@ -19,7 +19,7 @@ bit-for-bit native run prints the same bits:
   with ``pair``, ``virial`` or no keyword; nktv2p = 1. LAMMPS' ``press pxx pyy pxy`` are
   ``compute thermo_press all pressure thermo_temp`` (kinetic and virial); ``pe`` is 0 (granular
   pairs tally no energy) and ``etotal`` = pe + ke.
-* ``vol`` = Lx Ly (2D), ``time`` = step dt, ``dt``, ``atoms`` = N, the box keywords.
+* ``vol`` = Lx Ly (2D), ``time`` (:func:`elapsed_time`), ``dt``, ``atoms`` = N, the box keywords.
 
 Timings (``cpu``, ``elapsed`` ...) and ``v_NAME`` are printed by the codes and not compared.
 """
@@ -85,6 +85,20 @@ class Kinetics:
         return scalar, np.array(comp)
 
 
+def elapsed_time(deck, step: int) -> float:
+    """``time`` of ``step`` (s): ``Update::get_cur_time`` = atime + (step - atimestep) dt, where
+    each run's end adds (end - start) dt to atime (``Verlet::cleanup`` -> ``update_time``) and
+    its ``init`` sets atimestep to its first step (update.h, update.cpp, integrate.cpp of both
+    codes): the sum over the earlier runs, not step dt."""
+    dt = deck.settings.dt
+    atime = 0.0
+    for run in deck.runs:
+        if run.start <= step <= run.end:
+            return atime + float(step - run.start) * dt
+        atime += float(run.end - run.start) * dt
+    raise ValueError(f"step {step} lies in no run of the deck")
+
+
 _C = re.compile(r"c_([A-Za-z0-9_]+)(\[(\d+)\])?")
 _PRESS = {"press": None, "pxx": 0, "pyy": 1, "pzz": 2, "pxy": 3, "pxz": 4, "pyz": 5}
 
@@ -103,7 +117,7 @@ def thermo_value(kw: str, deck, state, masses) -> float | None:
     if low == "dt":
         return deck.settings.dt
     if low == "time":
-        return 0.0 + float(state.step) * deck.settings.dt
+        return elapsed_time(deck, state.step)
     if low == "vol":
         return (hi[0] - lo[0]) * (hi[1] - lo[1])
     box = {"lx": hi[0] - lo[0], "ly": hi[1] - lo[1], "xlo": lo[0], "xhi": hi[0], "ylo": lo[1], "yhi": hi[1]}
