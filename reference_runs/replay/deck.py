@@ -26,11 +26,15 @@ and, common to both: ``units si``, ``dimension 2``, ``boundary p p p``, ``atom_s
 ``neighbor SKIN bin``, ``neigh_modify delay 0 every 1 check yes [one N] [page N]``,
 ``pair_coeff * *``, ``timestep DT``, ``fix ID all enforce2d``, ``fix ID all deform N x|y
 erate|trate|vel|final|delta|scale ... remap x [units box|lattice] [flip yes|no]``,
-``compute ID all pressure TEMP virial``, ``thermo N``, ``thermo_style custom step ...``,
+``compute ID all pressure TEMP [ke] [pair|virial]``, ``thermo N``, ``thermo_style custom step ...``,
 ``thermo_modify format float|line F norm yes|no flush yes|no``, ``dump ID all custom N FILE
 cols``, ``dump_modify ID sort id format ...``, ``variable NAME equal EXPR`` (a number may be
 used as ``${NAME}`` or ``$N``; other expressions only as thermo columns ``v_NAME``, printed, not
-compared) and one ``run N``. Sheared LAMMPS decks: ``change_box all triclinic`` (or a data file
+compared), ``variable NAME index V``, the command-line variables (``--var``: the codes' ``-var``),
+``compute temp``, ``compute property/atom``, ``compute pair/gran/local`` (LIGGGHTS), ``compute
+pair/local`` and ``property/local`` (LAMMPS), ``dump local``, ``undump``, and several ``run N``
+(``run 0`` included) with only output commands between them (:data:`BETWEEN_RUNS`).
+Sheared LAMMPS decks: ``change_box all triclinic`` (or a data file
 with ``XY 0 0 xy xz yz``) and ``fix ID all deform N xy erate|trate|vel|final|delta V remap v``, run
 natively through :class:`gransim.dem.sheared.ShearEngine`; what it cannot express, and any tilt
 in a LIGGGHTS deck (its triclinic box loses the periodic ghosts), is refused naming the line.
