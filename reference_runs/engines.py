@@ -27,10 +27,11 @@ import os
 import re
 import shutil
 import subprocess
+import tempfile
 from dataclasses import dataclass
 
 from gransim.errors import InputError
-from gransim.io.provenance import binary_version, package_version
+from gransim.io.provenance import binary_identity, binary_version, package_version, run_probe
 
 from .errors import ReferenceRunError
 
@@ -160,9 +161,9 @@ YADE_QUIET_MODULE = "gransim_yade_quiet"
 @functools.lru_cache(maxsize=8)
 def _yade_version(path: str, mtime_ns: int, size: int, banner: str) -> str:
     try:
-        out = subprocess.run(
-            [path, "--version"], capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL, cwd="/"
-        )
+        # like the other codes' probes: killed with gransim (even by SIGKILL), its group on a timeout
+        with tempfile.TemporaryDirectory(prefix="dem-version-") as tmp:
+            out = run_probe([path, "--version"], tmp, 60)
         text = out.stdout + out.stderr
     except (OSError, subprocess.SubprocessError) as exc:
         return f"unknown: `{path} --version` failed ({exc})"
@@ -182,15 +183,11 @@ class YadeEngine(Engine):
     def version(self, binary=None) -> str | None:
         """``YADE 2023.02a (/usr/bin/yade)`` from ``yade --version`` (cached per binary path,
         modification time and size), None when absent."""
-        path = shutil.which(str(binary)) if binary is not None else shutil.which(self.binary)
-        if path is None:
+        found = binary_identity(binary, self.binary)
+        if found is None:
             return None
-        path = os.path.abspath(path)
-        try:
-            st = os.stat(path)
-        except OSError:
-            return None
-        return f"{_yade_version(path, st.st_mtime_ns, st.st_size, self.banner)} ({path})"
+        path, mtime_ns, size = found
+        return f"{_yade_version(path, mtime_ns, size, self.banner)} ({path})"
 
     def command(self, deck: str, log: str | None = None, np: int = 1, exe: str | None = None) -> list:
         """``yade -n -x -j1 -L gransim_yade_quiet SCRIPT`` (``log`` is unused: YADE writes to

@@ -72,8 +72,9 @@ def _die_with_parent():
     return preexec
 
 
-def _run_probe(cmd: list, cwd: str, timeout: float) -> subprocess.CompletedProcess:
-    """Run a DEM code's version query so that it cannot outlive gransim: in a session of its own,
+def run_probe(cmd: list, cwd: str, timeout: float) -> subprocess.CompletedProcess:
+    """Run a DEM code's version query (``cmd`` in the directory ``cwd``, ``timeout`` seconds) so
+    that it cannot outlive gransim: in a session of its own,
     killed when gransim dies (:func:`_die_with_parent`; the ``orted`` of an MPI singleton follows
     the code), its whole process group killed on a timeout (:class:`subprocess.TimeoutExpired`),
     Open MPI's session files in ``cwd`` (a temporary directory) rather than the shared TMPDIR."""
@@ -104,7 +105,7 @@ def _banner_of(path: str, mtime_ns: int, size: int, pattern: str, label: str, pr
     """What the binary at ``path`` prints about itself (one call per binary and modification)."""
     with tempfile.TemporaryDirectory(prefix="dem-version-") as tmp:
         try:
-            out = _run_probe([path, "-in", os.devnull, "-log", "none", "-nocite"], tmp, 20)
+            out = run_probe([path, "-in", os.devnull, "-log", "none", "-nocite"], tmp, 20)
         except subprocess.TimeoutExpired:
             return f"unknown: `{path} -in /dev/null` did not answer within 20 s"
         except OSError as exc:
@@ -135,6 +136,17 @@ def binary_version(binary, default: str, pattern: str, label: str, prefix: str =
     label : the code's name, for the message of a missing banner.
     prefix : prepended to the version (``"LAMMPS "``).
     """
+    found = binary_identity(binary, default)
+    if found is None:
+        return None
+    path, mtime_ns, size = found
+    return f"{_banner_of(path, mtime_ns, size, pattern, label, prefix)} ({path})"
+
+
+def binary_identity(binary, default: str) -> tuple[str, int, int] | None:
+    """``(absolute path, modification time in ns, size in bytes)`` of a code's binary (``binary``:
+    a path or name; None: ``default`` on PATH), or None when absent. Version probes are cached on
+    this triple: a binary replaced in place is asked again."""
     path = shutil.which(str(binary)) if binary is not None else shutil.which(default)
     if path is None:
         return None
@@ -143,7 +155,7 @@ def binary_version(binary, default: str, pattern: str, label: str, prefix: str =
         st = os.stat(path)
     except OSError:
         return None
-    return f"{_banner_of(path, st.st_mtime_ns, st.st_size, pattern, label, prefix)} ({path})"
+    return path, st.st_mtime_ns, st.st_size
 
 
 def liggghts_version(binary=None) -> str | None:

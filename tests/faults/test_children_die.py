@@ -184,17 +184,24 @@ def test_sigterm_to_replay_leaves_neither_liggghts_nor_orted(tmp_path):
             os.kill(pid, signal.SIGKILL)
 
 
-def test_sigkill_during_a_version_probe_leaves_no_probe(tmp_path):
-    """The version query of a code (``liggghts -in /dev/null``) that does not answer dies with the
-    process that asked, SIGKILL included (before: it ran on, up to its 20 s timeout and beyond)."""
+@pytest.mark.parametrize(
+    ("binary", "script"),
+    [
+        ("liggghts", "from gransim.io import liggghts_version; liggghts_version()"),
+        ("yade", "from reference_runs.engines import ENGINES; ENGINES['yade'].version()"),
+    ],
+)
+def test_sigkill_during_a_version_probe_leaves_no_probe(tmp_path, binary, script):
+    """The version query of a code (``liggghts -in /dev/null``, ``yade --version``) that does not
+    answer dies with the process that asked, SIGKILL included (before: it ran on, up to its
+    timeout and beyond; YADE's for 60 s)."""
     bindir = tmp_path / "bin"
     bindir.mkdir()
     pids = tmp_path / "pids.txt"
-    fake = bindir / "liggghts"
+    fake = bindir / binary
     fake.write_text(f'#!/bin/sh\necho $$ >> "{pids}"\nexec sleep 1000\n')
     fake.chmod(0o755)
     env = {**os.environ, "PATH": f"{bindir}{os.pathsep}{os.environ['PATH']}"}
-    script = "from gransim.io import liggghts_version; liggghts_version()"
     proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, env=env, stderr=subprocess.PIPE, text=True)
     try:
         _wait_for(lambda: pids.exists() and pids.read_text().strip(), 30, proc)
