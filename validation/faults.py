@@ -239,6 +239,16 @@ FAULT_KINDS: tuple[FaultKind, ...] = (
         "killed at its timeout, nothing left running or listening",
         _Y + "test_hung_yade_job_is_killed_with_nothing_left",
     ),
+    FaultKind(
+        "a YADE DEM output cut short, a step, frame, particle or contact missing",
+        "refused as incomplete; the job failed, never ok",
+        _Y + "test_damaged_yade_dem_output_is_refused_as_incomplete",
+    ),
+    FaultKind(
+        "a YADE DEM run that hangs inside a step",
+        "killed at its timeout, nothing left running or listening",
+        _Y + "test_hung_yade_dem_run_is_killed_with_nothing_left_listening",
+    ),
     # options
     FaultKind(
         "bad numbers for the options of replay, reference and validate (0, negative, NaN, inf, no number)",
