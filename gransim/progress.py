@@ -28,8 +28,10 @@ def progress(iterable=None, total=None, desc: str = "", **kw):
 # SIGINT and SIGTERM only record the signal there, and the loop calls ``check_interrupt`` between
 # chunks of steps, at a point where an exception cannot be lost and the state is consistent.
 
-#: signals that stop a run cleanly (the file is written as an incomplete, resumable run)
-STOP_SIGNALS = ("SIGINT", "SIGTERM")
+#: signals that stop a run cleanly (the file is written as an incomplete, resumable run): Ctrl-C,
+#: ``kill``/``timeout``, and the hang-up of the terminal or ssh session the command ran in (under
+#: ``nohup`` SIGHUP is ignored and stays ignored)
+STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
 
 _INTERRUPT = {"pending": None, "depth": 0}
 #: the command's results written complete so far (:func:`result_written`): an interrupt after them
@@ -38,9 +40,10 @@ _WRITTEN: list[str] = []
 
 
 class Interrupted(KeyboardInterrupt):
-    """A run stopped by SIGINT (Ctrl-C) or SIGTERM. A :class:`KeyboardInterrupt`, so code that
-    handles Ctrl-C handles it too; ``signum`` is the signal (the command line exits with
-    128 + signum: 130 for SIGINT, 143 for SIGTERM); the message says what became of the output."""
+    """A run stopped by SIGINT (Ctrl-C), SIGTERM or SIGHUP. A :class:`KeyboardInterrupt`, so code
+    that handles Ctrl-C handles it too; ``signum`` is the signal (the command line exits with
+    128 + signum: 130 for SIGINT, 143 for SIGTERM, 129 for SIGHUP); the message says what became of
+    the output."""
 
     def __init__(self, signum: int, message: str = "", clean: bool = False):
         super().__init__(message)

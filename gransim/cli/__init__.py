@@ -135,7 +135,7 @@ def _main(argv) -> int:
         print(f"gransim {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
-        # SIGINT (Ctrl-C) or SIGTERM: 128 + the signal's number, what a shell reports for it
+        # SIGINT (Ctrl-C), SIGTERM or SIGHUP: 128 + the signal's number, what a shell reports for it
         signum = getattr(exc, "signum", 2)
         msg = getattr(exc, "message", "")
         done = written_results()
@@ -155,8 +155,9 @@ def main(argv=None) -> int:
 
     0 success, 1 failure of the computation (or an internal error, printed as one line; a full
     disk), 2 bad input (:class:`~gransim.errors.GransimError`, argparse usage errors), 130
-    interrupted (SIGINT, Ctrl-C), 143 terminated (SIGTERM), 141 output pipe closed by the reader
-    (``gransim ... | head``: stops quietly, like SIGPIPE). A DEM run stopped by SIGINT or SIGTERM
+    interrupted (SIGINT, Ctrl-C), 143 terminated (SIGTERM), 129 hang-up of its terminal (SIGHUP),
+    141 output pipe closed by the reader (``gransim ... | head``: stops quietly, like SIGPIPE). A
+    DEM run stopped by SIGINT, SIGTERM or SIGHUP
     writes its file as an incomplete run with a checkpoint at the step it stopped at
     (:mod:`gransim.progress`: the signal is acted on between chunks of steps, never lost).
     """

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..contacts import find_neighbours
 from ..errors import InputError, ResultFileError
-from ..io import atomic_path, load_packing, open_result
+from ..io import atomic_path, atomic_text, load_packing, open_result
 from .checkpoint import KIND, commit_sequences, step_path
 from .materials import RVEMaterial
 from .run import _rve_700_paths, default_rve_packing, packings_fingerprint
@@ -488,7 +488,7 @@ def compare_slopes(paths, out, n_points: int = 4, packing=None, packing_dir="res
     for r in results:
         md += ["", newton_table(r)]
     text = "\n".join(md) + "\n"
-    (out / "compare.md").write_text(text)
+    atomic_text(out / "compare.md", text)
     files["markdown"] = out / "compare.md"
     return {
         "results": results,

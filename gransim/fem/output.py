@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..contacts import find_neighbours
-from ..io import atomic_h5, atomic_path
+from ..io import atomic_h5, atomic_path, atomic_text
 from .solver import LoadPathResult, NewtonResult, Problem
 
 TABLE2_STEPS = (2, 6, 10, 15, 18)
@@ -412,5 +412,5 @@ def plot_compare(out, summaries: dict, n_worst: int = 3) -> dict:
             "Largest relative Cauchy stress differences (Gauss point, difference): "
             + ", ".join(f"{g}: {v:.3g}" for g, v in worst),
         ]
-    (out / "compare.md").write_text("\n".join(lines) + "\n")
+    atomic_text(out / "compare.md", "\n".join(lines) + "\n")
     return {"worst": worst, "paths": [p1]}

@@ -13,7 +13,7 @@ import scipy.sparse.linalg as spla
 
 from ..errors import GransimError, InputError
 from ..generation import standard_packings
-from ..io import atomic_path, load_packing
+from ..io import atomic_path, atomic_text, load_packing
 from ..parallel import DistributedMaterial
 from ..progress import progress
 from ..rve import RelaxedMaterial, TaylorMaterial
@@ -463,8 +463,8 @@ def run_slope_case(
             write_vtu(out / f"step_{result.limit['step']:03d}_partial.vtu", problem, result.limit["partial"])
         if figures != "none":
             files["load_settlement_png"] = plot_load_settlement(out / "load_settlement.png", problem, setup, result)
-        (out / "table2.md").write_text(table + "\n")
-        (out / "report.md").write_text(report + "\n")
+        atomic_text(out / "table2.md", table + "\n")
+        atomic_text(out / "report.md", report + "\n")
         files["h5"] = write_h5(out / "slope.h5", problem, setup, result, params, message)
     return {
         "completed": result.completed,

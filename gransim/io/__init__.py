@@ -3,6 +3,7 @@
 from .hdf5 import (
     atomic_h5,
     atomic_path,
+    atomic_text,
     load_packing,
     open_result,
     read_packing_group,
@@ -16,6 +17,7 @@ from .vtk import packing_to_vtu, particles_to_vtu
 __all__ = [
     "atomic_h5",
     "atomic_path",
+    "atomic_text",
     "git_commit",
     "lammps_version",
     "liggghts_version",

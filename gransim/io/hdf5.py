@@ -219,6 +219,14 @@ def atomic_path(path, suffix: str | None = None):
         raise werr from None
 
 
+def atomic_text(path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically (:func:`atomic_path`): a reader sees the old
+    file or the whole new one, never a part. Returns ``path``."""
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
+    return Path(path)
+
+
 @contextlib.contextmanager
 def atomic_h5(path, kind: str, parameters: dict | None = None, seed=None, liggghts: bool = False, lammps: bool = False):
     """Open a new HDF5 file for writing, atomically; root attributes carry the provenance

@@ -133,9 +133,12 @@ def _start(argv, cwd):
     )
 
 
-@pytest.mark.parametrize(("sig", "rc"), [(signal.SIGINT, 130), (signal.SIGTERM, 143), (signal.SIGKILL, -9)])
+@pytest.mark.parametrize(
+    ("sig", "rc"), [(signal.SIGINT, 130), (signal.SIGTERM, 143), (signal.SIGHUP, 129), (signal.SIGKILL, -9)]
+)
 def test_signal_to_the_command_then_resume(packing_file, reference, tmp_path, sig, rc):
-    """The real command: SIGINT / SIGTERM end it with 130 / 143 and an incomplete file; SIGKILL
+    """The real command: SIGINT / SIGTERM / SIGHUP end it with 130 / 143 / 129 and an incomplete
+    file; SIGKILL
     leaves the last checkpoint (run file plus parts); --resume ends with the uninterrupted bits and
     no temporary or part file is left."""
     argv = ["biaxial", "--packing", str(packing_file), "-o", "run.h5", *RUN]
@@ -205,20 +208,36 @@ def test_sigint_after_pack_wrote_says_the_packing_is_complete(tmp_path, capsys, 
     assert load_packing(out).n == 40
 
 
-def test_sigint_stops_shear_and_pack(packing_file, tmp_path, capsys):
-    """gransim shear writes its file as incomplete; gransim pack writes nothing; both exit 130."""
+def test_sigint_stops_shear_and_pack(packing_file, tmp_path, capsys, monkeypatch):
+    """gransim shear writes its file as incomplete; gransim pack writes nothing; both exit 130.
+    The signal is sent from inside the run (at its third check for signals), so it lands in the
+    loop however long the start-up takes on a loaded machine."""
+    import gransim.dem.sheared as sheared_mod
+    import gransim.generation.compaction as compaction_mod
+    import gransim.generation.fire as fire_mod
+
+    calls = {"n": 0}
+
+    def signal_at_third_check(real):
+        def check(*a, **kw):
+            calls["n"] += 1
+            if calls["n"] == 3:
+                os.kill(os.getpid(), signal.SIGINT)
+            return real(*a, **kw)
+
+        return check
+
+    for mod in (sheared_mod, compaction_mod, fire_mod):
+        monkeypatch.setattr(mod, "check_interrupt", signal_at_third_check(mod.check_interrupt))
     for argv, out in (
         (["shear", "--packing", str(packing_file), "--strain", "0.05", "-o", str(tmp_path / "s.h5")], "s.h5"),
         (["pack", "--n", "2000", "-o", str(tmp_path / "p.h5")], "p.h5"),
     ):
-        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
-        timer.start()
-        try:
-            rc = main(argv)
-        finally:
-            timer.join()
-        capsys.readouterr()
-        assert rc == 130, argv
+        calls["n"] = 0
+        rc = main(argv)
+        err = capsys.readouterr().err
+        assert calls["n"] >= 3, (argv, "the run checked for signals fewer than 3 times")
+        assert rc == 130, (argv, err[-2000:])
         if out == "s.h5":
             with h5py.File(tmp_path / out) as f:
                 assert not f.attrs["complete"] and "interrupted by SIGINT" in f.attrs["stop_reason"]

@@ -140,3 +140,29 @@ def test_atomic_path_fsyncs_before_the_rename(tmp_path, monkeypatch):
     assert target.read_text() == "data"
     assert events[:2] == ["fsync", "rename"]
     assert not list(tmp_path.glob(".out.txt.*"))
+
+
+def test_atomic_text_keeps_the_old_file_when_the_write_fails(tmp_path, monkeypatch):
+    """The slope's markdown tables and reports (gransim.io.atomic_text): a write that fails part
+    way (here after half the text) leaves the previous file whole and no temporary; a write that
+    succeeds replaces it entirely."""
+    from pathlib import Path
+
+    from gransim.io import atomic_text
+
+    target = tmp_path / "report.md"
+    atomic_text(target, "old report\n")
+    real = Path.write_text
+
+    def half_then_fail(self, text, *a, **kw):
+        real(self, text[: len(text) // 2], *a, **kw)
+        raise OSError(5, "Input/output error")
+
+    monkeypatch.setattr(Path, "write_text", half_then_fail)
+    with pytest.raises(Exception, match="report.md"):
+        atomic_text(target, "new report, much longer than the old one\n")
+    monkeypatch.undo()
+    assert target.read_text() == "old report\n"
+    assert not list(tmp_path.glob(".report.md.*"))
+    atomic_text(target, "new report\n")
+    assert target.read_text() == "new report\n"
