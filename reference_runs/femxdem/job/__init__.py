@@ -1,0 +1,1 @@
+"""Files copied into a job directory and run there by Debian's python3 (not by gransim's interpreter)."""
