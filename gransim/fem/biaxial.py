@@ -3,13 +3,14 @@ examples; Int. J. Numer. Meth. Engng 99 (2014) 789-818), solved step by step wit
 points (:mod:`gransim.fem.incremental`, :mod:`gransim.fem.material_points`).
 
 From biaxialSmooth.py (/usr/share/doc/yade/examples/FEMxDEM/biaxialSmooth.py of Debian's yade
-2023.02a): a 50 x 100 mm specimen (``lx = 0.05``, ``ly = 0.1``, lines 37-39), 8 x 16 elements of
-order 2 with 2 x 2 Gauss points (``Rectangle(..., order=2, integrationOrder=2)``, line 43:
-finley's 8-node Rec8, hence Q8 here by default), smooth platens (bottom and top: vertical
-displacement prescribed, horizontal free) and the centre of the bottom fixed (``Dbc``, line 68),
-a confining pressure of 100 kPa on the sides (``confining = -1.e5``, ``Nbc``, line 72), the top
-moved down by 1e-4 m per step (``vel = -0.0001``, line 36) for 100 steps, Newton relative
-tolerance 1e-2 (``rtol=1e-2``, line 50).
+2023.02a): a 50 x 100 mm specimen (``lx = 0.05``, ``ly = 0.1``, lines 37-38), 8 x 16 elements
+(``nx``, ``ny``, lines 40-41) of order 2 with 2 x 2 Gauss points (``Rectangle(..., order=2,
+integrationOrder=2)``, line 43: finley's 8-node Rec8, hence Q8 here by default), smooth platens
+(bottom and top: vertical displacement prescribed, horizontal free) and the centre of the bottom
+fixed (``Dbc``, ``Vbc``, lines 71 and 73), a confining pressure of 100 kPa on the sides
+(``confining = -1.e5``, line 36; ``Nbc``, line 75), the top moved down by 1e-4 m per step
+(``vel = -0.0001``, line 35) for 100 steps (line 78), Newton relative tolerance 1e-2
+(``rtol=1e-2``, line 51).
 
 Outputs per converged step (:class:`BiaxialStep`): the axial strain (compression positive, the top
 platen's displacement over the initial height), the deviatoric stress q = sigma_1 - sigma_3

@@ -11,11 +11,12 @@ T = d sigma / d f. Equilibrium on x_{n+1}, pulled back to x_n (first Piola stres
     r(du) = sum_e sum_g w_g P dN/dX_n - f_pressure(x_n + du),   K = dr/d du = sum_e sum_g w_g B^T A B - K_pressure
 
 so the tangent is the exact derivative of the residual whenever T is (quadratic Newton; tested by
-finite differences). This is Guo & Zhao's scheme (msFEM2D.py of YADE's FEMxDEM, Int. J. Numer.
-Meth. Engng 99 (2014) 789-818): stress integrated on the current configuration, strain increment
-D = grad(u) measured on the configuration at the start of the step, the mesh moved after every
-step; their tangent drops the geometric terms with sigma above (a small-strain linearisation, exact
-for sigma = 0), gransim keeps them.
+finite differences). This is Guo & Zhao's scheme (Int. J. Numer. Meth. Engng 99 (2014) 789-818;
+``MultiScale.solve`` in yade/FEMxDEM/msFEM2D.py of Debian's yade 2023.02a, lines 204-244): stress
+integrated on the current configuration (``setX(x_safe + u)``, line 225), strain increment
+D = grad(u) measured on the configuration at the start of the step (line 235), the mesh moved after
+every step (line 244); their tangent drops the geometric terms with sigma above (a small-strain
+linearisation, exact for sigma = 0), gransim keeps them.
 
 Confining pressure: a follower load p n da on the current boundary, as a fluid or membrane applies
 it (Guo & Zhao apply a traction of fixed direction (+-p, 0) per unit current length, the same on
@@ -26,7 +27,9 @@ p times its chord turned by a quarter (p times its length for a straight side): 
 Newton, as Guo & Zhao's ``solve``: a predictor with the committed stress and tangent and the
 prescribed increments (no material call), then corrections K d = -r, each followed by a material
 evaluation at the new du; converged when the correction's L2 norm over the configuration is below
-``tol`` (1e-2 in their benchmark) times the step's displacement's. Every evaluation starts each
+``tol`` (1e-2 in their benchmark) times the step's displacement's (their ``err = d / l``, line
+231). Unlike theirs (line 233), the material is evaluated after every correction, the last one
+included, so the committed states belong to the committed displacement. Every evaluation starts each
 point from its committed state; the trial states become committed only after convergence
 (:meth:`GaussPoints.commit`), and are dropped on a failure.
 """

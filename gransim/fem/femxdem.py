@@ -1,0 +1,341 @@
+"""``gransim femxdem``: the biaxial specimen of Guo & Zhao's FEM x DEM benchmark, run end to end.
+
+STATUS: the macro problem only. The DEM RVE at the Gauss points (Guo & Zhao's periodic 400-disk
+cells) is not part of this module yet; the Gauss points hold a *stand-in* point law chosen by
+``rve`` (:data:`RVE_STANDINS`):
+
+* ``taylor``: the affine Taylor RVE of Meier, Steinmann & Kuhl (:class:`gransim.rve.TaylorMaterial`,
+  the most uniform standard 700-disk RVE, kn of the slope) as a hyperelastic point law whose state
+  is the total F (:class:`gransim.fem.point_laws.HyperelasticPoint`), first compressed isotropically
+  to F0 = s 1 with mean Cauchy stress -p (the confining pressure; s by bisection), as Guo & Zhao
+  consolidate their RVEs to 100 kPa before the test;
+* ``j2``: plane-strain von Mises plasticity (:class:`gransim.fem.point_laws.J2Plasticity`,
+  E = 1e8 Pa, nu = 0.3, yield 1.5e5 Pa, hardening 1e6 Pa, initial stress -p), with the 4 Gauss
+  points of the element at the specimen's centre 10 % weaker.
+
+Neither is a granular law with friction; they exercise the machinery (stateful Gauss points,
+Dask, checkpoints) the DEM RVE will plug into through the same point-law interface
+(:mod:`gransim.fem.material_points`).
+
+Outputs in ``out``: ``femxdem.h5`` (kind ``fem-biaxial``: per step the curves and Newton's
+history; the final configuration and Gauss-point fields; the parameters as provenance),
+``curves.png`` (deviatoric stress and volumetric strain against axial strain), ``report.md``;
+``checkpoint/`` holds one small file per converged step (``step_NNN.h5``: its record) and the
+committed Gauss-point states of the last one (``states_NNN.h5``, the previous one removed after
+the next is written), so ``resume`` continues bit for bit as the uninterrupted run
+(tests/fem/test_femxdem.py).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import GransimError, InputError, ResultFileError
+from ..io import atomic_h5, open_result
+from ..progress import check_interrupt, deferred_interrupts, progress, result_written
+from .biaxial import BiaxialSpec, BiaxialStep, biaxial_setup, run_biaxial
+from .checkpoint import check_parameters
+from .material_points import gauss_points
+from .point_laws import HyperelasticPoint, J2Plasticity
+
+RVE_STANDINS = ("taylor", "j2")
+KIND = "fem-biaxial"
+CKPT_STEP = "fem-biaxial-step"
+CKPT_STATES = "fem-biaxial-states"
+
+
+class FemxdemInterrupted(GransimError):
+    """The run stopped on purpose after a load step (``stop_after``), its checkpoint written."""
+
+    def __init__(self, step: int, out):
+        super().__init__(
+            f"stopped after load step {step} as asked (--stop-after); its checkpoint is "
+            f"{Path(out) / 'checkpoint'}: continue with --resume"
+        )
+        self.step = step
+
+
+def _centre_points(spec: BiaxialSpec) -> tuple:
+    """The Gauss points of the element containing the specimen's centre (row-major elements)."""
+    e = (spec.ny // 2) * spec.nx + spec.nx // 2
+    k = spec.gauss**2
+    return tuple(range(e * k, (e + 1) * k))
+
+
+def standin_law(rve: str, spec: BiaxialSpec, packing=None, packing_dir="results/packings"):
+    """(point law, parameters dict) of the stand-in ``rve`` (module docstring)."""
+    if rve not in RVE_STANDINS:
+        raise InputError(
+            f"--rve: expected one of {', '.join(RVE_STANDINS)} (stand-ins; the DEM RVE is not available "
+            f"yet), got {rve!r}"
+        )
+    if rve == "j2":
+        law = J2Plasticity(1e8, 0.3, 1.5e5, 1e6, -spec.pressure, weak_points=_centre_points(spec), weak_factor=0.9)
+        return law, {"law": "J2Plasticity", "E": 1e8, "nu": 0.3, "yield": 1.5e5, "hardening": 1e6, "weak_factor": 0.9}
+    from scipy.optimize import brentq  # noqa: PLC0415 - start-up: scipy
+
+    from ..io import load_packing  # noqa: PLC0415 - start-up: h5py
+    from ..rve import TaylorMaterial  # noqa: PLC0415 - start-up: numba
+    from .materials import RVEMaterial  # noqa: PLC0415 - start-up: numpy
+    from .run import default_rve_packing, packings_fingerprint  # noqa: PLC0415 - start-up: matplotlib
+    from .slope import NORMAL_STIFFNESS  # noqa: PLC0415 - start-up: numpy
+
+    if packing is None:
+        packing = default_rve_packing(packing_dir)
+    elif isinstance(packing, (str, Path)):
+        packing = load_packing(packing)
+    mat = RVEMaterial(TaylorMaterial(packing, NORMAL_STIFFNESS))
+
+    def mean_stress(s):
+        c = mat.evaluate((s * np.eye(2))[None]).cauchy[0]
+        return 0.5 * (c[0, 0] + c[1, 1]) + spec.pressure
+
+    lo, hi = 0.9, 1.05
+    if not mean_stress(lo) < 0 < mean_stress(hi):
+        raise InputError(
+            f"--rve taylor: the RVE does not reach a mean stress of -{spec.pressure:g} Pa for F = s 1, "
+            f"s in [{lo}, {hi}]"
+        )
+    s0 = brentq(mean_stress, lo, hi, xtol=1e-15, rtol=1e-15)
+    params = {
+        "law": "HyperelasticPoint(TaylorMaterial)",
+        "normal_stiffness": NORMAL_STIFFNESS,
+        "packing": packings_fingerprint([packing]),
+        "n_particles": len(packing.radii),
+        "consolidation_stretch": float(s0),
+    }
+    return HyperelasticPoint(mat, s0 * np.eye(2)), params
+
+
+# ---------------------------------------------------------------------- checkpoint
+
+
+def _step_path(d: Path, k: int) -> Path:
+    return d / f"step_{k:03d}.h5"
+
+
+def _states_path(d: Path, k: int) -> Path:
+    return d / f"states_{k:03d}.h5"
+
+
+_RECORD_ARRAYS = ("x", "stress", "F", "strain", "errors", "residuals")
+_RECORD_SCALARS = ("axial_strain", "deviatoric_stress", "volumetric_strain", "wall_s", "material_s")
+
+
+def write_step(d: Path, params: dict, rec: BiaxialStep, law, points) -> None:
+    """Checkpoint of converged step ``rec``: its record, then the committed states (and their
+    stress and tangent); the previous step's states file is removed once both are written."""
+    d.mkdir(parents=True, exist_ok=True)
+    with atomic_h5(_step_path(d, rec.step), kind=CKPT_STEP, parameters=params) as f:
+        f.attrs["step"] = rec.step
+        for k in _RECORD_ARRAYS:
+            f.create_dataset(k, data=np.asarray(getattr(rec, k)))
+        for k in _RECORD_SCALARS:
+            f.attrs[k] = float(getattr(rec, k))
+    sigma, T = points.committed_response()
+    with atomic_h5(_states_path(d, rec.step), kind=CKPT_STATES, parameters=params) as f:
+        f.attrs["step"] = rec.step
+        f.create_dataset("stress", data=sigma)
+        f.create_dataset("tangent", data=T)
+        g = f.create_group("states")
+        for k, v in law.pack_states(points.states()).items():
+            g.create_dataset(k, data=v)
+    old = _states_path(d, rec.step - 1)
+    if old.exists():
+        old.unlink()
+
+
+def _params_of(f) -> dict:
+    v = f.attrs.get("parameters", "{}")
+    return json.loads(v.decode() if isinstance(v, bytes) else v)
+
+
+def read_checkpoint(d: Path, params: dict, law):
+    """(records [BiaxialStep], states, (stress, tangent)) of the checkpoint in ``d``: the steps
+    1..k whose files are present, k the last step with its states file; refuses other parameters."""
+    current = json.loads(json.dumps(params, default=str))
+    recs = []
+    k = 1
+    while _step_path(d, k).exists():
+        path = _step_path(d, k)
+        try:
+            f = open_result(path, kind=CKPT_STEP)
+        except ResultFileError as exc:
+            raise InputError(f"--resume: {exc}") from None
+        with f:
+            check_parameters(_params_of(f), current, path)
+            arrays = {n: f[n][()] for n in _RECORD_ARRAYS}
+            scalars = {n: float(f.attrs[n]) for n in _RECORD_SCALARS}
+            recs.append(BiaxialStep(step=k, **arrays, **scalars))
+        k += 1
+    while recs and not _states_path(d, recs[-1].step).exists():  # killed between the two writes
+        recs.pop()
+    if not recs:
+        raise InputError(f"--resume: no checkpoint in {d} (a run writes one after its first converged step)")
+    path = _states_path(d, recs[-1].step)
+    try:
+        f = open_result(path, kind=CKPT_STATES)
+    except ResultFileError as exc:
+        raise InputError(f"--resume: {exc}") from None
+    with f:
+        check_parameters(_params_of(f), current, path)
+        states = law.unpack_states({n: f["states"][n][()] for n in f["states"]})
+        response = (f["stress"][()], f["tangent"][()])
+    return recs, states, response
+
+
+def clear_checkpoint(d: Path) -> None:
+    """Remove an earlier run's checkpoint files."""
+    for p in list(d.glob("step_*.h5")) + list(d.glob("states_*.h5")):
+        p.unlink()
+
+
+# ---------------------------------------------------------------------- outputs
+
+
+def plot_curves(path: Path, recs: list, spec: BiaxialSpec, label: str) -> Path:
+    """Deviatoric stress and volumetric strain against axial strain (two panels)."""
+    import matplotlib  # noqa: PLC0415 - start-up: matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - start-up: matplotlib
+
+    ea = np.array([0.0] + [r.axial_strain for r in recs]) * 100
+    q = np.array([np.nan] + [r.deviatoric_stress for r in recs]) / 1e3
+    ev = np.array([0.0] + [r.volumetric_strain for r in recs]) * 100
+    fig, ax = plt.subplots(1, 2, figsize=(9, 3.6))
+    ax[0].plot(ea, q, "o-", ms=2)
+    ax[0].set_xlabel("axial strain (%)")
+    ax[0].set_ylabel("q = sigma_1 - sigma_3 (kPa)")
+    ax[1].plot(ea, ev, "o-", ms=2)
+    ax[1].set_xlabel("axial strain (%)")
+    ax[1].set_ylabel("volumetric strain (%, dilation +)")
+    fig.suptitle(f"biaxial {spec.nx} x {spec.ny} {spec.element}, p = {spec.pressure / 1e3:g} kPa, {label}")
+    fig.tight_layout()
+    from ..io import atomic_path  # noqa: PLC0415 - start-up: h5py
+
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_results(path: Path, params: dict, recs: list, observables: dict) -> Path:
+    """``femxdem.h5``: curves and Newton history per step, final fields (docs/femxdem.md)."""
+    with atomic_h5(path, kind=KIND, parameters=params) as f:
+        c = f.create_group("curves")
+        c.create_dataset("step", data=np.array([r.step for r in recs], dtype=np.int64))
+        for k in ("axial_strain", "deviatoric_stress", "volumetric_strain", "wall_s", "material_s"):
+            c.create_dataset(k, data=np.array([getattr(r, k) for r in recs]))
+        c.create_dataset("newton_iterations", data=np.array([len(r.errors) for r in recs], dtype=np.int64))
+        n = f.create_group("newton")
+        for r in recs:
+            g = n.create_group(f"{r.step:03d}")
+            g.create_dataset("errors", data=r.errors)
+            g.create_dataset("residuals", data=r.residuals)
+        if recs:
+            last = recs[-1]
+            fin = f.create_group("final")
+            fin.attrs["step"] = last.step
+            for k in ("x", "stress", "F", "strain"):
+                fin.create_dataset(k, data=getattr(last, k))
+            for k, v in observables.items():
+                fin.create_dataset(f"observables/{k}", data=v)
+    return path
+
+
+def run_femxdem(
+    spec: BiaxialSpec | None = None,
+    rve: str = "taylor",
+    out=None,
+    executor=None,
+    resume: bool = False,
+    stop_after: int | None = None,
+    packing=None,
+    packing_dir="results/packings",
+    n_chunks: int | None = None,
+) -> dict:
+    """Run the biaxial specimen with the stand-in ``rve`` (module docstring); returns a summary
+    (``steps`` the records, ``report`` markdown, ``timing``, ``files``). With ``out`` every converged
+    step is checkpointed; ``resume`` continues from the checkpoint; ``stop_after`` = k stops after
+    step k's checkpoint (raises :class:`FemxdemInterrupted`)."""
+    spec = spec or BiaxialSpec()
+    if resume and out is None:
+        raise InputError("--resume: needs the output directory of the interrupted run (--out)")
+    law, law_params = standin_law(rve, spec, packing, packing_dir)
+    params = {"spec": spec.as_dict(), "rve": rve, "standin": law_params}
+    out = Path(out) if out is not None else None
+    ck = out / "checkpoint" if out is not None else None
+    done, states, response = [], None, None
+    if resume:
+        done, states, response = read_checkpoint(ck, params, law)
+    elif out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        if ck.exists():
+            clear_checkpoint(ck)
+    setup = biaxial_setup(spec)
+    t0 = time.perf_counter()
+    points = gauss_points(law, spec.n_gauss, executor, n_chunks, states, response)
+    t_setup = time.perf_counter() - t0
+
+    def on_step(rec, pts):
+        if ck is not None:
+            write_step(ck, params, rec, law, pts)
+        if stop_after is not None and rec.step >= stop_after:
+            raise FemxdemInterrupted(rec.step, out)
+        check_interrupt(f"stopped after load step {rec.step}; its checkpoint is in {ck}: continue with --resume")
+
+    bar = progress(total=spec.steps, desc=f"femxdem {rve}")
+    bar.update(len(done))
+    t1 = time.perf_counter()
+    try:
+        with deferred_interrupts():  # SIGINT/SIGTERM stop after the step in progress, its checkpoint written
+            new = run_biaxial(setup, points, start=done[-1] if done else None, on_step=on_step, progress=bar)
+        observables = points.observables()
+    finally:
+        bar.close()
+        points.close()
+    wall = time.perf_counter() - t1
+    recs = done + new
+    mat_s = sum(r.material_s for r in new)
+    iters = [len(r.errors) for r in recs]
+    lines = [
+        f"## FEM x DEM biaxial specimen (stand-in `{rve}`: NOT the DEM RVE)",
+        "",
+        f"- specimen {spec.width * 1e3:g} x {spec.height * 1e3:g} mm, {spec.nx} x {spec.ny} {spec.element} elements, "
+        f"{spec.gauss} x {spec.gauss} Gauss points ({spec.n_gauss}), confining {spec.pressure / 1e3:g} kPa "
+        f"(follower), top {spec.top_step:g} m per step, {spec.steps} steps, Newton tol {spec.tol:g}",
+        f"- Gauss points {points.where}; set-up {t_setup:.2f} s; {len(new)} steps in {wall:.2f} s "
+        f"(material {mat_s:.2f} s)" + (f"; resumed after step {len(done)}" if done else ""),
+        f"- Newton iterations per step: {iters}",
+        "",
+        "| step | axial strain | q (kPa) | volumetric strain |",
+        "|---|---|---|---|",
+    ]
+    lines += [
+        f"| {r.step} | {r.axial_strain:.5f} | {r.deviatoric_stress / 1e3:.4g} | {r.volumetric_strain:.3e} |"
+        for r in recs
+    ]
+    report = "\n".join(lines)
+    files = {}
+    if out is not None:
+        files["h5"] = write_results(out / "femxdem.h5", params, recs, observables)
+        files["png"] = plot_curves(out / "curves.png", recs, spec, rve)
+        (out / "report.md").write_text(report + "\n")
+        for p in files.values():
+            result_written(p)
+    return {
+        "steps": recs,
+        "report": report,
+        "timing": {"wall_s": wall, "material_s": mat_s, "setup_s": t_setup},
+        "files": files,
+        "resumed_after": len(done),
+        "parameters": params,
+    }
+
+
+__all__ = ["RVE_STANDINS", "FemxdemInterrupted", "run_femxdem", "standin_law"]
