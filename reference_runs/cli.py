@@ -391,17 +391,13 @@ def register_replay(sub) -> None:
 
 def check_variables(pairs) -> dict:
     """``--var NAME VALUE`` pairs as {NAME: VALUE}: a name of letters, digits and underscores,
-    given once; a value of one word (the codes' ``-var`` reads one argument per value)."""
-    out = {}
-    for name, value in pairs or ():
-        if not name or not all(c.isalnum() or c == "_" for c in name) or not name.isascii():
-            raise _bad("--var NAME", "letters, digits and underscores", name)
-        if name in out:
-            raise InputError(f"--var {name}: given twice")
-        if not value or any(c.isspace() for c in value):
-            raise _bad(f"--var {name} VALUE", "one word", value)
-        out[name] = value
-    return out
+    given once; a value of one word (the codes' ``-var`` reads one argument per value). The rule
+    is :func:`reference_runs.engines.check_variables`, the one ``run_job`` applies; messages name
+    ``--var``."""
+    # lazy: this module is imported when `gransim` builds its parser (start-up time)
+    from reference_runs.engines import check_variables as check
+
+    return check(pairs, option="--var")
 
 
 def _replay(args) -> int:

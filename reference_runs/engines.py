@@ -9,7 +9,8 @@ Both codes write the same log format (LIGGGHTS is a fork of LAMMPS): a banner as
 (``LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, compiled ...)``, ``LAMMPS (29 Sep 2021 - Update 2)``),
 the echoed deck, one thermo table per ``run`` headed by ``Step ...`` and ended by ``Loop time of
 ...``, and ``ERROR``/``WARNING`` lines (LAMMPS appends the source location, ``(src/...cpp:431)``).
-Both take ``-in DECK -log LOG -screen none -nocite`` and run under ``mpirun -np N``.
+Both take ``-in DECK -log LOG -screen none -nocite``, command-line variables ``-var NAME VALUE``
+(:func:`check_variables`) and run under ``mpirun -np N``.
 
 YADE (``yade``, Debian package ``yade``; docs/yade.md) is an independent code driven by a Python
 script, not a deck: :class:`YadeEngine` runs ``yade -n -x -j1 -L gransim_yade_quiet SCRIPT`` (one
@@ -28,12 +29,74 @@ import re
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from gransim.errors import InputError
 from gransim.io.provenance import binary_identity, binary_version, package_version, run_probe
 
 from .errors import ReferenceRunError
+
+
+def check_variables(variables, option: str = "variables") -> dict:
+    """Command-line variables of a job, the codes' ``-var NAME VALUE``, as {NAME: VALUE}.
+
+    Both codes define each ``-var NAME VALUE`` as an index-style variable before the deck's first
+    line (LAMMPS src/input.cpp:107-110 at commit 256531a2, LIGGGHTS-PUBLIC 3.8.0 src/input.cpp:141-144:
+    ``variable->set(argv[iarg+1], ...)``, which is ``Variable::set(NAME, "index", VALUE)``:
+    LAMMPS src/variable.cpp:378-388 at commit b8208f58, LIGGGHTS src/variable.cpp:436-448), and
+    a later ``variable NAME index ...`` line of the deck is then skipped (``if (find(arg[0]) >=
+    0) return;``, LAMMPS src/variable.cpp:152-154, LIGGGHTS src/variable.cpp:187-189): the
+    command-line value wins over the deck's default.
+
+    Parameters
+    ----------
+    variables : None, a mapping {NAME: VALUE} or an iterable of (NAME, VALUE) pairs. A NAME is
+        letters, digits and underscores (the codes' rule for variable names); a VALUE is one
+        word (text, or an int or float written with ``str``), as ``-var`` reads one argument per
+        value.
+    option : how the caller's input is named in the messages (``--var`` for the command line).
+
+    Returns
+    -------
+    dict {NAME: VALUE} (text), in the order given; ``{}`` for None.
+
+    Raises
+    ------
+    InputError naming the variable: a bad name (``variables NAME: expected letters, digits and
+    underscores, got 'k-n'``), a name given twice (``variables kn: given twice``), a value that is
+    not one word.
+    """
+    if variables is None:
+        return {}
+    pairs = variables.items() if isinstance(variables, Mapping) else variables
+    out: dict = {}
+    for pair in pairs:
+        try:
+            name, value = pair
+        except (TypeError, ValueError):
+            raise InputError(f"{option}: expected (NAME, VALUE) pairs, got {pair!r}") from None
+        if (
+            not isinstance(name, str)
+            or not name
+            or not name.isascii()
+            or not all(c.isalnum() or c == "_" for c in name)
+        ):
+            raise InputError(f"{option} NAME: expected letters, digits and underscores, got {name!r}")
+        if name in out:
+            raise InputError(f"{option} {name}: given twice")
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = str(value)
+        if not isinstance(value, str) or not value or any(c.isspace() for c in value):
+            raise InputError(f"{option} {name} VALUE: expected one word, got {value!r}")
+        out[name] = value
+    return out
+
+
+def variables_text(variables: dict) -> str:
+    """``-var a 1 -var b x`` for {a: 1, b: x} (sorted by name), ``no -var`` for none: how a job's
+    command-line variables are named in messages."""
+    return " ".join(f"-var {k} {v}" for k, v in sorted(variables.items())) or "no -var"
 
 
 @dataclass(frozen=True)
@@ -101,11 +164,16 @@ class Engine:
         m = self.banner_re.match(line.strip())
         return self.version_prefix + m.group(1).strip() if m else None
 
-    def command(self, deck: str, log: str, np: int = 1, exe: str | None = None) -> list:
-        """Command line of a job: ``BINARY -in DECK -log LOG -screen none -nocite``, under
-        ``mpirun [--allow-run-as-root] -np N`` when ``np > 1``."""
+    def command(self, deck: str, log: str, np: int = 1, exe: str | None = None, variables=None) -> list:
+        """Command line of a job: ``BINARY -in DECK -log LOG -screen none -nocite [-var NAME VALUE
+        ...]``, under ``mpirun [--allow-run-as-root] -np N`` when ``np > 1``. ``variables``
+        ({NAME: VALUE} or (NAME, VALUE) pairs, :func:`check_variables`) become one ``-var NAME
+        VALUE`` each, in the order given: index-style variables defined before the deck's first
+        line (see :func:`check_variables`)."""
         exe = exe or self.find()
         cmd = [exe, "-in", deck, "-log", log, "-screen", "none", "-nocite"]
+        for name, value in check_variables(variables).items():
+            cmd += ["-var", name, value]
         if int(np) > 1:
             mpirun = shutil.which("mpirun")
             if mpirun is None:
@@ -189,11 +257,14 @@ class YadeEngine(Engine):
         path, mtime_ns, size = found
         return f"{_yade_version(path, mtime_ns, size, self.banner)} ({path})"
 
-    def command(self, deck: str, log: str | None = None, np: int = 1, exe: str | None = None) -> list:
+    def command(self, deck: str, log: str | None = None, np: int = 1, exe: str | None = None, variables=None) -> list:
         """``yade -n -x -j1 -L gransim_yade_quiet SCRIPT`` (``log`` is unused: YADE writes to
-        stdout and stderr); :class:`ReferenceRunError` for ``np > 1`` (a YADE job is one process)."""
+        stdout and stderr); :class:`ReferenceRunError` for ``np > 1`` (a YADE job is one process),
+        :class:`~gransim.errors.InputError` for ``variables`` (a script takes no ``-var``)."""
         if int(np) != 1:
             raise ReferenceRunError(f"np={np}: a YADE job runs as one process (np=1)")
+        if check_variables(variables):
+            raise InputError("variables: a YADE job is a Python script; it takes no -var NAME VALUE")
         return [exe or self.find(), "-n", "-x", "-j1", "-L", YADE_QUIET_MODULE, deck]
 
     def env(self) -> dict:
@@ -241,4 +312,15 @@ def engine_of_log(line: str) -> tuple[Engine, str] | tuple[None, None]:
     return None, None
 
 
-__all__ = ["ENGINES", "Engine", "LAMMPS", "LIGGGHTS", "YADE", "YadeEngine", "engine_of_log", "get_engine"]
+__all__ = [
+    "ENGINES",
+    "Engine",
+    "LAMMPS",
+    "LIGGGHTS",
+    "YADE",
+    "YadeEngine",
+    "check_variables",
+    "engine_of_log",
+    "get_engine",
+    "variables_text",
+]

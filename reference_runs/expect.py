@@ -22,12 +22,22 @@ dumps every 7 and every 3 steps (tests/faults/test_runner_faults.py repeats the 
 * ``clear`` deletes every dump and resets the step to 0 (the Taylor decks: ``clear``, a new
   ``dump``, ``reset_timestep k``, ``run 0``: one frame at step k per state).
 
-Variables are substituted where our decks use them: ``${name}`` and ``$x`` for ``variable NAME
-equal NUMBER`` and ``variable NAME index NUMBER`` (an index variable keeps its first definition).
+Variables are substituted as the codes do (``${name}`` and ``$x``): an index variable by its
+text (``variable NAME index V``: its first value), an equal-style one only when it is a plain
+number (``variable NAME equal NUMBER``). The job's command-line variables (``-var NAME VALUE``,
+``expected_evidence(deck, variables)``) are index variables defined before the deck's first line,
+so a deck's ``variable NAME index DEFAULT`` of the same name is skipped: an index variable keeps
+its first definition (``if (find(arg[0]) >= 0) return;`` in ``Variable::set``, LAMMPS
+src/variable.cpp:152-154 at commit b8208f58, LIGGGHTS-PUBLIC 3.8.0 src/variable.cpp:187-189; the
+command line's ``-var``: LAMMPS src/input.cpp:107-110 at commit 256531a2, LIGGGHTS
+src/input.cpp:141-144). Redefining an index variable as ``equal``, ``string``, ``atom`` or
+``getenv`` stops the codes ("Cannot redefine variable as a different style", LIGGGHTS
+src/variable.cpp:385); the reader stops there too.
 Anything that cannot be followed without running LIGGGHTS (``jump``, ``label``, ``next``,
 ``include``, ``if``, ``minimize``, ``rerun``, ``run ... every``, ``$(...)``, a variable that is an
-expression, a dump EVERY that is ``v_name``, a multi-file dump name with ``*`` or ``%``) is
-reported in :attr:`DeckExpectation.unresolved` instead of guessed; the counts it affects are None.
+expression or is not defined, a dump EVERY that is ``v_name``, a multi-file dump name with ``*``
+or ``%``) is reported in :attr:`DeckExpectation.unresolved` instead of guessed; the counts it
+affects are None.
 """
 
 from __future__ import annotations
@@ -138,18 +148,29 @@ def _int(word: str) -> int | None:
     return int(v) if v == int(v) else None
 
 
-def expected_evidence(deck_text: str) -> DeckExpectation:
-    """Runs and dump frames a deck asks LIGGGHTS for (rules in the module docstring).
+#: styles whose ``variable`` line is skipped when the name exists (``Variable::set``: ``return``)
+_KEEP_FIRST = {"index", "loop", "world", "universe", "uloop", "file", "atomfile"}
+#: styles that replace a variable of the same style and stop the codes on another style
+_SAME_STYLE = {"equal", "string", "atom", "getenv"}
+
+
+def expected_evidence(deck_text: str, variables=None) -> DeckExpectation:
+    """Runs and dump frames a deck asks LIGGGHTS (or LAMMPS) for (rules in the module docstring).
 
     Parameters
     ----------
-    deck_text : the deck as run (``in.liggghts``).
+    deck_text : the deck as run (``in.liggghts``, ``in.lammps``).
+    variables : the job's command-line variables {NAME: VALUE} (``-var NAME VALUE``, as checked
+        by :func:`reference_runs.engines.check_variables`): index variables defined before the
+        first line, which the deck's ``variable NAME index ...`` lines do not change.
 
     Returns
     -------
     :class:`DeckExpectation`; ``unresolved`` says what could not be followed, in which line.
     """
-    variables: dict = {}  # name -> number text, or None (defined but not a plain number)
+    # name -> text substituted for ${name}, or None (defined, but not a text we can substitute)
+    values: dict = {str(k): str(v) for k, v in dict(variables or {}).items()}
+    styles: dict = dict.fromkeys(values, "index")  # name -> style of its definition
     unresolved: list = []
     runs: list = []
     step = 0
@@ -163,20 +184,27 @@ def expected_evidence(deck_text: str) -> DeckExpectation:
         """(substituted line, None) or (None, why)."""
         if "$(" in line:
             return None, f"immediate variable $(...) in {line!r}"
-        ok = True
+        bad = []
 
         def rep(m):
-            nonlocal ok
             name = m.group(1) or m.group(2)
-            val = variables.get(name, "<undefined>")
-            if val is None or val == "<undefined>":
-                ok = False
+            if values.get(name) is None:
+                bad.append(name)
                 return m.group(0)
-            return val
+            return values[name]
 
         out = re.sub(r"\$\{(\w+)\}|\$(\w)", rep, line)
-        if not ok:
-            return None, (f"{line!r} uses a variable that is not a plain number (variable NAME equal|index NUMBER)")
+        if bad:
+            name = bad[0]
+            if name not in values:
+                return None, (
+                    f"{line!r} uses ${{{name}}}, which is not defined (neither by the deck before this line "
+                    f"nor as a command-line variable -var {name} VALUE)"
+                )
+            return None, (
+                f"{line!r} uses ${{{name}}}, which is not a plain number or text known before the run "
+                "(variable NAME index VALUE, variable NAME equal NUMBER and -var NAME VALUE are)"
+            )
         return out, None
 
     broken = False
@@ -187,27 +215,47 @@ def expected_evidence(deck_text: str) -> DeckExpectation:
             note(lineno, f"{_UNFOLLOWABLE[cmd]} ({line[:60]!r}) cannot be followed without running LIGGGHTS")
             broken = True
             break
-        if cmd == "variable" and len(words) >= 3:
-            name, style = words[1], words[2]
-            vals = words[3:]
-            if style == "index" and name in variables:
-                continue  # index variables keep their first definition
-            if style in ("equal", "index") and len(vals) == 1 and _NUMBER.match(vals[0]):
-                variables[name] = vals[0]
-            elif style == "delete":
-                variables.pop(name, None)
-            else:
-                variables[name] = None
-            continue
-        if "$" in line:
-            line, why = subst(line)
-            if line is None:
+        unknown = False  # a variable line whose value holds a variable we cannot substitute
+        if "$" in line:  # the codes substitute every line before running it (Input::parse)
+            sub, why = subst(line)
+            if sub is None:
                 if cmd in ("run", "reset_timestep", "clear", "dump", "undump", "dump_modify"):
                     note(lineno, why)
                     broken = True
                     break
+                if cmd != "variable":
+                    continue
+                unknown = True
+            else:
+                line, words = sub, sub.split()
+        if cmd == "variable" and len(words) >= 3:
+            name, style = words[1], words[2]
+            vals = words[3:]
+            if style == "delete":
+                values.pop(name, None)
+                styles.pop(name, None)
                 continue
-            words = line.split()
+            if name in styles and style in _KEEP_FIRST:
+                continue  # the first definition (the command line's -var included) is kept
+            if name in styles and style in _SAME_STYLE and styles[name] != style:
+                note(
+                    lineno,
+                    f"variable {name} {style}: {name} is already defined with style {styles[name]}"
+                    + (" (given on the command line)" if name in dict(variables or {}) else "")
+                    + "; the codes stop here (Cannot redefine variable as a different style)",
+                )
+                broken = True
+                break
+            styles[name] = style
+            if unknown:
+                values[name] = None
+            elif style == "index" and vals and vals[0][0] not in "\"'":
+                values[name] = vals[0]  # the text of the first value, as retrieve() gives it
+            elif style == "equal" and len(vals) == 1 and _NUMBER.match(vals[0]):
+                values[name] = vals[0]
+            else:
+                values[name] = None
+            continue
         if cmd == "clear":
             done.extend(active.values())
             active.clear()

@@ -10,12 +10,16 @@ and a job that is running or was killed has no manifest (it is removed before th
 ``failed`` one saying it was interrupted.
 
 A job is identified by the SHA-256 of its deck and input files (``input_sha256``; the deck
-alone is ``deck_sha256``). A job is accepted (fresh or reused) only when its evidence is complete
-(:mod:`reference_runs.expect`): the log holds every ``run`` of the deck, each ended by its
-``Loop time`` line at the step the deck asks for, and every ``dump`` file among the outputs holds
-the frames the deck asks for; the manifest records the counts (``evidence``) and the SHA-256 of
-the log (``log_sha256``) and of every output (``outputs``). :func:`run_job` reuses a directory
-that holds an ``ok`` manifest with the same input hash only after re-hashing the log and outputs
+alone is ``deck_sha256``) and by its command-line variables (``run_job(..., variables={NAME:
+VALUE})``, the codes' ``-var NAME VALUE``; the manifest's ``variables``): the same deck run with
+other variables is another job, never reused for this one. A job is accepted (fresh or reused)
+only when its evidence is complete (:mod:`reference_runs.expect`, the deck read with the job's
+variables: a ``-var`` value wins over the deck's ``variable NAME index DEFAULT``): the log holds
+every ``run`` of the deck, each ended by its ``Loop time`` line at the step the deck asks for,
+and every ``dump`` file among the outputs holds the frames the deck asks for; the manifest
+records the counts (``evidence``) and the SHA-256 of the log (``log_sha256``) and of every
+output (``outputs``). :func:`run_job` reuses a directory that holds an ``ok`` manifest with the
+same input hash and variables only after re-hashing the log and outputs
 and re-checking the evidence (:func:`verify_job`); a job that fails this is rerun (with a
 ``WARNING`` line) when the code is available, and refused otherwise. The manifest records the
 code (``engine``, ``engine_version`` from the job's own log banner, ``engine_binary``,
@@ -59,10 +63,11 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from gransim.errors import InputError
 from gransim.io import atomic_path
 from gransim.progress import progress as _progress
 
-from .engines import ENGINES, LIGGGHTS, get_engine
+from .engines import ENGINES, LIGGGHTS, check_variables, get_engine, variables_text
 from .errors import DirectoryBusyError, ReferenceRunError
 from .expect import check_evidence, expected_evidence
 from .locks import DirectoryLock
@@ -517,6 +522,16 @@ def manifest_engine(manifest: dict | None) -> str:
     return str((manifest or {}).get("engine") or "liggghts")
 
 
+def manifest_variables(manifest: dict | None) -> dict:
+    """The command-line variables a job was run with: ``variables`` of its manifest; a manifest
+    without that key: the ``-var NAME VALUE`` triples of its ``command`` (none in older jobs)."""
+    m = manifest or {}
+    if "variables" in m:
+        return {str(k): str(v) for k, v in dict(m["variables"] or {}).items()}
+    cmd = [str(c) for c in m.get("command") or ()]
+    return {cmd[k + 1]: cmd[k + 2] for k in range(len(cmd) - 2) if cmd[k] == "-var"}
+
+
 def read_manifest(job_dir) -> dict | None:
     """The manifest of a job directory, or None (absent or unreadable)."""
     p = Path(job_dir) / MANIFEST_NAME
@@ -534,9 +549,16 @@ def _only(job_dir: Path, pattern: str) -> str | None:
 
 
 def _verify(
-    job_dir: Path, manifest: dict | None, deck_text: str | None, log_name: str, outputs, require_hashes: bool
+    job_dir: Path,
+    manifest: dict | None,
+    deck_text: str | None,
+    log_name: str,
+    outputs,
+    require_hashes: bool,
+    variables: dict,
 ) -> tuple[dict, list]:
-    """(evidence, problems) of a job directory: hashes in the manifest, then the deck's evidence."""
+    """(evidence, problems) of a job directory: hashes in the manifest, then the deck's evidence
+    (the deck read with the job's command-line ``variables``)."""
     problems: list = []
     outputs = list(dict.fromkeys(outputs))
     if manifest is not None:
@@ -577,7 +599,7 @@ def _verify(
             "the expected runs and dump frames from"
         )
         return {"problems": list(problems)}, problems
-    expect = expected_evidence(deck_text)
+    expect = expected_evidence(deck_text, variables)
     log_path = job_dir / log_name
     log = parse_log(log_path) if log_path.exists() else None
     ev, evp = check_evidence(expect, log, log_name, job_dir, outputs)
@@ -589,7 +611,13 @@ def _verify(
 
 
 def job_evidence(
-    job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False, engine: str | None = None
+    job_dir,
+    deck=None,
+    log=None,
+    outputs=None,
+    require_hashes: bool = False,
+    engine: str | None = None,
+    variables=None,
 ) -> dict:
     """The evidence record of a job directory (what :func:`verify_job` checks), with its problems.
 
@@ -597,10 +625,14 @@ def job_evidence(
     ``runs_found``, ``runs_complete``, ``last_steps_expected``, ``last_steps_got``, ``dumps``
     ({file: {``frames_expected``, ``frames_got``, ``every``, ``style``}}), ``unresolved`` (what
     the deck reader could not follow), ``problems`` (list of str, empty when the job is sound),
-    and ``deck``, ``log``, ``outputs`` (the names used).
+    ``variables`` (the command-line variables the deck was read with), and ``deck``, ``log``,
+    ``outputs`` (the names used).
     """
     job_dir = Path(job_dir)
+    want_vars = None if variables is None else check_variables(variables)
     m = read_manifest(job_dir)
+    # the deck is read with the variables the job was run with (its manifest), else the caller's
+    run_vars = manifest_variables(m) if m is not None else dict(want_vars or {})
     deck_name = (
         deck
         or (m or {}).get("deck")
@@ -618,21 +650,29 @@ def job_evidence(
         if m is not None:
             outputs = list(m.get("outputs") or {})
         else:  # a stored job without manifest: every dump file of the deck
-            outputs = list(expected_evidence(deck_text).dumps) if deck_text is not None else []
+            outputs = list(expected_evidence(deck_text, run_vars).dumps) if deck_text is not None else []
     if engine is not None and m is not None and manifest_engine(m) != get_engine(engine).name:
         pre.append(f"the job was run by {manifest_engine(m)}, not {get_engine(engine).name}")
-    ev, problems = _verify(job_dir, m, deck_text, log_name, outputs, require_hashes)
+    if want_vars is not None and run_vars != want_vars:
+        pre.append(f"the job was run with {variables_text(run_vars)}, not {variables_text(want_vars)}")
+    ev, problems = _verify(job_dir, m, deck_text, log_name, outputs, require_hashes, run_vars)
     if engine is not None and m is None and (job_dir / LOG_NAME).exists():
         who = parse_log(job_dir / log_name).engine if (job_dir / log_name).exists() else None
         if who is not None and who != get_engine(engine).name:
             pre.append(f"{log_name} was written by {who}, not {get_engine(engine).name}")
     ev["problems"] = pre + problems
-    ev.update(deck=deck_name, log=log_name, outputs=list(outputs))
+    ev.update(deck=deck_name, log=log_name, outputs=list(outputs), variables=run_vars)
     return ev
 
 
 def verify_job(
-    job_dir, deck=None, log=None, outputs=None, require_hashes: bool = False, engine: str | None = None
+    job_dir,
+    deck=None,
+    log=None,
+    outputs=None,
+    require_hashes: bool = False,
+    engine: str | None = None,
+    variables=None,
 ) -> list:
     """Problems of a finished job directory (empty list: the job is complete and unchanged).
 
@@ -655,25 +695,29 @@ def verify_job(
         outputs the manifest does not hash (what :func:`run_job` requires for reuse).
     engine : when given (``liggghts``, ``lammps``), also report a job run by the other code
         (manifest ``engine``; without a manifest, the log's banner).
+    variables : when given ({NAME: VALUE}, ``{}`` for none), also report a job run with other
+        command-line variables (``the job was run with -var n 12, not -var n 10``). The deck's
+        runs and dump frames are derived with the variables the job was run with (its
+        manifest's), and without a manifest with these.
 
     Returns
     -------
     list of str, one message per problem (e.g. ``incomplete: log.lammps holds 2 of 3 runs``,
     ``dump.atoms: expected 7 frames, got 1``, ``log.lammps changed since the job ran ...``).
     """
-    return job_evidence(job_dir, deck, log, outputs, require_hashes, engine)["problems"]
+    return job_evidence(job_dir, deck, log, outputs, require_hashes, engine, variables)["problems"]
 
 
-def is_complete(job_dir, input_sha256: str | None = None, engine: str | None = None) -> bool:
-    """True when ``job_dir`` has an ``ok`` manifest (with this input hash, and run by ``engine``
-    when given) whose log and outputs are unchanged and complete (:func:`verify_job` with
-    ``require_hashes=True`` finds nothing)."""
+def is_complete(job_dir, input_sha256: str | None = None, engine: str | None = None, variables=None) -> bool:
+    """True when ``job_dir`` has an ``ok`` manifest (with this input hash, run by ``engine`` and
+    with these command-line ``variables`` when given; ``{}``: none) whose log and outputs are
+    unchanged and complete (:func:`verify_job` with ``require_hashes=True`` finds nothing)."""
     m = read_manifest(job_dir)
     if not m or m.get("status") != "ok":
         return False
     if input_sha256 is not None and m.get("input_sha256") != input_sha256:
         return False
-    return not verify_job(job_dir, require_hashes=True, engine=engine)
+    return not verify_job(job_dir, require_hashes=True, engine=engine, variables=variables)
 
 
 def _record_interrupted(job, job_dir: Path, manifest: dict, t0: float, exc: BaseException, killed: str) -> None:
@@ -763,6 +807,7 @@ def run_job(
     force: bool = False,
     desc: str | None = None,
     engine: str = "liggghts",
+    variables=None,
 ) -> JobResult:
     """Run a LIGGGHTS or LAMMPS deck in ``job_dir`` and check that it succeeded and left complete
     evidence.
@@ -791,14 +836,21 @@ def run_job(
         Python script, run by :func:`reference_runs.yade.job.run_yade_job` (its own evidence:
         exit status, banner, no TCP server opened, the outputs; ``progress``, ``allowed_warnings``
         and ``desc`` do not apply).
+    variables : command-line variables of the code, {NAME: VALUE} or (NAME, VALUE) pairs
+        (:func:`reference_runs.engines.check_variables`: :class:`~gransim.errors.InputError`
+        naming a bad or repeated name), passed as ``-var NAME VALUE`` (index style: a deck's
+        ``variable NAME index DEFAULT`` keeps the command-line value). The deck's runs and dump
+        frames are expected with them; they are part of the job's identity (a job run with other
+        variables is rerun, never reused) and recorded in the manifest (``variables``).
 
     Returns
     -------
     :class:`JobResult`. Its manifest records ``evidence`` (expected and found runs, last steps
-    and dump frames), ``log_sha256``, ``outputs`` (SHA-256 of each), ``engine``,
-    ``engine_version`` (from the job's own log banner), ``engine_binary``, ``engine_package``
-    (Debian package version of the binary, or None), for LIGGGHTS also ``liggghts_version``,
-    ``liggghts_binary``, ``liggghts_package`` and, after an automatic rerun, ``rerun_reason``.
+    and dump frames), ``variables``, ``command`` (with its ``-var`` arguments), ``log_sha256``,
+    ``outputs`` (SHA-256 of each), ``engine``, ``engine_version`` (from the job's own log
+    banner), ``engine_binary``, ``engine_package`` (Debian package version of the binary, or
+    None), for LIGGGHTS also ``liggghts_version``, ``liggghts_binary``, ``liggghts_package``
+    and, after an automatic rerun, ``rerun_reason``.
 
     Raises
     ------
@@ -810,9 +862,15 @@ def run_job(
         then has ``"status": "failed"`` (never ``"ok"``). Also when a stored job fails
         verification, or was run by the other code, and the code is not there to rerun it (the
         message names ``--force``).
+    InputError
+        an unknown engine; a variable with a bad name or value, or given twice (naming it),
+        before anything runs; variables for a YADE job.
     """
     eng = get_engine(engine)
+    variables = check_variables(variables)
     if eng.name == "yade":  # a Python script with no LAMMPS-style log: YADE's own job accounting
+        if variables:
+            raise InputError("variables: a YADE job is a Python script; it takes no -var NAME VALUE")
         if expected_runs is not None or int(np) != 1:
             raise ReferenceRunError(f"YADE job {job_dir}: a script has no runs to expect and runs as one process")
         from .yade.job import run_yade_job  # noqa: PLC0415 - import cycle (reference_runs.yade.job uses this module)
@@ -821,7 +879,7 @@ def run_job(
     job_dir = Path(job_dir)
     deck_text, blobs, deck_sha, input_sha = _job_inputs(deck, files)
     outputs = [str(o) for o in outputs]
-    expect = expected_evidence(deck_text)
+    expect = expected_evidence(deck_text, variables)
     if expected_runs is not None and expect.runs is not None and len(expect.runs) != expected_runs:
         raise ReferenceRunError(
             f"{eng.label} job {job_dir}: the deck has {len(expect.runs)} run commands but "
@@ -851,6 +909,7 @@ def run_job(
             force,
             desc,
             eng,
+            variables,
         )
     finally:
         lock.release()
@@ -872,13 +931,15 @@ def _run_locked(
     force,
     desc,
     eng,
+    variables,
 ) -> JobResult:
     rerun_reason = None
     label = eng.label
     m = None if force else read_manifest(job_dir)
-    if m and m.get("status") == "ok" and m.get("input_sha256") == input_sha:
+    # the same job: deck, input files and command-line variables (other variables: another job, run)
+    if m and m.get("status") == "ok" and m.get("input_sha256") == input_sha and manifest_variables(m) == variables:
         names = list(dict.fromkeys([*(m.get("outputs") or {}), *outputs]))
-        _, problems = _verify(job_dir, m, deck_text, LOG_NAME, names, require_hashes=True)
+        _, problems = _verify(job_dir, m, deck_text, LOG_NAME, names, require_hashes=True, variables=variables)
         if manifest_engine(m) != eng.name:
             problems = [f"the job was run by {manifest_engine(m)}, not {eng.name}", *problems]
         if not problems:
@@ -908,7 +969,7 @@ def _run_locked(
         (job_dir / name).parent.mkdir(parents=True, exist_ok=True)
         (job_dir / name).write_bytes(data)
 
-    cmd = eng.command(eng.deck_name, LOG_NAME, np, exe=exe)
+    cmd = eng.command(eng.deck_name, LOG_NAME, np, exe=exe, variables=variables)
     package = eng.package_version(exe)
     manifest = {
         "status": "running",
@@ -918,6 +979,7 @@ def _run_locked(
         "deck_sha256": deck_sha,
         "input_sha256": input_sha,
         "inputs": {name: _sha256(b) for name, b in sorted(blobs.items())},
+        "variables": dict(variables),
         "engine": eng.name,
         "engine_binary": exe,
         "engine_package": package,
@@ -1065,6 +1127,7 @@ __all__ = [
     "find_liggghts",
     "is_complete",
     "manifest_engine",
+    "manifest_variables",
     "job_evidence",
     "kill_children_on_signals",
     "live_children",

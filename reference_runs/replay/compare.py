@@ -19,9 +19,7 @@ failure named ``incomplete``. Output: ``OUTDIR/report.html``, ``OUTDIR/report.md
 
 from __future__ import annotations
 
-import dataclasses
 import html
-import inspect
 import json
 import math
 import re
@@ -33,7 +31,6 @@ import numpy as np
 
 from gransim.errors import InputError, ResultFileError
 from gransim.io import atomic_h5, atomic_path
-from reference_runs.engines import Engine, get_engine
 from reference_runs.judge import finite_problem, peak, verdict_problem
 from reference_runs.parsers import parse_dump_custom, parse_dump_local, parse_log
 from reference_runs.runner import run_job
@@ -97,31 +94,11 @@ class ReplayResult:
 
 
 # ----------------------------------------------------------------------------- running the code
-@dataclass(frozen=True)
-class _EngineWithVariables(Engine):
-    """An :class:`~reference_runs.engines.Engine` whose job command line ends with ``-var NAME
-    VALUE`` for each command-line variable (both codes' ``-var``, index style)."""
-
-    variables: tuple = ()
-
-    def command(self, deck: str, log: str, np: int = 1, exe: str | None = None) -> list:
-        cmd = super().command(deck, log, np, exe=exe)
-        for name, value in self.variables:
-            cmd += ["-var", name, value]
-        return cmd
-
-
-def with_variables(eng: Engine, variables: dict) -> Engine:
-    """``eng`` itself without variables, else the same code with ``-var NAME VALUE`` appended."""
-    if not variables:
-        return eng
-    base = {f.name: getattr(eng, f.name) for f in dataclasses.fields(Engine)}
-    return _EngineWithVariables(**base, variables=tuple((str(k), str(v)) for k, v in variables.items()))
-
-
 def run_code(deck: ReplayDeck, job_dir: Path, timeout: float | None):
-    """Run the deck unchanged in its code in ``job_dir``; returns (log path, {dump file: path},
-    version text). Raises ReferenceRunError (binary missing, error, timeout, incomplete)."""
+    """Run the deck unchanged in its code in ``job_dir``, with the deck's command-line variables
+    (``run_job(..., variables=...)``: ``-var NAME VALUE``, the runs and dump frames expected with
+    them); returns (log path, {dump file: path}, version text). Raises ReferenceRunError (binary
+    missing, error, timeout, incomplete)."""
     files = {}
     if not Path(deck.data_name).is_absolute():
         if ".." in Path(deck.data_name).parts or len(Path(deck.data_name).parts) != 1:
@@ -130,22 +107,18 @@ def run_code(deck: ReplayDeck, job_dir: Path, timeout: float | None):
                 "file name next to the deck (the job runs in its own directory)"
             )
         files[deck.data_name] = deck.data_path.read_bytes()
-    kw = {
-        "files": files,
-        "timeout": timeout,
-        "outputs": tuple(d.file for d in deck.dumps),
-        "expected_runs": len(deck.runs),
-        "progress": False,
-        "force": True,
-    }
-    if "engine" in inspect.signature(run_job).parameters:
-        kw["engine"] = with_variables(get_engine(deck.engine), deck.variables)
-    elif deck.engine != "liggghts" or deck.variables:
-        raise InputError(
-            "this gransim's reference_runs.runner.run_job runs LIGGGHTS only; a LAMMPS deck "
-            "cannot be run (give --reference DIR with a finished LAMMPS job)"
-        )
-    res = run_job(job_dir, "\n".join(deck.lines) + "\n", **kw)
+    res = run_job(
+        job_dir,
+        "\n".join(deck.lines) + "\n",
+        files=files,
+        timeout=timeout,
+        outputs=tuple(d.file for d in deck.dumps),
+        expected_runs=len(deck.runs),
+        progress=False,
+        force=True,
+        engine=deck.engine,
+        variables=deck.variables,  # -var NAME VALUE on the code's command line, in the manifest
+    )
     m = res.manifest
     version = m.get("engine_version") or m.get("liggghts_version") or res.log.version or "unknown"
     return res.log_path, {d.file: res.path(d.file) for d in deck.dumps}, str(version)
