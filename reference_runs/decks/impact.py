@@ -615,3 +615,103 @@ def write_wall_deck(
     with atomic_path(deck) as tmp:
         Path(tmp).write_text(text)
     return deck
+
+
+# ----------------------------------------------------------------------------- Chung & Ooi test 5
+#: tolerances of test 5 (quantity -> (tolerance, reason)): errors against the closed forms of the
+#: impacts case (H1-H3 for the normal impact, eq (6) with P = 2 m* v_n for gross sliding), measured
+#: with v_n = 0.01 m/s, mu 0.3, E 5e8 Pa, nu 0.3, dt 5e-6 s (docs/impacts.md, "Chung & Ooi test 5")
+TEST5_TOL = {
+    "contact time": (
+        2.0e-3,
+        "geometric, dt-independent (the same at dt/2): the rotation of the normal, "
+        "v_t t_c/(r1 + r2) <= 1.1e-3 rad at Psi1 20; measured 7.2e-4",
+    ),
+    "restitution": (6.0e-4, "geometric as the contact time; measured 1.9e-4 (undamped: e = 1)"),
+    "peak overlap": (5.0e-3, "geometric (the curved path shortens the approach); measured 1.9e-3 at Psi1 20"),
+    "peak force": (8.0e-3, "geometric, F ~ delta^(3/2); measured 2.8e-3 at Psi1 20"),
+    "friction impulse": (1.0e-2, "gross sliding, P = 2 m* v_n along the rotating normal; measured 3.3e-3 at Psi1 20"),
+    "exit slip": (
+        3.0e-3,
+        "|s' - s'_rigid|/|s0|: lever arm r - delta/2 and the rotation of the normal; measured 1.2e-3",
+    ),
+    "exit spin": (2.5e-3, "r1 |w1' - w1'_rigid|/|s0|: as the exit slip; measured 7.9e-4"),
+    "sliding force": (
+        1.0e-9,
+        "gross sliding: |F_t| = mu |F_n| at every contact frame (the cap of each code, exact); measured 6.7e-16",
+    ),
+    "coulomb bound": (1.0e-9, "max |F_t|/(mu |F_n|) - 1 at every contact frame: the cap is exact; measured 6.7e-16"),
+    "energy gain": (1.0e-6, "KE'/KE - 1 (positive part): no source of energy in an undamped spring-slider; measured 0"),
+}
+#: Psi1 = 2 v_t/(mu (1 + e) v_n) of the sweep: microslip below 6 (the disk rule, docs/impacts.md),
+#: gross sliding from 6 on
+TEST5_PSI1 = (1.0, 2.0, 4.0, 6.5, 8.0, 12.0, 20.0)
+
+
+def chung_ooi_test5_impacts(
+    v_n: float, mu: float, r: float, r_wall: float, psi1=TEST5_PSI1, e: float = 1.0
+) -> list[dict]:
+    """Chung & Ooi's test 5 (Granular Matter 13, 2011, 643-656: oblique impact on a wall at a
+    constant normal and a varying tangential speed) for disks: a disk of radius ``r`` (m) hits the
+    wall disk of radius ``r_wall`` (at rest) at the normal speed ``v_n`` (m/s) with the tangential
+    speed v_t = Psi1 mu (1 + e) v_n/2 for each Psi1 of ``psi1`` (so the impact angle atan(v_t/v_n)
+    is swept while the normal answers stay those of one normal impact).
+
+    Returns one dict per impact: ``label`` (``psi<Psi1>``), ``kind`` (``sliding`` for Psi1 >= 6,
+    the rigid-body limit of eq (6) of the impacts case; ``microslip`` below, judged by the Coulomb
+    bound and the energy bound only), ``r1``, ``r2``, ``v1`` (v_n, v_t), ``v2`` (0, 0), ``w1``,
+    ``w2`` (0), ``psi1``, ``angle`` (deg) and ``note``. Raises InputError for a non-positive
+    speed, radius or mu, or an empty sweep."""
+    for nm, v in (("v_n", v_n), ("mu", mu), ("r", r), ("r_wall", r_wall)):
+        if not (isinstance(v, int | float) and np.isfinite(v) and v > 0):
+            raise InputError(f"chung_ooi_test5_impacts: {nm} must be a finite number > 0, got {v!r}")
+    psi1 = tuple(float(p) for p in psi1)
+    if not psi1 or any(not (np.isfinite(p) and p > 0) for p in psi1):
+        raise InputError(f"chung_ooi_test5_impacts: psi1 must be a non-empty sequence of numbers > 0, got {psi1!r}")
+    out = []
+    for p in psi1:
+        vt = p * mu * (1.0 + e) * v_n / 2.0
+        angle = float(np.degrees(np.arctan2(vt, v_n)))
+        out.append(
+            {
+                "label": f"psi{p:g}",
+                "kind": "sliding" if p >= 6.0 else "microslip",
+                "r1": r,
+                "r2": r_wall,
+                "v1": (v_n, vt),
+                "v2": (0.0, 0.0),
+                "w1": 0.0,
+                "w2": 0.0,
+                "psi1": p,
+                "angle": angle,
+                "note": f"Chung & Ooi test 5: v_n = {v_n:g} m/s, v_t = {vt:.6g} m/s ({angle:.4g} deg, Psi1 = {p:g})",
+            }
+        )
+    return out
+
+
+def sliding_force_deviation(frames: dict, pairs, radii, mu: float) -> list[float]:
+    """Per pair (i, j) of ``pairs``, the largest | |F_t|/(mu |F_n|) - 1 | over the frames in which
+    the pair overlaps and F_n != 0 (F on disk i, n from i to j, t = z x n): 0 where the tangential
+    force is mu |F_n| throughout (gross sliding, the closed form of the tangential force); NaN for
+    a pair that never overlapped. ``frames``: {step: {"x" (N, 2), "f" (N, 2), ...}}; ``radii``
+    (N,) m."""
+    r = np.asarray(radii, float)
+    out = []
+    for i, j in pairs:
+        dev, seen = 0.0, False
+        for k in sorted(frames):
+            x, f = frames[k]["x"], frames[k]["f"]
+            d = x[j] - x[i]
+            dist = float(np.hypot(d[0], d[1]))
+            if r[i] + r[j] - dist <= 0:
+                continue
+            n = d / dist
+            fn = float(f[i] @ n)
+            if fn == 0.0:
+                continue
+            seen = True
+            ft = float(f[i, 1] * n[0] - f[i, 0] * n[1])
+            dev = max(dev, abs(abs(ft) / (mu * abs(fn)) - 1.0))
+        out.append(dev if seen else float("nan"))
+    return out
