@@ -151,6 +151,7 @@ def dump():
             f, t = O.forces.f(b.id), O.forces.t(b.id)
             put("P", b.id, g(st.pos[0]), g(st.pos[1]), g(st.vel[0]), g(st.vel[1]), g(st.angVel[2]), g(f[0]),
                 g(f[1]), g(t[2]))
+        out.flush()
 
 
 O.engines = [
