@@ -14,7 +14,8 @@ HDF5 layout (``kind = "femxdem-reference"``, written atomically by :func:`gransi
     /maps/step, n_items, seconds, worker_cpu_seconds, function (strings)   every Pool.map
     /fields/step_<t>/x (ng, 2), stress (ng, 2, 2), strain (ng, 2, 2), fabric (ng, 2, 2),
                      void_ratio (ng,), rotation (ng,)
-    /rve/radii, masses (n,); attrs stress (3, 3), hsize (3, 3), dt, iterations, n_contacts, ...
+    /rve/radii, masses (n,), contacts (n_contacts, 4: r1 r2 kn ks);
+         attrs stress (3, 3), hsize (3, 3), dt, iterations, n_contacts, friction, engines, damping
     root attrs: provenance (gransim.io), yade_version, escript_version, packages, patch_sha256,
                 originals, timing and load figures (see docs/femxdem_reference.md)
 
@@ -92,8 +93,8 @@ def read_keyvalues(path) -> dict:
 @dataclass(frozen=True)
 class RveRecord:
     """The consolidated RVE of prepareRVE.py (``rve.txt``): 3D stress (Pa, with the cell's z size
-    0.1 m: prepareRVE.py:11), cell ``hsize`` (3, 3), radii and masses (n,), friction after
-    ``setContactFriction``."""
+    0.1 m: prepareRVE.py:11), cell ``hsize`` (3, 3), radii and masses (n,), ``contacts``
+    (n_contacts, 4): r1, r2, kn, ks of each contact, friction after ``setContactFriction``."""
 
     n_bodies: int
     dt: float
@@ -106,6 +107,7 @@ class RveRecord:
     material_friction_angle: tuple
     engines: tuple
     damping: tuple
+    contacts: np.ndarray
     radii: np.ndarray
     masses: np.ndarray
 
@@ -114,7 +116,7 @@ def read_rve(path) -> RveRecord:
     path = Path(path)
     kv = read_keyvalues(path)
     need = ("n_bodies", "dt", "iterations", "stress", "hsize", "unbalanced", "n_contacts", "tan_friction")
-    need += ("material_friction_angle", "engines", "damping", "radii", "masses")
+    need += ("material_friction_angle", "engines", "damping", "contacts", "radii", "masses")
     missing = [k for k in need if k not in kv]
     if missing:
         raise IncompleteOutputError(f"incomplete: {path} lacks {', '.join(missing)}")
@@ -131,6 +133,7 @@ def read_rve(path) -> RveRecord:
             material_friction_angle=tuple(float(v) for v in kv["material_friction_angle"].split()),
             engines=tuple(kv["engines"].split()),
             damping=tuple(float(v) for v in kv["damping"].split()),
+            contacts=np.array([float(v) for v in kv["contacts"].split()]).reshape(-1, 4),
             radii=np.array([float(v) for v in kv["radii"].split()]),
             masses=np.array([float(v) for v in kv["masses"].split()]),
         )
@@ -138,6 +141,8 @@ def read_rve(path) -> RveRecord:
         raise IncompleteOutputError(f"incomplete: {path}: a malformed value ({exc})") from None
     if rec.radii.shape != (rec.n_bodies,) or rec.masses.shape != (rec.n_bodies,):
         raise IncompleteOutputError(f"incomplete: {path}: {rec.radii.size} radii for {rec.n_bodies} bodies")
+    if rec.contacts.shape != (rec.n_contacts, 4):
+        raise IncompleteOutputError(f"incomplete: {path}: {rec.contacts.shape[0]} contact rows for {rec.n_contacts}")
     return rec
 
 
@@ -343,6 +348,7 @@ def write_h5(path, out: RunOutputs, parameters: dict, attrs: dict) -> Path:
         g = f.create_group("rve")
         g.create_dataset("radii", data=out.rve.radii)
         g.create_dataset("masses", data=out.rve.masses)
+        g.create_dataset("contacts", data=out.rve.contacts)
         for k in ("n_bodies", "dt", "iterations", "unbalanced", "n_contacts"):
             g.attrs[k] = getattr(out.rve, k)
         g.attrs["stress"] = out.rve.stress

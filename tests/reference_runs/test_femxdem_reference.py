@@ -149,6 +149,24 @@ def test_the_rve_follows_the_recipe(tiny):
 
 
 @needs_codes
+def test_contact_stiffness_is_youngs_modulus_times_the_harmonic_radius(tiny):
+    """FrictMat(young=6e8, poisson=.8) (prepareRVE.py:5) through Ip2_FrictMat_FrictMat_FrictPhys:
+    kn = 2 (E r1)(E r2) / (E r1 + E r2), ks = the same with E nu, i.e. 0.8 kn (FrictPhys.cpp:30-38
+    at e627a44de36e), checked on every contact of the installed 2023.02a. kn: the same operations
+    in the same order, 1e-15; ks: 0.8 enters before the harmonic mean in YADE, after it here, a
+    few roundings apart: 4e-15."""
+    import h5py
+
+    with h5py.File(tiny["h5"], "r") as f:
+        c = f["rve/contacts"][()]
+    assert c.shape[0] > TINY.n_disks  # a jammed packing: about two contacts per disk
+    E = 6e8  # noqa: N806 - Young's modulus
+    kn = 2 * (E * c[:, 0]) * (E * c[:, 1]) / (E * c[:, 0] + E * c[:, 1])
+    np.testing.assert_allclose(c[:, 2], kn, rtol=1e-15)
+    np.testing.assert_allclose(c[:, 3], 0.8 * c[:, 2], rtol=4e-15)
+
+
+@needs_codes
 def test_step0_every_gauss_point_holds_the_consolidation_stress(tiny):
     """Before loading every Gauss point holds the same RVE (msFEM2D loads 0.yade.gz for each,
     simDEM.py:24): its stress is the same at every point and isotropic at the confining 100 kPa

@@ -276,8 +276,8 @@ def rve_record(path="rve.txt"):
     """``rve.txt``: the consolidated RVE as prepareRVE.py's ``term()`` saves it (called there,
     after ``setContactFriction`` and ``O.save``): bodies, time step, iterations of the
     consolidation, the stress (``getStress``, Pa, 3D with the cell's z size), the cell, the
-    unbalanced force, the contacts and their friction, the engines saved with the scene (every RVE
-    call runs them) and the NewtonIntegrator's damping."""
+    unbalanced force, the contacts (radii of the two disks, kn, ks) and their friction, the engines
+    saved with the scene (every RVE call runs them) and the NewtonIntegrator's damping."""
     from yade import utils
     from yade.wrapper import Omega
 
@@ -298,6 +298,13 @@ def rve_record(path="rve.txt"):
         "material_friction_angle": " ".join(repr(float(m.frictionAngle)) for m in O.materials),
         "engines": " ".join(type(e).__name__ for e in O.engines),
         "damping": " ".join(repr(float(e.damping)) for e in O.engines if type(e).__name__ == "NewtonIntegrator"),
+        "contacts": " ".join(
+            " ".join(
+                repr(float(v))
+                for v in (O.bodies[i.id1].shape.radius, O.bodies[i.id2].shape.radius, i.phys.kn, i.phys.ks)
+            )
+            for i in real
+        ),
         "radii": " ".join(repr(float(b.shape.radius)) for b in O.bodies),
         "masses": " ".join(repr(float(b.state.mass)) for b in O.bodies),
     }
