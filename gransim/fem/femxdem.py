@@ -39,6 +39,7 @@ from ..io import atomic_h5, open_result
 from ..progress import check_interrupt, deferred_interrupts, progress, result_written
 from .biaxial import BiaxialSpec, BiaxialStep, biaxial_setup, run_biaxial
 from .checkpoint import check_parameters
+from .incremental import StepFailure
 from .material_points import gauss_points
 from .point_laws import HyperelasticPoint, J2Plasticity
 
@@ -224,9 +225,12 @@ def plot_curves(path: Path, recs: list, spec: BiaxialSpec, label: str) -> Path:
     return path
 
 
-def write_results(path: Path, params: dict, recs: list, observables: dict) -> Path:
-    """``femxdem.h5``: curves and Newton history per step, final fields (docs/femxdem.md)."""
+def write_results(path: Path, params: dict, recs: list, observables: dict, stopped: str = "") -> Path:
+    """``femxdem.h5``: curves and Newton history per step, final fields (docs/femxdem.md);
+    ``stopped``: why the run stopped before its last step ("" when it completed)."""
     with atomic_h5(path, kind=KIND, parameters=params) as f:
+        f.attrs["completed"] = not stopped
+        f.attrs["stopped"] = stopped
         c = f.create_group("curves")
         c.create_dataset("step", data=np.array([r.step for r in recs], dtype=np.int64))
         for k in ("axial_strain", "deviatoric_stress", "volumetric_strain", "wall_s", "material_s"):
@@ -258,15 +262,22 @@ def run_femxdem(
     packing=None,
     packing_dir="results/packings",
     n_chunks: int | None = None,
+    law=None,
 ) -> dict:
     """Run the biaxial specimen with the stand-in ``rve`` (module docstring); returns a summary
     (``steps`` the records, ``report`` markdown, ``timing``, ``files``). With ``out`` every converged
     step is checkpointed; ``resume`` continues from the checkpoint; ``stop_after`` = k stops after
-    step k's checkpoint (raises :class:`FemxdemInterrupted`)."""
+    step k's checkpoint (raises :class:`FemxdemInterrupted`). A step that does not converge raises
+    :class:`gransim.fem.incremental.StepFailure` after the outputs of the converged steps are
+    written (the report says where it stopped). ``law``: another point law with
+    ``pack_states``/``unpack_states`` instead of the stand-in (``rve`` is then its label)."""
     spec = spec or BiaxialSpec()
     if resume and out is None:
         raise InputError("--resume: needs the output directory of the interrupted run (--out)")
-    law, law_params = standin_law(rve, spec, packing, packing_dir)
+    if law is None:
+        law, law_params = standin_law(rve, spec, packing, packing_dir)
+    else:
+        law_params = {"law": type(law).__name__}
     params = {"spec": spec.as_dict(), "rve": rve, "standin": law_params}
     out = Path(out) if out is not None else None
     ck = out / "checkpoint" if out is not None else None
@@ -282,7 +293,10 @@ def run_femxdem(
     points = gauss_points(law, spec.n_gauss, executor, n_chunks, states, response)
     t_setup = time.perf_counter() - t0
 
+    new = []
+
     def on_step(rec, pts):
+        new.append(rec)
         if ck is not None:
             write_step(ck, params, rec, law, pts)
         if stop_after is not None and rec.step >= stop_after:
@@ -292,9 +306,13 @@ def run_femxdem(
     bar = progress(total=spec.steps, desc=f"femxdem {rve}")
     bar.update(len(done))
     t1 = time.perf_counter()
+    failure = None
     try:
         with deferred_interrupts():  # SIGINT/SIGTERM stop after the step in progress, its checkpoint written
-            new = run_biaxial(setup, points, start=done[-1] if done else None, on_step=on_step, progress=bar)
+            run_biaxial(setup, points, start=done[-1] if done else None, on_step=on_step, progress=bar)
+    except StepFailure as exc:  # the converged steps' outputs are written, then the failure raised
+        failure = exc
+    try:
         observables = points.observables()
     finally:
         bar.close()
@@ -312,6 +330,7 @@ def run_femxdem(
         f"- Gauss points {points.where}; set-up {t_setup:.2f} s; {len(new)} steps in {wall:.2f} s "
         f"(material {mat_s:.2f} s)" + (f"; resumed after step {len(done)}" if done else ""),
         f"- Newton iterations per step: {iters}",
+        *([f"- STOPPED: {failure}"] if failure is not None else []),
         "",
         "| step | axial strain | q (kPa) | volumetric strain |",
         "|---|---|---|---|",
@@ -323,11 +342,15 @@ def run_femxdem(
     report = "\n".join(lines)
     files = {}
     if out is not None:
-        files["h5"] = write_results(out / "femxdem.h5", params, recs, observables)
+        msg = "" if failure is None else str(failure)
+        files["h5"] = write_results(out / "femxdem.h5", params, recs, observables, msg)
         files["png"] = plot_curves(out / "curves.png", recs, spec, rve)
         (out / "report.md").write_text(report + "\n")
         for p in files.values():
             result_written(p)
+    if failure is not None:
+        where = f"; the {len(recs)} converged steps are in {out}" if out is not None else ""
+        raise StepFailure(f"{failure}{where}", failure.errors, failure.point)
     return {
         "steps": recs,
         "report": report,

@@ -12,6 +12,7 @@ import pytest
 
 from gransim.fem.biaxial import BiaxialSpec
 from gransim.fem.femxdem import FemxdemInterrupted, run_femxdem, standin_law
+from gransim.fem.point_laws import J2Plasticity
 from gransim.io import open_result
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -148,3 +149,28 @@ def test_cli_on_a_local_cluster_leaves_no_process(tmp_path):
     _, alive = psutil.wait_procs(procs, timeout=10)  # the resource tracker ends on EOF from its parent
     assert not [(p.pid, p.name()) for p in alive]
     assert (tmp_path / "femxdem.h5").exists() and (tmp_path / "curves.png").exists()
+
+
+class FailsLater(J2Plasticity):
+    """J2 that raises at Gauss point 3 in its fourth update (the run's step 4)."""
+
+    def update(self, f, state):
+        if state.updates == 3 and state.yield_stress == 1.5e5 + 1e-3:
+            raise RuntimeError("the RVE lost a particle")
+        return super().update(f, state)
+
+    def initial_state(self, g):
+        s = super().initial_state(g)
+        return type(s)(s.stress, s.alpha, s.yield_stress + (1e-3 if g == 3 else 0.0), s.updates)
+
+
+def test_a_failing_step_keeps_the_converged_outputs(tmp_path):
+    from gransim.fem.incremental import StepFailure
+
+    law = FailsLater(1e8, 0.3, 1.5e5, 1e6, -1e5)
+    with pytest.raises(StepFailure, match=r"load step 4: Gauss point 3: RuntimeError.*3 converged steps are in"):
+        run_femxdem(SPEC, "failing-j2", tmp_path, law=law)
+    with open_result(tmp_path / "femxdem.h5", kind="fem-biaxial") as f:
+        assert list(f["curves/step"][()]) == [1, 2, 3]
+        assert not f.attrs["completed"] and "load step 4" in f.attrs["stopped"]
+    assert "STOPPED: load step 4" in (tmp_path / "report.md").read_text()
