@@ -1,7 +1,7 @@
 """A/B benchmark of the native DEM between two commits, interleaved in one run, in the steady state.
 
 ``python -m bench.ab_dem --base REV [--head REV|WORKTREE] [--n 10000] [--window 200] [--windows 12]
-[--mode serial|parallel|fast] [--threads 1]``
+[--mode serial|parallel|fast|sheared] [--threads 1]``
 
 Each side is the gransim tree of one commit (``git archive`` into a temporary folder; ``WORKTREE``,
 the default head, is this checkout as it is) with its own numba cache. One long-lived process per
@@ -11,7 +11,8 @@ warm-up of ``--warm`` steps (the first rebuilds), and reports the time it took t
 user waits for before the first step: start-up, compilation or cache load, set-up). Then the driver
 asks the two processes in turn, A B B A A B ..., for windows of ``--window`` steps each; both
 states evolve bit for bit alike (the same arithmetic), so window k holds the same rebuilds on both
-sides (``--mode fast``: the fast path, :class:`gransim.dem.fast.FastEngine`, on ``--threads``).
+sides (``--mode fast``: the fast path, :class:`gransim.dem.fast.FastEngine`, on ``--threads``;
+``--mode sheared``: the sheared cell, :class:`gransim.dem.sheared.ShearEngine`, in simple shear).
 Reported: the median over windows of the per-window throughput ratio head/base (particle-
 steps per second), its spread, each side's median throughput, the rebuilds per window, the machine
 load (os.getloadavg) before and after. A ratio >= 0.95 means "no slowdown beyond 5%".
@@ -45,6 +46,11 @@ p = assembly(n)
 if mode == "fast":  # the fast path (FastEngine) on THREADS threads
     from gransim.dem.fast import FastEngine
     eng = FastEngine(p, SETTINGS, threads=threads)
+    step = eng.advance
+elif mode == "sheared":  # the sheared cell (ShearEngine, LAMMPS' arithmetic) in simple shear, 1/s
+    from gransim.dem.sheared import ShearEngine, ShearLoading
+    eng = ShearEngine(p, DEMSettings(**{**SETTINGS.to_dict(), "mode": "serial"}), flavour="lammps")
+    eng.start_run(ShearLoading(erate=1.0), 10**9)
     step = eng.advance
 else:
     s = DEMSettings(**{**SETTINGS.to_dict(), "mode": mode})
@@ -225,7 +231,7 @@ def main(argv=None) -> int:
     ap.add_argument("--window", type=int, default=200, help="steps per timed window (default 200)")
     ap.add_argument("--windows", type=int, default=12, help="timed windows per side (default 12)")
     ap.add_argument("--warm", type=int, default=300, help="warm-up steps before timing (default 300)")
-    ap.add_argument("--mode", choices=("serial", "parallel", "fast"), default="serial")
+    ap.add_argument("--mode", choices=("serial", "parallel", "fast", "sheared"), default="serial")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
     a = ap.parse_args(argv)

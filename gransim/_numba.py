@@ -35,6 +35,27 @@ Every kernel in the package is compiled through :func:`njit` (serial) or
   82 us measured here), which is what a threaded DEM step of a small assembly pays many times.
   The layer does not change results: the threaded kernels sum in a fixed order.
 
+* Unpacked arrays. Kernels take small namedtuples of arrays (``gransim.dem.kernels.Particles``,
+  ``Neighbours``, ``Box``, ...) and a law object, except where numba makes the arrays arguments
+  of their own. Two limitations of numba (0.68) do, both in ``parallel=True`` kernels:
+
+  - vectorisation: numba marks the array *arguments* of a parallel loop body ``noalias`` only
+    when it finds no alias among them; an array taken out of a namedtuple, an array passed through
+    an ``inline="always"`` function, or a bool array that is read counts as a possible alias, and
+    LLVM then keeps the loop scalar (no packed square roots, no gathers; read in the compiled
+    code by tests/dem/test_simd_bitwise.py, test_threaded_bitwise.py and test_fast.py). The bool
+    arrays go in as uint8 views, the history in two contiguous block buffers (a stride-2 pair of
+    loads is not vectorised either);
+  - a wrong result: with the arrays taken out of the namedtuples inside the threaded
+    entry-by-entry force loop, numba returned torques on the second particle 1e-5 N m off the
+    serial loop and the interpreted kernel (measured; presumably its parfor pass fusing the loop's
+    ``prange`` regions); as arguments the result is right.
+
+  So the force loops ``kernels._serial_block_loop``, ``_threaded_block_loop``,
+  ``_threaded_scalar_loop`` and the fast path's ``fast_kernels.forces_v``, ``integrate_v`` take
+  unpacked arrays, and a thin wrapper beside each (``kernels._serial_blocks``, ...) unpacks the
+  tuples at the call.
+
 Set ``NUMBA_DISABLE_JIT=1`` to run the kernels as plain Python (coverage,
 debugging); the test suite is expected to pass in that mode too (slowly).
 """

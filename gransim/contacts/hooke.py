@@ -1,5 +1,8 @@
-"""LIGGGHTS ``hooke/stiffness`` normal law with ``tangential history``, as one jitted scalar function
-(and :func:`hooke_history_lammps`, the same pair in LAMMPS' ``gran/hooke/history`` arithmetic).
+"""LIGGGHTS ``hooke/stiffness`` normal law with ``tangential history`` (:func:`hooke_liggghts`) and
+the same pair in LAMMPS' ``gran/hooke/history`` arithmetic (:func:`hooke_lammps`): one jitted,
+branch-free function per code, which the engines' loops call entry by entry for a touching pair
+(:func:`hooke_history`, :func:`hooke_history_lammps`), over blocks of list entries as SIMD code
+(:func:`hooke_select_liggghts`, :func:`hooke_select_lammps`) and in the fast path.
 
 The elastic part of the normal force is :func:`gransim.contacts.law.force_magnitude`
 (eq (5) of Meier et al.: F = E_n eps with E_n = kn); this module adds what the DEM needs:
@@ -33,15 +36,24 @@ from .laws import deck_float, lightest_pair_mass, register_law
 
 
 @njit(inline="always")
-def hooke_history(
+def hooke_liggghts(
     delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
 ):
-    """One touching pair: force on i, torques on i and j, updated tangential spring.
+    """LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history`` for one list entry, touching
+    or not: the one copy of this code's Hooke arithmetic (:func:`hooke_history` for a touching
+    pair, :func:`hooke_select_liggghts` the block path of the SIMD force loops and the fast path's
+    law; surface_model_default.h, normal_model_hooke_stiffness.h, tangential_model_history.h).
+
+    Written without a data-dependent jump: the branches of the code (contact, the sign test of
+    ``force_magnitude``, the Coulomb cap, a zero spring) are selects between values that are all
+    computed, so a loop over list entries calling it runs as SIMD code and every lane gives the
+    bits of the code's scalar arithmetic on the path the code takes (IEEE square root and division,
+    no fused multiply-add: ``fastmath`` is off, gransim/_numba.py). What a select throws away may
+    be inf or nan (a zero spring's ratio); it never reaches a result.
 
     Parameters
     ----------
-    delx, dely : float, m. d = x_i - x_j (image of j).
-    rsq : float, m^2. |d|^2, must be < (r_i + r_j)^2 (the caller tests contact).
+    delx, dely : float, m. d = x_i - x_j (image of j). rsq : |d|^2 (m^2).
     radi, radj : radii (m). vix, viy, vjx, vjy : velocities (m/s). wi, wj : spins (rad/s).
     mi, mj : masses (kg).
     kn, kt : normal / tangential stiffness (N/m).
@@ -53,77 +65,98 @@ def hooke_history(
 
     Returns
     -------
-    fx, fy : force on i (N). F = F_n n + F_t with F_n = kn delta - m_eff gamman v_n
-        (may be attractive: no force limit) and F_t = -kt xi - m_eff gammat v_t,rel, or, when
-        kt |xi| > mu |F_n| (strictly), F_t = -kt xi mu|F_n|/(kt|xi|) and xi = -F_t/kt.
-    ti, tj : torques on i and j (N m): -c_i (n x F_t)_z and -c_j (n x F_t)_z, c = r - delta/2
-        (the same sign on both, as LIGGGHTS applies them).
-    s0, s1 : updated spring (m).
-    sliding : bool, the Coulomb cap was active.
-    fn : normal force F_n (N).
+    (touch, fx, fy, ti, tj, s0, s1, sliding, overlap, fn): touch 1.0 when rsq < (r_i + r_j)^2
+    (the loops' contact test) else 0.0, sliding 1.0 or 0.0 (floats, not bools: a bool taken out
+    of a returned tuple counts as an alias to numba's parfor analysis and keeps the caller's loop
+    from vectorising). When touching: force on i F = F_n n + F_t (N) with F_n = kn delta - m_eff
+    gamman v_n (may be attractive: no force limit) and F_t = -kt xi - m_eff gammat v_t,rel, or,
+    when kt |xi| > mu |F_n| (strictly), F_t = -kt xi mu|F_n|/(kt|xi|) and xi = -F_t/kt;
+    torques on i and j -c_i (n x F_t)_z and -c_j (n x F_t)_z, c = r - delta/2 (the same sign on
+    both, as LIGGGHTS applies them); the updated spring; F_n (N). Not touching: the stored spring
+    (LIGGGHTS keeps a spring while its pair is in the list), the other values meaningless.
+    overlap r_i + r_j - |d| (m) in either case.
     """
+    radsum = radi + radj
+    touch = rsq < radsum * radsum
     r = math.sqrt(rsq)
     rinv = 1.0 / r
     enx = delx * rinv
     eny = dely * rinv
     meff = mi * mj / (mi + mj)
-    # relative velocity at the contact point (surface_model_default.h order)
     vr1 = vix - vjx
     vr2 = viy - vjy
     vn = vr1 * enx + vr2 * eny
     vt1 = vr1 - vn * enx
     vt2 = vr2 - vn * eny
-    radsum = radi + radj
     deltan = radsum - r
     cri = radi - 0.5 * deltan
     crj = radj - 0.5 * deltan
     wr3 = (cri * wi + crj * wj) * rinv
     vtr1 = vt1 + dely * wr3
     vtr2 = vt2 - delx * wr3
-    # normal: elastic part (eq 5 of Meier et al.) + mass-scaled damping
-    fn = -(meff * gamman) * vn + force_magnitude(radsum - r, kn)
-    # tangential spring with history
-    if update:
-        s0 += vtr1 * dt
-        s1 += vtr2 * dt
-        rsht = s0 * enx + s1 * eny
-        s0 -= rsht * enx
-        s1 -= rsht * eny
-    shrmag = math.sqrt(s0 * s0 + s1 * s1)
-    ft1 = -(kt * s0)
-    ft2 = -(kt * s1)
+    # the elastic normal force, eq (5) of Meier et al. (gransim.contacts.law: the RVE's law too)
+    fe = force_magnitude(radsum - r, kn)
+    fn = -(meff * gamman) * vn + fe
+    if update:  # uniform over a loop (False only in the set-up evaluation)
+        u0 = s0 + vtr1 * dt
+        u1 = s1 + vtr2 * dt
+        rsht = u0 * enx + u1 * eny
+        u0 -= rsht * enx
+        u1 -= rsht * eny
+    else:
+        u0 = s0
+        u1 = s1
+    shrmag = math.sqrt(u0 * u0 + u1 * u1)
+    ft1 = -(kt * u0)
+    ft2 = -(kt * u1)
     ft_shear = kt * shrmag
     ft_friction = mu * abs(fn)
-    sliding = False
-    if ft_shear > ft_friction:
-        sliding = True
-        if shrmag != 0.0:
-            ratio = ft_friction / ft_shear
-            ft1 *= ratio
-            ft2 *= ratio
-            s0 = -ft1 / kt
-            s1 = -ft2 / kt
-        else:
-            ft1 = 0.0
-            ft2 = 0.0
-    else:
-        gt = meff * gammat
-        ft1 -= gt * vtr1
-        ft2 -= gt * vtr2
+    sl = ft_shear > ft_friction
+    nz = shrmag != 0.0
+    ratio = ft_friction / ft_shear
+    ft1c = ft1 * ratio
+    ft2c = ft2 * ratio
+    gt = meff * gammat
+    ft1d = ft1 - gt * vtr1
+    ft2d = ft2 - gt * vtr2
+    z1 = ft1c if nz else 0.0
+    z2 = ft2c if nz else 0.0
+    ft1 = z1 if sl else ft1d
+    ft2 = z2 if sl else ft2d
+    # every value computed before the selects (an expensive operation inside a conditional arm
+    # stays a branch, which stops the vectoriser); & not `and` (no short circuit)
+    capped = sl & nz
+    k0 = -ft1c / kt
+    k1 = -ft2c / kt
+    u0 = k0 if capped else u0
+    u1 = k1 if capped else u1
     tor3 = enx * ft2 - eny * ft1
     fx = fn * enx + ft1
     fy = fn * eny + ft2
-    return fx, fy, -cri * tor3, -crj * tor3, s0, s1, sliding, fn
+    return (
+        1.0 if touch else 0.0,
+        fx,
+        fy,
+        -cri * tor3,
+        -crj * tor3,
+        u0 if touch else s0,
+        u1 if touch else s1,
+        1.0 if sl else 0.0,
+        deltan,
+        fn,
+    )
 
 
 @njit(inline="always")
-def hooke_history_lammps(
+def hooke_lammps(
     delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
 ):
-    """The same pair in LAMMPS' arithmetic: ``pair_style gran/hooke/history`` (29 Sep 2021).
+    """LAMMPS 29 Sep 2021 ``pair_style gran/hooke/history`` for one list entry, touching or not:
+    the one copy of this code's Hooke arithmetic (:func:`hooke_history_lammps` for a touching
+    pair, :func:`hooke_select_lammps` the block path), written without a data-dependent jump as
+    :func:`hooke_liggghts` (the same arguments).
 
-    The call signature and the returned tuple are those of :func:`hooke_history`; the law and the
-    floating-point order are those of LAMMPS' ``PairGranHookeHistory::compute``
+    The law and the floating-point order are those of LAMMPS' ``PairGranHookeHistory::compute``
     (src/GRANULAR/pair_gran_hooke_history.cpp, docs/lammps.md) restricted to 2D (z components are
     zero there and drop out exactly). What differs from LIGGGHTS' ``hooke/stiffness`` +
     ``tangential history``:
@@ -139,15 +172,16 @@ def hooke_history_lammps(
       |xi| != 0, F_t is scaled by mu|F_n|/|F_t| and the spring set to
       xi = (mu|F_n|/|F_t|)(xi + m_eff gammat v_t,rel/kt) - m_eff gammat v_t,rel/kt
       (so that -(kt xi + m_eff gammat v_t,rel) is the capped force); |xi| = 0: F_t = 0;
-    * torques -r_i (d x F_t)_z/r on i and -r_j (d x F_t)_z/r on j (full radii, same sign).
+    * torques -r_i (d x F_t)_z/r on i and -r_j (d x F_t)_z/r on j (full radii, same sign);
+    * a pair that does not touch has its spring reset to zero (so returned when not touching; the
+      entry-by-entry loops call :func:`spring_reset`); ``update`` False is LAMMPS' set-up
+      evaluation (``shearupdate = 0``: no increment and no projection; the cap still applies).
 
-    A pair that does not touch has its spring reset to zero by LAMMPS (the caller does that,
-    :func:`gransim.dem.kernels._entry`); ``update`` False is LAMMPS' set-up evaluation
-    (``shearupdate = 0``: no increment and no projection; the cap still applies).
-
-    Parameters and returns: as :func:`hooke_history` (``fn`` = ccel r, N; ``sliding`` the cap was
-    active).
+    Returns (touch, fx, fy, ti, tj, s0, s1, sliding, overlap, fn) as :func:`hooke_liggghts`, fn =
+    ccel r (N).
     """
+    radsum = radi + radj
+    touch = rsq < radsum * radsum
     r = math.sqrt(rsq)
     rinv = 1.0 / r
     rsqinv = 1.0 / rsq
@@ -162,36 +196,98 @@ def hooke_history_lammps(
     meff = mi * mj / (mi + mj)
     damp = meff * gamman * vnnr * rsqinv
     ccel = kn * ((radi + radj) - r) * rinv - damp
-    vtr1 = vt1 + dely * wr3  # vt1 - (delz wr2 - dely wr3), delz = wr2 = 0
-    vtr2 = vt2 - delx * wr3  # vt2 - (delx wr3 - delz wr1)
+    vtr1 = vt1 + dely * wr3
+    vtr2 = vt2 - delx * wr3
     if update:
-        s0 += vtr1 * dt
-        s1 += vtr2 * dt
-    shrmag = math.sqrt(s0 * s0 + s1 * s1)
-    rsht = (s0 * delx + s1 * dely) * rsqinv
+        u0 = s0 + vtr1 * dt
+        u1 = s1 + vtr2 * dt
+    else:
+        u0 = s0
+        u1 = s1
+    shrmag = math.sqrt(u0 * u0 + u1 * u1)
+    rsht = (u0 * delx + u1 * dely) * rsqinv
     if update:
-        s0 -= rsht * delx
-        s1 -= rsht * dely
+        u0 -= rsht * delx
+        u1 -= rsht * dely
     gt = meff * gammat
-    fs1 = -(kt * s0 + gt * vtr1)
-    fs2 = -(kt * s1 + gt * vtr2)
+    fs1 = -(kt * u0 + gt * vtr1)
+    fs2 = -(kt * u1 + gt * vtr2)
     fs = math.sqrt(fs1 * fs1 + fs2 * fs2)
     fn = mu * abs(ccel * r)
-    sliding = False
-    if fs > fn:
-        sliding = True
-        if shrmag != 0.0:
-            s0 = (fn / fs) * (s0 + gt * vtr1 / kt) - gt * vtr1 / kt
-            s1 = (fn / fs) * (s1 + gt * vtr2 / kt) - gt * vtr2 / kt
-            fs1 *= fn / fs
-            fs2 *= fn / fs
-        else:
-            fs1 = 0.0
-            fs2 = 0.0
+    sl = fs > fn
+    nz = shrmag != 0.0
+    q = fn / fs
+    capped = sl & nz
+    c0 = q * (u0 + gt * vtr1 / kt) - gt * vtr1 / kt
+    c1 = q * (u1 + gt * vtr2 / kt) - gt * vtr2 / kt
+    u0 = c0 if capped else u0
+    u1 = c1 if capped else u1
+    fq1 = fs1 * q
+    fq2 = fs2 * q
+    z1 = fq1 if nz else 0.0
+    z2 = fq2 if nz else 0.0
+    fs1 = z1 if sl else fs1
+    fs2 = z2 if sl else fs2
     fx = delx * ccel + fs1
     fy = dely * ccel + fs2
     tor3 = rinv * (delx * fs2 - dely * fs1)
-    return fx, fy, -(radi * tor3), -(radj * tor3), s0, s1, sliding, ccel * r
+    return (
+        1.0 if touch else 0.0,
+        fx,
+        fy,
+        -(radi * tor3),
+        -(radj * tor3),
+        u0 if touch else 0.0,
+        u1 if touch else 0.0,
+        1.0 if sl else 0.0,
+        radsum - r,
+        ccel * r,
+    )
+
+
+@njit(inline="always")
+def hooke_select_liggghts(
+    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+):
+    """:func:`hooke_liggghts` as the block path: (touch, fx, fy, ti, tj, s0, s1, sliding, overlap)."""
+    t, fx, fy, ti, tj, u0, u1, sl, dn, _ = hooke_liggghts(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+    )
+    return t, fx, fy, ti, tj, u0, u1, sl, dn
+
+
+@njit(inline="always")
+def hooke_select_lammps(
+    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+):
+    """:func:`hooke_lammps` as the block path: (touch, fx, fy, ti, tj, s0, s1, sliding, overlap)."""
+    t, fx, fy, ti, tj, u0, u1, sl, dn, _ = hooke_lammps(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+    )
+    return t, fx, fy, ti, tj, u0, u1, sl, dn
+
+
+@njit(inline="always")
+def hooke_history(
+    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+):
+    """:func:`hooke_liggghts` for one touching pair (rsq < (r_i + r_j)^2: the caller tests
+    contact): (fx, fy, ti, tj, s0, s1, sliding (bool), fn)."""
+    _, fx, fy, ti, tj, u0, u1, sl, _, fn = hooke_liggghts(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+    )
+    return fx, fy, ti, tj, u0, u1, sl != 0.0, fn
+
+
+@njit(inline="always")
+def hooke_history_lammps(
+    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+):
+    """:func:`hooke_lammps` for one touching pair: (fx, fy, ti, tj, s0, s1, sliding (bool), fn)."""
+    _, fx, fy, ti, tj, u0, u1, sl, _, fn = hooke_lammps(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+    )
+    return fx, fy, ti, tj, u0, u1, sl != 0.0, fn
 
 
 #: LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history`` (:func:`hooke_history`): kn, kt (N/m),
@@ -294,171 +390,6 @@ def hooke_energy(law, overlap, hist, radi=None, radj=None) -> float:
     project xi on the tangent plane each step (LIGGGHTS without rescaling: |xi| shrinks with the
     rotation of n, energy leaves the spring without work)."""
     return float(0.5 * law.kn * np.sum(overlap**2) + 0.5 * law.kt * np.sum(hist[:, :2] ** 2))
-
-
-# ------------------------------------------------------------------ branch-free twins (SIMD loops)
-@njit(inline="always")
-def hooke_select_liggghts(
-    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
-):
-    """:func:`hooke_history` for any entry, touching or not, without a data-dependent jump.
-
-    The same floating-point operations as :func:`hooke_history` on the path that function takes,
-    the branches (contact, ``force_magnitude``'s sign test, the Coulomb cap, a zero spring) written
-    as selects between values that are all computed, so a loop over list entries calling it can
-    run as SIMD code: every lane gives the bits of the scalar law (IEEE square root and division,
-    no fused multiply-add: ``fastmath`` is off, gransim/_numba.py). What a select throws away may be
-    inf or nan (a zero spring's ratio); it never reaches a result.
-
-    Returns (touch, fx, fy, ti, tj, s0, s1, sliding, overlap): touch 1.0 when rsq < (r_i + r_j)^2
-    (the loops' contact test) else 0.0, sliding 1.0 or 0.0 (floats, not bools: a bool taken out of
-    a returned tuple counts as an alias to numba's parfor analysis and keeps the caller's loop from
-    vectorising); fx, fy, ti, tj, sliding as :func:`hooke_history` when touching (meaningless
-    otherwise); the spring updated when touching, the stored one otherwise (LIGGGHTS keeps a
-    spring while its pair is in the list); overlap r_i + r_j - |d| (m).
-    """
-    radsum = radi + radj
-    touch = rsq < radsum * radsum
-    r = math.sqrt(rsq)
-    rinv = 1.0 / r
-    enx = delx * rinv
-    eny = dely * rinv
-    meff = mi * mj / (mi + mj)
-    vr1 = vix - vjx
-    vr2 = viy - vjy
-    vn = vr1 * enx + vr2 * eny
-    vt1 = vr1 - vn * enx
-    vt2 = vr2 - vn * eny
-    deltan = radsum - r
-    cri = radi - 0.5 * deltan
-    crj = radj - 0.5 * deltan
-    wr3 = (cri * wi + crj * wj) * rinv
-    vtr1 = vt1 + dely * wr3
-    vtr2 = vt2 - delx * wr3
-    eps = radsum - r
-    kne = kn * eps
-    fe = kne if eps > 0.0 else 0.0  # force_magnitude(eps, kn)
-    fn = -(meff * gamman) * vn + fe
-    if update:  # uniform over a loop (False only in the set-up evaluation)
-        u0 = s0 + vtr1 * dt
-        u1 = s1 + vtr2 * dt
-        rsht = u0 * enx + u1 * eny
-        u0 -= rsht * enx
-        u1 -= rsht * eny
-    else:
-        u0 = s0
-        u1 = s1
-    shrmag = math.sqrt(u0 * u0 + u1 * u1)
-    ft1 = -(kt * u0)
-    ft2 = -(kt * u1)
-    ft_shear = kt * shrmag
-    ft_friction = mu * abs(fn)
-    sl = ft_shear > ft_friction
-    nz = shrmag != 0.0
-    ratio = ft_friction / ft_shear
-    ft1c = ft1 * ratio
-    ft2c = ft2 * ratio
-    gt = meff * gammat
-    ft1d = ft1 - gt * vtr1
-    ft2d = ft2 - gt * vtr2
-    z1 = ft1c if nz else 0.0
-    z2 = ft2c if nz else 0.0
-    ft1 = z1 if sl else ft1d
-    ft2 = z2 if sl else ft2d
-    # every value computed before the selects (an expensive operation inside a conditional arm
-    # stays a branch, which stops the vectoriser); & not `and` (no short circuit)
-    capped = sl & nz
-    k0 = -ft1c / kt
-    k1 = -ft2c / kt
-    u0 = k0 if capped else u0
-    u1 = k1 if capped else u1
-    tor3 = enx * ft2 - eny * ft1
-    fx = fn * enx + ft1
-    fy = fn * eny + ft2
-    return (
-        1.0 if touch else 0.0,
-        fx,
-        fy,
-        -cri * tor3,
-        -crj * tor3,
-        u0 if touch else s0,
-        u1 if touch else s1,
-        1.0 if sl else 0.0,
-        deltan,
-    )
-
-
-@njit(inline="always")
-def hooke_select_lammps(
-    delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
-):
-    """:func:`hooke_history_lammps` for any entry without a data-dependent jump (as
-    :func:`hooke_select_liggghts`: the same operations, the branches as selects; bit for bit the
-    scalar law in every lane). A pair that does not touch gets its spring zeroed (LAMMPS'
-    ``PairGranHookeHistory::compute``, :func:`spring_reset`). Returns as
-    :func:`hooke_select_liggghts` (overlap r_i + r_j - |d|, m)."""
-    radsum = radi + radj
-    touch = rsq < radsum * radsum
-    r = math.sqrt(rsq)
-    rinv = 1.0 / r
-    rsqinv = 1.0 / rsq
-    vr1 = vix - vjx
-    vr2 = viy - vjy
-    vnnr = vr1 * delx + vr2 * dely
-    vn1 = delx * vnnr * rsqinv
-    vn2 = dely * vnnr * rsqinv
-    vt1 = vr1 - vn1
-    vt2 = vr2 - vn2
-    wr3 = (radi * wi + radj * wj) * rinv
-    meff = mi * mj / (mi + mj)
-    damp = meff * gamman * vnnr * rsqinv
-    ccel = kn * ((radi + radj) - r) * rinv - damp
-    vtr1 = vt1 + dely * wr3
-    vtr2 = vt2 - delx * wr3
-    if update:
-        u0 = s0 + vtr1 * dt
-        u1 = s1 + vtr2 * dt
-    else:
-        u0 = s0
-        u1 = s1
-    shrmag = math.sqrt(u0 * u0 + u1 * u1)
-    rsht = (u0 * delx + u1 * dely) * rsqinv
-    if update:
-        u0 -= rsht * delx
-        u1 -= rsht * dely
-    gt = meff * gammat
-    fs1 = -(kt * u0 + gt * vtr1)
-    fs2 = -(kt * u1 + gt * vtr2)
-    fs = math.sqrt(fs1 * fs1 + fs2 * fs2)
-    fn = mu * abs(ccel * r)
-    sl = fs > fn
-    nz = shrmag != 0.0
-    q = fn / fs
-    capped = sl & nz
-    c0 = q * (u0 + gt * vtr1 / kt) - gt * vtr1 / kt
-    c1 = q * (u1 + gt * vtr2 / kt) - gt * vtr2 / kt
-    u0 = c0 if capped else u0
-    u1 = c1 if capped else u1
-    fq1 = fs1 * q
-    fq2 = fs2 * q
-    z1 = fq1 if nz else 0.0
-    z2 = fq2 if nz else 0.0
-    fs1 = z1 if sl else fs1
-    fs2 = z2 if sl else fs2
-    fx = delx * ccel + fs1
-    fy = dely * ccel + fs2
-    tor3 = rinv * (delx * fs2 - dely * fs1)
-    return (
-        1.0 if touch else 0.0,
-        fx,
-        fy,
-        -(radi * tor3),
-        -(radj * tor3),
-        u0 if touch else 0.0,
-        u1 if touch else 0.0,
-        1.0 if sl else 0.0,
-        radsum - r,
-    )
 
 
 @njit(inline="always")

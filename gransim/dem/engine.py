@@ -260,7 +260,7 @@ class DEMEngine:
         # the rebuild rule of LAMMPS (check_rebuild clamp; DEMSettings.flavour, docs/lammps.md)
         self._clamp = s.flavour == "lammps"
         # numba threads of this engine's kernels, set around each call and restored after; serial
-        # mode on one: its SIMD force loop (kernels._forces_hooke_v) is a one-iteration parallel
+        # mode on one: its SIMD force loop (kernels._serial_block_loop) is a one-iteration parallel
         # loop, and a second OpenMP thread would spin-wait beside every step (libgomp's default
         # policy), burning a core that the user's other work (the codes' jobs) needs
         self._threads = check_threads(threads) if self._parallel else 1

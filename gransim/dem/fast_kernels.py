@@ -22,12 +22,13 @@ results do not depend on the number of threads or on the scheduling: the chunks 
 than the threads and are handed out dynamically (:func:`gransim._numba.dynamic_chunks`), so a
 descheduled thread holds back only the band it is working on.
 
-Contact law: LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history`` (the arithmetic of
-:func:`gransim.contacts.hooke.hooke_history`, eq (5) of Meier et al. for the elastic normal
-part), written without branches: the touch test and the Coulomb cap are selects, so the loop has
-no data-dependent jump (an entry that does not touch computes a force that is masked to zero and
-keeps its spring, as LIGGGHTS keeps it until the next list build). That is what lets the law run
-as SIMD code over the entries of a block (:func:`forces_v`).
+Contact law: LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history``, the one copy of its
+arithmetic in :func:`gransim.contacts.hooke.hooke_liggghts` (eq (5) of Meier et al. for the
+elastic normal part), written without branches: the touch test and the Coulomb cap are selects, so
+the loop has no data-dependent jump (an entry that does not touch computes a force that is masked
+to zero and keeps its spring, as LIGGGHTS keeps it until the next list build). That is what lets
+the law run as SIMD code over the entries of a block (:func:`forces_v`). Each pair is the bitwise
+engine's, bit for bit; the sums run in another order.
 """
 
 from __future__ import annotations
@@ -37,36 +38,18 @@ import math
 import numpy as np
 
 from .._numba import njit, pjit, prange
+from ..contacts.hooke import hooke_select_liggghts
 
 
 # ----------------------------------------------------------------------------------- the law
 @njit(inline="always")
 def hooke_select(
-    delx,
-    dely,
-    rsq,
-    radsum,
-    ri,
-    rj,
-    vix,
-    viy,
-    vjx,
-    vjy,
-    wi,
-    wj,
-    mi,
-    mj,
-    kn,
-    kt,
-    gn,
-    gt,
-    mu,
-    dt,
-    s0,
-    s1,
-    update,
-):
-    """Branch-free LIGGGHTS Hooke pair (same operations as ``hooke_history``, masked).
+    delx, dely, rsq, radsum, ri, rj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gn, gt, mu, dt, s0, s1, update
+):  # fmt: skip
+    """LIGGGHTS' Hooke pair as the fast path sums it: the branch-free law of the bitwise engine
+    (:func:`gransim.contacts.hooke.hooke_select_liggghts`: the same arithmetic, one copy), its
+    force, torques and overlap masked to zero when the disks do not touch (the fast loop sums
+    every entry). ``radsum`` = r_i + r_j (the law adds the radii itself, in the same order).
 
     Returns (touch, fx, fy, ti, tj, s0, s1, overlap): touch 1.0 when the disks touch
     (rsq < radsum^2) else 0.0 (a float, not a bool: a bool taken out of the returned tuple counts
@@ -74,64 +57,10 @@ def hooke_select(
     i (N; zero when apart), torques on i and j (N m), the spring (m; unchanged when apart) and the
     overlap radsum - |d| (m; zero when apart).
     """
-    touch = rsq < radsum * radsum
-    r = math.sqrt(rsq)
-    rinv = 1.0 / r
-    enx = delx * rinv
-    eny = dely * rinv
-    meff = mi * mj / (mi + mj)
-    vr1 = vix - vjx
-    vr2 = viy - vjy
-    vn = vr1 * enx + vr2 * eny
-    vt1 = vr1 - vn * enx
-    vt2 = vr2 - vn * eny
-    deltan = radsum - r
-    cri = ri - 0.5 * deltan
-    crj = rj - 0.5 * deltan
-    wr3 = (cri * wi + crj * wj) * rinv
-    vtr1 = vt1 + dely * wr3
-    vtr2 = vt2 - delx * wr3
-    fn = -(meff * gn) * vn + kn * deltan
-    if update:  # uniform over the loop (False only in the set-up evaluation)
-        u0 = s0 + vtr1 * dt
-        u1 = s1 + vtr2 * dt
-        rsht = u0 * enx + u1 * eny
-        u0 -= rsht * enx
-        u1 -= rsht * eny
-    else:
-        u0 = s0
-        u1 = s1
-    shrmag = math.sqrt(u0 * u0 + u1 * u1)
-    ft_shear = kt * shrmag
-    ft_friction = mu * abs(fn)
-    sl = ft_shear > ft_friction
-    # the Coulomb cap as a select: ratio = mu |F_n| / (kt |xi|) when sliding, exactly 1 otherwise
-    # (x / x = 1 in IEEE arithmetic); one division, no jump
-    ratio = ft_friction / max(ft_shear, ft_friction, 1e-300)
-    ft1 = -(kt * u0) * ratio
-    ft2 = -(kt * u1) * ratio
-    g = meff * gt
-    d1 = 0.0 if sl else g * vtr1
-    d2 = 0.0 if sl else g * vtr2
-    # the capped spring: xi ratio (LIGGGHTS: -F_t/kt, the same up to round-off)
-    n0 = u0 * ratio
-    n1 = u1 * ratio
-    ft1 = ft1 - d1
-    ft2 = ft2 - d2
-    tor3 = enx * ft2 - eny * ft1
-    fx = fn * enx + ft1
-    fy = fn * eny + ft2
-    mask = 1.0 if touch else 0.0
-    return (
-        mask,
-        mask * fx,
-        mask * fy,
-        mask * (-cri * tor3),
-        mask * (-crj * tor3),
-        n0 if touch else s0,
-        n1 if touch else s1,
-        mask * deltan,
+    touch, fx, fy, ti, tj, u0, u1, _, dn = hooke_select_liggghts(
+        delx, dely, rsq, ri, rj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gn, gt, mu, dt, s0, s1, update
     )
+    return touch, touch * fx, touch * fy, touch * ti, touch * tj, u0, u1, touch * dn
 
 
 # ----------------------------------------------------------------------------------- forces

@@ -12,15 +12,28 @@ The step loop :func:`run_block` and the force loops take a few namedtuples of ar
 :class:`Series`) and a contact-law object (:mod:`gransim.contacts.laws`): the law is called
 through ``pair_force(law, ...)``, resolved at compile time by the law's type, so each law gets its
 own compiled (and disk-cached) loop and a new law needs no edit here. The LAMMPS 29Sep2021
-arithmetic (``DEMSettings(flavour="lammps")``, docs/lammps.md) is the law ``HookeLammps`` (its
+arithmetic (``DEMSettings(flavour="lammps")``, docs/lammps.md) is the law "hooke-lammps" (its
 spring reset to zero whenever its pair does not touch) plus the clamped rebuild rule
 (:func:`check_rebuild`); the integrator, the box deformation and the neighbour list are the same
 in both codes.
 
-The serial force loop is shared with the sheared cell (:mod:`gransim.dem.sheared_kernels`): the
-cell's periodic image is a second compile-time plug-in (:data:`OrthoImage`, :data:`TiltedImage`;
-:func:`image_branch`, :func:`image_velocity`), the per-entry evaluation :func:`_pair` is one
-function for the serial loops of both cells and the threaded loop.
+The force loops have one skeleton: evaluate the law on the list entries, then accumulate in the
+order the ordering requires. Evaluation: entry by entry (:func:`_pair`, the law's pair function,
+any law, either cell) or, for a law that offers a branch-free block path (``LawSpec.select``: the
+Hooke laws), over blocks of :data:`ENTRY_BLOCK` entries as SIMD code (:func:`_select_block`);
+the choice is made at compile time from the law's registration (:func:`_serial_dispatch`,
+:func:`_threaded_dispatch`), no class is named here. Accumulation: the codes' serial order
+(:func:`_tally_serial`: force on a, on b for an owned pair, virial per owner, contacts, overlap,
+entry by entry in list order) or the threaded order (:func:`_tally_particle`: each particle's own
+sums, then the incoming entries, :func:`_incoming_forces`). So four loops, each an evaluation and
+an accumulation written once: :func:`_serial_loop` (entries; the loop of the sheared cell too,
+whose image is a second compile-time plug-in: :data:`OrthoImage`, :data:`TiltedImage`,
+:func:`image_branch`, :func:`image_velocity`), :func:`_serial_block_loop` (blocks),
+:func:`_threaded_scalar_loop` (entries) and :func:`_threaded_block_loop` (blocks); the block and
+the threaded loops are ``parallel=True`` kernels on unpacked arrays (gransim/_numba.py, "Unpacked
+arrays"). Every evaluation of a contact is the same operations in the same order, so all loops
+give each contact's force bit for bit alike (tests/dem/test_simd_bitwise.py,
+test_threaded_bitwise.py).
 """
 
 from __future__ import annotations
@@ -32,15 +45,7 @@ import numpy as np
 from numba.extending import overload
 
 from .._numba import njit, pjit, prange
-from ..contacts.hooke import (  # noqa: F401
-    HookeLammps,
-    HookeLiggghts,
-    hooke_history,
-    hooke_history_lammps,
-    hooke_select_lammps,
-    hooke_select_liggghts,
-)
-from ..contacts.laws import pair_apart, pair_force_split
+from ..contacts.laws import make_law, offers_select, pair_apart, pair_force_split, pair_select
 
 #: particle state: x (N, 2) m, v (N, 2) m/s, w (N,) rad/s, f (N, 2) N, t (N,) N m, m (N,) kg, r (N,) m
 Particles = namedtuple("Particles", ["x", "v", "w", "f", "t", "m", "r"])
@@ -142,7 +147,7 @@ def rebuild_deltasq(lo, hi, lo_hold, hi_hold, skin, clamp):
 
 
 #: particles per task of the threaded kernels of mode "parallel" (:func:`initial_check_threaded`,
-#: :func:`final_threaded`, :func:`_forces_threaded_hooke_v`, :func:`_forces_threaded`,
+#: :func:`final_threaded`, :func:`_threaded_block_loop`, :func:`_threaded_scalar_loop`,
 #: :func:`_incoming_forces`, :func:`_liggghts_pairs_threaded`): fixed, so that the results do not
 #: depend on the thread count (the engine runs a packing of one task on one thread)
 PARTICLE_BLOCK = 1024
@@ -473,15 +478,15 @@ def _entry(law, e, a, b, x, v, w, r, m, esx, esy, hist, Lx, Ly, dt, update):
 def forces(p, nb, law, Lx, Ly, dt, update, vir, store):
     """Serial force loop over the half list ``nb`` (LIGGGHTS ``newton off``) with the contact law
     ``law`` (any registered law: :mod:`gransim.contacts.laws`; one compiled copy per law type) in
-    the orthogonal cell of side lengths (Lx, Ly) (m): :func:`forces_in` with :data:`OrthoImage`;
-    for the two Hooke laws the same loop as SIMD code (:func:`_forces_hooke_v`, bit for bit the
-    same results)."""
-    return ortho_forces(p, nb, law, Lx, Ly, dt, update, vir, store)
+    the orthogonal cell of side lengths (Lx, Ly) (m): :func:`forces_in` with :data:`OrthoImage`,
+    or, for a law that offers a branch-free block path (``LawSpec.select``: the Hooke laws), the
+    same loop as SIMD code (:func:`_serial_block_loop`, bit for bit the same results)."""
+    return _serial_dispatch(p, nb, law, Lx, Ly, dt, update, vir, store)
 
 
-def _ortho_simd(p, nb, law, Lx, Ly, dt, update, vir, store):
+def _serial_blocks(p, nb, law, Lx, Ly, dt, update, vir, store):
     acc = np.empty(2)
-    _forces_hooke_v(
+    _serial_block_loop(
         p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.a, nb.b, nb.sx, nb.sy, nb.both.view(np.uint8), nb.hist,
         nb.slide.view(np.uint8), nb.ef,
         law, Lx, Ly, dt, update, vir, store, acc,
@@ -489,68 +494,90 @@ def _ortho_simd(p, nb, law, Lx, Ly, dt, update, vir, store):
     return acc[0], acc[1]
 
 
-def _ortho_generic(p, nb, law, Lx, Ly, dt, update, vir, store):
+def _serial_entries(p, nb, law, Lx, Ly, dt, update, vir, store):
     return _serial_loop(p, nb, law, OrthoImage(Lx, Ly), dt, update, vir, store)
 
 
-def ortho_forces(p, nb, law, Lx, Ly, dt, update, vir, store):
+def _serial_dispatch(p, nb, law, Lx, Ly, dt, update, vir, store):
     """The serial orthogonal-cell force loop for ``law`` (resolved at compile time by its type):
-    :func:`_forces_hooke_v` for :class:`HookeLiggghts` and :class:`HookeLammps`, the generic
+    :func:`_serial_block_loop` for a law that offers a block path, the entry-by-entry
     :func:`_serial_loop` otherwise. Interpreted (NUMBA_DISABLE_JIT): the same choice."""
-    fn = _ortho_simd if isinstance(law, (HookeLiggghts, HookeLammps)) else _ortho_generic
+    fn = _serial_blocks if offers_select(type(law)) else _serial_entries
     return fn(p, nb, law, Lx, Ly, dt, update, vir, store)
 
 
 # not inline="always": inlined at numba's IR level, this overload doubled the compile time of every
 # law's step loop (hertz-liggghts' biaxial run 12-14 s -> 21 s of CPU, measured); as a call it adds
 # nothing measurable per step
-@overload(ortho_forces)
-def _ov_ortho_forces(p, nb, law, Lx, Ly, dt, update, vir, store):
-    hooke = getattr(law, "instance_class", None) in (HookeLiggghts, HookeLammps)
-    return _ortho_simd if hooke else _ortho_generic
+@overload(_serial_dispatch)
+def _ov_serial_dispatch(p, nb, law, Lx, Ly, dt, update, vir, store):
+    return _serial_blocks if offers_select(law) else _serial_entries
 
 
-def _hooke_select_of(cls):
-    """The branch-free pair function of the Hooke law class ``cls``, taking the law object."""
-    fn = hooke_select_lammps if cls is HookeLammps else hooke_select_liggghts
+@njit(inline="always")
+def _tally_serial(a, b, owned, fx, fy, ta, tb, ta2, tb2, delx, dely, ov, f, t, v0, v1, v2, v3, nc, so):
+    """One touching entry (a, b) summed in the codes' order (``newton off``): force and torque on
+    a, minus the force and b's torque on b when the pair is owned (``owned``; a boundary copy acts
+    on its owner a only), the second torques after the first (``LawSpec.split_torque``; -0.0, an
+    exact no-op, for the other laws), the virial 0.5 d (x) f per owner (``ev_tally_xyz``; N m) and
+    the contact weight (1 owned, 1/2 a boundary copy) and its overlap ``ov`` (m). Returns the sums
+    (v0, v1, v2, v3, contacts, overlap). The accumulation of both serial loops."""
+    f[a, 0] += fx
+    f[a, 1] += fy
+    t[a] += ta
+    t[a] += ta2
+    wgt = 0.5
+    if owned:
+        f[b, 0] += -fx
+        f[b, 1] += -fy
+        t[b] += tb
+        t[b] += tb2
+        v0 += 0.5 * (delx * fx)
+        v1 += 0.5 * (dely * fy)
+        v2 += 0.5 * (delx * fy)
+        v3 += 0.5 * (dely * fx)
+        wgt = 1.0
+    v0 += 0.5 * (delx * fx)
+    v1 += 0.5 * (dely * fy)
+    v2 += 0.5 * (delx * fy)
+    v3 += 0.5 * (dely * fx)
+    return v0, v1, v2, v3, nc + wgt, so + wgt * ov
 
-    def impl(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
-        return fn(
-            delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-            law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, s0, s1, update,
-        )  # fmt: skip
 
-    return impl
-
-
-def hooke_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
-    """The branch-free pair of a Hooke law (:func:`gransim.contacts.hooke.hooke_select_liggghts` or
-    ``hooke_select_lammps`` by the law's type, at compile time). Interpreted fallback."""
-    return _hooke_select_of(type(law))(
-        law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update
-    )
-
-
-@overload(hooke_select, inline="always")
-def _ov_hooke_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
-    return _hooke_select_of(getattr(law, "instance_class", None))
+@njit(inline="always")
+def _tally_particle(owned, fx, fy, ta, ta2, delx, dely, ov, fxa, fya, tqa, v0, v1, v2, v3, nc, so):
+    """One touching entry of particle a summed into a's own sums (the first pass of the threaded
+    loops, particle by particle): force, torque (then the second torque), virial weighted 1 for an
+    owned pair and 1/2 for a boundary copy (a's share; b's comes with its incoming entries),
+    contacts and overlap. Returns (fxa, fya, tqa, v0, v1, v2, v3, contacts, overlap). The
+    accumulation of both threaded loops."""
+    fxa += fx
+    fya += fy
+    tqa += ta
+    tqa += ta2
+    wgt = 1.0 if owned else 0.5
+    v0 += wgt * (delx * fx)
+    v1 += wgt * (dely * fy)
+    v2 += wgt * (delx * fy)
+    v3 += wgt * (dely * fx)
+    return fxa, fya, tqa, v0, v1, v2, v3, nc + wgt, so + wgt * ov
 
 
-#: list entries per block of the SIMD force loops (:func:`_forces_hooke_v`,
-#: :func:`_forces_threaded_hooke_v`)
+#: list entries per block of the SIMD force loops (:func:`_serial_block_loop`,
+#: :func:`_threaded_block_loop`)
 ENTRY_BLOCK = 256
 
 
 @njit(inline="always")
-def _hooke_block(
+def _select_block(
     law, e0, e1, ea, eb, x, v, w, r, m, esx, esy, Lx, Ly, dt, update, hist,
     bh0, bh1, bfx, bfy, bta, btb, bdx, bdy, bov, bto, bsl,
 ):  # fmt: skip
-    """The Hooke law over the list entries e0..e1 (at most :data:`ENTRY_BLOCK`) as one flat loop
-    into the block buffers (:func:`hooke_select`: every entry evaluated, contact and cap as
-    selects), which LLVM turns into SIMD code: force, torques on a and b, branch, overlap, contact
-    and cap flags, and the new spring in ``bh0``, ``bh1`` (not yet written back to ``hist``). The
-    block law of both SIMD force loops."""
+    """The law's block path over the list entries e0..e1 (at most :data:`ENTRY_BLOCK`) as one flat
+    loop into the block buffers (:func:`gransim.contacts.laws.pair_select`: every entry evaluated,
+    contact and cap as selects), which LLVM turns into SIMD code: force, torques on a and b,
+    branch, overlap, contact and cap flags, and the new spring in ``bh0``, ``bh1`` (not yet written
+    back to ``hist``). The block evaluation of both SIMD force loops."""
     # the spring in two contiguous block buffers: the (M, 2) rows' stride-2 loads and stores keep
     # LLVM from vectorising the law loop (measured in the compiled code)
     for e in range(e0, e1):
@@ -564,7 +591,7 @@ def _hooke_block(
         delx = x[a, 0] - (x[b, 0] + esx[u] * Lx)
         dely = x[a, 1] - (x[b, 1] + esy[u] * Ly)
         rsq = delx * delx + dely * dely
-        touch, fx, fy, ta, tb, s0, s1, sl, dn = hooke_select(
+        touch, fx, fy, ta, tb, s0, s1, sl, dn = pair_select(
             law, delx, dely, rsq, r[a], r[b], v[a, 0], v[a, 1], v[b, 0], v[b, 1], w[a], w[b], m[a], m[b],
             dt, bh0[q], bh1[q], update,
         )  # fmt: skip
@@ -582,13 +609,14 @@ def _hooke_block(
 
 
 @pjit
-def _forces_hooke_v(
+def _serial_block_loop(
     x, v, w, f, t, m, r, ea, eb, esx, esy, both, hist, slide, ef, law, Lx, Ly, dt, update, vir, store, acc
 ):
-    """:func:`_serial_loop` of the orthogonal cell for a Hooke law, as SIMD code, bit for bit.
+    """:func:`_serial_loop` of the orthogonal cell for a law with a block path, as SIMD code, bit
+    for bit.
 
     Per block of :data:`ENTRY_BLOCK` list entries: the pair law over the block as one flat loop
-    (:func:`hooke_select`: every entry evaluated, contact and Coulomb cap as selects, spring
+    (:func:`_select_block`: every entry evaluated, contact and Coulomb cap as selects, spring
     written back unconditionally) into block buffers, which LLVM turns into SIMD code (gathers of
     both partners, packed square roots and divisions: IEEE operations, so each lane has the bits
     of the scalar law); then the sums of the touching entries in list order, exactly as
@@ -600,7 +628,7 @@ def _forces_hooke_v(
     The one-iteration ``prange`` is what lets the law loop vectorise: numba marks the arrays of a
     parallel loop body ``noalias`` when it finds no alias among them (in a plain ``njit`` kernel
     the gathers might alias the stores), docs/performance.md "The SIMD force loop". The arrays are
-    arguments (not taken out of namedtuples here: see :func:`_forces_threaded`), the bool arrays
+    arguments (not taken out of namedtuples: gransim/_numba.py, "Unpacked arrays"), the bool arrays
     ``both`` and ``slide`` as uint8 views (reading a bool array argument turns numba's ``noalias``
     off, measured in the compiled code), the spring copied through two contiguous block buffers.
     ``acc`` (2,) receives (contacts, sum of overlaps); ``vir`` (4,) the virial.
@@ -631,7 +659,7 @@ def _forces_hooke_v(
         sum_overlap = 0.0
         for e0 in range(0, ne, ENTRY_BLOCK):
             e1 = min(e0 + ENTRY_BLOCK, ne)
-            _hooke_block(
+            _select_block(
                 law, e0, e1, ea, eb, x, v, w, r, m, esx, esy, Lx, Ly, dt, update, hist,
                 bh0, bh1, bfx, bfy, bta, btb, bdx, bdy, bov, bto, bsl,
             )  # fmt: skip
@@ -640,36 +668,17 @@ def _forces_hooke_v(
                 hist[e, 0] = bh0[k]
                 hist[e, 1] = bh1[k]
                 if bto[k] != 0.0:
-                    ia = ea[e]
                     gx = bfx[k]
                     gy = bfy[k]
                     if store:
                         slide[e] = 1 if bsl[k] != 0.0 else 0
                         ef[e, 0] = gx
                         ef[e, 1] = gy
-                    # _serial_loop also adds the law's second torques, -0.0 for Hooke: x + -0.0 is x
-                    f[ia, 0] += gx
-                    f[ia, 1] += gy
-                    t[ia] += bta[k]
-                    gdx = bdx[k]
-                    gdy = bdy[k]
-                    wgt = 0.5
-                    if both[e] != 0:
-                        ib = eb[e]
-                        f[ib, 0] += -gx
-                        f[ib, 1] += -gy
-                        t[ib] += btb[k]
-                        v0 += 0.5 * (gdx * gx)
-                        v1 += 0.5 * (gdy * gy)
-                        v2 += 0.5 * (gdx * gy)
-                        v3 += 0.5 * (gdy * gx)
-                        wgt = 1.0
-                    v0 += 0.5 * (gdx * gx)
-                    v1 += 0.5 * (gdy * gy)
-                    v2 += 0.5 * (gdx * gy)
-                    v3 += 0.5 * (gdy * gx)
-                    ncontact += wgt
-                    sum_overlap += wgt * bov[k]
+                    # no second torques (a law with a block path splits none): -0.0, folded away
+                    v0, v1, v2, v3, ncontact, sum_overlap = _tally_serial(
+                        ea[e], eb[e], both[e] != 0, gx, gy, bta[k], btb[k], -0.0, -0.0, bdx[k], bdy[k], bov[k],
+                        f, t, v0, v1, v2, v3, ncontact, sum_overlap,
+                    )  # fmt: skip
                 elif store:
                     slide[e] = 0
                     ef[e, 0] = 0.0
@@ -714,10 +723,10 @@ def _serial_loop(p, nb, law, img, dt, update, vir, store):
         f[i, 0] = 0.0
         f[i, 1] = 0.0
         t[i] = 0.0
-    vir[0] = 0.0
-    vir[1] = 0.0
-    vir[2] = 0.0
-    vir[3] = 0.0
+    v0 = 0.0
+    v1 = 0.0
+    v2 = 0.0
+    v3 = 0.0
     ncontact = 0.0
     sum_overlap = 0.0
     for e in range(ea.shape[0]):
@@ -732,31 +741,18 @@ def _serial_loop(p, nb, law, img, dt, update, vir, store):
                 slide[e] = sl
                 ef[e, 0] = fx
                 ef[e, 1] = fy
-            f[a, 0] += fx
-            f[a, 1] += fy
-            t[a] += ta
-            t[a] += ta2
-            wgt = 0.5
-            if both[e]:
-                f[b, 0] += -fx
-                f[b, 1] += -fy
-                t[b] += tb
-                t[b] += tb2
-                vir[0] += 0.5 * (delx * fx)
-                vir[1] += 0.5 * (dely * fy)
-                vir[2] += 0.5 * (delx * fy)
-                vir[3] += 0.5 * (dely * fx)
-                wgt = 1.0
-            vir[0] += 0.5 * (delx * fx)
-            vir[1] += 0.5 * (dely * fy)
-            vir[2] += 0.5 * (delx * fy)
-            vir[3] += 0.5 * (dely * fx)
-            ncontact += wgt
-            sum_overlap += wgt * (radsum - math.sqrt(rsq))
+            v0, v1, v2, v3, ncontact, sum_overlap = _tally_serial(
+                a, b, both[e], fx, fy, ta, tb, ta2, tb2, delx, dely, radsum - math.sqrt(rsq),
+                f, t, v0, v1, v2, v3, ncontact, sum_overlap,
+            )  # fmt: skip
         elif store:
             slide[e] = False
             ef[e, 0] = 0.0
             ef[e, 1] = 0.0
+    vir[0] = v0
+    vir[1] = v1
+    vir[2] = v2
+    vir[3] = v3
     return ncontact, sum_overlap
 
 
@@ -768,15 +764,15 @@ def forces_threaded(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
     torque on b ``nb.tb``), own sums; pass 2 (threads over q): minus the forces and the torques of
     incoming entries. No two threads write the same particle; deterministic; the summation order
     differs from the serial loop (round-off). ``pvir`` (N, 4), ``pcont`` (N, 2) per-particle
-    virial and contact count/overlap sums (owned pairs weight 1, boundary copies 1/2). For the two
-    Hooke laws the pair law runs as SIMD code (:func:`_forces_threaded_hooke_v`, the same results
-    bit for bit), for the other laws :func:`_forces_threaded`.
+    virial and contact count/overlap sums (owned pairs weight 1, boundary copies 1/2). For a law
+    with a block path (the Hooke laws) the pair law runs as SIMD code (:func:`_threaded_block_loop`,
+    the same results bit for bit), for the other laws entry by entry (:func:`_threaded_scalar_loop`).
     """
-    threaded_forces(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store)
+    _threaded_dispatch(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store)
 
 
 @pjit
-def _forces_threaded(
+def _threaded_scalar_loop(
     x,
     v,
     w,
@@ -804,10 +800,9 @@ def _forces_threaded(
     pcont,
     store,
 ):
-    """:func:`forces_threaded` on the unpacked arrays. With the arrays taken out of the
-    namedtuples inside this ``parallel=True`` function, numba 0.68 returned wrong torques on b
-    (1e-5 N m off the serial loop and the interpreted kernel, measured; presumably its parfor pass
-    merging the two ``prange`` loops); as arguments, as here, the result is right."""
+    """:func:`forces_threaded` entry by entry, on the unpacked arrays (gransim/_numba.py,
+    "Unpacked arrays": taken out of the namedtuples inside this ``parallel=True`` function, the
+    torques on b came out wrong)."""
     n = x.shape[0]
     ntask = (n + PARTICLE_BLOCK - 1) // PARTICLE_BLOCK
     for c in prange(ntask):
@@ -823,7 +818,7 @@ def _forces_threaded(
 def _threaded_particle(
     a, x, v, w, f, t, m, r, start, eb, esx, esy, both, hist, slide, ef, tb, law, Lx, Ly, dt, update, pvir, pcont, store
 ):
-    # the first pass of _forces_threaded for particle a: its entries, its sums
+    # the first pass of _threaded_scalar_loop for particle a: its entries, its sums
     fxa = 0.0
     fya = 0.0
     ta = 0.0
@@ -844,17 +839,9 @@ def _threaded_particle(
             ef[e, 0] = fx
             ef[e, 1] = fy
             tb[e] = tqb + tqb2
-            fxa += fx
-            fya += fy
-            ta += tq
-            ta += tq2
-            wgt = 1.0 if both[e] else 0.5
-            v0 += wgt * (delx * fx)
-            v1 += wgt * (dely * fy)
-            v2 += wgt * (delx * fy)
-            v3 += wgt * (dely * fx)
-            nca += wgt
-            ova += wgt * (radsum - math.sqrt(rsq))
+            fxa, fya, ta, v0, v1, v2, v3, nca, ova = _tally_particle(
+                both[e], fx, fy, tq, tq2, delx, dely, radsum - math.sqrt(rsq), fxa, fya, ta, v0, v1, v2, v3, nca, ova
+            )
         else:
             if store:
                 slide[e] = False
@@ -904,22 +891,23 @@ def _incoming_forces(f, t, ef, tb, in_start, in_e):
 
 
 @pjit
-def _forces_threaded_hooke_v(
+def _threaded_block_loop(
     x, v, w, f, t, m, r, ea, start, eb, esx, esy, both, hist, slide, ef, tb, in_start, in_e,
     law, Lx, Ly, dt, update, pvir, pcont, store,
 ):  # fmt: skip
-    """:func:`_forces_threaded` for a Hooke law, its pair law as SIMD code, bit for bit.
+    """:func:`_threaded_scalar_loop` for a law with a block path, its pair law as SIMD code, bit
+    for bit.
 
     Tasks of :data:`PARTICLE_BLOCK` particles spread over the threads; in each, the entries of its
     particles (contiguous: the list is sorted by a) in blocks of :data:`ENTRY_BLOCK`: the
-    branch-free law over the block into block buffers (:func:`hooke_select`, as
-    :func:`_forces_hooke_v`), then the block's entries in list order: the per-entry outputs, and
+    branch-free law over the block into block buffers (:func:`_select_block`, as
+    :func:`_serial_block_loop`), then the block's entries in list order: the per-entry outputs, and
     the sums of each particle a (force, torque, virial, contacts, overlap) in the order and with
-    the operations of :func:`_forces_threaded`, written when its last entry is passed. The second
-    pass (minus the forces and torques of the incoming entries) is that of
-    :func:`_forces_threaded`. The results equal :func:`_forces_threaded`'s bit for bit
+    the operations of :func:`_threaded_scalar_loop`, written when its last entry is passed. The
+    second pass (minus the forces and torques of the incoming entries) is that of
+    :func:`_threaded_scalar_loop`. The results equal :func:`_threaded_scalar_loop`'s bit for bit
     (tests/dem/test_simd_bitwise.py); ``both`` and ``slide`` as uint8 views (see
-    :func:`_forces_hooke_v`)."""
+    :func:`_serial_block_loop`)."""
     n = x.shape[0]
     ntask = (n + PARTICLE_BLOCK - 1) // PARTICLE_BLOCK
     for c in prange(ntask):
@@ -959,7 +947,7 @@ def _forces_threaded_hooke_v(
         ova = 0.0
         for e0 in range(start[a0], start[a1], ENTRY_BLOCK):
             e1 = min(e0 + ENTRY_BLOCK, start[a1])
-            _hooke_block(
+            _select_block(
                 law, e0, e1, ea, eb, x, v, w, r, m, esx, esy, Lx, Ly, dt, update, hist,
                 bh0, bh1, bfx, bfy, bta, btb, bdx, bdy, bov, bto, bsl,
             )  # fmt: skip
@@ -987,20 +975,27 @@ def _forces_threaded_hooke_v(
                         slide[e] = 1 if bsl[k] != 0.0 else 0
                     ef[e, 0] = gx
                     ef[e, 1] = gy
-                    # _forces_threaded adds the law's second torques, -0.0 for Hooke: x + -0.0 is x
                     tb[e] = btb[k]
-                    fxa += gx
-                    fya += gy
-                    ta += bta[k]
-                    wgt = 1.0 if both[e] != 0 else 0.5
-                    gdx = bdx[k]
-                    gdy = bdy[k]
-                    v0 += wgt * (gdx * gx)
-                    v1 += wgt * (gdy * gy)
-                    v2 += wgt * (gdx * gy)
-                    v3 += wgt * (gdy * gx)
-                    nca += wgt
-                    ova += wgt * bov[k]
+                    # no second torques (a law with a block path splits none): -0.0, folded away
+                    fxa, fya, ta, v0, v1, v2, v3, nca, ova = _tally_particle(
+                        both[e] != 0,
+                        gx,
+                        gy,
+                        bta[k],
+                        -0.0,
+                        bdx[k],
+                        bdy[k],
+                        bov[k],
+                        fxa,
+                        fya,
+                        ta,
+                        v0,
+                        v1,
+                        v2,
+                        v3,
+                        nca,
+                        ova,
+                    )
                 else:
                     if store:
                         slide[e] = 0
@@ -1012,89 +1007,50 @@ def _forces_threaded_hooke_v(
     _incoming_forces(f, t, ef, tb, in_start, in_e)
 
 
-def _threaded_simd(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
-    _forces_threaded_hooke_v(
+def _threaded_blocks(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
+    _threaded_block_loop(
         p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.a, nb.start, nb.b, nb.sx, nb.sy, nb.both.view(np.uint8),
         nb.hist, nb.slide.view(np.uint8), nb.ef, nb.tb, nb.in_start, nb.in_e,
         law, Lx, Ly, dt, update, pvir, pcont, store,
     )  # fmt: skip
 
 
-def _threaded_generic(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
-    _forces_threaded(
+def _threaded_entries(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
+    _threaded_scalar_loop(
         p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.start, nb.b, nb.sx, nb.sy, nb.both, nb.hist, nb.slide, nb.ef,
         nb.tb, nb.in_start, nb.in_e, law, Lx, Ly, dt, update, pvir, pcont, store,
     )  # fmt: skip
 
 
-def threaded_forces(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
+def _threaded_dispatch(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
     """The threaded force loop for ``law`` (resolved at compile time by its type, as
-    :func:`ortho_forces`): :func:`_forces_threaded_hooke_v` for :class:`HookeLiggghts` and
-    :class:`HookeLammps`, the generic :func:`_forces_threaded` otherwise."""
-    fn = _threaded_simd if isinstance(law, (HookeLiggghts, HookeLammps)) else _threaded_generic
+    :func:`_serial_dispatch`): :func:`_threaded_block_loop` for a law that offers a block path,
+    :func:`_threaded_scalar_loop` otherwise."""
+    fn = _threaded_blocks if offers_select(type(law)) else _threaded_entries
     fn(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store)
 
 
-@overload(threaded_forces)
-def _ov_threaded_forces(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
-    hooke = getattr(law, "instance_class", None) in (HookeLiggghts, HookeLammps)
-    return _threaded_simd if hooke else _threaded_generic
+@overload(_threaded_dispatch)
+def _ov_threaded_dispatch(p, nb, law, Lx, Ly, dt, update, pvir, pcont, store):
+    return _threaded_blocks if offers_select(law) else _threaded_entries
 
 
-@njit
 def forces_half(
-    x,
-    v,
-    w,
-    r,
-    m,
-    ea,
-    eb,
-    esx,
-    esy,
-    both,
-    xi,
-    Lx,
-    Ly,
-    kn,
-    kt,
-    gn,
-    gt,
-    mu,
-    dt,
-    update,
-    f,
-    t,
-    vir,
-    slide,
-    ef,
-    store,
+    x, v, w, r, m, ea, eb, esx, esy, both, xi, Lx, Ly, kn, kt, gn, gt, mu, dt, update, f, t, vir, slide, ef, store,
     lammps=False,
-):
-    """The Hooke force loop with unpacked arguments (kept for callers of the former signature,
-    e.g. ``bench/_dem_job.py``): :func:`forces` with the law ``HookeLammps`` when ``lammps``,
-    else ``HookeLiggghts`` (:mod:`gransim.contacts.hooke`); the same arithmetic bit for bit."""
+):  # fmt: skip
+    """The Hooke force loop with unpacked arguments (a profile of bench/_dem_job.py and
+    tests/dem/test_lammps.py call it): :func:`forces` with the law "hooke-lammps" when ``lammps``,
+    else "hooke-liggghts", built by name; the same arithmetic bit for bit. Returns (contacts, sum
+    of overlaps)."""
+    law = make_law("hooke-lammps" if lammps else "hooke-liggghts", kn=kn, kt=kt, gamma_n=gn, gamma_t=gt, mu=mu)
     p = Particles(x, v, w, f, t, m, r)
     z = np.zeros(0, np.int64)
     nb = Neighbours(
-        ea,
-        eb,
-        np.zeros((0, 2), np.int64),
-        esx,
-        esy,
-        both,
-        xi,
-        z,
-        z,
-        z,
-        np.zeros((0, 2)),
-        slide,
-        ef,
+        ea, eb, np.zeros((0, 2), np.int64), esx, esy, both, xi, z, z, z, np.zeros((0, 2)), slide, ef,
         np.zeros(ea.shape[0]),
-    )
-    if lammps:
-        return forces(p, nb, HookeLammps(kn, kt, gn, gt, mu), Lx, Ly, dt, update, vir, store)
-    return forces(p, nb, HookeLiggghts(kn, kt, gn, gt, mu), Lx, Ly, dt, update, vir, store)
+    )  # fmt: skip
+    return forces(p, nb, law, Lx, Ly, dt, update, vir, store)
 
 
 @njit

@@ -1,4 +1,4 @@
-"""The bitwise engine's SIMD force loop for the Hooke laws (gransim.dem.kernels._forces_hooke_v).
+"""The bitwise engine's SIMD force loop for the Hooke laws (gransim.dem.kernels._serial_block_loop).
 
 The bitwise engine must keep LIGGGHTS' and LAMMPS' bits (docs/dem.md), so its vectorised loop is
 held to equality, not to round-off: against the generic scalar loop (``_serial_loop``, the loop of
@@ -188,7 +188,7 @@ def test_simd_loop_is_compiled_to_simd_code():
     if " avx2" not in flags:
         pytest.skip("no AVX2 on this CPU: the gathers need it")
     e, s = _engine("liggghts")
-    k = numba.njit(**{**JIT_OPTIONS, "cache": False, "parallel": True})(K._forces_hooke_v.py_func)
+    k = numba.njit(**{**JIT_OPTIONS, "cache": False, "parallel": True})(K._serial_block_loop.py_func)
     p, nb, L = e.p, e.nb, e.box_lengths
     k(p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.a, nb.b, nb.sx, nb.sy, nb.both.view(np.uint8), nb.hist,
       nb.slide.view(np.uint8), nb.ef, e.law, L[0], L[1], s.dt, True, np.zeros(4), True, np.zeros(2))  # fmt: skip
@@ -261,4 +261,4 @@ def test_the_hooke_laws_take_the_simd_loop_and_the_others_the_generic_one(flavou
         nb = e.nb if simd else e.nb._replace(hist=np.zeros((e.nb.a.shape[0], law_spec(other).width)))
         k(_copy(e.p), _copy(nb), law, L[0], L[1], s.dt, True, np.zeros(4), True)
         ir = k.inspect_llvm(k.signatures[0])
-        assert ("_forces_hooke_v" in ir) == simd, f"{type(law).__name__}: SIMD loop {'missing' if simd else 'used'}"
+        assert ("_serial_block_loop" in ir) == simd, f"{type(law).__name__}: SIMD loop {'missing' if simd else 'used'}"

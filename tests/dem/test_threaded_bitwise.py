@@ -2,8 +2,8 @@
 
 Mode "parallel" is deterministic and independent of the thread count, and differs from the serial
 mode only in the order of its sums (docs/dem.md). Its kernels are held to that: the SIMD force
-loop of the Hooke laws (``kernels._forces_threaded_hooke_v``) equals the scalar threaded loop
-(``_forces_threaded``, the loop of every other law) bit for bit; the threaded integration passes
+loop of the Hooke laws (``kernels._threaded_block_loop``) equals the scalar threaded loop
+(``_threaded_scalar_loop``, the loop of every other law) bit for bit; the threaded integration passes
 equal the serial kernels bit for bit in every position and velocity; the threaded pair passes of
 the LIGGGHTS list build give the serial list entry for entry; and a whole run gives the same bits
 on one thread as on two. The cases hold several tasks of ``kernels.PARTICLE_BLOCK`` particles (a
@@ -73,13 +73,13 @@ def _threaded_loops(e, s, update, store):
         pc = np.full((p.x.shape[0], 2), 7.0)
         with num_threads(2):
             if simd:
-                K._forces_threaded_hooke_v(
+                K._threaded_block_loop(
                     p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.a, nb.start, nb.b, nb.sx, nb.sy,
                     nb.both.view(np.uint8), nb.hist, nb.slide.view(np.uint8), nb.ef, nb.tb, nb.in_start,
                     nb.in_e, e.law, L[0], L[1], s.dt, update, pv, pc, store,
                 )  # fmt: skip
             else:
-                K._forces_threaded(
+                K._threaded_scalar_loop(
                     p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.start, nb.b, nb.sx, nb.sy, nb.both, nb.hist,
                     nb.slide, nb.ef, nb.tb, nb.in_start, nb.in_e, e.law, L[0], L[1], s.dt, update, pv, pc, store,
                 )  # fmt: skip
@@ -124,7 +124,7 @@ def test_threaded_simd_loop_is_compiled_to_simd_code():
     if " avx2" not in flags:
         pytest.skip("no AVX2 on this CPU: the gathers need it")
     e, s = _engine()
-    k = numba.njit(**{**JIT_OPTIONS, "cache": False, "parallel": True})(K._forces_threaded_hooke_v.py_func)
+    k = numba.njit(**{**JIT_OPTIONS, "cache": False, "parallel": True})(K._threaded_block_loop.py_func)
     p, nb, L = _copy(e.p), _copy(e.nb), e.box_lengths
     n = p.x.shape[0]
     k(p.x, p.v, p.w, p.f, p.t, p.m, p.r, nb.a, nb.start, nb.b, nb.sx, nb.sy, nb.both.view(np.uint8), nb.hist,
@@ -153,7 +153,7 @@ def test_the_hooke_laws_take_the_threaded_simd_loop_and_the_others_the_generic_o
         k(_copy(e.p), nb, law, L[0], L[1], s.dt, True, np.zeros((n, 4)), np.zeros((n, 2)), True)
         ir = k.inspect_llvm(k.signatures[0])
         what = "missing" if simd else "used"
-        assert ("_forces_threaded_hooke_v" in ir) == simd, f"{type(law).__name__}: SIMD loop {what}"
+        assert ("_threaded_block_loop" in ir) == simd, f"{type(law).__name__}: SIMD loop {what}"
 
 
 def test_threaded_integration_equals_the_serial_kernels_bit_for_bit():
