@@ -15,6 +15,8 @@ from reference_runs import store
 from reference_runs.judge import finite_problem, peak, verdict_problem, within  # noqa: F401 (peak: for the cases)
 from reference_runs.runner import verify_job
 
+from .codes import pair_codes, pairs
+
 SUITES = ("quick", "default", "full")
 #: default per-job timeout: a constant (start-up, set-up, output) plus a cost per particle-step.
 #: LIGGGHTS 3.8.0 runs ~6 M particle-steps/s serially here (docs/dem.md, make bench): 3e-6 s per
@@ -87,13 +89,10 @@ class Record:
 RECORD_KINDS = ("check", "info")
 
 #: the columns of the validation matrix: which two implementations a check sets against each other
-PAIRS = {
-    "native-liggghts": "native vs LIGGGHTS",
-    "native-lammps": "native vs LAMMPS",
-    "liggghts-lammps": "LIGGGHTS vs LAMMPS",
-}
+#: (native vs each code of validation.codes.CODES, then each two codes)
+PAIRS = pairs()
 #: the reference codes (engines) a pair involves
-PAIR_CODES = {"native-liggghts": ("liggghts",), "native-lammps": ("lammps",), "liggghts-lammps": ("liggghts", "lammps")}
+PAIR_CODES = {p: pair_codes(p) for p in PAIRS}
 
 
 def in_pair(records, pair: str) -> list:
@@ -284,6 +283,12 @@ class Context:
     liggghts: bool = False  # binary available?
     lammps: bool = False  # `lmp` available?
     timeout: float | None = None  # s per reference job (None: scaled with the job's work)
+    #: the codes of validation.codes.CODES installed here (besides the two flags above)
+    available: frozenset = frozenset()
+
+    def has(self, code: str) -> bool:
+        """Whether the reference code ``code`` (a name of validation.codes.CODES) is installed."""
+        return code in self.available or bool(getattr(self, code, False))
 
     def job_timeout(self, particle_steps: float) -> float:
         """Seconds a reference job of ``particle_steps`` (particles x steps, summed over its runs)

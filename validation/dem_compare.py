@@ -295,6 +295,35 @@ def frame_differences(a: Trajectory, b: Trajectory, d50: float, steps=None) -> d
     return {"steps": steps, **out}
 
 
+def reduce_sheared(d: np.ndarray, cell: np.ndarray) -> np.ndarray:
+    """``d`` (N, 2) minus the nearest lattice vector of ``cell`` (columns a1, a2): a disk wrapped at
+    another step on one side differs by a lattice vector of the current box (remap v moves a
+    wrapped disk as its image)."""
+    lam = np.linalg.solve(cell, d.T).T
+    return d - np.round(lam) @ cell.T
+
+
+def sheared_cell(box_row) -> np.ndarray:
+    """The cell [[lx, xy], [0, ly]] of a box row (lx, ly, xy) of a sheared run."""
+    lx, ly, xy = (float(v) for v in box_row[:3])
+    return np.array([[lx, xy], [0.0, ly]])
+
+
+def sheared_frame_differences(a: Trajectory, b: Trajectory, d50: float, steps) -> dict:
+    """:func:`frame_differences` of runs in a sheared cell (``lengths`` (T, 3) = lx, ly, xy):
+    positions modulo the sheared cell of ``b`` (:func:`reduce_sheared`)."""
+    steps = np.array(sorted(int(s) for s in steps), np.int64)
+    out = {k: np.zeros(len(steps)) for k in FRAME_KEYS}
+    for n, s in enumerate(steps):
+        fa, fb = a.frames[s], b.frames[s]
+        cell = sheared_cell(b.lengths[b.at([s])[0]])
+        out["x"][n] = float(np.abs(reduce_sheared(fa["x"] - fb["x"], cell)).max()) / d50
+        for k in ("v", "w", "f", "t"):
+            scale = float(np.abs(fb[k]).max()) or 1.0
+            out[k][n] = float(np.abs(fa[k] - fb[k]).max()) / scale
+    return {"steps": steps, **out}
+
+
 def stress_differences(a: Trajectory, b: Trajectory, steps=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per step: max_component |sigma_a - sigma_b| / max_component |sigma_b| (sigma_xy passes
     through zero, so the scale is the largest component), and |L_a - L_b| max (m). Returns

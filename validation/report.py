@@ -10,7 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from gransim.io import atomic_h5, atomic_path
+from reference_runs.engines import get_engine
 
+from .codes import CODES, DIFFERENCES, code_label, why_they_differ
 from .core import PAIRS, CaseResult
 from .faults import FAULT_KINDS
 
@@ -121,6 +123,67 @@ def matrix_html(results: list[CaseResult]) -> list[str]:
     return out
 
 
+def _ratio_text(r) -> str:
+    if r.tolerance > 0 and np.isfinite(r.tolerance) and np.isfinite(r.value):
+        return f"{_fmt(r.value)} / {_fmt(r.tolerance)}"
+    return f"{_fmt(r.value)} (tolerance {_fmt(r.tolerance)})"
+
+
+def quantity_matrix_html(results: list[CaseResult]) -> list[str]:
+    """The matrix by quantity: a row per case and compared quantity (evidence, position, stress,
+    ...), a column per pair of implementations; each cell the verdict of that quantity's checks in
+    that pair, their count and the worst of them (measured / tolerance)."""
+    cols = [*PAIRS, ""]
+    out = [
+        "<details open><summary>The matrix by quantity (each cell: the worst check, measured / tolerance)"
+        "</summary><table class='matrix'><tr><th>case</th><th>quantity</th>"
+        + "".join(f"<th>{html.escape(PAIRS.get(p, 'other checks'))}</th>" for p in cols)
+        + "</tr>"
+    ]
+    for res in results:
+        quantities = list(dict.fromkeys(r.quantity for r in res.checks))
+        for q in quantities:
+            row = [f"<tr class='qty'><td>{html.escape(res.case)}</td><td>{html.escape(q)}</td>"]
+            for p in cols:
+                rs = [r for r in res.checks if r.quantity == q and r.pair == p]
+                if not rs:
+                    row.append("<td class='na'>&mdash;</td>")
+                    continue
+                bad = [r for r in rs if not r.passed]
+                finite = [r for r in rs if np.isfinite(r.value) and np.isfinite(r.tolerance) and r.tolerance > 0]
+                worst = bad[0] if bad else (max(finite, key=lambda r: abs(r.value) / r.tolerance) if finite else rs[0])
+                word = "FAIL" if bad else "pass"
+                row.append(
+                    f"<td><span class='{'fail' if bad else 'pass'}'>{word}</span> {len(rs) - len(bad)} of "
+                    f"{len(rs)}; worst {html.escape(_ratio_text(worst))}</td>"
+                )
+            out.append("".join(row) + "</tr>")
+    out.append("</table></details>")
+    return out
+
+
+def differences_html(results: list[CaseResult]) -> list[str]:
+    """Why two codes differ beyond round-off, in words (validation.codes.DIFFERENCES), beside the
+    largest raw differences the cases show for that pair (info records)."""
+    out = []
+    for pair in DIFFERENCES:
+        if pair not in PAIRS:
+            continue
+        raw = [r for res in results for r in res.records if r.pair == pair and r.kind == "info"]
+        if not raw:
+            continue
+        a, b = pair.split("-")
+        shown = "; ".join(
+            f"{html.escape(r.case)} {html.escape(r.quantity)} {_fmt(r.value)}" for r in raw if np.isfinite(r.value)
+        )
+        out.append(
+            f"<h3>Why {html.escape(code_label(a))} and {html.escape(code_label(b))} differ</h3>"
+            f"<p>Raw differences (figures, not verdicts): {shown}.</p>"
+            f"<p>{html.escape(why_they_differ(pair))}</p>"
+        )
+    return out
+
+
 def _verdict(res: CaseResult) -> tuple[str, str]:
     """(word, css class) of a case's verdict."""
     if res.passed:
@@ -221,6 +284,11 @@ def headline_html(report_dir: Path, results: list[CaseResult], case_data: dict) 
     return out
 
 
+def _package(code: str) -> str:
+    """The Debian package of ``code``'s binary."""
+    return get_engine(code).package
+
+
 def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Path:
     """The report: the one-screen summary (verdicts, the closest check of each case, the headline
     figures), the validation matrix, then a section per case with its long tables collapsed."""
@@ -232,20 +300,23 @@ def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Pat
         "<h1>gransim validation report</h1>",
         f"<p class='reason'>suite {html.escape(str(header.get('suite', '')))}, gransim "
         f"{html.escape(str(header.get('gransim_version', '')))} ({html.escape(str(header.get('git_commit', '')))}), "
-        f"LIGGGHTS: {html.escape(str(header.get('liggghts_version', 'absent')))}, LAMMPS: "
-        f"{html.escape(str(header.get('lammps_version', 'absent')))}, {html.escape(str(header.get('created', '')))}"
-        "</p>",
+        + "".join(
+            f"{html.escape(code_label(c))}: {html.escape(str(header.get(f'{c}_version', 'absent')))}, " for c in CODES
+        )
+        + f"{html.escape(str(header.get('created', '')))}</p>",
     ]
-    for code, name, pkg in (("liggghts", "LIGGGHTS", "liggghts"), ("lammps", "LAMMPS", "lammps")):
+    for code in CODES:
         if not header.get(f"{code}_available"):
             out.append(
-                f"<div class='banner'><b>{name} is not installed on this machine.</b> Its comparisons use "
-                "the stored reference outputs in <code>reference_runs/stored/</code> only "
-                f"(install with <code>apt-get install {pkg}</code>).</div>"
+                f"<div class='banner'><b>{code_label(code)} is not installed on this machine.</b> Its comparisons "
+                "use the stored reference outputs in <code>reference_runs/stored/</code> only "
+                f"(install with <code>apt-get install {_package(code)}</code>).</div>"
             )
     out += summary_html(results)
     out += headline_html(report_dir, results, case_data)
     out += matrix_html(results)
+    out += quantity_matrix_html(results)
+    out += differences_html(results)
     out.append(
         "<p>A case passes only when it ran, has at least one check, and every check passes. A check whose "
         "evidence is incomplete (a missing step, frame, state, contact or run on either side) is a "

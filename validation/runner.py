@@ -11,9 +11,11 @@ from pathlib import Path
 from gransim import __version__
 from gransim._validate import as_positive_float, check_choice
 from gransim.io import git_commit, lammps_version, liggghts_version
+from reference_runs.engines import get_engine
 from reference_runs.locks import DirectoryLock, remove_stray_tmp
 from reference_runs.runner import kill_children_on_signals
 
+from .codes import CODES
 from .core import (
     SUITES,
     CaseResult,
@@ -43,13 +45,15 @@ def run_validation(
     check_choice(suite, "suite", SUITES)
     if timeout is not None:
         timeout = as_positive_float(timeout, "--timeout")
+    have = {code: _available(code) for code in CODES}
     ctx = Context(
         suite=suite,
         results=Path(results),
         jobs=int(jobs),
-        liggghts=liggghts_available(),
-        lammps=lammps_available(),
+        liggghts=have.get("liggghts", False),
+        lammps=have.get("lammps", False),
         timeout=timeout,
+        available=frozenset(c for c, ok in have.items() if ok),
     )
 
     # one validation run per results directory (a second fails at once, naming the first); a
@@ -66,9 +70,16 @@ def run_validation(
         return _run_cases(ctx, suite, only, log, timeout)
 
 
-def _lammps_version() -> str | None:
-    """The version the ``lmp`` binary reports about itself (None when absent)."""
-    return lammps_version()
+def _available(code: str) -> bool:
+    """Whether ``code`` (a name of validation.codes.CODES) is installed: its binary on PATH."""
+    known = {"liggghts": liggghts_available, "lammps": lammps_available}  # looked up now: tests replace them
+    return known[code]() if code in known else get_engine(code).available()
+
+
+def _version(code: str) -> str | None:
+    """The version ``code``'s binary reports about itself (None when absent)."""
+    known = {"liggghts": liggghts_version, "lammps": lammps_version}
+    return known[code]() if code in known else get_engine(code).version()
 
 
 def _run_cases(ctx, suite, only, log, timeout) -> tuple[bool, list[CaseResult]]:
@@ -126,16 +137,18 @@ def _cases_loop(ctx, cases, log, out) -> None:
         out.append(res)
 
 
+def _code_header(ctx, code: str) -> dict:
+    """``{code}_available`` and ``{code}_version`` of the run's header."""
+    return {f"{code}_available": ctx.has(code), f"{code}_version": _version(code) or "absent"}
+
+
 def _write_reports(ctx, suite, out, t_all, timeout, log) -> tuple[bool, list[CaseResult]]:
     header = {
         "suite": suite,
         "gransim_version": __version__,
         "git_commit": git_commit(),
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "liggghts_available": ctx.liggghts,
-        "liggghts_version": liggghts_version() or "absent",
-        "lammps_available": ctx.lammps,
-        "lammps_version": _lammps_version() or "absent",
+        **{k: v for code in CODES for k, v in _code_header(ctx, code).items()},
         "machine": f"{platform.node()} ({platform.machine()}, {__import__('os').cpu_count()} cores)",
         "wall_time_s": round(time.perf_counter() - t_all, 1),
         "job_timeout_s": timeout if timeout is not None else "scaled with each job's work",

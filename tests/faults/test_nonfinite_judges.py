@@ -201,9 +201,9 @@ def test_validation_compare_over_nothing_fails():
 
 
 def test_stress_differences_with_a_nan_stress_fail_the_record():
-    from validation.cases.biaxial import _max
     from validation.core import compare
     from validation.dem_compare import Trajectory, stress_differences
+    from validation.judges import _max
 
     steps = np.arange(5)
     s = np.ones((5, 3))
@@ -219,17 +219,17 @@ def test_stress_differences_with_a_nan_stress_fail_the_record():
 
 @pytest.mark.parametrize("bad", [math.nan, math.inf])
 def test_envelope_ratios_fail_on_a_nan_step(bad):
-    from validation.cases.biaxial import _ratio
-    from validation.cases.shear import _floor_ratio
+    from validation.judges import envelope_ratio
 
     d = np.array([0.0, 1e-12, 2e-12, 3e-12])
     env = np.array([1e-11, 1e-11, 1e-11, 1e-11])
-    assert judge.within(_ratio(d, env), 2.0) and judge.within(_floor_ratio(d, env, 1e-10, 2.0), 2.0)
+    # the one envelope criterion, pointwise (biaxial-full) and with a floor (simple-shear)
+    assert judge.within(envelope_ratio(d, env, 2.0), 2.0) and judge.within(envelope_ratio(d, env, 2.0, 1e-10), 2.0)
     for which in ("d", "env"):
         dd, ee = d.copy(), env.copy()
         (dd if which == "d" else ee)[2] = bad
-        assert math.isnan(_ratio(dd, ee)), which
-        assert math.isnan(_floor_ratio(dd, ee, 1e-10, 2.0)), which
+        assert math.isnan(envelope_ratio(dd, ee, 2.0)), which
+        assert math.isnan(envelope_ratio(dd, ee, 2.0, 1e-10)), which
 
 
 def test_voidcell_records_fail_on_a_nan_frame_after_a_finite_one():

@@ -17,9 +17,12 @@ from __future__ import annotations
 import csv
 import dataclasses
 import datetime
+import functools
 import hashlib
+import html
 import json
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -31,6 +34,7 @@ from gransim.io import atomic_path, load_packing
 from reference_runs.decks.biaxial import SHORT_CASE_DUMP_EVERY, short_case
 from reference_runs.native_schema import trajectory_to_run_file
 
+from ..codes import CODES, NATIVE, code_label, pair_key, why_they_differ
 from ..core import (
     CaseResult,
     Context,
@@ -41,20 +45,19 @@ from ..core import (
     info,
     peak,
     stored_dir,
-    stored_job_record,
 )
 from ..dem_compare import (
     Trajectory,
     expected_frames,
     expected_steps,
-    frame_differences,
-    position_difference,
     read_reference,
     run_native,
     run_reference_job,
     stress_differences,
     trajectory_evidence,
 )
+from ..judges import BITWISE_RULE, StepBounds, band, envelope, step_for_step
+from ..matrix import Comparison, Run, evaluate, stored_job
 
 POS_TOL = 1e-10  # of D50
 POS_REASON = (
@@ -95,59 +98,43 @@ def _servo(bi):
     return AxisControl("servo", target=bi.confining, gain=bi.servo_gain)
 
 
-def _max(a) -> float:
-    """Largest entry, NaN for an empty array or any NaN (a comparison over nothing fails)."""
-    return peak([a])
+#: display names of the reference codes
+CODE = {code: code_label(code) for code in CODES}
 
-
-CODE = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}
+#: the step-for-step bounds of the biaxial decks (every code, native in that code's arithmetic)
+SHORT_BOUNDS = StepBounds(
+    position=POS_TOL,
+    relative=REL_TOL,
+    position_reason=POS_REASON,
+    velocity_reason=VEL_REASON,
+    force_reason=FORCE_REASON,
+    stress_reason=STRESS_REASON,
+    box_reason=BOX_REASON,
+)
 
 
 def step_records(
     label: str, nat, lig, d50: float, nsteps: int, dump_every: int, thermo_every: int = 1, code: str = "LIGGGHTS"
 ) -> tuple[list, list]:
-    """Records (evidence of both sides, positions, velocities, spins, forces, torques, stress,
-    box) and a table row.
-
-    The expected evidence is the run's: every ``thermo_every``-th step of ``nsteps`` in the
-    series and every ``dump_every``-th step as a frame, on both sides. A missing step or frame
-    is a failing ``evidence`` record ("incomplete: expected N frames, got M"); the differences
-    are then taken over what both sides hold, and a comparison over nothing is NaN (fails).
-    """
-    exp_s, exp_f = expected_steps(nsteps, thermo_every), expected_frames(nsteps, dump_every)
-    recs = trajectory_evidence(label, "native", nat, exp_s, exp_f) + trajectory_evidence(label, code, lig, exp_s, exp_f)
-    lig_steps = set(int(s) for s in lig.steps)
-    both_f = [int(s) for s in exp_f if s in nat.frames and s in lig.frames and int(s) in lig_steps]
-    both_s = np.intersect1d(np.intersect1d(exp_s, nat.steps), lig.steps)
-    fd = frame_differences(nat, lig, d50, steps=both_f)
-    steps, rel, dl = stress_differences(nat, lig, steps=both_s)
-    recs += [
-        compare(label, "position", "max|dx|/D50 over frames", _max(fd["x"]), POS_TOL, POS_REASON),
-        compare(label, "velocity", "max|dv|/max|v|", _max(fd["v"]), REL_TOL, VEL_REASON),
-        compare(label, "spin", "max|dw|/max|w|", _max(fd["w"]), REL_TOL, VEL_REASON),
-        compare(label, "particle_force", "max|df|/max|f|", _max(fd["f"]), REL_TOL, FORCE_REASON),
-        compare(label, "particle_torque", "max|dT|/max|T|", _max(fd["t"]), REL_TOL, FORCE_REASON),
-        compare(
-            label,
-            "stress",
-            "max over steps of max|dsigma|/max|sigma|",
-            _max(rel),
-            REL_TOL,
-            STRESS_REASON,
-            inputs={"native": nat.stress[nat.at(both_s)], code: lig.stress[lig.at(both_s)]},
-        ),
-        compare(label, "box", "max|dL|/D50", _max(dl) / d50, POS_TOL, BOX_REASON),
-    ]
-    row = [
+    """:func:`validation.judges.step_for_step` at the biaxial bounds: records and a table row
+    (run, last step, frames, positions, velocities, forces, stress)."""
+    recs, s = step_for_step(
         label,
-        int(steps[-1]) if len(steps) else -1,
-        len(fd["steps"]),
-        _max(fd["x"]),
-        _max(fd["v"]),
-        _max(fd["f"]),
-        _max(rel),
-    ]
-    return recs, row
+        nat,
+        lig,
+        d50=d50,
+        nsteps=nsteps,
+        dump_every=dump_every,
+        thermo_every=thermo_every,
+        bounds=SHORT_BOUNDS,
+        sides=("native", code),
+    )
+    return recs, short_row(s)
+
+
+def short_row(s: dict) -> list:
+    """A row of the step-for-step table from a judge's summary."""
+    return [s["label"], s["last_step"], s["frames"], s["x"], s["v"], s["f"], s["stress"]]
 
 
 def _flavour(settings, engine: str):
@@ -176,80 +163,130 @@ NATIVE_LAMMPS_REASON = (
 )
 
 
-def cross_records(
-    label: str, lig, lmp, nat_l, nat_m, d50: float, nsteps: int, dump_every: int, thermo_every: int = 1
-) -> tuple[list, list]:
-    """LIGGGHTS vs LAMMPS on one deck: the evidence of both codes, the raw differences (info) and
-    the check that they equal the difference of the two native flavours (stress every thermo step,
-    positions at every dump)."""
-    exp_s, exp_f = expected_steps(nsteps, thermo_every), expected_frames(nsteps, dump_every)
-    recs = trajectory_evidence(label, "LIGGGHTS", lig, exp_s, exp_f) + trajectory_evidence(
-        label, "LAMMPS", lmp, exp_s, exp_f
-    )
-    trs = (lig, lmp, nat_l, nat_m)
-    steps = exp_s
-    for t in trs:
-        steps = np.intersect1d(steps, t.steps)
-    frames = [int(f) for f in exp_f if all(int(f) in t.frames for t in trs) and int(f) in set(steps.tolist())]
+@dataclass(frozen=True)
+class ShortCode:
+    """Where a code's runs of biaxial-short come from: its stored job (the 120-disk deck, 3000
+    steps) under reference_runs/stored, its live job directories under
+    results/reference/biaxial-short, and the reason of its native column. A code is one more
+    entry of :data:`SHORT_CODES`; its comparisons follow from :func:`short_plan`."""
 
-    def sig(t):
-        return t.stress[t.at(steps)]
+    stored: str
+    live_job: str
+    kuhn_job: str
+    reason: str
 
-    scale = np.abs(sig(lig)).max(axis=1)
-    scale = np.where(scale > 0, scale, 1.0)
-    raw = np.abs(sig(lig) - sig(lmp)).max(axis=1) / scale
-    expl = np.abs((sig(lig) - sig(lmp)) - (sig(nat_l) - sig(nat_m))).max(axis=1) / scale
 
-    raw_x, expl_x = [], []
-    for f in frames:
-        L = lig.lengths[lig.at([f])[0]]
-        xa, xb = lig.frames[f]["x"], lmp.frames[f]["x"]
-        na, nb = nat_l.frames[f]["x"], nat_m.frames[f]["x"]
-        raw_x.append(position_difference(xa, xb, L) / d50)
-        d_codes = xa - xb - np.round((xa - xb) / L) * L
-        d_nat = na - nb - np.round((na - nb) / L) * L
-        expl_x.append(float(np.abs(d_codes - d_nat).max()) / d50)
-    recs += [
-        info(
-            label,
-            "stress",
-            "LIGGGHTS vs LAMMPS: max over steps of max|dsigma|/max|sigma|",
-            _max(raw),
-            "the raw cross-code difference (the size of the law differences), shown for the reader",
-        ),
-        info(
-            label,
-            "position",
-            "LIGGGHTS vs LAMMPS: max|dx|/D50 over frames",
-            _max(raw_x),
-            "the raw cross-code difference, shown for the reader",
-        ),
-        compare(
-            label,
-            "stress",
-            "max|(LIGGGHTS - LAMMPS) - (native liggghts - native lammps)|/max|sigma|",
-            _max(expl),
-            REL_TOL,
-            CROSS_SHORT_REASON,
-        ),
-        compare(
-            label,
-            "position",
-            "max|(LIGGGHTS - LAMMPS) - (native liggghts - native lammps)|/D50",
-            _max(expl_x),
-            POS_TOL,
-            CROSS_SHORT_REASON,
-        ),
-    ]
-    return recs, [
-        label,
-        int(steps[-1]) if len(steps) else -1,
-        len(frames),
-        _max(raw_x),
-        _max(raw),
-        _max(expl_x),
-        _max(expl),
-    ]
+SHORT_CODES = {
+    "liggghts": ShortCode("biaxial-short", "live-120", "kuhn-1002", POS_REASON),
+    "lammps": ShortCode("biaxial-short-lammps", "live-120-lammps", "kuhn-1002-lammps", NATIVE_LAMMPS_REASON),
+}
+
+
+def short_plan(ctx: Context, manifests: dict | None = None) -> tuple[list, list]:
+    """The runs and comparisons of biaxial-short.
+
+    Scenarios: ``stored-120`` (the stored 120-disk runs, 3000 steps, every suite), ``live-120``
+    (the same deck run now, 1000 steps, codes installed), ``kuhn-1002`` (default and full suites,
+    codes installed: the Kuhn assembly consolidated under the servo on both axes, 5000 steps).
+    In each: every code of :data:`SHORT_CODES` against native in its arithmetic, step for step
+    (:func:`validation.judges.step_for_step`), and every two codes against each other, their
+    difference explained by the two native flavours (:func:`validation.judges.explained_difference`).
+    ``manifests`` collects the live jobs' manifests (key: run key)."""
+    manifests = {} if manifests is None else manifests
+    p, s, ld, n = short_case()
+    scen = {
+        "stored-120": (lambda: p, ld, n, SHORT_CASE_DUMP_EVERY),
+        "live-120": (lambda: p, ld, LIVE_SHORT_STEPS, 250),
+    }
+    if ctx.suite != "quick":
+        kuhn = functools.cache(lambda: _kuhn(ctx))
+        dem = functools.cache(lambda: dem_defaults(kuhn()))
+
+        def kuhn_loading():
+            bi = dem()[1]
+            return Loading(x=_servo(bi), y=_servo(bi))
+
+        scen["kuhn-1002"] = (kuhn, None, SHORT_KUHN_STEPS, SHORT_DUMP_EVERY)
+
+    def settings_of(name, code):
+        return _flavour(dem()[0] if name == "kuhn-1002" else s, code)
+
+    def loading_of(name):
+        return kuhn_loading() if name == "kuhn-1002" else ld
+
+    def native(name, code):
+        pk, _, steps, every = scen[name]
+        return lambda: run_native(pk(), settings_of(name, code), loading_of(name), steps, every)
+
+    def stored(code):
+        d = stored_dir(SHORT_CODES[code].stored)
+        return lambda: read_reference(_stored_log(d), d / "dump.atoms")
+
+    def live(name, code):
+        pk, _, steps, every = scen[name]
+        job = SHORT_CODES[code].live_job if name == "live-120" else SHORT_CODES[code].kuhn_job
+
+        def make():
+            tr, man = run_reference_job(
+                ctx.work("reference", "biaxial-short", job),
+                pk(),
+                settings_of(name, code),
+                loading_of(name),
+                steps,
+                every,
+                timeout=ctx.job_timeout(pk().n * steps),
+                engine=code,
+            )
+            manifests[f"{name}/{code}"] = man
+            return tr
+
+        return make
+
+    runs, comps = [], []
+    for name, (pk, _, steps, every) in scen.items():
+        here = [c for c in CODES if c in SHORT_CODES]
+        for code in here:
+            if name == "stored-120":
+                d = stored_dir(SHORT_CODES[code].stored)
+                ref = Run(
+                    f"{name}/{code}",
+                    code,
+                    code,
+                    f"stored {d.name}",
+                    stored(code),
+                    verify=stored_job(d),
+                )
+            else:
+                ref = Run(f"{name}/{code}", code, code, f"{name} deck run now", live(name, code), live=True)
+            runs += [Run(f"native/{name}/{code}", NATIVE, code, f"native, {code} arithmetic", native(name, code)), ref]
+
+        def params(pk=pk, steps=steps, every=every, **fixed):
+            return {"d50": pk().d50, "nsteps": steps, "dump_every": every, **fixed}
+
+        for code in here:
+            comps.append(
+                Comparison(
+                    "step",
+                    f"biaxial-short/{name}/{code}",
+                    (f"native/{name}/{code}", f"{name}/{code}"),
+                    SHORT_CODES[code].reason,
+                    functools.partial(params, bounds=SHORT_BOUNDS),
+                )
+            )
+        for i, a in enumerate(here):
+            for b in here[i + 1 :]:
+                comps.append(
+                    Comparison(
+                        "explained",
+                        f"biaxial-short/{name}/{a}-{b}",
+                        (f"{name}/{a}", f"{name}/{b}", f"native/{name}/{a}", f"native/{name}/{b}"),
+                        CROSS_SHORT_REASON,
+                        functools.partial(
+                            params, position_tol=POS_TOL, relative_tol=REL_TOL, reason=CROSS_SHORT_REASON
+                        ),
+                    )
+                )
+    return runs, comps
 
 
 @case("biaxial-short", "Biaxial test, short horizon: step for step, native vs LIGGGHTS vs LAMMPS", order=20)
@@ -264,127 +301,20 @@ def biaxial_short(ctx: Context) -> CaseResult:
         "<code>biaxial-short-lammps</code> (120 disks on a jittered lattice, servo on x, rate on y, ~60 sliding "
         "contacts, 3000 steps). <i>live-120</i>: the same deck run now. <i>kuhn-1002</i>: the Kuhn 1002-disk "
         "assembly with the biaxial default settings (gransim.dem.default_settings), consolidation with the servo "
-        f"on both axes, {SHORT_KUHN_STEPS} steps.",
+        f"on both axes, {SHORT_KUHN_STEPS} steps. Two codes are set against each other by the difference of "
+        "the native flavours (their laws differ; why, in words, beside the raw difference).",
     )
-    res.declare("native-liggghts", POS_REASON)
-    res.declare("native-lammps", NATIVE_LAMMPS_REASON)
-    res.declare("liggghts-lammps", CROSS_SHORT_REASON)
+    manifests = {}
+    runs, comps = short_plan(ctx, manifests)
+    out = evaluate(res, ctx, runs, comps)
     header = ["run", "steps", "frames", "max|dx|/D50", "max|dv|/max|v|", "max|df|/max|f|", "max rel stress"]
-    rows, cross_rows = [], []
-    p, s, ld, n = short_case()
-    sl, sm = _flavour(s, "liggghts"), _flavour(s, "lammps")
-    traj = {}
-    for engine, stored_name, settings, pair in (
-        ("liggghts", "biaxial-short", sl, "native-liggghts"),
-        ("lammps", "biaxial-short-lammps", sm, "native-lammps"),
-    ):
-        stored = stored_dir(stored_name)
-        nat = run_native(p, settings, ld, n, SHORT_CASE_DUMP_EVERY)
-        ref = read_reference(_stored_log(stored), stored / "dump.atoms")
-        label = f"biaxial-short/stored-120/{engine}"
-        recs = [stored_job_record(label, stored)]
-        r2, row = step_records(label, nat, ref, p.d50, n, SHORT_CASE_DUMP_EVERY, code=CODE[engine])
-        res.records += in_pair(recs + r2, pair)
-        rows.append(row)
-        traj[engine] = (nat, ref)
-    r2, row = cross_records(
-        "biaxial-short/stored-120/cross",
-        traj["liggghts"][1],
-        traj["lammps"][1],
-        traj["liggghts"][0],
-        traj["lammps"][0],
-        p.d50,
-        n,
-        SHORT_CASE_DUMP_EVERY,
-    )
-    res.records += in_pair(r2, "liggghts-lammps")
-    cross_rows.append(row)
-    live = {}
-    for engine, settings, pair, avail in (
-        ("liggghts", sl, "native-liggghts", ctx.liggghts),
-        ("lammps", sm, "native-lammps", ctx.lammps),
-    ):
-        if not avail:
-            res.notes.append(
-                f"{CODE[engine]} is absent: the live runs with it are not made; the stored "
-                f"{CODE[engine]} reference is compared."
-            )
-            continue
-        job = ctx.work("reference", "biaxial-short", "live-120" if engine == "liggghts" else "live-120-lammps")
-        ref, _ = run_reference_job(
-            job, p, settings, ld, LIVE_SHORT_STEPS, 250, timeout=ctx.job_timeout(p.n * LIVE_SHORT_STEPS), engine=engine
-        )
-        nat = run_native(p, settings, ld, LIVE_SHORT_STEPS, 250)
-        label = f"biaxial-short/live-120/{engine}"
-        r2, row = step_records(label, nat, ref, p.d50, LIVE_SHORT_STEPS, 250, code=CODE[engine])
-        res.records += in_pair(r2, pair)
-        rows.append(row)
-        live[engine] = (nat, ref)
-    if len(live) == 2:
-        r2, row = cross_records(
-            "biaxial-short/live-120/cross",
-            live["liggghts"][1],
-            live["lammps"][1],
-            live["liggghts"][0],
-            live["lammps"][0],
-            p.d50,
-            LIVE_SHORT_STEPS,
-            250,
-        )
-        res.records += in_pair(r2, "liggghts-lammps")
-        cross_rows.append(row)
-    if ctx.suite != "quick":
-        pk = _kuhn(ctx)
-        dem, bi = dem_defaults(pk)
-        ldk = Loading(x=_servo(bi), y=_servo(bi))
-        kuhn = {}
-        for engine, pair, avail in (
-            ("liggghts", "native-liggghts", ctx.liggghts),
-            ("lammps", "native-lammps", ctx.lammps),
-        ):
-            if not avail:
-                res.notes.append(f"{CODE[engine]} is absent: the Kuhn 1002-disk run is not compared with it.")
-                continue
-            settings = _flavour(dem, engine)
-            job = ctx.work("reference", "biaxial-short", "kuhn-1002" if engine == "liggghts" else "kuhn-1002-lammps")
-            ref, man = run_reference_job(
-                job,
-                pk,
-                settings,
-                ldk,
-                SHORT_KUHN_STEPS,
-                SHORT_DUMP_EVERY,
-                timeout=ctx.job_timeout(pk.n * SHORT_KUHN_STEPS),
-                engine=engine,
-            )
-            nat = run_native(pk, settings, ldk, SHORT_KUHN_STEPS, SHORT_DUMP_EVERY)
-            label = f"biaxial-short/kuhn-1002/{engine}"
-            r2, row = step_records(label, nat, ref, pk.d50, SHORT_KUHN_STEPS, SHORT_DUMP_EVERY, code=CODE[engine])
-            res.records += in_pair(r2, pair)
-            rows.append(row)
-            kuhn[engine] = (nat, ref)
-            res.notes.append(
-                f"kuhn-1002 ({CODE[engine]}): native {nat.elapsed:.2f} s, {CODE[engine]} job "
-                f"{man.get('elapsed_s', 0):.2f} s (<code>{' '.join(man.get('command', []))}</code> in "
-                f"<code>{job}</code>)."
-            )
-        if len(kuhn) == 2:
-            r2, row = cross_records(
-                "biaxial-short/kuhn-1002/cross",
-                kuhn["liggghts"][1],
-                kuhn["lammps"][1],
-                kuhn["liggghts"][0],
-                kuhn["lammps"][0],
-                pk.d50,
-                SHORT_KUHN_STEPS,
-                SHORT_DUMP_EVERY,
-            )
-            res.records += in_pair(r2, "liggghts-lammps")
-            cross_rows.append(row)
+    rows = [short_row(s) for c in comps if c.kind == "step" and (s := out.summaries.get(c.label))]
+    cols = ("label", "last_step", "frames", "raw_x", "raw_stress", "unexplained_x", "unexplained_stress")
+    cross_rows = [[s[k] for k in cols] for c in comps if c.kind == "explained" and (s := out.summaries.get(c.label))]
     res.tables.append(("Largest differences per run and code (0 = bitwise equal)", header, rows))
     res.tables.append(
         (
-            "LIGGGHTS vs LAMMPS: raw differences and what the native flavours leave unexplained",
+            "Two codes against each other: raw differences and what the native flavours leave unexplained",
             [
                 "run",
                 "steps",
@@ -397,6 +327,18 @@ def biaxial_short(ctx: Context) -> CaseResult:
             cross_rows,
         )
     )
+    for i, a in enumerate(CODES):
+        for b in CODES[i + 1 :]:
+            why = why_they_differ(pair_key(a, b))
+            if why and cross_rows:
+                res.notes.append(f"Why {CODE[a]} and {CODE[b]} differ beyond round-off: {html.escape(why)}")
+    for key, man in manifests.items():
+        if key.startswith("kuhn-1002/"):
+            code = key.split("/")[1]
+            res.notes.append(
+                f"kuhn-1002 ({CODE[code]}): native {out.runs[f'native/{key}'].elapsed:.2f} s, {CODE[code]} job "
+                f"{man.get('elapsed_s', 0):.2f} s (<code>{' '.join(man.get('command', []))}</code>)."
+            )
     res.notes.append(
         "Per-contact forces: the native snapshot's contact forces are not set against LIGGGHTS' "
         "<code>compute pair/gran/local</code>, whose rows are a re-evaluation at output time "
@@ -412,13 +354,9 @@ FULL_CONSOLIDATION_STEPS = 6000
 FULL_DUMP_EVERY = 2000  # steps: 2.8e-5 axial strain at the default rate
 FULL_THERMO_EVERY = 10
 PERTURB_REL = 1e-15
-ENVELOPE_FACTOR = 10.0
-ENVELOPE_REASON = (
-    "chaos: LIGGGHTS' own divergence under a round-off perturbation (one coordinate moved by "
-    "1e-15 relative, two runs; full suite also 2 MPI processes and twice the neighbour skin) is the envelope E(t) = max over those runs at each output step; "  # noqa: E501
-    "native-vs-LIGGGHTS must stay within 10 E(t) at every step (a factor 10 = one decade of "
-    "exponential growth, i.e. the perturbations' onset is uncertain to that)"
-)
+#: the envelope criterion of biaxial-full (validation.judges.EnvelopeRule): the native run repeats the
+#: code's arithmetic bit for bit, so the pointwise rule (no window, no floor, the curves within the band)
+FULL_RULE = BITWISE_RULE
 CURVE_REASON = (
     "band = the largest deviation of the perturbed LIGGGHTS runs from the reference along the "
     "curve (their spread is the uncertainty of a curve under round-off), in units of the confining p"
@@ -690,18 +628,6 @@ def curves(tr, p: float):
     return ea, q, ev
 
 
-def _ratio(d: np.ndarray, env: np.ndarray) -> float:
-    """max over steps of d/env where d > 0 (inf when the envelope is 0 there; NaN, a failing
-    value, when d or the envelope holds a NaN or inf: ``d > 0`` would drop a NaN step)."""
-    if not (np.isfinite(d).all() and np.isfinite(env).all()):
-        return float("nan")
-    m = d > 0
-    if not np.any(m):
-        return 0.0
-    with np.errstate(divide="ignore"):
-        return float(np.max(np.where(env[m] > 0, d[m] / np.where(env[m] > 0, env[m], 1.0), np.inf)))
-
-
 def _plots(ctx, div, sdiv, cur) -> list:
     # lazy: pyplot costs ~1.5 s of import (measured, load 9); only the figures need it
     import matplotlib
@@ -717,7 +643,10 @@ def _plots(ctx, div, sdiv, cur) -> list:
         axes[0].semilogy(steps, np.maximum(d, floor), "o-" if "native vs" in name else "-", ms=3, label=name + zero)
     axes[0].set_xlabel("step of the compression phase")
     axes[0].set_ylabel("max |x_a - x_b| / D50  (0 drawn at 1e-18)")
-    axes[0].legend(fontsize=8)
+    if div:
+        axes[0].legend(fontsize=8)
+    else:  # stored series: stress and box only
+        axes[0].text(0.5, 0.5, "positions not stored (codes absent)", ha="center", transform=axes[0].transAxes)
     for name, (steps, d) in sdiv.items():
         zero = " (exactly 0 at every step)" if len(d) and not np.any(d) else ""
         axes[1].semilogy(steps, np.maximum(d, floor), lw=0.8, label=name + zero)
@@ -788,56 +717,12 @@ def _long_csv(path, header, rows):
     return path
 
 
-def _envelope(label: str, code: str, nat, ref, ensemble: dict, frames, exp_s, d50: float):
-    """Divergence of ``nat`` from the serial reference of ``code`` judged against the code's own
-    envelope (its perturbed runs ``ensemble``). Returns (records, div, sdiv) with div/sdiv =
-    {name: (steps, values)} of positions (per frame) and stress (per series step)."""
-    runs = {f"native vs {code}": nat, **{f"{code} {k}": t for k, t in ensemble.items()}}
-    div, sdiv = {}, {}
-    for name, tr in runs.items():
-        fd = frame_differences(tr, ref, d50, steps=frames)
-        div[name] = (fd["steps"], fd["x"])
-        st, rel, _ = stress_differences(tr, ref, steps=exp_s)
-        sdiv[name] = (st, rel)
-    ens = [k for k in div if not k.startswith("native")]
-    env_s = np.max([sdiv[k][1] for k in ens], axis=0)
-    recs = []
-    me = f"native vs {code}"
-    if len(div[me][0]):
-        env_x = np.max([div[k][1] for k in ens], axis=0)
-        recs.append(
-            compare(
-                label,
-                "position",
-                "max_t D_native(t)/E(t)",
-                _ratio(div[me][1], env_x),
-                ENVELOPE_FACTOR,
-                ENVELOPE_REASON.replace("LIGGGHTS", code),
-            )
-        )
-    recs.append(
-        compare(
-            label,
-            "stress",
-            "max_t S_native(t)/E_S(t)",
-            _ratio(sdiv[me][1], env_s),
-            ENVELOPE_FACTOR,
-            ENVELOPE_REASON.replace("LIGGGHTS", code),
-        )
-    )
-    return recs, div, sdiv
-
-
 CROSS_CURVE_REASON = (
     "the two codes run the same deck with slightly different laws (docs/lammps.md); over the full "
     "loading each code's reference lies within its own band of the curve (the largest deviation of "
     "its perturbed runs from it), so if both codes follow the same curve their references differ "
     "by at most the sum of the two bands"
 )
-
-
-def _evidence_of(label, who, tr, exp_s, exp_f):
-    return trajectory_evidence(label, who, tr, exp_s, exp_f)
 
 
 @case(
@@ -865,8 +750,8 @@ def biaxial_full(ctx: Context) -> CaseResult:
         "code's own envelope (its runs under a 1e-15 perturbation; full suite: also 2 MPI processes and twice the "
         "neighbour skin).",
     )
-    res.declare("native-liggghts", ENVELOPE_REASON)
-    res.declare("native-lammps", ENVELOPE_REASON.replace("LIGGGHTS", "LAMMPS"))
+    for code in CODES:
+        res.declare(pair_key(NATIVE, code), FULL_RULE.reason.replace("CODE", CODE[code]))
     res.declare("liggghts-lammps", CROSS_CURVE_REASON)
     res.notes.append(
         f"Consolidation: mean sigma_11, sigma_22 over its last 1000 steps within "
@@ -951,14 +836,14 @@ def biaxial_full(ctx: Context) -> CaseResult:
         exp_s = expected_steps(r["nsteps"], every)
         exp_f = None if sd["stored"] else expected_frames(r["nsteps"], FULL_DUMP_EVERY)
         lab = f"biaxial-full/evidence/{engine}"
-        recs = _evidence_of(
+        recs = trajectory_evidence(
             lab,
             f"native ({engine})",
             nat,
             expected_steps(r["nsteps"], every_nat),
             expected_frames(r["nsteps"], FULL_DUMP_EVERY),
         )
-        recs += _evidence_of(lab, f"{code} reference", ref, exp_s, exp_f)
+        recs += trajectory_evidence(lab, f"{code} reference", ref, exp_s, exp_f)
         want = (
             sd["expected_ensemble"]
             if not sd["stored"]
@@ -966,7 +851,7 @@ def biaxial_full(ctx: Context) -> CaseResult:
         )
         recs.append(evidence(lab, f"perturbed {code} runs (the envelope)", want, list(sd["ensemble"])))
         for k, t in sd["ensemble"].items():
-            recs += _evidence_of(lab, f"{code} {k}", t, exp_s, exp_f)
+            recs += trajectory_evidence(lab, f"{code} {k}", t, exp_s, exp_f)
         res.records += in_pair(recs, pair[engine])
         if not all(x.passed for x in recs):
             res.notes.append(
@@ -975,8 +860,16 @@ def biaxial_full(ctx: Context) -> CaseResult:
             )
             continue
         frames = exp_f if exp_f is not None else []
-        recs, div, sdiv = _envelope(
-            f"biaxial-full/divergence/{engine}", code, nat, ref, sd["ensemble"], frames, exp_s, pk.d50
+        recs, div, sdiv = envelope(
+            f"biaxial-full/divergence/{engine}",
+            code,
+            nat,
+            ref,
+            sd["ensemble"],
+            frames=frames,
+            steps=exp_s,
+            d50=pk.d50,
+            rule=FULL_RULE,
         )
         res.records += in_pair(recs, pair[engine])
         divs[engine], sdivs[engine] = div, sdiv
@@ -992,23 +885,28 @@ def biaxial_full(ctx: Context) -> CaseResult:
             peak(np.abs(cur[f"{code} {k}"][2] - ev_l) for k in sd["ensemble"]),
         )
         _, q_n, ev_n = cur[f"native ({engine})"]
+        members = [cur[f"{code} {k}"] for k in sd["ensemble"]]
         res.records += in_pair(
             [
-                compare(
+                band(
                     f"biaxial-full/curve/{engine}",
                     "deviator",
                     "max|dq|/p along the curve",
-                    np.abs(q_n - q_l).max(),
-                    bands[engine][0],
-                    CURVE_REASON.replace("LIGGGHTS", code),
+                    q_n,
+                    q_l,
+                    [m[1] for m in members],
+                    factor=FULL_RULE.curve_factor,
+                    reason=CURVE_REASON.replace("LIGGGHTS", code),
                 ),
-                compare(
+                band(
                     f"biaxial-full/curve/{engine}",
                     "volumetric_strain",
                     "max|d eps_v| along the curve",
-                    np.abs(ev_n - ev_l).max(),
-                    bands[engine][1],
-                    CURVE_REASON.replace("LIGGGHTS", code).replace(", in units of the confining p", ""),
+                    ev_n,
+                    ev_l,
+                    [m[2] for m in members],
+                    factor=FULL_RULE.curve_factor,
+                    reason=CURVE_REASON.replace("LIGGGHTS", code).replace(", in units of the confining p", ""),
                 ),
             ],
             pair[engine],
@@ -1063,6 +961,8 @@ def biaxial_full(ctx: Context) -> CaseResult:
     for engine in divs:
         div = divs[engine]
         code = CODE[engine]
+        if f"native vs {code}" not in div:  # a stored series: no positions, no divergence table
+            continue
         steps = div[f"native vs {code}"][0]
         rows = []
         ref = sides[engine]["reference"]

@@ -24,11 +24,13 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import functools
 import hashlib
 import json
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -55,27 +57,29 @@ from reference_runs.parsers import parse_dump_custom
 from reference_runs.runner import run_job
 
 from .. import dem_compare
+from ..codes import CODES, NATIVE, code_label, pair_key
 from ..core import (
     CaseResult,
     Context,
     case,
-    compare,
     default_job_timeout,
     evidence,
     in_pair,
     info,
-    peak,
     stored_dir,
-    stored_job_record,
 )
 from ..dem_compare import (
     Trajectory,
     expected_frames,
     expected_steps,
+    reduce_sheared,  # noqa: F401 (the sheared-cell geometry of this case, tested here)
+    sheared_cell,
     stress_differences,
     trajectory_evidence,
 )
-from .biaxial import ENVELOPE_FACTOR, FULL_CONSOLIDATION_STEPS, PERTURB_REL, _kuhn, _servo
+from ..judges import ENVELOPE_FACTOR, EnvelopeRule, StepBounds, band, envelope, step_for_step
+from ..matrix import Comparison, Run, evaluate, stored_job
+from .biaxial import FULL_CONSOLIDATION_STEPS, PERTURB_REL, _kuhn, _servo
 from .voidcell import _cells, _face_order, cell_signature
 from .voidcell import _records as cell_records
 
@@ -143,17 +147,6 @@ def _perturbation(label: str, n: int) -> tuple[int, int, float]:
         "x of disk 1 moved by +1e-15 rel": (0, 0, 1.0),
         f"y of disk {n // 2 + 1} moved by -1e-15 rel": (n // 2, 1, -1.0),
     }[label]
-
-
-def _max(a) -> float:
-    """Largest entry, NaN for an empty array or any NaN (a comparison over nothing fails)."""
-    return peak([a])
-
-
-# ------------------------------------------------------------------ trajectories
-def _cell(box_row) -> np.ndarray:
-    lx, ly, xy = (float(v) for v in box_row[:3])
-    return np.array([[lx, xy], [0.0, ly]])
 
 
 def _frame(eng) -> dict:
@@ -277,81 +270,31 @@ def run_shear_job(
     return dataclasses.replace(tr, elapsed=el), res.manifest
 
 
-# ------------------------------------------------------------------ differences
-def reduce_sheared(d: np.ndarray, cell: np.ndarray) -> np.ndarray:
-    """``d`` (N, 2) minus the nearest lattice vector of ``cell`` (columns a1, a2): a disk wrapped at
-    another step on one side differs by a lattice vector of the current box (remap v moves a
-    wrapped disk as its image)."""
-    lam = np.linalg.solve(cell, d.T).T
-    return d - np.round(lam) @ cell.T
-
-
-def sheared_frame_differences(a, b, d50: float, steps) -> dict:
-    """Per frame: max |x_a - x_b| / D50 modulo the sheared cell of ``b`` and the relative
-    differences (max |a - b| / max |b|) of velocities, spins, forces and torques."""
-    steps = np.array(sorted(int(s) for s in steps), np.int64)
-    out = {k: np.zeros(len(steps)) for k in ("x", "v", "w", "f", "t")}
-    for n, s in enumerate(steps):
-        fa, fb = a.frames[s], b.frames[s]
-        cell = _cell(b.lengths[b.at([s])[0]])
-        out["x"][n] = float(np.abs(reduce_sheared(fa["x"] - fb["x"], cell)).max()) / d50
-        for k in ("v", "w", "f", "t"):
-            scale = float(np.abs(fb[k]).max()) or 1.0
-            out[k][n] = float(np.abs(fa[k] - fb[k]).max()) / scale
-    return {"steps": steps, **out}
+# ------------------------------------------------------------------ step for step
+SHEAR_BOUNDS = StepBounds(
+    position=POS_TOL,
+    relative=REL_TOL,
+    position_reason=POS_REASON,
+    velocity_reason=VEL_REASON,
+    force_reason=FORCE_REASON,
+    stress_reason=STRESS_REASON,
+    box_reason=BOX_REASON,
+    cell="sheared",
+)
 
 
 def step_records(label: str, nat, ref, d50: float, nsteps: int, dump_every: int) -> tuple[list, list]:
-    """Evidence of both sides (every thermo step, every dump frame) and the step-for-step checks;
-    returns (records, table row)."""
-    exp_s, exp_f = expected_steps(nsteps), expected_frames(nsteps, dump_every)
-    recs = trajectory_evidence(label, "native", nat, exp_s, exp_f) + trajectory_evidence(
-        label, "LAMMPS", ref, exp_s, exp_f
+    """:func:`validation.judges.step_for_step` in the sheared cell at this case's bounds; returns
+    (records, table row)."""
+    recs, s = step_for_step(
+        label, nat, ref, d50=d50, nsteps=nsteps, dump_every=dump_every, bounds=SHEAR_BOUNDS, sides=("native", "LAMMPS")
     )
-    have = {int(s) for s in ref.steps}
-    frames = [
-        int(s)
-        for s in exp_f
-        if s in nat.frames and s in ref.frames and int(s) in have and len(ref.frames[s]["x"]) == len(nat.frames[s]["x"])
-    ]
-    both = np.intersect1d(np.intersect1d(exp_s, nat.steps), ref.steps)
-    fd = sheared_frame_differences(nat, ref, d50, frames)
-    steps, rel, dl = stress_differences(nat, ref, steps=both)
-    recs += [
-        compare(
-            label,
-            "position",
-            "max|dx|/D50 over frames (modulo the sheared cell)",
-            _max(fd["x"]),
-            POS_TOL,
-            POS_REASON,
-        ),
-        compare(label, "velocity", "max|dv|/max|v|", _max(fd["v"]), REL_TOL, VEL_REASON),
-        compare(label, "spin", "max|dw|/max|w|", _max(fd["w"]), REL_TOL, VEL_REASON),
-        compare(label, "particle_force", "max|df|/max|f|", _max(fd["f"]), REL_TOL, FORCE_REASON),
-        compare(label, "particle_torque", "max|dT|/max|T|", _max(fd["t"]), REL_TOL, FORCE_REASON),
-        compare(
-            label,
-            "stress",
-            "max over steps of max|dsigma|/max|sigma|",
-            _max(rel),
-            REL_TOL,
-            STRESS_REASON,
-            inputs={"native": nat.stress[nat.at(both)], "LAMMPS": ref.stress[ref.at(both)]},
-        ),
-        compare(label, "box", "max|d(lx, ly, xy)|/D50 over steps", _max(dl) / d50, POS_TOL, BOX_REASON),
-    ]
-    row = [
-        label,
-        int(steps[-1]) if len(steps) else -1,
-        len(frames),
-        _max(fd["x"]),
-        _max(fd["v"]),
-        _max(fd["f"]),
-        _max(rel),
-        _max(dl) / d50,
-    ]
-    return recs, row
+    return recs, short_row(s)
+
+
+def short_row(s: dict) -> list:
+    """A row of the step-for-step table from a judge's summary."""
+    return [s["label"], s["last_step"], s["frames"], s["x"], s["v"], s["f"], s["stress"], s["box"]]
 
 
 # ------------------------------------------------------------------ void cells on the sheared cell
@@ -376,7 +319,7 @@ def sheared_snapshot(tr, step: int, radii: np.ndarray, dt: float):
     x_j + h n moves with v_j + (dh/dt) n, dh/dt from the box series (:func:`box_rate`).
     """
     fr = tr.frames[step]
-    h = _cell(tr.lengths[tr.at([step])[0]])
+    h = sheared_cell(tr.lengths[tr.at([step])[0]])
     nl = find_neighbours(fr["x"], radii, h, skin=0.0)
     return Snapshot(
         positions=fr["x"],
@@ -660,7 +603,7 @@ ENVELOPE_REASON = (
     "native run, seeded by summation-order round-off at every step rather than one 1e-15 kick, meets it up "
     "to ~1000 steps earlier. Native vs LAMMPS must stay within 10 times that (one decade: the magnitude "
     "of the seed is uncertain to that), or within the short-horizon bound (1e-10 D50 positions, 1e-8 "
-    "stress) while the envelope is below it"
+    "stress) while the envelope is below it (validation.judges.EnvelopeRule)"
 )
 ENVELOPE_WINDOW = LONG_DUMP_EVERY  # steps
 #: the native run and the LAMMPS reference are two members of the same round-off ensemble: if each
@@ -677,94 +620,16 @@ STATS_REASON = (
     "the reference (instantaneous velocity fields decorrelate once positions differ by ~1e-4 D50); "
     "tolerance 2 x band, as for the curves"
 )
-
-
-def _floor_ratio(d: np.ndarray, env: np.ndarray, floor: float, factor: float) -> float:
-    """max_t d(t) / max(env(t), floor/factor): <= factor iff d <= max(factor env, floor) everywhere.
-    NaN (a failing value) when there is no step or d or the envelope holds a NaN or inf."""
-    if not len(d) or not (np.isfinite(d).all() and np.isfinite(env).all()):
-        return float("nan")
-    return float(np.max(d / np.maximum(env, floor / factor)))
-
-
-def windowed_max(steps, e, window: int) -> np.ndarray:
-    """For every step t: max of ``e`` over the series steps within |t' - t| <= ``window``."""
-    steps = np.asarray(steps, np.int64)
-    e = np.asarray(e, float)
-    lo = np.searchsorted(steps, steps - window, side="left")
-    hi = np.searchsorted(steps, steps + window, side="right")
-    return np.array([e[a:b].max() for a, b in zip(lo, hi)]) if len(e) else e
-
-
-def decade_steps(steps, env, level: float = 1e-4) -> float:
-    """Steps per decade of the envelope's mean growth: from its first positive value to the first
-    step where it reaches ``level`` (NaN when it never does)."""
-    steps, env = np.asarray(steps), np.asarray(env, float)
-    pos = np.flatnonzero(env > 0)
-    hit = np.flatnonzero(env >= level)
-    if not len(pos) or not len(hit) or hit[0] <= pos[0]:
-        return float("nan")
-    a, b = pos[0], hit[0]
-    return float((steps[b] - steps[a]) / np.log10(env[b] / env[a]))
-
-
-def envelope_records(label: str, nat, ref, ensemble: dict, frames, steps, d50: float):
-    """Divergence of ``nat`` from the LAMMPS reference against LAMMPS' envelope; returns
-    (records, div, sdiv) with {name: (steps, values)} of positions (frames) and stress (steps)."""
-    runs = {"native vs LAMMPS": nat, **{f"LAMMPS {k}": t for k, t in ensemble.items()}}
-    div, sdiv = {}, {}
-    for name, tr in runs.items():
-        if frames:
-            fd = sheared_frame_differences(tr, ref, d50, frames)
-            div[name] = (fd["steps"], fd["x"])
-        st, rel, _ = stress_differences(tr, ref, steps=steps)
-        sdiv[name] = (st, rel)
-    ens = [k for k in runs if k != "native vs LAMMPS"]
-    recs = []
-    if frames:
-        env = windowed_max(div["native vs LAMMPS"][0], np.max([div[k][1] for k in ens], axis=0), ENVELOPE_WINDOW)
-        recs.append(
-            compare(
-                label,
-                "position",
-                "max_t D_native(t)/max(E_w(t), 1e-10/10)",
-                _floor_ratio(div["native vs LAMMPS"][1], env, POS_TOL, ENVELOPE_FACTOR),
-                ENVELOPE_FACTOR,
-                ENVELOPE_REASON,
-            )
-        )
-    env0 = np.max([sdiv[k][1] for k in ens], axis=0)
-    env = windowed_max(sdiv["native vs LAMMPS"][0], env0, ENVELOPE_WINDOW)
-    recs.append(
-        compare(
-            label,
-            "stress",
-            "max_t S_native(t)/max(E_S,w(t), 1e-8/10)",
-            _floor_ratio(sdiv["native vs LAMMPS"][1], env, REL_TOL, ENVELOPE_FACTOR),
-            ENVELOPE_FACTOR,
-            ENVELOPE_REASON,
-        )
-    )
-    unwin = _floor_ratio(sdiv["native vs LAMMPS"][1], env0, REL_TOL, ENVELOPE_FACTOR)
-    recs.append(
-        info(
-            label,
-            "stress",
-            "max_t S_native(t)/max(E_S(t), 1e-8/10) without the time window",
-            unwin,
-            "shown for the reader: the pointwise ratio, dominated by slip events met at slightly other steps",
-        )
-    )
-    recs.append(
-        info(
-            label,
-            "stress",
-            "steps per decade of the envelope's mean growth (to 1e-4)",
-            decade_steps(sdiv["native vs LAMMPS"][0], env0),
-            f"the time scale behind the envelope's window of +/- {ENVELOPE_WINDOW} steps",
-        )
-    )
-    return recs, div, sdiv
+#: the envelope criterion of the long horizon (validation.judges.EnvelopeRule): the sheared-cell native
+#: run differs from LAMMPS by summation-order round-off, hence the window and the step-for-step floors
+LONG_RULE = EnvelopeRule(
+    factor=ENVELOPE_FACTOR,
+    window=ENVELOPE_WINDOW,
+    position_floor=POS_TOL,
+    stress_floor=REL_TOL,
+    curve_factor=CURVE_FACTOR,
+    reason=ENVELOPE_REASON,
+)
 
 
 def shear_curves(tr, p: float):
@@ -772,6 +637,84 @@ def shear_curves(tr, p: float):
     compression-positive virial) and normal strain ln(ly/ly0) (dilation positive)."""
     b = tr.lengths
     return (b[:, 2] - b[0, 2]) / b[0, 1], -tr.stress[:, 2] / p, np.log(b[:, 1] / b[0, 1])
+
+
+# ------------------------------------------------------------------ the short horizon as a declaration
+@dataclass(frozen=True)
+class ShearCode:
+    """Where a code's runs of the short horizon come from: its stored jobs (one directory per
+    loading of SHORT_CASES under reference_runs/stored/<stored>), the prefix of its live job
+    directories, how a job of it is run and how its output is read, and the suffix of its record
+    labels. A code is one more entry of :data:`SHEAR_CODES`; its comparisons follow from
+    :func:`short_plan`."""
+
+    stored: str
+    live_job: str
+    run_job: object
+    read: object
+    suffix: str = ""
+
+
+SHEAR_CODES = {"lammps": ShearCode("shear-short-lammps", "live-120", run_shear_job, read_lammps_shear)}
+#: why a code has no column here
+SHEAR_NA = {"liggghts": LIGGGHTS_NA}
+
+
+def short_plan(ctx: Context, manifests: dict | None = None) -> tuple[list, list]:
+    """The runs and comparisons of the short horizon: for every loading of SHORT_CASES and every
+    code of :data:`SHEAR_CODES`, native (the sheared-cell engine in that code's arithmetic)
+    against the code's stored run (3000 steps) and, with the code installed, against the same
+    deck run now (:data:`LIVE_STEPS`), step for step in the sheared cell. ``manifests`` collects
+    the live jobs' manifests and directories (key: the comparison label)."""
+    manifests = {} if manifests is None else manifests
+    runs, comps = [], []
+    for name in SHORT_CASES:
+        p, s, ld, n = short_case(name)
+        for code in CODES:
+            sc = SHEAR_CODES.get(code)
+            if sc is None:
+                continue
+            d = stored_dir(sc.stored) / name
+
+            def live(name=name, sc=sc, p=p, s=s, ld=ld):
+                job = ctx.work("reference", CASE, f"{sc.live_job}-{name}")
+                tr, man = sc.run_job(
+                    job, p, s, ld, LIVE_STEPS, LIVE_DUMP_EVERY, timeout=ctx.job_timeout(p.n * LIVE_STEPS)
+                )
+                manifests[f"live-120/{name}{sc.suffix}"] = (man, job)
+                return tr
+
+            for scen, steps, every in (("stored-120", n, SHORT_DUMP_EVERY), ("live-120", LIVE_STEPS, LIVE_DUMP_EVERY)):
+                key = f"{scen}/{name}/{code}"
+                if scen == "stored-120":
+                    ref = Run(
+                        key,
+                        code,
+                        code,
+                        f"stored {sc.stored}/{name}",
+                        functools.partial(sc.read, d / "log.lammps", d / "dump.atoms"),
+                        verify=stored_job(d),
+                    )
+                else:
+                    ref = Run(key, code, code, f"{scen} deck run now", live, live=True)
+                nat = Run(
+                    f"native/{key}",
+                    NATIVE,
+                    code,
+                    f"native sheared cell, {code} arithmetic",
+                    functools.partial(run_native_shear, p, s, ld, steps, every),
+                )
+                runs += [nat, ref]
+                comps.append(
+                    Comparison(
+                        "step",
+                        f"{CASE}/{scen}/{name}{sc.suffix}",
+                        (nat.key, ref.key),
+                        MATRIX_REASON,
+                        {"d50": p.d50, "nsteps": steps, "dump_every": every, "bounds": SHEAR_BOUNDS},
+                    )
+                )
+    return runs, comps
 
 
 # ------------------------------------------------------------------ the case
@@ -801,9 +744,6 @@ def simple_shear_case(ctx: Context) -> CaseResult:
         "envelope. Void cells (Kuhn, eqs 18-20) from snapshots of both codes "
         "built identically on the sheared cell.",
     )
-    res.declare("native-lammps", MATRIX_REASON)
-    res.skip_pair("native-liggghts", LIGGGHTS_NA)
-    res.skip_pair("liggghts-lammps", LIGGGHTS_NA)
     res.notes.append(
         "Velocities: with <code>remap v</code> the dumped v are lab velocities (streaming part included): "
         "LAMMPS' fix deform documentation says the atoms 'acquire a velocity that matches the box change' "
@@ -822,32 +762,36 @@ def simple_shear_case(ctx: Context) -> CaseResult:
         "max rel stress",
         "max|dbox|/D50",
     ]
-    rows = []
+    for code in CODES:
+        if code not in SHEAR_CODES:
+            res.skip_pair(pair_key(NATIVE, code), SHEAR_NA.get(code, f"no sheared-cell run of {code_label(code)}"))
+            for other in CODES:
+                if other != code:
+                    res.skip_pair(pair_key(code, other), SHEAR_NA.get(code, ""))
+    manifests = {}
+    runs, comps = short_plan(ctx, manifests)
+    out = evaluate(res, ctx, runs, comps)
+    rows = [short_row(out.summaries[c.label]) for c in comps if c.label in out.summaries]
     short_div = {}
     vc_fig = None
-    for name in SHORT_CASES:
-        p, s, ld, n = short_case(name)
-        stored = stored_dir("shear-short-lammps") / name
-        label = f"{CASE}/stored-120/{name}"
-        nat = run_native_shear(p, s, ld, n, SHORT_DUMP_EVERY)
-        ref = read_lammps_shear(stored / "log.lammps", stored / "dump.atoms")
-        recs = [stored_job_record(label, stored)]
-        r2, row = step_records(label, nat, ref, p.d50, n, SHORT_DUMP_EVERY)
-        res.records += in_pair(recs + r2, "native-lammps")
-        rows.append(row)
-
+    for c in comps:
+        nat_key, ref_key = c.runs
+        if not ref_key.startswith("stored-120/") or c.label not in out.summaries:
+            continue
+        name = ref_key.split("/")[1]
+        p, s, _, n = short_case(name)
+        nat, ref = out.runs[nat_key], out.runs[ref_key]
+        who = code_label(ref_key.split("/")[2])
         both = np.intersect1d(nat.steps, ref.steps)
         short_div[name] = stress_differences(nat, ref, steps=both)[:2]
         # void cells of every dump
         frames = [int(k) for k in expected_frames(n, SHORT_DUMP_EVERY)]
-        vlab = f"{CASE}/voidcells-120/{name}"
+        vlab = f"{CASE}/voidcells-120/{name}" + SHEAR_CODES[ref_key.split("/")[2]].suffix
 
-        ev = trajectory_evidence(vlab, "native", nat, None, frames) + trajectory_evidence(
-            vlab, "LAMMPS", ref, None, frames
-        )
+        ev = trajectory_evidence(vlab, "native", nat, None, frames) + trajectory_evidence(vlab, who, ref, None, frames)
         present = [k for k in frames if k in nat.frames and k in ref.frames and int(k) in set(ref.steps.tolist())]
         cmp = compare_cells(nat, ref, present, p.radii, s.dt)
-        res.records += in_pair(ev + cell_records(vlab, cmp), "native-lammps")
+        res.records += in_pair(ev + cell_records(vlab, cmp), pair_key(NATIVE, ref_key.split("/")[2]))
         if cmp["no_tessellation"]:
             res.notes.append(
                 f"stored-120/{name}: steps {cmp['no_tessellation']} have no framework spanning the cell on "
@@ -855,30 +799,10 @@ def simple_shear_case(ctx: Context) -> CaseResult:
             )
         if name == "servo" and cmp["vc"] and cmp["vc"][-1][0] is not None:
             vc_fig = (cmp["steps"][-1], *cmp["vc"][-1])
-    if ctx.lammps:
-        for name in SHORT_CASES:
-            p, s, ld, _ = short_case(name)
-            job = ctx.work("reference", CASE, f"live-120-{name}")
-            ref, man = run_shear_job(
-                job,
-                p,
-                s,
-                ld,
-                LIVE_STEPS,
-                LIVE_DUMP_EVERY,
-                timeout=ctx.job_timeout(p.n * LIVE_STEPS),
-            )
-            nat = run_native_shear(p, s, ld, LIVE_STEPS, LIVE_DUMP_EVERY)
-            r2, row = step_records(f"{CASE}/live-120/{name}", nat, ref, p.d50, LIVE_STEPS, LIVE_DUMP_EVERY)
-            res.records += in_pair(r2, "native-lammps")
-            rows.append(row)
-            res.notes.append(
-                f"live-120/{name}: <code>{' '.join(man.get('command', []))}</code> "
-                f"({man.get('engine_version', '')}) in <code>{job}</code>."
-            )
-    else:
+    for key, (man, job) in manifests.items():
         res.notes.append(
-            "<b>LAMMPS is absent</b>: the live short runs are not made; the stored LAMMPS runs are compared."
+            f"{key}: <code>{' '.join(man.get('command', []))}</code> "
+            f"({man.get('engine_version', '')}) in <code>{job}</code>."
         )
     res.tables.append(("Step for step, native vs LAMMPS: largest differences per run", header, rows))
     if vc_fig is not None:
@@ -981,7 +905,18 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
             "(records above); no envelope verdict is made on what remains."
         )
         return
-    recs, div, sdiv = envelope_records(f"{CASE}/kuhn-1002/divergence", nat, ref, ens, frames, exp_s, pk.d50)
+    recs, div, sdiv = envelope(
+        f"{CASE}/kuhn-1002/divergence",
+        "LAMMPS",
+        nat,
+        ref,
+        ens,
+        frames=frames,
+        steps=exp_s,
+        d50=pk.d50,
+        rule=LONG_RULE,
+        cell="sheared",
+    )
     res.records += in_pair(recs, "native-lammps")
     sub = Trajectory(ref.steps, nat.stress[nat.at(ref.steps)], nat.lengths[nat.at(ref.steps)], {})
     cur = {
@@ -989,19 +924,19 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
         "native": shear_curves(sub, p),
         **{f"LAMMPS {k}": shear_curves(t, p) for k, t in ens.items()},
     }
-    recs = []
-    for col, qty, unit in ((1, "shear_stress", "tau/p"), (2, "normal_strain", "ln(ly/ly0)")):
-        band = peak(np.abs(cur[f"LAMMPS {k}"][col] - cur["LAMMPS"][col]) for k in ens)  # NaN stays NaN
-        recs.append(
-            compare(
-                f"{CASE}/kuhn-1002/curve",
-                qty,
-                f"max|d {unit}| along the curve",
-                float(np.abs(cur["native"][col] - cur["LAMMPS"][col]).max()),
-                CURVE_FACTOR * band,
-                CURVE_REASON,
-            )
+    recs = [
+        band(
+            f"{CASE}/kuhn-1002/curve",
+            qty,
+            f"max|d {unit}| along the curve",
+            cur["native"][col],
+            cur["LAMMPS"][col],
+            [cur[f"LAMMPS {k}"][col] for k in ens],
+            factor=LONG_RULE.curve_factor,
+            reason=CURVE_REASON,
         )
+        for col, qty, unit in ((1, "shear_stress", "tau/p"), (2, "normal_strain", "ln(ly/ly0)"))
+    ]
     res.records += in_pair(recs, "native-lammps")
 
     res.tables.append(
@@ -1027,21 +962,21 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
         }
         for k, t in ens.items():
             st[f"LAMMPS {k}"] = cell_stats(t, frames, pk.radii, s["settings"].dt)
-        recs = []
-        for col, qty in ((0, "mean_alpha"), (1, "fraction_alpha_le_0")):
-            # a frame without cells is NaN on a side: it must be so on the other (defined_diff)
-            band = peak(defined_diff(st[f"LAMMPS {k}"][:, col], st["LAMMPS"][:, col]) for k in ens)
-            diff = defined_diff(st["native"][:, col], st["LAMMPS"][:, col])
-            recs.append(
-                compare(
-                    f"{CASE}/kuhn-1002/voidcells",
-                    qty,
-                    f"max over {len(frames)} frames |native - LAMMPS|",
-                    diff,
-                    CURVE_FACTOR * band,
-                    STATS_REASON,
-                )
+        # a frame without cells is NaN on a side: it must be so on the other (defined_diff)
+        recs = [
+            band(
+                f"{CASE}/kuhn-1002/voidcells",
+                qty,
+                f"max over {len(frames)} frames |native - LAMMPS|",
+                st["native"][:, col],
+                st["LAMMPS"][:, col],
+                [st[f"LAMMPS {k}"][:, col] for k in ens],
+                factor=LONG_RULE.curve_factor,
+                reason=STATS_REASON,
+                diff=defined_diff,
             )
+            for col, qty in ((0, "mean_alpha"), (1, "fraction_alpha_le_0"))
+        ]
         # remap v keeps the streaming velocity in the dumped v: its x profile has the slope of the flow
         fr = ref.frames[frames[-1]]
         slope = np.polyfit(fr["x"][:, 1], fr["v"][:, 0], 1)[0]

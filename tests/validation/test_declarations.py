@@ -1,0 +1,192 @@
+"""Cases as declarations (validation.matrix) and the shared judges (validation.judges).
+
+The columns follow from the code list; a comparison lands in the column of its runs' codes; a live
+run of a code that is not installed leaves its comparisons out and marks a column without any
+comparison not applicable; the one envelope criterion keeps both of its former forms (pointwise
+for biaxial-full, windowed with floors for simple-shear) and fails on a NaN, on nothing, on a zero
+envelope under a non-zero divergence and on a member cut short; the step-for-step judge fails on
+a reference cut short and on a reference with a particle missing."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from validation import codes
+from validation.core import CaseResult, Context
+from validation.dem_compare import Trajectory
+from validation.judges import (
+    BITWISE_RULE,
+    EnvelopeRule,
+    StepBounds,
+    band,
+    envelope,
+    envelope_ratio,
+    step_for_step,
+    windowed_max,
+)
+from validation.matrix import Comparison, Run, evaluate
+
+BOUNDS = StepBounds(1e-10, 1e-8, "p", "v", "f", "s", "b")
+
+
+def test_the_columns_follow_the_code_list(monkeypatch):
+    assert codes.pairs() == {
+        "native-liggghts": "native vs LIGGGHTS",
+        "native-lammps": "native vs LAMMPS",
+        "liggghts-lammps": "LIGGGHTS vs LAMMPS",
+    }
+    monkeypatch.setattr(codes, "CODES", ("liggghts", "lammps", "yade"))  # one more code: its columns
+    p = codes.pairs()
+    assert list(p) == [
+        "native-liggghts",
+        "native-lammps",
+        "native-yade",
+        "liggghts-lammps",
+        "liggghts-yade",
+        "lammps-yade",
+    ]
+    assert p["native-yade"] == "native vs YADE" and p["lammps-yade"] == "LAMMPS vs YADE"
+    assert codes.pair_key("yade", "native") == "native-yade"
+    with pytest.raises(ValueError, match="code"):
+        codes.pair_key("native", "chute")
+    with pytest.raises(ValueError, match="twice"):
+        codes.pair_key("lammps", "lammps")
+
+
+def _traj(n=6, steps=10, dump=5, seed=0, drop_steps=0, drop_particle=False):
+    """A made-up run: stress and box every step, frames every ``dump`` steps, 2D disks."""
+    rng = np.random.default_rng(seed)
+    st = np.arange(steps + 1 - drop_steps)
+    frames = {}
+    for s in range(0, steps + 1 - drop_steps, dump):
+        k = n - 1 if drop_particle else n
+        frames[s] = {
+            "x": rng.uniform(0, 1, (k, 2)),
+            "v": rng.normal(size=(k, 2)),
+            "w": rng.normal(size=k),
+            "f": rng.normal(size=(k, 2)),
+            "t": rng.normal(size=k),
+        }
+    return Trajectory(st, rng.normal(size=(len(st), 3)), np.ones((len(st), 2)), frames)
+
+
+def _step(a, b):
+    return step_for_step("c/x", a, b, d50=0.1, nsteps=10, dump_every=5, bounds=BOUNDS, sides=("native", "LAMMPS"))
+
+
+def test_step_for_step_passes_equal_runs_and_fails_on_evidence_cut_short():
+    a = _traj()
+    recs, s = _step(a, _traj())
+    assert all(r.passed for r in recs) and s["x"] == 0.0 and s["stress"] == 0.0
+    cut = _traj(drop_steps=4)  # a log and a dump cut at step 6
+    recs, _ = _step(a, cut)
+    bad = [r.metric for r in recs if not r.passed]
+    assert "incomplete: expected 11 LAMMPS series steps, got 7 (missing: 7, 8, 9, 10)" in bad
+    assert any(m.startswith("incomplete: expected 3 LAMMPS frames, got 2") for m in bad)
+    recs, _ = _step(a, _traj(drop_particle=True))  # a particle missing from every frame
+    failed = {r.quantity for r in recs if not r.passed}
+    assert {"position", "velocity", "spin", "particle_force", "particle_torque"} <= failed  # nothing to compare
+
+
+def test_evaluate_files_each_comparison_in_its_runs_column():
+    res = CaseResult("c", "t", "d")
+    runs = [
+        Run("native/x", "native", "lammps", "native", lambda: _traj()),
+        Run("x/lammps", "lammps", "lammps", "stored", lambda: _traj(), verify=lambda label, tr: []),
+        Run("live/lammps", "lammps", "lammps", "deck run now", lambda: _traj(), live=True),
+        Run("live/liggghts", "liggghts", "liggghts", "deck run now", lambda: _traj(), live=True),
+        Run("native/y", "native", "liggghts", "native", lambda: _traj()),
+    ]
+    params = {"d50": 0.1, "nsteps": 10, "dump_every": 5, "bounds": BOUNDS}
+    comps = [
+        Comparison("step", "c/stored", ("native/x", "x/lammps"), "why-lammps", params),
+        Comparison("step", "c/live", ("native/x", "live/lammps"), "why-lammps", params),
+        Comparison("step", "c/live-liggghts", ("native/y", "live/liggghts"), "why-liggghts", params),
+    ]
+    ctx = Context("quick", None, liggghts=False, lammps=True)
+    out = evaluate(res, ctx, runs, comps)
+    assert set(out.summaries) == {"c/stored", "c/live"}
+    assert out.skipped == {"c/live-liggghts": "LIGGGHTS is not installed (live/liggghts not made)"}
+    assert res.matrix == {"native-lammps": "why-lammps"}
+    assert "LIGGGHTS is not installed" in res.not_applicable["native-liggghts"]
+    assert all(r.pair == "native-lammps" for r in res.records) and res.passed
+    assert any("LIGGGHTS is absent" in n for n in res.notes)
+    # a live run with a stored stand-in: compared in its place when the code is absent
+    runs.append(Run("stored/liggghts", "liggghts", "liggghts", "stored", lambda: _traj()))
+    runs[3] = Run(
+        "live/liggghts", "liggghts", "liggghts", "deck run now", lambda: 1 / 0, live=True, fallback="stored/liggghts"
+    )
+    res = CaseResult("c", "t", "d")
+    out = evaluate(res, ctx, runs, comps)
+    assert set(out.summaries) == {"c/stored", "c/live", "c/live-liggghts"} and "stored/liggghts" in out.runs
+    assert res.cell("native-liggghts")["state"] == "pass"
+    assert any("its stored output stored/liggghts is compared instead" in n for n in res.notes)
+    with pytest.raises(ValueError, match="no run"):
+        evaluate(CaseResult("c", "t", "d"), ctx, runs, [Comparison("step", "c/z", ("native/x", "nope"), "r", params)])
+
+
+def test_the_envelope_ratio_of_both_rules():
+    d = np.array([0.0, 1e-12, 4e-12, 0.0])
+    env = np.array([0.0, 1e-12, 1e-12, 1e-12])
+    assert envelope_ratio(d, env, 10.0) == 4.0  # d = 0 over a zero envelope counts 0
+    assert envelope_ratio(d, np.array([0.0, 0.0, 1e-12, 1e-12]), 10.0) == math.inf  # d > 0, nothing to be within
+    assert envelope_ratio(d, np.zeros(4), 10.0, floor=1e-10) == pytest.approx(0.4)  # below the floor
+    for bad in (np.nan, np.inf):
+        dd = d.copy()
+        dd[2] = bad
+        assert math.isnan(envelope_ratio(dd, env, 10.0))
+    assert math.isnan(envelope_ratio([], [], 10.0))  # nothing compared: fails
+    assert list(windowed_max([0, 10, 20, 30], [1.0, 5.0, 2.0, 3.0], 10)) == [5.0, 5.0, 5.0, 3.0]
+    assert list(windowed_max([0, 10], [1.0, 5.0], 0)) == [1.0, 5.0]
+
+
+def test_one_envelope_judge_with_the_metrics_of_both_cases():
+    steps = np.arange(0, 101, 10)
+    ref = Trajectory(steps, np.ones((11, 3)), np.ones((11, 2)), {})
+
+    def member(eps):
+        return Trajectory(steps, np.ones((11, 3)) + eps * np.exp(steps / 20.0)[:, None], np.ones((11, 2)), {})
+
+    nat = member(2e-12)
+    window = EnvelopeRule(10.0, 20, 1e-10, 1e-8, 2.0, "r CODE")
+    for rule, metric, n_info in (
+        (BITWISE_RULE, "max_t S_native(t)/E_S(t)", 0),
+        (window, "max_t S_native(t)/max(E_S,w(t), 1e-8/10)", 2),
+    ):
+        recs, _, sdiv = envelope(
+            "c", "LAMMPS", nat, ref, {"p": member(1e-12)}, frames=[], steps=steps, d50=1.0, rule=rule
+        )
+        (check,) = [r for r in recs if r.kind == "check"]
+        assert check.metric == metric and check.passed
+        # pointwise: twice the member everywhere; the window and the floor can only lower the ratio
+        assert check.value == pytest.approx(2.0, rel=1e-4) if rule is BITWISE_RULE else 0 < check.value < 2.0
+        assert len(recs) - 1 == n_info and "LAMMPS" in check.reason
+    # 100 times the member's divergence: fails under both rules
+    recs, _, _ = envelope(
+        "c", "LAMMPS", member(1e-10), ref, {"p": member(1e-12)}, frames=[], steps=steps, d50=1.0, rule=BITWISE_RULE
+    )
+    assert not recs[0].passed and recs[0].value == pytest.approx(100.0, rel=1e-4)
+    # a member cut short: its steps are missing, there is no verdict (the cases check evidence first)
+    short = Trajectory(steps[:5], np.ones((5, 3)), np.ones((5, 2)), {})
+    with pytest.raises(KeyError):
+        envelope("c", "LAMMPS", nat, ref, {"p": short}, frames=[], steps=steps, d50=1.0, rule=BITWISE_RULE)
+
+
+def test_band_is_the_largest_member_deviation_times_the_factor():
+    ref = np.zeros(5)
+    rec = band("c", "deviator", "m", np.full(5, 0.3), ref, [np.full(5, 0.2), np.full(5, -0.1)], factor=2.0, reason="r")
+    assert rec.passed and rec.tolerance == pytest.approx(0.4) and rec.value == pytest.approx(0.3)
+    rec = band("c", "deviator", "m", np.full(5, 0.3), ref, [np.full(5, 0.2)], factor=1.0, reason="r")
+    assert not rec.passed
+    rec = band("c", "deviator", "m", np.full(5, 0.1), ref, [], factor=1.0, reason="r")
+    assert not rec.passed and "NaN" in rec.metric  # no member: no band, no pass
+
+
+def test_a_cross_pair_states_why_the_codes_differ():
+    why = codes.why_they_differ("liggghts-lammps")
+    for words in ("lever arm", "Coulomb cap", "pair_gran_hooke_history.cpp:222-224", "surface_model_default.h:182"):
+        assert words in why
+    assert codes.why_they_differ("native-lammps") == ""

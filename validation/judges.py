@@ -1,0 +1,463 @@
+"""The shared judges of the validation matrix: one function per criterion, each turning runs into records.
+
+A case declares its runs and the comparisons between them (:mod:`validation.matrix`); these judges
+compare them. Every judge first accounts for its evidence (every expected step, frame and run on
+each side: :func:`validation.dem_compare.trajectory_evidence`, :func:`validation.core.evidence`),
+then takes the differences over what the sides hold; a comparison over nothing is NaN, and a NaN
+or inf value fails (:mod:`reference_runs.judge`). So a comparison on incomplete evidence fails.
+
+Criteria:
+
+* :func:`step_for_step`: two runs of one deck at every step and dump, at the round-off bounds of
+  :class:`StepBounds` (native in a code's arithmetic against that code).
+* :func:`explained_difference`: two codes that differ physically on the same deck; their
+  difference must equal the difference of the two native flavours (each equal to its code), and
+  the raw difference is shown with the words of :func:`validation.codes.why_they_differ`.
+* :func:`envelope`: a long run against a code's own chaos envelope (:class:`EnvelopeRule`, the
+  one criterion of biaxial-full, biaxial-laws and simple-shear).
+* :func:`band`: a curve (or a statistic along it) within a multiple of the band its perturbed runs
+  span around the reference.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from reference_runs.judge import peak
+
+from .codes import why_they_differ
+from .core import compare, info
+from .dem_compare import (
+    expected_frames,
+    expected_steps,
+    frame_differences,
+    position_difference,
+    sheared_frame_differences,
+    stress_differences,
+    trajectory_evidence,
+)
+
+#: the figures a step-for-step or envelope comparison reports (a case picks its table columns)
+SUMMARY_KEYS = ("label", "last_step", "frames", "x", "v", "w", "f", "t", "stress", "box")
+
+
+def _max(a) -> float:
+    """Largest entry, NaN for an empty array or any NaN (a comparison over nothing fails)."""
+    return peak([a])
+
+
+# ====================================================================== step for step
+@dataclass(frozen=True)
+class StepBounds:
+    """Tolerances of a step-for-step comparison and why they are what they are.
+
+    position : of D50, for positions (modulo the cell) and box lengths.
+    relative : for velocities, spins, forces, torques (max |a - b| / max |b| per frame) and the
+        stress (per step, relative to the largest component).
+    cell : ``"orthogonal"`` (box lengths (T, 2), positions modulo the box) or ``"sheared"``
+        (box (lx, ly, xy), positions modulo the sheared cell).
+    """
+
+    position: float
+    relative: float
+    position_reason: str
+    velocity_reason: str
+    force_reason: str
+    stress_reason: str
+    box_reason: str
+    cell: str = "orthogonal"
+
+    def __post_init__(self):
+        if self.cell not in ("orthogonal", "sheared"):
+            raise ValueError(f"StepBounds.cell: expected 'orthogonal' or 'sheared', got {self.cell!r}")
+
+
+def _frame_diffs(a, b, d50: float, frames, cell: str) -> dict:
+    if cell == "sheared":
+        return sheared_frame_differences(a, b, d50, frames)
+    return frame_differences(a, b, d50, steps=frames)
+
+
+def step_for_step(
+    label: str,
+    a,
+    b,
+    *,
+    d50: float,
+    nsteps: int,
+    dump_every: int,
+    bounds: StepBounds,
+    thermo_every: int = 1,
+    sides=("native", "LIGGGHTS"),
+) -> tuple[list, dict]:
+    """Run ``a`` against run ``b`` (the reference) step for step: evidence of both sides, then
+    positions, velocities, spins, per-particle forces and torques at every dump, the stress and
+    the box at every series step.
+
+    The expected evidence is the run's: every ``thermo_every``-th step of ``nsteps`` in the series
+    and every ``dump_every``-th step as a frame, on both sides (``sides`` names them). A missing
+    step or frame is a failing ``evidence`` record; the differences are then taken over what both
+    sides hold (frames with the same particle count), and a comparison over nothing is NaN (fails).
+    Returns (records, summary) with the summary's keys :data:`SUMMARY_KEYS`.
+    """
+    who_a, who_b = sides
+    exp_s, exp_f = expected_steps(nsteps, thermo_every), expected_frames(nsteps, dump_every)
+    recs = trajectory_evidence(label, who_a, a, exp_s, exp_f) + trajectory_evidence(label, who_b, b, exp_s, exp_f)
+    have = {int(s) for s in b.steps}
+    frames = [
+        int(s)
+        for s in exp_f
+        if s in a.frames and s in b.frames and int(s) in have and len(b.frames[s]["x"]) == len(a.frames[s]["x"])
+    ]
+    both = np.intersect1d(np.intersect1d(exp_s, a.steps), b.steps)
+    fd = _frame_diffs(a, b, d50, frames, bounds.cell)
+    steps, rel, dl = stress_differences(a, b, steps=both)
+    sheared = bounds.cell == "sheared"
+    recs += [
+        compare(
+            label,
+            "position",
+            "max|dx|/D50 over frames" + (" (modulo the sheared cell)" if sheared else ""),
+            _max(fd["x"]),
+            bounds.position,
+            bounds.position_reason,
+        ),
+        compare(label, "velocity", "max|dv|/max|v|", _max(fd["v"]), bounds.relative, bounds.velocity_reason),
+        compare(label, "spin", "max|dw|/max|w|", _max(fd["w"]), bounds.relative, bounds.velocity_reason),
+        compare(label, "particle_force", "max|df|/max|f|", _max(fd["f"]), bounds.relative, bounds.force_reason),
+        compare(label, "particle_torque", "max|dT|/max|T|", _max(fd["t"]), bounds.relative, bounds.force_reason),
+        compare(
+            label,
+            "stress",
+            "max over steps of max|dsigma|/max|sigma|",
+            _max(rel),
+            bounds.relative,
+            bounds.stress_reason,
+            inputs={who_a: a.stress[a.at(both)], who_b: b.stress[b.at(both)]},
+        ),
+        compare(
+            label,
+            "box",
+            "max|d(lx, ly, xy)|/D50 over steps" if sheared else "max|dL|/D50",
+            _max(dl) / d50,
+            bounds.position,
+            bounds.box_reason,
+        ),
+    ]
+    summary = {
+        "label": label,
+        "last_step": int(steps[-1]) if len(steps) else -1,
+        "frames": len(frames),
+        **{k: _max(fd[k]) for k in ("x", "v", "w", "f", "t")},
+        "stress": _max(rel),
+        "box": _max(dl) / d50,
+    }
+    return recs, summary
+
+
+# ====================================================================== explained difference
+def explained_difference(
+    label: str,
+    a,
+    b,
+    nat_a,
+    nat_b,
+    *,
+    d50: float,
+    nsteps: int,
+    dump_every: int,
+    position_tol: float,
+    relative_tol: float,
+    reason: str,
+    pair: str,
+    thermo_every: int = 1,
+    sides=("LIGGGHTS", "LAMMPS"),
+) -> tuple[list, dict]:
+    """Two codes ``a`` and ``b`` on one deck whose laws differ physically: the evidence of both,
+    the raw differences (info, with the words of :func:`validation.codes.why_they_differ` for
+    ``pair``) and the check that they equal the difference of the native runs in the two codes'
+    arithmetic (``nat_a`` = code a's, ``nat_b`` = code b's): stress every series step, positions
+    (modulo the box) at every dump, at the step-for-step bounds. Orthogonal boxes."""
+    na, nb = sides
+    exp_s, exp_f = expected_steps(nsteps, thermo_every), expected_frames(nsteps, dump_every)
+    recs = trajectory_evidence(label, na, a, exp_s, exp_f) + trajectory_evidence(label, nb, b, exp_s, exp_f)
+    trs = (a, b, nat_a, nat_b)
+    steps = exp_s
+    for t in trs:
+        steps = np.intersect1d(steps, t.steps)
+    frames = [int(f) for f in exp_f if all(int(f) in t.frames for t in trs) and int(f) in set(steps.tolist())]
+
+    def sig(t):
+        return t.stress[t.at(steps)]
+
+    scale = np.abs(sig(a)).max(axis=1)
+    scale = np.where(scale > 0, scale, 1.0)
+    raw = np.abs(sig(a) - sig(b)).max(axis=1) / scale
+    expl = np.abs((sig(a) - sig(b)) - (sig(nat_a) - sig(nat_b))).max(axis=1) / scale
+
+    raw_x, expl_x = [], []
+    for f in frames:
+        L = a.lengths[a.at([f])[0]]
+        xa, xb = a.frames[f]["x"], b.frames[f]["x"]
+        ya, yb = nat_a.frames[f]["x"], nat_b.frames[f]["x"]
+        raw_x.append(position_difference(xa, xb, L) / d50)
+        d_codes = xa - xb - np.round((xa - xb) / L) * L
+        d_nat = ya - yb - np.round((ya - yb) / L) * L
+        expl_x.append(float(np.abs(d_codes - d_nat).max()) / d50)
+    why = why_they_differ(pair)
+    shown = "the raw cross-code difference (the size of the law differences), shown for the reader"
+    recs += [
+        info(
+            label,
+            "stress",
+            f"{na} vs {nb}: max over steps of max|dsigma|/max|sigma|",
+            _max(raw),
+            f"{shown}. Why: {why}" if why else shown,
+        ),
+        info(
+            label,
+            "position",
+            f"{na} vs {nb}: max|dx|/D50 over frames",
+            _max(raw_x),
+            f"{shown}. Why: {why}" if why else shown,
+        ),
+        compare(
+            label,
+            "stress",
+            f"max|({na} - {nb}) - (native {na.lower()} - native {nb.lower()})|/max|sigma|",
+            _max(expl),
+            relative_tol,
+            reason,
+        ),
+        compare(
+            label,
+            "position",
+            f"max|({na} - {nb}) - (native {na.lower()} - native {nb.lower()})|/D50",
+            _max(expl_x),
+            position_tol,
+            reason,
+        ),
+    ]
+    summary = {
+        "label": label,
+        "last_step": int(steps[-1]) if len(steps) else -1,
+        "frames": len(frames),
+        "raw_x": _max(raw_x),
+        "raw_stress": _max(raw),
+        "unexplained_x": _max(expl_x),
+        "unexplained_stress": _max(expl),
+    }
+    return recs, summary
+
+
+# ====================================================================== envelope
+@dataclass(frozen=True)
+class EnvelopeRule:
+    """The one envelope criterion: a long native run against a code's own chaos envelope.
+
+    The reference is the code's serial run; its envelope members are runs of the same deck under
+    a round-off perturbation (a coordinate moved by 1e-15 relative, 2 MPI processes, ...). With
+    D(t) the native run's divergence from the reference (positions per dump, in D50; the stress
+    per series step, relative) and E(t) the members' largest divergence at t:
+
+        D(t) <= factor * max(E_w(t), floor / factor)   at every output step t,
+
+    where E_w(t) is the largest E within ``window`` steps of t (0: E(t) itself) and ``floor`` the
+    step-for-step bound of the quantity (0: none), i.e. a divergence below the short-horizon
+    bound never fails. The value of a record is max_t D(t) / max(E_w(t), floor / factor); a step
+    where D > 0 and the envelope is 0 gives inf, a NaN anywhere or no step at all NaN: both fail.
+
+    Curves along the loading (deviator, volumetric strain, void-cell statistics) are judged by
+    :func:`band`: within ``curve_factor`` times the largest deviation of a member from the
+    reference.
+
+    Parameters as the cases declare them (``reason`` says why):
+
+    * :data:`BITWISE_RULE` (biaxial-full, biaxial-laws): factor 10, no window, no floor, curve
+      factor 1: the native run repeats the code's arithmetic bit for bit (measured: D = 0 at every
+      step), so the pointwise rule applies and no allowance for a later onset is needed.
+    * :data:`ROUNDOFF_RULE` (simple-shear): factor 10, window one dump interval (3000 steps),
+      floors 1e-10 D50 / 1e-8, curve factor 2: the sheared-cell native run differs from LAMMPS by
+      the summation order (2.5e-13 D50 in 3000 steps), so it is seeded at every step, not by one
+      kick, and meets a slip event up to ~1000 steps before or after a member does.
+    """
+
+    factor: float
+    window: int
+    position_floor: float
+    stress_floor: float
+    curve_factor: float
+    reason: str
+
+    def metric(self, quantity: str) -> str:
+        """The record's metric: ``max_t D_native(t)/E(t)`` or, with a window or a floor,
+        ``max_t D_native(t)/max(E_w(t), 1e-10/10)``."""
+        d, e = ("D", "E") if quantity == "position" else ("S", "E_S")
+        floor = self.position_floor if quantity == "position" else self.stress_floor
+        if not self.window and not floor:
+            return f"max_t {d}_native(t)/{e}(t)"
+        env = f"{e},w(t)" if quantity != "position" and self.window else (f"{e}_w(t)" if self.window else f"{e}(t)")
+        return f"max_t {d}_native(t)/max({env}, {_short(floor)}/{self.factor:g})"
+
+
+def _short(x: float) -> str:
+    """1e-08 -> ``1e-8`` (how the metrics write a bound)."""
+    m, e = f"{x:e}".split("e")
+    return f"{m.rstrip('0').rstrip('.')}e{int(e)}"
+
+
+ENVELOPE_FACTOR = 10.0
+BITWISE_RULE_REASON = (
+    "chaos: the code's own divergence under a round-off perturbation (one coordinate moved by "
+    "1e-15 relative, two runs; full suite also 2 MPI processes and twice the neighbour skin) is the envelope E(t) "
+    "= max over those runs at each output step; native-vs-CODE must stay within 10 E(t) at every step (a factor "
+    "10 = one decade of exponential growth, i.e. the perturbations' onset is uncertain to that); no time window "
+    "and no floor, as the native run repeats CODE's arithmetic bit for bit (validation.judges.EnvelopeRule)"
+)
+BITWISE_RULE = EnvelopeRule(
+    factor=ENVELOPE_FACTOR, window=0, position_floor=0.0, stress_floor=0.0, curve_factor=1.0, reason=BITWISE_RULE_REASON
+)
+
+
+def windowed_max(steps, e, window: int) -> np.ndarray:
+    """For every step t: max of ``e`` over the series steps within |t' - t| <= ``window``."""
+    steps = np.asarray(steps, np.int64)
+    e = np.asarray(e, float)
+    if not window:
+        return e
+    lo = np.searchsorted(steps, steps - window, side="left")
+    hi = np.searchsorted(steps, steps + window, side="right")
+    return np.array([e[a:b].max() for a, b in zip(lo, hi)]) if len(e) else e
+
+
+def envelope_ratio(d, env, factor: float, floor: float = 0.0) -> float:
+    """max_t d(t) / max(env(t), floor / factor): <= factor iff d <= max(factor env, floor) at every
+    step. A step with d = 0 counts 0 (whatever the envelope), d > 0 over a zero envelope inf; NaN
+    (a failing value) when there is no step or d or the envelope holds a NaN or inf."""
+    d, env = np.asarray(d, float), np.asarray(env, float)
+    if not len(d) or d.shape != env.shape or not (np.isfinite(d).all() and np.isfinite(env).all()):
+        return float("nan")
+    den = np.maximum(env, floor / factor)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(d > 0, d / np.where(den > 0, den, 1.0), 0.0)
+        r = np.where((d > 0) & (den <= 0), np.inf, r)
+    return float(np.max(r))
+
+
+def decade_steps(steps, env, level: float = 1e-4) -> float:
+    """Steps per decade of the envelope's mean growth: from its first positive value to the first
+    step where it reaches ``level`` (NaN when it never does)."""
+    steps, env = np.asarray(steps), np.asarray(env, float)
+    pos = np.flatnonzero(env > 0)
+    hit = np.flatnonzero(env >= level)
+    if not len(pos) or not len(hit) or hit[0] <= pos[0]:
+        return float("nan")
+    a, b = pos[0], hit[0]
+    return float((steps[b] - steps[a]) / np.log10(env[b] / env[a]))
+
+
+def envelope(
+    label: str,
+    code: str,
+    nat,
+    ref,
+    members: dict,
+    *,
+    frames,
+    steps,
+    d50: float,
+    rule: EnvelopeRule,
+    cell: str = "orthogonal",
+) -> tuple[list, dict, dict]:
+    """The divergence of ``nat`` from ``code``'s serial reference ``ref`` judged against the
+    code's own envelope (its perturbed runs ``members``, {label: trajectory}) by ``rule``.
+
+    ``frames``: the dump steps to compare positions at (empty: positions not compared, e.g. a
+    stored series without frames); ``steps``: the series steps of the stress. The evidence of
+    every run must have been checked before (the cases make no envelope verdict on incomplete
+    evidence). Returns (records, div, sdiv) with div/sdiv = {name: (steps, values)} of positions
+    (per frame) and stress (per series step) of the native run and of every member."""
+    runs = {f"native vs {code}": nat, **{f"{code} {k}": t for k, t in members.items()}}
+    me = f"native vs {code}"
+    div, sdiv = {}, {}
+    for name, tr in runs.items():
+        if len(frames):
+            fd = _frame_diffs(tr, ref, d50, frames, cell)
+            div[name] = (fd["steps"], fd["x"])
+        st, rel, _ = stress_differences(tr, ref, steps=steps)
+        sdiv[name] = (st, rel)
+    ens = [k for k in runs if k != me]
+    reason = rule.reason.replace("CODE", code)
+    recs = []
+    if len(frames):
+        env_x = windowed_max(div[me][0], np.max([div[k][1] for k in ens], axis=0), rule.window)
+        recs.append(
+            compare(
+                label,
+                "position",
+                rule.metric("position"),
+                envelope_ratio(div[me][1], env_x, rule.factor, rule.position_floor),
+                rule.factor,
+                reason,
+            )
+        )
+    env0 = np.max([sdiv[k][1] for k in ens], axis=0)
+    env_s = windowed_max(sdiv[me][0], env0, rule.window)
+    recs.append(
+        compare(
+            label,
+            "stress",
+            rule.metric("stress"),
+            envelope_ratio(sdiv[me][1], env_s, rule.factor, rule.stress_floor),
+            rule.factor,
+            reason,
+        )
+    )
+    if rule.window:  # what the window changes, and the time scale it rests on
+        recs.append(
+            info(
+                label,
+                "stress",
+                f"max_t S_native(t)/max(E_S(t), {_short(rule.stress_floor)}/{rule.factor:g}) without the time window",
+                envelope_ratio(sdiv[me][1], env0, rule.factor, rule.stress_floor),
+                "shown for the reader: the pointwise ratio, dominated by slip events met at slightly other steps",
+            )
+        )
+        recs.append(
+            info(
+                label,
+                "stress",
+                "steps per decade of the envelope's mean growth (to 1e-4)",
+                decade_steps(sdiv[me][0], env0),
+                f"the time scale behind the envelope's window of +/- {rule.window} steps",
+            )
+        )
+    return recs, div, sdiv
+
+
+def band(
+    label: str,
+    quantity: str,
+    metric: str,
+    native,
+    reference,
+    members: list,
+    *,
+    factor: float,
+    reason: str,
+    diff=None,
+):
+    """A curve of the native run within ``factor`` times the band of the code's envelope: the
+    value is max |native - reference| along the curve, the tolerance ``factor`` x the largest
+    deviation of a member's curve from the reference's (NaN stays NaN: fails). ``diff(a, b)``:
+    the largest difference of two curves (default max |a - b|; the void-cell statistics use
+    :func:`reference_runs.judge.defined_diff`, where NaN marks a frame without cells)."""
+    if diff is None:
+
+        def diff(x, y):
+            return float(np.abs(np.asarray(x, float) - np.asarray(y, float)).max())
+
+    width = peak(diff(m, reference) for m in members)
+    return compare(label, quantity, metric, diff(native, reference), factor * width, reason)

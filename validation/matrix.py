@@ -1,0 +1,161 @@
+"""Cases as declarations: the runs a case makes and the comparisons between them.
+
+A case lists its runs (:class:`Run`: native in a code's arithmetic, a code from a deck, a code's
+stored output) and the comparisons between them (:class:`Comparison`, by kind: a key of
+:data:`JUDGES`). :func:`evaluate` makes each run once (when first needed), hands the runs of each
+comparison to its judge (:mod:`validation.judges`), files the records in the matrix column of the
+two runs' codes (:func:`validation.codes.pair_key`) and declares that column with the
+comparison's reason. A run of a code that is not installed is not made: its comparisons are left
+out with a note, and a column left without any comparison is marked not applicable, saying why.
+
+So a case states what it compares, and adding a code adds its runs to the case's list: the
+comparisons and columns follow from the same rules (see validation/cases/biaxial.py, ``short_plan``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from .codes import NATIVE, code_label, pair_key
+from .core import CaseResult, Context, in_pair, stored_job_record
+from .judges import explained_difference, step_for_step
+
+#: the judges a comparison can name (kind -> function(label, *runs, **params) -> (records, summary));
+#: the envelope judge (validation.judges.envelope) takes a code's ensemble of runs and is called by
+#: the long-horizon cases directly
+JUDGES = {
+    "step": step_for_step,
+    "explained": explained_difference,
+}
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of a case.
+
+    key : unique within the case (``"stored-120/lammps"``, ``"native/stored-120/lammps"``).
+    code : ``"native"`` or a code of :data:`validation.codes.CODES` (who computed it).
+    arithmetic : the code whose floating-point operations a native run repeats
+        (``DEMSettings.flavour``); for a code's own run, the code itself.
+    source : where the evidence comes from, in words (shown in the report's run table).
+    make : produces the run (a :class:`validation.dem_compare.Trajectory`); called once.
+    live : the run needs its code installed (a deck run now); a stored output does not.
+    verify : optional ``verify(label, run) -> [records]``: evidence about the run itself (a stored
+        job verified against its deck), filed with the first comparison that uses the run.
+    fallback : for a live run, the key of the run (a stored output of the same code) compared in
+        its place when the code is not installed; None: its comparisons are left out then.
+    """
+
+    key: str
+    code: str
+    arithmetic: str
+    source: str
+    make: Callable[[], object]
+    live: bool = False
+    verify: Callable[[str, object], list] | None = None
+    fallback: str | None = None
+
+    @property
+    def who(self) -> str:
+        """The run's side name in records: ``native`` or the code's display name."""
+        return NATIVE if self.code == NATIVE else code_label(self.code)
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """One comparison of two (or more) runs by a shared judge.
+
+    kind : a key of :data:`JUDGES` (``step``, ``explained``).
+    label : the records' case label (``biaxial-short/stored-120/lammps``).
+    runs : keys of the runs, in the judge's order; the first two decide the matrix column.
+    reason : why this comparison's tolerances are what they are (the column's declared reason).
+    params : the judge's keyword arguments (bounds, expected steps and frames, ...), or a callable
+        returning them, called when the comparison is judged (after its runs are made: a D50 of a
+        packing the runs generate).
+    """
+
+    kind: str
+    label: str
+    runs: tuple[str, ...]
+    reason: str
+    params: dict | Callable[[], dict] = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.kind not in JUDGES:
+            raise ValueError(f"Comparison.kind: expected one of {tuple(JUDGES)}, got {self.kind!r}")
+
+
+def stored_job(job_dir) -> Callable[[str, object], list]:
+    """The ``verify`` of a run read from a stored job directory: the job checked against its own
+    deck (:func:`validation.core.stored_job_record`: every run, step and frame it asked for)."""
+
+    def verify(label: str, _run) -> list:
+        return [stored_job_record(label, job_dir)]
+
+    return verify
+
+
+@dataclass
+class Outcome:
+    """What :func:`evaluate` made: the runs (key -> trajectory), the summary of every comparison
+    made (label -> the judge's summary) and the comparisons left out (label -> why)."""
+
+    runs: dict = field(default_factory=dict)
+    summaries: dict = field(default_factory=dict)
+    skipped: dict = field(default_factory=dict)
+
+
+def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[Comparison]) -> Outcome:
+    """Make the runs, judge the comparisons, file the records in their matrix columns (declared
+    with each comparison's reason) and return the :class:`Outcome`.
+
+    A live run of a code not installed is not made: its stored stand-in (``Run.fallback``) is
+    compared instead, or else its comparisons are left out (a note says which) and a column that
+    thereby has no comparison at all is marked not applicable. A run that raises (a job that
+    failed or timed out) raises out of here: the case did not run."""
+    by_key = {r.key: r for r in runs}
+    if len(by_key) != len(runs):
+        raise ValueError("Run.key: two runs of the case share a key")
+    out = Outcome()
+    verified: set[str] = set()
+    absent = [r for r in runs if r.live and r.code != NATIVE and not ctx.has(r.code)]
+    for r in absent:
+        instead = f"; its stored output {r.fallback} is compared instead" if r.fallback else ""
+        res.notes.append(f"{code_label(r.code)} is absent: the run {r.key} ({r.source}) is not made{instead}.")
+    missing = {r.key for r in absent if not r.fallback}
+    stand_in = {r.key: r.fallback for r in absent if r.fallback}
+    pairs_made, pairs_left = set(), {}
+    for c in comparisons:
+        unknown = [k for k in (*c.runs, *stand_in.values()) if k not in by_key]
+        if unknown:
+            raise ValueError(f"comparison {c.label}: no run {unknown[0]!r} declared")
+        c = dataclasses.replace(c, runs=tuple(stand_in.get(k, k) for k in c.runs))
+        pair = pair_key(by_key[c.runs[0]].code, by_key[c.runs[1]].code)
+        gone = [k for k in c.runs if k in missing]
+        if gone:
+            why = f"{code_label(by_key[gone[0]].code)} is not installed ({gone[0]} not made)"
+            out.skipped[c.label] = why
+            pairs_left.setdefault(pair, why)
+            continue
+        for k in c.runs:
+            if k not in out.runs:
+                out.runs[k] = by_key[k].make()
+        recs = []
+        for k in c.runs:
+            if by_key[k].verify is not None and k not in verified:
+                verified.add(k)
+                recs += by_key[k].verify(c.label, out.runs[k])
+        kw = {"sides": tuple(by_key[k].who for k in c.runs[:2]), **(c.params() if callable(c.params) else c.params)}
+        if c.kind == "explained":
+            kw.setdefault("pair", pair)
+        got, summary = JUDGES[c.kind](c.label, *(out.runs[k] for k in c.runs), **kw)
+        res.declare(pair, res.matrix.get(pair) or c.reason)
+        res.records += in_pair(recs + got, pair)
+        out.summaries[c.label] = summary
+        pairs_made.add(pair)
+    for pair, why in pairs_left.items():
+        if pair not in pairs_made:
+            res.skip_pair(pair, f"{why}, and no stored output of it is compared")
+    return out
