@@ -17,6 +17,9 @@ Criteria:
   one criterion of biaxial-full, biaxial-laws and simple-shear).
 * :func:`band`: a curve (or a statistic along it) within a multiple of the band its perturbed runs
   span around the reference.
+* :func:`taylor_stress`, :func:`taylor_contacts`, :func:`taylor_cross`: Taylor states (no dynamics)
+  of gransim and of a code, and of two codes, at round-off: the stress of every state, the contacts
+  two-sided.
 """
 
 from __future__ import annotations
@@ -26,9 +29,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from reference_runs.judge import peak
+from reference_runs.store import taylor_case
 
 from .codes import why_they_differ
-from .core import compare, info
+from .core import compare, evidence, info, stored_job_record
 from .dem_compare import (
     expected_frames,
     expected_steps,
@@ -38,6 +42,7 @@ from .dem_compare import (
     stress_differences,
     trajectory_evidence,
 )
+from .taylor_compare import PATH_NAMES, contact_records, expected_series, series_evidence
 
 #: the figures a step-for-step or envelope comparison reports (a case picks its table columns)
 SUMMARY_KEYS = ("label", "last_step", "frames", "x", "v", "w", "f", "t", "stress", "box")
@@ -461,3 +466,115 @@ def band(
 
     width = peak(diff(m, reference) for m in members)
     return compare(label, quantity, metric, diff(native, reference), factor * width, reason)
+
+
+# ====================================================================== Taylor states
+@dataclass(frozen=True)
+class TaylorStates:
+    """A code's Taylor jobs as one run of the taylor-rve case: ``runs`` {RVE name: TaylorRun},
+    ``stored`` (read from reference_runs/stored rather than run now), ``source`` in words."""
+
+    runs: dict
+    stored: bool
+    source: str
+
+
+def taylor_stress(
+    label: str, material, states: TaylorStates, *, engine: str, expected_rves, sides, tolerance: float, reason: str
+) -> tuple[list, dict]:
+    """gransim's Taylor stress against a code's virial stress, state by state.
+
+    ``material(packing)`` is gransim's Taylor material of an RVE (``.evaluate(F).cauchy``). The
+    evidence: every RVE of ``expected_rves`` run (live jobs), each stored job verified against its
+    deck (stored), every expected (path, route) series with every expected state
+    (:func:`validation.taylor_compare.series_evidence`). Then per series: max over states of
+    max |sigma_native - sigma_code| / max |sigma_code| <= ``tolerance``. Returns (records, {"rows":
+    [code, RVE, path, route, states, value]})."""
+    code = sides[1]
+    recs, rows = [], []
+    if not states.stored:
+        recs.append(evidence(label, f"RVEs run by {code}", sorted(expected_rves), sorted(states.runs)))
+    for name, run in states.runs.items():
+        lab = f"{label}/{engine}/{name.replace('rve-', '')}"
+        if states.stored:
+            recs.append(stored_job_record(lab, run.job_dir))
+        recs += series_evidence(lab, run)
+    for name, run in states.runs.items():
+        mat = material(run.packing)  # one material (and candidate cache) per RVE, all paths
+        for (path, route), ser in sorted(run.series.items()):
+            sig_n = mat.evaluate(np.asarray(ser.F)).cauchy
+            scale = np.abs(ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
+            diff = np.abs(sig_n - ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
+            rel = peak([diff / np.where(scale > 0, scale, 1.0)])
+            lab = f"{label}/{engine}/{name.replace('rve-', '')}/{PATH_NAMES[path]}/{route}"
+            inputs = {"native": sig_n, code: ser.cauchy}
+            recs.append(compare(lab, "stress", "max_rel_diff", rel, tolerance, reason, inputs=inputs))
+            rows.append([code, name, path, route, len(ser.F), rel])
+    return recs, {"rows": rows}
+
+
+def taylor_contacts(
+    label: str, material, states: TaylorStates, *, engine: str, route: str, match, sides
+) -> tuple[list, dict]:
+    """gransim's contacts against a code's contact rows of every state of the contact route,
+    two-sided (``match(packing, F, frame)``: the code's output form; the records of
+    :func:`validation.taylor_compare.contact_records`), after the evidence of every expected state."""
+    code = sides[1]
+    recs = []
+    for name, run in states.runs.items():
+        short = name.replace("rve-", "")
+        exp = {k: v for k, v in expected_series(run).items() if k[1] == route}
+        recs += series_evidence(f"{label}/{engine}/{short}/contacts", run, exp)
+        for (path, r), ser in sorted(run.series.items()):
+            if r != route:
+                continue
+            for k, F in zip(ser.k, ser.F):
+                cmp = match(run.packing, F, run.contacts(path, r, int(k)))
+                recs += contact_records(f"{label}/{engine}/{short}/{PATH_NAMES[path]}/k{k}", cmp, code)
+    return recs, {}
+
+
+def taylor_cross(
+    label: str, a: TaylorStates, b: TaylorStates, *, engines, sides, tolerance: float, reason: str
+) -> tuple[list, dict]:
+    """Two codes' virial stresses of the same Taylor states (same RVE, path, route, k): every
+    series of code a must be in code b's jobs with every state; round-off only (both evaluate
+    the same closed-form sum on the same positions)."""
+    na, nb = sides
+    recs, n_states = [], 0
+    for name, run in a.runs.items():
+        other = b.runs.get(name) or b.runs.get(taylor_case(name, engines[1]))
+        if other is None:
+            recs.append(evidence(f"{label}/{name}", f"{nb} run of the RVE {na} ran", [name], []))
+            continue
+        for key, ser in sorted(run.series.items()):
+            if key not in other.series:
+                recs.append(evidence(f"{label}/{name}", f"{nb} series of the {na} series", [f"{key[0]}/{key[1]}"], []))
+                continue
+            o = other.series[key]
+            common = np.intersect1d(ser.k, o.k)
+            recs.append(
+                evidence(
+                    f"{label}/{name}/{PATH_NAMES[key[0]]}/{key[1]}",
+                    "states of both codes",
+                    [int(k) for k in ser.k],
+                    [int(k) for k in common],
+                )
+            )
+            ia, ib = np.searchsorted(ser.k, common), np.searchsorted(o.k, common)
+            x, y = ser.cauchy[ia], o.cauchy[ib]
+            scale = np.abs(x).reshape(len(x), -1).max(axis=1)
+            rel = np.abs(x - y).reshape(len(x), -1).max(axis=1) / np.where(scale > 0, scale, 1.0)
+            recs.append(
+                compare(
+                    f"{label}/{name.replace('rve-', '')}/{PATH_NAMES[key[0]]}/{key[1]}",
+                    "stress",
+                    f"max_rel_diff {na} vs {nb}",
+                    peak([rel]),
+                    tolerance,
+                    reason,
+                    inputs={na: x, nb: y},
+                )
+            )
+            n_states += len(common)
+    return recs, {"states": n_states}

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from .codes import NATIVE, code_label, pair_key
 from .core import CaseResult, Context, in_pair, stored_job_record
-from .judges import explained_difference, step_for_step
+from .judges import explained_difference, step_for_step, taylor_contacts, taylor_cross, taylor_stress
 
 #: the judges a comparison can name (kind -> function(label, *runs, **params) -> (records, summary));
 #: the envelope judge (validation.judges.envelope) takes a code's ensemble of runs and is called by
@@ -28,6 +28,9 @@ from .judges import explained_difference, step_for_step
 JUDGES = {
     "step": step_for_step,
     "explained": explained_difference,
+    "taylor_stress": taylor_stress,
+    "taylor_contacts": taylor_contacts,
+    "taylor_cross": taylor_cross,
 }
 
 
@@ -67,7 +70,7 @@ class Run:
 class Comparison:
     """One comparison of two (or more) runs by a shared judge.
 
-    kind : a key of :data:`JUDGES` (``step``, ``explained``).
+    kind : a key of :data:`JUDGES` (``step``, ``explained``, ``taylor_stress``, ...).
     label : the records' case label (``biaxial-short/stored-120/lammps``).
     runs : keys of the runs, in the judge's order; the first two decide the matrix column.
     reason : why this comparison's tolerances are what they are (the column's declared reason).

@@ -8,43 +8,35 @@ triclinic boxes are broken). So the expected difference is round-off.
 
 from __future__ import annotations
 
-import json
+import functools
+from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
-from gransim import generation, rve
+from gransim import generation
 from gransim.io import load_packing
-from gransim.paper import KN_2D
 from gransim.rve import TaylorMaterial
 from gransim.rve.study import run_study
 from reference_runs import store
-from reference_runs.decks.taylor import PATHS, ROUTES
 from reference_runs.store import RVE_CASE, TAYLOR_CASE, taylor_case
 from reference_runs.taylor import read_taylor_job, run_taylor
 
-from ..core import CaseResult, Context, Record, case, compare, evidence, in_pair, peak, stored_job_record
-
-#: 2D normal contact stiffness of the RVE study (N/m): E_n of Meier et al. Table 1 per m of thickness
-KN = KN_2D
-STRESS_TOL = 1e-10
-STRESS_REASON = (
-    "same closed-form Love/Taylor sum in both codes; only summation order differs, so round-off "
-    "(~1e-13 measured) is all that may remain; 1e-10 leaves 1000x margin and still catches "
-    "any missed contact (~1e-3)"
-)
-FORCE_TOL = 1e-9
-FORCE_REASON = (
-    "per-contact force kn*eps*n from the same positions; eps = r_i + r_j - |l| loses digits by "
-    "cancellation (|l|/eps ~ 4e3), so 1e-9 of the largest force is round-off with margin"
+from ..codes import CODES, NATIVE, code_label
+from ..core import CaseResult, Context, case
+from ..judges import TaylorStates
+from ..matrix import Comparison, Run, evaluate
+from ..taylor_compare import (  # noqa: F401 (compare_contact_forces, contact_records: used by the fault tests)
+    CROSS_REASON,
+    KN,
+    STRESS_REASON,
+    STRESS_TOL,
+    compare_contact_forces,
+    compare_contact_forces_by_pair,
+    contact_records,
 )
 
-PATH_NAMES = {
-    "compression-11": "compression11",
-    "compression-22": "compression22",
-    "shear-12": "shear12",
-    "shear-21": "shear21",
-}
+CASE = "taylor-rve"
+#: display names of the reference codes
+CODE = {code: code_label(code) for code in CODES}
 
 
 def _suite_settings(suite: str) -> dict:
@@ -53,257 +45,163 @@ def _suite_settings(suite: str) -> dict:
     return {"names": None, "stride": 1, "study": True}
 
 
-def compare_contact_forces(packing, F, frame, contact_state_fn=None) -> dict:
-    """Two-sided match of native contacts and LIGGGHTS' contact rows of one state.
-
-    ``frame`` is a ``compute pair/gran/local`` dump of the explicit-image route: rows whose id1
-    or id2 is a central particle (id <= N). Each native contact (i, j, l) appears from both
-    ends as (central particle, branch vector to the partner); each LIGGGHTS row likewise from
-    its central end(s). Ends are matched per central particle by branch vector (within 1e-9 of
-    the mean radius). Returns ``{"worst": max |f_native - f_LIGGGHTS| / max |f| over matched ends,
-    "n_native", "n_liggghts": numbers of ends, "unmatched_native", "unmatched_liggghts": lists of
-    (particle, branch vector) that found no partner on the other side}``.
-
-    ``contact_state_fn`` replaces :func:`gransim.rve.contact_state` (the tests drop contacts
-    with it to show the comparison fails).
-    """
-    cs = (contact_state_fn or rve.contact_state)(packing, F, KN)
-    n = packing.n
-    native: dict = {}
-    for i, j, l, f in zip(cs.i, cs.j, cs.branch, cs.force):
-        native.setdefault(int(i), []).append((np.asarray(l), np.asarray(f)))
-        native.setdefault(int(j), []).append((-np.asarray(l), -np.asarray(f)))
-    id1 = np.asarray(frame["id1"], int) - 1
-    id2 = np.asarray(frame["id2"], int) - 1
-    p1 = np.column_stack([frame["x1"], frame["y1"]])
-    p2 = np.column_stack([frame["x2"], frame["y2"]])
-    f1 = np.column_stack([frame["fx"], frame["fy"]])
-    lig: dict = {}
-    for a, b, xa, xb, fa in zip(id1, id2, p1, p2, f1):
-        if a < n:
-            lig.setdefault(int(a), []).append((xb - xa, fa))
-        if b < n:
-            lig.setdefault(int(b), []).append((xa - xb, -fa))
-    fmax = float(np.abs(cs.force).max()) if len(cs.force) else 1.0
-    tol = 1e-9 * float(np.mean(packing.radii))
-    diffs, un_nat, un_lig = [], [], []
-    for a in sorted(set(native) | set(lig)):
-        mine, other = native.get(a, []), list(lig.get(a, []))
-        for l, f in mine:
-            d = [float(np.linalg.norm(l - lo)) for lo, _ in other]
-            k = int(np.argmin(d)) if d else -1
-            if k < 0 or not d[k] <= tol:  # a NaN distance matches nothing
-                un_nat.append((a, tuple(float(c) for c in l)))
-                continue
-            diffs.append(float(np.abs(f - other[k][1]).max()) / fmax)
-            other.pop(k)
-        un_lig += [(a, tuple(float(c) for c in lo)) for lo, _ in other]
-    return {
-        "worst": peak(diffs),  # NaN when a force is NaN (max() would drop it) or none matched
-        "n_native": sum(len(v) for v in native.values()),
-        "n_liggghts": sum(len(v) for v in lig.values()),
-        "unmatched_native": un_nat,
-        "unmatched_liggghts": un_lig,
-    }
-
-
-CONTACT_REASON = (
-    "two-sided: every contact end of gransim must be a LIGGGHTS row and every LIGGGHTS row with a "
-    "central particle a gransim contact end (same positions, same contact test), so both counts "
-    "are equal and nothing is left unmatched on either side"
-)
-
-
-def contact_records(label: str, cmp: dict, code: str = "LIGGGHTS") -> list:
-    """Records of one state's two-sided contact comparison: the two counts, the unmatched ends on
-    each side (listed in the metric), and the force difference over the matched ends."""
-
-    def shown(lst):
-        s = "; ".join(f"disk {a} l=({b[0]:.3g}, {b[1]:.3g})" for a, b in lst[:4])
-        return s + (" ..." if len(lst) > 4 else "")
-
-    nn, nl = cmp["n_native"], cmp["n_liggghts"]
-    un, ul = cmp["unmatched_native"], cmp["unmatched_liggghts"]
-    recs = [
-        Record(
-            label,
-            "contact_count",
-            f"|n_gransim - n_{code}| (gransim {nn}, {code} {nl} ends)",
-            float(abs(nn - nl)),
-            0.0,
-            nn == nl and nn > 0,
-            CONTACT_REASON.replace("LIGGGHTS", code),
-        )
-    ]
-    for side, lst in (("gransim", un), (code, ul)):
-        metric = f"{side} contact ends without a partner" + (f": {shown(lst)}" if lst else "")
-        recs.append(Record(label, "contact_unmatched", metric, float(len(lst)), 0.0, not lst, CONTACT_REASON))
-    matched = nn - len(un)
-    recs.append(
-        compare(
-            label,
-            "contact_force",
-            f"max_abs_diff/max_force over {matched} matched ends",
-            cmp["worst"] if matched > 0 else float("nan"),
-            FORCE_TOL,
-            FORCE_REASON,
-        )
-    )
-    return recs
-
-
-def expected_series(run) -> dict:
-    """{(path, route): expected state indices k} of a Taylor job, from the parameters it was asked
-    for (``states.json``: n_steps, stride, the paths and routes of the deck): on LIGGGHTS the
-    periodic route exists on compression paths only (its triclinic boxes are broken, shared
-    notes); on LAMMPS on every path (a true triclinic box for shear)."""
-    meta = json.loads((Path(run.job_dir) / "states.json").read_text())
-    ks = list(range(0, int(meta["n_steps"]) + 1, int(meta["stride"])))
-    asked = {(st["path"], st["route"]) for st in meta["states"]}
-    paths = [p for p in PATHS if any(a[0] == p for a in asked)] or list(PATHS)
-    routes = [r for r in ROUTES if any(a[1] == r for a in asked)] or list(ROUTES)
-    every_path = meta.get("engine", "liggghts") == "lammps"
-    return {(p, r): ks for p in paths for r in routes if r == "images" or every_path or p.startswith("compression")}
-
-
-def series_evidence(label: str, run, expected: dict | None = None) -> list:
-    """Evidence records of a Taylor run: every expected (path, route) series present, each with
-    every expected state."""
-    code = CODE.get(getattr(run, "engine", "liggghts"), "LIGGGHTS")
-    expected = expected_series(run) if expected is None else expected
-    recs = [
-        evidence(
-            label,
-            f"{code} (path, route) series",
-            [f"{p}/{r}" for p, r in expected],
-            [f"{p}/{r}" for p, r in run.series],
-        )
-    ]
-    for (p, r), ks in expected.items():
-        have = [int(k) for k in run.series[(p, r)].k] if (p, r) in run.series else []
-        recs.append(evidence(f"{label}/{PATH_NAMES[p]}/{r}", f"{code} states", ks, have))
-    return recs
-
-
-CODE = {"liggghts": "LIGGGHTS", "lammps": "LAMMPS"}
-PAIR = {"liggghts": "native-liggghts", "lammps": "native-lammps"}
-CROSS_REASON = (
-    "both codes evaluate the same closed-form sum on the same positions (LAMMPS in a true periodic "
-    "triclinic box, LIGGGHTS through explicit images where its box cannot be sheared): round-off only, "
-    "as against the native stress"
-)
-
-
-def compare_contact_forces_by_pair(packing, F, frame, contact_state_fn=None) -> dict:
-    """Two-sided match of native contacts and a LAMMPS periodic-route contact dump of one state
-    (``id1 id2 dist fx fy``, each periodic contact once, force on id1 in gransim's frame).
-
-    Ends are matched per (particle, partner) by contact distance (within 1e-9 of the mean radius).
-    Returns the dict of :func:`compare_contact_forces`."""
-    cs = (contact_state_fn or rve.contact_state)(packing, F, KN)
-    native: dict = {}
-    for i, j, l, f in zip(cs.i, cs.j, cs.branch, cs.force):
-        d = float(np.linalg.norm(l))
-        native.setdefault((int(i), int(j)), []).append((d, np.asarray(f)))
-        native.setdefault((int(j), int(i)), []).append((d, -np.asarray(f)))
-    other: dict = {}
-    f1 = np.column_stack([frame["fx"], frame["fy"]])
-    for a, b, d, f in zip(np.asarray(frame["id1"], int) - 1, np.asarray(frame["id2"], int) - 1, frame["dist"], f1):
-        other.setdefault((int(a), int(b)), []).append((float(d), f))
-        other.setdefault((int(b), int(a)), []).append((float(d), -f))
-    fmax = float(np.abs(cs.force).max()) if len(cs.force) else 1.0
-    tol = 1e-9 * float(np.mean(packing.radii))
-    diffs, un_nat, un_oth = [], [], []
-    for key in sorted(set(native) | set(other)):
-        rest = list(other.get(key, []))
-        for d, f in native.get(key, []):
-            dd = [abs(d - do) for do, _ in rest]
-            k = int(np.argmin(dd)) if dd else -1
-            if k < 0 or not dd[k] <= tol:  # a NaN distance matches nothing
-                un_nat.append((key[0], (float(key[1]), d)))
-                continue
-            diffs.append(float(np.abs(f - rest[k][1]).max()) / fmax)
-            rest.pop(k)
-        un_oth += [(key[0], (float(key[1]), do)) for do, _ in rest]
-    return {
-        "worst": peak(diffs),  # NaN when a force is NaN (max() would drop it) or none matched
-        "n_native": sum(len(v) for v in native.values()),
-        "n_liggghts": sum(len(v) for v in other.values()),
-        "unmatched_native": un_nat,
-        "unmatched_liggghts": un_oth,
-    }
-
-
-def _code_runs(ctx: Context, packings: dict, stride: int, engine: str = "liggghts") -> tuple[dict, str]:
-    """name -> TaylorRun of ``engine``, from live jobs (cached) or the stored outputs."""
-    code = CODE[engine]
-    if getattr(ctx, engine):
-        jobs = ctx.work("reference", "taylor" if engine == "liggghts" else "taylor-lammps")
-        runs = {
-            name: run_taylor(
-                p,
-                KN,
-                jobs / name,
-                name=name,
-                stride=stride,
-                progress=False,
-                engine=engine,
-                timeout=ctx.job_timeout(_taylor_work(p, 50 // stride + 1)),
-            )
-            for name, p in packings.items()
-        }
-        return runs, f"live {code} jobs (one job per RVE, all states of the four paths)"
-    runs = {}
-    for base in (RVE_CASE, TAYLOR_CASE):
-        stored = taylor_case(base, engine)
-        d = Path(store.STORED) / stored
-        runs[stored] = read_taylor_job(d, load_packing(d / "packing.h5"))
-    return runs, f"stored {code} outputs (reference_runs/stored/), {code} being absent"
-
-
-def _liggghts_runs(ctx: Context, packings: dict, stride: int) -> tuple[dict, str]:
-    """:func:`_code_runs` of LIGGGHTS."""
-    return _code_runs(ctx, packings, stride, "liggghts")
-
-
 def _taylor_work(packing, states_per_path: int) -> float:
     """Particle-steps equivalent of a Taylor job: 6 series of ``states_per_path`` ``run 0`` states of
     about 4 N atoms (central particles and their image copies), each costing a few set-up steps."""
     return 6 * states_per_path * 4 * packing.n * 20
 
 
-def _contact_runs(ctx: Context, packings: dict, engine: str = "liggghts"):
-    """Per-contact dumps: a few states per path of one RVE per size (live), or the stored lattice
-    case. LIGGGHTS: the images route (its periodic boxes cannot shear); LAMMPS: the periodic
-    route (every path in a true periodic box)."""
-    route = "images" if engine == "liggghts" else "periodic"
-    if getattr(ctx, engine):
-        names = [n for n in packings if n.endswith("-1")]
-        jobs = ctx.work("reference", "taylor-contacts" if engine == "liggghts" else "taylor-contacts-lammps")
-        return {
-            n: run_taylor(
-                packings[n],
-                KN,
-                jobs / n,
-                name=n,
-                routes=(route,),
-                stride=25,
-                contacts=True,
-                progress=False,
-                timeout=ctx.job_timeout(_taylor_work(packings[n], 3)),
-                engine=engine,
-            )
-            for n in names
-        }, route
+@dataclass(frozen=True)
+class TaylorCode:
+    """How the taylor-rve case runs and reads one code: its live job directories (all states;
+    the contact jobs), the route its contact rows come from and the matcher of their form. A code
+    is one more entry of :data:`TAYLOR_CODES`; its comparisons follow from :func:`taylor_plan`."""
+
+    jobs: str
+    contact_jobs: str
+    route: str
+    match: object
+
+
+TAYLOR_CODES = {
+    # LIGGGHTS: the images route (its periodic boxes cannot shear), contacts matched by branch vector
+    "liggghts": TaylorCode("taylor", "taylor-contacts", "images", compare_contact_forces),
+    # LAMMPS: the periodic route (every path in a true periodic box), matched by pair and distance
+    "lammps": TaylorCode("taylor-lammps", "taylor-contacts-lammps", "periodic", compare_contact_forces_by_pair),
+}
+
+
+def _live_states(ctx, packings, stride, engine) -> TaylorStates:
+    jobs = ctx.work("reference", TAYLOR_CODES[engine].jobs)
+    runs = {
+        name: run_taylor(
+            p,
+            KN,
+            jobs / name,
+            name=name,
+            stride=stride,
+            progress=False,
+            engine=engine,
+            timeout=ctx.job_timeout(_taylor_work(p, 50 // stride + 1)),
+        )
+        for name, p in packings.items()
+    }
+    return TaylorStates(runs, False, f"live {CODE[engine]} jobs (one job per RVE, all states of the four paths)")
+
+
+def _stored_states(engine) -> TaylorStates:
+    runs = {}
+    for base in (RVE_CASE, TAYLOR_CASE):
+        stored = taylor_case(base, engine)
+        d = Path(store.STORED) / stored
+        runs[stored] = read_taylor_job(d, load_packing(d / "packing.h5"))
+    return TaylorStates(
+        runs, True, f"stored {CODE[engine]} outputs (reference_runs/stored/), {CODE[engine]} being absent"
+    )
+
+
+def _live_contacts(ctx, packings, engine) -> TaylorStates:
+    tc = TAYLOR_CODES[engine]
+    names = [n for n in packings if n.endswith("-1")]
+    jobs = ctx.work("reference", tc.contact_jobs)
+    runs = {
+        n: run_taylor(
+            packings[n],
+            KN,
+            jobs / n,
+            name=n,
+            routes=(tc.route,),
+            stride=25,
+            contacts=True,
+            progress=False,
+            timeout=ctx.job_timeout(_taylor_work(packings[n], 3)),
+            engine=engine,
+        )
+        for n in names
+    }
+    return TaylorStates(runs, False, f"live {CODE[engine]} contact jobs ({tc.route} route)")
+
+
+def _stored_contacts(engine) -> TaylorStates:
     d = Path(store.STORED) / taylor_case(TAYLOR_CASE, engine)
-    return {taylor_case(TAYLOR_CASE, engine): read_taylor_job(d, load_packing(d / "packing.h5"))}, route
+    runs = {taylor_case(TAYLOR_CASE, engine): read_taylor_job(d, load_packing(d / "packing.h5"))}
+    return TaylorStates(runs, True, f"stored {CODE[engine]} contact rows")
+
+
+def _material(packing):
+    return TaylorMaterial(packing, KN)
+
+
+def taylor_plan(ctx: Context, packings: dict, stride: int) -> tuple[list, list]:
+    """The runs and comparisons of taylor-rve: per code of :data:`TAYLOR_CODES`, its Taylor jobs
+    (live, or the stored outputs when the code is absent) against gransim's Taylor stress of every
+    state, its contact jobs against gransim's contacts (two-sided), and every two codes' stresses
+    against each other on the states both ran."""
+    here = [c for c in CODES if c in TAYLOR_CODES]
+    runs = [Run("native", NATIVE, "", "gransim's Taylor material (numba kernel)", lambda: _material)]
+    comps = []
+    for code in here:
+        runs += [
+            Run(f"stored/{code}", code, code, "stored outputs", functools.partial(_stored_states, code)),
+            Run(
+                f"live/{code}",
+                code,
+                code,
+                "one job per RVE run now",
+                functools.partial(_live_states, ctx, packings, stride, code),
+                live=True,
+                fallback=f"stored/{code}",
+            ),
+            Run(
+                f"stored-contacts/{code}", code, code, "stored contact rows", functools.partial(_stored_contacts, code)
+            ),
+            Run(
+                f"live-contacts/{code}",
+                code,
+                code,
+                "contact jobs run now",
+                functools.partial(_live_contacts, ctx, packings, code),
+                live=True,
+                fallback=f"stored-contacts/{code}",
+            ),
+        ]
+        comps.append(
+            Comparison(
+                "taylor_stress",
+                f"{CASE}/{code}",
+                ("native", f"live/{code}"),
+                STRESS_REASON,
+                {"engine": code, "expected_rves": sorted(packings), "tolerance": STRESS_TOL, "reason": STRESS_REASON},
+            )
+        )
+        comps.append(
+            Comparison(
+                "taylor_contacts",
+                f"{CASE}/{code}/contacts",
+                ("native", f"live-contacts/{code}"),
+                STRESS_REASON,
+                {"engine": code, "route": TAYLOR_CODES[code].route, "match": TAYLOR_CODES[code].match},
+            )
+        )
+    for i, a in enumerate(here):
+        for b in here[i + 1 :]:
+            comps.append(
+                Comparison(
+                    "taylor_cross",
+                    f"{CASE}/{a}-{b}",
+                    (f"live/{a}", f"live/{b}"),
+                    CROSS_REASON,
+                    {"engines": (a, b), "tolerance": STRESS_TOL, "reason": CROSS_REASON},
+                )
+            )
+    return runs, comps
 
 
 @case("taylor-rve", "Taylor RVE stresses: 15 RVEs, compression 11/22 and simple shear 12/21", order=10)
 def taylor_rve(ctx: Context) -> CaseResult:
     s = _suite_settings(ctx.suite)
     res = CaseResult(
-        "taylor-rve",
+        CASE,
         "Taylor RVE stresses: 15 RVEs, compression 11/22 and simple shear 12/21",
         "Every RVE is mapped affinely (x = F X) along F11, F22: 1 -> 0.9 and F12, F21: 0 -> 0.1 (50 steps). "
         "gransim's Cauchy stress (numba Taylor kernel, tension positive) is compared state by state with "
@@ -319,99 +217,16 @@ def taylor_rve(ctx: Context) -> CaseResult:
     names = s["names"]
     paths = generation.standard_packings(ctx.results / "packings", names=names)
     packings = {n: load_packing(p) for n, p in paths.items()}
-
-    res.declare("native-liggghts", STRESS_REASON)
-    res.declare("native-lammps", STRESS_REASON)
-    res.declare("liggghts-lammps", CROSS_REASON)
-    rows = []
-    code_runs = {}
-    for engine in ("liggghts", "lammps"):
-        code = CODE[engine]
-        runs, source = _code_runs(ctx, packings, s["stride"], engine)
-        code_runs[engine] = runs
-        res.notes.append(f"{code} reference: {source}.")
-        recs = []
-        if getattr(ctx, engine):
-            recs.append(evidence("taylor-rve", f"RVEs run by {code}", sorted(packings), sorted(runs)))
-        for name, run in runs.items():
-            label = f"taylor-rve/{engine}/{name.replace('rve-', '')}"
-            if not getattr(ctx, engine):
-                recs.append(stored_job_record(label, run.job_dir))
-            recs += series_evidence(label, run)
-        for name, run in runs.items():
-            mat = TaylorMaterial(run.packing, KN)  # one material (and candidate cache) per RVE, all paths
-            for (path, route), ser in sorted(run.series.items()):
-                sig_n = mat.evaluate(np.asarray(ser.F)).cauchy
-                scale = np.abs(ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
-                diff = np.abs(sig_n - ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
-                rel = peak(diff / np.where(scale > 0, scale, 1.0))
-                label = f"taylor-rve/{engine}/{name.replace('rve-', '')}/{PATH_NAMES[path]}/{route}"
-                sides = {"native": sig_n, code: ser.cauchy}
-                recs.append(compare(label, "stress", "max_rel_diff", rel, STRESS_TOL, STRESS_REASON, inputs=sides))
-                rows.append([code, name, path, route, len(ser.F), rel])
-        contact_runs, croute = _contact_runs(ctx, packings, engine)
-        for name, run in contact_runs.items():
-            exp = {k: v for k, v in expected_series(run).items() if k[1] == croute}
-            recs += series_evidence(f"taylor-rve/{engine}/{name.replace('rve-', '')}/contacts", run, exp)
-            for (path, route), ser in sorted(run.series.items()):
-                if route != croute:
-                    continue
-                for k, F in zip(ser.k, ser.F):
-                    frame = run.contacts(path, route, int(k))
-                    cmp = (
-                        compare_contact_forces(run.packing, F, frame)
-                        if engine == "liggghts"
-                        else compare_contact_forces_by_pair(run.packing, F, frame)
-                    )
-                    recs += contact_records(
-                        f"taylor-rve/{engine}/{name.replace('rve-', '')}/{PATH_NAMES[path]}/k{k}", cmp, code
-                    )
-        res.records += in_pair(recs, PAIR[engine])
-    # the two codes against each other on every state both ran (same packing, path, route, k)
-    lig, lmp = code_runs["liggghts"], code_runs["lammps"]
-
-    recs, n_states = [], 0
-    for name, run in lig.items():
-        other = lmp.get(name) or lmp.get(taylor_case(name, "lammps"))
-        if other is None:
-            recs.append(evidence(f"taylor-rve/cross/{name}", "LAMMPS run of the RVE LIGGGHTS ran", [name], []))
-            continue
-        for key, ser in sorted(run.series.items()):
-            if key not in other.series:
-                recs.append(
-                    evidence(
-                        f"taylor-rve/cross/{name}", "LAMMPS series of the LIGGGHTS series", [f"{key[0]}/{key[1]}"], []
-                    )
-                )
-                continue
-            o = other.series[key]
-            common = np.intersect1d(ser.k, o.k)
-            recs.append(
-                evidence(
-                    f"taylor-rve/cross/{name}/{PATH_NAMES[key[0]]}/{key[1]}",
-                    "states of both codes",
-                    [int(k) for k in ser.k],
-                    [int(k) for k in common],
-                )
-            )
-            ia, ib = np.searchsorted(ser.k, common), np.searchsorted(o.k, common)
-            a, b = ser.cauchy[ia], o.cauchy[ib]
-            scale = np.abs(a).reshape(len(a), -1).max(axis=1)
-            rel = np.abs(a - b).reshape(len(a), -1).max(axis=1) / np.where(scale > 0, scale, 1.0)
-            recs.append(
-                compare(
-                    f"taylor-rve/cross/{name.replace('rve-', '')}/{PATH_NAMES[key[0]]}/{key[1]}",
-                    "stress",
-                    "max_rel_diff LIGGGHTS vs LAMMPS",
-                    peak(rel),
-                    STRESS_TOL,
-                    CROSS_REASON,
-                    inputs={"LIGGGHTS": a, "LAMMPS": b},
-                )
-            )
-            n_states += len(common)
-    res.records += in_pair(recs, "liggghts-lammps")
-    res.notes.append(f"LIGGGHTS vs LAMMPS: {n_states} states compared directly.")
+    runs, comps = taylor_plan(ctx, packings, s["stride"])
+    out = evaluate(res, ctx, runs, comps)
+    for r in runs:
+        if r.key in out.runs and r.code != NATIVE and not r.key.startswith(("live-contacts", "stored-contacts")):
+            res.notes.append(f"{CODE[r.code]} reference: {out.runs[r.key].source}.")
+    rows = [row for c in comps if c.kind == "taylor_stress" for row in out.summaries.get(c.label, {}).get("rows", [])]
+    for c in comps:
+        if c.kind == "taylor_cross" and c.label in out.summaries:
+            a, b = c.params["engines"]
+            res.notes.append(f"{CODE[a]} vs {CODE[b]}: {out.summaries[c.label]['states']} states compared directly.")
     res.tables.append(
         (
             "Stress agreement per code, RVE, path and route",
