@@ -8,7 +8,7 @@ Run it from the repository root (it takes a few minutes on two cores; the real `
 Every case runs one ``gransim`` process in a fresh directory with a private ``TMPDIR`` and is
 judged by the same rules, whatever the command:
 
-- the process ends by itself, with an exit status the README allows (0, 1, 2, 130, 143), never a
+- the process ends by itself, with an exit status the README allows (0, 1, 2, 129, 130, 143), never a
   signal's death (a segfault is -11 here, 139 through a shell), except by the signal the sweep
   sent: SIGKILL, or SIGINT / SIGTERM landing in the interpreter's last moments after a run that
   had ended (its output complete, nothing on stderr);
@@ -45,7 +45,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 GRANSIM = [sys.executable, "-m", "gransim"]
 CODES = ("liggghts", "lmp", "mpirun", "mpiexec", "orted", "prterun", "prted", "yade")
-ALLOWED_RC = {0, 1, 2, 130, 143}
+ALLOWED_RC = {0, 1, 2, 129, 130, 143}
 
 
 @dataclass
@@ -332,7 +332,7 @@ def _incomplete_then_resume(extra):
         if rc == 0:
             return msgs  # the run ended before the signal: nothing to check
         if not f.is_file():
-            return msgs if rc in (130, 143) and "checkpoint" not in extra else [f"rc {rc} and no run file"]
+            return msgs if rc in (129, 130, 143) and "checkpoint" not in extra else [f"rc {rc} and no run file"]
         info = subprocess.run([*GRANSIM, "info", str(f)], capture_output=True, text=True, timeout=120)
         said_whole = "written complete before the signal" in err
         if re.search(r"complete\W+(yes|true|1)\b", info.stdout, re.I) and not said_whole:
@@ -468,13 +468,13 @@ def cases(fx: dict) -> list:
     )
     # signals during a run: SIGINT and SIGTERM at several times; the file is incomplete and resumes
     for t in (0.9, 1.5, 2.2, 3.0, 4.0):
-        for sig in (signal.SIGINT, signal.SIGTERM):
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
             extra = ["biaxial", "--packing", P, "-o", "o.h5", "--strain", "0.003", "--checkpoint-every", "2000"]
             out.append(
                 Case(
                     f"biaxial {sig.name} at {t} s",
                     extra,
-                    rc={0, 130, 143},
+                    rc={0, 128 + int(sig)},
                     signal_at=t,
                     sig=sig,
                     after=_incomplete_then_resume(extra),
