@@ -190,3 +190,43 @@ def test_a_cross_pair_states_why_the_codes_differ():
     for words in ("lever arm", "Coulomb cap", "pair_gran_hooke_history.cpp:222-224", "surface_model_default.h:182"):
         assert words in why
     assert codes.why_they_differ("native-lammps") == ""
+
+
+def test_one_more_code_adds_its_columns_and_breaks_no_case(tmp_path):
+    """YADE added to the code list (in a fresh interpreter, before the matrix columns are made):
+    the report has its three columns, the cases of the quick suite that declare runs per code
+    still pass on the stored runs, and the YADE columns are empty (no YADE run declared yet) or
+    not applicable with a reason (no sheared periodic box declared), never a failure."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    script = f"""
+import json, validation.codes as c
+c.CODES = c.CODES + ("yade",)
+import validation.runner as r
+r.liggghts_available = lambda: False
+r.lammps_available = lambda: False
+from validation.report import matrix_html
+pairs = ("native-yade", "liggghts-yade", "lammps-yade")
+ok, res = r.run_validation(
+    "quick", {str(tmp_path / "results")!r}, only=["biaxial-short", "simple-shear"], log=lambda *a: None
+)
+cells = {{x.case: {{p: x.cell(p)["state"] for p in pairs}} for x in res}}
+header = "".join(matrix_html(res)).split("</tr>")[0]
+print(json.dumps({{"ok": ok, "cells": cells, "header": header}}))
+"""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=900)
+    assert out.returncode == 0, out.stderr[-3000:]
+    doc = json.loads(out.stdout.strip().splitlines()[-1])
+    assert doc["ok"], doc
+    assert doc["cells"]["biaxial-short"] == {
+        "native-yade": "absent",
+        "liggghts-yade": "absent",
+        "lammps-yade": "absent",
+    }
+    assert set(doc["cells"]["simple-shear"].values()) <= {"n/a", "absent"}
+    for label in ("native vs YADE", "LIGGGHTS vs YADE", "LAMMPS vs YADE"):
+        assert label in doc["header"]

@@ -163,3 +163,36 @@ def test_packings_case_checks_the_saved_files_and_can_fail(tmp_path, monkeypatch
     ok, results = run_validation("default", tmp_path, only=["packings"], log=_quiet)
     res, failed = _failed(results, "packings")
     assert not ok and failed == {("packings/rve-70-1", "force balance"), ("packings/rve-70-1", regen)}
+
+
+def test_biaxial_full_with_a_stored_series_cut_short_makes_no_envelope_verdict(tmp_path, monkeypatch):
+    """The stored LAMMPS series of biaxial-full cut to its first half (an interrupted store): the
+    LAMMPS column fails as incomplete, without an envelope or curve verdict on what remains, the
+    LIGGGHTS-LAMMPS column has no check (a failure), and the LIGGGHTS column still passes."""
+    import shutil
+    from pathlib import Path
+
+    import numpy as np
+
+    import validation.runner as runner
+    from reference_runs import store
+
+    dest = tmp_path / "stored"
+    shutil.copytree(Path(store.STORED) / "biaxial-full", dest / "biaxial-full")
+    path = dest / "biaxial-full" / "strain0.005-lammps.npz"
+    z = dict(np.load(path))
+    half = len(z["steps"]) // 2
+    np.savez_compressed(path, **{k: (v[:half] if v.ndim else v) for k, v in z.items()})
+    monkeypatch.setattr(store, "STORED", dest)
+    monkeypatch.setattr(runner, "liggghts_available", lambda: False)
+    monkeypatch.setattr(runner, "lammps_available", lambda: False)
+    ok, results = run_validation("default", tmp_path / "results", only=["biaxial-full"], log=_quiet)
+    (res,) = results
+    assert not ok and not res.passed and res.error is None
+    assert res.cell("native-lammps")["state"] == "FAIL" and res.cell("native-liggghts")["state"] == "pass"
+    assert res.cell("liggghts-lammps")["state"] == "empty"
+    lammps = [r for r in res.checks if r.pair == "native-lammps"]
+    bad = [r.metric for r in lammps if not r.passed]
+    assert bad and all(m.startswith("incomplete: expected") for m in bad), bad
+    assert not any(r.case.startswith(("biaxial-full/divergence/lammps", "biaxial-full/curve/lammps")) for r in lammps)
+    assert any("Incomplete evidence" in n and "LAMMPS" in n for n in res.notes)

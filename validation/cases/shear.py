@@ -764,10 +764,11 @@ def simple_shear_case(ctx: Context) -> CaseResult:
     ]
     for code in CODES:
         if code not in SHEAR_CODES:
-            res.skip_pair(pair_key(NATIVE, code), SHEAR_NA.get(code, f"no sheared-cell run of {code_label(code)}"))
+            why = SHEAR_NA.get(code, f"no sheared-cell run of {code_label(code)} is declared (SHEAR_CODES)")
+            res.skip_pair(pair_key(NATIVE, code), why)
             for other in CODES:
                 if other != code:
-                    res.skip_pair(pair_key(code, other), SHEAR_NA.get(code, ""))
+                    res.skip_pair(pair_key(code, other), why)
     manifests = {}
     runs, comps = short_plan(ctx, manifests)
     out = evaluate(res, ctx, runs, comps)
