@@ -2,25 +2,47 @@
 
 from __future__ import annotations
 
+import signal
 import sys
+from pathlib import Path
 
 from ..errors import InputError
 from ..parallel import add_options, make_executor  # register() needs add_options: loaded by --help either way
 from ._paths import (
     check_count,
+    check_distinct,
     check_executor_options,
     check_given_values,
     check_input,
     check_number,
+    check_output,
     check_output_dir,
     integer,
     number,
+    same_file,
 )
 
 #: the quick default (a 2 x 4 mesh, 10 steps) and the full benchmark (--full: Guo & Zhao's 8 x 16, 100 steps)
 QUICK = {"mesh": (2, 4), "steps": 10}
 FULL = {"mesh": (8, 16), "steps": 100}
 STANDINS = ("taylor", "j2")
+#: the files a run writes into --out (besides checkpoint/)
+OUTPUTS = ("femxdem.h5", "curves.png", "report.md")
+#: most load steps; the confining pressure's bound (Pa: 100 MPa, beyond the crushing of quartz
+#: grains and equal to the J2 stand-in's Young's modulus; measured: the 1 x 2 J2 mesh converges
+#: there in 1-3 Newton iterations a step)
+MAX_STEPS = 100_000
+MAX_PRESSURE = 1.0e8
+#: smallest top step (m) and Newton tolerance: below 1e-300 m the step's displacement norm
+#: underflows and Newton never converges; the relative correction stalls near 2e-14 in double
+#: precision (measured on the 2 x 4 J2 run), so a smaller tolerance is never met
+MIN_TOP_STEP = 1.0e-12
+MIN_TOL = 1.0e-12
+#: the option of each BiaxialSpec field a checkpoint is compared on (--resume)
+SPEC_OPTIONS = {
+    "nx": "--mesh", "ny": "--mesh", "element": "--element", "gauss": "--gauss", "pressure": "--pressure",
+    "top_step": "--top-step", "steps": "--steps", "tol": "--tol", "max_iter": "--max-iter",
+}  # fmt: skip
 
 
 def register(subparsers) -> None:
@@ -54,7 +76,8 @@ def register(subparsers) -> None:
     p.add_argument("--max-iter", type=integer, default=25, help="Newton iterations per step before the run stops")
     p.add_argument("--packing", default=None, help="--rve taylor: HDF5 packing of the RVE (default: the most "
                    "uniform standard 700-disk RVE)")  # fmt: skip
-    p.add_argument("--packing-dir", default="results/packings", help="where the standard packings are cached")
+    p.add_argument("--packing-dir", default=None, help="--rve taylor without --packing: where the standard "
+                   "packings are cached (default results/packings)")  # fmt: skip
     p.add_argument("--out", default=None, help="output directory (default results/femxdem-<rve>)")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUT/checkpoint/")
     p.add_argument("--stop-after", type=integer, default=None, metavar="K", help="stop after step K (tests)")
@@ -72,47 +95,124 @@ def _mesh(text: str) -> tuple[int, int]:
     return nx, ny
 
 
-def handler(args) -> int:
+def _spare_workers(executor) -> None:
+    """Let the LocalCluster's worker processes ignore SIGINT and SIGHUP.
+
+    Ctrl-C and a terminal's hang-up reach the whole foreground process group, workers included:
+    a worker killed by it loses its Gauss points' states while the driver finishes the step in
+    progress, and the driver then waited 30 s per lost connection before an internal error
+    (measured: exit 1 instead of 130). The driver alone acts on the signal (the step finishes, its
+    checkpoint is written, the cluster is closed: its nannies stop the workers with SIGTERM). The
+    handler is set in each worker's main thread (``Client.run`` runs there); an existing cluster
+    (``--scheduler``) is not ours to change."""
+    if getattr(executor, "cluster", None) is None:
+        return
+    executor.client.run(_ignore_terminal_signals)
+
+
+def _ignore_terminal_signals() -> None:
+    for name in ("SIGINT", "SIGHUP"):
+        signal.signal(getattr(signal, name), signal.SIG_IGN)
+
+
+def check_options(args) -> dict:
+    """Every option, checked once before any computation (exit 2 naming the option); returns the
+    values the run needs (``spec`` keywords, ``out``, ``packing_dir``, ``resumed``: the last step
+    of the checkpoint continued, 0 for a new run)."""
     check_given_values(args)
     if args.rve not in STANDINS:
         raise InputError(
             f"--rve: expected one of {', '.join(STANDINS)} (stand-ins: the DEM RVE is not available yet), "
             f"got {args.rve!r}"
         )
+    if args.full and args.mesh is not None and args.steps is not None:
+        raise InputError("--full: sets the mesh and the steps, both given here (--mesh, --steps); drop one")
     base = FULL if args.full else QUICK
-    nx, ny = _mesh(args.mesh) if args.mesh else base["mesh"]
-    steps = base["steps"] if args.steps is None else check_count(args.steps, "--steps", 1, 100_000)
+    nx, ny = _mesh(args.mesh) if args.mesh is not None else base["mesh"]
+    steps = base["steps"] if args.steps is None else check_count(args.steps, "--steps", 1, MAX_STEPS)
     gauss = args.gauss if args.gauss is not None else (3 if args.element == "Q9" else 2)
     check_count(gauss, "--gauss", 2, 5)
-    check_number(args.pressure, "--pressure", low=0)
-    check_number(args.top_step, "--top-step", low=0, low_open=True, high=0.05)
-    check_number(args.tol, "--tol", low=0, high=1, low_open=True, high_open=True)
+    if args.element == "Q9" and gauss < 3:
+        raise InputError(
+            f"--gauss: --element Q9 needs --gauss 3 or more, got {gauss}: with 2 x 2 points Q9 has hourglass "
+            "modes (a singular stiffness)"
+        )
+    # the Taylor stand-in is consolidated to a mean stress of -p: at p = 0 its frictionless disks
+    # just touch, and no stretch is singled out (gransim.fem.femxdem.standin_law)
+    check_number(args.pressure, "--pressure", low=0, high=MAX_PRESSURE, low_open=args.rve == "taylor")
+    check_number(args.top_step, "--top-step", low=MIN_TOP_STEP, high=0.05)
+    check_number(args.tol, "--tol", low=MIN_TOL, high=1, high_open=True)
     check_count(args.max_iter, "--max-iter", 1, 1000)
+    from ..fem.biaxial import BiaxialSpec  # noqa: PLC0415 - start-up: numpy
+
+    height = BiaxialSpec.height
+    if steps * args.top_step >= height:
+        raise InputError(
+            f"--steps {steps} x --top-step {args.top_step:g} m = {steps * args.top_step:g} m: the top platen would "
+            f"reach the bottom of the {height:g} m specimen; give fewer steps or a smaller --top-step"
+        )
     check_count(args.stop_after, "--stop-after", 1, steps)
     check_executor_options(args.workers, args.scheduler)
     if args.packing is not None:
         if args.rve != "taylor":
             raise InputError(f"--packing: applies to --rve taylor only, not --rve {args.rve}")
         check_input(args.packing, "--packing")
-    out = check_output_dir(args.out or f"results/femxdem-{args.rve}", "--out")
-    check_output_dir(args.packing_dir, "--packing-dir")
+    if args.packing_dir is not None and (args.rve != "taylor" or args.packing is not None):
+        why = "--packing gives the RVE" if args.rve == "taylor" else f"--rve {args.rve} reads no packing"
+        raise InputError(f"--packing-dir: would be ignored ({why})")
+    packing_dir = args.packing_dir if args.packing_dir is not None else "results/packings"
+    check_output_dir(packing_dir, "--packing-dir")
+    out = check_output_dir(args.out if args.out is not None else f"results/femxdem-{args.rve}", "--out")
+    check_output_dir(out / "checkpoint", "--out")  # a file of that name would stop the run at step 1
+    outputs = [("--out", check_output(out / name, "--out")) for name in OUTPUTS]
+    check_distinct(outputs, [("--packing", args.packing)])
+    ck = out / "checkpoint"
+    if args.packing is not None and (
+        same_file(Path(args.packing).resolve().parent, ck)
+        or any(same_file(args.packing, f) for f in (*ck.glob("step_*.h5"), *ck.glob("states_*.h5")))
+    ):
+        raise InputError(
+            f"--packing: {args.packing!r} is in the checkpoint folder of --out, whose files a run replaces; "
+            "move the packing elsewhere"
+        )
+    spec = {
+        "nx": nx, "ny": ny, "element": args.element, "gauss": gauss, "pressure": args.pressure,
+        "top_step": args.top_step, "steps": steps, "tol": args.tol, "max_iter": args.max_iter,
+    }  # fmt: skip
+    resumed = 0
+    if args.resume:
+        from ..fem.femxdem import check_resumable  # noqa: PLC0415 - start-up: h5py
+
+        resumed = check_resumable(out, BiaxialSpec(**spec), args.rve, SPEC_OPTIONS)
+        if args.stop_after is not None and args.stop_after <= resumed:
+            raise InputError(
+                f"--stop-after: the checkpoint in {out / 'checkpoint'} is already at step {resumed}; "
+                f"give a later step (up to {steps}) or leave --stop-after out"
+            )
+    return {"spec": spec, "out": out, "packing_dir": packing_dir, "resumed": resumed}
+
+
+def handler(args) -> int:
+    opts = check_options(args)
     from .._numba import wait_passively  # noqa: PLC0415 - start-up: numba
     from ..fem.biaxial import BiaxialSpec  # noqa: PLC0415 - start-up: scipy
     from ..fem.femxdem import FemxdemInterrupted, run_femxdem  # noqa: PLC0415 - start-up: scipy
+    from ..fem.incremental import StepFailure  # noqa: PLC0415 - start-up: scipy
 
-    spec = BiaxialSpec(
-        nx=nx, ny=ny, element=args.element, gauss=gauss, pressure=args.pressure,
-        top_step=args.top_step, steps=steps, tol=args.tol, max_iter=args.max_iter,
-    )  # fmt: skip
+    spec = BiaxialSpec(**opts["spec"])
     wait_passively()  # before any parallel kernel starts the OpenMP runtime, and before the workers start
     with make_executor(args.workers, args.scheduler) as executor:
+        _spare_workers(executor)
         try:
             summary = run_femxdem(
-                spec, args.rve, out, executor, resume=args.resume, stop_after=args.stop_after,
-                packing=args.packing, packing_dir=args.packing_dir,
+                spec, args.rve, opts["out"], executor, resume=args.resume, stop_after=args.stop_after,
+                packing=args.packing, packing_dir=opts["packing_dir"],
             )  # fmt: skip
         except FemxdemInterrupted as exc:
             print(str(exc), file=sys.stderr)
             return 0
+        except StepFailure as exc:  # a failing computation (README: exit 1); the converged steps are written
+            print(f"gransim femxdem: error: {exc}", file=sys.stderr)
+            return 1
     print(summary["report"])
     return 0

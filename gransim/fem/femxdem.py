@@ -35,8 +35,15 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import GransimError, InputError, ResultFileError
-from ..io import atomic_h5, open_result
-from ..progress import check_interrupt, deferred_interrupts, progress, result_written
+from ..io import atomic_h5, atomic_text, open_result
+from ..progress import (
+    Interrupted,
+    check_interrupt,
+    deferred_interrupts,
+    pending_interrupt,
+    progress,
+    result_written,
+)
 from .biaxial import BiaxialSpec, BiaxialStep, biaxial_setup, run_biaxial
 from .checkpoint import check_parameters
 from .incremental import StepFailure
@@ -189,6 +196,46 @@ def read_checkpoint(d: Path, params: dict, law):
     return recs, states, response
 
 
+def check_resumable(out, spec: BiaxialSpec, rve: str, options: dict | None = None) -> int:
+    """The last step of the checkpoint in ``out/checkpoint`` that ``resume`` continues, checked
+    before any computation: a step file and the states of a step are there, and they were written
+    with ``spec`` and ``rve`` (``options``: the command-line option of each ``spec`` field, named
+    in the error). The stand-in's own parameters (the Taylor RVE's packing and consolidation) are
+    compared when the run reads the checkpoint (:func:`read_checkpoint`)."""
+    d = Path(out) / "checkpoint"
+    options = options or {}
+    if not _step_path(d, 1).exists():
+        raise InputError(f"--resume: no checkpoint in {d} (a run writes one after its first converged step)")
+    path = _step_path(d, 1)
+    try:
+        f = open_result(path, kind=CKPT_STEP)
+    except ResultFileError as exc:
+        raise InputError(f"--resume: {exc}") from None
+    with f:
+        stored = _params_of(f)
+    if stored.get("rve") != rve:
+        raise InputError(
+            f"--resume: the checkpoint {path} was written with --rve {stored.get('rve')}, this run has --rve {rve}"
+        )
+    current = json.loads(json.dumps(spec.as_dict()))
+    for k, v in current.items():
+        old = stored.get("spec", {}).get(k, "<absent>")
+        if json.dumps(old) != json.dumps(v):
+            opt = options.get(k, k)
+            raise InputError(
+                f"--resume: the checkpoint {path} was written with {opt} {old} ({k}), this run has {opt} {v}; "
+                "rerun with the checkpoint's parameters or without --resume"
+            )
+    k = 1
+    while _step_path(d, k + 1).exists():
+        k += 1
+    while k >= 1 and not _states_path(d, k).exists():  # killed between a step's two writes
+        k -= 1
+    if k < 1:
+        raise InputError(f"--resume: the checkpoint in {d} holds no committed Gauss-point states (states_NNN.h5)")
+    return k
+
+
 def clear_checkpoint(d: Path) -> None:
     """Remove an earlier run's checkpoint files."""
     for p in list(d.glob("step_*.h5")) + list(d.glob("states_*.h5")):
@@ -296,29 +343,54 @@ def run_femxdem(
     new = []
 
     def on_step(rec, pts):
+        # converged: in femxdem.h5 even if a signal abandons its checkpoint (resumed from the step before)
         new.append(rec)
         if ck is not None:
             write_step(ck, params, rec, law, pts)
         if stop_after is not None and rec.step >= stop_after:
             raise FemxdemInterrupted(rec.step, out)
-        check_interrupt(f"stopped after load step {rec.step}; its checkpoint is in {ck}: continue with --resume")
+        check_interrupt()
 
     bar = progress(total=spec.steps, desc=f"femxdem {rve}")
     bar.update(len(done))
     t1 = time.perf_counter()
-    failure = None
+    stop = None  # why the run ended before its last step: StepFailure, FemxdemInterrupted, Interrupted
     try:
-        with deferred_interrupts():  # SIGINT/SIGTERM stop after the step in progress, its checkpoint written
-            run_biaxial(setup, points, start=done[-1] if done else None, on_step=on_step, progress=bar)
-    except StepFailure as exc:  # the converged steps' outputs are written, then the failure raised
-        failure = exc
-    try:
-        observables = points.observables()
+        try:
+            with deferred_interrupts():  # SIGINT/SIGTERM stop after the step in progress, its checkpoint written
+                run_biaxial(setup, points, start=done[-1] if done else None, on_step=on_step, progress=bar)
+        except (StepFailure, FemxdemInterrupted, Interrupted) as exc:
+            stop = exc
+        except Exception:
+            signum = pending_interrupt()
+            if signum is None:
+                raise
+            # the signal also reached the Gauss points' workers (a process group's SIGTERM): the
+            # step in progress is lost, the converged ones are whole
+            stop = Interrupted(signum)
+        try:
+            observables = points.observables()
+        except Exception:
+            if not isinstance(stop, Interrupted):
+                raise
+            observables = {}  # the workers are gone with the signal: the file has the curves and the last step
     finally:
         bar.close()
-        points.close()
+        try:
+            points.close()
+        except Exception:
+            if stop is None:
+                raise
     wall = time.perf_counter() - t1
     recs = done + new
+    last = recs[-1].step if recs else 0
+    if isinstance(stop, Interrupted):
+        stop = Interrupted(
+            stop.signum,
+            f"stopped by {stop.signal_name} after load step {last}"
+            + (f": the converged steps are in {out}, the checkpoint in {ck}: continue with --resume" if out else ""),
+            clean=True,
+        )
     mat_s = sum(r.material_s for r in new)
     iters = [len(r.errors) for r in recs]
     lines = [
@@ -330,7 +402,7 @@ def run_femxdem(
         f"- Gauss points {points.where}; set-up {t_setup:.2f} s; {len(new)} steps in {wall:.2f} s "
         f"(material {mat_s:.2f} s)" + (f"; resumed after step {len(done)}" if done else ""),
         f"- Newton iterations per step: {iters}",
-        *([f"- STOPPED: {failure}"] if failure is not None else []),
+        *([f"- STOPPED: {stop}"] if stop is not None else []),
         "",
         "| step | axial strain | q (kPa) | volumetric strain |",
         "|---|---|---|---|",
@@ -342,15 +414,17 @@ def run_femxdem(
     report = "\n".join(lines)
     files = {}
     if out is not None:
-        msg = "" if failure is None else str(failure)
-        files["h5"] = write_results(out / "femxdem.h5", params, recs, observables, msg)
+        files["h5"] = write_results(out / "femxdem.h5", params, recs, observables, "" if stop is None else str(stop))
         files["png"] = plot_curves(out / "curves.png", recs, spec, rve)
-        (out / "report.md").write_text(report + "\n")
-        for p in files.values():
-            result_written(p)
-    if failure is not None:
+        files["md"] = atomic_text(out / "report.md", report + "\n")
+        if stop is None:  # a run stopped early is not a complete result (gransim.progress.result_written)
+            for p in files.values():
+                result_written(p)
+    if isinstance(stop, StepFailure):
         where = f"; the {len(recs)} converged steps are in {out}" if out is not None else ""
-        raise StepFailure(f"{failure}{where}", failure.errors, failure.point)
+        raise StepFailure(f"{stop}{where}", stop.errors, stop.point)
+    if stop is not None:
+        raise stop
     return {
         "steps": recs,
         "report": report,
@@ -361,4 +435,4 @@ def run_femxdem(
     }
 
 
-__all__ = ["RVE_STANDINS", "FemxdemInterrupted", "run_femxdem", "standin_law"]
+__all__ = ["RVE_STANDINS", "FemxdemInterrupted", "check_resumable", "run_femxdem", "standin_law"]

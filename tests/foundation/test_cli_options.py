@@ -10,6 +10,7 @@ added without an entry in the tables below fails it.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import hashlib
 import io
@@ -23,24 +24,25 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gransim import Packing
-from gransim.cli import build_parser, main
+from gransim.cli import build_parser, main, plugin_commands
 from gransim.io import save_packing
 
-COMMANDS = (
-    "biaxial",
-    "dem-export",
-    "info",
-    "pack",
-    "packings",
-    "rve-check",
-    "rve-study",
-    "rve-stress",
-    "shear",
-    "slope",
-    "slope-compare",
-    "voidcells",
-    "warmup",
-)
+#: the commands of the plug-ins above gransim (entry points of reference_runs: ``reference``,
+#: ``replay``; of validation: ``validate``): their options are swept by
+#: tests/faults/test_harness_options.py, whose fakes stand in for the reference codes' jobs and the
+#: validation cases that these commands start; gransim's own tests never import those packages
+#: (tests/test_boundaries.py keeps gransim below them)
+HARNESS_COMMANDS = ("reference", "replay", "validate")
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> dict:
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices
+
+
+#: every command of gransim's parser but the harness plug-ins: a command added tomorrow is swept
+#: by the tests below (and fails test_every_option_is_covered until its options have entries)
+COMMANDS = tuple(sorted(c for c in _subcommands(build_parser()) if c not in HARNESS_COMMANDS))
 INT64_MAX = 2**63 - 1
 
 
@@ -180,6 +182,23 @@ BAD = {
         "--timeout": positive(),
         "--only": junk(),
     },
+    "femxdem": {  # base_argv: --rve taylor with a --packing, 10 steps of 1e-4 m on the 0.1 m specimen
+        "--rve": junk(("taylor", "j2")),
+        "--mesh": st.one_of(
+            junk().filter(lambda s: not re.fullmatch(r"\d+x\d+", s)),
+            st.sampled_from(["", "0x4", "4x0", "201x1", "2x4x1", "x", "2x", "-2x4"]),
+        ),
+        "--steps": count(1, 100_000),
+        "--gauss": count(2, 5),
+        "--pressure": st.one_of(positive(), st.floats(min_value=1e8, exclude_min=True).map(_num)),
+        # 1e-12 m to 0.05 m, and 10 steps short of the 0.1 m height: below 0.01 m
+        "--top-step": between(1e-12, 0.01, low_open=False),
+        "--tol": between(1e-12, 1.0, low_open=False),
+        "--max-iter": count(1, 1000),
+        "--stop-after": count(1, 10),
+        "--workers": count(1, max(8, 4 * (os.cpu_count() or 1))),
+        "--scheduler": junk(),
+    },
 }
 
 #: options that name files or folders: the explicit tests below (outputs that are inputs, that
@@ -198,6 +217,7 @@ PATHS = {
     "slope-compare": {"results", "--packing", "--packing-dir", "--out"},
     "voidcells": {"run", "--out"},
     "warmup": {"--keep", "--packing"},
+    "femxdem": {"--packing", "--packing-dir", "--out"},
 }
 #: options checked by a test of their own here (not by a strategy of single bad values)
 OWN_TEST = {"rve-stress": {"--F"}}
@@ -246,6 +266,9 @@ COMPUTATIONS = (
     ("gransim.cli.cmd_warmup", "run_steps"),
     ("gransim.cli.cmd_rve", "make_executor"),  # a LocalCluster of --workers processes
     ("gransim.cli.cmd_slope", "make_executor"),
+    ("gransim.fem.femxdem", "run_femxdem"),
+    ("gransim.fem.femxdem", "standin_law"),  # the Taylor stand-in's consolidation
+    ("gransim.cli.cmd_femxdem", "make_executor"),
 )
 
 
@@ -285,7 +308,8 @@ def base_argv(command: str, f: dict) -> list:
         "slope-compare": ["slope-compare", P, Q, "--out", f"{D}/sc"],
         "voidcells": ["voidcells", P, "--out", f"{D}/vc"],
         "warmup": ["warmup"],
-    }[command]
+        "femxdem": ["femxdem", "--packing", P, "--out", f"{D}/fx"],
+    }.get(command) or pytest.fail(f"gransim {command}: no valid command line in base_argv: add one")
 
 
 def _options(command: str):
@@ -297,6 +321,15 @@ def _options(command: str):
 # ----------------------------------------------------------------------------------------------
 # every option has a check, and a test
 # ----------------------------------------------------------------------------------------------
+def test_commands_come_from_the_parser():
+    """COMMANDS is gransim's parser less the harness plug-ins, and those are plug-ins indeed (an
+    entry point each): a built-in command cannot hide behind the exclusion."""
+    assert {"biaxial", "femxdem", "slope", "warmup"} <= set(COMMANDS)
+    plugins = {ep.name for ep in plugin_commands()}
+    assert set(HARNESS_COMMANDS) <= plugins, plugins
+    assert not set(HARNESS_COMMANDS) & set(_subcommands(build_parser(["info"])))  # built-ins only
+
+
 @pytest.mark.parametrize("command", COMMANDS)
 def test_every_option_is_covered(command):
     """Every option that takes a value and has no fixed choices is in BAD, PATHS or OWN_TEST."""
@@ -419,6 +452,11 @@ def _other_inputs(tmp_path: Path):
     sc = tmp_path / "sc"
     sc.mkdir()
     compare_in = save_packing(sc / "compare.md", _lattice())
+    fx = tmp_path / "fx"
+    fx.mkdir()
+    femxdem_in = save_packing(fx / "femxdem.h5", _lattice())
+    (fx / "checkpoint").mkdir()
+    checkpoint_in = save_packing(fx / "checkpoint" / "step_001.h5", _lattice())
     return [
         (["pack", "--n", "40", "--distribution", str(curve), "-o", "OUT"], "-o/--output", curve),
         (["pack", "--n", "40", "-o", str(tmp_path / "a.vtu"), "--vtu", "OUT"], "--vtu", tmp_path / "a.vtu"),
@@ -433,6 +471,8 @@ def _other_inputs(tmp_path: Path):
         (["slope", "--packing", "OUT", "--out", str(sl), "--packing-dir", str(tmp_path / "std")], "--out", slope_in),
         (["slope-compare", str(P), "OUT", "--out", str(sc)], "--out", compare_in),
         (["warmup", "--keep", str(keep), "--packing", "OUT"], "--packing", keep_in),
+        (["femxdem", "--packing", "OUT", "--out", str(fx)], "--out", femxdem_in),
+        (["femxdem", "--packing", "OUT", "--out", str(fx)], "--packing", checkpoint_in),
     ]
 
 
@@ -501,6 +541,8 @@ def _unwritable_cases(R: Path, f: dict):
         (["slope-compare", P, Q, "--out", f"{D}/sc", "--packing-dir", R / "std"], "--packing-dir"),
         (["voidcells", P, "--out", R / "vc"], "--out"),
         (["warmup", "--keep", R / "k"], "--keep"),
+        (["femxdem", "--out", R / "fx", "--packing-dir", f"{D}/std"], "--out"),
+        (["femxdem", "--out", f"{D}/fx", "--packing-dir", R / "std"], "--packing-dir"),
     ]
 
 
@@ -535,6 +577,20 @@ def test_options_a_command_would_ignore_are_refused(files, no_compute, tmp_path)
         (["slope", "--out", tmp_path / "sl", "--load-steps", "2", "--stop-after", "4"], "--stop-after"),
         (["slope", "--out", tmp_path / "sl", "--relaxed-start", "trial"], "--relaxed-start"),
         (["rve-study", "--packings", files["P"], "--workers", "2", "--scheduler", "tcp://h:1"], "--workers"),
+    ]
+    fx = ["femxdem", "--out", tmp_path / "fx"]
+    cases += [
+        (fx + ["--workers", "2", "--scheduler", "tcp://h:1"], "--workers"),
+        (fx + ["--rve", "j2", "--packing", files["P"]], "--packing"),
+        (fx + ["--rve", "j2", "--packing-dir", tmp_path / "std"], "--packing-dir"),
+        (fx + ["--packing", files["P"], "--packing-dir", tmp_path / "std"], "--packing-dir"),
+        (fx + ["--full", "--mesh", "2x4", "--steps", "5"], "--full"),
+        (fx + ["--element", "Q9", "--gauss", "2"], "--gauss"),
+        (fx + ["--steps", "4", "--stop-after", "5"], "--stop-after"),
+        (fx + ["--full", "--stop-after", "101"], "--stop-after"),
+        (fx + ["--rve", "taylor", "--pressure", "0"], "--pressure"),
+        (fx + ["--steps", "1000", "--top-step", "1e-4"], "--top-step"),
+        (fx + ["--resume"], "--resume"),
     ]
     for argv, option in cases:
         rc, err = run(argv)
