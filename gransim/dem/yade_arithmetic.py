@@ -1,0 +1,833 @@
+"""The ``yade`` arithmetic: YADE 2023.02a's periodic DEM iteration, reproduced to the bit.
+
+YADE (an open DEM code written independently of LIGGGHTS and LAMMPS) integrates with a leapfrog of
+one kick per step, keeps the mean field of a deforming periodic cell in the velocities, detects
+contacts with a periodic insertion-sort collider whose order of creating and erasing interactions
+fixes the order in which forces are summed, and stores the shear force of a contact, rotated to
+first order. This module runs that iteration natively for 2D disks (spheres with blocked DOFs
+``zXY``) with Cundall and Strack's law (:mod:`gransim.contacts.yade_cundall_strack`), on the
+loadings of the decks: the biaxial test (each axis fixed, at an engineering rate, or under the
+proportional stress servo) and periodic simple shear (``xy erate`` with y fixed or under the servo),
+as ``reference_runs/yade/dem_script.py`` drives YADE. :func:`yade_run` is the stepping driver;
+it is meant to become the one engine's ``yade`` plug-in (docs/yade.md, "The native yade
+arithmetic").
+
+One iteration k (``Scene::moveToNextTimeStep``, core/Scene.cpp:108-127), each step as in YADE's
+source (2023.02a, tag of the mirror ``Aoxi-git/Cementor``; file:line):
+
+1. prologue, ``Cell::integrateAndUpdate(dt)`` (core/Cell.cpp:12-42): trsfInc = dt velGrad,
+   prevHSize = hSize, vGradTimesPrevH = velGrad prevHSize, hSize += trsfInc hSize, the column norms
+   ``size``, the normalised columns, their skew "cosines" and the unshear matrix (Eigen's 3 x 3
+   inverse by cofactors, Eigen/src/LU/InverseImpl.h), ``hasShear``;
+2. ``ForceResetter``: forces and torques 0;
+3. ``InsertionSortCollider`` when ``isActivated`` (pkg/common/InsertionSortCollider.cpp:212-224:
+   Newton's ``maxVelocitySq`` >= 1 or == 0): bounds by ``Bo1_Sphere_Aabb`` (pkg/common/Bo1_Aabb.cpp:
+   15-40) enlarged by the sweep length of ``BoundDispatcher::processBody`` (core/Dispatching.cpp:
+   55-93: verletDist 0.5 r_min, targetInterv 100, minSweepDistFactor 0.1), bound coordinates
+   shifted by their period (:435-439), non-real interactions whose boxes no longer overlap erased
+   (:484, core/InteractionContainer.hpp:127-137, erase moves the last interaction into the hole,
+   core/InteractionContainer.cpp:75-115), then either the initial sort and ``findOverlaps`` along
+   x (iteration 0, :541-563, :625-638) or ``insertionSortPeri`` along x, y, z (:660-734), each
+   inversion of a lower past an upper bound creating the interaction when the boxes overlap
+   (``handleBoundInversionPeri`` :737-756, ``spatialOverlapPeri`` :768-819, which also gives its
+   ``cellDist``); new interactions are appended (core/InteractionContainer.cpp:17-44);
+4. ``InteractionLoop`` over the container in its order (core/InteractionLoop.cpp:81-190) with
+   shift2 = hSize cellDist: :func:`gransim.contacts.yade_cundall_strack.scgeom_cundall_strack`; the
+   forces accumulate per body in that order (with -j1 one thread: core/ForceContainerParallel.cpp:
+   73-78, sync 161-184 adds them to 0);
+5. the script's ``PyRunner``: ``utils.getStress()`` (preprocessing/dem/Shop_02.cpp:395-424: sum in
+   container order of (F_n + F_s) (x) ((x_1 - x_2) - hSize cellDist), divided by det(hSize) =
+   h00 (h11 z) by Eigen's 3 x 3 determinant) and the loading's velGrad in the script's Python
+   arithmetic, given to ``Cell.velGrad`` (kept in ``nextVelGrad``, core/Cell.hpp:138-142);
+6. ``NewtonIntegrator(damping=0)`` (pkg/dem/NewtonIntegrator.cpp:137-337): velGrad = nextVelGrad
+   (:149-153), dVelGrad = velGrad - prevVelGrad, dSpin = (0, 0, -0.5 (dVelGrad_01 - dVelGrad_10))
+   (:155-157); maxVelocitySq from the change of the cell's size (:162-168); per body: a = f/m
+   (:58-61; Cundall's damping with damping 0 multiplies by exactly 1, :31-35), a += prevVelGrad v
+   (:262), v += dt a (:264), w += dt (t/I) (:267-270), v += dVelGrad x (:320-323), x += dt v
+   (:324), w += dSpin (:329); the displacement flag for the collider (:118-135); prevCellSize,
+   prevVelGrad (:307-310).
+
+The frame written for step k is the state the ``PyRunner`` sees: positions x_k, velocities v_(k-1/2)
+(the mean field included), spins, forces and torques of step k, the cell of step k, the stress and
+the velGrad set at step k, and the real interactions in YADE's container order.
+
+Why the plane arithmetic is YADE's to the bit: see :mod:`gransim.contacts.yade_cundall_strack`
+(z components exactly 0, so no three-term Eigen sum has three non-zero terms; no FMA in Debian's
+build; ``pow(x, 2)`` is ``x * x``). The initial sort of the bounds is
+libstdc++'s ``std::sort`` (introsort, not stable: equal bound coordinates of different bodies keep
+the order it leaves them in, which later decides the order in which interactions are created);
+its heap-sort branch, taken only past a recursion depth of 2 log2(2N), is not reproduced (a
+``RuntimeError`` names the axis). Not reproduced either: ``Cell.flipFlippable``, clumps, damping,
+several threads.
+
+Arrays: positions, velocities (N, 2) m, m/s; spins (N,) rad/s along z; cell (2, 2) lattice
+vectors as columns (m) plus the z size ``z`` of YADE's 3D cell (m).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._numba import njit
+from ..contacts.yade_cundall_strack import ERASED, FORCE, NO_CONTACT, friction_tangent, scgeom_cundall_strack
+from ..errors import InputError
+from ..geometry import Packing
+from .settings import DEMSettings, Loading
+from .sheared import ShearLoading
+
+#: InsertionSortCollider defaults (pkg/common/InsertionSortCollider.hpp:267-274)
+VERLET_FACTOR = 0.5  # verletDist = -0.5: 0.5 r_min (InsertionSortCollider.cpp:365-378)
+TARGET_INTERV = 100.0
+MIN_SWEEP_DIST_FACTOR = 0.1
+OVERLAP_TOLERANCE = 1e-7
+
+# error codes of the kernels
+_OK, _TOO_BIG, _FULL, _TIE = 0, 1, 2, 3
+
+# loading modes of an axis (reference_runs/yade/dem_script.py, axis_rate)
+_FIXED, _RATE, _SERVO = 0, 1, 2
+
+
+def yade_cell_z(radii) -> float:
+    """z size of YADE's 3D cell for a disk assembly: the smallest power of two >= 4 r_max (m), as the
+    YADE scripts choose it (docs/yade.md); it must exceed every bound's extent in z."""
+    return float(2.0 ** math.ceil(math.log2(4.0 * float(np.max(radii)))))
+
+
+# ----------------------------------------------------------------------------------------------
+# the cell
+
+
+@njit
+def _cell_update(H, z, L, dt, prevH, VP, size, U, cos):
+    """Cell::integrateAndUpdate(dt) (core/Cell.cpp:12-42) on the 2 x 2 block of hSize (z fixed).
+
+    Returns hasShear. H, prevH, VP (vGradTimesPrevH), U (unshear matrix) are (2, 2); size, cos (3,)."""
+    T00 = dt * L[0, 0]  # :12 _trsfInc = dt * velGrad
+    T01 = dt * L[0, 1]
+    T10 = dt * L[1, 0]
+    T11 = dt * L[1, 1]
+    for i in range(2):  # :17 prevHSize = hSize
+        for j in range(2):
+            prevH[i, j] = H[i, j]
+    for j in range(2):  # :18 velGrad * prevHSize (the z terms are exact zeros)
+        VP[0, j] = L[0, 0] * prevH[0, j] + L[0, 1] * prevH[1, j]
+        VP[1, j] = L[1, 0] * prevH[0, j] + L[1, 1] * prevH[1, j]
+    for j in range(2):  # :19 hSize += _trsfInc * hSize (the product evaluated first)
+        a = T00 * prevH[0, j] + T01 * prevH[1, j]
+        b = T10 * prevH[0, j] + T11 * prevH[1, j]
+        H[0, j] = prevH[0, j] + a
+        H[1, j] = prevH[1, j] + b
+    # :23-30 column norms and normalised columns (base /= size)
+    size[0] = math.sqrt(H[0, 0] * H[0, 0] + H[1, 0] * H[1, 0])
+    size[1] = math.sqrt(H[0, 1] * H[0, 1] + H[1, 1] * H[1, 1])
+    size[2] = math.sqrt(z * z)
+    a = H[0, 0] / size[0]
+    c = H[1, 0] / size[0]
+    b = H[0, 1] / size[1]
+    d = H[1, 1] / size[1]
+    # :32-36 _cos[i] = (Hnorm.col(i1) x Hnorm.col(i2)).squaredNorm(), Hnorm(2, 2) = z / |z| = 1
+    cos[0] = d * d + b * b
+    cos[1] = c * c + a * a
+    e = a * d - c * b
+    cos[2] = e * e
+    # :40 _unshearTrsf = Hnorm.inverse(): Eigen's cofactors, det = (d e) a + (-(e b)) c with e = 1
+    invdet = 1.0 / (d * a + (-b) * c)
+    U[0, 0] = d * invdet
+    U[0, 1] = (-b) * invdet
+    U[1, 0] = (-c) * invdet
+    U[1, 1] = a * invdet
+    return H[0, 1] != 0.0 or H[1, 0] != 0.0  # :42 _hasShear
+
+
+# ----------------------------------------------------------------------------------------------
+# the interaction container
+
+
+@njit
+def _insert(id1, id2, cd0, cd1, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs):
+    """InteractionContainer::insert (core/InteractionContainer.cpp:17-44): appended at the end."""
+    n = n_intr[0]
+    if n >= i_id.shape[0]:
+        return _FULL
+    i_id[n, 0] = id1
+    i_id[n, 1] = id2
+    i_cd[n, 0] = cd0
+    i_cd[n, 1] = cd1
+    i_real[n] = False
+    for q in range(i_geom.shape[1]):
+        i_geom[n, q] = 0.0
+    i_fs[n, 0] = 0.0
+    i_fs[n, 1] = 0.0
+    slot[id1, id2] = n
+    n_intr[0] = n + 1
+    return _OK
+
+
+@njit
+def _erase(pos, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs):
+    """InteractionContainer::erase (core/InteractionContainer.cpp:75-115): the last interaction
+    moves into the hole."""
+    slot[i_id[pos, 0], i_id[pos, 1]] = -1
+    last = n_intr[0] - 1
+    if pos < last:
+        i_id[pos, 0] = i_id[last, 0]
+        i_id[pos, 1] = i_id[last, 1]
+        i_cd[pos, 0] = i_cd[last, 0]
+        i_cd[pos, 1] = i_cd[last, 1]
+        i_real[pos] = i_real[last]
+        for q in range(i_geom.shape[1]):
+            i_geom[pos, q] = i_geom[last, q]
+        i_fs[pos, 0] = i_fs[last, 0]
+        i_fs[pos, 1] = i_fs[last, 1]
+        slot[i_id[pos, 0], i_id[pos, 1]] = pos
+    n_intr[0] = last
+
+
+# ----------------------------------------------------------------------------------------------
+# the collider
+
+
+@njit
+def _overlap_peri(id1, id2, minima, maxima, inv_sizes, periods):
+    """InsertionSortCollider::spatialOverlapPeri (InsertionSortCollider.cpp:768-819): (overlap,
+    error); ``periods`` (3,) receives the cellDist of body 2."""
+    for axis in range(3):
+        lmin = (minima[id2, axis] - maxima[id1, axis]) * inv_sizes[axis]
+        lmax = (maxima[id2, axis] - maxima[id1, axis]) * inv_sizes[axis]
+        shifted_min = (minima[id1, axis] - maxima[id1, axis]) * inv_sizes[axis] + 1.0
+        if (lmax - lmin) > 0.5 or shifted_min < 0.0:  # :791-801 a body spans half the cell
+            return False, _TOO_BIG
+        period1 = math.floor(lmax)
+        if (lmin - period1) <= OVERLAP_TOLERANCE:  # :806
+            periods[axis] = -int(period1)
+            continue
+        if (lmax - period1 + OVERLAP_TOLERANCE) >= shifted_min:  # :811
+            periods[axis] = -int(period1) - 1
+            continue
+        return False, _OK
+    return True, _OK
+
+
+@njit
+def _handle_inversion(id1, id2, minima, maxima, inv_sizes, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs):
+    """InsertionSortCollider::handleBoundInversionPeri (:737-756), id1 < id2."""
+    if slot[id1, id2] >= 0:  # :740 found
+        return _OK
+    periods = np.zeros(3, np.int64)
+    overlap, err = _overlap_peri(id1, id2, minima, maxima, inv_sizes, periods)
+    if err != _OK:
+        return err
+    if overlap:
+        return _insert(id1, id2, periods[0], periods[1], slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs)
+    return _OK
+
+
+@njit
+def _norm(i, size):
+    """VecBounds::norm (InsertionSortCollider.hpp:137-144)."""
+    if i < 0:
+        i += size
+    return i % size
+
+
+@njit
+def _sort_peri(
+    ax, bc, bi, bp, bm, lo_idx, dim, minima, maxima, inv_sizes, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs
+):
+    """InsertionSortCollider::insertionSortPeri (:660-734) on axis ``ax`` of the bound arrays
+    (coordinate bc, body bi, period bp, isMin bm, each (3, 2N)); returns an error code."""
+    size = bc.shape[1]
+    lo = lo_idx[ax]
+    _i = 0
+    while _i < size or bc[ax, _norm(_i, size)] < bc[ax, _norm(_i - 1, size)]:
+        i = _norm(_i, size)
+        i_1 = _norm(i - 1, size)
+        if i == lo and bc[ax, i] < 0.0:  # :677-681
+            bp[ax, i] -= 1
+            bc[ax, i] += dim
+            lo = _norm(lo + 1, size)
+        icmp = bc[ax, i] + (dim if i == lo else 0.0)  # :685
+        if bc[ax, i_1] <= icmp:  # :687
+            _i += 1
+            continue
+        j = i_1
+        vc, vid, vp, vmin = bc[ax, i], bi[ax, i], bp[ax, i], bm[ax, i]
+        while j < _i and bc[ax, j] > (vc + (dim if _norm(j + 1, size) == lo else 0.0)):  # :696
+            j1 = _norm(j + 1, size)
+            bc[ax, j1], bi[ax, j1], bp[ax, j1], bm[ax, j1] = bc[ax, j], bi[ax, j], bp[ax, j], bm[ax, j]  # :707
+            if j == lo and vc < 0.0:  # :709-717
+                vp -= 1
+                vc += dim
+                lo = _norm(lo + 1, size)
+            elif j1 == lo:
+                bp[ax, j1] += 1
+                bc[ax, j1] -= dim
+                lo = _norm(lo - 1, size)
+            if vmin and not bm[ax, j] and vid != bi[ax, j1]:  # :718-723
+                a, b = (vid, bi[ax, j1]) if vid < bi[ax, j1] else (bi[ax, j1], vid)
+                err = _handle_inversion(a, b, minima, maxima, inv_sizes, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs)
+                if err != _OK:
+                    lo_idx[ax] = lo
+                    return err
+            j = _norm(j - 1, size)
+        k = _norm(j + 1, size)  # :726
+        bc[ax, k], bi[ax, k], bp[ax, k], bm[ax, k] = vc, vid, vp, vmin
+        _i += 1
+    i = _norm(lo - 1, size)  # :729-733 keep coordinates in [0, cellDim]
+    while bc[ax, i] > dim:
+        bp[ax, i] += 1
+        bc[ax, i] -= dim
+        lo = i
+        i = _norm(i - 1, size)
+    lo_idx[ax] = lo
+    return _OK
+
+
+@njit
+def _less(u, v, c, ids, ismin):
+    """Bounds::operator< (InsertionSortCollider.hpp:100-105)."""
+    if ids[u] == ids[v] and c[u] == c[v]:
+        return ismin[u]
+    return c[u] < c[v]
+
+
+@njit
+def _linear_insert(order, last, c, ids, ismin):
+    """std::__unguarded_linear_insert (libstdc++ bits/stl_algo.h)."""
+    val = order[last]
+    nxt = last - 1
+    while _less(val, order[nxt], c, ids, ismin):
+        order[last] = order[nxt]
+        last = nxt
+        nxt -= 1
+    order[last] = val
+
+
+@njit
+def _insertion_sort(order, first, last, c, ids, ismin):
+    """std::__insertion_sort."""
+    for i in range(first + 1, last):
+        if _less(order[i], order[first], c, ids, ismin):
+            val = order[i]
+            for k in range(i, first, -1):
+                order[k] = order[k - 1]
+            order[first] = val
+        else:
+            _linear_insert(order, i, c, ids, ismin)
+
+
+@njit
+def _std_sort(order, c, ids, ismin):
+    """libstdc++'s std::sort (GCC 12, bits/stl_algo.h: __introsort_loop with the median of three
+    moved to the front and the unguarded partition, threshold 16, then __final_insertion_sort) of the
+    permutation ``order`` by Bounds::operator<, so that equal bounds of different bodies end in the
+    order YADE's sort leaves them. Returns False if the depth limit is reached (the heap-sort branch
+    is not reproduced)."""
+    n = order.shape[0]
+    if n == 0:
+        return True
+    depth = 2 * int(math.floor(math.log2(n)))  # std::__lg(n) * 2
+    stack = np.empty((n + 1, 3), np.int64)  # (first, last, depth) of the recursion
+    stack[0, 0], stack[0, 1], stack[0, 2] = 0, n, depth
+    top = 1
+    while top > 0:
+        top -= 1
+        first, last, dl = stack[top, 0], stack[top, 1], stack[top, 2]
+        while last - first > 16:
+            if dl == 0:
+                return False
+            dl -= 1
+            # __move_median_to_first(first, first + 1, mid, last - 1)
+            mid = first + (last - first) // 2
+            a, b, cc = first + 1, mid, last - 1
+            if _less(order[a], order[b], c, ids, ismin):
+                if _less(order[b], order[cc], c, ids, ismin):
+                    pick = b
+                elif _less(order[a], order[cc], c, ids, ismin):
+                    pick = cc
+                else:
+                    pick = a
+            elif _less(order[a], order[cc], c, ids, ismin):
+                pick = a
+            elif _less(order[b], order[cc], c, ids, ismin):
+                pick = cc
+            else:
+                pick = b
+            order[first], order[pick] = order[pick], order[first]
+            # __unguarded_partition(first + 1, last, first)
+            lo, hi = first + 1, last
+            while True:
+                while _less(order[lo], order[first], c, ids, ismin):
+                    lo += 1
+                hi -= 1
+                while _less(order[first], order[hi], c, ids, ismin):
+                    hi -= 1
+                if not lo < hi:
+                    break
+                order[lo], order[hi] = order[hi], order[lo]
+                lo += 1
+            # __introsort_loop(cut, last, depth) recurses, then last = cut: the two ranges are disjoint,
+            # so the order in which they are sorted does not matter
+            stack[top, 0], stack[top, 1], stack[top, 2] = lo, last, dl
+            top += 1
+            last = lo
+    # __final_insertion_sort
+    if n > 16:
+        _insertion_sort(order, 0, 16, c, ids, ismin)
+        for i in range(16, n):
+            _linear_insert(order, i, c, ids, ismin)
+    else:
+        _insertion_sort(order, 0, n, c, ids, ismin)
+    return True
+
+
+@njit
+def _collide(
+    it, init, pos, radius, has_shear, U, cos, size, verlet, ref_pos, sweep, last_update,
+    aabb_min, aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs,
+):  # fmt: skip
+    """InsertionSortCollider::action (InsertionSortCollider.cpp:226-568), periodic, one thread.
+
+    ``init``: the initial sort (first run: the bounds lists are empty). Returns (error, axis)."""
+    n = pos.shape[0]
+    inv_sizes = np.empty(3)
+    for a in range(3):
+        inv_sizes[a] = 1.0 / size[a]  # :362
+    # BoundDispatcher::action -> processBody (core/Dispatching.cpp:55-93), Bo1_Sphere_Aabb::go
+    hs = np.empty(3)
+    for b in range(n):
+        r = radius[b]
+        hs[0] = r  # Bo1_Aabb.cpp:20: (aabbEnlargeFactor > 0 ? f : 1.) * r
+        hs[1] = r
+        hs[2] = r
+        if has_shear:  # :27-36
+            for i in range(3):
+                i1 = (i + 1) % 3
+                i2 = (i + 2) % 3
+                hs[i1] += 0.5 * r * (1.0 / cos[i] - 1.0)
+                hs[i2] += 0.5 * r * (1.0 / cos[i] - 1.0)
+        ux = U[0, 0] * pos[b, 0] + U[0, 1] * pos[b, 1]  # :38-39 unshearPt(position)
+        uy = U[1, 0] * pos[b, 0] + U[1, 1] * pos[b, 1]
+        aabb_min[b, 0] = ux - hs[0]
+        aabb_min[b, 1] = uy - hs[1]
+        aabb_min[b, 2] = 0.0 - hs[2]
+        aabb_max[b, 0] = ux + hs[0]
+        aabb_max[b, 1] = uy + hs[1]
+        aabb_max[b, 2] = 0.0 + hs[2]
+        # Dispatching.cpp:70-80 (targetInterv > 0)
+        if it > last_update[b]:
+            dist = max(abs(pos[b, 0] - ref_pos[b, 0]), max(abs(pos[b, 1] - ref_pos[b, 1]), 0.0))
+            if dist != 0.0:
+                new_len = dist * TARGET_INTERV / float(it - last_update[b])
+                new_len = max(0.9 * sweep[b], new_len)
+                sweep[b] = max(MIN_SWEEP_DIST_FACTOR * verlet, min(new_len, verlet))
+            else:
+                sweep[b] = 0.0
+        else:
+            sweep[b] = verlet
+        ref_pos[b, 0] = pos[b, 0]  # :86-87
+        ref_pos[b, 1] = pos[b, 1]
+        last_update[b] = it
+        s = sweep[b]
+        if s > 0.0:  # :88-92
+            for a in range(3):
+                aabb_min[b, a] -= s
+                aabb_max[b, a] += s
+    # :423-481 bound coordinates, shifted by their period (wrapped into the cell on the initial sort)
+    m = bc.shape[1]
+    for a in range(3):
+        dim = size[a]
+        for k in range(m):
+            b = bi[a, k]
+            x = (aabb_min[b, a] if bm[a, k] else aabb_max[b, a]) - dim * float(bp[a, k])
+            if init:  # :439 cellWrap(coord, 0, cellDim, period) (:643-648)
+                xn = (x - 0.0) / (dim - 0.0)
+                p = math.floor(xn)
+                bp[a, k] = int(p)
+                x = 0.0 + (xn - p) * (dim - 0.0)
+            bc[a, k] = x
+    # :484 conditionalyEraseNonReal (core/InteractionContainer.hpp:130-137), one thread
+    periods = np.zeros(3, np.int64)
+    q = 0
+    while q < n_intr[0]:
+        if not i_real[q]:
+            overlap, err = _overlap_peri(i_id[q, 0], i_id[q, 1], aabb_min, aabb_max, inv_sizes, periods)
+            if err != _OK:
+                return err, -1
+            if not overlap:
+                _erase(q, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs)
+                continue
+        q += 1
+    if not init:  # :506-508
+        for a in range(3):
+            err = _sort_peri(
+                a, bc, bi, bp, bm, lo_idx, size[a], aabb_min, aabb_max, inv_sizes, slot, n_intr, i_id, i_cd, i_real,
+                i_geom, i_fs,
+            )  # fmt: skip
+            if err != _OK:
+                return err, a
+        return _OK, -1
+    # :546-549 the initial sort (VecBounds::sort: std::sort with Bounds::operator<), loIdx = 0
+    for a in range(3):
+        lo_idx[a] = 0
+        order = np.arange(m)
+        if not _std_sort(order, bc[a], bi[a], bm[a]):
+            return _TIE, a
+        c2, i2, p2, m2 = bc[a][order], bi[a][order], bp[a][order], bm[a][order]
+        for k in range(m):
+            bc[a, k], bi[a, k], bp[a, k], bm[a, k] = c2[k], i2[k], p2[k], m2[k]
+    # :625-638 findOverlaps along x (sortAxis 0), periodic
+    for k in range(m):
+        if not bm[0, k]:
+            continue
+        iid = bi[0, k]
+        j = _norm(k + 1, m)
+        while bi[0, j] != iid:
+            if bm[0, j]:
+                jid = bi[0, j]
+                a, b = (iid, jid) if iid < jid else (jid, iid)
+                err = _handle_inversion(
+                    a, b, aabb_min, aabb_max, inv_sizes, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs
+                )
+                if err != _OK:
+                    return err, 0
+            j = _norm(j + 1, m)
+    return _OK, -1
+
+
+# ----------------------------------------------------------------------------------------------
+# interaction loop, stress, integrator
+
+
+@njit
+def _interactions(
+    pos, vel, spin, radius, H, VP, kn, ks, tan_phi, dt, n_intr, i_id, i_cd, i_real, i_geom, i_fs, force, torque
+):
+    """ForceResetter, then InteractionLoop::action (core/InteractionLoop.cpp:81-190) in container
+    order; i_geom rows: (n_x, n_y, penetrationDepth, F_n,x, F_n,y)."""
+    force[:] = 0.0
+    torque[:] = 0.0
+    for q in range(n_intr[0]):
+        b1 = i_id[q, 0]
+        b2 = i_id[q, 1]
+        c0 = float(i_cd[q, 0])
+        c1 = float(i_cd[q, 1])
+        sx = H[0, 0] * c0 + H[0, 1] * c1  # :145 shift2 = cellHsize * cellDist
+        sy = H[1, 0] * c0 + H[1, 1] * c1
+        svx = VP[0, 0] * c0 + VP[0, 1] * c1  # Cell::intrShiftVel (core/Cell.hpp:119)
+        svy = VP[1, 0] * c0 + VP[1, 1] * c1
+        st, nx, ny, pen, fnx, fny, fsx, fsy, fx, fy, t1, t2 = scgeom_cundall_strack(
+            i_real[q], pos[b1, 0], pos[b1, 1], pos[b2, 0], pos[b2, 1], sx, sy, radius[b1], radius[b2],
+            vel[b1, 0], vel[b1, 1], spin[b1], vel[b2, 0], vel[b2, 1], spin[b2], svx, svy,
+            i_geom[q, 0], i_geom[q, 1], i_fs[q, 0], i_fs[q, 1], kn, ks, tan_phi, dt,
+        )  # fmt: skip
+        if st == NO_CONTACT:
+            continue
+        if st == ERASED:  # requestErase: Interaction::reset (core/Interaction.cpp:34-42)
+            i_real[q] = False
+            i_fs[q, 0] = 0.0
+            i_fs[q, 1] = 0.0
+            continue
+        i_real[q] = True
+        i_geom[q, 0] = nx
+        i_geom[q, 1] = ny
+        i_geom[q, 2] = pen
+        i_geom[q, 3] = fnx
+        i_geom[q, 4] = fny
+        i_fs[q, 0] = fsx
+        i_fs[q, 1] = fsy
+        force[b1, 0] += fx  # ElasticContactLaw.cpp:109-112
+        force[b1, 1] += fy
+        force[b2, 0] += -fx
+        force[b2, 1] += -fy
+        torque[b1] += t1
+        torque[b2] += t2
+    return FORCE
+
+
+@njit
+def _stress(pos, H, z, n_intr, i_id, i_cd, i_real, i_geom, i_fs, out):
+    """z utils.getStress() (preprocessing/dem/Shop_02.cpp:395-424) as the script forms it, (2, 2) N/m."""
+    s00 = 0.0
+    s01 = 0.0
+    s10 = 0.0
+    s11 = 0.0
+    for q in range(n_intr[0]):
+        if not i_real[q]:
+            continue
+        b1 = i_id[q, 0]
+        b2 = i_id[q, 1]
+        c0 = float(i_cd[q, 0])
+        c1 = float(i_cd[q, 1])
+        bx = pos[b1, 0] - pos[b2, 0]  # :419-420
+        by = pos[b1, 1] - pos[b2, 1]
+        bx -= H[0, 0] * c0 + H[0, 1] * c1
+        by -= H[1, 0] * c0 + H[1, 1] * c1
+        fx = i_geom[q, 3] + i_fs[q, 0]  # :421
+        fy = i_geom[q, 4] + i_fs[q, 1]
+        s00 += fx * bx
+        s01 += fx * by
+        s10 += fy * bx
+        s11 += fy * by
+    vol = H[0, 0] * (H[1, 1] * z) - H[1, 0] * (H[0, 1] * z)  # Eigen's bruteforce 3 x 3 determinant
+    out[0, 0] = z * (s00 / vol)
+    out[0, 1] = z * (s01 / vol)
+    out[1, 0] = z * (s10 / vol)
+    out[1, 1] = z * (s11 / vol)
+
+
+@njit
+def _newton(pos, vel, spin, mass, inertia, force, torque, L, nextL, Lprev, size, prev_size, dt, dt2, ref_pos, sweep):
+    """NewtonIntegrator::action (pkg/dem/NewtonIntegrator.cpp:137-312), damping 0, no gravity,
+    blocked DOFs zXY, spherical bodies; returns maxVelocitySq."""
+    for i in range(2):  # :149-153 velGrad = nextVelGrad
+        for j in range(2):
+            L[i, j] = nextL[i, j]
+    d00 = L[0, 0] - Lprev[0, 0]  # :155
+    d01 = L[0, 1] - Lprev[0, 1]
+    d10 = L[1, 0] - Lprev[1, 0]
+    d11 = L[1, 1] - Lprev[1, 1]
+    dspin = -(0.5 * (d01 - d10))  # :156-157 dSpin_z = -R(0, 1)
+    if (prev_size[0] != size[0] or prev_size[1] != size[1] or prev_size[2] != size[2]) and not math.isnan(prev_size[0]):
+        e0 = prev_size[0] - size[0]
+        e1 = prev_size[1] - size[1]
+        e2 = prev_size[2] - size[2]
+        max_v2 = (e0 * e0 + e1 * e1 + e2 * e2) / dt2  # :164
+    else:
+        max_v2 = 0.0
+    for b in range(pos.shape[0]):
+        ax = force[b, 0] / mass[b]  # :58-61 (damping 0: :31-35 multiplies by 1)
+        ay = force[b, 1] / mass[b]
+        ax += Lprev[0, 0] * vel[b, 0] + Lprev[0, 1] * vel[b, 1]  # :262 prevVelGrad * vel
+        ay += Lprev[1, 0] * vel[b, 0] + Lprev[1, 1] * vel[b, 1]
+        vel[b, 0] += dt * ax  # :264
+        vel[b, 1] += dt * ay
+        spin[b] += dt * (torque[b] / inertia[b])  # :267-270
+        vel[b, 0] += d00 * pos[b, 0] + d01 * pos[b, 1]  # :320-323 dVelGrad * pos
+        vel[b, 1] += d10 * pos[b, 0] + d11 * pos[b, 1]
+        pos[b, 0] += vel[b, 0] * dt  # :324
+        pos[b, 1] += vel[b, 1] * dt
+        spin[b] += dspin  # :329
+        # :118-135 saveMaximaDisplacement
+        md = max(abs(pos[b, 0] - ref_pos[b, 0]), max(abs(pos[b, 1] - ref_pos[b, 1]), 0.0))
+        flag = 0.5 if (md == 0.0 or md < sweep[b]) else 2.0
+        max_v2 = max(max_v2, flag)
+    for i in range(3):  # :307-310
+        prev_size[i] = size[i]
+    for i in range(2):
+        for j in range(2):
+            Lprev[i, j] = L[i, j]
+    return max_v2
+
+
+# ----------------------------------------------------------------------------------------------
+# the driver
+
+
+@dataclass(frozen=True, eq=False)
+class YadeRun:
+    """Steps 0..n of a native run in YADE's arithmetic, as YADE's script writes them.
+
+    Attributes
+    ----------
+    step : (T,) steps. cell : (T, 2, 2) hSize (lattice vectors as columns, m). stress : (T, 2, 2)
+    z getStress() (N/m, tension positive, not symmetrised). vel_grad : (T, 2, 2) velGrad set at
+    the step (1/s). n_contacts : (T,). positions, velocities, forces : (T, N, 2) (velocity
+    v_(k-1/2), mean field included); spins, torques : (T, N). contacts : list of T tuples (ids
+    (M, 2), cell_dist (M, 2), normal_force (M, 2), shear_force (M, 2), penetration (M,)), the real
+    interactions in YADE's container order. mass, inertia : (N,). z : YADE's cell z size (m).
+    """
+
+    step: np.ndarray
+    cell: np.ndarray
+    stress: np.ndarray
+    vel_grad: np.ndarray
+    n_contacts: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    spins: np.ndarray
+    forces: np.ndarray
+    torques: np.ndarray
+    contacts: list
+    mass: np.ndarray
+    inertia: np.ndarray
+    z: float
+
+
+def _axis_spec(ctl, L0: float, dt: float):
+    if ctl.mode == "fixed":
+        return _FIXED, 0.0, 0.0
+    if ctl.mode == "rate":
+        return _RATE, ctl.rate * L0 * dt, 0.0  # the decks' literal c = rate L0 dt
+    return _SERVO, dt * ctl.gain, float(ctl.target)
+
+
+def _loading(loading, C, dt):
+    """(mode_x, a_x, b_x, mode_y, a_y, b_y, erate) of the script's control()."""
+    if isinstance(loading, Loading):
+        return (*_axis_spec(loading.x, C[0, 0], dt), *_axis_spec(loading.y, C[1, 1], dt), 0.0)
+    if isinstance(loading, ShearLoading):
+        if loading.xy != "erate" or loading.every != 1:
+            raise InputError(
+                f"loading: the yade arithmetic shears at a constant erate changed every step, got xy {loading.xy!r}, "
+                f"every {loading.every}"
+            )
+        y = (_SERVO, dt * loading.gain, float(loading.target)) if loading.y == "servo" else (_FIXED, 0.0, 0.0)
+        return (_FIXED, 0.0, 0.0, *y, float(loading.erate))
+    raise InputError(f"loading: expected a gransim.dem.Loading or ShearLoading, got {type(loading).__name__}")
+
+
+def _rate(mode, a, b, h, p, dt):
+    """axis_rate of the script (reference_runs/yade/dem_script.py), in its Python arithmetic."""
+    if mode == _FIXED:
+        return 0.0
+    if mode == _RATE:
+        return a / (dt * h)
+    return a * (p - b) / dt
+
+
+def yade_run(
+    packing: Packing, settings: DEMSettings, loading, nsteps: int, velocities=None, spins=None, z=None
+) -> YadeRun:
+    """Run ``nsteps`` steps in YADE's arithmetic and return every step 0..nsteps (:class:`YadeRun`).
+
+    Parameters
+    ----------
+    packing : the disks (positions as YADE gets them: the YADE job wraps them into the cell, so give
+        the same wrapped packing), radii, orthogonal cell, density (kg/m^2; m = density pi r^2,
+        I = m r^2 / 2 in the script's Python arithmetic).
+    settings : kn, kt (N/m), mu, dt (s); gamma_n = gamma_t = 0 (YADE's runs are undamped).
+    loading : :class:`gransim.dem.Loading` (fixed / rate / servo per axis) or
+        :class:`gransim.dem.sheared.ShearLoading` (``xy erate``, every 1, y fixed or servo).
+    velocities, spins : initial (N, 2), (N,) (default 0). z : YADE's cell z size (default
+        :func:`yade_cell_z`).
+    """
+    nsteps = int(nsteps)
+    if nsteps < 0:
+        raise InputError(f"nsteps: expected an integer >= 0, got {nsteps}")
+    if settings.gamma_n != 0 or settings.gamma_t != 0:
+        raise InputError(
+            f"settings.gamma_n, gamma_t: the yade arithmetic runs Cundall and Strack's undamped law, got "
+            f"{settings.gamma_n!r}, {settings.gamma_t!r}"
+        )
+    C = np.asarray(packing.cell, float)
+    if C[0, 1] != 0.0 or C[1, 0] != 0.0:
+        raise InputError(f"packing.cell: the yade arithmetic starts from an orthogonal cell, got {C.tolist()}")
+    n = packing.n
+    dt = float(settings.dt)
+    z = yade_cell_z(packing.radii) if z is None else float(z)
+    mode_x, ax_, bx_, mode_y, ay_, by_, erate = _loading(loading, C, dt)
+    L0y = float(C[1, 1])
+    radius = np.array(packing.radii, float)
+    rho = float(packing.density)
+    mass = np.array([rho * math.pi * r * r for r in radius])  # the script: rho * math.pi * r * r
+    inertia = np.array([0.5 * m * r * r for m, r in zip(mass, radius)])  # 0.5 * m * r * r
+    pos = np.array(packing.positions, float).reshape(n, 2).copy()
+    vel = np.zeros((n, 2)) if velocities is None else np.array(velocities, float).reshape(n, 2).copy()
+    spin = np.zeros(n) if spins is None else np.array(spins, float).reshape(n).copy()
+    kn, ks, tan_phi = float(settings.kn), float(settings.kt), friction_tangent(settings.mu)
+    dt2 = dt * dt  # pow(dt, 2) (NewtonIntegrator.cpp:164), folded into dt * dt by GCC
+
+    # the cell: hSize set from Python (Cell::setHSize -> integrateAndUpdate(0))
+    H = C.copy()
+    L = np.zeros((2, 2))
+    nextL = np.zeros((2, 2))
+    Lprev = np.zeros((2, 2))
+    prevH = np.zeros((2, 2))
+    VP = np.zeros((2, 2))
+    size = np.zeros(3)
+    U = np.zeros((2, 2))
+    cos = np.zeros(3)
+    prev_size = np.full(3, np.nan)
+    # the collider
+    verlet = VERLET_FACTOR * float(radius.min())
+    ref_pos = np.full((n, 2), np.nan)
+    sweep = np.zeros(n)
+    last_update = np.zeros(n, np.int64)
+    aabb_min = np.zeros((n, 3))
+    aabb_max = np.zeros((n, 3))
+    m = 2 * n
+    bi = np.tile(np.repeat(np.arange(n, dtype=np.int64), 2), (3, 1))
+    bm = np.tile(np.array([True, False] * n), (3, 1))
+    bc = np.zeros((3, m))
+    bp = np.zeros((3, m), np.int64)
+    lo_idx = np.zeros(3, np.int64)
+    # the interactions
+    cap = min(n * (n - 1) // 2, 64 * n)
+    slot = np.full((n, n), -1, np.int64)
+    n_intr = np.zeros(1, np.int64)
+    i_id = np.zeros((cap, 2), np.int64)
+    i_cd = np.zeros((cap, 2), np.int64)
+    i_real = np.zeros(cap, np.bool_)
+    i_geom = np.zeros((cap, 5))
+    i_fs = np.zeros((cap, 2))
+    force = np.zeros((n, 2))
+    torque = np.zeros(n)
+    max_v2 = 0.0
+    first = True
+
+    T = nsteps + 1
+    out_cell = np.zeros((T, 2, 2))
+    out_stress = np.zeros((T, 2, 2))
+    out_grad = np.zeros((T, 2, 2))
+    out_nc = np.zeros(T, np.int64)
+    out_pos = np.zeros((T, n, 2))
+    out_vel = np.zeros((T, n, 2))
+    out_spin = np.zeros((T, n))
+    out_force = np.zeros((T, n, 2))
+    out_torque = np.zeros((T, n))
+    contacts = []
+    sig = np.zeros((2, 2))
+    for k in range(T):
+        has_shear = _cell_update(H, z, L, dt, prevH, VP, size, U, cos)  # prologue
+        if first or max_v2 >= 1.0 or max_v2 == 0.0:  # InsertionSortCollider::isActivated
+            err, axis = _collide(
+                k, first, pos, radius, has_shear, U, cos, size, verlet, ref_pos, sweep, last_update, aabb_min,
+                aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs,
+            )  # fmt: skip
+            if err == _TOO_BIG:
+                raise RuntimeError(f"step {k}: a bound spans over half of the cell (YADE throws here too)")
+            if err == _FULL:
+                raise RuntimeError(f"step {k}: more than {cap} potential interactions")
+            if err == _TIE:
+                raise RuntimeError(
+                    f"step {k}: the initial sort of the bounds on axis {axis} reached libstdc++'s depth limit: its "
+                    "heap-sort branch is not reproduced"
+                )
+            first = False
+        _interactions(
+            pos, vel, spin, radius, H, VP, kn, ks, tan_phi, dt, n_intr, i_id, i_cd, i_real, i_geom, i_fs, force, torque
+        )
+        _stress(pos, H, z, n_intr, i_id, i_cd, i_real, i_geom, i_fs, sig)
+        # the script's control() (Python floats, reference_runs/yade/dem_script.py)
+        gxx = _rate(mode_x, ax_, bx_, H[0, 0], -sig[0, 0], dt)
+        gyy = _rate(mode_y, ay_, by_, H[1, 1], -sig[1, 1], dt)
+        gxy = erate * L0y / H[1, 1] if erate else 0.0
+        nextL[:] = ((gxx, gxy), (0.0, gyy))
+        real = np.flatnonzero(i_real[: n_intr[0]])
+        out_cell[k] = H
+        out_stress[k] = sig
+        out_grad[k] = nextL
+        out_nc[k] = len(real)
+        out_pos[k] = pos
+        out_vel[k] = vel
+        out_spin[k] = spin
+        out_force[k] = force
+        out_torque[k] = torque
+        contacts.append(
+            (i_id[real].copy(), i_cd[real].copy(), i_geom[real, 3:5].copy(), i_fs[real].copy(), i_geom[real, 2].copy())
+        )
+        max_v2 = _newton(
+            pos, vel, spin, mass, inertia, force, torque, L, nextL, Lprev, size, prev_size, dt, dt2, ref_pos, sweep
+        )
+    return YadeRun(
+        np.arange(T), out_cell, out_stress, out_grad, out_nc, out_pos, out_vel, out_spin, out_force, out_torque,
+        contacts, mass, inertia, z,
+    )  # fmt: skip
+
+
+__all__ = ["YadeRun", "yade_cell_z", "yade_run"]
