@@ -17,6 +17,8 @@ Criteria:
   one criterion of biaxial-full, biaxial-laws and simple-shear).
 * :func:`band`: a curve (or a statistic along it) within a multiple of the band its perturbed runs
   span around the reference.
+* :func:`cell_lists`: Kuhn's void cells of two runs' snapshots, frame by frame: the same cell lists,
+  alpha and w at round-off.
 * :func:`taylor_stress`, :func:`taylor_contacts`, :func:`taylor_cross`: Taylor states (no dynamics)
   of gransim and of a code, and of two codes, at round-off: the stress of every state, the contacts
   two-sided.
@@ -28,7 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reference_runs.judge import peak
+from gransim.errors import InputError
+from gransim.voidcell import VoidCells
+from reference_runs.judge import defined_diff, defined_peak, peak
 from reference_runs.store import taylor_case
 
 from .codes import why_they_differ
@@ -578,3 +582,104 @@ def taylor_cross(
             )
             n_states += len(common)
     return recs, {"states": n_states}
+
+
+# ====================================================================== void cells
+ALPHA_TOL = 1e-6
+ALPHA_REASON = (
+    "same inputs give the same cells; 1e-6 (alpha in [-1, 1]) admits the velocity tolerance of "
+    "biaxial-short (1e-8 of max|v|) amplified by the ratio max|v| / (velocity difference across a "
+    "cell) ~ 1e2"
+)
+W_REASON = "w relative to max|w|: as alpha"
+LIST_REASON = (
+    "cell lists (faces as particle cycles, valences, edges, vertices) must be identical: a contact "
+    "differs only if positions differ by the overlap's round-off, which biaxial-short excludes"
+)
+
+
+def void_cells(snap):
+    """Kuhn's void cells of a snapshot (:class:`gransim.voidcell.VoidCells`)."""
+    return VoidCells().compute(snap)
+
+
+def _face_cycles(vc) -> list:
+    d = vc.dcel
+    out = []
+    for f in range(d.n_faces):
+        cyc = [int(v) for v in d.origin[d.face_halfedges[d.face_ptr[f] : d.face_ptr[f + 1]]]]
+        k = int(np.argmin(cyc))
+        out.append(tuple(cyc[k:] + cyc[:k]))
+    return out
+
+
+def cell_signature(vc) -> tuple:
+    """Faces as sorted tuples of particle cycles (canonical rotation), with valences and counts."""
+    d = vc.dcel
+    return (d.n_faces, d.n_edges, d.n_vertices, tuple(sorted(_face_cycles(vc))))
+
+
+def face_order(vc) -> np.ndarray:
+    """The faces in the order of their canonical particle cycles (to pair the faces of two codes)."""
+    sig = _face_cycles(vc)
+    return np.array(sorted(range(len(sig)), key=lambda i: sig[i]))
+
+
+def compare_cell_frames(a, b, steps, radii, dt, snapshot) -> dict:
+    """Per frame of ``steps``: the same cell list?, max |d alpha|, max |d w| / max |w| and both
+    void-cell sets, from snapshots of both runs built by one function ``snapshot(tr, step, radii,
+    dt)`` (:func:`validation.dem_compare.snapshot` for ``remap x`` boxes, the sheared-cell one for
+    ``remap v``). A frame without a framework spanning the cell must be so on both sides
+    (``no_tessellation``); on one side only it is a different cell list."""
+    out = {"steps": [], "same": [], "alpha": [], "w": [], "vc": [], "no_tessellation": []}
+    for s in steps:
+        vcs = []
+        for tr in (a, b):
+            try:
+                vcs.append(void_cells(snapshot(tr, s, radii, dt)))
+            except InputError as exc:  # no framework spanning the cell: must then hold on both sides
+                vcs.append(str(exc))
+        x, y = vcs
+        if isinstance(x, str) or isinstance(y, str):
+            if x == y:
+                out["no_tessellation"].append(int(s))
+                continue
+            same, x, y = False, None, None
+        else:
+            same = cell_signature(x) == cell_signature(y)
+        da = dw = float("inf")
+        if same:
+            ia, ib = face_order(x), face_order(y)
+            # NaN marks a cell whose alignment is undefined (zero gradient): it must be so on both sides
+            da = defined_diff(x.alpha[ia], y.alpha[ib])
+            dw = defined_diff(x.w[ia], y.w[ib]) / (defined_peak(y.w) or 1.0)
+        out["steps"].append(int(s))
+        out["same"].append(same)
+        out["alpha"].append(da)
+        out["w"].append(dw)
+        out["vc"].append((x, y))
+    return out
+
+
+def cell_records(label: str, cmp: dict) -> list:
+    """Records of :func:`compare_cell_frames`: frames with different cell lists (0), max |d alpha|
+    and max |d w| / max |w| (:data:`ALPHA_TOL`); no frame with a tessellation is a failure."""
+    ndiff = sum(not s for s in cmp["same"])
+    if not cmp["same"]:
+        return [compare(label, "cell_list", "frames with a tessellation", 0, -1, LIST_REASON)]
+    return [
+        compare(label, "cell_list", f"frames with different cell lists (of {len(cmp['same'])})", ndiff, 0, LIST_REASON),
+        compare(label, "alpha", "max|d alpha| over cells and frames", peak(cmp["alpha"]), ALPHA_TOL, ALPHA_REASON),
+        compare(label, "w", "max|d w|/max|w| over frames", peak(cmp["w"]), ALPHA_TOL, W_REASON),
+    ]
+
+
+def cell_lists(label: str, a, b, *, frames, radii, dt, snapshot, sides) -> tuple[list, dict]:
+    """Kuhn's void cells of two runs, frame by frame: the evidence of every expected frame on both
+    sides, then :func:`cell_records` over the frames both hold (with their series step). Returns
+    (records, the :func:`compare_cell_frames` dict)."""
+    recs = trajectory_evidence(label, sides[0], a, None, frames) + trajectory_evidence(label, sides[1], b, None, frames)
+    sa, sb = {int(s) for s in a.steps}, {int(s) for s in b.steps}
+    present = [int(k) for k in frames if k in a.frames and k in b.frames and int(k) in sa and int(k) in sb]
+    cmp = compare_cell_frames(a, b, present, radii, dt, snapshot)
+    return recs + cell_records(label, cmp), cmp

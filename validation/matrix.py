@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from .codes import NATIVE, code_label, pair_key
 from .core import CaseResult, Context, in_pair, stored_job_record
-from .judges import explained_difference, step_for_step, taylor_contacts, taylor_cross, taylor_stress
+from .judges import cell_lists, explained_difference, step_for_step, taylor_contacts, taylor_cross, taylor_stress
 
 #: the judges a comparison can name (kind -> function(label, *runs, **params) -> (records, summary));
 #: the envelope judge (validation.judges.envelope) takes a code's ensemble of runs and is called by
@@ -28,6 +28,7 @@ from .judges import explained_difference, step_for_step, taylor_contacts, taylor
 JUDGES = {
     "step": step_for_step,
     "explained": explained_difference,
+    "cells": cell_lists,
     "taylor_stress": taylor_stress,
     "taylor_contacts": taylor_contacts,
     "taylor_cross": taylor_cross,

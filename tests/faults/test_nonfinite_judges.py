@@ -233,10 +233,10 @@ def test_envelope_ratios_fail_on_a_nan_step(bad):
 
 
 def test_voidcell_records_fail_on_a_nan_frame_after_a_finite_one():
-    from validation.cases.voidcell import _records
+    from validation.judges import cell_records
 
     cmp = {"same": [True, True], "alpha": [1e-12, math.nan], "w": [1e-12, 1e-12], "steps": [0, 10]}
-    recs = {r.quantity: r for r in _records("voidcells/x", cmp)}
+    recs = {r.quantity: r for r in cell_records("voidcells/x", cmp)}
     assert not recs["alpha"].passed and "alpha is NaN" in recs["alpha"].metric
     assert recs["w"].passed
 

@@ -52,7 +52,7 @@ from reference_runs.decks.shear import (
     wrapped_packing,
     write_shear_deck,
 )
-from reference_runs.judge import defined_diff, defined_peak
+from reference_runs.judge import defined_diff
 from reference_runs.parsers import parse_dump_custom
 from reference_runs.runner import run_job
 
@@ -77,11 +77,18 @@ from ..dem_compare import (
     stress_differences,
     trajectory_evidence,
 )
-from ..judges import ENVELOPE_FACTOR, EnvelopeRule, StepBounds, band, envelope, step_for_step
+from ..judges import (
+    ENVELOPE_FACTOR,
+    LIST_REASON,
+    EnvelopeRule,
+    StepBounds,
+    band,
+    envelope,
+    step_for_step,
+    void_cells,
+)
 from ..matrix import Comparison, Run, evaluate, stored_job
 from .biaxial import FULL_CONSOLIDATION_STEPS, PERTURB_REL, _kuhn, _servo
-from .voidcell import _cells, _face_order, cell_signature
-from .voidcell import _records as cell_records
 
 CASE = "simple-shear"
 TITLE = "Simple shear in a sheared periodic cell (Lees-Edwards): native vs LAMMPS, and void cells"
@@ -333,44 +340,12 @@ def sheared_snapshot(tr, step: int, radii: np.ndarray, dt: float):
     )
 
 
-def compare_cells(nat, ref, steps, radii, dt) -> dict:
-    """Per frame: the same cell list?, max|d alpha|, max|d w|/max|w| (as the voidcell case)."""
-    out = {"steps": [], "same": [], "alpha": [], "w": [], "vc": [], "no_tessellation": []}
-    for s in steps:
-        vcs = []
-        for tr in (nat, ref):
-            try:
-                vcs.append(_cells(sheared_snapshot(tr, s, radii, dt)))
-            except InputError as exc:  # no framework spanning the cell: must then hold on both sides
-                vcs.append(str(exc))
-        a, b = vcs
-        if isinstance(a, str) or isinstance(b, str):
-            if a == b:
-                out["no_tessellation"].append(int(s))
-                continue
-            same, a, b = False, None, None
-        else:
-            same = cell_signature(a) == cell_signature(b)
-        da = dw = float("inf")
-        if same:
-            ia, ib = _face_order(a), _face_order(b)
-            # NaN marks a cell whose alignment is undefined (zero gradient): it must be so on both sides
-            da = defined_diff(a.alpha[ia], b.alpha[ib])
-            dw = defined_diff(a.w[ia], b.w[ib]) / (defined_peak(b.w) or 1.0)
-        out["steps"].append(int(s))
-        out["same"].append(same)
-        out["alpha"].append(da)
-        out["w"].append(dw)
-        out["vc"].append((a, b))
-    return out
-
-
 def cell_stats(tr, steps, radii, dt) -> np.ndarray:
     """(len(steps), 2): mean alpha and fraction alpha <= 0 of every frame (NaN without a tessellation)."""
     rows = []
     for s in steps:
         try:
-            vc = _cells(sheared_snapshot(tr, s, radii, dt))
+            vc = void_cells(sheared_snapshot(tr, s, radii, dt))
             rows.append([vc.mean_alpha, vc.fraction_nonpositive_alpha])
         except InputError:
             rows.append([np.nan, np.nan])
@@ -714,6 +689,21 @@ def short_plan(ctx: Context, manifests: dict | None = None) -> tuple[list, list]
                         {"d50": p.d50, "nsteps": steps, "dump_every": every, "bounds": SHEAR_BOUNDS},
                     )
                 )
+                if scen == "stored-120":  # Kuhn's void cells of every dump, on the sheared cell
+                    comps.append(
+                        Comparison(
+                            "cells",
+                            f"{CASE}/voidcells-120/{name}{sc.suffix}",
+                            (nat.key, ref.key),
+                            LIST_REASON,
+                            {
+                                "frames": [int(k) for k in expected_frames(n, SHORT_DUMP_EVERY)],
+                                "radii": p.radii,
+                                "dt": s.dt,
+                                "snapshot": sheared_snapshot,
+                            },
+                        )
+                    )
     return runs, comps
 
 
@@ -772,7 +762,7 @@ def simple_shear_case(ctx: Context) -> CaseResult:
     manifests = {}
     runs, comps = short_plan(ctx, manifests)
     out = evaluate(res, ctx, runs, comps)
-    rows = [short_row(out.summaries[c.label]) for c in comps if c.label in out.summaries]
+    rows = [short_row(out.summaries[c.label]) for c in comps if c.kind == "step" and c.label in out.summaries]
     short_div = {}
     vc_fig = None
     for c in comps:
@@ -780,19 +770,11 @@ def simple_shear_case(ctx: Context) -> CaseResult:
         if not ref_key.startswith("stored-120/") or c.label not in out.summaries:
             continue
         name = ref_key.split("/")[1]
-        p, s, _, n = short_case(name)
-        nat, ref = out.runs[nat_key], out.runs[ref_key]
-        who = code_label(ref_key.split("/")[2])
-        both = np.intersect1d(nat.steps, ref.steps)
-        short_div[name] = stress_differences(nat, ref, steps=both)[:2]
-        # void cells of every dump
-        frames = [int(k) for k in expected_frames(n, SHORT_DUMP_EVERY)]
-        vlab = f"{CASE}/voidcells-120/{name}" + SHEAR_CODES[ref_key.split("/")[2]].suffix
-
-        ev = trajectory_evidence(vlab, "native", nat, None, frames) + trajectory_evidence(vlab, who, ref, None, frames)
-        present = [k for k in frames if k in nat.frames and k in ref.frames and int(k) in set(ref.steps.tolist())]
-        cmp = compare_cells(nat, ref, present, p.radii, s.dt)
-        res.records += in_pair(ev + cell_records(vlab, cmp), pair_key(NATIVE, ref_key.split("/")[2]))
+        if c.kind == "step":
+            nat, ref = out.runs[nat_key], out.runs[ref_key]
+            short_div[name] = stress_differences(nat, ref, steps=np.intersect1d(nat.steps, ref.steps))[:2]
+            continue
+        cmp = out.summaries[c.label]
         if cmp["no_tessellation"]:
             res.notes.append(
                 f"stored-120/{name}: steps {cmp['no_tessellation']} have no framework spanning the cell on "

@@ -9,21 +9,29 @@ box lengths by central differences. So any difference comes from the trajectorie
 from __future__ import annotations
 
 import csv
+import functools
 from pathlib import Path
 
 import numpy as np
 
-from gransim.errors import InputError
 from gransim.io import atomic_path
-from gransim.voidcell import VoidCells
 from reference_runs.decks.biaxial import SHORT_CASE_DUMP_EVERY, short_case
-from reference_runs.judge import defined_diff, defined_peak
 
+from ..codes import CODES, NATIVE, pair_key
 from ..core import CaseResult, Context, case, compare, evidence, in_pair, info, peak, stored_dir
 from ..dem_compare import expected_frames, read_reference, run_native, snapshot, trajectory_evidence
+from ..judges import (  # noqa: F401 (cell_signature: the voidcell tests use it from here)
+    LIST_REASON,
+    cell_records,
+    cell_signature,
+    compare_cell_frames,
+    void_cells,
+)
+from ..matrix import Comparison, Run, evaluate
 from .biaxial import (
     CODE,
     FULL_DUMP_EVERY,
+    SHORT_CODES,
     _flavour,
     _stored_log,
     ensemble_labels,
@@ -31,17 +39,6 @@ from .biaxial import (
     lammps_ensemble_labels,
 )
 
-ALPHA_TOL = 1e-6
-ALPHA_REASON = (
-    "same inputs give the same cells; 1e-6 (alpha in [-1, 1]) admits the velocity tolerance of "
-    "biaxial-short (1e-8 of max|v|) amplified by the ratio max|v| / (velocity difference across a "
-    "cell) ~ 1e2"
-)
-W_REASON = "w relative to max|w|: as alpha"
-LIST_REASON = (
-    "cell lists (faces as particle cycles, valences, edges, vertices) must be identical: a contact "
-    "differs only if positions differ by the overlap's round-off, which biaxial-short excludes"
-)
 STATS_REASON = (
     "band = the largest deviation of the perturbed LIGGGHTS runs (one coordinate moved by 1e-15) "
     "from the reference over the frames: the statistics' own spread under round-off (instantaneous "
@@ -58,77 +55,6 @@ PAPER = {
 }
 #: compression steps of the Kuhn runs counted as the short horizon (perturbations still < 1e-10 D50)
 SHORT_HORIZON = 24000
-
-
-def _cells(snap):
-    return VoidCells().compute(snap)
-
-
-def cell_signature(vc) -> tuple:
-    """Faces as sorted tuples of particle cycles (canonical rotation), with valences and counts."""
-    d = vc.dcel
-    faces = []
-    for f in range(d.n_faces):
-        cyc = [int(v) for v in d.origin[d.face_halfedges[d.face_ptr[f] : d.face_ptr[f + 1]]]]
-        k = int(np.argmin(cyc))
-        faces.append(tuple(cyc[k:] + cyc[:k]))
-    return (d.n_faces, d.n_edges, d.n_vertices, tuple(sorted(faces)))
-
-
-def _face_order(vc) -> np.ndarray:
-    sig = []
-    d = vc.dcel
-    for f in range(d.n_faces):
-        cyc = [int(v) for v in d.origin[d.face_halfedges[d.face_ptr[f] : d.face_ptr[f + 1]]]]
-        k = int(np.argmin(cyc))
-        sig.append(tuple(cyc[k:] + cyc[:k]))
-    return np.array(sorted(range(len(sig)), key=lambda i: sig[i]))
-
-
-def compare_frames(nat, lig, steps, radii, dt) -> dict:
-    """Per frame: same cell list?, max|d alpha|, max|d w|/max|w|, and both VoidCells."""
-    out = {"steps": [], "same": [], "alpha": [], "w": [], "vc": [], "no_tessellation": []}
-    for s in steps:
-        try:
-            a = _cells(snapshot(nat, s, radii, dt))
-        except InputError as exc:  # no framework spanning the cell: must then hold on both sides
-            a = str(exc)
-        try:
-            b = _cells(snapshot(lig, s, radii, dt))
-        except InputError as exc:
-            b = str(exc)
-        if isinstance(a, str) or isinstance(b, str):
-            same = a == b
-            if same:
-                out["no_tessellation"].append(int(s))
-                continue
-            a = b = None
-        else:
-            same = cell_signature(a) == cell_signature(b)
-        da = dw = float("inf")
-        if same:
-            ia, ib = _face_order(a), _face_order(b)
-            # NaN marks a cell whose alignment is undefined (zero gradient): it must be so on both sides
-            da = defined_diff(a.alpha[ia], b.alpha[ib])
-            wscale = defined_peak(b.w) or 1.0
-            dw = defined_diff(a.w[ia], b.w[ib]) / wscale
-        out["steps"].append(int(s))
-        out["same"].append(same)
-        out["alpha"].append(da)
-        out["w"].append(dw)
-        out["vc"].append((a, b))
-    return out
-
-
-def _records(label, cmp) -> list:
-    ndiff = sum(not s for s in cmp["same"])
-    if not cmp["same"]:
-        return [compare(label, "cell_list", "frames with a tessellation", 0, -1, LIST_REASON)]
-    return [
-        compare(label, "cell_list", f"frames with different cell lists (of {len(cmp['same'])})", ndiff, 0, LIST_REASON),
-        compare(label, "alpha", "max|d alpha| over cells and frames", peak(cmp["alpha"]), ALPHA_TOL, ALPHA_REASON),
-        compare(label, "w", "max|d w|/max|w| over frames", peak(cmp["w"]), ALPHA_TOL, W_REASON),
-    ]
 
 
 def _present(frames, *trs) -> list:
@@ -189,6 +115,45 @@ CROSS_SHORT_REASON = (
 )
 
 
+def cells_plan(ctx: Context) -> tuple[list, list]:
+    """The short horizon of the case: per code of biaxial-short's :data:`SHORT_CODES`, the void
+    cells of its stored run's every dump against those of the native run in its arithmetic
+    (:func:`validation.judges.cell_lists`)."""
+    p, s, ld, n = short_case()
+    frames = expected_frames(n, SHORT_CASE_DUMP_EVERY)
+    runs, comps = [], []
+    for code in CODES:
+        if code not in SHORT_CODES:
+            continue
+        d = stored_dir(SHORT_CODES[code].stored)
+        runs += [
+            Run(
+                f"native/stored-120/{code}",
+                NATIVE,
+                code,
+                f"native, {code} arithmetic",
+                functools.partial(run_native, p, _flavour(s, code), ld, n, SHORT_CASE_DUMP_EVERY),
+            ),
+            Run(
+                f"stored-120/{code}",
+                code,
+                code,
+                f"stored {d.name}",
+                functools.partial(read_reference, _stored_log(d), d / "dump.atoms"),
+            ),
+        ]
+        comps.append(
+            Comparison(
+                "cells",
+                f"voidcell/stored-120/{code}",
+                (f"native/stored-120/{code}", f"stored-120/{code}"),
+                LIST_REASON,
+                {"frames": frames, "radii": p.radii, "dt": s.dt, "snapshot": snapshot},
+            )
+        )
+    return runs, comps
+
+
 @case("voidcell", "Void-cell measures (Kuhn) from native, LIGGGHTS and LAMMPS snapshots", order=40)
 def voidcell(ctx: Context) -> CaseResult:
     res = CaseResult(
@@ -202,8 +167,6 @@ def voidcell(ctx: Context) -> CaseResult:
         "LAMMPS; the native engine in each code's arithmetic). <i>kuhn-1002</i> (default suite, with the codes "
         "installed): the compression of biaxial-full.",
     )
-    res.declare("native-liggghts", LIST_REASON)
-    res.declare("native-lammps", LIST_REASON)
     if ctx.suite != "quick" and ctx.liggghts and ctx.lammps:
         res.declare("liggghts-lammps", CROSS_STATS_REASON)
     else:
@@ -214,52 +177,48 @@ def voidcell(ctx: Context) -> CaseResult:
         )
     p, s, ld, n = short_case()
     frames = expected_frames(n, SHORT_CASE_DUMP_EVERY)
-    refs = {}
-    for engine, stored_name, pair in (
-        ("liggghts", "biaxial-short", "native-liggghts"),
-        ("lammps", "biaxial-short-lammps", "native-lammps"),
-    ):
-        stored = stored_dir(stored_name)
-        nat = run_native(p, _flavour(s, engine), ld, n, SHORT_CASE_DUMP_EVERY)
-        ref = read_reference(_stored_log(stored), stored / "dump.atoms")
-        refs[engine] = ref
-        label = f"voidcell/stored-120/{engine}"
-        recs = _evidence(label, nat, ref, frames, CODE[engine])
-        cmp = compare_frames(nat, ref, _present(frames, nat, ref), p.radii, s.dt)
-        recs += _records(label, cmp)
-        res.records += in_pair(recs, pair)
+    runs, comps = cells_plan(ctx)
+    out = evaluate(res, ctx, runs, comps)
+    for c in comps:
+        cmp, code = out.summaries.get(c.label), c.runs[1].split("/")[-1]
+        if cmp is None:
+            continue
         if cmp["no_tessellation"]:
             res.notes.append(
-                f"stored-120 ({CODE[engine]}): steps {cmp['no_tessellation']} have no framework spanning "
+                f"stored-120 ({CODE[code]}): steps {cmp['no_tessellation']} have no framework spanning "
                 "the cell (the pruned graph does not wrap the torus) on either side: identical outcome, no "
                 "cells to compare there."
             )
-        if cmp["vc"] and cmp["vc"][-1][0] is not None and engine == "liggghts":
+        if cmp["vc"] and cmp["vc"][-1][0] is not None and code == CODES[0]:
             a, b = cmp["vc"][-1]
             res.figures.append(
                 (
                     _maps(ctx, [(f"step {cmp['steps'][-1]}", a, b)], "voidcell_stored120.png"),
-                    "stored-120, last compared dump: cells shaded by alpha (white <= 0), native left, LIGGGHTS right",
+                    f"stored-120, last compared dump: cells shaded by alpha (white <= 0), native left, {CODE[code]} "
+                    "right",
                 )
             )
-    # the two codes' own snapshots: the same cells on the short horizon
-    cmp = compare_frames(
-        refs["liggghts"], refs["lammps"], _present(frames, refs["liggghts"], refs["lammps"]), p.radii, s.dt
-    )
-    ndiff = sum(not x for x in cmp["same"])
-
-    res.records += in_pair(
-        [
-            info(
-                "voidcell/stored-120/cross",
-                "cell_list",
-                f"frames with different cell lists, LIGGGHTS vs LAMMPS (of {len(cmp['same'])})",
-                ndiff if cmp["same"] else float("nan"),
-                CROSS_SHORT_REASON,
+    # every two codes' own snapshots: the same cells on the short horizon (shown: their laws differ)
+    refs = {c.runs[1].split("/")[-1]: out.runs[c.runs[1]] for c in comps if c.label in out.summaries}
+    here = [c for c in CODES if c in refs]
+    for i, a in enumerate(here):
+        for b in here[i + 1 :]:
+            ra, rb = refs[a], refs[b]
+            both = [k for k in _present(frames, ra, rb) if k in set(ra.steps.tolist()) and k in set(rb.steps.tolist())]
+            cmp = compare_cell_frames(ra, rb, both, p.radii, s.dt, snapshot)
+            ndiff = sum(not x for x in cmp["same"])
+            res.records += in_pair(
+                [
+                    info(
+                        f"voidcell/stored-120/{a}-{b}",
+                        "cell_list",
+                        f"frames with different cell lists, {CODE[a]} vs {CODE[b]} (of {len(cmp['same'])})",
+                        ndiff if cmp["same"] else float("nan"),
+                        CROSS_SHORT_REASON,
+                    )
+                ],
+                pair_key(a, b),
             )
-        ],
-        "liggghts-lammps",
-    )
     if ctx.suite == "quick":
         return res
 
@@ -294,7 +253,7 @@ def voidcell(ctx: Context) -> CaseResult:
     def stats(tr):
         rows = []
         for k in steps:
-            vc = _cells(snapshot(tr, k, pk.radii, dem.dt))
+            vc = void_cells(snapshot(tr, k, pk.radii, dem.dt))
             rows.append(
                 [vc.mean_alpha, vc.fraction_nonpositive_alpha, vc.n_faces, vc.n_edges, vc.n_vertices, vc.coordination]
             )
@@ -317,8 +276,8 @@ def voidcell(ctx: Context) -> CaseResult:
                 "are compared on what remains."
             )
             continue
-        cmp = compare_frames(nat, ref, [k for k in steps if k <= SHORT_HORIZON], pk.radii, dem.dt)
-        recs = _records(f"{lab}/first {SHORT_HORIZON} steps", cmp)
+        cmp = compare_cell_frames(nat, ref, [k for k in steps if k <= SHORT_HORIZON], pk.radii, dem.dt, snapshot)
+        recs = cell_records(f"{lab}/first {SHORT_HORIZON} steps", cmp)
         st[f"native ({engine})"] = stats(nat)
         st[code] = stats(ref)
         pert = []
@@ -364,8 +323,8 @@ def voidcell(ctx: Context) -> CaseResult:
         pairs = []
         for target, tag in ((1e-4, "0.01%"), (1.6e-3, "0.16%")):
             k = int(np.argmin(np.abs(strains - target)))
-            vn = _cells(snapshot(nat, steps[k], pk.radii, dem.dt))
-            vl = _cells(snapshot(lig, steps[k], pk.radii, dem.dt))
+            vn = void_cells(snapshot(nat, steps[k], pk.radii, dem.dt))
+            vl = void_cells(snapshot(lig, steps[k], pk.radii, dem.dt))
             pairs.append((f"strain {100 * strains[k]:.3f}% (step {steps[k]})", vn, vl))
             for who, vc in (("native", vn), ("LIGGGHTS", vl)):
                 rows.append(
