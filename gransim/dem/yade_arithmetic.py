@@ -92,9 +92,14 @@ _FIXED, _RATE, _SERVO = 0, 1, 2
 
 
 def yade_cell_z(radii) -> float:
-    """z size of YADE's 3D cell for a disk assembly: the smallest power of two >= 4 r_max (m), as the
-    YADE scripts choose it (docs/yade.md); it must exceed every bound's extent in z."""
-    return float(2.0 ** math.ceil(math.log2(4.0 * float(np.max(radii)))))
+    """z size of YADE's 3D cell for a disk assembly (m): the smallest power of two above
+    4 r_max + 2 r_min. YADE stops ("Body larger than half of the cell size") when a bound's extent
+    in z, 2 (r + verletDist) with the collider's default verletDist = 0.5 r_min, reaches half the
+    cell; a power of two keeps z and its divisions exact. ``radii``: (N,) array (m)."""
+    r = np.asarray(radii, dtype=float)
+    need = 4.0 * float(np.max(r)) + 2.0 * float(np.min(r))
+    z = float(2.0 ** math.ceil(math.log2(need)))
+    return z if z > need else 2.0 * z
 
 
 # ----------------------------------------------------------------------------------------------

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gransim.dem.yade_arithmetic import yade_cell_z
 from gransim.errors import InputError
 from gransim.geometry import Packing
 
@@ -47,8 +48,8 @@ _N_S = 4 + 9 + 9 + 36  # fields of a state row
 
 
 def cell_z(packing: Packing) -> float:
-    """z size of the YADE cell: the smallest power of two >= 4 r_max (m)."""
-    return float(2.0 ** math.ceil(math.log2(4.0 * float(np.max(packing.radii)))))
+    """z size of the YADE cell (m): :func:`gransim.dem.yade_arithmetic.yade_cell_z` of the radii."""
+    return yade_cell_z(packing.radii)
 
 
 def yade_taylor_job(

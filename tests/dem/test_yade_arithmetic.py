@@ -203,3 +203,15 @@ def test_live_yade_run_equals_the_native_run_bit_for_bit(name, tmp_path):
     assert list(out.step) == list(range(n + 1))
     seen = compare(native(name), out)
     assert seen["pairs"] > 150 and seen["crossing"] > 0 and seen["sliding"] > 0, seen
+
+
+@pytest.mark.parametrize("radii", [[0.25, 0.25], [0.25, 0.1], [1e-3, 4e-4, 5e-4], [0.3, 0.3, 0.3]])
+def test_cell_z_clears_every_bound(radii):
+    """YADE's cell in z is a power of two above 4 r_max + 2 r_min: a bound's extent in z,
+    2 (r_max + verletDist) with verletDist = 0.5 r_min, stays below half of it (equal radii with
+    4 r a power of two, 0.25 here, made YADE stop with the rule 'power of two >= 4 r_max')."""
+    r = np.asarray(radii)
+    z = yade_cell_z(r)
+    assert 2.0 * (r.max() + 0.5 * r.min()) < z / 2
+    assert np.log2(z) == np.round(np.log2(z))
+    assert z / 2 <= 4 * r.max() + 2 * r.min()  # the smallest such power of two
