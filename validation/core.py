@@ -196,6 +196,9 @@ class CaseResult:
     headline: list[str] = field(default_factory=list)
     #: wall time of the case (s), set by the runner
     seconds: float | None = None
+    #: the runs a declared case made or left out: (run, code, arithmetic, source, status) rows
+    #: (validation.matrix.evaluate), shown in the report
+    runs: list = field(default_factory=list)
 
     def add_figure(self, path, caption: str, data=None, headline: bool = False) -> Path:
         """Add a figure with ``caption``; ``data``: the file it was drawn from (HDF5, CSV, JSON),

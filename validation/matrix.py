@@ -162,4 +162,14 @@ def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[C
     for pair, why in pairs_left.items():
         if pair not in pairs_made:
             res.skip_pair(pair, f"{why}, and no stored output of it is compared")
+    for r in runs:
+        if r.key in out.runs:
+            status = "made"
+        elif r.key in stand_in:
+            status = f"not made ({code_label(r.code)} absent): {stand_in[r.key]} compared instead"
+        elif r.key in missing:
+            status = f"not made ({code_label(r.code)} absent)"
+        else:
+            status = "not needed"
+        res.runs.append((r.key, r.who, code_label(r.arithmetic) if r.arithmetic else "", r.source, status))
     return out

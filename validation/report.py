@@ -376,6 +376,16 @@ def write_html(report_dir: Path, results: list[CaseResult], header: dict) -> Pat
                     f"</td><td>{html.escape(r.reason)}</td></tr>"
                 )
             out.append("</table></details>")
+        if res.runs:
+            out.append(
+                f"<details><summary>Runs declared by this case ({len(res.runs)}; the matrix columns follow from "
+                "their codes)</summary><table><tr><th>run</th><th>code</th><th>arithmetic</th><th>source</th>"
+                "<th>status</th></tr>"
+                + "".join(
+                    "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in res.runs
+                )
+                + "</table></details>"
+            )
         for caption, head, rows in res.tables:
             out.append(
                 f"<details><summary>{html.escape(caption)} ({len(rows)} rows)</summary>"

@@ -53,8 +53,13 @@ def test_stored_runs_fill_the_three_columns(stored_copy, tmp_path):
     assert all("lever arm" in r.reason and "pair_gran_hooke_history.cpp" in r.reason for r in raw)  # ... and why
     assert any("Why LIGGGHTS and LAMMPS differ" in n for n in res.notes)
     assert sum("is absent" in n for n in res.notes) == 2  # each code's live run, not made
+    runs = {r[0]: r for r in res.runs}
+    assert runs["stored-120/lammps"] == ("stored-120/lammps", "LAMMPS", "LAMMPS", "stored biaxial-short-lammps", "made")
+    assert runs["native/stored-120/lammps"][1:3] == ("native", "LAMMPS")  # native in LAMMPS' arithmetic
+    assert runs["live-120/liggghts"][4] == "not made (LIGGGHTS absent)"
     html = (tmp_path / "results" / "report" / "index.html").read_text()
-    assert "Why LIGGGHTS and LAMMPS differ" in html and "The matrix by quantity" in html
+    for words in ("Why LIGGGHTS and LAMMPS differ", "The matrix by quantity", "Runs declared by this case"):
+        assert words in html, words
 
 
 def test_a_lammps_log_cut_short_fails_both_lammps_columns(stored_copy, tmp_path):
