@@ -6,7 +6,7 @@ import signal
 import sys
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import GransimError, InputError
 from ..parallel import add_options, make_executor  # register() needs add_options: loaded by --help either way
 from ._paths import (
     check_count,
@@ -117,8 +117,8 @@ def _ignore_terminal_signals() -> None:
 
 def check_options(args) -> dict:
     """Every option, checked once before any computation (exit 2 naming the option); returns the
-    values the run needs (``spec`` keywords, ``out``, ``packing_dir``, ``resumed``: the last step
-    of the checkpoint continued, 0 for a new run)."""
+    values the run needs (``spec`` keywords, ``out``, ``packing`` (the --packing read, or None),
+    ``packing_dir``, ``resumed``: the last step of the checkpoint continued, 0 for a new run)."""
     check_given_values(args)
     if args.rve not in STANDINS:
         raise InputError(
@@ -175,6 +175,14 @@ def check_options(args) -> dict:
             f"--packing: {args.packing!r} is in the checkpoint folder of --out, whose files a run replaces; "
             "move the packing elsewhere"
         )
+    packing = None
+    if args.packing is not None:  # read here, so that a file that is no packing is refused naming the option
+        from ..io import load_packing  # noqa: PLC0415 - start-up: h5py
+
+        try:
+            packing = load_packing(args.packing)
+        except GransimError as exc:
+            raise InputError(f"--packing: {exc}") from None
     spec = {
         "nx": nx, "ny": ny, "element": args.element, "gauss": gauss, "pressure": args.pressure,
         "top_step": args.top_step, "steps": steps, "tol": args.tol, "max_iter": args.max_iter,
@@ -189,7 +197,7 @@ def check_options(args) -> dict:
                 f"--stop-after: the checkpoint in {out / 'checkpoint'} is already at step {resumed}; "
                 f"give a later step (up to {steps}) or leave --stop-after out"
             )
-    return {"spec": spec, "out": out, "packing_dir": packing_dir, "resumed": resumed}
+    return {"spec": spec, "out": out, "packing": packing, "packing_dir": packing_dir, "resumed": resumed}
 
 
 def handler(args) -> int:
@@ -206,7 +214,7 @@ def handler(args) -> int:
         try:
             summary = run_femxdem(
                 spec, args.rve, opts["out"], executor, resume=args.resume, stop_after=args.stop_after,
-                packing=args.packing, packing_dir=opts["packing_dir"],
+                packing=opts["packing"], packing_dir=opts["packing_dir"],
             )  # fmt: skip
         except FemxdemInterrupted as exc:
             print(str(exc), file=sys.stderr)

@@ -299,6 +299,12 @@ def write_results(path: Path, params: dict, recs: list, observables: dict, stopp
     return path
 
 
+def _lost_to_a_signal(exc: BaseException) -> bool:
+    """Whether ``exc`` (not itself an interrupt) came after SIGINT/SIGTERM/SIGHUP arrived: the
+    workers that received the signal too are gone, and their calls fail."""
+    return not isinstance(exc, (KeyboardInterrupt, SystemExit)) and pending_interrupt() is not None
+
+
 def run_femxdem(
     spec: BiaxialSpec | None = None,
     rve: str = "taylor",
@@ -361,25 +367,27 @@ def run_femxdem(
                 run_biaxial(setup, points, start=done[-1] if done else None, on_step=on_step, progress=bar)
         except (StepFailure, FemxdemInterrupted, Interrupted) as exc:
             stop = exc
-        except Exception:
-            signum = pending_interrupt()
-            if signum is None:
+        except BaseException as exc:  # Dask's failures include asyncio.CancelledError, no Exception
+            if not _lost_to_a_signal(exc):
                 raise
             # the signal also reached the Gauss points' workers (a process group's SIGTERM): the
             # step in progress is lost, the converged ones are whole
-            stop = Interrupted(signum)
+            try:
+                check_interrupt()  # consumed here, or the outputs' atomic writes would abandon themselves
+            except Interrupted as intr:
+                stop = intr
         try:
             observables = points.observables()
-        except Exception:
-            if not isinstance(stop, Interrupted):
+        except BaseException as exc:
+            if not isinstance(stop, Interrupted) or isinstance(exc, (KeyboardInterrupt, SystemExit)):
                 raise
             observables = {}  # the workers are gone with the signal: the file has the curves and the last step
     finally:
         bar.close()
         try:
             points.close()
-        except Exception:
-            if stop is None:
+        except BaseException as exc:
+            if not isinstance(stop, Interrupted) or isinstance(exc, (KeyboardInterrupt, SystemExit)):
                 raise
     wall = time.perf_counter() - t1
     recs = done + new

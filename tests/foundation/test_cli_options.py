@@ -579,7 +579,9 @@ def test_options_a_command_would_ignore_are_refused(files, no_compute, tmp_path)
         (["rve-study", "--packings", files["P"], "--workers", "2", "--scheduler", "tcp://h:1"], "--workers"),
     ]
     fx = ["femxdem", "--out", tmp_path / "fx"]
+    (tmp_path / "text.h5").write_text("not HDF5\n")
     cases += [
+        (fx + ["--packing", tmp_path / "text.h5"], "--packing"),
         (fx + ["--workers", "2", "--scheduler", "tcp://h:1"], "--workers"),
         (fx + ["--rve", "j2", "--packing", files["P"]], "--packing"),
         (fx + ["--rve", "j2", "--packing-dir", tmp_path / "std"], "--packing-dir"),
