@@ -484,14 +484,15 @@ class TaylorStates:
 
 
 def taylor_stress(
-    label: str, material, states: TaylorStates, *, engine: str, expected_rves, sides, tolerance: float, reason: str
+    label: str, material, states: TaylorStates, *, expected_rves, sides, tolerance: float, reason: str
 ) -> tuple[list, dict]:
     """gransim's Taylor stress against a code's virial stress, state by state.
 
     ``material(packing)`` is gransim's Taylor material of an RVE (``.evaluate(F).cauchy``). The
     evidence: every RVE of ``expected_rves`` run (live jobs), each stored job verified against its
     deck (stored), every expected (path, route) series with every expected state
-    (:func:`validation.taylor_compare.series_evidence`). Then per series: max over states of
+    (:func:`validation.taylor_compare.series_evidence`); records labelled ``label/<RVE>/...``
+    (``label`` = ``taylor-rve/<code>``). Then per series: max over states of
     max |sigma_native - sigma_code| / max |sigma_code| <= ``tolerance``. Returns (records, {"rows":
     [code, RVE, path, route, states, value]})."""
     code = sides[1]
@@ -499,7 +500,7 @@ def taylor_stress(
     if not states.stored:
         recs.append(evidence(label, f"RVEs run by {code}", sorted(expected_rves), sorted(states.runs)))
     for name, run in states.runs.items():
-        lab = f"{label}/{engine}/{name.replace('rve-', '')}"
+        lab = f"{label}/{name.replace('rve-', '')}"
         if states.stored:
             recs.append(stored_job_record(lab, run.job_dir))
         recs += series_evidence(lab, run)
@@ -510,31 +511,32 @@ def taylor_stress(
             scale = np.abs(ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
             diff = np.abs(sig_n - ser.cauchy).reshape(len(ser.F), -1).max(axis=1)
             rel = peak([diff / np.where(scale > 0, scale, 1.0)])
-            lab = f"{label}/{engine}/{name.replace('rve-', '')}/{PATH_NAMES[path]}/{route}"
+            lab = f"{label}/{name.replace('rve-', '')}/{PATH_NAMES[path]}/{route}"
             inputs = {"native": sig_n, code: ser.cauchy}
             recs.append(compare(lab, "stress", "max_rel_diff", rel, tolerance, reason, inputs=inputs))
             rows.append([code, name, path, route, len(ser.F), rel])
     return recs, {"rows": rows}
 
 
-def taylor_contacts(
-    label: str, material, states: TaylorStates, *, engine: str, route: str, match, sides
-) -> tuple[list, dict]:
+def taylor_contacts(label: str, material, states: TaylorStates, *, route: str, match, sides) -> tuple[list, dict]:
     """gransim's contacts against a code's contact rows of every state of the contact route,
     two-sided (``match(packing, F, frame)``: the code's output form; the records of
-    :func:`validation.taylor_compare.contact_records`), after the evidence of every expected state."""
+    :func:`validation.taylor_compare.contact_records`), after the evidence of every expected state.
+    ``label`` = ``taylor-rve/<code>/contacts``: records ``taylor-rve/<code>/<RVE>/contacts`` (evidence)
+    and ``taylor-rve/<code>/<RVE>/<path>/k<k>``."""
     code = sides[1]
+    base = label.removesuffix("/contacts")
     recs = []
     for name, run in states.runs.items():
         short = name.replace("rve-", "")
         exp = {k: v for k, v in expected_series(run).items() if k[1] == route}
-        recs += series_evidence(f"{label}/{engine}/{short}/contacts", run, exp)
+        recs += series_evidence(f"{base}/{short}/contacts", run, exp)
         for (path, r), ser in sorted(run.series.items()):
             if r != route:
                 continue
             for k, F in zip(ser.k, ser.F):
                 cmp = match(run.packing, F, run.contacts(path, r, int(k)))
-                recs += contact_records(f"{label}/{engine}/{short}/{PATH_NAMES[path]}/k{k}", cmp, code)
+                recs += contact_records(f"{base}/{short}/{PATH_NAMES[path]}/k{k}", cmp, code)
     return recs, {}
 
 

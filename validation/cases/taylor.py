@@ -171,7 +171,7 @@ def taylor_plan(ctx: Context, packings: dict, stride: int) -> tuple[list, list]:
                 f"{CASE}/{code}",
                 ("native", f"live/{code}"),
                 STRESS_REASON,
-                {"engine": code, "expected_rves": sorted(packings), "tolerance": STRESS_TOL, "reason": STRESS_REASON},
+                {"expected_rves": sorted(packings), "tolerance": STRESS_TOL, "reason": STRESS_REASON},
             )
         )
         comps.append(
@@ -180,7 +180,7 @@ def taylor_plan(ctx: Context, packings: dict, stride: int) -> tuple[list, list]:
                 f"{CASE}/{code}/contacts",
                 ("native", f"live-contacts/{code}"),
                 STRESS_REASON,
-                {"engine": code, "route": TAYLOR_CODES[code].route, "match": TAYLOR_CODES[code].match},
+                {"route": TAYLOR_CODES[code].route, "match": TAYLOR_CODES[code].match},
             )
         )
     for i, a in enumerate(here):
