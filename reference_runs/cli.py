@@ -345,11 +345,13 @@ def _taylor_yade(args, packings: dict, out: Path, kn: float) -> int:
 def register_replay(sub) -> None:
     p = sub.add_parser(
         "replay",
-        help="replay a LIGGGHTS/LAMMPS 2D disk deck natively and in its code, and compare",
+        help="replay a LIGGGHTS/LAMMPS 2D disk deck or a YADE script natively and in its code, and compare",
         description="Read a LIGGGHTS 3.8.0 or LAMMPS deck of 2D periodic disks (the supported subset: "
         "docs/replay.md; anything else is refused naming its line), run it unchanged in its "
         "code and with the native engine, compare thermo (box, compute pressure) and dumps "
-        "step by step, and write OUTDIR/report.html, report.md and replay.h5. Exit status 0 "
+        "step by step, and write OUTDIR/report.html, report.md and replay.h5. A YADE script (.py) of the "
+        "supported shape (docs/replay.md, 'YADE scripts') is read without running it, run in YADE and in "
+        "YADE's native arithmetic and compared frame by frame, bit for bit. Exit status 0 "
         "when everything agrees within tolerance (positions 1e-10 D50, stress 1e-8 "
         "relative), 1 when not or when evidence is missing, 2 for bad input.",
     )
@@ -358,8 +360,8 @@ def register_replay(sub) -> None:
     p.add_argument(
         "--engine",
         default=None,
-        choices=["liggghts", "lammps"],
-        help="the deck's code (default: detected from its syntax)",
+        choices=["liggghts", "lammps", "yade"],
+        help="the deck's code (default: detected from its syntax; a .py file is a YADE script)",
     )
     p.add_argument(
         "-o", "--out", default=None, metavar="OUTDIR", help="output directory (default results/replay/<deck name>)"

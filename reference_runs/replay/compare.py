@@ -544,8 +544,9 @@ def replay(
 
     Parameters
     ----------
-    deck_path : the deck. data : data file replacing the one of ``read_data``. engine : insist
-        on "liggghts" or "lammps" syntax. outdir : output directory (default
+    deck_path : the deck, or a YADE script (``.py`` or ``engine="yade"``: handed to
+        :func:`reference_runs.replay.yade.replay_yade`). data : data file replacing the one of
+        ``read_data``. engine : insist on "liggghts" or "lammps" syntax. outdir : output directory (default
         ``results/replay/<deck name>``). timeout : seconds for the code's run (None: no limit).
     reference : a finished job directory (log + dumps of this deck) used instead of running
         the code. echo : callable for progress lines (default: silent).
@@ -561,6 +562,13 @@ def replay(
     InputError for a deck outside the subset or bad options (before anything runs);
     ReferenceRunError when the code fails; SimulationError when the native run diverges.
     """
+    if Path(deck_path).suffix == ".py" or engine == "yade":  # a YADE script (reference_runs.replay.yade)
+        from .yade import replay_yade  # noqa: PLC0415 - imports this module
+
+        for option, given in (("--data", data), ("--var", variables)):
+            if given:
+                raise InputError(f"{option}: a YADE script reads its own files and has no variables")
+        return replay_yade(deck_path, outdir=outdir, timeout=timeout, reference=reference, echo=echo)
     say = echo or (lambda msg: None)
     deck = read_deck(deck_path, data=data, engine=engine, variables=variables)
     out = Path(outdir) if outdir is not None else Path("results/replay") / Path(deck_path).name
