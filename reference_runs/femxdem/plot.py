@@ -12,7 +12,8 @@ from .output import read_h5
 def _label(d: dict) -> str:
     p = d["attrs"].get("parameters", {})
     n = 4 * int(p.get("nx", 0)) * int(p.get("ny", 0))
-    return f"{p.get('nx')} x {p.get('ny')} elements ({n} RVEs of {p.get('n_disks')} disks), {p.get('workers')} workers"
+    rves = f"{n} RVEs of {p.get('n_disks')} disks"
+    return f"{p.get('nx')} x {p.get('ny')} elements ({rves}), {p.get('steps')} steps, {p.get('workers')} workers"
 
 
 def plot_curves(paths, out) -> Path:
