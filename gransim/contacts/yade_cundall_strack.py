@@ -95,6 +95,7 @@ def scgeom_cundall_strack(
     ks,
     tan_phi,
     dt,
+    agr,
 ):
     """One interaction of YADE's interaction loop: geometry, shear increment and Cundall-Strack force.
 
@@ -107,6 +108,10 @@ def scgeom_cundall_strack(
     svx, svy : velocity of the image, velGrad prevHSize cellDist (m/s).
     nx_old, ny_old, fsx, fsy : the stored normal and shear force (N) of a real interaction.
     kn, ks : stiffnesses (N/m). tan_phi : :func:`friction_tangent`. dt : time step (s).
+    agr : ``Ig2_Sphere_Sphere_ScGeom.avoidGranularRatcheting`` (its default True, Guo & Zhao's
+        scripts): the relative velocity (v_2 - v_1) alpha + w_2 x (-r_2 n) - w_1 x (r_1 n) + alpha
+        shiftVel with alpha = (r_1 + r_2)/(r_1 + r_2 - delta) (pkg/dem/ScGeom.cpp:65-87);
+        False: at the contact point (ScGeom.cpp:88-91).
 
     Returns
     -------
@@ -139,14 +144,24 @@ def scgeom_cundall_strack(
         fsy = 0.0
     # ScGeom::getIncidentVel, avoidGranularRatcheting false (ScGeom.cpp:88-91):
     # c1x = contactPoint - pos1, c2x = contactPoint - (pos2 + shift2), w x c = (-w c_y, w c_x)
-    c1x = cx - x1
-    c1y = cy - y1
-    c2x = cx - (x2 + sx)
-    c2y = cy - (y2 + sy)
-    rvx = (v2x - w2 * c2y) - (v1x - w1 * c1y)
-    rvy = (v2y + w2 * c2x) - (v1y + w1 * c1x)
-    rvx += svx  # :91 relativeVelocity += shiftVel
-    rvy += svy
+    if agr:
+        # ScGeom.cpp:84-86 (Eigen's cross with z-only spins: w x a = (-(w a_y), w a_x))
+        rs = r1 + r2
+        alpha = rs / (rs - pen)
+        m2 = -r2
+        rvx = ((v2x - v1x) * alpha + (-(w2 * (m2 * ny)))) - (-(w1 * (r1 * ny)))
+        rvy = ((v2y - v1y) * alpha + w2 * (m2 * nx)) - w1 * (r1 * nx)
+        rvx += alpha * svx  # :86 relativeVelocity += alpha * shiftVel
+        rvy += alpha * svy
+    else:
+        c1x = cx - x1
+        c1y = cy - y1
+        c2x = cx - (x2 + sx)
+        c2y = cy - (y2 + sy)
+        rvx = (v2x - w2 * c2y) - (v1x - w1 * c1y)
+        rvy = (v2y + w2 * c2x) - (v1y + w1 * c1x)
+        rvx += svx  # :91 relativeVelocity += shiftVel
+        rvy += svy
     # ScGeom.cpp:60: relativeVelocity - normal.dot(relativeVelocity) * normal
     dot = nx * rvx + ny * rvy
     rvx = rvx - dot * nx

@@ -56,8 +56,9 @@ Why the plane arithmetic is YADE's to the bit: see :mod:`gransim.contacts.yade_c
 build; ``pow(x, 2)`` is ``x * x``). The initial sort of the bounds is
 libstdc++'s ``std::sort`` (introsort, not stable: equal bound coordinates of different bodies keep
 the order it leaves them in, which later decides the order in which interactions are created);
-its heap-sort branch, taken only past a recursion depth of 2 log2(2N), is not reproduced (a
-``RuntimeError`` names the axis). Not reproduced either: ``Cell.flipFlippable``, clumps, damping,
+its heap-sort branch, taken past a recursion depth of 2 log2(2N) (met on the z axis of disks
+that all lie in one plane z != 0, where most bounds tie), is ported too. Not reproduced:
+``Cell.flipFlippable``, clumps, damping in :func:`yade_run` (:func:`rve_run` has it),
 several threads.
 
 Arrays: positions, velocities (N, 2) m, m/s; spins (N,) rad/s along z; cell (2, 2) lattice
@@ -326,12 +327,55 @@ def _insertion_sort(order, first, last, c, ids, ismin):
 
 
 @njit
+def _adjust_heap(order, first, hole, n, value, c, ids, ismin):
+    """std::__adjust_heap then std::__push_heap (libstdc++ 12, bits/stl_heap.h) on order[first:first+n]."""
+    top = hole
+    child = hole
+    while child < (n - 1) // 2:
+        child = 2 * (child + 1)
+        if _less(order[first + child], order[first + child - 1], c, ids, ismin):
+            child -= 1
+        order[first + hole] = order[first + child]
+        hole = child
+    if (n & 1) == 0 and child == (n - 2) // 2:
+        child = 2 * (child + 1)
+        order[first + hole] = order[first + child - 1]
+        hole = child - 1
+    parent = (hole - 1) // 2
+    while hole > top and _less(order[first + parent], value, c, ids, ismin):
+        order[first + hole] = order[first + parent]
+        hole = parent
+        parent = (hole - 1) // 2
+    order[first + hole] = value
+
+
+@njit
+def _heap_sort(order, first, last, c, ids, ismin):
+    """std::__partial_sort(first, last, last) of libstdc++ 12: __make_heap (__heap_select with
+    middle == last), then __sort_heap (each __pop_heap moves the top to the end)."""
+    n = last - first
+    if n >= 2:
+        parent = (n - 2) // 2
+        while True:
+            _adjust_heap(order, first, parent, n, order[first + parent], c, ids, ismin)
+            if parent == 0:
+                break
+            parent -= 1
+    end = last
+    while end - first > 1:
+        end -= 1
+        value = order[end]
+        order[end] = order[first]
+        _adjust_heap(order, first, 0, end - first, value, c, ids, ismin)
+
+
+@njit
 def _std_sort(order, c, ids, ismin):
     """libstdc++'s std::sort (GCC 12, bits/stl_algo.h: __introsort_loop with the median of three
     moved to the front and the unguarded partition, threshold 16, then __final_insertion_sort) of the
     permutation ``order`` by Bounds::operator<, so that equal bounds of different bodies end in the
-    order YADE's sort leaves them. Returns False if the depth limit is reached (the heap-sort branch
-    is not reproduced)."""
+    order YADE's sort leaves them; past the depth limit 2 log2(n) a range is heap-sorted
+    (std::__partial_sort), as libstdc++ does. Returns True."""
     n = order.shape[0]
     if n == 0:
         return True
@@ -343,8 +387,9 @@ def _std_sort(order, c, ids, ismin):
         top -= 1
         first, last, dl = stack[top, 0], stack[top, 1], stack[top, 2]
         while last - first > 16:
-            if dl == 0:
-                return False
+            if dl == 0:  # std::__partial_sort(first, last, last): heap sort of the range
+                _heap_sort(order, first, last, c, ids, ismin)
+                break
             dl -= 1
             # __move_median_to_first(first, first + 1, mid, last - 1)
             mid = first + (last - first) // 2
@@ -393,11 +438,12 @@ def _std_sort(order, c, ids, ismin):
 @njit
 def _collide(
     it, init, pos, radius, has_shear, U, cos, size, verlet, ref_pos, sweep, last_update,
-    aabb_min, aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs,
+    aabb_min, aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, zc,
 ):  # fmt: skip
     """InsertionSortCollider::action (InsertionSortCollider.cpp:226-568), periodic, one thread.
 
-    ``init``: the initial sort (first run: the bounds lists are empty). Returns (error, axis)."""
+    ``init``: the initial sort (first run: the bounds lists are empty). ``zc``: the unsheared z of
+    the disks' centres (0 for disks at z = 0; Bo1_Aabb.cpp:38-39). Returns (error, axis)."""
     n = pos.shape[0]
     inv_sizes = np.empty(3)
     for a in range(3):
@@ -419,10 +465,10 @@ def _collide(
         uy = U[1, 0] * pos[b, 0] + U[1, 1] * pos[b, 1]
         aabb_min[b, 0] = ux - hs[0]
         aabb_min[b, 1] = uy - hs[1]
-        aabb_min[b, 2] = 0.0 - hs[2]
+        aabb_min[b, 2] = zc - hs[2]
         aabb_max[b, 0] = ux + hs[0]
         aabb_max[b, 1] = uy + hs[1]
-        aabb_max[b, 2] = 0.0 + hs[2]
+        aabb_max[b, 2] = zc + hs[2]
         # Dispatching.cpp:70-80 (targetInterv > 0)
         if it > last_update[b]:
             dist = max(abs(pos[b, 0] - ref_pos[b, 0]), max(abs(pos[b, 1] - ref_pos[b, 1]), 0.0))
@@ -528,7 +574,7 @@ def _interactions(
         st, nx, ny, pen, fnx, fny, fsx, fsy, fx, fy, t1, t2 = scgeom_cundall_strack(
             i_real[q], pos[b1, 0], pos[b1, 1], pos[b2, 0], pos[b2, 1], sx, sy, radius[b1], radius[b2],
             vel[b1, 0], vel[b1, 1], spin[b1], vel[b2, 0], vel[b2, 1], spin[b2], svx, svy,
-            i_geom[q, 0], i_geom[q, 1], i_fs[q, 0], i_fs[q, 1], kn, ks, tan_phi, dt,
+            i_geom[q, 0], i_geom[q, 1], i_fs[q, 0], i_fs[q, 1], kn, ks, tan_phi, dt, False,
         )  # fmt: skip
         if st == NO_CONTACT:
             continue
@@ -792,7 +838,7 @@ def yade_run(
         if first or max_v2 >= 1.0 or max_v2 == 0.0:  # InsertionSortCollider::isActivated
             err, axis = _collide(
                 k, first, pos, radius, has_shear, U, cos, size, verlet, ref_pos, sweep, last_update, aabb_min,
-                aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs,
+                aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, 0.0,
             )  # fmt: skip
             if err == _TOO_BIG:
                 raise RuntimeError(f"step {k}: a bound spans over half of the cell (YADE throws here too)")
@@ -835,4 +881,460 @@ def yade_run(
     )  # fmt: skip
 
 
-__all__ = ["YadeRun", "yade_cell_z", "yade_run"]
+# ----------------------------------------------------------------------------------------------
+# Guo & Zhao's RVE: radius-dependent stiffness, Cundall's non-viscous damping, a saved scene
+
+
+@njit
+def _interactions_rve(
+    pos, vel, spin, radius, H, VP, young, poisson, tan_new, dt, n_intr, i_id, i_cd, i_real, i_geom, i_fs, force, torque
+):
+    """ForceResetter and InteractionLoop as :func:`_interactions`, with Guo & Zhao's laws: the
+    geometry with ``avoidGranularRatcheting`` (its default) and the stiffnesses of
+    ``Ip2_FrictMat_FrictMat_FrictPhys`` made when an interaction becomes real (pkg/dem/FrictPhys.cpp:
+    13-44: kn = 2 (E r_1)(E r_2)/(E r_1 + E r_2), ks the same with (E r_i) nu, tan of the material's
+    friction angle; one material, so min(phi_1, phi_2) = phi). i_geom rows: (n_x, n_y, delta,
+    F_n,x, F_n,y, kn, ks, tan phi)."""
+    force[:] = 0.0
+    torque[:] = 0.0
+    for q in range(n_intr[0]):
+        b1 = i_id[q, 0]
+        b2 = i_id[q, 1]
+        c0 = float(i_cd[q, 0])
+        c1 = float(i_cd[q, 1])
+        sx = H[0, 0] * c0 + H[0, 1] * c1
+        sy = H[1, 0] * c0 + H[1, 1] * c1
+        svx = VP[0, 0] * c0 + VP[0, 1] * c1
+        svy = VP[1, 0] * c0 + VP[1, 1] * c1
+        real = i_real[q]
+        if not real:  # FrictPhys.cpp:25-43 (Ra = refR1 = r_1, Rb = r_2: ScGeom.hpp:108)
+            kna = young * radius[b1]
+            knb = young * radius[b2]
+            ksa = kna * poisson
+            ksb = knb * poisson
+            kn = 2 * kna * knb / (kna + knb)
+            ks = 2 * ksa * ksb / (ksa + ksb)
+            tp = tan_new
+        else:
+            kn = i_geom[q, 5]
+            ks = i_geom[q, 6]
+            tp = i_geom[q, 7]
+        st, nx, ny, pen, fnx, fny, fsx, fsy, fx, fy, t1, t2 = scgeom_cundall_strack(
+            real, pos[b1, 0], pos[b1, 1], pos[b2, 0], pos[b2, 1], sx, sy, radius[b1], radius[b2],
+            vel[b1, 0], vel[b1, 1], spin[b1], vel[b2, 0], vel[b2, 1], spin[b2], svx, svy,
+            i_geom[q, 0], i_geom[q, 1], i_fs[q, 0], i_fs[q, 1], kn, ks, tp, dt, True,
+        )  # fmt: skip
+        if st == NO_CONTACT:
+            continue
+        if st == ERASED:
+            i_real[q] = False
+            i_fs[q, 0] = 0.0
+            i_fs[q, 1] = 0.0
+            continue
+        i_real[q] = True
+        i_geom[q, 0] = nx
+        i_geom[q, 1] = ny
+        i_geom[q, 2] = pen
+        i_geom[q, 3] = fnx
+        i_geom[q, 4] = fny
+        i_geom[q, 5] = kn
+        i_geom[q, 6] = ks
+        i_geom[q, 7] = tp
+        i_fs[q, 0] = fsx
+        i_fs[q, 1] = fsy
+        force[b1, 0] += fx
+        force[b1, 1] += fy
+        force[b2, 0] += -fx
+        force[b2, 1] += -fy
+        torque[b1] += t1
+        torque[b2] += t2
+    return FORCE
+
+
+@njit
+def _sign(x):
+    """math::sign (lib/high-precision/MathFunctions.hpp:284): (0 < x) - (x < 0)."""
+    return float((0.0 < x) - (x < 0.0))
+
+
+@njit
+def _newton_damped(
+    pos, vel, spin, mass, inertia, force, torque, L, nextL, changed, Lprev, size, prev_size, dt, dt2, ref_pos, sweep,
+    damping,
+):  # fmt: skip
+    """NewtonIntegrator::action (pkg/dem/NewtonIntegrator.cpp:137-312) with Cundall's non-viscous
+    damping ``damping`` (cundallDamp2nd, :30-34: a_i *= 1 - damping sign(a_i (v_i + dt/2 a_i)), on
+    the fluctuation velocity v - prevVelGrad x (Cell.hpp:121, NewtonIntegrator.cpp:208) for the
+    translation (:226) and on the spin for the rotation (:240)); ``changed`` (1,) is the cell's
+    velGradChanged. Returns maxVelocitySq."""
+    if changed[0] or nextL[0, 0] != 0.0 or nextL[0, 1] != 0.0 or nextL[1, 0] != 0.0 or nextL[1, 1] != 0.0:
+        for i in range(2):  # :149-153 velGrad = nextVelGrad, nextVelGrad = 0
+            for j in range(2):
+                L[i, j] = nextL[i, j]
+                nextL[i, j] = 0.0
+        changed[0] = False
+    d00 = L[0, 0] - Lprev[0, 0]
+    d01 = L[0, 1] - Lprev[0, 1]
+    d10 = L[1, 0] - Lprev[1, 0]
+    d11 = L[1, 1] - Lprev[1, 1]
+    dspin = -(0.5 * (d01 - d10))
+    if (prev_size[0] != size[0] or prev_size[1] != size[1] or prev_size[2] != size[2]) and not math.isnan(prev_size[0]):
+        e0 = prev_size[0] - size[0]
+        e1 = prev_size[1] - size[1]
+        e2 = prev_size[2] - size[2]
+        max_v2 = (e0 * e0 + e1 * e1 + e2 * e2) / dt2
+    else:
+        max_v2 = 0.0
+    h = 0.5 * dt
+    for b in range(pos.shape[0]):
+        ax = force[b, 0] / mass[b]
+        ay = force[b, 1] / mass[b]
+        if damping != 0.0:
+            fvx = vel[b, 0] - (Lprev[0, 0] * pos[b, 0] + Lprev[0, 1] * pos[b, 1])  # bodyFluctuationVel
+            fvy = vel[b, 1] - (Lprev[1, 0] * pos[b, 0] + Lprev[1, 1] * pos[b, 1])
+            ax *= 1.0 - damping * _sign(ax * (fvx + h * ax))
+            ay *= 1.0 - damping * _sign(ay * (fvy + h * ay))
+        ax += Lprev[0, 0] * vel[b, 0] + Lprev[0, 1] * vel[b, 1]
+        ay += Lprev[1, 0] * vel[b, 0] + Lprev[1, 1] * vel[b, 1]
+        vel[b, 0] += dt * ax
+        vel[b, 1] += dt * ay
+        aw = torque[b] / inertia[b]
+        if damping != 0.0:
+            aw *= 1.0 - damping * _sign(aw * (spin[b] + h * aw))
+        spin[b] += dt * aw
+        vel[b, 0] += d00 * pos[b, 0] + d01 * pos[b, 1]
+        vel[b, 1] += d10 * pos[b, 0] + d11 * pos[b, 1]
+        pos[b, 0] += vel[b, 0] * dt
+        pos[b, 1] += vel[b, 1] * dt
+        spin[b] += dspin
+        md = max(abs(pos[b, 0] - ref_pos[b, 0]), max(abs(pos[b, 1] - ref_pos[b, 1]), 0.0))
+        flag = 0.5 if (md == 0.0 or md < sweep[b]) else 2.0
+        max_v2 = max(max_v2, flag)
+    for i in range(3):
+        prev_size[i] = size[i]
+    for i in range(2):
+        for j in range(2):
+            Lprev[i, j] = L[i, j]
+    return max_v2
+
+
+@njit
+def _rve_steps(
+    it0, nsteps, pos, vel, spin, radius, mass, inertia, z, z_pos, H, L, nextL, changed, Lprev, prev_size, verlet,
+    ref_pos, sweep, last_update, young, poisson, tan_new, damping, dt, n_intr, slot, i_id, i_cd, i_real, i_geom, i_fs,
+):  # fmt: skip
+    """``nsteps`` iterations of a scene just deserialised (Scene::moveToNextTimeStep, core/Scene.cpp:
+    98-139): the collider's bound lists are not saved, so its first run sorts them from scratch
+    (InsertionSortCollider.cpp:264-272; ``strideActive`` is not saved either, :217). Returns
+    (error, axis, step)."""
+    n = pos.shape[0]
+    prevH = np.zeros((2, 2))
+    VP = np.zeros((2, 2))
+    size = np.zeros(3)
+    U = np.zeros((2, 2))
+    cos = np.zeros(3)
+    aabb_min = np.zeros((n, 3))
+    aabb_max = np.zeros((n, 3))
+    m = 2 * n
+    bi = np.empty((3, m), np.int64)
+    bm = np.empty((3, m), np.bool_)
+    for a in range(3):
+        for k in range(m):
+            bi[a, k] = k // 2
+            bm[a, k] = k % 2 == 0
+    bc = np.zeros((3, m))
+    bp = np.zeros((3, m), np.int64)
+    lo_idx = np.zeros(3, np.int64)
+    force = np.zeros((n, 2))
+    torque = np.zeros(n)
+    dt2 = dt * dt
+    max_v2 = 0.0
+    for k in range(nsteps):
+        it = it0 + k
+        has_shear = _cell_update(H, z, L, dt, prevH, VP, size, U, cos)
+        if k == 0 or max_v2 >= 1.0 or max_v2 == 0.0:
+            # unshearPt(position).z = _unshearTrsf(2, 2) z (Eigen's 3 x 3 inverse: cofactor(2, 2) invdet)
+            a = H[0, 0] / size[0]
+            c = H[1, 0] / size[0]
+            b = H[0, 1] / size[1]
+            d = H[1, 1] / size[1]
+            zc = ((a * d - b * c) * (1.0 / (d * a + (-b) * c))) * z_pos
+            err, axis = _collide(
+                it, k == 0, pos, radius, has_shear, U, cos, size, verlet, ref_pos, sweep, last_update, aabb_min,
+                aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, zc,
+            )  # fmt: skip
+            if err != _OK:
+                return err, axis, k
+        _interactions_rve(
+            pos, vel, spin, radius, H, VP, young, poisson, tan_new, dt, n_intr, i_id, i_cd, i_real, i_geom, i_fs,
+            force, torque,
+        )  # fmt: skip
+        max_v2 = _newton_damped(
+            pos, vel, spin, mass, inertia, force, torque, L, nextL, changed, Lprev, size, prev_size, dt, dt2, ref_pos,
+            sweep, damping,
+        )  # fmt: skip
+    return _OK, -1, nsteps
+
+
+@dataclass(frozen=True, eq=False)
+class YadeRVEState:
+    """A periodic 2D disk RVE as YADE serialises its scene (``Omega.sceneToString``), reduced to what
+    the next run reads; Guo & Zhao's ``simDEM`` carries exactly this between calls.
+
+    What a saved scene keeps and the native run needs (core/*.hpp attributes, 2023.02a): the
+    iteration and dt (Scene.hpp:98-99); per disk position, velocity (v_(k-1/2), mean field
+    included), spin, mass, inertia, radius, and its bound's refPos, sweepLength, lastUpdateIter
+    (Bound.hpp:28-31); the cell's hSize, velGrad, nextVelGrad, velGradChanged (Cell.hpp:232-239);
+    NewtonIntegrator's prevVelGrad and prevCellSize (NewtonIntegrator.hpp:77, 81) and damping; the
+    collider's verletDist (InsertionSortCollider.hpp:273); the material (young, poisson,
+    frictionAngle); the real interactions in container order (only those are saved,
+    InteractionContainer.cpp:174-181) with cellDist, normal, penetrationDepth, kn, ks,
+    tangensOfFrictionAngle, normalForce, shearForce. Not saved, hence rebuilt by every run: the
+    collider's bound lists (its first run sorts them), the forces, and the penetration depth (NaN in
+    a deserialised scene; recomputed before it is read).
+
+    Arrays: radii, mass, inertia, spins, sweep (N,); positions, velocities, bound_ref (N, 2) m,
+    m/s; last_update (N,) int; hsize, vel_grad, next_vel_grad, newton_prev_vel_grad (2, 2) (cell
+    vectors as columns, m; 1/s); prev_cell_size (3,) m; interactions: ids, cell_dist (M, 2) int,
+    normal, normal_force, shear_force (M, 2) (forces on body 2, N), kn, ks, tan_phi (M,).
+    ``z``: the cell's z size (m); ``z_pos``: the disks' z (m).
+    """
+
+    iteration: int
+    dt: float
+    z: float
+    z_pos: float
+    radii: np.ndarray
+    mass: np.ndarray
+    inertia: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    spins: np.ndarray
+    bound_ref: np.ndarray
+    sweep: np.ndarray
+    last_update: np.ndarray
+    hsize: np.ndarray
+    vel_grad: np.ndarray
+    next_vel_grad: np.ndarray
+    vel_grad_changed: bool
+    newton_prev_vel_grad: np.ndarray
+    prev_cell_size: np.ndarray
+    verlet: float
+    damping: float
+    young: float
+    poisson: float
+    friction_angle: float
+    ids: np.ndarray
+    cell_dist: np.ndarray
+    normal: np.ndarray
+    kn: np.ndarray
+    ks: np.ndarray
+    tan_phi: np.ndarray
+    normal_force: np.ndarray
+    shear_force: np.ndarray
+
+    @property
+    def n(self) -> int:
+        """Number of disks."""
+        return len(self.radii)
+
+
+#: arrays of :class:`YadeRVEState`, in field order (checkpoints: :func:`pack_rve_states`)
+RVE_STATE_FIELDS = tuple(f for f in YadeRVEState.__dataclass_fields__)
+
+
+def n_steps_of(D) -> int:
+    """simDEM.shear2D's number of steps for the strain increment D (2, 2):
+    int(max(1e5 max|D|, 2)) in numpy's and Python's arithmetic (simDEM.py:57)."""
+    d = np.asarray(D, dtype=float).reshape(4)
+    return int(max(1e5 * np.max(np.abs(d.tolist())), 2))
+
+
+def rve_run(state: YadeRVEState, D) -> YadeRVEState:
+    """One call of Guo & Zhao's ``simDEM.shear2D`` (simDEM.py:53-62) in YADE's arithmetic, from the
+    deserialised ``state`` (never modified): velGrad = D / (ns dt) set through ``Cell.velGrad``
+    (kept in nextVelGrad, Cell.hpp:138-142), ns = :func:`n_steps_of` iterations, then velGrad = 0
+    set the same way; returns the state the serialised scene then holds.
+
+    As in YADE, the first iteration's cell update uses the velGrad the scene was saved with (the
+    previous call's rate, or the consolidation's last one): a call moves the cell by one step of
+    the old rate and ns - 1 steps of D / (ns dt). ``D``: (2, 2) strain increment (Guo & Zhao's
+    grad u; f - 1 of a load step)."""
+    D = np.asarray(D, dtype=float).reshape(2, 2)
+    if not np.all(np.isfinite(D)):
+        raise InputError(f"D: the strain increment must be finite, got {D.tolist()}")
+    ns = n_steps_of(D)
+    s = state
+    n = s.n
+    rate = D / (ns * s.dt)  # Matrix3 / float (minieigen): each entry divided
+    pos = np.array(s.positions, float)
+    vel = np.array(s.velocities, float)
+    spin = np.array(s.spins, float)
+    H = np.array(s.hsize, float)
+    L = np.array(s.vel_grad, float)
+    nextL = rate.copy()  # Cell::setVelGrad
+    changed = np.ones(1, np.bool_)
+    Lprev = np.array(s.newton_prev_vel_grad, float)
+    prev_size = np.array(s.prev_cell_size, float)
+    ref_pos = np.array(s.bound_ref, float)
+    sweep = np.array(s.sweep, float)
+    last_update = np.array(s.last_update, np.int64)
+    m0 = len(s.kn)
+    cap = max(min(n * (n - 1) // 2, 16 * n), m0 + 1)
+    slot = np.full((n, n), -1, np.int64)
+    i_id = np.zeros((cap, 2), np.int64)
+    i_cd = np.zeros((cap, 2), np.int64)
+    i_real = np.zeros(cap, np.bool_)
+    i_geom = np.zeros((cap, 8))
+    i_fs = np.zeros((cap, 2))
+    i_id[:m0] = s.ids
+    i_cd[:m0] = s.cell_dist
+    i_real[:m0] = True
+    i_geom[:m0, 0:2] = s.normal
+    i_geom[:m0, 3:5] = s.normal_force
+    i_geom[:m0, 5] = s.kn
+    i_geom[:m0, 6] = s.ks
+    i_geom[:m0, 7] = s.tan_phi
+    i_fs[:m0] = s.shear_force
+    slot[s.ids[:, 0], s.ids[:, 1]] = np.arange(m0)
+    n_intr = np.array([m0], np.int64)
+    err, axis, k = _rve_steps(
+        int(s.iteration), ns, pos, vel, spin, np.asarray(s.radii, float), np.asarray(s.mass, float),
+        np.asarray(s.inertia, float), float(s.z), float(s.z_pos), H, L, nextL, changed, Lprev, prev_size,
+        float(s.verlet), ref_pos, sweep, last_update, float(s.young), float(s.poisson), math.tan(s.friction_angle),
+        float(s.damping), float(s.dt), n_intr, slot, i_id, i_cd, i_real, i_geom, i_fs,
+    )  # fmt: skip
+    if err == _TOO_BIG:
+        raise RuntimeError(f"step {k} of {ns}: a bound spans over half of the cell (YADE throws here too)")
+    if err == _FULL:
+        raise RuntimeError(f"step {k} of {ns}: more than {cap} potential interactions")
+    if err == _TIE:
+        raise RuntimeError(f"step {k} of {ns}: the initial sort on axis {axis} reached libstdc++'s depth limit")
+    if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
+        raise RuntimeError(f"the RVE diverged within {ns} steps (a position or velocity is not finite)")
+    # Omega().cell.velGrad = Zero (simDEM.py:61): nextVelGrad 0, velGradChanged; then saved: real ones only
+    real = np.flatnonzero(i_real[: n_intr[0]])
+    size = np.array([math.sqrt(H[0, 0] * H[0, 0] + H[1, 0] * H[1, 0]), math.sqrt(H[0, 1] * H[0, 1] + H[1, 1] * H[1, 1]),
+                     math.sqrt(s.z * s.z)])  # fmt: skip
+    if not np.array_equal(size, prev_size):
+        raise RuntimeError("the cell's size after the run is not NewtonIntegrator.prevCellSize")
+    return YadeRVEState(
+        iteration=int(s.iteration) + ns, dt=s.dt, z=s.z, z_pos=s.z_pos, radii=s.radii, mass=s.mass,
+        inertia=s.inertia, positions=pos, velocities=vel, spins=spin, bound_ref=ref_pos, sweep=sweep,
+        last_update=last_update, hsize=H, vel_grad=L, next_vel_grad=np.zeros((2, 2)), vel_grad_changed=True,
+        newton_prev_vel_grad=Lprev, prev_cell_size=prev_size, verlet=s.verlet, damping=s.damping, young=s.young,
+        poisson=s.poisson, friction_angle=s.friction_angle, ids=i_id[real].copy(), cell_dist=i_cd[real].copy(),
+        normal=i_geom[real, 0:2].copy(), kn=i_geom[real, 5].copy(),
+        ks=i_geom[real, 6].copy(), tan_phi=i_geom[real, 7].copy(), normal_force=i_geom[real, 3:5].copy(),
+        shear_force=i_fs[real].copy(),
+    )  # fmt: skip
+
+
+@njit
+def _stress_tangent(pos, H, z, ids, cd, normal, fn, fs, kn, ks, stress, tangent):
+    """Shop::getStressAndTangent (preprocessing/dem/Shop_02.cpp:1000-1098) in the plane: the sum
+    over the real interactions in container order of (F_n + F_s) (x) branch and of the contact
+    stiffness terms, each divided by det(hSize) (the 3D volume, z included). ``tangent`` (3, 3):
+    YADE's Voigt entries (0, 0), (0, 1), (0, 5), (1, 1), (1, 5), (5, 5) at [0, 0], [0, 1],
+    [0, 2], [1, 1], [1, 2], [2, 2] (upper triangle; tensor shear components)."""
+    s00 = 0.0
+    s01 = 0.0
+    s10 = 0.0
+    s11 = 0.0
+    t00 = 0.0
+    t01 = 0.0
+    t05 = 0.0
+    t11 = 0.0
+    t15 = 0.0
+    t55 = 0.0
+    for q in range(ids.shape[0]):
+        b1 = ids[q, 0]
+        b2 = ids[q, 1]
+        c0 = float(cd[q, 0])
+        c1 = float(cd[q, 1])
+        bx = pos[b1, 0] - pos[b2, 0]  # :1021-1022
+        by = pos[b1, 1] - pos[b2, 1]
+        bx -= H[0, 0] * c0 + H[0, 1] * c1
+        by -= H[1, 0] * c0 + H[1, 1] * c1
+        kN = kn[q]
+        kT = ks[q]
+        nx = normal[q, 0]
+        ny = normal[q, 1]
+        T = math.sqrt(fs[q, 0] * fs[q, 0] + fs[q, 1] * fs[q, 1])  # :1030-1034
+        tx = 0.0
+        ty = 0.0
+        if T > 0:
+            tx = fs[q, 0] / T
+            ty = fs[q, 1] / T
+        fx = fn[q, 0] + fs[q, 0]
+        fy = fn[q, 1] + fs[q, 1]
+        s00 += fx * bx  # :1035
+        s01 += fx * by
+        s10 += fy * bx
+        s11 += fy * by
+        t00 += kN * nx * bx * nx * bx + kT * tx * bx * tx * bx  # :1036
+        t01 += kN * nx * bx * ny * by + kT * tx * bx * ty * by  # :1037
+        t05 += kN * nx * bx * (nx * by + ny * bx) * 0.5 + kT * tx * bx * (tx * by + ty * bx) * 0.5  # :1044-1045
+        t11 += kN * ny * by * ny * by + kT * ty * by * ty * by  # :1046
+        t15 += kN * ny * by * (nx * by + ny * bx) * 0.5 + kT * ty * by * (tx * by + ty * bx) * 0.5  # :1053-1054
+        t55 += (
+            kN * (nx * by * nx * by + nx * by * ny * bx * 2 + ny * bx * ny * bx) * 0.25
+            + kT * (tx * by * tx * by + tx * by * ty * bx * 2 + ty * bx * ty * bx) * 0.25
+        )  # :1086-1088
+    vol = H[0, 0] * (H[1, 1] * z) - H[1, 0] * (H[0, 1] * z)
+    stress[0, 0] = s00 / vol
+    stress[0, 1] = s01 / vol
+    stress[1, 0] = s10 / vol
+    stress[1, 1] = s11 / vol
+    tangent[0, 0] = t00 / vol
+    tangent[0, 1] = t01 / vol
+    tangent[0, 2] = t05 / vol
+    tangent[1, 1] = t11 / vol
+    tangent[1, 2] = t15 / vol
+    tangent[2, 2] = t55 / vol
+
+
+def rve_stress_tangent(state: YadeRVEState):
+    """(stress (2, 2), tangent (3, 3)) of ``utils.getStressAndTangent()`` on the scene ``state``
+    (:func:`_stress_tangent`): Pa, per unit volume of YADE's 3D cell (det hSize, z included: the
+    2D stress in N/m divided by z), tension positive, not symmetrised; the forces are those of the
+    last interaction loop and the branch vectors from the positions after the last move, as YADE
+    holds them in a saved scene."""
+    s = state
+    stress = np.zeros((2, 2))
+    tangent = np.zeros((3, 3))
+    _stress_tangent(
+        np.asarray(s.positions, float), np.asarray(s.hsize, float), float(s.z), s.ids, s.cell_dist,
+        np.asarray(s.normal, float), np.asarray(s.normal_force, float), np.asarray(s.shear_force, float),
+        np.asarray(s.kn, float), np.asarray(s.ks, float), stress, tangent,
+    )  # fmt: skip
+    return stress, tangent
+
+
+def guo_zhao_stress_tangent(state: YadeRVEState):
+    """simDEM.getStressAndTangent2D (simDEM.py:137-149): the stress symmetrised, 0.5 (s + s^T), and
+    the 2D fourth-order tangent t[i, j, k, l] from YADE's Voigt entries (0, 0), (0, 1), (0, 5),
+    (1, 1), (1, 5), (5, 5), with every minor symmetry; Pa. ``(sigma (2, 2), t (2, 2, 2, 2))``."""
+    s, v = rve_stress_tangent(state)
+    sym = 0.5 * (s + s.T)
+    t = np.zeros((2, 2, 2, 2))
+    t[0, 0, 0, 0] = v[0, 0]
+    t[1, 1, 0, 0] = t[0, 0, 1, 1] = v[0, 1]
+    t[0, 1, 0, 0] = t[0, 0, 0, 1] = t[1, 0, 0, 0] = t[0, 0, 1, 0] = v[0, 2]
+    t[1, 1, 1, 1] = v[1, 1]
+    t[1, 1, 0, 1] = t[0, 1, 1, 1] = t[1, 1, 1, 0] = t[1, 0, 1, 1] = v[1, 2]
+    t[0, 1, 0, 1] = t[0, 1, 1, 0] = t[1, 0, 0, 1] = t[1, 0, 1, 0] = v[2, 2]
+    return sym, t
+
+
+__all__ = [
+    "RVE_STATE_FIELDS",
+    "YadeRVEState",
+    "YadeRun",
+    "guo_zhao_stress_tangent",
+    "n_steps_of",
+    "rve_run",
+    "rve_stress_tangent",
+    "yade_cell_z",
+    "yade_run",
+]
