@@ -25,7 +25,7 @@ from ._paths import (
 #: the quick default (a 2 x 4 mesh, 10 steps) and the full benchmark (--full: Guo & Zhao's 8 x 16, 100 steps)
 QUICK = {"mesh": (2, 4), "steps": 10}
 FULL = {"mesh": (8, 16), "steps": 100}
-STANDINS = ("taylor", "j2")
+STANDINS = ("dem", "taylor", "j2")
 #: the files a run writes into --out (besides checkpoint/)
 OUTPUTS = ("femxdem.h5", "curves.png", "report.md")
 #: most load steps; the confining pressure's bound (Pa: 100 MPa, beyond the crushing of quartz
@@ -61,9 +61,9 @@ def register(subparsers) -> None:
     p.add_argument(
         "--rve",
         default="taylor",
-        help="the Gauss-point law (a stand-in until the DEM RVE plugs in): taylor (the affine Taylor RVE of "
-        "Meier et al., consolidated to the confining pressure; default) or j2 (von Mises plasticity with a "
-        "weaker centre element)",
+        help="the Gauss-point law: dem (Guo & Zhao's 400-disk DEM RVE in YADE's arithmetic; the full benchmark "
+        "needs the fast engine), or the stand-ins taylor (the affine Taylor RVE of Meier et al., consolidated to "
+        "the confining pressure; default) and j2 (von Mises plasticity with a weaker centre element)",
     )
     p.add_argument("--full", action="store_true", help="the full benchmark: 8 x 16 elements, 100 steps")
     p.add_argument("--mesh", default=None, help="NXxNY elements (default 2x4; 8x16 with --full)")
@@ -121,10 +121,7 @@ def check_options(args) -> dict:
     ``packing_dir``, ``resumed``: the last step of the checkpoint continued, 0 for a new run)."""
     check_given_values(args)
     if args.rve not in STANDINS:
-        raise InputError(
-            f"--rve: expected one of {', '.join(STANDINS)} (stand-ins: the DEM RVE is not available yet), "
-            f"got {args.rve!r}"
-        )
+        raise InputError(f"--rve: expected one of {', '.join(STANDINS)}, got {args.rve!r}")
     if args.full and args.mesh is not None and args.steps is not None:
         raise InputError("--full: sets the mesh and the steps, both given here (--mesh, --steps); drop one")
     base = FULL if args.full else QUICK
@@ -140,6 +137,10 @@ def check_options(args) -> dict:
     # the Taylor stand-in is consolidated to a mean stress of -p: at p = 0 its frictionless disks
     # just touch, and no stretch is singled out (gransim.fem.femxdem.standin_law)
     check_number(args.pressure, "--pressure", low=0, high=MAX_PRESSURE, low_open=args.rve == "taylor")
+    if args.rve == "dem" and args.pressure != 1e5:
+        raise InputError(
+            f"--pressure: --rve dem's RVE was consolidated to 1e5 Pa (prepareRVE.py), got {args.pressure:g}"
+        )
     check_number(args.top_step, "--top-step", low=MIN_TOP_STEP, high=0.05)
     check_number(args.tol, "--tol", low=MIN_TOL, high=1, high_open=True)
     check_count(args.max_iter, "--max-iter", 1, 1000)

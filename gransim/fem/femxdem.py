@@ -51,6 +51,8 @@ from .material_points import gauss_points
 from .point_laws import HyperelasticPoint, J2Plasticity
 
 RVE_STANDINS = ("taylor", "j2")
+#: every ``rve``: the stand-ins and ``dem``, Guo & Zhao's DEM RVE in YADE's arithmetic (gransim.fem.dem_rve)
+RVE_LAWS = ("dem", *RVE_STANDINS)
 KIND = "fem-biaxial"
 CKPT_STEP = "fem-biaxial-step"
 CKPT_STATES = "fem-biaxial-states"
@@ -75,12 +77,15 @@ def _centre_points(spec: BiaxialSpec) -> tuple:
 
 
 def standin_law(rve: str, spec: BiaxialSpec, packing=None, packing_dir="results/packings"):
-    """(point law, parameters dict) of the stand-in ``rve`` (module docstring)."""
-    if rve not in RVE_STANDINS:
-        raise InputError(
-            f"--rve: expected one of {', '.join(RVE_STANDINS)} (stand-ins; the DEM RVE is not available "
-            f"yet), got {rve!r}"
-        )
+    """(point law, parameters dict) of ``rve`` (module docstring; ``dem``: :class:`gransim.fem.dem_rve.DemRVE`
+    with the RVE prepareRVE.py prepared in YADE 2023.02a)."""
+    if rve not in RVE_LAWS:
+        raise InputError(f"--rve: expected one of {', '.join(RVE_LAWS)}, got {rve!r}")
+    if rve == "dem":
+        from .dem_rve import PREPARED_RVE, DemRVE  # noqa: PLC0415 - start-up: numba
+
+        law = DemRVE.prepared()
+        return law, {"law": "DemRVE", "rve": PREPARED_RVE.name, "provenance": json.dumps(law.provenance)}
     if rve == "j2":
         law = J2Plasticity(1e8, 0.3, 1.5e5, 1e6, -spec.pressure, weak_points=_centre_points(spec), weak_factor=0.9)
         return law, {"law": "J2Plasticity", "E": 1e8, "nu": 0.3, "yield": 1.5e5, "hardening": 1e6, "weak_factor": 0.9}
@@ -402,7 +407,9 @@ def run_femxdem(
     mat_s = sum(r.material_s for r in new)
     iters = [len(r.errors) for r in recs]
     lines = [
-        f"## FEM x DEM biaxial specimen (stand-in `{rve}`: NOT the DEM RVE)",
+        "## FEM x DEM biaxial specimen (Guo & Zhao's DEM RVE, YADE's arithmetic)"
+        if rve == "dem"
+        else f"## FEM x DEM biaxial specimen (stand-in `{rve}`: NOT the DEM RVE)",
         "",
         f"- specimen {spec.width * 1e3:g} x {spec.height * 1e3:g} mm, {spec.nx} x {spec.ny} {spec.element} elements, "
         f"{spec.gauss} x {spec.gauss} Gauss points ({spec.n_gauss}), confining {spec.pressure / 1e3:g} kPa "
@@ -443,4 +450,4 @@ def run_femxdem(
     }
 
 
-__all__ = ["RVE_STANDINS", "FemxdemInterrupted", "check_resumable", "run_femxdem", "standin_law"]
+__all__ = ["RVE_LAWS", "RVE_STANDINS", "FemxdemInterrupted", "check_resumable", "run_femxdem", "standin_law"]

@@ -1,0 +1,144 @@
+"""Guo & Zhao's DEM RVE as a Gauss-point law, in YADE's arithmetic, against YADE 2023.02a.
+
+* stored YADE output (tests/fem/data/yade_rve, with its manifest): the RVE prepareRVE.py prepared
+  in YADE (gransim/fem/data/guo_zhao_rve.h5), driven by three strain increments through
+  simDEM.shear2D; the native calls give YADE's saved scene field by field, and getStress /
+  getStressAndTangent after every call, to the bit;
+* (a) a one-element specimen: every Gauss point's RVE equals a single RVE driven from the prepared
+  state by that point's own strain history, to the bit;
+* (b) with YADE installed, a Gauss point's history replayed in YADE (prepareRVE.py run afresh, then
+  simDEM.shear2D per increment) gives the native state after every call, to the bit;
+* an update never writes into the committed state; a resumed run equals an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from gransim.dem.yade_arithmetic import RVE_STATE_FIELDS, guo_zhao_stress_tangent, rve_run, rve_stress_tangent
+from gransim.fem.biaxial import BiaxialSpec
+from gransim.fem.dem_rve import DemRVE, load_rve_state
+from gransim.fem.femxdem import FemxdemInterrupted, run_femxdem
+from gransim.fem.material_points import freeze
+
+DATA = Path(__file__).parent / "data" / "yade_rve"
+HAVE_YADE = shutil.which("yade") is not None
+
+
+def same_state(a, b) -> list:
+    """Fields of two YadeRVEStates that differ (NaN equal to NaN)."""
+    bad = []
+    for f in RVE_STATE_FIELDS:
+        x, y = np.asarray(getattr(a, f)), np.asarray(getattr(b, f))
+        if x.shape != y.shape or not np.array_equal(x, y, equal_nan=x.dtype.kind == "f"):
+            bad.append(f)
+    return bad
+
+
+def test_prepared_rve_is_guo_and_zhaos():
+    st, prov = load_rve_state()
+    assert prov["engine_version"] == "YADE 2023.02a" and st.n == 400
+    # 2650 kg/m^3 x 0.1 m x pi r^2; E 6e8, ks/kn = poisson 0.8; friction angle 0.5 rad; damping 0.1
+    assert np.allclose(st.mass, 2650 * 0.1 * np.pi * st.radii**2, rtol=1e-15)
+    assert (st.young, st.poisson, st.friction_angle, st.damping) == (6e8, 0.8, 0.5, 0.1)
+    assert np.all(st.tan_phi == np.tan(0.5))
+    r1, r2 = st.radii[st.ids[:, 0]], st.radii[st.ids[:, 1]]
+    assert np.allclose(st.kn, 2 * 6e8 * r1 * r2 / (r1 + r2), rtol=1e-14) and np.allclose(st.ks, 0.8 * st.kn, rtol=1e-14)
+    s, _ = rve_stress_tangent(st)
+    assert np.array_equal(s, np.array(prov["stress_getStress_Pa"])[:2, :2])
+    assert abs(s[0, 0] + 1e5) < 1e2 and abs(s[1, 1] + 1e5) < 1e2  # relStressTol 1e-3 of 100 kPa
+
+
+def test_stored_yade_calls_equal_the_native_calls_bit_for_bit():
+    ref, prov = load_rve_state(DATA / "after_calls.h5")
+    manifest = json.loads((DATA / "manifest.json").read_text())
+    assert manifest["status"] == "ok" and manifest["engine_version"] == "YADE 2023.02a"
+    assert prov["rve_out_sha256"] == manifest["outputs"]["rve.out"]
+    st, _ = load_rve_state()
+    first = st
+    for D, call in zip(prov["increments"], prov["calls"][1:]):
+        st = rve_run(st, np.reshape(D, (2, 2)))
+        assert st.iteration == call["iter"]
+        s, t = rve_stress_tangent(st)
+        assert np.array_equal(s, np.array(call["stress"])[:2, :2]), call["call"]
+        T = np.array(call["tangent"])[np.ix_([0, 1, 5], [0, 1, 5])]
+        assert np.array_equal(np.triu(t), np.triu(T)), call["call"]
+    assert same_state(st, ref) == []
+    # the evidence is not trivial: contacts were made and lost, and shear forces carried
+    before = {tuple(i) for i in first.ids}
+    after = {tuple(i) for i in st.ids}
+    assert before - after and after - before
+    assert np.count_nonzero(st.shear_force) > len(st.kn)
+
+
+@pytest.fixture(scope="module")
+def one_element(tmp_path_factory):
+    """A 1 x 1 Q8 specimen (4 Gauss points), 2 steps, checkpointed."""
+    out = tmp_path_factory.mktemp("fx") / "run"
+    summary = run_femxdem(BiaxialSpec(nx=1, ny=1, steps=2), rve="dem", out=out)
+    with h5py.File(out / "checkpoint" / "states_002.h5", "r") as f:
+        arrays = {k: np.array(v) for k, v in f["states"].items()}
+    return out, summary, DemRVE.unpack_states(arrays)
+
+
+def test_a_gauss_point_equals_a_single_rve_driven_by_its_strain_path(one_element):
+    _, summary, states = one_element
+    assert len(states) == 4 and all(s.updates == 2 for s in states)
+    first, _ = load_rve_state()
+    for g, s in enumerate(states):
+        rve = first
+        for D in s.increments:
+            rve = rve_run(rve, D)
+        assert same_state(rve, s.rve) == [], g
+    q = [r.deviatoric_stress for r in summary["steps"]]
+    assert 0 < q[0] < q[1]  # the specimen hardens under compression
+
+
+def test_an_update_never_writes_into_the_committed_state():
+    law = DemRVE.prepared()
+    st = freeze(law.initial_state(0))
+    copy = {f: np.array(getattr(st.rve, f), copy=True) for f in RVE_STATE_FIELDS}
+    f = np.array([[1.0002, 1e-5], [-2e-5, 0.999]])
+    s1, t1, new1 = law.update(f, st)
+    s2, t2, new2 = law.update(f, st)  # an iterate again from the same committed state: the same bits
+    assert all(np.array_equal(copy[k], np.asarray(getattr(st.rve, k)), equal_nan=True) for k in copy)
+    assert np.array_equal(s1, s2) and np.array_equal(t1, t2) and same_state(new1.rve, new2.rve) == []
+    sig, t = guo_zhao_stress_tangent(new1.rve)
+    assert np.array_equal(sig, sig.T) and np.array_equal(t, np.transpose(t, (1, 0, 2, 3)))
+
+
+def test_resume_equals_an_uninterrupted_run(one_element, tmp_path):
+    out, summary, states = one_element
+    cut = tmp_path / "cut"
+    with pytest.raises(FemxdemInterrupted):
+        run_femxdem(BiaxialSpec(nx=1, ny=1, steps=2), rve="dem", out=cut, stop_after=1)
+    resumed = run_femxdem(BiaxialSpec(nx=1, ny=1, steps=2), rve="dem", out=cut, resume=True)
+    for a, b in zip(summary["steps"], resumed["steps"]):
+        assert a.deviatoric_stress == b.deviatoric_stress and a.volumetric_strain == b.volumetric_strain
+    with h5py.File(out / "femxdem.h5", "r") as f, h5py.File(cut / "femxdem.h5", "r") as g:
+        assert np.array_equal(f["final/x"][()], g["final/x"][()])
+        assert np.array_equal(f["final/stress"][()], g["final/stress"][()])
+
+
+@pytest.mark.skipif(not HAVE_YADE, reason="yade binary not installed (apt-get install yade; make engines)")
+def test_b_a_gauss_points_history_replayed_in_yade_is_the_native_rve(one_element, tmp_path):
+    from reference_runs.yade.rve import prepare_job, run_rve_job, state_of
+
+    _, _, states = one_element
+    inc = states[0].increments
+    recs, manifest = run_rve_job(tmp_path / "job", *prepare_job(increments=inc.reshape(-1, 4)))
+    assert manifest["engine_version"] == "YADE 2023.02a" and len(recs) == len(inc) + 1
+    first, _ = load_rve_state()
+    assert same_state(state_of(recs[0]), first) == []  # prepareRVE.py gives the stored RVE again
+    rve = first
+    for D, rec in zip(inc, recs[1:]):
+        rve = rve_run(rve, D)
+        assert same_state(rve, state_of(rec)) == [], rec["call"]
+        assert np.array_equal(rve_stress_tangent(rve)[0], np.array(rec["stress"])[:2, :2])
+    assert same_state(rve, states[0].rve) == []
