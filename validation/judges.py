@@ -685,3 +685,180 @@ def cell_lists(label: str, a, b, *, frames, radii, dt, snapshot, sides) -> tuple
     present = [int(k) for k in frames if k in a.frames and k in b.frames and int(k) in sa and int(k) in sb]
     cmp = compare_cell_frames(a, b, present, radii, dt, snapshot)
     return recs + cell_records(label, cmp), cmp
+
+
+# ====================================================================== a long loading: a code's ensemble
+@dataclass(frozen=True)
+class Ensemble:
+    """A code's runs of one long loading, as one run of a declared case: its serial reference and
+    its envelope members (runs of the same deck under a round-off perturbation).
+
+    expected : the member labels the envelope needs. every : the series interval of the runs
+    (thermo, or that of a stored series). stored : read from reference_runs/stored (series
+    only: no frames). refused : why a stored series cannot be used ("" when it can), e.g. made
+    from another assembly; it then fails as evidence."""
+
+    reference: object
+    members: dict
+    expected: tuple
+    every: int
+    stored: bool
+    source: str
+    manifest: dict | None = None
+    refused: str = ""
+
+
+@dataclass(frozen=True)
+class CurveCheck:
+    """A curve along the loading judged by :func:`band`: column ``col`` of the case's
+    ``curves_of(trajectory)`` tuple, with its quantity, metric and reason."""
+
+    col: int
+    quantity: str
+    metric: str
+    reason: str
+
+
+def ensemble_envelope(
+    label: str,
+    nat,
+    ens: Ensemble,
+    *,
+    nsteps: int,
+    native_every: int,
+    dump_every: int,
+    d50: float,
+    rule: EnvelopeRule,
+    curves_of,
+    checks: tuple,
+    sides,
+    cell: str = "orthogonal",
+    native_name: str = "native",
+) -> tuple[list, dict]:
+    """A native run of a long loading against a code's :class:`Ensemble`: the evidence of every run
+    (the native run's every ``native_every``-th step and every dump; the code's reference and every
+    expected member at its series interval, with frames unless stored), then, only on complete
+    evidence, :func:`envelope` by ``rule`` and the curves of ``checks`` by :func:`band` (within
+    ``rule.curve_factor`` times the members' band). Labels: ``<label>`` is ``<case>/<code>``;
+    records go to ``<case>/evidence/<code>``, ``<case>/divergence/<code>``, ``<case>/curve/<code>``.
+    Returns (records, summary: complete, div, sdiv, curves {run: curves_of(run)}, bands {quantity})."""
+    case_, engine = label.rsplit("/", 1)
+    code = sides[1]
+    exp_s = expected_steps(nsteps, ens.every)
+    exp_f = None if ens.stored else expected_frames(nsteps, dump_every)
+    lab = f"{case_}/evidence/{engine}"
+    recs = trajectory_evidence(
+        lab, native_name, nat, expected_steps(nsteps, native_every), expected_frames(nsteps, dump_every)
+    )
+    if ens.refused:
+        recs.append(evidence(lab, f"{code} series usable here ({ens.refused})", 1, 0))
+        return recs, {"complete": False}
+    recs += trajectory_evidence(lab, f"{code} reference", ens.reference, exp_s, exp_f)
+    recs.append(evidence(lab, f"perturbed {code} runs (the envelope)", list(ens.expected), list(ens.members)))
+    for k, t in ens.members.items():
+        recs += trajectory_evidence(lab, f"{code} {k}", t, exp_s, exp_f)
+    if not all(r.passed for r in recs):  # no verdict on what remains
+        return recs, {"complete": False}
+    ref = ens.reference
+    got, div, sdiv = envelope(
+        f"{case_}/divergence/{engine}",
+        code,
+        nat,
+        ref,
+        ens.members,
+        frames=exp_f if exp_f is not None else [],
+        steps=exp_s,
+        d50=d50,
+        rule=rule,
+        cell=cell,
+    )
+    recs += got
+    if len(nat.steps) != len(ref.steps):  # a series sampled less often (stored): the native run at its steps
+        nat = type(nat)(ref.steps, nat.stress[nat.at(ref.steps)], nat.lengths[nat.at(ref.steps)], {})
+    cur = {
+        code: curves_of(ref),
+        native_name: curves_of(nat),
+        **{f"{code} {k}": curves_of(t) for k, t in ens.members.items()},
+    }
+    bands = {}
+    for c in checks:
+        members = [cur[f"{code} {k}"][c.col] for k in ens.members]
+        bands[c.quantity] = peak(np.abs(m - cur[code][c.col]) for m in members)  # NaN stays NaN
+        recs.append(
+            band(
+                f"{case_}/curve/{engine}",
+                c.quantity,
+                c.metric,
+                cur[native_name][c.col],
+                cur[code][c.col],
+                members,
+                factor=rule.curve_factor,
+                reason=c.reason,
+            )
+        )
+    return recs, {"complete": True, "div": div, "sdiv": sdiv, "curves": cur, "bands": bands}
+
+
+def ensemble_cross(
+    label: str,
+    a: Ensemble,
+    b: Ensemble,
+    *,
+    nsteps: int,
+    curves_of,
+    checks: tuple,
+    reason: str,
+    sides,
+    pair: str = "",
+) -> tuple[list, dict]:
+    """Two codes' references of one long loading: they differ by their laws (no step-for-step
+    verdict; the raw stress difference is shown, with why), and each lies within its own band of the
+    curve, so the two curves of every check must differ by at most the sum of the two codes' bands
+    (the largest deviation of a member from its reference). Evidence: every run of both ensembles
+    complete on the steps they share with the expected series (else no verdict, a failing record)."""
+    na, nb = sides
+    n_exp = len(expected_steps(nsteps, max(a.every, b.every)))
+    usable = not (a.refused or b.refused)
+    complete = usable and all(
+        set(expected_steps(nsteps, e.every).tolist()) <= {int(s) for s in t.steps} and set(e.expected) <= set(e.members)
+        for e in (a, b)
+        for t in (e.reference, *e.members.values())
+    )
+    if not complete:
+        return [evidence(label, f"complete runs of both codes ({na}, {nb}) for their bands", 1, 0)], {}
+    ra, rb = a.reference, b.reference
+    steps = np.intersect1d(ra.steps, rb.steps)
+    recs = [evidence(label, f"common series steps of {na} and {nb}", n_exp, min(len(steps), n_exp))]
+
+    def at(e, t):
+        s = np.intersect1d(e.reference.steps, steps)
+        return type(t)(s, t.stress[t.at(s)], t.lengths[t.at(s)], {})
+
+    ca, cb = curves_of(at(a, ra)), curves_of(at(b, rb))
+    for c in checks:
+        wa = peak(np.abs(curves_of(at(a, t))[c.col] - ca[c.col]) for t in a.members.values())
+        wb = peak(np.abs(curves_of(at(b, t))[c.col] - cb[c.col]) for t in b.members.values())
+        recs.append(
+            compare(
+                label,
+                c.quantity,
+                c.metric,
+                float(np.abs(ca[c.col] - cb[c.col]).max()) if len(steps) else float("nan"),
+                wa + wb,
+                reason,
+            )
+        )
+    _, rel, _ = stress_differences(at(a, ra), at(b, rb))
+    why = why_they_differ(pair)
+    recs.append(
+        info(
+            label,
+            "stress",
+            f"{na} vs {nb}: max over steps of max|dsigma|/max|sigma|",
+            float(rel.max()) if rel.size else float("nan"),
+            "the codes' laws differ (docs/lammps.md): their step-by-step divergence starts at the law "
+            "difference, far above the 1e-15 perturbations, so it is shown, not judged; the curves are"
+            + (f". Why: {why}" if why else ""),
+        )
+    )
+    return recs, {}

@@ -15,20 +15,30 @@ comparisons and columns follow from the same rules (see validation/cases/biaxial
 from __future__ import annotations
 
 import dataclasses
+import inspect
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from .codes import NATIVE, code_label, pair_key
 from .core import CaseResult, Context, in_pair, stored_job_record
-from .judges import cell_lists, explained_difference, step_for_step, taylor_contacts, taylor_cross, taylor_stress
+from .judges import (
+    cell_lists,
+    ensemble_cross,
+    ensemble_envelope,
+    explained_difference,
+    step_for_step,
+    taylor_contacts,
+    taylor_cross,
+    taylor_stress,
+)
 
-#: the judges a comparison can name (kind -> function(label, *runs, **params) -> (records, summary));
-#: the envelope judge (validation.judges.envelope) takes a code's ensemble of runs and is called by
-#: the long-horizon cases directly
+#: the judges a comparison can name (kind -> function(label, *runs, **params) -> (records, summary))
 JUDGES = {
     "step": step_for_step,
     "explained": explained_difference,
     "cells": cell_lists,
+    "ensemble": ensemble_envelope,
+    "ensemble_cross": ensemble_cross,
     "taylor_stress": taylor_stress,
     "taylor_contacts": taylor_contacts,
     "taylor_cross": taylor_cross,
@@ -103,12 +113,19 @@ def stored_job(job_dir) -> Callable[[str, object], list]:
 
 @dataclass
 class Outcome:
-    """What :func:`evaluate` made: the runs (key -> trajectory), the summary of every comparison
-    made (label -> the judge's summary) and the comparisons left out (label -> why)."""
+    """What :func:`evaluate` made: the runs (key -> trajectory; :meth:`run` resolves a stand-in), the
+    summary of every comparison made (label -> the judge's summary) and the comparisons left out
+    (label -> why)."""
 
     runs: dict = field(default_factory=dict)
     summaries: dict = field(default_factory=dict)
     skipped: dict = field(default_factory=dict)
+    #: live run key -> the key of the stored run compared in its place (its code absent)
+    stand_in: dict = field(default_factory=dict)
+
+    def run(self, key: str):
+        """The run made for ``key``: the run itself, or the stored run that stood in for it."""
+        return self.runs[self.stand_in.get(key, key)]
 
 
 def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[Comparison]) -> Outcome:
@@ -130,6 +147,7 @@ def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[C
         res.notes.append(f"{code_label(r.code)} is absent: the run {r.key} ({r.source}) is not made{instead}.")
     missing = {r.key for r in absent if not r.fallback}
     stand_in = {r.key: r.fallback for r in absent if r.fallback}
+    out.stand_in = dict(stand_in)
     pairs_made, pairs_left = set(), {}
     for c in comparisons:
         unknown = [k for k in (*c.runs, *stand_in.values()) if k not in by_key]
@@ -152,7 +170,7 @@ def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[C
                 verified.add(k)
                 recs += by_key[k].verify(c.label, out.runs[k])
         kw = {"sides": tuple(by_key[k].who for k in c.runs[:2]), **(c.params() if callable(c.params) else c.params)}
-        if c.kind == "explained":
+        if "pair" in inspect.signature(JUDGES[c.kind]).parameters:
             kw.setdefault("pair", pair)
         got, summary = JUDGES[c.kind](c.label, *(out.runs[k] for k in c.runs), **kw)
         res.declare(pair, res.matrix.get(pair) or c.reason)

@@ -39,24 +39,15 @@ from ..core import (
     CaseResult,
     Context,
     case,
-    compare,
-    evidence,
-    in_pair,
-    info,
-    peak,
     stored_dir,
 )
 from ..dem_compare import (
     Trajectory,
-    expected_frames,
-    expected_steps,
     read_reference,
     run_native,
     run_reference_job,
-    stress_differences,
-    trajectory_evidence,
 )
-from ..judges import BITWISE_RULE, StepBounds, band, envelope, step_for_step
+from ..judges import BITWISE_RULE, CurveCheck, Ensemble, StepBounds, step_for_step
 from ..matrix import Comparison, Run, evaluate, stored_job
 
 POS_TOL = 1e-10  # of D50
@@ -728,6 +719,149 @@ CROSS_CURVE_REASON = (
 )
 
 
+def _full_curves(p: float):
+    def of(tr):
+        return curves(tr, p)
+
+    return of
+
+
+def full_plan(ctx: Context, r: dict) -> tuple[list, list]:
+    """The runs and comparisons of biaxial-full, from :func:`full_runs`' result ``r``: per code of
+    :data:`FULL_CODES`, native in its arithmetic against the code's ensemble (its serial reference
+    and envelope members run now, or with the code absent its stored series in their place) by
+    :func:`validation.judges.ensemble_envelope` with :data:`FULL_RULE` (divergence and curves),
+    and every two codes' references against the sum of their bands
+    (:func:`validation.judges.ensemble_cross`)."""
+    pk, bi, n = r["packing"], r["biaxial"], r["nsteps"]
+    here = [c for c in CODES if c in FULL_CODES]
+    of = _full_curves(bi.confining)
+    checks = (
+        CurveCheck(1, "deviator", "max|dq|/p along the curve", ""),
+        CurveCheck(2, "volumetric_strain", "max|d eps_v| along the curve", ""),
+    )
+
+    def native(code):
+        if code == "liggghts":
+            return r["native"]
+        if "lammps" in r:
+            return r["lammps"]["native"]
+        return run_native(
+            pk,
+            _flavour(r["settings"], code),
+            r["loading"],
+            n,
+            FULL_DUMP_EVERY,
+            velocities=r["velocities"],
+            spins=r["spins"],
+            thermo_every=FULL_THERMO_EVERY,
+        )
+
+    def live(code):
+        side = (
+            {"reference": r["liggghts"], "ensemble": r["ensemble"], "manifest": r["manifest"]}
+            if code == "liggghts"
+            else r["lammps"]
+        )
+        expected = r["expected_ensemble"] if code == "liggghts" else r["lammps"]["expected_ensemble"]
+        return Ensemble(
+            side["reference"],
+            side["ensemble"],
+            tuple(expected),
+            FULL_THERMO_EVERY,
+            False,
+            f"{CODE[code]} jobs run now",
+            side["manifest"],
+        )
+
+    def stored(code):
+        want = ensemble_labels(pk.n, False) if code == "liggghts" else lammps_ensemble_labels(pk.n, "default")
+        z = load_stored_full(bi.strain, code)
+        name = f"{STORED_FULL}/{_stored_name(bi.strain, code)}"
+        if z is None:
+            empty = Trajectory(np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 2)), {})
+            return Ensemble(empty, {}, tuple(want), STORED_EVERY, True, name, refused=f"no stored series {name}")
+        refused = ""
+        if z["input_sha256"] != input_fingerprint(ctx):
+            refused = (
+                "made from another Kuhn assembly than the one generated here (input fingerprint differs: the "
+                "packing generator changed); regenerate it with validation.cases.biaxial.store_full_reference "
+                "where the code is installed"
+            )
+        return Ensemble(z["liggghts"], z["ensemble"], tuple(want), STORED_EVERY, True, name, refused=refused)
+
+    runs, comps = [], []
+    for code in here:
+        runs += [
+            Run(
+                f"native/{code}",
+                NATIVE,
+                code,
+                f"native compression, {code} arithmetic",
+                functools.partial(native, code),
+            ),
+            Run(f"stored/{code}", code, code, "stored series", functools.partial(stored, code)),
+            Run(
+                f"ensemble/{code}",
+                code,
+                code,
+                "serial reference and envelope members run now",
+                functools.partial(live, code),
+                live=True,
+                fallback=f"stored/{code}",
+            ),
+        ]
+        comps.append(
+            Comparison(
+                "ensemble",
+                f"biaxial-full/{code}",
+                (f"native/{code}", f"ensemble/{code}"),
+                FULL_RULE.reason.replace("CODE", CODE[code]),
+                {
+                    "nsteps": n,
+                    "native_every": FULL_THERMO_EVERY,
+                    "dump_every": FULL_DUMP_EVERY,
+                    "d50": pk.d50,
+                    "rule": FULL_RULE,
+                    "curves_of": of,
+                    "checks": tuple(
+                        dataclasses.replace(
+                            c,
+                            reason=CURVE_REASON.replace("LIGGGHTS", CODE[code])
+                            if c.col == 1
+                            else CURVE_REASON.replace("LIGGGHTS", CODE[code]).replace(
+                                ", in units of the confining p", ""
+                            ),
+                        )
+                        for c in checks
+                    ),
+                    "native_name": f"native ({code})",
+                },
+            )
+        )
+    for i, a in enumerate(here):
+        for b in here[i + 1 :]:
+            na, nb = CODE[a], CODE[b]
+            comps.append(
+                Comparison(
+                    "ensemble_cross",
+                    f"biaxial-full/{a}-{b}",
+                    (f"ensemble/{a}", f"ensemble/{b}"),
+                    CROSS_CURVE_REASON,
+                    {
+                        "nsteps": n,
+                        "curves_of": of,
+                        "checks": (
+                            CurveCheck(1, "deviator", f"max|q_{na} - q_{nb}|/p along the curve", ""),
+                            CurveCheck(2, "volumetric_strain", f"max|eps_v {na} - eps_v {nb}| along the curve", ""),
+                        ),
+                        "reason": CROSS_CURVE_REASON,
+                    },
+                )
+            )
+    return runs, comps
+
+
 @case(
     "biaxial-full",
     "Biaxial test, full loading: divergence envelopes and stress-strain curves",
@@ -738,7 +872,7 @@ CROSS_CURVE_REASON = (
 )
 def biaxial_full(ctx: Context) -> CaseResult:
     r = full_runs(ctx)
-    bi, dem, pk = r["biaxial"], r["settings"], r["packing"]
+    bi, dem = r["biaxial"], r["settings"]
     res = CaseResult(
         "biaxial-full",
         "Biaxial test, full loading: divergence envelopes and stress-strain curves",
@@ -753,9 +887,6 @@ def biaxial_full(ctx: Context) -> CaseResult:
         "code's own envelope (its runs under a 1e-15 perturbation; full suite: also 2 MPI processes and twice the "
         "neighbour skin).",
     )
-    for code in FULL_CODES:
-        res.declare(pair_key(NATIVE, code), FULL_RULE.reason.replace("CODE", CODE[code]))
-    res.declare(pair_key(*FULL_CODES), CROSS_CURVE_REASON)
     res.notes.append(
         f"Consolidation: mean sigma_11, sigma_22 over its last 1000 steps within "
         f"{100 * r['consolidation_error']:.2f}% of p. Native compression: {r['native'].elapsed:.1f} s."
@@ -767,195 +898,32 @@ def biaxial_full(ctx: Context) -> CaseResult:
             f"<code>{r['liggghts_run_file']}</code>."
         )
     p = bi.confining
-    every_nat = FULL_THERMO_EVERY
-    sides = {}  # code -> dict(native, reference, ensemble, expected, stored, manifest)
-    for engine, code in (("liggghts", "LIGGGHTS"), ("lammps", "LAMMPS")):
-        live = (
-            r.get("lammps")
-            if engine == "lammps"
-            else (
-                {
-                    "native": r["native"],
-                    "reference": r["liggghts"],
-                    "ensemble": r["ensemble"],
-                    "manifest": r["manifest"],
-                    "expected_ensemble": r["expected_ensemble"],
-                }
-                if "liggghts" in r
-                else None
-            )
-        )
-        if live is not None:
-            sides[engine] = {**live, "stored": False}
+    runs, comps = full_plan(ctx, r)
+    out = evaluate(res, ctx, runs, comps)
+    cur, divs, sdivs, sides = {}, {}, {}, {}
+    for c in comps:
+        sm = out.summaries.get(c.label)
+        if c.kind != "ensemble" or sm is None:
             continue
-        stored = load_stored_full(bi.strain, engine)
-        nat = r["native"] if engine == "liggghts" else None
-        if stored is None:
+        engine = c.label.rsplit("/", 1)[1]
+        ens = out.run(c.runs[1])
+        sides[engine] = ens
+        if ens.stored:
             res.notes.append(
-                f"<b>{code} is absent</b> and no stored {code} series exists for this strain: its cells "
-                "have no evidence."
+                f"<b>{CODE[engine]} is absent</b>: compared with the stored series "
+                f"<code>{STORED_FULL}/{_stored_name(bi.strain, engine)}</code> (stress and box every "
+                f"{STORED_EVERY} steps of the reference and perturbed {CODE[engine]} runs); positions are not "
+                "stored, so only the stress divergence and the curves are checked."
+                + (f" It cannot be used here: {ens.refused}." if ens.refused else "")
             )
-            continue
-        if stored["input_sha256"] != input_fingerprint(ctx):
+        if not sm["complete"]:
             res.notes.append(
-                f"The stored {code} series was made from another Kuhn assembly than the one generated here "
-                "(input fingerprint differs: the packing generator changed); regenerate it with "
-                "validation.cases.biaxial.store_full_reference where the code is installed."
-            )
-            continue
-        if nat is None:
-            nat = run_native(
-                pk,
-                _flavour(dem, "lammps"),
-                r["loading"],
-                r["nsteps"],
-                FULL_DUMP_EVERY,
-                velocities=r["velocities"],
-                spins=r["spins"],
-                thermo_every=FULL_THERMO_EVERY,
-            )
-        sides[engine] = {
-            "native": nat,
-            "reference": stored["liggghts"],
-            "ensemble": stored["ensemble"],
-            "manifest": None,
-            "expected_ensemble": list(stored["ensemble"]),
-            "stored": True,
-        }
-        res.notes.append(
-            f"<b>{code} is absent</b>: compared with the stored series "
-            f"<code>{STORED_FULL}/{_stored_name(bi.strain, engine)}</code> (stress and box every "
-            f"{STORED_EVERY} steps of the reference and perturbed {code} runs); positions are not "
-            "stored, so only the stress divergence and the curves are checked."
-        )
-    cur = {}
-    bands = {}
-    divs, sdivs = {}, {}
-    pair = {"liggghts": "native-liggghts", "lammps": "native-lammps"}
-    for engine, sd in sides.items():
-        code = CODE[engine]
-        ref, nat = sd["reference"], sd["native"]
-        every = STORED_EVERY if sd["stored"] else FULL_THERMO_EVERY
-        exp_s = expected_steps(r["nsteps"], every)
-        exp_f = None if sd["stored"] else expected_frames(r["nsteps"], FULL_DUMP_EVERY)
-        lab = f"biaxial-full/evidence/{engine}"
-        recs = trajectory_evidence(
-            lab,
-            f"native ({engine})",
-            nat,
-            expected_steps(r["nsteps"], every_nat),
-            expected_frames(r["nsteps"], FULL_DUMP_EVERY),
-        )
-        recs += trajectory_evidence(lab, f"{code} reference", ref, exp_s, exp_f)
-        want = (
-            sd["expected_ensemble"]
-            if not sd["stored"]
-            else (ensemble_labels(pk.n, False) if engine == "liggghts" else lammps_ensemble_labels(pk.n, "default"))
-        )
-        recs.append(evidence(lab, f"perturbed {code} runs (the envelope)", want, list(sd["ensemble"])))
-        for k, t in sd["ensemble"].items():
-            recs += trajectory_evidence(lab, f"{code} {k}", t, exp_s, exp_f)
-        res.records += in_pair(recs, pair[engine])
-        if not all(x.passed for x in recs):
-            res.notes.append(
-                f"<b>Incomplete evidence</b> ({code}): a run the comparison needs is missing steps, frames "
+                f"<b>Incomplete evidence</b> ({CODE[engine]}): a run the comparison needs is missing steps, frames "
                 "or ensemble members (records above); no envelope verdict is made on what remains."
             )
             continue
-        frames = exp_f if exp_f is not None else []
-        recs, div, sdiv = envelope(
-            f"biaxial-full/divergence/{engine}",
-            code,
-            nat,
-            ref,
-            sd["ensemble"],
-            frames=frames,
-            steps=exp_s,
-            d50=pk.d50,
-            rule=FULL_RULE,
-        )
-        res.records += in_pair(recs, pair[engine])
-        divs[engine], sdivs[engine] = div, sdiv
-        if len(nat.steps) != len(ref.steps):  # stored series: every STORED_EVERY steps
-            nat = Trajectory(ref.steps, nat.stress[nat.at(ref.steps)], nat.lengths[nat.at(ref.steps)], {})
-        cur[code] = curves(ref, p)
-        cur[f"native ({engine})"] = curves(nat, p)
-        for k, t in sd["ensemble"].items():
-            cur[f"{code} {k}"] = curves(t, p)
-        q_l, ev_l = cur[code][1], cur[code][2]
-        bands[engine] = (
-            peak(np.abs(cur[f"{code} {k}"][1] - q_l) for k in sd["ensemble"]),  # NaN stays NaN
-            peak(np.abs(cur[f"{code} {k}"][2] - ev_l) for k in sd["ensemble"]),
-        )
-        _, q_n, ev_n = cur[f"native ({engine})"]
-        members = [cur[f"{code} {k}"] for k in sd["ensemble"]]
-        res.records += in_pair(
-            [
-                band(
-                    f"biaxial-full/curve/{engine}",
-                    "deviator",
-                    "max|dq|/p along the curve",
-                    q_n,
-                    q_l,
-                    [m[1] for m in members],
-                    factor=FULL_RULE.curve_factor,
-                    reason=CURVE_REASON.replace("LIGGGHTS", code),
-                ),
-                band(
-                    f"biaxial-full/curve/{engine}",
-                    "volumetric_strain",
-                    "max|d eps_v| along the curve",
-                    ev_n,
-                    ev_l,
-                    [m[2] for m in members],
-                    factor=FULL_RULE.curve_factor,
-                    reason=CURVE_REASON.replace("LIGGGHTS", code).replace(", in units of the confining p", ""),
-                ),
-            ],
-            pair[engine],
-        )
-    if len(bands) == 2:
-        lig, lmp = sides["liggghts"]["reference"], sides["lammps"]["reference"]
-        steps = np.intersect1d(lig.steps, lmp.steps)
-        a = Trajectory(steps, lig.stress[lig.at(steps)], lig.lengths[lig.at(steps)], {})
-        b = Trajectory(steps, lmp.stress[lmp.at(steps)], lmp.lengths[lmp.at(steps)], {})
-        (_, qa, eva), (_, qb, evb) = curves(a, p), curves(b, p)
-        bq = bands["liggghts"][0] + bands["lammps"][0]
-        bv = bands["liggghts"][1] + bands["lammps"][1]
-        n_exp = len(
-            expected_steps(r["nsteps"], max(STORED_EVERY if sides[e]["stored"] else FULL_THERMO_EVERY for e in sides))
-        )
-        recs = [
-            evidence("biaxial-full/cross", "common series steps of LIGGGHTS and LAMMPS", n_exp, min(len(steps), n_exp)),
-            compare(
-                "biaxial-full/cross",
-                "deviator",
-                "max|q_LIGGGHTS - q_LAMMPS|/p along the curve",
-                float(np.abs(qa - qb).max()) if len(steps) else float("nan"),
-                bq,
-                CROSS_CURVE_REASON,
-            ),
-            compare(
-                "biaxial-full/cross",
-                "volumetric_strain",
-                "max|eps_v LIGGGHTS - eps_v LAMMPS| along the curve",
-                float(np.abs(eva - evb).max()) if len(steps) else float("nan"),
-                bv,
-                CROSS_CURVE_REASON,
-            ),
-        ]
-        _, rel, _ = stress_differences(a, b)
-        recs.append(
-            info(
-                "biaxial-full/cross",
-                "stress",
-                "LIGGGHTS vs LAMMPS: max over steps of max|dsigma|/max|sigma|",
-                float(rel.max()) if rel.size else float("nan"),
-                "the codes' laws differ (docs/lammps.md): their step-by-step divergence starts at the law "
-                "difference, far above the 1e-15 perturbations, so it is shown, not judged; the curves are",
-            )
-        )
-        res.records += in_pair(recs, "liggghts-lammps")
+        divs[engine], sdivs[engine] = sm["div"], sm["sdiv"]
+        cur.update(sm["curves"])
     if not cur:
         res.error = "no code's reference (live or stored) is available for this suite"
         return res
@@ -968,7 +936,7 @@ def biaxial_full(ctx: Context) -> CaseResult:
             continue
         steps = div[f"native vs {code}"][0]
         rows = []
-        ref = sides[engine]["reference"]
+        ref = sides[engine].reference
         for k in range(0, len(steps), max(1, len(steps) // 12)):
             rows.append(
                 [
@@ -1010,7 +978,7 @@ def biaxial_full(ctx: Context) -> CaseResult:
     ):
         res.add_figure(path, cap, data=data, headline=head)
     for engine, sd in sides.items():
-        man = sd["manifest"]
+        man = sd.manifest
         if not man:
             continue
         res.notes.append(

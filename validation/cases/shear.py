@@ -63,7 +63,6 @@ from ..core import (
     Context,
     case,
     default_job_timeout,
-    evidence,
     in_pair,
     info,
     stored_dir,
@@ -71,19 +70,18 @@ from ..core import (
 from ..dem_compare import (
     Trajectory,
     expected_frames,
-    expected_steps,
     reduce_sheared,  # noqa: F401 (the sheared-cell geometry of this case, tested here)
     sheared_cell,
     stress_differences,
-    trajectory_evidence,
 )
 from ..judges import (
     ENVELOPE_FACTOR,
     LIST_REASON,
+    CurveCheck,
+    Ensemble,
     EnvelopeRule,
     StepBounds,
     band,
-    envelope,
     step_for_step,
     void_cells,
 )
@@ -595,6 +593,8 @@ STATS_REASON = (
     "the reference (instantaneous velocity fields decorrelate once positions differ by ~1e-4 D50); "
     "tolerance 2 x band, as for the curves"
 )
+#: the codes the long horizon runs (long_runs' jobs and the stored series)
+LONG_CODES = ("lammps",)
 #: the envelope criterion of the long horizon (validation.judges.EnvelopeRule): the sheared-cell native
 #: run differs from LAMMPS by summation-order round-off, hence the window and the step-for-step floors
 LONG_RULE = EnvelopeRule(
@@ -812,11 +812,89 @@ def simple_shear_case(ctx: Context) -> CaseResult:
     )
     if ctx.suite == "quick":
         return res
-    _long(ctx, res, evidence)
+    _long(ctx, res)
     return res
 
 
-def _long(ctx: Context, res: CaseResult, evidence) -> None:
+def long_plan(ctx: Context) -> tuple[list, list]:
+    """The long horizon as a declaration: per code of :data:`LONG_CODES`, the native sheared-cell run
+    against the code's ensemble (its reference and perturbed runs now, or with the code absent the
+    stored series in their place) by :func:`validation.judges.ensemble_envelope` with
+    :data:`LONG_RULE` (divergence in the sheared cell, the shear stress and dilatancy curves)."""
+    s = long_setup(ctx)
+    pk, n, p = s["packing"], s["nsteps"], s["loading"].target
+    want = tuple(perturb_labels(pk.n, ctx.suite))
+
+    def native():
+        return long_runs(ctx)["native"]
+
+    def live():
+        r = long_runs(ctx)
+        return Ensemble(
+            r["reference"], r["ensemble"], want, LONG_THERMO_EVERY, False, "LAMMPS jobs run now", r["manifest"]
+        )
+
+    def stored():
+        z = load_stored_long()
+        name = f"reference_runs/stored/{STORED_LONG}/{_stored_path().name}"
+        if z is None:
+            empty = Trajectory(np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), {})
+            return Ensemble(empty, {}, want, STORED_EVERY, True, name, refused=f"no stored series {name}")
+        refused = ""
+        if z["input_sha256"] != input_fingerprint(ctx):
+            refused = (
+                "made from other inputs than this run's (input fingerprint differs: the consolidation, the packing "
+                "or the loading changed); regenerate it with validation.cases.shear.store_long_reference where "
+                "LAMMPS is installed"
+            )
+        members = {k: v for k, v in z["ensemble"].items() if k in want}
+        return Ensemble(z["reference"], members, want, STORED_EVERY, True, name, refused=refused)
+
+    def curves_of(tr):
+        return shear_curves(tr, p)
+
+    runs, comps = [], []
+    for code in CODES:
+        if code not in LONG_CODES:
+            continue
+        runs += [
+            Run(f"native/kuhn-1002/{code}", NATIVE, code, f"native sheared cell, {code} arithmetic", native),
+            Run(f"stored/kuhn-1002/{code}", code, code, "stored series", stored),
+            Run(
+                f"kuhn-1002/{code}",
+                code,
+                code,
+                "reference and perturbed runs now",
+                live,
+                live=True,
+                fallback=f"stored/kuhn-1002/{code}",
+            ),
+        ]
+        comps.append(
+            Comparison(
+                "ensemble",
+                f"{CASE}/kuhn-1002/{code}",
+                (f"native/kuhn-1002/{code}", f"kuhn-1002/{code}"),
+                MATRIX_REASON,
+                {
+                    "nsteps": n,
+                    "native_every": LONG_THERMO_EVERY,
+                    "dump_every": LONG_DUMP_EVERY,
+                    "d50": pk.d50,
+                    "rule": LONG_RULE,
+                    "curves_of": curves_of,
+                    "checks": (
+                        CurveCheck(1, "shear_stress", "max|d tau/p| along the curve", CURVE_REASON),
+                        CurveCheck(2, "normal_strain", "max|d ln(ly/ly0)| along the curve", CURVE_REASON),
+                    ),
+                    "cell": "sheared",
+                },
+            )
+        )
+    return runs, comps
+
+
+def _long(ctx: Context, res: CaseResult) -> None:
     s = long_setup(ctx)
     pk, n, ld = s["packing"], s["nsteps"], s["loading"]
     p = ld.target
@@ -826,102 +904,33 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
         f"dt {s['settings'].dt:.4g} s, {n} steps to {100 * LONG_STRAIN:g}% shear strain, dumps every "
         f"{LONG_DUMP_EVERY} steps, stress every {LONG_THERMO_EVERY} steps."
     )
-    want = perturb_labels(pk.n, ctx.suite)
-    stored = None
-    if ctx.lammps:
-        r = long_runs(ctx)
-        ref, ens, every = r["reference"], r["ensemble"], LONG_THERMO_EVERY
-        frames = [int(k) for k in expected_frames(n, LONG_DUMP_EVERY)]
-        man = r["manifest"]
+    runs, comps = long_plan(ctx)
+    out = evaluate(res, ctx, runs, comps)
+    (c,) = comps
+    ens, nat = out.run(c.runs[1]), out.run(c.runs[0])
+    if ens.stored:
         res.notes.append(
-            f"kuhn-1002 LAMMPS: <code>{' '.join(man.get('command', []))}</code> "
-            f"({man.get('engine_version', '')}), reference job {ref.elapsed:.1f} s (0: reused), native "
-            f"{r['native'].elapsed:.1f} s."
+            f"<b>LAMMPS is absent</b>: the long horizon is compared with the stored series <code>{ens.source}</code> "
+            f"(stress and box every {STORED_EVERY} steps of the reference and perturbed LAMMPS runs, README there); "
+            "positions are not stored, so the position envelope and the void cells of the long horizon are not made."
+            + (f" It cannot be used here: {ens.refused}." if ens.refused else "")
         )
     else:
-        stored = load_stored_long()
-        if stored is None:
-            res.notes.append(
-                f"<b>LAMMPS is absent</b> and no stored series <code>reference_runs/stored/{STORED_LONG}"
-                "</code> exists: the long horizon has no evidence."
-            )
-            res.records += in_pair([evidence(f"{CASE}/kuhn-1002", "stored LAMMPS series", 1, 0)], "native-lammps")
-            return
-        if stored["input_sha256"] != input_fingerprint(ctx):
-            res.notes.append(
-                "The stored LAMMPS series was made from other inputs than this run's (input fingerprint "
-                "differs: the consolidation, the packing or the loading changed); regenerate it with "
-                "validation.cases.shear.store_long_reference where LAMMPS is installed."
-            )
-            res.records += in_pair(
-                [evidence(f"{CASE}/kuhn-1002", "stored LAMMPS series with this run's inputs", 1, 0)],
-                "native-lammps",
-            )
-            return
-        r = long_runs(ctx)
-        ref, every, frames = stored["reference"], STORED_EVERY, []
-        ens = {k: v for k, v in stored["ensemble"].items() if k in want}
+        man = ens.manifest or {}
         res.notes.append(
-            f"<b>LAMMPS is absent</b>: the long horizon is compared with the stored series "
-            f"<code>reference_runs/stored/{STORED_LONG}/{_stored_path().name}</code> (stress and box every "
-            f"{STORED_EVERY} steps of the reference and perturbed LAMMPS runs, README there); positions "
-            "are not stored, so the position envelope and the void cells of the long horizon are not made."
+            f"kuhn-1002 LAMMPS: <code>{' '.join(man.get('command', []))}</code> "
+            f"({man.get('engine_version', '')}), reference job {ens.reference.elapsed:.1f} s (0: reused), native "
+            f"{nat.elapsed:.1f} s."
         )
-    nat = r["native"]
-    lab = f"{CASE}/kuhn-1002/evidence"
-    exp_s = expected_steps(n, every)
-    recs = trajectory_evidence(
-        lab,
-        "native",
-        nat,
-        expected_steps(n, LONG_THERMO_EVERY),
-        expected_frames(n, LONG_DUMP_EVERY),
-    )
-    recs += trajectory_evidence(lab, "LAMMPS reference", ref, exp_s, frames or None)
-    recs.append(evidence(lab, "perturbed LAMMPS runs (the envelope)", want, list(ens)))
-    for k, t in ens.items():
-        recs += trajectory_evidence(lab, f"LAMMPS {k}", t, exp_s, frames or None)
-    res.records += in_pair(recs, "native-lammps")
-    if not all(x.passed for x in recs):
+    sm = out.summaries[c.label]
+    if not sm["complete"]:
         res.notes.append(
             "<b>Incomplete evidence</b> (kuhn-1002): a run is missing steps, frames or ensemble members "
             "(records above); no envelope verdict is made on what remains."
         )
         return
-    recs, div, sdiv = envelope(
-        f"{CASE}/kuhn-1002/divergence",
-        "LAMMPS",
-        nat,
-        ref,
-        ens,
-        frames=frames,
-        steps=exp_s,
-        d50=pk.d50,
-        rule=LONG_RULE,
-        cell="sheared",
-    )
-    res.records += in_pair(recs, "native-lammps")
-    sub = Trajectory(ref.steps, nat.stress[nat.at(ref.steps)], nat.lengths[nat.at(ref.steps)], {})
-    cur = {
-        "LAMMPS": shear_curves(ref, p),
-        "native": shear_curves(sub, p),
-        **{f"LAMMPS {k}": shear_curves(t, p) for k, t in ens.items()},
-    }
-    recs = [
-        band(
-            f"{CASE}/kuhn-1002/curve",
-            qty,
-            f"max|d {unit}| along the curve",
-            cur["native"][col],
-            cur["LAMMPS"][col],
-            [cur[f"LAMMPS {k}"][col] for k in ens],
-            factor=LONG_RULE.curve_factor,
-            reason=CURVE_REASON,
-        )
-        for col, qty, unit in ((1, "shear_stress", "tau/p"), (2, "normal_strain", "ln(ly/ly0)"))
-    ]
-    res.records += in_pair(recs, "native-lammps")
-
+    ref, ens_runs, div, sdiv, cur = ens.reference, ens.members, sm["div"], sm["sdiv"], sm["curves"]
+    frames = [] if ens.stored else [int(k) for k in expected_frames(n, LONG_DUMP_EVERY)]
     res.tables.append(
         (
             "kuhn-1002: end of the shear",
@@ -943,7 +952,7 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
             "native": cell_stats(nat, frames, pk.radii, s["settings"].dt),
             "LAMMPS": cell_stats(ref, frames, pk.radii, s["settings"].dt),
         }
-        for k, t in ens.items():
+        for k, t in ens_runs.items():
             st[f"LAMMPS {k}"] = cell_stats(t, frames, pk.radii, s["settings"].dt)
         # a frame without cells is NaN on a side: it must be so on the other (defined_diff)
         recs = [
@@ -953,7 +962,7 @@ def _long(ctx: Context, res: CaseResult, evidence) -> None:
                 f"max over {len(frames)} frames |native - LAMMPS|",
                 st["native"][:, col],
                 st["LAMMPS"][:, col],
-                [st[f"LAMMPS {k}"][:, col] for k in ens],
+                [st[f"LAMMPS {k}"][:, col] for k in ens_runs],
                 factor=LONG_RULE.curve_factor,
                 reason=STATS_REASON,
                 diff=defined_diff,
