@@ -17,6 +17,9 @@ Criteria:
   one criterion of biaxial-full, biaxial-laws and simple-shear).
 * :func:`band`: a curve (or a statistic along it) within a multiple of the band its perturbed runs
   span around the reference.
+* :func:`ensemble_envelope`, :func:`ensemble_cross`: a long loading, native against a code's
+  :class:`Ensemble` (evidence of every run, then :func:`envelope` and :func:`band`), and two codes'
+  references within the sum of their bands.
 * :func:`cell_lists`: Kuhn's void cells of two runs' snapshots, frame by frame: the same cell lists,
   alpha and w at round-off.
 * :func:`taylor_stress`, :func:`taylor_contacts`, :func:`taylor_cross`: Taylor states (no dynamics)
@@ -47,9 +50,6 @@ from .dem_compare import (
     trajectory_evidence,
 )
 from .taylor_compare import PATH_NAMES, contact_records, expected_series, series_evidence
-
-#: the figures a step-for-step or envelope comparison reports (a case picks its table columns)
-SUMMARY_KEYS = ("label", "last_step", "frames", "x", "v", "w", "f", "t", "stress", "box")
 
 
 def _max(a) -> float:
@@ -109,7 +109,9 @@ def step_for_step(
     and every ``dump_every``-th step as a frame, on both sides (``sides`` names them). A missing
     step or frame is a failing ``evidence`` record; the differences are then taken over what both
     sides hold (frames with the same particle count), and a comparison over nothing is NaN (fails).
-    Returns (records, summary) with the summary's keys :data:`SUMMARY_KEYS`.
+    Returns (records, summary): the label, the last step and the number of frames compared and the
+    largest difference of each quantity (``x``, ``v``, ``w``, ``f``, ``t``, ``stress``, ``box``), from
+    which a case builds its table rows.
     """
     who_a, who_b = sides
     exp_s, exp_f = expected_steps(nsteps, thermo_every), expected_frames(nsteps, dump_every)
