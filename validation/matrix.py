@@ -5,8 +5,9 @@ stored output) and the comparisons between them (:class:`Comparison`, by kind: a
 :data:`JUDGES`). :func:`evaluate` makes each run once (when first needed), hands the runs of each
 comparison to its judge (:mod:`validation.judges`), files the records in the matrix column of the
 two runs' codes (:func:`validation.codes.pair_key`) and declares that column with the
-comparison's reason. A run of a code that is not installed is not made: its comparisons are left
-out with a note, and a column left without any comparison is marked not applicable, saying why.
+comparison's reason. A run of a code that is not installed is not made: its stored output stands in
+for it where the case declares one (``Run.fallback``), else its comparisons are left out with a
+note, and a column left without any comparison is marked not applicable, saying why.
 
 So a case states what it compares, and adding a code adds its runs to the case's list: the
 comparisons and columns follow from the same rules (see validation/cases/biaxial.py, ``short_plan``).
