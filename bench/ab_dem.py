@@ -47,10 +47,10 @@ if mode == "fast":  # the fast path (FastEngine) on THREADS threads
     from gransim.dem.fast import FastEngine
     eng = FastEngine(p, SETTINGS, threads=threads)
     step = eng.advance
-elif mode == "sheared":  # the sheared cell (ShearEngine, LAMMPS' arithmetic) in simple shear, 1/s
+elif mode == "sheared":  # the sheared cell (ShearEngine, LAMMPS' arithmetic), simple shear at 0.01/s
     from gransim.dem.sheared import ShearEngine, ShearLoading
     eng = ShearEngine(p, DEMSettings(**{**SETTINGS.to_dict(), "mode": "serial"}), flavour="lammps")
-    eng.start_run(ShearLoading(erate=1.0), 10**9)
+    eng.start_run(ShearLoading(erate=0.01), 10**9)
     step = eng.advance
 else:
     s = DEMSettings(**{**SETTINGS.to_dict(), "mode": mode})

@@ -170,7 +170,155 @@ ENERGY_CHUNK = 1 << 16
 _NO_SHIFT = np.zeros((0, 2), np.int64)
 
 
-class DEMEngine:
+class EngineCore:
+    """What the engines of :mod:`gransim.dem` (:class:`DEMEngine`, the orthogonal cell, and
+    :class:`gransim.dem.sheared.ShearEngine`, the sheared one) do the same way, written once: the
+    contact law and its time-step check, the kinetic and elastic energies, the divergence check
+    (energy balance) and the lost-particle check.
+
+    A subclass holds ``packing``, ``settings``, ``law``, ``step``, ``_build_step`` and the state
+    ``p`` (:class:`~gransim.dem.kernels.Particles`) and ``nb`` (``Neighbours``), whose arrays the
+    views below name (x, v, w, ..., ea, eb, xi, ...), and defines ``_touching()`` -> (entries of
+    the touching pairs, each once, and their overlaps (m)) for its cell.
+    """
+
+    def _set_law(self, packing: Packing, settings, law, flavour: str, check_dt: bool) -> None:
+        """``law`` (None: the Hooke law of a :class:`DEMSettings` in ``flavour``) with what the
+        loops need of its registration (history width, flip signs, disk cache), its time step
+        checked (:func:`check_time_step`, at zero overlap: :meth:`_check_time_step_now` checks a
+        law whose stiffness grows with the overlap once the state is set up)."""
+        if law is None:
+            if not isinstance(settings, DEMSettings):
+                raise InputError("law: an engine with Integration settings needs its contact law (law=...)")
+            law = settings.hooke_law(flavour)
+        spec = law_spec(law)  # InputError for an unregistered law
+        if check_dt:
+            check_time_step(packing, settings.dt, law)
+        self.law = law
+        self._check_dt = bool(check_dt)
+        self._width = spec.width
+        self._flip = flip_signs(law)
+        # kernels compiled for a law of a test module / script stay out of the disk cache
+        self._no_cache = not spec.cache
+
+    def _check_time_step_now(self) -> None:
+        """After the set-up: a law that sets no limit at zero overlap (Hertz) is checked at the
+        largest overlap present (:func:`check_time_step`)."""
+        if self._check_dt and not np.isfinite(time_scale(self.law, self.packing)[0]):
+            _, ov = self._touching()
+            check_time_step(self.packing, self.settings.dt, self.law, float(ov.max()) if ov.size else 0.0)
+
+    def kinetic_energy(self) -> float:
+        """Translational + rotational (I = m r^2/2) kinetic energy (J) of the velocities held (the
+        lab frame)."""
+        return float(
+            0.5 * np.sum(self.m * np.einsum("ij,ij->i", self.v, self.v)) + 0.25 * np.sum(self.m * self.r**2 * self.w**2)
+        )
+
+    def elastic_energy(self) -> float:
+        """Energy stored in the touching contacts (J): the law's ``energy`` with each contact's
+        overlap, history and radii (:func:`gransim.contacts.laws.elastic_energy`; Hooke: sum 0.5 kn
+        overlap^2 + 0.5 kt |xi|^2, Hertz: 8/15 Y* sqrt(R*) delta^(5/2) + k_t(delta) |xi|^2/2, the
+        rolling laws add their rolling spring; docs/laws.md)."""
+        e, ov = self._touching()
+        # in chunks of ENERGY_CHUNK contacts (the law's energy takes gathered (K,) arrays: at 1e6
+        # disks all of them at once were the peak memory of a run); one chunk: the plain sum
+        total = 0.0
+        for k in range(0, e.size, ENERGY_CHUNK):
+            c = e[k : k + ENERGY_CHUNK]
+            total += elastic_energy(
+                self.law, ov[k : k + ENERGY_CHUNK], self.xi[c], self.r[self.ea[c]], self.r[self.eb[c]]
+            )
+        return total
+
+    def _budget_kinetic_energy(self) -> float:
+        """The kinetic energy the divergence check bounds (J): :meth:`kinetic_energy` of the
+        velocities held (a sheared cell: of the velocities relative to its homogeneous flow)."""
+        return self.kinetic_energy()
+
+    def _reset_energy_budget(self):
+        """Start of the energy balance of the divergence check: E0 = kinetic + elastic energy now."""
+        e0 = self._budget_kinetic_energy() + self.elastic_energy()
+        release_free_memory()  # the gathered contact arrays of the energy
+        self._energy0 = e0 if np.isfinite(e0) else np.inf  # a non-finite state is caught as NaN
+        self._work = 0.0
+
+    def _check_energy(self, step1, ke_all, ke, dw, flow=0.0):
+        """Kinetic-energy blow-up over the completed steps step1, step1 + 1, ... (divergence check).
+
+        ``ke_all`` (n,): the kinetic energy (J) of each step (checked finite); ``ke`` (n,): the
+        kinetic energy the check bounds at each step, NaN where not known (a sheared cell knows
+        the one relative to its flow at the last step only); ``dw`` (n,): the work of the cell in
+        each step (J); ``flow`` (J): the kinetic energy of the cell's homogeneous flow at the
+        particles (a sheared cell: disks at rest in the lab move relative to the flow with it, and
+        a flow that changes, ``fix deform trate``, changes it without any work), added to the
+        budget.
+
+        Energy balance of the run: d(KE + U)/dt = P_cell - D with D >= 0 (viscous damping and
+        Coulomb sliding only dissipate, U >= 0 the spring energy), so KE(n) <= E0 + W(n), E0 the
+        kinetic + elastic energy at the start and W the work of the cell. The check sums |work|
+        (tangential springs do not follow the affine remap exactly, so the virial work is only
+        close to the true one) and allows KINETIC_ENERGY_FACTOR times that budget: velocity Verlet
+        below its stability limit keeps the energy within a few ten percent (shadow energy), an
+        unstable integration grows exponentially and crosses it in a few steps.
+        """
+        if not np.all(np.isfinite(ke_all)):
+            k = int(np.flatnonzero(~np.isfinite(ke_all))[0])
+            bad = np.flatnonzero(~np.all(np.isfinite(self.v), axis=1))
+            who = f" (particle {int(bad[0])} has velocity {self.v[bad[0]].tolist()})" if bad.size else ""
+            raise SimulationError(f"step {step1 + k}: the kinetic energy is not finite{who}")
+        work = self._work + np.cumsum(np.abs(dw))
+        budget = KINETIC_ENERGY_FACTOR * (self._energy0 + work + flow)
+        over = np.flatnonzero(ke > budget)
+        if over.size:
+            k = int(over[0])
+            raise SimulationError(
+                f"step {step1 + k}: kinetic energy blow-up: {ke[k]:.4g} J exceeds {KINETIC_ENERGY_FACTOR:g} "
+                f"times the energy the run has had ({self._energy0:.4g} J kinetic + elastic at the start, "
+                f"{work[k]:.4g} J gross work of the cell"
+                + (f", {flow:.4g} J kinetic energy of the cell's flow" if flow else "")
+                + "; damping and friction only dissipate): the "
+                f"integration is unstable (time step {self.settings.dt:.4g} s too large for the stiffness "
+                "and damping?)"
+            )
+        if work.size:
+            self._work = float(work[-1])
+
+    def _check_lost(self):
+        """Before a rebuild: a particle that moved more than LOST_DISPLACEMENT_SKINS skins since the
+        last build crossed more than a skin in one step (the build rule allows skin/2 in between)."""
+        i, di = K.largest_displacement(self.x, self.xhold)
+        skin = self.settings.skin
+        if di > LOST_DISPLACEMENT_SKINS * skin:
+            raise SimulationError(
+                f"step {self.step + 1}: particle {i} lost: it moved {di:.4g} m = {di / skin:.3g} "
+                f"skins since the neighbour build of step {self._build_step}, more than a skin "
+                f"({skin:.4g} m) in one step (velocity {self.v[i].tolist()} m/s, dt {self.settings.dt:.4g} s)"
+            )
+
+    # ------------------------------------------------------------------ views of the state
+    # ``p`` (:class:`~gransim.dem.kernels.Particles`) and ``nb`` (``Neighbours``: the list, the
+    # law's history, CSR, build positions, per-entry outputs), the state of every engine
+    x = property(lambda self: self.p.x, doc="positions (N, 2), m")
+    v = property(lambda self: self.p.v, doc="velocities (N, 2), m/s")
+    w = property(lambda self: self.p.w, doc="spins (N,), rad/s")
+    f = property(lambda self: self.p.f, doc="forces of the last step (N, 2), N")
+    t = property(lambda self: self.p.t, doc="torques of the last step (N,), N m")
+    m = property(lambda self: self.p.m, doc="masses (N,), kg")
+    r = property(lambda self: self.p.r, doc="radii (N,), m")
+    xhold = property(lambda self: self.nb.xhold, doc="positions at the last neighbour build (N, 2), m")
+    ea = property(lambda self: self.nb.a, doc="first particle of each list entry (M,) int32")
+    eb = property(lambda self: self.nb.b, doc="second particle of each list entry (M,) int32")
+    esx = property(lambda self: self.nb.sx, doc="s_x as float64 (M,)")
+    esy = property(lambda self: self.nb.sy, doc="s_y as float64 (M,)")
+    both = property(lambda self: self.nb.both, doc="owned pair (force on both particles) (M,) bool")
+    xi = property(lambda self: self.nb.hist, doc="per-entry history of the law (M, width); Hooke: the spring, m")
+    slide = property(lambda self: self.nb.slide, doc="Coulomb cap active at the last stored step (M,) bool")
+    ef = property(lambda self: self.nb.ef, doc="force on a of each entry at the last stored step (M, 2), N")
+    start = property(lambda self: self.nb.start, doc="CSR offsets of the entries of each a (N+1,)")
+
+
+class DEMEngine(EngineCore):
     """State and stepping of one DEM run (arrays are updated in place for speed).
 
     Parameters
@@ -221,14 +369,7 @@ class DEMEngine:
         self.settings = s = settings
         n = packing.n
         # the contact law (gransim.contacts.laws): the Hooke law of DEMSettings unless given
-        if law is None:
-            if not isinstance(s, DEMSettings):
-                raise InputError("law: an engine with Integration settings needs its contact law (law=...)")
-            law = s.hooke_law()
-        self.law = law
-        spec = law_spec(law)
-        if check_dt:
-            check_time_step(packing, s.dt, law)
+        self._set_law(packing, s, law, s.flavour, check_dt)
         cut = 2 * 2.0 * float(packing.radii.max()) + 2 * s.skin
         if min(C[0, 0], C[1, 1]) <= cut:
             raise InputError(
@@ -248,10 +389,6 @@ class DEMEngine:
         if box is not None:
             lo, hi = _check_box(box, C)
         self.box = K.Box(lo, hi, lo.copy(), hi.copy())
-        self._width = spec.width
-        # kernels compiled for a law of a test module / script stay out of the disk cache
-        self._no_cache = not spec.cache
-        self._flip = flip_signs(self.law)
         self.step = 0
         self.n_contacts = 0
         self.mean_overlap = 0.0
@@ -284,10 +421,7 @@ class DEMEngine:
         self._build_step = 0
         self._failed = ""  # why a rebuild failed (the engine has no list then), or ""
         self._setup()
-        if check_dt and not np.isfinite(time_scale(law, packing)[0]):
-            # a law whose stiffness grows with the overlap (Hertz): checked at the largest one now
-            e, ov = self._touching()
-            check_time_step(packing, s.dt, law, float(ov.max()) if ov.size else 0.0)
+        self._check_time_step_now()
         self._reset_energy_budget()
 
     # ------------------------------------------------------------------ neighbours
@@ -394,79 +528,18 @@ class DEMEngine:
         self.n_contacts = round(nc)
         self.mean_overlap = so / nc if nc else 0.0
 
-    def elastic_energy(self) -> float:
-        """Energy stored in the touching contacts (J): the law's ``energy`` with each contact's
-        overlap, history and radii (:func:`gransim.contacts.laws.elastic_energy`; Hooke: sum 0.5 kn
-        overlap^2 + 0.5 kt |xi|^2, Hertz: 8/15 Y* sqrt(R*) delta^(5/2) + k_t(delta) |xi|^2/2, the
-        rolling laws add their rolling spring; docs/laws.md)."""
-        e, ov = self._touching()
-        nb = self.nb
-        # in chunks of ENERGY_CHUNK contacts (the law's energy takes gathered (K,) arrays: at 1e6
-        # disks all of them at once were the peak memory of a run); one chunk: the plain sum
-        total = 0.0
-        for k in range(0, e.size, ENERGY_CHUNK):
-            c = e[k : k + ENERGY_CHUNK]
-            total += elastic_energy(self.law, ov[k : k + ENERGY_CHUNK], nb.hist[c], self.r[nb.a[c]], self.r[nb.b[c]])
-        return total
-
-    def _reset_energy_budget(self):
-        """Start of the energy balance of the divergence check: E0 = kinetic + elastic energy now."""
-        e0 = self.kinetic_energy() + self.elastic_energy()
-        release_free_memory()  # the gathered contact arrays of the energy
-        self._energy0 = e0 if np.isfinite(e0) else np.inf  # a non-finite state is caught as NaN
-        self._work = 0.0
-
     def _check_divergence(self, step1, ke, stress, lengths, L_before):
-        """Kinetic-energy blow-up over the completed steps step1, step1 + 1, ... (divergence check).
-
-        Energy balance of the run: d(KE + U)/dt = P_cell - D with D >= 0 (viscous damping and
-        Coulomb sliding only dissipate, U >= 0 the spring energy), so KE(n) <= E0 + W(n), E0 the
-        kinetic + elastic energy at the start and W the work of the cell, per step
-        -(V_xx dLx/Lx + V_yy dLy/Ly) with V the virial (stress times area, compression positive).
-        The check sums |work| (tangential springs do not follow the affine remap exactly, so the
-        virial work is only close to the true one) and allows KINETIC_ENERGY_FACTOR times that
-        budget: velocity Verlet below its stability limit keeps the energy within a few ten percent
-        (shadow energy), an unstable integration grows exponentially and crosses it in a few steps.
-        """
-        if not np.all(np.isfinite(ke)):
-            k = int(np.flatnonzero(~np.isfinite(ke))[0])
-            bad = np.flatnonzero(~np.all(np.isfinite(self.v), axis=1))
-            who = f" (particle {int(bad[0])} has velocity {self.v[bad[0]].tolist()})" if bad.size else ""
-            raise SimulationError(f"step {step1 + k}: the kinetic energy is not finite{who}")
+        """The divergence check (:meth:`EngineCore._check_energy`) over the completed steps step1,
+        step1 + 1, ... with the work of the orthogonal cell per step -(V_xx dLx/Lx + V_yy dLy/Ly),
+        V the virial (stress (n, 4) times the area of the box lengths ``lengths`` (n, 2) after each
+        step, compression positive; ``L_before`` the lengths before the first)."""
         L_old = np.vstack([L_before[None], lengths[:-1]])
         area = lengths[:, 0] * lengths[:, 1]
         dw = -(
             stress[:, 0] * area * (lengths[:, 0] - L_old[:, 0]) / L_old[:, 0]
             + stress[:, 1] * area * (lengths[:, 1] - L_old[:, 1]) / L_old[:, 1]
         )
-        work = self._work + np.cumsum(np.abs(dw))
-        budget = KINETIC_ENERGY_FACTOR * (self._energy0 + work)
-        over = np.flatnonzero(ke > budget)
-        if over.size:
-            k = int(over[0])
-            raise SimulationError(
-                f"step {step1 + k}: kinetic energy blow-up: {ke[k]:.4g} J exceeds {KINETIC_ENERGY_FACTOR:g} "
-                f"times the energy the run has had ({self._energy0:.4g} J kinetic + elastic at the start, "
-                f"{work[k]:.4g} J gross work of the cell; damping and friction only dissipate): the "
-                f"integration is unstable (time step {self.settings.dt:.4g} s too large for the stiffness "
-                "and damping?)"
-            )
-        if work.size:
-            self._work = float(work[-1])
-
-    def _check_lost(self):
-        """Before a rebuild: a particle that moved more than LOST_DISPLACEMENT_SKINS skins since the
-        last build crossed more than a skin in one step (the build rule allows skin/2 in between)."""
-        i, di = K.largest_displacement(self.x, self.xhold)
-        skin = self.settings.skin
-        if di > LOST_DISPLACEMENT_SKINS * skin:
-            raise SimulationError(
-                f"step {self.step + 1}: particle {i} lost: it moved {di:.4g} m = {di / skin:.3g} "
-                f"skins since "
-                f"the neighbour build of step {self._build_step}, more than a skin ({skin:.4g} m) in "
-                f"one step "
-                f"(velocity {self.v[i].tolist()} m/s, dt {self.settings.dt:.4g} s)"
-            )
+        self._check_energy(step1, ke, ke, dw)
 
     def _setup(self):
         """LIGGGHTS ``run`` set-up: wrap, build (springs zero), forces without spring increment."""
@@ -595,12 +668,6 @@ class DEMEngine:
         }
 
     # ------------------------------------------------------------------ diagnostics
-    def kinetic_energy(self) -> float:
-        """Translational + rotational (I = m r^2/2) kinetic energy (J)."""
-        return float(
-            0.5 * np.sum(self.m * np.einsum("ij,ij->i", self.v, self.v)) + 0.25 * np.sum(self.m * self.r**2 * self.w**2)
-        )
-
     def _touching(self):
         """Entries of the touching pairs, each physical contact once (a < b), and their overlaps (m)."""
         nb = self.nb
@@ -672,20 +739,10 @@ class DEMEngine:
         self._reset_energy_budget()
 
     # ------------------------------------------------------------------ views of the state
-    x = property(lambda self: self.p.x, doc="positions (N, 2), m")
-    v = property(lambda self: self.p.v, doc="velocities (N, 2), m/s")
-    w = property(lambda self: self.p.w, doc="spins (N,), rad/s")
-    f = property(lambda self: self.p.f, doc="forces of the last step (N, 2), N")
-    t = property(lambda self: self.p.t, doc="torques of the last step (N,), N m")
-    m = property(lambda self: self.p.m, doc="masses (N,), kg")
-    r = property(lambda self: self.p.r, doc="radii (N,), m")
     lo = property(lambda self: self.box.lo, doc="box lower corner (2,), m")
     hi = property(lambda self: self.box.hi, doc="box upper corner (2,), m")
     lo_hold = property(lambda self: self.box.lo_hold, doc="lo at the last neighbour build (2,), m")
     hi_hold = property(lambda self: self.box.hi_hold, doc="hi at the last neighbour build (2,), m")
-    xhold = property(lambda self: self.nb.xhold, doc="positions at the last neighbour build (N, 2), m")
-    ea = property(lambda self: self.nb.a, doc="first particle of each list entry (M,) int32")
-    eb = property(lambda self: self.nb.b, doc="second particle of each list entry (M,) int32")
     eshift = property(lambda self: self._shifts(), doc="image shift s of each entry (M, 2) int64")
 
     def _shifts(self, e=slice(None)) -> np.ndarray:
@@ -695,13 +752,6 @@ class DEMEngine:
         out[:, 1] = self.nb.sy[e]
         return out
 
-    esx = property(lambda self: self.nb.sx, doc="s_x as float64 (M,)")
-    esy = property(lambda self: self.nb.sy, doc="s_y as float64 (M,)")
-    both = property(lambda self: self.nb.both, doc="owned pair (force on both particles) (M,) bool")
-    xi = property(lambda self: self.nb.hist, doc="per-entry history of the law (M, width); Hooke: the spring, m")
-    slide = property(lambda self: self.nb.slide, doc="Coulomb cap active at the last stored step (M,) bool")
-    ef = property(lambda self: self.nb.ef, doc="force on a of each entry at the last stored step (M, 2), N")
-    start = property(lambda self: self.nb.start, doc="CSR offsets of the entries of each a (N+1,)")
     virial = property(lambda self: self.sc.vir, doc="virial sums xx, yy, xy, yx of the last step (4,), N m")
 
 
@@ -778,6 +828,7 @@ __all__ = [
     "Integration",
     "DEMEngine",
     "DEMSettings",
+    "EngineCore",
     "Loading",
     "check_time_step",
     "PrescribedBox",

@@ -34,6 +34,7 @@ engine's, bit for bit; the sums run in another order.
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 
@@ -378,55 +379,28 @@ def integrate_v(
             red[c, 2] = bad
 
 
+#: the particles of the fast path in sorted order (:func:`run_steps`), each (N,) float64: x, y (m),
+#: vx, vy (m/s), w (rad/s), fx, fy (N), t (N m), m (kg), r (m), xh, yh (m) the positions at the
+#: last list build
+FastParticles = namedtuple("FastParticles", ["x", "y", "vx", "vy", "w", "fx", "fy", "t", "m", "r", "xh", "yh"])
+#: the half list (module docstring): cstart (C+1,) the bands, start (N+1,) CSR, ni, nj (M,) int32,
+#: code (M,) uint8, h0, h1 (M,) the spring (m)
+FastList = namedtuple("FastList", ["cstart", "start", "ni", "nj", "code", "h0", "h1"])
+#: the box and its loading: lo, hi (2,) m now, lo_hold, hi_hold (2,) at the last build; modes (2,)
+#: int64 (0 fixed, 1 rate), rates (2,) 1/s, lo0, hi0 (2,) m the box at the phase start, phase_step0
+FastBox = namedtuple("FastBox", ["lo", "hi", "lo_hold", "hi_hold", "modes", "rates", "lo0", "hi0", "phase_step0"])
+#: work arrays: sp_start (C+1,), sp_j, sp_f the spills (:func:`forces_v`), acc (C, 6), red (C, 3)
+FastScratch = namedtuple("FastScratch", ["sp_start", "sp_j", "sp_f", "acc", "red"])
+
+
 @njit
-def run_steps(
-    parallel,
-    cstart,
-    start,
-    ni,
-    nj,
-    code,
-    h0,
-    h1,
-    x,
-    y,
-    vx,
-    vy,
-    w,
-    fx,
-    fy,
-    t,
-    m,
-    r,
-    xh,
-    yh,
-    lo,
-    hi,
-    lo_hold,
-    hi_hold,
-    modes,
-    rates,
-    lo0,
-    hi0,
-    phase_step0,
-    kn,
-    kt,
-    gn,
-    gt,
-    mu,
-    dt,
-    skin,
-    sp_start,
-    sp_j,
-    sp_f,
-    acc,
-    red,
-    out,
-    step0,
-    nsteps,
-    resume,
-):
+def run_steps(parallel, p, nl, box, law, skin, sc, out, step0, nsteps, resume):
     """Steps step0 + 1 .. step0 + nsteps of the fast path, until a list rebuild is needed.
+
+    ``p`` :data:`FastParticles`, ``nl`` :data:`FastList`, ``box`` :data:`FastBox` (lo, hi,
+    lo_hold, hi_hold updated in place), ``law`` = (kn, kt, gamma_n, gamma_t, mu, dt) (N/m, N/m,
+    1/s, 1/s, -, s), ``skin`` (m), ``sc`` :data:`FastScratch`. (The parallel kernels it calls,
+    :func:`forces_v` and :func:`integrate_v`, take the arrays unpacked: gransim/_numba.py.)
 
     Per step: forces (even bands, odd bands, spills), then one fused pass: second half step of
     this step, the box of this step (``modes`` 0 fixed / 1 rate per axis, ``fix deform``'s
@@ -441,6 +415,11 @@ def run_steps(
     step step0 + completed + 1 (its first half step is done), 2 non-finite position (bad =
     sorted index).
     """
+    x, y, vx, vy, w, fx, fy, t, m, r, xh, yh = p
+    cstart, start, ni, nj, code, h0, h1 = nl
+    lo, hi, lo_hold, hi_hold, modes, rates, lo0, hi0, phase_step0 = box
+    sp_start, sp_j, sp_f, acc, red = sc
+    dt = law[5]
     lo_new = np.empty(2)
     hi_new = np.empty(2)
     lo_cur = np.empty(2)
@@ -503,7 +482,7 @@ def run_steps(
             t,
             Lx,
             Ly,
-            (kn, kt, gn, gt, mu, dt),
+            law,
             True,
             sp_start,
             sp_j,

@@ -1072,11 +1072,16 @@ def incoming(eb, both, n):
 
 
 @njit
-def box_target(step, L_old, sig_servo, dt, modes, rates, targets, gains, lo0, hi0, phase_step0, lo, hi):
-    """Box of step ``step`` from the loading of each axis (fix deform variable style).
+def box_target(step, L_old, sig_servo, dt, ctl, lo, hi):
+    """Box of step ``step`` from the loading ``ctl`` (:data:`Control`) of each axis (fix deform
+    variable style), the box lengths ``L_old`` (2,) and the servo stresses ``sig_servo`` (2,) of
+    the step; written to ``lo``, ``hi`` (2,).
 
     modes: 0 fixed, 1 rate (del = rate L0 dt (step - step0)), 2 servo
     (del = (L - L0) + dt gain (sigma - target) L); lo = lo0 - del/2, hi = hi0 + del/2."""
+    modes, rates, targets, gains, lo0, hi0, phase_step0 = (
+        ctl.modes, ctl.rates, ctl.targets, ctl.gains, ctl.lo0, ctl.hi0, ctl.phase_step0
+    )  # fmt: skip
     for d in range(2):
         if modes[d] == 0:
             continue
@@ -1167,21 +1172,7 @@ def run_block(p, nb, box, ctl, law, sc, out, dt, skin, clamp, parallel, step0, n
                 hi_new[0] = ctl.presc_hi[row, 0]
                 hi_new[1] = ctl.presc_hi[row, 1]
         else:
-            box_target(
-                step,
-                L_old,
-                sig,
-                dt,
-                ctl.modes,
-                ctl.rates,
-                ctl.targets,
-                ctl.gains,
-                ctl.lo0,
-                ctl.hi0,
-                ctl.phase_step0,
-                lo_new,
-                hi_new,
-            )
+            box_target(step, L_old, sig, dt, ctl, lo_new, hi_new)
             if lo_new[0] != lo[0] or lo_new[1] != lo[1] or hi_new[0] != hi[0] or hi_new[1] != hi[1]:
                 remap = True
         if remap:

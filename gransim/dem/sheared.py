@@ -57,17 +57,14 @@ import numpy as np
 
 from .._numba import disk_cache_off
 from .._validate import as_int, check_choice
-from ..contacts.laws import elastic_energy, flip_signs, law_spec
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from ..io import atomic_h5, write_packing_group
 from ..progress import Interrupted, check_interrupt, deferred_interrupts, progress
 from . import kernels as K
 from . import sheared_kernels as SK
-from .engine import LOST_DISPLACEMENT_SKINS, check_time_step
-from .settings import DEMSettings, Integration
-
-FLAVOURS = ("lammps", "liggghts")
+from .engine import EngineCore
+from .settings import FLAVOURS, DEMSettings, Integration
 
 
 def _number(value, name: str) -> float:
@@ -199,7 +196,7 @@ def _check_box(box, Lx: float, Ly: float, xy: float):
     return np.array([lo[0], lo[1], hi[0], hi[1], tilt])
 
 
-class ShearEngine:
+class ShearEngine(EngineCore):
     """State and stepping of one DEM run in a sheared periodic cell (arrays updated in place).
 
     Parameters
@@ -259,12 +256,10 @@ class ShearEngine:
                 f"flavour 'liggghts': needs a cell without tilt (LIGGGHTS' bookkeeping is orthogonal), got xy = {xy!r}"
             )
         s = settings
-        if law is None:
-            if not isinstance(s, DEMSettings):
-                raise InputError("law: an engine with Integration settings needs its contact law (law=...)")
-            law = s.hooke_law(flavour)
-        if check_dt:
-            check_time_step(packing, s.dt, law)
+        self.packing = packing
+        self.settings = s
+        # the contact law (gransim.contacts.laws): Hooke in this engine's flavour unless given
+        self._set_law(packing, s, law, flavour, check_dt)
         heights = np.array([Lx * Ly / np.hypot(Ly, xy), Ly])
         cut = 2 * (2.0 * float(packing.radii.max()) + s.skin)
         if heights.min() <= cut:
@@ -272,28 +267,18 @@ class ShearEngine:
                 f"packing.cell: cell heights {heights[0]:.4g}, {heights[1]:.4g} m must exceed "
                 f"2 (2 r_max + skin) = {cut:.4g} m (one periodic image per pair)"
             )
-        self.packing = packing
-        self.settings = s
         self.flavour = flavour
         self._lmp = flavour == "lammps"
-        # the contact law (gransim.contacts.laws): Hooke in this engine's flavour unless given
-        self.law = law
-        spec = law_spec(self.law)
-        self._width = spec.width
-        self._flip = flip_signs(self.law)
-        # kernels compiled for a law of a test module / script stay out of the disk cache
-        self._no_cache = not spec.cache
         n = packing.n
-        self.r = np.ascontiguousarray(packing.radii, np.float64)
-        self.m = np.pi * self.r * self.r * float(packing.density)  # LAMMPS set density/disc: MY_PI*r*r*rho
-        self.x = np.array(packing.positions, np.float64)
-        self.v = np.zeros((n, 2)) if velocities is None else np.array(velocities, np.float64).reshape(n, 2)
-        self.w = np.zeros(n) if spins is None else np.array(spins, np.float64).reshape(n)
-        for name, a in (("positions", self.x), ("velocities", self.v), ("spins", self.w)):
+        r = np.ascontiguousarray(packing.radii, np.float64)
+        m = np.pi * r * r * float(packing.density)  # LAMMPS set density/disc: MY_PI*r*r*rho
+        x = np.array(packing.positions, np.float64)
+        v = np.zeros((n, 2)) if velocities is None else np.array(velocities, np.float64).reshape(n, 2)
+        w = np.zeros(n) if spins is None else np.array(spins, np.float64).reshape(n)
+        for name, a in (("positions", x), ("velocities", v), ("spins", w)):
             if not np.all(np.isfinite(a)):
                 raise InputError(f"{name}: expected finite numbers")
-        self.f = np.zeros((n, 2))
-        self.t = np.zeros(n)
+        self.p = K.Particles(x, v, w, np.zeros((n, 2)), np.zeros(n), m, r)
         self.box = np.array([0.0, 0.0, Lx, Ly, xy]) if box is None else _check_box(box, Lx, Ly, xy)
         self.h_rate = np.zeros(3)
         self.lam = np.zeros((n, 2))
@@ -303,26 +288,22 @@ class ShearEngine:
         self.mean_overlap = 0.0
         self.n_rebuilds = 0
         self._build_step = 0
-        self.ea = np.zeros(0, np.int32)
-        self.eb = np.zeros(0, np.int32)
-        self.esx = np.zeros(0)
-        self.esy = np.zeros(0)
-        self.both = np.zeros(0, np.bool_)
-        self.xi = np.zeros((0, self._width))
-        self.xhold = self.x.copy()
-        self._z = np.zeros(0, np.int64)
-        self._noshift = np.zeros((0, 2), np.int64)
-        self._notb = np.zeros(0)
+        self.nb = self._neighbours(
+            np.zeros(0, np.int32),
+            np.zeros(0, np.int32),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros(0, np.bool_),
+            np.zeros((0, self._width)),
+        )
         self.touch = np.zeros(0, np.bool_)
-        self.slide = np.zeros(0, np.bool_)
-        self.ef = np.zeros((0, 2))
-        self.start = np.zeros(n + 1, np.int64)
         self.corners_hold = np.zeros((8, 2))
         self.box_hold = self.box.copy()
         self._run = None  # (begin, end, loading) of the current fix deform run
         self._rebuild(carry=False)
         self._forces(update=False, use_lam=self._lmp)
         self.stress = self.stress_tensor()
+        self._check_time_step_now()
 
     # ------------------------------------------------------------------ geometry
     @property
@@ -381,39 +362,30 @@ class ShearEngine:
                 xi,
                 self._flip,
             )
-        self.ea, self.eb, self.esx, self.esy, self.both, self.xi = a, b, sx, sy, both, xi
+        self.nb = self._neighbours(a, b, sx, sy, both, xi)
         self.touch = np.zeros(a.size, np.bool_)
-        self.slide = np.zeros(a.size, np.bool_)
-        self.ef = np.zeros((a.size, 2))
-        self.start = np.zeros(self.packing.n + 1, np.int64)
-        np.cumsum(np.bincount(a, minlength=self.packing.n), out=self.start[1:])
-        self.xhold = self.x.copy()
         SK.box_corners(self.box, self.corners_hold)
         self.box_hold = self.box.copy()
         self._build_step = self.step
         self.n_rebuilds += 1
 
+    def _neighbours(self, a, b, sx, sy, both, xi):
+        """The :class:`~gransim.dem.kernels.Neighbours` of the list (a, b, s, both) with history
+        ``xi``: CSR offsets of the entries of each a (sorted by a), the build positions (the
+        current ones), zeroed per-entry outputs (no threaded loop here: no incoming CSR)."""
+        n = self.packing.n
+        start = np.zeros(n + 1, np.int64)
+        np.cumsum(np.bincount(a, minlength=n), out=start[1:])
+        z = np.zeros(0, np.int64)
+        return K.Neighbours(
+            a, b, np.zeros((0, 2), np.int64), sx, sy, both, xi, start, z, z, self.x.copy(),
+            np.zeros(a.size, np.bool_), np.zeros((a.size, 2)), np.zeros(0),
+        )  # fmt: skip
+
     def _state(self):
-        """The kernels' view of the state: (Particles, Neighbours, Cell) of the current arrays."""
-        p = K.Particles(self.x, self.v, self.w, self.f, self.t, self.m, self.r)
-        nb = K.Neighbours(
-            self.ea,
-            self.eb,
-            self._noshift,
-            self.esx,
-            self.esy,
-            self.both,
-            self.xi,
-            self.start,
-            self._z,
-            self._z,
-            self.xhold,
-            self.slide,
-            self.ef,
-            self._notb,
-        )
+        """The kernels' view of the state: (Particles, Neighbours, Cell)."""
         cell = SK.Cell(self.box, self.box_hold, self.h_rate, self.lam, self.touch, self.corners_hold)
-        return p, nb, cell
+        return self.p, self.nb, cell
 
     def _forces(self, update: bool, use_lam: bool):
         p, nb, cell = self._state()
@@ -435,23 +407,38 @@ class ShearEngine:
         e = np.nonzero((dist < rs) & (a < j))[0]
         return e, rs[e] - dist[e]
 
-    def elastic_energy(self) -> float:
-        """Energy stored in the touching contacts (J): the law's ``energy`` with each contact's
-        radii (:func:`gransim.contacts.laws.elastic_energy`; Hooke: sum 0.5 kn overlap^2 + 0.5 kt
-        |xi|^2, Hertz: 8/15 Y* sqrt(R*) delta^(5/2) + ...)."""
-        e, ov = self._touching()
-        return elastic_energy(self.law, ov, self.xi[e], self.r[self.ea[e]], self.r[self.eb[e]])
+    def _budget_kinetic_energy(self) -> float:
+        """Kinetic energy (J) of the velocities relative to the homogeneous flow of the cell
+        (:meth:`peculiar_velocities`), which the Lees-Edwards remap of a particle crossing the
+        boundary leaves unchanged (the lab-frame one jumps by m v.U + m U^2/2 there, U the flow
+        across the cell, work no contact did)."""
+        u = self.peculiar_velocities()
+        return float(0.5 * np.sum(self.m * np.einsum("ij,ij->i", u, u)) + 0.25 * np.sum(self.m * self.r**2 * self.w**2))
 
-    def _check_lost(self):
-        d = np.sqrt(np.einsum("ij,ij->i", self.x - self.xhold, self.x - self.xhold))
-        i = int(np.argmax(d)) if d.size else 0
-        skin = self.settings.skin
-        if d.size and d[i] > LOST_DISPLACEMENT_SKINS * skin:
-            raise SimulationError(
-                f"step {self.step + 1}: particle {i} lost: it moved {d[i]:.4g} m = "
-                f"{d[i] / skin:.3g} skins since the neighbour build of step {self._build_step} "
-                f"(velocity {self.v[i].tolist()} m/s, dt {self.settings.dt:.4g} s)"
-            )
+    def _flow_kinetic_energy(self) -> float:
+        """Kinetic energy (J) of the homogeneous flow of the cell at the particles, sum m |u(x)|^2/2
+        (u of :meth:`peculiar_velocities`)."""
+        u = self.v - self.peculiar_velocities()
+        return float(0.5 * np.sum(self.m * np.einsum("ij,ij->i", u, u)))
+
+    def _check_divergence(self, done, k, out_ke, out_vir, out_box, box_before):
+        """The divergence check (:meth:`gransim.dem.engine.EngineCore._check_energy`) after the k
+        steps from row ``done`` of the outputs: every step's kinetic energy finite; the kinetic
+        energy relative to the flow, known at the last of them, within the budget (which counts
+        the kinetic energy of the flow at the particles too, :meth:`_flow_kinetic_energy`); the work of the
+        cell per step -(V_xx dLx/Lx + V_yy dLy/Ly + V_yx (dxy - xy dLx/Lx)/Ly) (V the virial of
+        the step, N m; the velocity gradient of the box change dH H^-1, H = [[Lx, xy], [0, Ly]])."""
+        rows = slice(done, done + k)
+        b1 = out_box[rows]  # lx, ly, xy, ylo, yhi after each step
+        b0 = np.vstack([[box_before[2] - box_before[0], box_before[3] - box_before[1], box_before[4]], b1[:-1, :3]])
+        dlx = (b1[:, 0] - b0[:, 0]) / b0[:, 0]
+        dly = (b1[:, 1] - b0[:, 1]) / b0[:, 1]
+        dxy = (b1[:, 2] - b0[:, 2] - b0[:, 2] * dlx) / b0[:, 1]
+        vir = out_vir[rows]
+        dw = -(vir[:, 0] * dlx + vir[:, 1] * dly + vir[:, 3] * dxy)
+        ke = np.full(k, np.nan)
+        ke[-1] = self._budget_kinetic_energy()
+        self._check_energy(self.step + 1, out_ke[rows], ke, dw, flow=self._flow_kinetic_energy())
 
     # ------------------------------------------------------------------ stepping
     def start_run(self, loading: ShearLoading, nsteps: int):
@@ -506,6 +493,7 @@ class ShearEngine:
         self._rebuild(carry=True)
         self._forces(update=False, use_lam=self._lmp)
         self.stress = self.stress_tensor()
+        self._reset_energy_budget()  # the divergence check's balance starts with the run
         return self.stress.copy()
 
     def advance(self, nsteps: int) -> dict:
@@ -562,6 +550,7 @@ class ShearEngine:
             float(ld.target),
         )
         while done < nsteps:
+            box_before = self.box.copy()
             p, nb, cell = self._state()
             series = SK.ShearSeries(
                 out_stress[done:], out_vir[done:], out_box[done:], out_nc[done:], out_ov[done:], out_ke[done:]
@@ -582,6 +571,8 @@ class ShearEngine:
                     nsteps - done,
                     resume,
                 )
+            if k:
+                self._check_divergence(done, k, out_ke, out_vir, out_box, box_before)
             done += k
             self.step += k
             resume = False
@@ -623,12 +614,6 @@ class ShearEngine:
         }
 
     # ------------------------------------------------------------------ diagnostics
-    def kinetic_energy(self) -> float:
-        """Translational + rotational (I = m r^2/2) kinetic energy (J) of the lab-frame velocities."""
-        return float(
-            0.5 * np.sum(self.m * np.einsum("ij,ij->i", self.v, self.v)) + 0.25 * np.sum(self.m * self.r**2 * self.w**2)
-        )
-
     def peculiar_velocities(self) -> np.ndarray:
         """v - u(x) (m/s), (N, 2): u the homogeneous flow of the cell, u_x = h_rate[5] (y - ylo)/Ly,
         u_y = h_rate[1] (y - ylo)/Ly (continuous across the Lees-Edwards boundary)."""

@@ -167,27 +167,10 @@ XY_NONE, XY_LINEAR, XY_TRATE = 0, 1, 2
 
 
 @njit
-def deform_end_of_step(
-    step,
-    begin,
-    end,
-    box,
-    hr,
-    vir,
-    xy_style,
-    tilt_start,
-    tilt_stop,
-    rate,
-    dt,
-    servo_on,
-    y_lo_start,
-    y_hi_start,
-    ly0,
-    kgain,
-    gain,
-    target,
-):
-    """FixDeform::end_of_step (LAMMPS 29 Sep 2021, ``src/fix_deform.cpp``) of the 2D sheared box.
+def deform_end_of_step(step, dfm, box, hr, vir, dt):
+    """FixDeform::end_of_step (LAMMPS 29 Sep 2021, ``src/fix_deform.cpp``) of the 2D sheared box,
+    with the fix's parameters ``dfm`` (:data:`Deform`), at ``step`` with the virial ``vir`` (4,) of
+    the step and the time step ``dt`` (s).
 
     y: ``variable`` (the servo: del = (ly - ly0) + kgain (s_yy - target) ly, lo = lo_start - del/2,
     hi = hi_start + del/2, h_rate[1] = gain (s_yy - target) ly, s_yy the virial stress of this step
@@ -198,6 +181,12 @@ def deform_end_of_step(
     tilt wrap (add/subtract Lx until the tilt is closest to the current one) and its flip test
     (tilt / Lx beyond -/+0.5, with 1/Lx as a factor). Updates ``box`` and ``hr``. Returns False
     when the cell collapsed or LAMMPS would flip the box (not supported)."""
+    begin, end, xy_style, tilt_start, tilt_stop, rate = (
+        dfm.begin, dfm.end, dfm.xy_style, dfm.tilt_start, dfm.tilt_stop, dfm.rate
+    )  # fmt: skip
+    servo_on, y_lo_start, y_hi_start, ly0, kgain, gain, target = (
+        dfm.servo_on, dfm.y_lo_start, dfm.y_hi_start, dfm.ly0, dfm.kgain, dfm.gain, dfm.target
+    )  # fmt: skip
     delta = float(step - begin)
     if delta != 0.0:
         delta /= float(end - begin)
@@ -447,26 +436,7 @@ def run_block(p, nb, law, cell, dfm, out, vir, dt, skin, lmp, step0, nsteps, res
         nc, so = forces(p, nb, law, cell, use_lam, dt, True, vir)
         ke = K.final_integrate(v, w, f, t, m, r, dt)
         if step % dfm.every == 0:
-            ok = deform_end_of_step(
-                step,
-                dfm.begin,
-                dfm.end,
-                box,
-                hr,
-                vir,
-                dfm.xy_style,
-                dfm.tilt_start,
-                dfm.tilt_stop,
-                dfm.rate,
-                dt,
-                dfm.servo_on,
-                dfm.y_lo_start,
-                dfm.y_hi_start,
-                dfm.ly0,
-                dfm.kgain,
-                dfm.gain,
-                dfm.target,
-            )
+            ok = deform_end_of_step(step, dfm, box, hr, vir, dt)
             if not ok:
                 return k, 3, -1
         inv = 1.0 / ((box[2] - box[0]) * (box[3] - box[1]))
