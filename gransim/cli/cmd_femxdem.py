@@ -48,15 +48,17 @@ SPEC_OPTIONS = {
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "femxdem",
-        help="FEM x DEM biaxial test of Guo & Zhao (2014): Q8 specimen, stateful Gauss points on Dask "
-        "(today with stand-in laws, not yet the DEM RVE)",
+        help="FEM x DEM biaxial test of Guo & Zhao (2014): Q8 specimen, stateful Gauss points on Dask, "
+        "the DEM RVE (--rve dem) or stand-in laws",
         description="The 50 x 100 mm biaxial specimen of Guo & Zhao's FEM x DEM benchmark (biaxialSmooth.py): "
         "quadratic elements with 2 x 2 Gauss points, smooth platens, the bottom centre fixed, 100 kPa "
         "confining pressure (a follower load), the top moved down 1e-4 m per step, Newton to a relative "
         "correction of 1e-2. Default: a quick 2 x 4 mesh and 10 steps; --full: 8 x 16 elements (512 "
-        "Gauss points) and 100 steps. The Gauss points hold a STAND-IN law (--rve): the DEM RVE is not "
-        "available yet. Writes OUT/femxdem.h5, OUT/curves.png, OUT/report.md and a checkpoint per "
-        "converged step (--resume continues it, bit for bit).",
+        "Gauss points) and 100 steps. The Gauss points hold Guo & Zhao's DEM RVE (--rve dem) or a stand-in law. "
+        "Writes OUT/femxdem.h5, OUT/curves.png, OUT/report.md, at each --field-steps step the maps of "
+        "deviatoric strain, void ratio and particle rotation (maps_K.png), a VTU of the quadratic mesh "
+        "(mesh_K.vtu) and RVE pictures (rve_K_gG.png), and a checkpoint per converged step (--resume "
+        "continues it, bit for bit).",
     )
     p.add_argument(
         "--rve",
@@ -81,6 +83,12 @@ def register(subparsers) -> None:
     p.add_argument("--out", default=None, help="output directory (default results/femxdem-<rve>)")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUT/checkpoint/")
     p.add_argument("--stop-after", type=integer, default=None, metavar="K", help="stop after step K (tests)")
+    p.add_argument("--field-steps", default=None, metavar="K,K,...",
+                   help="load steps whose maps (deviatoric strain, void ratio, rotation), VTU and RVE pictures are "
+                   "written (default: the last)")  # fmt: skip
+    p.add_argument("--rve-pictures", default=None, metavar="G,G,...",
+                   help="--rve dem: Gauss points whose RVE is drawn at the field steps (disks coloured by rotation, "
+                   "force chains; default: the most strained point of each field step)")  # fmt: skip
     add_options(p)
     p.set_defaults(func=handler)
 
@@ -93,6 +101,30 @@ def _mesh(text: str) -> tuple[int, int]:
     if not (1 <= nx <= 200 and 1 <= ny <= 200):
         raise InputError(f"--mesh: expected 1 to 200 elements each way, got {text!r}")
     return nx, ny
+
+
+def _int_list(text: str, option: str, low: int, high: int) -> tuple:
+    """Comma-separated integers in [low, high], each once (exit 2 naming ``option``)."""
+    try:
+        vals = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise InputError(f"{option}: expected comma-separated integers (e.g. 1,5,10), got {text!r}") from None
+    bad = [v for v in vals if not low <= v <= high]
+    if bad:
+        raise InputError(f"{option}: expected integers from {low} to {high}, got {bad[0]}")
+    if len(set(vals)) != len(vals):
+        raise InputError(f"{option}: {text!r} names a value twice")
+    return tuple(sorted(vals))
+
+
+def field_outputs(field_steps, pictures) -> list:
+    """The files a run writes per field step (besides :data:`OUTPUTS`); ``pictures`` None: one
+    picture per step, of a point known only then (not listed)."""
+    names = []
+    for k in field_steps:
+        names += [f"maps_{k:03d}.png", f"mesh_{k:03d}.vtu"]
+        names += [f"rve_{k:03d}_g{g:05d}.png" for g in pictures or ()]
+    return names
 
 
 def _spare_workers(executor) -> None:
@@ -153,6 +185,12 @@ def check_options(args) -> dict:
             f"reach the bottom of the {height:g} m specimen; give fewer steps or a smaller --top-step"
         )
     check_count(args.stop_after, "--stop-after", 1, steps)
+    field_steps = (steps,) if args.field_steps is None else _int_list(args.field_steps, "--field-steps", 1, steps)
+    pictures = None
+    if args.rve_pictures is not None:
+        if args.rve != "dem":
+            raise InputError(f"--rve-pictures: applies to --rve dem only (the stand-in {args.rve} has no grains)")
+        pictures = _int_list(args.rve_pictures, "--rve-pictures", 0, nx * ny * gauss**2 - 1)
     check_executor_options(args.workers, args.scheduler)
     if args.packing is not None:
         if args.rve != "taylor":
@@ -165,7 +203,9 @@ def check_options(args) -> dict:
     check_output_dir(packing_dir, "--packing-dir")
     out = check_output_dir(args.out if args.out is not None else f"results/femxdem-{args.rve}", "--out")
     check_output_dir(out / "checkpoint", "--out")  # a file of that name would stop the run at step 1
-    outputs = [("--out", check_output(out / name, "--out")) for name in OUTPUTS]
+    outputs = [
+        ("--out", check_output(out / name, "--out")) for name in OUTPUTS + tuple(field_outputs(field_steps, pictures))
+    ]
     check_distinct(outputs, [("--packing", args.packing)])
     ck = out / "checkpoint"
     if args.packing is not None and (
@@ -198,7 +238,10 @@ def check_options(args) -> dict:
                 f"--stop-after: the checkpoint in {out / 'checkpoint'} is already at step {resumed}; "
                 f"give a later step (up to {steps}) or leave --stop-after out"
             )
-    return {"spec": spec, "out": out, "packing": packing, "packing_dir": packing_dir, "resumed": resumed}
+    return {
+        "spec": spec, "out": out, "packing": packing, "packing_dir": packing_dir, "resumed": resumed,
+        "field_steps": field_steps, "rve_pictures": pictures,
+    }  # fmt: skip
 
 
 def handler(args) -> int:
@@ -215,7 +258,8 @@ def handler(args) -> int:
         try:
             summary = run_femxdem(
                 spec, args.rve, opts["out"], executor, resume=args.resume, stop_after=args.stop_after,
-                packing=opts["packing"], packing_dir=opts["packing_dir"],
+                packing=opts["packing"], packing_dir=opts["packing_dir"], field_steps=opts["field_steps"],
+                rve_pictures=opts["rve_pictures"],
             )  # fmt: skip
         except FemxdemInterrupted as exc:
             print(str(exc), file=sys.stderr)

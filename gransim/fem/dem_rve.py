@@ -93,13 +93,37 @@ def load_rve_state(path=PREPARED_RVE):
 
 @dataclass(frozen=True, eq=False)
 class DemState:
-    """State of a DEM Gauss point: the RVE's saved scene, the number of updates behind it and the
+    """State of a DEM Gauss point: the RVE's saved scene, the number of updates behind it, the
     strain increments D (updates, 2, 2) that led to it from the initial RVE (the point's strain
-    history: replayed in YADE it gives the same scene, tests/fem/test_dem_rve.py)."""
+    history: replayed in YADE it gives the same scene, tests/fem/test_dem_rve.py) and each disk's
+    rotation since the initial RVE (N,) rad, counter-clockwise (:func:`rotation_after`; None: zero,
+    the initial RVE). The rotation is an output only: no force, position or velocity reads it."""
 
     rve: object
     updates: int = 0
     increments: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    rotation: np.ndarray | None = None
+
+    def disk_rotation(self) -> np.ndarray:
+        """Each disk's rotation since the initial RVE (N,) rad."""
+        return np.zeros(self.rve.n) if self.rotation is None else np.asarray(self.rotation)
+
+
+def rotation_after(rotation, before, after, D) -> np.ndarray:
+    """Each disk's rotation (N,) rad after one ``simDEM.shear2D`` call from ``before`` to ``after``
+    (two saved scenes) with strain increment ``D``: the spin integrated over the call's ns steps of
+    dt by the trapezoidal rule on the spins the two scenes hold,
+    theta + ns dt (omega_before + omega_after) / 2.
+
+    YADE integrates the orientation at every step (NewtonIntegrator, ori from angVel dt; simDEM's
+    ``avgRotation2D``, simDEM.py:204-210, averages ``State::rot()`` z over the disks); the native
+    call keeps only its last spin (:func:`gransim.dem.yade_arithmetic.rve_run`), so this is an
+    estimate of that integral: its error is measured in docs/femxdem.md ("The rotation is an estimate")."""
+    from ..dem.yade_arithmetic import n_steps_of  # noqa: PLC0415 - start-up: numba
+
+    ns = n_steps_of(D)
+    w0, w1 = np.asarray(before.spins, float), np.asarray(after.spins, float)
+    return np.asarray(rotation, float) + (ns * before.dt) * 0.5 * (w0 + w1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,16 +157,23 @@ class DemRVE:
         D = np.asarray(f, dtype=float) - np.eye(2)
         new = rve_run(state.rve, D)
         sigma, t = guo_zhao_stress_tangent(new)
-        return sigma, t, DemState(new, state.updates + 1, np.concatenate([state.increments, D[None]]))
+        rot = rotation_after(state.disk_rotation(), state.rve, new, D)
+        return sigma, t, DemState(new, state.updates + 1, np.concatenate([state.increments, D[None]]), rot)
 
     def observables(self, state: DemState) -> dict:
-        """Void ratio (cell area - sum pi r^2) / sum pi r^2 (Shop::getVoidRatio2D), the number of
-        contacts and of updates."""
+        """Void ratio (cell area - sum pi r^2) / sum pi r^2 (Shop::getVoidRatio2D), the mean disk
+        rotation since the initial RVE (rad, counter-clockwise; simDEM.avgRotation2D's quantity,
+        :func:`rotation_after`), the number of contacts and of updates."""
         r = state.rve
         h = np.asarray(r.hsize)
         area = float(h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0])
         vs = float(np.sum(np.pi * np.asarray(r.radii) ** 2))
-        return {"void_ratio": (area - vs) / vs, "contacts": float(len(r.kn)), "updates": float(state.updates)}
+        return {
+            "void_ratio": (area - vs) / vs,
+            "rotation": float(np.mean(state.disk_rotation())),
+            "contacts": float(len(r.kn)),
+            "updates": float(state.updates),
+        }
 
     @staticmethod
     def pack_states(states) -> dict:
@@ -153,6 +184,7 @@ class DemRVE:
         out["offsets"] = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         out["updates"] = np.array([s.updates for s in states], dtype=np.int64)
         out["increments"] = np.concatenate([np.asarray(s.increments).reshape(-1, 2, 2) for s in states])
+        out["rotation"] = np.array([s.disk_rotation() for s in states])
         per_contact = ("ids", "cell_dist", "normal", "kn", "ks", "tan_phi", "normal_force", "shear_force")
         for name in fields:
             vals = [getattr(s.rve, name) for s in states]
@@ -174,6 +206,8 @@ class DemRVE:
                    "young": float, "poisson": float, "friction_angle": float, "vel_grad_changed": bool}  # fmt: skip
         states = []
         upd = np.asarray(a["updates"])
+        if "rotation" not in a:
+            raise InputError("the saved Gauss-point states hold no disk rotations (written by an older gransim): rerun")
         ioff = np.concatenate([[0], np.cumsum(upd)])
         for g in range(len(upd)):
             kw = {}
@@ -185,8 +219,8 @@ class DemRVE:
                 else:
                     kw[name] = np.array(a[name][g])
             inc = np.array(a["increments"][ioff[g] : ioff[g + 1]]).reshape(-1, 2, 2)
-            states.append(DemState(YadeRVEState(**kw), int(upd[g]), inc))
+            states.append(DemState(YadeRVEState(**kw), int(upd[g]), inc, np.array(a["rotation"][g])))
         return states
 
 
-__all__ = ["PREPARED_RVE", "DemRVE", "DemState", "load_rve_state", "save_rve_state"]
+__all__ = ["PREPARED_RVE", "DemRVE", "DemState", "load_rve_state", "rotation_after", "save_rve_state"]

@@ -1,8 +1,7 @@
 """``gransim femxdem``: the biaxial specimen of Guo & Zhao's FEM x DEM benchmark, run end to end.
 
-STATUS: the macro problem only. The DEM RVE at the Gauss points (Guo & Zhao's periodic 400-disk
-cells) is not part of this module yet; the Gauss points hold a *stand-in* point law chosen by
-``rve`` (:data:`RVE_STANDINS`):
+The Gauss points hold Guo & Zhao's periodic 400-disk DEM RVE in YADE's arithmetic (``rve="dem"``,
+:class:`gransim.fem.dem_rve.DemRVE`) or a *stand-in* point law (:data:`RVE_STANDINS`):
 
 * ``taylor``: the affine Taylor RVE of Meier, Steinmann & Kuhl (:class:`gransim.rve.TaylorMaterial`,
   the most uniform standard 700-disk RVE, kn of the slope) as a hyperelastic point law whose state
@@ -14,12 +13,15 @@ cells) is not part of this module yet; the Gauss points hold a *stand-in* point 
   points of the element at the specimen's centre 10 % weaker.
 
 Neither is a granular law with friction; they exercise the machinery (stateful Gauss points,
-Dask, checkpoints) the DEM RVE will plug into through the same point-law interface
-(:mod:`gransim.fem.material_points`).
+Dask, checkpoints) through the point-law interface the DEM RVE uses (:mod:`gransim.fem.material_points`).
 
 Outputs in ``out``: ``femxdem.h5`` (kind ``fem-biaxial``: per step the curves and Newton's
 history; the final configuration and Gauss-point fields; the parameters as provenance),
-``curves.png`` (deviatoric stress and volumetric strain against axial strain), ``report.md``;
+``curves.png`` (deviatoric stress and volumetric strain against axial strain), ``report.md``
+(the curves first, then the maps); at each field step K (``field_steps``) the Gauss-point fields
+(deviatoric strain; void ratio and mean particle rotation of the DEM RVE) in ``femxdem.h5``
+``fields/step_K``, ``maps_K.png``, ``mesh_K.vtu`` and pictures of chosen RVEs
+(:mod:`gransim.fem.output_femxdem`);
 ``checkpoint/`` holds one small file per converged step (``step_NNN.h5``: its record) and the
 committed Gauss-point states of the last one (``states_NNN.h5``, the previous one removed after
 the next is written), so ``resume`` continues bit for bit as the uninterrupted run
@@ -139,9 +141,11 @@ _RECORD_ARRAYS = ("x", "stress", "F", "strain", "errors", "residuals")
 _RECORD_SCALARS = ("axial_strain", "deviatoric_stress", "volumetric_strain", "wall_s", "material_s")
 
 
-def write_step(d: Path, params: dict, rec: BiaxialStep, law, points) -> None:
-    """Checkpoint of converged step ``rec``: its record, then the committed states (and their
-    stress and tangent); the previous step's states file is removed once both are written."""
+def write_step(d: Path, params: dict, rec: BiaxialStep, law, points, states=None, fields=None) -> None:
+    """Checkpoint of converged step ``rec``: its record (and, at a field step, its Gauss-point
+    ``fields`` (:func:`field_record`)), then the committed states ``states`` (default: fetched
+    from ``points``) and their stress and tangent; the previous step's states file is removed
+    once both are written."""
     d.mkdir(parents=True, exist_ok=True)
     with atomic_h5(_step_path(d, rec.step), kind=CKPT_STEP, parameters=params) as f:
         f.attrs["step"] = rec.step
@@ -149,17 +153,60 @@ def write_step(d: Path, params: dict, rec: BiaxialStep, law, points) -> None:
             f.create_dataset(k, data=np.asarray(getattr(rec, k)))
         for k in _RECORD_SCALARS:
             f.attrs[k] = float(getattr(rec, k))
+        if fields is not None:
+            _write_field_record(f.create_group("fields"), fields)
+    if states is None:
+        states = points.states()
     sigma, T = points.committed_response()
     with atomic_h5(_states_path(d, rec.step), kind=CKPT_STATES, parameters=params) as f:
         f.attrs["step"] = rec.step
         f.create_dataset("stress", data=sigma)
         f.create_dataset("tangent", data=T)
         g = f.create_group("states")
-        for k, v in law.pack_states(points.states()).items():
+        for k, v in law.pack_states(states).items():
             g.create_dataset(k, data=v)
     old = _states_path(d, rec.step - 1)
     if old.exists():
         old.unlink()
+
+
+def field_record(rec: BiaxialStep, observables: dict, states, pictures) -> dict:
+    """The Gauss-point fields of field step ``rec`` (:mod:`gransim.fem.output_femxdem`):
+    ``deviatoric_strain`` (G,), ``void_ratio`` and ``rotation`` (G,) when the law reports them (the
+    DEM RVE), and ``pictures`` {Gauss point: RVE snapshot} of the points ``pictures`` (None: the
+    most strained point; the states of a stand-in give none)."""
+    from .output_femxdem import deviatoric_strain, rve_snapshot  # noqa: PLC0415 - start-up: numpy
+
+    out = {"deviatoric_strain": deviatoric_strain(rec.strain)}
+    for k in ("void_ratio", "rotation"):
+        if k in observables:
+            out[k] = np.asarray(observables[k], float)
+    if pictures is None:
+        pictures = (int(np.argmax(out["deviatoric_strain"])),)
+    snaps = {}
+    for g in pictures:
+        snap = rve_snapshot(states[g]) if states is not None else None
+        if snap is not None:
+            snaps[int(g)] = snap
+    out["pictures"] = snaps
+    return out
+
+
+def _write_field_record(g, fields: dict) -> None:
+    for k, v in fields.items():
+        if k != "pictures":
+            g.create_dataset(k, data=v)
+    pics = g.create_group("pictures")
+    for gp, snap in fields["pictures"].items():
+        h = pics.create_group(f"gp_{gp:05d}")
+        for k, v in snap.items():
+            h.create_dataset(k, data=v, compression="gzip")
+
+
+def _read_field_record(g) -> dict:
+    out = {k: g[k][()] for k in g if k != "pictures"}
+    out["pictures"] = {int(n[3:]): {k: h[k][()] for k in h} for n, h in g["pictures"].items()}
+    return out
 
 
 def _params_of(f) -> dict:
@@ -167,9 +214,10 @@ def _params_of(f) -> dict:
     return json.loads(v.decode() if isinstance(v, bytes) else v)
 
 
-def read_checkpoint(d: Path, params: dict, law):
+def read_checkpoint(d: Path, params: dict, law, fields: dict | None = None):
     """(records [BiaxialStep], states, (stress, tangent)) of the checkpoint in ``d``: the steps
-    1..k whose files are present, k the last step with its states file; refuses other parameters."""
+    1..k whose files are present, k the last step with its states file; refuses other parameters.
+    ``fields``: filled with {step: field record} of the field steps among them."""
     current = json.loads(json.dumps(params, default=str))
     recs = []
     k = 1
@@ -184,11 +232,16 @@ def read_checkpoint(d: Path, params: dict, law):
             arrays = {n: f[n][()] for n in _RECORD_ARRAYS}
             scalars = {n: float(f.attrs[n]) for n in _RECORD_SCALARS}
             recs.append(BiaxialStep(step=k, **arrays, **scalars))
+            if fields is not None and "fields" in f:
+                fields[k] = _read_field_record(f["fields"])
         k += 1
     while recs and not _states_path(d, recs[-1].step).exists():  # killed between the two writes
         recs.pop()
     if not recs:
         raise InputError(f"--resume: no checkpoint in {d} (a run writes one after its first converged step)")
+    if fields is not None:
+        for k in [k for k in fields if k > recs[-1].step]:
+            del fields[k]
     path = _states_path(d, recs[-1].step)
     try:
         f = open_result(path, kind=CKPT_STATES)
@@ -277,9 +330,14 @@ def plot_curves(path: Path, recs: list, spec: BiaxialSpec, label: str) -> Path:
     return path
 
 
-def write_results(path: Path, params: dict, recs: list, observables: dict, stopped: str = "") -> Path:
-    """``femxdem.h5``: curves and Newton history per step, final fields (docs/femxdem.md);
-    ``stopped``: why the run stopped before its last step ("" when it completed)."""
+def write_results(
+    path: Path, params: dict, recs: list, observables: dict, stopped: str = "", fields=None, setup=None
+) -> Path:
+    """``femxdem.h5``: curves and Newton history per step, final fields, and at each field step
+    (``fields`` {step: :func:`field_record`}) the mesh and Gauss-point fields under
+    ``fields/step_NNN`` (docs/femxdem.md); ``stopped``: why the run stopped before its last step
+    ("" when it completed)."""
+    by_step = {r.step: r for r in recs}
     with atomic_h5(path, kind=KIND, parameters=params) as f:
         f.attrs["completed"] = not stopped
         f.attrs["stopped"] = stopped
@@ -301,7 +359,82 @@ def write_results(path: Path, params: dict, recs: list, observables: dict, stopp
                 fin.create_dataset(k, data=getattr(last, k))
             for k, v in observables.items():
                 fin.create_dataset(f"observables/{k}", data=v)
+        if fields:
+            top = f.create_group("fields")
+            if setup is not None:
+                top.create_dataset("X", data=setup.problem.mesh.nodes)
+                top.create_dataset("elements", data=setup.problem.mesh.elements)
+                top.attrs["element"] = setup.problem.mesh.element
+                top.attrs["gauss"] = setup.spec.gauss
+            top.attrs["not_available"] = ", ".join(
+                k for k in ("void_ratio", "rotation") if k not in fields[min(fields)]
+            )
+            for k in sorted(fields):
+                g = top.create_group(f"step_{k:03d}")
+                g.attrs["step"] = k
+                if k in by_step:
+                    g.create_dataset("x", data=by_step[k].x)
+                    g.create_dataset("stress", data=by_step[k].stress)
+                    g.create_dataset("strain", data=by_step[k].strain)
+                _write_field_record(g, fields[k])
     return path
+
+
+def write_field_outputs(out: Path, setup, recs: list, fields: dict, label: str) -> dict:
+    """Per field step: ``maps_NNN.png`` (deviatoric strain, void ratio, rotation on the deformed
+    mesh), ``mesh_NNN.vtu`` and ``rve_NNN_gGGGGG.png`` per pictured Gauss point; {name: path}."""
+    from .output_femxdem import plot_maps, plot_rve, write_vtu  # noqa: PLC0415 - start-up: matplotlib
+
+    mesh, spec = setup.problem.mesh, setup.spec
+    by_step = {r.step: r for r in recs}
+    files = {}
+    for k in sorted(fields):
+        rec, fl = by_step.get(k), fields[k]
+        if rec is None:
+            continue
+        gfields = {n: v for n, v in fl.items() if n != "pictures"}
+        ea = 100 * rec.axial_strain
+        files[f"maps_{k:03d}"] = plot_maps(
+            out / f"maps_{k:03d}.png", mesh, rec.x, spec.gauss, gfields,
+            f"step {k}, axial strain {ea:.2f} %, {label} (deformed mesh, true scale)",
+        )  # fmt: skip
+        files[f"vtu_{k:03d}"] = write_vtu(out / f"mesh_{k:03d}.vtu", mesh, mesh.nodes, rec.x, spec.gauss, gfields,
+                                          rec.stress, rec.strain)  # fmt: skip
+        for g, snap in fl["pictures"].items():
+            files[f"rve_{k:03d}_{g}"] = plot_rve(
+                out / f"rve_{k:03d}_g{g:05d}.png", snap,
+                f"Gauss point {g}, step {k} (axial strain {ea:.2f} %), deviatoric strain "
+                f"{fl['deviatoric_strain'][g]:.3g}",
+            )  # fmt: skip
+    return files
+
+
+def field_report(out: Path | None, fields: dict, recs: list) -> list:
+    """Markdown lines of the maps section: per field step the range of each field and the pictures."""
+    by_step = {r.step: r for r in recs}
+    lines = ["", "### Maps (deformed mesh, each Gauss point's sub-cell coloured by its value)", ""]
+    for k in sorted(fields):
+        if k not in by_step:
+            continue
+        fl = fields[k]
+        parts = []
+        for n in ("deviatoric_strain", "void_ratio", "rotation"):
+            if n in fl:
+                v = np.asarray(fl[n])
+                parts.append(f"{n.replace('_', ' ')} {v.min():.4g} to {v.max():.4g}")
+            else:
+                parts.append(f"{n.replace('_', ' ')} n/a (stand-in law: no grains)")
+        lines.append(f"- step {k} (axial strain {100 * by_step[k].axial_strain:.2f} %): " + "; ".join(parts))
+        if out is not None:
+            lines.append(f"  ![maps at step {k}](maps_{k:03d}.png) VTU: `mesh_{k:03d}.vtu`")
+            for g in fl["pictures"]:
+                lines.append(f"  ![RVE of Gauss point {g} at step {k}](rve_{k:03d}_g{g:05d}.png)")
+    if any("rotation" in fields[k] for k in fields):
+        lines.append(
+            "- the rotation is the trapezoidal estimate of each disk's spin integral over the RVE calls "
+            "(gransim.fem.dem_rve.rotation_after; its error: docs/femxdem.md, 'The rotation is an estimate')"
+        )
+    return lines
 
 
 def _lost_to_a_signal(exc: BaseException) -> bool:
@@ -321,6 +454,8 @@ def run_femxdem(
     packing_dir="results/packings",
     n_chunks: int | None = None,
     law=None,
+    field_steps=None,
+    rve_pictures=None,
 ) -> dict:
     """Run the biaxial specimen with the stand-in ``rve`` (module docstring); returns a summary
     (``steps`` the records, ``report`` markdown, ``timing``, ``files``). With ``out`` every converged
@@ -328,8 +463,20 @@ def run_femxdem(
     step k's checkpoint (raises :class:`FemxdemInterrupted`). A step that does not converge raises
     :class:`gransim.fem.incremental.StepFailure` after the outputs of the converged steps are
     written (the report says where it stopped). ``law``: another point law with
-    ``pack_states``/``unpack_states`` instead of the stand-in (``rve`` is then its label)."""
+    ``pack_states``/``unpack_states`` instead of the stand-in (``rve`` is then its label).
+    ``field_steps``: the steps whose Gauss-point fields are kept and drawn (default: the last);
+    ``rve_pictures``: the Gauss points whose RVE is drawn at those steps (default: the most
+    strained point of each; DEM RVE only)."""
     spec = spec or BiaxialSpec()
+    field_steps = {spec.steps} if field_steps is None else {int(k) for k in field_steps}
+    bad = sorted(k for k in field_steps if not 1 <= k <= spec.steps)
+    if bad:
+        raise InputError(f"--field-steps: steps lie in 1..{spec.steps}, got {bad[0]}")
+    if rve_pictures is not None:
+        rve_pictures = tuple(int(g) for g in rve_pictures)
+        bad = [g for g in rve_pictures if not 0 <= g < spec.n_gauss]
+        if bad:
+            raise InputError(f"--rve-pictures: Gauss points lie in 0..{spec.n_gauss - 1}, got {bad[0]}")
     if resume and out is None:
         raise InputError("--resume: needs the output directory of the interrupted run (--out)")
     if law is None:
@@ -340,8 +487,9 @@ def run_femxdem(
     out = Path(out) if out is not None else None
     ck = out / "checkpoint" if out is not None else None
     done, states, response = [], None, None
+    fields = {}  # field step -> field_record
     if resume:
-        done, states, response = read_checkpoint(ck, params, law)
+        done, states, response = read_checkpoint(ck, params, law, fields)
     elif out is not None:
         out.mkdir(parents=True, exist_ok=True)
         if ck.exists():
@@ -356,8 +504,12 @@ def run_femxdem(
     def on_step(rec, pts):
         # converged: in femxdem.h5 even if a signal abandons its checkpoint (resumed from the step before)
         new.append(rec)
+        st = None
+        if rec.step in field_steps:
+            st = pts.states()
+            fields[rec.step] = field_record(rec, pts.observables(), st, rve_pictures)
         if ck is not None:
-            write_step(ck, params, rec, law, pts)
+            write_step(ck, params, rec, law, pts, states=st, fields=fields.get(rec.step))
         if stop_after is not None and rec.step >= stop_after:
             raise FemxdemInterrupted(rec.step, out)
         check_interrupt()
@@ -426,11 +578,17 @@ def run_femxdem(
         f"| {r.step} | {r.axial_strain:.5f} | {r.deviatoric_stress / 1e3:.4g} | {r.volumetric_strain:.3e} |"
         for r in recs
     ]
+    if out is not None:  # the report leads with the curves, then the maps
+        lines[1:1] = ["", "![q and volumetric strain against axial strain](curves.png)"]
+    lines += field_report(out, fields, recs)
     report = "\n".join(lines)
     files = {}
     if out is not None:
-        files["h5"] = write_results(out / "femxdem.h5", params, recs, observables, "" if stop is None else str(stop))
+        files["h5"] = write_results(
+            out / "femxdem.h5", params, recs, observables, "" if stop is None else str(stop), fields, setup
+        )
         files["png"] = plot_curves(out / "curves.png", recs, spec, rve)
+        files.update(write_field_outputs(out, setup, recs, fields, rve))
         files["md"] = atomic_text(out / "report.md", report + "\n")
         if stop is None:  # a run stopped early is not a complete result (gransim.progress.result_written)
             for p in files.values():
@@ -447,6 +605,7 @@ def run_femxdem(
         "files": files,
         "resumed_after": len(done),
         "parameters": params,
+        "fields": fields,
     }
 
 

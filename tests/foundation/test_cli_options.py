@@ -198,6 +198,10 @@ BAD = {
         "--stop-after": count(1, 10),
         "--workers": count(1, max(8, 4 * (os.cpu_count() or 1))),
         "--scheduler": junk(),
+        # steps 1..10 (the base's 10 steps), comma-separated, each once
+        "--field-steps": st.one_of(count(1, 10), st.sampled_from(["", ",", "1,,2", "0,5", "5,11", "3,3", "1;2"])),
+        # Gauss points of --rve dem only: the base (--rve taylor) refuses any value, and a dem line too
+        "--rve-pictures": st.one_of(count(0, 31), st.sampled_from(["0", "0,31", "", "1,1"])),
     },
 }
 
