@@ -1,0 +1,222 @@
+"""femxdem-short: a Gauss point of Guo & Zhao's FEM x DEM biaxial test replayed in YADE, bit for bit.
+
+The biaxial specimen of Guo & Zhao (*A coupled FEM/DEM approach for hierarchical multiscale
+modelling of granular media*, Int. J. Numer. Meth. Engng 99 (2014) 789-818; biaxialSmooth.py of
+Debian's yade 2023.02a) on a 2 x 4 Q8 mesh (32 Gauss points), 2 load steps of 1e-4 m, each Gauss
+point a 400-disk DEM RVE in YADE's arithmetic (``gransim femxdem --rve dem``). The committed strain
+history of the most strained Gauss point (one increment per load step) is replayed in YADE 2023.02a
+(``prepareRVE.py`` run afresh, then ``simDEM.shear2D`` per increment, each call through
+``stringToScene``/``sceneToString``: :mod:`reference_runs.yade.rve`) and the native RVE driven by the
+same increments is compared with YADE's after every call by the shared step-for-step judge
+(positions, velocities, spins, the contact forces summed per disk, the stress, the cell) and field by
+field over everything the saved scene keeps, all at zero tolerance. A YADE output cut short or
+missing a call is incomplete evidence and fails; YADE absent, there is no evidence and the case says so.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from gransim.dem.yade_arithmetic import RVE_STATE_FIELDS, rve_run, rve_stress_tangent
+from gransim.fem.biaxial import BiaxialSpec
+from gransim.fem.dem_rve import DemRVE, load_rve_state
+from gransim.fem.femxdem import run_femxdem
+from reference_runs.engines import YADE
+from reference_runs.errors import ReferenceRunError
+from reference_runs.yade.rve import prepare_job, run_rve_job, state_of
+
+from ..core import PAIRS, CaseResult, Context, Record, case, compare, evidence
+from ..dem_compare import Trajectory
+from ..judges import StepBounds, step_for_step
+
+CASE = "femxdem-short"
+TITLE = "FEM x DEM (Guo & Zhao): a Gauss point's strain history replayed in YADE, bit for bit"
+SPEC = BiaxialSpec(nx=2, ny=4, steps=2)
+REASON = (
+    "bit for bit: the native yade arithmetic repeats YADE 2023.02a's operations in YADE's order "
+    "(docs/yade.md, docs/femxdem.md), so every double is equal; any difference is a defect"
+)
+BOUNDS = StepBounds(0.0, 0.0, REASON, REASON, REASON, REASON, REASON)
+#: RVE calls a YADE replay job costs, as particle-steps for its time-out (prepareRVE's consolidation
+#: is about 1.4e4 steps of 400 disks, each call 100-300 steps)
+PREPARE_PSTEPS = 400 * 14_000
+
+
+def contact_sums(state) -> tuple[np.ndarray, np.ndarray]:
+    """Per disk (N, 2) the sum of the normal and shear forces of its contacts (on body 2 +, on body 1
+    -) and (N,) the sum of r (n x f_s) (the same function for both runs: a summary of the contact
+    forces, not either engine's force array)."""
+    n = state.n
+    f = np.asarray(state.normal_force) + np.asarray(state.shear_force)
+    i, j = state.ids[:, 0], state.ids[:, 1]
+    F = np.zeros((n, 2))
+    np.add.at(F, j, f)
+    np.add.at(F, i, -f)
+    nrm, fs = np.asarray(state.normal), np.asarray(state.shear_force)
+    cross = nrm[:, 0] * fs[:, 1] - nrm[:, 1] * fs[:, 0]
+    T = np.zeros(n)
+    np.add.at(T, i, -state.radii[i] * cross)
+    np.add.at(T, j, -state.radii[j] * cross)
+    return F, T
+
+
+def trajectory(states) -> Trajectory:
+    """The calls' states (call 0 the loaded RVE) as a trajectory of the shared judges: series step =
+    call, stress (xx, yy, xy of getStress, Pa), box = the cell vectors' lengths, a frame per call."""
+    stress, lengths, frames = [], [], {}
+    for k, s in enumerate(states):
+        sig, _ = rve_stress_tangent(s)
+        stress.append([sig[0, 0], sig[1, 1], sig[0, 1]])
+        lengths.append(np.linalg.norm(np.asarray(s.hsize), axis=0))
+        F, T = contact_sums(s)
+        frames[k] = {
+            "x": np.asarray(s.positions),
+            "v": np.asarray(s.velocities),
+            "w": np.asarray(s.spins),
+            "f": F,
+            "t": T,
+        }
+    return Trajectory(np.arange(len(states), dtype=np.int64), np.array(stress), np.array(lengths), frames)
+
+
+def differing_fields(a, b) -> list:
+    """The fields of two RVE states that differ (NaN equal to NaN: YADE's unsaved penetration)."""
+    bad = []
+    for f in RVE_STATE_FIELDS:
+        x, y = np.asarray(getattr(a, f)), np.asarray(getattr(b, f))
+        if x.shape != y.shape or not np.array_equal(x, y, equal_nan=x.dtype.kind == "f"):
+            bad.append(f)
+    return bad
+
+
+def native_history(out, spec: BiaxialSpec = SPEC):
+    """(summary of the native run in ``out``, Gauss point g, its committed state): g the most
+    strained point at the last step; the state read from the run's checkpoint."""
+    summary = run_femxdem(spec, rve="dem", out=out, field_steps=(spec.steps,), rve_pictures=())
+    g = int(np.argmax(summary["fields"][spec.steps]["deviatoric_strain"]))
+    with h5py.File(Path(out) / "checkpoint" / f"states_{spec.steps:03d}.h5", "r") as f:
+        states = DemRVE.unpack_states({k: np.array(v) for k, v in f["states"].items()})
+    return summary, g, states[g]
+
+
+def _figures(res: CaseResult, ctx: Context, out: Path) -> None:
+    """The native run's curves first, then its maps (the report section leads with the curves)."""
+    figs = [
+        ("curves.png", "2 x 4 mesh with DEM RVEs: q and volumetric strain against axial strain", True),
+        (f"maps_{SPEC.steps:03d}.png", f"deviatoric strain, void ratio and mean particle rotation at step {SPEC.steps}"
+         " (each Gauss point's sub-cell; the rotation is the spins' trapezoidal estimate, docs/femxdem.md)", False),
+    ]  # fmt: skip
+    for name, cap, head in figs:
+        if (out / name).exists():
+            res.add_figure(ctx.copy_figure(out / name, f"femxdem_short_{name}"), cap, data=out / "femxdem.h5",
+                           headline=head)  # fmt: skip
+
+
+def native_calls(increments) -> list:
+    """The stored RVE, then the state after each native call of ``increments`` (K, 2, 2)."""
+    out = [load_rve_state()[0]]
+    for D in increments:
+        out.append(rve_run(out[-1], D))
+    return out
+
+
+def yade_available() -> bool:
+    """Whether YADE's binary is installed (tests replace it)."""
+    return YADE.available()
+
+
+def yade_replay(job_dir, increments, timeout: float):
+    """YADE's states after every call of ``increments`` (K, 2, 2) from prepareRVE.py's RVE."""
+    recs, manifest = run_rve_job(job_dir, *prepare_job(increments=np.reshape(increments, (-1, 4))), timeout=timeout)
+    return [state_of(r) for r in recs], manifest
+
+
+def judge(res: CaseResult, label: str, native: list, yade: list) -> dict:
+    """Records of the native calls against YADE's: the shared step-for-step judge at zero tolerance,
+    then every saved field of every call both hold."""
+    k = len(native) - 1
+    recs, summary = step_for_step(
+        label, trajectory(native), trajectory(yade), d50=float(2 * np.median(native[0].radii)), nsteps=k,
+        dump_every=1, bounds=BOUNDS, sides=("native", "YADE"),
+    )  # fmt: skip
+    res.records += recs
+    both = min(len(native), len(yade))
+    bad = [(c, differing_fields(native[c], yade[c])) for c in range(both)]
+    bad = [(c, f) for c, f in bad if f]
+    res.records.append(
+        compare(
+            label,
+            "saved_scene",
+            "calls whose saved scene differs in any field (positions ... shear forces, in container order)"
+            + (f"; first: call {bad[0][0]}: {', '.join(bad[0][1][:4])}" if bad else ""),
+            float(len(bad)) if both else float("nan"),
+            0.0,
+            REASON,
+        )
+    )
+    return summary
+
+
+@case(CASE, TITLE, suites=("default", "full"), order=60)
+def femxdem_short(ctx: Context, replay=yade_replay) -> CaseResult:
+    """``replay(job_dir, increments, timeout) -> (states, manifest)``: YADE's side (tests swap it)."""
+    res = CaseResult(CASE, TITLE, __doc__.split("\n\n", 1)[1].replace("\n", " "))
+    for pair in PAIRS:
+        res.skip_pair(pair, "gransim against YADE, a third code outside the LIGGGHTS and LAMMPS columns")
+    out = ctx.work("femxdem-short", "native")
+    summary, g, committed = native_history(out)
+    dev = summary["fields"][SPEC.steps]["deviatoric_strain"]
+    _figures(res, ctx, out)
+    res.notes.append(
+        f"2 x 4 Q8 mesh, {SPEC.steps} steps: q = "
+        + ", ".join(f"{r.deviatoric_stress / 1e3:.2f} kPa" for r in summary["steps"])
+        + f"; Newton iterations {[len(r.errors) for r in summary['steps']]}; replayed: Gauss point {g} "
+        f"(deviatoric strain {dev[g]:.4g}, the largest of {dev.min():.4g} to {dev.max():.4g})."
+    )
+    label = f"{CASE}/gp{g}"
+    inc = np.asarray(committed.increments)
+    native = native_calls(inc)
+    res.records.append(
+        compare(
+            label,
+            "gauss_point",
+            "fields of the Gauss point's committed RVE that differ from a single RVE driven by its increments",
+            float(len(differing_fields(native[-1], committed.rve))),
+            0.0,
+            "a Gauss point's RVE is a single RVE driven by its strain history (the FE run only chooses it)",
+        )
+    )
+    if not yade_available():
+        res.records.append(evidence(label, "YADE calls", list(range(len(native))), []))
+        res.error = f"YADE is not installed: no evidence (no stored replay of this history; {YADE.install_hint})"
+        return res
+    try:
+        yade, manifest = replay(ctx.work("reference", "femxdem-short"), inc, ctx.job_timeout(PREPARE_PSTEPS))
+    except ReferenceRunError as exc:  # a failed job or an output cut short: missing evidence, named
+        first = str(exc).splitlines()[0]
+        res.records.append(Record(label, "evidence", f"incomplete: YADE job failed: {first}", 1.0, 0.0, False))
+        return res
+    res.records.append(evidence(label, "YADE calls", list(range(len(native))), list(range(len(yade)))))
+    res.records.append(
+        compare(
+            label,
+            "prepared_rve",
+            "fields of prepareRVE.py's RVE run now that differ from the stored one",
+            float(len(differing_fields(yade[0], native[0]))) if yade else float("nan"),
+            0.0,
+            "the native run starts from the stored RVE (gransim/fem/data/guo_zhao_rve.h5): YADE must give it again",
+        )
+    )
+    s = judge(res, label, native, yade)
+    res.notes.append(f"YADE: {manifest.get('engine_version')}; {len(yade) - 1} calls replayed.")
+    res.tables.append(
+        (
+            "Native RVE against YADE after every call (0 = bitwise equal)",
+            ["Gauss point", "calls", "max|dx|/D50", "max|dv|/max|v|", "max|dw|/max|w|", "stress", "cell"],
+            [[g, len(native) - 1, *(f"{s[k]:.1e}" for k in ("x", "v", "w", "stress", "box"))]],
+        )
+    )
+    return res
