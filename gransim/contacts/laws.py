@@ -393,7 +393,7 @@ def effective_radius(radi, radj) -> np.ndarray:
 # ----------------------------------------------------------------------------- by name
 def _load_builtin() -> None:
     """Import the law modules of the package (:data:`gransim.contacts.LAW_MODULES`): they register."""
-    from . import LAW_MODULES  # noqa: PLC0415 - the package lists its law modules; imported on demand
+    from . import LAW_MODULES  # noqa: PLC0415 - cycle: gransim.contacts (its __init__ imports this module)
 
     for mod in LAW_MODULES:
         importlib.import_module(f"{__package__}.{mod}")
@@ -403,7 +403,7 @@ def _named() -> dict[str, LawSpec]:
     """The named laws, those of :data:`gransim.contacts.LAW_MODULES` first in that module order
     (each module's laws as it registers them), then any other in the order they registered."""
     _load_builtin()
-    from . import LAW_MODULES  # noqa: PLC0415 - see _load_builtin
+    from . import LAW_MODULES  # noqa: PLC0415 - cycle: gransim.contacts (see _load_builtin)
 
     mods = [f"{__package__}.{m}" for m in LAW_MODULES]
     order = list(_NAMES)

@@ -106,7 +106,7 @@ class DEMSettings:
     def hooke_law(self, flavour: str | None = None):
         """The Hooke law of these stiffnesses, dampings and friction in the arithmetic of
         ``flavour`` (default: :attr:`flavour`): the law ``hooke-liggghts`` or ``hooke-lammps``."""
-        from ..contacts.laws import make_law  # noqa: PLC0415 - the laws' numba kernels, on demand
+        from ..contacts.laws import make_law  # noqa: PLC0415 - start-up: the laws' numba kernels, on demand
 
         f = self.flavour if flavour is None else flavour
         return make_law(f"hooke-{f}", kn=self.kn, kt=self.kt, gamma_n=self.gamma_n, gamma_t=self.gamma_t, mu=self.mu)

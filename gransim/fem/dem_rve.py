@@ -71,7 +71,7 @@ def save_rve_state(path, state, provenance: dict | None = None) -> Path:
 
 def load_rve_state(path=PREPARED_RVE):
     """(state, provenance dict) of a file of :func:`save_rve_state`."""
-    import h5py  # noqa: PLC0415 - start-up
+    import h5py  # noqa: PLC0415 - start-up: h5py
 
     from ..dem.yade_arithmetic import YadeRVEState  # noqa: PLC0415 - start-up: numba
 
