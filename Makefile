@@ -15,7 +15,7 @@ help:
 	@echo "make lint  - ruff check and ruff format --check"
 	@echo "make coverage - the suite as plain Python under coverage (docs/coverage.md)"
 	@echo "make bench - set up, run the benchmark suite (results/bench.json)"
-	@echo "make engines - install LIGGGHTS, LAMMPS and YADE with apt-get when root (else say how)"
+	@echo "make engines - install LIGGGHTS, LAMMPS, YADE and escript with apt-get when root (else say how)"
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -47,7 +47,8 @@ system-test:
 
 # the DEM codes the validation compares with: LIGGGHTS (binary `liggghts`, Debian package
 # `liggghts`), LAMMPS (binary `lmp`, Debian package `lammps`) and YADE, the independent third code
-# (binary `yade`, Debian package `yade`, docs/yade.md). As root, the missing ones are installed with
+# (binary `yade`, Debian package `yade`, docs/yade.md), with escript (Debian `python3-escript`,
+# `run-escript3`), the finite elements of Guo & Zhao's FEM x DEM code (docs/femxdem_reference.md). As root, the missing ones are installed with
 # apt-get; otherwise make says how. None is required: without LIGGGHTS or LAMMPS the comparisons use
 # their stored outputs in reference_runs/stored/; the tests that need YADE are skipped without it.
 engines:
@@ -58,6 +59,8 @@ engines:
 	  else missing="$$missing lammps"; fi; \
 	if command -v yade >/dev/null 2>&1; then echo "YADE found: $$(command -v yade)"; \
 	  else missing="$$missing yade"; fi; \
+	if command -v run-escript3 >/dev/null 2>&1; then echo "escript found: $$(command -v run-escript3)"; \
+	  else missing="$$missing python3-escript"; fi; \
 	if [ -z "$$missing" ]; then \
 	  :; \
 	elif [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
@@ -65,7 +68,7 @@ engines:
 	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null) \
 	    || echo "WARNING: apt-get install$$missing failed; those comparisons will use stored reference outputs only (YADE's tests are skipped)"; \
 	else \
-	  echo "WARNING: not installed:$$missing (binaries 'liggghts', 'lmp', 'yade'), and this user cannot install them."; \
+	  echo "WARNING: not installed:$$missing (binaries 'liggghts', 'lmp', 'yade', 'run-escript3'), and this user cannot install them."; \
 	  echo "         Install them with:  sudo apt-get install$$missing"; \
 	  echo "         Until then, comparisons use the stored reference outputs in reference_runs/stored/"; \
 	  echo "         and the tests that need YADE are skipped."; \
