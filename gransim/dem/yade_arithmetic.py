@@ -1022,11 +1022,18 @@ def _newton_damped(
 def _rve_steps(
     it0, nsteps, pos, vel, spin, radius, mass, inertia, z, z_pos, H, L, nextL, changed, Lprev, prev_size, verlet,
     ref_pos, sweep, last_update, young, poisson, tan_new, damping, dt, n_intr, slot, i_id, i_cd, i_real, i_geom, i_fs,
+    theta,
 ):  # fmt: skip
     """``nsteps`` iterations of a scene just deserialised (Scene::moveToNextTimeStep, core/Scene.cpp:
     98-139): the collider's bound lists are not saved, so its first run sorts them from scratch
     (InsertionSortCollider.cpp:264-272; ``strideActive`` is not saved either, :217). Returns
-    (error, axis, step)."""
+    (error, axis, step).
+
+    ``theta`` (N,) rad: each disk's rotation about z, to which every step adds spin dt with the spin
+    the step ends with, as NewtonIntegrator turns ``State::ori`` (leapfrogSphericalRotate,
+    pkg/dem/NewtonIntegrator.cpp:327-337, called at :282: angVel += dSpin at :329, then the rotation
+    by |angVel| dt about angVel / |angVel| at :330-335, i.e. by spin dt about z for a disk whose
+    x and y rotations are blocked). It is read by nothing else."""
     n = pos.shape[0]
     prevH = np.zeros((2, 2))
     VP = np.zeros((2, 2))
@@ -1073,6 +1080,8 @@ def _rve_steps(
             pos, vel, spin, mass, inertia, force, torque, L, nextL, changed, Lprev, size, prev_size, dt, dt2, ref_pos,
             sweep, damping,
         )  # fmt: skip
+        for b in range(n):  # NewtonIntegrator.cpp:329-335: ori turned by the final spin of the step, times dt
+            theta[b] += spin[b] * dt
     return _OK, -1, nsteps
 
 
@@ -1159,13 +1168,27 @@ def rve_run(state: YadeRVEState, D) -> YadeRVEState:
     As in YADE, the first iteration's cell update uses the velGrad the scene was saved with (the
     previous call's rate, or the consolidation's last one): a call moves the cell by one step of
     the old rate and ns - 1 steps of D / (ns dt). ``D``: (2, 2) strain increment (Guo & Zhao's
-    grad u; f - 1 of a load step)."""
+    grad u; f - 1 of a load step). The disks' rotations: :func:`rve_run_rotation`."""
+    return rve_run_rotation(state, D)[0]
+
+
+def rve_run_rotation(state: YadeRVEState, D, rotation=None):
+    """:func:`rve_run` that also turns the disks: ``(new state, rotation (N,) rad)``, where each
+    disk's ``rotation`` (counter-clockwise; default 0, never modified) receives spin dt at every
+    step, with the spin that step ends with (after NewtonIntegrator's dSpin), in step order: the
+    angle by which YADE's ``State::ori`` turns (leapfrogSphericalRotate, NewtonIntegrator.cpp:
+    327-337), summed in double precision instead of composed as quaternions (docs/femxdem.md, "The
+    disk rotation"). Every other output is :func:`rve_run`'s, to the bit: the sum is read by
+    nothing else."""
     D = np.asarray(D, dtype=float).reshape(2, 2)
     if not np.all(np.isfinite(D)):
         raise InputError(f"D: the strain increment must be finite, got {D.tolist()}")
     ns = n_steps_of(D)
     s = state
     n = s.n
+    theta = np.zeros(n) if rotation is None else np.array(rotation, float)
+    if theta.shape != (n,):
+        raise InputError(f"rotation: one angle per disk ({n},) expected, got shape {theta.shape}")
     rate = D / (ns * s.dt)  # Matrix3 / float (minieigen): each entry divided
     pos = np.array(s.positions, float)
     vel = np.array(s.velocities, float)
@@ -1202,7 +1225,7 @@ def rve_run(state: YadeRVEState, D) -> YadeRVEState:
         int(s.iteration), ns, pos, vel, spin, np.asarray(s.radii, float), np.asarray(s.mass, float),
         np.asarray(s.inertia, float), float(s.z), float(s.z_pos), H, L, nextL, changed, Lprev, prev_size,
         float(s.verlet), ref_pos, sweep, last_update, float(s.young), float(s.poisson), math.tan(s.friction_angle),
-        float(s.damping), float(s.dt), n_intr, slot, i_id, i_cd, i_real, i_geom, i_fs,
+        float(s.damping), float(s.dt), n_intr, slot, i_id, i_cd, i_real, i_geom, i_fs, theta,
     )  # fmt: skip
     if err == _TOO_BIG:
         raise RuntimeError(f"step {k} of {ns}: a bound spans over half of the cell (YADE throws here too)")
@@ -1218,7 +1241,7 @@ def rve_run(state: YadeRVEState, D) -> YadeRVEState:
                      math.sqrt(s.z * s.z)])  # fmt: skip
     if not np.array_equal(size, prev_size):
         raise RuntimeError("the cell's size after the run is not NewtonIntegrator.prevCellSize")
-    return YadeRVEState(
+    new = YadeRVEState(
         iteration=int(s.iteration) + ns, dt=s.dt, z=s.z, z_pos=s.z_pos, radii=s.radii, mass=s.mass,
         inertia=s.inertia, positions=pos, velocities=vel, spins=spin, bound_ref=ref_pos, sweep=sweep,
         last_update=last_update, hsize=H, vel_grad=L, next_vel_grad=np.zeros((2, 2)), vel_grad_changed=True,
@@ -1228,6 +1251,7 @@ def rve_run(state: YadeRVEState, D) -> YadeRVEState:
         ks=i_geom[real, 6].copy(), tan_phi=i_geom[real, 7].copy(), normal_force=i_geom[real, 3:5].copy(),
         shear_force=i_fs[real].copy(),
     )  # fmt: skip
+    return new, theta
 
 
 @njit
@@ -1334,6 +1358,7 @@ __all__ = [
     "guo_zhao_stress_tangent",
     "n_steps_of",
     "rve_run",
+    "rve_run_rotation",
     "rve_stress_tangent",
     "yade_cell_z",
     "yade_run",

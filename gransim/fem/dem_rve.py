@@ -23,7 +23,9 @@ equals YADE bit for bit, state after state (tests/fem/test_dem_rve.py; docs/femx
 * the state (:class:`DemState`) is the scene as YADE serialises it between calls
   (:class:`gransim.dem.yade_arithmetic.YadeRVEState`: positions, velocities, spins, cell, the real
   interactions in YADE's container order with their shear forces, the collider's and the
-  integrator's saved attributes) and the number of updates that led to it.
+  integrator's saved attributes), the number of updates that led to it, and each disk's rotation
+  since the initial RVE: spin dt summed over every step of every call, as YADE turns the disks'
+  orientation (:func:`gransim.dem.yade_arithmetic.rve_run_rotation`).
 
 The initial RVE is the one ``prepareRVE.py`` prepares (400 disks, r_mean 5 mm +- 40 %, a periodic
 0.24 m cell, 0.1-thick disks at 2650 kg/m^3, E 6e8 Pa with ks/kn 0.8, consolidated frictionless to
@@ -44,6 +46,9 @@ from ..errors import InputError
 
 #: the RVE prepared by prepareRVE.py in YADE 2023.02a (reference_runs/yade/rve.py)
 PREPARED_RVE = Path(__file__).parent / "data" / "guo_zhao_rve.h5"
+#: the disks' rotations in packed states (checkpoints): the step sums; the key of older checkpoints,
+#: ``rotation``, held a trapezoidal estimate over each call and is refused
+ROTATION_KEY = "rotation_sum"
 
 
 def _fields():
@@ -96,8 +101,10 @@ class DemState:
     """State of a DEM Gauss point: the RVE's saved scene, the number of updates behind it, the
     strain increments D (updates, 2, 2) that led to it from the initial RVE (the point's strain
     history: replayed in YADE it gives the same scene, tests/fem/test_dem_rve.py) and each disk's
-    rotation since the initial RVE (N,) rad, counter-clockwise (:func:`rotation_after`; None: zero,
-    the initial RVE). The rotation is an output only: no force, position or velocity reads it."""
+    rotation since the initial RVE (N,) rad, counter-clockwise: spin dt summed over every DEM step
+    of every update (:func:`gransim.dem.yade_arithmetic.rve_run_rotation`; YADE's ``State::rot()``
+    z to the round-off of its quaternions, docs/femxdem.md; None: zero, the initial RVE). The
+    rotation is an output only: no force, position or velocity reads it."""
 
     rve: object
     updates: int = 0
@@ -107,23 +114,6 @@ class DemState:
     def disk_rotation(self) -> np.ndarray:
         """Each disk's rotation since the initial RVE (N,) rad."""
         return np.zeros(self.rve.n) if self.rotation is None else np.asarray(self.rotation)
-
-
-def rotation_after(rotation, before, after, D) -> np.ndarray:
-    """Each disk's rotation (N,) rad after one ``simDEM.shear2D`` call from ``before`` to ``after``
-    (two saved scenes) with strain increment ``D``: the spin integrated over the call's ns steps of
-    dt by the trapezoidal rule on the spins the two scenes hold,
-    theta + ns dt (omega_before + omega_after) / 2.
-
-    YADE integrates the orientation at every step (NewtonIntegrator, ori from angVel dt; simDEM's
-    ``avgRotation2D``, simDEM.py:204-210, averages ``State::rot()`` z over the disks); the native
-    call keeps only its last spin (:func:`gransim.dem.yade_arithmetic.rve_run`), so this is an
-    estimate of that integral: its error is measured in docs/femxdem.md ("The rotation is an estimate")."""
-    from ..dem.yade_arithmetic import n_steps_of  # noqa: PLC0415 - start-up: numba
-
-    ns = n_steps_of(D)
-    w0, w1 = np.asarray(before.spins, float), np.asarray(after.spins, float)
-    return np.asarray(rotation, float) + (ns * before.dt) * 0.5 * (w0 + w1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,19 +141,19 @@ class DemRVE:
         return guo_zhao_stress_tangent(state.rve)
 
     def update(self, f, state: DemState):
-        """simDEM.shear2D with D = f - 1 from ``state`` (not modified), then the stress and tangent."""
-        from ..dem.yade_arithmetic import guo_zhao_stress_tangent, rve_run  # noqa: PLC0415 - start-up: numba
+        """simDEM.shear2D with D = f - 1 from ``state`` (not modified), then the stress and tangent;
+        the disks' rotations carried on by the call's steps."""
+        from ..dem.yade_arithmetic import guo_zhao_stress_tangent, rve_run_rotation  # noqa: PLC0415 - start-up: numba
 
         D = np.asarray(f, dtype=float) - np.eye(2)
-        new = rve_run(state.rve, D)
+        new, rot = rve_run_rotation(state.rve, D, state.disk_rotation())
         sigma, t = guo_zhao_stress_tangent(new)
-        rot = rotation_after(state.disk_rotation(), state.rve, new, D)
         return sigma, t, DemState(new, state.updates + 1, np.concatenate([state.increments, D[None]]), rot)
 
     def observables(self, state: DemState) -> dict:
         """Void ratio (cell area - sum pi r^2) / sum pi r^2 (Shop::getVoidRatio2D), the mean disk
         rotation since the initial RVE (rad, counter-clockwise; simDEM.avgRotation2D's quantity,
-        :func:`rotation_after`), the number of contacts and of updates."""
+        simDEM.py:204-210: the mean of ``State::rot()`` z), the number of contacts and of updates."""
         r = state.rve
         h = np.asarray(r.hsize)
         area = float(h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0])
@@ -184,7 +174,7 @@ class DemRVE:
         out["offsets"] = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         out["updates"] = np.array([s.updates for s in states], dtype=np.int64)
         out["increments"] = np.concatenate([np.asarray(s.increments).reshape(-1, 2, 2) for s in states])
-        out["rotation"] = np.array([s.disk_rotation() for s in states])
+        out[ROTATION_KEY] = np.array([s.disk_rotation() for s in states])
         per_contact = ("ids", "cell_dist", "normal", "kn", "ks", "tan_phi", "normal_force", "shear_force")
         for name in fields:
             vals = [getattr(s.rve, name) for s in states]
@@ -206,8 +196,11 @@ class DemRVE:
                    "young": float, "poisson": float, "friction_angle": float, "vel_grad_changed": bool}  # fmt: skip
         states = []
         upd = np.asarray(a["updates"])
-        if "rotation" not in a:
-            raise InputError("the saved Gauss-point states hold no disk rotations (written by an older gransim): rerun")
+        if ROTATION_KEY not in a:
+            raise InputError(
+                "the saved Gauss-point states hold no step-summed disk rotations (written by an older gransim, "
+                "whose rotation was an estimate): rerun"
+            )
         ioff = np.concatenate([[0], np.cumsum(upd)])
         for g in range(len(upd)):
             kw = {}
@@ -219,8 +212,8 @@ class DemRVE:
                 else:
                     kw[name] = np.array(a[name][g])
             inc = np.array(a["increments"][ioff[g] : ioff[g + 1]]).reshape(-1, 2, 2)
-            states.append(DemState(YadeRVEState(**kw), int(upd[g]), inc, np.array(a["rotation"][g])))
+            states.append(DemState(YadeRVEState(**kw), int(upd[g]), inc, np.array(a[ROTATION_KEY][g])))
         return states
 
 
-__all__ = ["PREPARED_RVE", "DemRVE", "DemState", "load_rve_state", "rotation_after", "save_rve_state"]
+__all__ = ["PREPARED_RVE", "ROTATION_KEY", "DemRVE", "DemState", "load_rve_state", "save_rve_state"]

@@ -431,8 +431,9 @@ def field_report(out: Path | None, fields: dict, recs: list) -> list:
                 lines.append(f"  ![RVE of Gauss point {g} at step {k}](rve_{k:03d}_g{g:05d}.png)")
     if any("rotation" in fields[k] for k in fields):
         lines.append(
-            "- the rotation is the trapezoidal estimate of each disk's spin integral over the RVE calls "
-            "(gransim.fem.dem_rve.rotation_after; its error: docs/femxdem.md, 'The rotation is an estimate')"
+            "- the rotation is each disk's spin dt summed over every DEM step of its RVE's calls, the angle "
+            "YADE turns State::ori by (gransim.dem.yade_arithmetic.rve_run_rotation; docs/femxdem.md, "
+            "'The disk rotation')"
         )
     return lines
 

@@ -9,7 +9,8 @@ bottom: :func:`gransim.fem.quadrature.square_rule`):
   (biaxialSmooth.py:102-104 of Debian's yade 2023.02a examples);
 * ``void_ratio``: (cell area - sum pi r^2) / sum pi r^2 of the RVE (simDEM.getVoidRatio2D,
   simDEM.py:184-187); ``rotation``: the mean disk rotation since the initial RVE (rad,
-  counter-clockwise; simDEM.avgRotation2D, simDEM.py:204-210; :func:`gransim.fem.dem_rve.rotation_after`).
+  counter-clockwise; simDEM.avgRotation2D, simDEM.py:204-210), each disk's spin dt summed over every
+  DEM step (:func:`gransim.dem.yade_arithmetic.rve_run_rotation`).
   Both exist for the DEM RVE only: a stand-in law has no grains (n/a).
 """
 

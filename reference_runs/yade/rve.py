@@ -12,7 +12,10 @@ the lines of both files copied (the recipe's numbers from ``input.json``), and w
 one JSON line per state (the prepared scene as ``simDEM.initLoad`` loads it, then the scene after
 each increment, as the next call loads it), with everything the scene's serialisation keeps and
 the native yade arithmetic needs (:class:`gransim.dem.yade_arithmetic.YadeRVEState`), YADE's
-``getStress()`` and ``getStressAndTangent(symmetry=True)``, and ``END`` last.
+``getStress()`` and ``getStressAndTangent(symmetry=True)``, and ``END`` last. Each body also
+carries its ``State::rot()`` (the rotation vector from refOri to ori, core/State.hpp:40-45, which
+simDEM.avgRotation2D averages, simDEM.py:204-210) and its ``ori`` in minieigen's index order
+(x, y, z, w): read by :func:`disk_rotations`, not part of the native state.
 
 :func:`prepare_job` and :func:`replay_job` build the jobs; :func:`run_rve_job` runs one through
 :func:`reference_runs.yade.job.run_yade_job` (the quiet module: YADE opens no TCP server) and reads
@@ -73,7 +76,8 @@ def dump(kind, extra):
         s = b.state
         bodies.append([list(map(float, s.pos)), list(map(float, s.vel)), list(map(float, s.angVel)), float(s.mass),
                        list(map(float, s.inertia)), float(b.shape.radius), list(map(float, b.bound.refPos)),
-                       float(b.bound.sweepLength), int(b.bound.lastUpdateIter)])
+                       float(b.bound.sweepLength), int(b.bound.lastUpdateIter), list(map(float, s.rot())),
+                       [float(s.ori[i]) for i in range(4)]])
     intrs = []
     for i in O.interactions:
         if not i.isReal:
@@ -217,6 +221,19 @@ def run_rve_job(job_dir, script: str, files: dict, timeout: float | None = 1800.
     return read_rve_out(Path(job_dir) / OUTPUT_NAME), res.manifest
 
 
+def disk_rotations(rec: dict) -> np.ndarray:
+    """Each disk's ``State::rot()`` z (N,) rad of a dumped state: YADE's rotation since the prepared
+    RVE (refOri = ori when prepareRVE.py's term() saved it). Raises :class:`ReferenceRunError` for a
+    dump without it (written before the script recorded it) or a rotation off the z axis."""
+    b = rec["bodies"]
+    if not all(len(x) > 9 for x in b):
+        raise ReferenceRunError("incomplete: the dumped state holds no State::rot() (an older rve.out)")
+    rot = np.array([x[9] for x in b], float)
+    if np.any(rot[:, :2] != 0.0):
+        raise ReferenceRunError("a disk turned about x or y: its DOFs XY are not blocked")
+    return rot[:, 2]
+
+
 def state_of(rec: dict):
     """The native state of a dumped YADE state (every interaction must be real: a deserialised
     scene holds only the real ones, core/InteractionContainer.cpp:174-181)."""
@@ -270,4 +287,13 @@ def state_of(rec: dict):
     )
 
 
-__all__ = ["PREPARE_RVE", "RVE_SCRIPT", "prepare_job", "read_rve_out", "replay_job", "run_rve_job", "state_of"]
+__all__ = [
+    "PREPARE_RVE",
+    "RVE_SCRIPT",
+    "disk_rotations",
+    "prepare_job",
+    "read_rve_out",
+    "replay_job",
+    "run_rve_job",
+    "state_of",
+]

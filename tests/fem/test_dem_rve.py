@@ -8,11 +8,15 @@
   state by that point's own strain history, to the bit;
 * (b) with YADE installed, a Gauss point's history replayed in YADE (prepareRVE.py run afresh, then
   simDEM.shear2D per increment) gives the native state after every call, to the bit;
+* the disks' rotation: spin dt summed after every step; free disks in a turning cell turn by the
+  cell's spin, exactly; with YADE, each disk's State::rot() equals the native sum after every call
+  to the round-off of YADE's quaternions; a Gauss point's rotations are its single RVE's;
 * an update never writes into the committed state; a resumed run equals an uninterrupted one.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -21,7 +25,14 @@ import h5py
 import numpy as np
 import pytest
 
-from gransim.dem.yade_arithmetic import RVE_STATE_FIELDS, guo_zhao_stress_tangent, rve_run, rve_stress_tangent
+from gransim.dem.yade_arithmetic import (
+    RVE_STATE_FIELDS,
+    guo_zhao_stress_tangent,
+    n_steps_of,
+    rve_run,
+    rve_run_rotation,
+    rve_stress_tangent,
+)
 from gransim.fem.biaxial import BiaxialSpec
 from gransim.fem.dem_rve import DemRVE, load_rve_state
 from gransim.fem.femxdem import FemxdemInterrupted, run_femxdem
@@ -29,6 +40,7 @@ from gransim.fem.material_points import freeze
 
 DATA = Path(__file__).parent / "data" / "yade_rve"
 HAVE_YADE = shutil.which("yade") is not None
+EPS = np.finfo(float).eps
 
 
 def same_state(a, b) -> list:
@@ -77,6 +89,36 @@ def test_stored_yade_calls_equal_the_native_calls_bit_for_bit():
     assert np.count_nonzero(st.shear_force) > len(st.kn)
 
 
+def test_free_disks_in_a_turning_cell_turn_with_it_exactly():
+    """Disks without contacts (the prepared RVE's radii halved, at rest): no torque, so each spin
+    is NewtonIntegrator's dSpin = -(dVelGrad_01 - dVelGrad_10) / 2 (NewtonIntegrator.cpp:155-157,
+    :329) from the first step on, and every disk turns by ns steps of spin dt, added one by one
+    (a trapezoid on the spins before and after, 0 and w, would give half)."""
+    st, _ = load_rve_state()
+    free = dataclasses.replace(
+        st, radii=0.5 * st.radii, velocities=np.zeros_like(st.velocities), spins=np.zeros(st.n),
+        ids=np.zeros((0, 2), np.int64), cell_dist=np.zeros((0, 2), np.int64), normal=np.zeros((0, 2)),
+        kn=np.zeros(0), ks=np.zeros(0), tan_phi=np.zeros(0), normal_force=np.zeros((0, 2)),
+        shear_force=np.zeros((0, 2)),
+    )  # fmt: skip
+    start = np.linspace(-1e-3, 1e-3, st.n)  # carried on, never modified
+    start.flags.writeable = False
+    expected, rve, rot, spin = start.copy(), free, start, 0.0
+    for D in (np.array([[2e-4, -1e-3], [6e-4, -5e-4]]), np.array([[-1e-4, 3e-4], [-2e-3, 1e-4]])):
+        ns = n_steps_of(D)
+        rate = D / (ns * st.dt)
+        L0 = rve.newton_prev_vel_grad
+        spin += -(0.5 * ((rate[0, 1] - L0[0, 1]) - (rate[1, 0] - L0[1, 0])))
+        for _ in range(ns):
+            expected = expected + spin * st.dt
+        rve, rot = rve_run_rotation(rve, D, rot)
+        assert len(rve.kn) == 0 and np.all(rve.spins == spin)
+        assert np.array_equal(rot, expected)
+    # the cell's own rotation (D_yx - D_xy) / 2 per call: 0.8 mrad, then -1.15 mrad
+    assert np.allclose(rot - start, 0.5 * (6e-4 + 1e-3) + 0.5 * (-2e-3 - 3e-4), rtol=1e-12, atol=0)
+    assert np.array_equal(start, np.linspace(-1e-3, 1e-3, st.n))
+
+
 @pytest.fixture(scope="module")
 def one_element(tmp_path_factory):
     """A 1 x 1 Q8 specimen (4 Gauss points), 2 steps, checkpointed."""
@@ -92,10 +134,11 @@ def test_a_gauss_point_equals_a_single_rve_driven_by_its_strain_path(one_element
     assert len(states) == 4 and all(s.updates == 2 for s in states)
     first, _ = load_rve_state()
     for g, s in enumerate(states):
-        rve = first
+        rve, rot = first, np.zeros(first.n)
         for D in s.increments:
-            rve = rve_run(rve, D)
+            rve, rot = rve_run_rotation(rve, D, rot)
         assert same_state(rve, s.rve) == [], g
+        assert np.array_equal(rot, s.rotation), g  # carried through the checkpoint to the bit
     q = [r.deviatoric_stress for r in summary["steps"]]
     assert 0 < q[0] < q[1]  # the specimen hardens under compression
 
@@ -128,7 +171,7 @@ def test_resume_equals_an_uninterrupted_run(one_element, tmp_path):
 
 @pytest.mark.skipif(not HAVE_YADE, reason="yade binary not installed (apt-get install yade; make engines)")
 def test_b_a_gauss_points_history_replayed_in_yade_is_the_native_rve(one_element, tmp_path):
-    from reference_runs.yade.rve import prepare_job, run_rve_job, state_of
+    from reference_runs.yade.rve import disk_rotations, prepare_job, run_rve_job, state_of
 
     _, _, states = one_element
     inc = states[0].increments
@@ -136,9 +179,19 @@ def test_b_a_gauss_points_history_replayed_in_yade_is_the_native_rve(one_element
     assert manifest["engine_version"] == "YADE 2023.02a" and len(recs) == len(inc) + 1
     first, _ = load_rve_state()
     assert same_state(state_of(recs[0]), first) == []  # prepareRVE.py gives the stored RVE again
-    rve = first
+    assert not np.any(disk_rotations(recs[0]))  # refOri = ori in the prepared RVE
+    rve, rot, steps = first, np.zeros(first.n), 0
     for D, rec in zip(inc, recs[1:]):
-        rve = rve_run(rve, D)
+        rve, rot = rve_run_rotation(rve, D, rot)
         assert same_state(rve, state_of(rec)) == [], rec["call"]
         assert np.array_equal(rve_stress_tangent(rve)[0], np.array(rec["stress"])[:2, :2])
-    assert same_state(rve, states[0].rve) == []
+        # YADE composes unit quaternions, q <- normalize(q(|w| dt, z) q) per step (NewtonIntegrator.cpp:
+        # 330-336), and State::rot() reads 2 atan2(|q_z|, |q_w|) of refOri^-1 ori (core/State.hpp:40-45):
+        # each step rounds the angle relatively by ~eps, as the double sum does; bound eps x steps x
+        # max|theta| (measured 30 times below it: 4.3e-16 rad after 769 steps, docs/femxdem.md)
+        steps += n_steps_of(D)
+        yade = disk_rotations(rec)
+        tol = EPS * steps * np.max(np.abs(rot))
+        assert np.max(np.abs(yade - rot)) <= tol, (rec["call"], np.max(np.abs(yade - rot)), tol)
+        assert np.max(np.abs(rot)) > 1e9 * tol  # the disks turned: the comparison has a scale
+    assert same_state(rve, states[0].rve) == [] and np.array_equal(rot, states[0].rotation)

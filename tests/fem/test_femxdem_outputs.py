@@ -4,8 +4,10 @@
 * the Gauss-point sub-cells of the maps tile each element, each around its own Gauss point;
 * a J2 stand-in run: every file at every field step, the VTU's quad8 mesh and fields read back by
   meshio, femxdem.h5's fields, void ratio and rotation n/a, the report leading with the curves;
-* a DEM run: the void ratio from the committed RVE's cell and disks, the rotation integrated call
-  by call from the saved spins, both surviving a checkpoint and --resume to the same bits;
+* a DEM run: the void ratio from the committed RVE's cell and disks, the rotation the step sums of
+  the point's strain path give (tests/fem/test_dem_rve.py checks the sums against YADE), both
+  surviving a checkpoint and --resume to the same bits; a checkpoint holding the former estimate
+  is refused;
 * the options --field-steps and --rve-pictures checked at the boundary.
 """
 
@@ -18,10 +20,10 @@ import meshio
 import numpy as np
 import pytest
 
-from gransim.dem.yade_arithmetic import n_steps_of, rve_run
+from gransim.dem.yade_arithmetic import rve_run_rotation
 from gransim.errors import InputError
 from gransim.fem.biaxial import BiaxialSpec, biaxial_setup
-from gransim.fem.dem_rve import DemRVE, load_rve_state
+from gransim.fem.dem_rve import ROTATION_KEY, DemRVE, load_rve_state
 from gransim.fem.femxdem import FemxdemInterrupted, run_femxdem
 from gransim.fem.output_femxdem import deviatoric_strain, gauss_cells, gauss_positions
 
@@ -106,12 +108,10 @@ def test_dem_void_ratio_and_rotation_of_the_committed_rves(dem_run):
         H = st.rve.hsize
         vs = np.pi * np.sum(st.rve.radii**2)
         assert fl["void_ratio"][g] == pytest.approx((abs(np.linalg.det(H)) - vs) / vs, rel=1e-13)
-        # the rotation: the spins of the saved scenes, trapezoid over each call of ns steps of dt
+        # the rotation: spin dt summed over the steps of the point's calls
         rve, rot = first, np.zeros(st.rve.n)
         for D in st.increments:
-            nxt = rve_run(rve, D)
-            rot = rot + n_steps_of(D) * rve.dt * (rve.spins + nxt.spins) / 2
-            rve = nxt
+            rve, rot = rve_run_rotation(rve, D, rot)
         assert np.array_equal(rot, st.rotation), g
         assert fl["rotation"][g] == np.mean(st.rotation)
     assert np.any(fl["rotation"] != 0)
@@ -136,6 +136,16 @@ def test_dem_fields_survive_the_checkpoint(dem_run, tmp_path):
         assert np.array_equal(r["fields"][k]["pictures"][3]["rotation"], s["fields"][k]["pictures"][3]["rotation"])
     with h5py.File(cut / "femxdem.h5", "r") as f, h5py.File(out / "femxdem.h5", "r") as g:
         assert np.array_equal(f["fields/step_001/rotation"][()], g["fields/step_001/rotation"][()])
+
+
+def test_a_checkpoint_with_the_former_rotation_estimate_is_refused(dem_run):
+    out, _, states = dem_run
+    with h5py.File(out / "checkpoint" / "states_002.h5", "r") as f:
+        arrays = {k: np.array(v) for k, v in f["states"].items()}
+    assert np.array_equal(DemRVE.unpack_states(arrays)[1].rotation, states[1].rotation)
+    arrays["rotation"] = arrays.pop(ROTATION_KEY)  # as gransim wrote it while the rotation was an estimate
+    with pytest.raises(InputError, match="estimate"):
+        DemRVE.unpack_states(arrays)
 
 
 def _args(**kw):

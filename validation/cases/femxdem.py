@@ -107,7 +107,7 @@ def _figures(res: CaseResult, ctx: Context, out: Path) -> None:
     figs = [
         ("curves.png", "2 x 4 mesh with DEM RVEs: q and volumetric strain against axial strain", True),
         (f"maps_{SPEC.steps:03d}.png", f"deviatoric strain, void ratio and mean particle rotation at step {SPEC.steps}"
-         " (each Gauss point's sub-cell; the rotation is the spins' trapezoidal estimate, docs/femxdem.md)", False),
+         " (each Gauss point's sub-cell; the rotation: spin dt summed over every DEM step, docs/femxdem.md)", False),
     ]  # fmt: skip
     for name, cap, head in figs:
         if (out / name).exists():
