@@ -16,7 +16,7 @@ from .output import (
     snapshot_to_vtu,
 )
 from .run import Phase, run_phases
-from .settings import AxisControl, DEMSettings, Loading, PrescribedBox
+from .settings import AxisControl, DEMSettings, Integration, Loading, PrescribedBox
 
 #: names imported on first use (PEP 562): the fast path and the sheared cell are not needed by a
 #: biaxial run, and importing them decorates their kernels (start-up time, docs/startup.md)
@@ -35,6 +35,7 @@ __all__ = [
     "DEMEngine",
     "DEMSettings",
     "FastEngine",
+    "Integration",
     "Loading",
     "OutputSettings",
     "Phase",

@@ -22,9 +22,9 @@ results do not depend on the number of threads or on the scheduling: the chunks 
 than the threads and are handed out dynamically (:func:`gransim._numba.dynamic_chunks`), so a
 descheduled thread holds back only the band it is working on.
 
-Contact law: LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history``, the one copy of its
-arithmetic in :func:`gransim.contacts.hooke.hooke_liggghts` (eq (5) of Meier et al. for the
-elastic normal part), written without branches: the touch test and the Coulomb cap are selects, so
+Contact law: LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history``, its branch-free
+arithmetic :func:`gransim.contacts.hooke.hooke_liggghts` (the bitwise engine's block path; eq (5)
+of Meier et al. for the elastic normal part): the touch test and the Coulomb cap are selects, so
 the loop has no data-dependent jump (an entry that does not touch computes a force that is masked
 to zero and keeps its spring, as LIGGGHTS keeps it until the next list build). That is what lets
 the law run as SIMD code over the entries of a block (:func:`forces_v`). Each pair is the bitwise
@@ -48,7 +48,7 @@ def hooke_select(
     delx, dely, rsq, radsum, ri, rj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gn, gt, mu, dt, s0, s1, update
 ):  # fmt: skip
     """LIGGGHTS' Hooke pair as the fast path sums it: the branch-free law of the bitwise engine
-    (:func:`gransim.contacts.hooke.hooke_select_liggghts`: the same arithmetic, one copy), its
+    (:func:`gransim.contacts.hooke.hooke_select_liggghts`: the same function), its
     force, torques and overlap masked to zero when the disks do not touch (the fast loop sums
     every entry). ``radsum`` = r_i + r_j (the law adds the radii itself, in the same order).
 
