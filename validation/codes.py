@@ -3,9 +3,10 @@
 :data:`CODES` lists the reference codes the matrix has columns for, in column order; each is an
 engine of :mod:`reference_runs.engines` (binary, version, Debian package, display name). The
 columns follow from it (:func:`pairs`): native against each code (the native engine in that
-code's arithmetic), then every two codes against each other. Adding a code (YADE's engine
-``"yade"`` exists) is one more entry here: its columns appear in every case, and a case that
-declares a run of that code (:mod:`validation.matrix`) fills them with the shared judges.
+code's arithmetic), then every two codes against each other. Adding a code is one more entry
+here: its columns appear in every case, and a case that declares a run of that code
+(:mod:`validation.matrix`) fills them with the shared judges (YADE 2023.02a, the third code, is
+the last entry: a code written independently of the LIGGGHTS and LAMMPS lineage, docs/yade.md).
 
 :data:`DIFFERENCES` says, for a pair of codes, why their runs of the same deck differ beyond
 round-off: the operation that differs, where it is in each code's source (file:line, from
@@ -21,7 +22,7 @@ from reference_runs.engines import get_engine
 
 NATIVE = "native"
 #: the reference codes with matrix columns, in column order (names of reference_runs.engines)
-CODES: tuple[str, ...] = ("liggghts", "lammps")
+CODES: tuple[str, ...] = ("liggghts", "lammps", "yade")
 
 
 def code_label(code: str) -> str:
@@ -112,11 +113,64 @@ DIFFERENCES: dict[str, tuple[Difference, ...]] = {
         ),
     ),
 }
+#: what sets YADE 2023.02a's periodic runs (reference_runs/yade/dem_script.py, undamped
+#: Cundall-Strack) apart from the decks' (docs/yade.md, "How YADE's arithmetic differs")
+_YADE_ITEMS = (
+    (
+        "Y1",
+        "the cell kinematics: YADE's disks carry the mean field velGrad x in their velocities (homoDeform 2) and a "
+        "contact across the boundary adds the image's velocity velGrad hSize cellDist, so the tangential relative "
+        "velocity, and with it the shear spring, sees the affine strain rate; the decks' fix deform remaps the "
+        "positions and leaves the velocities without the mean field, so their springs see the fluctuations only",
+        "core/Cell.cpp:12-19, pkg/dem/NewtonIntegrator.cpp:262, 321-323, pkg/dem/ScGeom.cpp:88-92",
+    ),
+    (
+        "Y2",
+        "the integrator: leapfrog with one kick per step (v += dt F/m, then x += dt v), the velocity half a step "
+        "behind the positions; the decks' velocity Verlet kicks twice by dt/2 (the same positions in exact "
+        "arithmetic for forces that do not depend on velocity, rounded differently)",
+        "pkg/dem/NewtonIntegrator.cpp:264, 270, 324",
+    ),
+    (
+        "Y3",
+        "the shear history: YADE keeps the shear force, rotated to first order (F_s -= F_s x (n_old x n_new), not "
+        "norm-preserving, not projected) and then incremented by -ks dt v_t; the decks keep the spring displacement, "
+        "projected on the tangent plane",
+        "pkg/dem/ScGeom.cpp:15-23, 48-61, pkg/dem/ElasticContactLaw.cpp:72-82",
+    ),
+)
+_DECK_LINES = {
+    "liggghts": "fix deform remap x and fix nve/sphere (docs/lammps.md); tangential_model_history.h:166-199",
+    "lammps": "fix deform remap x/v and fix nve/sphere (docs/lammps.md); GRANULAR/pair_gran_hooke_history.cpp:255-300",
+}
+_TOGETHER = "an amount not measured on its own (the items act together)"
+for _code in ("liggghts", "lammps"):
+    DIFFERENCES[f"{_code}-yade"] = tuple(
+        Difference(item, what, {_code: _DECK_LINES[_code], "yade": where}, _TOGETHER)
+        for item, what, where in _YADE_ITEMS
+    ) + (
+        (
+            Difference(
+                "Y4",
+                "the lever arm of the spins: YADE takes the contact point, r - delta/2 (as LIGGGHTS); LAMMPS the full "
+                "radius r",
+                {
+                    "lammps": "GRANULAR/pair_gran_hooke_history.cpp:222-224, 249-251, 312-317, 323-325",
+                    "yade": "pkg/dem/Ig2_Sphere_Sphere_ScGeom.cpp:52, pkg/dem/ElasticContactLaw.cpp:108-112",
+                },
+                "7.4e-2 of the stress and 1.6e-2 D50 between LIGGGHTS and LAMMPS (item A)",
+            ),
+        )
+        if _code == "lammps"
+        else ()
+    )
+
 
 #: the source trees the lines of :data:`DIFFERENCES` refer to
 SOURCES = {
     "liggghts": "src/ of LIGGGHTS-PUBLIC 3.8.0 (Debian source package liggghts 3.8.0+repack1)",
     "lammps": "src/ of LAMMPS 29 Sep 2021 (Debian source package lammps 20220106.git7586adbb6a+ds1-2)",
+    "yade": "YADE 2023.02a (tag 2023.02a, commit d081c80d0; docs/yade.md)",
 }
 
 
@@ -131,9 +185,13 @@ def why_they_differ(pair: str) -> str:
         f"({d.item}) {d.what} [{code_label(a)} {d.where[a]}; {code_label(b)} {d.where[b]}]: alone it moves {d.moves}"
         for d in diffs
     ]
+    where = "docs/lammps.md, 'Every arithmetic difference'"
+    if "yade" in (a, b):
+        where = "docs/yade.md, 'How YADE's arithmetic differs'"
     return (
         f"{code_label(a)} and {code_label(b)} run the same deck with different contact-law arithmetic "
-        "(docs/lammps.md, 'Every arithmetic difference'): "
+        f"({where}): "
         + "; ".join(parts)
-        + f". Lines: {SOURCES[a]}; {SOURCES[b]}. The remaining items differ by round-off only (1e-12)."
+        + f". Lines: {SOURCES[a]}; {SOURCES[b]}."
+        + ("" if "yade" in (a, b) else " The remaining items differ by round-off only (1e-12).")
     )

@@ -51,9 +51,9 @@ def test_not_applicable_cells_carry_their_reason_and_unknown_pairs_are_refused()
     c = res.cell("liggghts-lammps")
     assert c["state"] == "n/a" and c["reason"] == "no code solves this"
     with pytest.raises(ValueError, match="pair"):
-        res.declare("native-yade", "x")
+        res.declare("native-nosuchcode", "x")
     with pytest.raises(ValueError, match="pair"):
-        Record("c", "q", "m", 0.0, 1.0, True, pair="lammps-yade")
+        Record("c", "q", "m", 0.0, 1.0, True, pair="lammps-nosuchcode")
     with pytest.raises(ValueError, match="pair"):
         in_pair([], "native")
 
