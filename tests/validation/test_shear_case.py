@@ -1,5 +1,6 @@
-"""Validation case ``simple-shear`` (quick suite, stored LAMMPS runs only): it passes on the stored
-data, and it fails on damaged evidence (a cut log, a cut dump) and on a perturbed native side."""
+"""Validation case ``simple-shear`` (quick suite, stored LAMMPS and YADE runs only): it passes on the
+stored data, and it fails on damaged evidence (a cut log, a cut dump, a cut YADE output) and on a
+perturbed native side."""
 
 from __future__ import annotations
 
@@ -28,12 +29,13 @@ def stored_copy(tmp_path, monkeypatch):
     absent (only the stored evidence is compared)."""
     dest = tmp_path / "stored"
     dest.mkdir()
-    for name in ("shear-short-lammps", "shear-full-lammps"):
+    for name in ("shear-short-lammps", "shear-full-lammps", "simple-shear-yade"):
         if (Path(store.STORED) / name).exists():
             shutil.copytree(Path(store.STORED) / name, dest / name)
     monkeypatch.setattr(store, "STORED", dest)
     monkeypatch.setattr(vrunner, "liggghts_available", lambda: False)
     monkeypatch.setattr(vrunner, "lammps_available", lambda: False)
+    monkeypatch.setattr(vrunner, "_available", lambda code: False)
     return dest
 
 
@@ -50,19 +52,25 @@ def _failed(res) -> set:
 def test_case_passes_on_stored_runs_with_the_matrix_cells(stored_copy, tmp_path):
     ok, res = _run(tmp_path)
     assert ok and res.passed, [r for r in res.records if not r.passed]
-    assert res.matrix.keys() == {"native-lammps"}
-    assert set(res.not_applicable) == {"native-liggghts", "liggghts-lammps"}
-    assert "ghost" in res.not_applicable["native-liggghts"]
+    assert res.matrix.keys() == {"native-lammps", "native-yade"}
+    assert set(res.not_applicable) == {"native-liggghts", "liggghts-lammps", "liggghts-yade", "lammps-yade"}
+    assert "ghost" in res.not_applicable["native-liggghts"] and "ghost" in res.not_applicable["liggghts-yade"]
+    assert "LAMMPS is not installed" in res.not_applicable["lammps-yade"]
+    for name in ("constant-volume", "servo"):  # YADE's stored sheared cells, bit for bit
+        yade = [r for r in res.checks if r.case == f"{CASE}/yade-120/{name}"]
+        assert {r.quantity for r in yade} >= {"evidence", "position", "velocity", "stress", "box"}
+        assert all(r.pair == "native-yade" and r.tolerance == 0.0 and r.value == 0.0 for r in yade)
     qty = {(r.case, r.quantity) for r in res.checks}
     for name in ("constant-volume", "servo"):
         for q in ("position", "velocity", "spin", "particle_force", "particle_torque", "stress", "box"):
             assert (f"{CASE}/stored-120/{name}", q) in qty
         for q in ("cell_list", "alpha", "w"):
             assert (f"{CASE}/voidcells-120/{name}", q) in qty
-    assert all(r.pair == "native-lammps" and r.reason for r in res.records)
-    # the evidence covers every thermo step (3001) and every dump frame (7) on both sides
+    assert all(r.pair in ("native-lammps", "native-yade") and r.reason for r in res.records)
+    # the evidence covers every thermo step (3001; YADE's every 10th: 301) and every dump frame (7) on both sides
     ev = [r.metric for r in res.records if r.quantity == "evidence"]
-    assert sum("3001 of 3001" in m for m in ev) == 4 and sum("7 of 7" in m for m in ev) == 8
+    assert sum("3001 of 3001" in m for m in ev) == 4 and sum("7 of 7" in m for m in ev) == 12
+    assert sum("301 of 301" in m for m in ev) == 4
     assert any("LAMMPS is absent" in n for n in res.notes)
     figs = {p.name for p, _ in res.figures}
     assert {"simple_shear_voidcells.png", "simple_shear_short.png"} <= figs
@@ -152,3 +160,17 @@ def test_sheared_snapshot_uses_the_tilted_cell_and_the_box_rate():
     # reduction modulo the sheared cell: a2 = (xy, ly) is removed, not (0, ly)
     d = np.array([[0.1 + 1e-12, 1.0]])
     np.testing.assert_allclose(reduce_sheared(d, snap.cell), [[1e-12, 0.0]], atol=1e-16)
+
+
+def test_truncated_stored_yade_output_fails_as_incomplete(stored_copy, tmp_path):
+    import gzip
+
+    gz = stored_copy / "simple-shear-yade" / "servo" / "dem.out.gz"
+    text = gzip.decompress(gz.read_bytes())
+    gz.write_bytes(gzip.compress(text[: 2 * len(text) // 3]))
+    ok, res = _run(tmp_path)
+    assert not ok and not res.passed and res.error is None
+    assert res.cell("native-yade")["state"] == "FAIL" and res.cell("native-lammps")["state"] == "pass"
+    bad = [r.metric for r in res.records if r.case == f"{CASE}/yade-120/servo" and not r.passed]
+    assert any(m.startswith("incomplete: stored YADE output: incomplete:") for m in bad), bad
+    assert not any("constant-volume" in c for c, _ in _failed(res))

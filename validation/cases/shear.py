@@ -55,8 +55,9 @@ from reference_runs.decks.shear import (
 from reference_runs.judge import defined_diff
 from reference_runs.parsers import parse_dump_custom
 from reference_runs.runner import run_job
+from reference_runs.yade.dem import shear_job, short_shear
 
-from .. import dem_compare
+from .. import dem_compare, yade_runs
 from ..codes import CODES, NATIVE, code_label, pair_key
 from ..core import (
     CaseResult,
@@ -86,7 +87,14 @@ from ..judges import (
     void_cells,
 )
 from ..matrix import Comparison, Run, evaluate, stored_job
-from .biaxial import FULL_CONSOLIDATION_STEPS, PERTURB_REL, _kuhn, _servo
+from .biaxial import (
+    FULL_CONSOLIDATION_STEPS,
+    PERTURB_REL,
+    YADE_BIT_REASON,
+    YADE_BOUNDS,
+    _kuhn,
+    _servo,
+)
 
 CASE = "simple-shear"
 TITLE = "Simple shear in a sheared periodic cell (Lees-Edwards): native vs LAMMPS, and void cells"
@@ -707,6 +715,94 @@ def short_plan(ctx: Context, manifests: dict | None = None) -> tuple[list, list]
     return runs, comps
 
 
+# ------------------------------------------------------------------ YADE's columns
+#: YADE's runs of the short horizon: each loading of SHORT_CASES undamped
+#: (reference_runs.yade.dem.short_shear), stored under reference_runs/stored/simple-shear-yade/<name>
+YADE_STORED = "simple-shear-yade"
+YADE_THERMO_EVERY = 10
+YADE_DUMP_EVERY = 500
+YADE_SHEAR_CROSS_REASON = (
+    "YADE's run is undamped (its 2023.02a damped law takes a periodic image's velocity with the wrong sign, "
+    "docs/yade.md), so LAMMPS runs the same deck undamped; the codes' laws and kinematics differ physically (raw "
+    "difference shown, with why), ten decades above a 1e-15 envelope, so the check is that the codes' difference "
+    "equals the difference of the native runs in their two arithmetics: YADE's side is equal to the bit, the "
+    "sheared-cell native run differs from LAMMPS by the summation order only (measured 8e-14 to 1.5e-13 of the "
+    "stress and 2.6e-14 to 4.7e-14 D50 here, docs/shear.md), so the step-for-step bounds 1e-10 D50 and 1e-8"
+)
+
+
+def yade_plan(ctx: Context, manifests: dict) -> tuple[list, list]:
+    """YADE's runs and comparisons of the short horizon (``yade-120/<loading>``: 120 disks, 3000
+    steps, undamped): native in YADE's arithmetic against YADE's sheared cell step for step at zero
+    tolerance (the live job, or with YADE absent its stored output); LAMMPS running the same deck
+    undamped against YADE, their difference explained by the native runs in the two arithmetics
+    (LIGGGHTS has no sheared periodic box: not applicable)."""
+    if "yade" not in CODES:
+        return [], []
+    runs, comps = [], []
+    for name in SHORT_CASES:
+        p, s, ld, n = short_shear(name)
+        every = {"thermo_every": YADE_THERMO_EVERY, "dump_every": YADE_DUMP_EVERY}
+        job = shear_job(p, s, ld, n, **every)
+        d = stored_dir(YADE_STORED) / name
+        sc = f"yade-120/{name}"
+
+        def live_yade(name=name, job=job, p=p, n=n, sc=sc):
+            job_dir = ctx.work("reference", CASE, f"yade-120-{name}")
+            return yade_runs.live(job_dir, job, ctx.job_timeout(p.n * n), True, manifests, f"{sc}/yade")
+
+        runs += [
+            Run(f"{sc}/yade", "yade", "yade", f"{sc}: YADE 2023.02a run now (undamped)", live_yade, live=True,
+                fallback=f"{sc}/yade-stored"),
+            Run(f"{sc}/yade-stored", "yade", "yade", f"stored {YADE_STORED}/{name}", yade_runs.stored(d, True),
+                verify=yade_runs.stored_verify(d, job, True)),
+            Run(f"native/{sc}/yade", NATIVE, "yade", "native, yade arithmetic (yade_run)",
+                functools.partial(yade_runs.native, p, s, ld, n, YADE_THERMO_EVERY, YADE_DUMP_EVERY, True)),
+        ]  # fmt: skip
+        params = {"d50": p.d50, "nsteps": n, **every}
+        comps.append(
+            Comparison(
+                "step",
+                f"{CASE}/{sc}",
+                (f"native/{sc}/yade", f"{sc}/yade"),
+                YADE_BIT_REASON,
+                {**params, "bounds": dataclasses.replace(YADE_BOUNDS, cell="sheared")},
+            )
+        )
+        if "lammps" not in CODES:
+            continue
+
+        def live_lammps(name=name, p=p, s=s, ld=ld, n=n, sc=sc):
+            job_dir = ctx.work("reference", CASE, f"yade-120-{name}-lammps")
+            tr, man = run_shear_job(
+                job_dir, p, s, ld, n, YADE_DUMP_EVERY, thermo_every=YADE_THERMO_EVERY, timeout=ctx.job_timeout(p.n * n)
+            )
+            manifests[f"{sc}/lammps"] = (man, job_dir)
+            return tr
+
+        runs += [
+            Run(f"{sc}/lammps", "lammps", "lammps", f"{sc}: the LAMMPS deck undamped, run now", live_lammps, live=True),
+            Run(f"native/{sc}/lammps", NATIVE, "lammps", "native sheared cell, lammps arithmetic, undamped",
+                functools.partial(run_native_shear, p, s, ld, n, YADE_DUMP_EVERY, thermo_every=YADE_THERMO_EVERY)),
+        ]  # fmt: skip
+        comps.append(
+            Comparison(
+                "explained",
+                f"{CASE}/{sc}/lammps-yade",
+                (f"{sc}/lammps", f"{sc}/yade", f"native/{sc}/lammps", f"native/{sc}/yade"),
+                YADE_SHEAR_CROSS_REASON,
+                {
+                    **params,
+                    "position_tol": POS_TOL,
+                    "relative_tol": REL_TOL,
+                    "reason": YADE_SHEAR_CROSS_REASON,
+                    "cell": "sheared",
+                },
+            )
+        )
+    return runs, comps
+
+
 # ------------------------------------------------------------------ the case
 @case(CASE, TITLE, order=35)
 def simple_shear_case(ctx: Context) -> CaseResult:
@@ -753,7 +849,7 @@ def simple_shear_case(ctx: Context) -> CaseResult:
         "max|dbox|/D50",
     ]
     for code in CODES:
-        if code not in SHEAR_CODES:
+        if code not in SHEAR_CODES and code != "yade":  # YADE's runs: yade_plan
             why = SHEAR_NA.get(code, f"no sheared-cell run of {code_label(code)} is declared (SHEAR_CODES)")
             res.skip_pair(pair_key(NATIVE, code), why)
             for other in CODES:
@@ -761,8 +857,9 @@ def simple_shear_case(ctx: Context) -> CaseResult:
                     res.skip_pair(pair_key(code, other), why)
     manifests = {}
     runs, comps = short_plan(ctx, manifests)
-    out = evaluate(res, ctx, runs, comps)
-    rows = [short_row(out.summaries[c.label]) for c in comps if c.kind == "step" and c.label in out.summaries]
+    y_runs, y_comps = yade_plan(ctx, {})  # YADE's manifests: in its job directories
+    out = evaluate(res, ctx, runs + y_runs, comps + y_comps)
+    rows = [short_row(out.summaries[c.label]) for c in comps + y_comps if c.kind == "step" and c.label in out.summaries]
     short_div = {}
     vc_fig = None
     for c in comps:
