@@ -242,6 +242,13 @@ class CaseResult:
         if pair not in self.matrix:
             self.not_applicable[pair] = reason
 
+    def skip_code(self, code: str, reason: str) -> None:
+        """Every matrix column of ``code`` (native against it and it against each other code) that
+        this case has not declared does not apply, for ``reason`` (a case without a run of that code)."""
+        for pair in PAIRS:
+            if code in pair.split("-") and pair not in self.matrix:
+                self.skip_pair(pair, reason)
+
     @property
     def checks(self) -> list[Record]:
         """The records that are verdicts (``kind == "check"``)."""

@@ -32,14 +32,16 @@ from pathlib import Path
 
 import numpy as np
 
+from gransim.contacts import find_neighbours
 from gransim.dem.yade_arithmetic import yade_run
+from gransim.voidcell import Snapshot
 from reference_runs.decks.shear import wrapped_packing
 from reference_runs.errors import ReferenceRunError
 from reference_runs.yade.dem import read_yade_dem, run_yade_dem
 from reference_runs.yade.dem_script import INPUT_NAME, OUTPUT_NAME
 
 from .core import Record, compare
-from .dem_compare import Trajectory
+from .dem_compare import Trajectory, cell_rate
 
 #: the stored output of a job: the output gzipped (gzip -9 -n) and the job's manifest
 STORED_OUTPUT = OUTPUT_NAME + ".gz"
@@ -174,3 +176,24 @@ def store(job_dir, dest) -> None:
     (dest / STORED_OUTPUT).write_bytes(gzip.compress((job_dir / OUTPUT_NAME).read_bytes(), 9, mtime=0))
     (dest / INPUT_NAME).write_bytes((job_dir / INPUT_NAME).read_bytes())
     (dest / STORED_MANIFEST).write_bytes((job_dir / STORED_MANIFEST).read_bytes())
+
+
+def yade_snapshot(tr: Trajectory, step: int, radii: np.ndarray, dt: float) -> Snapshot:
+    """A :class:`gransim.voidcell.Snapshot` of a frame of a YADE run in an orthogonal cell, built as
+    :func:`validation.dem_compare.snapshot` builds the decks' (contacts = overlapping pairs of the
+    positions, dC/dt by central differences of the box lengths) except the velocities: YADE's hold
+    the mean field already (homoDeform 2, docs/yade.md), so they are taken as they are, at
+    v_(k-1/2) as YADE holds them (the same on the native side)."""
+    fr = tr.frames[step]
+    C = np.diag(tr.lengths[tr.at([step])[0]])
+    nl = find_neighbours(fr["x"], radii, C, skin=0.0)
+    return Snapshot(
+        positions=fr["x"],
+        cell=C,
+        contacts_i=nl.i,
+        contacts_j=nl.j,
+        contacts_shift=nl.shift,
+        velocities=fr["v"],
+        cell_velocity=cell_rate(tr, step, dt),
+        radii=radii,
+    )

@@ -138,6 +138,13 @@ def laws_short(ctx: Context) -> CaseResult:
     for engine in CODES:
         if engine not in codes:
             res.skip_pair(f"native-{engine}", f"no law of {CODE[engine]} in this run")
+    res.skip_code(
+        "yade",
+        "no YADE run: these are LIGGGHTS' and LAMMPS' damped Hertz-Mindlin and rolling-resistance laws, each in its "
+        "code's parametrisation; YADE's damped Hertz law (Thornton's fit, a clipped dashpot, HertzMindlin.cpp:72-109) "
+        "and its rolling laws are other laws (docs/yade.md), and its damped linear law errs across the periodic "
+        "boundary (ViscoelasticPM.cpp:118)",
+    )
     res.skip_pair(
         "liggghts-lammps",
         "each of these laws is one code's (its parametrisation and arithmetic); "

@@ -308,6 +308,12 @@ def relaxation(ctx: Context) -> CaseResult:
     res.declare("native-liggghts", TOL_REASON)
     res.declare("native-lammps", TOL_REASON)
     res.declare("liggghts-lammps", CROSS_REASON)
+    res.skip_code(
+        "yade",
+        "no YADE run: the DEM sides relax with contact damping (ratio 8, the decks' mass-scaled dashpot), which YADE "
+        "2023.02a's periodic damped law gets wrong across the boundary (ViscoelasticPM.cpp:118, docs/yade.md); a "
+        "relaxation under Cundall's non-viscous damping is not declared",
+    )
     header = ["state", "side", "sigma_xx", "sigma_yy", "sigma_xy", "rho", "KE/U", "vs relaxed", "tolerance"]
     rows: list = []
     cross: list = []
