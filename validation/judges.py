@@ -29,17 +29,27 @@ Criteria:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from gransim.errors import InputError
 from gransim.voidcell import VoidCells
-from reference_runs.judge import defined_diff, defined_peak, peak
+from reference_runs.judge import JudgeError, defined_diff, defined_peak, peak
 from reference_runs.store import taylor_case
+from reference_runs.yade.compare import (
+    CONTACT_REASON,
+    STRESS_REASON,
+    STRESS_RTOL,
+    STRUCTURE_REASON,
+    TANGENT_REASON,
+    TANGENT_RTOL,
+    compare_yade_taylor,
+)
 
 from .codes import why_they_differ
-from .core import compare, evidence, info, stored_job_record
+from .core import Record, compare, evidence, info, stored_job_record
 from .dem_compare import (
     expected_frames,
     expected_steps,
@@ -595,6 +605,103 @@ def taylor_cross(
             )
             n_states += len(common)
     return recs, {"states": n_states}
+
+
+def yade_taylor_records(label: str, cmp, sel) -> list:
+    """The checks of one RVE and path (states ``sel`` of :func:`reference_runs.yade.compare.compare_yade_taylor`'s
+    comparison): YADE's two stresses, its tangent against gransim's material part, the entries that must be
+    zero and the contacts (docs/yade.md, "The 15 study RVEs")."""
+    sides = "gransim (native) vs YADE"
+    un_g, un_y = int(cmp.unmatched_gransim[sel].sum()), int(cmp.unmatched_yade[sel].sum())
+    n_g, n_y = int(cmp.n_gransim[sel].sum()), int(cmp.n_yade[sel].sum())
+    return [
+        compare(
+            label, "stress", f"max_rel_diff getStress, {sides}", peak([cmp.stress[sel]]), STRESS_RTOL, STRESS_REASON
+        ),
+        compare(
+            label,
+            "stress",
+            f"max_rel_diff stress of getStressAndTangent, {sides}",
+            peak([cmp.stress_tangent_call[sel]]),
+            STRESS_RTOL,
+            STRESS_REASON,
+        ),
+        compare(
+            label,
+            "tangent",
+            "max_rel_diff of the upper triangle, gransim's material part pushed forward vs YADE",
+            peak([cmp.tangent[sel]]),
+            TANGENT_RTOL,
+            TANGENT_REASON,
+        ),
+        compare(
+            label,
+            "tangent_zero_entries",
+            "max |z rows, z columns, lower triangle of YADE's tangent| / max |tangent|",
+            peak([cmp.structure[sel]]),
+            0.0,
+            STRUCTURE_REASON,
+        ),
+        Record(
+            label,
+            "contacts",
+            f"contacts without a partner (gransim {un_g} of {n_g}, YADE {un_y} of {n_y}, summed over states)",
+            float(un_g + un_y + abs(n_g - n_y)),
+            0.0,
+            un_g == 0 and un_y == 0 and n_g == n_y and n_g > 0,
+            CONTACT_REASON,
+        ),
+    ]
+
+
+def taylor_yade(label: str, material, runs: dict, *, expected_rves, expected_ks, sides) -> tuple[list, dict]:
+    """gransim's Taylor stress, the material part of its tangent and its contacts against YADE's
+    ``getStress``, ``getStressAndTangent`` and interactions, state by state.
+
+    ``runs``: {RVE: :class:`reference_runs.yade.taylor.YadeTaylorRun`, or the message of a job or a
+    stored output that failed or is incomplete}. Evidence first: every RVE of ``expected_rves`` run,
+    a failed one an ``incomplete`` record naming it, every state k of ``expected_ks`` on every path;
+    then the checks of :func:`yade_taylor_records` per RVE and path (labels ``label/<RVE>/<path>``).
+    Returns (records, {"rows": [RVE, N, states, contacts, getStress, stress of getStressAndTangent,
+    tangent]})."""
+    recs = [
+        evidence(
+            label,
+            "RVEs run by YADE",
+            sorted(expected_rves),
+            sorted(k for k, r in runs.items() if not isinstance(r, str)),
+        )
+    ]
+    rows = []
+    for name, run in sorted(runs.items()):
+        short = name.replace("rve-", "")
+        if isinstance(run, str):
+            recs.append(Record(f"{label}/{short}", "evidence", f"incomplete: YADE job failed: {run}", 1.0, 0.0, False))
+            continue
+        paths = sorted({st["path"] for st in run.states}, key=list(PATH_NAMES).index)
+        for path in PATH_NAMES:
+            have = [st["k"] for st in run.states if st["path"] == path]
+            recs.append(evidence(f"{label}/{short}/{PATH_NAMES[path]}", "YADE states", list(expected_ks), have))
+        try:
+            cmp = compare_yade_taylor(run, material(run.packing))
+        except JudgeError as exc:  # NaN or inf on a side, no state: a failure, named
+            recs.append(Record(f"{label}/{short}", "evidence", f"cannot be judged: {exc}", math.nan, 0.0, False))
+            continue
+        for path in paths:
+            sel = np.array([st["path"] == path for st in run.states])
+            recs += yade_taylor_records(f"{label}/{short}/{PATH_NAMES[path]}", cmp, sel)
+        rows.append(
+            [
+                name,
+                run.packing.n,
+                len(run.states),
+                f"{int(cmp.n_gransim.min())}-{int(cmp.n_gransim.max())}",
+                f"{float(cmp.stress.max()):.2e}",
+                f"{float(cmp.stress_tangent_call.max()):.2e}",
+                f"{float(cmp.tangent.max()):.2e}",
+            ]
+        )
+    return recs, {"rows": rows}
 
 
 # ====================================================================== void cells

@@ -31,6 +31,7 @@ from .judges import (
     taylor_contacts,
     taylor_cross,
     taylor_stress,
+    taylor_yade,
 )
 
 #: the judges a comparison can name (kind -> function(label, *runs, **params) -> (records, summary))
@@ -43,6 +44,7 @@ JUDGES = {
     "taylor_stress": taylor_stress,
     "taylor_contacts": taylor_contacts,
     "taylor_cross": taylor_cross,
+    "taylor_yade": taylor_yade,
 }
 
 

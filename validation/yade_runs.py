@@ -12,6 +12,8 @@ takes a periodic image's velocity with the wrong sign, docs/yade.md). Three kind
   (``Run.fallback``); :func:`stored_verify` checks it against its manifest and against the inputs
   the case would give YADE now, and a file cut short, a frame or a step missing is an
   ``incomplete`` record (the run is then empty, so every comparison on it fails too);
+* :func:`taylor_live`, :func:`taylor_stored` : YADE's Taylor states of the study RVEs
+  (:mod:`reference_runs.yade.taylor`), run now or read from ``reference_runs/stored/taylor-rve-yade``;
 * :func:`native` : ``gransim.dem.yade_arithmetic.yade_run`` on the same case (bit for bit with YADE
   at every step, docs/yade.md "The native yade arithmetic").
 
@@ -39,6 +41,9 @@ from reference_runs.decks.shear import wrapped_packing
 from reference_runs.errors import ReferenceRunError
 from reference_runs.yade.dem import read_yade_dem, run_yade_dem
 from reference_runs.yade.dem_script import INPUT_NAME, OUTPUT_NAME
+from reference_runs.yade.taylor import INPUT_NAME as TAYLOR_INPUT
+from reference_runs.yade.taylor import OUTPUT_NAME as TAYLOR_OUTPUT
+from reference_runs.yade.taylor import YadeTaylorRun, cell_z, read_yade_taylor, run_yade_taylor, yade_taylor_job
 
 from .core import Record, compare
 from .dem_compare import Trajectory, cell_rate
@@ -197,3 +202,80 @@ def yade_snapshot(tr: Trajectory, step: int, radii: np.ndarray, dt: float) -> Sn
         cell_velocity=cell_rate(tr, step, dt),
         radii=radii,
     )
+
+
+# ---------------------------------------------------------------- Taylor states
+def taylor_live(packings: dict, kn: float, job_root, n_steps: int, stride: int, timeout) -> dict:
+    """YADE's Taylor jobs of ``packings`` ({RVE: packing}), one per RVE in ``job_root/<RVE>``
+    (reused when complete): {RVE: :class:`reference_runs.yade.taylor.YadeTaylorRun`, or the first
+    line of the error of a job that failed or left an incomplete output}. ``timeout(packing)``."""
+    out = {}
+    for name, packing in packings.items():
+        try:
+            out[name] = run_yade_taylor(
+                packing, kn, Path(job_root) / name, n_steps=n_steps, stride=stride, name=name, timeout=timeout(packing)
+            )
+        except ReferenceRunError as exc:
+            out[name] = str(exc).splitlines()[0]
+    return out
+
+
+def taylor_stored(packings: dict, kn: float, root, n_steps: int, stride: int) -> dict:
+    """The stored outputs of YADE's Taylor jobs (``root/<RVE>``: ``taylor.out.gz``, ``input.json``,
+    ``manifest.json``), read as :func:`taylor_live` reads a job: {RVE: run, or why it cannot stand in
+    (incomplete, or not this job's output: its hashes against the manifest and the input this case
+    gives YADE now)}."""
+    out = {}
+    for name, packing in packings.items():
+        d = Path(root) / name
+        script, files, states = yade_taylor_job(packing, kn, n_steps=n_steps, stride=stride, name=name)
+        try:
+            text = gzip.decompress((d / (TAYLOR_OUTPUT + ".gz")).read_bytes())
+            man = json.loads((d / STORED_MANIFEST).read_text())
+        except (OSError, EOFError, ValueError, gzip.BadGzipFile) as exc:
+            out[name] = f"incomplete: stored YADE output {d}: cannot be read ({exc})"
+            continue
+        bad = [
+            what
+            for what, ok in (
+                ("output sha256", _sha(text) == man.get("outputs", {}).get(TAYLOR_OUTPUT)),
+                ("script sha256", man.get("deck_sha256") == _sha(script.encode())),
+                ("input sha256", man.get("inputs", {}).get(TAYLOR_INPUT) == _sha(files[TAYLOR_INPUT])),
+                ("YADE version", str(man.get("engine_version", "")).startswith("YADE ")),
+            )
+            if not ok
+        ]
+        if bad:
+            out[name] = f"stored YADE output {d} is not this job's: {', '.join(bad)} differ from its manifest"
+            continue
+        with tempfile.TemporaryDirectory() as tmp:
+            (Path(tmp) / TAYLOR_OUTPUT).write_bytes(text)
+            try:
+                raw = read_yade_taylor(Path(tmp) / TAYLOR_OUTPUT, len(states))
+            except ReferenceRunError as exc:
+                out[name] = f"stored YADE output: {str(exc).splitlines()[0].replace(tmp, str(d))}"
+                continue
+        z = cell_z(packing)
+        out[name] = YadeTaylorRun(
+            packing,
+            float(kn),
+            z,
+            d,
+            man,
+            tuple(states),
+            np.array([s["F"] for s in states], float),
+            np.array([s.stress[:2, :2] * z for s in raw]),
+            np.array([s.tangent * z for s in raw]),
+            np.array([s.n_contacts for s in raw]),
+            tuple(raw),
+        )
+    return out
+
+
+def store_taylor(job_dir, dest) -> None:
+    """Store a complete YADE Taylor job (``taylor.out`` gzipped, its input and manifest) in ``dest``."""
+    job_dir, dest = Path(job_dir), Path(dest)
+    dest.mkdir(parents=True, exist_ok=True)
+    (dest / (TAYLOR_OUTPUT + ".gz")).write_bytes(gzip.compress((job_dir / TAYLOR_OUTPUT).read_bytes(), 9, mtime=0))
+    (dest / TAYLOR_INPUT).write_bytes((job_dir / TAYLOR_INPUT).read_bytes())
+    (dest / STORED_MANIFEST).write_bytes((job_dir / STORED_MANIFEST).read_bytes())

@@ -1,7 +1,8 @@
 """taylor-rve as a declaration (validation.cases.taylor.taylor_plan): with the codes absent, each
 code's stored outputs stand in for its live jobs, every column is filled, and the records keep one
 label per RVE, path and route (``taylor-rve/<code>/<RVE>/<path>/<route>``, the contacts
-``.../<path>/k<k>``, the two codes ``taylor-rve/liggghts-lammps/...``)."""
+``.../<path>/k<k>``, the two codes ``taylor-rve/liggghts-lammps/...``; YADE's
+``taylor-rve/yade/<RVE>/<path>``, tests/validation/test_yade_columns.py)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from validation.runner import run_validation
 def test_stored_outputs_stand_in_and_the_labels_name_code_rve_path_route(tmp_path, monkeypatch):
     monkeypatch.setattr(vrunner, "liggghts_available", lambda: False)
     monkeypatch.setattr(vrunner, "lammps_available", lambda: False)
+    monkeypatch.setattr(vrunner, "_available", lambda code: False)
     ok, results = run_validation("quick", tmp_path / "results", only=["taylor-rve"], log=lambda *a: None)
     (res,) = results
     assert ok and res.passed, [r for r in res.records if not r.passed]
@@ -21,9 +23,11 @@ def test_stored_outputs_stand_in_and_the_labels_name_code_rve_path_route(tmp_pat
         "native-liggghts": "pass",
         "native-lammps": "pass",
         "liggghts-lammps": "pass",
+        "native-yade": "pass",
     }
-    assert sum("stored output" in n and "compared instead" in n for n in res.notes) == 4  # states, contacts
-    stress = [r.case for r in res.checks if r.quantity == "stress"]
+    # states and contacts of LIGGGHTS and LAMMPS, YADE's states
+    assert sum("stored output" in n and "compared instead" in n for n in res.notes) == 5
+    stress = [r.case for r in res.checks if r.quantity == "stress" and r.pair != "native-yade"]
     code_rx = re.compile(r"^taylor-rve/(liggghts|lammps)/[\w.-]+/(compression|shear)(11|22|12|21)/(images|periodic)$")
     cross_rx = re.compile(r"^taylor-rve/liggghts-lammps/[\w.-]+/(compression|shear)(11|22|12|21)/(images|periodic)$")
     assert stress and all(code_rx.match(c) or cross_rx.match(c) for c in stress), stress

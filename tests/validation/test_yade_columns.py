@@ -71,3 +71,47 @@ def test_skip_code_marks_only_the_undeclared_columns_of_the_code():
         "lammps-yade": "no such run",
     }
     assert "liggghts-lammps" not in res.not_applicable
+
+
+@pytest.fixture
+def taylor_stored(tmp_path, monkeypatch):
+    dest = tmp_path / "stored"
+    dest.mkdir()
+    for p in Path(store.STORED).iterdir():
+        if p.name.startswith("taylor-"):
+            shutil.copytree(p, dest / p.name)
+    monkeypatch.setattr(store, "STORED", dest)
+    monkeypatch.setattr(vrunner, "liggghts_available", lambda: False)
+    monkeypatch.setattr(vrunner, "lammps_available", lambda: False)
+    monkeypatch.setattr(vrunner, "_available", lambda code: False)
+    return dest
+
+
+def _taylor(tmp_path):
+    ok, (res,) = run_validation("quick", tmp_path / "results", only=["taylor-rve"], log=lambda *a, **k: None)
+    return ok, res
+
+
+def test_taylor_rve_judges_yades_stored_states(taylor_stored, tmp_path):
+    ok, res = _taylor(tmp_path)
+    assert ok and res.passed, [r for r in res.records if not r.passed]
+    assert res.cell("native-yade")["state"] == "pass"
+    yade = [r for r in res.checks if r.pair == "native-yade"]
+    labels = {r.case for r in yade}
+    for rve in ("70-1", "70-2", "70-3"):
+        for path in ("compression11", "compression22", "shear12", "shear21"):
+            assert f"taylor-rve/yade/{rve}/{path}" in labels
+    tangent = [r for r in yade if r.quantity == "tangent"]
+    assert len(tangent) == 12 and all(0.0 < r.value <= r.tolerance == 1e-12 for r in tangent)
+    assert "triangle inequality" in res.not_applicable["lammps-yade"]
+
+
+def test_taylor_rve_fails_on_a_cut_yade_output(taylor_stored, tmp_path):
+    gz = taylor_stored / "taylor-rve-yade" / "rve-70-2" / "taylor.out.gz"
+    gz.write_bytes(gzip.compress(gzip.decompress(gz.read_bytes())[:-3000]))
+    ok, res = _taylor(tmp_path)
+    assert not ok and res.cell("native-yade")["state"] == "FAIL"
+    bad = [r for r in res.records if r.pair == "native-yade" and not r.passed]
+    assert any(r.case == "taylor-rve/yade/70-2" and "is not this job's: output sha256" in r.metric for r in bad), bad
+    assert any(r.metric.startswith("incomplete: expected 3 RVEs run by YADE") for r in bad), bad
+    assert not any("70-1" in r.case or "70-3" in r.case for r in bad)

@@ -20,8 +20,9 @@ from reference_runs import store
 from reference_runs.store import RVE_CASE, TAYLOR_CASE, taylor_case
 from reference_runs.taylor import read_taylor_job, run_taylor
 
+from .. import yade_runs
 from ..codes import CODES, NATIVE, code_label
-from ..core import CaseResult, Context, case
+from ..core import CaseResult, Context, case, stored_dir
 from ..judges import TaylorStates
 from ..matrix import Comparison, Run, evaluate
 from ..taylor_compare import (  # noqa: F401 (compare_contact_forces, contact_records: used by the fault tests)
@@ -132,7 +133,71 @@ def _material(packing):
     return TaylorMaterial(packing, KN)
 
 
-def taylor_plan(ctx: Context, packings: dict, stride: int) -> tuple[list, list]:
+# ---------------------------------------------------------------- YADE's column
+#: YADE's Taylor states per suite: the RVEs and the stride along the 50-step paths (quick settings in
+#: the default suite, about 4 s; every state of the 15 RVEs in the full suite, the jobs of taylor-rve-yade)
+YADE_SETTINGS = {
+    "quick": {"names": [f"rve-70-{k}" for k in (1, 2, 3)], "stride": 5},
+    "default": {"names": [f"rve-70-{k}" for k in (1, 2, 3)], "stride": 5},
+    "full": {"names": None, "stride": 1},
+}
+YADE_STORED = "taylor-rve-yade"
+YADE_N_STEPS = 50
+YADE_REASON = (
+    "YADE 2023.02a's getStress and getStressAndTangent against gransim's Taylor stress and the material part of "
+    "its tangent, state by state: round-off only (stress 1e-10 of max|sigma|: the branch vectors formed from "
+    "centres in other orders, bound 3.2e-11; tangent 1e-12; zero entries exactly 0; no unmatched contact), "
+    "docs/yade.md 'The 15 study RVEs'"
+)
+
+
+def yade_plan(ctx: Context, packings: dict, suite: str) -> tuple[list, list]:
+    """YADE's Taylor column: its jobs of the suite's RVEs (:data:`YADE_SETTINGS`), run now (the job
+    directories of taylor-rve-yade, results/reference/taylor-yade/<RVE>, so a full run's jobs are
+    shared) or, with YADE absent, its stored outputs (reference_runs/stored/taylor-rve-yade, the quick
+    settings only), against gransim by :func:`validation.judges.taylor_yade`."""
+    st = YADE_SETTINGS.get(suite, YADE_SETTINGS["default"])
+    names = st["names"] or sorted(n for n in packings if n.startswith("rve-"))
+    mine = {n: packings[n] for n in names if n in packings}
+    ks = list(range(0, YADE_N_STEPS + 1, st["stride"]))
+    ks = ks if ks[-1] == YADE_N_STEPS else [*ks, YADE_N_STEPS]
+
+    def timeout(packing):
+        return ctx.job_timeout(len(ks) * 4 * packing.n * 20)
+
+    runs = [
+        Run(
+            "live/yade",
+            "yade",
+            "yade",
+            f"one YADE job per RVE run now ({len(mine)} RVEs, every {st['stride']} states)",
+            lambda: yade_runs.taylor_live(
+                mine, KN, ctx.work("reference", "taylor-yade"), YADE_N_STEPS, st["stride"], timeout
+            ),
+            live=True,
+            fallback="stored/yade",
+        ),
+        Run(
+            "stored/yade",
+            "yade",
+            "yade",
+            f"stored {YADE_STORED}",
+            lambda: yade_runs.taylor_stored(mine, KN, stored_dir(YADE_STORED), YADE_N_STEPS, st["stride"]),
+        ),
+    ]
+    comps = [
+        Comparison(
+            "taylor_yade",
+            f"{CASE}/yade",
+            ("native", "live/yade"),
+            YADE_REASON,
+            {"expected_rves": sorted(mine), "expected_ks": ks},
+        )
+    ]
+    return runs, comps
+
+
+def taylor_plan(ctx: Context, packings: dict, stride: int, suite: str = "quick") -> tuple[list, list]:
     """The runs and comparisons of taylor-rve: per code of :data:`TAYLOR_CODES`, its Taylor jobs
     (live, or the stored outputs when the code is absent) against gransim's Taylor stress of every
     state, its contact jobs against gransim's contacts (two-sided), and every two codes' stresses
@@ -183,6 +248,10 @@ def taylor_plan(ctx: Context, packings: dict, stride: int) -> tuple[list, list]:
                 {"route": TAYLOR_CODES[code].route, "match": TAYLOR_CODES[code].match},
             )
         )
+    if "yade" in CODES:
+        y_runs, y_comps = yade_plan(ctx, packings, suite)
+        runs += y_runs
+        comps += y_comps
     for i, a in enumerate(here):
         for b in here[i + 1 :]:
             comps.append(
@@ -217,16 +286,35 @@ def taylor_rve(ctx: Context) -> CaseResult:
     names = s["names"]
     paths = generation.standard_packings(ctx.results / "packings", names=names)
     packings = {n: load_packing(p) for n, p in paths.items()}
-    runs, comps = taylor_plan(ctx, packings, s["stride"])
+    runs, comps = taylor_plan(ctx, packings, s["stride"], ctx.suite)
     out = evaluate(res, ctx, runs, comps)
+    res.skip_code(
+        "yade",
+        "not declared: YADE and each code are judged against gransim's Taylor stress on the same states at 1e-10 "
+        "(native vs YADE, native vs the code), so they agree to 2e-10 by the triangle inequality; YADE's jobs are "
+        "the quick settings' RVEs in the default suite",
+    )
     for r in runs:
-        if r.key in out.runs and r.code != NATIVE and not r.key.startswith(("live-contacts", "stored-contacts")):
+        if r.code == "yade" and r.key in out.runs:  # {RVE: YADE's Taylor run, or why it failed}
+            res.notes.append(f"YADE reference: {r.source}.")
+        elif r.key in out.runs and r.code != NATIVE and not r.key.startswith(("live-contacts", "stored-contacts")):
             res.notes.append(f"{CODE[r.code]} reference: {out.runs[r.key].source}.")
     rows = [row for c in comps if c.kind == "taylor_stress" for row in out.summaries.get(c.label, {}).get("rows", [])]
     for c in comps:
         if c.kind == "taylor_cross" and c.label in out.summaries:
             a, b = c.params["engines"]
             res.notes.append(f"{CODE[a]} vs {CODE[b]}: {out.summaries[c.label]['states']} states compared directly.")
+    yade_rows = [
+        row for c in comps if c.kind == "taylor_yade" for row in out.summaries.get(c.label, {}).get("rows", [])
+    ]
+    if yade_rows:
+        res.tables.append(
+            (
+                "gransim against YADE per RVE (largest relative difference over all states and paths)",
+                ["RVE", "N", "states", "contacts", "getStress", "stress of getStressAndTangent", "tangent"],
+                yade_rows,
+            )
+        )
     res.tables.append(
         (
             "Stress agreement per code, RVE, path and route",

@@ -31,17 +31,12 @@ from reference_runs.engines import YADE
 from reference_runs.errors import ReferenceRunError
 from reference_runs.judge import JudgeError
 from reference_runs.yade.compare import (
-    CONTACT_REASON,
-    STRESS_REASON,
-    STRESS_RTOL,
-    STRUCTURE_REASON,
-    TANGENT_REASON,
-    TANGENT_RTOL,
     compare_yade_taylor,
 )
 from reference_runs.yade.taylor import run_yade_taylor
 
-from ..core import PAIRS, CaseResult, Context, Record, case, compare, evidence, peak
+from ..core import PAIRS, CaseResult, Context, Record, case, evidence
+from ..judges import yade_taylor_records
 
 CASE = "taylor-rve-yade"
 TITLE = "Taylor stress and tangent (material part) of the 15 RVEs against YADE's getStressAndTangent"
@@ -71,49 +66,8 @@ def _yade_work(packing, n_states: int) -> float:
     return n_states * packing.n * 20
 
 
-def _records(label: str, cmp, sel) -> list:
-    """The checks of one RVE and path (states ``sel`` of the comparison)."""
-    sides = "gransim (native) vs YADE"
-    un_g, un_y = int(cmp.unmatched_gransim[sel].sum()), int(cmp.unmatched_yade[sel].sum())
-    n_g, n_y = int(cmp.n_gransim[sel].sum()), int(cmp.n_yade[sel].sum())
-    return [
-        compare(
-            label, "stress", f"max_rel_diff getStress, {sides}", peak([cmp.stress[sel]]), STRESS_RTOL, STRESS_REASON
-        ),
-        compare(
-            label,
-            "stress",
-            f"max_rel_diff stress of getStressAndTangent, {sides}",
-            peak([cmp.stress_tangent_call[sel]]),
-            STRESS_RTOL,
-            STRESS_REASON,
-        ),
-        compare(
-            label,
-            "tangent",
-            "max_rel_diff of the upper triangle, gransim's material part pushed forward vs YADE",
-            peak([cmp.tangent[sel]]),
-            TANGENT_RTOL,
-            TANGENT_REASON,
-        ),
-        compare(
-            label,
-            "tangent_zero_entries",
-            "max |z rows, z columns, lower triangle of YADE's tangent| / max |tangent|",
-            peak([cmp.structure[sel]]),
-            0.0,
-            STRUCTURE_REASON,
-        ),
-        Record(
-            label,
-            "contacts",
-            f"contacts without a partner (gransim {un_g} of {n_g}, YADE {un_y} of {n_y}, summed over states)",
-            float(un_g + un_y + abs(n_g - n_y)),
-            0.0,
-            un_g == 0 and un_y == 0 and n_g == n_y and n_g > 0,
-            CONTACT_REASON,
-        ),
-    ]
+#: the checks of one RVE and path: validation.judges.yade_taylor_records
+_records = yade_taylor_records
 
 
 @case(CASE, TITLE, suites=("full",), order=11)
