@@ -14,6 +14,8 @@ takes a periodic image's velocity with the wrong sign, docs/yade.md). Three kind
   ``incomplete`` record (the run is then empty, so every comparison on it fails too);
 * :func:`taylor_live`, :func:`taylor_stored` : YADE's Taylor states of the study RVEs
   (:mod:`reference_runs.yade.taylor`), run now or read from ``reference_runs/stored/taylor-rve-yade``;
+* :func:`impact_live`, :func:`impact_stored` : YADE's runs of the impact scenes
+  (:mod:`reference_runs.yade.impacts`), run now or read from ``reference_runs/stored/impacts-yade``;
 * :func:`native` : ``gransim.dem.yade_arithmetic.yade_run`` on the same case (bit for bit with YADE
   at every step, docs/yade.md "The native yade arithmetic").
 
@@ -41,6 +43,9 @@ from reference_runs.decks.shear import wrapped_packing
 from reference_runs.errors import ReferenceRunError
 from reference_runs.yade.dem import read_yade_dem, run_yade_dem
 from reference_runs.yade.dem_script import INPUT_NAME, OUTPUT_NAME
+from reference_runs.yade.impacts import INPUT_NAME as IMPACT_INPUT
+from reference_runs.yade.impacts import OUTPUT_NAME as IMPACT_OUTPUT
+from reference_runs.yade.impacts import impact_job, on_step_frames, read_yade_impact, yade_impacts
 from reference_runs.yade.taylor import INPUT_NAME as TAYLOR_INPUT
 from reference_runs.yade.taylor import OUTPUT_NAME as TAYLOR_OUTPUT
 from reference_runs.yade.taylor import YadeTaylorRun, cell_z, read_yade_taylor, run_yade_taylor, yade_taylor_job
@@ -278,4 +283,55 @@ def store_taylor(job_dir, dest) -> None:
     dest.mkdir(parents=True, exist_ok=True)
     (dest / (TAYLOR_OUTPUT + ".gz")).write_bytes(gzip.compress((job_dir / TAYLOR_OUTPUT).read_bytes(), 9, mtime=0))
     (dest / TAYLOR_INPUT).write_bytes((job_dir / TAYLOR_INPUT).read_bytes())
+    (dest / STORED_MANIFEST).write_bytes((job_dir / STORED_MANIFEST).read_bytes())
+
+
+# ---------------------------------------------------------------- impact scenes
+def impact_live(job_dir, packing, velocities, spins, law, dt: float, n_steps: int, every: int, timeout) -> dict:
+    """YADE's run of an impact scene now (reused when complete): its frames on the step
+    (:func:`reference_runs.yade.impacts.yade_impacts`). A failed or incomplete job raises."""
+    frames, _ = yade_impacts(job_dir, packing, velocities, spins, law, dt, n_steps, every, timeout=timeout)
+    return frames
+
+
+def impact_stored(d, packing, velocities, spins, law, dt: float, n_steps: int, every: int):
+    """The stored output of YADE's run of an impact scene (``d``: ``impact.out.gz``, ``input.json``,
+    ``manifest.json``): its frames on the step, or why it cannot stand in (incomplete, or not this
+    scene's job: its hashes against the manifest and the input the case gives YADE now)."""
+    d = Path(d)
+    script, files = impact_job(packing, velocities, spins, law, dt, n_steps, every)
+    try:
+        text = gzip.decompress((d / (IMPACT_OUTPUT + ".gz")).read_bytes())
+        man = json.loads((d / STORED_MANIFEST).read_text())
+    except (OSError, EOFError, ValueError, gzip.BadGzipFile) as exc:
+        return f"incomplete: stored YADE output {d}: cannot be read ({exc})"
+    bad = [
+        what
+        for what, ok in (
+            ("output sha256", _sha(text) == man.get("outputs", {}).get(IMPACT_OUTPUT)),
+            ("script sha256", man.get("deck_sha256") == _sha(script.encode())),
+            ("input sha256", man.get("inputs", {}).get(IMPACT_INPUT) == _sha(files[IMPACT_INPUT])),
+            ("YADE version", str(man.get("engine_version", "")).startswith("YADE ")),
+        )
+        if not ok
+    ]
+    if bad:
+        return f"stored YADE output {d} is not this job's: {', '.join(bad)} differ from its manifest"
+    meta = json.loads(files[IMPACT_INPUT])
+    expect = {"n_particles": len(meta["mass"]), "n_steps": n_steps, "every": every}
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / IMPACT_OUTPUT).write_bytes(text)
+        try:
+            out = read_yade_impact(Path(tmp) / IMPACT_OUTPUT, expect)
+        except ReferenceRunError as exc:
+            return f"stored YADE output: {str(exc).splitlines()[0].replace(tmp, str(d))}"
+    return on_step_frames(out, files)
+
+
+def store_impact(job_dir, dest) -> None:
+    """Store a complete YADE impact job (``impact.out`` gzipped, its input and manifest) in ``dest``."""
+    job_dir, dest = Path(job_dir), Path(dest)
+    dest.mkdir(parents=True, exist_ok=True)
+    (dest / (IMPACT_OUTPUT + ".gz")).write_bytes(gzip.compress((job_dir / IMPACT_OUTPUT).read_bytes(), 9, mtime=0))
+    (dest / IMPACT_INPUT).write_bytes((job_dir / IMPACT_INPUT).read_bytes())
     (dest / STORED_MANIFEST).write_bytes((job_dir / STORED_MANIFEST).read_bytes())

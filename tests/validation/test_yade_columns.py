@@ -115,3 +115,40 @@ def test_taylor_rve_fails_on_a_cut_yade_output(taylor_stored, tmp_path):
     assert any(r.case == "taylor-rve/yade/70-2" and "is not this job's: output sha256" in r.metric for r in bad), bad
     assert any(r.metric.startswith("incomplete: expected 3 RVEs run by YADE") for r in bad), bad
     assert not any("70-1" in r.case or "70-3" in r.case for r in bad)
+
+
+@pytest.fixture
+def impacts_stored(tmp_path, monkeypatch):
+    dest = tmp_path / "stored"
+    shutil.copytree(Path(store.STORED), dest)
+    monkeypatch.setattr(store, "STORED", dest)
+    monkeypatch.setattr(vrunner, "liggghts_available", lambda: False)
+    monkeypatch.setattr(vrunner, "lammps_available", lambda: False)
+    monkeypatch.setattr(vrunner, "_available", lambda code: False)
+    return dest
+
+
+def _impacts(tmp_path):
+    ok, (res,) = run_validation("quick", tmp_path / "results", only=["impacts"], log=lambda *a, **k: None)
+    return ok, res
+
+
+def test_impacts_judge_yades_stored_runs_against_the_closed_forms(impacts_stored, tmp_path):
+    ok, res = _impacts(tmp_path)
+    assert ok and res.passed, [r for r in res.records if not r.passed]
+    assert res.cell("native-yade")["state"] == "pass" and "clipped" in res.not_applicable["liggghts-yade"]
+    analytic = [r for r in res.checks if r.case.endswith("/yade") and r.case.count("/") == 3]
+    assert {r.quantity for r in analytic} >= {"contact time", "restitution", "peak overlap"}
+    assert all(r.pair == "" and r.value <= r.tolerance for r in analytic)
+    frames = [r for r in res.checks if r.pair == "native-yade" and r.quantity == "position"]
+    assert frames and all(r.value == 0.0 for r in frames)  # undamped linear scenes: YADE's positions to the bit
+
+
+def test_impacts_fail_on_a_cut_yade_output(impacts_stored, tmp_path):
+    gz = impacts_stored / "impacts-yade" / "normal-z0.35" / "impact.out.gz"
+    gz.write_bytes(gzip.compress(gzip.decompress(gz.read_bytes())[:-2000]))
+    ok, res = _impacts(tmp_path)
+    assert not ok and res.cell("native-yade")["state"] == "FAIL"
+    bad = [r for r in res.records if not r.passed]
+    assert {r.case for r in bad} == {"impacts/normal-z0.35/yade"}, bad
+    assert any(r.metric.startswith("incomplete: stored YADE output") for r in bad)

@@ -113,7 +113,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 from gransim.contacts.hooke import hooke_history_lammps
 from gransim.dem import DEMEngine, Loading
-from gransim.errors import ResultFileError
+from gransim.errors import InputError, ResultFileError
 from gransim.geometry import Packing
 from reference_runs import store
 from reference_runs.decks.impact import (
@@ -129,11 +129,16 @@ from reference_runs.decks.impact import (
     write_impact_deck,
     write_wall_deck,
 )
+from reference_runs.errors import ReferenceRunError
 from reference_runs.runner import run_job
+from reference_runs.yade.impacts import clipped_dashpot, mindlin_incremental_stick, yade_law
 
+from .. import yade_runs
+from ..codes import CODES as CODES_ALL
 from ..core import (
     CaseResult,
     Context,
+    Record,
     case,
     compare,
     evidence,
@@ -1846,6 +1851,119 @@ def bitwise_records(label: str, a: dict, b: dict, who: str) -> list:
     return out
 
 
+# ---------------------------------------------------------------- YADE's column
+YADE_STORED = "impacts-yade"
+YADE_FRAMES_TOL = 1e-12
+YADE_FRAMES_REASON = (
+    "undamped linear scenes only: YADE's leapfrog and the native velocity Verlet (LIGGGHTS' arithmetic) give the "
+    "same positions in exact arithmetic for forces that do not depend on velocity, and both increment the shear "
+    "spring with the same mid-step velocity; measured: positions equal to the bit in every frame, on-step velocities "
+    "(YADE's v_(k-1/2) + (dt/2) f/m) within 3.4e-14 of V (one kick against two half kicks, rounded differently); "
+    "1e-12 of R and of V"
+)
+YADE_NA_CROSS = (
+    "YADE and the code are each judged against the closed forms: YADE's laws differ where the answers differ (its "
+    "linear dashpot is clipped to repulsion, ViscoelasticPM.cpp:129-139; its Mindlin tangential force is "
+    "incremental, HertzMindlin.cpp:372-382; docs/yade.md), so the codes' answers are not set against each other"
+)
+
+
+def yade_scene(sc) -> bool:
+    """Whether YADE runs the scene with its own version of the scene's law (reference_runs.yade.impacts.yade_law:
+    Hooke and undamped Hertz; damped Hertz laws are refused)."""
+    try:
+        yade_law(sc.law)
+    except InputError:
+        return False
+    return True
+
+
+def yade_analytic(sc, im) -> dict:
+    """The case's closed-form answers of impact ``im`` (:func:`analytic`) with YADE's law where it differs: a
+    damped linear scene's restitution, contact time and impulse of the clipped dashpot (Schwager & Poeschel 2007,
+    :func:`reference_runs.yade.impacts.clipped_dashpot`) and the sticking oscillator released where the force
+    ends; a sticking Hertz scene's incremental Mindlin force
+    (:func:`reference_runs.yade.impacts.mindlin_incremental_stick`)."""
+    an = analytic(sc, im)
+    spec = yade_law(sc.law)
+    m1, m2 = _mass(im.r1), _mass(im.r2)
+    meff = m1 * m2 / (m1 + m2)
+    vn = im.v1[0] - im.v2[0]
+    if spec["kind"] == "viscel" and spec["gamma_n"] > 0:
+        c = clipped_dashpot(meff, spec["kn"], spec["gamma_n"], vn)
+        an.update({k: c[k] for k in ("contact time", "restitution", "impulse factor")})
+        an["P"] = c["impulse factor"] * meff * vn
+        if im.kind in ("sliding", "microslip"):
+            rb = oblique_rigid(m1, m2, im.r1, im.r2, vn, an["s0"], sc.law.mu, an["P"])
+            an.update(rb)
+            an["w1'"] = im.w1 + rb["dw1"]
+    if im.kind == "stick":
+        if spec["kind"] == "viscel":
+            release = clipped_dashpot(meff, spec["kn"], spec["gamma_n"], vn)["release time"]
+            ratio = stick_ratio(meff, spec["kt"], spec["gamma_t"], release)
+        else:
+            h = sc.law.hertz()
+            reff = im.r1 * im.r2 / (im.r1 + im.r2)
+            ratio = mindlin_incremental_stick(meff, reff, h["y43"], h["kt0"], vn, an["s0"], sc.law.mu)
+        te = tangential_exit(m1, m2, im.r1, im.r2, an["s0"], meff * abs(an["s0"]) * (1.0 - ratio) / 3.0)
+        an.update(te, **{"stick ratio": ratio, "w1'": im.w1 + te["dw1"]})
+    return an
+
+
+def yade_part(ctx, res, sc, got: dict, pairs, nsteps: int) -> None:
+    """YADE's run of scene ``sc`` (live, or with YADE absent its stored output) against the closed forms with
+    the case's tolerances (:func:`yade_analytic`; records ``impacts/<scene>/<impact>/yade``, other checks), its
+    evidence in the native vs YADE column, and in undamped linear scenes its frames against the native run in
+    LIGGGHTS' arithmetic (``got["native"]``)."""
+    lab = f"impacts/{sc.name}/yade"
+    p, v, w, n, _ = layout(sc)
+    if ctx.has("yade"):
+        try:
+            frames = yade_runs.impact_live(
+                ctx.work("reference", "impacts-yade", sc.name), p, v, w, sc.law, DT, n, EVERY, ctx.job_timeout(p.n * n)
+            )
+        except ReferenceRunError as exc:
+            frames = f"YADE job failed: {str(exc).splitlines()[0]}"
+    else:
+        frames = yade_runs.impact_stored(stored_dir(YADE_STORED) / sc.name, p, v, w, sc.law, DT, n, EVERY)
+        res.notes.append(f"{sc.name}: YADE absent, its stored output reference_runs/stored/{YADE_STORED} is used.")
+    expected = list(range(0, nsteps + 1, EVERY))
+    if isinstance(frames, str):
+        res.records += in_pair(
+            [
+                Record(lab, "evidence", f"incomplete: {frames}", 1.0, 0.0, False),
+                evidence(lab, "YADE frames", expected, []),
+            ],
+            "native-yade",
+        )
+        return
+    res.records += in_pair([evidence(lab, "YADE frames", expected, list(frames))], "native-yade")
+    spec = yade_law(sc.law)
+    if spec["kind"] == "viscel" and spec["gamma_n"] == 0 and spec["gamma_t"] == 0 and "native" in got:
+        nat = got["native"]
+        both = sorted(set(nat) & set(frames))
+        dx = peak([np.abs(frames[k]["x"] - nat[k]["x"]) for k in both]) if both else math.nan
+        dv = peak([np.abs(frames[k]["v"] - nat[k]["v"]) for k in both]) if both else math.nan
+        res.records += in_pair(
+            [
+                compare(lab, "position", "max|x_YADE - x_native| / R over frames", dx / R, YADE_FRAMES_TOL,
+                        YADE_FRAMES_REASON),
+                compare(lab, "velocity", "max|v_YADE - v_native| / V over frames (on the step)", dv / V,
+                        YADE_FRAMES_TOL, YADE_FRAMES_REASON),
+            ],
+            "native-yade",
+        )  # fmt: skip
+    tols = tolerances(sc)
+    meas = measure(frames, sc, pairs, DT)
+    for k, im in enumerate(sc.impacts):
+        an = yade_analytic(sc, im)
+        for qn, err in errors(meas[k], an, im).items():
+            tol, why = tols[qn]
+            src = {"exit spin": "w1'", "energy gain": "energy ratio"}.get(qn, qn.replace(" (stick)", ""))
+            metric = f"error (YADE's law: {_fmt(an.get(src, math.nan))}; YADE {_fmt(meas[k].get(src, math.nan))})"
+            res.records.append(compare(f"impacts/{sc.name}/{im.label}/yade", qn, metric, err, tol, why))
+
+
 def _fmt(v):
     return "nan" if not math.isfinite(v) else f"{v:.6g}"
 
@@ -1895,6 +2013,14 @@ def impacts(ctx: Context) -> CaseResult:
         res.skip_pair(
             "liggghts-lammps", "only single-code (Hertz) scenes selected: each is judged against its own closed forms"
         )
+    if "yade" in CODES_ALL:
+        res.declare(
+            "native-yade",
+            "YADE's runs of the scenes it runs with its own version of the law (Hooke, undamped Hertz) are judged "
+            "against the closed forms of that law at the case's tolerances (other checks); here: every frame "
+            "present, and in the undamped linear scenes YADE's frames against the native run's: " + YADE_FRAMES_REASON,
+        )
+        res.skip_code("yade", YADE_NA_CROSS)
     table_rows, dt_rows = [], []
     cross = {}
     nat_key = {"liggghts": "native", "lammps": "native-lammps"}
@@ -1925,6 +2051,8 @@ def impacts(ctx: Context) -> CaseResult:
             got[code] = frames
             if not live:
                 res.notes.append(f"{sc.name}: {CODE[code]} absent, its stored outputs <code>{job}</code> are used.")
+        if "yade" in CODES_ALL and yade_scene(sc):
+            yade_part(ctx, res, sc, got, pairs, nsteps)
         meas = {who: measure(fr, sc, pairs, DT) for who, fr in got.items()}
         m_half = measure(half, sc, pairs, DT / 2)
         worst = {}
