@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import lattice_packing
+from rve_fixtures import lattice_packing
 
 from gransim import InputError, Packing
 from gransim.contacts import find_neighbours

@@ -5,7 +5,7 @@ from __future__ import annotations
 import h5py
 import numpy as np
 import pytest
-from conftest import random_packing
+from rve_fixtures import random_packing
 
 from gransim import InputError
 from gransim.cli import main

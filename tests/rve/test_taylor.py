@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import lattice_packing, random_packing
+from rve_fixtures import lattice_packing, random_packing
 
 from gransim import InputError, Packing
 from gransim.rve import TaylorMaterial, contact_state, homogenize
