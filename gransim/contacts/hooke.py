@@ -72,7 +72,7 @@ def hooke_liggghts(
     of a returned tuple counts as an alias to numba's parfor analysis and keeps the caller's loop
     from vectorising). When touching: force on i F = F_n n + F_t (N) with F_n = kn delta - m_eff
     gamman v_n (may be attractive: no force limit) and F_t = -kt xi - m_eff gammat v_t,rel, or,
-    when kt |xi| > mu |F_n| (strictly), F_t = -kt xi mu|F_n|/(kt|xi|) and xi = -F_t/kt;
+    when kt |xi| > mu |F_n| (strictly), F_t = -kt xi mu|F_n|/(kt|xi|) and, in a step, xi = -F_t/kt;
     torques on i and j -c_i (n x F_t)_z and -c_j (n x F_t)_z, c = r - delta/2 (the same sign on
     both, as LIGGGHTS applies them); the updated spring; F_n (N). Not touching: the stored spring
     (LIGGGHTS keeps a spring while its pair is in the list), the other values meaningless.
@@ -127,7 +127,10 @@ def hooke_liggghts(
     ft2 = z2 if sl else ft2d
     # every value computed before the selects (an expensive operation inside a conditional arm
     # stays a branch, which stops the vectoriser); & not `and` (no short circuit)
-    capped = sl & nz
+    # the capped spring is written back only in a step: LIGGGHTS 3.8.0 guards the write with
+    # `if (update_history)` (tangential_model_history.h:195-200); a set-up evaluation (a further
+    # `run`) leaves every spring as it was
+    capped = sl & nz & update
     k0 = -ft1c / kt
     k1 = -ft2c / kt
     u0 = k0 if capped else u0
@@ -295,7 +298,8 @@ def hooke_history(
     -------
     fx, fy : force on i (N). F = F_n n + F_t with F_n = kn delta - m_eff gamman v_n
         (may be attractive: no force limit) and F_t = -kt xi - m_eff gammat v_t,rel, or, when
-        kt |xi| > mu |F_n| (strictly), F_t = -kt xi mu|F_n|/(kt|xi|) and xi = -F_t/kt.
+        kt |xi| > mu |F_n| (strictly), F_t = -kt xi mu|F_n|/(kt|xi|) and, in a step (``update``),
+        xi = -F_t/kt.
     ti, tj : torques on i and j (N m): -c_i (n x F_t)_z and -c_j (n x F_t)_z, c = r - delta/2
         (the same sign on both, as LIGGGHTS applies them).
     s0, s1 : updated spring (m).
@@ -341,8 +345,9 @@ def hooke_history(
             ratio = ft_friction / ft_shear
             ft1 *= ratio
             ft2 *= ratio
-            s0 = -ft1 / kt
-            s1 = -ft2 / kt
+            if update:  # tangential_model_history.h:195-200: only in a step, not in a set-up
+                s0 = -ft1 / kt
+                s1 = -ft2 / kt
         else:
             ft1 = 0.0
             ft2 = 0.0

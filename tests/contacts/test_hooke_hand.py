@@ -65,12 +65,31 @@ def test_spin_moves_the_contact_point(law, arm):
 
 
 def test_coulomb_cap_scales_the_spring_back():
-    fx, fy, ti, tj, s0, s1, sliding, fn = pair(hooke_history, s=(0.0, 1e-3))
+    # in a step (update): no relative motion, so no increment, and xi = (0, 1 mm) is already tangent
+    fx, fy, ti, tj, s0, s1, sliding, fn = pair(hooke_history, s=(0.0, 1e-3), update=True)
     # kt |xi| = 100 N > mu |F_n| = 5 N: F_t = -kt xi * 5/100 = (0, -5) N, xi = -F_t / kt = 5e-5 m, no dashpot
     assert sliding
     assert fy == pytest.approx(-5.0, rel=1e-12)
     assert s1 == pytest.approx(5e-5, rel=1e-12) and s0 == 0.0
     assert ti == pytest.approx(C * 5.0, rel=1e-12)
+
+
+def test_set_up_evaluation_caps_the_force_and_keeps_the_spring_in_liggghts_only():
+    """A set-up evaluation (update False: a further ``run``'s set-up) caps the force in both codes;
+    LIGGGHTS writes the capped spring back only in a step (tangential_model_history.h:195-200,
+    ``if (update_history)``), LAMMPS in either case (pair_gran_hooke_history.cpp). Both native
+    forms of the LIGGGHTS law (the code's branches and the branch-free block path) agree."""
+    from gransim.contacts.hooke import hooke_liggghts
+
+    fx, fy, ti, tj, s0, s1, sliding, fn = pair(hooke_history, s=(0.0, 1e-3))
+    assert sliding and fy == pytest.approx(-5.0, rel=1e-12)
+    assert (s0, s1) == (0.0, 1e-3)  # the stored spring, untouched
+    out = pair(hooke_liggghts, s=(0.0, 1e-3))  # (touch, fx, fy, ti, tj, s0, s1, sliding, overlap, fn)
+    assert out[0] == 1.0 and out[2] == fy and (out[5], out[6]) == (0.0, 1e-3)
+    stepped = pair(hooke_liggghts, s=(0.0, 1e-3), update=True)
+    assert stepped[6] == pytest.approx(5e-5, rel=1e-12)
+    *_, l0, l1, lsliding, _ = pair(hooke_history_lammps, s=(0.0, 1e-3))
+    assert lsliding and l1 == pytest.approx(5e-5, rel=1e-12)  # LAMMPS: written in the set-up too
 
 
 def test_below_the_cap_the_spring_is_kept():
