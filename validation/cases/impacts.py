@@ -1868,6 +1868,13 @@ YADE_NA_CROSS = (
 )
 
 
+#: the scenes YADE runs in the default suite: one per path through YADE's laws (undamped linear, with the
+#: frames against native; the clipped dashpot; the damped sticking oscillator; undamped Hertz-Mindlin, sliding and
+#: sticking). The other Hertz parametrisations differ only in E* and G* (yade_law, checked to 1e-14): full suite.
+#: Each YADE process costs about 0.75 s; the 14 scenes added 15-18 s to the default suite at load 3-5.
+YADE_DEFAULT_SCENES = ("normal-z0", "normal-z0.5", "oblique", "stick", "hertz-liggghts", "hertz-liggghts-stick")
+
+
 def yade_scene(sc) -> bool:
     """Whether YADE runs the scene with its own version of the scene's law (reference_runs.yade.impacts.yade_law:
     Hooke and undamped Hertz; damped Hertz laws are refused)."""
@@ -2051,7 +2058,7 @@ def impacts(ctx: Context) -> CaseResult:
             got[code] = frames
             if not live:
                 res.notes.append(f"{sc.name}: {CODE[code]} absent, its stored outputs <code>{job}</code> are used.")
-        if "yade" in CODES_ALL and yade_scene(sc):
+        if "yade" in CODES_ALL and yade_scene(sc) and (ctx.suite != "default" or sc.name in YADE_DEFAULT_SCENES):
             yade_part(ctx, res, sc, got, pairs, nsteps)
         meas = {who: measure(fr, sc, pairs, DT) for who, fr in got.items()}
         m_half = measure(half, sc, pairs, DT / 2)
