@@ -1885,6 +1885,15 @@ def yade_scene(sc) -> bool:
     return True
 
 
+def yade_runs_scene(sc, suite: str) -> bool:
+    """Whether the case runs YADE on scene ``sc`` in ``suite``: a scene whose law YADE has
+    (:func:`yade_scene`; rolling and wall scenes have none), in the default suite only the scenes of
+    :data:`YADE_DEFAULT_SCENES`."""
+    if isinstance(sc, (RollScene, WallScene)) or not yade_scene(sc):
+        return False
+    return suite != "default" or sc.name in YADE_DEFAULT_SCENES
+
+
 def yade_analytic(sc, im) -> dict:
     """The case's closed-form answers of impact ``im`` (:func:`analytic`) with YADE's law where it differs: a
     damped linear scene's restitution, contact time and impulse of the clipped dashpot (Schwager & Poeschel 2007,
@@ -2020,7 +2029,12 @@ def impacts(ctx: Context) -> CaseResult:
         res.skip_pair(
             "liggghts-lammps", "only single-code (Hertz) scenes selected: each is judged against its own closed forms"
         )
-    if "yade" in CODES_ALL:
+    if "yade" in CODES_ALL and not any(yade_runs_scene(sc, ctx.suite) for sc in all_scenes):
+        res.skip_code(
+            "yade",
+            f"no scene selected here is one YADE runs in the {ctx.suite} suite (its laws: Hooke, undamped Hertz)",
+        )
+    elif "yade" in CODES_ALL:
         res.declare(
             "native-yade",
             "YADE's runs of the scenes it runs with its own version of the law (Hooke, undamped Hertz) are judged "
@@ -2058,7 +2072,7 @@ def impacts(ctx: Context) -> CaseResult:
             got[code] = frames
             if not live:
                 res.notes.append(f"{sc.name}: {CODE[code]} absent, its stored outputs <code>{job}</code> are used.")
-        if "yade" in CODES_ALL and yade_scene(sc) and (ctx.suite != "default" or sc.name in YADE_DEFAULT_SCENES):
+        if "yade" in CODES_ALL and yade_runs_scene(sc, ctx.suite):
             yade_part(ctx, res, sc, got, pairs, nsteps)
         meas = {who: measure(fr, sc, pairs, DT) for who, fr in got.items()}
         m_half = measure(half, sc, pairs, DT / 2)
