@@ -17,6 +17,7 @@ import fnmatch
 import os
 import shutil
 import signal
+import subprocess
 
 import numpy as np
 import pytest
@@ -177,3 +178,28 @@ def pytest_runtest_setup(item):
 def pytest_runtest_call(item):
     """The test's call: ``GRANSIM_TEST_BUDGET`` seconds (:func:`_budgeted`)."""
     return (yield from _budgeted())
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A full disk for the tests of results written to one: a 64 kB tmpfs at ``tmp_path/disk``.
+    Yields ``(dir, wrap)``: as root it is mounted here (``wrap`` empty); otherwise a command run with
+    the prefix ``wrap`` mounts it inside ``unshare -rm``. Skips when neither works."""
+    d = tmp_path / "disk"
+    d.mkdir()
+    if os.geteuid() == 0 and shutil.which("mount"):
+        r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(d)], capture_output=True)
+        if r.returncode == 0:
+            try:
+                yield d, []
+            finally:
+                subprocess.run(["umount", str(d)], capture_output=True)
+            return
+    if shutil.which("unshare"):
+        probe = subprocess.run(
+            ["unshare", "-rm", "sh", "-c", f"mount -t tmpfs -o size=64k tmpfs {d}"], capture_output=True
+        )
+        if probe.returncode == 0:
+            yield d, ["unshare", "-rm", "sh", "-c", f'mount -t tmpfs -o size=64k tmpfs {d} && exec "$0" "$@"']
+            return
+    pytest.skip("no way to mount a small tmpfs here (neither root nor unshare)")

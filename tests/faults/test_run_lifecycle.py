@@ -247,29 +247,6 @@ def test_sigint_stops_shear_and_pack(packing_file, tmp_path, capsys, monkeypatch
 
 
 # ------------------------------------------------------------------------------------ full disk
-@pytest.fixture
-def small_disk(tmp_path):
-    """A 64 kB tmpfs (root: mount; otherwise the test runs inside ``unshare -rm``)."""
-    d = tmp_path / "disk"
-    d.mkdir()
-    if os.geteuid() == 0 and shutil.which("mount"):
-        r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(d)], capture_output=True)
-        if r.returncode == 0:
-            try:
-                yield d, []
-            finally:
-                subprocess.run(["umount", str(d)], capture_output=True)
-            return
-    if shutil.which("unshare"):
-        probe = subprocess.run(
-            ["unshare", "-rm", "sh", "-c", f"mount -t tmpfs -o size=64k tmpfs {d}"], capture_output=True
-        )
-        if probe.returncode == 0:
-            yield d, ["unshare", "-rm", "sh", "-c", f'mount -t tmpfs -o size=64k tmpfs {d} && exec "$0" "$@"']
-            return
-    pytest.skip("no way to mount a small tmpfs here (neither root nor unshare)")
-
-
 def test_full_disk_is_one_error_naming_the_file(small_disk, packing_file):
     """biaxial and pack on a full disk: exit 1, one line naming the file and the cause, no
     traceback, no crash (it was a segmentation fault), no temporary left on the disk."""

@@ -9,7 +9,6 @@ naming the file (exit 1). Each run is a real ``python -m gransim femxdem``.
 """
 
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -167,30 +166,6 @@ def test_signal_on_a_local_cluster_leaves_no_worker_and_resumes(signum, group, t
 
 
 # --------------------------------------------------------------------------- full disk
-@pytest.fixture
-def small_disk(tmp_path):
-    """A 64 kB tmpfs (root: mount; otherwise the run goes inside ``unshare -rm``), as in
-    tests/faults/test_run_lifecycle.py."""
-    d = tmp_path / "disk"
-    d.mkdir()
-    if os.geteuid() == 0 and shutil.which("mount"):
-        r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(d)], capture_output=True)
-        if r.returncode == 0:
-            try:
-                yield d, []
-            finally:
-                subprocess.run(["umount", str(d)], capture_output=True)
-            return
-    if shutil.which("unshare"):
-        probe = subprocess.run(
-            ["unshare", "-rm", "sh", "-c", f"mount -t tmpfs -o size=64k tmpfs {d}"], capture_output=True
-        )
-        if probe.returncode == 0:
-            yield d, ["unshare", "-rm", "sh", "-c", f'mount -t tmpfs -o size=64k tmpfs {d} && exec "$0" "$@"']
-            return
-    pytest.skip("no way to mount a small tmpfs here (neither root nor unshare)")
-
-
 def test_full_disk_is_one_error_naming_the_file(small_disk):
     """The checkpoint files of 30 steps do not fit in 64 kB: exit 1, one line naming the file and
     the cause, no traceback, no temporary left on the disk."""
