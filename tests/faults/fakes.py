@@ -296,3 +296,20 @@ def small_lammps_deck(tail: str = "run 10\n", dump_every: int | None = 5):
         deck += f"dump d1 all custom {int(dump_every)} dump.atoms id x y\n"
         outputs.append("dump.atoms")
     return deck + tail, {"p.data": data}, outputs
+
+
+#: first lines of a YADE job script in a fault test: the YADE process writes its pid to yade.pid
+YADE_PID_PREFIX = "import os\nopen('yade.pid', 'w').write(str(os.getpid()))\n"
+
+
+def assert_yade_gone(job_dir) -> None:
+    """The YADE process whose pid ``YADE_PID_PREFIX`` wrote in ``job_dir`` is gone (no zombie),
+    and no TCP port of it is listening (``ss -ltnp``, where installed)."""
+    import shutil  # noqa: PLC0415 - only the YADE fault tests need it
+    import subprocess  # noqa: PLC0415 - only the YADE fault tests need it
+
+    pid = int((Path(job_dir) / "yade.pid").read_text())
+    assert not pid_alive(pid)
+    if shutil.which("ss"):
+        out = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True, timeout=30).stdout
+        assert f"pid={pid}," not in out

@@ -5,10 +5,10 @@ nothing left running or listening."""
 
 import json
 import shutil
-import subprocess
 import time
 
 import pytest
+from fakes import YADE_PID_PREFIX, assert_yade_gone
 
 import reference_runs.runner as runner
 from gransim.paper import KN_2D
@@ -26,7 +26,6 @@ pytestmark = pytest.mark.skipif(
 PACKING = perturbed_lattice(4, 4, seed=2)
 PATHS = ("compression-11", "shear-12")
 N_STATES = 4  # 2 paths x (k = 0, 1)
-PID_PREFIX = "import os\nopen('yade.pid', 'w').write(str(os.getpid()))\n"
 
 
 @pytest.fixture(scope="module")
@@ -108,28 +107,16 @@ def test_yade_job_with_a_truncated_output_fails_never_ok(tmp_path):
     assert m["status"] == "failed" and "incomplete" in m["error"] and "outputs" not in m
 
 
-def _alive(pid: int) -> bool:
-    try:
-        stat = open(f"/proc/{pid}/stat").read()
-    except OSError:
-        return False
-    return stat[stat.rfind(")") + 2 :].split()[0] not in ("Z", "X")
-
-
 def test_hung_yade_job_is_killed_with_nothing_left(tmp_path, monkeypatch):
     monkeypatch.setattr(runner, "KILL_GRACE_S", 0.5)
     script, files, _ = yade_taylor_job(PACKING, KN_2D, paths=PATHS, n_steps=1)
-    hung = PID_PREFIX + "import time\ntime.sleep(1000)\n" + script
+    hung = YADE_PID_PREFIX + "import time\ntime.sleep(1000)\n" + script
     assert script == TAYLOR_SCRIPT
     t0 = time.monotonic()
     with pytest.raises(ReferenceRunError, match="timed out after 4 s") as info:
         run_yade_job(tmp_path / "job", hung, files, timeout=4, outputs=["taylor.out"], check=check_output)
     assert info.value.timed_out and time.monotonic() - t0 < 15
-    pid = int((tmp_path / "job" / "yade.pid").read_text())
-    assert not _alive(pid)
-    if shutil.which("ss"):
-        out = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True, timeout=30).stdout
-        assert f"pid={pid}," not in out
+    assert_yade_gone(tmp_path / "job")
     m = read_manifest(tmp_path / "job")
     assert m["status"] == "failed" and "timed out" in m["error"]
 
@@ -216,16 +203,14 @@ def test_hung_yade_dem_run_is_killed_with_nothing_left_listening(tmp_path, monke
     script, files = biaxial_job(p, s, ld, 1000, thermo_every=1, dump_every=100)
     hook = "def control():\n    k = O.iter\n"
     assert hook in script
-    hung = PID_PREFIX + script.replace(hook, hook + "    if k == 5:\n        import time\n        time.sleep(1000)\n")
+    hung = YADE_PID_PREFIX + script.replace(
+        hook, hook + "    if k == 5:\n        import time\n        time.sleep(1000)\n"
+    )
     t0 = time.monotonic()
     with pytest.raises(ReferenceRunError, match="timed out after 4 s") as info:
         run_yade_dem(tmp_path / "job", hung, files, timeout=4)
     assert info.value.timed_out and time.monotonic() - t0 < 15
-    pid = int((tmp_path / "job" / "yade.pid").read_text())
-    assert not _alive(pid)
-    if shutil.which("ss"):
-        out = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True, timeout=30).stdout
-        assert f"pid={pid}," not in out
+    assert_yade_gone(tmp_path / "job")
     m = read_manifest(tmp_path / "job")
     assert m["status"] == "failed" and "timed out" in m["error"]
     assert "\nT 0 " in (tmp_path / "job" / "dem.out").read_text()  # it had started stepping: the hang was mid-run

@@ -4,10 +4,10 @@ particle missing is refused as incomplete, by the reader and as the job's verdic
 it listening."""
 
 import shutil
-import subprocess
 import time
 
 import pytest
+from fakes import YADE_PID_PREFIX, assert_yade_gone
 
 import reference_runs.runner as runner
 from reference_runs.errors import ReferenceRunError
@@ -18,7 +18,6 @@ from validation.cases import impacts as I
 pytestmark = pytest.mark.skipif(
     shutil.which("yade") is None, reason="yade binary not installed (apt-get install yade; make engines)"
 )
-PID_PREFIX = "import os\nopen('yade.pid', 'w').write(str(os.getpid()))\n"
 STEPS, EVERY = 40, 10
 
 
@@ -89,14 +88,6 @@ def test_job_whose_output_is_cut_short_fails_never_ok(tmp_path):
     assert m["status"] == "failed" and "incomplete" in m["error"] and "outputs" not in m
 
 
-def _alive(pid: int) -> bool:
-    try:
-        stat = open(f"/proc/{pid}/stat").read()
-    except OSError:
-        return False
-    return stat[stat.rfind(")") + 2 :].split()[0] not in ("Z", "X")
-
-
 def test_hung_impact_job_is_killed_with_nothing_left_listening(tmp_path, monkeypatch):
     """The run hangs inside YADE's step (the PyRunner's Python, step 5): killed at the timeout, its
     process gone, no port of it listening."""
@@ -104,16 +95,14 @@ def test_hung_impact_job_is_killed_with_nothing_left_listening(tmp_path, monkeyp
     script, files = _job(1000)
     hook = "def dump():\n    k = O.iter\n"
     assert hook in script
-    hung = PID_PREFIX + script.replace(hook, hook + "    if k == 5:\n        import time\n        time.sleep(1000)\n")
+    hung = YADE_PID_PREFIX + script.replace(
+        hook, hook + "    if k == 5:\n        import time\n        time.sleep(1000)\n"
+    )
     t0 = time.monotonic()
     with pytest.raises(ReferenceRunError, match="timed out after 4 s") as info:
         run_yade_impact(tmp_path / "job", hung, files, timeout=4)
     assert info.value.timed_out and time.monotonic() - t0 < 15
-    pid = int((tmp_path / "job" / "yade.pid").read_text())
-    assert not _alive(pid)
-    if shutil.which("ss"):
-        out = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True, timeout=30).stdout
-        assert f"pid={pid}," not in out
+    assert_yade_gone(tmp_path / "job")
     m = read_manifest(tmp_path / "job")
     assert m["status"] == "failed" and "timed out" in m["error"]
     assert "\nF 0 4\n" in (tmp_path / "job" / "impact.out").read_text()  # it had started stepping
