@@ -597,6 +597,43 @@ def _fmt(v) -> str:
     return f"{v:.3g}" if isinstance(v, float) else str(v)
 
 
+def write_text_reports(res: ReplayResult, name: str, head: list, verdict: str) -> None:
+    """``report.md`` and ``report.html`` of a replay (a deck's or a YADE script's ``name``) in
+    ``res.outdir``, each atomically: the ``head`` lines (markdown; its "- " items are listed in the
+    page), the table of every check, the notes."""
+    rows = ["| quantity | metric | value | tolerance | pass | detail |", "|---|---|---|---|---|---|"]
+    for c in res.checks:
+        metric = c.metric.replace("|", "\\|")
+        rows.append(
+            f"| {c.quantity} | {metric} | {_fmt(float(c.value))} | {_fmt(float(c.tolerance))} | "
+            f"{'yes' if c.passed else 'NO'} | {c.detail} |"
+        )
+    notes = ["", "## Notes", ""] + [f"- {n}" for n in res.notes or ["none"]]
+    md = "\n".join(head + rows + notes) + "\n"
+    with atomic_path(res.outdir / "report.md") as tmp:
+        Path(tmp).write_text(md)
+    esc = html.escape
+    trs = "".join(
+        f"<tr class={'ok' if c.passed else 'bad'}><td>{esc(c.quantity)}</td><td>{esc(c.metric)}</td>"
+        f"<td>{_fmt(float(c.value))}</td><td>{_fmt(float(c.tolerance))}</td>"
+        f"<td>{'yes' if c.passed else 'NO'}</td><td>{esc(c.detail)}</td></tr>"
+        for c in res.checks
+    )
+    page = (
+        f"<!doctype html><html><head><meta charset=utf-8><title>gransim replay {esc(name)}</title>"
+        "<style>body{font-family:sans-serif}td,th{border:1px solid #ccc;padding:2px 6px}"
+        ".bad{background:#fdd}.ok{background:#efe}</style></head><body>"
+        f"<h1>gransim replay: {esc(name)} &mdash; {verdict}</h1><ul>"
+        + "".join(f"<li>{esc(h[2:])}</li>" for h in head[2:] if h)
+        + "</ul><table><tr><th>quantity</th><th>metric</th><th>value</th><th>tolerance</th><th>pass</th>"
+        f"<th>detail</th></tr>{trs}</table><h2>Notes</h2><ul>"
+        + "".join(f"<li>{esc(n)}</li>" for n in res.notes or ["none"])
+        + "</ul></body></html>\n"
+    )
+    with atomic_path(res.outdir / "report.html") as tmp:
+        Path(tmp).write_text(page)
+
+
 def write_report(res: ReplayResult, nat: NativeRun) -> None:
     """``report.md``, ``report.html`` and ``replay.h5`` in ``res.outdir`` (each atomically)."""
     d = res.deck
@@ -625,37 +662,7 @@ def write_report(res: ReplayResult, nat: NativeRun) -> None:
         ),
         "",
     ]
-    rows = ["| quantity | metric | value | tolerance | pass | detail |", "|---|---|---|---|---|---|"]
-    for c in res.checks:
-        metric = c.metric.replace("|", "\\|")
-        rows.append(
-            f"| {c.quantity} | {metric} | {_fmt(float(c.value))} | {_fmt(float(c.tolerance))} | "
-            f"{'yes' if c.passed else 'NO'} | {c.detail} |"
-        )
-    notes = ["", "## Notes", ""] + [f"- {n}" for n in res.notes or ["none"]]
-    md = "\n".join(head + rows + notes) + "\n"
-    with atomic_path(res.outdir / "report.md") as tmp:
-        Path(tmp).write_text(md)
-    esc = html.escape
-    trs = "".join(
-        f"<tr class={'ok' if c.passed else 'bad'}><td>{esc(c.quantity)}</td><td>{esc(c.metric)}</td>"
-        f"<td>{_fmt(float(c.value))}</td><td>{_fmt(float(c.tolerance))}</td>"
-        f"<td>{'yes' if c.passed else 'NO'}</td><td>{esc(c.detail)}</td></tr>"
-        for c in res.checks
-    )
-    page = (
-        f"<!doctype html><html><head><meta charset=utf-8><title>gransim replay {esc(d.path.name)}</title>"
-        "<style>body{font-family:sans-serif}td,th{border:1px solid #ccc;padding:2px 6px}"
-        ".bad{background:#fdd}.ok{background:#efe}</style></head><body>"
-        f"<h1>gransim replay: {esc(d.path.name)} &mdash; {verdict}</h1><ul>"
-        + "".join(f"<li>{esc(h[2:])}</li>" for h in head[2:] if h)
-        + "</ul><table><tr><th>quantity</th><th>metric</th><th>value</th><th>tolerance</th><th>pass</th>"
-        f"<th>detail</th></tr>{trs}</table><h2>Notes</h2><ul>"
-        + "".join(f"<li>{esc(n)}</li>" for n in res.notes or ["none"])
-        + "</ul></body></html>\n"
-    )
-    with atomic_path(res.outdir / "report.html") as tmp:
-        Path(tmp).write_text(page)
+    write_text_reports(res, d.path.name, head, verdict)
     params = {
         "deck": str(d.path),
         "data": str(d.data_path),

@@ -50,7 +50,6 @@ for bit (tolerance 0). A missing step, frame, particle or contact is a failure n
 from __future__ import annotations
 
 import ast
-import html
 import json
 import math
 from dataclasses import dataclass, field
@@ -62,13 +61,13 @@ from gransim.dem.settings import AxisControl, DEMSettings, Loading
 from gransim.dem.sheared import ShearLoading
 from gransim.errors import InputError
 from gransim.geometry import Packing
-from gransim.io import atomic_h5, atomic_path
+from gransim.io import atomic_h5
 from reference_runs.errors import ReferenceRunError
 from reference_runs.yade.dem import YadeDemOutput, read_yade_dem
 from reference_runs.yade.dem_script import DEM_SCRIPT
 from reference_runs.yade.job import run_yade_job
 
-from .compare import Check, ReplayResult
+from .compare import Check, ReplayResult, write_text_reports
 
 ENGINE = "yade"
 #: the scripts' law, the one the native yade arithmetic has
@@ -1005,35 +1004,7 @@ def write_report(res: ReplayResult, run) -> None:
         "missing evidence fails",
         "",
     ]
-    rows = ["| quantity | metric | value | tolerance | pass | detail |", "|---|---|---|---|---|---|"]
-    for c in res.checks:
-        rows.append(
-            f"| {c.quantity} | {c.metric} | {float(c.value):.3g} | {float(c.tolerance):.3g} | "
-            f"{'yes' if c.passed else 'NO'} | {c.detail} |"
-        )
-    notes = ["", "## Notes", ""] + [f"- {n}" for n in res.notes or ["none"]]
-    with atomic_path(res.outdir / "report.md") as tmp:
-        Path(tmp).write_text("\n".join(head + rows + notes) + "\n")
-    esc = html.escape
-    trs = "".join(
-        f"<tr class={'ok' if c.passed else 'bad'}><td>{esc(c.quantity)}</td><td>{esc(c.metric)}</td>"
-        f"<td>{float(c.value):.3g}</td><td>{float(c.tolerance):.3g}</td><td>{'yes' if c.passed else 'NO'}</td>"
-        f"<td>{esc(c.detail)}</td></tr>"
-        for c in res.checks
-    )
-    page = (
-        f"<!doctype html><html><head><meta charset=utf-8><title>gransim replay {esc(s.path.name)}</title>"
-        "<style>body{font-family:sans-serif}td,th{border:1px solid #ccc;padding:2px 6px}"
-        ".bad{background:#fdd}.ok{background:#efe}</style></head><body>"
-        f"<h1>gransim replay: {esc(s.path.name)} &mdash; {verdict}</h1><ul>"
-        + "".join(f"<li>{esc(h[2:])}</li>" for h in head[2:] if h)
-        + "</ul><table><tr><th>quantity</th><th>metric</th><th>value</th><th>tolerance</th><th>pass</th>"
-        f"<th>detail</th></tr>{trs}</table><h2>Notes</h2><ul>"
-        + "".join(f"<li>{esc(n)}</li>" for n in res.notes or ["none"])
-        + "</ul></body></html>\n"
-    )
-    with atomic_path(res.outdir / "report.html") as tmp:
-        Path(tmp).write_text(page)
+    write_text_reports(res, s.path.name, head, verdict)
     params = {
         "script": str(s.path),
         "engine": ENGINE,
