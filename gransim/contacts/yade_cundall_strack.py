@@ -69,6 +69,17 @@ def friction_tangent(mu: float) -> float:
 
 
 @njit
+def spheres_touch(x1, y1, x2, y2, sx, sy, r1, r2):
+    """Whether ``Ig2_Sphere_Sphere_ScGeom`` makes a geometry for a non-real interaction
+    (Ig2_Sphere_Sphere_ScGeom.cpp:28-35, interactionDetectionFactor 1): pow(1 (r_1 + r_2), 2) -
+    |d|^2 >= 0 with d = (x_2 + shift_2) - x_1 (m; arguments as :func:`scgeom_cundall_strack`)."""
+    dx = (x2 + sx) - x1
+    dy = (y2 + sy) - y1
+    rs = r1 + r2
+    return not (rs * rs - (dx * dx + dy * dy) < 0.0)
+
+
+@njit
 def scgeom_cundall_strack(
     real,
     x1,
@@ -124,11 +135,8 @@ def scgeom_cundall_strack(
     dx = (x2 + sx) - x1
     dy = (y2 + sy) - y1
     sq = dx * dx + dy * dy
-    if not real:
-        # :30, interactionDetectionFactor 1: pow(1 * (r1 + r2), 2) - normal.squaredNorm()
-        rs = r1 + r2
-        if rs * rs - sq < 0.0:
-            return NO_CONTACT, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if not real and not spheres_touch(x1, y1, x2, y2, sx, sy, r1, r2):  # :30
+        return NO_CONTACT, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     norm = math.sqrt(sq)  # :43
     nx = dx / norm  # :44 normal /= norm
     ny = dy / norm
@@ -197,4 +205,4 @@ def scgeom_cundall_strack(
     return FORCE, nx, ny, pen, fnx, fny, fsx, fsy, fx, fy, t1, t2
 
 
-__all__ = ["ERASED", "FORCE", "NO_CONTACT", "friction_tangent", "scgeom_cundall_strack"]
+__all__ = ["ERASED", "FORCE", "NO_CONTACT", "friction_tangent", "scgeom_cundall_strack", "spheres_touch"]

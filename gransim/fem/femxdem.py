@@ -459,7 +459,10 @@ def run_femxdem(
     rve_pictures=None,
 ) -> dict:
     """Run the biaxial specimen with the stand-in ``rve`` (module docstring); returns a summary
-    (``steps`` the records, ``report`` markdown, ``timing``, ``files``). With ``out`` every converged
+    (``steps`` the records, ``report`` markdown, ``timing``: ``wall_s`` of the steps, ``material_s``
+    the driver's wait for the Gauss points, ``law_s`` and ``law_calls`` the time in and the number
+    of point-law updates summed over the chunks, measured where they run, ``chunks`` per chunk;
+    ``files``). With ``out`` every converged
     step is checkpointed; ``resume`` continues from the checkpoint; ``stop_after`` = k stops after
     step k's checkpoint (raises :class:`FemxdemInterrupted`). A step that does not converge raises
     :class:`gransim.fem.incremental.StepFailure` after the outputs of the converged steps are
@@ -536,10 +539,12 @@ def run_femxdem(
                 stop = intr
         try:
             observables = points.observables()
+            law_timing = points.timing()
         except BaseException as exc:
             if not isinstance(stop, Interrupted) or isinstance(exc, (KeyboardInterrupt, SystemExit)):
                 raise
             observables = {}  # the workers are gone with the signal: the file has the curves and the last step
+            law_timing = []
     finally:
         bar.close()
         try:
@@ -602,7 +607,14 @@ def run_femxdem(
     return {
         "steps": recs,
         "report": report,
-        "timing": {"wall_s": wall, "material_s": mat_s, "setup_s": t_setup},
+        "timing": {
+            "wall_s": wall,
+            "material_s": mat_s,
+            "setup_s": t_setup,
+            "law_s": sum(t["law_s"] for t in law_timing),
+            "law_calls": sum(t["law_calls"] for t in law_timing),
+            "chunks": law_timing,
+        },
         "files": files,
         "resumed_after": len(done),
         "parameters": params,

@@ -34,6 +34,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import os
+import time
 
 import numpy as np
 
@@ -98,6 +99,8 @@ class GaussChunk:
         self.committed = [freeze(s) for s in states]
         self.trial = None
         self._trial_response = None
+        self.law_s = 0.0  # seconds in law.update (the RVE calls), and their number: timing()
+        self.law_calls = 0
         if response is None:
             resp = [self._call(g, law.response, s) for g, s in zip(self.indices, self.committed)]
             response = ([r[0] for r in resp], [r[1] for r in resp])
@@ -117,7 +120,10 @@ class GaussChunk:
         """(stress (K, 2, 2), tangent (K, 2, 2, 2, 2)) after the increments f (K, 2, 2), each from
         its point's committed state; the new states are kept as the trial (replacing an older one)."""
         f = _check_f(f, self.indices.size)
+        t0 = time.perf_counter()
         out = [self._call(g, self.law.update, f[k], self.committed[k]) for k, g in enumerate(self.indices)]
+        self.law_s += time.perf_counter() - t0
+        self.law_calls += len(out)
         self.trial = [o[2] for o in out]
         stress = np.array([o[0] for o in out], dtype=float).reshape(-1, 2, 2)
         tangent = np.array([o[1] for o in out], dtype=float).reshape(-1, 2, 2, 2, 2)
@@ -156,6 +162,11 @@ class GaussChunk:
         """The process id of the chunk's process (tests)."""
         return os.getpid()
 
+    def timing(self) -> dict:
+        """{"law_s": seconds spent in ``law.update`` since the chunk was made (on its process),
+        "law_calls": their number, "pid"}: the DEM share of a run (bench/femxdem.py)."""
+        return {"law_s": self.law_s, "law_calls": self.law_calls, "pid": os.getpid()}
+
 
 def _concat(parts, k):
     return np.concatenate([p[k] for p in parts])
@@ -165,7 +176,7 @@ class GaussPoints:
     """All Gauss points of a mesh in this process (one :class:`GaussChunk`).
 
     The driver-side protocol shared with :class:`DaskGaussPoints`: ``evaluate(f)``, ``commit()``,
-    ``revert()``, ``committed_response()``, ``states()``, ``observables()``, ``close()``.
+    ``revert()``, ``committed_response()``, ``states()``, ``observables()``, ``timing()``, ``close()``.
     """
 
     where = "in process"
@@ -198,6 +209,10 @@ class GaussPoints:
     def observables(self) -> dict:
         """Per-point observables of the committed states."""
         return self._chunk.observables()
+
+    def timing(self) -> list[dict]:
+        """Per chunk, :meth:`GaussChunk.timing`."""
+        return [self._chunk.timing()]
 
     def close(self) -> None:
         """Nothing to release."""
@@ -284,6 +299,10 @@ class DaskGaussPoints:
     def pids(self) -> list[int]:
         """Process ids of the chunks' workers (tests)."""
         return self._all("pid")
+
+    def timing(self) -> list[dict]:
+        """Per chunk, :meth:`GaussChunk.timing` (measured on its worker)."""
+        return self._all("timing")
 
     def close(self) -> None:
         """Release the Actors (the executor owns the cluster and closes it)."""

@@ -1,0 +1,337 @@
+"""Benchmark of FEM x DEM (``gransim femxdem --rve dem``): the RVE call, and where a run's time goes.
+
+``python -m bench.femxdem [--full] [--calls 60] [--workers 2] [--steps K] [--base REV] [--skip-run]``
+
+1. **The RVE call** (in this process, compilation excluded: a warm-up call first). Guo & Zhao's
+   400-disk RVE (the prepared state of ``gransim/fem/data/guo_zhao_rve.h5``) driven by a chain of
+   ``--calls`` strain increments of a biaxial load step (max|D| = 1e-3: ns = 100 DEM steps a call),
+   each call from the state the last one left, as a Gauss point's committed history. Per call,
+   medians and minima (ms): the whole ``DemRVE.update`` (what a worker runs: the call, then the
+   stress and tangent), ``rve_run_rotation``, and its parts: the packing of the saved scene into
+   the kernel's arrays (``rve_call`` + ``RVECall.kernel_args``), the kernel ``_rve_steps`` (one
+   jitted call of ns steps), and the unpacking into the new state (``rve_result``). The kernel is
+   split by running it once more with a single step on the same input: first collider run (the
+   initial sort a deserialised scene needs, then findOverlaps) = T(1 step) - one step, per step =
+   (T(ns) - T(1)) / (ns - 1). Rates in particle-steps/s: the call's (N ns / call time) and the
+   steady state (N / per-step time).
+2. **A short run** ``run_femxdem`` (default the quick 2 x 4 mesh, 10 steps; ``--full``: the 8 x 16
+   mesh of the full benchmark, ``--steps`` (default 2) load steps) on ``--workers`` Dask workers
+   (0: in process), with its wall time split: **DEM** = the time in the point law's updates summed
+   over the chunks, measured on the workers (``GaussChunk.timing``); its share = DEM / (workers x
+   wall of the steps); the driver's wait for the Gauss points (``material_s``), the FE work
+   (``wall_s - material_s`` per step: assembly, solve, the predictor), and the rest (checkpoints,
+   field outputs). Overhead = 1 - DEM share (Dask, serialisation, FE, idle workers while the
+   other finishes its chunk).
+3. ``--base REV``: the RVE call of commit REV against this checkout, interleaved in one run (two
+   long-lived processes, one per tree, each with its own numba cache, asked in turn A B B A ... for
+   windows of ``--window`` ``DemRVE.update`` calls on the same chain): median of the per-window
+   ratio base/head of the time, i.e. the speed-up, with its range.
+
+The machine's load average is printed before and after each part (2 shared cores: the absolute
+times follow the load, ratios within one interleaved run much less). ``run(quick)`` gives the
+records of ``python -m bench`` (part 1, and part 2 on a 1 x 2 mesh for 2 steps in process).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: the strain increments of the chain (a biaxial load step's D = f - 1: axial -1e-3, lateral and
+#: shear of either sign; max|D| = 1e-3 gives ns = 100 steps a call, the benchmark's typical call)
+INCREMENTS = (
+    ((3e-4, 1e-4), (0.0, -1e-3)),
+    ((4e-4, -2e-4), (1e-4, -1e-3)),
+    ((2e-4, 0.0), (0.0, -1e-3)),
+    ((5e-4, 1e-4), (-1e-4, -1e-3)),
+)
+
+
+def load() -> str:
+    """The 1, 5 and 15 minute load averages, as text."""
+    return " ".join(f"{v:.2f}" for v in os.getloadavg())
+
+
+def _stats(xs) -> dict:
+    return {"median": statistics.median(xs), "min": min(xs), "max": max(xs)}
+
+
+def rve_call_split(calls: int = 60) -> dict:
+    """Part 1 of the module docstring: {name: {median, min, max} (s)} plus the rates and counts."""
+    from gransim.dem import yade_arithmetic as ya
+    from gransim.fem.dem_rve import DemRVE
+
+    law = DemRVE.prepared()
+    st = law.initial_state(0)
+    eye = np.eye(2)
+    law.update(eye + np.array(INCREMENTS[0]), st)  # compile or load the cache
+    t = {k: [] for k in ("update", "run", "pack", "kernel", "unpack", "kernel_1", "first_collide", "per_step")}
+    ns_all, contacts = [], []
+    for i in range(calls):
+        f = eye + np.array(INCREMENTS[i % len(INCREMENTS)])
+        D = f - eye  # DemRVE.update's D, to the bit
+        rve = st.rve
+        # the kernel with one step, on its own copy of the input: the first collider run
+        c1 = ya.rve_call(rve, D, st.disk_rotation())
+        with ya._workspace(c1.n, c1.m0) as work:
+            args = c1.kernel_args(work, nsteps=1)
+            t0 = time.perf_counter()
+            ya._rve_steps(*args)
+            t["kernel_1"].append(time.perf_counter() - t0)
+        # the call in its parts
+        t0 = time.perf_counter()
+        call = ya.rve_call(rve, D, st.disk_rotation())
+        with ya._workspace(call.n, call.m0) as work:
+            args = call.kernel_args(work)
+            t1 = time.perf_counter()
+            err, axis, k = ya._rve_steps(*args)
+            t2 = time.perf_counter()
+            new, rot = ya.rve_result(rve, call, work, err, axis, k)
+        t3 = time.perf_counter()
+        t["pack"].append(t1 - t0)
+        t["kernel"].append(t2 - t1)
+        t["unpack"].append(t3 - t2)
+        t["run"].append(t3 - t0)
+        per_step = (t["kernel"][-1] - t["kernel_1"][-1]) / max(call.ns - 1, 1)
+        t["per_step"].append(per_step)
+        t["first_collide"].append(t["kernel_1"][-1] - per_step)
+        # the worker's call, from the same committed state (its result is the chain's next state)
+        t0 = time.perf_counter()
+        _, _, nxt = law.update(f, st)
+        t["update"].append(time.perf_counter() - t0)
+        if not (np.array_equal(nxt.rve.positions, new.positions) and np.array_equal(nxt.disk_rotation(), rot)):
+            raise SystemExit("bench.femxdem: the split call differs from DemRVE.update (not the same computation)")
+        ns_all.append(call.ns)
+        contacts.append(len(nxt.rve.kn))
+        st = nxt
+    n = st.rve.n
+    out = {k: _stats(v) for k, v in t.items()}
+    ns = statistics.median(ns_all)
+    out["n"] = n
+    out["ns"] = ns
+    out["contacts"] = statistics.median(contacts)
+    out["rate_call"] = n * ns / out["run"]["median"]
+    out["rate_call_best"] = n * ns / out["run"]["min"]
+    out["rate_steady"] = n / out["per_step"]["median"]
+    out["rate_steady_best"] = n / out["per_step"]["min"]
+    return out
+
+
+def show_split(r: dict, log=print) -> None:
+    ms = 1e3
+    log(f"RVE call: {r['n']} disks, ns = {r['ns']:g} steps, {r['contacts']:g} contacts (medians, min in brackets)")
+    for k, label in (
+        ("update", "DemRVE.update (worker's call)"),
+        ("run", "rve_run_rotation"),
+        ("pack", "  packing (rve_call, kernel_args)"),
+        ("kernel", "  kernel _rve_steps (ns steps)"),
+        ("first_collide", "    first collider run (initial sort)"),
+        ("unpack", "  unpacking (rve_result)"),
+    ):
+        log(f"  {label:40s} {r[k]['median'] * ms:8.3f} ms  ({r[k]['min'] * ms:.3f})")
+    log(f"  {'    per DEM step':40s} {r['per_step']['median'] * 1e6:8.2f} us  ({r['per_step']['min'] * 1e6:.2f})")
+    log(
+        f"  rate: call {r['rate_call'] / 1e6:.2f} M particle-steps/s (best {r['rate_call_best'] / 1e6:.2f}), "
+        f"steady state {r['rate_steady'] / 1e6:.2f} (best {r['rate_steady_best'] / 1e6:.2f})"
+    )
+
+
+def femxdem_split(nx: int, ny: int, steps: int, workers: int, log=print) -> dict:
+    """Part 2 of the module docstring: the run's figures (s, shares)."""
+    from gransim.fem.biaxial import BiaxialSpec
+    from gransim.fem.femxdem import run_femxdem
+    from gransim.parallel import make_executor
+
+    spec = BiaxialSpec(nx=nx, ny=ny, steps=steps)
+    ex = make_executor(workers=workers if workers > 0 else None)
+    try:
+        with tempfile.TemporaryDirectory(prefix="bench-femxdem-") as tmp:
+            t0 = time.perf_counter()
+            res = run_femxdem(spec, rve="dem", out=tmp, executor=ex)
+            total = time.perf_counter() - t0
+    finally:
+        close = getattr(ex, "close", None)
+        if callable(close):
+            close()
+    tm, recs = res["timing"], res["steps"]
+    steps_s = sum(r.wall_s for r in recs)
+    wait_s = sum(r.material_s for r in recs)
+    fe_s = steps_s - wait_s
+    nw = max(workers, 1)
+    out = {
+        "mesh": f"{nx}x{ny}",
+        "gauss_points": spec.n_gauss,
+        "steps": steps,
+        "workers": workers,
+        "newton_iterations": [len(r.errors) for r in recs],
+        "total_s": total,
+        "setup_s": tm["setup_s"],
+        "wall_s": tm["wall_s"],
+        "steps_s": steps_s,
+        "wait_s": wait_s,
+        "fe_s": fe_s,
+        "rest_s": tm["wall_s"] - steps_s,
+        "dem_s": tm["law_s"],
+        "dem_calls": tm["law_calls"],
+        "dem_per_chunk_s": [c["law_s"] for c in tm["chunks"]],
+        "dem_share": tm["law_s"] / (nw * tm["wall_s"]),
+    }
+    out["overhead"] = 1.0 - out["dem_share"]
+    out["ms_per_call"] = 1e3 * tm["law_s"] / max(tm["law_calls"], 1)
+    return out
+
+
+def show_run(r: dict, log=print) -> None:
+    log(
+        f"femxdem --rve dem, {r['mesh']} mesh ({r['gauss_points']} Gauss points), {r['steps']} steps, "
+        f"workers {r['workers'] or 'in process'}: Newton iterations {r['newton_iterations']}"
+    )
+    log(f"  total {r['total_s']:.2f} s: set-up {r['setup_s']:.2f} s, steps and outputs {r['wall_s']:.2f} s")
+    log(
+        f"  steps {r['steps_s']:.2f} s = waiting for the Gauss points {r['wait_s']:.2f} s + FE {r['fe_s']:.2f} s; "
+        f"checkpoints and outputs {r['rest_s']:.2f} s"
+    )
+    chunks = ", ".join(f"{v:.2f}" for v in r["dem_per_chunk_s"])
+    log(
+        f"  DEM (point-law updates, on the workers) {r['dem_s']:.2f} s in {r['dem_calls']} calls "
+        f"({r['ms_per_call']:.2f} ms a call; per chunk {chunks})"
+    )
+    log(f"  DEM share {100 * r['dem_share']:.1f} % of workers x wall, overhead {100 * r['overhead']:.1f} %")
+
+
+# ---------------------------------------------------------------------------------------------- A/B
+
+_WORKER = r"""
+import json, sys, time
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from gransim.fem.dem_rve import DemRVE
+incs = json.loads(sys.argv[2])
+law = DemRVE.prepared()
+st = law.initial_state(0)
+law.update(np.eye(2) + np.array(incs[0]), st)
+print(json.dumps({"ready": True}), flush=True)
+i = 0
+for line in sys.stdin:
+    k = int(line)
+    t = 0.0
+    for _ in range(k):
+        f = np.eye(2) + np.array(incs[i % len(incs)])
+        t0 = time.perf_counter()
+        _, _, st = law.update(f, st)
+        t += time.perf_counter() - t0
+        i += 1
+    r = st.rve
+    print(json.dumps({"s": t, "x": float(np.sum(r.positions)), "c": len(r.kn)}), flush=True)
+"""
+
+
+def ab(base: str, windows: int = 12, window: int = 10, log=print) -> dict:
+    """Part 3 of the module docstring."""
+    from bench.ab_dem import _tree
+
+    with tempfile.TemporaryDirectory(prefix="bench-femxdem-ab-") as tmp:
+        tmp = Path(tmp)
+        trees = {"base": _tree(base, tmp), "head": _tree("WORKTREE", tmp)}
+        procs = {}
+        try:
+            for side in ("base", "head"):
+                env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / f"cache-{side}"), "PYTHONPATH": str(trees[side])}
+                procs[side] = subprocess.Popen(
+                    [sys.executable, "-c", _WORKER, str(trees[side]), json.dumps(INCREMENTS)],
+                    stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env, cwd=str(trees[side]),
+                )  # fmt: skip
+                if not procs[side].stdout.readline():
+                    raise SystemExit(f"bench.femxdem: the {side} worker ended early")
+            per = {"base": [], "head": []}
+            for k in range(windows):
+                for side in ("base", "head") if k % 2 == 0 else ("head", "base"):
+                    procs[side].stdin.write(f"{window}\n")
+                    procs[side].stdin.flush()
+                    line = procs[side].stdout.readline()
+                    if not line:
+                        raise SystemExit(f"bench.femxdem: the {side} worker ended early")
+                    per[side].append(json.loads(line))
+        finally:
+            for p in procs.values():
+                p.stdin.close()
+                p.wait(timeout=60)
+    same = all(a["x"] == b["x"] and a["c"] == b["c"] for a, b in zip(per["base"], per["head"]))
+    ratios = [a["s"] / b["s"] for a, b in zip(per["base"], per["head"])]
+    out = {
+        "base": base,
+        "speedup_median": statistics.median(ratios),
+        "speedup_min": min(ratios),
+        "speedup_max": max(ratios),
+        "base_ms": 1e3 * statistics.median([a["s"] for a in per["base"]]) / window,
+        "head_ms": 1e3 * statistics.median([b["s"] for b in per["head"]]) / window,
+        "same_states": same,
+        "windows": windows,
+        "window": window,
+    }
+    log(
+        f"A/B DemRVE.update, {windows} windows of {window} calls: head is {out['speedup_median']:.3f}x base {base} "
+        f"(range {out['speedup_min']:.3f}-{out['speedup_max']:.3f}); per call base {out['base_ms']:.2f} ms, head "
+        f"{out['head_ms']:.2f} ms (medians); the chains' states equal on both sides: {same}"
+    )
+    return out
+
+
+def run(quick: bool = False) -> list[dict]:
+    """Records for ``python -m bench``."""
+    r = rve_call_split(20 if quick else 60)
+    note = f"400-disk RVE, ns = {r['ns']:g}, load {load()}"
+    recs = [
+        {"name": "femxdem.rve_call", "value": r["update"]["median"] * 1e3, "unit": "ms", "target": None, "note": note},
+        {"name": "femxdem.rve_rate", "value": r["rate_call"] / 1e6, "unit": "M particle-steps/s", "target": None,
+         "note": note},
+        {"name": "femxdem.first_collide", "value": r["first_collide"]["median"] * 1e3, "unit": "ms", "target": None,
+         "note": note},
+    ]  # fmt: skip
+    s = femxdem_split(1, 2, 2, 0)
+    recs.append(
+        {"name": "femxdem.dem_share_1x2", "value": s["dem_share"], "unit": "", "target": None,
+         "note": f"1 x 2 mesh, 2 steps, in process; {s['dem_calls']} calls, load {load()}"}
+    )  # fmt: skip
+    return recs
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.femxdem", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--full", action="store_true", help="part 2 on the full benchmark's 8 x 16 mesh")
+    ap.add_argument("--steps", type=int, default=None, help="load steps of part 2 (default 10; 2 with --full)")
+    ap.add_argument("--workers", type=int, default=2, help="Dask workers of part 2 (0: in process)")
+    ap.add_argument("--calls", type=int, default=60, help="RVE calls of part 1")
+    ap.add_argument("--skip-run", action="store_true", help="part 1 only")
+    ap.add_argument("--base", default=None, help="part 3: A/B of the RVE call against commit BASE")
+    ap.add_argument("--windows", type=int, default=12)
+    ap.add_argument("--window", type=int, default=10)
+    args = ap.parse_args(argv)
+    print(f"load {load()}", flush=True)
+    if args.base:
+        ab(args.base, args.windows, args.window)
+        print(f"load {load()}", flush=True)
+        return 0
+    show_split(rve_call_split(args.calls))
+    print(f"load {load()}", flush=True)
+    if not args.skip_run:
+        nx, ny = (8, 16) if args.full else (2, 4)
+        steps = args.steps or (2 if args.full else 10)
+        show_run(femxdem_split(nx, ny, steps, args.workers))
+        print(f"load {load()}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
