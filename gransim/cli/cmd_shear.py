@@ -78,6 +78,18 @@ def register(sub) -> None:
         default=[],
         help="a parameter of --law (repeat; SI units, as gransim biaxial --law-param)",
     )
+    p.add_argument(
+        "--checkpoint-every",
+        type=int,
+        default=50000,
+        help="write the run file with a checkpoint every N steps (default 50000; 0: never; an "
+        "interrupted run writes one where it stops)",
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the run in --output from its checkpoint (the same options; bit for bit the uninterrupted run)",
+    )
     p.add_argument("-o", "--output", required=True, help="run file (.h5)")
     p.add_argument("--plot", help="also write the shear stress and normal stress against the strain")
     p.set_defaults(func=_run)
@@ -106,6 +118,11 @@ def _check_options(args) -> None:
     as_positive_float(args.damping_ratio, "--damping-ratio", allow_zero=True)
     check_count(args.series_every, "--series-every", 1)
     check_count(args.snapshot_every, "--snapshot-every", 0)
+    check_count(args.checkpoint_every, "--checkpoint-every", 0)
+    if args.resume and not Path(args.output).exists():
+        raise InputError(
+            f"--resume: {args.output!r} (-o/--output) does not exist: no run to continue; drop --resume to start one"
+        )
     if args.flavour != "lammps":
         from ..dem.settings import FLAVOURS  # noqa: PLC0415 - start-up: numba
 
@@ -225,6 +242,8 @@ def _run(args) -> int:
         parameters=extra,
         law=law,
         law_options=law_options,
+        checkpoint_every=args.checkpoint_every,
+        resume=args.resume,
     )
     result_written(args.output)
     y = f"servo sigma_yy = {args.servo:g} N/m" if args.servo is not None else "constant volume"

@@ -1,6 +1,8 @@
-"""The DEM engine: disks in an orthogonal periodic cell whose side lengths change each step.
+"""The DEM engine (:class:`Engine`): disks in a periodic cell, one state and one step loop for
+every cell, law and arithmetic. The orthogonal cell (:class:`OrthogonalCell`, side lengths that
+change each step) is described here; the sheared one in :mod:`gransim.dem.sheared`.
 
-It follows the step of LIGGGHTS-PUBLIC 3.8.0 (serial, ``newton off``, ``neigh_modify delay 0
+The orthogonal cell follows the step of LIGGGHTS-PUBLIC 3.8.0 (serial, ``newton off``, ``neigh_modify delay 0
 every 1 check yes``, ``fix deform ... remap x``; docs/liggghts.md), which LAMMPS 29 Sep 2021 shares,
 so that, with the same settings, trajectories agree with either code to round-off:
 ``DEMSettings.flavour`` picks the code's contact-law arithmetic and rebuild rule ("liggghts", the
@@ -25,11 +27,12 @@ import hashlib
 import numpy as np
 
 from .._numba import check_threads, disk_cache_off, num_threads
+from .._validate import as_int, check_choice
 from ..contacts.laws import elastic_energy, flip_signs, law_spec, time_scale
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import kernels as K
-from .settings import AxisControl, DEMSettings, Integration, Loading, PrescribedBox
+from .settings import FLAVOURS, AxisControl, DEMSettings, Integration, Loading, PrescribedBox
 
 #: the time step must not exceed contact time / this (stability of the rotational + normal modes)
 STEPS_PER_CONTACT_MIN = 5.0
@@ -169,19 +172,139 @@ ENERGY_CHUNK = 1 << 16
 #: the Neighbours field ``shift`` of the engine's lists (the shifts are kept as floats only)
 _NO_SHIFT = np.zeros((0, 2), np.int64)
 
+#: the cells of :class:`Engine`: "orthogonal" (:class:`OrthogonalCell`, LIGGGHTS' and LAMMPS'
+#: orthogonal box under ``fix deform ... remap x``) and "sheared" (:class:`gransim.dem.sheared.
+#: ShearedCell`, LAMMPS' triclinic box under ``fix deform ... xy ... remap v``)
+CELLS = ("orthogonal", "sheared")
 
-class EngineCore:
-    """What the engines of :mod:`gransim.dem` (:class:`DEMEngine`, the orthogonal cell, and
-    :class:`gransim.dem.sheared.ShearEngine`, the sheared one) do the same way, written once: the
-    contact law and its time-step check, the kinetic and elastic energies, the divergence check
-    (energy balance) and the lost-particle check.
 
-    A subclass holds ``packing``, ``settings``, ``law``, ``step``, ``_build_step`` and the state
-    ``p`` (:class:`~gransim.dem.kernels.Particles`) and ``nb`` (``Neighbours``), whose arrays the
-    views below name (x, v, w, ..., ea, eb, xi, ...), and defines ``_touching()`` -> (entries of
-    the touching pairs, each once, and their overlaps (m)) for its cell.
+def _state_array(value, shape, name: str, unit: str) -> np.ndarray:
+    """A float64 copy of ``value`` with ``shape``, finite; InputError naming ``name`` otherwise."""
+    try:
+        a = np.array(value, np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected numbers ({unit}), got {type(value).__name__}") from None
+    if a.size != int(np.prod(shape)):
+        raise InputError(f"{name}: expected shape {shape} ({unit}), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{name}: expected finite numbers ({unit})")
+    return a.reshape(shape)
+
+
+class Engine:
+    """The DEM engine: one state of disks in a periodic cell and one step loop (arrays updated in
+    place for speed).
+
+    Its choices are independent of one another:
+
+    - **cell** (``cell=``): "orthogonal" (:class:`OrthogonalCell`: side lengths that change each
+      step under :class:`~gransim.dem.settings.Loading` or :class:`~gransim.dem.settings.
+      PrescribedBox`, LIGGGHTS' and LAMMPS' ``fix deform ... remap x``; module docstring) or
+      "sheared" (:class:`gransim.dem.sheared.ShearedCell`: LAMMPS' triclinic box under
+      :class:`~gransim.dem.sheared.ShearLoading`, ``fix deform ... xy ... remap v``);
+    - **law** (``law=``): any registered contact law (:func:`gransim.contacts.laws.register_law`);
+      None: the Hooke law of a :class:`DEMSettings` in the engine's arithmetic;
+    - **arithmetic** (``flavour=``, default ``settings.flavour``): "liggghts" or "lammps", whose
+      step order, rebuild rule and law arithmetic the engine reproduces bit for bit
+      (docs/lammps.md);
+    - **threads** (orthogonal cell, ``settings.mode`` "parallel"): the same list over numba threads.
+
+    Every combination has the divergence check (energy balance, :meth:`_check_energy`), the
+    lost-particle check, the energies, :meth:`state_arrays` / :meth:`restore` (checkpoints) and
+    the clean errors. A step's arithmetic lives in the cell's jitted ``run_block``
+    (:func:`gransim.dem.kernels.run_block`, :func:`gransim.dem.sheared_kernels.run_block`); the
+    loop that drives it, the checks and the rebuilds between its blocks are :meth:`_run`, one for
+    every cell.
+
+    Parameters
+    ----------
+    packing : initial packing. Orthogonal cell: the box is [0, Lx] x [0, Ly] (the LIGGGHTS data file
+        gransim writes) unless ``box`` is given; sheared: its cell [[Lx, xy], [0, Ly]].
+    settings : :class:`~gransim.dem.settings.Integration` (dt, skin, mode, flavour) with a ``law``,
+        or :class:`DEMSettings` (the integration and the parameters of its Hooke law).
+    velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
+    threads : numba threads of mode "parallel" (None: numba's current count), set around each kernel
+        call and restored afterwards (the orthogonal cell; the sheared cell runs the serial loop).
+    check_dt : refuse a time step above :func:`stability_limit` of the law (at the largest overlap
+        after the set-up for a law whose stiffness depends on it: Hertz).
+    box : optional box with its own origin, as a data file's ``xlo xhi ylo yhi`` (and ``xy``) lines:
+        (lo, hi) or, sheared, (lo, hi, xy); the positions are taken as they are in that box (no
+        translation, which would round them). hi - lo must equal the cell's side lengths (1e-12).
+
+    State: ``p`` (:class:`~gransim.dem.kernels.Particles`), ``nb`` (``Neighbours``: list, history of
+    the law's width, CSR, build positions, per-entry outputs), ``sc`` (``Scratch``: the virial),
+    ``box`` (the cell's: :class:`~gransim.dem.kernels.Box` orthogonal, (lo_x, lo_y, hi_x, hi_y, xy)
+    sheared), small namedtuples of arrays updated in place by the kernels (a rebuild replaces
+    ``nb``). After construction (the code's ``run`` set-up: list built, forces without spring
+    increment): x, v, w, f, t, step, stress, virial.
     """
 
+    def __init__(
+        self,
+        packing: Packing,
+        settings: DEMSettings,
+        velocities=None,
+        spins=None,
+        threads: int | None = None,
+        check_dt: bool = True,
+        box=None,
+        law=None,
+        *,
+        cell: str = "orthogonal",
+        flavour: str | None = None,
+    ):
+        check_choice(cell, "cell", CELLS)
+        if not isinstance(packing, Packing):
+            raise InputError(f"packing: expected a gransim Packing, got {type(packing).__name__}")
+        if not isinstance(settings, (DEMSettings, Integration)):
+            raise InputError(f"settings: expected a DEMSettings or an Integration, got {type(settings).__name__}")
+        flavour = settings.flavour if flavour is None else flavour
+        check_choice(flavour, "flavour", FLAVOURS)
+        if cell == "orthogonal":
+            ops = OrthogonalCell
+        else:
+            from .sheared import ShearedCell  # noqa: PLC0415 - start-up: the sheared kernels
+
+            ops = ShearedCell
+        ops.check(packing, settings, flavour)
+        self.packing = packing
+        self.settings = settings
+        self.flavour = flavour
+        # the contact law (gransim.contacts.laws): the Hooke law of DEMSettings unless given
+        self._set_law(packing, settings, law, flavour, check_dt)
+        ops.check_size(packing, settings)
+        n = packing.n
+        r = np.ascontiguousarray(packing.radii, np.float64)
+        # ((pi r) r) rho: the order LIGGGHTS and LAMMPS use reading the data file (Packing.masses
+        # may differ in the last bit)
+        m = np.pi * r * r * float(packing.density)
+        x = _state_array(packing.positions, (n, 2), "positions", "m")
+        v = np.zeros((n, 2)) if velocities is None else _state_array(velocities, (n, 2), "velocities", "m/s")
+        w = np.zeros(n) if spins is None else _state_array(spins, (n,), "spins", "rad/s")
+        self.p = K.Particles(x, v, w, np.zeros((n, 2)), np.zeros(n), m, r)
+        self.step = 0
+        self.n_contacts = 0
+        self.mean_overlap = 0.0
+        self.n_rebuilds = 0
+        self._build_step = 0
+        self._failed = ""  # why a rebuild failed (the engine has no list then), or ""
+        self._run_drive = None  # the loading of the current run (start_run)
+        self.cell_ops = ops(self, box, threads)
+        self.nb = self.cell_ops.neighbours(
+            self,
+            np.zeros(0, np.int32),
+            np.zeros(0, np.int32),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros(0, np.bool_),
+            np.zeros((0, self._width)),
+            x.copy(),
+        )
+        self.cell_ops.setup(self)
+        self._check_time_step_now()
+        self._reset_energy_budget()
+
+    # ------------------------------------------------------------------ the law
     def _set_law(self, packing: Packing, settings, law, flavour: str, check_dt: bool) -> None:
         """``law`` (None: the Hooke law of a :class:`DEMSettings` in ``flavour``) with what the
         loops need of its registration (history width, flip signs, disk cache), its time step
@@ -208,6 +331,153 @@ class EngineCore:
             _, ov = self._touching()
             check_time_step(self.packing, self.settings.dt, self.law, float(ov.max()) if ov.size else 0.0)
 
+    # ------------------------------------------------------------------ the cell
+    @property
+    def cell_kind(self) -> str:
+        """ "orthogonal" or "sheared" (:data:`CELLS`)."""
+        return self.cell_ops.kind
+
+    @property
+    def cell(self) -> np.ndarray:
+        """Current cell (2, 2) (m), columns the lattice vectors: diag(Lx, Ly), or [[Lx, xy], [0, Ly]]."""
+        return self.cell_ops.matrix(self)
+
+    @property
+    def box_lengths(self) -> np.ndarray:
+        """Current side lengths (Lx, Ly) (2,) (m)."""
+        return self.cell_ops.lengths(self)
+
+    @property
+    def area(self) -> float:
+        """Current cell area Lx Ly (m^2)."""
+        L = self.box_lengths
+        return float(L[0] * L[1])
+
+    lo = property(lambda self: self.cell_ops.lo(self), doc="box lower corner (2,), m")
+    hi = property(lambda self: self.cell_ops.hi(self), doc="box upper corner (2,), m")
+
+    def stress_tensor(self, L=None) -> np.ndarray:
+        """Love stress (eq 17 of Kuhn, "Structured deformation in granular materials", Mechanics of
+        Materials 1999), compression positive, (2, 2) (N/m): sigma_ab = (1/(Lx Ly)) sum_c d_a f_b,
+        d = x_i - x_j, f the force on i, over the area of the side lengths ``L`` (2,) (default: the
+        current box). Not symmetric out of equilibrium; [0, 1] = sum d_x f_y is the codes'
+        ``compute pressure`` component 4 (xy)."""
+        if L is None:
+            L = self.box_lengths
+        inv = 1.0 / (L[0] * L[1])
+        v = self.virial
+        return np.array([[v[0] * inv, v[2] * inv], [v[3] * inv, v[1] * inv]])
+
+    def _rebuild(self, carry: bool):
+        self.cell_ops.rebuild(self, carry)
+
+    def _forces(self, update: bool):
+        self.cell_ops.forces(self, update)
+
+    def _touching(self):
+        """Entries of the touching pairs, each physical contact once (a < b), and their overlaps (m),
+        the images from the current box."""
+        return self.cell_ops.touching(self)
+
+    # ------------------------------------------------------------------ stepping
+    def start_run(self, loading, nsteps: int):
+        """Begin a run of ``nsteps`` steps under ``loading`` (the codes' ``run N`` with its ``fix
+        deform``), continued by :meth:`advance` ``(k)`` calls. Orthogonal cell: a :class:`Loading`
+        or :class:`PrescribedBox` measured from the current step and box (no new set-up, the state
+        is untouched); sheared cell: a :class:`~gransim.dem.sheared.ShearLoading` with the run's
+        set-up evaluation (:meth:`gransim.dem.sheared.ShearedCell.start_run`). Returns the stress
+        (2, 2) at the start of the run."""
+        nsteps = as_int(nsteps, "nsteps", 1)
+        self._run_drive = self.cell_ops.start_run(self, loading, nsteps)
+        return self.stress.copy()
+
+    def advance(self, *args, **kwargs) -> dict:
+        """Advance the state; returns a dict of per-step series.
+
+        ``advance(nsteps)``: ``nsteps`` steps of the run begun by :meth:`start_run`.
+        ``advance(loading, nsteps=1, phase_step0=0, phase_box0=None)`` (orthogonal cell): ``nsteps``
+        steps under ``loading``, a :class:`Loading` (each axis fixed, at a rate or under a servo)
+        or a :class:`PrescribedBox` (the box of every step from a table; its rows must cover steps
+        step + 1 .. step + nsteps); ``phase_step0`` and ``phase_box0`` = (lo, hi): step and box at
+        the start of the loading phase (``fix deform`` lo_start/hi_start: rate control measures
+        its displacement from there, the servo its accumulated change; default: now).
+
+        Returns
+        -------
+        dict with ``step`` (n,), ``stress`` (n, 2, 2) (Love stress, compression positive, N/m, area
+        of the box after the step), ``virial`` (n, 4) (xx, yy, xy, yx: sum d_a f_b, N m), ``n_contacts``
+        (n,), ``mean_overlap`` (n,) (m), ``kinetic_energy`` (n,) (J, of the lab-frame velocities),
+        and the cell's: ``lengths`` (n, 2) (m) orthogonal; ``box`` (n, 5) (lx, ly, xy, ylo, yhi; m)
+        sheared.
+
+        Raises
+        ------
+        SimulationError naming the step and the particle, on a divergence: a non-finite position or
+        kinetic energy; a kinetic-energy blow-up (more than KINETIC_ENERGY_FACTOR times the energy
+        balance allows, :meth:`_check_energy`); a lost particle (moved more than
+        LOST_DISPLACEMENT_SKINS skins since the last neighbour build, or left the box by more than a
+        cell); a collapsed cell. These checks only read the state: the step's arithmetic is untouched.
+        """
+        drive, nsteps = self.cell_ops.drive(self, self._run_drive, *args, **kwargs)
+        return self._run(drive, nsteps)
+
+    def _run(self, drive, nsteps: int) -> dict:
+        """The step loop of every cell: blocks of the cell's jitted ``run_block`` (which stops at a
+        neighbour rebuild, a non-finite position or a collapsed cell), the divergence check over
+        each block's steps, the lost-particle check and the rebuild between blocks."""
+        if self._failed:
+            raise SimulationError(
+                f"the engine stopped at a failed neighbour build ({self._failed}); restore a "
+                "checkpoint or make a new engine"
+            )
+        ops = self.cell_ops
+        out = ops.series(nsteps)
+        done = 0
+        resume = False
+        step_start = self.step
+        while done < nsteps:
+            before = ops.box_state(self)
+            k, status, bad = ops.block(self, drive, out, done, nsteps - done, resume)
+            if k:
+                ops.check_divergence(self, out, done, k, before)
+            done += k
+            self.step += k
+            resume = False
+            if status == 1:
+                self._check_lost()
+                self.step += 1
+                self._rebuild(carry=True)
+                self.step -= 1
+                resume = True
+            elif status == 2:
+                raise SimulationError(
+                    f"step {self.step + 1}: particle {bad} has a non-finite position "
+                    f"{self.x[bad].tolist()} (velocity {self.v[bad].tolist()})"
+                )
+            elif status == 3:
+                raise SimulationError(f"step {self.step + 1}: {ops.collapse_message(self)}")
+            elif k == 0 and done < nsteps:  # pragma: no cover - run_block always moves or stops
+                raise SimulationError(f"step {self.step + 1}: no progress")
+        if nsteps:
+            self.n_contacts = round(out.nc[-1])
+            self.mean_overlap = float(out.ov[-1])
+            self.stress = self.stress_tensor()
+        st = np.empty((nsteps, 2, 2))
+        st[:, 0, 0] = out.stress[:, 0]
+        st[:, 1, 1] = out.stress[:, 1]
+        st[:, 0, 1] = out.stress[:, 2]
+        st[:, 1, 0] = out.stress[:, 3]
+        return {
+            "step": np.arange(step_start + 1, step_start + nsteps + 1),
+            "stress": st,
+            "virial": out.vir,
+            "n_contacts": np.rint(out.nc).astype(np.int64),
+            "mean_overlap": out.ov,
+            "kinetic_energy": out.ke,
+            **ops.cell_series(out),
+        }
+
+    # ------------------------------------------------------------------ energies and checks
     def kinetic_energy(self) -> float:
         """Translational + rotational (I = m r^2/2) kinetic energy (J) of the velocities held (the
         lab frame)."""
@@ -232,9 +502,9 @@ class EngineCore:
         return total
 
     def _budget_kinetic_energy(self) -> float:
-        """The kinetic energy the divergence check bounds (J): :meth:`kinetic_energy` of the
-        velocities held (a sheared cell: of the velocities relative to its homogeneous flow)."""
-        return self.kinetic_energy()
+        """The kinetic energy the divergence check bounds (J): that of the velocities relative to the
+        cell's homogeneous flow (orthogonal cell under ``remap x``: the velocities held)."""
+        return self.cell_ops.budget_kinetic_energy(self)
 
     def _reset_energy_budget(self):
         """Start of the energy balance of the divergence check: E0 = kinetic + elastic energy now."""
@@ -296,9 +566,83 @@ class EngineCore:
                 f"({skin:.4g} m) in one step (velocity {self.v[i].tolist()} m/s, dt {self.settings.dt:.4g} s)"
             )
 
+    # ------------------------------------------------------------------ diagnostics
+    def contacts(self):
+        """Touching pairs, each once (i < j): dict of i, j, shift (l_ij = x_j + C s - x_i), force on
+        j applied in the last step (N), overlap (m), tangential spring (frame of i; the law's history
+        when its width is 2, else zeros), sliding."""
+        nb = self.nb
+        e, ov = self._touching()
+        spring = nb.hist[e].copy() if self._width == 2 else np.zeros((e.size, 2))
+        return {
+            "i": nb.a[e].astype(np.int64),
+            "j": nb.b[e].astype(np.int64),
+            "shift": self._shifts(e),
+            "force": -nb.ef[e],
+            "overlap": ov,
+            "tangential_spring": spring,
+            "sliding": nb.slide[e].copy(),
+        }
+
+    def _shifts(self, e=slice(None)) -> np.ndarray:
+        """Image shifts s (K, 2) int64 of the entries ``e`` (default all), from ``nb.sx, nb.sy``."""
+        out = np.empty((self.nb.sx[e].size, 2), np.int64)
+        out[:, 0] = self.nb.sx[e]
+        out[:, 1] = self.nb.sy[e]
+        return out
+
+    eshift = property(lambda self: self._shifts(), doc="image shift s of each entry (M, 2) int64")
+
+    # ------------------------------------------------------------------ checkpoints
+    def state_arrays(self) -> dict:
+        """Everything needed to continue bit for bit (checkpoint): the particles, the list with the
+        law's history, the build positions, the virial (:data:`CHECKPOINT`), and the cell's state
+        (:meth:`OrthogonalCell.state_arrays`, :meth:`gransim.dem.sheared.ShearedCell.state_arrays`)."""
+        own = {
+            name: getattr(self if obj == "self" else getattr(self, obj), field)
+            for name, (obj, field, _) in CHECKPOINT.items()
+        }
+        return {**own, **self.cell_ops.state_arrays(self)}
+
+    def restore(self, arrays: dict, step: int):
+        """Inverse of :meth:`state_arrays`: new state objects from ``arrays`` (the derived arrays of
+        the list, CSR offsets and the threaded loop's incoming CSR, rebuilt from them)."""
+        got = {name: np.array(arrays[name], dtype) for name, (_, _, dtype) in CHECKPOINT.items()}
+        n = self.packing.n
+        p = self.p
+        self.p = K.Particles(
+            got["positions"].reshape(n, 2),
+            got["velocities"].reshape(n, 2),
+            got["spins"].reshape(n),
+            got["forces"].reshape(n, 2),
+            got["torques"].reshape(n),
+            p.m,
+            p.r,
+        )
+        self.cell_ops.restore(self, arrays)
+        a = got["neighbours/a"].reshape(-1)
+        shift = got["neighbours/shift"].reshape(-1, 2)
+        self.nb = self.cell_ops.neighbours(
+            self,
+            a,
+            got["neighbours/b"].reshape(-1),
+            np.ascontiguousarray(shift[:, 0], np.float64),
+            np.ascontiguousarray(shift[:, 1], np.float64),
+            got["neighbours/owned_both"].reshape(-1),
+            got["neighbours/xi"].reshape(a.size, self._width),
+            got["x_hold"].reshape(n, 2),
+        )
+        self.cell_ops.restored(self, arrays)
+        self.sc.vir[:] = got["virial"].reshape(4)
+        self._failed = ""
+        self.step = int(step)
+        self.stress = self.stress_tensor()
+        self._build_step = self.step
+        self._reset_energy_budget()  # the divergence check's balance starts again at the checkpoint
+
     # ------------------------------------------------------------------ views of the state
     # ``p`` (:class:`~gransim.dem.kernels.Particles`) and ``nb`` (``Neighbours``: the list, the
-    # law's history, CSR, build positions, per-entry outputs), the state of every engine
+    # law's history, CSR, build positions, per-entry outputs)
     x = property(lambda self: self.p.x, doc="positions (N, 2), m")
     v = property(lambda self: self.p.v, doc="velocities (N, 2), m/s")
     w = property(lambda self: self.p.w, doc="spins (N,), rad/s")
@@ -316,458 +660,280 @@ class EngineCore:
     slide = property(lambda self: self.nb.slide, doc="Coulomb cap active at the last stored step (M,) bool")
     ef = property(lambda self: self.nb.ef, doc="force on a of each entry at the last stored step (M, 2), N")
     start = property(lambda self: self.nb.start, doc="CSR offsets of the entries of each a (N+1,)")
+    virial = property(lambda self: self.sc.vir, doc="virial sums xx, yy, xy, yx of the last step (4,), N m")
 
 
-class DEMEngine(EngineCore):
-    """State and stepping of one DEM run (arrays are updated in place for speed).
+class OrthogonalCell:
+    """The orthogonal periodic box of LIGGGHTS 3.8.0 and LAMMPS 29 Sep 2021 (``fix deform ... remap
+    x``): what :class:`Engine` does that depends on it (module docstring). Its state on the engine:
+    ``box`` (:class:`~gransim.dem.kernels.Box`: lo, hi and their values at the last build) and
+    ``sc`` (the virial, and the per-particle sums of mode "parallel")."""
 
-    Parameters
-    ----------
-    packing : initial packing (orthogonal cell; the box is [0, Lx] x [0, Ly] as in the
-        LIGGGHTS data file gransim writes, unless ``box`` is given).
-    settings : :class:`~gransim.dem.settings.Integration` (dt, skin, mode, flavour) with a ``law``,
-        or :class:`DEMSettings` (the integration and the parameters of its Hooke law).
-    velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
-    threads : numba threads of mode "parallel" (None: numba's current count), set around each kernel
-        call and restored afterwards, so an engine leaves the process's thread count alone; one
-        thread when the packing fits in one task (``kernels.PARTICLE_BLOCK`` disks), which gives
-        the same result.
-    box : optional (lo, hi), each (2,) (m): the box with its own origin, as a data file's ``xlo xhi
-        ylo yhi`` (the positions are taken as they are, in that box; no translation, which would
-        round them). hi - lo must equal the diagonal of ``packing.cell`` (to 1e-12 relative).
-    law : optional contact law object (an instance of a class registered with
-        :func:`gransim.contacts.laws.register_law`); None: the Hooke law of a :class:`DEMSettings`
-        in its ``flavour`` (:meth:`DEMSettings.hooke_law`). The time-step check (``check_dt``,
-        :func:`check_time_step`) asks the law for its contact time and damping ratio, at the
-        largest overlap after the set-up for a law whose stiffness depends on it (Hertz).
+    kind = "orthogonal"
 
-    State: ``p`` (:class:`~gransim.dem.kernels.Particles`), ``nb`` (``Neighbours``: list, history of
-    the law's width, CSR), ``box`` (``Box``), ``sc`` (``Scratch``: the virial), small namedtuples of
-    arrays updated in place by the kernels (a rebuild replaces ``nb``); :meth:`state_arrays` /
-    :meth:`restore` save and load them. Attributes (after construction = LIGGGHTS ``run`` set-up:
-    forces evaluated without spring increment): x, v, w, f, t, lo, hi, step, stress, virial (views of
-    those objects' arrays).
-    """
-
-    def __init__(
-        self,
-        packing: Packing,
-        settings: DEMSettings,
-        velocities=None,
-        spins=None,
-        threads: int | None = None,
-        check_dt: bool = True,
-        box=None,
-        law=None,
-    ):
+    @staticmethod
+    def check(packing: Packing, settings, flavour: str) -> None:
         C = packing.cell
         if C[0, 1] != 0 or C[1, 0] != 0:
             raise InputError(
-                f"packing.cell: the DEM engine needs an orthogonal cell (off-diagonal entries {C[0, 1]!r}, {C[1, 0]!r})"
+                f"packing.cell: the orthogonal cell needs an orthogonal packing cell (off-diagonal entries "
+                f"{C[0, 1]!r}, {C[1, 0]!r}; a tilted cell: cell='sheared')"
             )
-        self.packing = packing
-        self.settings = s = settings
-        n = packing.n
-        # the contact law (gransim.contacts.laws): the Hooke law of DEMSettings unless given
-        self._set_law(packing, s, law, s.flavour, check_dt)
-        cut = 2 * 2.0 * float(packing.radii.max()) + 2 * s.skin
+
+    @staticmethod
+    def check_size(packing: Packing, settings) -> None:
+        C = packing.cell
+        cut = 2 * 2.0 * float(packing.radii.max()) + 2 * settings.skin
         if min(C[0, 0], C[1, 1]) <= cut:
             raise InputError(
                 f"packing.cell: side lengths {C[0, 0]:.4g}, {C[1, 1]:.4g} m must exceed "
                 f"2 (2 r_max + skin) = {cut:.4g} m (one periodic image per pair)"
             )
-        r = np.ascontiguousarray(packing.radii, np.float64)
-        # ((pi r) r) rho: the order LIGGGHTS uses reading the data file (Packing.masses may differ
-        # in the last bit)
-        m = np.pi * r * r * float(packing.density)
-        x = np.array(packing.positions, np.float64)
-        v = np.zeros((n, 2)) if velocities is None else np.array(velocities, np.float64).reshape(n, 2)
-        w = np.zeros(n) if spins is None else np.array(spins, np.float64).reshape(n)
-        self.p = K.Particles(x, v, w, np.zeros((n, 2)), np.zeros(n), m, r)
+
+    def __init__(self, eng: Engine, box, threads):
+        s = eng.settings
+        C = eng.packing.cell
+        n = eng.packing.n
         lo = np.zeros(2)
         hi = np.array([C[0, 0], C[1, 1]], np.float64)
         if box is not None:
             lo, hi = _check_box(box, C)
-        self.box = K.Box(lo, hi, lo.copy(), hi.copy())
-        self.step = 0
-        self.n_contacts = 0
-        self.mean_overlap = 0.0
-        self.n_rebuilds = 0
-        self._parallel = s.mode == "parallel"
-        # the rebuild rule of LAMMPS (check_rebuild clamp; DEMSettings.flavour, docs/lammps.md)
-        self._clamp = s.flavour == "lammps"
+        eng.box = K.Box(lo, hi, lo.copy(), hi.copy())
+        self.parallel = s.mode == "parallel"
+        # the rebuild rule of LAMMPS (check_rebuild clamp; docs/lammps.md)
+        self.clamp = eng.flavour == "lammps"
         # numba threads of this engine's kernels, set around each call and restored after; serial
         # mode on one: its SIMD force loop (kernels._serial_block_loop) is a one-iteration parallel
         # loop, and a second OpenMP thread would spin-wait beside every step (libgomp's default
         # policy), burning a core that the user's other work (the codes' jobs) needs
-        self._threads = check_threads(threads) if self._parallel else 1
+        self.threads = check_threads(threads) if self.parallel else 1
         # (numba's static schedule: the tasks handed out dynamically, gransim._numba.dynamic_chunks,
         # made the step 1.3x and the threaded list build 3x slower at 1e5 disks, measured)
-        if self._parallel and n <= K.PARTICLE_BLOCK:
+        if self.parallel and n <= K.PARTICLE_BLOCK:
             # one task of the threaded kernels: the result is the same on any thread count, and a
             # second thread would only wait at every loop's end (0.6x of one thread at 1,020 disks)
-            self._threads = 1
-        # the per-particle sums of the threaded loop exist in mode "parallel" only
-        m = n if self._parallel else 0
-        self.sc = K.Scratch(np.zeros(4), np.zeros((m, 4)), np.zeros((m, 2)))
-        self.nb = self._neighbours(
-            np.zeros(0, np.int32),
-            np.zeros(0, np.int32),
-            np.zeros((0, 2), np.int64),
-            np.zeros(0, np.bool_),
-            np.zeros((0, self._width)),
-            x.copy(),
-        )
-        self._build_step = 0
-        self._failed = ""  # why a rebuild failed (the engine has no list then), or ""
-        self._setup()
-        self._check_time_step_now()
-        self._reset_energy_budget()
+            self.threads = 1
+        m = n if self.parallel else 0  # the per-particle sums of the threaded loop (mode "parallel")
+        eng.sc = K.Scratch(np.zeros(4), np.zeros((m, 4)), np.zeros((m, 2)))
 
-    # ------------------------------------------------------------------ neighbours
-    @property
-    def box_lengths(self) -> np.ndarray:
-        return self.hi - self.lo
+    # geometry
+    def matrix(self, eng) -> np.ndarray:
+        return np.diag(self.lengths(eng))
 
-    @property
-    def cell(self) -> np.ndarray:
-        L = self.box_lengths
-        return np.diag(L)
+    def lengths(self, eng) -> np.ndarray:
+        return eng.box.hi - eng.box.lo
 
-    def _neighbours(self, a, b, shift, both, hist, xhold, sx=None, sy=None):
-        """A :class:`~gransim.dem.kernels.Neighbours` of the list (a, b, shift, both) with history
-        ``hist`` and build positions ``xhold``: the image shifts as floats ``sx``, ``sy`` (given by
-        the list build; else from the integer ``shift`` (M, 2), a checkpoint's), CSR offsets of
-        the entries of each a (sorted by a), the incoming CSR and the per-entry torques of the
-        threaded loop (mode "parallel" only), zeroed per-entry outputs."""
-        n = self.packing.n
-        if sx is None:  # from the integer shifts (a checkpoint)
-            shift = np.ascontiguousarray(shift, np.int64).reshape(-1, 2)
-            sx = np.ascontiguousarray(shift[:, 0], np.float64)
-            sy = np.ascontiguousarray(shift[:, 1], np.float64)
+    def lo(self, eng) -> np.ndarray:
+        return eng.box.lo
+
+    def hi(self, eng) -> np.ndarray:
+        return eng.box.hi
+
+    # the list
+    def neighbours(self, eng, a, b, sx, sy, both, hist, xhold):
+        """A :class:`~gransim.dem.kernels.Neighbours` of the list (a, b, image shifts sx, sy as
+        floats, both) with history ``hist`` and build positions ``xhold``: CSR offsets of the
+        entries of each a (sorted by a), the incoming CSR and the per-entry torques of the threaded
+        loop (mode "parallel" only), zeroed per-entry outputs."""
+        n = eng.packing.n
         start = np.zeros(n + 1, np.int64)  # CSR offsets of the entries of each a (sorted)
         np.cumsum(np.bincount(a, minlength=n), out=start[1:])
-        if self._parallel:
-            with num_threads(self._threads):
+        if self.parallel:
+            with num_threads(self.threads):
                 in_start, in_e = K.incoming(b, both, n)
         else:
             in_start, in_e = np.zeros(n + 1, np.int64), np.zeros(0, np.int64)
         return K.Neighbours(
-            a,
-            b,
-            _NO_SHIFT,  # the integer shifts are sx, sy (:attr:`eshift`): not stored twice
-            sx,
-            sy,
-            both,
-            hist,
-            start,
-            in_start,
-            in_e,
-            xhold,
-            np.zeros(a.size, np.bool_),
-            np.zeros((a.size, 2)),
-            np.zeros(a.size if self._parallel else 0),
-        )
+            a, b, _NO_SHIFT, sx, sy, both, hist, start, in_start, in_e, xhold,
+            np.zeros(a.size, np.bool_), np.zeros((a.size, 2)), np.zeros(a.size if self.parallel else 0),
+        )  # fmt: skip
 
-    def _rebuild(self, carry: bool):
-        bad = K.pbc_wrap(self.x, self.lo, self.hi)
+    def rebuild(self, eng, carry: bool):
+        """Wrap into the box, new list (LIGGGHTS' bins and ghosts), history handed over to the
+        entries that overlap now (LIGGGHTS' ``fix contacthistory``)."""
+        bad = K.pbc_wrap(eng.x, eng.lo, eng.hi)
         if bad >= 0:
             raise SimulationError(
-                f"step {self.step}: particle {bad} lost (at {self.x[bad].tolist()}, "
-                f"box {self.lo.tolist()}..{self.hi.tolist()})"
+                f"step {eng.step}: particle {bad} lost (at {eng.x[bad].tolist()}, "
+                f"box {eng.lo.tolist()}..{eng.hi.tolist()})"
             )
-        L = self.box_lengths
+        L = self.lengths(eng)
         # the old list keeps only what the hand-over reads (CSR, partners, owned flags, history):
         # its other arrays and the build positions are released before the new list exists (the
         # peak memory of a run at 1e6 disks is a rebuild's). A SimulationError below leaves the
         # engine without a list: advance refuses it until restore (``_failed``)
-        old = self.nb
+        old = eng.nb
         keep = (old.start, old.b, old.both, old.hist) if carry and old.a.size else None
         z = np.zeros(0)
-        self.nb = old = old._replace(
+        eng.nb = old = old._replace(
             a=np.zeros(0, old.a.dtype), shift=np.zeros((0, 2), np.int64), sx=z, sy=z,
             in_e=np.zeros(0, np.int64), slide=np.zeros(0, np.bool_), ef=np.zeros((0, 2)), tb=z,
             xhold=np.zeros((0, 2)),
         )  # fmt: skip
         release_free_memory()  # the old list's released arrays
-        with num_threads(self._threads):  # mode "parallel": the pair passes on the threads
+        with num_threads(self.threads):  # mode "parallel": the pair passes on the threads
             a, b, esx, esy, both, selfimg = K.build_list_liggghts(
-                self.x, self.r, self.lo, self.hi, self.settings.skin, self._parallel
+                eng.x, eng.r, eng.lo, eng.hi, eng.settings.skin, self.parallel
             )
         if selfimg != -1:
-            self._failed = (
-                f"step {self.step}: particle {selfimg} is near its own image (or too many ghosts); "
-                "the cell is too small"
+            eng._failed = (
+                f"step {eng.step}: particle {selfimg} is near its own image (or too many ghosts); the cell is too small"
             )
-            raise SimulationError(self._failed)
+            raise SimulationError(eng._failed)
         release_free_memory()  # the build's ghosts and bins
-        hist = np.zeros((a.size, self._width))
+        hist = np.zeros((a.size, eng._width))
         if keep is not None:
-            K.hand_over_history(self.x, self.r, a, b, esx, esy, L[0], L[1], *keep, hist, self._flip)
+            K.hand_over_history(eng.x, eng.r, a, b, esx, esy, L[0], L[1], *keep, hist, eng._flip)
         del old, keep
-        self.nb = None
+        eng.nb = None
         release_free_memory()  # the rest of the old list
-        self.nb = self._neighbours(a, b, None, both, hist, self.x.copy(), esx, esy)
+        eng.nb = self.neighbours(eng, a, b, esx, esy, both, hist, eng.x.copy())
         release_free_memory()  # the new list's temporaries
-        self.box.lo_hold[:] = self.lo
-        self.box.hi_hold[:] = self.hi
-        self._build_step = self.step
-        self.n_rebuilds += 1
+        eng.box.lo_hold[:] = eng.lo
+        eng.box.hi_hold[:] = eng.hi
+        eng._build_step = eng.step
+        eng.n_rebuilds += 1
 
-    def _forces(self, update: bool):
-        dt = self.settings.dt
-        L = self.box_lengths
-        if self._parallel:
-            with num_threads(self._threads), disk_cache_off(self._no_cache):
-                K.forces_threaded(self.p, self.nb, self.law, L[0], L[1], dt, update, self.sc.pvir, self.sc.pcont, True)
-            self.virial[:] = self.sc.pvir.sum(axis=0)
-            nc, so = self.sc.pcont.sum(axis=0)
+    def forces(self, eng, update: bool):
+        dt = eng.settings.dt
+        L = self.lengths(eng)
+        if self.parallel:
+            with num_threads(self.threads), disk_cache_off(eng._no_cache):
+                K.forces_threaded(eng.p, eng.nb, eng.law, L[0], L[1], dt, update, eng.sc.pvir, eng.sc.pcont, True)
+            eng.virial[:] = eng.sc.pvir.sum(axis=0)
+            nc, so = eng.sc.pcont.sum(axis=0)
         else:
-            with disk_cache_off(self._no_cache):
-                nc, so = K.forces(self.p, self.nb, self.law, L[0], L[1], dt, update, self.virial, True)
-        self.n_contacts = round(nc)
-        self.mean_overlap = so / nc if nc else 0.0
+            with disk_cache_off(eng._no_cache):
+                nc, so = K.forces(eng.p, eng.nb, eng.law, L[0], L[1], dt, update, eng.virial, True)
+        eng.n_contacts = round(nc)
+        eng.mean_overlap = so / nc if nc else 0.0
 
-    def _check_divergence(self, step1, ke, stress, lengths, L_before):
-        """The divergence check (:meth:`EngineCore._check_energy`) over the completed steps step1,
-        step1 + 1, ... with the work of the orthogonal cell per step -(V_xx dLx/Lx + V_yy dLy/Ly),
-        V the virial (stress (n, 4) times the area of the box lengths ``lengths`` (n, 2) after each
-        step, compression positive; ``L_before`` the lengths before the first)."""
+    def setup(self, eng):
+        """The codes' ``run`` set-up: wrap, build (springs zero), forces without spring increment."""
+        self.rebuild(eng, carry=False)
+        self.forces(eng, update=False)
+        eng.stress = eng.stress_tensor()
+
+    def touching(self, eng):
+        nb = eng.nb
+        L = self.lengths(eng)
+        return K.touching_overlaps(eng.x, eng.r, nb.a, nb.b, nb.sx, nb.sy, L[0], L[1])
+
+    def budget_kinetic_energy(self, eng) -> float:
+        return eng.kinetic_energy()
+
+    # the loading
+    def start_run(self, eng, loading, nsteps: int):
+        if not isinstance(loading, (Loading, PrescribedBox)):
+            raise InputError(
+                f"loading: expected a Loading or a PrescribedBox (the orthogonal cell), got {type(loading).__name__}"
+            )
+        return (loading, eng.step, eng.step + nsteps, (eng.lo.copy(), eng.hi.copy()))
+
+    def drive(self, eng, run, *args, **kwargs):
+        """(Control, nsteps) of ``advance(loading, nsteps=1, phase_step0=0, phase_box0=None)`` or of
+        ``advance(nsteps)`` in the run of :meth:`start_run`."""
+        if not (len(args) == 1 and not kwargs and isinstance(args[0], (int, np.integer))) and not (
+            not args and set(kwargs) == {"nsteps"}
+        ):
+            return self._drive(eng, *args, **kwargs)  # advance(loading, nsteps, ...): checks the loading
+        if run is None:
+            raise InputError(
+                "advance: give the loading (advance(loading, nsteps)) or call start_run(loading, nsteps) first"
+            )
+        loading, step0, end, box0 = run
+        (nsteps,) = args or (kwargs.pop("nsteps"),)
+        nsteps = as_int(
+            nsteps, "nsteps", 0, end - eng.step, note=f" (the run ends at step {end}, now at step {eng.step})"
+        )
+        return self._drive(eng, loading, nsteps, step0, box0)
+
+    def _drive(self, eng, loading, nsteps: int = 1, phase_step0: int = 0, phase_box0=None):
+        nsteps = int(nsteps)
+        if phase_box0 is None:
+            phase_box0 = (eng.lo.copy(), eng.hi.copy())
+        lo0 = np.array(phase_box0[0], np.float64)
+        hi0 = np.array(phase_box0[1], np.float64)
+        return _control(loading, eng.step, nsteps, lo0, hi0, phase_step0), nsteps
+
+    def series(self, nsteps: int):
+        return K.Series(
+            np.zeros((nsteps, 4)), np.zeros((nsteps, 2)), np.zeros(nsteps), np.zeros(nsteps), np.zeros(nsteps),
+            np.zeros((nsteps, 4)),
+        )  # fmt: skip
+
+    def box_state(self, eng):
+        return self.lengths(eng).copy()
+
+    def block(self, eng, ctl, out, done: int, n: int, resume: bool):
+        s = eng.settings
+        with num_threads(self.threads), disk_cache_off(eng._no_cache):
+            return K.run_block(
+                eng.p, eng.nb, eng.box, ctl, eng.law, eng.sc, K.Series(*(a[done:] for a in out)), s.dt, s.skin,
+                self.clamp, self.parallel, eng.step, n, resume,
+            )  # fmt: skip
+
+    def check_divergence(self, eng, out, done: int, k: int, L_before):
+        """The divergence check (:meth:`Engine._check_energy`) over the k steps from row ``done``,
+        with the work of the orthogonal cell per step -(V_xx dLx/Lx + V_yy dLy/Ly), V the virial
+        (stress times the area of the box lengths after each step, compression positive;
+        ``L_before`` the lengths before the first)."""
+        rows = slice(done, done + k)
+        lengths = out.L[rows]
+        stress = out.stress[rows]
         L_old = np.vstack([L_before[None], lengths[:-1]])
         area = lengths[:, 0] * lengths[:, 1]
         dw = -(
             stress[:, 0] * area * (lengths[:, 0] - L_old[:, 0]) / L_old[:, 0]
             + stress[:, 1] * area * (lengths[:, 1] - L_old[:, 1]) / L_old[:, 1]
         )
-        self._check_energy(step1, ke, ke, dw)
+        ke = out.ke[rows]
+        eng._check_energy(eng.step + 1, ke, ke, dw)
 
-    def _setup(self):
-        """LIGGGHTS ``run`` set-up: wrap, build (springs zero), forces without spring increment."""
-        self._rebuild(carry=False)
-        self._forces(update=False)
-        self.stress = self.stress_tensor(self.box_lengths)
+    def collapse_message(self, eng) -> str:
+        return "the cell collapsed"
 
-    # ------------------------------------------------------------------ stepping
-    def stress_tensor(self, L) -> np.ndarray:
-        """Love stress (eq 17 of Kuhn 002), compression positive, (2, 2):
-        sigma_ab = (1/(Lx Ly)) sum_c d_a f_b, d = x_i - x_j, f the force on i. Not symmetric out of
-        equilibrium; [0, 1] = sum d_x f_y is LIGGGHTS' ``compute pressure`` component 4 (xy)."""
-        inv = 1.0 / (L[0] * L[1])
-        v = self.virial
-        return np.array([[v[0] * inv, v[2] * inv], [v[3] * inv, v[1] * inv]])
+    def cell_series(self, out) -> dict:
+        return {"lengths": out.L}
 
-    def advance(self, loading: Loading, nsteps: int = 1, phase_step0: int = 0, phase_box0=None):
-        """Advance ``nsteps`` steps under ``loading``; returns a dict of per-step series.
+    # checkpoints (docs/schema_dem.md ``/checkpoint``)
+    def state_arrays(self, eng) -> dict:
+        b = eng.box
+        return {"box_lo": b.lo, "box_hi": b.hi, "box_lo_hold": b.lo_hold, "box_hi_hold": b.hi_hold}
 
-        ``loading``: a :class:`Loading` (each axis fixed, at a rate or under a servo) or a
-        :class:`PrescribedBox` (the box of every step from a table; its rows must cover steps
-        step + 1 .. step + nsteps). ``phase_step0`` and ``phase_box0`` = (lo, hi): step and box at
-        the start of the loading phase (LIGGGHTS ``fix deform`` lo_start/hi_start: rate control
-        measures its displacement from there, the servo its accumulated change; not used by a
-        PrescribedBox).
-
-        Returns
-        -------
-        dict with ``step`` (n,), ``stress`` (n, 2, 2) (Love stress, compression positive, area of
-        the box after the step), ``lengths`` (n, 2), ``n_contacts`` (n,), ``mean_overlap`` (n,),
-        ``kinetic_energy`` (n,),
-        ``virial`` (n, 4) (xx, yy, xy, yx: sum d_a f_b, N m in 2D; stress times area).
-
-        Raises
-        ------
-        SimulationError naming the step and the particle, on a divergence: a non-finite position or
-        kinetic energy; a kinetic-energy blow-up (more than KINETIC_ENERGY_FACTOR times the energy
-        balance allows, :meth:`_check_divergence`); a lost particle (moved more than
-        LOST_DISPLACEMENT_SKINS skins since the last neighbour build, or left the box by more than a
-        cell); a collapsed cell. These checks only read the state: the step's arithmetic is untouched.
-        """
-        s = self.settings
-        if self._failed:
-            raise SimulationError(
-                f"the engine stopped at a failed neighbour build ({self._failed}); restore a "
-                "checkpoint or make a new engine"
-            )
-        nsteps = int(nsteps)
-        if phase_box0 is None:
-            phase_box0 = (self.lo.copy(), self.hi.copy())
-        lo0 = np.array(phase_box0[0], np.float64)
-        hi0 = np.array(phase_box0[1], np.float64)
-        ctl = _control(loading, self.step, nsteps, lo0, hi0, phase_step0)
-        out = K.Series(
-            np.zeros((nsteps, 4)),
-            np.zeros((nsteps, 2)),
-            np.zeros(nsteps),
-            np.zeros(nsteps),
-            np.zeros(nsteps),
-            np.zeros((nsteps, 4)),
+    def restore(self, eng, arrays: dict):
+        eng.box = K.Box(
+            *(np.array(arrays[k], np.float64).reshape(2) for k in ("box_lo", "box_hi", "box_lo_hold", "box_hi_hold"))
         )
-        out_stress, out_L, out_nc, out_ov, out_ke, out_vir = out
-        done = 0
-        resume = False
-        step_start = self.step
-        while done < nsteps:
-            L_before = self.box_lengths.copy()
-            with num_threads(self._threads), disk_cache_off(self._no_cache):
-                k, status, bad = K.run_block(
-                    self.p,
-                    self.nb,
-                    self.box,
-                    ctl,
-                    self.law,
-                    self.sc,
-                    K.Series(*(a[done:] for a in out)),
-                    s.dt,
-                    s.skin,
-                    self._clamp,
-                    self._parallel,
-                    self.step,
-                    nsteps - done,
-                    resume,
-                )
-            if k:
-                self._check_divergence(
-                    self.step + 1,
-                    out_ke[done : done + k],
-                    out_stress[done : done + k],
-                    out_L[done : done + k],
-                    L_before,
-                )
-            done += k
-            self.step += k
-            resume = False
-            if status == 1:
-                self._check_lost()
-                self.step += 1
-                self._rebuild(carry=True)
-                self.step -= 1
-                resume = True
-            elif status == 2:
-                raise SimulationError(
-                    f"step {self.step + 1}: particle {bad} has a non-finite position "
-                    f"{self.x[bad].tolist()} (velocity {self.v[bad].tolist()})"
-                )
-            elif status == 3:
-                raise SimulationError(f"step {self.step + 1}: the cell collapsed")
-        if nsteps:
-            self.n_contacts = round(out_nc[-1])
-            self.mean_overlap = float(out_ov[-1])
-            self.stress = self.stress_tensor(self.box_lengths)
-        st = np.empty((nsteps, 2, 2))
-        st[:, 0, 0] = out_stress[:, 0]
-        st[:, 1, 1] = out_stress[:, 1]
-        st[:, 0, 1] = out_stress[:, 2]
-        st[:, 1, 0] = out_stress[:, 3]
-        return {
-            "step": np.arange(step_start + 1, step_start + nsteps + 1),
-            "stress": st,
-            "lengths": out_L,
-            "n_contacts": np.rint(out_nc).astype(np.int64),
-            "mean_overlap": out_ov,
-            "kinetic_energy": out_ke,
-            "virial": out_vir,
-        }
 
-    # ------------------------------------------------------------------ diagnostics
-    def _touching(self):
-        """Entries of the touching pairs, each physical contact once (a < b), and their overlaps (m)."""
-        nb = self.nb
-        L = self.box_lengths
-        return K.touching_overlaps(self.x, self.r, nb.a, nb.b, nb.sx, nb.sy, L[0], L[1])
-
-    def contacts(self):
-        """Touching pairs, each once (i < j): dict of i, j, shift (l_ij = x_j + C n - x_i), force on
-        j applied in the last step (N), overlap (m), tangential spring (frame of i; the law's history
-        when its width is 2, else zeros), sliding."""
-        nb = self.nb
-        e, ov = self._touching()
-        # entry (a, b, s): b's image is x_b + s L, so l_ab = x_b + C s - x_a (the schema's shift)
-        spring = nb.hist[e].copy() if self._width == 2 else np.zeros((e.size, 2))
-        return {
-            "i": nb.a[e].astype(np.int64),
-            "j": nb.b[e].astype(np.int64),
-            "shift": self._shifts(e),
-            "force": -nb.ef[e],
-            "overlap": ov,
-            "tangential_spring": spring,
-            "sliding": nb.slide[e].copy(),
-        }
-
-    def state_arrays(self) -> dict:
-        """Everything needed to continue bit for bit (checkpoint): the saved fields of the state
-        objects ``p``, ``box``, ``nb``, ``sc`` under their dataset names (:data:`CHECKPOINT`)."""
-        return {
-            name: getattr(self if obj == "self" else getattr(self, obj), field)
-            for name, (obj, field, _) in CHECKPOINT.items()
-        }
-
-    def restore(self, arrays: dict, step: int):
-        """Inverse of :meth:`state_arrays`: new state objects from ``arrays`` (the derived arrays of
-        the list, CSR offsets and the threaded loop's incoming CSR, rebuilt from them)."""
-        got = {name: np.array(arrays[name], dtype) for name, (_, _, dtype) in CHECKPOINT.items()}
-        n = self.packing.n
-        p = self.p
-        self.p = K.Particles(
-            got["positions"].reshape(n, 2),
-            got["velocities"].reshape(n, 2),
-            got["spins"].reshape(n),
-            got["forces"].reshape(n, 2),
-            got["torques"].reshape(n),
-            p.m,
-            p.r,
-        )
-        self.box = K.Box(
-            got["box_lo"].reshape(2),
-            got["box_hi"].reshape(2),
-            got["box_lo_hold"].reshape(2),
-            got["box_hi_hold"].reshape(2),
-        )
-        a = got["neighbours/a"].reshape(-1)
-        hist = got["neighbours/xi"].reshape(a.size, self._width)
-        self.nb = self._neighbours(
-            a,
-            got["neighbours/b"].reshape(-1),
-            got["neighbours/shift"],
-            got["neighbours/owned_both"].reshape(-1),
-            hist,
-            got["x_hold"].reshape(n, 2),
-        )
-        self.sc.vir[:] = got["virial"].reshape(4)
-        self._failed = ""
-        self.step = int(step)
-        self.stress = self.stress_tensor(self.box_lengths)
-        self._build_step = self.step
-        self._reset_energy_budget()
-
-    # ------------------------------------------------------------------ views of the state
-    lo = property(lambda self: self.box.lo, doc="box lower corner (2,), m")
-    hi = property(lambda self: self.box.hi, doc="box upper corner (2,), m")
-    lo_hold = property(lambda self: self.box.lo_hold, doc="lo at the last neighbour build (2,), m")
-    hi_hold = property(lambda self: self.box.hi_hold, doc="hi at the last neighbour build (2,), m")
-    eshift = property(lambda self: self._shifts(), doc="image shift s of each entry (M, 2) int64")
-
-    def _shifts(self, e=slice(None)) -> np.ndarray:
-        """Image shifts s (K, 2) int64 of the entries ``e`` (default all), from ``nb.sx, nb.sy``."""
-        out = np.empty((self.nb.sx[e].size, 2), np.int64)
-        out[:, 0] = self.nb.sx[e]
-        out[:, 1] = self.nb.sy[e]
-        return out
-
-    virial = property(lambda self: self.sc.vir, doc="virial sums xx, yy, xy, yx of the last step (4,), N m")
+    def restored(self, eng, arrays: dict):
+        pass
 
 
-#: checkpoint datasets (docs/schema_dem.md ``/checkpoint``): name -> (state object, field, dtype);
-#: object "self": a property of the engine (the integer shifts, derived from ``nb.sx``, ``nb.sy``)
+def DEMEngine(
+    packing: Packing,
+    settings: DEMSettings,
+    velocities=None,
+    spins=None,
+    threads: int | None = None,
+    check_dt: bool = True,
+    box=None,
+    law=None,
+) -> Engine:
+    """The :class:`Engine` with the orthogonal cell, in the arithmetic of ``settings.flavour``."""
+    return Engine(packing, settings, velocities, spins, threads, check_dt, box, law, cell="orthogonal")
+
+
+#: checkpoint datasets of every cell (docs/schema_dem.md ``/checkpoint``; the cell adds its own, e.g.
+#: ``box_lo``): name -> (state object, field, dtype); object "self": a property of the engine (the
+#: integer shifts, derived from ``nb.sx``, ``nb.sy``)
 CHECKPOINT = {
     "positions": ("p", "x", np.float64),
     "velocities": ("p", "v", np.float64),
     "spins": ("p", "w", np.float64),
     "forces": ("p", "f", np.float64),
     "torques": ("p", "t", np.float64),
-    "box_lo": ("box", "lo", np.float64),
-    "box_hi": ("box", "hi", np.float64),
     "x_hold": ("nb", "xhold", np.float64),
-    "box_lo_hold": ("box", "lo_hold", np.float64),
-    "box_hi_hold": ("box", "hi_hold", np.float64),
     "neighbours/a": ("nb", "a", np.int32),
     "neighbours/b": ("nb", "b", np.int32),
     "neighbours/shift": ("self", "eshift", np.int64),
@@ -826,9 +992,11 @@ __all__ = [
     "STEPS_PER_CONTACT_MIN",
     "AxisControl",
     "Integration",
+    "CELLS",
     "DEMEngine",
     "DEMSettings",
-    "EngineCore",
+    "Engine",
+    "OrthogonalCell",
     "Loading",
     "check_time_step",
     "PrescribedBox",

@@ -52,19 +52,21 @@ import dataclasses
 import json
 import math
 from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from .._numba import disk_cache_off
 from .._validate import as_int, check_choice
-from ..errors import InputError, SimulationError
+from ..errors import InputError, ResultFileError, SimulationError
 from ..geometry import Packing
 from ..io import atomic_h5, write_packing_group
 from ..progress import Interrupted, check_interrupt, deferred_interrupts, progress
 from . import kernels as K
 from . import sheared_kernels as SK
-from .engine import EngineCore
-from .settings import FLAVOURS, DEMSettings, Integration
+from .engine import Engine, fingerprint
+from .settings import FLAVOURS, DEMSettings
 
 
 def _number(value, name: str) -> float:
@@ -196,47 +198,19 @@ def _check_box(box, Lx: float, Ly: float, xy: float):
     return np.array([lo[0], lo[1], hi[0], hi[1], tilt])
 
 
-class ShearEngine(EngineCore):
-    """State and stepping of one DEM run in a sheared periodic cell (arrays updated in place).
+class ShearedCell:
+    """LAMMPS' triclinic periodic box under ``fix deform ... xy ... remap v`` (module docstring):
+    what :class:`~gransim.dem.engine.Engine` does that depends on it. Its state on the engine:
+    ``box`` (lo_x, lo_y, hi_x, hi_y, xy), ``box_hold`` (the box at the last build), ``h_rate``
+    (h_rate[0], h_rate[1], h_rate[5]: the velocity jumps of the images), ``lam`` (lamda
+    coordinates of the last build), ``touch`` (per entry: touching at the last force evaluation,
+    ``fix neigh/history``), ``corners_hold`` (the 8 box corners at the last build), ``sc`` (the
+    virial); the run of :meth:`start_run` (``fix deform`` begin, end, tilt start and stop)."""
 
-    Parameters
-    ----------
-    packing : initial packing; its cell [[Lx, xy], [0, Ly]] (a1 = (Lx, 0), a2 = (xy, Ly), |xy| <=
-        Lx/2, as a LAMMPS triclinic box); the box is [0, Lx] x [0, Ly] with tilt xy unless ``box``
-        is given.
-    settings : :class:`~gransim.dem.settings.Integration` with a ``law``, or DEMSettings (its Hooke
-        law: kn, kt, gamma_n, gamma_t, mu); dt, skin; ``mode`` must be "serial".
-    velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
-    flavour : "lammps" (default) or "liggghts" (see the module docstring).
-    check_dt : refuse a time step above :func:`gransim.dem.engine.stability_limit` of the law.
-    box : optional (lo, hi) or (lo, hi, xy), lo and hi (2,) (m): the box with its own origin, as a
-        LAMMPS data file's ``xlo xhi ylo yhi`` (and ``xy xz yz``) lines. The values are used as
-        given (bit for bit, like ``DEMEngine(box=...)``) and the positions are taken as they are
-        in that box (no translation, which would round them). hi - lo must equal the diagonal of
-        ``packing.cell`` and xy its cell[0, 1] (to 1e-12 relative).
-    law : optional contact law object (a registered law, :func:`gransim.contacts.laws.make_law`);
-        None: the Hooke law of a DEMSettings in this engine's ``flavour``. The time-step check
-        (``check_dt``) asks the law (:func:`gransim.dem.engine.check_time_step`).
+    kind = "sheared"
 
-    Attributes (after construction = LAMMPS ``run`` set-up: list built, forces without spring
-    increment): x (N, 2), v, w, f, t, box (lo_x, lo_y, hi_x, hi_y, xy), h_rate (h_rate[0],
-    h_rate[1], h_rate[5]), step, virial (xx, yy, xy, yx), stress (2, 2, compression positive).
-    """
-
-    def __init__(
-        self,
-        packing: Packing,
-        settings: DEMSettings,
-        velocities=None,
-        spins=None,
-        flavour: str = "lammps",
-        check_dt: bool = True,
-        box=None,
-        law=None,
-    ):
-        check_choice(flavour, "flavour", FLAVOURS)
-        if not isinstance(settings, (DEMSettings, Integration)):
-            raise InputError(f"settings: expected a DEMSettings or an Integration, got {type(settings).__name__}")
+    @staticmethod
+    def check(packing: Packing, settings, flavour: str) -> None:
         if settings.mode != "serial":
             raise InputError(f"settings.mode: the sheared cell runs the serial loop only, got {settings.mode!r}")
         C = np.asarray(packing.cell, np.float64)
@@ -255,213 +229,166 @@ class ShearEngine(EngineCore):
             raise InputError(
                 f"flavour 'liggghts': needs a cell without tilt (LIGGGHTS' bookkeeping is orthogonal), got xy = {xy!r}"
             )
-        s = settings
-        self.packing = packing
-        self.settings = s
-        # the contact law (gransim.contacts.laws): Hooke in this engine's flavour unless given
-        self._set_law(packing, s, law, flavour, check_dt)
+
+    @staticmethod
+    def check_size(packing: Packing, settings) -> None:
+        C = np.asarray(packing.cell, np.float64)
+        Lx, Ly, xy = float(C[0, 0]), float(C[1, 1]), float(C[0, 1])
         heights = np.array([Lx * Ly / np.hypot(Ly, xy), Ly])
-        cut = 2 * (2.0 * float(packing.radii.max()) + s.skin)
+        cut = 2 * (2.0 * float(packing.radii.max()) + settings.skin)
         if heights.min() <= cut:
             raise InputError(
                 f"packing.cell: cell heights {heights[0]:.4g}, {heights[1]:.4g} m must exceed "
                 f"2 (2 r_max + skin) = {cut:.4g} m (one periodic image per pair)"
             )
-        self.flavour = flavour
-        self._lmp = flavour == "lammps"
-        n = packing.n
-        r = np.ascontiguousarray(packing.radii, np.float64)
-        m = np.pi * r * r * float(packing.density)  # LAMMPS set density/disc: MY_PI*r*r*rho
-        x = np.array(packing.positions, np.float64)
-        v = np.zeros((n, 2)) if velocities is None else np.array(velocities, np.float64).reshape(n, 2)
-        w = np.zeros(n) if spins is None else np.array(spins, np.float64).reshape(n)
-        for name, a in (("positions", x), ("velocities", v), ("spins", w)):
-            if not np.all(np.isfinite(a)):
-                raise InputError(f"{name}: expected finite numbers")
-        self.p = K.Particles(x, v, w, np.zeros((n, 2)), np.zeros(n), m, r)
-        self.box = np.array([0.0, 0.0, Lx, Ly, xy]) if box is None else _check_box(box, Lx, Ly, xy)
-        self.h_rate = np.zeros(3)
-        self.lam = np.zeros((n, 2))
-        self.step = 0
-        self.virial = np.zeros(4)
-        self.n_contacts = 0
-        self.mean_overlap = 0.0
-        self.n_rebuilds = 0
-        self._build_step = 0
-        self.nb = self._neighbours(
-            np.zeros(0, np.int32),
-            np.zeros(0, np.int32),
-            np.zeros(0),
-            np.zeros(0),
-            np.zeros(0, np.bool_),
-            np.zeros((0, self._width)),
-        )
-        self.touch = np.zeros(0, np.bool_)
-        self.corners_hold = np.zeros((8, 2))
-        self.box_hold = self.box.copy()
-        self._run = None  # (begin, end, loading) of the current fix deform run
-        self._rebuild(carry=False)
-        self._forces(update=False, use_lam=self._lmp)
-        self.stress = self.stress_tensor()
-        self._check_time_step_now()
 
-    # ------------------------------------------------------------------ geometry
-    @property
-    def cell(self) -> np.ndarray:
-        """Current cell [[Lx, xy], [0, Ly]] (m), columns the lattice vectors."""
-        b = self.box
+    def __init__(self, eng, box, threads):
+        if threads not in (None, 1):
+            raise InputError(f"threads: the sheared cell runs the serial loop (one thread), got {threads!r}")
+        C = np.asarray(eng.packing.cell, np.float64)
+        Lx, Ly, xy = float(C[0, 0]), float(C[1, 1]), float(C[0, 1])
+        n = eng.packing.n
+        eng.box = np.array([0.0, 0.0, Lx, Ly, xy]) if box is None else _check_box(box, Lx, Ly, xy)
+        self.lmp = eng.flavour == "lammps"
+        eng.h_rate = np.zeros(3)
+        eng.lam = np.zeros((n, 2))
+        eng.touch = np.zeros(0, np.bool_)
+        eng.corners_hold = np.zeros((8, 2))
+        eng.box_hold = eng.box.copy()
+        eng.sc = K.Scratch(np.zeros(4), np.zeros((0, 4)), np.zeros((0, 2)))
+        self.run = None  # the fix deform of the current run (start_run)
+
+    # geometry
+    def matrix(self, eng) -> np.ndarray:
+        b = eng.box
         return np.array([[b[2] - b[0], b[4]], [0.0, b[3] - b[1]]])
 
-    @property
-    def area(self) -> float:
-        b = self.box
-        return float((b[2] - b[0]) * (b[3] - b[1]))
+    def lengths(self, eng) -> np.ndarray:
+        b = eng.box
+        return np.array([b[2] - b[0], b[3] - b[1]])
 
-    def stress_tensor(self) -> np.ndarray:
-        """Love stress sigma_ab = (1/(Lx Ly)) sum d_a f_b (compression positive, N/m), (2, 2);
-        [0, 1] = sum d_x f_y is LAMMPS' ``compute pressure`` component 4 (xy)."""
-        inv = 1.0 / ((self.box[2] - self.box[0]) * (self.box[3] - self.box[1]))
-        v = self.virial
-        return np.array([[v[0] * inv, v[2] * inv], [v[3] * inv, v[1] * inv]])
+    def lo(self, eng) -> np.ndarray:
+        return eng.box[0:2]
 
-    # ------------------------------------------------------------------ neighbours
-    def _rebuild(self, carry: bool):
-        if self._lmp:
-            SK.x2lamda(self.x, self.box, self.lam)
-            bad = SK.pbc_lamda(self.lam, self.v, self.h_rate, True)
-            if bad >= 0:
-                raise SimulationError(
-                    f"step {self.step}: particle {bad} lost (lamda {self.lam[bad].tolist()}, "
-                    f"more than a cell outside the box)"
-                )
-            SK.lamda2x(self.lam, self.box, self.x)
-        else:
-            bad = K.pbc_wrap(self.x, self.box[0:2].copy(), self.box[2:4].copy())
-            if bad >= 0:
-                raise SimulationError(f"step {self.step}: particle {bad} lost (at {self.x[bad].tolist()})")
-            SK.x2lamda(self.x, self.box, self.lam)
-        a, b, sx, sy, both, selfimg = SK.build_list(self.x, self.lam, self.r, self.box, self.settings.skin, self._lmp)
-        if selfimg >= 0:
-            raise SimulationError(f"step {self.step}: particle {selfimg} is near its own image; the cell is too small")
-        xi = np.zeros((a.size, self._width))
-        if carry and self.ea.size:
-            SK.hand_over(
-                self.x,
-                self.r,
-                self.box,
-                a,
-                b,
-                sx,
-                sy,
-                self.start,
-                self.eb,
-                self.both,
-                self.xi,
-                self.touch,
-                self._lmp,
-                xi,
-                self._flip,
-            )
-        self.nb = self._neighbours(a, b, sx, sy, both, xi)
-        self.touch = np.zeros(a.size, np.bool_)
-        SK.box_corners(self.box, self.corners_hold)
-        self.box_hold = self.box.copy()
-        self._build_step = self.step
-        self.n_rebuilds += 1
+    def hi(self, eng) -> np.ndarray:
+        return eng.box[2:4]
 
-    def _neighbours(self, a, b, sx, sy, both, xi):
+    # the list
+    def neighbours(self, eng, a, b, sx, sy, both, hist, xhold):
         """The :class:`~gransim.dem.kernels.Neighbours` of the list (a, b, s, both) with history
-        ``xi``: CSR offsets of the entries of each a (sorted by a), the build positions (the
-        current ones), zeroed per-entry outputs (no threaded loop here: no incoming CSR)."""
-        n = self.packing.n
+        ``hist`` and build positions ``xhold``: CSR offsets of the entries of each a (sorted by a),
+        zeroed per-entry outputs (no threaded loop here: no incoming CSR)."""
+        n = eng.packing.n
         start = np.zeros(n + 1, np.int64)
         np.cumsum(np.bincount(a, minlength=n), out=start[1:])
         z = np.zeros(0, np.int64)
         return K.Neighbours(
-            a, b, np.zeros((0, 2), np.int64), sx, sy, both, xi, start, z, z, self.x.copy(),
+            a, b, np.zeros((0, 2), np.int64), sx, sy, both, hist, start, z, z, xhold,
             np.zeros(a.size, np.bool_), np.zeros((a.size, 2)), np.zeros(0),
         )  # fmt: skip
 
-    def _state(self):
-        """The kernels' view of the state: (Particles, Neighbours, Cell)."""
-        cell = SK.Cell(self.box, self.box_hold, self.h_rate, self.lam, self.touch, self.corners_hold)
-        return self.p, self.nb, cell
+    def rebuild(self, eng, carry: bool):
+        """LAMMPS: x -> lamda, wrap in lamda with the velocity jumps, lamda -> x, new list, springs
+        of the touching entries handed over (LIGGGHTS flavour: the orthogonal wrap and hand-over)."""
+        if self.lmp:
+            SK.x2lamda(eng.x, eng.box, eng.lam)
+            bad = SK.pbc_lamda(eng.lam, eng.v, eng.h_rate, True)
+            if bad >= 0:
+                raise SimulationError(
+                    f"step {eng.step}: particle {bad} lost (lamda {eng.lam[bad].tolist()}, "
+                    f"more than a cell outside the box)"
+                )
+            SK.lamda2x(eng.lam, eng.box, eng.x)
+        else:
+            bad = K.pbc_wrap(eng.x, eng.box[0:2].copy(), eng.box[2:4].copy())
+            if bad >= 0:
+                raise SimulationError(f"step {eng.step}: particle {bad} lost (at {eng.x[bad].tolist()})")
+            SK.x2lamda(eng.x, eng.box, eng.lam)
+        a, b, sx, sy, both, selfimg = SK.build_list(eng.x, eng.lam, eng.r, eng.box, eng.settings.skin, self.lmp)
+        if selfimg >= 0:
+            eng._failed = f"step {eng.step}: particle {selfimg} is near its own image; the cell is too small"
+            raise SimulationError(eng._failed)
+        xi = np.zeros((a.size, eng._width))
+        if carry and eng.ea.size:
+            SK.hand_over(
+                eng.x, eng.r, eng.box, a, b, sx, sy, eng.start, eng.eb, eng.both, eng.xi, eng.touch, self.lmp, xi,
+                eng._flip,
+            )  # fmt: skip
+        eng.nb = self.neighbours(eng, a, b, sx, sy, both, xi, eng.x.copy())
+        eng.touch = np.zeros(a.size, np.bool_)
+        SK.box_corners(eng.box, eng.corners_hold)
+        eng.box_hold = eng.box.copy()
+        eng._build_step = eng.step
+        eng.n_rebuilds += 1
 
-    def _forces(self, update: bool, use_lam: bool):
-        p, nb, cell = self._state()
-        with disk_cache_off(self._no_cache):
-            nc, so = SK.forces(p, nb, self.law, cell, use_lam, self.settings.dt, update, self.virial)
-        self.n_contacts = round(nc)
-        self.mean_overlap = so / nc if nc else 0.0
+    def _cell(self, eng):
+        """The kernels' view of the cell (:class:`~gransim.dem.sheared_kernels.Cell`)."""
+        return SK.Cell(eng.box, eng.box_hold, eng.h_rate, eng.lam, eng.touch, eng.corners_hold)
 
-    def _touching(self):
-        """Entries of the touching pairs, each physical contact once (a < b), and their overlaps
-        (m), the images from the current box (:func:`gransim.dem.kernels.tilted_image`)."""
-        b = self.box
+    def forces(self, eng, update: bool):
+        """Forces with the images of the current box (from lamda, as LAMMPS on a build step)."""
+        with disk_cache_off(eng._no_cache):
+            nc, so = SK.forces(eng.p, eng.nb, eng.law, self._cell(eng), self.lmp, eng.settings.dt, update, eng.virial)
+        eng.n_contacts = round(nc)
+        eng.mean_overlap = so / nc if nc else 0.0
+
+    def setup(self, eng):
+        """LAMMPS ``run`` set-up: wrap, list (springs zero), forces without spring increment."""
+        self.rebuild(eng, carry=False)
+        self.forces(eng, update=False)
+        eng.stress = eng.stress_tensor()
+
+    def touching(self, eng):
+        """Entries of the touching pairs, each once (a < b), and their overlaps (m), the images
+        from the current box (:func:`gransim.dem.kernels.tilted_image`)."""
+        b = eng.box
         h0, h1, h5 = b[2] - b[0], b[3] - b[1], b[4]
-        a, j = self.ea, self.eb
-        dx = self.x[a, 0] - ((self.x[j, 0] + self.esx * h0) + self.esy * h5)
-        dy = self.x[a, 1] - (self.x[j, 1] + self.esy * h1)
+        a, j = eng.ea, eng.eb
+        dx = eng.x[a, 0] - ((eng.x[j, 0] + eng.esx * h0) + eng.esy * h5)
+        dy = eng.x[a, 1] - (eng.x[j, 1] + eng.esy * h1)
         dist = np.sqrt(dx * dx + dy * dy)
-        rs = self.r[a] + self.r[j]
+        rs = eng.r[a] + eng.r[j]
         e = np.nonzero((dist < rs) & (a < j))[0]
         return e, rs[e] - dist[e]
 
-    def _budget_kinetic_energy(self) -> float:
+    def peculiar_velocities(self, eng) -> np.ndarray:
+        """v - u(x) (m/s), (N, 2): u the homogeneous flow of the cell, u_x = h_rate[5] (y - ylo)/Ly,
+        u_y = h_rate[1] (y - ylo)/Ly (continuous across the Lees-Edwards boundary)."""
+        b = eng.box
+        f = (eng.x[:, 1] - b[1]) / (b[3] - b[1])
+        return eng.v - np.stack([eng.h_rate[2] * f, eng.h_rate[1] * f], axis=1)
+
+    def budget_kinetic_energy(self, eng) -> float:
         """Kinetic energy (J) of the velocities relative to the homogeneous flow of the cell
         (:meth:`peculiar_velocities`), which the Lees-Edwards remap of a particle crossing the
         boundary leaves unchanged (the lab-frame one jumps by m v.U + m U^2/2 there, U the flow
         across the cell, work no contact did)."""
-        u = self.peculiar_velocities()
-        return float(0.5 * np.sum(self.m * np.einsum("ij,ij->i", u, u)) + 0.25 * np.sum(self.m * self.r**2 * self.w**2))
+        u = self.peculiar_velocities(eng)
+        return float(0.5 * np.sum(eng.m * np.einsum("ij,ij->i", u, u)) + 0.25 * np.sum(eng.m * eng.r**2 * eng.w**2))
 
-    def _flow_kinetic_energy(self) -> float:
-        """Kinetic energy (J) of the homogeneous flow of the cell at the particles, sum m |u(x)|^2/2
-        (u of :meth:`peculiar_velocities`)."""
-        u = self.v - self.peculiar_velocities()
-        return float(0.5 * np.sum(self.m * np.einsum("ij,ij->i", u, u)))
+    def flow_kinetic_energy(self, eng) -> float:
+        """Kinetic energy (J) of the homogeneous flow of the cell at the particles, sum m |u(x)|^2/2."""
+        u = eng.v - self.peculiar_velocities(eng)
+        return float(0.5 * np.sum(eng.m * np.einsum("ij,ij->i", u, u)))
 
-    def _check_divergence(self, done, k, out_ke, out_vir, out_box, box_before):
-        """The divergence check (:meth:`gransim.dem.engine.EngineCore._check_energy`) after the k
-        steps from row ``done`` of the outputs: every step's kinetic energy finite; the kinetic
-        energy relative to the flow, known at the last of them, within the budget (which counts
-        the kinetic energy of the flow at the particles too, :meth:`_flow_kinetic_energy`); the work of the
-        cell per step -(V_xx dLx/Lx + V_yy dLy/Ly + V_yx (dxy - xy dLx/Lx)/Ly) (V the virial of
-        the step, N m; the velocity gradient of the box change dH H^-1, H = [[Lx, xy], [0, Ly]])."""
-        rows = slice(done, done + k)
-        b1 = out_box[rows]  # lx, ly, xy, ylo, yhi after each step
-        b0 = np.vstack([[box_before[2] - box_before[0], box_before[3] - box_before[1], box_before[4]], b1[:-1, :3]])
-        dlx = (b1[:, 0] - b0[:, 0]) / b0[:, 0]
-        dly = (b1[:, 1] - b0[:, 1]) / b0[:, 1]
-        dxy = (b1[:, 2] - b0[:, 2] - b0[:, 2] * dlx) / b0[:, 1]
-        vir = out_vir[rows]
-        dw = -(vir[:, 0] * dlx + vir[:, 1] * dly + vir[:, 3] * dxy)
-        ke = np.full(k, np.nan)
-        ke[-1] = self._budget_kinetic_energy()
-        self._check_energy(self.step + 1, out_ke[rows], ke, dw, flow=self._flow_kinetic_energy())
-
-    # ------------------------------------------------------------------ stepping
-    def start_run(self, loading: ShearLoading, nsteps: int):
-        """Begin a LAMMPS ``run nsteps`` under ``loading``: ``fix deform`` init (the start and stop
-        tilt of the style over the run, see :class:`ShearLoading`; h_rate[5] = (tilt_stop -
-        tilt_start) / (nsteps dt) for the linear styles, 0 for trate until its first change;
-        h_rate[1] = 0 until the first servo change), then the run's set-up evaluation
-        (``Verlet::setup``). Returns the set-up stress (2, 2), LAMMPS' thermo at the first step of
-        the run.
+    # the loading
+    def start_run(self, eng, loading, nsteps: int):
+        """LAMMPS ``run nsteps`` under ``loading``: ``fix deform`` init (the start and stop tilt of the
+        style over the run, :class:`ShearLoading`; h_rate[5] = (tilt_stop - tilt_start) / (nsteps
+        dt) for the linear styles, 0 for trate until its first change; h_rate[1] = 0 until the first
+        servo change), then the run's set-up (``Verlet::setup``: wrap with this run's h_rate, list
+        with the springs handed over, forces without spring increment).
 
         Raises InputError for a trate on a cell without tilt (LAMMPS: "Cannot use fix deform trate
-        on a box with zero tilt") and for a moving box with ``flavour="liggghts"``.
-        """
+        on a box with zero tilt") and for a moving box with ``flavour="liggghts"``."""
         if not isinstance(loading, ShearLoading):
-            raise InputError(f"loading: expected a ShearLoading, got {type(loading).__name__}")
-        nsteps = as_int(nsteps, "nsteps", 1)
-        if self.flavour == "liggghts" and (loading.moves_tilt or loading.y != "fixed"):
+            raise InputError(f"loading: expected a ShearLoading (the sheared cell), got {type(loading).__name__}")
+        if eng.flavour == "liggghts" and (loading.moves_tilt or loading.y != "fixed"):
             raise InputError("flavour 'liggghts': only a fixed box (xy erate 0, y fixed) is supported")
-        s = self.settings
-        begin = self.step
+        begin = eng.step
         end = begin + nsteps
-        delt = float(end - begin) * s.dt
-        b = self.box
+        delt = float(end - begin) * eng.settings.dt
+        b = eng.box
         tilt_start = float(b[4])
         if loading.xy == "trate" and tilt_start == 0.0:
             raise InputError(
@@ -469,157 +396,151 @@ class ShearEngine(EngineCore):
                 "LAMMPS stops too: 'Cannot use fix deform trate on a box with zero tilt')"
             )
         stop = tilt_stop(loading.xy, loading.value, tilt_start, float(b[3] - b[1]), delt)
-        self.h_rate[:] = 0.0
+        eng.h_rate[:] = 0.0
         if not loading.moves_tilt:
             style = SK.XY_NONE
         elif loading.xy == "trate":
             style = SK.XY_TRATE
         else:
             style = SK.XY_LINEAR
-            self.h_rate[2] = (stop - tilt_start) / delt
-        self._run = {
-            "begin": begin,
-            "end": end,
-            "loading": loading,
-            "style": style,
-            "tilt_start": tilt_start,
-            "tilt_stop": stop,
-            "y_lo": float(b[1]),
-            "y_hi": float(b[3]),
-            "ly0": float(b[3] - b[1]),
-        }
-        # Verlet::setup after fix deform init: wrap (with this run's h_rate), list build with the
-        # springs handed over, forces without spring increment (images see the run's h_rate)
-        self._rebuild(carry=True)
-        self._forces(update=False, use_lam=self._lmp)
-        self.stress = self.stress_tensor()
-        self._reset_energy_budget()  # the divergence check's balance starts with the run
-        return self.stress.copy()
+            eng.h_rate[2] = (stop - tilt_start) / delt
+        self.run = _ShearRun(begin, end, style, tilt_start, stop, float(b[1]), float(b[3]), float(b[3] - b[1]), loading)
+        self.rebuild(eng, carry=True)
+        self.forces(eng, update=False)
+        eng.stress = eng.stress_tensor()
+        eng._reset_energy_budget()  # the divergence check's balance starts with the run
+        return self.run
 
-    def advance(self, nsteps: int) -> dict:
-        """Advance ``nsteps`` steps of the current run (:meth:`start_run`); returns per-step series.
-
-        Returns
-        -------
-        dict with ``step`` (n,), ``stress`` (n, 2, 2) (compression positive, N/m; virial / area of
-        the box after the step), ``virial`` (n, 4) (xx, yy, xy, yx: sum 0.5 d (x) f of the step
-        over the half list, N m; stress times the area, LAMMPS' ``virial`` before ``compute
-        pressure`` divides it), ``box`` (n, 5) (lx, ly, xy, ylo, yhi; m), ``n_contacts`` (n,),
-        ``mean_overlap`` (n,) (m), ``kinetic_energy`` (n,) (J, of the full velocities).
-
-        Raises
-        ------
-        InputError when no run was started or the run would be passed. SimulationError naming the
-        step on a non-finite position, a lost particle, a collapsed cell or a tilt beyond Lx/2.
-        """
-        if self._run is None:
+    def drive(self, eng, run, *args, **kwargs):
+        """(Deform, nsteps) of ``advance(nsteps)`` in the run of :meth:`start_run`."""
+        if run is None:
             raise InputError("advance: call start_run(loading, nsteps) first (the fix deform of the run)")
-        run = self._run
+        if len(args) + len(kwargs) != 1 or (args and not isinstance(args[0], (int, np.integer, float))):
+            raise InputError("advance: the sheared cell takes advance(nsteps) in the run begun by start_run")
+        nsteps = args[0] if args else kwargs["nsteps"]
         nsteps = as_int(
-            nsteps,
-            "nsteps",
-            0,
-            run["end"] - self.step,
-            note=f" (the run ends at step {run['end']}, now at step {self.step})",
+            nsteps, "nsteps", 0, run.end - eng.step, note=f" (the run ends at step {run.end}, now at step {eng.step})"
         )
-        s = self.settings
-        ld = run["loading"]
-        out_stress = np.zeros((nsteps, 4))
-        out_vir = np.zeros((nsteps, 4))
-        out_box = np.zeros((nsteps, 5))
-        out_nc = np.zeros(nsteps)
-        out_ov = np.zeros(nsteps)
-        out_ke = np.zeros(nsteps)
-        step_start = self.step
-        done = 0
-        resume = False
+        s = eng.settings
+        ld = run.loading
         dfm = SK.Deform(
-            int(run["begin"]),
-            int(run["end"]),
-            int(ld.every),
-            int(run["style"]),
-            float(run["tilt_start"]),
-            float(run["tilt_stop"]),
-            float(ld.value),
-            ld.y == "servo",
-            float(run["y_lo"]),
-            float(run["y_hi"]),
-            float(run["ly0"]),
-            s.dt * ld.gain,
-            float(ld.gain),
-            float(ld.target),
-        )
-        while done < nsteps:
-            box_before = self.box.copy()
-            p, nb, cell = self._state()
-            series = SK.ShearSeries(
-                out_stress[done:], out_vir[done:], out_box[done:], out_nc[done:], out_ov[done:], out_ke[done:]
-            )
-            with disk_cache_off(self._no_cache):
-                k, status, bad = SK.run_block(
-                    p,
-                    nb,
-                    self.law,
-                    cell,
-                    dfm,
-                    series,
-                    self.virial,
-                    s.dt,
-                    s.skin,
-                    self._lmp,
-                    self.step,
-                    nsteps - done,
-                    resume,
-                )
-            if k:
-                self._check_divergence(done, k, out_ke, out_vir, out_box, box_before)
-            done += k
-            self.step += k
-            resume = False
-            if status == 1:
-                self._check_lost()
-                self.step += 1
-                self._rebuild(carry=True)
-                self.step -= 1
-                resume = True
-            elif status == 2:
-                raise SimulationError(
-                    f"step {self.step + 1}: particle {bad} has a non-finite position "
-                    f"{self.x[bad].tolist()} (velocity {self.v[bad].tolist()})"
-                )
-            elif status == 3:
-                raise SimulationError(
-                    f"step {self.step + 1}: the cell collapsed or its tilt passed Lx/2 "
-                    f"(box {self.box.tolist()}; LAMMPS would flip the box, not supported)"
-                )
-            if done < nsteps and k == 0 and not resume:
-                raise SimulationError(f"step {self.step + 1}: no progress")  # pragma: no cover
-        if nsteps:
-            self.n_contacts = round(out_nc[-1])
-            self.mean_overlap = float(out_ov[-1])
-            self.stress = self.stress_tensor()
-        st = np.empty((nsteps, 2, 2))
-        st[:, 0, 0] = out_stress[:, 0]
-        st[:, 1, 1] = out_stress[:, 1]
-        st[:, 0, 1] = out_stress[:, 2]
-        st[:, 1, 0] = out_stress[:, 3]
-        return {
-            "step": np.arange(step_start + 1, step_start + nsteps + 1),
-            "stress": st,
-            "virial": out_vir,
-            "box": out_box,
-            "n_contacts": np.rint(out_nc).astype(np.int64),
-            "mean_overlap": out_ov,
-            "kinetic_energy": out_ke,
-        }
+            int(run.begin), int(run.end), int(ld.every), int(run.style), float(run.tilt_start), float(run.tilt_stop),
+            float(ld.value), ld.y == "servo", float(run.y_lo), float(run.y_hi), float(run.ly0), s.dt * ld.gain,
+            float(ld.gain), float(ld.target),
+        )  # fmt: skip
+        return dfm, nsteps
 
-    # ------------------------------------------------------------------ diagnostics
-    def peculiar_velocities(self) -> np.ndarray:
-        """v - u(x) (m/s), (N, 2): u the homogeneous flow of the cell, u_x = h_rate[5] (y - ylo)/Ly,
-        u_y = h_rate[1] (y - ylo)/Ly (continuous across the Lees-Edwards boundary)."""
-        b = self.box
-        f = (self.x[:, 1] - b[1]) / (b[3] - b[1])
-        return self.v - np.stack([self.h_rate[2] * f, self.h_rate[1] * f], axis=1)
+    def series(self, nsteps: int):
+        return SK.ShearSeries(
+            np.zeros((nsteps, 4)), np.zeros((nsteps, 4)), np.zeros((nsteps, 5)), np.zeros(nsteps), np.zeros(nsteps),
+            np.zeros(nsteps),
+        )  # fmt: skip
+
+    def box_state(self, eng):
+        return eng.box.copy()
+
+    def block(self, eng, dfm, out, done: int, n: int, resume: bool):
+        s = eng.settings
+        with disk_cache_off(eng._no_cache):
+            return SK.run_block(
+                eng.p, eng.nb, eng.law, self._cell(eng), dfm, SK.ShearSeries(*(a[done:] for a in out)), eng.virial,
+                s.dt, s.skin, self.lmp, eng.step, n, resume,
+            )  # fmt: skip
+
+    def check_divergence(self, eng, out, done: int, k: int, box_before):
+        """The divergence check (:meth:`gransim.dem.engine.Engine._check_energy`) after the k steps
+        from row ``done``: every step's kinetic energy finite; the kinetic energy relative to the
+        flow, known at the last of them, within the budget (which counts the kinetic energy of the
+        flow at the particles too, :meth:`flow_kinetic_energy`); the work of the cell per step
+        -(V_xx dLx/Lx + V_yy dLy/Ly + V_yx (dxy - xy dLx/Lx)/Ly) (V the virial of the step, N m; the
+        velocity gradient of the box change dH H^-1, H = [[Lx, xy], [0, Ly]])."""
+        rows = slice(done, done + k)
+        b1 = out.box[rows]  # lx, ly, xy, ylo, yhi after each step
+        b0 = np.vstack([[box_before[2] - box_before[0], box_before[3] - box_before[1], box_before[4]], b1[:-1, :3]])
+        dlx = (b1[:, 0] - b0[:, 0]) / b0[:, 0]
+        dly = (b1[:, 1] - b0[:, 1]) / b0[:, 1]
+        dxy = (b1[:, 2] - b0[:, 2] - b0[:, 2] * dlx) / b0[:, 1]
+        vir = out.vir[rows]
+        dw = -(vir[:, 0] * dlx + vir[:, 1] * dly + vir[:, 3] * dxy)
+        ke = np.full(k, np.nan)
+        ke[-1] = self.budget_kinetic_energy(eng)
+        eng._check_energy(eng.step + 1, out.ke[rows], ke, dw, flow=self.flow_kinetic_energy(eng))
+
+    def collapse_message(self, eng) -> str:
+        return (
+            f"the cell collapsed or its tilt passed Lx/2 (box {eng.box.tolist()}; LAMMPS would flip the box, "
+            "not supported)"
+        )
+
+    def cell_series(self, out) -> dict:
+        return {"box": out.box}
+
+    # checkpoints (the cell's datasets beside gransim.dem.engine.CHECKPOINT)
+    def state_arrays(self, eng) -> dict:
+        """The box, its state at the last build, the image velocity jumps, the lamda coordinates, the
+        touching flags of the entries and the run (begin, end, style, tilt start and stop, y lo and
+        hi and Ly at the start: :class:`_ShearRun`; its loading is the run file's)."""
+        out = {
+            "box": eng.box,
+            "box_hold": eng.box_hold,
+            "h_rate": eng.h_rate,
+            "lamda": eng.lam,
+            "corners_hold": eng.corners_hold,
+            "neighbours/touch": eng.touch,
+        }
+        if self.run is not None:
+            out["run"] = np.array(self.run[:8], np.float64)
+        return out
+
+    def restore(self, eng, arrays: dict):
+        eng.box = np.array(arrays["box"], np.float64).reshape(5)
+        eng.box_hold = np.array(arrays["box_hold"], np.float64).reshape(5)
+        eng.h_rate = np.array(arrays["h_rate"], np.float64).reshape(3)
+        eng.lam = np.array(arrays["lamda"], np.float64).reshape(eng.packing.n, 2)
+        eng.corners_hold = np.array(arrays["corners_hold"], np.float64).reshape(8, 2)
+
+    def restored(self, eng, arrays: dict):
+        eng.touch = np.array(arrays["neighbours/touch"], np.bool_).reshape(eng.ea.size)
+        self.run = None
+        if "run" in arrays:
+            r = np.asarray(arrays["run"], np.float64).reshape(8)
+            loading = arrays.get("loading")
+            if not isinstance(loading, ShearLoading):
+                raise InputError("restore: a sheared checkpoint in a run needs its loading (arrays['loading'])")
+            self.run = _ShearRun(int(r[0]), int(r[1]), int(r[2]), *(float(v) for v in r[3:8]), loading)
+        eng._run_drive = self.run
+
+
+class _ShearRun(NamedTuple):
+    """The ``fix deform`` of one LAMMPS run: steps begin..end, the tilt style (sheared_kernels.XY_*),
+    the tilt at the start and at the end (m), y lo and hi and Ly at the start (m), the loading."""
+
+    begin: int
+    end: int
+    style: int
+    tilt_start: float
+    tilt_stop: float
+    y_lo: float
+    y_hi: float
+    ly0: float
+    loading: ShearLoading
+
+
+def ShearEngine(
+    packing: Packing,
+    settings: DEMSettings,
+    velocities=None,
+    spins=None,
+    flavour: str = "lammps",
+    check_dt: bool = True,
+    box=None,
+    law=None,
+) -> Engine:
+    """The :class:`~gransim.dem.engine.Engine` with the sheared cell (LAMMPS' triclinic box), in the
+    arithmetic ``flavour``: "lammps" (the default: the triclinic box is LAMMPS') or "liggghts" (a
+    cell without tilt under a fixed box, LIGGGHTS' bookkeeping: it reproduces the orthogonal cell).
+    ``box``: (lo, hi) or (lo, hi, xy) as a LAMMPS data file's box lines (used as given, bit for bit)."""
+    return Engine(packing, settings, velocities, spins, None, check_dt, box, law, cell="sheared", flavour=flavour)
 
 
 def simple_shear(
@@ -680,6 +601,9 @@ def run_shear_file(
     flavour: str = "lammps",
     law=None,
     law_options: dict | None = None,
+    checkpoint_every: int = 0,
+    resume: bool = False,
+    stop_at_step: int | None = None,
 ) -> dict:
     """Simple shear of ``packing`` for ``nsteps`` steps, written to an HDF5 run file (kind
     :data:`SHEAR_RUN_KIND`, layout in docs/shear.md) atomically with the provenance.
@@ -692,31 +616,46 @@ def run_shear_file(
     show_progress : a progress bar on a terminal (silent otherwise).
     law : optional contact law object (:class:`ShearEngine`); law_options : its {"name", "params"}
         (:func:`gransim.dem.biaxial.law_settings`), recorded as ``law`` in the settings JSON and
-        the provenance (absent for the default Hooke law, whose run files stay as they were).
+        the provenance (absent for the default Hooke law).
+    checkpoint_every : every this many steps (0: never) the file is written with the rows so far,
+        ``complete`` False and ``/checkpoint`` (the engine's state, :meth:`~gransim.dem.engine.
+        Engine.state_arrays`); an interruption (SIGINT, SIGTERM, SIGHUP) writes one at the step
+        it stops at.
+    resume : continue the run of ``out_path`` (same fingerprint: packing, settings, loading, steps,
+        sampling) from its checkpoint; the result equals the uninterrupted run bit for bit. A
+        complete file is returned as it is.
+    stop_at_step : end this call at that step with a checkpoint (a piece of a longer run).
 
     Returns a summary dict (steps, shear strain reached, final stresses tension positive, builds).
     A SimulationError is re-raised after the file was written with ``complete`` False and the
-    message as ``stop_reason``. Stresses in the file are tension positive (the engine's are
-    compression positive: ``sigma_file = -stress``).
+    message as ``stop_reason`` (with the last checkpoint, if any). Stresses in the file are tension
+    positive (the engine's are compression positive: ``sigma_file = -stress``).
     """
     nsteps = as_int(nsteps, "nsteps", 1)
     series_every = as_int(series_every, "series_every", 1)
     snapshot_every = as_int(snapshot_every, "snapshot_every", 0)
+    checkpoint_every = as_int(checkpoint_every, "checkpoint_every", 0)
+    if stop_at_step is not None:
+        stop_at_step = as_int(stop_at_step, "stop_at_step", 1)
+    out_path = Path(out_path)
+    info = {"dem": settings.to_dict(), "loading": loading.to_dict(), "nsteps": nsteps, "flavour": flavour}
+    if law is not None:
+        info["law"] = dict(law_options) if law_options else {"name": type(law).__name__, "params": dict(law._asdict())}
+    text = json.dumps(info, sort_keys=True)
+    sampling = {"series_every": series_every, "snapshot_every": snapshot_every}
+    fp = fingerprint(packing, json.dumps({**info, **sampling}, sort_keys=True))
     eng = ShearEngine(packing, settings, flavour=flavour, law=law)
     ly0, xy0 = float(eng.box[3] - eng.box[1]), float(eng.box[4])
-    setup = eng.start_run(loading, nsteps)
     rows = {k: [] for k in ("step", "box", "stress", "n_contacts", "kinetic_energy")}
+    snaps = {}
+    checkpoint = None
 
     def row(step, box, stress, nc, ke):
         rows["step"].append(step)
-        rows["box"].append(box)
+        rows["box"].append(np.asarray(box, np.float64))
         rows["stress"].append(-np.asarray(stress))
         rows["n_contacts"].append(nc)
         rows["kinetic_energy"].append(ke)
-
-    b = eng.box
-    row(0, [b[2] - b[0], b[3] - b[1], b[4], b[1], b[3]], setup, eng.n_contacts, eng.kinetic_energy())
-    snaps = {}
 
     def snap():
         snaps[eng.step] = {
@@ -727,17 +666,38 @@ def run_shear_file(
             "box_lo": eng.box[0:2].copy(),
         }
 
-    snap()
+    def take_checkpoint():
+        return {"step": eng.step, "arrays": {k: np.array(v) for k, v in eng.state_arrays().items()}}
+
+    stored = _read_shear_resume(out_path, fp, packing.n) if resume and out_path.exists() else None
+    if stored is not None and stored["complete"]:
+        return _shear_summary(stored["rows"], xy0, ly0, nsteps, stored["n_rebuilds"])
+    if stored is not None:
+        checkpoint = stored["checkpoint"]
+        eng.restore({**checkpoint["arrays"], "loading": loading}, checkpoint["step"])
+        rows, snaps = stored["rows"], stored["snapshots"]
+        eng.n_rebuilds = stored["n_rebuilds"]
+    else:
+        setup = eng.start_run(loading, nsteps)
+        b = eng.box
+        row(0, [b[2] - b[0], b[3] - b[1], b[4], b[1], b[3]], setup, eng.n_contacts, eng.kinetic_energy())
+        snap()
     stops = set(range(series_every, nsteps + 1, series_every)) | {nsteps}
-    if snapshot_every:
-        stops |= set(range(snapshot_every, nsteps + 1, snapshot_every))
-    stops = sorted(stops)
+    for every in (snapshot_every, checkpoint_every):
+        if every:
+            stops |= set(range(every, nsteps + 1, every))
+    if stop_at_step is not None and stop_at_step < nsteps:
+        stops.add(stop_at_step)
+    stops = sorted(s for s in stops if s > eng.step)
     reason = ""
+    paused = False  # stopped at stop_at_step
     interrupted = None
     bar = progress(total=nsteps, desc="shear") if show_progress else None
+    if bar is not None and eng.step:
+        bar.update(eng.step)
     try:
-        # SIGINT / SIGTERM are acted on between two series rows (gransim.progress): the file is
-        # then written with the rows so far, complete = False
+        # SIGINT / SIGTERM / SIGHUP are acted on between two stops (gransim.progress): the file is
+        # then written with the rows so far and a checkpoint at that step, complete = False
         with deferred_interrupts():
             for stop in stops:
                 check_interrupt()
@@ -748,29 +708,78 @@ def run_shear_file(
                     row(stop, out["box"][-1], out["stress"][-1], out["n_contacts"][-1], out["kinetic_energy"][-1])
                 if (snapshot_every and stop % snapshot_every == 0) or stop == nsteps:
                     snap()
+                if stop < nsteps and ((checkpoint_every and stop % checkpoint_every == 0) or stop == stop_at_step):
+                    checkpoint = take_checkpoint()
+                    if stop == stop_at_step:
+                        paused = True
+                        reason = (
+                            f"stopped at step {stop} by stop_at_step (a piece of a longer run; continue with resume)"
+                        )
+                        break
+                    _write_shear_file(
+                        out_path, packing, text, {**info, **(parameters or {})}, fp, sampling, rows, snaps,
+                        f"run in progress, or killed: last checkpoint at step {stop} (continue with resume)",
+                        checkpoint, eng.n_rebuilds, xy0, ly0, nsteps, settings.dt,
+                    )  # fmt: skip
             check_interrupt()
     except SimulationError as exc:
         reason = str(exc)
     except KeyboardInterrupt as exc:
         interrupted = exc
         how = exc.signal_name if isinstance(exc, Interrupted) else "SIGINT"
-        reason = f"interrupted by {how} at step {eng.step} of {nsteps} (a shear run has no resume: rerun it)"
+        checkpoint = take_checkpoint()  # between two stops: a state the run continues from
+        reason = f"interrupted by {how} at step {eng.step} of {nsteps} (continue with resume)"
     finally:
         if bar is not None:
             bar.close()
+    _write_shear_file(
+        out_path, packing, text, {**info, **(parameters or {})}, fp, sampling, rows, snaps, reason,
+        checkpoint if reason else None, eng.n_rebuilds, xy0, ly0, nsteps, settings.dt,
+    )  # fmt: skip
+    if interrupted is not None:
+        raise Interrupted(
+            getattr(interrupted, "signum", 2), f"{out_path}: {reason} (an incomplete run file, complete = False)"
+        ) from None
+    if reason and not paused:
+        after = (
+            f"; resume continues from the checkpoint at step {checkpoint['step']}"
+            if checkpoint is not None
+            else "; no checkpoint: rerun it without resume"
+        )
+        raise SimulationError(f"{reason} (the run file {out_path} holds the steps before, complete = False{after})")
+    return _shear_summary(rows, xy0, ly0, nsteps, eng.n_rebuilds)
+
+
+def _shear_summary(rows: dict, xy0: float, ly0: float, nsteps: int, n_rebuilds: int) -> dict:
+    box = np.array(rows["box"], np.float64).reshape(-1, 5)
+    last = rows["stress"][-1]
+    return {
+        "steps": int(rows["step"][-1]),
+        "shear_strain": float((box[-1, 2] - xy0) / ly0),
+        "sigma_xy": float(last[0][1]),
+        "sigma_yy": float(last[1][1]),
+        "sigma_xx": float(last[0][0]),
+        "ly": float(box[-1, 1]),
+        "n_rebuilds": int(n_rebuilds),
+    }
+
+
+def _write_shear_file(
+    out_path, packing, text, params, fp, sampling, rows, snaps, reason, checkpoint, n_rebuilds, xy0, ly0, nsteps, dt
+) -> None:
+    """The shear run file (docs/shear.md), atomically: the rows and snapshots so far, ``complete``
+    when ``reason`` is empty, and ``/checkpoint`` (step, the engine's state arrays) when given."""
     box = np.array(rows["box"], np.float64).reshape(-1, 5)
     strain = (box[:, 2] - xy0) / ly0
-    info = {"dem": settings.to_dict(), "loading": loading.to_dict(), "nsteps": nsteps, "flavour": flavour}
-    if law is not None:
-        info["law"] = dict(law_options) if law_options else {"name": type(law).__name__, "params": dict(law._asdict())}
-    text = json.dumps(info, sort_keys=True)
-    params = {**info, **(parameters or {})}
     with atomic_h5(
         out_path, kind=SHEAR_RUN_KIND, parameters=params, seed=packing.metadata.get("seed"), lammps=False
     ) as f:
         f.attrs["settings"] = text
+        f.attrs["fingerprint"] = fp
+        f.attrs["sampling"] = json.dumps(sampling, sort_keys=True)
         f.attrs["n_particles"] = packing.n
         f.attrs["nsteps"] = nsteps
+        f.attrs["n_rebuilds"] = int(n_rebuilds)
         f.attrs["complete"] = not reason
         f.attrs["stop_reason"] = reason
         f.attrs["stress_sign"] = "tension positive"
@@ -778,34 +787,75 @@ def run_shear_file(
         write_packing_group(f.create_group("packing"), packing)
         g = f.create_group("series")
         g["step"] = np.array(rows["step"], np.int64)
-        g["time"] = g["step"][()] * settings.dt
+        g["time"] = g["step"][()] * dt
         g["box"] = box
         g["shear_strain"] = strain
         g["stress"] = np.array(rows["stress"], np.float64).reshape(-1, 2, 2)
         g["n_contacts"] = np.array(rows["n_contacts"], np.int64)
         g["kinetic_energy"] = np.array(rows["kinetic_energy"], np.float64)
         sg = f.create_group("snapshots")
-        for step, d in snaps.items():
+        for step, d in sorted(snaps.items()):
             h = sg.create_group(str(step))
             h.attrs["step"] = step
             for k, v in d.items():
                 h[k] = v
-    if interrupted is not None:
-        raise Interrupted(
-            getattr(interrupted, "signum", 2), f"{out_path}: {reason} (an incomplete run file, complete = False)"
-        ) from None
-    if reason:
-        raise SimulationError(f"{reason} (the run file {out_path} holds the steps before, complete = False)")
-    last = rows["stress"][-1]
-    return {
-        "steps": nsteps,
-        "shear_strain": float(strain[-1]),
-        "sigma_xy": float(last[0][1]),
-        "sigma_yy": float(last[1][1]),
-        "sigma_xx": float(last[0][0]),
-        "ly": float(box[-1, 1]),
-        "n_rebuilds": int(eng.n_rebuilds),
-    }
+        if checkpoint is not None:
+            ck = f.create_group("checkpoint")
+            ck.attrs["step"] = int(checkpoint["step"])
+            for k, v in checkpoint["arrays"].items():
+                ck.create_dataset(k, data=np.asarray(v))
+
+
+def _read_shear_resume(path: Path, fp: str, n: int) -> dict:
+    """What a resume of the shear run file ``path`` continues from: its rows and snapshots up to its
+    checkpoint, the checkpoint, ``complete``; ResultFileError for a file of another run (another
+    fingerprint) or one without a checkpoint."""
+    import h5py  # noqa: PLC0415 - start-up: h5py
+
+    try:
+        with h5py.File(path, "r") as f:
+            if f.attrs.get("kind") != SHEAR_RUN_KIND:
+                raise ResultFileError(
+                    f"{path}: not a shear run file (kind {f.attrs.get('kind')!r}); refusing to resume"
+                )
+            have = f.attrs.get("fingerprint")
+            if have != fp:
+                raise ResultFileError(
+                    f"{path}: belongs to another run (fingerprint {str(have)[:12]} != {fp[:12]}: different "
+                    "packing, settings, loading, steps or sampling); refusing to resume"
+                )
+            g = f["series"]
+            rows = {
+                "step": [int(s) for s in g["step"][()]],
+                "box": list(g["box"][()]),
+                "stress": list(g["stress"][()]),
+                "n_contacts": [int(c) for c in g["n_contacts"][()]],
+                "kinetic_energy": [float(k) for k in g["kinetic_energy"][()]],
+            }
+            complete = bool(f.attrs["complete"])
+            out = {"complete": complete, "rows": rows, "n_rebuilds": int(f.attrs.get("n_rebuilds", 0))}
+            if complete:
+                return out
+            if "checkpoint" not in f:
+                raise ResultFileError(f"{path}: no checkpoint to resume from; rerun without --resume")
+            ck = f["checkpoint"]
+            step = int(ck.attrs["step"])
+            arrays = {}
+            ck.visititems(lambda name, obj: arrays.__setitem__(name, obj[()]) if hasattr(obj, "shape") else None)
+            keep = [k for k, s in enumerate(rows["step"]) if s <= step]
+            rows = {k: [v[i] for i in keep] for k, v in rows.items()}
+            snaps = {}
+            for h in f["snapshots"].values():
+                if int(h.attrs["step"]) <= step:
+                    snaps[int(h.attrs["step"])] = {k: h[k][()] for k in h}
+    except (OSError, KeyError) as exc:
+        if isinstance(exc, ResultFileError):
+            raise
+        raise ResultFileError(f"{path}: cannot resume from it ({exc})") from None
+    if arrays.get("positions", np.zeros(0)).shape != (n, 2):
+        raise ResultFileError(f"{path}: its checkpoint does not hold {n} particles")
+    out.update(rows=rows, snapshots=snaps, checkpoint={"step": step, "arrays": arrays})
+    return out
 
 
 __all__ = [

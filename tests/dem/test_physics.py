@@ -226,7 +226,10 @@ def test_nan_stops_with_step_and_particle():
     s = DEMSettings(kn=1e5, kt=1e5, dt=2e-6, skin=2e-5)
     v = np.zeros((p.n, 2))
     v[7, 1] = np.nan
-    eng = DEMEngine(p, s, velocities=v)
+    with pytest.raises(InputError, match="velocities: expected finite numbers"):
+        DEMEngine(p, s, velocities=v)  # checked at the boundary
+    eng = DEMEngine(p, s)
+    eng.v[7, 1] = np.nan  # a state that went non-finite: the run stops naming the step and particle
     with pytest.raises(SimulationError, match=r"step 1: particle 7"):
         eng.advance(FIXED, 10)
 

@@ -300,12 +300,12 @@ def test_a_parallel_engine_of_one_task_runs_on_one_thread_with_the_same_bits():
     runs = []
     for threads in (1, 2):
         e = DEMEngine(p, s, threads=threads)
-        assert e._threads == 1
+        assert e.cell_ops.threads == 1
         e.advance(ld, 200)
         runs.append((e.p.x.copy(), e.p.v.copy(), e.nb.hist.copy()))
     for a, b in zip(*runs):
         assert np.array_equal(_bits(a), _bits(b))
-    assert DEMEngine(_assembly(seed=5), s, threads=2)._threads == 2
+    assert DEMEngine(_assembly(seed=5), s, threads=2).cell_ops.threads == 2
 
 
 def test_handing_free_memory_back_changes_no_result(monkeypatch):
