@@ -1,17 +1,20 @@
-"""The fast DEM path: the physics of :class:`gransim.dem.DEMEngine` (LIGGGHTS 3.8.0 Hooke history
-law, nve/sphere, periodic orthogonal cell) in an order chosen for speed, not for bitwise agreement
-with LIGGGHTS or LAMMPS (docs/performance.md).
+"""The fast ordering of the DEM: the physics of :class:`gransim.dem.DEMEngine` (orthogonal cell)
+and :class:`gransim.dem.sheared.ShearEngine` (sheared cell, Lees-Edwards) with any registered
+contact law that offers a branch-free block path, in an order chosen for speed, not for bitwise
+agreement with LIGGGHTS or LAMMPS (docs/performance.md).
 
 What is reordered, and what it changes:
 
-* the particles are sorted by bin (row-major bins at least a neighbour cut-off wide) at every list
-  build, the velocities, spins and the particles' history going along (``perm`` maps back: every
-  output is in the original particle order);
+* the particles are sorted by bin (row-major bins at least a neighbour cut-off wide, in the cell's
+  lamda coordinates) at every list build, the velocities, spins and the particles' history going
+  along (``perm`` maps back: every public view is in the original particle order);
 * structure-of-arrays particle state (x, y, vx, vy, w, ... each (N,)), int32 indices, a uint8
-  image code per entry, the spring history kept in float64 for the law;
-* a half list, each pair once (i < j in the sorted order, LIGGGHTS keeps the pairs across the
-  boundary twice), with the symmetric update (j gets minus the force on i and its torque);
-* the contact law written without branches (:func:`gransim.dem.fast_kernels.hooke_select`);
+  image code per entry, the law's history (width 2: the spring) in float64;
+* a half list, each pair once (i < j in the sorted order; LIGGGHTS keeps the pairs across the
+  boundary twice, LAMMPS' sheared cell too), with the symmetric update (j gets minus the force on
+  i and its torque);
+* the contact law's block path (``LawSpec.select``, :func:`gransim.contacts.laws.pair_select`:
+  the same function the code order's SIMD loops run), every entry evaluated and masked;
 * one fused pass per step: second half step, box remap, first half step of the next step,
   position update, rebuild test and forces zeroed;
 * the list rebuilt in place into buffers that are reused and grown only when needed; at a
@@ -22,32 +25,52 @@ What is reordered, and what it changes:
   two threads write the same particle. Sums have a fixed order: the results are the same bit for
   bit on 1 and 2 threads (and under any scheduling).
 
-Only summation orders differ from :class:`~gransim.dem.DEMEngine`: the two agree to round-off
-over short horizons, and over long ones the fast path stays within the divergence envelope of the
-bitwise engine itself (tests/dem/test_fast.py).
+Only summation orders differ from the code order: the two agree to round-off over short
+horizons, and over long ones the fast ordering stays within the divergence envelope of the code
+order itself (tests/dem/test_fast.py, test_fast_backend.py).
 
-Scope: the box is fixed or deforms at a prescribed strain rate per axis (``fix deform`` ``erate``
-style with ``remap x``, :class:`~gransim.dem.Loading` with ``fixed``/``rate`` axes); no stress
-servo and no prescribed box table (use :class:`~gransim.dem.DEMEngine` for those). Contact law:
-the Hooke history law of the settings (``DEMSettings.flavour`` "liggghts" only). The rebuild rule
-is the displacement test with the box displacement subtracted and clamped at zero (LAMMPS'
-rule; LIGGGHTS squares a negative margin, which only matters once the box has moved by more than
-the skin since the last build).
+What is the code order's, unchanged: the step (nve/sphere), the box of every step (the loadings
+of :class:`~gransim.dem.Loading` with fixed, rate and servo axes through
+:func:`gransim.dem.kernels.box_target`, a :class:`~gransim.dem.PrescribedBox`, or the sheared
+cell's ``fix deform`` through :func:`gransim.dem.sheared_kernels.deform_end_of_step`), the
+rebuild rule of the flavour (``DEMSettings.flavour``: LAMMPS clamps a negative margin at zero,
+LIGGGHTS squares it; the sheared cell in LAMMPS' arithmetic takes the margin from the 8 box
+corners), the hand-over of the springs (pairs that overlap at the build keep a spring that is not
+zero: LIGGGHTS' rule, and LAMMPS', whose laws zero the spring of a pair that stops touching), the
+checks of :class:`gransim.dem.engine.EngineCore` (divergence, lost particles) and its energies.
+
+Not offered: laws without a block path (Hertz, the rolling laws: their history is wider than the
+spring, or their pair has branches), which the code order runs (InputError names them).
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 
 import numpy as np
 
-from .._numba import check_threads, dynamic_chunks, num_threads
+from .._numba import check_threads, disk_cache_off, dynamic_chunks, num_threads
+from .._validate import as_int, check_choice
+from ..contacts.laws import offers_select
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
+from . import engine as _engine
 from . import fast_kernels as FK
-from .engine import check_time_step
-from .settings import DEMSettings, Loading
+from . import kernels as K
+from . import sheared_kernels as SK
+from .engine import LOST_DISPLACEMENT_SKINS, _control
+from .settings import DEMSettings, Integration, Loading, PrescribedBox
+from .sheared import ShearLoading, tilt_stop
+
+#: the code order's engine class, whose law set-up, energies and divergence check (the energy
+#: balance) this engine shares: gransim.dem.engine.Engine (EngineCore before the cells became
+#: plug-ins of one engine class)
+_CORE = getattr(_engine, "Engine", None) or _engine.EngineCore
+
+#: the cells of the fast ordering
+CELLS = ("orthogonal", "sheared")
 
 #: bands of bin rows wanted per list build (the chunks of the threaded loops; fixed by N, not by
 #: the thread count, so that results do not depend on the threads)
@@ -70,101 +93,151 @@ BAND_PAD = 64
 
 
 class FastEngine:
-    """State and stepping of a DEM run on the fast path.
+    """State and stepping of a DEM run in the fast ordering (module docstring).
 
     Parameters
     ----------
-    packing : initial packing (orthogonal cell; the box is [0, Lx] x [0, Ly]).
-    settings : :class:`~gransim.dem.DEMSettings` (kn, kt, gamma_n, gamma_t, mu, dt, skin; flavour
-        "liggghts"; ``mode`` is not used: ``threads`` decides).
+    packing : initial packing. ``cell="orthogonal"``: an orthogonal cell, the box [0, Lx] x
+        [0, Ly]; ``cell="sheared"``: a cell [[Lx, xy], [0, Ly]] with |xy| <= Lx/2 (LAMMPS'
+        triclinic box), the box [0, Lx] x [0, Ly] with tilt xy.
+    settings : :class:`~gransim.dem.DEMSettings` (the integration and its Hooke law) or
+        :class:`~gransim.dem.Integration` with ``law``; dt, skin, flavour ("liggghts" or
+        "lammps": the rebuild rule, and the Hooke law of a DEMSettings); ``mode`` is not used
+        (``threads`` decides).
     velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
-    threads : 1 (serial kernels) or more (threaded kernels on that many numba threads, set around
-        each call and restored; with fewer than :data:`MIN_PER_THREAD` particles per thread the
-        serial kernels run, with the same result bit for bit).
-    check_dt : refuse a time step above :func:`gransim.dem.stability_limit`.
+    threads : 1 (one thread) or more (the threaded kernels on that many numba threads, set around
+        each call and restored; with fewer than :data:`MIN_PER_THREAD` particles per thread one
+        thread runs, with the same result bit for bit).
+    check_dt : refuse a time step above the law's stability limit
+        (:func:`gransim.dem.engine.check_time_step`).
+    law : a registered contact law that offers a block path (``LawSpec.select``: the Hooke laws
+        ``hooke-liggghts``, ``hooke-lammps``); None: the Hooke law of a DEMSettings in its flavour.
+    cell : "orthogonal" (:meth:`advance` as :meth:`gransim.dem.DEMEngine.advance`) or "sheared"
+        (:meth:`start_run` and :meth:`advance` as :class:`gransim.dem.sheared.ShearEngine`).
 
-    After construction (LIGGGHTS ``run`` set-up: first list build, forces without spring
-    increment) :meth:`advance` steps the state. Outputs (:attr:`positions`, :attr:`velocities`,
-    :attr:`spins`, :attr:`forces`, :attr:`torques`, :attr:`stress`) are in the original particle
-    order and units of :class:`~gransim.dem.DEMEngine`.
+    After construction (the codes' ``run`` set-up: first list build, forces without spring
+    increment) :meth:`advance` steps the state. Views (x, v, w, f, t, m, r, contacts(), ...) are
+    in the original particle order; :meth:`state_arrays` / :meth:`restore` save and load the state
+    (sorted order) so that a restored run continues bit for bit.
     """
+
+    # what every ordering does the same way, the code order's own functions: the law and its
+    # time-step check, the kinetic and elastic energies, the energy balance of the divergence check
+    _set_law = _CORE._set_law
+    _check_time_step_now = _CORE._check_time_step_now
+    kinetic_energy = _CORE.kinetic_energy
+    elastic_energy = _CORE.elastic_energy
+    _reset_energy_budget = _CORE._reset_energy_budget
+    _check_energy = _CORE._check_energy
 
     def __init__(
         self,
         packing: Packing,
-        settings: DEMSettings,
+        settings,
         velocities=None,
         spins=None,
         threads: int = 1,
         check_dt: bool = True,
+        law=None,
+        cell: str = "orthogonal",
     ):
         if not isinstance(packing, Packing):
             raise InputError(f"packing: expected a gransim Packing, got {type(packing).__name__}")
-        if not isinstance(settings, DEMSettings):
-            raise InputError(f"settings: expected a DEMSettings, got {type(settings).__name__}")
-        C = packing.cell
-        if C[0, 1] != 0 or C[1, 0] != 0:
+        if not isinstance(settings, (DEMSettings, Integration)):
+            raise InputError(f"settings: expected a DEMSettings or an Integration, got {type(settings).__name__}")
+        check_choice(cell, "cell", CELLS)
+        self._sheared = cell == "sheared"
+        C = np.asarray(packing.cell, np.float64)
+        Lx, Ly, xy = float(C[0, 0]), float(C[1, 1]), float(C[0, 1])
+        if self._sheared:
+            if C[1, 0] != 0.0:
+                raise InputError(
+                    f"packing.cell: a LAMMPS triclinic cell has a1 = (Lx, 0): cell[1, 0] must be 0, got {C[1, 0]!r}"
+                )
+            if abs(xy) > 0.5 * Lx:
+                raise InputError(
+                    f"packing.cell: tilt xy = {xy!r} m beyond Lx/2 = {0.5 * Lx!r} m (LAMMPS needs |xy| <= Lx/2)"
+                )
+        elif xy != 0.0 or C[1, 0] != 0.0:
             raise InputError(
-                "packing.cell: the fast DEM path needs an orthogonal cell "
-                f"(off-diagonal entries {C[0, 1]!r}, {C[1, 0]!r})"
+                f"packing.cell: cell 'orthogonal' needs an orthogonal cell (off-diagonal entries {xy!r}, "
+                f"{C[1, 0]!r}); a tilted cell runs with cell='sheared'"
             )
-        if settings.flavour != "liggghts":
+        s = self.settings = settings
+        self.packing = packing
+        self.flavour = s.flavour
+        self._lmp = s.flavour == "lammps"
+        if self._sheared and not self._lmp and xy != 0.0:
             raise InputError(
-                f"settings.flavour: the fast DEM path implements the LIGGGHTS Hooke history "
-                f"law only, expected 'liggghts', got {settings.flavour!r} (use DEMEngine)"
+                f"flavour 'liggghts': needs a cell without tilt (LIGGGHTS' bookkeeping is orthogonal), got xy = {xy!r}"
+            )
+        # the contact law (gransim.contacts.laws), its time step checked (EngineCore)
+        self._set_law(packing, s, law, s.flavour, check_dt)
+        if not offers_select(type(self.law)):
+            raise InputError(
+                f"law: the fast ordering runs laws that offer a branch-free block path (LawSpec.select: "
+                f"the Hooke laws), got {type(self.law).__name__}; run it in the code's order"
             )
         t = check_threads(threads)
         self._threads = 1 if t is None else t
-        s = self.settings = settings
         n = self.n = packing.n
         self._parallel = self._threads > 1 and n >= MIN_PER_THREAD * self._threads
-        if check_dt:
-            check_time_step(packing, s.dt, s)
+        self._clamp = self._lmp  # the rebuild rule of LAMMPS (kernels.rebuild_deltasq)
         self._cut = 2.0 * float(packing.radii.max()) + s.skin
-        if min(C[0, 0], C[1, 1]) < 3.0 * self._cut:
+        heights = (Lx * Ly / math.hypot(Ly, xy), Ly)
+        if min(heights) < 3.0 * self._cut:
             raise InputError(
-                f"packing.cell: side lengths {C[0, 0]:.4g}, {C[1, 1]:.4g} m must be at least "
+                f"packing.cell: cell heights {heights[0]:.4g}, {heights[1]:.4g} m must be at least "
                 f"3 (2 r_max + skin) = {3 * self._cut:.4g} m (three bins per axis)"
             )
         f64 = np.float64
         pos = np.asarray(packing.positions, f64)
-        self.x = pos[:, 0].copy()
-        self.y = pos[:, 1].copy()
         if velocities is None:
-            self.vx, self.vy = np.zeros(n), np.zeros(n)
+            vel = np.zeros((n, 2))
         else:
-            v = np.asarray(velocities, f64)
-            if v.shape != (n, 2):
-                raise InputError(f"velocities: expected shape ({n}, 2) (m/s), got {v.shape}")
-            self.vx, self.vy = v[:, 0].copy(), v[:, 1].copy()
+            vel = np.asarray(velocities, f64)
+            if vel.shape != (n, 2):
+                raise InputError(f"velocities: expected shape ({n}, 2) (m/s), got {vel.shape}")
         if spins is None:
-            self.w = np.zeros(n)
+            w = np.zeros(n)
         else:
-            w = np.asarray(spins, f64)
+            w = np.array(spins, f64)
             if w.shape != (n,):
                 raise InputError(f"spins: expected shape ({n},) (rad/s), got {w.shape}")
-            self.w = w.copy()
-        self.r = np.array(packing.radii, f64)
-        self.m = np.pi * self.r * self.r * float(packing.density)  # the order of DEMEngine
-        self.fx, self.fy, self.t = np.zeros(n), np.zeros(n), np.zeros(n)
-        self.xh, self.yh = np.zeros(n), np.zeros(n)
+        for name, a in (("positions", pos), ("velocities", vel), ("spins", w)):
+            if not np.all(np.isfinite(a)):
+                raise InputError(f"{name}: expected finite numbers")
+        # the original order's radii and masses ((pi r) r rho: the order of DEMEngine and of both
+        # codes' data files); the sorted ones are gathered from them
+        self._r0 = np.array(packing.radii, f64)
+        self._m0 = np.pi * self._r0 * self._r0 * float(packing.density)
+        self.ps = FK.FastParticles(
+            pos[:, 0].copy(), pos[:, 1].copy(), vel[:, 0].copy(), vel[:, 1].copy(), w,
+            np.zeros(n), np.zeros(n), np.zeros(n), self._m0.copy(), self._r0.copy(), np.zeros(n), np.zeros(n),
+        )  # fmt: skip
         self.perm = np.arange(n, dtype=np.int32)
-        self.lo = np.zeros(2)
-        self.hi = np.array([C[0, 0], C[1, 1]], f64)
-        self.lo_hold, self.hi_hold = self.lo.copy(), self.hi.copy()
+        if self._sheared:
+            self.box = np.array([0.0, 0.0, Lx, Ly, xy])
+            self.h_rate = np.zeros(3)
+            self._cell = FK.ShearCell(self.box, self.box.copy(), self.h_rate, np.zeros((8, 2)))
+            self._run = None  # the fix deform of the current run (start_run)
+        else:
+            self.lo = np.zeros(2)
+            self.hi = np.array([Lx, Ly], f64)
+            self._cell = FK.OrthoCell(self.lo, self.hi, self.lo.copy(), self.hi.copy())
         # rebuild scratch (reused): new order, bin keys, permutation buffers
         self._order = np.zeros(n, np.int32)
         self._key = np.zeros(n, np.int32)
         self._tmpf = np.zeros(n)
         self._tmpi = np.zeros(n, np.int32)
         self._cnt = np.zeros(n, np.int32)
-        self.start = np.zeros(n + 1, np.int32)
+        self._start = np.zeros(n + 1, np.int32)
         self._binstart = np.zeros(1, np.int32)
         # the list (capacity grows) and the hand-over table
-        self.nj = np.zeros(0, np.int32)
-        self.code = np.zeros(0, np.uint8)
-        self.ni = np.zeros(0, np.int32)
-        self.hist = np.zeros((2, 0))  # rows: the two spring components (h0, h1 of fast_kernels)
+        self._ni = np.zeros(0, np.int32)
+        self._nj = np.zeros(0, np.int32)
+        self._code = np.zeros(0, np.uint8)
+        self._hist = np.zeros((2, 0))  # rows: the two spring components (h0, h1 of fast_kernels)
         self._hstart = np.zeros(n + 1, np.int32)
         self._hj = np.zeros(0, np.int32)
         self._hh = np.zeros((0, 2))
@@ -174,291 +247,609 @@ class FastEngine:
         self.step = 0
         self.n_rebuilds = 0
         self.n_banded_builds = 0  # threaded builds done in one pass per band (the others: count and fill)
-        ny = math.floor(C[1, 1] / self._cut)
-        self._rows = max(1, round(ny / TARGET_BANDS))
+        self._build_step = 0
+        self.virial = np.zeros(4)
+        self.n_contacts = 0
+        self.mean_overlap = 0.0
+        self._rows = max(1, round(math.floor(Ly / self._cut) / TARGET_BANDS))
         self._rebuild(carry=False)
-        with self._kernels():
-            self._forces(update=False)
-        self._vir = self._acc[:, :4].sum(axis=0)
-        self._last = {"contacts": round(float(self._acc[:, 4].sum()))}
+        self._forces(update=False)
+        self._check_time_step_now()
+        self._reset_energy_budget()
 
     # ------------------------------------------------------------------ internals
     @contextlib.contextmanager
     def _kernels(self):
-        # the force kernel is a parallel one even when serial (fast_kernels.forces_v): one thread
-        with num_threads(self._threads if self._parallel else 1), dynamic_chunks(1):
+        # the force kernel is a parallel one even when serial (fast_kernels.forces_v): one thread;
+        # the kernels of a law of a test module or script stay out of the disk cache
+        with num_threads(self._threads if self._parallel else 1), dynamic_chunks(1), disk_cache_off(self._no_cache):
             yield
 
+    def _list(self):
+        return FK.FastList(self._cstart, self._start, self._ni, self._nj, self._code, self._hist[0], self._hist[1])
+
+    def _image(self):
+        """The image plug-in of the force loop for the current box."""
+        if self._sheared:
+            b = self.box
+            return FK.FastTilted(b[2] - b[0], b[3] - b[1], b[4], self.h_rate[2], self.h_rate[1])
+        return FK.FastOrtho(self.hi[0] - self.lo[0], self.hi[1] - self.lo[1])
+
     def _forces(self, update: bool):
-        L = self.hi - self.lo
-        s = self.settings
-        FK.forces_v(
-            self._parallel,
-            self.cstart,
-            self.start,
-            self.ni,
-            self.nj,
-            self.code,
-            self.hist[0],
-            self.hist[1],
-            self.x,
-            self.y,
-            self.vx,
-            self.vy,
-            self.w,
-            self.r,
-            self.m,
-            self.fx,
-            self.fy,
-            self.t,
-            L[0],
-            L[1],
-            (s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt),
-            update,
-            self._sp_start,
-            *self._spill(),
-            self._acc,
-        )
+        """The forces of the current state (``update`` False: the set-up evaluation of a run,
+        springs not incremented): virial, contacts, mean overlap and stress. (The images from
+        the positions; the code order's sheared cell takes them from the lamda coordinates after
+        a build: round-off.)"""
+        p = self.ps
+        for a in (p.fx, p.fy, p.t):
+            a[:] = 0.0
+        with self._kernels():
+            FK.forces_v(
+                self._parallel, self._cstart, self._start, self._ni, self._nj, self._code, self._hist[0],
+                self._hist[1], p.x, p.y, p.vx, p.vy, p.w, p.r, p.m, p.fx, p.fy, p.t, self._image(), self.law,
+                self.settings.dt, update, self._sp_start, *self._spill(), self._acc,
+            )  # fmt: skip
+        tot = np.zeros(6)
+        for c in range(self._acc.shape[0]):  # the band order of run_steps
+            tot += self._acc[c]
+        self.virial[:] = tot[:4]
+        self.n_contacts = round(float(tot[4]))
+        self.mean_overlap = float(tot[5] / tot[4]) if tot[4] else 0.0
+        self.stress = self.stress_tensor()
+
+    def _box_corners(self):
+        """(lo (2,), hi (2,), xy) of the current box."""
+        if self._sheared:
+            b = self.box
+            return b[0:2], b[2:4], float(b[4])
+        return self.lo, self.hi, 0.0
 
     def _rebuild(self, carry: bool):
-        """Wrap, sort by bin (state and history permuted), new list in place, springs handed over
-        for the pairs that touch now (as DEMEngine: LIGGGHTS' rule)."""
+        """Wrap (a sheared cell: with the Lees-Edwards velocity jump), sort by bin (state and
+        history permuted), new list in place, springs handed over for the pairs that touch now (as
+        the code order)."""
         n = self.n
-        bad = FK.wrap(self.x, self.y, self.lo, self.hi)
+        p = self.ps
+        lo, hi, xy = self._box_corners()
+        if self._sheared:
+            bad = FK.wrap_tilted(p.x, p.y, p.vx, p.vy, self.box, self.h_rate, True)
+        else:
+            bad = FK.wrap(p.x, p.y, lo, hi)
         if bad >= 0:
             raise SimulationError(
                 f"step {self.step}: particle {int(self.perm[bad])} lost (at "
-                f"{[self.x[bad], self.y[bad]]}, box {self.lo.tolist()}..{self.hi.tolist()})"
+                f"{[p.x[bad], p.y[bad]]}, box {lo.tolist()}..{hi.tolist()}, tilt {xy})"
             )
-        L = self.hi - self.lo
-        nbx, nby = int(L[0] // self._cut), int(L[1] // self._cut)
+        L = hi - lo
+        # bins at least a cut-off wide across: along x the distance between the lamda_x lines,
+        # Lx Ly/|a2| (a2 = (xy, Ly)); the orthogonal cell's plain Lx // cut
+        wide = L[0] * L[1] / math.hypot(L[1], xy) if xy else L[0]
+        nbx, nby = int(wide // self._cut), int(L[1] // self._cut)
         if min(nbx, nby) < 3:
             raise SimulationError(
-                f"step {self.step}: the box {L.tolist()} m holds fewer than 3 bins of the "
+                f"step {self.step}: the box {L.tolist()} m (tilt {xy} m) holds fewer than 3 bins of the "
                 f"cut-off {self._cut:.4g} m per axis"
             )
         if self._binstart.size < nbx * nby + 1:
             self._binstart = np.zeros(nbx * nby + 1, np.int32)
         binstart = self._binstart[: nbx * nby + 1]
-        FK.bin_sort(self.x, self.y, self.lo, self.hi, nbx, nby, self._order, binstart, self._key)
+        FK.bin_sort(p.x, p.y, lo, hi, xy, nbx, nby, self._order, binstart, self._key)
         # hand-over table of the current list (old order; on the threads by the old list's bands)
         if carry and self.n_entries:
+            h0, h1 = self._hist
             if self._parallel:
-                bcount = np.zeros(self.cstart.size - 1, np.int64)
+                bcount = np.zeros(self._cstart.size - 1, np.int64)
                 with self._kernels():
-                    FK.history_counts(self.cstart, self.start, self.hist[0], self.hist[1], bcount)
+                    FK.history_counts(self._cstart, self._start, h0, h1, bcount)
                 k = int(bcount.sum())
             else:
-                k = FK.count_history(self.start, self.hist[0], self.hist[1], n)
+                k = FK.count_history(self._start, h0, h1, n)
             if self._hj.size < k:
                 cap = int(k * GROWTH) + 16
                 self._hj, self._hh = np.zeros(cap, np.int32), np.zeros((cap, 2))
+            h = (self._hstart, self._hj, self._hh)
             if self._parallel:
                 with self._kernels():
-                    h = (self._hstart, self._hj, self._hh)
-                    FK.compact_history_banded(self.cstart, self.start, self.nj, *self.hist, bcount, *h)
+                    FK.compact_history_banded(self._cstart, self._start, self._nj, h0, h1, bcount, *h)
             else:
-                FK.compact_history(self.start, self.nj, self.hist[0], self.hist[1], n, self._hstart, self._hj, self._hh)
+                FK.compact_history(self._start, self._nj, h0, h1, n, *h)
         else:
             self._hstart[:] = 0
         # entries per particle of each band of the last list (the threaded build sizes its regions
         # with them: the first band also holds the pairs across the periodic y boundary)
         per_band = None
         if self._parallel and self.n_entries:
-            per_band = np.diff(self.start[self.cstart]) / np.maximum(np.diff(self.cstart), 1)
+            per_band = np.diff(self._start[self._cstart]) / np.maximum(np.diff(self._cstart), 1)
         o = self._order
         # each array gathered into the scratch, which then takes its place (one pass, not a gather
         # and a copy back); serial also on threads: seven short parallel regions cost more than
         # they saved (measured)
+        new = {}
         for name in ("x", "y", "vx", "vy", "w", "r", "m"):  # f, t are zero here
-            a = getattr(self, name)
+            a = getattr(p, name)
             FK.gather_f(a, o, self._tmpf)
-            setattr(self, name, self._tmpf)
+            new[name] = self._tmpf
             self._tmpf = a
+        self.ps = p = p._replace(**new)
         FK.permute_i(self.perm, o, self._tmpi)
         rows = self._rows
         nb = -(-nby // rows)
-        self.cstart = np.ascontiguousarray(binstart[np.minimum(np.arange(nb + 1) * rows, nby) * nbx], np.int32)
+        self._cstart = np.ascontiguousarray(binstart[np.minimum(np.arange(nb + 1) * rows, nby) * nbx], np.int32)
         self._sp_start = np.zeros(nb + 1, np.int64)
         sp_cnt = np.zeros(nb, np.int64)
         self._acc = np.zeros((nb, 6))
         self._red = np.zeros((nb, 3))
         pairs = FK.pairs_parallel if self._parallel else FK.pairs_serial
-        args = (
-            self.cstart,
-            binstart,
-            self.x,
-            self.y,
-            self.r,
-            self.lo,
-            self.hi,
-            nbx,
-            nby,
-            self.settings.skin,
-            self._cnt,
-            self.start,
-        )
+        args = (self._cstart, binstart, p.x, p.y, p.r, lo, hi, xy, nbx, nby, self.settings.skin, self._cnt, self._start)
 
         def tail():  # the list buffers (replaced when they grow) and the hand-over table
-            return (self.ni, self.nj, self.code, *self.hist, sp_cnt, o, self._hstart, self._hj, self._hh)
+            return (self._ni, self._nj, self._code, *self._hist, sp_cnt, o, self._hstart, self._hj, self._hh)
 
         m = -1
         if not self._parallel:  # one pass into the buffers as they are; -1: too small
-            m = FK.pairs_direct(*args[:-2], self.start, *tail())
+            m = FK.pairs_direct(*args[:-2], self._start, *tail())
         elif per_band is not None:
             # one pass per band on the threads, each band into a region sized from the last list's
             # entries per particle of that band (of the whole list when the bands changed) times
             # BAND_SLACK plus BAND_PAD, then the bands moved together; a band that does not fit
             # sends the whole build to the count and fill passes below
             per = per_band if per_band.size == nb else np.full(nb, self.n_entries / n)
-            cap = (np.diff(self.cstart) * (per * BAND_SLACK)).astype(np.int64) + BAND_PAD
+            cap = (np.diff(self._cstart) * (per * BAND_SLACK)).astype(np.int64) + BAND_PAD
             base = np.zeros(nb + 1, np.int64)
             np.cumsum(cap, out=base[1:])
-            if self.nj.size < base[-1]:
+            if self._nj.size < base[-1]:
                 self._grow(int(base[-1] * GROWTH) + 16)
             used = np.zeros(nb, np.int64)
             with self._kernels():
-                FK.pairs_banded(*args[:-2], self.start, *tail(), base, used)
+                FK.pairs_banded(*args[:-2], self._start, *tail(), base, used)
             if used.min() >= 0:
-                m = FK.close_gaps(self.cstart, base, used, self.start, self.ni, self.nj, self.code, *self.hist)
+                m = FK.close_gaps(self._cstart, base, used, self._start, self._ni, self._nj, self._code, *self._hist)
                 self.n_banded_builds += 1
         if m < 0:
             with self._kernels():
                 pairs(0, *args, *tail())  # count
-                m = FK.prefix(self._cnt, self.start)
-                if self.nj.size < m:
+                m = FK.prefix(self._cnt, self._start)
+                if self._nj.size < m:
                     self._grow(int(m * GROWTH) + 16)
                 pairs(1, *args, *tail())  # fill
         np.cumsum(sp_cnt, out=self._sp_start[1:])
+        self._size_spill()
+        self.n_entries = int(m)
+        p.xh[:] = p.x
+        p.yh[:] = p.y
+        self._hold()
+        self._build_step = self.step
+        self.n_rebuilds += 1
+
+    def _hold(self):
+        """The box at this list build (the rebuild test measures the box's motion from it)."""
+        c = self._cell
+        if self._sheared:
+            c.box_hold[:] = self.box
+            SK.box_corners(self.box, c.corners_hold)
+        else:
+            c.lo_hold[:] = self.lo
+            c.hi_hold[:] = self.hi
+
+    def _size_spill(self):
         ns = int(self._sp_start[-1])
         if self._sp_j.size < ns:
             cap = int(ns * GROWTH) + 16
             self._sp_j, self._sp_f = np.zeros(cap, np.int32), np.zeros((cap, 3))
-        self.n_entries = int(m)
         self._nspill = ns
-        self.xh[:] = self.x
-        self.yh[:] = self.y
-        self.lo_hold[:] = self.lo
-        self.hi_hold[:] = self.hi
-        self.n_rebuilds += 1
 
     def _grow(self, cap: int):
         """New list buffers of ``cap`` entries (the old list is not needed any more: its springs
         are in the hand-over table). The old buffers are released first, so the two never
         coexist (the peak memory of a build that grows the list)."""
-        self.ni = self.nj = self.code = self.hist = None
-        self.ni = np.zeros(cap, np.int32)
-        self.nj = np.zeros(cap, np.int32)
-        self.code = np.zeros(cap, np.uint8)
-        self.hist = np.zeros((2, cap))
+        self._ni = self._nj = self._code = self._hist = None
+        self._ni = np.zeros(cap, np.int32)
+        self._nj = np.zeros(cap, np.int32)
+        self._code = np.zeros(cap, np.uint8)
+        self._hist = np.zeros((2, cap))
 
     def _spill(self):
         return self._sp_j[: self._nspill], self._sp_f[: self._nspill]
 
     # ------------------------------------------------------------------ stepping
-    def advance(
-        self,
-        nsteps: int,
-        loading: Loading | None = None,
-        phase_step0: int | None = None,
-        phase_box0=None,
-    ) -> dict:
-        """Advance ``nsteps`` steps; returns per-step series as :meth:`DEMEngine.advance`.
-
-        ``loading``: None (fixed box) or a :class:`~gransim.dem.Loading` whose axes are ``fixed``
-        or ``rate`` (L = L0 + rate L0 dt (step - phase_step0) per axis, centred on the box of the
-        phase start ``phase_box0`` = (lo, hi) at ``phase_step0``; defaults: this call's start).
-
-        Returns
-        -------
-        dict: ``step`` (n,), ``stress`` (n, 2, 2) Love stress (compression positive, N/m in 2D,
-        virial / area of the box after the step), ``lengths`` (n, 2) m, ``n_contacts`` (n,),
-        ``mean_overlap`` (n,) m, ``kinetic_energy`` (n,) J, ``virial`` (n, 4) N m (xx, yy, xy,
-        yx), ``rebuilds`` (int, list builds during the call).
-        """
-        try:
-            nsteps = int(nsteps)
-        except (TypeError, ValueError):
-            raise InputError(f"nsteps: expected a whole number of steps >= 0, got {nsteps!r}") from None
-        if nsteps < 0:
-            raise InputError(f"nsteps: expected a whole number of steps >= 0, got {nsteps}")
-        if loading is None:
-            loading = Loading()
-        if not isinstance(loading, Loading):
-            raise InputError(
-                f"loading: expected None or a Loading with fixed/rate axes, got "
-                f"{type(loading).__name__} (a PrescribedBox needs DEMEngine)"
-            )
-        axes = (loading.x, loading.y)
-        if any(a.mode == "servo" for a in axes):
-            raise InputError(
-                "loading: the fast DEM path has no stress servo (axis mode 'servo'); use "
-                "'fixed' or 'rate', or DEMEngine"
-            )
-        modes = np.array([1 if a.mode == "rate" else 0 for a in axes], np.int64)
-        rates = np.array([a.rate for a in axes], np.float64)
-        step0 = self.step if phase_step0 is None else int(phase_step0)
-        lo0, hi0 = (
-            (self.lo.copy(), self.hi.copy())
-            if phase_box0 is None
-            else (
-                np.array(phase_box0[0], np.float64).reshape(2),
-                np.array(phase_box0[1], np.float64).reshape(2),
-            )
-        )
+    def _steps(self, ctl, nsteps: int, check) -> np.ndarray:
+        """``nsteps`` steps under the loading ``ctl`` (the cell's: kernels.Control or
+        sheared_kernels.Deform), list rebuilds in between; ``check(out, done, k, box_before)``
+        runs the divergence check after each block of k steps. Returns the rows of
+        :func:`fast_kernels.run_steps` ((nsteps, OUT_COLUMNS))."""
         s = self.settings
-        out = np.zeros((nsteps, 9))
-        done, resume, r0, first = 0, False, self.n_rebuilds, self.step
+        out = np.zeros((nsteps, FK.OUT_COLUMNS))
+        done, resume = 0, False
         while done < nsteps:
+            before = self.box.copy() if self._sheared else (self.hi - self.lo)
             sp_j, sp_f = self._spill()
             with self._kernels():
                 k, status, bad = FK.run_steps(
-                    self._parallel,
-                    FK.FastParticles(
-                        self.x, self.y, self.vx, self.vy, self.w, self.fx, self.fy, self.t, self.m, self.r,
-                        self.xh, self.yh,
-                    ),
-                    FK.FastList(self.cstart, self.start, self.ni, self.nj, self.code, self.hist[0], self.hist[1]),
-                    FK.FastBox(self.lo, self.hi, self.lo_hold, self.hi_hold, modes, rates, lo0, hi0, step0),
-                    (s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt),
-                    s.skin,
-                    FK.FastScratch(self._sp_start, sp_j, sp_f, self._acc, self._red),
-                    out[done:],
-                    self.step,
-                    nsteps - done,
-                    resume,
+                    self._parallel, self.ps, self._list(), self._cell, ctl, self.law, s.dt, s.skin, self._clamp,
+                    FK.FastScratch(self._sp_start, sp_j, sp_f, self._acc, self._red), out[done:], self.step,
+                    nsteps - done, resume,
                 )  # fmt: skip
+            if k:
+                check(out, done, k, before)
             done += k
             self.step += k
+            resume = False
             if status == 1:
+                self._check_lost()
+                self.step += 1  # the build belongs to the next step (the messages name it)
                 self._rebuild(carry=True)
+                self.step -= 1
                 resume = True
             elif status == 2:
-                raise SimulationError(f"step {self.step + 1}: particle {int(self.perm[bad])} has a non-finite position")
-            else:
-                resume = False
-        area = out[:, 6] * out[:, 7]
+                i = int(self.perm[bad])
+                raise SimulationError(
+                    f"step {self.step + 1}: particle {i} has a non-finite position "
+                    f"{[self.ps.x[bad], self.ps.y[bad]]} (velocity {[self.ps.vx[bad], self.ps.vy[bad]]})"
+                )
+            elif status == 3:
+                what = (
+                    f"the cell collapsed or its tilt passed Lx/2 (box {self.box.tolist()}; LAMMPS would flip "
+                    "the box, not supported)"
+                    if self._sheared
+                    else "the cell collapsed"
+                )
+                raise SimulationError(f"step {self.step + 1}: {what}")
+        if nsteps:
+            self.virial[:] = out[-1, :4]
+            self.n_contacts = round(float(out[-1, 4]))
+            self.mean_overlap = float(out[-1, 5] / out[-1, 4]) if out[-1, 4] else 0.0
+            self.stress = self.stress_tensor()
+        return out
+
+    def advance(self, *args, **kwargs) -> dict:
+        """Orthogonal cell: ``advance(loading, nsteps=1, phase_step0=0, phase_box0=None)``, the
+        semantics and the returned series of :meth:`gransim.dem.DEMEngine.advance` (a
+        :class:`~gransim.dem.Loading` with fixed, rate or servo axes, or a
+        :class:`~gransim.dem.PrescribedBox`). Sheared cell: ``advance(nsteps)`` of the run begun by
+        :meth:`start_run`, those of :meth:`gransim.dem.sheared.ShearEngine.advance`."""
+        if self._sheared:
+            return self._advance_sheared(*args, **kwargs)
+        return self._advance_orthogonal(*args, **kwargs)
+
+    def _advance_orthogonal(self, loading, nsteps=1, phase_step0=0, phase_box0=None) -> dict:
+        if not isinstance(loading, (Loading, PrescribedBox)):
+            raise InputError(f"loading: expected a Loading or a PrescribedBox, got {type(loading).__name__}")
+        nsteps = as_int(nsteps, "nsteps", 0)
+        if phase_box0 is None:
+            phase_box0 = (self.lo.copy(), self.hi.copy())
+        lo0 = np.array(phase_box0[0], np.float64).reshape(2)
+        hi0 = np.array(phase_box0[1], np.float64).reshape(2)
+        ctl = _control(loading, self.step, nsteps, lo0, hi0, int(phase_step0))
+        first = self.step
+
+        out = self._steps(ctl, nsteps, self._check_orthogonal)
+        area = out[:, 7] * out[:, 8]
         st = np.empty((nsteps, 2, 2))
         st[:, 0, 0] = out[:, 0] / area
         st[:, 1, 1] = out[:, 1] / area
         st[:, 0, 1] = out[:, 2] / area
         st[:, 1, 0] = out[:, 3] / area
-        if nsteps:
-            self._vir = out[-1, :4].copy()
-            self._last = {"contacts": round(float(out[-1, 4]))}
         nc = out[:, 4]
         return {
             "step": np.arange(first + 1, first + nsteps + 1),
             "stress": st,
-            "lengths": out[:, 6:8].copy(),
+            "lengths": out[:, 7:9].copy(),
             "n_contacts": np.rint(nc).astype(np.int64),
             "mean_overlap": np.divide(out[:, 5], nc, out=np.zeros(nsteps), where=nc > 0),
-            "kinetic_energy": out[:, 8].copy(),
+            "kinetic_energy": out[:, 6].copy(),
             "virial": out[:, :4].copy(),
-            "rebuilds": self.n_rebuilds - r0,
         }
 
-    # ------------------------------------------------------------------ outputs (original order)
+    def start_run(self, loading: ShearLoading, nsteps: int):
+        """Sheared cell: begin a LAMMPS ``run nsteps`` under ``loading``, as the code order's sheared
+        cell: ``fix deform`` init (the start and stop tilt of the style over the run,
+        :func:`gransim.dem.sheared.tilt_stop`; h_rate[5] = (tilt_stop - tilt_start)/(nsteps dt)
+        for the linear styles, 0 for trate until its first change; h_rate[1] = 0 until the first
+        servo change), then the run's set-up (wrap with this run's h_rate, list with the springs
+        handed over, forces without spring increment). Returns the set-up stress (2, 2),
+        compression positive."""
+        if not self._sheared:
+            raise InputError("start_run: for cell='sheared'; an orthogonal cell advances with advance(loading, nsteps)")
+        if not isinstance(loading, ShearLoading):
+            raise InputError(f"loading: expected a ShearLoading (the sheared cell), got {type(loading).__name__}")
+        nsteps = as_int(nsteps, "nsteps", 1)
+        if not self._lmp and (loading.moves_tilt or loading.y != "fixed"):
+            raise InputError("flavour 'liggghts': only a fixed box (xy erate 0, y fixed) is supported")
+        begin = self.step
+        end = begin + nsteps
+        delt = float(end - begin) * self.settings.dt
+        b = self.box
+        tilt0 = float(b[4])
+        if loading.xy == "trate" and tilt0 == 0.0:
+            raise InputError(
+                "loading: xy trate on a cell without tilt (the tilt grows as xy0 exp(rate t); "
+                "LAMMPS stops too: 'Cannot use fix deform trate on a box with zero tilt')"
+            )
+        stop = tilt_stop(loading.xy, loading.value, tilt0, float(b[3] - b[1]), delt)
+        self.h_rate[:] = 0.0
+        if not loading.moves_tilt:
+            style = SK.XY_NONE
+        elif loading.xy == "trate":
+            style = SK.XY_TRATE
+        else:
+            style = SK.XY_LINEAR
+            self.h_rate[2] = (stop - tilt0) / delt
+        self._run = {
+            "begin": begin, "end": end, "style": style, "tilt_start": tilt0, "tilt_stop": stop,
+            "y_lo": float(b[1]), "y_hi": float(b[3]), "ly0": float(b[3] - b[1]), "loading": loading,
+        }  # fmt: skip
+        self._rebuild(carry=True)
+        self._forces(update=False)
+        self._reset_energy_budget()  # the divergence check's balance starts with the run
+        return self.stress.copy()
+
+    def _deform(self):
+        """The :data:`gransim.dem.sheared_kernels.Deform` of the current run (as ShearEngine.advance)."""
+        run = self._run
+        ld = run["loading"]
+        s = self.settings
+        return SK.Deform(
+            int(run["begin"]), int(run["end"]), int(ld.every), int(run["style"]), float(run["tilt_start"]),
+            float(run["tilt_stop"]), float(ld.value), ld.y == "servo", float(run["y_lo"]), float(run["y_hi"]),
+            float(run["ly0"]), s.dt * ld.gain, float(ld.gain), float(ld.target),
+        )  # fmt: skip
+
+    def _advance_sheared(self, nsteps) -> dict:
+        if self._run is None:
+            raise InputError("advance: call start_run(loading, nsteps) first (the fix deform of the run)")
+        run = self._run
+        nsteps = as_int(
+            nsteps,
+            "nsteps",
+            0,
+            run["end"] - self.step,
+            note=f" (the run ends at step {run['end']}, now at step {self.step})",
+        )
+        first = self.step
+
+        out = self._steps(self._deform(), nsteps, self._check_sheared)
+        area = out[:, 7] * out[:, 8]
+        st = np.empty((nsteps, 2, 2))
+        st[:, 0, 0] = out[:, 0] / area
+        st[:, 1, 1] = out[:, 1] / area
+        st[:, 0, 1] = out[:, 2] / area
+        st[:, 1, 0] = out[:, 3] / area
+        nc = out[:, 4]
+        return {
+            "step": np.arange(first + 1, first + nsteps + 1),
+            "stress": st,
+            "virial": out[:, :4].copy(),
+            "box": out[:, 7:12].copy(),
+            "n_contacts": np.rint(nc).astype(np.int64),
+            "mean_overlap": np.divide(out[:, 5], nc, out=np.zeros(nsteps), where=nc > 0),
+            "kinetic_energy": out[:, 6].copy(),
+        }
+
+    # ------------------------------------------------------------------ checks and energies
+    def _check_orthogonal(self, out, done: int, k: int, L_before):
+        """The divergence check (the energy balance of the code order's ``_check_energy``) over the
+        k steps from row ``done`` of ``out``, with the work of the orthogonal cell per step
+        -(V_xx dLx/Lx + V_yy dLy/Ly) (V the virial of the step, N m; ``L_before`` the lengths
+        before the first), the orthogonal cell's of the code order."""
+        rows = out[done : done + k]
+        L1 = rows[:, 7:9]
+        L0 = np.vstack([np.asarray(L_before)[None], L1[:-1]])
+        dw = -(rows[:, 0] * (L1[:, 0] - L0[:, 0]) / L0[:, 0] + rows[:, 1] * (L1[:, 1] - L0[:, 1]) / L0[:, 1])
+        self._check_energy(self.step + 1, rows[:, 6], rows[:, 6], dw)
+
+    def _check_sheared(self, out, done: int, k: int, box_before):
+        """The divergence check of the sheared cell (the code order's): every step's kinetic energy
+        finite, the one relative to the flow at the last step within the budget that counts the
+        flow's kinetic energy too, the work of the cell per step -(V_xx dLx/Lx + V_yy dLy/Ly +
+        V_yx (dxy - xy dLx/Lx)/Ly) (the velocity gradient dH H^-1 of the box change, H = [[Lx,
+        xy], [0, Ly]])."""
+        rows = out[done : done + k]
+        b1 = rows[:, 7:10]  # lx, ly, xy after each step
+        b = box_before
+        b0 = np.vstack([[b[2] - b[0], b[3] - b[1], b[4]], b1[:-1]])
+        dlx = (b1[:, 0] - b0[:, 0]) / b0[:, 0]
+        dly = (b1[:, 1] - b0[:, 1]) / b0[:, 1]
+        dxy = (b1[:, 2] - b0[:, 2] - b0[:, 2] * dlx) / b0[:, 1]
+        dw = -(rows[:, 0] * dlx + rows[:, 1] * dly + rows[:, 3] * dxy)
+        ke = np.full(k, np.nan)
+        ke[-1] = self._budget_kinetic_energy()
+        self._check_energy(self.step + 1, rows[:, 6], ke, dw, flow=self._flow_kinetic_energy())
+
+    def _check_lost(self):
+        """Before a rebuild: a particle that moved more than LOST_DISPLACEMENT_SKINS skins since
+        the last build (EngineCore._check_lost, on the sorted state)."""
+        p = self.ps
+        i, di = K.largest_displacement(np.stack((p.x, p.y), axis=1), np.stack((p.xh, p.yh), axis=1))
+        skin = self.settings.skin
+        if di > LOST_DISPLACEMENT_SKINS * skin:
+            raise SimulationError(
+                f"step {self.step + 1}: particle {int(self.perm[i])} lost: it moved {di:.4g} m = {di / skin:.3g} "
+                f"skins since the neighbour build of step {self._build_step}, more than a skin "
+                f"({skin:.4g} m) in one step (velocity {[p.vx[i], p.vy[i]]} m/s, dt {self.settings.dt:.4g} s)"
+            )
+
+    def _flow(self):
+        """(u_x, u_y) (N,) of the sheared cell's homogeneous flow at the sorted particles (m/s)."""
+        b = self.box
+        f = (self.ps.y - b[1]) / (b[3] - b[1])
+        return self.h_rate[2] * f, self.h_rate[1] * f
+
+    def _budget_kinetic_energy(self) -> float:
+        """The kinetic energy the divergence check bounds (J): a sheared cell's relative to its
+        flow (ShearEngine._budget_kinetic_energy), an orthogonal cell's as it is."""
+        p = self.ps
+        ux, uy = self._flow() if self._sheared else (0.0, 0.0)
+        ax, ay = p.vx - ux, p.vy - uy
+        return float(0.5 * np.sum(p.m * (ax * ax + ay * ay)) + 0.25 * np.sum(p.m * p.r**2 * p.w**2))
+
+    def _flow_kinetic_energy(self) -> float:
+        """Kinetic energy (J) of the sheared cell's flow at the particles (ShearEngine's)."""
+        ux, uy = self._flow()
+        return float(0.5 * np.sum(self.ps.m * (ux * ux + uy * uy)))
+
+    def peculiar_velocities(self) -> np.ndarray:
+        """Sheared cell: v - u(x) (m/s), (N, 2), original order (ShearEngine.peculiar_velocities)."""
+        ux, uy = self._flow()
+        return self._orig(self.ps.vx - ux, self.ps.vy - uy)
+
+    def _shifts(self, e) -> np.ndarray:
+        """Image shifts s (K, 2) int64 of the entries ``e``: j's image at x_j + C s."""
+        c = self._code[e].astype(np.int64)
+        return np.stack((c % 3 - 1, c // 3 - 1), axis=1)
+
+    def _touching(self):
+        """Entries of the touching pairs (each pair once) and their overlaps (m), the images from
+        the current box."""
+        m = self.n_entries
+        p = self.ps
+        ni, nj = self._ni[:m], self._nj[:m]
+        s = self._shifts(slice(0, m)).astype(np.float64)
+        img = self._image()
+        xy = img.xy if self._sheared else 0.0
+        dx = p.x[ni] - ((p.x[nj] + s[:, 0] * img.Lx) + s[:, 1] * xy)
+        dy = p.y[ni] - (p.y[nj] + s[:, 1] * img.Ly)
+        dist = np.sqrt(dx * dx + dy * dy)
+        rs = p.r[ni] + p.r[nj]
+        e = np.flatnonzero(dist < rs)
+        return e, rs[e] - dist[e]
+
+    def contacts(self):
+        """Touching pairs, each once (i < j, original indices): dict of i, j, shift (l_ij = x_j +
+        C shift - x_i), force on j (N), overlap (m), tangential spring (frame of i, m), sliding.
+
+        The force is the law's at the current state with the springs as they are (a set-up
+        evaluation), not the one applied in the last step as the code order stores it: the fast
+        ordering keeps no per-entry forces (memory: 24 B a list entry); the elastic part is the
+        same, the damping part differs by the velocity change of the last half step."""
+        m = self.n_entries
+        p = self.ps
+        f = np.zeros((m, 4))
+        with disk_cache_off(self._no_cache):
+            FK.entry_forces(
+                self.law, self._image(), self.settings.dt, self._ni[:m], self._nj[:m], self._code[:m],
+                self._hist[0, :m], self._hist[1, :m], p.x, p.y, p.vx, p.vy, p.w, p.r, p.m, f,
+            )  # fmt: skip
+        e, ov = self._touching()
+        i = self.perm[self._ni[e]].astype(np.int64)
+        j = self.perm[self._nj[e]].astype(np.int64)
+        shift = self._shifts(e)
+        force = -f[e, :2]  # on j
+        spring = self._hist[:, e].T.copy()
+        swap = i > j
+        i[swap], j[swap] = j[swap], i[swap]
+        shift[swap] *= -1
+        force[swap] *= -1.0
+        spring[swap] *= -1.0
+        return {
+            "i": i,
+            "j": j,
+            "shift": shift,
+            "force": force,
+            "overlap": ov,
+            "tangential_spring": spring,
+            "sliding": f[e, 2] != 0.0,
+        }
+
+    # ------------------------------------------------------------------ checkpoint
+    def state_arrays(self) -> dict:
+        """Everything needed to continue bit for bit (a checkpoint), in the sorted order inside:
+        the particles, their permutation, the list with its springs, the bands, the box and its
+        value at the last build, the virial; a sheared cell also its h_rate, the corners at the
+        build and its run (the fix deform's parameters, the loading as JSON bytes)."""
+        p = self.ps
+        m = self.n_entries
+        out = {f"sorted/{k}": getattr(p, k) for k in ("x", "y", "vx", "vy", "w", "fx", "fy", "t", "xh", "yh")}
+        out.update(
+            {
+                "sorted/perm": self.perm,
+                "list/cstart": self._cstart,
+                "list/start": self._start,
+                "list/ni": self._ni[:m],
+                "list/nj": self._nj[:m],
+                "list/code": self._code[:m],
+                "list/h0": self._hist[0, :m],
+                "list/h1": self._hist[1, :m],
+                "list/spill_start": self._sp_start,
+                "virial": self.virial,
+                "build_step": np.array(self._build_step, np.int64),
+            }
+        )
+        c = self._cell
+        if self._sheared:
+            out.update({"box": self.box, "box_hold": c.box_hold, "h_rate": self.h_rate, "corners_hold": c.corners_hold})
+            if self._run is not None:
+                run = {k: v for k, v in self._run.items() if k != "loading"}
+                run["loading"] = self._run["loading"].to_dict()
+                out["run_json"] = np.frombuffer(json.dumps(run, sort_keys=True).encode(), np.uint8)
+        else:
+            out.update({"box_lo": self.lo, "box_hi": self.hi, "box_lo_hold": c.lo_hold, "box_hi_hold": c.hi_hold})
+        return {k: np.array(v) for k, v in out.items()}
+
+    def restore(self, arrays: dict, step: int):
+        """Inverse of :meth:`state_arrays` on an engine of the same packing, settings, law and
+        cell: the run continues with the bits of the run that wrote them (on any thread count)."""
+        n = self.n
+        try:
+            got = {k: np.asarray(v) for k, v in arrays.items()}
+            perm = np.array(got["sorted/perm"], np.int32).reshape(n)
+            fields = {k: np.array(got[f"sorted/{k}"], np.float64).reshape(n) for k in ("x", "y", "vx", "vy", "w")}
+            fields.update({k: np.array(got[f"sorted/{k}"], np.float64).reshape(n) for k in ("fx", "fy", "t")})
+            fields.update({k: np.array(got[f"sorted/{k}"], np.float64).reshape(n) for k in ("xh", "yh")})
+            ni = np.array(got["list/ni"], np.int32).reshape(-1)
+            m = ni.size
+            nj = np.array(got["list/nj"], np.int32).reshape(m)
+            code = np.array(got["list/code"], np.uint8).reshape(m)
+            h0 = np.array(got["list/h0"], np.float64).reshape(m)
+            h1 = np.array(got["list/h1"], np.float64).reshape(m)
+            cstart = np.array(got["list/cstart"], np.int32).reshape(-1)
+            start = np.array(got["list/start"], np.int32).reshape(n + 1)
+            sp_start = np.array(got["list/spill_start"], np.int64).reshape(cstart.size)
+            virial = np.array(got["virial"], np.float64).reshape(4)
+            build_step = int(got["build_step"])
+        except KeyError as exc:
+            raise InputError(
+                f"restore: the checkpoint lacks {exc.args[0]!r} (not a fast-ordering checkpoint?)"
+            ) from None
+        except ValueError as exc:
+            raise InputError(f"restore: the checkpoint does not fit this engine ({n} particles): {exc}") from None
+        if np.any(np.sort(perm) != np.arange(n)):
+            raise InputError("restore: sorted/perm is not a permutation of the particles")
+        self.perm = perm
+        self.ps = FK.FastParticles(
+            fields["x"], fields["y"], fields["vx"], fields["vy"], fields["w"], fields["fx"], fields["fy"],
+            fields["t"], self._m0[perm], self._r0[perm], fields["xh"], fields["yh"],
+        )  # fmt: skip
+        self._grow(int(m * GROWTH) + 16)
+        self._ni[:m], self._nj[:m], self._code[:m] = ni, nj, code
+        self._hist[0, :m], self._hist[1, :m] = h0, h1
+        self._cstart, self._start, self._sp_start = cstart, start, sp_start
+        self._acc = np.zeros((cstart.size - 1, 6))
+        self._red = np.zeros((cstart.size - 1, 3))
+        self._size_spill()
+        self.n_entries = m
+        c = self._cell
+        if self._sheared:
+            self.box[:] = np.asarray(got["box"], np.float64).reshape(5)
+            c.box_hold[:] = np.asarray(got["box_hold"], np.float64).reshape(5)
+            self.h_rate[:] = np.asarray(got["h_rate"], np.float64).reshape(3)
+            c.corners_hold[:] = np.asarray(got["corners_hold"], np.float64).reshape(8, 2)
+            self._run = None
+            if "run_json" in got:
+                run = json.loads(np.asarray(got["run_json"], np.uint8).tobytes().decode())
+                run["loading"] = ShearLoading(**run["loading"])
+                self._run = run
+        else:
+            self.lo[:] = np.asarray(got["box_lo"], np.float64).reshape(2)
+            self.hi[:] = np.asarray(got["box_hi"], np.float64).reshape(2)
+            c.lo_hold[:] = np.asarray(got["box_lo_hold"], np.float64).reshape(2)
+            c.hi_hold[:] = np.asarray(got["box_hi_hold"], np.float64).reshape(2)
+        self.virial[:] = virial
+        self.step = int(step)
+        self._build_step = build_step
+        self.stress = self.stress_tensor()
+        self._reset_energy_budget()
+
+    # ------------------------------------------------------------------ views (original order)
     def _orig(self, *arrays) -> np.ndarray:
         out = np.empty((self.n, len(arrays)))
         col = np.empty(self.n)
@@ -467,86 +858,51 @@ class FastEngine:
             out[:, k] = col
         return out
 
-    @property
-    def positions(self) -> np.ndarray:
-        """(N, 2) m, original particle order, inside the box [lo, hi) after the last list build."""
-        return self._orig(self.x, self.y)
-
-    @property
-    def velocities(self) -> np.ndarray:
-        """(N, 2) m/s, original order."""
-        return self._orig(self.vx, self.vy)
-
-    @property
-    def spins(self) -> np.ndarray:
-        """(N,) rad/s, original order."""
-        return self._orig(self.w)[:, 0]
-
-    @property
-    def forces(self) -> np.ndarray:
-        """(N, 2) N of the last step, original order."""
-        return self._orig(self.fx, self.fy)
-
-    @property
-    def torques(self) -> np.ndarray:
-        """(N,) N m of the last step, original order."""
-        return self._orig(self.t)[:, 0]
+    x = property(lambda self: self._orig(self.ps.x, self.ps.y), doc="positions (N, 2), m, original order (a copy)")
+    v = property(lambda self: self._orig(self.ps.vx, self.ps.vy), doc="velocities (N, 2), m/s (a copy)")
+    w = property(lambda self: self._orig(self.ps.w)[:, 0], doc="spins (N,), rad/s (a copy)")
+    f = property(lambda self: self._orig(self.ps.fx, self.ps.fy), doc="forces of the last step (N, 2), N (a copy)")
+    t = property(lambda self: self._orig(self.ps.t)[:, 0], doc="torques of the last step (N,), N m (a copy)")
+    m = property(lambda self: self._m0, doc="masses (N,), kg")
+    r = property(lambda self: self._r0, doc="radii (N,), m")
+    xhold = property(lambda self: self._orig(self.ps.xh, self.ps.yh), doc="positions at the last build (N, 2), m")
+    ea = property(lambda self: self.perm[self._ni[: self.n_entries]], doc="first particle of each entry (M,)")
+    eb = property(lambda self: self.perm[self._nj[: self.n_entries]], doc="second particle of each entry (M,)")
+    xi = property(lambda self: self._hist[:, : self.n_entries].T, doc="spring of each entry (M, 2), m, frame of ea")
 
     @property
     def box_lengths(self) -> np.ndarray:
-        return self.hi - self.lo
+        lo, hi, _ = self._box_corners()
+        return hi - lo
 
     @property
-    def stress(self) -> np.ndarray:
-        """Love stress of the last step (2, 2), compression positive (N/m in 2D), as DEMEngine.stress."""
+    def cell(self) -> np.ndarray:
+        """Current cell (2, 2), m, the lattice vectors as columns."""
         L = self.box_lengths
-        v = self._vir / (L[0] * L[1])
-        return np.array([[v[0], v[2]], [v[3], v[1]]])
+        return np.array([[L[0], self.box[4] if self._sheared else 0.0], [0.0, L[1]]])
 
     @property
-    def n_contacts(self) -> int:
-        return self._last["contacts"]
+    def area(self) -> float:
+        L = self.box_lengths
+        return float(L[0] * L[1])
 
-    def kinetic_energy(self) -> float:
-        """Translational + rotational (I = m r^2/2) kinetic energy (J)."""
-        return float(0.5 * np.sum(self.m * (self.vx**2 + self.vy**2)) + 0.25 * np.sum(self.m * self.r**2 * self.w**2))
+    def stress_tensor(self, L=None) -> np.ndarray:
+        """Love stress of the virial held (2, 2), compression positive (N/m in 2D): virial / the
+        area of the box lengths ``L`` (default: the current box)."""
+        L = self.box_lengths if L is None else L
+        v = self.virial / (L[0] * L[1])
+        return np.array([[v[0], v[2]], [v[3], v[1]]])
 
     def memory_bytes(self) -> dict:
         """Bytes held by the engine's arrays: particles, list (capacity), hand-over table, rest."""
-        part = sum(
-            a.nbytes
-            for a in (
-                self.x,
-                self.y,
-                self.vx,
-                self.vy,
-                self.w,
-                self.fx,
-                self.fy,
-                self.t,
-                self.r,
-                self.m,
-                self.xh,
-                self.yh,
-                self.perm,
-            )
-        )
-        lst = self.ni.nbytes + self.nj.nbytes + self.code.nbytes + self.hist.nbytes + self.start.nbytes
+        part = sum(a.nbytes for a in self.ps) + self.perm.nbytes + self._r0.nbytes + self._m0.nbytes
+        lst = self._ni.nbytes + self._nj.nbytes + self._code.nbytes + self._hist.nbytes + self._start.nbytes
         hand = self._hj.nbytes + self._hh.nbytes + self._hstart.nbytes
         rest = sum(
             a.nbytes
-            for a in (
-                self._order,
-                self._key,
-                self._tmpf,
-                self._tmpi,
-                self._cnt,
-                self._binstart,
-                self._sp_j,
-                self._sp_f,
-            )
+            for a in (self._order, self._key, self._tmpf, self._tmpi, self._cnt, self._binstart, self._sp_j, self._sp_f)
         )
         return {"particles": part, "list": lst, "hand_over": hand, "scratch": rest}
 
 
-__all__ = ["FastEngine", "dynamic_chunks"]
+__all__ = ["CELLS", "FastEngine", "dynamic_chunks"]

@@ -37,31 +37,52 @@ import math
 from collections import namedtuple
 
 import numpy as np
+from numba.extending import overload
 
 from .._numba import njit, pjit, prange
-from ..contacts.hooke import hooke_select_liggghts
+from ..contacts.laws import pair_select
+from . import kernels as K
+from . import sheared_kernels as SK
+
+# ------------------------------------------------------------------------------- the cells
+#: the image of an orthogonal cell in the force loop: side lengths Lx, Ly (m); the image of j with
+#: shift s lies at x_j + (s_x Lx, s_y Ly) and moves with v_j (``fix deform ... remap x``)
+FastOrtho = namedtuple("FastOrtho", ["Lx", "Ly"])
+#: the image of a sheared (LAMMPS triclinic) cell: Lx, Ly, the tilt xy (m) and the velocity jump
+#: across the y boundary ux = h_rate[5], uy = h_rate[1] (m/s): the image of j lies at
+#: x_j + s_x (Lx, 0) + s_y (xy, Ly) and moves with v_j + s_y (ux, uy) (Lees-Edwards, ``remap v``)
+FastTilted = namedtuple("FastTilted", ["Lx", "Ly", "xy", "ux", "uy"])
 
 
-# ----------------------------------------------------------------------------------- the law
-@njit(inline="always")
-def hooke_select(
-    delx, dely, rsq, radsum, ri, rj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gn, gt, mu, dt, s0, s1, update
-):  # fmt: skip
-    """LIGGGHTS' Hooke pair as the fast path sums it: the branch-free law of the bitwise engine
-    (:func:`gransim.contacts.hooke.hooke_select_liggghts`: the same function), its
-    force, torques and overlap masked to zero when the disks do not touch (the fast loop sums
-    every entry). ``radsum`` = r_i + r_j (the law adds the radii itself, in the same order).
+def image(img, xj, yj, vxj, vyj, sx, sy):
+    """Position and velocity of the image (s_x, s_y) of a particle at (xj, yj) moving with
+    (vxj, vyj) in the cell ``img`` (:data:`FastOrtho` or :data:`FastTilted`, resolved at compile
+    time by its type): (x, y, vx, vy) in m and m/s, in the operation order of
+    :func:`gransim.dem.kernels.tilted_image` (x_j + s_x Lx, then + s_y xy). Interpreted fallback."""
+    if isinstance(img, FastOrtho):
+        return xj + sx * img.Lx, yj + sy * img.Ly, vxj, vyj
+    return (xj + sx * img.Lx) + sy * img.xy, yj + sy * img.Ly, vxj + sy * img.ux, vyj + sy * img.uy
 
-    Returns (touch, fx, fy, ti, tj, s0, s1, overlap): touch 1.0 when the disks touch
-    (rsq < radsum^2) else 0.0 (a float, not a bool: a bool taken out of the returned tuple counts
-    as an alias to numba's parfor analysis and keeps the caller's loop from vectorising), force on
-    i (N; zero when apart), torques on i and j (N m), the spring (m; unchanged when apart) and the
-    overlap radsum - |d| (m; zero when apart).
-    """
-    touch, fx, fy, ti, tj, u0, u1, _, dn = hooke_select_liggghts(
-        delx, dely, rsq, ri, rj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gn, gt, mu, dt, s0, s1, update
-    )
-    return touch, touch * fx, touch * fy, touch * ti, touch * tj, u0, u1, touch * dn
+
+def _kind(ty):
+    return getattr(ty, "instance_class", None)
+
+
+@overload(image, inline="always")
+def _ov_image(img, xj, yj, vxj, vyj, sx, sy):
+    if _kind(img) is FastOrtho:
+
+        def ortho(img, xj, yj, vxj, vyj, sx, sy):
+            return xj + sx * img.Lx, yj + sy * img.Ly, vxj, vyj
+
+        return ortho
+    if _kind(img) is FastTilted:
+
+        def tilted(img, xj, yj, vxj, vyj, sx, sy):
+            return (xj + sx * img.Lx) + sy * img.xy, yj + sy * img.Ly, vxj + sy * img.ux, vyj + sy * img.uy
+
+        return tilted
+    return None
 
 
 # ----------------------------------------------------------------------------------- forces
@@ -100,9 +121,9 @@ def forces_v(
     fx,
     fy,
     t,
-    Lx,
-    Ly,
+    img,
     law,
+    dt,
     update,
     sp_start,
     sp_j,
@@ -131,7 +152,6 @@ def forces_v(
     (M,) arrays (a stride-2 pair of loads and stores is not vectorised). Checked by
     tests/dem/test_fast.py (the SIMD instructions in the compiled kernel)."""
     nch = cstart.shape[0] - 1
-    kn, kt, gn, gt, mu, dt = law
     ne = (nch + 1) // 2  # even bands
     ncol = 2 if parallel else 1
     nper = 1 if parallel else nch
@@ -183,43 +203,25 @@ def forces_v(
                         cd = np.uint32(code[e])
                         sx = float(np.int32(cd % np.uint32(3)) - 1)
                         sy = float(np.int32(cd // np.uint32(3)) - 1)
-                        delx = x[i] - (x[j] + sx * Lx)
-                        dely = y[i] - (y[j] + sy * Ly)
+                        xj, yj, vxj, vyj = image(img, x[j], y[j], vx[j], vy[j], sx, sy)
+                        delx = x[i] - xj
+                        dely = y[i] - yj
                         rsq = delx * delx + dely * dely
-                        touch, fxe, fye, tie, tje, s0, s1, dn = hooke_select(
-                            delx,
-                            dely,
-                            rsq,
-                            r[i] + r[j],
-                            r[i],
-                            r[j],
-                            vx[i],
-                            vy[i],
-                            vx[j],
-                            vy[j],
-                            w[i],
-                            w[j],
-                            m[i],
-                            m[j],
-                            kn,
-                            kt,
-                            gn,
-                            gt,
-                            mu,
-                            dt,
-                            h0[e],
-                            h1[e],
-                            update,
-                        )
+                        touch, fxe, fye, tie, tje, s0, s1, _, dn = pair_select(
+                            law, delx, dely, rsq, r[i], r[j], vx[i], vy[i], vxj, vyj, w[i], w[j], m[i], m[j],
+                            dt, h0[e], h1[e], update,
+                        )  # fmt: skip
                         h0[e] = s0
                         h1[e] = s1
-                        bfx[q] = fxe
-                        bfy[q] = fye
-                        bti[q] = tie
-                        btj[q] = tje
+                        # an entry that does not touch adds nothing (the law's values there are
+                        # not forces): masked, not branched, so the loop stays SIMD code
+                        bfx[q] = touch * fxe
+                        bfy[q] = touch * fye
+                        bti[q] = touch * tie
+                        btj[q] = touch * tje
                         bdx[q] = delx
                         bdy[q] = dely
-                        bov[q] = dn
+                        bov[q] = touch * dn
                         bto[q] = touch
                     for i in range(ia, ib):
                         fxi = 0.0
@@ -386,184 +388,285 @@ FastParticles = namedtuple("FastParticles", ["x", "y", "vx", "vy", "w", "fx", "f
 #: the half list (module docstring): cstart (C+1,) the bands, start (N+1,) CSR, ni, nj (M,) int32,
 #: code (M,) uint8, h0, h1 (M,) the spring (m)
 FastList = namedtuple("FastList", ["cstart", "start", "ni", "nj", "code", "h0", "h1"])
-#: the box and its loading: lo, hi (2,) m now, lo_hold, hi_hold (2,) at the last build; modes (2,)
-#: int64 (0 fixed, 1 rate), rates (2,) 1/s, lo0, hi0 (2,) m the box at the phase start, phase_step0
-FastBox = namedtuple("FastBox", ["lo", "hi", "lo_hold", "hi_hold", "modes", "rates", "lo0", "hi0", "phase_step0"])
 #: work arrays: sp_start (C+1,), sp_j, sp_f the spills (:func:`forces_v`), acc (C, 6), red (C, 3)
 FastScratch = namedtuple("FastScratch", ["sp_start", "sp_j", "sp_f", "acc", "red"])
+#: the orthogonal cell (:func:`run_steps`): lo, hi (2,) m now, lo_hold, hi_hold (2,) at the last
+#: list build (updated in place); its loading is a :data:`gransim.dem.kernels.Control`
+OrthoCell = namedtuple("OrthoCell", ["lo", "hi", "lo_hold", "hi_hold"])
+#: the sheared cell (:func:`run_steps`): box (5,) = (lo_x, lo_y, hi_x, hi_y, xy) m and box_hold
+#: (5,) at the last build, hr (3,) = (h_rate[0], h_rate[1], h_rate[5]) m/s, corners_hold (8, 2) m
+#: the box corners at the last build (:func:`gransim.dem.sheared_kernels.box_corners`); its
+#: loading is a :data:`gransim.dem.sheared_kernels.Deform`
+ShearCell = namedtuple("ShearCell", ["box", "box_hold", "hr", "corners_hold"])
+#: columns of a row of :func:`run_steps`' output: virial xx, yy, xy, yx (N m), contacts, sum of
+#: overlaps (m), kinetic energy (J), then the box after the step: lx, ly, xy, ylo, yhi (m)
+OUT_COLUMNS = 12
+
+
+# The cell as a compile-time plug-in of :func:`run_steps` (the type of ``cell`` picks the
+# functions, as the contact law's type picks its pair function): its image in the force loop, its
+# rebuild margin, its change at the end of a step and the box columns of the output rows. Each
+# Python function below is the interpreted fallback (NUMBA_DISABLE_JIT) of its overload.
+def cell_image(cell):
+    """The image plug-in of the force loop (:data:`FastOrtho`, :data:`FastTilted`) for the
+    current box of ``cell``."""
+    if isinstance(cell, OrthoCell):
+        return _ortho_image(cell)
+    return _tilted_image(cell)
+
+
+def cell_deltasq(cell, skin, clamp, corners):
+    """delta^2 (m^2) of the rebuild test |x - x_hold|^2 > delta^2 for the current box of ``cell``
+    (``corners`` (8, 2) scratch): :func:`_ortho_deltasq`, :func:`_tilted_deltasq`."""
+    if isinstance(cell, OrthoCell):
+        return _ortho_deltasq(cell, skin, clamp, corners)
+    return _tilted_deltasq(cell, skin, clamp, corners)
+
+
+def cell_end_of_step(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp):
+    """The box of step ``step`` from the loading ``ctl`` and the virial ``vir`` (4,) of the step:
+    :func:`_ortho_end`, :func:`_tilted_end`. Returns (status, remap): status 0, or 3 for a collapsed
+    cell (or, sheared, a tilt past Lx/2); remap True when the positions are to be mapped affinely
+    from (lo_old, hi_old) to (lo_new, hi_new) (written)."""
+    if isinstance(cell, OrthoCell):
+        return _ortho_end(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp)
+    return _tilted_end(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp)
+
+
+def cell_row(cell, out, k):
+    """out[k, 7:12] = lx, ly, xy, ylo, yhi (m) of the current box of ``cell``."""
+    if isinstance(cell, OrthoCell):
+        _ortho_row(cell, out, k)
+    else:
+        _tilted_row(cell, out, k)
+
+
+@njit(inline="always")
+def _ortho_image(cell):
+    return FastOrtho(cell.hi[0] - cell.lo[0], cell.hi[1] - cell.lo[1])
+
+
+@njit(inline="always")
+def _tilted_image(cell):
+    b = cell.box
+    return FastTilted(b[2] - b[0], b[3] - b[1], b[4], cell.hr[2], cell.hr[1])
+
+
+@njit(inline="always")
+def _ortho_deltasq(cell, skin, clamp, corners):
+    # Neighbor::check_distance of an orthogonal box: the flavour's clamp (kernels.rebuild_deltasq)
+    return K.rebuild_deltasq(cell.lo, cell.hi, cell.lo_hold, cell.hi_hold, skin, clamp)
+
+
+@njit(inline="always")
+def _tilted_deltasq(cell, skin, clamp, corners):
+    # LAMMPS (clamp): the triclinic rule of :func:`corner_deltasq`; LIGGGHTS (no clamp, a box that
+    # does not move): the orthogonal rule on the box corners lo, hi
+    b = cell.box
+    h = cell.box_hold
+    if not clamp:
+        return K.rebuild_deltasq(b[0:2], b[2:4], h[0:2], h[2:4], skin, False)
+    return corner_deltasq(b, cell.corners_hold, skin, corners)
 
 
 @njit
-def run_steps(parallel, p, nl, box, law, skin, sc, out, step0, nsteps, resume):
+def corner_deltasq(box, corners_hold, skin, corners):
+    """delta^2 (m^2) of LAMMPS' triclinic ``Neighbor::check_distance``: the skin reduced by the
+    largest and the 'second' displacement of the 8 box corners since the build (the if / else-if
+    of :func:`gransim.dem.sheared_kernels.check_rebuild_corners`), clamped at zero; ``corners``
+    (8, 2) scratch."""
+    SK.box_corners(box, corners)
+    d1 = 0.0
+    d2 = 0.0
+    for c in range(8):
+        dx = corners[c, 0] - corners_hold[c, 0]
+        dy = corners[c, 1] - corners_hold[c, 1]
+        d = math.sqrt(dx * dx + dy * dy + 0.0)
+        if d > d1:
+            d1 = d
+        elif d > d2:
+            d2 = d
+    delta = max(0.5 * (skin - (d1 + d2)), 0.0)
+    return delta * delta
+
+
+@njit(inline="always")
+def _ortho_end(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp):
+    # the box step of kernels.run_block: a prescribed table row, or each axis's loading
+    # (kernels.box_target: fixed, rate, servo on the stress of this step over the area of the
+    # box before it); the positions remapped when the box changes (a table row: always)
+    lo = cell.lo
+    hi = cell.hi
+    Lx = hi[0] - lo[0]
+    Ly = hi[1] - lo[1]
+    inv = 1.0 / (Lx * Ly)
+    L_old = tmp[0]
+    sig = tmp[1]
+    L_old[0] = Lx
+    L_old[1] = Ly
+    sig[0] = vir[0] * inv
+    sig[1] = vir[1] * inv
+    for d in range(2):
+        lo_old[d] = lo[d]
+        hi_old[d] = hi[d]
+        lo_new[d] = lo[d]
+        hi_new[d] = hi[d]
+    remap = False
+    if ctl.presc:
+        row = step - ctl.presc_step0
+        if ctl.presc_remap[row]:
+            remap = True
+            for d in range(2):
+                lo_new[d] = ctl.presc_lo[row, d]
+                hi_new[d] = ctl.presc_hi[row, d]
+    else:
+        K.box_target(step, L_old, sig, dt, ctl, lo_new, hi_new)
+        if lo_new[0] != lo[0] or lo_new[1] != lo[1] or hi_new[0] != hi[0] or hi_new[1] != hi[1]:
+            remap = True
+    if remap:
+        if not (hi_new[0] - lo_new[0] > 0.0 and hi_new[1] - lo_new[1] > 0.0):
+            return 3, False
+        for d in range(2):
+            lo[d] = lo_new[d]
+            hi[d] = hi_new[d]
+    return 0, remap
+
+
+@njit(inline="always")
+def _tilted_end(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp):
+    # fix deform end_of_step on the steps that are multiples of its N (``remap v``: positions
+    # are not mapped, the image velocities jump instead; sheared_kernels.deform_end_of_step)
+    if step % ctl.every == 0:
+        if not SK.deform_end_of_step(step, ctl, cell.box, cell.hr, vir, dt):
+            return 3, False
+    return 0, False
+
+
+@njit(inline="always")
+def _ortho_row(cell, out, k):
+    out[k, 7] = cell.hi[0] - cell.lo[0]
+    out[k, 8] = cell.hi[1] - cell.lo[1]
+    out[k, 9] = 0.0
+    out[k, 10] = cell.lo[1]
+    out[k, 11] = cell.hi[1]
+
+
+@njit(inline="always")
+def _tilted_row(cell, out, k):
+    b = cell.box
+    out[k, 7] = b[2] - b[0]
+    out[k, 8] = b[3] - b[1]
+    out[k, 9] = b[4]
+    out[k, 10] = b[1]
+    out[k, 11] = b[3]
+
+
+def _pick(cell, ortho, tilted):
+    """The implementation of a cell plug-in for the numba type ``cell`` (None: not a cell)."""
+    if _kind(cell) is OrthoCell:
+        return getattr(ortho, "py_func", ortho)
+    if _kind(cell) is ShearCell:
+        return getattr(tilted, "py_func", tilted)
+    return None
+
+
+@overload(cell_image, inline="always")
+def _ov_cell_image(cell):
+    return _pick(cell, _ortho_image, _tilted_image)
+
+
+@overload(cell_deltasq, inline="always")
+def _ov_cell_deltasq(cell, skin, clamp, corners):
+    return _pick(cell, _ortho_deltasq, _tilted_deltasq)
+
+
+@overload(cell_end_of_step, inline="always")
+def _ov_cell_end_of_step(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp):
+    return _pick(cell, _ortho_end, _tilted_end)
+
+
+@overload(cell_row, inline="always")
+def _ov_cell_row(cell, out, k):
+    return _pick(cell, _ortho_row, _tilted_row)
+
+
+@njit
+def run_steps(parallel, p, nl, cell, ctl, law, dt, skin, clamp, sc, out, step0, nsteps, resume):
     """Steps step0 + 1 .. step0 + nsteps of the fast path, until a list rebuild is needed.
 
-    ``p`` :data:`FastParticles`, ``nl`` :data:`FastList`, ``box`` :data:`FastBox` (lo, hi,
-    lo_hold, hi_hold updated in place), ``law`` = (kn, kt, gamma_n, gamma_t, mu, dt) (N/m, N/m,
-    1/s, 1/s, -, s), ``skin`` (m), ``sc`` :data:`FastScratch`. (The parallel kernels it calls,
+    ``p`` :data:`FastParticles`, ``nl`` :data:`FastList`, ``cell`` :data:`OrthoCell` (loading
+    ``ctl`` a :data:`gransim.dem.kernels.Control`: fixed, rate, servo or a prescribed table) or
+    :data:`ShearCell` (``ctl`` a :data:`gransim.dem.sheared_kernels.Deform`), updated in place;
+    ``law`` a registered contact law with a block path (``LawSpec.select``; each law and cell type
+    compiles its own copy), ``dt`` (s), ``skin`` (m), ``clamp`` LAMMPS' rebuild rule (a negative
+    margin clamped at zero), ``sc`` :data:`FastScratch`. (The parallel kernels it calls,
     :func:`forces_v` and :func:`integrate_v`, take the arrays unpacked: gransim/_numba.py.)
 
-    Per step: forces (even bands, odd bands, spills), then one fused pass: second half step of
-    this step, the box of this step (``modes`` 0 fixed / 1 rate per axis, ``fix deform``'s
-    L = L0 + rate L0 dt (step - phase_step0), centred on the phase's box lo0, hi0) with the
-    positions remapped, and -- unless it is the last step -- the first half step of the next
-    step with the rebuild test (displacement since the build above half the skin less the box
-    displacement, LAMMPS' clamped rule). Enter with the first half step of step0 + 1 done when
-    ``resume``. ``out`` (nsteps, 9) rows: virial xx, yy, xy, yx (N m), contacts, overlap sum (m),
-    Lx, Ly (m) of the box after the step, kinetic energy (J).
+    Per step: forces (even bands, odd bands, spills) with the cell's image, the box of this step
+    from the virial of the step (:func:`cell_end_of_step`), then one fused pass: second half step
+    of this step, the positions remapped (orthogonal cell, when its box changed), and -- unless it
+    is the last step -- the first half step of the next step with the rebuild test
+    (:func:`cell_deltasq`). Enter with the first half step of step0 + 1 done when ``resume``.
+    ``out`` (nsteps, :data:`OUT_COLUMNS`) rows.
 
     Returns (steps completed, status, bad): status 0 done, 1 rebuild needed before the forces of
-    step step0 + completed + 1 (its first half step is done), 2 non-finite position (bad =
-    sorted index).
+    step step0 + completed + 1 (its first half step is done), 2 non-finite position (bad = sorted
+    index), 3 collapsed cell (or a tilt past Lx/2) at step step0 + completed + 1.
     """
     x, y, vx, vy, w, fx, fy, t, m, r, xh, yh = p
     cstart, start, ni, nj, code, h0, h1 = nl
-    lo, hi, lo_hold, hi_hold, modes, rates, lo0, hi0, phase_step0 = box
     sp_start, sp_j, sp_f, acc, red = sc
-    dt = law[5]
-    lo_new = np.empty(2)
-    hi_new = np.empty(2)
-    lo_cur = np.empty(2)
-    hi_cur = np.empty(2)
+    lo_old = np.zeros(2)
+    hi_old = np.ones(2)
+    lo_new = np.zeros(2)
+    hi_new = np.ones(2)
+    tmp = np.empty((2, 2))
+    corners = np.empty((8, 2))
+    vir = np.empty(4)
     nch = cstart.shape[0] - 1
     k = 0
     if not resume:
-        dsq = _deltasq(lo, hi, lo_hold, hi_hold, skin)
+        dsq = cell_deltasq(cell, skin, clamp, corners)
         integrate_v(
-            parallel,
-            cstart,
-            x,
-            y,
-            vx,
-            vy,
-            w,
-            fx,
-            fy,
-            t,
-            m,
-            r,
-            xh,
-            yh,
-            dt,
-            False,
-            True,
-            False,
-            lo,
-            hi,
-            lo,
-            hi,
-            dsq,
-            red,
-        )
+            parallel, cstart, x, y, vx, vy, w, fx, fy, t, m, r, xh, yh, dt,
+            False, True, False, lo_old, hi_old, lo_new, hi_new, dsq, red,
+        )  # fmt: skip
         st = _status(red, nch)
         if st != 0:
             return 0, st, _bad(red, nch)
     while k < nsteps:
         step = step0 + k + 1
-        Lx = hi[0] - lo[0]
-        Ly = hi[1] - lo[1]
         forces_v(
-            parallel,
-            cstart,
-            start,
-            ni,
-            nj,
-            code,
-            h0,
-            h1,
-            x,
-            y,
-            vx,
-            vy,
-            w,
-            r,
-            m,
-            fx,
-            fy,
-            t,
-            Lx,
-            Ly,
-            law,
-            True,
-            sp_start,
-            sp_j,
-            sp_f,
-            acc,
-        )
+            parallel, cstart, start, ni, nj, code, h0, h1, x, y, vx, vy, w, r, m, fx, fy, t,
+            cell_image(cell), law, dt, True, sp_start, sp_j, sp_f, acc,
+        )  # fmt: skip
         for q in range(6):
             s = 0.0
             for c in range(nch):
                 s += acc[c, q]
             out[k, q] = s
-        # the box of this step (fix deform, rate style)
-        remap = False
-        for d in range(2):
-            lo_cur[d] = lo[d]
-            hi_cur[d] = hi[d]
-            lo_new[d] = lo[d]
-            hi_new[d] = hi[d]
-            if modes[d] == 1:
-                L0 = hi0[d] - lo0[d]
-                dl = (rates[d] * L0 * dt) * float(step - phase_step0)
-                lo_new[d] = lo0[d] - 0.5 * dl
-                hi_new[d] = hi0[d] + 0.5 * dl
-                if lo_new[d] != lo[d] or hi_new[d] != hi[d]:
-                    remap = True
+        for q in range(4):
+            vir[q] = out[k, q]
+        st, remap = cell_end_of_step(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp)
+        if st != 0:
+            return k, st, -1
         last = k == nsteps - 1
-        if remap:
-            for d in range(2):
-                lo[d] = lo_new[d]
-                hi[d] = hi_new[d]
-        dsq = _deltasq(lo, hi, lo_hold, hi_hold, skin)
+        dsq = cell_deltasq(cell, skin, clamp, corners)
         integrate_v(
-            parallel,
-            cstart,
-            x,
-            y,
-            vx,
-            vy,
-            w,
-            fx,
-            fy,
-            t,
-            m,
-            r,
-            xh,
-            yh,
-            dt,
-            True,
-            not last,
-            remap,
-            lo_cur,
-            hi_cur,
-            lo,
-            hi,
-            dsq,
-            red,
-        )
+            parallel, cstart, x, y, vx, vy, w, fx, fy, t, m, r, xh, yh, dt,
+            True, not last, remap, lo_old, hi_old, lo_new, hi_new, dsq, red,
+        )  # fmt: skip
         ke = 0.0
         for c in range(nch):
             ke += red[c, 0]
-        out[k, 6] = hi[0] - lo[0]
-        out[k, 7] = hi[1] - lo[1]
-        out[k, 8] = ke
+        out[k, 6] = ke
+        cell_row(cell, out, k)
         k += 1
         if not last:
             st = _status(red, nch)
             if st != 0:
                 return k, st, _bad(red, nch)
     return nsteps, 0, -1
-
-
-@njit
-def _deltasq(lo, hi, lo_hold, hi_hold, skin):
-    dx = lo[0] - lo_hold[0]
-    dy = lo[1] - lo_hold[1]
-    d1 = math.sqrt(dx * dx + dy * dy)
-    dx = hi[0] - hi_hold[0]
-    dy = hi[1] - hi_hold[1]
-    d2 = math.sqrt(dx * dx + dy * dy)
-    delta = max(0.5 * (skin - (d1 + d2)), 0.0)
-    return delta * delta
 
 
 @njit
@@ -606,18 +709,64 @@ def wrap(x, y, lo, hi):
 
 
 @njit
-def bin_sort(x, y, lo, hi, nbx, nby, order, binstart, key):
+def wrap_tilted(x, y, vx, vy, box, hr, vremap):
+    """Domain::pbc of the sheared cell ``box`` (5,) = (lo_x, lo_y, hi_x, hi_y, xy) m: a particle
+    below lo_y moves by a2 = (xy, Ly), above hi_y by -a2, with its velocity changed by
+    +/-(h_rate[5], h_rate[1]) when ``vremap`` (Lees-Edwards: the peculiar velocity is kept;
+    ``hr`` (3,) = (h_rate[0], h_rate[1], h_rate[5]) m/s); then along x by +/-a1 = (Lx, 0) when its
+    offset from the cell's left edge, (x - lo_x) - (xy/Ly)(y - lo_y), is outside [0, Lx). Returns
+    a particle still outside after one wrap (sorted index) or -1."""
+    lx = box[0]
+    ly = box[1]
+    Lx = box[2] - box[0]
+    Ly = box[3] - box[1]
+    xy = box[4]
+    tl = xy / Ly
+    bad = -1
+    for i in range(x.shape[0]):
+        if y[i] < ly:
+            y[i] += Ly
+            x[i] += xy
+            if vremap:
+                vx[i] += hr[2]
+                vy[i] += hr[1]
+        if y[i] >= box[3]:
+            y[i] -= Ly
+            y[i] = max(y[i], ly)
+            x[i] -= xy
+            if vremap:
+                vx[i] -= hr[2]
+                vy[i] -= hr[1]
+        off = (x[i] - lx) - tl * (y[i] - ly)
+        if off < 0.0:
+            x[i] += Lx
+        elif off >= Lx:
+            x[i] -= Lx
+        off = (x[i] - lx) - tl * (y[i] - ly)
+        if bad < 0 and not (0.0 <= off < Lx and ly <= y[i] < box[3]):
+            bad = i
+    return bad
+
+
+@njit
+def bin_sort(x, y, lo, hi, xy, nbx, nby, order, binstart, key):
     """Counting sort of the particles by bin (row-major: bin = bx + nbx by): ``order`` (N,) int32
     the current index of each particle in the new order (stable within a bin), ``binstart``
-    (nbx nby + 1,) int32 the first sorted particle of each bin; ``key`` (N,) int32 scratch."""
+    (nbx nby + 1,) int32 the first sorted particle of each bin; ``key`` (N,) int32 scratch.
+
+    The bins are those of the cell's lamda coordinates: rows of height Ly/nby, and along x the
+    offset from the cell's left edge through the particle, (x - lo_x) - (xy/Ly)(y - lo_y), in
+    steps of Lx/nbx (``xy`` the tilt, m; 0 for an orthogonal cell, whose bins are then the plain
+    x bins)."""
     n = x.shape[0]
     nbins = nbx * nby
     sx = nbx / (hi[0] - lo[0])
     sy = nby / (hi[1] - lo[1])
+    tl = xy / (hi[1] - lo[1])
     for b in range(nbins + 1):
         binstart[b] = 0
     for i in range(n):
-        bx = min(max(int((x[i] - lo[0]) * sx), 0), nbx - 1)
+        bx = min(max(int(((x[i] - lo[0]) - tl * (y[i] - lo[1])) * sx), 0), nbx - 1)
         by = min(max(int((y[i] - lo[1]) * sy), 0), nby - 1)
         key[i] = bx + nbx * by
         binstart[key[i] + 1] += 1
@@ -677,6 +826,7 @@ def _band_pairs(
     r,
     lo,
     hi,
+    xy,
     nbx,
     nby,
     skin,
@@ -705,13 +855,14 @@ def _band_pairs(
     Ly = hi[1] - lo[1]
     sx = nbx / Lx
     sy = nby / Ly
+    tl = xy / Ly
     nch = cstart.shape[0] - 1
     jmax = cstart[min(c + 2, nch)]
     nsp = 0
     cap = nj.shape[0]
     e = e0
     for i in range(cstart[c], cstart[c + 1]):
-        bx = min(max(int((x[i] - lo[0]) * sx), 0), nbx - 1)
+        bx = min(max(int(((x[i] - lo[0]) - tl * (y[i] - lo[1])) * sx), 0), nbx - 1)
         by = min(max(int((y[i] - lo[1]) * sy), 0), nby - 1)
         if fill == 1:
             e = start[i]
@@ -739,7 +890,7 @@ def _band_pairs(
                 b = qx + nbx * qy
                 j0 = max(binstart[b], i + 1)
                 for j in range(j0, binstart[b + 1]):
-                    delx = x[i] - (x[j] + ix * Lx)
+                    delx = x[i] - ((x[j] + ix * Lx) + iy * xy)
                     dely = y[i] - (y[j] + iy * Ly)
                     rs = r[i] + r[j]
                     cut = rs + skin
@@ -786,6 +937,7 @@ def pairs_direct(
     r,
     lo,
     hi,
+    xy,
     nbx,
     nby,
     skin,
@@ -818,6 +970,7 @@ def pairs_direct(
             r,
             lo,
             hi,
+            xy,
             nbx,
             nby,
             skin,
@@ -850,6 +1003,7 @@ def pairs_serial(
     r,
     lo,
     hi,
+    xy,
     nbx,
     nby,
     skin,
@@ -879,6 +1033,7 @@ def pairs_serial(
             r,
             lo,
             hi,
+            xy,
             nbx,
             nby,
             skin,
@@ -907,6 +1062,7 @@ def pairs_parallel(
     r,
     lo,
     hi,
+    xy,
     nbx,
     nby,
     skin,
@@ -936,6 +1092,7 @@ def pairs_parallel(
             r,
             lo,
             hi,
+            xy,
             nbx,
             nby,
             skin,
@@ -963,6 +1120,7 @@ def pairs_banded(
     r,
     lo,
     hi,
+    xy,
     nbx,
     nby,
     skin,
@@ -1001,6 +1159,7 @@ def pairs_banded(
             r,
             lo,
             hi,
+            xy,
             nbx,
             nby,
             skin,
@@ -1109,3 +1268,26 @@ def unsort_f(a, perm, out):
     """out[perm[k]] = a[k]: an array of the sorted order in the original order."""
     for k in range(perm.shape[0]):
         out[perm[k]] = a[k]
+
+
+@njit
+def entry_forces(law, img, dt, ni, nj, code, h0, h1, x, y, vx, vy, w, r, m, out):
+    """The law at the current state for each list entry, its springs left as they are (a set-up
+    evaluation, ``update`` False): ``out`` (M, 4) receives the force on i (N; zero when apart),
+    the sliding flag and the touch flag (1.0 or 0.0)."""
+    for e in range(ni.shape[0]):
+        i = ni[e]
+        j = nj[e]
+        sx = float(code[e] % 3) - 1.0
+        sy = float(code[e] // 3) - 1.0
+        xj, yj, vxj, vyj = image(img, x[j], y[j], vx[j], vy[j], sx, sy)
+        delx = x[i] - xj
+        dely = y[i] - yj
+        rsq = delx * delx + dely * dely
+        touch, fxe, fye, _, _, _, _, sl, _ = pair_select(
+            law, delx, dely, rsq, r[i], r[j], vx[i], vy[i], vxj, vyj, w[i], w[j], m[i], m[j], dt, h0[e], h1[e], False
+        )
+        out[e, 0] = touch * fxe
+        out[e, 1] = touch * fye
+        out[e, 2] = touch * sl
+        out[e, 3] = touch

@@ -1,6 +1,7 @@
-"""The fast DEM path (gransim.dem.fast) against the bitwise engine and against physics.
+"""The fast ordering of the DEM (gransim.dem.fast) in the orthogonal cell against the code order
+and against physics (its loadings, the sheared cell, checkpoints: test_fast_backend.py).
 
-The fast path reorders particles and sums (spatial sort, half list with the symmetric update,
+The fast ordering reorders particles and sums (spatial sort, half list with the symmetric update,
 per-band sums), so it is compared with DEMEngine to round-off over short horizons and, over a
 long relaxation, by the divergence envelope of DEMEngine itself (docs/validation.md's rule:
 within 10 times the spread of runs from 1e-12 perturbed starts), never by equality.
@@ -25,6 +26,15 @@ def threaded_small(monkeypatch):
     """The threaded kernels even for the small test assemblies (they fall back to the serial
     kernels below fast.MIN_PER_THREAD particles per thread)."""
     monkeypatch.setattr(fast, "MIN_PER_THREAD", 0)
+
+
+def advance(e, n, loading=None, **kw):
+    """``e.advance(loading, n, ...)`` (default: a fixed box) with the list builds of the call added
+    as ``rebuilds``."""
+    r0 = e.n_rebuilds
+    out = e.advance(Loading() if loading is None else loading, n, **kw)
+    out["rebuilds"] = e.n_rebuilds - r0
+    return out
 
 
 def _rel(a, b):
@@ -60,13 +70,13 @@ def test_two_disks_oblique_collision_agrees_with_bitwise_engine():
     de = DEMEngine(p, s, velocities=v, spins=w)
     touched = 0
     for _ in range(60):  # 600 steps: approach, contact (~200 steps) and separation
-        a = fe.advance(10)
+        a = advance(fe, 10)
         b = de.advance(Loading(), 10)
         touched += int(b["n_contacts"].max())
         # the same operations on the pair, only i/j possibly swapped: round-off
-        assert _rel(fe.velocities, de.v) < 1e-12
-        assert _rel(fe.spins, de.w) < 1e-12
-        assert _image_diff(fe.positions, de.x, 0.02) < 1e-15
+        assert _rel(fe.v, de.v) < 1e-12
+        assert _rel(fe.w, de.w) < 1e-12
+        assert _image_diff(fe.x, de.x, 0.02) < 1e-15
         assert np.abs(a["stress"] - b["stress"]).max() <= 1e-12 * max(np.abs(b["stress"]).max(), 1e-30)
     assert touched > 0
 
@@ -79,15 +89,15 @@ def test_small_assembly_agrees_with_bitwise_engine_to_round_off(threads, threade
     fe = FastEngine(p, S, threads=threads)
     de = DEMEngine(p, S)
     assert _rel(fe.stress, de.stress) < 1e-13
-    assert _rel(fe.forces, de.f) < 1e-12
-    a = fe.advance(400)
+    assert _rel(fe.f, de.f) < 1e-12
+    a = advance(fe, 400)
     b = de.advance(Loading(), 400)
     assert a["rebuilds"] == de.n_rebuilds - 1 > 3
     scale = np.abs(b["stress"]).max()
     assert np.abs(a["stress"] - b["stress"]).max() < 1e-12 * scale
     np.testing.assert_array_equal(a["n_contacts"], b["n_contacts"])
-    assert _image_diff(fe.positions, de.x, np.diag(p.cell)) < 1e-12 * p.radii.max()
-    assert _rel(fe.velocities, de.v) < 1e-9  # velocities near rest: relative to their own size
+    assert _image_diff(fe.x, de.x, np.diag(p.cell)) < 1e-12 * p.radii.max()
+    assert _rel(fe.v, de.v) < 1e-9  # velocities near rest: relative to their own size
     assert np.abs(a["kinetic_energy"] - b["kinetic_energy"]).max() < 1e-10 * b["kinetic_energy"].max()
 
 
@@ -97,12 +107,12 @@ def test_strain_rate_box_agrees_with_bitwise_engine():
     ld = Loading(y=AxisControl("rate", rate=-2.0))
     fe = FastEngine(p, S)
     de = DEMEngine(p, S)
-    a = fe.advance(300, ld)
+    a = fe.advance(ld, 300)
     b = de.advance(ld, 300)
     np.testing.assert_allclose(a["lengths"], b["lengths"], rtol=1e-15)
     assert b["lengths"][-1, 1] < p.cell[1, 1]
     assert np.abs(a["stress"] - b["stress"]).max() < 1e-12 * np.abs(b["stress"]).max()
-    assert _image_diff(fe.positions, de.x, b["lengths"][-1]) < 1e-12 * p.radii.max()
+    assert _image_diff(fe.x, de.x, b["lengths"][-1]) < 1e-12 * p.radii.max()
 
 
 def test_threads_do_not_change_the_result(threaded_small):
@@ -114,17 +124,17 @@ def test_threads_do_not_change_the_result(threaded_small):
     e1 = FastEngine(p, S, threads=1)
     e2 = FastEngine(p, S, threads=2)
     assert e2._parallel and not e1._parallel
-    a = e1.advance(150)
-    b = e2.advance(150)
+    a = advance(e1, 150)
+    b = advance(e2, 150)
     assert a["rebuilds"] > 0
     np.testing.assert_array_equal(a["stress"], b["stress"])
-    np.testing.assert_array_equal(e1.positions, e2.positions)
-    np.testing.assert_array_equal(e1.velocities, e2.velocities)
+    np.testing.assert_array_equal(e1.x, e2.x)
+    np.testing.assert_array_equal(e1.v, e2.v)
 
 
 def _lists(e):
     m = e.n_entries
-    return (e.start.copy(), e.ni[:m].copy(), e.nj[:m].copy(), e.code[:m].copy(), e.hist[:, :m].copy())
+    return (e._start.copy(), e._ni[:m].copy(), e._nj[:m].copy(), e._code[:m].copy(), e._hist[:, :m].copy())
 
 
 @pytest.mark.parametrize("slack", ["room", "overflow"])
@@ -141,12 +151,12 @@ def test_threaded_list_build_is_the_serial_list(threaded_small, monkeypatch, sla
     e1 = FastEngine(p, S, threads=1)
     e2 = FastEngine(p, S, threads=2)
     for _ in range(3):
-        a = e1.advance(60)
-        b = e2.advance(60)
+        a = advance(e1, 60)
+        b = advance(e2, 60)
         assert a["rebuilds"] == b["rebuilds"] > 0
         for u, v in zip(_lists(e1), _lists(e2)):
             np.testing.assert_array_equal(u, v)
-        assert np.count_nonzero(e1.hist[:, : e1.n_entries]) > 0  # springs were handed over
+        assert np.count_nonzero(e1._hist[:, : e1.n_entries]) > 0  # springs were handed over
     if slack == "room":
         assert e2.n_banded_builds == e2.n_rebuilds - 1  # all but the first build (no last list)
     else:
@@ -163,14 +173,14 @@ def test_threaded_list_build_under_a_shrinking_box(threaded_small):
     ld = Loading(y=AxisControl("rate", rate=-60.0))
     e1 = FastEngine(p, S, threads=1)
     e2 = FastEngine(p, S, threads=2)
-    bands = {e2.cstart.size}
+    bands = {e2._cstart.size}
     for _ in range(6):
-        e1.advance(50, ld, phase_step0=0, phase_box0=(np.zeros(2), np.diag(p.cell)))
-        e2.advance(50, ld, phase_step0=0, phase_box0=(np.zeros(2), np.diag(p.cell)))
-        bands.add(e2.cstart.size)
+        e1.advance(ld, 50, phase_step0=0, phase_box0=(np.zeros(2), np.diag(p.cell)))
+        e2.advance(ld, 50, phase_step0=0, phase_box0=(np.zeros(2), np.diag(p.cell)))
+        bands.add(e2._cstart.size)
         for u, v in zip(_lists(e1), _lists(e2)):
             np.testing.assert_array_equal(u, v)
-    np.testing.assert_array_equal(e1.positions, e2.positions)
+    np.testing.assert_array_equal(e1.x, e2.x)
     assert len(bands) > 1, f"the bands never changed ({bands})"
     assert e2.n_banded_builds > 0
 
@@ -184,17 +194,17 @@ def test_threaded_hand_over_table_is_the_serial_one():
 
     p = assembly(3000)
     e = FastEngine(p, S, threads=1)
-    e.advance(80)
+    advance(e, 80)
     n = e.n
-    k = FK.count_history(e.start, e.hist[0], e.hist[1], n)
+    k = FK.count_history(e._start, e._hist[0], e._hist[1], n)
     assert k > 0
     want = (np.zeros(n + 1, np.int32), np.zeros(k, np.int32), np.zeros((k, 2)))
-    FK.compact_history(e.start, e.nj, e.hist[0], e.hist[1], n, *want)
-    bc = np.zeros(e.cstart.size - 1, np.int64)
+    FK.compact_history(e._start, e._nj, e._hist[0], e._hist[1], n, *want)
+    bc = np.zeros(e._cstart.size - 1, np.int64)
     with fast.dynamic_chunks(1):
-        FK.history_counts(e.cstart, e.start, e.hist[0], e.hist[1], bc)
+        FK.history_counts(e._cstart, e._start, e._hist[0], e._hist[1], bc)
         got = (np.zeros(n + 1, np.int32), np.zeros(k, np.int32), np.zeros((k, 2)))
-        assert FK.compact_history_banded(e.cstart, e.start, e.nj, e.hist[0], e.hist[1], bc, *got) == k
+        assert FK.compact_history_banded(e._cstart, e._start, e._nj, e._hist[0], e._hist[1], bc, *got) == k
     assert int(bc.sum()) == k
     for u, v in zip(want, got):
         np.testing.assert_array_equal(u, v)
@@ -223,7 +233,7 @@ def test_relaxation_of_1000_disks_within_the_chaos_envelope():
         x[i, k % 2] *= 1.0 + (1e-12 if k < 2 else -1e-12)
         q = Packing(positions=x, radii=p.radii, cell=p.cell, density=p.density)
         env = np.maximum(env, _stress_divergence(DEMEngine(q, S).advance(Loading(), steps)["stress"], ref))
-    fast = FastEngine(p, S).advance(steps)
+    fast = advance(FastEngine(p, S), steps)
     d = _stress_divergence(fast["stress"], ref)
     assert fast["rebuilds"] > 10
     assert np.all(d <= 10.0 * env + 1e-13), f"worst step {int(np.argmax(d - 10 * env))}"
@@ -246,8 +256,8 @@ def test_momentum_is_conserved_and_energy_dissipated(threaded_small):
     P0 = m @ v
     e_prev = e_start = fe.kinetic_energy() + _elastic_energy(fe, p, S.kn)
     for _ in range(20):
-        fe.advance(50)
-        P = m @ fe.velocities
+        advance(fe, 50)
+        P = m @ fe.v
         assert np.abs(P - P0).max() < 1e-13 * np.abs(m[:, None] * v).sum()
         e = fe.kinetic_energy() + _elastic_energy(fe, p, S.kn)
         # the tangential spring stores energy too (not counted): allow the last 1% of it
@@ -258,7 +268,7 @@ def test_momentum_is_conserved_and_energy_dissipated(threaded_small):
 
 def _elastic_energy(fe, p, kn):
     """sum kn delta^2 / 2 over overlapping pairs, brute force O(N^2) with the nearest image."""
-    x = fe.positions
+    x = fe.x
     L = fe.box_lengths
     d = x[:, None, :] - x[None, :, :]
     d -= np.rint(d / L) * L
@@ -278,7 +288,7 @@ def test_energy_conserved_without_damping_or_friction():
     e0 = fe.kinetic_energy() + _elastic_energy(fe, p, s.kn)
     es = []
     for _ in range(10):
-        fe.advance(200)
+        advance(fe, 200)
         es.append(fe.kinetic_energy() + _elastic_energy(fe, p, s.kn))
     assert fe.kinetic_energy() > 0.1 * e0  # energy moved into motion
     assert np.max(np.abs(np.array(es) - e0)) < 1e-3 * e0
@@ -297,33 +307,29 @@ def test_the_permutation_is_undone_exactly():
     v = rng.normal(0.0, 1.0, (n, 2))
     w = rng.normal(0.0, 10.0, n)
     fe = FastEngine(p, S, velocities=v, spins=w)
-    np.testing.assert_array_equal(fe.positions, x)
-    out = fe.advance(300)
+    np.testing.assert_array_equal(fe.x, x)
+    out = advance(fe, 300)
     assert out["rebuilds"] > 20
     assert fe.n_contacts == 0
-    np.testing.assert_array_equal(fe.velocities, v)
-    np.testing.assert_array_equal(fe.spins, w)
+    np.testing.assert_array_equal(fe.v, v)
+    np.testing.assert_array_equal(fe.w, w)
     ref = x.copy()
     for _ in range(300):
         ref += S.dt * v
-    assert _image_diff(fe.positions, ref, L) < 1e-15
+    assert _image_diff(fe.x, ref, L) < 1e-15
     assert not np.array_equal(fe.perm, np.arange(n))  # the particles really were re-sorted
 
 
 def test_bad_input_is_refused():
     p = lattice_packing(10, 12)
-    with pytest.raises(InputError, match="flavour"):
-        FastEngine(p, DEMSettings(flavour="lammps"))
-    with pytest.raises(InputError, match="servo"):
-        FastEngine(p, S).advance(1, Loading(x=AxisControl("servo", target=1.0, gain=1e-3)))
     with pytest.raises(InputError, match="threads"):
         FastEngine(p, S, threads=0)
     with pytest.raises(InputError, match="velocities"):
         FastEngine(p, S, velocities=np.zeros((3, 2)))
     with pytest.raises(InputError, match="nsteps"):
-        FastEngine(p, S).advance(-1)
+        FastEngine(p, S).advance(Loading(), -1)
     small = lattice_packing(3, 4)
-    with pytest.raises(InputError, match="side lengths"):
+    with pytest.raises(InputError, match="cell heights"):
         FastEngine(small, S)
     with pytest.raises(InputError, match="dt"):
         FastEngine(p, DEMSettings(kn=1e9, dt=1e-3))
@@ -331,23 +337,26 @@ def test_bad_input_is_refused():
 
 def _scalar_forces(eng):
     """An independent scalar implementation of the fast path's force sums (plain Python, one
-    entry at a time: the pair law of :func:`fast_kernels.hooke_select` as Python floats, then the
+    entry at a time: the law's block path (its ``select``, masked where the pair does not touch, as
+    :func:`fast_kernels.forces_v` masks it) on Python floats, then the
     i side, j side or spill, virial, contacts and overlap in list order, band by band: even bands,
     odd bands, then the spills in band order). Python floats are IEEE doubles and ``math.sqrt`` is correctly rounded, so
     the vectorised kernel must give these sums bit for bit."""
-    from gransim.dem import fast_kernels as FK
 
-    law = FK.hooke_select.py_func
+    from gransim.contacts.laws import law_spec
+
+    select = law_spec(eng.law).select.py_func
     s = eng.settings
     L = eng.hi - eng.lo
     n = eng.n
     fx, fy, t = np.zeros(n), np.zeros(n), np.zeros(n)
-    h0, h1 = eng.hist[0].copy(), eng.hist[1].copy()
-    cs, st = eng.cstart, eng.start
+    h0, h1 = eng._hist[0].copy(), eng._hist[1].copy()
+    cs, st = eng._cstart, eng._start
     nch = cs.size - 1
     acc = np.zeros((nch, 6))
     spills = [[] for _ in range(nch)]  # per band: _scatter adds them in band order
-    x, y, vx, vy, w, r, m = (eng.x, eng.y, eng.vx, eng.vy, eng.w, eng.r, eng.m)
+    ps = eng.ps  # the sorted state
+    x, y, vx, vy, w, r, m = (ps.x, ps.y, ps.vx, ps.vy, ps.w, ps.r, ps.m)
     for colour in range(2):
         for c in range(colour, nch, 2):
             jmax = cs[min(c + 2, nch)]
@@ -355,15 +364,15 @@ def _scalar_forces(eng):
             for i in range(cs[c], cs[c + 1]):
                 fi = [0.0, 0.0, 0.0]
                 for e in range(st[i], st[i + 1]):
-                    j = int(eng.nj[e])
-                    sx, sy = int(eng.code[e]) % 3 - 1, int(eng.code[e]) // 3 - 1
+                    j = int(eng._nj[e])
+                    sx, sy = int(eng._code[e]) % 3 - 1, int(eng._code[e]) // 3 - 1
                     dx = float(x[i]) - (float(x[j]) + sx * float(L[0]))
                     dy = float(y[i]) - (float(y[j]) + sy * float(L[1]))
                     rsq = dx * dx + dy * dy
-                    args = (float(r[i]) + float(r[j]), float(r[i]), float(r[j]), float(vx[i]), float(vy[i]))
-                    args += (float(vx[j]), float(vy[j]), float(w[i]), float(w[j]), float(m[i]), float(m[j]))
-                    args += (s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt, float(h0[e]), float(h1[e]), True)
-                    tc, fxe, fye, tie, tje, s0, s1, dn = law(dx, dy, rsq, *args)
+                    args = (float(r[i]), float(r[j]), float(vx[i]), float(vy[i]), float(vx[j]), float(vy[j]))
+                    args += (float(w[i]), float(w[j]), float(m[i]), float(m[j]), s.dt, float(h0[e]), float(h1[e]), True)
+                    tc, fxe, fye, tie, tje, s0, s1, _, dn = select(eng.law, dx, dy, rsq, *args)
+                    fxe, fye, tie, tje, dn = tc * fxe, tc * fye, tc * tie, tc * tje, tc * dn
                     h0[e], h1[e] = s0, s1
                     fi[0] += fxe
                     fi[1] += fye
@@ -402,20 +411,18 @@ def test_vectorised_forces_equal_the_scalar_loop_bit_for_bit(threads, threaded_s
     p = assembly(1000)
     rng = np.random.default_rng(11)
     fe = FastEngine(p, S, velocities=rng.normal(0.0, 0.02, (p.n, 2)), spins=rng.normal(0.0, 30.0, p.n), threads=threads)
-    fe.advance(40)
+    advance(fe, 40)
     ref = _scalar_forces(fe)
     touch = ref[5][:, 4].sum()
     assert 0 < touch < fe.n_entries  # some entries touch, some do not
     assert fe._nspill > 0  # pairs across the periodic y boundary
-    h0 = fe.hist[0].copy()
-    fe.fx[:] = fe.fy[:] = fe.t[:] = 0.0
-    with fe._kernels():
-        fe._forces(update=True)
-    got = (fe.fx, fe.fy, fe.t, fe.hist[0][: fe.n_entries], fe.hist[1][: fe.n_entries], fe._acc)
+    h0 = fe._hist[0].copy()
+    fe._forces(update=True)
+    got = (fe.ps.fx, fe.ps.fy, fe.ps.t, fe._hist[0][: fe.n_entries], fe._hist[1][: fe.n_entries], fe._acc)
     want = (*ref[:3], ref[3][: fe.n_entries], ref[4][: fe.n_entries], ref[5])
     for name, a, b in zip(("fx", "fy", "t", "h0", "h1", "acc"), got, want):
         np.testing.assert_array_equal(a, b, err_msg=name)
-    slid = np.sum((np.abs(fe.hist[0] - h0) > 0) & (fe.hist[0] != 0))
+    slid = np.sum((np.abs(fe._hist[0] - h0) > 0) & (fe._hist[0] != 0))
     assert slid > 0  # the springs moved
 
 
@@ -438,11 +445,10 @@ def test_the_force_kernel_is_compiled_to_simd_code():
     k = numba.njit(**opts)(FK.forces_v.py_func)
     fe = FastEngine(lattice_packing(10, 12), S)
     with fe._kernels():
-        s = fe.settings
-        L = fe.hi - fe.lo
-        k(False, fe.cstart, fe.start, fe.ni, fe.nj, fe.code, fe.hist[0], fe.hist[1], fe.x, fe.y, fe.vx, fe.vy, fe.w,
-          fe.r, fe.m, fe.fx, fe.fy, fe.t, L[0], L[1], (s.kn, s.kt, s.gamma_n, s.gamma_t, s.mu, s.dt), False,
-          fe._sp_start, *fe._spill(), fe._acc)  # fmt: skip
+        p, L = fe.ps, fe.hi - fe.lo
+        k(False, fe._cstart, fe._start, fe._ni, fe._nj, fe._code, fe._hist[0], fe._hist[1], p.x, p.y, p.vx, p.vy,
+          p.w, p.r, p.m, p.fx, p.fy, p.t, FK.FastOrtho(L[0], L[1]), fe.law, fe.settings.dt, False, fe._sp_start,
+          *fe._spill(), fe._acc)  # fmt: skip
     asm = k.inspect_asm(k.signatures[0])
     assert re.search(r"\bvsqrtpd\b", asm), "the pair law is not vectorised (no packed square root)"
     assert re.search(r"\bvdivpd\b", asm)
