@@ -1,7 +1,7 @@
-"""The fast ordering of the DEM: the physics of :class:`gransim.dem.DEMEngine` (orthogonal cell)
-and :class:`gransim.dem.sheared.ShearEngine` (sheared cell, Lees-Edwards) with any registered
-contact law that offers a branch-free block path, in an order chosen for speed, not for bitwise
-agreement with LIGGGHTS or LAMMPS (docs/performance.md).
+"""The fast ordering of the DEM: the physics of :class:`gransim.dem.engine.Engine` (its orthogonal
+cell and its sheared cell with Lees-Edwards images) with any registered contact law that offers a
+branch-free block path, in an order chosen for speed, not for bitwise agreement with LIGGGHTS or
+LAMMPS (docs/performance.md).
 
 What is reordered, and what it changes:
 
@@ -37,7 +37,7 @@ rebuild rule of the flavour (``DEMSettings.flavour``: LAMMPS clamps a negative m
 LIGGGHTS squares it; the sheared cell in LAMMPS' arithmetic takes the margin from the 8 box
 corners), the hand-over of the springs (pairs that overlap at the build keep a spring that is not
 zero: LIGGGHTS' rule, and LAMMPS', whose laws zero the spring of a pair that stops touching), the
-checks of :class:`gransim.dem.engine.EngineCore` (divergence, lost particles) and its energies.
+checks of :class:`gransim.dem.engine.Engine` (divergence, lost particles) and its energies.
 
 Not offered: laws without a block path (Hertz, the rolling laws: their history is wider than the
 spring, or their pair has branches), which the code order runs (InputError names them).
@@ -56,18 +56,12 @@ from .._validate import as_int, check_choice
 from ..contacts.laws import offers_select
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
-from . import engine as _engine
 from . import fast_kernels as FK
 from . import kernels as K
 from . import sheared_kernels as SK
-from .engine import LOST_DISPLACEMENT_SKINS, _control
+from .engine import LOST_DISPLACEMENT_SKINS, Engine, _control
 from .settings import DEMSettings, Integration, Loading, PrescribedBox
 from .sheared import ShearLoading, tilt_stop
-
-#: the code order's engine class, whose law set-up, energies and divergence check (the energy
-#: balance) this engine shares: gransim.dem.engine.Engine (EngineCore before the cells became
-#: plug-ins of one engine class)
-_CORE = getattr(_engine, "Engine", None) or _engine.EngineCore
 
 #: the cells of the fast ordering
 CELLS = ("orthogonal", "sheared")
@@ -112,8 +106,8 @@ class FastEngine:
         (:func:`gransim.dem.engine.check_time_step`).
     law : a registered contact law that offers a block path (``LawSpec.select``: the Hooke laws
         ``hooke-liggghts``, ``hooke-lammps``); None: the Hooke law of a DEMSettings in its flavour.
-    cell : "orthogonal" (:meth:`advance` as :meth:`gransim.dem.DEMEngine.advance`) or "sheared"
-        (:meth:`start_run` and :meth:`advance` as :class:`gransim.dem.sheared.ShearEngine`).
+    cell : "orthogonal" or "sheared" (the cells of :class:`gransim.dem.engine.Engine`:
+        :meth:`start_run` and :meth:`advance` as there).
 
     After construction (the codes' ``run`` set-up: first list build, forces without spring
     increment) :meth:`advance` steps the state. Views (x, v, w, f, t, m, r, contacts(), ...) are
@@ -123,12 +117,12 @@ class FastEngine:
 
     # what every ordering does the same way, the code order's own functions: the law and its
     # time-step check, the kinetic and elastic energies, the energy balance of the divergence check
-    _set_law = _CORE._set_law
-    _check_time_step_now = _CORE._check_time_step_now
-    kinetic_energy = _CORE.kinetic_energy
-    elastic_energy = _CORE.elastic_energy
-    _reset_energy_budget = _CORE._reset_energy_budget
-    _check_energy = _CORE._check_energy
+    _set_law = Engine._set_law
+    _check_time_step_now = Engine._check_time_step_now
+    kinetic_energy = Engine.kinetic_energy
+    elastic_energy = Engine.elastic_energy
+    _reset_energy_budget = Engine._reset_energy_budget
+    _check_energy = Engine._check_energy
 
     def __init__(
         self,
@@ -171,7 +165,7 @@ class FastEngine:
             raise InputError(
                 f"flavour 'liggghts': needs a cell without tilt (LIGGGHTS' bookkeeping is orthogonal), got xy = {xy!r}"
             )
-        # the contact law (gransim.contacts.laws), its time step checked (EngineCore)
+        # the contact law (gransim.contacts.laws), its time step checked (Engine._set_law)
         self._set_law(packing, s, law, s.flavour, check_dt)
         if not offers_select(type(self.law)):
             raise InputError(
@@ -207,7 +201,7 @@ class FastEngine:
         for name, a in (("positions", pos), ("velocities", vel), ("spins", w)):
             if not np.all(np.isfinite(a)):
                 raise InputError(f"{name}: expected finite numbers")
-        # the original order's radii and masses ((pi r) r rho: the order of DEMEngine and of both
+        # the original order's radii and masses ((pi r) r rho: the code order's and both
         # codes' data files); the sorted ones are gathered from them
         self._r0 = np.array(packing.radii, f64)
         self._m0 = np.pi * self._r0 * self._r0 * float(packing.density)
@@ -225,6 +219,7 @@ class FastEngine:
             self.lo = np.zeros(2)
             self.hi = np.array([Lx, Ly], f64)
             self._cell = FK.OrthoCell(self.lo, self.hi, self.lo.copy(), self.hi.copy())
+            self._run = None  # (loading, begin step, end step, (lo, hi) at the begin) of start_run
         # rebuild scratch (reused): new order, bin keys, permutation buffers
         self._order = np.zeros(n, np.int32)
         self._key = np.zeros(n, np.int32)
@@ -502,14 +497,32 @@ class FastEngine:
         return out
 
     def advance(self, *args, **kwargs) -> dict:
-        """Orthogonal cell: ``advance(loading, nsteps=1, phase_step0=0, phase_box0=None)``, the
-        semantics and the returned series of :meth:`gransim.dem.DEMEngine.advance` (a
-        :class:`~gransim.dem.Loading` with fixed, rate or servo axes, or a
-        :class:`~gransim.dem.PrescribedBox`). Sheared cell: ``advance(nsteps)`` of the run begun by
-        :meth:`start_run`, those of :meth:`gransim.dem.sheared.ShearEngine.advance`."""
+        """Advance the state; the semantics and the returned series of
+        :meth:`gransim.dem.engine.Engine.advance`.
+
+        ``advance(nsteps)``: ``nsteps`` steps of the run begun by :meth:`start_run`.
+        ``advance(loading, nsteps=1, phase_step0=0, phase_box0=None)`` (orthogonal cell): ``nsteps``
+        steps under a :class:`~gransim.dem.Loading` (fixed, rate or servo axes) or a
+        :class:`~gransim.dem.PrescribedBox`, the phase measured from ``phase_step0`` and the box
+        ``phase_box0`` = (lo, hi) (default: now). Returns ``step``, ``stress`` (n, 2, 2),
+        ``virial`` (n, 4), ``n_contacts``, ``mean_overlap``, ``kinetic_energy`` and the cell's
+        ``lengths`` (n, 2) (orthogonal) or ``box`` (n, 5) (sheared: lx, ly, xy, ylo, yhi)."""
         if self._sheared:
             return self._advance_sheared(*args, **kwargs)
-        return self._advance_orthogonal(*args, **kwargs)
+        if (args and isinstance(args[0], (Loading, PrescribedBox))) or "loading" in kwargs:
+            return self._advance_orthogonal(*args, **kwargs)
+        if self._run is None:
+            raise InputError(
+                "advance: give the loading (advance(loading, nsteps)) or call start_run(loading, nsteps) first"
+            )
+        if len(args) + len(kwargs) != 1:
+            raise InputError("advance: in a run begun by start_run, advance(nsteps)")
+        loading, step0, end, box0 = self._run
+        nsteps = args[0] if args else kwargs["nsteps"]
+        nsteps = as_int(
+            nsteps, "nsteps", 0, end - self.step, note=f" (the run ends at step {end}, now at step {self.step})"
+        )
+        return self._advance_orthogonal(loading, nsteps, step0, box0)
 
     def _advance_orthogonal(self, loading, nsteps=1, phase_step0=0, phase_box0=None) -> dict:
         if not isinstance(loading, (Loading, PrescribedBox)):
@@ -540,16 +553,26 @@ class FastEngine:
             "virial": out[:, :4].copy(),
         }
 
-    def start_run(self, loading: ShearLoading, nsteps: int):
-        """Sheared cell: begin a LAMMPS ``run nsteps`` under ``loading``, as the code order's sheared
-        cell: ``fix deform`` init (the start and stop tilt of the style over the run,
+    def start_run(self, loading, nsteps: int):
+        """Begin a run of ``nsteps`` steps under ``loading``, continued by :meth:`advance` ``(k)``
+        calls (:meth:`gransim.dem.engine.Engine.start_run`). Orthogonal cell: a Loading or a
+        PrescribedBox measured from the current step and box (no new set-up; returns the stress).
+        Sheared cell: a :class:`~gransim.dem.sheared.ShearLoading`, a LAMMPS ``run nsteps`` as the
+        code order's sheared cell: ``fix deform`` init (the start and stop tilt of the style over the run,
         :func:`gransim.dem.sheared.tilt_stop`; h_rate[5] = (tilt_stop - tilt_start)/(nsteps dt)
         for the linear styles, 0 for trate until its first change; h_rate[1] = 0 until the first
         servo change), then the run's set-up (wrap with this run's h_rate, list with the springs
         handed over, forces without spring increment). Returns the set-up stress (2, 2),
         compression positive."""
         if not self._sheared:
-            raise InputError("start_run: for cell='sheared'; an orthogonal cell advances with advance(loading, nsteps)")
+            if not isinstance(loading, (Loading, PrescribedBox)):
+                raise InputError(
+                    "loading: expected a Loading or a PrescribedBox (the orthogonal cell), got "
+                    f"{type(loading).__name__}"
+                )
+            nsteps = as_int(nsteps, "nsteps", 1)
+            self._run = (loading, self.step, self.step + nsteps, (self.lo.copy(), self.hi.copy()))
+            return self.stress.copy()
         if not isinstance(loading, ShearLoading):
             raise InputError(f"loading: expected a ShearLoading (the sheared cell), got {type(loading).__name__}")
         nsteps = as_int(nsteps, "nsteps", 1)
@@ -584,7 +607,8 @@ class FastEngine:
         return self.stress.copy()
 
     def _deform(self):
-        """The :data:`gransim.dem.sheared_kernels.Deform` of the current run (as ShearEngine.advance)."""
+        """The :data:`gransim.dem.sheared_kernels.Deform` of the current run (as the code order's
+        sheared cell makes it, ShearedCell.drive)."""
         run = self._run
         ld = run["loading"]
         s = self.settings
@@ -657,7 +681,7 @@ class FastEngine:
 
     def _check_lost(self):
         """Before a rebuild: a particle that moved more than LOST_DISPLACEMENT_SKINS skins since
-        the last build (EngineCore._check_lost, on the sorted state)."""
+        the last build (Engine._check_lost, on the sorted state)."""
         p = self.ps
         i, di = K.largest_displacement(np.stack((p.x, p.y), axis=1), np.stack((p.xh, p.yh), axis=1))
         skin = self.settings.skin
@@ -676,19 +700,19 @@ class FastEngine:
 
     def _budget_kinetic_energy(self) -> float:
         """The kinetic energy the divergence check bounds (J): a sheared cell's relative to its
-        flow (ShearEngine._budget_kinetic_energy), an orthogonal cell's as it is."""
+        flow (ShearedCell.budget_kinetic_energy), an orthogonal cell's as it is."""
         p = self.ps
         ux, uy = self._flow() if self._sheared else (0.0, 0.0)
         ax, ay = p.vx - ux, p.vy - uy
         return float(0.5 * np.sum(p.m * (ax * ax + ay * ay)) + 0.25 * np.sum(p.m * p.r**2 * p.w**2))
 
     def _flow_kinetic_energy(self) -> float:
-        """Kinetic energy (J) of the sheared cell's flow at the particles (ShearEngine's)."""
+        """Kinetic energy (J) of the sheared cell's flow at the particles (ShearedCell.flow_kinetic_energy)."""
         ux, uy = self._flow()
         return float(0.5 * np.sum(self.ps.m * (ux * ux + uy * uy)))
 
     def peculiar_velocities(self) -> np.ndarray:
-        """Sheared cell: v - u(x) (m/s), (N, 2), original order (ShearEngine.peculiar_velocities)."""
+        """Sheared cell: v - u(x) (m/s), (N, 2), original order (ShearedCell.peculiar_velocities)."""
         ux, uy = self._flow()
         return self._orig(self.ps.vx - ux, self.ps.vy - uy)
 

@@ -313,7 +313,7 @@ def test_bad_choices_are_refused():
         FastEngine(p, S, cell="cubic")
     with pytest.raises(InputError, match="cell='sheared'"):
         FastEngine(sheared_lattice(), S_LMP)
-    with pytest.raises(InputError, match="start_run"):
+    with pytest.raises(InputError, match="orthogonal cell"):
         FastEngine(p, S).start_run(ShearLoading(erate=1.0), 10)
     with pytest.raises(InputError, match="loading"):
         FastEngine(p, S).advance(ShearLoading(erate=1.0), 10)
@@ -328,3 +328,21 @@ def test_bad_choices_are_refused():
         FastEngine(sheared_lattice(), S, cell="sheared")
     with pytest.raises(InputError, match="settings"):
         FastEngine(p, {"dt": 1e-6})
+
+
+def test_an_orthogonal_run_advances_in_pieces_as_the_code_order():
+    # start_run(loading, n) then advance(k) calls: the phase is measured from the run's start
+    # (rate and servo), as advance(loading, k, step0, box0) with the run's step and box
+    p = lattice_packing(12, 14, seed=14, spread=0.15, compression=0.06)
+    ld = Loading(x=AxisControl("servo", target=1.0, gain=2e-3), y=AxisControl("rate", rate=-5.0))
+    a, b = FastEngine(p, S), FastEngine(p, S)
+    a.advance(Loading(), 30)
+    b.advance(Loading(), 30)
+    np.testing.assert_array_equal(a.start_run(ld, 200), a.stress)
+    got = [a.advance(k)["stress"] for k in (50, 70, 80)]
+    want = b.advance(ld, 200, 30, (b.lo.copy(), b.hi.copy()))["stress"]
+    np.testing.assert_array_equal(np.concatenate(got), want)
+    with pytest.raises(InputError, match="run ends at step 230"):
+        a.advance(1)
+    with pytest.raises(InputError, match="start_run"):
+        FastEngine(p, S).advance(5)
