@@ -25,7 +25,9 @@
 3. ``--base REV``: the RVE call of commit REV against this checkout, interleaved in one run (two
    long-lived processes, one per tree, each with its own numba cache, asked in turn A B B A ... for
    windows of ``--window`` ``DemRVE.update`` calls on the same chain): median of the per-window
-   ratio base/head of the time, i.e. the speed-up, with its range.
+   ratio base/head of the wall time, i.e. the speed-up, with its range, and the same of the CPU
+   time (``time.process_time``: on a loaded machine the wall time also counts the time the process
+   waited for a core).
 
 The machine's load average is printed before and after each part (2 shared cores: the absolute
 times follow the load, ratios within one interleaved run much less). ``run(quick)`` gives the
@@ -76,7 +78,8 @@ def rve_call_split(calls: int = 60) -> dict:
     st = law.initial_state(0)
     eye = np.eye(2)
     law.update(eye + np.array(INCREMENTS[0]), st)  # compile or load the cache
-    t = {k: [] for k in ("update", "run", "pack", "kernel", "unpack", "kernel_1", "first_collide", "per_step")}
+    t = {k: [] for k in ("update", "update_cpu", "run", "pack", "kernel", "unpack", "kernel_1", "first_collide",
+                         "per_step")}  # fmt: skip
     ns_all, contacts = [], []
     for i in range(calls):
         f = eye + np.array(INCREMENTS[i % len(INCREMENTS)])
@@ -107,9 +110,10 @@ def rve_call_split(calls: int = 60) -> dict:
         t["per_step"].append(per_step)
         t["first_collide"].append(t["kernel_1"][-1] - per_step)
         # the worker's call, from the same committed state (its result is the chain's next state)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         _, _, nxt = law.update(f, st)
         t["update"].append(time.perf_counter() - t0)
+        t["update_cpu"].append(time.process_time() - c0)
         if not (np.array_equal(nxt.rve.positions, new.positions) and np.array_equal(nxt.disk_rotation(), rot)):
             raise SystemExit("bench.femxdem: the split call differs from DemRVE.update (not the same computation)")
         ns_all.append(call.ns)
@@ -133,6 +137,7 @@ def show_split(r: dict, log=print) -> None:
     log(f"RVE call: {r['n']} disks, ns = {r['ns']:g} steps, {r['contacts']:g} contacts (medians, min in brackets)")
     for k, label in (
         ("update", "DemRVE.update (worker's call)"),
+        ("update_cpu", "  its CPU time"),
         ("run", "rve_run_rotation"),
         ("pack", "  packing (rve_call, kernel_args)"),
         ("kernel", "  kernel _rve_steps (ns steps)"),
@@ -183,6 +188,7 @@ def femxdem_split(nx: int, ny: int, steps: int, workers: int, log=print) -> dict
         "fe_s": fe_s,
         "rest_s": tm["wall_s"] - steps_s,
         "dem_s": tm["law_s"],
+        "dem_cpu_s": tm["law_cpu_s"],
         "dem_calls": tm["law_calls"],
         "dem_per_chunk_s": [c["law_s"] for c in tm["chunks"]],
         "dem_share": tm["law_s"] / (nw * tm["wall_s"]),
@@ -205,7 +211,8 @@ def show_run(r: dict, log=print) -> None:
     chunks = ", ".join(f"{v:.2f}" for v in r["dem_per_chunk_s"])
     log(
         f"  DEM (point-law updates, on the workers) {r['dem_s']:.2f} s in {r['dem_calls']} calls "
-        f"({r['ms_per_call']:.2f} ms a call; per chunk {chunks})"
+        f"({r['ms_per_call']:.2f} ms a call; per chunk {chunks}); CPU {r['dem_cpu_s']:.2f} s "
+        f"({1e3 * r['dem_cpu_s'] / max(r['dem_calls'], 1):.2f} ms a call)"
     )
     log(f"  DEM share {100 * r['dem_share']:.1f} % of workers x wall, overhead {100 * r['overhead']:.1f} %")
 
@@ -225,15 +232,16 @@ print(json.dumps({"ready": True}), flush=True)
 i = 0
 for line in sys.stdin:
     k = int(line)
-    t = 0.0
+    t = c = 0.0
     for _ in range(k):
         f = np.eye(2) + np.array(incs[i % len(incs)])
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         _, _, st = law.update(f, st)
         t += time.perf_counter() - t0
+        c += time.process_time() - c0
         i += 1
     r = st.rve
-    print(json.dumps({"s": t, "x": float(np.sum(r.positions)), "c": len(r.kn)}), flush=True)
+    print(json.dumps({"s": t, "cpu": c, "x": float(np.sum(r.positions)), "c": len(r.kn)}), flush=True)
 """
 
 
@@ -269,11 +277,15 @@ def ab(base: str, windows: int = 12, window: int = 10, log=print) -> dict:
                 p.wait(timeout=60)
     same = all(a["x"] == b["x"] and a["c"] == b["c"] for a, b in zip(per["base"], per["head"]))
     ratios = [a["s"] / b["s"] for a, b in zip(per["base"], per["head"])]
+    cpu = [a["cpu"] / b["cpu"] for a, b in zip(per["base"], per["head"])]
     out = {
         "base": base,
         "speedup_median": statistics.median(ratios),
         "speedup_min": min(ratios),
         "speedup_max": max(ratios),
+        "speedup_cpu_median": statistics.median(cpu),
+        "speedup_cpu_min": min(cpu),
+        "speedup_cpu_max": max(cpu),
         "base_ms": 1e3 * statistics.median([a["s"] for a in per["base"]]) / window,
         "head_ms": 1e3 * statistics.median([b["s"] for b in per["head"]]) / window,
         "same_states": same,
@@ -283,7 +295,9 @@ def ab(base: str, windows: int = 12, window: int = 10, log=print) -> dict:
     log(
         f"A/B DemRVE.update, {windows} windows of {window} calls: head is {out['speedup_median']:.3f}x base {base} "
         f"(range {out['speedup_min']:.3f}-{out['speedup_max']:.3f}); per call base {out['base_ms']:.2f} ms, head "
-        f"{out['head_ms']:.2f} ms (medians); the chains' states equal on both sides: {same}"
+        f"{out['head_ms']:.2f} ms (medians); CPU time: {out['speedup_cpu_median']:.3f}x "
+        f"(range {out['speedup_cpu_min']:.3f}-{out['speedup_cpu_max']:.3f}); the chains' states equal on both sides: "
+        f"{same}"
     )
     return out
 

@@ -554,7 +554,13 @@ def _collide(
         c2, i2, p2, m2 = bc[a][order], bi[a][order], bp[a][order], bm[a][order]
         for k in range(m):
             bc[a, k], bi[a, k], bp[a, k], bm[a, k] = c2[k], i2[k], p2[k], m2[k]
-    # :625-638 findOverlaps along x (sortAxis 0), periodic
+    # :625-638 findOverlaps along x (sortAxis 0), periodic: handleBoundInversionPeri on each pair met.
+    # Most pairs met are neither in the container nor overlapping, and for those it does nothing:
+    # they are filtered here (the same tests, without side effects), and the others are handed to
+    # it in the order met (:func:`_insert_pairs`), which gives the same container: a pair met twice
+    # is found the second time, as in YADE, and an error is raised at the same pair.
+    pairs = np.empty((256, 2), np.int64)
+    count = 0
     for k in range(m):
         if not bm[0, k]:
             continue
@@ -564,13 +570,41 @@ def _collide(
             if bm[0, j]:
                 jid = bi[0, j]
                 a, b = (iid, jid) if iid < jid else (jid, iid)
-                err = _handle_inversion(
-                    a, b, aabb_min, aabb_max, inv_sizes, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, periods
-                )
-                if err != _OK:
-                    return err, 0
+                if slot[a, b] < 0:
+                    overlap, err = _overlap_peri(a, b, aabb_min, aabb_max, inv_sizes, periods)
+                    if overlap or err != _OK:
+                        pairs[count, 0] = a
+                        pairs[count, 1] = b
+                        count += 1
+                        if count == pairs.shape[0] or err != _OK:
+                            err = _insert_pairs(
+                                pairs, count, aabb_min, aabb_max, inv_sizes, slot, n_intr, i_id, i_cd, i_real,
+                                i_geom, i_fs, periods,
+                            )  # fmt: skip
+                            count = 0
+                            if err != _OK:
+                                return err, 0
             j = _norm(j + 1, m)
+    err = _insert_pairs(
+        pairs, count, aabb_min, aabb_max, inv_sizes, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, periods
+    )
+    if err != _OK:
+        return err, 0
     return _OK, -1
+
+
+@njit
+def _insert_pairs(pairs, count, minima, maxima, inv_sizes, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, periods):
+    """:func:`_handle_inversion` on the first ``count`` pairs (id1 < id2) of ``pairs`` (K, 2), in
+    order, up to the first error (returned)."""
+    for p in range(count):
+        err = _handle_inversion(
+            pairs[p, 0], pairs[p, 1], minima, maxima, inv_sizes, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs,
+            periods,
+        )  # fmt: skip
+        if err != _OK:
+            return err
+    return _OK
 
 
 # ----------------------------------------------------------------------------------------------

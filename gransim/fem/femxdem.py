@@ -460,8 +460,9 @@ def run_femxdem(
 ) -> dict:
     """Run the biaxial specimen with the stand-in ``rve`` (module docstring); returns a summary
     (``steps`` the records, ``report`` markdown, ``timing``: ``wall_s`` of the steps, ``material_s``
-    the driver's wait for the Gauss points, ``law_s`` and ``law_calls`` the time in and the number
-    of point-law updates summed over the chunks, measured where they run, ``chunks`` per chunk;
+    the driver's wait for the Gauss points, ``law_s``, ``law_cpu_s`` and ``law_calls`` the wall and
+    CPU time in and the number of point-law updates summed over the chunks, measured where they
+    run, ``chunks`` per chunk;
     ``files``). With ``out`` every converged
     step is checkpointed; ``resume`` continues from the checkpoint; ``stop_after`` = k stops after
     step k's checkpoint (raises :class:`FemxdemInterrupted`). A step that does not converge raises
@@ -612,6 +613,7 @@ def run_femxdem(
             "material_s": mat_s,
             "setup_s": t_setup,
             "law_s": sum(t["law_s"] for t in law_timing),
+            "law_cpu_s": sum(t["law_cpu_s"] for t in law_timing),
             "law_calls": sum(t["law_calls"] for t in law_timing),
             "chunks": law_timing,
         },

@@ -99,7 +99,8 @@ class GaussChunk:
         self.committed = [freeze(s) for s in states]
         self.trial = None
         self._trial_response = None
-        self.law_s = 0.0  # seconds in law.update (the RVE calls), and their number: timing()
+        self.law_s = 0.0  # seconds in law.update (the RVE calls), wall and CPU, and their number: timing()
+        self.law_cpu_s = 0.0
         self.law_calls = 0
         if response is None:
             resp = [self._call(g, law.response, s) for g, s in zip(self.indices, self.committed)]
@@ -120,9 +121,10 @@ class GaussChunk:
         """(stress (K, 2, 2), tangent (K, 2, 2, 2, 2)) after the increments f (K, 2, 2), each from
         its point's committed state; the new states are kept as the trial (replacing an older one)."""
         f = _check_f(f, self.indices.size)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = [self._call(g, self.law.update, f[k], self.committed[k]) for k, g in enumerate(self.indices)]
         self.law_s += time.perf_counter() - t0
+        self.law_cpu_s += time.process_time() - c0
         self.law_calls += len(out)
         self.trial = [o[2] for o in out]
         stress = np.array([o[0] for o in out], dtype=float).reshape(-1, 2, 2)
@@ -164,8 +166,9 @@ class GaussChunk:
 
     def timing(self) -> dict:
         """{"law_s": seconds spent in ``law.update`` since the chunk was made (on its process),
-        "law_calls": their number, "pid"}: the DEM share of a run (bench/femxdem.py)."""
-        return {"law_s": self.law_s, "law_calls": self.law_calls, "pid": os.getpid()}
+        "law_cpu_s": the process's CPU seconds in them (on a shared machine, what the calls would
+        take alone), "law_calls": their number, "pid"}: the DEM share of a run (bench/femxdem.py)."""
+        return {"law_s": self.law_s, "law_cpu_s": self.law_cpu_s, "law_calls": self.law_calls, "pid": os.getpid()}
 
 
 def _concat(parts, k):
