@@ -110,6 +110,14 @@ class ShearLoading:
     every : ``fix deform N``: the box (tilt and servo) changes on the steps that are multiples of
         N only (``Modify::end_of_step``); h_rate is that of the last change (linear styles: the
         constant of ``init``).
+    x_erate : ``x erate R`` (1/s): Lx(t) = Lx0 (1 + R t), lo and hi moving by -/+ half (0: x
+        fixed). y_erate : ``y erate R`` (1/s) with ``y="erate"``. With ``xy erate`` these give any
+        velocity gradient L = [[R_x, R_xy Ly0/Ly], [0, R_y]] of LAMMPS' upper-triangular cell
+        (``FixDeform::init``: lo_stop = lo_start - 0.5 delt R (hi_start - lo_start)).
+    remap : "v" (``remap v``: positions untouched, the images and a particle crossing the boundary
+        move with the velocity jumps h_rate; the default) or "x" (``remap x``: every position
+        mapped through lamda at each box change, no velocity jumps: an affine deformation of the
+        whole assembly, as a material point driven by F(t)).
     """
 
     erate: float = 0.0
@@ -119,10 +127,18 @@ class ShearLoading:
     xy: str = "erate"
     value: float | None = None
     every: int = 1
+    x_erate: float = 0.0
+    y_erate: float = 0.0
+    remap: str = "v"
 
     def __post_init__(self):
         object.__setattr__(self, "erate", _number(self.erate, "erate"))
-        check_choice(self.y, "y control", ("fixed", "servo"))
+        check_choice(self.y, "y control", ("fixed", "servo", "erate"))
+        check_choice(self.remap, "remap", ("v", "x"))
+        object.__setattr__(self, "x_erate", _number(self.x_erate, "x_erate"))
+        object.__setattr__(self, "y_erate", _number(self.y_erate, "y_erate"))
+        if self.y_erate != 0.0 and self.y != "erate":
+            raise InputError(f"y_erate: a y strain rate needs y='erate', got y={self.y!r}")
         object.__setattr__(self, "target", _number(self.target, "target"))
         object.__setattr__(self, "gain", _number(self.gain, "gain"))
         if self.y == "servo" and not self.gain > 0:
@@ -150,6 +166,11 @@ class ShearLoading:
     def moves_tilt(self) -> bool:
         """False when the tilt cannot change (xy erate 0)."""
         return not (self.xy == "erate" and self.value == 0.0)
+
+    @property
+    def moves_box(self) -> bool:
+        """False for a fixed box (no tilt change, x and y fixed)."""
+        return self.moves_tilt or self.x_erate != 0.0 or self.y != "fixed"
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -383,7 +404,7 @@ class ShearedCell:
         on a box with zero tilt") and for a moving box with ``flavour="liggghts"``."""
         if not isinstance(loading, ShearLoading):
             raise InputError(f"loading: expected a ShearLoading (the sheared cell), got {type(loading).__name__}")
-        if eng.flavour == "liggghts" and (loading.moves_tilt or loading.y != "fixed"):
+        if eng.flavour == "liggghts" and loading.moves_box:
             raise InputError("flavour 'liggghts': only a fixed box (xy erate 0, y fixed) is supported")
         begin = eng.step
         end = begin + nsteps
@@ -396,6 +417,7 @@ class ShearedCell:
                 "LAMMPS stops too: 'Cannot use fix deform trate on a box with zero tilt')"
             )
         stop = tilt_stop(loading.xy, loading.value, tilt_start, float(b[3] - b[1]), delt)
+        vremap = loading.remap == "v"
         eng.h_rate[:] = 0.0
         if not loading.moves_tilt:
             style = SK.XY_NONE
@@ -403,8 +425,18 @@ class ShearedCell:
             style = SK.XY_TRATE
         else:
             style = SK.XY_LINEAR
-            eng.h_rate[2] = (stop - tilt_start) / delt
-        self.run = _ShearRun(begin, end, style, tilt_start, stop, float(b[1]), float(b[3]), float(b[3] - b[1]), loading)
+            if vremap:
+                eng.h_rate[2] = (stop - tilt_start) / delt
+        # x and y erate (FixDeform::init): the stop box and, with remap v, h_rate = d hi/dt - d lo/dt
+        xs = _erate_stop(float(b[0]), float(b[2]), loading.x_erate, delt)
+        ys = _erate_stop(float(b[1]), float(b[3]), loading.y_erate, delt)
+        if vremap:
+            for k, (lo, hi, (lo_stop, hi_stop)) in ((0, (b[0], b[2], xs)), (1, (b[1], b[3], ys))):
+                eng.h_rate[k] = (hi_stop - hi) / delt - (lo_stop - lo) / delt
+        self.run = _ShearRun(
+            begin, end, style, tilt_start, stop, float(b[1]), float(b[3]), float(b[3] - b[1]),
+            float(b[0]), float(b[2]), loading,
+        )  # fmt: skip
         self.rebuild(eng, carry=True)
         self.forces(eng, update=False)
         eng.stress = eng.stress_tensor()
@@ -421,14 +453,7 @@ class ShearedCell:
         nsteps = as_int(
             nsteps, "nsteps", 0, run.end - eng.step, note=f" (the run ends at step {run.end}, now at step {eng.step})"
         )
-        s = eng.settings
-        ld = run.loading
-        dfm = SK.Deform(
-            int(run.begin), int(run.end), int(ld.every), int(run.style), float(run.tilt_start), float(run.tilt_stop),
-            float(ld.value), ld.y == "servo", float(run.y_lo), float(run.y_hi), float(run.ly0), s.dt * ld.gain,
-            float(ld.gain), float(ld.target),
-        )  # fmt: skip
-        return dfm, nsteps
+        return deform_of(run, eng.settings.dt), nsteps
 
     def series(self, nsteps: int):
         return SK.ShearSeries(
@@ -489,7 +514,7 @@ class ShearedCell:
             "neighbours/touch": eng.touch,
         }
         if self.run is not None:
-            out["run"] = np.array(self.run[:8], np.float64)
+            out["run"] = np.array(self.run[:_RUN_NUMBERS], np.float64)
         return out
 
     def restore(self, eng, arrays: dict):
@@ -503,17 +528,18 @@ class ShearedCell:
         eng.touch = np.array(arrays["neighbours/touch"], np.bool_).reshape(eng.ea.size)
         self.run = None
         if "run" in arrays:
-            r = np.asarray(arrays["run"], np.float64).reshape(8)
+            r = np.asarray(arrays["run"], np.float64).reshape(_RUN_NUMBERS)
             loading = arrays.get("loading")
             if not isinstance(loading, ShearLoading):
                 raise InputError("restore: a sheared checkpoint in a run needs its loading (arrays['loading'])")
-            self.run = _ShearRun(int(r[0]), int(r[1]), int(r[2]), *(float(v) for v in r[3:8]), loading)
+            self.run = _ShearRun(int(r[0]), int(r[1]), int(r[2]), *(float(v) for v in r[3:]), loading)
         eng._run_drive = self.run
 
 
 class _ShearRun(NamedTuple):
     """The ``fix deform`` of one LAMMPS run: steps begin..end, the tilt style (sheared_kernels.XY_*),
-    the tilt at the start and at the end (m), y lo and hi and Ly at the start (m), the loading."""
+    the tilt at the start and at the end (m), y lo and hi and Ly at the start (m), x lo and hi at
+    the start (m), the loading."""
 
     begin: int
     end: int
@@ -523,7 +549,34 @@ class _ShearRun(NamedTuple):
     y_lo: float
     y_hi: float
     ly0: float
+    x_lo: float
+    x_hi: float
     loading: ShearLoading
+
+
+#: the numbers of a _ShearRun in a checkpoint's ``run`` dataset (all but the loading)
+_RUN_NUMBERS = 10
+
+
+def _erate_stop(lo: float, hi: float, rate: float, delt: float):
+    """(lo_stop, hi_stop) of ``erate rate`` over ``delt`` s from [lo, hi] (``FixDeform::init``:
+    lo_start - 0.5 delt rate (hi_start - lo_start), the same operations in the same order)."""
+    return lo - 0.5 * delt * rate * (hi - lo), hi + 0.5 * delt * rate * (hi - lo)
+
+
+def deform_of(run: _ShearRun, dt: float):
+    """The :data:`gransim.dem.sheared_kernels.Deform` of a run begun by ``start_run`` with time
+    step ``dt`` (s): what every ordering's step loop reads of the run's ``fix deform``."""
+    ld = run.loading
+    delt = float(run.end - run.begin) * dt
+    xs = _erate_stop(run.x_lo, run.x_hi, ld.x_erate, delt)
+    ys = _erate_stop(run.y_lo, run.y_hi, ld.y_erate, delt)
+    return SK.Deform(
+        int(run.begin), int(run.end), int(ld.every), int(run.style), float(run.tilt_start), float(run.tilt_stop),
+        float(ld.value), ld.y == "servo", float(run.y_lo), float(run.y_hi), float(run.ly0), dt * ld.gain,
+        float(ld.gain), float(ld.target), ld.x_erate != 0.0, float(run.x_lo), float(run.x_hi), xs[0], xs[1],
+        ld.y == "erate", ys[0], ys[1], ld.remap == "x",
+    )  # fmt: skip
 
 
 def ShearEngine(

@@ -31,7 +31,10 @@ from . import kernels as K
 
 #: the fix deform parameters of a run (:func:`deform_end_of_step`): begin, end (steps), every
 #: (``fix deform N``), xy_style, tilt_start, tilt_stop (m), rate (the style's number), servo_on,
-#: y_lo_start, y_hi_start, ly0 (m), kgain = dt gain (1/Pa), gain (1/(Pa s)), target (N/m)
+#: y_lo_start, y_hi_start, ly0 (m), kgain = dt gain (1/Pa), gain (1/(Pa s)), target (N/m);
+#: x_on (``x erate``), x_lo_start, x_hi_start, x_lo_stop, x_hi_stop (m); y_erate_on (``y erate``),
+#: y_lo_stop, y_hi_stop (m); remap_x (``remap x``: positions mapped through lamda at each box
+#: change, no velocity jumps; else ``remap v``)
 Deform = namedtuple(
     "Deform",
     [
@@ -49,7 +52,17 @@ Deform = namedtuple(
         "kgain",
         "gain",
         "target",
+        "x_on",
+        "x_lo_start",
+        "x_hi_start",
+        "x_lo_stop",
+        "x_hi_stop",
+        "y_erate_on",
+        "y_lo_stop",
+        "y_hi_stop",
+        "remap_x",
     ],
+    defaults=(False, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, False),
 )
 #: the sheared cell's state besides particles and list: box (5,), box_hold (5,) at the last build,
 #: hr (3,) h_rate, lam (N, 2), touch (M,) the contact flags of the last force evaluation,
@@ -179,8 +192,13 @@ def deform_end_of_step(step, dfm, box, hr, vir, dt):
     delta; h_rate[5] constant, set by ``init``); XY_TRATE, tilt_start exp(rate (step - begin) dt)
     and h_rate[5] = rate * (the tilt before this call); XY_NONE, the current tilt. Then LAMMPS'
     tilt wrap (add/subtract Lx until the tilt is closest to the current one) and its flip test
-    (tilt / Lx beyond -/+0.5, with 1/Lx as a factor). Updates ``box`` and ``hr``. Returns False
-    when the cell collapsed or LAMMPS would flip the box (not supported)."""
+    (tilt / Lx beyond -/+0.5, with 1/Lx as a factor). x and y ``erate`` (``x_on``, ``y_erate_on``):
+    lo/hi = start + delta (stop - start), as the linear tilt styles; the wrap and the flip test
+    then use the new Lx. ``remap_x``: ``hr`` is left alone (no velocity jumps: LAMMPS uses h_rate
+    only with ``remap v``; the positions follow the box, :func:`remap_positions`). Updates ``box``
+    and ``hr``. Returns False
+    when the cell collapsed or LAMMPS would flip the box (not supported). Source: LAMMPS
+    ``FixDeform::init`` (lo/hi_stop, h_rate) and ``FixDeform::end_of_step``; docs/shear.md."""
     begin, end, xy_style, tilt_start, tilt_stop, rate = (
         dfm.begin, dfm.end, dfm.xy_style, dfm.tilt_start, dfm.tilt_stop, dfm.rate
     )  # fmt: skip
@@ -193,23 +211,34 @@ def deform_end_of_step(step, dfm, box, hr, vir, dt):
     h0 = box[2] - box[0]
     h1 = box[3] - box[1]
     h5 = box[4]
+    lo0 = box[0]
+    hi0 = box[2]
     lo1 = box[1]
     hi1 = box[3]
-    if servo_on:
+    remap_x = dfm.remap_x
+    if dfm.x_on:
+        lo0 = dfm.x_lo_start + delta * (dfm.x_lo_stop - dfm.x_lo_start)
+        hi0 = dfm.x_hi_start + delta * (dfm.x_hi_stop - dfm.x_hi_start)
+    if dfm.y_erate_on:
+        lo1 = y_lo_start + delta * (dfm.y_lo_stop - y_lo_start)
+        hi1 = y_hi_start + delta * (dfm.y_hi_stop - y_hi_start)
+    elif servo_on:
         syy = vir[1] * (1.0 / (h0 * h1))
         dl = (h1 - ly0) + kgain * (syy - target) * h1
         lo1 = y_lo_start - 0.5 * dl
         hi1 = y_hi_start + 0.5 * dl
-        hr[1] = gain * (syy - target) * h1
+        if not remap_x:
+            hr[1] = gain * (syy - target) * h1
     if xy_style == XY_LINEAR:
         tt = tilt_start + delta * (tilt_stop - tilt_start)
     elif xy_style == XY_TRATE:
         delt = float(step - begin) * dt
         tt = tilt_start * math.exp(rate * delt)
-        hr[2] = rate * h5
+        if not remap_x:
+            hr[2] = rate * h5
     else:
         tt = h5
-    denom = box[2] - box[0]
+    denom = hi0 - lo0
     current = h5 / h0
     while tt / denom - current > 0.0:
         tt -= denom
@@ -217,17 +246,41 @@ def deform_end_of_step(step, dfm, box, hr, vir, dt):
         tt += denom
     if abs(tt / denom - 1.0 - current) < abs(tt / denom - current):
         tt -= denom
-    xprd = box[2] - box[0]
+    xprd = hi0 - lo0
     yprd = hi1 - lo1
-    if not (yprd > 0.0):
+    if not (yprd > 0.0 and xprd > 0.0):
         return False
     xprdinv = 1.0 / xprd
     if tt * xprdinv < -0.5 or tt * xprdinv > 0.5:
         return False
+    box[0] = lo0
+    box[2] = hi0
     box[1] = lo1
     box[3] = hi1
     box[4] = tt
     return True
+
+
+@njit
+def remap_positions(x, old, box):
+    """``fix deform ... remap x``: every position to lamda in the box ``old`` (5,)
+    (``Domain::x2lamda``; the z terms add signed zeros only) and back in the new ``box``
+    (``Domain::lamda2x``), in place (N, 2)."""
+    h0 = old[2] - old[0]
+    h1 = old[3] - old[1]
+    i0 = 1.0 / h0
+    i1 = 1.0 / h1
+    i5 = -old[4] / (h0 * h1)
+    n0 = box[2] - box[0]
+    n1 = box[3] - box[1]
+    n5 = box[4]
+    for i in range(x.shape[0]):
+        d0 = x[i, 0] - old[0]
+        d1 = x[i, 1] - old[1]
+        l0 = i0 * d0 + i5 * d1
+        l1 = i1 * d1
+        x[i, 0] = ((n0 * l0 + n5 * l1) + 0.0) + box[0]
+        x[i, 1] = (n1 * l1 + 0.0) + box[1]
 
 
 # --------------------------------------------------------------------------- neighbour list
@@ -416,6 +469,7 @@ def run_block(p, nb, law, cell, dfm, out, vir, dt, skin, lmp, step0, nsteps, res
     """
     x, v, w, f, t, m, r = p.x, p.v, p.w, p.f, p.t, p.m, p.r
     box, box_hold, hr = cell.box, cell.box_hold, cell.hr
+    old = np.empty(5)  # the box before a ``remap x`` change
     for k in range(nsteps):
         step = step0 + k + 1
         use_lam = False
@@ -436,9 +490,13 @@ def run_block(p, nb, law, cell, dfm, out, vir, dt, skin, lmp, step0, nsteps, res
         nc, so = forces(p, nb, law, cell, use_lam, dt, True, vir)
         ke = K.final_integrate(v, w, f, t, m, r, dt)
         if step % dfm.every == 0:
+            if dfm.remap_x:
+                old[:] = box
             ok = deform_end_of_step(step, dfm, box, hr, vir, dt)
             if not ok:
                 return k, 3, -1
+            if dfm.remap_x:
+                remap_positions(x, old, box)
         inv = 1.0 / ((box[2] - box[0]) * (box[3] - box[1]))
         for c in range(4):
             out.stress[k, c] = vir[c] * inv

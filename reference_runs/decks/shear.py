@@ -2,7 +2,8 @@
 for step: a triclinic box (``change_box all triclinic``) sheared by ``fix deform 1 xy erate RATE
 remap v`` (Lees-Edwards; or any other ``xy`` style and ``fix deform N`` of the
 :class:`~gransim.dem.sheared.ShearLoading`, except trate, which needs a tilted start), y fixed or
-under a normal-stress servo ``y variable v_dy v_ry``.
+under a normal-stress servo ``y variable v_dy v_ry``; a general velocity gradient adds ``x erate``
+and ``y erate`` and may take ``remap x`` (``ShearLoading.x_erate``, ``y_erate``, ``remap``).
 
 Same contact law (``pair_style gran/hooke/history KN KT GAMMAN GAMMAT MU 1``, mass-scaled damping),
 time step, skin and neighbour rule (``neigh_modify delay 0 every 1 check yes``), no atom sorting,
@@ -119,6 +120,10 @@ def deck_text(
             "loading: xy trate needs a tilted start, and this deck starts from an orthogonal cell "
             "(change_box all triclinic, xy = 0; LAMMPS refuses trate at zero tilt)"
         )
+    if loading.x_erate != 0.0:
+        deform.append(f"x erate {_g(loading.x_erate)}")
+    if loading.y == "erate":
+        deform.append(f"y erate {_g(loading.y_erate)}")
     if loading.moves_tilt:
         deform.append(f"xy {loading.xy} {_g(loading.value)}")
     if loading.y == "servo":
@@ -132,7 +137,7 @@ def deck_text(
         ]
         deform.append("y variable v_dy v_ry")
     if deform:
-        lines.append(f"fix def all deform {loading.every} {' '.join(deform)} remap v")
+        lines.append(f"fix def all deform {loading.every} {' '.join(deform)} remap {loading.remap}")
     lines += [
         "compute pt all pressure NULL virial",
         "thermo_style custom step lx ly xy xlo xhi ylo yhi c_pt[1] c_pt[2] c_pt[4]",

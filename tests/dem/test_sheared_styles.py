@@ -182,3 +182,99 @@ def test_deck_writer_styles_against_live_lammps(case, tmp_path):
     ref = np.stack([th["sxx"], th["syy"], th["sxy"]], 1)[1:]
     mine = np.stack([out["stress"][:, 0, 0], out["stress"][:, 1, 1], out["stress"][:, 0, 1]], 1)
     assert (np.abs(mine - ref).max(axis=1) / np.abs(ref).max(axis=1)).max() < 1e-8
+
+
+#: a general velocity gradient of the upper-triangular cell: stretch x, compress y, shear xy
+GENERAL = {"x_erate": 1.5, "y": "erate", "y_erate": -2.0, "erate": 2.5}
+
+
+@pytest.mark.parametrize("remap", ["x", "v"])
+def test_general_velocity_gradient_box_follows_fix_deform_init(case, remap):
+    # Lx(n) = Lx0 (1 + R_x n dt) and Ly likewise, lo and hi moving by half each (FixDeform::init
+    # lo_stop = lo_start - 0.5 delt R L0, end_of_step linear in between); the tilt as xy erate
+    p, s = case
+    n = 400
+    ld = ShearLoading(**GENERAL, remap=remap)
+    out = simple_shear(p, s, ld, n)
+    t = np.arange(1, n + 1) * s.dt
+    lx0, ly0 = p.cell[0, 0], p.cell[1, 1]
+    np.testing.assert_allclose(out["box"][:, 0], lx0 * (1 + 1.5 * t), rtol=1e-13)
+    np.testing.assert_allclose(out["box"][:, 1], ly0 * (1 - 2.0 * t), rtol=1e-13)
+    np.testing.assert_allclose(out["box"][:, 2], 2.5 * ly0 * t, rtol=1e-10)  # delta (stop - start), delta = k/n
+    eng = out["engine"]
+    if remap == "x":
+        # remap x: no velocity jumps, the positions follow the cell (all inside it after a step)
+        assert np.all(eng.h_rate == 0.0)
+    else:
+        # remap v: the image velocity jumps are the box rates
+        assert eng.h_rate[0] == pytest.approx(1.5 * lx0, rel=1e-12)
+        assert eng.h_rate[1] == pytest.approx(-2.0 * ly0, rel=1e-12)
+
+
+def test_remap_x_is_lamda_in_the_old_box_then_x_in_the_new(case):
+    # remap x (FixDeform::end_of_step): x2lamda with the old box, lamda2x with the new one, the
+    # same operations as the rebuild's Domain::x2lamda / lamda2x (bit for bit), and affine
+    from gransim.dem import sheared_kernels as SK
+
+    p, _ = case
+    rng = np.random.default_rng(3)
+    x = p.positions + rng.normal(scale=1e-4, size=p.positions.shape)
+    old = np.array([-1e-3, 2e-3, 0.019, 0.0228, 1.5e-3])
+    new = np.array([-1.2e-3, 2.1e-3, 0.0193, 0.0226, 1.9e-3])
+    got = x.copy()
+    SK.remap_positions(got, old, new)
+    lam = np.zeros_like(x)
+    SK.x2lamda(x, old, lam)
+    want = np.zeros_like(x)
+    SK.lamda2x(lam, new, want)
+    np.testing.assert_array_equal(got, want)
+    h_old = np.array([[old[2] - old[0], old[4]], [0.0, old[3] - old[1]]])
+    h_new = np.array([[new[2] - new[0], new[4]], [0.0, new[3] - new[1]]])
+    affine = (h_new @ np.linalg.solve(h_old, (x - old[:2]).T)).T + new[:2]
+    np.testing.assert_allclose(got, affine, rtol=0, atol=1e-15)
+
+
+def test_general_loading_checks():
+    with pytest.raises(InputError, match="y_erate: a y strain rate needs y='erate'"):
+        ShearLoading(y_erate=1.0)
+    with pytest.raises(InputError, match="unknown remap"):
+        ShearLoading(remap="w")
+
+
+@pytest.mark.lammps
+@pytest.mark.parametrize("remap", ["x", "v"])
+def test_general_velocity_gradient_against_live_lammps(case, tmp_path, remap):
+    # x erate, y erate and xy erate together, remap x (an affine F(t), a material point) or remap
+    # v, run by lmp from the deck writer: the box equal, stresses and positions to round-off
+    import shutil
+
+    from reference_runs.decks.shear import read_dump, read_thermo, run_lammps, write_shear_deck
+
+    if shutil.which("lmp") is None:
+        pytest.skip("lmp (LAMMPS) binary not installed")
+    p, s = case
+    n = 400
+    ld = ShearLoading(**GENERAL, remap=remap)
+    deck = write_shear_deck(tmp_path, p, s, ld, n, thermo_every=1, dump_every=200)
+    text = deck.read_text()
+    assert f"fix def all deform 1 x erate 1.5 y erate -2 xy erate 2.5 remap {remap}" in text
+    th = read_thermo(run_lammps(deck))
+    dumps = read_dump(tmp_path / "dump.atoms")
+    frames = {}
+
+    def keep(e):
+        frames[e.step] = e.x.copy()
+
+    out = simple_shear(p, s, ld, n, every=200, callback=keep)
+    np.testing.assert_array_equal(out["box"][:, 0], th["lx"][1:])
+    np.testing.assert_array_equal(out["box"][:, 1], th["ly"][1:])
+    np.testing.assert_array_equal(out["box"][:, 2], th["xy"][1:])
+    ref = np.stack([th["sxx"], th["syy"], th["sxy"]], 1)[1:]
+    mine = np.stack([out["stress"][:, 0, 0], out["stress"][:, 1, 1], out["stress"][:, 0, 1]], 1)
+    assert (np.abs(mine - ref).max(axis=1) / np.abs(ref).max(axis=1)).max() < 1e-8
+    for step, x in frames.items():
+        fr = dumps[step]
+        d = x - np.stack([fr["x"], fr["y"]], 1)
+        cell = np.array([[th["lx"][step], th["xy"][step]], [0.0, th["ly"][step]]])
+        lam = np.linalg.solve(cell, d.T).T
+        assert np.abs(d - np.round(lam) @ cell.T).max() < 1e-10 * p.d50
