@@ -73,29 +73,12 @@ def wrapped_packing(packing: Packing) -> Packing:
     return packing.replace(positions=x)
 
 
-def deck_text(
-    packing: Packing,
-    settings: DEMSettings,
-    loading: ShearLoading,
-    nsteps: int,
-    thermo_every: int = 1,
-    dump_every: int = 100,
-    law=None,
-) -> str:
-    """The LAMMPS input deck (text) of a simple-shear run of ``nsteps`` steps (see the module).
-    ``law``: a LAMMPS contact law (:func:`gransim.contacts.laws.make_law`) whose deck lines replace
-    those of the Hooke law of ``settings`` (``gran/hooke/history``)."""
-    if not isinstance(loading, ShearLoading):
-        raise InputError(f"loading: expected a ShearLoading, got {type(loading).__name__}")
+def _header(packing: Packing, settings: DEMSettings, law) -> list:
+    """The deck's lines before its loading: units, cell, data, law, integration (the module)."""
     s = settings
     if s.mode != "serial":
         raise InputError(f"settings.mode: the deck mirrors the serial engine, got {s.mode!r}")
-    nsteps, thermo_every, dump_every = int(nsteps), int(thermo_every), int(dump_every)
-    for name, v in (("nsteps", nsteps), ("thermo_every", thermo_every), ("dump_every", dump_every)):
-        if v < 1:
-            raise InputError(f"{name}: expected an integer >= 1, got {v}")
-    Ly = float(packing.cell[1, 1])
-    lines = [
+    return [
         "# gransim.dem.sheared mirror deck (reference_runs/decks/shear.py)",
         "units si",
         "dimension 2",
@@ -114,7 +97,13 @@ def deck_text(
         "fix integr all nve/sphere disc",
         "fix e2d all enforce2d",
     ]
-    deform = []
+
+
+def _deform(packing: Packing, settings: DEMSettings, loading: ShearLoading) -> tuple[list, list]:
+    """(lines defining the servo's variables, the ``fix deform`` line or none) of ``loading``."""
+    if not isinstance(loading, ShearLoading):
+        raise InputError(f"loading: expected a ShearLoading, got {type(loading).__name__}")
+    lines, deform = [], []
     if loading.xy == "trate":
         raise InputError(
             "loading: xy trate needs a tilted start, and this deck starts from an orthogonal cell "
@@ -127,8 +116,9 @@ def deck_text(
     if loading.moves_tilt:
         deform.append(f"xy {loading.xy} {_g(loading.value)}")
     if loading.y == "servo":
-        k = s.dt * loading.gain
+        k = settings.dt * loading.gain
         t = _g(loading.target)
+        Ly = float(packing.cell[1, 1])
         lines += [
             "compute psy all pressure NULL virial",
             "fix avsy all ave/time 1 1 1 c_psy[2]",
@@ -136,17 +126,72 @@ def deck_text(
             f"variable ry equal {_g(loading.gain)}*(f_avsy-({t}))*ly",
         ]
         deform.append("y variable v_dy v_ry")
-    if deform:
-        lines.append(f"fix def all deform {loading.every} {' '.join(deform)} remap {loading.remap}")
+    fix = [f"fix def all deform {loading.every} {' '.join(deform)} remap {loading.remap}"] if deform else []
+    return lines, fix
+
+
+_THERMO = [
+    "compute pt all pressure NULL virial",
+    "thermo_style custom step lx ly xy xlo xhi ylo yhi c_pt[1] c_pt[2] c_pt[4]",
+    "thermo_modify format float %.17g norm no",
+]
+_DUMP_COLUMNS = "id x y vx vy omegaz fx fy tqz mass radius"
+
+
+def _count(name: str, v) -> int:
+    v = int(v)
+    if v < 1:
+        raise InputError(f"{name}: expected an integer >= 1, got {v}")
+    return v
+
+
+def deck_text(
+    packing: Packing,
+    settings: DEMSettings,
+    loading: ShearLoading,
+    nsteps: int,
+    thermo_every: int = 1,
+    dump_every: int = 100,
+    law=None,
+) -> str:
+    """The LAMMPS input deck (text) of a simple-shear run of ``nsteps`` steps (see the module).
+    ``law``: a LAMMPS contact law (:func:`gransim.contacts.laws.make_law`) whose deck lines replace
+    those of the Hooke law of ``settings`` (``gran/hooke/history``)."""
+    nsteps, thermo_every = _count("nsteps", nsteps), _count("thermo_every", thermo_every)
+    dump_every = _count("dump_every", dump_every)
+    lines = _header(packing, settings, law)
+    servo, fix = _deform(packing, settings, loading)
+    lines += servo + fix + _THERMO
     lines += [
-        "compute pt all pressure NULL virial",
-        "thermo_style custom step lx ly xy xlo xhi ylo yhi c_pt[1] c_pt[2] c_pt[4]",
-        "thermo_modify format float %.17g norm no",
         f"thermo {thermo_every}",
-        f"dump d1 all custom {dump_every} {DUMP} id x y vx vy omegaz fx fy tqz mass radius",
+        f"dump d1 all custom {dump_every} {DUMP} {_DUMP_COLUMNS}",
         "dump_modify d1 sort id format float %.17g",
         f"run {nsteps}",
     ]
+    return "\n".join(lines) + "\n"
+
+
+def call_dump(k: int) -> str:
+    """The file of the state after call ``k`` (1, 2, ...) of :func:`sequence_deck_text`."""
+    return f"dump.call{int(k)}"
+
+
+def sequence_deck_text(packing: Packing, settings: DEMSettings, runs, law=None) -> str:
+    """The deck of a sequence of LAMMPS ``run`` commands, each under its own ``fix deform``
+    (``runs``: (ShearLoading, nsteps) pairs; no servo), as a material point driven call after call
+    (:mod:`gransim.fem.lammps_rve`): ``fix def`` ... ``run n`` ``unfix def`` per call, thermo at
+    the first and last step of each run, and after each run ``write_dump`` of the state to
+    :func:`call_dump` ``(k)`` (the columns of ``dump.atoms``, sorted by id, %.17g)."""
+    runs = list(runs)
+    if not runs:
+        raise InputError("runs: expected at least one (loading, nsteps)")
+    lines = _header(packing, settings, law) + _THERMO + ["thermo 1000000000"]
+    for k, (ld, n) in enumerate(runs, 1):
+        servo, fix = _deform(packing, settings, ld)
+        if servo:
+            raise InputError(f"runs[{k - 1}]: a sequence of calls takes no servo")
+        lines += fix + [f"run {_count('nsteps', n)}"] + (["unfix def"] if fix else [])
+        lines.append(f"write_dump all custom {call_dump(k)} {_DUMP_COLUMNS} modify sort id format float %.17g")
     return "\n".join(lines) + "\n"
 
 

@@ -1,0 +1,136 @@
+"""A DEM RVE in LAMMPS' arithmetic driven by a Gauss point's strain history.
+
+Guo & Zhao (*A coupled FEM/DEM approach for hierarchical multiscale modelling of granular media*,
+Int. J. Numer. Meth. Engng 99 (2014) 789-818, section 3) drive each Gauss point's periodic RVE by
+its strain increment D (2, 2) (the increment of the displacement gradient), applied as a constant
+velocity gradient over ns = max(1e5 max|D|, 2) steps (``simDEM.shear2D``, :func:`gransim.dem.
+yade_arithmetic.n_steps_of`). :mod:`gransim.fem.dem_rve` does this in YADE's arithmetic; this module
+does it in LAMMPS' (29 Sep 2021), so that a Gauss point's history can be replayed in LAMMPS too
+(``reference_runs.femxdem.lammps_replay``).
+
+The cell is LAMMPS' triclinic box (upper triangular, a1 = (Lx, 0)): one call is one LAMMPS ``run
+ns`` under ``fix deform 1 x erate D00/T y erate D11/T xy erate (D01 + D10)/T remap x`` (T = ns dt),
+:class:`gransim.dem.sheared.ShearLoading` with ``remap="x"``: Lx and Ly change by the engineering
+increments D00 and D11, the tilt by (D01 + D10) Ly0, and every position follows the cell affinely.
+The cell cannot rotate (LAMMPS keeps a1 along x), so the increment's rotation (D01 - D10)/2 is not
+applied: a disk assembly with frictional Hooke contacts is frame indifferent, and the symmetric part
+of D is applied exactly to first order. Each call starts with LAMMPS' run set-up (list build, the
+springs handed over, forces without spring increment), as consecutive ``run`` commands do.
+
+The RVE of Guo & Zhao's ``prepareRVE.py`` (:func:`gransim.fem.dem_rve.load_rve_state`: 400 disks
+consolidated to 100 kPa in YADE) gives the disks and the cell; the contact law is LAMMPS'
+``gran/hooke/history`` (a LAMMPS material, not YADE's Cundall-Strack law with its non-viscous
+damping, which LAMMPS does not offer): kn the median of YADE's radius-dependent kn of the
+prepared contacts, kt = (ks/kn) kn, friction tan of YADE's friction angle, viscous damping ratio
+:data:`DAMPING_RATIO`, dt = contact time / :data:`STEPS_PER_CONTACT`. Mass per unit area:
+YADE's disk mass over pi r^2 (2650 kg/m^3 times the 0.1 m thickness). Stresses: the Love stress of
+the cell (N/m, tension positive) over the thickness :data:`THICKNESS`, in Pa as the FE specimen.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..dem.settings import DEMSettings
+from ..errors import InputError
+from ..geometry import Packing
+
+#: the disks' thickness (m): YADE's 3D cell height of Guo & Zhao's RVE (stress in Pa)
+THICKNESS = 0.1
+#: viscous damping ratio of the LAMMPS law (Guo & Zhao's YADE damping is non-viscous, 0.1)
+DAMPING_RATIO = 0.1
+#: time step = contact time / this
+STEPS_PER_CONTACT = 50.0
+
+
+@dataclass(frozen=True)
+class LammpsRVE:
+    """The RVE (packing wrapped into its cell, orthogonal at the start) and its LAMMPS settings."""
+
+    packing: Packing
+    settings: DEMSettings
+
+    def __post_init__(self):
+        if self.settings.flavour != "lammps":
+            raise InputError(
+                f"settings.flavour: the LAMMPS RVE runs in LAMMPS' arithmetic, got {self.settings.flavour!r}"
+            )
+
+    @classmethod
+    def guo_zhao(cls, state=None) -> LammpsRVE:
+        """The RVE of ``prepareRVE.py`` (``state``: a :class:`gransim.dem.yade_arithmetic.
+        YadeRVEState`, default the stored one) with the LAMMPS law of the module docstring."""
+        from ..dem.biaxial import default_settings  # noqa: PLC0415 - start-up: numba
+        from ..dem.kernels import pbc_wrap  # noqa: PLC0415 - start-up: numba
+        from .dem_rve import load_rve_state  # noqa: PLC0415 - start-up: numba
+
+        if state is None:
+            state = load_rve_state()[0]
+        H = np.asarray(state.hsize, np.float64)
+        if H[0, 1] != 0.0 or H[1, 0] != 0.0:
+            raise InputError(f"state.hsize: the LAMMPS RVE starts from an orthogonal cell, got {H.tolist()}")
+        r = np.asarray(state.radii, np.float64)
+        x = np.array(state.positions, np.float64)
+        if pbc_wrap(x, np.zeros(2), np.array([H[0, 0], H[1, 1]])) >= 0:
+            raise InputError("state.positions: a disk lies more than a cell outside the cell")
+        rho = float(np.median(np.asarray(state.mass) / (np.pi * r * r)))
+        packing = Packing(positions=x, radii=r, cell=H, density=rho, metadata={"source": "prepareRVE.py (YADE)"})
+        kn = float(np.median(state.kn))
+        ratio = float(np.median(np.asarray(state.ks) / np.asarray(state.kn)))
+        mu = float(np.median(state.tan_phi))
+        dem, _ = default_settings(
+            packing, kn=kn, damping_ratio=DAMPING_RATIO, steps_per_contact=STEPS_PER_CONTACT, flavour="lammps",
+            mu=mu, kt_ratio=ratio,
+        )  # fmt: skip
+        return cls(packing, dataclasses.replace(dem))
+
+    def call(self, D):
+        """(ShearLoading, ns) of the strain increment ``D`` (2, 2): the module's ``fix deform``."""
+        from ..dem.sheared import ShearLoading  # noqa: PLC0415 - start-up: numba
+        from ..dem.yade_arithmetic import n_steps_of  # noqa: PLC0415 - start-up: numba
+
+        D = np.asarray(D, np.float64)
+        if D.shape != (2, 2) or not np.all(np.isfinite(D)):
+            raise InputError(f"D: expected a finite (2, 2) strain increment, got shape {D.shape}")
+        ns = n_steps_of(D)
+        T = ns * self.settings.dt
+        ld = ShearLoading(
+            erate=float((D[0, 1] + D[1, 0]) / T), x_erate=float(D[0, 0] / T), y="erate", y_erate=float(D[1, 1] / T),
+            remap="x",
+        )  # fmt: skip
+        return ld, ns
+
+    def engine(self):
+        """A new engine of the RVE (the sheared cell in LAMMPS' arithmetic)."""
+        from ..dem.sheared import ShearEngine  # noqa: PLC0415 - start-up: numba
+
+        return ShearEngine(self.packing, self.settings, flavour="lammps")
+
+    def replay(self, increments) -> list[dict]:
+        """Drive a new engine by ``increments`` (K, 2, 2), one call each; the state after each call:
+        dicts of ``positions`` (N, 2), ``velocities``, ``spins``, ``box`` (5,) (lo_x, lo_y, hi_x,
+        hi_y, xy), ``stress`` (2, 2) (Pa, tension positive), ``steps`` (the call's ns)."""
+        inc = np.asarray(increments, np.float64).reshape(-1, 2, 2)
+        eng = self.engine()
+        out = []
+        for D in inc:
+            ld, ns = self.call(D)
+            eng.start_run(ld, ns)
+            eng.advance(ns)
+            out.append(
+                {
+                    "positions": eng.x.copy(),
+                    "velocities": eng.v.copy(),
+                    "spins": eng.w.copy(),
+                    "box": eng.box.copy(),
+                    "stress": -eng.stress_tensor() / THICKNESS,
+                    "steps": ns,
+                }
+            )
+        return out
+
+
+__all__ = ["DAMPING_RATIO", "STEPS_PER_CONTACT", "THICKNESS", "LammpsRVE"]

@@ -1,0 +1,82 @@
+"""A Gauss point's strain history in LAMMPS' arithmetic: the RVE of Guo & Zhao's prepareRVE.py
+driven call after call by strain increments (gransim.fem.lammps_rve), natively and in LAMMPS
+(reference_runs.femxdem.lammps_replay): the cell equal bit for bit, stresses and positions to
+round-off after every call."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from gransim.errors import InputError
+from gransim.fem.lammps_rve import THICKNESS, LammpsRVE
+
+#: three increments of a biaxial Gauss point: axial compression, lateral expansion, some shear
+INCREMENTS = np.array(
+    [
+        [[4.0e-4, 1.5e-4], [0.5e-4, -1.0e-3]],
+        [[6.0e-4, -2.0e-4], [1.0e-4, -1.0e-3]],
+        [[5.0e-4, 3.0e-4], [-1.0e-4, -8.0e-4]],
+    ]
+)
+
+
+@pytest.fixture(scope="module")
+def rve():
+    return LammpsRVE.guo_zhao()
+
+
+def test_the_rve_is_guo_zhaos_with_a_lammps_law(rve):
+    p, s = rve.packing, rve.settings
+    assert p.n == 400 and s.flavour == "lammps"
+    assert np.all((p.positions >= 0) & (p.positions < np.diag(p.cell)))  # wrapped for the data file
+    # 0.1-thick disks at 2650 kg/m^3: 265 kg/m^2; ks/kn 0.8; friction tan 0.5
+    assert p.density == pytest.approx(265.0, rel=1e-12)
+    assert s.kt == pytest.approx(0.8 * s.kn, rel=1e-12) and s.mu == pytest.approx(np.tan(0.5), rel=1e-12)
+
+
+def test_a_call_applies_the_engineering_increments(rve):
+    # Lx, Ly change by D00 and D11, the tilt by (D01 + D10) Ly0, over ns = max(1e5 max|D|, 2) steps
+    D = INCREMENTS[0]
+    ld, ns = rve.call(D)
+    assert ns == 100 and ld.remap == "x"
+    (state,) = rve.replay(D[None])
+    lx0, ly0 = np.diag(rve.packing.cell)
+    b = state["box"]
+    assert b[2] - b[0] == pytest.approx(lx0 * (1 + D[0, 0]), rel=1e-12)
+    assert b[3] - b[1] == pytest.approx(ly0 * (1 + D[1, 1]), rel=1e-12)
+    assert b[4] == pytest.approx((D[0, 1] + D[1, 0]) * ly0, rel=1e-10)
+    # compressed along y: the RVE pushes back (tension positive: sigma_yy < 0), in Pa
+    assert state["stress"][1, 1] < 0 and abs(state["stress"][1, 1]) > 1e3
+    with pytest.raises(InputError, match="strain increment"):
+        rve.call(np.zeros(3))
+
+
+@pytest.mark.lammps
+def test_replay_in_lammps_equals_the_native_calls(rve, tmp_path):
+    if shutil.which("lmp") is None:
+        pytest.skip("lmp (LAMMPS) binary not installed")
+    from reference_runs.femxdem.lammps_replay import replay_in_lammps
+
+    native = rve.replay(INCREMENTS)
+    lammps = replay_in_lammps(tmp_path, rve, INCREMENTS)
+    assert len(lammps) == len(native) == len(INCREMENTS)
+    d50 = 2 * float(np.median(rve.packing.radii))
+    for k, (a, b) in enumerate(zip(native, lammps, strict=True)):
+        box = a["box"]
+        np.testing.assert_array_equal(
+            [box[2] - box[0], box[3] - box[1], box[4]], b["lx_ly_xy"], err_msg=f"call {k + 1}: the cell"
+        )
+        cell = np.array([[box[2] - box[0], box[4]], [0.0, box[3] - box[1]]])
+        d = a["positions"] - b["positions"]
+        lam = np.linalg.solve(cell, d.T).T
+        assert np.abs(d - np.round(lam) @ cell.T).max() < 1e-10 * d50, f"call {k + 1}: positions"
+        for i, j in ((0, 0), (1, 1), (0, 1)):
+            ref = b["stress"][i, j]
+            assert abs(a["stress"][i, j] - ref) < 1e-8 * np.abs(b["stress"]).max(), f"call {k + 1}: stress {i}{j}"
+        vmax = np.abs(b["velocities"]).max()
+        assert np.abs(a["velocities"] - b["velocities"]).max() < 1e-8 * vmax, f"call {k + 1}: velocities"
+    # the replay really loads the RVE: its stress after the calls is of the order of the confinement
+    assert np.abs(native[-1]["stress"]).max() > 1e3 / THICKNESS / 10
