@@ -634,13 +634,17 @@ def _interactions(
     are most of the non-real entries of a step."""
     force[:] = 0.0
     torque[:] = 0.0
+    # the cell's matrices as scalars: read once, not once per interaction (a store into the
+    # container or the forces might alias them for the compiler)
+    h00, h01, h10, h11 = H[0, 0], H[0, 1], H[1, 0], H[1, 1]
+    v00, v01, v10, v11 = VP[0, 0], VP[0, 1], VP[1, 0], VP[1, 1]
     for q in range(n_intr[0]):
         b1 = i_id[q, 0]
         b2 = i_id[q, 1]
         c0 = float(i_cd[q, 0])
         c1 = float(i_cd[q, 1])
-        sx = H[0, 0] * c0 + H[0, 1] * c1  # :145 shift2 = cellHsize * cellDist
-        sy = H[1, 0] * c0 + H[1, 1] * c1
+        sx = h00 * c0 + h01 * c1  # :145 shift2 = cellHsize * cellDist
+        sy = h10 * c0 + h11 * c1
         real = i_real[q]
         if real:
             if young > 0.0:
@@ -665,8 +669,8 @@ def _interactions(
                 kn = kn_c
                 ks = ks_c
             tp = tan_c
-        svx = VP[0, 0] * c0 + VP[0, 1] * c1  # Cell::intrShiftVel (core/Cell.hpp:119)
-        svy = VP[1, 0] * c0 + VP[1, 1] * c1
+        svx = v00 * c0 + v01 * c1  # Cell::intrShiftVel (core/Cell.hpp:119)
+        svy = v10 * c0 + v11 * c1
         st, nx, ny, pen, fnx, fny, fsx, fsy, fx, fy, t1, t2 = scgeom_cundall_strack(
             real, pos[b1, 0], pos[b1, 1], pos[b2, 0], pos[b2, 1], sx, sy, radius[b1], radius[b2],
             vel[b1, 0], vel[b1, 1], spin[b1], vel[b2, 0], vel[b2, 1], spin[b2], svx, svy,
@@ -1020,16 +1024,17 @@ def _newton_damped(
     else:
         max_v2 = 0.0
     h = 0.5 * dt
+    p00, p01, p10, p11 = Lprev[0, 0], Lprev[0, 1], Lprev[1, 0], Lprev[1, 1]  # read once (as in _interactions)
     for b in range(pos.shape[0]):
         ax = force[b, 0] / mass[b]
         ay = force[b, 1] / mass[b]
         if damping != 0.0:
-            fvx = vel[b, 0] - (Lprev[0, 0] * pos[b, 0] + Lprev[0, 1] * pos[b, 1])  # bodyFluctuationVel
-            fvy = vel[b, 1] - (Lprev[1, 0] * pos[b, 0] + Lprev[1, 1] * pos[b, 1])
+            fvx = vel[b, 0] - (p00 * pos[b, 0] + p01 * pos[b, 1])  # bodyFluctuationVel
+            fvy = vel[b, 1] - (p10 * pos[b, 0] + p11 * pos[b, 1])
             ax *= 1.0 - damping * _sign(ax * (fvx + h * ax))
             ay *= 1.0 - damping * _sign(ay * (fvy + h * ay))
-        ax += Lprev[0, 0] * vel[b, 0] + Lprev[0, 1] * vel[b, 1]
-        ay += Lprev[1, 0] * vel[b, 0] + Lprev[1, 1] * vel[b, 1]
+        ax += p00 * vel[b, 0] + p01 * vel[b, 1]
+        ay += p10 * vel[b, 0] + p11 * vel[b, 1]
         vel[b, 0] += dt * ax
         vel[b, 1] += dt * ay
         aw = torque[b] / inertia[b]

@@ -438,6 +438,23 @@ def field_report(out: Path | None, fields: dict, recs: list) -> list:
     return lines
 
 
+def _law_time_lines(timing: list, wall: float) -> list:
+    """The report's line on the time in the point law (:meth:`GaussChunk.timing` per chunk): its
+    wall and CPU seconds summed over the chunks, per call, and its share of (chunks x ``wall``),
+    the rest being the FE work, Dask, serialisation, outputs and idle chunks."""
+    calls = sum(t["law_calls"] for t in timing)
+    if not calls or wall <= 0:
+        return []
+    law_s = sum(t["law_s"] for t in timing)
+    cpu_s = sum(t["law_cpu_s"] for t in timing)
+    share = law_s / (len(timing) * wall)
+    return [
+        f"- point law: {calls} updates in {law_s:.1f} s summed over {len(timing)} chunk(s) (CPU {cpu_s:.1f} s; "
+        f"{1e3 * law_s / calls:.2f} ms, CPU {1e3 * cpu_s / calls:.2f} ms an update): {100 * share:.1f} % of "
+        f"chunks x wall, the rest (FE, Dask, outputs, idle chunks) {100 * (1 - share):.1f} %"
+    ]
+
+
 def _lost_to_a_signal(exc: BaseException) -> bool:
     """Whether ``exc`` (not itself an interrupt) came after SIGINT/SIGTERM/SIGHUP arrived: the
     workers that received the signal too are gone, and their calls fail."""
@@ -576,6 +593,7 @@ def run_femxdem(
         f"- Gauss points {points.where}; set-up {t_setup:.2f} s; {len(new)} steps in {wall:.2f} s "
         f"(material {mat_s:.2f} s)" + (f"; resumed after step {len(done)}" if done else ""),
         f"- Newton iterations per step: {iters}",
+        *_law_time_lines(law_timing, wall),
         *([f"- STOPPED: {stop}"] if stop is not None else []),
         "",
         "| step | axial strain | q (kPa) | volumetric strain |",
