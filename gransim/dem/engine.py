@@ -300,7 +300,10 @@ class Engine:
             np.zeros((0, self._width)),
             x.copy(),
         )
-        self.cell_ops.setup(self)
+        # the codes' ``run`` set-up: wrap, build (springs zero), forces without spring increment
+        self._rebuild(carry=False)
+        self._forces(update=False)
+        self.stress = self.stress_tensor()
         self._check_time_step_now()
         self._reset_energy_budget()
 
@@ -372,7 +375,11 @@ class Engine:
         self.cell_ops.rebuild(self, carry)
 
     def _forces(self, update: bool):
-        self.cell_ops.forces(self, update)
+        """Forces, torques and the virial of the current state (``update``: the law's history
+        advances, as in a step; False: the set-up evaluation of a run)."""
+        nc, so = self.cell_ops.forces(self, update)
+        self.n_contacts = round(nc)
+        self.mean_overlap = so / nc if nc else 0.0
 
     def _touching(self):
         """Entries of the touching pairs, each physical contact once (a < b), and their overlaps (m),
@@ -805,14 +812,7 @@ class OrthogonalCell:
         else:
             with disk_cache_off(eng._no_cache):
                 nc, so = K.forces(eng.p, eng.nb, eng.law, L[0], L[1], dt, update, eng.virial, True)
-        eng.n_contacts = round(nc)
-        eng.mean_overlap = so / nc if nc else 0.0
-
-    def setup(self, eng):
-        """The codes' ``run`` set-up: wrap, build (springs zero), forces without spring increment."""
-        self.rebuild(eng, carry=False)
-        self.forces(eng, update=False)
-        eng.stress = eng.stress_tensor()
+        return nc, so
 
     def touching(self, eng):
         nb = eng.nb

@@ -349,15 +349,7 @@ class ShearedCell:
     def forces(self, eng, update: bool):
         """Forces with the images of the current box (from lamda, as LAMMPS on a build step)."""
         with disk_cache_off(eng._no_cache):
-            nc, so = SK.forces(eng.p, eng.nb, eng.law, self._cell(eng), self.lmp, eng.settings.dt, update, eng.virial)
-        eng.n_contacts = round(nc)
-        eng.mean_overlap = so / nc if nc else 0.0
-
-    def setup(self, eng):
-        """LAMMPS ``run`` set-up: wrap, list (springs zero), forces without spring increment."""
-        self.rebuild(eng, carry=False)
-        self.forces(eng, update=False)
-        eng.stress = eng.stress_tensor()
+            return SK.forces(eng.p, eng.nb, eng.law, self._cell(eng), self.lmp, eng.settings.dt, update, eng.virial)
 
     def touching(self, eng):
         """Entries of the touching pairs, each once (a < b), and their overlaps (m), the images
@@ -437,8 +429,8 @@ class ShearedCell:
             begin, end, style, tilt_start, stop, float(b[1]), float(b[3]), float(b[3] - b[1]),
             float(b[0]), float(b[2]), loading,
         )  # fmt: skip
-        self.rebuild(eng, carry=True)
-        self.forces(eng, update=False)
+        eng._rebuild(carry=True)
+        eng._forces(update=False)
         eng.stress = eng.stress_tensor()
         eng._reset_energy_budget()  # the divergence check's balance starts with the run
         return self.run
