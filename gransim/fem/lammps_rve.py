@@ -110,27 +110,32 @@ class LammpsRVE:
         return ShearEngine(self.packing, self.settings, flavour="lammps")
 
     def replay(self, increments) -> list[dict]:
-        """Drive a new engine by ``increments`` (K, 2, 2), one call each; the state after each call:
-        dicts of ``positions`` (N, 2), ``velocities``, ``spins``, ``box`` (5,) (lo_x, lo_y, hi_x,
-        hi_y, xy), ``stress`` (2, 2) (Pa, tension positive), ``steps`` (the call's ns)."""
+        """Drive a new engine by ``increments`` (K, 2, 2), one call each; the set-up state and the
+        state after each call (K + 1 dicts): ``positions`` (N, 2) m, ``velocities`` m/s, ``spins``
+        rad/s, ``forces`` (N, 2) N, ``torques`` N m, ``box`` (5,) (lo_x, lo_y, hi_x, hi_y, xy; m),
+        ``stress`` (2, 2) (Pa, tension positive), ``steps`` (the call's ns; 0 for the set-up)."""
         inc = np.asarray(increments, np.float64).reshape(-1, 2, 2)
         eng = self.engine()
-        out = []
+        out = [_state(eng, 0)]
         for D in inc:
             ld, ns = self.call(D)
             eng.start_run(ld, ns)
             eng.advance(ns)
-            out.append(
-                {
-                    "positions": eng.x.copy(),
-                    "velocities": eng.v.copy(),
-                    "spins": eng.w.copy(),
-                    "box": eng.box.copy(),
-                    "stress": -eng.stress_tensor() / THICKNESS,
-                    "steps": ns,
-                }
-            )
+            out.append(_state(eng, ns))
         return out
+
+
+def _state(eng, steps: int) -> dict:
+    return {
+        "positions": eng.x.copy(),
+        "velocities": eng.v.copy(),
+        "spins": eng.w.copy(),
+        "forces": eng.f.copy(),
+        "torques": eng.t.copy(),
+        "box": eng.box.copy(),
+        "stress": -eng.stress_tensor() / THICKNESS,
+        "steps": steps,
+    }
 
 
 __all__ = ["DAMPING_RATIO", "STEPS_PER_CONTACT", "THICKNESS", "LammpsRVE"]

@@ -179,13 +179,15 @@ def call_dump(k: int) -> str:
 def sequence_deck_text(packing: Packing, settings: DEMSettings, runs, law=None) -> str:
     """The deck of a sequence of LAMMPS ``run`` commands, each under its own ``fix deform``
     (``runs``: (ShearLoading, nsteps) pairs; no servo), as a material point driven call after call
-    (:mod:`gransim.fem.lammps_rve`): ``fix def`` ... ``run n`` ``unfix def`` per call, thermo at
-    the first and last step of each run, and after each run ``write_dump`` of the state to
-    :func:`call_dump` ``(k)`` (the columns of ``dump.atoms``, sorted by id, %.17g)."""
+    (:mod:`gransim.fem.lammps_rve`): first ``run 0`` (the set-up state, :func:`call_dump` ``(0)``),
+    then ``fix def`` ... ``run n`` ``unfix def`` per call, thermo at the first and last step of
+    each run, and after each run ``write_dump`` of the state to :func:`call_dump` ``(k)`` (the
+    columns of ``dump.atoms``, sorted by id, %.17g)."""
     runs = list(runs)
     if not runs:
         raise InputError("runs: expected at least one (loading, nsteps)")
-    lines = _header(packing, settings, law) + _THERMO + ["thermo 1000000000"]
+    lines = _header(packing, settings, law) + _THERMO + ["thermo 1000000000", "run 0"]
+    lines.append(f"write_dump all custom {call_dump(0)} {_DUMP_COLUMNS} modify sort id format float %.17g")
     for k, (ld, n) in enumerate(runs, 1):
         servo, fix = _deform(packing, settings, ld)
         if servo:

@@ -16,6 +16,7 @@ from gransim.fem.lammps_rve import THICKNESS, LammpsRVE
 from gransim.io import atomic_path
 from reference_runs.datafile import write_data_file
 from reference_runs.decks.shear import DATA, DECK, call_dump, read_dump, sequence_deck_text
+from reference_runs.errors import ReferenceRunError
 from reference_runs.parsers import parse_log
 from reference_runs.runner import run_job
 
@@ -42,21 +43,21 @@ def write_replay_job(job_dir, rve: LammpsRVE, increments) -> tuple[Path, list]:
 
 def replay_in_lammps(job_dir, rve: LammpsRVE, increments, timeout: float | None = 600.0) -> list[dict]:
     """Run the replay with LAMMPS (:func:`reference_runs.runner.run_job`: process group, time-out,
-    every call's dump required, a ``run`` missing is an error); the state after each call as
-    :meth:`~gransim.fem.lammps_rve.LammpsRVE.replay` gives it (positions, velocities, spins, box,
-    stress in Pa tension positive, steps)."""
+    every call's dump required; a ``run`` missing is a :class:`ReferenceRunError`); the set-up
+    state and the state after each call as :meth:`~gransim.fem.lammps_rve.LammpsRVE.replay` gives
+    them (positions, velocities, spins, forces, torques, box, stress in Pa tension positive, steps)."""
     deck, runs = write_replay_job(job_dir, rve, increments)
     job = deck.parent
-    dumps = tuple(call_dump(k) for k in range(1, len(runs) + 1))
+    dumps = tuple(call_dump(k) for k in range(len(runs) + 1))
     res = run_job(
         job, deck.read_text(), files={DATA: (job / DATA).read_bytes()}, np=1, timeout=timeout, outputs=dumps,
-        expected_runs=len(runs), progress=False, force=True, engine="lammps",
+        expected_runs=len(runs) + 1, progress=False, force=True, engine="lammps",
     )  # fmt: skip
     log = parse_log(Path(res.log_path))
-    if len(log.runs) != len(runs):
-        raise InputError(f"{res.log_path}: {len(log.runs)} runs in the log, the deck has {len(runs)}")
+    if len(log.runs) != len(runs) + 1:
+        raise ReferenceRunError(f"{res.log_path}: {len(log.runs)} runs in the log, the deck has {len(runs) + 1}")
     out = []
-    for k, ((_, ns), run) in enumerate(zip(runs, log.runs, strict=True), 1):
+    for k, (ns, run) in enumerate(zip([0] + [n for _, n in runs], log.runs, strict=True)):
         th = {key: float(run.column(name)[-1]) for key, name in _COLUMNS.items()}
         frames = read_dump(job / call_dump(k))
         fr = frames[max(frames)]
@@ -67,6 +68,8 @@ def replay_in_lammps(job_dir, rve: LammpsRVE, increments, timeout: float | None 
                 "positions": np.stack([fr["x"], fr["y"]], 1),
                 "velocities": np.stack([fr["vx"], fr["vy"]], 1),
                 "spins": np.asarray(fr["omegaz"]),
+                "forces": np.stack([fr["fx"], fr["fy"]], 1),
+                "torques": np.asarray(fr["tqz"]),
                 "box": box,
                 "stress": sig,
                 "steps": ns,

@@ -54,7 +54,8 @@ def test_yade_replay_equals_the_native_rve_bit_for_bit(case):
     assert res.passed, [(r.quantity, r.metric, r.value) for r in res.checks if not r.passed]
     names = {r.quantity for r in res.checks}
     assert {"position", "velocity", "spin", "stress", "saved_scene", "prepared_rve"} <= names
-    assert all(r.value == 0.0 for r in res.checks if r.quantity != "evidence")
+    yade = [r for r in res.checks if r.pair != "native-lammps"]  # (LAMMPS' side is round-off)
+    assert all(r.value == 0.0 for r in yade if r.quantity != "evidence")
 
 
 def test_an_output_cut_short_is_incomplete(case):
@@ -93,3 +94,52 @@ def test_one_ulp_in_one_spin_fails(case):
 def test_yade_absent_is_said(case):
     res = case(_native_replay, available=False)
     assert not res.passed and "YADE is not installed" in res.error
+
+
+HAVE_LMP = shutil.which("lmp") is not None
+
+
+def _lammps_cells(res):
+    return [r for r in res.records if r.pair == "native-lammps"]
+
+
+@pytest.mark.skipif(not HAVE_LMP, reason="lmp (LAMMPS) not installed")
+def test_lammps_replay_agrees_to_round_off(case):
+    res = case(_native_replay)
+    recs = _lammps_cells(res)
+    assert recs and all(r.passed for r in recs), [r for r in recs if not r.passed]
+    assert {r.quantity for r in recs} >= {"evidence", "position", "stress"}
+    assert any("LAMMPS" in t[0] for t in res.tables)
+
+
+def test_lammps_replay_missing_a_call_fails(case, monkeypatch):
+    # LAMMPS' states with the last call cut off: incomplete evidence, the case fails
+    def short(job_dir, rve, inc, timeout):
+        return rve.replay(inc)[:-1]
+
+    monkeypatch.setattr(fx, "replay_in_lammps", short)
+    monkeypatch.setattr(fx, "lammps_available", lambda: True)
+    res = case(_native_replay)
+    bad = [r for r in _lammps_cells(res) if not r.passed]
+    assert bad and any(r.quantity == "evidence" for r in bad) and not res.passed
+
+
+def test_lammps_replay_off_by_more_than_round_off_fails(case, monkeypatch):
+    # one disk moved by 1e-9 D50 on LAMMPS' side after the last call: beyond the round-off bound
+    def moved(job_dir, rve, inc, timeout):
+        states = rve.replay(inc)
+        states[-1]["positions"] = states[-1]["positions"].copy()
+        states[-1]["positions"][7, 0] += 1e-9 * 2 * float(np.median(rve.packing.radii))
+        return states
+
+    monkeypatch.setattr(fx, "replay_in_lammps", moved)
+    monkeypatch.setattr(fx, "lammps_available", lambda: True)
+    res = case(_native_replay)
+    bad = [r for r in _lammps_cells(res) if not r.passed]
+    assert [r.quantity for r in bad] == ["position"] and not res.passed
+
+
+def test_lammps_absent_is_missing_evidence(case, monkeypatch):
+    monkeypatch.setattr(fx, "lammps_available", lambda: False)
+    res = case(_native_replay)
+    assert not res.passed and any("LAMMPS is not installed" in n for n in res.notes)

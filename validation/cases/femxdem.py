@@ -1,4 +1,5 @@
-"""femxdem-short: a Gauss point of Guo & Zhao's FEM x DEM biaxial test replayed in YADE, bit for bit.
+"""femxdem-short: a Gauss point of Guo & Zhao's FEM x DEM biaxial test replayed in YADE (bit for bit)
+and in LAMMPS (round-off).
 
 The biaxial specimen of Guo & Zhao (*A coupled FEM/DEM approach for hierarchical multiscale
 modelling of granular media*, Int. J. Numer. Meth. Engng 99 (2014) 789-818; biaxialSmooth.py of
@@ -9,8 +10,12 @@ history of the most strained Gauss point (one increment per load step) is replay
 ``stringToScene``/``sceneToString``: :mod:`reference_runs.yade.rve`) and the native RVE driven by the
 same increments is compared with YADE's after every call by the shared step-for-step judge
 (positions, velocities, spins, the contact forces summed per disk, the stress, the cell) and field by
-field over everything the saved scene keeps, all at zero tolerance. A YADE output cut short or
-missing a call is incomplete evidence and fails; YADE absent, there is no evidence and the case says so.
+field over everything the saved scene keeps, all at zero tolerance. The same history drives the
+RVE in LAMMPS' arithmetic (:mod:`gransim.fem.lammps_rve`: prepareRVE.py's disks with LAMMPS' Hooke
+history law, each increment one ``run`` under ``fix deform x/y/xy erate remap x``) natively and in
+LAMMPS 29 Sep 2021 (:mod:`reference_runs.femxdem.lammps_replay`), compared after every call by the
+same judge at round-off. A code's output cut short or missing a call is incomplete evidence and fails;
+a code absent, there is no evidence and the case says so.
 """
 
 from __future__ import annotations
@@ -24,8 +29,10 @@ from gransim.dem.yade_arithmetic import RVE_STATE_FIELDS, rve_run, rve_stress_ta
 from gransim.fem.biaxial import BiaxialSpec
 from gransim.fem.dem_rve import DemRVE, load_rve_state
 from gransim.fem.femxdem import run_femxdem
-from reference_runs.engines import YADE
+from gransim.fem.lammps_rve import LammpsRVE
+from reference_runs.engines import LAMMPS, YADE
 from reference_runs.errors import ReferenceRunError
+from reference_runs.femxdem.lammps_replay import replay_in_lammps
 from reference_runs.yade.rve import prepare_job, run_rve_job, state_of
 
 from ..core import CaseResult, Context, Record, case, compare, evidence, in_pair
@@ -40,6 +47,14 @@ REASON = (
     "(docs/yade.md, docs/femxdem.md), so every double is equal; any difference is a defect"
 )
 BOUNDS = StepBounds(0.0, 0.0, REASON, REASON, REASON, REASON, REASON)
+LAMMPS_REASON = (
+    "round-off: the sheared cell repeats LAMMPS' step (fix deform, remap x, the list and the Hooke "
+    "law) and sums the forces of a disk in another order (docs/shear.md)"
+)
+#: the sheared cell's step-for-step standard against LAMMPS (tests/dem/test_sheared.py)
+LAMMPS_BOUNDS = StepBounds(
+    1e-10, 1e-8, LAMMPS_REASON, LAMMPS_REASON, LAMMPS_REASON, LAMMPS_REASON, LAMMPS_REASON, cell="sheared"
+)
 #: RVE calls a YADE replay job costs, as particle-steps for its time-out (prepareRVE's consolidation
 #: is about 1.4e4 steps of 400 disks, each call 100-300 steps)
 PREPARE_PSTEPS = 400 * 14_000
@@ -134,6 +149,53 @@ def yade_replay(job_dir, increments, timeout: float):
     return [state_of(r) for r in recs], manifest
 
 
+def lammps_trajectory(states) -> Trajectory:
+    """The LAMMPS RVE's states (call 0 the set-up) as a trajectory of the shared judges: series step
+    = call, stress (xx, yy, xy, Pa), box (lx, ly, xy), a frame per call."""
+    stress = [[s["stress"][0, 0], s["stress"][1, 1], s["stress"][0, 1]] for s in states]
+    box = [[s["box"][2] - s["box"][0], s["box"][3] - s["box"][1], s["box"][4]] for s in states]
+    frames = {
+        k: {"x": s["positions"], "v": s["velocities"], "w": s["spins"], "f": s["forces"], "t": s["torques"]}
+        for k, s in enumerate(states)
+    }
+    return Trajectory(np.arange(len(states), dtype=np.int64), np.array(stress), np.array(box), frames)
+
+
+def lammps_available() -> bool:
+    """Whether LAMMPS' binary is installed (tests replace it)."""
+    return LAMMPS.available()
+
+
+def lammps_side(res: CaseResult, ctx: Context, label: str, inc) -> None:
+    """The Gauss point's increments ``inc`` (K, 2, 2) on the LAMMPS RVE, natively and in LAMMPS."""
+    rve = LammpsRVE.guo_zhao()
+    native = rve.replay(inc)
+    if not lammps_available():
+        res.records.append(in_pair([evidence(label, "LAMMPS calls", list(range(len(native))), [])], "native-lammps")[0])
+        res.notes.append(f"LAMMPS is not installed: no evidence of the LAMMPS replay ({LAMMPS.install_hint})")
+        return
+    try:
+        ref = replay_in_lammps(ctx.work("reference", "femxdem-short-lammps"), rve, inc, ctx.job_timeout(400 * 1000))
+    except ReferenceRunError as exc:
+        first = str(exc).splitlines()[0]
+        failed = Record(label, "evidence", f"incomplete: LAMMPS job failed: {first}", 1.0, 0.0, False)
+        res.records.append(in_pair([failed], "native-lammps")[0])
+        return
+    recs, summary = step_for_step(
+        label, lammps_trajectory(native), lammps_trajectory(ref), d50=float(2 * np.median(rve.packing.radii)),
+        nsteps=len(native) - 1, dump_every=1, bounds=LAMMPS_BOUNDS, sides=("native", "LAMMPS"),
+    )  # fmt: skip
+    res.records += in_pair(recs, "native-lammps")
+    row = [label.rsplit("gp", 1)[-1], len(native) - 1, *(f"{summary[k]:.1e}" for k in ("x", "v", "w", "stress", "box"))]
+    res.tables.append(
+        (
+            "Native RVE in LAMMPS' arithmetic against LAMMPS after every call (round-off)",
+            ["Gauss point", "calls", "max|dx|/D50", "max|dv|/max|v|", "max|dw|/max|w|", "stress", "cell"],
+            [row],
+        )
+    )
+
+
 def judge(res: CaseResult, label: str, native: list, yade: list) -> dict:
     """Records of the native calls against YADE's: the shared step-for-step judge at zero tolerance,
     then every saved field of every call both hold."""
@@ -166,15 +228,21 @@ def femxdem_short(ctx: Context, replay=yade_replay) -> CaseResult:
     Every record that sets the native RVE against YADE is filed in the native vs YADE column; the
     Gauss point against a single RVE (no code involved) stays among the other checks."""
     res = _femxdem_short(ctx, replay)
-    res.records = [r if r.quantity == "gauss_point" else in_pair([r], "native-yade")[0] for r in res.records]
+    res.records = [
+        r if r.quantity == "gauss_point" or r.pair == "native-lammps" else in_pair([r], "native-yade")[0]
+        for r in res.records
+    ]
     return res
 
 
 def _femxdem_short(ctx: Context, replay) -> CaseResult:
     res = CaseResult(CASE, TITLE, __doc__.split("\n\n", 1)[1].replace("\n", " "))
     res.declare("native-yade", REASON)
-    res.skip_code("liggghts", "Guo & Zhao's FEM x DEM RVE is a YADE scene (simDEM.py on prepareRVE.py's cell)")
-    res.skip_code("lammps", "Guo & Zhao's FEM x DEM RVE is a YADE scene (simDEM.py on prepareRVE.py's cell)")
+    res.declare("native-lammps", LAMMPS_REASON)
+    res.skip_code("liggghts", "no LIGGGHTS run: the Gauss point replays in YADE and LAMMPS (a LAMMPS sheared cell)")
+    res.skip_code(
+        "lammps", "the LAMMPS RVE has LAMMPS' Hooke law, YADE's its own: the two codes run different materials"
+    )
     out = ctx.work("femxdem-short", "native")
     summary, g, committed = native_history(out)
     dev = summary["fields"][SPEC.steps]["deviatoric_strain"]
@@ -198,6 +266,7 @@ def _femxdem_short(ctx: Context, replay) -> CaseResult:
             "a Gauss point's RVE is a single RVE driven by its strain history (the FE run only chooses it)",
         )
     )
+    lammps_side(res, ctx, label, inc)
     if not yade_available():
         res.records.append(evidence(label, "YADE calls", list(range(len(native))), []))
         res.error = f"YADE is not installed: no evidence (no stored replay of this history; {YADE.install_hint})"
