@@ -94,7 +94,15 @@ def register(sub) -> None:
         "same bits on any thread count, sums in another order: 1.3-1.6x on 2 threads from 1e4 "
         "disks; default serial)",
     )
-    p.add_argument("--threads", type=int, help="numba threads for --mode parallel")
+    p.add_argument(
+        "--order",
+        choices=("code", "fast"),
+        default="code",
+        help="code (the codes' order: bit for bit with them; default) or fast (spatially sorted, half list, "
+        "banded threads: the same physics to round-off over short horizons, within the chaos envelope "
+        "over long ones; docs/performance.md)",
+    )
+    p.add_argument("--threads", type=int, help="numba threads for --mode parallel or --order fast")
     p.add_argument(
         "--flavour",
         help="whose arithmetic the engine reproduces bit for bit: liggghts (LIGGGHTS-PUBLIC "
@@ -183,10 +191,12 @@ def _check_options(args) -> None:
                 f"--resume: {args.output!r} (-o/--output) does not exist: no run to continue; drop "
                 "--resume to start one"
             )
-    if args.threads is not None and args.mode != "parallel":
+    if args.order == "fast" and args.mode != "serial":
+        raise InputError("--mode: the fast order has its own threads (--order fast --threads N); drop --mode")
+    if args.threads is not None and args.mode != "parallel" and args.order != "fast":
         raise InputError(
-            f"--threads {args.threads}: only --mode parallel runs on threads (--mode {args.mode} runs on "
-            "one); drop --threads or give --mode parallel"
+            f"--threads {args.threads}: only --mode parallel or --order fast run on threads (--mode {args.mode} "
+            "runs on one); drop --threads or give --mode parallel or --order fast"
         )
     from ..dem.settings import FLAVOURS  # noqa: PLC0415 - start-up: numba
 
@@ -306,6 +316,7 @@ def _run(args) -> int:
         allow_unsettled=args.allow_unsettled,
         law=law,
         law_options=law_options,
+        order=args.order,
     )
     i_num = inertial_number(packing, bi.strain_rate, bi.confining)
     print(

@@ -90,6 +90,14 @@ def register(sub) -> None:
         action="store_true",
         help="continue the run in --output from its checkpoint (the same options; bit for bit the uninterrupted run)",
     )
+    p.add_argument(
+        "--order",
+        choices=("code", "fast"),
+        default="code",
+        help="code (LAMMPS' order, to round-off with it, one thread; default) or fast (spatially sorted, "
+        "half list, banded threads; docs/performance.md)",
+    )
+    p.add_argument("--threads", type=int, help="numba threads of --order fast")
     p.add_argument("-o", "--output", required=True, help="run file (.h5)")
     p.add_argument("--plot", help="also write the shear stress and normal stress against the strain")
     p.set_defaults(func=_run)
@@ -119,6 +127,16 @@ def _check_options(args) -> None:
     check_count(args.series_every, "--series-every", 1)
     check_count(args.snapshot_every, "--snapshot-every", 0)
     check_count(args.checkpoint_every, "--checkpoint-every", 0)
+    check_count(args.threads, "--threads", 1)
+    if args.threads is not None and args.order != "fast":
+        raise InputError(
+            f"--threads {args.threads}: the sheared cell in the code's order runs on one thread; give --order fast "
+            "to run on threads, or drop --threads"
+        )
+    if args.threads is not None:
+        from .._numba import check_threads  # noqa: PLC0415 - start-up: numba
+
+        check_threads(args.threads, "--threads")
     if args.resume and not Path(args.output).exists():
         raise InputError(
             f"--resume: {args.output!r} (-o/--output) does not exist: no run to continue; drop --resume to start one"
@@ -244,6 +262,8 @@ def _run(args) -> int:
         law_options=law_options,
         checkpoint_every=args.checkpoint_every,
         resume=args.resume,
+        order=args.order,
+        threads=args.threads,
     )
     result_written(args.output)
     y = f"servo sigma_yy = {args.servo:g} N/m" if args.servo is not None else "constant volume"

@@ -246,8 +246,10 @@ def run_biaxial(
     allow_unsettled: bool = False,
     law=None,
     law_options: dict | None = None,
+    order: str = "code",
 ) -> dict:
     """Run the biaxial test; returns a summary (inertial number, indentation, stresses, peak).
+    ``order``: the engine's ordering, "code" or "fast" (:func:`gransim.dem.run.run_phases`).
 
     A consolidation that does not settle within ``bi.consolidation_steps`` stops the run
     (:class:`~gransim.errors.ConvergenceError`, file written with ``complete`` False) unless
@@ -270,6 +272,7 @@ def run_biaxial(
         metadata=meta,
         allow_unsettled=allow_unsettled,
         law=law,
+        order=order,
     )
     return summarize(out_path)
 

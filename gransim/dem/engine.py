@@ -910,6 +910,42 @@ class OrthogonalCell:
         pass
 
 
+#: the orderings of a run: "code" (:class:`Engine`: the code's order, bit for bit with it) or
+#: "fast" (:class:`gransim.dem.fast.FastEngine`: spatially sorted, half list, banded threads; the
+#: same physics to round-off over short horizons, within the chaos envelope over long ones)
+ORDERS = ("code", "fast")
+
+
+def make_engine(
+    packing: Packing,
+    settings,
+    *,
+    cell: str = "orthogonal",
+    order: str = "code",
+    threads: int | None = None,
+    law=None,
+    flavour: str | None = None,
+    velocities=None,
+    spins=None,
+    check_dt: bool = True,
+):
+    """The engine of a run: ``cell`` (:data:`CELLS`), ``order`` (:data:`ORDERS`), ``threads``
+    (code order: the threads of mode "parallel", orthogonal cell; fast order: its threads),
+    ``law`` (None: the Hooke law of a DEMSettings), ``flavour`` (None: ``settings.flavour``).
+    Both orderings take the same calls (start_run / advance, state_arrays / restore, the views)."""
+    check_choice(order, "order", ORDERS)
+    if order == "fast":
+        from .fast import FastEngine  # noqa: PLC0415 - start-up: the fast kernels
+
+        if flavour is not None and flavour != settings.flavour:
+            raise InputError(f"flavour: the fast ordering takes the settings' ({settings.flavour!r}), got {flavour!r}")
+        return FastEngine(
+            packing, settings, velocities, spins, threads=1 if threads is None else threads, check_dt=check_dt,
+            law=law, cell=cell,
+        )  # fmt: skip
+    return Engine(packing, settings, velocities, spins, threads, check_dt, None, law, cell=cell, flavour=flavour)
+
+
 def DEMEngine(
     packing: Packing,
     settings: DEMSettings,
@@ -993,6 +1029,7 @@ __all__ = [
     "AxisControl",
     "Integration",
     "CELLS",
+    "ORDERS",
     "DEMEngine",
     "DEMSettings",
     "Engine",
@@ -1003,5 +1040,6 @@ __all__ = [
     "contact_time",
     "damping_ratio",
     "fingerprint",
+    "make_engine",
     "stability_limit",
 ]

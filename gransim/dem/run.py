@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validate import as_int, as_positive_float
+from .._validate import as_int, as_positive_float, check_choice
 from ..contacts.laws import law_spec
 from ..errors import ConvergenceError, InputError, ResultFileError, SimulationError
 from ..geometry import Packing
 from ..progress import Interrupted, check_interrupt, deferred_interrupts, pending_interrupt, progress, result_written
-from .engine import DEMEngine, fingerprint
+from .engine import ORDERS, DEMEngine, fingerprint, make_engine
 from .output import OutputSettings, RunRecord, read_record, remove_stale_run_temporaries, write_checkpoint, write_run
 from .settings import DEMSettings, Loading, settings_json
 
@@ -103,6 +103,7 @@ def run_phases(
     stop_at_step: int | None = None,
     allow_unsettled: bool = False,
     law=None,
+    order: str = "code",
 ) -> Path:
     """Run ``phases`` one after the other from ``packing``; write ``out_path`` (kind "dem-run").
 
@@ -125,6 +126,10 @@ def run_phases(
 
     ``law``: a contact-law object (:mod:`gransim.contacts.laws`) instead of the Hooke law of
     ``settings``; its class name and parameters join the settings JSON (and so the fingerprint).
+
+    ``order``: "code" (the code's order, bit for bit with it; ``threads`` those of mode
+    "parallel") or "fast" (:class:`gransim.dem.fast.FastEngine` on ``threads``), recorded in the
+    settings JSON (and so the fingerprint: a resume keeps the ordering) when "fast".
     """
     output = output or OutputSettings()
     if stop_at_step is not None:
@@ -134,11 +139,14 @@ def run_phases(
     if law is not None:
         law_spec(law)  # InputError for an unregistered law, before any file is touched
         extra["law"] = {"name": type(law).__name__, "params": {k: float(v) for k, v in law._asdict().items()}}
+    check_choice(order, "order", ORDERS)
+    if order != "code":
+        extra["order"] = order
     text = settings_json(settings, None, phases=[p.to_dict() for p in phases], **extra)
     fp = fingerprint(packing, text)
     out_path = Path(out_path)
     remove_stale_run_temporaries(out_path)  # of a run of this file killed while it wrote a checkpoint
-    eng = DEMEngine(packing, settings, velocities=velocities, threads=threads, law=law)
+    eng = make_engine(packing, settings, order=order, velocities=velocities, threads=threads, law=law)
     state = {"phase": 0, "phase_step0": 0, "lo0": eng.lo.tolist(), "hi0": eng.hi.tolist(), "settled": 0}
     if resume and out_path.exists():
         rec = read_record(out_path)

@@ -111,11 +111,13 @@ def packing_file(tmp_path_factory):
 ARGS = ["--strain", "0.4", "--rate", "2.5", "--servo", "1000", "--series-every", "200", "--snapshot-every", "20000"]
 
 
-def test_cli_killed_and_resumed_equals_the_uninterrupted_run(packing_file, tmp_path):
+@pytest.mark.parametrize("order", [[], ["--order", "fast", "--threads", "2"]], ids=["code", "fast-2-threads"])
+def test_cli_killed_and_resumed_equals_the_uninterrupted_run(packing_file, tmp_path, order):
     whole = tmp_path / "whole.h5"
-    assert main(["shear", "--packing", str(packing_file), *ARGS, "--checkpoint-every", "2000", "-o", str(whole)]) == 0
+    args = [*ARGS, *order]
+    assert main(["shear", "--packing", str(packing_file), *args, "--checkpoint-every", "2000", "-o", str(whole)]) == 0
     killed = tmp_path / "killed.h5"
-    cmd = [sys.executable, "-m", "gransim", "shear", "--packing", str(packing_file), *ARGS]
+    cmd = [sys.executable, "-m", "gransim", "shear", "--packing", str(packing_file), *args]
     cmd += ["--checkpoint-every", "2000", "-o", str(killed)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
     deadline = time.monotonic() + 300
@@ -142,7 +144,7 @@ def test_cli_killed_and_resumed_equals_the_uninterrupted_run(packing_file, tmp_p
     assert proc.returncode == -signal.SIGKILL
     with h5py.File(killed, "r") as f:
         assert not f.attrs["complete"] and "continue with resume" in f.attrs["stop_reason"]
-    resumed = ["shear", "--packing", str(packing_file), *ARGS, "--checkpoint-every", "2000", "--resume"]
+    resumed = ["shear", "--packing", str(packing_file), *args, "--checkpoint-every", "2000", "--resume"]
     assert main([*resumed, "-o", str(killed)]) == 0
     (sw, nw, _), (sk, nk, ak) = _file(whole), _file(killed)
     assert ak["complete"]

@@ -157,6 +157,8 @@ BAD = {
         "--steps-per-contact": positive(),
         "--series-every": count(1),
         "--snapshot-every": count(0),
+        "--checkpoint-every": count(0),
+        "--threads": count(1),
         "--flavour": junk(("lammps",)),
         "--law": junk(),
         "--law-param": st.one_of(WORDS.filter(lambda s: "=" not in s), st.just("k=v=")),
@@ -502,7 +504,20 @@ def test_no_command_writes_over_an_input(spelling, tmp_path, monkeypatch, no_com
 def test_threads_need_the_parallel_mode(mode, threads, files, no_compute):
     argv = ["biaxial", "--packing", files["P"], "-o", f"{files['D']}/t.h5", "--threads", threads]
     rc, err = run(argv + (["--mode", mode] if mode else []))
-    assert rc == 2 and "--threads" in err and "--mode parallel" in err, err
+    assert rc == 2 and "--threads" in err and "--mode parallel" in err and "--order fast" in err, err
+
+
+@pytest.mark.parametrize("threads", ["1", "2"])
+def test_shear_threads_need_the_fast_order(threads, files, no_compute):
+    argv = ["shear", "--packing", files["P"], "--strain", "1e-3", "-o", f"{files['D']}/t.h5", "--threads", threads]
+    rc, err = run(argv)
+    assert rc == 2 and "--threads" in err and "--order fast" in err, err
+
+
+def test_fast_order_takes_no_mode(files, no_compute):
+    argv = ["biaxial", "--packing", files["P"], "-o", f"{files['D']}/t.h5", "--order", "fast", "--mode", "parallel"]
+    rc, err = run(argv)
+    assert rc == 2 and "--mode" in err and "--order fast" in err, err
 
 
 @pytest.fixture(scope="module")
