@@ -245,8 +245,12 @@ def test_nan_velocity_is_reported_with_step_and_particle(tmp_path):
     s = DEMSettings(kn=1e5, kt=1e5, dt=2e-6, skin=2e-5)
     v = np.zeros((p.n, 2))
     v[3, 0] = np.nan
+    with pytest.raises(InputError, match="velocities: expected finite numbers"):
+        DEMEngine(p, s, velocities=v)  # a NaN given is refused at the boundary
+    eng = DEMEngine(p, s)
+    eng.v[3, 0] = np.nan  # a NaN that appears in the state stops the run naming step and particle
     with pytest.raises(SimulationError, match=r"step 1: particle 3"):
-        DEMEngine(p, s, velocities=v).advance(Loading(), 5)
+        eng.advance(Loading(), 5)
 
 
 # ---------------------------------------------------------------- 4. readers of unfinished runs
