@@ -267,8 +267,8 @@ class FastEngine:
         """The image plug-in of the force loop for the current box."""
         if self._sheared:
             b = self.box
-            return FK.FastTilted(b[2] - b[0], b[3] - b[1], b[4], self.h_rate[2], self.h_rate[1])
-        return FK.FastOrtho(self.hi[0] - self.lo[0], self.hi[1] - self.lo[1])
+            return (float(b[2] - b[0]), float(b[3] - b[1]), float(b[4]), float(self.h_rate[2]), float(self.h_rate[1]))
+        return (float(self.hi[0] - self.lo[0]), float(self.hi[1] - self.lo[1]))
 
     def _forces(self, update: bool):
         """The forces of the current state (``update`` False: the set-up evaluation of a run,
@@ -462,7 +462,7 @@ class FastEngine:
                 k, status, bad = FK.run_steps(
                     self._parallel, self.ps, self._list(), self._cell, ctl, self.law, s.dt, s.skin, self._clamp,
                     FK.FastScratch(self._sp_start, sp_j, sp_f, self._acc, self._red), out[done:], self.step,
-                    nsteps - done, resume,
+                    nsteps - done, resume, True,
                 )  # fmt: skip
             if k:
                 check(out, done, k, before)
@@ -576,6 +576,16 @@ class FastEngine:
         if not isinstance(loading, ShearLoading):
             raise InputError(f"loading: expected a ShearLoading (the sheared cell), got {type(loading).__name__}")
         nsteps = as_int(nsteps, "nsteps", 1)
+        other = [
+            f"{k} = {getattr(loading, k)!r}"
+            for k, plain in (("x_erate", 0.0), ("remap", "v"))
+            if getattr(loading, k, plain) != plain
+        ] + ([f"y = {loading.y!r}"] if loading.y not in ("fixed", "servo") else [])
+        if other:
+            raise InputError(
+                f"loading: the fast ordering's sheared cell runs xy shear with y fixed or under the servo "
+                f"and remap v; got {', '.join(other)} (run it in the code order)"
+            )
         if not self._lmp and (loading.moves_tilt or loading.y != "fixed"):
             raise InputError("flavour 'liggghts': only a fixed box (xy erate 0, y fixed) is supported")
         begin = self.step
@@ -729,9 +739,9 @@ class FastEngine:
         ni, nj = self._ni[:m], self._nj[:m]
         s = self._shifts(slice(0, m)).astype(np.float64)
         img = self._image()
-        xy = img.xy if self._sheared else 0.0
-        dx = p.x[ni] - ((p.x[nj] + s[:, 0] * img.Lx) + s[:, 1] * xy)
-        dy = p.y[ni] - (p.y[nj] + s[:, 1] * img.Ly)
+        xy = img[2] if self._sheared else 0.0
+        dx = p.x[ni] - ((p.x[nj] + s[:, 0] * img[0]) + s[:, 1] * xy)
+        dy = p.y[ni] - (p.y[nj] + s[:, 1] * img[1])
         dist = np.sqrt(dx * dx + dy * dy)
         rs = p.r[ni] + p.r[nj]
         e = np.flatnonzero(dist < rs)

@@ -45,23 +45,24 @@ from . import kernels as K
 from . import sheared_kernels as SK
 
 # ------------------------------------------------------------------------------- the cells
-#: the image of an orthogonal cell in the force loop: side lengths Lx, Ly (m); the image of j with
-#: shift s lies at x_j + (s_x Lx, s_y Ly) and moves with v_j (``fix deform ... remap x``)
-FastOrtho = namedtuple("FastOrtho", ["Lx", "Ly"])
-#: the image of a sheared (LAMMPS triclinic) cell: Lx, Ly, the tilt xy (m) and the velocity jump
-#: across the y boundary ux = h_rate[5], uy = h_rate[1] (m/s): the image of j lies at
-#: x_j + s_x (Lx, 0) + s_y (xy, Ly) and moves with v_j + s_y (ux, uy) (Lees-Edwards, ``remap v``)
-FastTilted = namedtuple("FastTilted", ["Lx", "Ly", "xy", "ux", "uy"])
+# The image of the cell in the force loop, a plain tuple of floats (a namedtuple argument of the
+# parallel force kernel made it 2x slower when called from the jitted step loop, though not when
+# called from Python: measured, 20 against 9 ms a step at 1e5 disks): (Lx, Ly) for an orthogonal
+# cell, the image of j with shift s at x_j + (s_x Lx, s_y Ly) moving with v_j (``fix deform ...
+# remap x``); (Lx, Ly, xy, ux, uy) for a sheared (LAMMPS triclinic) cell, the tilt xy (m) and the
+# velocity jump across the y boundary ux = h_rate[5], uy = h_rate[1] (m/s): the image at
+# x_j + s_x (Lx, 0) + s_y (xy, Ly) moving with v_j + s_y (ux, uy) (Lees-Edwards, ``remap v``).
+# Its length picks the arithmetic at compile time.
 
 
 def image(img, xj, yj, vxj, vyj, sx, sy):
     """Position and velocity of the image (s_x, s_y) of a particle at (xj, yj) moving with
-    (vxj, vyj) in the cell ``img`` (:data:`FastOrtho` or :data:`FastTilted`, resolved at compile
-    time by its type): (x, y, vx, vy) in m and m/s, in the operation order of
-    :func:`gransim.dem.kernels.tilted_image` (x_j + s_x Lx, then + s_y xy). Interpreted fallback."""
-    if isinstance(img, FastOrtho):
-        return xj + sx * img.Lx, yj + sy * img.Ly, vxj, vyj
-    return (xj + sx * img.Lx) + sy * img.xy, yj + sy * img.Ly, vxj + sy * img.ux, vyj + sy * img.uy
+    (vxj, vyj) in the cell ``img`` ((Lx, Ly) or (Lx, Ly, xy, ux, uy), above): (x, y, vx, vy) in m
+    and m/s, in the operation order of :func:`gransim.dem.kernels.tilted_image` (x_j + s_x Lx,
+    then + s_y xy). Interpreted fallback of the overload."""
+    if len(img) == 2:
+        return xj + sx * img[0], yj + sy * img[1], vxj, vyj
+    return (xj + sx * img[0]) + sy * img[2], yj + sy * img[1], vxj + sy * img[3], vyj + sy * img[4]
 
 
 def _kind(ty):
@@ -70,16 +71,17 @@ def _kind(ty):
 
 @overload(image, inline="always")
 def _ov_image(img, xj, yj, vxj, vyj, sx, sy):
-    if _kind(img) is FastOrtho:
+    n = getattr(img, "count", None)
+    if n == 2:
 
         def ortho(img, xj, yj, vxj, vyj, sx, sy):
-            return xj + sx * img.Lx, yj + sy * img.Ly, vxj, vyj
+            return xj + sx * img[0], yj + sy * img[1], vxj, vyj
 
         return ortho
-    if _kind(img) is FastTilted:
+    if n == 5:
 
         def tilted(img, xj, yj, vxj, vyj, sx, sy):
-            return (xj + sx * img.Lx) + sy * img.xy, yj + sy * img.Ly, vxj + sy * img.ux, vyj + sy * img.uy
+            return (xj + sx * img[0]) + sy * img[2], yj + sy * img[1], vxj + sy * img[3], vyj + sy * img[4]
 
         return tilted
     return None
@@ -408,7 +410,7 @@ OUT_COLUMNS = 12
 # rebuild margin, its change at the end of a step and the box columns of the output rows. Each
 # Python function below is the interpreted fallback (NUMBA_DISABLE_JIT) of its overload.
 def cell_image(cell):
-    """The image plug-in of the force loop (:data:`FastOrtho`, :data:`FastTilted`) for the
+    """The image tuple of the force loop ((Lx, Ly) or (Lx, Ly, xy, ux, uy), :func:`image`) for the
     current box of ``cell``."""
     if isinstance(cell, OrthoCell):
         return _ortho_image(cell)
@@ -443,13 +445,13 @@ def cell_row(cell, out, k):
 
 @njit(inline="always")
 def _ortho_image(cell):
-    return FastOrtho(cell.hi[0] - cell.lo[0], cell.hi[1] - cell.lo[1])
+    return (cell.hi[0] - cell.lo[0], cell.hi[1] - cell.lo[1])
 
 
 @njit(inline="always")
 def _tilted_image(cell):
     b = cell.box
-    return FastTilted(b[2] - b[0], b[3] - b[1], b[4], cell.hr[2], cell.hr[1])
+    return (b[2] - b[0], b[3] - b[1], b[4], cell.hr[2], cell.hr[1])
 
 
 @njit(inline="always")
@@ -591,7 +593,7 @@ def _ov_cell_row(cell, out, k):
 
 
 @njit
-def run_steps(parallel, p, nl, cell, ctl, law, dt, skin, clamp, sc, out, step0, nsteps, resume):
+def run_steps(parallel, p, nl, cell, ctl, law, dt, skin, clamp, sc, out, step0, nsteps, resume, update):
     """Steps step0 + 1 .. step0 + nsteps of the fast path, until a list rebuild is needed.
 
     ``p`` :data:`FastParticles`, ``nl`` :data:`FastList`, ``cell`` :data:`OrthoCell` (loading
@@ -599,8 +601,11 @@ def run_steps(parallel, p, nl, cell, ctl, law, dt, skin, clamp, sc, out, step0, 
     :data:`ShearCell` (``ctl`` a :data:`gransim.dem.sheared_kernels.Deform`), updated in place;
     ``law`` a registered contact law with a block path (``LawSpec.select``; each law and cell type
     compiles its own copy), ``dt`` (s), ``skin`` (m), ``clamp`` LAMMPS' rebuild rule (a negative
-    margin clamped at zero), ``sc`` :data:`FastScratch`. (The parallel kernels it calls,
-    :func:`forces_v` and :func:`integrate_v`, take the arrays unpacked: gransim/_numba.py.)
+    margin clamped at zero), ``sc`` :data:`FastScratch`, ``update`` True (the springs incremented:
+    a run-time bool from the caller, not a constant here: with the constant True numba compiles a
+    second force kernel, which ran at half the speed, measured with numba 0.68). (The parallel
+    kernels it calls, :func:`forces_v` and :func:`integrate_v`, take the arrays unpacked:
+    gransim/_numba.py.)
 
     Per step: forces (even bands, odd bands, spills) with the cell's image, the box of this step
     from the virial of the step (:func:`cell_end_of_step`), then one fused pass: second half step
@@ -638,7 +643,7 @@ def run_steps(parallel, p, nl, cell, ctl, law, dt, skin, clamp, sc, out, step0, 
         step = step0 + k + 1
         forces_v(
             parallel, cstart, start, ni, nj, code, h0, h1, x, y, vx, vy, w, r, m, fx, fy, t,
-            cell_image(cell), law, dt, True, sp_start, sp_j, sp_f, acc,
+            cell_image(cell), law, dt, update, sp_start, sp_j, sp_f, acc,
         )  # fmt: skip
         for q in range(6):
             s = 0.0

@@ -426,11 +426,13 @@ def test_vectorised_forces_equal_the_scalar_loop_bit_for_bit(threads, threaded_s
     assert slid > 0  # the springs moved
 
 
-def test_the_force_kernel_is_compiled_to_simd_code():
+@pytest.mark.parametrize("cell", ["orthogonal", "sheared"])
+def test_the_force_kernel_is_compiled_to_simd_code(cell):
     # the speed of the fast path rests on LLVM vectorising the pair law (docs/performance.md);
     # numba gives up silently when the loop body changes shape (a bool out of the law's tuple,
     # an inlined helper taking arrays, a 2D spring array), so the compiled kernel is checked for
-    # packed square roots and gathers. Compiled afresh (inspection is off for cached code).
+    # packed square roots and gathers, with the image of either cell (the sheared one adds the
+    # tilt and the Lees-Edwards velocity). Compiled afresh (inspection is off for cached code).
     import re
 
     import numba
@@ -443,12 +445,20 @@ def test_the_force_kernel_is_compiled_to_simd_code():
         pytest.skip("no AVX2 on this CPU: the gathers need it")
     opts = {**JIT_OPTIONS, "cache": False, "parallel": True}
     k = numba.njit(**opts)(FK.forces_v.py_func)
-    fe = FastEngine(lattice_packing(10, 12), S)
+    p = lattice_packing(10, 12)
+    if cell == "sheared":
+        C = p.cell.copy()
+        C[0, 1] = 4e-3
+        p = Packing(positions=p.positions, radii=p.radii, cell=C, density=p.density)
+    s = DEMSettings(**{**S.to_dict(), "flavour": "lammps"}) if cell == "sheared" else S
+    fe = FastEngine(p, s, cell=cell)
+    img = fe._image()
+    assert len(img) == (5 if cell == "sheared" else 2)
     with fe._kernels():
-        p, L = fe.ps, fe.hi - fe.lo
+        p = fe.ps
         k(False, fe._cstart, fe._start, fe._ni, fe._nj, fe._code, fe._hist[0], fe._hist[1], p.x, p.y, p.vx, p.vy,
-          p.w, p.r, p.m, p.fx, p.fy, p.t, FK.FastOrtho(L[0], L[1]), fe.law, fe.settings.dt, False, fe._sp_start,
-          *fe._spill(), fe._acc)  # fmt: skip
+          p.w, p.r, p.m, p.fx, p.fy, p.t, img, fe.law, fe.settings.dt, False, fe._sp_start, *fe._spill(),
+          fe._acc)  # fmt: skip
     asm = k.inspect_asm(k.signatures[0])
     assert re.search(r"\bvsqrtpd\b", asm), "the pair law is not vectorised (no packed square root)"
     assert re.search(r"\bvdivpd\b", asm)
