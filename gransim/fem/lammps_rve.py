@@ -30,7 +30,7 @@ the cell (N/m, tension positive) over the thickness :data:`THICKNESS`, in Pa as 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -138,4 +138,128 @@ def _state(eng, steps: int) -> dict:
     }
 
 
-__all__ = ["DAMPING_RATIO", "STEPS_PER_CONTACT", "THICKNESS", "LammpsRVE"]
+@dataclass(frozen=True, eq=False)
+class LammpsState:
+    """State of a Gauss point whose RVE runs in LAMMPS' arithmetic: the engine's checkpoint arrays
+    (:meth:`gransim.dem.engine.Engine.state_arrays` without the run: each update begins its own),
+    its step, the number of updates behind it and their strain increments (updates, 2, 2)."""
+
+    arrays: dict
+    step: int = 0
+    updates: int = 0
+    increments: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+
+
+#: the per-state arrays of a LammpsState of one length for every state (N particles), and those of
+#: a length that varies (the list entries), packed with offsets by :meth:`LammpsPointLaw.pack_states`
+_PER_PARTICLE = ("positions", "velocities", "spins", "forces", "torques", "x_hold", "lamda")
+_PER_ENTRY = ("neighbours/a", "neighbours/b", "neighbours/shift", "neighbours/owned_both", "neighbours/xi",
+              "neighbours/touch")  # fmt: skip
+_PER_CELL = ("virial", "box", "box_hold", "h_rate", "corners_hold")
+
+
+@dataclass(frozen=True, eq=False)
+class LammpsPointLaw:
+    """The point law of a Gauss point whose RVE runs in LAMMPS' arithmetic (the interface of
+    :mod:`gransim.fem.material_points`): every point starts from the same :class:`LammpsRVE`;
+    ``update(f, state)`` restores an engine from ``state`` (never modified) and runs one call with
+    D = f - 1 (:meth:`LammpsRVE.call`). Chained updates equal :meth:`LammpsRVE.replay` of the same
+    increments bit for bit (tests/fem/test_lammps_gauss_point.py). Stress: the Love stress
+    symmetrised, 0.5 (s + s^T), over the thickness (Pa, tension positive); tangent: the contact
+    stiffness tangent of Guo & Zhao's eq. (10), t_ijkl = (1/V) sum_c (kn n_i n_k + kt t_i t_k) l_j l_l
+    (l the branch vector, n = l/|l|, t its normal) with every minor symmetry, over the thickness."""
+
+    rve: LammpsRVE
+
+    def initial_state(self, g: int) -> LammpsState:
+        eng = self.rve.engine()
+        return LammpsState(self._arrays(eng), eng.step)
+
+    @staticmethod
+    def _arrays(eng) -> dict:
+        out = {k: np.array(v) for k, v in eng.state_arrays().items() if k != "run"}
+        for v in out.values():
+            v.flags.writeable = False
+        return out
+
+    def _engine(self, state: LammpsState):
+        eng = self.rve.engine()
+        eng.restore(state.arrays, state.step)
+        return eng
+
+    def response(self, state: LammpsState):
+        """(sigma (2, 2), t (2, 2, 2, 2)) of the state as it stands (Pa)."""
+        return self._response(self._engine(state))
+
+    def _response(self, eng):
+        s = self.rve.settings
+        sig = -eng.stress_tensor() / THICKNESS
+        c = eng.contacts()
+        x = eng.x
+        l = x[c["j"]] + c["shift"] @ eng.cell.T - x[c["i"]]  # noqa: E741 - the branch vector of the paper
+        n = l / np.linalg.norm(l, axis=1)[:, None]
+        t = np.stack([-n[:, 1], n[:, 0]], axis=1)
+        C = s.kn * np.einsum("ci,cj,ck,cl->ijkl", n, l, n, l) + s.kt * np.einsum("ci,cj,ck,cl->ijkl", t, l, t, l)
+        C = C / (eng.area * THICKNESS)
+        C = 0.25 * (C + C.transpose(1, 0, 2, 3) + C.transpose(0, 1, 3, 2) + C.transpose(1, 0, 3, 2))
+        return 0.5 * (sig + sig.T), C
+
+    def update(self, f, state: LammpsState):
+        """One call with D = f - 1 from ``state`` (not modified): (sigma, t, new state)."""
+        D = np.asarray(f, np.float64) - np.eye(2)
+        eng = self._engine(state)
+        ld, ns = self.rve.call(D)
+        eng.start_run(ld, ns)
+        eng.advance(ns)
+        sig, t = self._response(eng)
+        new = LammpsState(self._arrays(eng), eng.step, state.updates + 1, np.concatenate([state.increments, D[None]]))
+        return sig, t, new
+
+    def observables(self, state: LammpsState) -> dict:
+        """Void ratio (cell area - sum pi r^2) / sum pi r^2, the number of contacts (overlapping
+        pairs) and of updates. (No disk rotation: LAMMPS' spheres carry no orientation.)"""
+        b = np.asarray(state.arrays["box"])
+        area = float((b[2] - b[0]) * (b[3] - b[1]))
+        vs = float(np.sum(np.pi * self.rve.packing.radii**2))
+        eng = self._engine(state)
+        return {
+            "void_ratio": (area - vs) / vs,
+            "contacts": float(eng._touching()[0].size),
+            "updates": float(state.updates),
+        }
+
+    @staticmethod
+    def pack_states(states) -> dict:
+        """{name: array} of a list of states (checkpoints): per-particle and per-cell arrays stacked
+        (G, ...), the list entries concatenated with ``offsets`` (G + 1,)."""
+        counts = [len(s.arrays["neighbours/a"]) for s in states]
+        out = {
+            "offsets": np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+            "step": np.array([s.step for s in states], np.int64),
+            "updates": np.array([s.updates for s in states], np.int64),
+            "increments": np.concatenate([np.asarray(s.increments).reshape(-1, 2, 2) for s in states]),
+        }
+        for k in _PER_PARTICLE + _PER_CELL:
+            out[k] = np.array([s.arrays[k] for s in states])
+        for k in _PER_ENTRY:
+            out[k] = np.concatenate([np.asarray(s.arrays[k]) for s in states])
+        return out
+
+    @staticmethod
+    def unpack_states(arrays: dict) -> list:
+        """The states of :meth:`pack_states`' arrays."""
+        off = np.asarray(arrays["offsets"])
+        upd = np.asarray(arrays["updates"])
+        inc = np.asarray(arrays["increments"]).reshape(-1, 2, 2)
+        first = np.concatenate([[0], np.cumsum(upd)])
+        states = []
+        for g in range(len(off) - 1):
+            a = {k: np.array(arrays[k][g]) for k in _PER_PARTICLE + _PER_CELL}
+            a.update({k: np.array(arrays[k][off[g] : off[g + 1]]) for k in _PER_ENTRY})
+            for v in a.values():
+                v.flags.writeable = False
+            states.append(LammpsState(a, int(arrays["step"][g]), int(upd[g]), inc[first[g] : first[g + 1]].copy()))
+        return states
+
+
+__all__ = ["DAMPING_RATIO", "STEPS_PER_CONTACT", "THICKNESS", "LammpsPointLaw", "LammpsRVE", "LammpsState"]

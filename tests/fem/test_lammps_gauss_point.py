@@ -83,3 +83,52 @@ def test_replay_in_lammps_equals_the_native_calls(rve, tmp_path):
             assert np.abs(a[key] - b[key]).max() <= 1e-8 * big, f"call {k}: {key}"
     # the replay really loads the RVE: its stress after the calls is of the order of the confinement
     assert np.abs(native[-1]["stress"]).max() > 1e3 / THICKNESS / 10
+
+
+def test_point_law_updates_chain_to_the_replay_bit_for_bit(rve):
+    # each update restores an engine from the committed state and runs one call: chained, they
+    # equal one engine driven through the calls (restore + run set-up repeat LAMMPS' consecutive runs)
+    from gransim.fem.lammps_rve import LammpsPointLaw
+
+    law = LammpsPointLaw(rve)
+    fs = np.eye(2) + INCREMENTS
+    replay = rve.replay(fs - np.eye(2))  # D = f - 1 as the point law forms it ((1 + D) - 1 is not D)
+    state = law.initial_state(0)
+    np.testing.assert_array_equal(state.arrays["positions"], replay[0]["positions"])
+    for k, f in enumerate(fs, 1):
+        before = {n: v.copy() for n, v in state.arrays.items()}
+        sig, t, new = law.update(f, state)
+        for n, v in state.arrays.items():  # the committed state is never written
+            np.testing.assert_array_equal(v, before[n])
+        np.testing.assert_array_equal(new.arrays["positions"], replay[k]["positions"])
+        np.testing.assert_array_equal(new.arrays["velocities"], replay[k]["velocities"])
+        np.testing.assert_array_equal(new.arrays["box"], replay[k]["box"])
+        s = replay[k]["stress"]
+        np.testing.assert_array_equal(sig, 0.5 * (s + s.T))
+        assert new.updates == k and np.array_equal(new.increments[-1], f - np.eye(2))
+        state = new
+    # the tangent has every minor symmetry and the order of the contact stiffness
+    assert np.allclose(t, t.transpose(1, 0, 2, 3)) and np.allclose(t, t.transpose(0, 1, 3, 2))
+    assert t[1, 1, 1, 1] > 0 and t[0, 0, 0, 0] > 0
+    # pack / unpack round trip (checkpoints)
+    packed = law.pack_states([law.initial_state(0), state])
+    back = law.unpack_states(packed)
+    assert back[1].updates == state.updates and back[1].step == state.step
+    for n, v in state.arrays.items():
+        np.testing.assert_array_equal(back[1].arrays[n], v)
+    obs = law.observables(state)
+    assert 0.1 < obs["void_ratio"] < 1.0 and obs["contacts"] > 100
+
+
+def test_contact_stiffness_tangent_predicts_a_small_elastic_increment(rve):
+    # a small increment from the loaded state: the stress change is of the order the tangent predicts
+    # (the contact-stiffness tangent misses the geometric and sliding terms: same sign, same order)
+    from gransim.fem.lammps_rve import LammpsPointLaw
+
+    law = LammpsPointLaw(rve)
+    s0, t0, st = law.update(np.eye(2) + INCREMENTS[0], law.initial_state(0))
+    dF = np.array([[0.0, 0.0], [0.0, -2e-5]])
+    s1, _, _ = law.update(np.eye(2) + dF, st)
+    pred = np.einsum("ijkl,kl->ij", t0, dF)
+    assert np.sign(s1[1, 1] - s0[1, 1]) == np.sign(pred[1, 1])
+    assert 0.1 < (s1[1, 1] - s0[1, 1]) / pred[1, 1] < 10
