@@ -45,9 +45,7 @@ from . import kernels as K
 from . import sheared_kernels as SK
 
 # ------------------------------------------------------------------------------- the cells
-# The image of the cell in the force loop, a plain tuple of floats (a namedtuple argument of the
-# parallel force kernel made it 2x slower when called from the jitted step loop, though not when
-# called from Python: measured, 20 against 9 ms a step at 1e5 disks): (Lx, Ly) for an orthogonal
+# The image of the cell in the force loop, a plain tuple of floats: (Lx, Ly) for an orthogonal
 # cell, the image of j with shift s at x_j + (s_x Lx, s_y Ly) moving with v_j (``fix deform ...
 # remap x``); (Lx, Ly, xy, ux, uy) for a sheared (LAMMPS triclinic) cell, the tilt xy (m) and the
 # velocity jump across the y boundary ux = h_rate[5], uy = h_rate[1] (m/s): the image at
