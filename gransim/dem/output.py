@@ -339,6 +339,7 @@ def write_checkpoint(path, rec: RunRecord, parameters: dict | None = None, seed=
 def _write_checkpoint_group(f, checkpoint: dict) -> None:
     ck = f.create_group("checkpoint")
     ck.attrs["step"] = int(checkpoint["step"])
+    ck.attrs["ordering"] = str(checkpoint.get("ordering", "code"))
     ck.attrs["protocol_state"] = json.dumps(checkpoint["protocol_state"])
     for k, v in checkpoint["arrays"].items():
         ck.create_dataset(k, data=np.asarray(v))
@@ -348,11 +349,15 @@ def _read_checkpoint_group(f, path, n: int) -> dict:
     ck = f["checkpoint"]
     if "step" not in ck.attrs:
         raise ResultFileError(f"{path}: /checkpoint has no attribute 'step'")
-    _check_shapes(ck, CHECKPOINT_SHAPES, {"N": n}, path, "checkpoint")
+    ordering = str(ck.attrs.get("ordering", "code"))
+    shapes = {"code": CHECKPOINT_SHAPES, "fast": FAST_CHECKPOINT_SHAPES}.get(ordering)
+    if shapes is None:
+        raise ResultFileError(f"{path}: /checkpoint has an unknown ordering {ordering!r}")
+    _check_shapes(ck, shapes, {"N": n}, path, "checkpoint")
     state = _json_attr(f, path, "protocol_state", where=ck, want=dict)
     arrays = {}
     ck.visititems(lambda name, obj: arrays.__setitem__(name, obj[()]) if hasattr(obj, "shape") else None)
-    return {"step": int(ck.attrs["step"]), "protocol_state": state, "arrays": arrays}
+    return {"step": int(ck.attrs["step"]), "protocol_state": state, "arrays": arrays, "ordering": ordering}
 
 
 def _apply_parts(path: Path, rec: RunRecord, token) -> tuple[int, int]:
@@ -455,6 +460,12 @@ CHECKPOINT_SHAPES = {
     "neighbours/shift": ("K", 2),
     "neighbours/owned_both": ("K",),
     "neighbours/xi": ("K", "W"),
+    "virial": (4,),
+}
+#: the checkpoint arrays of the fast ordering (:meth:`gransim.dem.fast.FastEngine.state_arrays`: the
+#: particles in the sorted order and their permutation; the list's arrays are checked by its restore)
+FAST_CHECKPOINT_SHAPES = {
+    **{f"sorted/{k}": ("N",) for k in ("x", "y", "vx", "vy", "w", "fx", "fy", "t", "xh", "yh", "perm")},
     "virial": (4,),
 }
 

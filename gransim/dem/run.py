@@ -14,7 +14,7 @@ from ..contacts.laws import law_spec
 from ..errors import ConvergenceError, InputError, ResultFileError, SimulationError
 from ..geometry import Packing
 from ..progress import Interrupted, check_interrupt, deferred_interrupts, pending_interrupt, progress, result_written
-from .engine import ORDERS, DEMEngine, fingerprint, make_engine
+from .engine import ORDERS, DEMEngine, Engine, fingerprint, make_engine
 from .output import OutputSettings, RunRecord, read_record, remove_stale_run_temporaries, write_checkpoint, write_run
 from .settings import DEMSettings, Loading, settings_json
 
@@ -379,6 +379,7 @@ def _checkpoint(rec: RunRecord, eng: DEMEngine, state: dict):
         "step": eng.step,
         "protocol_state": json.loads(json.dumps(state)),
         "arrays": {k: np.array(v) for k, v in eng.state_arrays().items()},
+        "ordering": "code" if isinstance(eng, Engine) else "fast",
     }
 
 
