@@ -30,6 +30,10 @@
    time (``time.process_time``: on a loaded machine the wall time also counts the time the process
    waited for a core).
 
+4. ``--tangent-study H,H,...``: Newton iterations and CPU time of ``--steps`` (default 40) load
+   steps on a 1 x 1 mesh in process with the contact-stiffness tangent (h = 0) and with a
+   central-difference tangent of perturbation h (:func:`perturbation_law`), ``--max-iter 100``.
+
 The machine's load average is printed before and after each part (2 shared cores: the absolute
 times follow the load, ratios within one interleaved run much less). ``run(quick)`` gives the
 records of ``python -m bench`` (part 1, and part 2 on a 1 x 2 mesh for 2 steps in process).
@@ -131,6 +135,51 @@ def rve_call_split(calls: int = 60) -> dict:
     out["rate_call"] = n * ns / out["run"]["median"]
     out["rate_call_best"] = n * ns / out["run"]["min"]
     out["rate_steady"] = n / per_step
+    out.update(_step_split(st.rve, np.array(INCREMENTS[0])))
+    return out
+
+
+def _step_split(rve, D, steps: int = 100) -> dict:
+    """CPU time of one DEM step's two loops, each repeated ``steps`` times inside one compiled
+    loop (no dispatch per step) on the container of ``rve`` after 5 steps of ``D``: the
+    interaction loop ``_interactions`` (s), the damped integrator ``_newton_damped`` (s), and
+    the container's entries and real ones."""
+    from gransim._numba import njit
+    from gransim.dem import yade_arithmetic as ya
+
+    @njit
+    def interactions(k, pos, vel, spin, radius, H, VP, tan, young, poisson, dt, n_intr, ids, cd, real, geom, fs, f, t):
+        for _ in range(k):
+            ya._interactions(
+                pos, vel, spin, radius, H, VP, 0.0, 0.0, tan, young, poisson, dt, True, n_intr, ids, cd, real, geom,
+                fs, f, t,
+            )  # fmt: skip
+
+    @njit
+    def integrator(k, pos, vel, spin, mass, inertia, f, t, L, nextL, changed, Lprev, size, prev, dt, ref, sweep, damp):
+        for _ in range(k):
+            ya._newton_damped(
+                pos, vel, spin, mass, inertia, f, t, L, nextL, changed, Lprev, size, prev, dt, dt * dt, ref, sweep, damp
+            )
+
+    call = ya.rve_call(rve, D)
+    with ya._workspace(call.n, call.m0) as work:
+        a = call.kernel_args(work, nsteps=5)
+        ya._rve_steps(*a)
+        (_, _, pos, vel, spin, radius, mass, inertia, _, _, H, L, nextL, changed, Lprev, prev, _, ref, sweep, _, young,
+         poisson, tan, damp, dt, n_intr, _, ids, cd, real, geom, fs, _) = a  # fmt: skip
+        VP = L @ H  # a velocity gradient times the cell, as the cell update makes it
+        f, t = np.zeros((call.n, 2)), np.zeros(call.n)
+        out = {"entries": int(n_intr[0]), "real": int(np.sum(real[: n_intr[0]]))}
+        for name in ("interactions", "integrator", "interactions", "integrator"):  # the second pair counts
+            c0 = time.process_time()
+            if name == "interactions":
+                interactions(steps, pos, vel, spin, radius, H, VP, tan, young, poisson, dt, n_intr, ids, cd, real, geom,
+                             fs, f, t)  # fmt: skip
+            else:
+                integrator(steps, pos.copy(), vel.copy(), spin.copy(), mass, inertia, f, t, L.copy(), nextL.copy(),
+                           changed.copy(), Lprev.copy(), prev.copy(), prev.copy(), dt, ref, sweep, damp)  # fmt: skip
+            out[f"{name}_s"] = (time.process_time() - c0) / steps
     return out
 
 
@@ -151,6 +200,10 @@ def show_split(r: dict, log=print) -> None:
         log(f"  {label:40s} {r[k]['median'] * ms:8.3f} ms  ({r[k]['min'] * ms:.3f})")
     log(f"  {'      first collider run (initial sort)':40s} {r['first_collide'] * ms:8.3f} ms")
     log(f"  {'      per DEM step':40s} {r['per_step'] * 1e6:8.2f} us")
+    log(
+        f"          of which the interaction loop {r['interactions_s'] * 1e6:.2f} us ({r['entries']} entries, "
+        f"{r['real']} real), the integrator {r['integrator_s'] * 1e6:.2f} us (100 steps in one compiled loop each)"
+    )
     log(
         f"  rate: call {r['rate_call'] / 1e6:.2f} M particle-steps/s (best {r['rate_call_best'] / 1e6:.2f}), "
         f"steady state {r['rate_steady'] / 1e6:.2f}"
@@ -307,6 +360,88 @@ def ab(base: str, windows: int = 12, window: int = 10, log=print) -> dict:
     return out
 
 
+# ---------------------------------------------------------------------------------- the tangent
+
+
+def perturbation_law(h: float):
+    """Guo & Zhao's DEM RVE (``DemRVE.prepared()``) whose tangent is the central difference
+    d sigma / d f_kl = (sigma(D = +h e_kl) - sigma(D = -h e_kl)) / (2 h) of the RVE calls from the
+    point's committed state (8 calls of ns = max(1e5 h, 2) steps), computed once per committed
+    state (the first Newton iterate of a step) and returned by every iterate of the step instead
+    of the contact-stiffness tangent; the stress and the states are DemRVE's. A study, not a
+    gransim law: it measures whether the consistent tangent the requirement allows "if it pays in
+    Newton iterations" pays (docs/femxdem.md, "Performance"). ``h`` 0: DemRVE itself."""
+    import weakref
+    from dataclasses import dataclass
+
+    from gransim.dem.yade_arithmetic import guo_zhao_stress_tangent, rve_run
+    from gransim.fem.dem_rve import DemRVE
+
+    base = DemRVE.prepared()
+    if h <= 0:
+        return base
+    cache = weakref.WeakKeyDictionary()
+
+    @dataclass(frozen=True, eq=False)
+    class PerturbationRVE(DemRVE):
+        def update(self, f, state):
+            sigma, _, new = super().update(f, state)
+            t = cache.get(state)
+            if t is None:
+                t = np.zeros((2, 2, 2, 2))
+                for k in range(2):
+                    for m in range(2):
+                        E = np.zeros((2, 2))
+                        E[k, m] = h
+                        sp, _ = guo_zhao_stress_tangent(rve_run(state.rve, E))
+                        sm, _ = guo_zhao_stress_tangent(rve_run(state.rve, -E))
+                        t[:, :, k, m] = (sp - sm) / (2 * h)
+                cache[state] = t
+            return sigma, t, new
+
+    return PerturbationRVE(base.initial, base.provenance)
+
+
+def tangent_study(hs, steps: int = 40, mesh=(1, 1), log=print) -> list[dict]:
+    """Newton iterations and CPU time of ``steps`` load steps of the biaxial specimen on a small
+    ``mesh`` in this process (``--max-iter 100``, Guo & Zhao's iter_max), for each perturbation
+    ``h`` of :func:`perturbation_law` (0: the contact-stiffness tangent). The specimen is uniform
+    (smooth platens, every point the same RVE): a 1 x 1 mesh follows the full mesh's Newton
+    history closely until the peak (docs/femxdem.md)."""
+    import glob
+
+    import h5py
+
+    from gransim.fem.biaxial import BiaxialSpec
+    from gransim.fem.femxdem import run_femxdem
+
+    spec = BiaxialSpec(nx=mesh[0], ny=mesh[1], steps=steps, max_iter=100)
+    out = []
+    for h in hs:
+        law = perturbation_law(h)
+        with tempfile.TemporaryDirectory(prefix="bench-femxdem-tangent-") as tmp:
+            c0, t0 = time.process_time(), time.perf_counter()
+            stop = ""
+            try:
+                run_femxdem(spec, rve="dem", out=tmp, law=law)
+            except Exception as exc:  # a step that does not converge in 100 iterations: the steps before count
+                stop = str(exc)
+            cpu, wall = time.process_time() - c0, time.perf_counter() - t0
+            its, q = [], []
+            for p in sorted(glob.glob(f"{tmp}/checkpoint/step_*.h5")):
+                with h5py.File(p) as f:
+                    its.append(len(f["errors"]))
+                    q.append(float(f.attrs["deviatoric_stress"]) / 1e3)
+        r = {"h": h, "iterations": its, "q_kpa": q, "cpu_s": cpu, "wall_s": wall, "stopped": stop}
+        out.append(r)
+        log(
+            f"tangent {'contact stiffness' if h <= 0 else f'perturbation h = {h:g}'}: {len(its)} steps, "
+            f"{sum(its)} Newton iterations {its}, CPU {cpu:.1f} s, wall {wall:.1f} s; peak q "
+            f"{max(q) if q else float('nan'):.1f} kPa" + (f"; stopped: {stop}" if stop else "")
+        )
+    return out
+
+
 def run(quick: bool = False) -> list[dict]:
     """Records for ``python -m bench``."""
     r = rve_call_split(20 if quick else 60)
@@ -334,12 +469,23 @@ def main(argv=None) -> int:
     ap.add_argument("--calls", type=int, default=60, help="RVE calls of part 1")
     ap.add_argument("--skip-run", action="store_true", help="part 1 only")
     ap.add_argument("--base", default=None, help="part 3: A/B of the RVE call against commit BASE")
+    ap.add_argument(
+        "--tangent-study",
+        default=None,
+        metavar="H,H,...",
+        help="Newton iterations and CPU time on a 1 x 1 mesh (--steps, default 40) for each perturbation h of the "
+        "central-difference tangent (0: the contact-stiffness tangent)",
+    )
     ap.add_argument("--windows", type=int, default=12)
     ap.add_argument("--window", type=int, default=10)
     args = ap.parse_args(argv)
     print(f"load {load()}", flush=True)
     if args.base:
         ab(args.base, args.windows, args.window)
+        print(f"load {load()}", flush=True)
+        return 0
+    if args.tangent_study:
+        tangent_study([float(h) for h in args.tangent_study.split(",")], args.steps or 40)
         print(f"load {load()}", flush=True)
         return 0
     show_split(rve_call_split(args.calls))
