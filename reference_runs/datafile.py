@@ -28,11 +28,23 @@ def _fmt(v: float) -> str:
 def write_data_file(
     path, packing: Packing, velocities=None, omegas=None, types=None, wrap: bool = True, z_half: float | None = None
 ) -> Path:
-    """Write ``packing`` as a LIGGGHTS ``atom_style sphere`` data file (2D).
+    """Write ``packing`` as a LIGGGHTS ``atom_style sphere`` data file (2D), atomically
+    (:func:`gransim.io.atomic_path`); the text is :func:`data_file_text`'s (same parameters).
+    Returns ``path``."""
+    text = data_file_text(packing, velocities=velocities, omegas=omegas, types=types, wrap=wrap, z_half=z_half)
+    with atomic_path(path, suffix=".data.tmp") as tmp:
+        Path(tmp).write_text(text)
+    return Path(path)
+
+
+def data_file_text(
+    packing: Packing, velocities=None, omegas=None, types=None, wrap: bool = True, z_half: float | None = None
+) -> str:
+    """The text of ``packing`` as a LIGGGHTS ``atom_style sphere`` data file (2D), for a job's
+    input files held in memory (a Taylor job's hundreds of states: no file, no fsync each).
 
     Parameters
     ----------
-    path : output file (written atomically).
     packing : the packing; its cell must be orthogonal (a1 = (Lx, 0), a2 = (0, Ly)),
         because tilted boxes are broken in LIGGGHTS 3.8.0 (docs/liggghts.md).
     velocities : (N, 2) m/s, optional (written as a Velocities section with spins).
@@ -79,6 +91,4 @@ def write_data_file(
         lines += ["", "Velocities", ""]
         for k in range(n):
             lines.append(f"{k + 1} {_fmt(v[k, 0])} {_fmt(v[k, 1])} 0 0 0 {_fmt(w[k])}")
-    with atomic_path(path, suffix=".data.tmp") as tmp:
-        Path(tmp).write_text("\n".join(lines) + "\n")
-    return Path(path)
+    return "\n".join(lines) + "\n"

@@ -62,16 +62,14 @@ LAMMPS (``engine="lammps"``, checked on LAMMPS 29 Sep 2021 - Update 2, Debian ``
 from __future__ import annotations
 
 import json
-import tempfile
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from gransim.errors import InputError
 from gransim.geometry import Packing
 
-from ..datafile import write_data_file
+from ..datafile import data_file_text
 from ..parsers import pair_gran_local_names
 
 #: the four study paths of Meier, Steinmann & Kuhl (2007) (Figs 4-5): driving component of F
@@ -180,9 +178,9 @@ def triclinic_state(packing: Packing, F):
     return x, box, Q
 
 
-def _write_lammps_data(path, x, radii, density: float, box, types=None) -> None:
-    """A LAMMPS ``atom_style sphere`` data file (2D, box [0, lx] x [0, ly], tilt xy), ``%.17g``.
-    The density column is 2D (mass per area); the deck sets it again with ``density/disc``."""
+def _lammps_data_text(x, radii, density: float, box, types=None) -> str:
+    """The text of a LAMMPS ``atom_style sphere`` data file (2D, box [0, lx] x [0, ly], tilt xy),
+    ``%.17g``. The density column is 2D (mass per area); the deck sets it again with ``density/disc``."""
     lx, ly, xy = box
     n = len(radii)
     z = max(0.5, 2.0 * float(np.max(radii)))
@@ -202,7 +200,7 @@ def _write_lammps_data(path, x, radii, density: float, box, types=None) -> None:
     lines += ["", "Atoms # sphere", ""]
     for k in range(n):
         lines.append(f"{k + 1} {t[k]} {_g(2.0 * radii[k])} {_g(density)} {_g(x[k, 0])} {_g(x[k, 1])} 0")
-    Path(path).write_text("\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"
 
 
 def image_state_packing(packing: Packing, F, margin: float = 1e-9):
@@ -403,53 +401,50 @@ def taylor_job(
     files, states, blocks = {}, [], []
     cols = " ".join(f"c_pl[{a + 1}]" for a in range(_N_CONTACT_COLS))
     fmt = " ".join(["%.17g"] * _N_CONTACT_COLS)
-    with tempfile.TemporaryDirectory() as tmp:
-        for path in paths:
-            Fs = path_F(path, n_steps, max_strain, stride)
-            ks = list(range(0, n_steps + 1, stride))
-            if ks[-1] != n_steps:
-                ks.append(n_steps)
-            for route in routes:
-                if route == "periodic" and not path.startswith("compression"):
-                    continue
-                for k, F in zip(ks, Fs):
-                    index = len(states)
-                    data_name = f"states/{path}/{route}_{k:04d}.data"
-                    if route == "periodic":
-                        box = periodic_state_packing(packing, F)
-                        nt, types, n_atoms = 1, None, packing.n
-                    else:
-                        box, _, src, _ = image_state_packing(packing, F)
-                        nt, n_atoms = 2, box.n
-                        types = np.where(np.arange(box.n) < packing.n, 1, 2)
-                    p = Path(tmp) / "state.data"
-                    # no re-wrapping: it would round the centres again (they already lie in the box)
-                    write_data_file(p, box, types=types, wrap=False)
-                    files[data_name] = p.read_bytes()
-                    cfile = f"contacts/{path}/{route}_{k:04d}.dump" if contacts else None
-                    st = TaylorState(
-                        index, path, route, k, tuple(map(tuple, F.tolist())), data_name, cfile, packing.n, n_atoms
+    for path in paths:
+        Fs = path_F(path, n_steps, max_strain, stride)
+        ks = list(range(0, n_steps + 1, stride))
+        if ks[-1] != n_steps:
+            ks.append(n_steps)
+        for route in routes:
+            if route == "periodic" and not path.startswith("compression"):
+                continue
+            for k, F in zip(ks, Fs):
+                index = len(states)
+                data_name = f"states/{path}/{route}_{k:04d}.data"
+                if route == "periodic":
+                    box = periodic_state_packing(packing, F)
+                    nt, types, n_atoms = 1, None, packing.n
+                else:
+                    box, _, src, _ = image_state_packing(packing, F)
+                    nt, n_atoms = 2, box.n
+                    types = np.where(np.arange(box.n) < packing.n, 1, 2)
+                # no re-wrapping: it would round the centres again (they already lie in the box)
+                files[data_name] = data_file_text(box, types=types, wrap=False).encode()
+                cfile = f"contacts/{path}/{route}_{k:04d}.dump" if contacts else None
+                st = TaylorState(
+                    index, path, route, k, tuple(map(tuple, F.tolist())), data_name, cfile, packing.n, n_atoms
+                )
+                states.append(st)
+                blocks.append(
+                    _STATE.format(
+                        index=index,
+                        path=path,
+                        route=route,
+                        k=k,
+                        F11=_g(F[0, 0]),
+                        F12=_g(F[0, 1]),
+                        F21=_g(F[1, 0]),
+                        F22=_g(F[1, 1]),
+                        boundary="p p" if route == "periodic" else "f f",
+                        data_file=data_name,
+                        skin=_g(skin),
+                        nt=nt,
+                        kn_list=" ".join([_g(kn)] * nt * nt),
+                        zero_list=" ".join(["0"] * nt * nt),
+                        contacts=_CONTACTS.format(contacts_file=cfile, cols=cols, fmt=fmt) if contacts else "",
                     )
-                    states.append(st)
-                    blocks.append(
-                        _STATE.format(
-                            index=index,
-                            path=path,
-                            route=route,
-                            k=k,
-                            F11=_g(F[0, 0]),
-                            F12=_g(F[0, 1]),
-                            F21=_g(F[1, 0]),
-                            F22=_g(F[1, 1]),
-                            boundary="p p" if route == "periodic" else "f f",
-                            data_file=data_name,
-                            skin=_g(skin),
-                            nt=nt,
-                            kn_list=" ".join([_g(kn)] * nt * nt),
-                            zero_list=" ".join(["0"] * nt * nt),
-                            contacts=_CONTACTS.format(contacts_file=cfile, cols=cols, fmt=fmt) if contacts else "",
-                        )
-                    )
+                )
     header = _HEADER.format(n_states=len(states), name=name, n=packing.n, kn=_g(kn))
     deck = header + "\n" + "\n".join(blocks)
     meta = {
@@ -476,69 +471,66 @@ def _lammps_taylor_job(packing, kn, paths, routes, n_steps, max_strain, stride, 
     skin = 0.1 * float(packing.radii.min()) if skin is None else float(skin)
     files, states, blocks = {}, [], []
 
-    with tempfile.TemporaryDirectory() as tmp:
-        for path in paths:
-            Fs = path_F(path, n_steps, max_strain, stride)
-            ks = list(range(0, n_steps + 1, stride))
-            if ks[-1] != n_steps:
-                ks.append(n_steps)
-            for route in routes:
-                for k, F in zip(ks, Fs):
-                    index = len(states)
-                    data_name = f"states/{path}/{route}_{k:04d}.data"
-                    p = Path(tmp) / "state.data"
-                    Q = np.eye(2)
-                    if route == "periodic":
-                        x, box, Q = triclinic_state(packing, F)
-                        _write_lammps_data(p, x, packing.radii, packing.density, box)
-                        n_atoms = packing.n
-                    else:
-                        ibox, _, _, _ = image_state_packing(packing, F)
-                        types = np.where(np.arange(ibox.n) < packing.n, 1, 2)
-                        _write_lammps_data(
-                            p,
-                            ibox.positions,
-                            ibox.radii,
-                            packing.density,
-                            (ibox.cell[0, 0], ibox.cell[1, 1], 0.0),
-                            types,
-                        )
-                        n_atoms = ibox.n
-                    files[data_name] = p.read_bytes()
-                    cfile = f"contacts/{path}/{route}_{k:04d}.dump" if contacts else None
-                    st = TaylorState(
-                        index,
-                        path,
-                        route,
-                        k,
-                        tuple(map(tuple, F.tolist())),
-                        data_name,
-                        cfile,
-                        packing.n,
-                        n_atoms,
-                        tuple(map(tuple, Q.tolist())),
+    for path in paths:
+        Fs = path_F(path, n_steps, max_strain, stride)
+        ks = list(range(0, n_steps + 1, stride))
+        if ks[-1] != n_steps:
+            ks.append(n_steps)
+        for route in routes:
+            for k, F in zip(ks, Fs):
+                index = len(states)
+                data_name = f"states/{path}/{route}_{k:04d}.data"
+                Q = np.eye(2)
+                if route == "periodic":
+                    x, box, Q = triclinic_state(packing, F)
+                    text = _lammps_data_text(x, packing.radii, packing.density, box)
+                    n_atoms = packing.n
+                else:
+                    ibox, _, _, _ = image_state_packing(packing, F)
+                    types = np.where(np.arange(ibox.n) < packing.n, 1, 2)
+                    text = _lammps_data_text(
+                        ibox.positions,
+                        ibox.radii,
+                        packing.density,
+                        (ibox.cell[0, 0], ibox.cell[1, 1], 0.0),
+                        types,
                     )
-                    states.append(st)
-                    swap = "; x and y swapped (frame Q = [[0, 1], [1, 0]])" if Q[0, 1] else ""
-                    blocks.append(
-                        _LAMMPS_STATE.format(
-                            index=index,
-                            path=path,
-                            route=route,
-                            k=k,
-                            F11=_g(F[0, 0]),
-                            F12=_g(F[0, 1]),
-                            F21=_g(F[1, 0]),
-                            F22=_g(F[1, 1]),
-                            swap=swap,
-                            boundary="p p" if route == "periodic" else "f f",
-                            data_file=data_name,
-                            density=_g(packing.density),
-                            skin=_g(skin),
-                            kn=_g(kn),
-                            contacts=_LAMMPS_CONTACTS.format(contacts_file=cfile) if contacts else "",
-                        )
+                    n_atoms = ibox.n
+                files[data_name] = text.encode()
+                cfile = f"contacts/{path}/{route}_{k:04d}.dump" if contacts else None
+                st = TaylorState(
+                    index,
+                    path,
+                    route,
+                    k,
+                    tuple(map(tuple, F.tolist())),
+                    data_name,
+                    cfile,
+                    packing.n,
+                    n_atoms,
+                    tuple(map(tuple, Q.tolist())),
+                )
+                states.append(st)
+                swap = "; x and y swapped (frame Q = [[0, 1], [1, 0]])" if Q[0, 1] else ""
+                blocks.append(
+                    _LAMMPS_STATE.format(
+                        index=index,
+                        path=path,
+                        route=route,
+                        k=k,
+                        F11=_g(F[0, 0]),
+                        F12=_g(F[0, 1]),
+                        F21=_g(F[1, 0]),
+                        F22=_g(F[1, 1]),
+                        swap=swap,
+                        boundary="p p" if route == "periodic" else "f f",
+                        data_file=data_name,
+                        density=_g(packing.density),
+                        skin=_g(skin),
+                        kn=_g(kn),
+                        contacts=_LAMMPS_CONTACTS.format(contacts_file=cfile) if contacts else "",
                     )
+                )
     header = _LAMMPS_HEADER.format(n_states=len(states), name=name, n=packing.n, kn=_g(kn))
     deck = header + "\n" + "\n".join(blocks)
     meta = {
