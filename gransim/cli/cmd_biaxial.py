@@ -8,6 +8,7 @@ import dataclasses
 import os
 
 from ..errors import InputError
+from ._engine_options import add_engine_options
 from ._paths import (
     check_count,
     check_distinct,
@@ -81,12 +82,6 @@ def register(sub) -> None:
     p.add_argument("--series-every", type=int, default=10, help="stress row every N steps (default 10)")
     p.add_argument("--snapshot-every", type=int, default=10000, help="snapshot every N steps (default 10000)")
     p.add_argument(
-        "--checkpoint-every",
-        type=int,
-        default=50000,
-        help="checkpoint every N steps (default 50000; 0: only at the end)",
-    )
-    p.add_argument(
         "--mode",
         choices=("serial", "parallel"),
         default="serial",
@@ -94,15 +89,7 @@ def register(sub) -> None:
         "same bits on any thread count, sums in another order: 1.3-1.6x on 2 threads from 1e4 "
         "disks; default serial)",
     )
-    p.add_argument(
-        "--order",
-        choices=("code", "fast"),
-        default="code",
-        help="code (the codes' order: bit for bit with them; default) or fast (spatially sorted, half list, "
-        "banded threads: the same physics to round-off over short horizons, within the chaos envelope "
-        "over long ones; docs/performance.md)",
-    )
-    p.add_argument("--threads", type=int, help="numba threads for --mode parallel or --order fast")
+    add_engine_options(p, "--order fast, or --mode parallel")
     p.add_argument(
         "--flavour",
         help="whose arithmetic the engine reproduces bit for bit: liggghts (LIGGGHTS-PUBLIC "
@@ -126,7 +113,6 @@ def register(sub) -> None:
         help="a parameter of --law (repeat; SI units, e.g. youngs_modulus=7e8, restitution=0.6, "
         "damping=tsuji); kn, kt, gamma_n, gamma_t, mu/friction default to the protocol's",
     )
-    p.add_argument("--resume", action="store_true", help="continue the run in --output from its checkpoint")
     p.add_argument("--plot", help="also write the stress-strain plot (Fig. 7b) to this image")
     p.set_defaults(func=_run)
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..progress import result_written
+from ._engine_options import add_engine_options
 from ._paths import check_count, check_distinct, check_figure, check_given_values, check_input, check_output
 from .cmd_biaxial import parse_law_params
 
@@ -78,26 +79,7 @@ def register(sub) -> None:
         default=[],
         help="a parameter of --law (repeat; SI units, as gransim biaxial --law-param)",
     )
-    p.add_argument(
-        "--checkpoint-every",
-        type=int,
-        default=50000,
-        help="write the run file with a checkpoint every N steps (default 50000; 0: never; an "
-        "interrupted run writes one where it stops)",
-    )
-    p.add_argument(
-        "--resume",
-        action="store_true",
-        help="continue the run in --output from its checkpoint (the same options; bit for bit the uninterrupted run)",
-    )
-    p.add_argument(
-        "--order",
-        choices=("code", "fast"),
-        default="code",
-        help="code (LAMMPS' order, to round-off with it, one thread; default) or fast (spatially sorted, "
-        "half list, banded threads; docs/performance.md)",
-    )
-    p.add_argument("--threads", type=int, help="numba threads of --order fast")
+    add_engine_options(p, "--order fast; the code order's sheared cell runs on one")
     p.add_argument("-o", "--output", required=True, help="run file (.h5)")
     p.add_argument("--plot", help="also write the shear stress and normal stress against the strain")
     p.set_defaults(func=_run)

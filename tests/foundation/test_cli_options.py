@@ -324,6 +324,18 @@ def _options(command: str):
     return sub.choices[command]._actions
 
 
+def test_biaxial_and_shear_take_the_same_engine_options():
+    # the one engine's choices reach both commands under the same names and choices
+    shared = ("--order", "--threads", "--checkpoint-every", "--resume", "--flavour", "--law", "--law-param")
+    got = {}
+    for command in ("biaxial", "shear"):
+        acts = {o: a for a in _options(command) for o in a.option_strings}
+        missing = [o for o in shared if o not in acts]
+        assert not missing, (command, missing)
+        got[command] = {o: (acts[o].choices, acts[o].default if o != "--flavour" else None) for o in shared}
+    assert got["biaxial"] == got["shear"]
+
+
 # ----------------------------------------------------------------------------------------------
 # every option has a check, and a test
 # ----------------------------------------------------------------------------------------------
