@@ -6,8 +6,10 @@
     forces, not timed), advance WARM steps untimed (the first rebuilds: the steady state), then
     time ``advance`` of STEPS steps: the counterpart of the codes' ``Loop time`` of their second
     ``run``. MODE "serial"/"parallel": the bitwise :class:`~gransim.dem.DEMEngine`; "fast": the
-    fast path :class:`~gransim.dem.fast.FastEngine` on THREADS threads. Reports loop_s, contacts,
-    rebuilds in the window, the process's peak RSS (VmHWM, KiB) and the engine's own array bytes.
+    fast path :class:`~gransim.dem.fast.FastEngine` on THREADS threads; "fast-sheared": the fast
+    path in the sheared cell of PACKING (bench.dem.sheared_assembly) under bench.dem.SHEAR_LOADING.
+    Reports loop_s, contacts, rebuilds in the window, the process's peak RSS (VmHWM, KiB) and the
+    engine's own array bytes.
 ``python -m bench._dem_job baseline MODE THREADS``
     The same imports and warm-up only: the memory a native job holds before its packing.
 ``python -m bench._dem_job profile PACKING.npz STEPS``
@@ -59,16 +61,23 @@ def _warm(mode: str, threads: int):
     from bench._deck import LOADING, SETTINGS, assembly
     from gransim.dem import DEMEngine, DEMSettings
 
-    if mode == "fast":
+    if mode in ("fast", "fast-sheared"):
         # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
         from gransim.dem import fast
 
         low, fast.MIN_PER_THREAD = fast.MIN_PER_THREAD, 0  # the threaded kernels too, on 110 disks
         try:
-            fast.FastEngine(assembly(100), SETTINGS, threads=threads).advance(2)
+            if mode == "fast":
+                fast.FastEngine(assembly(100), SETTINGS, threads=threads).advance(LOADING, 2)
+                return SETTINGS
+            from bench.dem import SHEAR_LOADING, SHEAR_SETTINGS, sheared_assembly
+
+            eng = fast.FastEngine(sheared_assembly(100), SHEAR_SETTINGS, threads=threads, cell="sheared")
+            eng.start_run(SHEAR_LOADING, 2)
+            eng.advance(2)
+            return SHEAR_SETTINGS
         finally:
             fast.MIN_PER_THREAD = low
-        return SETTINGS
     s = DEMSettings(**{**SETTINGS.to_dict(), "mode": mode})
     DEMEngine(assembly(100), s, threads=threads).advance(LOADING, 2)
     return s
@@ -86,6 +95,16 @@ def native(path, steps: int, mode: str, threads: int, warm: int = 0) -> dict:
         from gransim.dem.fast import FastEngine
 
         eng = FastEngine(p, s, threads=threads)
+
+        def go(k):
+            return eng.advance(LOADING, k)
+
+    elif mode == "fast-sheared":  # PACKING.npz holds the sheared cell (bench.dem.sheared_assembly)
+        from bench.dem import SHEAR_LOADING
+        from gransim.dem.fast import FastEngine
+
+        eng = FastEngine(p, s, threads=threads, cell="sheared")
+        eng.start_run(SHEAR_LOADING, warm + steps)
         go = eng.advance
     else:
         eng = DEMEngine(p, s, threads=threads)
@@ -109,7 +128,7 @@ def native(path, steps: int, mode: str, threads: int, warm: int = 0) -> dict:
         "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
         "gomp_spincount": os.environ.get("GOMP_SPINCOUNT"),
     }
-    if mode == "fast":
+    if mode in ("fast", "fast-sheared"):
         out["engine_bytes"] = eng.memory_bytes()
         out["entries"] = eng.n_entries
     return out

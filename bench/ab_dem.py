@@ -1,7 +1,7 @@
 """A/B benchmark of the native DEM between two commits, interleaved in one run, in the steady state.
 
 ``python -m bench.ab_dem --base REV [--head REV|WORKTREE] [--n 10000] [--window 200] [--windows 12]
-[--mode serial|parallel|fast|sheared] [--threads 1]``
+[--mode MODE] [--threads 1] [--head-mode MODE] [--head-threads T]``
 
 Each side is the gransim tree of one commit (``git archive`` into a temporary folder; ``WORKTREE``,
 the default head, is this checkout as it is) with its own numba cache. One long-lived process per
@@ -11,8 +11,14 @@ warm-up of ``--warm`` steps (the first rebuilds), and reports the time it took t
 user waits for before the first step: start-up, compilation or cache load, set-up). Then the driver
 asks the two processes in turn, A B B A A B ..., for windows of ``--window`` steps each; both
 states evolve bit for bit alike (the same arithmetic), so window k holds the same rebuilds on both
-sides (``--mode fast``: the fast path, :class:`gransim.dem.fast.FastEngine`, on ``--threads``;
-``--mode sheared``: the sheared cell, :class:`gransim.dem.sheared.ShearEngine`, in simple shear).
+sides. Modes: ``serial``, ``parallel`` (the code order, DEMEngine); ``fast``, ``fast-lammps``
+(the fast ordering, :class:`gransim.dem.fast.FastEngine`, in LIGGGHTS' or LAMMPS' arithmetic, on
+``--threads``); ``fast-sheared`` (the fast ordering in the sheared cell,
+:func:`bench.dem.sheared_assembly` in LAMMPS' arithmetic at :data:`bench.dem.SHEAR_LOADING`);
+``sheared`` (the code order's sheared cell in simple shear). ``--head-mode`` / ``--head-threads``
+run the head side in another configuration: with ``--base WORKTREE`` the figure compares two
+configurations of one tree, interleaved the same way (the sheared cell against the orthogonal one,
+2 threads against 1); their states then differ, so their rebuilds do too (reported).
 Reported: the median over windows of the per-window throughput ratio head/base (particle-
 steps per second), its spread, each side's median throughput, the rebuilds per window, the machine
 load (os.getloadavg) before and after. A ratio >= 0.95 means "no slowdown beyond 5%".
@@ -36,16 +42,27 @@ from bench import median, show
 ROOT = Path(__file__).resolve().parents[1]
 
 _WORKER = r"""
-import json, sys, time
+import inspect, json, sys, time
 t_start = time.perf_counter()
 tree, n, mode, threads, warm = sys.argv[1], int(sys.argv[2]), sys.argv[3], int(sys.argv[4]), int(sys.argv[5])
 sys.path.insert(0, tree)
 from bench.dem import LOADING, SETTINGS, assembly
 from gransim.dem import DEMEngine, DEMSettings
 p = assembly(n)
-if mode == "fast":  # the fast path (FastEngine) on THREADS threads
+if mode in ("fast", "fast-lammps"):  # the fast ordering (FastEngine) on THREADS threads, fixed box
     from gransim.dem.fast import FastEngine
-    eng = FastEngine(p, SETTINGS, threads=threads)
+    s = SETTINGS if mode == "fast" else DEMSettings(**{**SETTINGS.to_dict(), "flavour": "lammps"})
+    eng = FastEngine(p, s, threads=threads)
+    if list(inspect.signature(eng.advance).parameters)[0] == "nsteps":  # before 3e4555d: advance(nsteps)
+        step = eng.advance
+    else:
+        step = lambda k: eng.advance(LOADING, k)
+elif mode == "fast-sheared":  # the fast ordering in the sheared cell (bench.dem.sheared_assembly)
+    from bench.dem import SHEAR_LOADING, SHEAR_SETTINGS, sheared_assembly
+    from gransim.dem.fast import FastEngine
+    p = sheared_assembly(n)
+    eng = FastEngine(p, SHEAR_SETTINGS, threads=threads, cell="sheared")
+    eng.start_run(SHEAR_LOADING, 10**9)
     step = eng.advance
 elif mode == "sheared":  # the sheared cell (ShearEngine, LAMMPS' arithmetic), simple shear at 0.01/s
     from gransim.dem.sheared import ShearEngine, ShearLoading
@@ -68,6 +85,9 @@ for line in sys.stdin:
           flush=True)
 """
 
+#: the worker's modes (``--mode``, ``--head-mode``)
+MODES = ("serial", "parallel", "fast", "fast-lammps", "fast-sheared", "sheared")
+
 
 def _tree(rev: str, tmp: Path) -> Path:
     """The gransim tree of ``rev`` (``WORKTREE``: this checkout) as a folder."""
@@ -85,12 +105,12 @@ def _tree(rev: str, tmp: Path) -> Path:
     return dest
 
 
-def _spawn(tree: Path, args, cache: Path) -> subprocess.Popen:
+def _spawn(tree: Path, args, cache: Path, mode: str, threads: int) -> subprocess.Popen:
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(tree)}
-    if args.threads:
-        env["NUMBA_NUM_THREADS"] = str(max(1, args.threads))
+    if threads:
+        env["NUMBA_NUM_THREADS"] = str(max(1, threads))
     return subprocess.Popen(
-        [sys.executable, "-c", _WORKER, str(tree), str(args.n), args.mode, str(args.threads), str(args.warm)],
+        [sys.executable, "-c", _WORKER, str(tree), str(args.n), mode, str(threads), str(args.warm)],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
@@ -119,17 +139,26 @@ def compare(
     mode: str = "serial",
     threads: int = 1,
     log=print,
+    head_mode: str | None = None,
+    head_threads: int | None = None,
 ) -> dict:
-    """Run the A/B comparison (module docstring) and return its figures."""
-    args = argparse.Namespace(n=n, mode=mode, threads=threads, warm=warm)
+    """Run the A/B comparison (module docstring) and return its figures. ``head_mode`` and
+    ``head_threads`` (default: ``mode``, ``threads``) run the head side in another mode or on
+    another thread count: with ``base`` = ``head`` the ratio is then that of two configurations of
+    one tree (e.g. the sheared cell against the orthogonal one, 2 threads against 1)."""
+    head_mode = mode if head_mode is None else head_mode
+    head_threads = threads if head_threads is None else head_threads
+    args = argparse.Namespace(n=n, warm=warm)
+    side_cfg = {"base": (mode, threads), "head": (head_mode, head_threads)}
     load0 = os.getloadavg()
     with tempfile.TemporaryDirectory(prefix="gransim-ab-") as tmp:
         tmp = Path(tmp)
-        trees = {"base": _tree(base, tmp), "head": _tree(head, tmp)}
+        trees = {"base": _tree(base, tmp)}
+        trees["head"] = trees["base"] if head == base else _tree(head, tmp)
         procs, ready = {}, {}
         try:
             for side in ("base", "head"):  # start-up one after the other (compilation is CPU-bound)
-                procs[side] = _spawn(trees[side], args, tmp / f"cache-{side}")
+                procs[side] = _spawn(trees[side], args, tmp / f"cache-{side}", *side_cfg[side])
                 ready[side] = _ask(procs[side], None)
                 log(f"[ab] {side} ({base if side == 'base' else head}): ready in {ready[side]['ready_s']:.1f} s")
             per = {"base": [], "head": []}
@@ -159,6 +188,8 @@ def compare(
         "n": npart,
         "mode": mode,
         "threads": threads,
+        "head_mode": head_mode,
+        "head_threads": head_threads,
         "window_steps": window,
         "windows": windows,
         "warm_steps": warm,
@@ -176,6 +207,8 @@ def compare(
         "command": (
             f"python -m bench.ab_dem --base {base} --head {head} --n {n} --window {window} "
             f"--windows {windows} --mode {mode} --threads {threads}"
+            + (f" --head-mode {head_mode}" if head_mode != mode else "")
+            + (f" --head-threads {head_threads}" if head_threads != threads else "")
         ),
     }
     return out
@@ -231,13 +264,17 @@ def main(argv=None) -> int:
     ap.add_argument("--window", type=int, default=200, help="steps per timed window (default 200)")
     ap.add_argument("--windows", type=int, default=12, help="timed windows per side (default 12)")
     ap.add_argument("--warm", type=int, default=300, help="warm-up steps before timing (default 300)")
-    ap.add_argument("--mode", choices=("serial", "parallel", "fast", "sheared"), default="serial")
+    ap.add_argument("--mode", choices=MODES, default="serial")
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--head-mode", choices=MODES, default=None, help="the head side's mode (default: --mode)")
+    ap.add_argument("--head-threads", type=int, default=None, help="the head side's threads (default: --threads)")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
     a = ap.parse_args(argv)
     if shutil.which("git") is None:
         raise SystemExit("ab_dem: git is needed to check out the base revision")
-    res = compare(a.base, a.head, a.n, a.window, a.windows, a.warm, a.mode, a.threads)
+    res = compare(
+        a.base, a.head, a.n, a.window, a.windows, a.warm, a.mode, a.threads, print, a.head_mode, a.head_threads
+    )
     print(json.dumps(res, indent=1))
     if not math.isfinite(res["ratio_median"]):  # a NaN window (a zero or NaN loop time): no figure
         print(f"[ab] head/base throughput ratio: {show(res['ratio_median'])}: a window's ratio is not a finite number")

@@ -70,6 +70,37 @@ import numpy as np
 
 from bench._deck import LOADING, SETTINGS, assembly  # noqa: F401 - the deck, re-exported
 
+#: the sheared cell of the benchmark (the fast ordering's cell="sheared", LAMMPS' arithmetic: the
+#: sheared cell moves its tilt in LAMMPS' ``fix deform ... remap v`` only): the bench assembly in a
+#: cell tilted by SHEAR_TILT of Lx, rounded to whole lattice spacings (the lattice stays periodic
+#: across the tilted boundary), sheared at 0.01/s (the tilt stays about the same over a window, as
+#: the orthogonal bench's box stays fixed)
+SHEAR_TILT = 0.2
+#: lattice spacing of the bench assembly (m): 2 x gransim.dem.lattice.lattice_packing's radius
+LATTICE_SPACING = 2e-3
+
+
+def _shear_deck():
+    # lazy: the sheared cell's module (its kernels decorate at import)
+    from gransim.dem import DEMSettings
+    from gransim.dem.sheared import ShearLoading
+
+    return DEMSettings(**{**SETTINGS.to_dict(), "flavour": "lammps"}), ShearLoading(erate=0.01)
+
+
+SHEAR_SETTINGS, SHEAR_LOADING = _shear_deck()
+
+
+def sheared_assembly(n: int):
+    """:func:`assembly` of ``n`` disks in the benchmark's sheared cell (:data:`SHEAR_TILT`)."""
+    from gransim import Packing
+
+    p = assembly(n)
+    C = np.array(p.cell, np.float64)
+    C[0, 1] = round(SHEAR_TILT * C[0, 0] / LATTICE_SPACING) * LATTICE_SPACING
+    return Packing(positions=p.positions, radii=p.radii, cell=C, density=p.density)
+
+
 #: (nominal disks, warm-up steps, timed steps). The warm-up holds the first 2 to 3 rebuilds (the
 #: first comes at about step 36), the window 10 to 15 steps per rebuild: 3000 steps at 1e3 (~6e6
 #: particle-steps), 600 at 1e4, 200 at 1e5 (about 15 rebuilds), 100 at 1e6 (about 8)
@@ -82,12 +113,16 @@ QUICK_PROFILE = (10_000, 40)  # the first rebuild comes at about step 37
 LIGGGHTS_TIMEOUT = 600.0
 #: "a core taken": (nominal disks, warm-up, steps) of the runs beside a spinning process
 BUSY = (100_000, 60, 200)
+#: the sweep runs the sheared cell at this size only (99,960 disks: the size of its targets)
+SHEARED_SIZE = 99_960
 QUICK_BUSY = (10_000, 50, 60)
 
 NATIVE_1 = "native 1 thread"  # the bitwise engine (DEMEngine, LIGGGHTS' order)
 NATIVE_2 = "native 2 threads"
 FAST_1 = "fast 1 thread"  # gransim.dem.fast.FastEngine
 FAST_2 = "fast 2 threads"
+FAST_SH_1 = "fast sheared 1 thread"  # FastEngine(cell="sheared"), sheared_assembly
+FAST_SH_2 = "fast sheared 2 threads"
 LIG_1 = "LIGGGHTS serial"
 LIG_2 = "LIGGGHTS np 2"
 LMP_1 = "LAMMPS serial"
@@ -98,12 +133,14 @@ CONFIGS = {
     NATIVE_2: ("native", "parallel", 2),
     FAST_1: ("native", "fast", 1),
     FAST_2: ("native", "fast", 2),
+    FAST_SH_1: ("native", "fast-sheared", 1),
+    FAST_SH_2: ("native", "fast-sheared", 2),
     LIG_1: ("liggghts", 1, 1),
     LIG_2: ("liggghts", 2, 1),
     LMP_1: ("lammps", 1, 1),
     LMP_2: ("lammps", 2, 1),
 }
-ALL_CONFIGS = [FAST_1, FAST_2, NATIVE_1, NATIVE_2, LMP_1, LMP_2, LIG_1, LIG_2]
+ALL_CONFIGS = [FAST_1, FAST_2, FAST_SH_1, FAST_SH_2, NATIVE_1, NATIVE_2, LMP_1, LMP_2, LIG_1, LIG_2]
 MIB = 1024.0
 
 
@@ -159,6 +196,8 @@ def _sweep(sizes, repeats: int, configs_for, tmp: Path, log) -> dict:
         d.mkdir()
         np_path = d / "packing.npz"
         np.savez(np_path, positions=p.positions, radii=p.radii, cell=p.cell, density=p.density)
+        q = sheared_assembly(nominal)
+        np.savez(d / "packing-sheared.npz", positions=q.positions, radii=q.radii, cell=q.cell, density=q.density)
         cfgs = configs_for(p.n)
         for code in ("liggghts", "lammps"):
             if any(CONFIGS[c][0] == code for c in cfgs):
@@ -178,6 +217,8 @@ def _sweep(sizes, repeats: int, configs_for, tmp: Path, log) -> dict:
 def _job(c: str, np_path, d: Path, steps: int, warm: int) -> dict:
     kind, a, b = CONFIGS[c]
     if kind == "native":
+        if a == "fast-sheared":  # the same assembly in the sheared cell (_sweep writes both)
+            np_path = Path(np_path).with_name("packing-sheared.npz")
         job = _child("native", np_path, steps, a, b, warm)
     else:
         job = _child(kind, d / kind, a, LIGGGHTS_TIMEOUT, timeout=LIGGGHTS_TIMEOUT + 60)
@@ -246,6 +287,8 @@ RATIOS = (
     (FAST_1, LMP_1, 2.0),
     (NATIVE_1, LMP_1, 1.3),
     (FAST_2, FAST_1, 1.8),
+    (FAST_SH_1, FAST_1, 0.9),
+    (FAST_SH_2, FAST_SH_1, 1.75),
     (NATIVE_2, NATIVE_1, None),
     (FAST_1, NATIVE_1, None),
     (FAST_2, LMP_2, None),
@@ -567,6 +610,8 @@ def run(quick: bool = False) -> list[dict]:
 
     def configs_for(n):
         cfg = [FAST_1, FAST_2, NATIVE_1, NATIVE_2]
+        if quick or n == SHEARED_SIZE:  # the sheared cell at 1e5 disks (its targets' size)
+            cfg[2:2] = [FAST_SH_1, FAST_SH_2]
         if not quick or n <= QUICK_LIGGGHTS_MAX:
             for have, serial, par in ((have_lmp, LMP_1, LMP_2), (have_lig, LIG_1, LIG_2)):
                 if have:
@@ -580,7 +625,7 @@ def run(quick: bool = False) -> list[dict]:
     baselines = {}
     # numba's cache filled, not timed: every variant the baselines below load (the fast path's
     # serial and threaded kernels differ), else a baseline that compiles peaks above its job
-    for mode, threads in (("serial", 1), ("parallel", 2), ("fast", 1), ("fast", 2)):
+    for mode, threads in (("serial", 1), ("parallel", 2), ("fast", 1), ("fast", 2), ("fast-sheared", 1)):
         _child("baseline", mode, threads)
     bases = (
         (("serial", 1, NATIVE_1), ("fast", 1, FAST_1))
