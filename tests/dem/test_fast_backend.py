@@ -346,3 +346,77 @@ def test_an_orthogonal_run_advances_in_pieces_as_the_code_order():
         a.advance(1)
     with pytest.raises(InputError, match="start_run"):
         FastEngine(p, S).advance(5)
+
+
+_KILLED_CHILD = r"""
+import os, sys, time
+import h5py
+import numpy as np
+from gransim import Packing
+from gransim.dem import DEMSettings, fast
+from gransim.dem.fast import FastEngine
+from gransim.dem.lattice import lattice_packing
+from gransim.dem.sheared import ShearLoading
+
+fast.MIN_PER_THREAD = 0  # the threaded kernels on this small assembly
+path, every = sys.argv[1], int(sys.argv[2])
+p = lattice_packing(24, 28, seed=3, spread=0.15, compression=0.06)
+C = p.cell.copy()
+C[0, 1] = 8e-3
+p = Packing(positions=p.positions, radii=p.radii, cell=C, density=p.density)
+s = DEMSettings(kn=1e5, kt=1e5, gamma_n=50.0, gamma_t=50.0, mu=0.5, dt=2e-6, skin=2e-5, flavour="lammps")
+eng = FastEngine(p, s, cell="sheared", threads=2)
+eng.start_run(ShearLoading(erate=40.0, y="servo", target=1.0, gain=1e-3), 10**6)
+while True:
+    eng.advance(every)
+    with h5py.File(path + ".tmp", "w") as f:  # written whole, then moved over the last one
+        f.attrs["step"] = eng.step
+        for k, v in eng.state_arrays().items():
+            f[k] = v
+    os.replace(path + ".tmp", path)
+    print(eng.step, flush=True)
+"""
+
+
+def test_a_killed_threaded_sheared_run_resumes_bit_for_bit(threaded_small, tmp_path):
+    # a sheared run on 2 threads writing a checkpoint every 50 steps, killed (SIGKILL) while it
+    # runs, resumed from its last checkpoint into a new engine: it ends on the bits of the
+    # uninterrupted run (which needs neither the kill's timing nor the thread count)
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    ck = tmp_path / "ck.h5"
+    env = {**os.environ, "NUMBA_NUM_THREADS": "2"}
+    child = subprocess.Popen(
+        [sys.executable, "-c", _KILLED_CHILD, str(ck), "50"], stdout=subprocess.PIPE, text=True, env=env
+    )
+    try:
+        for line in child.stdout:
+            if int(line) >= 150:
+                break
+        child.send_signal(signal.SIGKILL)
+    finally:
+        child.kill()
+        child.wait()
+    assert child.returncode == -signal.SIGKILL
+    with h5py.File(ck, "r") as f:
+        step = int(f.attrs["step"])
+        arrays = {}
+        f.visititems(lambda name, obj: arrays.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None)
+    assert step >= 150 and step % 50 == 0
+    end = step + 200
+    p = sheared_lattice()
+    ld = ShearLoading(erate=40.0, y="servo", target=1.0, gain=1e-3)
+    again = FastEngine(p, S_LMP, cell="sheared", threads=2)
+    again.restore(arrays, step)
+    got = again.advance(end - step)
+    full = FastEngine(p, S_LMP, cell="sheared", threads=1)
+    full.start_run(ld, 10**6)
+    want = full.advance(end)
+    for k in ("stress", "box", "kinetic_energy"):
+        np.testing.assert_array_equal(got[k], want[k][step:], err_msg=k)
+    np.testing.assert_array_equal(again.x, full.x)
+    np.testing.assert_array_equal(again.v, full.v)
+    np.testing.assert_array_equal(again.w, full.w)
