@@ -295,6 +295,10 @@ class Context:
     timeout: float | None = None  # s per reference job (None: scaled with the job's work)
     #: the codes of validation.codes.CODES installed here (besides the two flags above)
     available: frozenset = frozenset()
+    #: the worker pool the cases' background work shares (``Case.prefetch``: ``jobs - 1`` threads,
+    #: each running a code process or a native run, first submitted first run), made and shut down
+    #: by the runner; None: a case's prefetch makes a pool of its own, or starts nothing
+    background: object = field(default=None, compare=False)
 
     def has(self, code: str) -> bool:
         """Whether the reference code ``code`` (a name of validation.codes.CODES) is installed."""

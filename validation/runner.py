@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import platform
 import time
 import traceback
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from gransim import __version__
@@ -92,18 +94,27 @@ def _run_cases(ctx, suite, only, log, timeout) -> tuple[bool, list[CaseResult]]:
         cases = [c for c in cases if c.id in only]
     out: list[CaseResult] = []
     t_all = time.perf_counter()
+    # one pool for the background work of every case (jobs - 1 threads, first submitted first run):
+    # the cases' long runs queue behind each other in case order, beside the case in progress
+    bg = None
+    if int(ctx.jobs) >= 2 and any(c.prefetch is not None for c in cases):
+        bg = ThreadPoolExecutor(max_workers=int(ctx.jobs) - 1, thread_name_prefix="validate-background")
+        ctx = dataclasses.replace(ctx, background=bg)
     try:
         _cases_loop(ctx, cases, log, out)
     finally:
         for c in cases:  # background work a case did not collect (a case that raised, a signal)
             if c.cancel is not None:
                 c.cancel()
+        if bg is not None:
+            bg.shutdown(wait=True, cancel_futures=True)
     return _write_reports(ctx, suite, out, t_all, timeout, log)
 
 
 def _cases_loop(ctx, cases, log, out) -> None:
-    # long background work first (biaxial-full's reference jobs on the cores the cases before it
-    # leave idle); a prefetch that fails leaves the work to its case, which reports the error
+    # long background work first (biaxial-full's reference jobs and native runs, then simple-shear's
+    # long horizon, on the cores the cases before them leave idle); a prefetch that fails leaves
+    # the work to its case, which reports the error
     early = {}
     for c in cases:
         if c.prefetch is not None:

@@ -140,3 +140,104 @@ def test_runner_prefetches_first_and_cancels_what_a_failing_case_left(tmp_path, 
     assert not ok and out[1].error.startswith("RuntimeError")
     assert any("could not start its jobs early (OSError: no room)" in m for m in logs)
     assert any("Wall time of this case" in n and "at the start of the run" in n for n in out[1].notes)
+
+
+def test_native_runs_made_in_the_background_are_collected_not_rerun(tmp_path, fake_full, monkeypatch):
+    calls, release = fake_full
+    natives = []
+    monkeypatch.setattr(biaxial, "run_native", lambda *a, **k: natives.append(threading.current_thread().name) or "n")
+    release.set()
+    ctx = _ctx(tmp_path, jobs=2)
+    biaxial.prefetch_full(ctx)
+    _, futures, _ = biaxial._FULL_PENDING[biaxial._full_key(ctx)]
+    for f in futures.values():  # every job and both native runs done in the background
+        f.result(timeout=10)
+    r = biaxial.full_runs(ctx)
+    assert len(natives) == 2 and all(n.startswith("biaxial-full-prefetch") for n in natives)
+    assert r["native"] == "n" and r["lammps"]["native"] == "n"
+
+
+def test_native_runs_not_started_run_in_the_case_side_by_side(tmp_path, fake_full, monkeypatch):
+    _, release = fake_full
+    natives = []
+    monkeypatch.setattr(biaxial, "run_native", lambda *a, **k: natives.append(threading.current_thread().name) or "n")
+    ctx = _ctx(tmp_path, jobs=2)
+    biaxial.prefetch_full(ctx)  # the one worker waits in the first job: the native runs never start there
+    threading.Timer(0.3, release.set).start()
+    r = biaxial.full_runs(ctx)
+    assert len(natives) == 2 and len(set(natives)) == 2, "each native run once, in two threads"
+    assert not any(n.startswith("biaxial-full-prefetch") for n in natives)
+    assert r["native"] == "n" and r["lammps"]["native"] == "n"
+
+
+@pytest.fixture
+def fake_long(monkeypatch):
+    """simple-shear's long horizon with stand-ins for its LAMMPS jobs and its native run."""
+    from validation.cases import shear
+
+    calls = []
+    release = threading.Event()
+
+    def plan(ctx):
+        jobs = {lab: {"label": lab} for lab in ("reference", "perturbed")}
+        return {"packing": None}, jobs, {}
+
+    def job(label):
+        calls.append((label, threading.current_thread().name))
+        release.wait(10)
+        return (f"lammps-{label}", {"manifest": label})
+
+    def native(s):
+        calls.append(("native", threading.current_thread().name))
+        return "native"
+
+    monkeypatch.setattr(shear, "_long_plan", plan)
+    monkeypatch.setattr(shear, "run_shear_job", job)
+    monkeypatch.setattr(shear, "_long_native", native)
+    monkeypatch.setattr(shear, "_LONG_CACHE", {})
+    monkeypatch.setattr(shear, "_LONG_PENDING", {})
+    return shear, calls, release
+
+
+def test_long_horizon_queues_behind_the_shared_pool_and_is_collected_once(tmp_path, fake_long):
+    from concurrent.futures import ThreadPoolExecutor
+
+    shear, calls, release = fake_long
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="validate-background") as bg:
+        ctx = Context(suite="default", results=tmp_path, jobs=2, lammps=True, background=bg)
+        shear.prefetch_long(ctx)
+        time.sleep(0.2)
+        assert [c[0] for c in calls] == ["reference"], "one worker: the first job runs, the rest wait"
+        threading.Timer(0.3, release.set).start()
+        r = shear.long_runs(ctx)
+    ran = sorted(c[0] for c in calls)
+    assert ran == ["native", "perturbed", "reference"], "each run exactly once"
+    assert r["native"] == "native" and r["reference"] == "lammps-reference" and set(r["ensemble"]) == {"perturbed"}
+    assert not shear._LONG_PENDING
+
+
+def test_long_horizon_queues_nothing_without_a_shared_pool(tmp_path, fake_long):
+    shear, calls, release = fake_long
+    release.set()
+    shear.prefetch_long(_ctx(tmp_path, jobs=2))
+    assert not shear._LONG_PENDING and not calls
+
+
+def test_runner_shares_one_background_pool_and_shuts_it_down(tmp_path, monkeypatch):
+    seen = []
+
+    def pre(ctx):
+        seen.append(ctx.background)
+
+    def first(ctx):
+        return CaseResult("a", "A", "")
+
+    cases = [core.Case("a", "A", ("default",), first, 1, pre, None), core.Case("b", "B", ("default",), first, 2, pre)]
+    monkeypatch.setattr(runner, "registered_cases", lambda suite: cases)
+    runner._run_cases(_ctx(tmp_path), "default", None, lambda m: None, None)
+    assert len(seen) == 2 and seen[0] is seen[1] and seen[0] is not None
+    with pytest.raises(RuntimeError):  # shut down at the end of the run
+        seen[0].submit(print)
+    seen.clear()
+    runner._run_cases(_ctx(tmp_path, jobs=1), "default", None, lambda m: None, None)
+    assert seen == [None, None], "one job at a time: no background pool"

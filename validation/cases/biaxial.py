@@ -21,7 +21,7 @@ import functools
 import hashlib
 import html
 import json
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 
 import numpy as np
@@ -614,31 +614,70 @@ def _full_setup(ctx: Context) -> dict:
 _FULL_PENDING: dict = {}
 
 
-def prefetch_full(ctx: Context) -> None:
-    """Start the long reference jobs of ``biaxial-full`` now, on ``ctx.jobs - 1`` worker threads
-    (each a code process), so that they run while the cases before it use the other core(s).
+def _native_flavours(ctx: Context) -> tuple[str, ...]:
+    """The arithmetics :func:`full_runs` runs the compression in natively: LIGGGHTS', and LAMMPS'
+    when LAMMPS is installed."""
+    return ("liggghts", "lammps") if ctx.lammps else ("liggghts",)
 
-    The jobs are those :func:`full_runs` would start (same decks, same inputs, same directories);
-    it collects them and starts the rest. Nothing starts with ``ctx.jobs`` < 2 (the user asked for
+
+def _native_full(r: dict, flavour: str):
+    """The native compression of ``r`` (:func:`_full_setup`) in ``flavour``'s arithmetic."""
+    return run_native(
+        r["packing"],
+        _flavour(r["settings"], flavour),
+        r["loading"],
+        r["nsteps"],
+        FULL_DUMP_EVERY,
+        velocities=r["velocities"],
+        spins=r["spins"],
+        thermo_every=FULL_THERMO_EVERY,
+    )
+
+
+def prefetch_full(ctx: Context) -> None:
+    """Start the long runs of ``biaxial-full`` now, in the background: its reference jobs (each a
+    code process), then its native compressions, so that they run while the cases before it use
+    the other core(s).
+
+    They go to the run's shared background pool (``ctx.background``, ``ctx.jobs - 1`` threads),
+    else to a pool of ``ctx.jobs - 1`` threads of their own. The jobs are those :func:`full_runs`
+    would start (same decks, same inputs, same directories) and the native runs the same calls;
+    it collects them and runs the rest. Nothing starts with ``ctx.jobs`` < 2 (the user asked for
     one reference job at a time) or without a code installed (the stored series are compared then).
     """
     key = _full_key(ctx)
     if key in _FULL_CACHE or key in _FULL_PENDING or int(ctx.jobs) < 2 or not (ctx.liggghts or ctx.lammps):
         return
     r = _full_setup(ctx)
-    pool = ThreadPoolExecutor(max_workers=int(ctx.jobs) - 1, thread_name_prefix="biaxial-full-prefetch")
+    own = ctx.background is None
+    pool = (
+        ThreadPoolExecutor(max_workers=int(ctx.jobs) - 1, thread_name_prefix="biaxial-full-prefetch")
+        if own
+        else ctx.background
+    )
     futures = {k: pool.submit(run_reference_job, engine=k[0], **r["job_common"], **kw) for k, kw in r["jobs"].items()}
-    _FULL_PENDING[key] = (r, futures, pool)
+    for flavour in _native_flavours(ctx):
+        futures[(NATIVE, flavour)] = pool.submit(_native_full, r, flavour)
+    _FULL_PENDING[key] = (r, futures, pool if own else None)
+
+
+def _drop(futures, pool) -> None:
+    """Cancel ``futures`` not yet started and wait for the running ones (and shut ``pool`` down,
+    when it is a pool of their own)."""
+    for f in futures:
+        f.cancel()
+    if pool is not None:
+        pool.shutdown(wait=True, cancel_futures=True)
+    else:
+        wait([f for f in futures if not f.cancelled()])
 
 
 def cancel_prefetch() -> None:
-    """Cancel the prefetched jobs not yet started and wait for the running ones (a validation
+    """Cancel the prefetched runs not yet started and wait for the running ones (a validation
     run that ends early: an error, a signal)."""
     while _FULL_PENDING:
         _, (_, futures, pool) = _FULL_PENDING.popitem()
-        for f in futures.values():
-            f.cancel()
-        pool.shutdown(wait=True, cancel_futures=True)
+        _drop(futures.values(), pool)
 
 
 def full_runs(ctx: Context) -> dict:
@@ -654,8 +693,9 @@ def full_runs(ctx: Context) -> dict:
 
     The reference jobs run in a pool of ``max(ctx.jobs, 1)`` worker threads (each a code process)
     while the native runs (flavour liggghts, and flavour lammps when LAMMPS is there) proceed in
-    this thread; jobs that :func:`prefetch_full` started earlier are collected (those it had not
-    started yet move to this pool). Keys: ``native``, ``liggghts``, ``manifest``, ``ensemble``,
+    this thread and one beside it; the jobs and native runs that :func:`prefetch_full` started
+    earlier are collected (the jobs it had not started yet move to this pool, the native runs to
+    this thread and the one beside it). Keys: ``native``, ``liggghts``, ``manifest``, ``ensemble``,
     ``expected_ensemble`` (LIGGGHTS) and ``lammps`` = {``native``, ``reference``, ``manifest``,
     ``ensemble``, ``expected_ensemble``} when LAMMPS is installed.
     """
@@ -669,41 +709,32 @@ def full_runs(ctx: Context) -> dict:
         r, early, early_pool = pending
     jobs, common = r.pop("jobs"), r.pop("job_common")
     cfg = {"np2": r.pop("np2")}
-    common_pk, dem, loading, nsteps = r["packing"], r["settings"], r["loading"], r["nsteps"]
-    v, w, te, n = r["velocities"], r["spins"], FULL_THERMO_EVERY, r["packing"].n
+    common_pk, dem, n = r["packing"], r["settings"], r["packing"].n
     pool = ThreadPoolExecutor(max_workers=max(int(ctx.jobs), 1))
     try:
-        futures = {}
+        futures, natives = {}, {}
         for k, kw in jobs.items():
             f = early.get(k)
             futures[k] = (
                 f if f is not None and not f.cancel() else pool.submit(run_reference_job, engine=k[0], **common, **kw)
             )
+        for flavour in _native_flavours(ctx):
+            f = early.get((NATIVE, flavour))
+            if f is not None and not f.cancel():  # running or finished in the background
+                natives[flavour] = f
         try:
-            r["native"] = run_native(
-                common_pk,
-                _flavour(dem, "liggghts"),
-                loading,
-                nsteps,
-                FULL_DUMP_EVERY,
-                velocities=v,
-                spins=w,
-                thermo_every=te,
-            )
-            if ctx.lammps:
-                nat_m = run_native(
-                    common_pk,
-                    _flavour(dem, "lammps"),
-                    loading,
-                    nsteps,
-                    FULL_DUMP_EVERY,
-                    velocities=v,
-                    spins=w,
-                    thermo_every=te,
-                )
+            # the native runs not made in the background: the first in this thread, the others each
+            # in a thread of its own beside it (the kernels release the GIL)
+            todo = [fl for fl in _native_flavours(ctx) if fl not in natives]
+            with ThreadPoolExecutor(max_workers=max(len(todo) - 1, 1)) as beside:
+                natives.update({fl: beside.submit(_native_full, r, fl) for fl in todo[1:]})
+                mine = {fl: _native_full(r, fl) for fl in todo[:1]}
+                made = {**{fl: f.result() for fl, f in natives.items()}, **mine}
+            r["native"] = made["liggghts"]
+            nat_m = made.get("lammps")
             done = {k: f.result() for k, f in futures.items()}
         except BaseException:
-            for f in futures.values():
+            for f in (*futures.values(), *natives.values()):
                 f.cancel()
             raise
     finally:

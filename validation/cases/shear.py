@@ -29,7 +29,7 @@ import hashlib
 import json
 import tempfile
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -445,17 +445,20 @@ def input_fingerprint(ctx: Context) -> str:
     return h.hexdigest()
 
 
-def long_runs(ctx: Context) -> dict:
-    """The long-horizon runs (cached per results dir, suite and availability): ``native`` always;
-    with ``lmp``: ``reference``, ``ensemble`` {label: Trajectory}, ``manifest``. LAMMPS jobs run in
-    ``max(ctx.jobs, 1)`` threads while the native run proceeds; job dirs under
-    ``reference/simple-shear/kuhn-1002``."""
-    key = (str(ctx.results.resolve()), ctx.suite, ctx.lammps)
-    if key in _LONG_CACHE:
-        return _LONG_CACHE[key]
+#: long-horizon runs started ahead of the case (:func:`prefetch_long`): key of :func:`_long_key` ->
+#: (the plan of :func:`_long_plan`, {job label or "native": future})
+_LONG_PENDING: dict = {}
+
+
+def _long_key(ctx: Context) -> tuple:
+    return (str(ctx.results.resolve()), ctx.suite, ctx.lammps)
+
+
+def _long_plan(ctx: Context) -> tuple[dict, dict, dict]:
+    """The run dict of :func:`long_setup`, the LAMMPS jobs {label: job arguments} (none without
+    LAMMPS) and the keyword arguments every job shares."""
     s = long_setup(ctx)
     pk, n = s["packing"], s["nsteps"]
-    r = dict(s)
     jobs = {}
     if ctx.lammps:
         base = ctx.work("reference", CASE, f"kuhn-1002-strain{LONG_STRAIN:g}")
@@ -476,22 +479,70 @@ def long_runs(ctx: Context) -> dict:
         "spins": s["spins"],
         "timeout": ctx.job_timeout(pk.n * n),
     }
+    return s, jobs, kw
+
+
+def _long_native(s: dict):
+    """The native long-horizon run of :func:`long_setup`'s ``s`` (sheared cell, LAMMPS' arithmetic)."""
+    return run_native_shear(
+        s["packing"],
+        s["settings"],
+        s["loading"],
+        s["nsteps"],
+        LONG_DUMP_EVERY,
+        LONG_THERMO_EVERY,
+        velocities=s["v0"],
+        spins=s["spins"],
+    )
+
+
+def prefetch_long(ctx: Context) -> None:
+    """Queue the long horizon's LAMMPS jobs and its native run on the run's shared background pool
+    (``ctx.background``: behind the work of the cases before this one), so that they run while
+    earlier cases leave a core idle; :func:`long_runs` collects them and makes what has not
+    started. Nothing is queued without that pool (one job at a time, or a case run on its own)."""
+    key = _long_key(ctx)
+    if ctx.background is None or key in _LONG_CACHE or key in _LONG_PENDING:
+        return
+    s, jobs, kw = _long_plan(ctx)
+    futures = {k: ctx.background.submit(run_shear_job, **j, **kw) for k, j in jobs.items()}
+    futures[NATIVE] = ctx.background.submit(_long_native, s)
+    _LONG_PENDING[key] = ((s, jobs, kw), futures)
+
+
+def cancel_long() -> None:
+    """Cancel the queued long-horizon runs not yet started and wait for the running ones (a
+    validation run that ends early)."""
+    while _LONG_PENDING:
+        _, (_, futures) = _LONG_PENDING.popitem()
+        for f in futures.values():
+            f.cancel()
+        wait([f for f in futures.values() if not f.cancelled()])
+
+
+def long_runs(ctx: Context) -> dict:
+    """The long-horizon runs (cached per results dir, suite and availability): ``native`` always;
+    with ``lmp``: ``reference``, ``ensemble`` {label: Trajectory}, ``manifest``. LAMMPS jobs run in
+    ``max(ctx.jobs, 1)`` threads while the native run proceeds; job dirs under
+    ``reference/simple-shear/kuhn-1002``. What :func:`prefetch_long` queued is collected: the runs
+    already running or finished as they are, the others made here."""
+    key = _long_key(ctx)
+    if key in _LONG_CACHE:
+        return _LONG_CACHE[key]
+    pending = _LONG_PENDING.pop(key, None)
+    (s, jobs, kw), early = pending if pending is not None else (_long_plan(ctx), {})
+    r = dict(s)
     with ThreadPoolExecutor(max_workers=max(int(ctx.jobs), 1)) as pool:
-        futures = {k: pool.submit(run_shear_job, **j, **kw) for k, j in jobs.items()}
+        futures = {}
+        for k, j in jobs.items():
+            f = early.get(k)
+            futures[k] = f if f is not None and not f.cancel() else pool.submit(run_shear_job, **j, **kw)
         try:
-            r["native"] = run_native_shear(
-                pk,
-                s["settings"],
-                s["loading"],
-                n,
-                LONG_DUMP_EVERY,
-                LONG_THERMO_EVERY,
-                velocities=s["v0"],
-                spins=s["spins"],
-            )
+            f = early.get(NATIVE)
+            r["native"] = f.result() if f is not None and not f.cancel() else _long_native(s)
             done = {k: f.result() for k, f in futures.items()}
         except BaseException:
-            for f in futures.values():
+            for f in (*futures.values(), *early.values()):
                 f.cancel()
             raise
     if ctx.lammps:
@@ -804,7 +855,7 @@ def yade_plan(ctx: Context, manifests: dict) -> tuple[list, list]:
 
 
 # ------------------------------------------------------------------ the case
-@case(CASE, TITLE, order=35)
+@case(CASE, TITLE, order=35, prefetch=prefetch_long, cancel=cancel_long)
 def simple_shear_case(ctx: Context) -> CaseResult:
     res = CaseResult(
         CASE,
