@@ -225,3 +225,28 @@ def test_after_the_warmup_a_larger_run_compiles_nothing(tmp_path):
     log = r.stdout + r.stderr
     assert "data loaded from" in log
     assert "data saved to" not in log, [ln for ln in log.splitlines() if "saved" in ln]
+
+
+def _prerequisites(steps, name):
+    by = {s.name: s for s in steps}
+    seen, todo = set(), list(by[name].after)
+    while todo:
+        n = todo.pop()
+        if n not in seen:
+            seen.add(n)
+            todo += list(by[n].after)
+    return seen
+
+
+@pytest.mark.parametrize("own_packing", [False, True])
+def test_steps_sharing_kernels_run_one_after_the_other(own_packing):
+    """Two processes compiling one kernel at once each compile it: every other biaxial step (and the
+    frictional pack, which runs the same engine) waits for ``biaxial``, every other shear step for
+    ``shear``, so that they load the engine's kernels instead of compiling them a second time."""
+    steps = cmd_warmup.plan("all", own_packing=own_packing)
+    for s in steps:
+        if s.command == "biaxial" and s.name != "biaxial" or s.name == "pack --friction":
+            assert "biaxial" in _prerequisites(steps, s.name), s.name
+        if s.command == "shear" and s.name != "shear":
+            assert "shear" in _prerequisites(steps, s.name), s.name
+    assert "pack" in _prerequisites(steps, "pack --friction")
