@@ -5,16 +5,17 @@
 1. **The RVE call** (in this process, compilation excluded: a warm-up call first). Guo & Zhao's
    400-disk RVE (the prepared state of ``gransim/fem/data/guo_zhao_rve.h5``) driven by a chain of
    ``--calls`` strain increments of a biaxial load step (max|D| = 1e-3: ns = 100 DEM steps a call),
-   each call from the state the last one left, as a Gauss point's committed history. Per call,
-   medians and minima (ms; CPU time of this process, and wall time for the whole update): the
-   whole ``DemRVE.update`` (what a worker runs: the call, then the
-   stress and tangent), ``rve_run_rotation``, and its parts: the packing of the saved scene into
-   the kernel's arrays (``rve_call`` + ``RVECall.kernel_args``), the kernel ``_rve_steps`` (one
-   jitted call of ns steps), and the unpacking into the new state (``rve_result``). The kernel is
-   split by running it once more with a single step on the same input: per step = (T(ns) - T(1)) /
-   (ns - 1) and first collider run (the initial sort a deserialised scene needs, then
-   findOverlaps) = T(1 step) - one step, from the medians. Rates in particle-steps/s: the call's
-   (N ns / call time) and the steady state (N / per-step time).
+   each call from the state the last one left, made read-only as a Gauss point's committed state.
+   Per call, medians and minima (ms; CPU time of this process, and wall time for the first
+   update): ``DemRVE.update`` (what a worker runs: the call, then the stress and tangent) as the
+   first Newton iterate of a load step runs it (the first collider run computed, then kept) and as
+   the later iterates run it (the first collider run restored: ``first_run``), and the parts of
+   ``rve_run_rotation``: the packing of the saved scene into the kernels' arrays (``rve_call`` +
+   ``RVECall.first_args``), the first collider run ``_rve_first_collide`` (the initial sort a
+   deserialised scene needs, then findOverlaps), the steps ``_rve_steps`` (one jitted call), and
+   the unpacking into the new state (``rve_result``); per DEM step = ``_rve_steps`` / ns, split
+   into the interaction loop and the integrator (each run 100 times in one compiled loop). Rates
+   in particle-steps/s: the call's (N ns / call time) and the steady state (N / per-step time).
 2. **A short run** ``run_femxdem`` (default the quick 2 x 4 mesh, 10 steps; ``--full``: the 8 x 16
    mesh of the full benchmark, ``--steps`` (default 2) load steps) on ``--workers`` Dask workers
    (0: in process), with its wall time split: **DEM** = the time in the point law's updates summed
@@ -25,7 +26,8 @@
    other finishes its chunk).
 3. ``--base REV``: the RVE call of commit REV against this checkout, interleaved in one run (two
    long-lived processes, one per tree, each with its own numba cache, asked in turn A B B A ... for
-   windows of ``--window`` ``DemRVE.update`` calls on the same chain): median of the per-window
+   windows of ``--window`` states of the same chain, each updated ``--iterates`` times from the
+   read-only state as the Newton iterates of a load step do): median of the per-window
    ratio base/head of the wall time, i.e. the speed-up, with its range, and the same of the CPU
    time (``time.process_time``: on a loaded machine the wall time also counts the time the process
    waited for a core).
@@ -80,55 +82,55 @@ def rve_call_split(calls: int = 60) -> dict:
     the other processes of a shared machine; ``update`` also in wall time."""
     from gransim.dem import yade_arithmetic as ya
     from gransim.fem.dem_rve import DemRVE
+    from gransim.fem.material_points import freeze
 
     clock = time.process_time
     law = DemRVE.prepared()
-    st = law.initial_state(0)
+    st = freeze(law.initial_state(0))
     eye = np.eye(2)
     law.update(eye + np.array(INCREMENTS[0]), st)  # compile or load the cache
-    t = {k: [] for k in ("update", "update_cpu", "run", "pack", "kernel", "unpack", "kernel_1")}
+    names = ("update", "update_cpu", "update_kept", "update_kept_cpu", "run", "pack", "first", "kernel", "unpack")
+    t = {k: [] for k in names}
     ns_all, contacts = [], []
     for i in range(calls):
         f = eye + np.array(INCREMENTS[i % len(INCREMENTS)])
         D = f - eye  # DemRVE.update's D, to the bit
         rve = st.rve
-        # the kernel with one step, on its own copy of the input: the first collider run
-        c1 = ya.rve_call(rve, D, st.disk_rotation())
-        with ya._workspace(c1.n, c1.m0) as work:
-            args = c1.kernel_args(work, nsteps=1)
-            t0 = clock()
-            ya._rve_steps(*args)
-            t["kernel_1"].append(clock() - t0)
-        # the call in its parts
+        # the call in its parts, the first collider run computed (not kept)
         t0 = clock()
         call = ya.rve_call(rve, D, st.disk_rotation())
         with ya._workspace(call.n, call.m0) as work:
-            args = call.kernel_args(work)
+            args = call.first_args(work)
             t1 = clock()
-            err, axis, k = ya._rve_steps(*args)
+            err, axis = ya._rve_first_collide(*args)
             t2 = clock()
+            err, axis, k = ya._rve_steps(*call.kernel_args(work))
+            t3 = clock()
             new, rot = ya.rve_result(rve, call, work, err, axis, k)
-        t3 = clock()
+        t4 = clock()
         t["pack"].append(t1 - t0)
-        t["kernel"].append(t2 - t1)
-        t["unpack"].append(t3 - t2)
-        t["run"].append(t3 - t0)
-        # the worker's call, from the same committed state (its result is the chain's next state)
-        t0, c0 = time.perf_counter(), clock()
-        _, _, nxt = law.update(f, st)
-        t["update"].append(time.perf_counter() - t0)
-        t["update_cpu"].append(clock() - c0)
-        if not (np.array_equal(nxt.rve.positions, new.positions) and np.array_equal(nxt.disk_rotation(), rot)):
-            raise SystemExit("bench.femxdem: the split call differs from DemRVE.update (not the same computation)")
+        t["first"].append(t2 - t1)
+        t["kernel"].append(t3 - t2)
+        t["unpack"].append(t4 - t3)
+        t["run"].append(t4 - t0)
+        # the worker's calls from the committed (read-only) state: the first iterate of a load step
+        # computes the first collider run and keeps it, the next iterates restore it
+        for key in ("update", "update_kept"):
+            t0, c0 = time.perf_counter(), clock()
+            _, _, nxt = law.update(f, st)
+            t[key].append(time.perf_counter() - t0)
+            t[f"{key}_cpu"].append(clock() - c0)
+            if not (np.array_equal(nxt.rve.positions, new.positions) and np.array_equal(nxt.disk_rotation(), rot)):
+                raise SystemExit("bench.femxdem: the split call differs from DemRVE.update (not the same computation)")
         ns_all.append(call.ns)
         contacts.append(len(nxt.rve.kn))
-        st = nxt
+        st = freeze(nxt)
     n = st.rve.n
     out = {k: _stats(v) for k, v in t.items()}
     ns = statistics.median(ns_all)
-    per_step = (out["kernel"]["median"] - out["kernel_1"]["median"]) / max(ns - 1, 1)
+    per_step = out["kernel"]["median"] / ns
     out["per_step"] = per_step
-    out["first_collide"] = out["kernel_1"]["median"] - per_step
+    out["first_collide"] = out["first"]["median"]
     out["n"] = n
     out["ns"] = ns
     out["contacts"] = statistics.median(contacts)
@@ -164,10 +166,11 @@ def _step_split(rve, D, steps: int = 100) -> dict:
 
     call = ya.rve_call(rve, D)
     with ya._workspace(call.n, call.m0) as work:
+        ya.first_run(call, work, keep=False)
         a = call.kernel_args(work, nsteps=5)
         ya._rve_steps(*a)
         (_, _, pos, vel, spin, radius, mass, inertia, _, _, H, L, nextL, changed, Lprev, prev, _, ref, sweep, _, young,
-         poisson, tan, damp, dt, n_intr, _, ids, cd, real, geom, fs, _) = a  # fmt: skip
+         poisson, tan, damp, dt, n_intr, _, ids, cd, real, geom, fs, *_) = a  # fmt: skip
         VP = L @ H  # a velocity gradient times the cell, as the cell update makes it
         f, t = np.zeros((call.n, 2)), np.zeros(call.n)
         out = {"entries": int(n_intr[0]), "real": int(np.sum(real[: n_intr[0]]))}
@@ -190,16 +193,17 @@ def show_split(r: dict, log=print) -> None:
         "(medians, min in brackets)"
     )
     for k, label in (
-        ("update", "DemRVE.update (worker's call), wall"),
-        ("update_cpu", "DemRVE.update"),
-        ("run", "  rve_run_rotation"),
-        ("pack", "    packing (rve_call, kernel_args)"),
-        ("kernel", "    kernel _rve_steps (ns steps)"),
-        ("unpack", "    unpacking (rve_result)"),
+        ("update", "DemRVE.update, first iterate, wall"),
+        ("update_cpu", "DemRVE.update, first iterate"),
+        ("update_kept_cpu", "DemRVE.update, later iterates"),
+        ("run", "rve_run_rotation, first run computed"),
+        ("pack", "  packing (rve_call, first_args)"),
+        ("first", "  first collider run (initial sort)"),
+        ("kernel", "  _rve_steps (ns steps)"),
+        ("unpack", "  unpacking (rve_result)"),
     ):
         log(f"  {label:40s} {r[k]['median'] * ms:8.3f} ms  ({r[k]['min'] * ms:.3f})")
-    log(f"  {'      first collider run (initial sort)':40s} {r['first_collide'] * ms:8.3f} ms")
-    log(f"  {'      per DEM step':40s} {r['per_step'] * 1e6:8.2f} us")
+    log(f"  {'    per DEM step':40s} {r['per_step'] * 1e6:8.2f} us")
     log(
         f"          of which the interaction loop {r['interactions_s'] * 1e6:.2f} us ({r['entries']} entries, "
         f"{r['real']} real), the integrator {r['integrator_s'] * 1e6:.2f} us (100 steps in one compiled loop each)"
@@ -283,8 +287,10 @@ import numpy as np
 sys.path.insert(0, sys.argv[1])
 from gransim.fem.dem_rve import DemRVE
 incs = json.loads(sys.argv[2])
+from gransim.fem.material_points import freeze
+iterates = int(sys.argv[3])
 law = DemRVE.prepared()
-st = law.initial_state(0)
+st = freeze(law.initial_state(0))
 law.update(np.eye(2) + np.array(incs[0]), st)
 print(json.dumps({"ready": True}), flush=True)
 i = 0
@@ -293,18 +299,21 @@ for line in sys.stdin:
     t = c = 0.0
     for _ in range(k):
         f = np.eye(2) + np.array(incs[i % len(incs)])
-        t0, c0 = time.perf_counter(), time.process_time()
-        _, _, st = law.update(f, st)
-        t += time.perf_counter() - t0
-        c += time.process_time() - c0
+        for _ in range(iterates):  # Newton iterates of a load step: each from the committed state
+            t0, c0 = time.perf_counter(), time.process_time()
+            _, _, nxt = law.update(f, st)
+            t += time.perf_counter() - t0
+            c += time.process_time() - c0
+        st = freeze(nxt)
         i += 1
     r = st.rve
     print(json.dumps({"s": t, "cpu": c, "x": float(np.sum(r.positions)), "c": len(r.kn)}), flush=True)
 """
 
 
-def ab(base: str, windows: int = 12, window: int = 10, log=print) -> dict:
-    """Part 3 of the module docstring."""
+def ab(base: str, windows: int = 12, window: int = 10, iterates: int = 1, log=print) -> dict:
+    """Part 3 of the module docstring; ``iterates`` calls from each committed (read-only) state of
+    the chain, as the Newton iterates of a load step, ``window`` states a window."""
     from bench.ab_dem import _tree
 
     with tempfile.TemporaryDirectory(prefix="bench-femxdem-ab-") as tmp:
@@ -315,7 +324,7 @@ def ab(base: str, windows: int = 12, window: int = 10, log=print) -> dict:
             for side in ("base", "head"):
                 env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / f"cache-{side}"), "PYTHONPATH": str(trees[side])}
                 procs[side] = subprocess.Popen(
-                    [sys.executable, "-c", _WORKER, str(trees[side]), json.dumps(INCREMENTS)],
+                    [sys.executable, "-c", _WORKER, str(trees[side]), json.dumps(INCREMENTS), str(iterates)],
                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env, cwd=str(trees[side]),
                 )  # fmt: skip
                 if not procs[side].stdout.readline():
@@ -344,14 +353,15 @@ def ab(base: str, windows: int = 12, window: int = 10, log=print) -> dict:
         "speedup_cpu_median": statistics.median(cpu),
         "speedup_cpu_min": min(cpu),
         "speedup_cpu_max": max(cpu),
-        "base_ms": 1e3 * statistics.median([a["s"] for a in per["base"]]) / window,
-        "head_ms": 1e3 * statistics.median([b["s"] for b in per["head"]]) / window,
+        "base_ms": 1e3 * statistics.median([a["s"] for a in per["base"]]) / (window * iterates),
+        "head_ms": 1e3 * statistics.median([b["s"] for b in per["head"]]) / (window * iterates),
         "same_states": same,
         "windows": windows,
         "window": window,
     }
     log(
-        f"A/B DemRVE.update, {windows} windows of {window} calls: head is {out['speedup_median']:.3f}x base {base} "
+        f"A/B DemRVE.update, {windows} windows of {window} states x {iterates} calls: head is "
+        f"{out['speedup_median']:.3f}x base {base} "
         f"(range {out['speedup_min']:.3f}-{out['speedup_max']:.3f}); per call base {out['base_ms']:.2f} ms, head "
         f"{out['head_ms']:.2f} ms (medians); CPU time: {out['speedup_cpu_median']:.3f}x "
         f"(range {out['speedup_cpu_min']:.3f}-{out['speedup_cpu_max']:.3f}); the chains' states equal on both sides: "
@@ -476,12 +486,13 @@ def main(argv=None) -> int:
         help="Newton iterations and CPU time on a 1 x 1 mesh (--steps, default 40) for each perturbation h of the "
         "central-difference tangent (0: the contact-stiffness tangent)",
     )
+    ap.add_argument("--iterates", type=int, default=1, help="part 3: calls from each committed state (Newton iterates)")
     ap.add_argument("--windows", type=int, default=12)
     ap.add_argument("--window", type=int, default=10)
     args = ap.parse_args(argv)
     print(f"load {load()}", flush=True)
     if args.base:
-        ab(args.base, args.windows, args.window)
+        ab(args.base, args.windows, args.window, args.iterates)
         print(f"load {load()}", flush=True)
         return 0
     if args.tangent_study:

@@ -69,6 +69,7 @@ from __future__ import annotations
 
 import math
 import threading
+import weakref
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -1058,15 +1059,55 @@ def _newton_damped(
 
 
 @njit
+def _rve_first_collide(
+    it0, pos, radius, z, z_pos, H, L, dt, prevH, VP, size, U, cos, verlet, ref_pos, sweep, last_update, aabb_min,
+    aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs,
+):  # fmt: skip
+    """Step 0 of a scene just deserialised (Scene::moveToNextTimeStep, core/Scene.cpp:98-139) up
+    to its interaction loop: the cell update with the velGrad the scene was saved with, then the
+    collider's first run, which sorts the bound lists from scratch (they are not saved:
+    InsertionSortCollider.cpp:264-272; ``strideActive`` is not saved either, :217) and finds the
+    overlaps. Returns (error, axis).
+
+    Nothing here reads the call's strain increment (it reaches the cell through nextVelGrad, applied
+    by the integrator after this, NewtonIntegrator.cpp:149-153), so the result is the same for every
+    call from one saved scene: :func:`rve_run_rotation` keeps it for the Newton iterates of a load
+    step, which all start from the committed scene."""
+    m = bc.shape[1]
+    for a in range(3):  # the bound lists of a new collider, unsorted
+        lo_idx[a] = 0
+        for k in range(m):
+            bi[a, k] = k // 2
+            bm[a, k] = k % 2 == 0
+            bp[a, k] = 0
+            bc[a, k] = 0.0
+    has_shear = _cell_update(H, z, L, dt, prevH, VP, size, U, cos)
+    zc = _unsheared_z(H, size, z_pos)
+    return _collide(
+        it0, True, pos, radius, has_shear, U, cos, size, verlet, ref_pos, sweep, last_update, aabb_min, aabb_max, bc,
+        bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, zc,
+    )  # fmt: skip
+
+
+@njit(inline="always")
+def _unsheared_z(H, size, z_pos):
+    """unshearPt(position).z = _unshearTrsf(2, 2) z (Eigen's 3 x 3 inverse: cofactor(2, 2) invdet)."""
+    a = H[0, 0] / size[0]
+    c = H[1, 0] / size[0]
+    b = H[0, 1] / size[1]
+    d = H[1, 1] / size[1]
+    return ((a * d - b * c) * (1.0 / (d * a + (-b) * c))) * z_pos
+
+
+@njit
 def _rve_steps(
     it0, nsteps, pos, vel, spin, radius, mass, inertia, z, z_pos, H, L, nextL, changed, Lprev, prev_size, verlet,
     ref_pos, sweep, last_update, young, poisson, tan_new, damping, dt, n_intr, slot, i_id, i_cd, i_real, i_geom, i_fs,
-    theta,
+    theta, prevH, VP, size, U, cos, aabb_min, aabb_max, bc, bi, bp, bm, lo_idx,
 ):  # fmt: skip
-    """``nsteps`` iterations of a scene just deserialised (Scene::moveToNextTimeStep, core/Scene.cpp:
-    98-139): the collider's bound lists are not saved, so its first run sorts them from scratch
-    (InsertionSortCollider.cpp:264-272; ``strideActive`` is not saved either, :217). Returns
-    (error, axis, step).
+    """``nsteps`` iterations of a scene just deserialised, after :func:`_rve_first_collide` (step 0
+    goes on with its interaction loop). Returns (error, axis, step). ``prevH`` .. ``lo_idx``: the
+    cell's and the collider's arrays as :func:`_rve_first_collide` left them.
 
     ``theta`` (N,) rad: each disk's rotation about z, to which every step adds spin dt with the spin
     the step ends with, as NewtonIntegrator turns ``State::ori`` (leapfrogSphericalRotate,
@@ -1074,43 +1115,22 @@ def _rve_steps(
     by |angVel| dt about angVel / |angVel| at :330-335, i.e. by spin dt about z for a disk whose
     x and y rotations are blocked). It is read by nothing else."""
     n = pos.shape[0]
-    prevH = np.zeros((2, 2))
-    VP = np.zeros((2, 2))
-    size = np.zeros(3)
-    U = np.zeros((2, 2))
-    cos = np.zeros(3)
-    aabb_min = np.zeros((n, 3))
-    aabb_max = np.zeros((n, 3))
-    m = 2 * n
-    bi = np.empty((3, m), np.int64)
-    bm = np.empty((3, m), np.bool_)
-    for a in range(3):
-        for k in range(m):
-            bi[a, k] = k // 2
-            bm[a, k] = k % 2 == 0
-    bc = np.zeros((3, m))
-    bp = np.zeros((3, m), np.int64)
-    lo_idx = np.zeros(3, np.int64)
     force = np.zeros((n, 2))
     torque = np.zeros(n)
     dt2 = dt * dt
     max_v2 = 0.0
     for k in range(nsteps):
         it = it0 + k
-        has_shear = _cell_update(H, z, L, dt, prevH, VP, size, U, cos)
-        if k == 0 or max_v2 >= 1.0 or max_v2 == 0.0:
-            # unshearPt(position).z = _unshearTrsf(2, 2) z (Eigen's 3 x 3 inverse: cofactor(2, 2) invdet)
-            a = H[0, 0] / size[0]
-            c = H[1, 0] / size[0]
-            b = H[0, 1] / size[1]
-            d = H[1, 1] / size[1]
-            zc = ((a * d - b * c) * (1.0 / (d * a + (-b) * c))) * z_pos
-            err, axis = _collide(
-                it, k == 0, pos, radius, has_shear, U, cos, size, verlet, ref_pos, sweep, last_update, aabb_min,
-                aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, zc,
-            )  # fmt: skip
-            if err != _OK:
-                return err, axis, k
+        if k > 0:
+            has_shear = _cell_update(H, z, L, dt, prevH, VP, size, U, cos)
+            if max_v2 >= 1.0 or max_v2 == 0.0:  # InsertionSortCollider::isActivated
+                zc = _unsheared_z(H, size, z_pos)
+                err, axis = _collide(
+                    it, False, pos, radius, has_shear, U, cos, size, verlet, ref_pos, sweep, last_update, aabb_min,
+                    aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, zc,
+                )  # fmt: skip
+                if err != _OK:
+                    return err, axis, k
         _interactions(
             pos, vel, spin, radius, H, VP, 0.0, 0.0, tan_new, young, poisson, dt, True, n_intr, i_id, i_cd, i_real,
             i_geom, i_fs, force, torque,
@@ -1218,20 +1238,109 @@ def rve_run_rotation(state: YadeRVEState, D, rotation=None):
     angle by which YADE's ``State::ori`` turns (leapfrogSphericalRotate, NewtonIntegrator.cpp:
     327-337), summed in double precision instead of composed as quaternions (docs/femxdem.md, "The
     disk rotation"). Every other output is :func:`rve_run`'s, to the bit: the sum is read by
-    nothing else."""
+    nothing else.
+
+    The first collider run (:func:`_rve_first_collide`) does not depend on D: for a ``state`` whose
+    arrays are all read-only (the committed states of :mod:`gransim.fem.material_points`), its
+    result is kept as long as the state lives and restored by the next calls from it, the Newton
+    iterates of a load step (:func:`first_run`)."""
     call = rve_call(state, D, rotation)
     with _workspace(call.n, call.m0) as work:
-        err, axis, k = _rve_steps(*call.kernel_args(work))
+        err, axis = first_run(call, work)
+        k = 0
+        if err == _OK:
+            err, axis, k = _rve_steps(*call.kernel_args(work))
         return rve_result(state, call, work, err, axis, k)
+
+
+#: the first collider run of a read-only saved scene: {YadeRVEState: _FirstRun}, dropped with the state
+_FIRST_RUNS = weakref.WeakKeyDictionary()
+
+
+@dataclass(frozen=True, eq=False)
+class _FirstRun:
+    """What :func:`_rve_first_collide` leaves: the cell (H, VP, size, U, cos), the bounds' saved
+    attributes (ref_pos, sweep, last_update), the sorted bound lists (bc, bi, bp, bm, lo_idx) and
+    the interaction container (its first ``n`` entries)."""
+
+    H: np.ndarray
+    VP: np.ndarray
+    size: np.ndarray
+    U: np.ndarray
+    cos: np.ndarray
+    ref_pos: np.ndarray
+    sweep: np.ndarray
+    last_update: np.ndarray
+    bc: np.ndarray
+    bi: np.ndarray
+    bp: np.ndarray
+    bm: np.ndarray
+    lo_idx: np.ndarray
+    i_id: np.ndarray
+    i_cd: np.ndarray
+    i_real: np.ndarray
+    i_geom: np.ndarray
+    i_fs: np.ndarray
+
+    @classmethod
+    def of(cls, call: RVECall, work: _Workspace) -> _FirstRun:
+        n = int(work.n_intr[0])
+        c = np.copy
+        return cls(
+            c(call.H), c(work.VP), c(work.size), c(work.U), c(work.cos), c(call.ref_pos), c(call.sweep),
+            c(call.last_update), c(work.bc), c(work.bi), c(work.bp), c(work.bm), c(work.lo_idx), work.i_id[:n].copy(),
+            work.i_cd[:n].copy(), work.i_real[:n].copy(), work.i_geom[:n].copy(), work.i_fs[:n].copy(),
+        )  # fmt: skip
+
+    def restore(self, call: RVECall, work: _Workspace) -> None:
+        call.H[...] = self.H
+        call.ref_pos[...] = self.ref_pos
+        call.sweep[...] = self.sweep
+        call.last_update[...] = self.last_update
+        for name in ("VP", "size", "U", "cos", "bc", "bi", "bp", "bm", "lo_idx"):
+            getattr(work, name)[...] = getattr(self, name)
+        n = len(self.i_id)
+        work.n_intr[0] = n
+        work.i_id[:n] = self.i_id
+        work.i_cd[:n] = self.i_cd
+        work.i_real[:n] = self.i_real
+        work.i_geom[:n] = self.i_geom
+        work.i_fs[:n] = self.i_fs
+        work.slot[self.i_id[:, 0], self.i_id[:, 1]] = np.arange(n)
+
+
+def _read_only(state: YadeRVEState) -> bool:
+    """Whether every array of ``state`` is read-only (then its first collider run can be kept)."""
+    for name in RVE_STATE_FIELDS:
+        v = getattr(state, name)
+        if isinstance(v, np.ndarray) and v.flags.writeable:
+            return False
+    return True
+
+
+def first_run(call: RVECall, work: _Workspace, keep: bool = True) -> tuple[int, int]:
+    """Step 0 up to its interaction loop (:func:`_rve_first_collide`) on ``call`` and ``work``,
+    restored from the kept result of an earlier call from the same read-only state when there is
+    one, else computed (and kept if ``keep`` and the state is read-only); (error, axis)."""
+    s = call.state
+    kept = _FIRST_RUNS.get(s) if keep else None
+    if kept is not None:
+        kept.restore(call, work)
+        return _OK, -1
+    err, axis = _rve_first_collide(*call.first_args(work))
+    if err == _OK and keep and _read_only(s):
+        _FIRST_RUNS[s] = _FirstRun.of(call, work)
+    return err, axis
 
 
 @dataclass(frozen=True, eq=False)
 class RVECall:
-    """One :func:`rve_run_rotation` call unpacked for :func:`_rve_steps`: the mutable copies of the
-    saved scene's per-disk and cell arrays (the new state's, filled by the kernel), the step count
-    ``ns`` and the new nextVelGrad ``rate`` = D / (ns dt) (Matrix3 / float in minieigen: each entry
-    divided). ``theta`` (N,) rad: the disks' rotation, carried on. Split out so that the benchmark
-    (bench/femxdem.py) times the kernel apart from the packing around it."""
+    """One :func:`rve_run_rotation` call unpacked for :func:`_rve_first_collide` and
+    :func:`_rve_steps`: the mutable copies of the saved scene's per-disk and cell arrays (the new
+    state's, filled by the kernels), the step count ``ns`` and the new nextVelGrad ``rate`` =
+    D / (ns dt) (Matrix3 / float in minieigen: each entry divided). ``theta`` (N,) rad: the disks'
+    rotation, carried on. Split out so that the benchmark (bench/femxdem.py) times the kernels
+    apart from the packing around them."""
 
     ns: int
     n: int
@@ -1251,10 +1360,9 @@ class RVECall:
     theta: np.ndarray
     state: YadeRVEState
 
-    def kernel_args(self, work, nsteps=None) -> tuple:
-        """The arguments of :func:`_rve_steps` (``nsteps``: default ``ns``; the benchmark runs 1 to
-        time the first collider run), with the interaction container ``work`` (:class:`_Workspace`)
-        loaded with the saved scene's real interactions."""
+    def first_args(self, work) -> tuple:
+        """The arguments of :func:`_rve_first_collide`, with the interaction container ``work``
+        (:class:`_Workspace`) loaded with the saved scene's real interactions."""
         s = self.state
         m0 = self.m0
         work.n_intr[0] = m0
@@ -1271,12 +1379,23 @@ class RVECall:
         work.i_fs[:m0] = s.shear_force
         work.slot[s.ids[:, 0], s.ids[:, 1]] = np.arange(m0)
         return (
+            int(s.iteration), self.pos, np.asarray(s.radii, float), float(s.z), float(s.z_pos), self.H, self.L,
+            float(s.dt), work.prevH, work.VP, work.size, work.U, work.cos, float(s.verlet), self.ref_pos, self.sweep,
+            self.last_update, work.aabb_min, work.aabb_max, work.bc, work.bi, work.bp, work.bm, work.lo_idx, work.slot,
+            work.n_intr, work.i_id, work.i_cd, work.i_real, work.i_geom, work.i_fs,
+        )  # fmt: skip
+
+    def kernel_args(self, work, nsteps=None) -> tuple:
+        """The arguments of :func:`_rve_steps` after :func:`first_run` (``nsteps``: default ``ns``)."""
+        s = self.state
+        return (
             int(s.iteration), self.ns if nsteps is None else int(nsteps), self.pos, self.vel, self.spin,
             np.asarray(s.radii, float), np.asarray(s.mass, float), np.asarray(s.inertia, float), float(s.z),
             float(s.z_pos), self.H, self.L, self.nextL, self.changed, self.Lprev, self.prev_size, float(s.verlet),
             self.ref_pos, self.sweep, self.last_update, float(s.young), float(s.poisson), math.tan(s.friction_angle),
             float(s.damping), float(s.dt), work.n_intr, work.slot, work.i_id, work.i_cd, work.i_real, work.i_geom,
-            work.i_fs, self.theta,
+            work.i_fs, self.theta, work.prevH, work.VP, work.size, work.U, work.cos, work.aabb_min, work.aabb_max,
+            work.bc, work.bi, work.bp, work.bm, work.lo_idx,
         )  # fmt: skip
 
 
@@ -1336,13 +1455,21 @@ class _Workspace:
     """The interaction container of an RVE call (YADE's InteractionContainer with its body-pair
     index): ``slot`` (N, N) the container position of the pair (id1 < id2) or -1, and the columns
     ``i_id``, ``i_cd`` (cap, 2) int, ``i_real`` (cap,), ``i_geom`` (cap, 8), ``i_fs`` (cap, 2), the
-    first ``n_intr[0]`` in use. Kept per thread and reused from call to call: allocating the
-    1.3 MB ``slot`` and the columns afresh (fresh pages, zeroed by the kernel) cost about a tenth
-    of a 100-step call of 400 disks. Only ``slot`` needs resetting between calls (the columns are
-    written before they are read); :func:`_workspace` resets the entries a call used."""
+    first ``n_intr[0]`` in use; and the cell's and the collider's arrays of :func:`_rve_steps`.
+    Kept per thread and reused from call to call: allocating the 1.3 MB ``slot`` and the columns
+    afresh (fresh pages, zeroed by the kernel) cost about a tenth of a 100-step call of 400 disks.
+    Only ``slot`` needs resetting between calls (the rest is written before it is read);
+    :func:`_workspace` resets the entries a call used."""
 
     def __init__(self, n: int, cap: int):
         self.n, self.cap = n, cap
+        m = 2 * n
+        self.prevH, self.VP, self.U = np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2))
+        self.size, self.cos = np.zeros(3), np.zeros(3)
+        self.aabb_min, self.aabb_max = np.zeros((n, 3)), np.zeros((n, 3))
+        self.bc, self.bp = np.zeros((3, m)), np.zeros((3, m), np.int64)
+        self.bi, self.bm = np.zeros((3, m), np.int64), np.zeros((3, m), np.bool_)
+        self.lo_idx = np.zeros(3, np.int64)
         self.slot = np.full((n, n), -1, np.int64)
         self.n_intr = np.zeros(1, np.int64)
         self.i_id = np.zeros((cap, 2), np.int64)
