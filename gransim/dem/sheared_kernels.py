@@ -388,14 +388,6 @@ def build_list(x, lam, r, box, skin, use_lam):
 
 
 @njit
-def _find(start, eb, a, b):
-    for k in range(start[a], start[a + 1]):
-        if eb[k] == b:
-            return k
-    return -1
-
-
-@njit
 def hand_over(x, r, box, a_new, b_new, sx_new, sy_new, start_old, eb_old, both_old, h_old, touch_old, lmp, h_new, flip):
     """History hand-over at a list build, for a history of any width W (``h_old`` (M_old, W),
     ``h_new`` (M, W) written; ``flip`` (W,) the sign of each column seen from the other particle).
@@ -416,14 +408,14 @@ def hand_over(x, r, box, a_new, b_new, sx_new, sy_new, start_old, eb_old, both_o
             rs = r[a] + r[b]
             if not (dx * dx + dy * dy < rs * rs):
                 continue
-        k = _find(start_old, eb_old, a, b)
+        k = K._find(start_old, eb_old, a, b)
         if k >= 0:
             if lmp and not touch_old[k]:
                 continue
             for c in range(nw):
                 h_new[e, c] = h_old[k, c]
         else:
-            k = _find(start_old, eb_old, b, a)
+            k = K._find(start_old, eb_old, b, a)
             if k >= 0 and both_old[k]:
                 if lmp and not touch_old[k]:
                     continue
