@@ -17,6 +17,7 @@ import pytest
 
 from gransim import _numba_cache_dir
 from gransim.cli import cmd_warmup
+from gransim.errors import InputError
 
 SITE = sysconfig.get_paths()["purelib"]  # the venv's site-packages (gransim's editable install)
 
@@ -250,3 +251,18 @@ def test_steps_sharing_kernels_run_one_after_the_other(own_packing):
         if s.command == "shear" and s.name != "shear":
             assert "shear" in _prerequisites(steps, s.name), s.name
     assert "pack" in _prerequisites(steps, "pack --friction")
+
+
+def test_law_sets():
+    """--laws biaxial keeps every law's biaxial step and drops every law's shear step (make run's
+    suite runs the sheared cell with its default law only); an unknown set is refused."""
+    full = {s.name for s in cmd_warmup.plan("all")}
+    run = {s.name for s in cmd_warmup.plan("biaxial")}
+    default = {s.name for s in cmd_warmup.plan("default")}
+    laws = [name for name, _, _ in cmd_warmup.law_names()]
+    assert laws and all(f"biaxial --law {n}" in run for n in laws)
+    assert not any(n.startswith("shear --law") for n in run)
+    assert full - run == {n for n in full if n.startswith("shear --law")} != set()
+    assert default < run < full
+    with pytest.raises(InputError, match="--laws"):
+        cmd_warmup.plan("some")
