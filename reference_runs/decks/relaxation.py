@@ -68,7 +68,7 @@ from ..runner import run_job
 from ..store import STORED
 from .biaxial import write_biaxial_deck
 from .shear import deck_text as shear_deck_text
-from .taylor import _write_lammps_data, periodic_state_packing, triclinic_state
+from .taylor import _lammps_data_text, periodic_state_packing, triclinic_state
 
 #: the prescribed states: name -> F (compression paths and a simple shear)
 STATES = {
@@ -234,7 +234,7 @@ def write_job(
             )
         data = "data.shear"
         c = q.cell
-        _write_lammps_data(job / data, q.positions, q.radii, q.density, (c[0, 0], c[1, 1], c[0, 1]))
+        (job / data).write_text(_lammps_data_text(q.positions, q.radii, q.density, (c[0, 0], c[1, 1], c[0, 1])))
         deck = job / "in.shear"
         deck.write_text(
             shear_deck_text(q, settings, ShearLoading(), nsteps, thermo_every=thermo_every, dump_every=nsteps)

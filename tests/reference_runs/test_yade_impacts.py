@@ -32,35 +32,6 @@ needs_yade = pytest.mark.skipif(
 SCENES = ("normal-z0.5", "oblique", "stick", "hertz-liggghts", "hertz-liggghts-stick")
 
 
-def yade_analytic(sc, im) -> dict:
-    """The case's analytic answers of impact ``im`` (validation.cases.impacts.analytic) with YADE's
-    law where it differs (module doc); every formula is the case's or reference_runs.yade.impacts'."""
-    an = I.analytic(sc, im)
-    spec = yade_law(sc.law)
-    m1, m2 = I._mass(im.r1), I._mass(im.r2)
-    meff = m1 * m2 / (m1 + m2)
-    vn = im.v1[0] - im.v2[0]
-    if spec["kind"] == "viscel" and spec["gamma_n"] > 0:
-        c = clipped_dashpot(meff, spec["kn"], spec["gamma_n"], vn)
-        an.update({k: c[k] for k in ("contact time", "restitution", "impulse factor")})
-        an["P"] = c["impulse factor"] * meff * vn
-        if im.kind in ("sliding", "microslip"):
-            rb = I.oblique_rigid(m1, m2, im.r1, im.r2, vn, an["s0"], sc.law.mu, an["P"])
-            an.update(rb)
-            an["w1'"] = im.w1 + rb["dw1"]
-    if im.kind == "stick":
-        if spec["kind"] == "viscel":
-            release = clipped_dashpot(meff, spec["kn"], spec["gamma_n"], vn)["release time"]
-            ratio = I.stick_ratio(meff, spec["kt"], spec["gamma_t"], release)
-        else:
-            h = sc.law.hertz()
-            reff = im.r1 * im.r2 / (im.r1 + im.r2)
-            ratio = mindlin_incremental_stick(meff, reff, h["y43"], h["kt0"], vn, an["s0"], sc.law.mu)
-        te = I.tangential_exit(m1, m2, im.r1, im.r2, an["s0"], meff * abs(an["s0"]) * (1.0 - ratio) / 3.0)
-        an.update(te, **{"stick ratio": ratio, "w1'": im.w1 + te["dw1"]})
-    return an
-
-
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     root = tmp_path_factory.mktemp("yade-impacts")
@@ -89,7 +60,7 @@ def test_yade_meets_the_closed_forms_within_the_cases_tolerances(runs, name):
     meas = I.measure(frames, sc, pairs, I.DT)
     checked = 0
     for k, im in enumerate(sc.impacts):
-        for q, err in I.errors(meas[k], yade_analytic(sc, im), im).items():
+        for q, err in I.errors(meas[k], I.yade_analytic(sc, im), im).items():
             tol, _why = tols[q]
             assert math.isfinite(err) and err <= tol, (name, im.label, q, err, tol)
             checked += 1
