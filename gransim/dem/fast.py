@@ -57,7 +57,6 @@ from ..contacts.laws import offers_select
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import fast_kernels as FK
-from . import kernels as K
 from . import sheared_kernels as SK
 from .engine import LOST_DISPLACEMENT_SKINS, Engine, _control
 from .settings import DEMSettings, Integration, Loading, PrescribedBox
@@ -686,14 +685,14 @@ class FastEngine:
         dxy = (b1[:, 2] - b0[:, 2] - b0[:, 2] * dlx) / b0[:, 1]
         dw = -(rows[:, 0] * dlx + rows[:, 1] * dly + rows[:, 3] * dxy)
         ke = np.full(k, np.nan)
-        ke[-1] = self._budget_kinetic_energy()
-        self._check_energy(self.step + 1, rows[:, 6], ke, dw, flow=self._flow_kinetic_energy())
+        ke[-1], flow = self._energies()
+        self._check_energy(self.step + 1, rows[:, 6], ke, dw, flow=flow)
 
     def _check_lost(self):
         """Before a rebuild: a particle that moved more than LOST_DISPLACEMENT_SKINS skins since
         the last build (Engine._check_lost, on the sorted state)."""
         p = self.ps
-        i, di = K.largest_displacement(np.stack((p.x, p.y), axis=1), np.stack((p.xh, p.yh), axis=1))
+        i, di = FK.largest_move(p.x, p.y, p.xh, p.yh)
         skin = self.settings.skin
         if di > LOST_DISPLACEMENT_SKINS * skin:
             raise SimulationError(
@@ -708,18 +707,23 @@ class FastEngine:
         f = (self.ps.y - b[1]) / (b[3] - b[1])
         return self.h_rate[2] * f, self.h_rate[1] * f
 
+    def _energies(self):
+        """(kinetic energy relative to the cell's flow, kinetic energy of the flow) (J), one pass
+        (:func:`fast_kernels.flow_energies`; the orthogonal cell has no flow)."""
+        p = self.ps
+        if self._sheared:
+            b, hr = self.box, self.h_rate
+            return FK.flow_energies(p.y, p.vx, p.vy, p.w, p.m, p.r, b[1], b[3] - b[1], hr[2], hr[1])
+        return FK.flow_energies(p.y, p.vx, p.vy, p.w, p.m, p.r, 0.0, 1.0, 0.0, 0.0)
+
     def _budget_kinetic_energy(self) -> float:
         """The kinetic energy the divergence check bounds (J): a sheared cell's relative to its
         flow (ShearedCell.budget_kinetic_energy), an orthogonal cell's as it is."""
-        p = self.ps
-        ux, uy = self._flow() if self._sheared else (0.0, 0.0)
-        ax, ay = p.vx - ux, p.vy - uy
-        return float(0.5 * np.sum(p.m * (ax * ax + ay * ay)) + 0.25 * np.sum(p.m * p.r**2 * p.w**2))
+        return float(self._energies()[0])
 
     def _flow_kinetic_energy(self) -> float:
         """Kinetic energy (J) of the sheared cell's flow at the particles (ShearedCell.flow_kinetic_energy)."""
-        ux, uy = self._flow()
-        return float(0.5 * np.sum(self.ps.m * (ux * ux + uy * uy)))
+        return float(self._energies()[1])
 
     def peculiar_velocities(self) -> np.ndarray:
         """Sheared cell: v - u(x) (m/s), (N, 2), original order (ShearedCell.peculiar_velocities)."""

@@ -1294,3 +1294,43 @@ def entry_forces(law, img, dt, ni, nj, code, h0, h1, x, y, vx, vy, w, r, m, out)
         out[e, 1] = touch * fye
         out[e, 2] = touch * sl
         out[e, 3] = touch
+
+
+@njit
+def flow_energies(y, vx, vy, w, m, r, ylo, ly, ux, uy):
+    """(kinetic energy relative to the cell's homogeneous flow, kinetic energy of the flow) (J) in
+    one pass, without temporaries: the flow at a particle u = (ux, uy) (y - ylo)/ly (the sheared
+    cell's h_rate[5], h_rate[1] in m/s; zero for the orthogonal cell, whose first value is then the
+    kinetic energy), translational m |v - u|^2/2 plus rotational m r^2 w^2/4 (I = m r^2/2)."""
+    rel = 0.0
+    rot = 0.0
+    flow = 0.0
+    for i in range(y.shape[0]):
+        f = (y[i] - ylo) / ly
+        fx = ux * f
+        fy = uy * f
+        px = vx[i] - fx
+        py = vy[i] - fy
+        rel += m[i] * (px * px + py * py)
+        rot += m[i] * r[i] * r[i] * w[i] * w[i]
+        flow += m[i] * (fx * fx + fy * fy)
+    return 0.5 * rel + 0.25 * rot, 0.5 * flow
+
+
+@njit
+def largest_move(x, y, xh, yh):
+    """(i, |x_i - xh_i|) (m) of the particle that moved most since the last build, the first of
+    equal moves, a NaN distance first (:func:`gransim.dem.kernels.largest_displacement` on the
+    structure of arrays)."""
+    best = -1.0
+    k = 0
+    for i in range(x.shape[0]):
+        dx = x[i] - xh[i]
+        dy = y[i] - yh[i]
+        d = math.sqrt(dx * dx + dy * dy)
+        if d != d:
+            return i, d
+        if d > best:
+            best = d
+            k = i
+    return k, best
