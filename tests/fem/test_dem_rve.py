@@ -11,7 +11,9 @@
 * the disks' rotation: spin dt summed after every step; free disks in a turning cell turn by the
   cell's spin, exactly; with YADE, each disk's State::rot() equals the native sum after every call
   to the round-off of YADE's quaternions; a Gauss point's rotations are its single RVE's;
-* an update never writes into the committed state; a resumed run equals an uninterrupted one.
+* an update never writes into the committed state; a resumed run equals an uninterrupted one;
+* the first collider run kept from a read-only state gives the bits of a computed one, and a
+  writable state is never served a kept one.
 """
 
 from __future__ import annotations
@@ -154,6 +156,42 @@ def test_an_update_never_writes_into_the_committed_state():
     assert np.array_equal(s1, s2) and np.array_equal(t1, t2) and same_state(new1.rve, new2.rve) == []
     sig, t = guo_zhao_stress_tangent(new1.rve)
     assert np.array_equal(sig, sig.T) and np.array_equal(t, np.transpose(t, (1, 0, 2, 3)))
+
+
+def test_a_kept_first_collider_run_gives_the_bits_of_a_computed_one():
+    """The first collider run of a call does not read the strain increment: kept from the first
+    call from a read-only state, it serves the next calls from it (other increments, as Newton's
+    iterates) with the bits of calls that compute it (from a writable copy, which is never kept)."""
+    from gransim.dem import yade_arithmetic as ya
+
+    base = DemRVE.prepared().initial
+    # a state some steps away from the prepared one (contacts made and lost since), then read-only
+    state = rve_run(base, np.array([[4e-4, -2e-4], [1e-4, -1e-3]]))
+    frozen = freeze(dataclasses.replace(state))
+    increments = [np.array([[3e-4, 1e-4], [0.0, -1e-3]]), np.array([[-5e-4, 2e-4], [-1e-4, 1.5e-3]])]
+    kept = [rve_run_rotation(frozen, D) for D in increments]
+    assert frozen in ya._FIRST_RUNS  # kept after the first call, used by the second
+    for D, (new, rot) in zip(increments, kept):
+        writable = dataclasses.replace(state, **{f: np.array(getattr(state, f)) for f in ("positions", "ids")})
+        ref, rot_ref = rve_run_rotation(writable, D)
+        assert writable not in ya._FIRST_RUNS
+        assert same_state(new, ref) == [] and np.array_equal(rot, rot_ref)
+    assert same_state(kept[0][0], kept[1][0]) != []  # two increments, two states: the comparison can fail
+
+
+def test_a_writable_state_is_never_served_a_kept_first_run():
+    """A state whose arrays can change is recomputed every call: moving one disk between two calls
+    changes the result."""
+    base = DemRVE.prepared().initial
+    state = dataclasses.replace(base, positions=np.array(base.positions))
+    D = np.array([[3e-4, 1e-4], [0.0, -1e-3]])
+    first, _ = rve_run_rotation(state, D)
+    state.positions[0] += 1e-4  # 0.02 of a radius
+    second, _ = rve_run_rotation(state, D)
+    assert "positions" in same_state(first, second)
+    state.positions[0] -= 1e-4
+    again, _ = rve_run_rotation(state, D)
+    assert same_state(first, again) == []
 
 
 def test_resume_equals_an_uninterrupted_run(one_element, tmp_path):
