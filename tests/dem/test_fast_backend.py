@@ -322,6 +322,9 @@ def test_bad_choices_are_refused():
         sh.advance(10)
     with pytest.raises(InputError, match="loading"):
         sh.start_run(Loading(), 10)
+    for other in ({"x_erate": 1.0}, {"y": "erate", "y_erate": 1.0}, {"remap": "x"}):
+        with pytest.raises(InputError, match="code order"):  # the code order's sheared cell runs them
+            sh.start_run(ShearLoading(erate=1.0, **other), 10)
     with pytest.raises(InputError, match="liggghts"):
         FastEngine(lattice_packing(24, 28), S, cell="sheared").start_run(ShearLoading(erate=1.0), 10)
     with pytest.raises(InputError, match="liggghts"):
