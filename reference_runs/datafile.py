@@ -83,12 +83,16 @@ def data_file_text(
     ]
     d = 2.0 * packing.radii
     rho = packing.density
-    for k in range(n):
-        lines.append(f"{k + 1} {t[k]} {_fmt(d[k])} {_fmt(rho)} {_fmt(x[k, 0])} {_fmt(x[k, 1])} 0")
+    # one format per row on Python floats and ints (numpy scalars format the same digits, 3x slower)
+    rho_s = _fmt(rho)
+    lines += [
+        f"{k} {tk} {dk:.17g} {rho_s} {xk:.17g} {yk:.17g} 0"
+        for k, tk, dk, (xk, yk) in zip(range(1, n + 1), t.tolist(), d.tolist(), np.asarray(x, float).tolist())
+    ]
     if velocities is not None or omegas is not None:
         v = np.zeros((n, 2)) if velocities is None else np.asarray(velocities, float).reshape(n, 2)
         w = np.zeros(n) if omegas is None else np.asarray(omegas, float).reshape(n)
         lines += ["", "Velocities", ""]
-        for k in range(n):
-            lines.append(f"{k + 1} {_fmt(v[k, 0])} {_fmt(v[k, 1])} 0 0 0 {_fmt(w[k])}")
+        rows = zip(range(1, n + 1), v.tolist(), w.tolist())
+        lines += [f"{k} {vx:.17g} {vy:.17g} 0 0 0 {wk:.17g}" for k, (vx, vy), wk in rows]
     return "\n".join(lines) + "\n"

@@ -198,8 +198,13 @@ def _lammps_data_text(x, radii, density: float, box, types=None) -> str:
     if xy != 0:
         lines.append(f"{_g(xy)} 0 0 xy xz yz")
     lines += ["", "Atoms # sphere", ""]
-    for k in range(n):
-        lines.append(f"{k + 1} {t[k]} {_g(2.0 * radii[k])} {_g(density)} {_g(x[k, 0])} {_g(x[k, 1])} 0")
+    # one format per row on Python floats and ints (numpy scalars format the same digits, 3x slower)
+    rho = _g(density)
+    d = (2.0 * np.asarray(radii, float)).tolist()
+    lines += [
+        f"{k} {tk} {dk:.17g} {rho} {xk:.17g} {yk:.17g} 0"
+        for k, tk, dk, (xk, yk) in zip(range(1, n + 1), t.tolist(), d, np.asarray(x, float).tolist())
+    ]
     return "\n".join(lines) + "\n"
 
 
