@@ -991,6 +991,12 @@ def yade_run(
 
 
 @njit
+def _sign(x):
+    """math::sign (lib/high-precision/MathFunctions.hpp:284): (0 < x) - (x < 0)."""
+    return float((0.0 < x) - (x < 0.0))
+
+
+@njit
 def _newton_damped(
     pos, vel, spin, mass, inertia, force, torque, L, nextL, changed, Lprev, size, prev_size, dt, dt2, ref_pos, sweep,
     damping,
@@ -1020,54 +1026,30 @@ def _newton_damped(
         max_v2 = 0.0
     h = 0.5 * dt
     p00, p01, p10, p11 = Lprev[0, 0], Lprev[0, 1], Lprev[1, 0], Lprev[1, 1]  # read once (as in _interactions)
-    # Cundall's factor 1 - damping sign(x), with math::sign (lib/high-precision/MathFunctions.hpp:284)
-    # (0 < x) - (x < 0): +1, -1 or 0 (also for x NaN or -0); the same three products and differences
-    # as per body, made once
-    damped = damping != 0.0
-    f_pos = 1.0 - damping * 1.0
-    f_neg = 1.0 - damping * -1.0
-    f_zero = 1.0 - damping * 0.0
-    flag_max = 0.5  # saveMaximaDisplacement's flags: 0.5, or 2.0 once a body left its sweep
-    # each body's state in scalars, written back once: through the arrays the loop ran 1.65x slower
-    # (the compiler reloads what a store to another array might have changed)
     for b in range(pos.shape[0]):
-        x0 = pos[b, 0]
-        x1 = pos[b, 1]
-        v0 = vel[b, 0]
-        v1 = vel[b, 1]
-        w = spin[b]
-        ax = force[b, 0] / mass[b]  # :58-61
+        ax = force[b, 0] / mass[b]
         ay = force[b, 1] / mass[b]
+        if damping != 0.0:
+            fvx = vel[b, 0] - (p00 * pos[b, 0] + p01 * pos[b, 1])  # bodyFluctuationVel
+            fvy = vel[b, 1] - (p10 * pos[b, 0] + p11 * pos[b, 1])
+            ax *= 1.0 - damping * _sign(ax * (fvx + h * ax))
+            ay *= 1.0 - damping * _sign(ay * (fvy + h * ay))
+        ax += p00 * vel[b, 0] + p01 * vel[b, 1]
+        ay += p10 * vel[b, 0] + p11 * vel[b, 1]
+        vel[b, 0] += dt * ax
+        vel[b, 1] += dt * ay
         aw = torque[b] / inertia[b]
-        if damped:
-            fvx = v0 - (p00 * x0 + p01 * x1)  # bodyFluctuationVel
-            fvy = v1 - (p10 * x0 + p11 * x1)
-            sx = ax * (fvx + h * ax)
-            sy = ay * (fvy + h * ay)
-            sw = aw * (w + h * aw)
-            ax *= f_pos if sx > 0.0 else (f_neg if sx < 0.0 else f_zero)
-            ay *= f_pos if sy > 0.0 else (f_neg if sy < 0.0 else f_zero)
-            aw *= f_pos if sw > 0.0 else (f_neg if sw < 0.0 else f_zero)
-        ax += p00 * v0 + p01 * v1  # :262 prevVelGrad * vel
-        ay += p10 * v0 + p11 * v1
-        v0 += dt * ax  # :264
-        v1 += dt * ay
-        w += dt * aw  # :267-270
-        v0 += d00 * x0 + d01 * x1  # :320-323 dVelGrad * pos
-        v1 += d10 * x0 + d11 * x1
-        x0 += v0 * dt  # :324
-        x1 += v1 * dt
-        w += dspin  # :329
-        pos[b, 0] = x0
-        pos[b, 1] = x1
-        vel[b, 0] = v0
-        vel[b, 1] = v1
-        spin[b] = w
-        md = max(abs(x0 - ref_pos[b, 0]), max(abs(x1 - ref_pos[b, 1]), 0.0))  # :118-135
-        if not (md == 0.0 or md < sweep[b]):
-            flag_max = 2.0
-    if pos.shape[0] > 0:
-        max_v2 = max(max_v2, flag_max)
+        if damping != 0.0:
+            aw *= 1.0 - damping * _sign(aw * (spin[b] + h * aw))
+        spin[b] += dt * aw
+        vel[b, 0] += d00 * pos[b, 0] + d01 * pos[b, 1]
+        vel[b, 1] += d10 * pos[b, 0] + d11 * pos[b, 1]
+        pos[b, 0] += vel[b, 0] * dt
+        pos[b, 1] += vel[b, 1] * dt
+        spin[b] += dspin
+        md = max(abs(pos[b, 0] - ref_pos[b, 0]), max(abs(pos[b, 1] - ref_pos[b, 1]), 0.0))
+        flag = 0.5 if (md == 0.0 or md < sweep[b]) else 2.0
+        max_v2 = max(max_v2, flag)
     for i in range(3):
         prev_size[i] = size[i]
     for i in range(2):
