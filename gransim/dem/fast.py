@@ -53,12 +53,12 @@ import numpy as np
 
 from .._numba import check_threads, disk_cache_off, dynamic_chunks, num_threads
 from .._validate import as_int, check_choice
-from ..contacts.laws import offers_select
+from ..contacts.laws import elastic_energy, offers_select
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import fast_kernels as FK
 from . import sheared_kernels as SK
-from .engine import LOST_DISPLACEMENT_SKINS, Engine, _control
+from .engine import ENERGY_CHUNK, LOST_DISPLACEMENT_SKINS, Engine, _control
 from .settings import DEMSettings, Integration, Loading, PrescribedBox
 from .sheared import ShearLoading, tilt_stop
 
@@ -115,11 +115,10 @@ class FastEngine:
     """
 
     # what every ordering does the same way, the code order's own functions: the law and its
-    # time-step check, the kinetic and elastic energies, the energy balance of the divergence check
+    # time-step check, the kinetic energy, the energy balance of the divergence check
     _set_law = Engine._set_law
     _check_time_step_now = Engine._check_time_step_now
     kinetic_energy = Engine.kinetic_energy
-    elastic_energy = Engine.elastic_energy
     _reset_energy_budget = Engine._reset_energy_budget
     _check_energy = Engine._check_energy
 
@@ -736,19 +735,26 @@ class FastEngine:
 
     def _touching(self):
         """Entries of the touching pairs (each pair once) and their overlaps (m), the images from
-        the current box."""
+        the current box (:func:`fast_kernels.touching_entries`)."""
         m = self.n_entries
         p = self.ps
-        ni, nj = self._ni[:m], self._nj[:m]
-        s = self._shifts(slice(0, m)).astype(np.float64)
-        img = self._image()
-        xy = img[2] if self._sheared else 0.0
-        dx = p.x[ni] - ((p.x[nj] + s[:, 0] * img[0]) + s[:, 1] * xy)
-        dy = p.y[ni] - (p.y[nj] + s[:, 1] * img[1])
-        dist = np.sqrt(dx * dx + dy * dy)
-        rs = p.r[ni] + p.r[nj]
-        e = np.flatnonzero(dist < rs)
-        return e, rs[e] - dist[e]
+        return FK.touching_entries(self._image(), self._ni[:m], self._nj[:m], self._code[:m], p.x, p.y, p.r)
+
+    def elastic_energy(self) -> float:
+        """Energy stored in the touching contacts (J): the law's ``energy``
+        (:func:`gransim.contacts.laws.elastic_energy`) with each contact's overlap, spring and radii,
+        in chunks of ENERGY_CHUNK contacts as the code order's ``Engine.elastic_energy`` (here on
+        the sorted state: its ``ea``/``eb`` views, gathered for every chunk, cost 11 MB each at 1e6
+        disks)."""
+        e, ov = self._touching()
+        p = self.ps
+        total = 0.0
+        for k in range(0, e.size, ENERGY_CHUNK):
+            c = e[k : k + ENERGY_CHUNK]
+            total += elastic_energy(
+                self.law, ov[k : k + ENERGY_CHUNK], self._hist[:, c].T, p.r[self._ni[c]], p.r[self._nj[c]]
+            )
+        return total
 
     def contacts(self):
         """Touching pairs, each once (i < j, original indices): dict of i, j, shift (l_ij = x_j +
