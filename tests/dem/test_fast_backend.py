@@ -423,3 +423,17 @@ def test_a_killed_threaded_sheared_run_resumes_bit_for_bit(threaded_small, tmp_p
     np.testing.assert_array_equal(again.x, full.x)
     np.testing.assert_array_equal(again.v, full.v)
     np.testing.assert_array_equal(again.w, full.w)
+
+
+def test_integration_settings_with_a_law_object_are_the_hooke_settings():
+    # the law given as an object with Integration settings runs the same arithmetic as the Hooke
+    # law a DEMSettings makes in its flavour: the same bits
+    p = lattice_packing(12, 14, seed=15, spread=0.15, compression=0.06)
+    law = make_law("hooke-lammps", kn=S.kn, kt=S.kt, gamma_n=S.gamma_n, gamma_t=S.gamma_t, mu=S.mu)
+    a = FastEngine(p, Integration(dt=S.dt, skin=S.skin, flavour="lammps"), law=law)
+    b = FastEngine(p, S_LMP)
+    ld = Loading(y=AxisControl("rate", rate=-5.0))
+    np.testing.assert_array_equal(a.advance(ld, 200)["stress"], b.advance(ld, 200)["stress"])
+    np.testing.assert_array_equal(a.x, b.x)
+    with pytest.raises(InputError, match="law"):
+        FastEngine(p, Integration(dt=S.dt, skin=S.skin))
