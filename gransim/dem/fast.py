@@ -60,7 +60,7 @@ from . import fast_kernels as FK
 from . import sheared_kernels as SK
 from .engine import ENERGY_CHUNK, LOST_DISPLACEMENT_SKINS, Engine, _control
 from .settings import DEMSettings, Integration, Loading, PrescribedBox
-from .sheared import ShearLoading, tilt_stop
+from .sheared import _RUN_NUMBERS, ShearedCell, ShearLoading, _ShearRun, deform_of
 
 #: the cells of the fast ordering
 CELLS = ("orthogonal", "sheared")
@@ -83,6 +83,12 @@ GROWTH = 1.25
 #: the count and fill passes
 BAND_SLACK = 1.05
 BAND_PAD = 64
+
+
+class _RunHolder:
+    """Where :meth:`gransim.dem.sheared.ShearedCell.start_run` keeps the run it begins (its ``run``)."""
+
+    run = None
 
 
 class FastEngine:
@@ -264,7 +270,8 @@ class FastEngine:
         """The image plug-in of the force loop for the current box."""
         if self._sheared:
             b = self.box
-            return (float(b[2] - b[0]), float(b[3] - b[1]), float(b[4]), float(self.h_rate[2]), float(self.h_rate[1]))
+            hr = self.h_rate
+            return (float(b[2] - b[0]), float(b[3] - b[1]), float(b[4]), float(hr[2]), float(hr[1]), float(hr[0]))
         return (float(self.hi[0] - self.lo[0]), float(self.hi[1] - self.lo[1]))
 
     def _forces(self, update: bool):
@@ -554,91 +561,34 @@ class FastEngine:
         """Begin a run of ``nsteps`` steps under ``loading``, continued by :meth:`advance` ``(k)``
         calls (:meth:`gransim.dem.engine.Engine.start_run`). Orthogonal cell: a Loading or a
         PrescribedBox measured from the current step and box (no new set-up; returns the stress).
-        Sheared cell: a :class:`~gransim.dem.sheared.ShearLoading`, a LAMMPS ``run nsteps`` as the
-        code order's sheared cell: ``fix deform`` init (the start and stop tilt of the style over the run,
-        :func:`gransim.dem.sheared.tilt_stop`; h_rate[5] = (tilt_stop - tilt_start)/(nsteps dt)
-        for the linear styles, 0 for trate until its first change; h_rate[1] = 0 until the first
-        servo change), then the run's set-up (wrap with this run's h_rate, list with the springs
-        handed over, forces without spring increment). Returns the set-up stress (2, 2),
-        compression positive."""
+        Sheared cell: a :class:`~gransim.dem.sheared.ShearLoading` (xy styles, x and y erate, the y
+        servo, remap v or x), a LAMMPS ``run nsteps`` by the code order's own
+        :meth:`gransim.dem.sheared.ShearedCell.start_run` on this engine (``fix deform`` init:
+        the start and stop boxes, h_rate; then the run's set-up: wrap with this run's h_rate, list
+        with the springs handed over, forces without spring increment). Returns the set-up stress
+        (2, 2), compression positive."""
+        nsteps = as_int(nsteps, "nsteps", 1)
         if not self._sheared:
             if not isinstance(loading, (Loading, PrescribedBox)):
                 raise InputError(
                     "loading: expected a Loading or a PrescribedBox (the orthogonal cell), got "
                     f"{type(loading).__name__}"
                 )
-            nsteps = as_int(nsteps, "nsteps", 1)
             self._run = (loading, self.step, self.step + nsteps, (self.lo.copy(), self.hi.copy()))
             return self.stress.copy()
-        if not isinstance(loading, ShearLoading):
-            raise InputError(f"loading: expected a ShearLoading (the sheared cell), got {type(loading).__name__}")
-        nsteps = as_int(nsteps, "nsteps", 1)
-        other = [
-            f"{k} = {getattr(loading, k)!r}"
-            for k, plain in (("x_erate", 0.0), ("remap", "v"))
-            if getattr(loading, k, plain) != plain
-        ] + ([f"y = {loading.y!r}"] if loading.y not in ("fixed", "servo") else [])
-        if other:
-            raise InputError(
-                f"loading: the fast ordering's sheared cell runs xy shear with y fixed or under the servo "
-                f"and remap v; got {', '.join(other)} (run it in the code order)"
-            )
-        if not self._lmp and (loading.moves_tilt or loading.y != "fixed"):
-            raise InputError("flavour 'liggghts': only a fixed box (xy erate 0, y fixed) is supported")
-        begin = self.step
-        end = begin + nsteps
-        delt = float(end - begin) * self.settings.dt
-        b = self.box
-        tilt0 = float(b[4])
-        if loading.xy == "trate" and tilt0 == 0.0:
-            raise InputError(
-                "loading: xy trate on a cell without tilt (the tilt grows as xy0 exp(rate t); "
-                "LAMMPS stops too: 'Cannot use fix deform trate on a box with zero tilt')"
-            )
-        stop = tilt_stop(loading.xy, loading.value, tilt0, float(b[3] - b[1]), delt)
-        self.h_rate[:] = 0.0
-        if not loading.moves_tilt:
-            style = SK.XY_NONE
-        elif loading.xy == "trate":
-            style = SK.XY_TRATE
-        else:
-            style = SK.XY_LINEAR
-            self.h_rate[2] = (stop - tilt0) / delt
-        self._run = {
-            "begin": begin, "end": end, "style": style, "tilt_start": tilt0, "tilt_stop": stop,
-            "y_lo": float(b[1]), "y_hi": float(b[3]), "ly0": float(b[3] - b[1]), "loading": loading,
-        }  # fmt: skip
-        self._rebuild(carry=True)
-        self._forces(update=False)
-        self._reset_energy_budget()  # the divergence check's balance starts with the run
+        holder = _RunHolder()  # ShearedCell.start_run keeps its run on the cell: here, on this holder
+        self._run = ShearedCell.start_run(holder, self, loading, nsteps)
         return self.stress.copy()
-
-    def _deform(self):
-        """The :data:`gransim.dem.sheared_kernels.Deform` of the current run (as the code order's
-        sheared cell makes it, ShearedCell.drive)."""
-        run = self._run
-        ld = run["loading"]
-        s = self.settings
-        return SK.Deform(
-            int(run["begin"]), int(run["end"]), int(ld.every), int(run["style"]), float(run["tilt_start"]),
-            float(run["tilt_stop"]), float(ld.value), ld.y == "servo", float(run["y_lo"]), float(run["y_hi"]),
-            float(run["ly0"]), s.dt * ld.gain, float(ld.gain), float(ld.target),
-        )  # fmt: skip
 
     def _advance_sheared(self, nsteps) -> dict:
         if self._run is None:
             raise InputError("advance: call start_run(loading, nsteps) first (the fix deform of the run)")
         run = self._run
-        nsteps = as_int(
-            nsteps,
-            "nsteps",
-            0,
-            run["end"] - self.step,
-            note=f" (the run ends at step {run['end']}, now at step {self.step})",
-        )
+        note = f" (the run ends at step {run.end}, now at step {self.step})"
+        nsteps = as_int(nsteps, "nsteps", 0, run.end - self.step, note=note)
         first = self.step
 
-        out = self._steps(self._deform(), nsteps, self._check_sheared)
+        out = self._steps(deform_of(run, self.settings.dt), nsteps, self._check_sheared)
         area = out[:, 7] * out[:, 8]
         st = np.empty((nsteps, 2, 2))
         st[:, 0, 0] = out[:, 0] / area
@@ -820,10 +770,10 @@ class FastEngine:
         c = self._cell
         if self._sheared:
             out.update({"box": self.box, "box_hold": c.box_hold, "h_rate": self.h_rate, "corners_hold": c.corners_hold})
-            if self._run is not None:
-                run = {k: v for k, v in self._run.items() if k != "loading"}
-                run["loading"] = self._run["loading"].to_dict()
-                out["run_json"] = np.frombuffer(json.dumps(run, sort_keys=True).encode(), np.uint8)
+            if self._run is not None:  # the numbers of the run (as the code order's) and its loading
+                out["run"] = np.array(self._run[:_RUN_NUMBERS], np.float64)
+                text = json.dumps(self._run.loading.to_dict(), sort_keys=True)
+                out["run_loading_json"] = np.frombuffer(text.encode(), np.uint8)
         else:
             out.update({"box_lo": self.lo, "box_hi": self.hi, "box_lo_hold": c.lo_hold, "box_hi_hold": c.hi_hold})
         return {k: np.array(v) for k, v in out.items()}
@@ -877,10 +827,13 @@ class FastEngine:
             self.h_rate[:] = np.asarray(got["h_rate"], np.float64).reshape(3)
             c.corners_hold[:] = np.asarray(got["corners_hold"], np.float64).reshape(8, 2)
             self._run = None
-            if "run_json" in got:
-                run = json.loads(np.asarray(got["run_json"], np.uint8).tobytes().decode())
-                run["loading"] = ShearLoading(**run["loading"])
-                self._run = run
+            if "run" in got:
+                r = np.asarray(got["run"], np.float64).reshape(_RUN_NUMBERS)
+                loading = arrays.get("loading")
+                if not isinstance(loading, ShearLoading):
+                    text = np.asarray(got["run_loading_json"], np.uint8).tobytes().decode()
+                    loading = ShearLoading(**json.loads(text))
+                self._run = _ShearRun(int(r[0]), int(r[1]), int(r[2]), *(float(v) for v in r[3:]), loading)
         else:
             self.lo[:] = np.asarray(got["box_lo"], np.float64).reshape(2)
             self.hi[:] = np.asarray(got["box_hi"], np.float64).reshape(2)

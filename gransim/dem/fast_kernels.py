@@ -47,20 +47,23 @@ from . import sheared_kernels as SK
 # ------------------------------------------------------------------------------- the cells
 # The image of the cell in the force loop, a plain tuple of floats: (Lx, Ly) for an orthogonal
 # cell, the image of j with shift s at x_j + (s_x Lx, s_y Ly) moving with v_j (``fix deform ...
-# remap x``); (Lx, Ly, xy, ux, uy) for a sheared (LAMMPS triclinic) cell, the tilt xy (m) and the
-# velocity jump across the y boundary ux = h_rate[5], uy = h_rate[1] (m/s): the image at
-# x_j + s_x (Lx, 0) + s_y (xy, Ly) moving with v_j + s_y (ux, uy) (Lees-Edwards, ``remap v``).
+# remap x``); (Lx, Ly, xy, ux, uy, wx) for a sheared (LAMMPS triclinic) cell, the tilt xy (m) and
+# the velocity jumps across the y boundary ux = h_rate[5], uy = h_rate[1] and across the x boundary
+# wx = h_rate[0] (m/s): the image at x_j + s_x (Lx, 0) + s_y (xy, Ly) moving with
+# v_j + s_x (wx, 0) + s_y (ux, uy) (Lees-Edwards, ``remap v``; all zero with ``remap x``).
 # Its length picks the arithmetic at compile time.
 
 
 def image(img, xj, yj, vxj, vyj, sx, sy):
     """Position and velocity of the image (s_x, s_y) of a particle at (xj, yj) moving with
-    (vxj, vyj) in the cell ``img`` ((Lx, Ly) or (Lx, Ly, xy, ux, uy), above): (x, y, vx, vy) in m
-    and m/s, in the operation order of :func:`gransim.dem.kernels.tilted_image` (x_j + s_x Lx,
-    then + s_y xy). Interpreted fallback of the overload."""
+    (vxj, vyj) in the cell ``img`` ((Lx, Ly) or (Lx, Ly, xy, ux, uy, wx), above): (x, y, vx, vy)
+    in m and m/s, in the operation order of :func:`gransim.dem.kernels.tilted_image` and
+    ``image_velocity`` (x_j + s_x Lx, then + s_y xy). Interpreted fallback of the overload."""
     if len(img) == 2:
         return xj + sx * img[0], yj + sy * img[1], vxj, vyj
-    return (xj + sx * img[0]) + sy * img[2], yj + sy * img[1], vxj + sy * img[3], vyj + sy * img[4]
+    return (
+        (xj + sx * img[0]) + sy * img[2], yj + sy * img[1], (vxj + sx * img[5]) + sy * img[3], vyj + sy * img[4]
+    )  # fmt: skip
 
 
 def _kind(ty):
@@ -76,10 +79,13 @@ def _ov_image(img, xj, yj, vxj, vyj, sx, sy):
             return xj + sx * img[0], yj + sy * img[1], vxj, vyj
 
         return ortho
-    if n == 5:
+    if n == 6:
 
         def tilted(img, xj, yj, vxj, vyj, sx, sy):
-            return (xj + sx * img[0]) + sy * img[2], yj + sy * img[1], vxj + sy * img[3], vyj + sy * img[4]
+            return (
+                (xj + sx * img[0]) + sy * img[2], yj + sy * img[1], (vxj + sx * img[5]) + sy * img[3],
+                vyj + sy * img[4],
+            )  # fmt: skip
 
         return tilted
     return None
@@ -289,13 +295,17 @@ def integrate_v(
     hi_old,
     lo_new,
     hi_new,
+    xy_old,
+    xy_new,
     deltasq,
     red,
 ):
-    """The fused pass, band by band: [final half step (v, w) and its kinetic energy] [remap x
-    affinely from box (lo_old, hi_old) to (lo_new, hi_new)] [first half step, position update,
-    rebuild test |x - x_hold|^2 > deltasq, forces zeroed]. ``red[c]`` = (kinetic energy (J),
-    rebuild flag, first non-finite particle + 1 or 0).
+    """The fused pass, band by band: [final half step (v, w) and its kinetic energy] [positions
+    mapped affinely from the box (lo_old, hi_old) to (lo_new, hi_new): ``remap`` 1, per axis as
+    :func:`gransim.dem.kernels.remap_x`; 2, through lamda in the sheared boxes of tilts xy_old,
+    xy_new (m) as :func:`gransim.dem.sheared_kernels.remap_positions`; 0, not] [first half step,
+    position update, rebuild test |x - x_hold|^2 > deltasq, forces zeroed]. ``red[c]`` = (kinetic
+    energy (J), rebuild flag, first non-finite particle + 1 or 0).
 
     Written as SIMD code: per block of :data:`SIMD_BLOCK` particles one loop whose only
     reductions are integer ones (the rebuild flag, a non-finite flag), the kinetic energies into a
@@ -315,6 +325,7 @@ def integrate_v(
     loy = lo_old[1]
     lnx = lo_new[0]
     lny = lo_new[1]
+    i5 = -xy_old / ((hi_old[0] - lo_old[0]) * (hi_old[1] - lo_old[1]))
     ntask = nch if parallel else 1
     nper = 1 if parallel else nch
     for h in prange(ntask):
@@ -345,9 +356,16 @@ def integrate_v(
                     bke[q] = kei
                     px = x[i]
                     py = y[i]
-                    if remap:
+                    if remap == 1:
                         px = Hx * (hx * (px - lox)) + lnx
                         py = Hy * (hy * (py - loy)) + lny
+                    elif remap == 2:
+                        d0 = px - lox
+                        d1 = py - loy
+                        l0 = hx * d0 + i5 * d1
+                        l1 = hy * d1
+                        px = ((Hx * l0 + xy_new * l1) + 0.0) + lnx
+                        py = (Hy * l1 + 0.0) + lny
                     if initial:
                         a += dtfm * fx[i]
                         bv += dtfm * fy[i]
@@ -408,7 +426,7 @@ OUT_COLUMNS = 12
 # rebuild margin, its change at the end of a step and the box columns of the output rows. Each
 # Python function below is the interpreted fallback (NUMBA_DISABLE_JIT) of its overload.
 def cell_image(cell):
-    """The image tuple of the force loop ((Lx, Ly) or (Lx, Ly, xy, ux, uy), :func:`image`) for the
+    """The image tuple of the force loop ((Lx, Ly) or (Lx, Ly, xy, ux, uy, wx), :func:`image`) for the
     current box of ``cell``."""
     if isinstance(cell, OrthoCell):
         return _ortho_image(cell)
@@ -426,8 +444,9 @@ def cell_deltasq(cell, skin, clamp, corners):
 def cell_end_of_step(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp):
     """The box of step ``step`` from the loading ``ctl`` and the virial ``vir`` (4,) of the step:
     :func:`_ortho_end`, :func:`_tilted_end`. Returns (status, remap): status 0, or 3 for a collapsed
-    cell (or, sheared, a tilt past Lx/2); remap True when the positions are to be mapped affinely
-    from (lo_old, hi_old) to (lo_new, hi_new) (written)."""
+    cell (or, sheared, a tilt past Lx/2); remap the mode of :func:`integrate_v` (0 none, 1 per axis,
+    2 through lamda) with the boxes (lo_old, hi_old) and (lo_new, hi_new) written, and for mode 2
+    the tilts tmp[0, 0] (old) and tmp[0, 1] (new)."""
     if isinstance(cell, OrthoCell):
         return _ortho_end(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp)
     return _tilted_end(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp)
@@ -449,7 +468,7 @@ def _ortho_image(cell):
 @njit(inline="always")
 def _tilted_image(cell):
     b = cell.box
-    return (b[2] - b[0], b[3] - b[1], b[4], cell.hr[2], cell.hr[1])
+    return (b[2] - b[0], b[3] - b[1], b[4], cell.hr[2], cell.hr[1], cell.hr[0])
 
 
 @njit(inline="always")
@@ -525,21 +544,34 @@ def _ortho_end(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp):
             remap = True
     if remap:
         if not (hi_new[0] - lo_new[0] > 0.0 and hi_new[1] - lo_new[1] > 0.0):
-            return 3, False
+            return 3, 0
         for d in range(2):
             lo[d] = lo_new[d]
             hi[d] = hi_new[d]
-    return 0, remap
+        return 0, 1
+    return 0, 0
 
 
 @njit(inline="always")
 def _tilted_end(cell, ctl, step, vir, dt, lo_old, hi_old, lo_new, hi_new, tmp):
-    # fix deform end_of_step on the steps that are multiples of its N (``remap v``: positions
-    # are not mapped, the image velocities jump instead; sheared_kernels.deform_end_of_step)
+    # fix deform end_of_step on the steps that are multiples of its N
+    # (sheared_kernels.deform_end_of_step): with ``remap v`` the positions are not mapped, the
+    # image velocities jump instead; with ``remap x`` every position follows the box through lamda
     if step % ctl.every == 0:
-        if not SK.deform_end_of_step(step, ctl, cell.box, cell.hr, vir, dt):
-            return 3, False
-    return 0, False
+        b = cell.box
+        tmp[0, 0] = b[4]
+        for d in range(2):
+            lo_old[d] = b[d]
+            hi_old[d] = b[2 + d]
+        if not SK.deform_end_of_step(step, ctl, b, cell.hr, vir, dt):
+            return 3, 0
+        if ctl.remap_x:
+            tmp[0, 1] = b[4]
+            for d in range(2):
+                lo_new[d] = b[d]
+                hi_new[d] = b[2 + d]
+            return 0, 2
+    return 0, 0
 
 
 @njit(inline="always")
@@ -632,7 +664,7 @@ def run_steps(parallel, p, nl, cell, ctl, law, dt, skin, clamp, sc, out, step0, 
         dsq = cell_deltasq(cell, skin, clamp, corners)
         integrate_v(
             parallel, cstart, x, y, vx, vy, w, fx, fy, t, m, r, xh, yh, dt,
-            False, True, False, lo_old, hi_old, lo_new, hi_new, dsq, red,
+            False, True, 0, lo_old, hi_old, lo_new, hi_new, 0.0, 0.0, dsq, red,
         )  # fmt: skip
         st = _status(red, nch)
         if st != 0:
@@ -657,7 +689,7 @@ def run_steps(parallel, p, nl, cell, ctl, law, dt, skin, clamp, sc, out, step0, 
         dsq = cell_deltasq(cell, skin, clamp, corners)
         integrate_v(
             parallel, cstart, x, y, vx, vy, w, fx, fy, t, m, r, xh, yh, dt,
-            True, not last, remap, lo_old, hi_old, lo_new, hi_new, dsq, red,
+            True, not last, remap, lo_old, hi_old, lo_new, hi_new, tmp[0, 0], tmp[0, 1], dsq, red,
         )  # fmt: skip
         ke = 0.0
         for c in range(nch):
@@ -716,8 +748,9 @@ def wrap_tilted(x, y, vx, vy, box, hr, vremap):
     """Domain::pbc of the sheared cell ``box`` (5,) = (lo_x, lo_y, hi_x, hi_y, xy) m: a particle
     below lo_y moves by a2 = (xy, Ly), above hi_y by -a2, with its velocity changed by
     +/-(h_rate[5], h_rate[1]) when ``vremap`` (Lees-Edwards: the peculiar velocity is kept;
-    ``hr`` (3,) = (h_rate[0], h_rate[1], h_rate[5]) m/s); then along x by +/-a1 = (Lx, 0) when its
-    offset from the cell's left edge, (x - lo_x) - (xy/Ly)(y - lo_y), is outside [0, Lx). Returns
+    ``hr`` (3,) = (h_rate[0], h_rate[1], h_rate[5]) m/s); then along x by +/-a1 = (Lx, 0), its x
+    velocity by +/-h_rate[0], when its offset from the cell's left edge, (x - lo_x) - (xy/Ly)
+    (y - lo_y), is outside [0, Lx). Returns
     a particle still outside after one wrap (sorted index) or -1."""
     lx = box[0]
     ly = box[1]
@@ -743,8 +776,12 @@ def wrap_tilted(x, y, vx, vy, box, hr, vremap):
         off = (x[i] - lx) - tl * (y[i] - ly)
         if off < 0.0:
             x[i] += Lx
+            if vremap:
+                vx[i] += hr[0]
         elif off >= Lx:
             x[i] -= Lx
+            if vremap:
+                vx[i] -= hr[0]
         off = (x[i] - lx) - tl * (y[i] - ly)
         if bad < 0 and not (0.0 <= off < Lx and ly <= y[i] < box[3]):
             bad = i

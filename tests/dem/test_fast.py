@@ -453,7 +453,7 @@ def test_the_force_kernel_is_compiled_to_simd_code(cell):
     s = DEMSettings(**{**S.to_dict(), "flavour": "lammps"}) if cell == "sheared" else S
     fe = FastEngine(p, s, cell=cell)
     img = fe._image()
-    assert len(img) == (5 if cell == "sheared" else 2)
+    assert len(img) == (6 if cell == "sheared" else 2)
     with fe._kernels():
         p = fe.ps
         k(False, fe._cstart, fe._start, fe._ni, fe._nj, fe._code, fe._hist[0], fe._hist[1], p.x, p.y, p.vx, p.vy,
