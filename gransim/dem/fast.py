@@ -1,6 +1,7 @@
 """The fast ordering of the DEM: the physics of :class:`gransim.dem.engine.Engine` (its orthogonal
-cell and its sheared cell with Lees-Edwards images) with any registered contact law that offers a
-branch-free block path, in an order chosen for speed, not for bitwise agreement with LIGGGHTS or
+cell and its sheared cell under any upper-triangular velocity gradient, ``remap v`` with
+Lees-Edwards images or ``remap x``) with any registered contact law that offers a branch-free
+block path, in an order chosen for speed, not for bitwise agreement with LIGGGHTS or
 LAMMPS (docs/performance.md).
 
 What is reordered, and what it changes:
@@ -15,8 +16,9 @@ What is reordered, and what it changes:
   i and its torque);
 * the contact law's block path (``LawSpec.select``, :func:`gransim.contacts.laws.pair_select`:
   the same function the code order's SIMD loops run), every entry evaluated and masked;
-* one fused pass per step: second half step, box remap, first half step of the next step,
-  position update, rebuild test and forces zeroed;
+* one fused pass per step: second half step, box remap (per axis, or through lamda in the
+  sheared cell with ``remap x``), first half step of the next step, position update, rebuild test
+  and forces zeroed;
 * the list rebuilt in place into buffers that are reused and grown only when needed; at a
   rebuild the old list survives only as the compact table of its non-zero springs (the
   history hand-over);
@@ -32,7 +34,8 @@ order itself (tests/dem/test_fast.py, test_fast_backend.py).
 What is the code order's, unchanged: the step (nve/sphere), the box of every step (the loadings
 of :class:`~gransim.dem.Loading` with fixed, rate and servo axes through
 :func:`gransim.dem.kernels.box_target`, a :class:`~gransim.dem.PrescribedBox`, or the sheared
-cell's ``fix deform`` through :func:`gransim.dem.sheared_kernels.deform_end_of_step`), the
+cell's ``fix deform``, begun by :meth:`gransim.dem.sheared.ShearedCell.start_run` and stepped by
+:func:`gransim.dem.sheared_kernels.deform_end_of_step`), the
 rebuild rule of the flavour (``DEMSettings.flavour``: LAMMPS clamps a negative margin at zero,
 LIGGGHTS squares it; the sheared cell in LAMMPS' arithmetic takes the margin from the 8 box
 corners), the hand-over of the springs (pairs that overlap at the build keep a spring that is not
