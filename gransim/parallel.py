@@ -1,7 +1,7 @@
 """One executor for the Gauss points of the FE2 slope, the RVE studies and sweeps: in process or Dask.
 
 ``make_executor()`` (in process, the default), ``make_executor(workers=N)`` (a ``dask.distributed``
-LocalCluster of N worker processes, one thread each, no dashboard) or
+LocalCluster of N worker processes, one thread each, no dashboard, its HTTP routes on a free local port) or
 ``make_executor(scheduler="tcp://host:port")`` (an existing cluster). Every executor offers
 
 * ``map(fn, items)``: stateless tasks, results in the order of ``items`` (``gransim rve-study``,
@@ -307,8 +307,11 @@ class DaskExecutor:
             except (OSError, TimeoutError) as exc:
                 raise InputError(f"--scheduler: cannot reach a Dask scheduler at {scheduler!r} ({exc})") from None
         else:
+            # the scheduler's HTTP server (health and metrics routes; no dashboard without bokeh)
+            # listens even with dashboard_address=None, on 8787 unless told: a free local port
+            # instead, so that another Dask cluster on this machine neither clashes nor makes a warning
             self.cluster = LocalCluster(
-                n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=None
+                n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0"
             )
             self.client = Client(self.cluster)
             self.client.wait_for_workers(int(workers), timeout=timeout)
