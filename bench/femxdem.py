@@ -1,6 +1,8 @@
 """Benchmark of FEM x DEM (``gransim femxdem --rve dem``): the RVE call, and where a run's time goes.
 
-``python -m bench.femxdem [--full] [--calls 60] [--workers 2] [--steps K] [--base REV] [--skip-run]``
+``python -m bench.femxdem [--full] [--calls 60] [--workers 2] [--steps K] [--skip-run]``,
+``python -m bench.femxdem --base REV [--windows 12] [--window 10] [--iterates 1]``,
+``python -m bench.femxdem --tangent-study H,H,... [--steps 40]``
 
 1. **The RVE call** (in this process, compilation excluded: a warm-up call first). Guo & Zhao's
    400-disk RVE (the prepared state of ``gransim/fem/data/guo_zhao_rve.h5``) driven by a chain of
@@ -31,7 +33,6 @@
    ratio base/head of the wall time, i.e. the speed-up, with its range, and the same of the CPU
    time (``time.process_time``: on a loaded machine the wall time also counts the time the process
    waited for a core).
-
 4. ``--tangent-study H,H,...``: Newton iterations and CPU time of ``--steps`` (default 40) load
    steps on a 1 x 1 mesh in process with the contact-stiffness tangent (h = 0) and with a
    central-difference tangent of perturbation h (:func:`perturbation_law`), ``--max-iter 100``.
@@ -490,8 +491,8 @@ def main(argv=None) -> int:
         "central-difference tangent (0: the contact-stiffness tangent)",
     )
     ap.add_argument("--iterates", type=int, default=1, help="part 3: calls from each committed state (Newton iterates)")
-    ap.add_argument("--windows", type=int, default=12)
-    ap.add_argument("--window", type=int, default=10)
+    ap.add_argument("--windows", type=int, default=12, help="part 3: windows, alternately A B and B A")
+    ap.add_argument("--window", type=int, default=10, help="part 3: states of the chain per window")
     args = ap.parse_args(argv)
     print(f"load {load()}", flush=True)
     if args.base:
