@@ -159,7 +159,7 @@ def profile(path, steps: int) -> dict:
     for k in range(steps):
         t0 = clock()
         K.initial_integrate(eng.x, eng.v, eng.w, eng.f, eng.t, eng.m, eng.r, s.dt)
-        rebuild, bad = K.check_rebuild(eng.x, eng.xhold, eng.lo, eng.hi, eng.lo_hold, eng.hi_hold, s.skin)
+        rebuild, bad = K.check_rebuild(eng.x, eng.xhold, eng.lo, eng.hi, eng.box.lo_hold, eng.box.hi_hold, s.skin)
         t1 = clock()
         if bad >= 0:
             raise SystemExit(f"profile: particle {bad} not finite")
