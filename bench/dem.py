@@ -33,9 +33,9 @@ Targets (docs/performance.md, "Performance targets and where they stand"): fast 
 LAMMPS serial; bitwise 1 thread >= 1.3 x LAMMPS serial; fast 2 threads >= 1.8 x fast 1 thread; the
 fast order's sheared cell (``sheared_assembly``, 99,960 disks) >= 0.9 x its orthogonal cell and on
 2 threads >= 1.75 x 1 thread; ns per particle-step flat within 20% from 1e3 to 1e6; fast peak
-above baseline <= 0.6 x LAMMPS serial at 1e6. Also "a core taken": fast and bitwise on 2 threads while a spinning process (started and
-stopped here) holds one core, against 1 thread under the same condition; and a profile at 1e5 disks
-(native phases and the codes' own tables).
+above baseline <= 0.6 x LAMMPS serial at 1e6. Also "a core taken": fast and bitwise on 2 threads
+while a spinning process (started and stopped here) holds one core, against 1 thread under the
+same condition; and a profile at 1e5 disks (native phases and the codes' own tables).
 
 Assembly: jittered triangular lattice of polydisperse disks overlapping ~8% of a radius
 (coordination ~4.9, gransim.dem.lattice) relaxing in a fixed periodic box (sizes are the nearest
