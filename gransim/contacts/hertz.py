@@ -70,7 +70,7 @@ from .granular import (  # noqa: F401
     damp_normal,
     spring_dashpot_slider,
 )
-from .laws import as_law_float, deck_float, lightest_pair_mass, register_law
+from .laws import as_law_float, deck_float, lightest_pair_mass, register_law, spring_pair
 from .material import LIGGGHTS_YOUNGS_SI, HertzLiggghts, HertzMaterialLammps
 
 #: floats of per-contact history of every law in this module (the tangential spring xi, m)
@@ -394,103 +394,13 @@ HertzGranularLammps = namedtuple(
 )
 
 
-@njit(inline="always")
-def hertz_pair_liggghts(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-    """Pair function of :class:`HertzHistoryLiggghts` (spring in ``hist[e, 0:2]``)."""
-    fx, fy, ti, tj, s0, s1, sl, fn = hertz_history_liggghts(
-        delx,
-        dely,
-        rsq,
-        radi,
-        radj,
-        vix,
-        viy,
-        vjx,
-        vjy,
-        wi,
-        wj,
-        mi,
-        mj,
-        law.yeff,
-        law.geff,
-        law.betaeff,
-        law.tdamp,
-        law.mu,
-        dt,
-        hist[e, 0],
-        hist[e, 1],
-        update,
-    )
-    hist[e, 0] = s0
-    hist[e, 1] = s1
-    return fx, fy, ti, tj, sl, fn
-
-
-@njit(inline="always")
-def hertz_pair_lammps(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-    """Pair function of :class:`HertzHistoryLammps`."""
-    fx, fy, ti, tj, s0, s1, sl, fn = hertz_history_lammps(
-        delx,
-        dely,
-        rsq,
-        radi,
-        radj,
-        vix,
-        viy,
-        vjx,
-        vjy,
-        wi,
-        wj,
-        mi,
-        mj,
-        law.kn,
-        law.kt,
-        law.gamma_n,
-        law.gamma_t,
-        law.mu,
-        dt,
-        hist[e, 0],
-        hist[e, 1],
-        update,
-    )
-    hist[e, 0] = s0
-    hist[e, 1] = s1
-    return fx, fy, ti, tj, sl, fn
-
-
-@njit(inline="always")
-def hertz_pair_granular_lammps(
-    law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update
-):
-    """Pair function of :class:`HertzGranularLammps`."""
-    fx, fy, ti, tj, s0, s1, sl, fn = hertz_mindlin_granular_lammps(
-        delx,
-        dely,
-        rsq,
-        radi,
-        radj,
-        vix,
-        viy,
-        vjx,
-        vjy,
-        wi,
-        wj,
-        mi,
-        mj,
-        law.E,
-        law.damp,
-        law.kt0,
-        law.gammat_ratio,
-        law.mu,
-        law.damping,
-        dt,
-        hist[e, 0],
-        hist[e, 1],
-        update,
-    )
-    hist[e, 0] = s0
-    hist[e, 1] = s1
-    return fx, fy, ti, tj, sl, fn
+#: pair functions of the Hertz laws (:func:`gransim.contacts.laws.spring_pair`: the spring in
+#: ``hist[e, 0:2]``): LIGGGHTS' with yeff, geff, betaeff, tdamp, mu; LAMMPS' gran/hertz/history with
+#: kn, kt, gamma_n, gamma_t, mu; LAMMPS' granular hertz/material with E, damp, kt0, gammat_ratio,
+#: mu, damping (the namedtuples' first fields, in the order of the functions' parameters)
+hertz_pair_liggghts = spring_pair(hertz_history_liggghts, 5)
+hertz_pair_lammps = spring_pair(hertz_history_lammps, 5)
+hertz_pair_granular_lammps = spring_pair(hertz_mindlin_granular_lammps, 6)
 
 
 @njit(inline="always")

@@ -34,7 +34,7 @@ from .._numba import njit
 from .._validate import as_positive_float
 from ..errors import InputError
 from .law import force_magnitude
-from .laws import deck_float, lightest_pair_mass, register_law
+from .laws import deck_float, lightest_pair_mass, register_law, spring_pair, spring_select
 
 
 @njit(inline="always")
@@ -461,68 +461,11 @@ def hooke_law(kn, kt, gamma_n, gamma_t, mu, flavour: str = "liggghts"):
     )
 
 
-@njit(inline="always")
-def hooke_pair_liggghts(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-    """Pair function of :class:`HookeLiggghts` (:func:`hooke_history`; spring in ``hist[e, 0:2]``)."""
-    fx, fy, ti, tj, s0, s1, sl, fn = hooke_history(
-        delx,
-        dely,
-        rsq,
-        radi,
-        radj,
-        vix,
-        viy,
-        vjx,
-        vjy,
-        wi,
-        wj,
-        mi,
-        mj,
-        law.kn,
-        law.kt,
-        law.gamma_n,
-        law.gamma_t,
-        law.mu,
-        dt,
-        hist[e, 0],
-        hist[e, 1],
-        update,
-    )
-    hist[e, 0] = s0
-    hist[e, 1] = s1
-    return fx, fy, ti, tj, sl, fn
-
-
-@njit(inline="always")
-def hooke_pair_lammps(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-    """Pair function of :class:`HookeLammps` (:func:`hooke_history_lammps`)."""
-    fx, fy, ti, tj, s0, s1, sl, fn = hooke_history_lammps(
-        delx,
-        dely,
-        rsq,
-        radi,
-        radj,
-        vix,
-        viy,
-        vjx,
-        vjy,
-        wi,
-        wj,
-        mi,
-        mj,
-        law.kn,
-        law.kt,
-        law.gamma_n,
-        law.gamma_t,
-        law.mu,
-        dt,
-        hist[e, 0],
-        hist[e, 1],
-        update,
-    )
-    hist[e, 0] = s0
-    hist[e, 1] = s1
-    return fx, fy, ti, tj, sl, fn
+#: pair functions of the two Hooke laws (:func:`gransim.contacts.laws.spring_pair`: the spring in
+#: ``hist[e, 0:2]``), :func:`hooke_history` and :func:`hooke_history_lammps` with kn, kt, gamma_n,
+#: gamma_t, mu
+hooke_pair_liggghts = spring_pair(hooke_history, 5)
+hooke_pair_lammps = spring_pair(hooke_history_lammps, 5)
 
 
 @njit(inline="always")
@@ -542,22 +485,10 @@ def hooke_energy(law, overlap, hist, radi=None, radj=None) -> float:
     return float(0.5 * law.kn * np.sum(overlap**2) + 0.5 * law.kt * np.sum(hist[:, :2] ** 2))
 
 
-@njit(inline="always")
-def hooke_block_liggghts(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
-    """Block path of :class:`HookeLiggghts` (:func:`hooke_select_liggghts` with the law's parameters)."""
-    return hooke_select_liggghts(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, s0, s1, update,
-    )  # fmt: skip
-
-
-@njit(inline="always")
-def hooke_block_lammps(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
-    """Block path of :class:`HookeLammps` (:func:`hooke_select_lammps` with the law's parameters)."""
-    return hooke_select_lammps(
-        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
-        law.kn, law.kt, law.gamma_n, law.gamma_t, law.mu, dt, s0, s1, update,
-    )  # fmt: skip
+#: block paths of the two Hooke laws (:func:`gransim.contacts.laws.spring_select`): the branch-free
+#: :func:`hooke_select_liggghts` and :func:`hooke_select_lammps` with the law's parameters
+hooke_block_liggghts = spring_select(hooke_select_liggghts)
+hooke_block_lammps = spring_select(hooke_select_lammps)
 
 
 # ------------------------------------------------------------------ time scale, deck lines, names

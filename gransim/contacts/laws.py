@@ -66,6 +66,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba.extending import overload
 
+from .._numba import njit
 from .._validate import as_positive_float
 from ..errors import InputError
 
@@ -350,6 +351,51 @@ def _ov_pair_select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj
         return fn(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update)
 
     return impl
+
+
+def spring_pair(core, n_params: int):
+    """The pair function of a law whose one-pair arithmetic ``core`` keeps a tangential spring:
+    ``core(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, p_1 .. p_n, dt, s0, s1,
+    update) -> (fx, fy, ti, tj, s0, s1, sliding, fn)`` with p the law's first ``n_params`` (5 or 6)
+    fields, in the order of ``core``'s parameters. The pair function reads the entry's spring from
+    ``hist[e, 0:2]`` and writes the updated one back: one adapter for every such law instead of a
+    copy per law. (Two bodies, as numba inlines no closure that calls with ``*args``.)"""
+    if n_params not in (5, 6):
+        raise InputError(f"spring_pair: 5 or 6 law parameters before dt, got {n_params}")
+    six = n_params == 6
+
+    @njit(inline="always")
+    def pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
+        if six:
+            fx, fy, ti, tj, s0, s1, sliding, fn = core(
+                delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                law[0], law[1], law[2], law[3], law[4], law[5], dt, hist[e, 0], hist[e, 1], update,
+            )  # fmt: skip
+        else:
+            fx, fy, ti, tj, s0, s1, sliding, fn = core(
+                delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                law[0], law[1], law[2], law[3], law[4], dt, hist[e, 0], hist[e, 1], update,
+            )  # fmt: skip
+        hist[e, 0] = s0
+        hist[e, 1] = s1
+        return fx, fy, ti, tj, sliding, fn
+
+    return pair
+
+
+def spring_select(core):
+    """The block path (``LawSpec.select``) of a law of 5 parameters whose branch-free one-pair
+    arithmetic ``core`` takes the 13 pair arguments, the law's fields, dt, the spring s0, s1 and
+    ``update`` (:func:`spring_pair`'s convention, the spring passed in and returned)."""
+
+    @njit(inline="always")
+    def select(law, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, s0, s1, update):
+        return core(
+            delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+            law[0], law[1], law[2], law[3], law[4], dt, s0, s1, update,
+        )  # fmt: skip
+
+    return select
 
 
 def offers_select(law_type) -> bool:
