@@ -255,14 +255,17 @@ def test_steps_sharing_kernels_run_one_after_the_other(own_packing):
 
 def test_law_sets():
     """--laws biaxial keeps every law's biaxial step and drops every law's shear step (make run's
-    suite runs the sheared cell with its default law only); an unknown set is refused."""
+    suite runs the sheared cell with its default law only) and the fast ordering's steps (its case
+    is in the full suite); an unknown set is refused."""
     full = {s.name for s in cmd_warmup.plan("all")}
     run = {s.name for s in cmd_warmup.plan("biaxial")}
     default = {s.name for s in cmd_warmup.plan("default")}
     laws = [name for name, _, _ in cmd_warmup.law_names()]
     assert laws and all(f"biaxial --law {n}" in run for n in laws)
     assert not any(n.startswith("shear --law") for n in run)
-    assert full - run == {n for n in full if n.startswith("shear --law")} != set()
+    fast = {"biaxial --order fast", "shear --order fast"}
+    assert fast <= full and not fast & run
+    assert full - run == {n for n in full if n.startswith("shear --law")} | fast != set()
     assert default < run < full
     with pytest.raises(InputError, match="--laws"):
         cmd_warmup.plan("some")
