@@ -162,6 +162,10 @@ def test_options_are_checked_at_the_boundary(tmp_path):
     o = check_options(_args(out=str(tmp_path / "a"), field_steps="10,1,5", rve_pictures="31,0"))
     assert o["field_steps"] == (1, 5, 10) and o["rve_pictures"] == (0, 31)
     assert check_options(_args(out=str(tmp_path / "b")))["field_steps"] == (10,)  # default: the last
+    # the Newton limit: 25 a step by default, Guo & Zhao's 100 with --full (msFEM2D.py:204), as given
+    assert check_options(_args(out=str(tmp_path / "d"), max_iter=None))["spec"]["max_iter"] == 25
+    assert check_options(_args(out=str(tmp_path / "e"), max_iter=None, full=True))["spec"]["max_iter"] == 100
+    assert check_options(_args(out=str(tmp_path / "f"), max_iter=7, full=True))["spec"]["max_iter"] == 7
     for kw, opt in [
         ({"field_steps": "0"}, "--field-steps"),
         ({"field_steps": "11"}, "--field-steps"),
