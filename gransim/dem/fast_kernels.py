@@ -477,6 +477,10 @@ def _ortho_deltasq(cell, skin, clamp, corners):
     return K.rebuild_deltasq(cell.lo, cell.hi, cell.lo_hold, cell.hi_hold, skin, clamp)
 
 
+#: the triclinic rebuild rule, the code order's (:func:`gransim.dem.sheared_kernels.corner_deltasq`)
+corner_deltasq = SK.corner_deltasq
+
+
 @njit(inline="always")
 def _tilted_deltasq(cell, skin, clamp, corners):
     # LAMMPS (clamp): the triclinic rule of :func:`corner_deltasq`; LIGGGHTS (no clamp, a box that
@@ -486,27 +490,6 @@ def _tilted_deltasq(cell, skin, clamp, corners):
     if not clamp:
         return K.rebuild_deltasq(b[0:2], b[2:4], h[0:2], h[2:4], skin, False)
     return corner_deltasq(b, cell.corners_hold, skin, corners)
-
-
-@njit
-def corner_deltasq(box, corners_hold, skin, corners):
-    """delta^2 (m^2) of LAMMPS' triclinic ``Neighbor::check_distance``: the skin reduced by the
-    largest and the 'second' displacement of the 8 box corners since the build (the if / else-if
-    of :func:`gransim.dem.sheared_kernels.check_rebuild_corners`), clamped at zero; ``corners``
-    (8, 2) scratch."""
-    SK.box_corners(box, corners)
-    d1 = 0.0
-    d2 = 0.0
-    for c in range(8):
-        dx = corners[c, 0] - corners_hold[c, 0]
-        dy = corners[c, 1] - corners_hold[c, 1]
-        d = math.sqrt(dx * dx + dy * dy + 0.0)
-        if d > d1:
-            d1 = d
-        elif d > d2:
-            d2 = d
-    delta = max(0.5 * (skin - (d1 + d2)), 0.0)
-    return delta * delta
 
 
 @njit(inline="always")

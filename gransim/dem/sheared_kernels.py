@@ -145,24 +145,31 @@ def box_corners(box, out):
 
 
 @njit
-def check_rebuild_corners(x, xhold, box, corners_hold, skin):
-    """Neighbor::check_distance of a triclinic box: the skin is reduced by the largest and the
-    'second' displacement of the 8 corners (LAMMPS' if / else-if, kept as it is), trigger
-    |x - x_hold|^2 > (0.5 (skin - (d1 + d2)))^2. Returns (rebuild, non-finite particle or -1)."""
-    cn = np.empty((8, 2))
-    box_corners(box, cn)
+def corner_deltasq(box, corners_hold, skin, corners):
+    """delta^2 (m^2) of LAMMPS' triclinic ``Neighbor::check_distance``: the skin reduced by the
+    largest and the 'second' displacement of the 8 box corners since the build (LAMMPS' if /
+    else-if, kept as it is), clamped at zero; ``corners`` (8, 2) scratch. Both orderings' rule."""
+    box_corners(box, corners)
     d1 = 0.0
     d2 = 0.0
     for c in range(8):
-        dx = cn[c, 0] - corners_hold[c, 0]
-        dy = cn[c, 1] - corners_hold[c, 1]
+        dx = corners[c, 0] - corners_hold[c, 0]
+        dy = corners[c, 1] - corners_hold[c, 1]
         d = math.sqrt(dx * dx + dy * dy + 0.0)
         if d > d1:
             d1 = d
         elif d > d2:
             d2 = d
     delta = max(0.5 * (skin - (d1 + d2)), 0.0)
-    deltasq = delta * delta
+    return delta * delta
+
+
+@njit
+def check_rebuild_corners(x, xhold, box, corners_hold, skin):
+    """Neighbor::check_distance of a triclinic box: the skin is reduced by the largest and the
+    'second' displacement of the 8 corners (LAMMPS' if / else-if, kept as it is), trigger
+    |x - x_hold|^2 > (0.5 (skin - (d1 + d2)))^2. Returns (rebuild, non-finite particle or -1)."""
+    deltasq = corner_deltasq(box, corners_hold, skin, np.empty((8, 2)))
     flag = False
     for i in range(x.shape[0]):
         if not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1])):
