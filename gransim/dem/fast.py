@@ -94,6 +94,28 @@ class _RunHolder:
     run = None
 
 
+def _series(out: np.ndarray, first: int) -> dict:
+    """The per-step series both cells return (``Engine.advance``'s keys) from the step loop's rows
+    ``out`` (n, >= 9): virial xx, yy, xy, yx, contacts, overlap sum, kinetic energy, then the box
+    (Lx, Ly first); ``first`` the step before the first row."""
+    n = out.shape[0]
+    area = out[:, 7] * out[:, 8]
+    st = np.empty((n, 2, 2))
+    st[:, 0, 0] = out[:, 0] / area
+    st[:, 1, 1] = out[:, 1] / area
+    st[:, 0, 1] = out[:, 2] / area
+    st[:, 1, 0] = out[:, 3] / area
+    nc = out[:, 4]
+    return {
+        "step": np.arange(first + 1, first + n + 1),
+        "stress": st,
+        "virial": out[:, :4].copy(),
+        "n_contacts": np.rint(nc).astype(np.int64),
+        "mean_overlap": np.divide(out[:, 5], nc, out=np.zeros(n), where=nc > 0),
+        "kinetic_energy": out[:, 6].copy(),
+    }
+
+
 class FastEngine:
     """State and stepping of a DEM run in the fast ordering (module docstring).
 
@@ -543,22 +565,7 @@ class FastEngine:
         first = self.step
 
         out = self._steps(ctl, nsteps, self._check_orthogonal)
-        area = out[:, 7] * out[:, 8]
-        st = np.empty((nsteps, 2, 2))
-        st[:, 0, 0] = out[:, 0] / area
-        st[:, 1, 1] = out[:, 1] / area
-        st[:, 0, 1] = out[:, 2] / area
-        st[:, 1, 0] = out[:, 3] / area
-        nc = out[:, 4]
-        return {
-            "step": np.arange(first + 1, first + nsteps + 1),
-            "stress": st,
-            "lengths": out[:, 7:9].copy(),
-            "n_contacts": np.rint(nc).astype(np.int64),
-            "mean_overlap": np.divide(out[:, 5], nc, out=np.zeros(nsteps), where=nc > 0),
-            "kinetic_energy": out[:, 6].copy(),
-            "virial": out[:, :4].copy(),
-        }
+        return {**_series(out, first), "lengths": out[:, 7:9].copy()}
 
     def start_run(self, loading, nsteps: int):
         """Begin a run of ``nsteps`` steps under ``loading``, continued by :meth:`advance` ``(k)``
@@ -592,22 +599,7 @@ class FastEngine:
         first = self.step
 
         out = self._steps(deform_of(run, self.settings.dt), nsteps, self._check_sheared)
-        area = out[:, 7] * out[:, 8]
-        st = np.empty((nsteps, 2, 2))
-        st[:, 0, 0] = out[:, 0] / area
-        st[:, 1, 1] = out[:, 1] / area
-        st[:, 0, 1] = out[:, 2] / area
-        st[:, 1, 0] = out[:, 3] / area
-        nc = out[:, 4]
-        return {
-            "step": np.arange(first + 1, first + nsteps + 1),
-            "stress": st,
-            "virial": out[:, :4].copy(),
-            "box": out[:, 7:12].copy(),
-            "n_contacts": np.rint(nc).astype(np.int64),
-            "mean_overlap": np.divide(out[:, 5], nc, out=np.zeros(nsteps), where=nc > 0),
-            "kinetic_energy": out[:, 6].copy(),
-        }
+        return {**_series(out, first), "box": out[:, 7:12].copy()}
 
     # ------------------------------------------------------------------ checks and energies
     def _check_orthogonal(self, out, done: int, k: int, L_before):
