@@ -1,7 +1,7 @@
 """Discrete element engine for 2D disks in a periodic cell (the step order of LIGGGHTS 3.8.0 and LAMMPS
 29 Sep 2021, the contact arithmetic of either: DEMSettings.flavour, docs/lammps.md) and the
-biaxial test of Kuhn (1997), section 4. See docs/dem.md and docs/schema_dem.md; the reordering fast path
-(FastEngine): docs/performance.md."""
+biaxial test of Kuhn (1997), section 4. See docs/dem.md and docs/schema_dem.md; the fast ordering
+(``Engine(..., order="fast")``, ``FastEngine(...)``): docs/performance.md."""
 
 import importlib
 

@@ -207,14 +207,20 @@ class Engine:
     - **arithmetic** (``flavour=``, default ``settings.flavour``): "liggghts" or "lammps", whose
       step order, rebuild rule and law arithmetic the engine reproduces bit for bit
       (docs/lammps.md);
-    - **threads** (orthogonal cell, ``settings.mode`` "parallel"): the same list over numba threads.
+    - **ordering** (``order=``, :data:`ORDERS`): "code", the code's order bit for bit (the
+      cell classes above; the orthogonal cell's list over numba threads with ``settings.mode``
+      "parallel"), or "fast" (:mod:`gransim.dem.fast`: spatially sorted structure of arrays, a
+      half list, banded threads on ``threads``; both cells, the laws with a block path).
 
     Every combination has the divergence check (energy balance, :meth:`_check_energy`), the
     lost-particle check, the energies, :meth:`state_arrays` / :meth:`restore` (checkpoints) and
-    the clean errors. A step's arithmetic lives in the cell's jitted ``run_block``
-    (:func:`gransim.dem.kernels.run_block`, :func:`gransim.dem.sheared_kernels.run_block`); the
-    loop that drives it, the checks and the rebuilds between its blocks are :meth:`_run`, one for
-    every cell.
+    the clean errors. A step's arithmetic lives in the cell's jitted block
+    (:func:`gransim.dem.kernels.run_block`, :func:`gransim.dem.sheared_kernels.run_block`,
+    :func:`gransim.dem.fast_kernels.run_steps`); the loop that drives it, the checks and the
+    rebuilds between its blocks are :meth:`_run`, one for every cell and ordering. What depends
+    on the cell and the ordering (the state's layout, the list, the block, the views) is the
+    object ``cell_ops`` (:class:`OrthogonalCell`, :class:`gransim.dem.sheared.ShearedCell`,
+    :class:`gransim.dem.fast.FastOrthogonalCell`, :class:`gransim.dem.fast.FastShearedCell`).
 
     Parameters
     ----------
@@ -223,19 +229,22 @@ class Engine:
     settings : :class:`~gransim.dem.settings.Integration` (dt, skin, mode, flavour) with a ``law``,
         or :class:`DEMSettings` (the integration and the parameters of its Hooke law).
     velocities : (N, 2) m/s, optional. spins : (N,) rad/s, optional.
-    threads : numba threads of mode "parallel" (None: numba's current count), set around each kernel
-        call and restored afterwards (the orthogonal cell; the sheared cell runs the serial loop).
+    threads : code order: numba threads of mode "parallel" (None: numba's current count), set
+        around each kernel call and restored afterwards (the orthogonal cell; the sheared cell
+        runs the serial loop). Fast order: its threads (None: 1; the results do not depend on them).
     check_dt : refuse a time step above :func:`stability_limit` of the law (at the largest overlap
         after the set-up for a law whose stiffness depends on it: Hertz).
     box : optional box with its own origin, as a data file's ``xlo xhi ylo yhi`` (and ``xy``) lines:
         (lo, hi) or, sheared, (lo, hi, xy); the positions are taken as they are in that box (no
         translation, which would round them). hi - lo must equal the cell's side lengths (1e-12).
 
-    State: ``p`` (:class:`~gransim.dem.kernels.Particles`), ``nb`` (``Neighbours``: list, history of
-    the law's width, CSR, build positions, per-entry outputs), ``sc`` (``Scratch``: the virial),
-    ``box`` (the cell's: :class:`~gransim.dem.kernels.Box` orthogonal, (lo_x, lo_y, hi_x, hi_y, xy)
-    sheared), small namedtuples of arrays updated in place by the kernels (a rebuild replaces
-    ``nb``). After construction (the code's ``run`` set-up: list built, forces without spring
+    State of the code order: ``p`` (:class:`~gransim.dem.kernels.Particles`), ``nb``
+    (``Neighbours``: list, history of the law's width, CSR, build positions, per-entry outputs),
+    ``sc`` (``Scratch``: the virial), ``box`` (the cell's: :class:`~gransim.dem.kernels.Box`
+    orthogonal, (lo_x, lo_y, hi_x, hi_y, xy) sheared), small namedtuples of arrays updated in
+    place by the kernels (a rebuild replaces ``nb``); the fast order's: :mod:`gransim.dem.fast`.
+    The views (x, v, w, f, t, m, r, xhold, ea, eb, xi, ...) are in the packing's particle order in
+    both. After construction (the code's ``run`` set-up: list built, forces without spring
     increment): x, v, w, f, t, step, stress, virial.
     """
 
@@ -252,36 +261,67 @@ class Engine:
         *,
         cell: str = "orthogonal",
         flavour: str | None = None,
+        order: str = "code",
     ):
+        self._prepare(packing, settings, velocities, spins, threads, check_dt, box, law, cell, flavour, order)
+        # the codes' ``run`` set-up: wrap, build (springs zero), forces without spring increment
+        self._rebuild(carry=False)
+        self._forces(update=False)
+        self.stress = self.stress_tensor()
+        self._check_time_step_now()
+        self._reset_energy_budget()
+
+    @classmethod
+    def from_checkpoint(
+        cls,
+        packing: Packing,
+        settings,
+        arrays: dict,
+        step: int,
+        threads: int | None = None,
+        check_dt: bool = True,
+        box=None,
+        law=None,
+        *,
+        cell: str = "orthogonal",
+        flavour: str | None = None,
+        order: str = "code",
+    ) -> Engine:
+        """The engine at a checkpoint (``arrays`` of :meth:`state_arrays` at ``step``) without the
+        run set-up of a new engine (its list build and force evaluation, which :meth:`restore`
+        would overwrite): what a resume and a Gauss point's update start from. The other
+        arguments as for the constructor (the packing, settings, law, cell and ordering of the
+        engine that wrote the checkpoint)."""
+        eng = cls.__new__(cls)
+        eng._prepare(packing, settings, None, None, threads, check_dt, box, law, cell, flavour, order)
+        eng.restore(arrays, step)
+        eng._check_time_step_now()
+        return eng
+
+    def _prepare(self, packing, settings, velocities, spins, threads, check_dt, box, law, cell, flavour, order):
+        """Everything of the constructor but the run set-up: the inputs checked, the law, the
+        cell's state (:attr:`cell_ops`) with the given positions, velocities and spins."""
         check_choice(cell, "cell", CELLS)
+        check_choice(order, "order", ORDERS)
         if not isinstance(packing, Packing):
             raise InputError(f"packing: expected a gransim Packing, got {type(packing).__name__}")
         if not isinstance(settings, (DEMSettings, Integration)):
             raise InputError(f"settings: expected a DEMSettings or an Integration, got {type(settings).__name__}")
         flavour = settings.flavour if flavour is None else flavour
         check_choice(flavour, "flavour", FLAVOURS)
-        if cell == "orthogonal":
-            ops = OrthogonalCell
-        else:
-            from .sheared import ShearedCell  # noqa: PLC0415 - start-up: the sheared kernels
-
-            ops = ShearedCell
+        ops = _cell_class(cell, order)
         ops.check(packing, settings, flavour)
         self.packing = packing
         self.settings = settings
         self.flavour = flavour
+        self.order = order
         # the contact law (gransim.contacts.laws): the Hooke law of DEMSettings unless given
         self._set_law(packing, settings, law, flavour, check_dt)
         ops.check_size(packing, settings)
         n = packing.n
-        r = np.ascontiguousarray(packing.radii, np.float64)
-        # ((pi r) r) rho: the order LIGGGHTS and LAMMPS use reading the data file (Packing.masses
-        # may differ in the last bit)
-        m = np.pi * r * r * float(packing.density)
         x = _state_array(packing.positions, (n, 2), "positions", "m")
         v = np.zeros((n, 2)) if velocities is None else _state_array(velocities, (n, 2), "velocities", "m/s")
         w = np.zeros(n) if spins is None else _state_array(spins, (n,), "spins", "rad/s")
-        self.p = K.Particles(x, v, w, np.zeros((n, 2)), np.zeros(n), m, r)
         self.step = 0
         self.n_contacts = 0
         self.mean_overlap = 0.0
@@ -289,23 +329,7 @@ class Engine:
         self._build_step = 0
         self._failed = ""  # why a rebuild failed (the engine has no list then), or ""
         self._run_drive = None  # the loading of the current run (start_run)
-        self.cell_ops = ops(self, box, threads)
-        self.nb = self.cell_ops.neighbours(
-            self,
-            np.zeros(0, np.int32),
-            np.zeros(0, np.int32),
-            np.zeros(0),
-            np.zeros(0),
-            np.zeros(0, np.bool_),
-            np.zeros((0, self._width)),
-            x.copy(),
-        )
-        # the codes' ``run`` set-up: wrap, build (springs zero), forces without spring increment
-        self._rebuild(carry=False)
-        self._forces(update=False)
-        self.stress = self.stress_tensor()
-        self._check_time_step_now()
-        self._reset_energy_budget()
+        self.cell_ops = ops(self, box, threads, x, v, w)
 
     # ------------------------------------------------------------------ the law
     def _set_law(self, packing: Packing, settings, law, flavour: str, check_dt: bool) -> None:
@@ -335,6 +359,8 @@ class Engine:
             check_time_step(self.packing, self.settings.dt, self.law, float(ov.max()) if ov.size else 0.0)
 
     # ------------------------------------------------------------------ the cell
+    n = property(lambda self: self.packing.n, doc="number of particles")
+
     @property
     def cell_kind(self) -> str:
         """ "orthogonal" or "sheared" (:data:`CELLS`)."""
@@ -429,9 +455,9 @@ class Engine:
         return self._run(drive, nsteps)
 
     def _run(self, drive, nsteps: int) -> dict:
-        """The step loop of every cell: blocks of the cell's jitted ``run_block`` (which stops at a
-        neighbour rebuild, a non-finite position or a collapsed cell), the divergence check over
-        each block's steps, the lost-particle check and the rebuild between blocks."""
+        """The step loop of every cell and ordering: blocks of the cell's jitted block (which stops
+        at a neighbour rebuild, a non-finite position or a collapsed cell), the divergence check
+        over each block's steps, the lost-particle check and the rebuild between blocks."""
         if self._failed:
             raise SimulationError(
                 f"the engine stopped at a failed neighbour build ({self._failed}); restore a "
@@ -457,32 +483,19 @@ class Engine:
                 self.step -= 1
                 resume = True
             elif status == 2:
+                i = ops.particle(self, bad)
                 raise SimulationError(
-                    f"step {self.step + 1}: particle {bad} has a non-finite position "
-                    f"{self.x[bad].tolist()} (velocity {self.v[bad].tolist()})"
+                    f"step {self.step + 1}: particle {i} has a non-finite position "
+                    f"{self.x[i].tolist()} (velocity {self.v[i].tolist()})"
                 )
             elif status == 3:
                 raise SimulationError(f"step {self.step + 1}: {ops.collapse_message(self)}")
-            elif k == 0 and done < nsteps:  # pragma: no cover - run_block always moves or stops
+            elif k == 0 and done < nsteps:  # pragma: no cover - the block always moves or stops
                 raise SimulationError(f"step {self.step + 1}: no progress")
+        series = ops.result(self, out, step_start)
         if nsteps:
-            self.n_contacts = round(out.nc[-1])
-            self.mean_overlap = float(out.ov[-1])
             self.stress = self.stress_tensor()
-        st = np.empty((nsteps, 2, 2))
-        st[:, 0, 0] = out.stress[:, 0]
-        st[:, 1, 1] = out.stress[:, 1]
-        st[:, 0, 1] = out.stress[:, 2]
-        st[:, 1, 0] = out.stress[:, 3]
-        return {
-            "step": np.arange(step_start + 1, step_start + nsteps + 1),
-            "stress": st,
-            "virial": out.vir,
-            "n_contacts": np.rint(out.nc).astype(np.int64),
-            "mean_overlap": out.ov,
-            "kinetic_energy": out.ke,
-            **ops.cell_series(out),
-        }
+        return series
 
     # ------------------------------------------------------------------ energies and checks
     def kinetic_energy(self) -> float:
@@ -496,17 +509,20 @@ class Engine:
         """Energy stored in the touching contacts (J): the law's ``energy`` with each contact's
         overlap, history and radii (:func:`gransim.contacts.laws.elastic_energy`; Hooke: sum 0.5 kn
         overlap^2 + 0.5 kt |xi|^2, Hertz: 8/15 Y* sqrt(R*) delta^(5/2) + k_t(delta) |xi|^2/2, the
-        rolling laws add their rolling spring; docs/laws.md)."""
-        e, ov = self._touching()
-        # in chunks of ENERGY_CHUNK contacts (the law's energy takes gathered (K,) arrays: at 1e6
-        # disks all of them at once were the peak memory of a run); one chunk: the plain sum
-        total = 0.0
-        for k in range(0, e.size, ENERGY_CHUNK):
-            c = e[k : k + ENERGY_CHUNK]
-            total += elastic_energy(
-                self.law, ov[k : k + ENERGY_CHUNK], self.xi[c], self.r[self.ea[c]], self.r[self.eb[c]]
-            )
-        return total
+        rolling laws add their rolling spring; docs/laws.md), in chunks of ENERGY_CHUNK contacts."""
+        return self.cell_ops.elastic_energy(self)
+
+    def peculiar_velocities(self) -> np.ndarray:
+        """Sheared cell: v - u(x) (N, 2) (m/s), u the homogeneous flow of the cell
+        (:meth:`gransim.dem.sheared.ShearedCell.peculiar_velocities`)."""
+        if self.cell_kind != "sheared":
+            raise InputError("peculiar_velocities: the sheared cell's (the orthogonal cell's velocities carry no flow)")
+        return self.cell_ops.peculiar_velocities(self)
+
+    def memory_bytes(self) -> dict:
+        """Bytes held by the state's arrays, by part (the fast order: particles, list, hand-over
+        table, scratch; the code order: particles, list)."""
+        return self.cell_ops.memory_bytes(self)
 
     def _budget_kinetic_energy(self) -> float:
         """The kinetic energy the divergence check bounds (J): that of the velocities relative to the
@@ -564,7 +580,7 @@ class Engine:
     def _check_lost(self):
         """Before a rebuild: a particle that moved more than LOST_DISPLACEMENT_SKINS skins since the
         last build crossed more than a skin in one step (the build rule allows skin/2 in between)."""
-        i, di = K.largest_displacement(self.x, self.xhold)
+        i, di = self.cell_ops.largest_move(self)
         skin = self.settings.skin
         if di > LOST_DISPLACEMENT_SKINS * skin:
             raise SimulationError(
@@ -576,48 +592,159 @@ class Engine:
     # ------------------------------------------------------------------ diagnostics
     def contacts(self):
         """Touching pairs, each once (i < j): dict of i, j, shift (l_ij = x_j + C s - x_i), force on
+        j (N; the code order: applied in the last step; the fast order: the law at the current
+        state, :meth:`gransim.dem.fast.FastCell.contacts`), overlap (m), tangential spring (frame
+        of i; the law's history when its width is 2, else zeros), sliding."""
+        return self.cell_ops.contacts(self)
+
+    def _shifts(self, e=slice(None)) -> np.ndarray:
+        """Image shifts s (K, 2) int64 of the entries ``e`` (default all)."""
+        return self.cell_ops.shifts(self, e)
+
+    eshift = property(lambda self: self._shifts(), doc="image shift s of each entry (M, 2) int64")
+
+    # ------------------------------------------------------------------ checkpoints
+    def state_arrays(self) -> dict:
+        """Everything needed to continue bit for bit (checkpoint), in the layout of the ordering:
+        the code order's :data:`CHECKPOINT` and its cell's datasets
+        (:meth:`CodeOrderCell.state_arrays`), the fast order's sorted state
+        (:meth:`gransim.dem.fast.FastCell.state_arrays`)."""
+        return self.cell_ops.state_arrays(self)
+
+    def restore(self, arrays: dict, step: int):
+        """Inverse of :meth:`state_arrays` on an engine of the same packing, settings, law, cell
+        and ordering: the run continues with the bits of the run that wrote them."""
+        self._build_step = self.cell_ops.restore(self, arrays, int(step))
+        self._failed = ""
+        self.step = int(step)
+        self.stress = self.stress_tensor()
+        self._reset_energy_budget()  # the divergence check's balance starts again at the checkpoint
+
+    # ------------------------------------------------------------------ views of the state
+    # in the packing's particle order; the code order's are its arrays (p, nb), the fast order's
+    # copies from its sorted state
+    def _view(name: str, doc: str):  # noqa: N805 - a helper of the class body
+        return property(lambda self: self.cell_ops.view(self, name), doc=doc)
+
+    x = _view("x", "positions (N, 2), m")
+    v = _view("v", "velocities (N, 2), m/s")
+    w = _view("w", "spins (N,), rad/s")
+    f = _view("f", "forces of the last step (N, 2), N")
+    t = _view("t", "torques of the last step (N,), N m")
+    m = _view("m", "masses (N,), kg")
+    r = _view("r", "radii (N,), m")
+    xhold = _view("xhold", "positions at the last neighbour build (N, 2), m")
+    ea = _view("ea", "first particle of each list entry (M,) int32")
+    eb = _view("eb", "second particle of each list entry (M,) int32")
+    esx = _view("esx", "s_x as float64 (M,)")
+    esy = _view("esy", "s_y as float64 (M,)")
+    both = _view("both", "owned pair (force on both particles) (M,) bool")
+    xi = _view("xi", "per-entry history of the law (M, width); Hooke: the spring, m")
+    slide = _view("slide", "Coulomb cap active at the last stored step (M,) bool")
+    ef = _view("ef", "force on a of each entry at the last stored step (M, 2), N")
+    start = _view("start", "CSR offsets of the entries of each a (N+1,)")
+    del _view
+    virial = property(lambda self: self.sc.vir, doc="virial sums xx, yy, xy, yx of the last step (4,), N m")
+
+
+class CodeOrderCell:
+    """What the code order's cells (:class:`OrthogonalCell`, :class:`gransim.dem.sheared.
+    ShearedCell`) share: the state in the code's layout on the engine, ``p``
+    (:class:`~gransim.dem.kernels.Particles`) and ``nb`` (``Neighbours``: the list with the law's
+    history, CSR offsets, build positions, per-entry outputs), its views, energies, contacts and
+    checkpoints. A cell adds its box (``neighbours``, ``rebuild``, ``forces``, ``block``, ...) and
+    its checkpoint datasets (``cell_arrays``, ``cell_restore``, ``cell_restored``)."""
+
+    order = "code"
+
+    #: view name -> (state object, field)
+    VIEWS = {
+        "x": ("p", "x"), "v": ("p", "v"), "w": ("p", "w"), "f": ("p", "f"), "t": ("p", "t"), "m": ("p", "m"),
+        "r": ("p", "r"), "xhold": ("nb", "xhold"), "ea": ("nb", "a"), "eb": ("nb", "b"), "esx": ("nb", "sx"),
+        "esy": ("nb", "sy"), "both": ("nb", "both"), "xi": ("nb", "hist"), "slide": ("nb", "slide"),
+        "ef": ("nb", "ef"), "start": ("nb", "start"),
+    }  # fmt: skip
+
+    def _init_state(self, eng, x, v, w):
+        """``p`` and an empty ``nb`` (the set-up's build fills it)."""
+        r = np.ascontiguousarray(eng.packing.radii, np.float64)
+        # ((pi r) r) rho: the order LIGGGHTS and LAMMPS use reading the data file (Packing.masses
+        # may differ in the last bit)
+        m = np.pi * r * r * float(eng.packing.density)
+        n = eng.packing.n
+        eng.p = K.Particles(x, v, w, np.zeros((n, 2)), np.zeros(n), m, r)
+        i0 = np.zeros(0, np.int32)
+        eng.nb = self.neighbours(
+            eng, i0, i0.copy(), np.zeros(0), np.zeros(0), np.zeros(0, np.bool_), np.zeros((0, eng._width)), x.copy()
+        )
+
+    def view(self, eng, name: str):
+        obj, field = self.VIEWS[name]
+        return getattr(getattr(eng, obj), field)
+
+    def particle(self, eng, i: int) -> int:
+        """The particle (packing order) of the state's index ``i``: the same."""
+        return int(i)
+
+    def largest_move(self, eng):
+        """(particle, distance (m)) of the largest displacement since the last list build."""
+        i, di = K.largest_displacement(eng.x, eng.xhold)
+        return int(i), float(di)
+
+    def elastic_energy(self, eng) -> float:
+        """:meth:`Engine.elastic_energy` on the code's layout."""
+        e, ov = eng._touching()
+        # in chunks of ENERGY_CHUNK contacts (the law's energy takes gathered (K,) arrays: at 1e6
+        # disks all of them at once were the peak memory of a run); one chunk: the plain sum
+        total = 0.0
+        for k in range(0, e.size, ENERGY_CHUNK):
+            c = e[k : k + ENERGY_CHUNK]
+            total += elastic_energy(eng.law, ov[k : k + ENERGY_CHUNK], eng.xi[c], eng.r[eng.ea[c]], eng.r[eng.eb[c]])
+        return total
+
+    def contacts(self, eng):
+        """Touching pairs, each once (i < j): dict of i, j, shift (l_ij = x_j + C s - x_i), force on
         j applied in the last step (N), overlap (m), tangential spring (frame of i; the law's history
         when its width is 2, else zeros), sliding."""
-        nb = self.nb
-        e, ov = self._touching()
-        spring = nb.hist[e].copy() if self._width == 2 else np.zeros((e.size, 2))
+        nb = eng.nb
+        e, ov = eng._touching()
+        spring = nb.hist[e].copy() if eng._width == 2 else np.zeros((e.size, 2))
         return {
             "i": nb.a[e].astype(np.int64),
             "j": nb.b[e].astype(np.int64),
-            "shift": self._shifts(e),
+            "shift": self.shifts(eng, e),
             "force": -nb.ef[e],
             "overlap": ov,
             "tangential_spring": spring,
             "sliding": nb.slide[e].copy(),
         }
 
-    def _shifts(self, e=slice(None)) -> np.ndarray:
+    def shifts(self, eng, e=slice(None)) -> np.ndarray:
         """Image shifts s (K, 2) int64 of the entries ``e`` (default all), from ``nb.sx, nb.sy``."""
-        out = np.empty((self.nb.sx[e].size, 2), np.int64)
-        out[:, 0] = self.nb.sx[e]
-        out[:, 1] = self.nb.sy[e]
+        out = np.empty((eng.nb.sx[e].size, 2), np.int64)
+        out[:, 0] = eng.nb.sx[e]
+        out[:, 1] = eng.nb.sy[e]
         return out
 
-    eshift = property(lambda self: self._shifts(), doc="image shift s of each entry (M, 2) int64")
-
-    # ------------------------------------------------------------------ checkpoints
-    def state_arrays(self) -> dict:
-        """Everything needed to continue bit for bit (checkpoint): the particles, the list with the
-        law's history, the build positions, the virial (:data:`CHECKPOINT`), and the cell's state
-        (:meth:`OrthogonalCell.state_arrays`, :meth:`gransim.dem.sheared.ShearedCell.state_arrays`)."""
+    def state_arrays(self, eng) -> dict:
+        """Everything needed to continue bit for bit (checkpoint; copies): the particles, the list
+        with the law's history, the build positions, the virial (:data:`CHECKPOINT`), and the cell's state
+        (:meth:`OrthogonalCell.cell_arrays`, :meth:`gransim.dem.sheared.ShearedCell.cell_arrays`)."""
         own = {
-            name: getattr(self if obj == "self" else getattr(self, obj), field)
+            name: getattr(eng if obj == "self" else getattr(eng, obj), field)
             for name, (obj, field, _) in CHECKPOINT.items()
         }
-        return {**own, **self.cell_ops.state_arrays(self)}
+        # copies: a checkpoint does not change when the engine steps on
+        return {k: np.array(v) for k, v in {**own, **self.cell_arrays(eng)}.items()}
 
-    def restore(self, arrays: dict, step: int):
+    def restore(self, eng, arrays: dict, step: int) -> int:
         """Inverse of :meth:`state_arrays`: new state objects from ``arrays`` (the derived arrays of
-        the list, CSR offsets and the threaded loop's incoming CSR, rebuilt from them)."""
+        the list, CSR offsets and the threaded loop's incoming CSR, rebuilt from them); returns the
+        step of the list build (the checkpoint's)."""
         got = {name: np.array(arrays[name], dtype) for name, (_, _, dtype) in CHECKPOINT.items()}
-        n = self.packing.n
-        p = self.p
-        self.p = K.Particles(
+        n = eng.packing.n
+        p = eng.p
+        eng.p = K.Particles(
             got["positions"].reshape(n, 2),
             got["velocities"].reshape(n, 2),
             got["spins"].reshape(n),
@@ -626,51 +753,51 @@ class Engine:
             p.m,
             p.r,
         )
-        self.cell_ops.restore(self, arrays)
+        self.cell_restore(eng, arrays)
         a = got["neighbours/a"].reshape(-1)
         shift = got["neighbours/shift"].reshape(-1, 2)
-        self.nb = self.cell_ops.neighbours(
-            self,
+        eng.nb = self.neighbours(
+            eng,
             a,
             got["neighbours/b"].reshape(-1),
             np.ascontiguousarray(shift[:, 0], np.float64),
             np.ascontiguousarray(shift[:, 1], np.float64),
             got["neighbours/owned_both"].reshape(-1),
-            got["neighbours/xi"].reshape(a.size, self._width),
+            got["neighbours/xi"].reshape(a.size, eng._width),
             got["x_hold"].reshape(n, 2),
         )
-        self.cell_ops.restored(self, arrays)
-        self.sc.vir[:] = got["virial"].reshape(4)
-        self._failed = ""
-        self.step = int(step)
-        self.stress = self.stress_tensor()
-        self._build_step = self.step
-        self._reset_energy_budget()  # the divergence check's balance starts again at the checkpoint
+        self.cell_restored(eng, arrays)
+        eng.sc.vir[:] = got["virial"].reshape(4)
+        return int(step)  # the list was built at the checkpoint's step (its build positions)
 
-    # ------------------------------------------------------------------ views of the state
-    # ``p`` (:class:`~gransim.dem.kernels.Particles`) and ``nb`` (``Neighbours``: the list, the
-    # law's history, CSR, build positions, per-entry outputs)
-    x = property(lambda self: self.p.x, doc="positions (N, 2), m")
-    v = property(lambda self: self.p.v, doc="velocities (N, 2), m/s")
-    w = property(lambda self: self.p.w, doc="spins (N,), rad/s")
-    f = property(lambda self: self.p.f, doc="forces of the last step (N, 2), N")
-    t = property(lambda self: self.p.t, doc="torques of the last step (N,), N m")
-    m = property(lambda self: self.p.m, doc="masses (N,), kg")
-    r = property(lambda self: self.p.r, doc="radii (N,), m")
-    xhold = property(lambda self: self.nb.xhold, doc="positions at the last neighbour build (N, 2), m")
-    ea = property(lambda self: self.nb.a, doc="first particle of each list entry (M,) int32")
-    eb = property(lambda self: self.nb.b, doc="second particle of each list entry (M,) int32")
-    esx = property(lambda self: self.nb.sx, doc="s_x as float64 (M,)")
-    esy = property(lambda self: self.nb.sy, doc="s_y as float64 (M,)")
-    both = property(lambda self: self.nb.both, doc="owned pair (force on both particles) (M,) bool")
-    xi = property(lambda self: self.nb.hist, doc="per-entry history of the law (M, width); Hooke: the spring, m")
-    slide = property(lambda self: self.nb.slide, doc="Coulomb cap active at the last stored step (M,) bool")
-    ef = property(lambda self: self.nb.ef, doc="force on a of each entry at the last stored step (M, 2), N")
-    start = property(lambda self: self.nb.start, doc="CSR offsets of the entries of each a (N+1,)")
-    virial = property(lambda self: self.sc.vir, doc="virial sums xx, yy, xy, yx of the last step (4,), N m")
+    def result(self, eng, out, first: int) -> dict:
+        """The series of :meth:`Engine.advance` from the step loop's ``out`` (``first``: the step
+        before its first row); the contacts and mean overlap of the last step on the engine."""
+        nsteps = out.nc.size
+        if nsteps:
+            eng.n_contacts = round(out.nc[-1])
+            eng.mean_overlap = float(out.ov[-1])
+        st = np.empty((nsteps, 2, 2))
+        st[:, 0, 0] = out.stress[:, 0]
+        st[:, 1, 1] = out.stress[:, 1]
+        st[:, 0, 1] = out.stress[:, 2]
+        st[:, 1, 0] = out.stress[:, 3]
+        return {
+            "step": np.arange(first + 1, first + nsteps + 1),
+            "stress": st,
+            "virial": out.vir,
+            "n_contacts": np.rint(out.nc).astype(np.int64),
+            "mean_overlap": out.ov,
+            "kinetic_energy": out.ke,
+            **self.cell_series(out),
+        }
+
+    def memory_bytes(self, eng) -> dict:
+        """Bytes held by the particles' and the list's arrays."""
+        return {"particles": sum(a.nbytes for a in eng.p), "list": sum(a.nbytes for a in eng.nb)}
 
 
-class OrthogonalCell:
+class OrthogonalCell(CodeOrderCell):
     """The orthogonal periodic box of LIGGGHTS 3.8.0 and LAMMPS 29 Sep 2021 (``fix deform ... remap
     x``): what :class:`Engine` does that depends on it (module docstring). Its state on the engine:
     ``box`` (:class:`~gransim.dem.kernels.Box`: lo, hi and their values at the last build) and
@@ -697,7 +824,7 @@ class OrthogonalCell:
                 f"2 (2 r_max + skin) = {cut:.4g} m (one periodic image per pair)"
             )
 
-    def __init__(self, eng: Engine, box, threads):
+    def __init__(self, eng: Engine, box, threads, x, v, w):
         s = eng.settings
         C = eng.packing.cell
         n = eng.packing.n
@@ -722,6 +849,7 @@ class OrthogonalCell:
             self.threads = 1
         m = n if self.parallel else 0  # the per-particle sums of the threaded loop (mode "parallel")
         eng.sc = K.Scratch(np.zeros(4), np.zeros((m, 4)), np.zeros((m, 2)))
+        self._init_state(eng, x, v, w)
 
     # geometry
     def matrix(self, eng) -> np.ndarray:
@@ -849,7 +977,7 @@ class OrthogonalCell:
         return self._drive(eng, loading, nsteps, step0, box0)
 
     def _drive(self, eng, loading, nsteps: int = 1, phase_step0: int = 0, phase_box0=None):
-        nsteps = int(nsteps)
+        nsteps = as_int(nsteps, "nsteps", 0)
         if phase_box0 is None:
             phase_box0 = (eng.lo.copy(), eng.hi.copy())
         lo0 = np.array(phase_box0[0], np.float64)
@@ -897,23 +1025,38 @@ class OrthogonalCell:
         return {"lengths": out.L}
 
     # checkpoints (docs/schema_dem.md ``/checkpoint``)
-    def state_arrays(self, eng) -> dict:
+    def cell_arrays(self, eng) -> dict:
         b = eng.box
         return {"box_lo": b.lo, "box_hi": b.hi, "box_lo_hold": b.lo_hold, "box_hi_hold": b.hi_hold}
 
-    def restore(self, eng, arrays: dict):
+    def cell_restore(self, eng, arrays: dict):
         eng.box = K.Box(
             *(np.array(arrays[k], np.float64).reshape(2) for k in ("box_lo", "box_hi", "box_lo_hold", "box_hi_hold"))
         )
 
-    def restored(self, eng, arrays: dict):
+    def cell_restored(self, eng, arrays: dict):
         pass
 
 
-#: the orderings of a run: "code" (:class:`Engine`: the code's order, bit for bit with it) or
-#: "fast" (:class:`gransim.dem.fast.FastEngine`: spatially sorted, half list, banded threads; the
-#: same physics to round-off over short horizons, within the chaos envelope over long ones)
+#: the orderings of a run: "code" (the code's order, bit for bit with it: :class:`OrthogonalCell`,
+#: :class:`gransim.dem.sheared.ShearedCell`) or "fast" (:mod:`gransim.dem.fast`: spatially sorted,
+#: half list, banded threads; the same physics to round-off over short horizons, within the chaos
+#: envelope over long ones)
 ORDERS = ("code", "fast")
+
+
+def _cell_class(cell: str, order: str):
+    """The class of :attr:`Engine.cell_ops` for ``cell`` and ``order`` (imported on first use:
+    each holds its own jitted kernels)."""
+    if order == "fast":
+        from .fast import FastOrthogonalCell, FastShearedCell  # noqa: PLC0415 - start-up: the fast kernels
+
+        return FastOrthogonalCell if cell == "orthogonal" else FastShearedCell
+    if cell == "orthogonal":
+        return OrthogonalCell
+    from .sheared import ShearedCell  # noqa: PLC0415 - start-up: the sheared kernels
+
+    return ShearedCell
 
 
 def make_engine(
@@ -928,22 +1071,14 @@ def make_engine(
     velocities=None,
     spins=None,
     check_dt: bool = True,
-):
-    """The engine of a run: ``cell`` (:data:`CELLS`), ``order`` (:data:`ORDERS`), ``threads``
-    (code order: the threads of mode "parallel", orthogonal cell; fast order: its threads),
-    ``law`` (None: the Hooke law of a DEMSettings), ``flavour`` (None: ``settings.flavour``).
-    Both orderings take the same calls (start_run / advance, state_arrays / restore, the views)."""
-    check_choice(order, "order", ORDERS)
-    if order == "fast":
-        from .fast import FastEngine  # noqa: PLC0415 - start-up: the fast kernels
-
-        if flavour is not None and flavour != settings.flavour:
-            raise InputError(f"flavour: the fast ordering takes the settings' ({settings.flavour!r}), got {flavour!r}")
-        return FastEngine(
-            packing, settings, velocities, spins, threads=1 if threads is None else threads, check_dt=check_dt,
-            law=law, cell=cell,
-        )  # fmt: skip
-    return Engine(packing, settings, velocities, spins, threads, check_dt, None, law, cell=cell, flavour=flavour)
+) -> Engine:
+    """The :class:`Engine` of a run: ``cell`` (:data:`CELLS`), ``order`` (:data:`ORDERS`),
+    ``threads`` (code order: the threads of mode "parallel", orthogonal cell; fast order: its
+    threads), ``law`` (None: the Hooke law of a DEMSettings), ``flavour`` (None:
+    ``settings.flavour``)."""
+    return Engine(
+        packing, settings, velocities, spins, threads, check_dt, None, law, cell=cell, flavour=flavour, order=order
+    )
 
 
 def DEMEngine(

@@ -462,7 +462,7 @@ CHECKPOINT_SHAPES = {
     "neighbours/xi": ("K", "W"),
     "virial": (4,),
 }
-#: the checkpoint arrays of the fast ordering (:meth:`gransim.dem.fast.FastEngine.state_arrays`: the
+#: the checkpoint arrays of the fast ordering (:meth:`gransim.dem.fast.FastCell.state_arrays`: the
 #: particles in the sorted order and their permutation; the list's arrays are checked by its restore)
 FAST_CHECKPOINT_SHAPES = {
     **{f"sorted/{k}": ("N",) for k in ("x", "y", "vx", "vy", "w", "fx", "fy", "t", "xh", "yh", "perm")},

@@ -128,7 +128,7 @@ def run_phases(
     ``settings``; its class name and parameters join the settings JSON (and so the fingerprint).
 
     ``order``: "code" (the code's order, bit for bit with it; ``threads`` those of mode
-    "parallel") or "fast" (:class:`gransim.dem.fast.FastEngine` on ``threads``), recorded in the
+    "parallel") or "fast" (:mod:`gransim.dem.fast` on ``threads``), recorded in the
     settings JSON (and so the fingerprint: a resume keeps the ordering) when "fast".
     """
     output = output or OutputSettings()
@@ -146,8 +146,6 @@ def run_phases(
     fp = fingerprint(packing, text)
     out_path = Path(out_path)
     remove_stale_run_temporaries(out_path)  # of a run of this file killed while it wrote a checkpoint
-    eng = make_engine(packing, settings, order=order, velocities=velocities, threads=threads, law=law)
-    state = {"phase": 0, "phase_step0": 0, "lo0": eng.lo.tolist(), "hi0": eng.hi.tolist(), "settled": 0}
     if resume and out_path.exists():
         rec = read_record(out_path)
         _check_same_flavour(out_path, rec.settings_text, settings)
@@ -162,12 +160,15 @@ def run_phases(
             raise ResultFileError(f"{out_path}: no checkpoint to resume from; rerun without --resume")
         _check_same_sampling(out_path, rec.output, output)
         step = rec.checkpoint["step"]
-        eng.restore(rec.checkpoint["arrays"], step)
+        # the engine straight from the checkpoint (no set-up of a new engine to overwrite)
+        eng = Engine.from_checkpoint(packing, settings, rec.checkpoint["arrays"], step, threads, law=law, order=order)
         state = rec.checkpoint["protocol_state"]
         rec.truncate(step)
         rec.unsettled = [u for u in rec.unsettled if u["step"] <= step]
         rec.stop_reason = ""
     else:
+        eng = make_engine(packing, settings, order=order, velocities=velocities, threads=threads, law=law)
+        state = {"phase": 0, "phase_step0": 0, "lo0": eng.lo.tolist(), "hi0": eng.hi.tolist(), "settled": 0}
         rec = RunRecord(packing=packing, settings_text=text, fingerprint=fp)
         _append(
             rec,
@@ -379,7 +380,7 @@ def _checkpoint(rec: RunRecord, eng: DEMEngine, state: dict):
         "step": eng.step,
         "protocol_state": json.loads(json.dumps(state)),
         "arrays": {k: np.array(v) for k, v in eng.state_arrays().items()},
-        "ordering": "code" if isinstance(eng, Engine) else "fast",
+        "ordering": eng.order,
     }
 
 

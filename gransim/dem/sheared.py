@@ -65,7 +65,7 @@ from ..io import atomic_h5, write_packing_group
 from ..progress import Interrupted, check_interrupt, deferred_interrupts, progress
 from . import kernels as K
 from . import sheared_kernels as SK
-from .engine import ORDERS, Engine, fingerprint, make_engine
+from .engine import ORDERS, CodeOrderCell, Engine, fingerprint
 from .settings import FLAVOURS, DEMSettings
 
 
@@ -219,7 +219,7 @@ def _check_box(box, Lx: float, Ly: float, xy: float):
     return np.array([lo[0], lo[1], hi[0], hi[1], tilt])
 
 
-class ShearedCell:
+class ShearedCell(CodeOrderCell):
     """LAMMPS' triclinic periodic box under ``fix deform ... xy ... remap v`` (module docstring):
     what :class:`~gransim.dem.engine.Engine` does that depends on it. Its state on the engine:
     ``box`` (lo_x, lo_y, hi_x, hi_y, xy), ``box_hold`` (the box at the last build), ``h_rate``
@@ -234,6 +234,11 @@ class ShearedCell:
     def check(packing: Packing, settings, flavour: str) -> None:
         if settings.mode != "serial":
             raise InputError(f"settings.mode: the sheared cell runs the serial loop only, got {settings.mode!r}")
+        ShearedCell.check_cell(packing, flavour)
+
+    @staticmethod
+    def check_cell(packing: Packing, flavour: str) -> None:
+        """LAMMPS' triclinic cell: a1 = (Lx, 0), |xy| <= Lx/2; LIGGGHTS' arithmetic: no tilt."""
         C = np.asarray(packing.cell, np.float64)
         if C[1, 0] != 0.0:
             raise InputError(
@@ -263,7 +268,7 @@ class ShearedCell:
                 f"2 (2 r_max + skin) = {cut:.4g} m (one periodic image per pair)"
             )
 
-    def __init__(self, eng, box, threads):
+    def __init__(self, eng, box, threads, x, v, w):
         if threads not in (None, 1):
             raise InputError(f"threads: the sheared cell runs the serial loop (one thread), got {threads!r}")
         C = np.asarray(eng.packing.cell, np.float64)
@@ -278,6 +283,7 @@ class ShearedCell:
         eng.box_hold = eng.box.copy()
         eng.sc = K.Scratch(np.zeros(4), np.zeros((0, 4)), np.zeros((0, 2)))
         self.run = None  # the fix deform of the current run (start_run)
+        self._init_state(eng, x, v, w)
 
     # geometry
     def matrix(self, eng) -> np.ndarray:
@@ -493,7 +499,7 @@ class ShearedCell:
         return {"box": out.box}
 
     # checkpoints (the cell's datasets beside gransim.dem.engine.CHECKPOINT)
-    def state_arrays(self, eng) -> dict:
+    def cell_arrays(self, eng) -> dict:
         """The box, its state at the last build, the image velocity jumps, the lamda coordinates, the
         touching flags of the entries and the run (begin, end, style, tilt start and stop, y lo and
         hi and Ly at the start: :class:`_ShearRun`; its loading is the run file's)."""
@@ -509,14 +515,14 @@ class ShearedCell:
             out["run"] = np.array(self.run[:_RUN_NUMBERS], np.float64)
         return out
 
-    def restore(self, eng, arrays: dict):
+    def cell_restore(self, eng, arrays: dict):
         eng.box = np.array(arrays["box"], np.float64).reshape(5)
         eng.box_hold = np.array(arrays["box_hold"], np.float64).reshape(5)
         eng.h_rate = np.array(arrays["h_rate"], np.float64).reshape(3)
         eng.lam = np.array(arrays["lamda"], np.float64).reshape(eng.packing.n, 2)
         eng.corners_hold = np.array(arrays["corners_hold"], np.float64).reshape(8, 2)
 
-    def restored(self, eng, arrays: dict):
+    def cell_restored(self, eng, arrays: dict):
         eng.touch = np.array(arrays["neighbours/touch"], np.bool_).reshape(eng.ea.size)
         self.run = None
         if "run" in arrays:
@@ -697,14 +703,10 @@ def run_shear_file(
     text = json.dumps(info, sort_keys=True)
     sampling = {"series_every": series_every, "snapshot_every": snapshot_every}
     fp = fingerprint(packing, json.dumps({**info, **sampling}, sort_keys=True))
-    if order == "code":
-        eng = ShearEngine(packing, settings, flavour=flavour, law=law)
-    else:  # (the fast ordering takes its arithmetic from the settings)
-        eng = make_engine(
-            packing, dataclasses.replace(settings, flavour=flavour), cell="sheared", order=order, threads=threads,
-            law=law,
-        )  # fmt: skip
-    ly0, xy0 = float(eng.box[3] - eng.box[1]), float(eng.box[4])
+    # the engine's choices (the code order's sheared cell runs one thread)
+    choices = {"cell": "sheared", "order": order, "threads": threads if order == "fast" else None, "law": law}
+    C = np.asarray(packing.cell, np.float64)
+    ly0, xy0 = float(C[1, 1]), float(C[0, 1])
     rows = {k: [] for k in ("step", "box", "stress", "n_contacts", "kinetic_energy")}
     snaps = {}
     checkpoint = None
@@ -733,13 +735,17 @@ def run_shear_file(
         return _shear_summary(stored["rows"], xy0, ly0, nsteps, stored["n_rebuilds"])
     if stored is not None:
         checkpoint = stored["checkpoint"]
-        try:
-            eng.restore({**checkpoint["arrays"], "loading": loading}, checkpoint["step"])
+        try:  # the engine straight from the checkpoint (no set-up of a new engine to overwrite)
+            eng = Engine.from_checkpoint(
+                packing, settings, {**checkpoint["arrays"], "loading": loading}, checkpoint["step"], flavour=flavour,
+                **choices,
+            )  # fmt: skip
         except (KeyError, ValueError, TypeError) as exc:
             raise ResultFileError(f"{out_path}: its checkpoint does not fit this run ({exc!r})") from None
         rows, snaps = stored["rows"], stored["snapshots"]
         eng.n_rebuilds = stored["n_rebuilds"]
     else:
+        eng = Engine(packing, settings, flavour=flavour, **choices)
         setup = eng.start_run(loading, nsteps)
         b = eng.box
         row(0, [b[2] - b[0], b[3] - b[1], b[4], b[1], b[3]], setup, eng.n_contacts, eng.kinetic_energy())

@@ -109,6 +109,15 @@ class LammpsRVE:
 
         return ShearEngine(self.packing, self.settings, flavour="lammps")
 
+    def engine_at(self, state: LammpsState):
+        """The engine of the RVE at ``state`` (:meth:`gransim.dem.engine.Engine.from_checkpoint`:
+        without the set-up of a new engine)."""
+        from ..dem.engine import Engine  # noqa: PLC0415 - start-up: numba
+
+        return Engine.from_checkpoint(
+            self.packing, self.settings, state.arrays, state.step, cell="sheared", flavour="lammps"
+        )
+
     def replay(self, increments) -> list[dict]:
         """Drive a new engine by ``increments`` (K, 2, 2), one call each; the set-up state and the
         state after each call (K + 1 dicts): ``positions`` (N, 2) m, ``velocities`` m/s, ``spins``
@@ -183,9 +192,8 @@ class LammpsPointLaw:
         return out
 
     def _engine(self, state: LammpsState):
-        eng = self.rve.engine()
-        eng.restore(state.arrays, state.step)
-        return eng
+        """The RVE's engine at ``state`` (no run set-up: the update begins its own run)."""
+        return self.rve.engine_at(state)
 
     def response(self, state: LammpsState):
         """(sigma (2, 2), t (2, 2, 2, 2)) of the state as it stands (Pa)."""

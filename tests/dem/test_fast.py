@@ -123,7 +123,7 @@ def test_threads_do_not_change_the_result(threaded_small):
     p = assembly(5000)
     e1 = FastEngine(p, S, threads=1)
     e2 = FastEngine(p, S, threads=2)
-    assert e2._parallel and not e1._parallel
+    assert e2.cell_ops._parallel and not e1.cell_ops._parallel
     a = advance(e1, 150)
     b = advance(e2, 150)
     assert a["rebuilds"] > 0
@@ -452,12 +452,12 @@ def test_the_force_kernel_is_compiled_to_simd_code(cell):
         p = Packing(positions=p.positions, radii=p.radii, cell=C, density=p.density)
     s = DEMSettings(**{**S.to_dict(), "flavour": "lammps"}) if cell == "sheared" else S
     fe = FastEngine(p, s, cell=cell)
-    img = fe._image()
+    img = fe.cell_ops._image(fe)
     assert len(img) == (6 if cell == "sheared" else 2)
-    with fe._kernels():
+    with fe.cell_ops._kernels(fe):
         p = fe.ps
         k(False, fe._cstart, fe._start, fe._ni, fe._nj, fe._code, fe._hist[0], fe._hist[1], p.x, p.y, p.vx, p.vy,
-          p.w, p.r, p.m, p.fx, p.fy, p.t, img, fe.law, fe.settings.dt, False, fe._sp_start, *fe._spill(),
+          p.w, p.r, p.m, p.fx, p.fy, p.t, img, fe.law, fe.settings.dt, False, fe._sp_start, *fe.cell_ops._spill(fe),
           fe._acc)  # fmt: skip
     asm = k.inspect_asm(k.signatures[0])
     assert re.search(r"\bvsqrtpd\b", asm), "the pair law is not vectorised (no packed square root)"

@@ -211,7 +211,7 @@ def test_sheared_cell_threads_do_not_change_the_result(threaded_small):
     p = sheared_lattice()
     ld = ShearLoading(erate=40.0, y="servo", target=1.0, gain=1e-3)
     e1, e2 = (FastEngine(p, S_LMP, cell="sheared", threads=t) for t in (1, 2))
-    assert e2._parallel and not e1._parallel
+    assert e2.cell_ops._parallel and not e1.cell_ops._parallel
     a, b = (e.start_run(ld, 400) for e in (e1, e2))
     np.testing.assert_array_equal(a, b)
     a, b = (e.advance(400) for e in (e1, e2))
