@@ -1,8 +1,8 @@
 """Benchmark of FEM x DEM (``gransim femxdem --rve dem``): the RVE call, and where a run's time goes.
 
-``python -m bench.femxdem [--full] [--calls 60] [--workers 2] [--steps K] [--skip-run]``,
+``python -m bench.femxdem [--full] [--calls 60] [--workers 2] [--steps K] [--skip-run] [--tangent T]``,
 ``python -m bench.femxdem --base REV [--windows 12] [--window 10] [--iterates 1]``,
-``python -m bench.femxdem --tangent-study H,H,... [--steps 40]``
+``python -m bench.femxdem --tangent-study H,H,... [--steps 40] [--mesh 1x1] [--start CHECKPOINT]``
 
 1. **The RVE call** (in this process, compilation excluded: a warm-up call first). Guo & Zhao's
    400-disk RVE (the prepared state of ``gransim/fem/data/guo_zhao_rve.h5``) driven by a chain of
@@ -33,9 +33,12 @@
    ratio base/head of the wall time, i.e. the speed-up, with its range, and the same of the CPU
    time (``time.process_time``: on a loaded machine the wall time also counts the time the process
    waited for a core).
-4. ``--tangent-study H,H,...``: Newton iterations and CPU time of ``--steps`` (default 40) load
-   steps on a 1 x 1 mesh in process with the contact-stiffness tangent (h = 0) and with a
-   central-difference tangent of perturbation h (:func:`perturbation_law`), ``--max-iter 100``.
+4. ``--tangent-study H,H,...``: Newton iterations, RVE calls, DEM steps and CPU time of ``--steps``
+   (default 40) load steps on ``--mesh`` (default 1 x 1) in process with the contact-stiffness
+   tangent (h = 0) and with the perturbation tangent of each h (``gransim femxdem --tangent
+   perturbation --tangent-step h``, :mod:`gransim.fem.perturbation`), ``--max-iter 100``, the
+   tangents interleaved step by step in one process (:func:`tangent_ab`); ``--start CHECKPOINT``
+   continues a ``--rve dem`` run's checkpoint (its mesh and last step) instead.
 
 The machine's load average is printed before and after each part (2 shared cores: the absolute
 times follow the load, ratios within one interleaved run much less). ``run(quick)`` gives the
@@ -215,8 +218,9 @@ def show_split(r: dict, log=print) -> None:
     )
 
 
-def femxdem_split(nx: int, ny: int, steps: int, workers: int, log=print) -> dict:
-    """Part 2 of the module docstring: the run's figures (s, shares)."""
+def femxdem_split(nx: int, ny: int, steps: int, workers: int, tangent=None, tangent_step=None, log=print) -> dict:
+    """Part 2 of the module docstring: the run's figures (s, shares); ``tangent``, ``tangent_step``
+    as ``gransim femxdem --tangent``."""
     from gransim.fem.biaxial import BiaxialSpec
     from gransim.fem.femxdem import run_femxdem
     from gransim.parallel import make_executor
@@ -226,7 +230,7 @@ def femxdem_split(nx: int, ny: int, steps: int, workers: int, log=print) -> dict
     try:
         with tempfile.TemporaryDirectory(prefix="bench-femxdem-") as tmp:
             t0 = time.perf_counter()
-            res = run_femxdem(spec, rve="dem", out=tmp, executor=ex)
+            res = run_femxdem(spec, rve="dem", out=tmp, executor=ex, tangent=tangent, tangent_step=tangent_step)
             total = time.perf_counter() - t0
     finally:
         close = getattr(ex, "close", None)
@@ -239,6 +243,7 @@ def femxdem_split(nx: int, ny: int, steps: int, workers: int, log=print) -> dict
     nw = max(workers, 1)
     out = {
         "mesh": f"{nx}x{ny}",
+        "tangent": json.dumps(res["parameters"]["tangent"]),
         "gauss_points": spec.n_gauss,
         "steps": steps,
         "workers": workers,
@@ -263,7 +268,8 @@ def femxdem_split(nx: int, ny: int, steps: int, workers: int, log=print) -> dict
 
 def show_run(r: dict, log=print) -> None:
     log(
-        f"femxdem --rve dem, {r['mesh']} mesh ({r['gauss_points']} Gauss points), {r['steps']} steps, "
+        f"femxdem --rve dem, {r['mesh']} mesh ({r['gauss_points']} Gauss points), {r['steps']} steps, tangent "
+        f"{r['tangent']}, "
         f"workers {r['workers'] or 'in process'}: Newton iterations {r['newton_iterations']}"
     )
     log(f"  total {r['total_s']:.2f} s: set-up {r['setup_s']:.2f} s, steps and outputs {r['wall_s']:.2f} s")
@@ -374,83 +380,147 @@ def ab(base: str, windows: int = 12, window: int = 10, iterates: int = 1, log=pr
 # ---------------------------------------------------------------------------------- the tangent
 
 
-def perturbation_law(h: float):
-    """Guo & Zhao's DEM RVE (``DemRVE.prepared()``) whose tangent is the central difference
-    d sigma / d f_kl = (sigma(D = +h e_kl) - sigma(D = -h e_kl)) / (2 h) of the RVE calls from the
-    point's committed state (8 calls of ns = max(1e5 h, 2) steps), computed once per committed
-    state (the first Newton iterate of a step) and returned by every iterate of the step instead
-    of the contact-stiffness tangent; the stress and the states are DemRVE's. A study, not a
-    gransim law: it measures whether the consistent tangent the requirement allows "if it pays in
-    Newton iterations" pays (docs/femxdem.md, "Performance"). ``h`` 0: DemRVE itself."""
-    import weakref
-    from dataclasses import dataclass
+def _counted_law(h: float):
+    """Guo & Zhao's DEM RVE (``DemRVE.prepared()``) counting its calls and their DEM steps in
+    ``law.counter`` ([calls, steps]; the perturbation calls included, as they go through the
+    wrapped law), with the contact-stiffness tangent (``h`` 0) or the perturbation tangent of
+    :mod:`gransim.fem.perturbation` (``h`` > 0)."""
+    from dataclasses import dataclass, field
 
-    from gransim.dem.yade_arithmetic import guo_zhao_stress_tangent, rve_run
+    from gransim.dem.yade_arithmetic import n_steps_of
     from gransim.fem.dem_rve import DemRVE
-
-    base = DemRVE.prepared()
-    if h <= 0:
-        return base
-    cache = weakref.WeakKeyDictionary()
+    from gransim.fem.perturbation import PerturbationTangent
 
     @dataclass(frozen=True, eq=False)
-    class PerturbationRVE(DemRVE):
+    class CountedRVE(DemRVE):
+        counter: list = field(default_factory=lambda: [0, 0])
+
         def update(self, f, state):
-            sigma, _, new = super().update(f, state)
-            t = cache.get(state)
-            if t is None:
-                t = np.zeros((2, 2, 2, 2))
-                for k in range(2):
-                    for m in range(2):
-                        E = np.zeros((2, 2))
-                        E[k, m] = h
-                        sp, _ = guo_zhao_stress_tangent(rve_run(state.rve, E))
-                        sm, _ = guo_zhao_stress_tangent(rve_run(state.rve, -E))
-                        t[:, :, k, m] = (sp - sm) / (2 * h)
-                cache[state] = t
-            return sigma, t, new
+            self.counter[0] += 1
+            self.counter[1] += n_steps_of(np.asarray(f, dtype=float) - np.eye(2))
+            return super().update(f, state)
 
-    return PerturbationRVE(base.initial, base.provenance)
+    base = DemRVE.prepared()
+    law = CountedRVE(base.initial, base.provenance)
+    return (law if h <= 0 else PerturbationTangent(law, h)), law.counter
 
 
-def tangent_study(hs, steps: int = 40, mesh=(1, 1), log=print) -> list[dict]:
-    """Newton iterations and CPU time of ``steps`` load steps of the biaxial specimen on a small
-    ``mesh`` in this process (``--max-iter 100``, Guo & Zhao's iter_max), for each perturbation
-    ``h`` of :func:`perturbation_law` (0: the contact-stiffness tangent). The specimen is uniform
-    (smooth platens, every point the same RVE): a 1 x 1 mesh follows the full mesh's Newton
-    history closely until the peak (docs/femxdem.md)."""
+def _read_start(ckpt: Path):
+    """(spec keywords, BiaxialStep, states) of the last step of a ``gransim femxdem --rve dem``
+    checkpoint folder (its step record and committed states)."""
     import glob
 
     import h5py
 
-    from gransim.fem.biaxial import BiaxialSpec
-    from gransim.fem.femxdem import run_femxdem
+    from gransim.fem.biaxial import BiaxialStep
+    from gransim.fem.dem_rve import DemRVE
 
-    spec = BiaxialSpec(nx=mesh[0], ny=mesh[1], steps=steps, max_iter=100)
-    out = []
-    for h in hs:
-        law = perturbation_law(h)
-        with tempfile.TemporaryDirectory(prefix="bench-femxdem-tangent-") as tmp:
-            c0, t0 = time.process_time(), time.perf_counter()
-            stop = ""
-            try:
-                run_femxdem(spec, rve="dem", out=tmp, law=law)
-            except Exception as exc:  # a step that does not converge in 100 iterations: the steps before count
-                stop = str(exc)
-            cpu, wall = time.process_time() - c0, time.perf_counter() - t0
-            its, q = [], []
-            for p in sorted(glob.glob(f"{tmp}/checkpoint/step_*.h5")):
-                with h5py.File(p) as f:
-                    its.append(len(f["errors"]))
-                    q.append(float(f.attrs["deviatoric_stress"]) / 1e3)
-        r = {"h": h, "iterations": its, "q_kpa": q, "cpu_s": cpu, "wall_s": wall, "stopped": stop}
-        out.append(r)
+    k = max(int(Path(p).stem[7:]) for p in glob.glob(str(ckpt / "states_*.h5")))
+    with h5py.File(ckpt / f"step_{k:03d}.h5", "r") as f:
+        spec = json.loads(f.attrs["parameters"])["spec"]
+        arrays = {n: f[n][()] for n in ("x", "stress", "F", "strain", "errors", "residuals")}
+        scalars = {n: float(f.attrs[n]) for n in ("axial_strain", "deviatoric_stress", "volumetric_strain",
+                                                  "wall_s", "material_s")}  # fmt: skip
+    with h5py.File(ckpt / f"states_{k:03d}.h5", "r") as f:
+        states = DemRVE.unpack_states({n: f["states"][n][()] for n in f["states"]})
+    return spec, BiaxialStep(step=k, **arrays, **scalars), states
+
+
+def tangent_ab(hs, steps: int = 40, mesh=(1, 1), start=None, max_iter: int = 100, log=print) -> list[dict]:
+    """Part 4 of the module docstring: the contact-stiffness tangent (h = 0) and the perturbation
+    tangent of each h > 0 on the biaxial specimen, ``steps`` load steps each (``--max-iter 100``,
+    Guo & Zhao's iter_max), in this process, **interleaved step by step**: one thread per tangent,
+    only one of which runs at a time, in the order A B, then B A, ... (each load step of every
+    tangent runs before any tangent's next one), so that the machine's load weighs alike on all.
+    Per tangent: Newton iterations and q per step, RVE calls and DEM steps (perturbation calls
+    included), and the CPU time of its thread (``time.thread_time``: this thread's alone).
+    ``start``: a ``--rve dem`` checkpoint folder to continue from (its mesh, last step and
+    committed states: e.g. a full benchmark's step at the peak)."""
+    import threading
+
+    from gransim.fem.biaxial import BiaxialSpec, biaxial_setup, run_biaxial
+    from gransim.fem.incremental import StepFailure
+    from gransim.fem.material_points import gauss_points
+
+    first, states = None, None
+    if start is not None:
+        kw, first, states = _read_start(Path(start))
+        kw.update(steps=first.step + steps, max_iter=max_iter)
+        spec = BiaxialSpec(**kw)
+    else:
+        spec = BiaxialSpec(nx=mesh[0], ny=mesh[1], steps=steps, max_iter=max_iter)
+    setup = biaxial_setup(spec)
+    names = [("contact" if h <= 0 else f"perturbation h={h:g}") for h in hs]
+    order = [n for r in range(steps) for n in (names if r % 2 == 0 else names[::-1])]
+    cond = threading.Condition()
+    pos = {"i": 0}
+    done = set()
+    out = {n: {"h": h, "iterations": [], "q_kpa": [], "cpu_s": [], "stopped": ""} for n, h in zip(names, hs)}
+    counters = {}
+
+    def advance():  # the next (step, tangent) whose tangent is still running; under cond
+        pos["i"] += 1
+        while pos["i"] < len(order) and order[pos["i"]] in done:
+            pos["i"] += 1
+        cond.notify_all()
+
+    def runner(name, law):
+        points = gauss_points(law, spec.n_gauss, states=states)
+        with cond:
+            cond.wait_for(lambda: pos["i"] < len(order) and order[pos["i"]] == name)
+        c0 = [time.thread_time()]
+
+        def on_step(rec, pts):
+            r = out[name]
+            r["cpu_s"].append(time.thread_time() - c0[0])
+            r["iterations"].append(len(rec.errors))
+            r["q_kpa"].append(rec.deviatoric_stress / 1e3)
+            with cond:
+                advance()
+                if rec.step < spec.steps:
+                    cond.wait_for(lambda: pos["i"] < len(order) and order[pos["i"]] == name)
+            c0[0] = time.thread_time()
+
+        try:
+            run_biaxial(setup, points, start=first, on_step=on_step)
+        except StepFailure as exc:  # no convergence in max_iter: the steps before count
+            out[name]["stopped"] = str(exc)
+        finally:
+            with cond:
+                done.add(name)
+                if pos["i"] < len(order) and order[pos["i"]] == name:
+                    advance()
+
+    threads = []
+    for name, h in zip(names, hs):
+        law, counters[name] = _counted_law(h)
+        threads.append(threading.Thread(target=runner, args=(name, law), name=name))
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    rows = []
+    where = f"from step {first.step} of {start}, " if first is not None else ""
+    for name in names:
+        r = out[name]
+        r.update(name=name, calls=counters[name][0], dem_steps=counters[name][1], mesh=f"{spec.nx}x{spec.ny}")
+        rows.append(r)
+        its, q = r["iterations"], r["q_kpa"]
         log(
-            f"tangent {'contact stiffness' if h <= 0 else f'perturbation h = {h:g}'}: {len(its)} steps, "
-            f"{sum(its)} Newton iterations {its}, CPU {cpu:.1f} s, wall {wall:.1f} s; peak q "
-            f"{max(q) if q else float('nan'):.1f} kPa" + (f"; stopped: {stop}" if stop else "")
+            f"{name}: {where}{len(its)} steps, {sum(its)} Newton iterations {its}, {r['calls']} RVE calls, "
+            f"{r['dem_steps']} DEM steps, CPU {sum(r['cpu_s']):.1f} s; q {min(q, default=float('nan')):.1f}-"
+            f"{max(q, default=float('nan')):.1f} kPa" + (f"; stopped: {r['stopped']}" if r["stopped"] else "")
         )
-    return out
+    base = rows[0]
+    for r in rows[1:]:
+        n = min(len(base["iterations"]), len(r["iterations"]))
+        if n:
+            log(
+                f"  {r['name']} against {base['name']} over the {n} steps both ran: Newton iterations "
+                f"{sum(base['iterations'][:n]) / max(sum(r['iterations'][:n]), 1):.2f}x fewer, CPU "
+                f"{sum(base['cpu_s'][:n]) / max(sum(r['cpu_s'][:n]), 1e-9):.2f}x less"
+            )
+    return rows
 
 
 def run(quick: bool = False) -> list[dict]:
@@ -482,14 +552,20 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2, help="Dask workers of part 2 (0: in process)")
     ap.add_argument("--calls", type=int, default=60, help="RVE calls of part 1")
     ap.add_argument("--skip-run", action="store_true", help="part 1 only")
+    ap.add_argument("--tangent", default=None, choices=["contact", "perturbation"], help="part 2: the tangent")
+    ap.add_argument("--tangent-step", type=float, default=None, help="part 2: h of --tangent perturbation")
     ap.add_argument("--base", default=None, help="part 3: A/B of the RVE call against commit BASE")
     ap.add_argument(
         "--tangent-study",
         default=None,
         metavar="H,H,...",
-        help="Newton iterations and CPU time on a 1 x 1 mesh (--steps, default 40) for each perturbation h of the "
-        "central-difference tangent (0: the contact-stiffness tangent)",
+        help="part 4: Newton iterations, DEM steps and CPU time on --mesh (default 1x1; --steps, default 40) for "
+        "each perturbation h of the central-difference tangent (0: the contact-stiffness tangent), interleaved "
+        "step by step",
     )
+    ap.add_argument("--mesh", default="1x1", help="part 4: NXxNY elements")
+    ap.add_argument("--start", default=None, metavar="CHECKPOINT",
+                    help="part 4: continue from the last step of this --rve dem checkpoint folder")  # fmt: skip
     ap.add_argument("--iterates", type=int, default=1, help="part 3: calls from each committed state (Newton iterates)")
     ap.add_argument("--windows", type=int, default=12, help="part 3: windows, alternately A B and B A")
     ap.add_argument("--window", type=int, default=10, help="part 3: states of the chain per window")
@@ -500,7 +576,8 @@ def main(argv=None) -> int:
         print(f"load {load()}", flush=True)
         return 0
     if args.tangent_study:
-        tangent_study([float(h) for h in args.tangent_study.split(",")], args.steps or 40)
+        mesh = tuple(int(v) for v in args.mesh.lower().split("x"))
+        tangent_ab([float(h) for h in args.tangent_study.split(",")], args.steps or 40, mesh, args.start)
         print(f"load {load()}", flush=True)
         return 0
     show_split(rve_call_split(args.calls))
@@ -508,7 +585,7 @@ def main(argv=None) -> int:
     if not args.skip_run:
         nx, ny = (8, 16) if args.full else (2, 4)
         steps = args.steps or (2 if args.full else 10)
-        show_run(femxdem_split(nx, ny, steps, args.workers))
+        show_run(femxdem_split(nx, ny, steps, args.workers, args.tangent, args.tangent_step))
         print(f"load {load()}", flush=True)
     return 0
 

@@ -28,6 +28,8 @@ from ._paths import (
 QUICK = {"mesh": (2, 4), "steps": 10, "max_iter": 25}
 FULL = {"mesh": (8, 16), "steps": 100, "max_iter": 100}
 STANDINS = ("dem", "taylor", "j2")
+#: the DEM RVEs (a tangent to choose, grains to draw)
+DEM_RVES = ("dem",)
 #: the files a run writes into --out (besides checkpoint/)
 OUTPUTS = ("femxdem.h5", "curves.png", "report.md")
 #: most load steps; the confining pressure's bound (Pa: 100 MPa, beyond the crushing of quartz
@@ -68,6 +70,22 @@ def register(subparsers) -> None:
         help="the Gauss-point law: dem (Guo & Zhao's 400-disk DEM RVE in YADE's arithmetic; the full benchmark "
         "needs the fast engine), or the stand-ins taylor (the affine Taylor RVE of Meier et al., consolidated to "
         "the confining pressure; default) and j2 (von Mises plasticity with a weaker centre element)",
+    )
+    p.add_argument(
+        "--tangent",
+        choices=["contact", "perturbation"],
+        default=None,
+        help="the DEM RVEs' tangent: contact (Guo & Zhao's contact-stiffness tangent, eq. 10; default) or "
+        "perturbation (the central difference of 8 RVE calls of +-h from each committed state, computed once a "
+        "load step: Newton needs about half the iterations past the peak, docs/femxdem.md)",
+    )
+    p.add_argument(
+        "--tangent-step",
+        type=number,
+        default=None,
+        metavar="H",
+        help="the perturbation h of --tangent perturbation (default 3e-4: of 1e-4, 3e-4 and 1e-3 the fewest DEM "
+        "steps over 40 load steps of a 1 x 1 specimen; 2e-5 to 1e-2)",
     )
     p.add_argument("--full", action="store_true", help="the full benchmark: 8 x 16 elements, 100 steps")
     p.add_argument("--mesh", default=None, help="NXxNY elements (default 2x4; 8x16 with --full)")
@@ -176,10 +194,21 @@ def check_options(args) -> dict:
     # the Taylor stand-in is consolidated to a mean stress of -p: at p = 0 its frictionless disks
     # just touch, and no stretch is singled out (gransim.fem.femxdem.standin_law)
     check_number(args.pressure, "--pressure", low=0, high=MAX_PRESSURE, low_open=args.rve == "taylor")
-    if args.rve == "dem" and args.pressure != 1e5:
+    if args.rve in DEM_RVES and args.pressure != 1e5:
         raise InputError(
-            f"--pressure: --rve dem's RVE was consolidated to 1e5 Pa (prepareRVE.py), got {args.pressure:g}"
+            f"--pressure: --rve {args.rve}'s RVE was consolidated to 1e5 Pa (prepareRVE.py), got {args.pressure:g}"
         )
+    if args.tangent is not None and args.rve not in DEM_RVES:
+        raise InputError(
+            f"--tangent: applies to the DEM RVEs (--rve {', '.join(DEM_RVES)}); the stand-in {args.rve} has its "
+            "exact tangent"
+        )
+    if args.tangent_step is not None:
+        if args.tangent != "perturbation":
+            raise InputError("--tangent-step: applies to --tangent perturbation only")
+        from ..fem.perturbation import MAX_STEP, MIN_STEP  # noqa: PLC0415 - start-up: numpy
+
+        check_number(args.tangent_step, "--tangent-step", low=MIN_STEP, high=MAX_STEP)
     check_number(args.top_step, "--top-step", low=MIN_TOP_STEP, high=0.05)
     check_number(args.tol, "--tol", low=MIN_TOL, high=1, high_open=True)
     max_iter = base["max_iter"] if args.max_iter is None else check_count(args.max_iter, "--max-iter", 1, 1000)
@@ -239,7 +268,9 @@ def check_options(args) -> dict:
     if args.resume:
         from ..fem.femxdem import check_resumable  # noqa: PLC0415 - start-up: h5py
 
-        resumed = check_resumable(out, BiaxialSpec(**spec), args.rve, SPEC_OPTIONS)
+        resumed = check_resumable(
+            out, BiaxialSpec(**spec), args.rve, SPEC_OPTIONS, tangent=args.tangent, tangent_step=args.tangent_step
+        )
         if args.stop_after is not None and args.stop_after <= resumed:
             raise InputError(
                 f"--stop-after: the checkpoint in {out / 'checkpoint'} is already at step {resumed}; "
@@ -266,7 +297,7 @@ def handler(args) -> int:
             summary = run_femxdem(
                 spec, args.rve, opts["out"], executor, resume=args.resume, stop_after=args.stop_after,
                 packing=opts["packing"], packing_dir=opts["packing_dir"], field_steps=opts["field_steps"],
-                rve_pictures=opts["rve_pictures"],
+                rve_pictures=opts["rve_pictures"], tangent=args.tangent, tangent_step=args.tangent_step,
             )  # fmt: skip
         except FemxdemInterrupted as exc:
             print(str(exc), file=sys.stderr)

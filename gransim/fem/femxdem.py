@@ -50,11 +50,14 @@ from .biaxial import BiaxialSpec, BiaxialStep, biaxial_setup, run_biaxial
 from .checkpoint import check_parameters
 from .incremental import StepFailure
 from .material_points import gauss_points
+from .output_femxdem import not_available
 from .point_laws import HyperelasticPoint, J2Plasticity
 
 RVE_STANDINS = ("taylor", "j2")
-#: every ``rve``: the stand-ins and ``dem``, Guo & Zhao's DEM RVE in YADE's arithmetic (gransim.fem.dem_rve)
-RVE_LAWS = ("dem", *RVE_STANDINS)
+#: the DEM RVEs: Guo & Zhao's RVE in YADE's arithmetic (``dem``, gransim.fem.dem_rve)
+RVE_DEM = ("dem",)
+#: every ``rve``: the DEM RVEs and the stand-ins
+RVE_LAWS = (*RVE_DEM, *RVE_STANDINS)
 KIND = "fem-biaxial"
 CKPT_STEP = "fem-biaxial-step"
 CKPT_STATES = "fem-biaxial-states"
@@ -76,6 +79,33 @@ def _centre_points(spec: BiaxialSpec) -> tuple:
     e = (spec.ny // 2) * spec.nx + spec.nx // 2
     k = spec.gauss**2
     return tuple(range(e * k, (e + 1) * k))
+
+
+def tangent_parameters(rve: str, tangent: str | None = None, step: float | None = None) -> dict:
+    """The tangent of the run's Gauss points as recorded (provenance, the --resume fingerprint):
+    ``{"kind": "contact"}`` (Guo & Zhao's eq. 10, the DEM RVEs' default), ``{"kind":
+    "perturbation", "step": h}`` (:mod:`gransim.fem.perturbation`), or ``{"kind": "law"}`` (a
+    stand-in's own exact tangent); refuses a tangent choice for a stand-in."""
+    if tangent is None:
+        return {"kind": "contact"} if rve in RVE_DEM else {"kind": "law"}
+    from .perturbation import DEFAULT_STEP, TANGENTS  # noqa: PLC0415 - start-up: numpy
+
+    if tangent not in TANGENTS:
+        raise InputError(f"--tangent: expected one of {', '.join(TANGENTS)}, got {tangent!r}")
+    if rve in RVE_STANDINS:
+        raise InputError(
+            f"--tangent: applies to the DEM RVEs ({', '.join(RVE_DEM)}); the stand-in {rve} has its exact tangent"
+        )
+    if tangent == "contact":
+        if step is not None:
+            raise InputError("--tangent-step: applies to --tangent perturbation only")
+        return {"kind": "contact"}
+    return {"kind": "perturbation", "step": float(DEFAULT_STEP if step is None else step)}
+
+
+def _stored_tangent(stored: dict) -> dict:
+    """The tangent a checkpoint's parameters record (written before the choice existed: the law's default)."""
+    return stored.get("tangent") or tangent_parameters(stored.get("rve", ""))
 
 
 def standin_law(rve: str, spec: BiaxialSpec, packing=None, packing_dir="results/packings"):
@@ -214,6 +244,17 @@ def _params_of(f) -> dict:
     return json.loads(v.decode() if isinstance(v, bytes) else v)
 
 
+def _stored_params(f) -> dict:
+    """A checkpoint file's parameters, the tangent filled in for one written before it was recorded."""
+    p = _params_of(f)
+    p["tangent"] = _stored_tangent(p)
+    return p
+
+
+def _tangent_option(t: dict) -> str:
+    return f"--tangent {t['kind']}" + (f" --tangent-step {t['step']:g}" if "step" in t else "")
+
+
 def read_checkpoint(d: Path, params: dict, law, fields: dict | None = None):
     """(records [BiaxialStep], states, (stress, tangent)) of the checkpoint in ``d``: the steps
     1..k whose files are present, k the last step with its states file; refuses other parameters.
@@ -228,7 +269,7 @@ def read_checkpoint(d: Path, params: dict, law, fields: dict | None = None):
         except ResultFileError as exc:
             raise InputError(f"--resume: {exc}") from None
         with f:
-            check_parameters(_params_of(f), current, path)
+            check_parameters(_stored_params(f), current, path)
             arrays = {n: f[n][()] for n in _RECORD_ARRAYS}
             scalars = {n: float(f.attrs[n]) for n in _RECORD_SCALARS}
             recs.append(BiaxialStep(step=k, **arrays, **scalars))
@@ -248,17 +289,21 @@ def read_checkpoint(d: Path, params: dict, law, fields: dict | None = None):
     except ResultFileError as exc:
         raise InputError(f"--resume: {exc}") from None
     with f:
-        check_parameters(_params_of(f), current, path)
+        check_parameters(_stored_params(f), current, path)
         states = law.unpack_states({n: f["states"][n][()] for n in f["states"]})
         response = (f["stress"][()], f["tangent"][()])
     return recs, states, response
 
 
-def check_resumable(out, spec: BiaxialSpec, rve: str, options: dict | None = None) -> int:
+def check_resumable(
+    out, spec: BiaxialSpec, rve: str, options: dict | None = None, tangent: str | None = None,
+    tangent_step: float | None = None,
+) -> int:  # fmt: skip
     """The last step of the checkpoint in ``out/checkpoint`` that ``resume`` continues, checked
     before any computation: a step file and the states of a step are there, and they were written
-    with ``spec`` and ``rve`` (``options``: the command-line option of each ``spec`` field, named
-    in the error). The stand-in's own parameters (the Taylor RVE's packing and consolidation) are
+    with ``spec``, ``rve`` and the tangent (``tangent``, ``tangent_step``: a Newton history made
+    with one tangent does not continue with another; ``options``: the command-line option of each
+    ``spec`` field, named in the error). The stand-in's own parameters (the Taylor RVE's packing and consolidation) are
     compared when the run reads the checkpoint (:func:`read_checkpoint`)."""
     d = Path(out) / "checkpoint"
     options = options or {}
@@ -274,6 +319,13 @@ def check_resumable(out, spec: BiaxialSpec, rve: str, options: dict | None = Non
     if stored.get("rve") != rve:
         raise InputError(
             f"--resume: the checkpoint {path} was written with --rve {stored.get('rve')}, this run has --rve {rve}"
+        )
+    old_t, new_t = _stored_tangent(stored), tangent_parameters(rve, tangent, tangent_step)
+    if json.dumps(old_t, sort_keys=True) != json.dumps(new_t, sort_keys=True):
+        raise InputError(
+            f"--resume: the checkpoint {path} was written with {_tangent_option(old_t)}, this run has "
+            f"{_tangent_option(new_t)}: a run continues with its own tangent; rerun with {_tangent_option(old_t)} "
+            "or without --resume"
         )
     current = json.loads(json.dumps(spec.as_dict()))
     for k, v in current.items():
@@ -369,6 +421,9 @@ def write_results(
             top.attrs["not_available"] = ", ".join(
                 k for k in ("void_ratio", "rotation") if k not in fields[min(fields)]
             )
+            top.attrs["not_available_reason"] = (
+                not_available(params.get("rve", "")) if top.attrs["not_available"] else ""
+            )
             for k in sorted(fields):
                 g = top.create_group(f"step_{k:03d}")
                 g.attrs["step"] = k
@@ -396,7 +451,7 @@ def write_field_outputs(out: Path, setup, recs: list, fields: dict, label: str) 
         ea = 100 * rec.axial_strain
         files[f"maps_{k:03d}"] = plot_maps(
             out / f"maps_{k:03d}.png", mesh, rec.x, spec.gauss, gfields,
-            f"step {k}, axial strain {ea:.2f} %, {label} (deformed mesh, true scale)",
+            f"step {k}, axial strain {ea:.2f} %, {label} (deformed mesh, true scale)", not_available(label),
         )  # fmt: skip
         files[f"vtu_{k:03d}"] = write_vtu(out / f"mesh_{k:03d}.vtu", mesh, mesh.nodes, rec.x, spec.gauss, gfields,
                                           rec.stress, rec.strain)  # fmt: skip
@@ -409,7 +464,7 @@ def write_field_outputs(out: Path, setup, recs: list, fields: dict, label: str) 
     return files
 
 
-def field_report(out: Path | None, fields: dict, recs: list) -> list:
+def field_report(out: Path | None, fields: dict, recs: list, rve: str = "") -> list:
     """Markdown lines of the maps section: per field step the range of each field and the pictures."""
     by_step = {r.step: r for r in recs}
     lines = ["", "### Maps (deformed mesh, each Gauss point's sub-cell coloured by its value)", ""]
@@ -423,7 +478,7 @@ def field_report(out: Path | None, fields: dict, recs: list) -> list:
                 v = np.asarray(fl[n])
                 parts.append(f"{n.replace('_', ' ')} {v.min():.4g} to {v.max():.4g}")
             else:
-                parts.append(f"{n.replace('_', ' ')} n/a (stand-in law: no grains)")
+                parts.append(f"{n.replace('_', ' ')} n/a ({not_available(rve)})")
         lines.append(f"- step {k} (axial strain {100 * by_step[k].axial_strain:.2f} %): " + "; ".join(parts))
         if out is not None:
             lines.append(f"  ![maps at step {k}](maps_{k:03d}.png) VTU: `mesh_{k:03d}.vtu`")
@@ -455,6 +510,17 @@ def _law_time_lines(timing: list, wall: float) -> list:
     ]
 
 
+_TITLES = {
+    "dem": "## FEM x DEM biaxial specimen (Guo & Zhao's DEM RVE, YADE's arithmetic)",
+}
+_TANGENT_LABELS = {
+    "contact": "contact stiffness (Guo & Zhao's eq. 10)",
+    "perturbation": "perturbation, the central difference of the RVE calls from the committed state "
+    "(gransim.fem.perturbation)",
+    "law": "the stand-in's exact tangent",
+}
+
+
 def _lost_to_a_signal(exc: BaseException) -> bool:
     """Whether ``exc`` (not itself an interrupt) came after SIGINT/SIGTERM/SIGHUP arrived: the
     workers that received the signal too are gone, and their calls fail."""
@@ -474,6 +540,8 @@ def run_femxdem(
     law=None,
     field_steps=None,
     rve_pictures=None,
+    tangent: str | None = None,
+    tangent_step: float | None = None,
 ) -> dict:
     """Run the biaxial specimen with the stand-in ``rve`` (module docstring); returns a summary
     (``steps`` the records, ``report`` markdown, ``timing``: ``wall_s`` of the steps, ``material_s``
@@ -488,7 +556,9 @@ def run_femxdem(
     ``pack_states``/``unpack_states`` instead of the stand-in (``rve`` is then its label).
     ``field_steps``: the steps whose Gauss-point fields are kept and drawn (default: the last);
     ``rve_pictures``: the Gauss points whose RVE is drawn at those steps (default: the most
-    strained point of each; DEM RVE only)."""
+    strained point of each; DEM RVE only). ``tangent``: ``contact`` (default of the DEM RVEs) or
+    ``perturbation`` of ``tangent_step`` (:mod:`gransim.fem.perturbation`; default
+    :data:`gransim.fem.perturbation.DEFAULT_STEP`), recorded with the parameters; None for a stand-in."""
     spec = spec or BiaxialSpec()
     field_steps = {spec.steps} if field_steps is None else {int(k) for k in field_steps}
     bad = sorted(k for k in field_steps if not 1 <= k <= spec.steps)
@@ -501,11 +571,16 @@ def run_femxdem(
             raise InputError(f"--rve-pictures: Gauss points lie in 0..{spec.n_gauss - 1}, got {bad[0]}")
     if resume and out is None:
         raise InputError("--resume: needs the output directory of the interrupted run (--out)")
+    tangent_params = tangent_parameters(rve, tangent, tangent_step)
     if law is None:
         law, law_params = standin_law(rve, spec, packing, packing_dir)
     else:
         law_params = {"law": type(law).__name__}
-    params = {"spec": spec.as_dict(), "rve": rve, "standin": law_params}
+    if tangent_params["kind"] == "perturbation":
+        from .perturbation import PerturbationTangent  # noqa: PLC0415 - start-up: numpy
+
+        law = PerturbationTangent(law, tangent_params["step"])
+    params = {"spec": spec.as_dict(), "rve": rve, "standin": law_params, "tangent": tangent_params}
     out = Path(out) if out is not None else None
     ck = out / "checkpoint" if out is not None else None
     done, states, response = [], None, None
@@ -583,10 +658,10 @@ def run_femxdem(
     mat_s = sum(r.material_s for r in new)
     iters = [len(r.errors) for r in recs]
     lines = [
-        "## FEM x DEM biaxial specimen (Guo & Zhao's DEM RVE, YADE's arithmetic)"
-        if rve == "dem"
-        else f"## FEM x DEM biaxial specimen (stand-in `{rve}`: NOT the DEM RVE)",
+        _TITLES.get(rve, f"## FEM x DEM biaxial specimen (stand-in `{rve}`: NOT the DEM RVE)"),
         "",
+        f"- tangent: {_TANGENT_LABELS[tangent_params['kind']]}"
+        + (f", h = {tangent_params['step']:g}" if tangent_params["kind"] == "perturbation" else ""),
         f"- specimen {spec.width * 1e3:g} x {spec.height * 1e3:g} mm, {spec.nx} x {spec.ny} {spec.element} elements, "
         f"{spec.gauss} x {spec.gauss} Gauss points ({spec.n_gauss}), confining {spec.pressure / 1e3:g} kPa "
         f"(follower), top {spec.top_step:g} m per step, {spec.steps} steps, Newton tol {spec.tol:g}",
@@ -605,7 +680,7 @@ def run_femxdem(
     ]
     if out is not None:  # the report leads with the curves, then the maps
         lines[1:1] = ["", "![q and volumetric strain against axial strain](curves.png)"]
-    lines += field_report(out, fields, recs)
+    lines += field_report(out, fields, recs, rve)
     report = "\n".join(lines)
     files = {}
     if out is not None:
@@ -642,4 +717,13 @@ def run_femxdem(
     }
 
 
-__all__ = ["RVE_LAWS", "RVE_STANDINS", "FemxdemInterrupted", "check_resumable", "run_femxdem", "standin_law"]
+__all__ = [
+    "RVE_DEM",
+    "RVE_LAWS",
+    "RVE_STANDINS",
+    "tangent_parameters",
+    "FemxdemInterrupted",
+    "check_resumable",
+    "run_femxdem",
+    "standin_law",
+]

@@ -11,7 +11,11 @@ A *point law* describes one Gauss point's material (a DEM RVE, or a continuum st
   configuration x_n (f - 1 = grad_n du is Guo & Zhao's strain increment "D = grad(u)", applied to
   their RVE as a constant velocity gradient), with ``tangent[i, j, k, l] = d stress_ij / d f_kl``.
   ``update`` must not modify ``state``: it returns a new one;
-* optionally ``observables(state) -> dict[str, float]`` (void ratio, rotation...) for the outputs.
+* optionally ``observables(state) -> dict[str, float]`` (void ratio, rotation...) for the outputs;
+* optionally ``commit_response(state, stress, tangent) -> (stress, tangent)``: the committed
+  response of a state just committed (the next step's predictor), given the last iterate's
+  (default: that one; :class:`gransim.fem.perturbation.PerturbationTangent` gives the tangent of
+  the committed state itself).
 
 Newton iterates start from the last converged state and never pollute it: each iterate calls
 ``update(f, committed_state)``; the new states are kept as the *trial* and become the committed
@@ -68,6 +72,20 @@ def freeze(state):
         for s in state.values():
             freeze(s)
     return state
+
+
+def is_frozen(state) -> bool:
+    """Whether every numpy array inside ``state`` is read-only (searched as :func:`freeze` does):
+    a committed state, whose derived quantities a law may keep while it lives."""
+    if isinstance(state, np.ndarray):
+        return not state.flags.writeable
+    if dataclasses.is_dataclass(state) and not isinstance(state, type):
+        return all(is_frozen(getattr(state, fld.name)) for fld in dataclasses.fields(state))
+    if isinstance(state, (tuple, list)):
+        return all(is_frozen(s) for s in state)
+    if isinstance(state, dict):
+        return all(is_frozen(s) for s in state.values())
+    return True
 
 
 def _check_f(f, n: int) -> np.ndarray:
@@ -139,6 +157,17 @@ class GaussChunk:
         self.committed = [freeze(s) for s in self.trial]
         self.stress, self.tangent = self._trial_response
         self.trial = self._trial_response = None
+        hook = getattr(self.law, "commit_response", None)
+        if callable(hook):  # RVE calls too (the perturbation tangent): timed with the updates
+            t0, c0 = time.perf_counter(), time.process_time()
+            out = [
+                self._call(g, hook, s, self.stress[k], self.tangent[k])
+                for k, (g, s) in enumerate(zip(self.indices, self.committed))
+            ]
+            self.law_s += time.perf_counter() - t0
+            self.law_cpu_s += time.process_time() - c0
+            self.stress = np.array([o[0] for o in out], dtype=float).reshape(-1, 2, 2)
+            self.tangent = np.array([o[1] for o in out], dtype=float).reshape(-1, 2, 2, 2, 2)
 
     def revert(self) -> None:
         """Drop the trial states (a rejected iterate or step): the committed ones are untouched."""
@@ -165,7 +194,8 @@ class GaussChunk:
         return os.getpid()
 
     def timing(self) -> dict:
-        """{"law_s": seconds spent in ``law.update`` since the chunk was made (on its process),
+        """{"law_s": seconds spent in ``law.update`` (and ``law.commit_response``) since the chunk
+        was made (on its process),
         "law_cpu_s": the process's CPU seconds in them (on a shared machine, what the calls would
         take alone), "law_calls": their number, "pid"}: the DEM share of a run (bench/femxdem.py)."""
         return {"law_s": self.law_s, "law_cpu_s": self.law_cpu_s, "law_calls": self.law_calls, "pid": os.getpid()}
@@ -334,4 +364,5 @@ __all__ = [
     "MaterialPointError",
     "freeze",
     "gauss_points",
+    "is_frozen",
 ]

@@ -28,6 +28,16 @@ MAP_FIELDS = {
     "void_ratio": "void ratio",
     "rotation": "mean particle rotation (rad)",
 }
+#: why a field is missing, by ``--rve`` (default: a stand-in)
+NOT_AVAILABLE: dict = {}
+NOT_AVAILABLE_STANDIN = "stand-in law: no grains"
+
+
+def not_available(rve: str) -> str:
+    """Why the fields a law does not report are n/a, for ``rve``."""
+    return NOT_AVAILABLE.get(rve, NOT_AVAILABLE_STANDIN)
+
+
 #: points per sub-cell edge drawn on a curved quadratic element
 EDGE_SAMPLES = 4
 
@@ -76,9 +86,10 @@ def gauss_positions(mesh, x: np.ndarray, gauss: int) -> np.ndarray:
     return np.einsum("ga,eai->egi", N, x[mesh.elements]).reshape(-1, 2)
 
 
-def plot_maps(path, mesh, x, gauss: int, fields: dict, title: str) -> Path:
+def plot_maps(path, mesh, x, gauss: int, fields: dict, title: str, na: str = NOT_AVAILABLE_STANDIN) -> Path:
     """One panel per :data:`MAP_FIELDS` entry over the deformed mesh ``x`` (true scale), each Gauss
-    point's sub-cell coloured by its value; a field absent from ``fields`` is drawn as n/a."""
+    point's sub-cell coloured by its value; a field absent from ``fields`` is drawn as n/a, saying
+    why (``na``)."""
     import matplotlib  # noqa: PLC0415 - start-up: matplotlib
 
     matplotlib.use("Agg")
@@ -95,7 +106,7 @@ def plot_maps(path, mesh, x, gauss: int, fields: dict, title: str) -> Path:
         ax.add_collection(PolyCollection(outline, facecolors="none", edgecolors="k", linewidths=0.5))
         ax.autoscale()
         if name not in fields:
-            ax.set_title(f"{label}\nn/a (stand-in law: no grains)", fontsize=9)
+            ax.set_title(f"{label}\nn/a ({na})", fontsize=9)
             continue
         v = np.asarray(fields[name], float)
         cmap = "RdBu_r" if name == "rotation" else "viridis"

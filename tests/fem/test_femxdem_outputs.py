@@ -151,7 +151,8 @@ def test_a_checkpoint_with_the_former_rotation_estimate_is_refused(dem_run):
 def _args(**kw):
     base = dict(rve="dem", full=False, mesh=None, steps=None, element="Q8", gauss=None, pressure=1e5,
                 top_step=1e-4, tol=1e-2, max_iter=25, packing=None, packing_dir=None, out=None, resume=False,
-                stop_after=None, workers=None, scheduler=None, field_steps=None, rve_pictures=None)  # fmt: skip
+                stop_after=None, workers=None, scheduler=None, field_steps=None, rve_pictures=None, tangent=None,
+                tangent_step=None)  # fmt: skip
     base.update(kw)
     return argparse.Namespace(**base)
 

@@ -204,6 +204,8 @@ BAD = {
         "--field-steps": st.one_of(count(1, 10), st.sampled_from(["", ",", "1,,2", "0,5", "5,11", "3,3", "1;2"])),
         # Gauss points of --rve dem only: the base (--rve taylor) refuses any value, and a dem line too
         "--rve-pictures": st.one_of(count(0, 31), st.sampled_from(["0", "0,31", "", "1,1"])),
+        # the perturbation h of --tangent perturbation, 2e-5 to 1e-2 (the base's stand-in refuses any value)
+        "--tangent-step": between(2e-5, 1e-2, low_open=False, high_open=False),
     },
 }
 
