@@ -60,11 +60,16 @@ _REAL_LMP = shutil.which("lmp")
 
 
 def pytest_collection_modifyitems(config, items):
+    """A test marked ``liggghts`` needs the real binary: skipped, saying so, when it is absent. The
+    marker decides, not the keywords (they hold parameter ids too: ``test_x[liggghts]`` of a stored
+    output needs no binary and must run, tests/reference_runs/conftest.py)."""
     if _REAL is None:
-        skip = pytest.mark.skip(reason="liggghts binary not installed (apt-get install liggghts)")
+        skip = pytest.mark.skip(
+            reason="needs the liggghts binary (marker liggghts), which is not installed (apt-get install liggghts)"
+        )
         here = Path(__file__).resolve().parent
         for item in items:
-            if "liggghts" in item.keywords and here in Path(str(item.fspath)).resolve().parents:
+            if item.get_closest_marker("liggghts") is not None and here in Path(str(item.fspath)).resolve().parents:
                 item.add_marker(skip)
 
 
