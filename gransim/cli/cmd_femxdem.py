@@ -27,9 +27,9 @@ from ._paths import (
 #: the peak the contact-stiffness tangent needs 17-54 a step, docs/femxdem.md "Performance")
 QUICK = {"mesh": (2, 4), "steps": 10, "max_iter": 25}
 FULL = {"mesh": (8, 16), "steps": 100, "max_iter": 100}
-STANDINS = ("dem", "taylor", "j2")
+STANDINS = ("dem", "dem-lammps", "taylor", "j2")
 #: the DEM RVEs (a tangent to choose, grains to draw)
-DEM_RVES = ("dem",)
+DEM_RVES = ("dem", "dem-lammps")
 #: the files a run writes into --out (besides checkpoint/)
 OUTPUTS = ("femxdem.h5", "curves.png", "report.md")
 #: most load steps; the confining pressure's bound (Pa: 100 MPa, beyond the crushing of quartz
@@ -68,8 +68,10 @@ def register(subparsers) -> None:
         "--rve",
         default="taylor",
         help="the Gauss-point law: dem (Guo & Zhao's 400-disk DEM RVE in YADE's arithmetic; the full benchmark "
-        "needs the fast engine), or the stand-ins taylor (the affine Taylor RVE of Meier et al., consolidated to "
-        "the confining pressure; default) and j2 (von Mises plasticity with a weaker centre element)",
+        "needs the fast engine), dem-lammps (the same disks and cell with LAMMPS' gran/hooke/history law in LAMMPS' "
+        "arithmetic: a Gauss point's history replays in LAMMPS; no disk rotation), or the stand-ins taylor (the "
+        "affine Taylor RVE of Meier et al., consolidated to the confining pressure; default) and j2 (von Mises "
+        "plasticity with a weaker centre element)",
     )
     p.add_argument(
         "--tangent",
@@ -225,7 +227,8 @@ def check_options(args) -> dict:
     pictures = None
     if args.rve_pictures is not None:
         if args.rve != "dem":
-            raise InputError(f"--rve-pictures: applies to --rve dem only (the stand-in {args.rve} has no grains)")
+            why = "the LAMMPS RVE's disks have no rotation to colour" if args.rve in DEM_RVES else "has no grains"
+            raise InputError(f"--rve-pictures: applies to --rve dem only ({args.rve}: {why})")
         pictures = _int_list(args.rve_pictures, "--rve-pictures", 0, nx * ny * gauss**2 - 1)
     check_executor_options(args.workers, args.scheduler)
     if args.packing is not None:

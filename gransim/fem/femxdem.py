@@ -54,8 +54,9 @@ from .output_femxdem import not_available
 from .point_laws import HyperelasticPoint, J2Plasticity
 
 RVE_STANDINS = ("taylor", "j2")
-#: the DEM RVEs: Guo & Zhao's RVE in YADE's arithmetic (``dem``, gransim.fem.dem_rve)
-RVE_DEM = ("dem",)
+#: the DEM RVEs: Guo & Zhao's RVE in YADE's arithmetic (``dem``, gransim.fem.dem_rve) and the same
+#: disks with LAMMPS' gran/hooke/history law in LAMMPS' arithmetic (``dem-lammps``, gransim.fem.lammps_rve)
+RVE_DEM = ("dem", "dem-lammps")
 #: every ``rve``: the DEM RVEs and the stand-ins
 RVE_LAWS = (*RVE_DEM, *RVE_STANDINS)
 KIND = "fem-biaxial"
@@ -110,7 +111,9 @@ def _stored_tangent(stored: dict) -> dict:
 
 def standin_law(rve: str, spec: BiaxialSpec, packing=None, packing_dir="results/packings"):
     """(point law, parameters dict) of ``rve`` (module docstring; ``dem``: :class:`gransim.fem.dem_rve.DemRVE`
-    with the RVE prepareRVE.py prepared in YADE 2023.02a)."""
+    with the RVE prepareRVE.py prepared in YADE 2023.02a; ``dem-lammps``: :class:`gransim.fem.lammps_rve.
+    LammpsPointLaw` with the same disks and cell and LAMMPS' law, :meth:`gransim.fem.lammps_rve.LammpsRVE.
+    guo_zhao`)."""
     if rve not in RVE_LAWS:
         raise InputError(f"--rve: expected one of {', '.join(RVE_LAWS)}, got {rve!r}")
     if rve == "dem":
@@ -118,6 +121,18 @@ def standin_law(rve: str, spec: BiaxialSpec, packing=None, packing_dir="results/
 
         law = DemRVE.prepared()
         return law, {"law": "DemRVE", "rve": PREPARED_RVE.name, "provenance": json.dumps(law.provenance)}
+    if rve == "dem-lammps":
+        from .dem_rve import PREPARED_RVE, load_rve_state  # noqa: PLC0415 - start-up: numba
+        from .lammps_rve import DAMPING_RATIO, STEPS_PER_CONTACT, LammpsPointLaw, LammpsRVE  # noqa: PLC0415
+
+        state, prov = load_rve_state()
+        rv = LammpsRVE.guo_zhao(state)
+        st = rv.settings
+        return LammpsPointLaw(rv), {
+            "law": "LammpsPointLaw", "rve": PREPARED_RVE.name, "provenance": json.dumps(prov),
+            "settings": json.dumps(st.to_dict(), sort_keys=True), "damping_ratio": DAMPING_RATIO,
+            "steps_per_contact": STEPS_PER_CONTACT, "density": float(rv.packing.density),
+        }  # fmt: skip
     if rve == "j2":
         law = J2Plasticity(1e8, 0.3, 1.5e5, 1e6, -spec.pressure, weak_points=_centre_points(spec), weak_factor=0.9)
         return law, {"law": "J2Plasticity", "E": 1e8, "nu": 0.3, "yield": 1.5e5, "hardening": 1e6, "weak_factor": 0.9}
@@ -512,6 +527,8 @@ def _law_time_lines(timing: list, wall: float) -> list:
 
 _TITLES = {
     "dem": "## FEM x DEM biaxial specimen (Guo & Zhao's DEM RVE, YADE's arithmetic)",
+    "dem-lammps": "## FEM x DEM biaxial specimen (Guo & Zhao's RVE with LAMMPS' gran/hooke/history law, LAMMPS' "
+    "arithmetic)",
 }
 _TANGENT_LABELS = {
     "contact": "contact stiffness (Guo & Zhao's eq. 10)",

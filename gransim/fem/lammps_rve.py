@@ -53,6 +53,13 @@ class LammpsRVE:
     packing: Packing
     settings: DEMSettings
 
+    def __reduce__(self):
+        # a Packing's metadata is a read-only mappingproxy, which pickle refuses: rebuilt from a dict
+        # (the law travels to the Dask workers of gransim femxdem --rve dem-lammps)
+        p = self.packing
+        args = (p.positions, p.radii, p.cell, p.density, dict(p.metadata), self.settings)
+        return (_rebuild, args)
+
     def __post_init__(self):
         if self.settings.flavour != "lammps":
             raise InputError(
@@ -134,6 +141,10 @@ class LammpsRVE:
         return out
 
 
+def _rebuild(positions, radii, cell, density, metadata, settings) -> LammpsRVE:
+    return LammpsRVE(Packing(positions=positions, radii=radii, cell=cell, density=density, metadata=metadata), settings)
+
+
 def _state(eng, steps: int) -> dict:
     return {
         "positions": eng.x.copy(),
@@ -165,6 +176,11 @@ _PER_PARTICLE = ("positions", "velocities", "spins", "forces", "torques", "x_hol
 _PER_ENTRY = ("neighbours/a", "neighbours/b", "neighbours/shift", "neighbours/owned_both", "neighbours/xi",
               "neighbours/touch")  # fmt: skip
 _PER_CELL = ("virial", "box", "box_hold", "h_rate", "corners_hold")
+
+
+def _packed(name: str) -> str:
+    """The name of an engine array in packed states: no "/" (an HDF5 checkpoint would read it as a group)."""
+    return name.replace("/", ".")
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,7 +255,8 @@ class LammpsPointLaw:
     @staticmethod
     def pack_states(states) -> dict:
         """{name: array} of a list of states (checkpoints): per-particle and per-cell arrays stacked
-        (G, ...), the list entries concatenated with ``offsets`` (G + 1,)."""
+        (G, ...), the list entries concatenated with ``offsets`` (G + 1,); names without "/"
+        (``neighbours.a``...: a dataset name of the checkpoint)."""
         counts = [len(s.arrays["neighbours/a"]) for s in states]
         out = {
             "offsets": np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
@@ -250,7 +267,7 @@ class LammpsPointLaw:
         for k in _PER_PARTICLE + _PER_CELL:
             out[k] = np.array([s.arrays[k] for s in states])
         for k in _PER_ENTRY:
-            out[k] = np.concatenate([np.asarray(s.arrays[k]) for s in states])
+            out[_packed(k)] = np.concatenate([np.asarray(s.arrays[k]) for s in states])
         return out
 
     @staticmethod
@@ -263,7 +280,7 @@ class LammpsPointLaw:
         states = []
         for g in range(len(off) - 1):
             a = {k: np.array(arrays[k][g]) for k in _PER_PARTICLE + _PER_CELL}
-            a.update({k: np.array(arrays[k][off[g] : off[g + 1]]) for k in _PER_ENTRY})
+            a.update({k: np.array(arrays[_packed(k)][off[g] : off[g + 1]]) for k in _PER_ENTRY})
             for v in a.values():
                 v.flags.writeable = False
             states.append(LammpsState(a, int(arrays["step"][g]), int(upd[g]), inc[first[g] : first[g + 1]].copy()))

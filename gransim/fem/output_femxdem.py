@@ -11,7 +11,8 @@ bottom: :func:`gransim.fem.quadrature.square_rule`):
   simDEM.py:184-187); ``rotation``: the mean disk rotation since the initial RVE (rad,
   counter-clockwise; simDEM.avgRotation2D, simDEM.py:204-210), each disk's spin dt summed over every
   DEM step (:func:`gransim.dem.yade_arithmetic.rve_run_rotation`).
-  Both exist for the DEM RVE only: a stand-in law has no grains (n/a).
+  Both exist for the DEM RVE only: a stand-in law has no grains (n/a); the LAMMPS RVE
+  (``dem-lammps``) has a void ratio but no rotation (LAMMPS' spheres carry no orientation).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ MAP_FIELDS = {
     "rotation": "mean particle rotation (rad)",
 }
 #: why a field is missing, by ``--rve`` (default: a stand-in)
-NOT_AVAILABLE: dict = {}
+NOT_AVAILABLE = {"dem-lammps": "LAMMPS' disks carry no orientation"}
 NOT_AVAILABLE_STANDIN = "stand-in law: no grains"
 
 

@@ -103,7 +103,7 @@ def _gransim(*args, timeout=300):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--rve", "voronoi"], "--rve: expected one of dem, taylor, j2"),
+        (["--rve", "voronoi"], "--rve: expected one of dem, dem-lammps, taylor, j2"),
         (["--mesh", "0x3"], "--mesh"),
         (["--steps", "3", "--stop-after", "4"], "--stop-after"),
         (["--rve", "j2", "--packing", "x.h5"], "--packing: applies to --rve taylor only"),

@@ -132,3 +132,114 @@ def test_contact_stiffness_tangent_predicts_a_small_elastic_increment(rve):
     pred = np.einsum("ijkl,kl->ij", t0, dF)
     assert np.sign(s1[1, 1] - s0[1, 1]) == np.sign(pred[1, 1])
     assert 0.1 < (s1[1, 1] - s0[1, 1]) / pred[1, 1] < 10
+
+
+# ---------------------------------------------------------------------------------------------------
+# gransim femxdem --rve dem-lammps: the LAMMPS RVE at every Gauss point
+
+
+@pytest.fixture(scope="module")
+def lammps_run(tmp_path_factory):
+    """A 1 x 1 Q8 specimen (4 Gauss points), 2 steps, --rve dem-lammps, checkpointed."""
+    from gransim.fem.biaxial import BiaxialSpec
+    from gransim.fem.femxdem import run_femxdem
+
+    out = tmp_path_factory.mktemp("fxl") / "run"
+    summary = run_femxdem(BiaxialSpec(nx=1, ny=1, steps=2), rve="dem-lammps", out=out)
+    return out, summary
+
+
+def _committed(out, step):
+    import h5py
+
+    from gransim.fem.lammps_rve import LammpsPointLaw
+
+    with h5py.File(out / "checkpoint" / f"states_{step:03d}.h5", "r") as f:
+        arrays = {k: np.array(v) for k, v in f["states"].items()}
+        return LammpsPointLaw.unpack_states(arrays), f["stress"][()]
+
+
+def test_a_lammps_gauss_point_equals_a_single_rve_driven_by_its_strain_path(lammps_run, rve):
+    """(a) for --rve dem-lammps: every Gauss point of the uniform specimen holds the RVE that one
+    LAMMPS RVE driven from the prepared state by the point's own strain increments reaches, bit
+    for bit (positions, velocities, spins, forces, torques, the cell), with its stress."""
+    out, summary = lammps_run
+    states, stress = _committed(out, 2)
+    assert len(states) == 4 and all(s.updates == 2 for s in states)
+    for g, s in enumerate(states):
+        replay = rve.replay(s.increments)[-1]
+        for key in ("positions", "velocities", "spins", "forces", "torques", "box"):
+            np.testing.assert_array_equal(s.arrays[key], replay[key], err_msg=f"Gauss point {g}: {key}")
+        sig = replay["stress"]
+        np.testing.assert_array_equal(stress[g], 0.5 * (sig + sig.T), err_msg=f"Gauss point {g}: stress")
+    assert np.abs(states[0].increments).max() > 5e-4  # the points were strained: the comparison has a scale
+    q = [r.deviatoric_stress for r in summary["steps"]]
+    assert 0 < q[0] < q[1]  # the specimen hardens under compression
+
+
+def test_lammps_run_resumes_bit_for_bit_and_says_what_it_lacks(lammps_run, tmp_path):
+    import h5py
+
+    from gransim.fem.biaxial import BiaxialSpec
+    from gransim.fem.femxdem import FemxdemInterrupted, run_femxdem
+
+    out, summary = lammps_run
+    cut = tmp_path / "cut"
+    with pytest.raises(FemxdemInterrupted):
+        run_femxdem(BiaxialSpec(nx=1, ny=1, steps=2), rve="dem-lammps", out=cut, stop_after=1)
+    resumed = run_femxdem(BiaxialSpec(nx=1, ny=1, steps=2), rve="dem-lammps", out=cut, resume=True)
+    assert resumed["resumed_after"] == 1
+    for a, b in zip(summary["steps"], resumed["steps"], strict=True):
+        for key in ("x", "stress", "F", "errors"):
+            np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
+    a, _ = _committed(out, 2)
+    b, _ = _committed(cut, 2)
+    for sa, sb in zip(a, b, strict=True):
+        for key, v in sa.arrays.items():
+            np.testing.assert_array_equal(v, sb.arrays[key], err_msg=key)
+    # its observables: the void ratio; the rotation is not defined (LAMMPS' disks carry no angle)
+    with h5py.File(out / "femxdem.h5", "r") as f:
+        obs = f["final/observables"]
+        assert 0.1 < obs["void_ratio"][()].min() and obs["void_ratio"][()].max() < 0.3
+        assert "rotation" not in obs and obs["contacts"][()].min() > 100
+        assert f["fields"].attrs["not_available"] == "rotation"
+        assert "orientation" in f["fields"].attrs["not_available_reason"]
+        assert "LammpsPointLaw" in f.attrs["parameters"]
+    report = (out / "report.md").read_text()
+    assert "LAMMPS' arithmetic" in report and "rotation n/a (LAMMPS' disks carry no orientation)" in report
+    assert (out / "maps_002.png").exists() and (out / "mesh_002.vtu").exists()
+
+
+def test_lammps_rve_options_are_checked_at_the_boundary(tmp_path):
+    import argparse
+
+    from gransim.cli.cmd_femxdem import check_options
+
+    base = dict(rve="dem-lammps", full=False, mesh=None, steps=None, element="Q8", gauss=None, pressure=1e5,
+                top_step=1e-4, tol=1e-2, max_iter=None, packing=None, packing_dir=None, out=str(tmp_path / "o"),
+                resume=False, stop_after=None, workers=None, scheduler=None, field_steps=None, rve_pictures=None,
+                tangent=None, tangent_step=None)  # fmt: skip
+    assert check_options(argparse.Namespace(**base))["spec"]["nx"] == 2
+    for kw, msg in [
+        ({"pressure": 2e5}, "--pressure: --rve dem-lammps's RVE was consolidated to 1e5 Pa"),
+        ({"rve_pictures": "0"}, "--rve-pictures: applies to --rve dem only"),
+    ]:
+        with pytest.raises(InputError, match=msg):
+            check_options(argparse.Namespace(**{**base, **kw}))
+    assert check_options(argparse.Namespace(**{**base, "tangent": "perturbation"}))["spec"]["nx"] == 2
+
+
+def test_the_lammps_point_law_travels_to_a_worker_unchanged(rve):
+    """The law is pickled to each Dask worker (--workers): the copy updates to the same bits."""
+    import pickle
+
+    from gransim.fem.lammps_rve import LammpsPointLaw
+
+    law = LammpsPointLaw(rve)
+    copy = pickle.loads(pickle.dumps(law))
+    assert dict(copy.rve.packing.metadata) == dict(rve.packing.metadata) and copy.rve.settings == rve.settings
+    f = np.eye(2) + INCREMENTS[0]
+    a, b = law.update(f, law.initial_state(0)), copy.update(f, copy.initial_state(0))
+    np.testing.assert_array_equal(a[0], b[0])
+    for key, v in a[2].arrays.items():
+        np.testing.assert_array_equal(v, b[2].arrays[key], err_msg=key)
