@@ -663,7 +663,8 @@ def taylor_yade(label: str, material, runs: dict, *, expected_rves, expected_ks,
     a failed one an ``incomplete`` record naming it, every state k of ``expected_ks`` on every path;
     then the checks of :func:`yade_taylor_records` per RVE and path (labels ``label/<RVE>/<path>``).
     Returns (records, {"rows": [RVE, N, states, contacts, getStress, stress of getStressAndTangent,
-    tangent]})."""
+    tangent, YADE's seconds (its manifest's elapsed_s)], "versions": the YADE versions of the runs'
+    manifests})."""
     recs = [
         evidence(
             label,
@@ -672,12 +673,13 @@ def taylor_yade(label: str, material, runs: dict, *, expected_rves, expected_ks,
             sorted(k for k, r in runs.items() if not isinstance(r, str)),
         )
     ]
-    rows = []
+    rows, versions = [], set()
     for name, run in sorted(runs.items()):
         short = name.replace("rve-", "")
         if isinstance(run, str):
             recs.append(Record(f"{label}/{short}", "evidence", f"incomplete: YADE job failed: {run}", 1.0, 0.0, False))
             continue
+        versions.add(str(run.manifest.get("engine_version", "unknown")))
         paths = sorted({st["path"] for st in run.states}, key=list(PATH_NAMES).index)
         for path in PATH_NAMES:
             have = [st["k"] for st in run.states if st["path"] == path]
@@ -699,9 +701,10 @@ def taylor_yade(label: str, material, runs: dict, *, expected_rves, expected_ks,
                 f"{float(cmp.stress.max()):.2e}",
                 f"{float(cmp.stress_tangent_call.max()):.2e}",
                 f"{float(cmp.tangent.max()):.2e}",
+                f"{float(run.manifest.get('elapsed_s', 0.0)):.1f}",
             ]
         )
-    return recs, {"rows": rows}
+    return recs, {"rows": rows, "versions": sorted(versions)}
 
 
 # ====================================================================== void cells

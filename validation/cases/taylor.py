@@ -135,7 +135,8 @@ def _material(packing):
 
 # ---------------------------------------------------------------- YADE's column
 #: YADE's Taylor states per suite: the RVEs and the stride along the 50-step paths (quick settings in
-#: the default suite, about 4 s; every state of the 15 RVEs in the full suite, the jobs of taylor-rve-yade)
+#: the default suite, about 4 s; every state of the 15 RVEs of Meier, Steinmann & Kuhl's study in the
+#: full suite, about 95 s of YADE)
 YADE_SETTINGS = {
     "quick": {"names": [f"rve-70-{k}" for k in (1, 2, 3)], "stride": 5},
     "default": {"names": [f"rve-70-{k}" for k in (1, 2, 3)], "stride": 5},
@@ -152,10 +153,14 @@ YADE_REASON = (
 
 
 def yade_plan(ctx: Context, packings: dict, suite: str) -> tuple[list, list]:
-    """YADE's Taylor column: its jobs of the suite's RVEs (:data:`YADE_SETTINGS`), run now (the job
-    directories of taylor-rve-yade, results/reference/taylor-yade/<RVE>, so a full run's jobs are
-    shared) or, with YADE absent, its stored outputs (reference_runs/stored/taylor-rve-yade, the quick
-    settings only), against gransim by :func:`validation.judges.taylor_yade`."""
+    """YADE's Taylor column: its jobs of the suite's RVEs (:data:`YADE_SETTINGS`), run now (one job per
+    RVE, results/reference/taylor-yade/<RVE>) or, with YADE absent, its stored outputs
+    (reference_runs/stored/taylor-rve-yade, the quick settings only: a suite asking for more has
+    incomplete evidence), against gransim by :func:`validation.judges.taylor_yade`: YADE's
+    ``getStress`` and ``getStressAndTangent`` against gransim's Cauchy stress (eq 10 of Meier et al.)
+    and the material part of its tangent (eq 12, its eps/d terms removed, pushed forward), the zero
+    entries of YADE's tangent and the contacts of the two codes, state by state, every RVE and every
+    state of each path present (docs/yade.md, "The 15 study RVEs")."""
     st = YADE_SETTINGS.get(suite, YADE_SETTINGS["default"])
     names = st["names"] or sorted(n for n in packings if n.startswith("rve-"))
     mine = {n: packings[n] for n in names if n in packings}
@@ -296,7 +301,10 @@ def taylor_rve(ctx: Context) -> CaseResult:
     )
     for r in runs:
         if r.code == "yade" and r.key in out.runs:  # {RVE: YADE's Taylor run, or why it failed}
-            res.notes.append(f"YADE reference: {r.source}.")
+            versions = [
+                v for c in comps if c.kind == "taylor_yade" for v in out.summaries.get(c.label, {}).get("versions", [])
+            ]
+            res.notes.append(f"YADE reference: {r.source} ({', '.join(versions) or 'no job completed'}).")
         elif r.key in out.runs and r.code != NATIVE and not r.key.startswith(("live-contacts", "stored-contacts")):
             res.notes.append(f"{CODE[r.code]} reference: {out.runs[r.key].source}.")
     rows = [row for c in comps if c.kind == "taylor_stress" for row in out.summaries.get(c.label, {}).get("rows", [])]
@@ -311,7 +319,7 @@ def taylor_rve(ctx: Context) -> CaseResult:
         res.tables.append(
             (
                 "gransim against YADE per RVE (largest relative difference over all states and paths)",
-                ["RVE", "N", "states", "contacts", "getStress", "stress of getStressAndTangent", "tangent"],
+                ["RVE", "N", "states", "contacts", "getStress", "stress of getStressAndTangent", "tangent", "YADE s"],
                 yade_rows,
             )
         )
