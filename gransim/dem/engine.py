@@ -172,6 +172,11 @@ ENERGY_CHUNK = 1 << 16
 #: the Neighbours field ``shift`` of the engine's lists (the shifts are kept as floats only)
 _NO_SHIFT = np.zeros((0, 2), np.int64)
 
+#: the arithmetics of :class:`Engine` (``flavour=``): LIGGGHTS' and LAMMPS' (the cells of this module
+#: and gransim.dem.sheared, either Hooke law, any registered law) and YADE's (gransim.dem.yade_cell:
+#: its own iteration, collider and Cundall and Strack's law)
+ARITHMETICS = (*FLAVOURS, "yade")
+
 #: the cells of :class:`Engine`: "orthogonal" (:class:`OrthogonalCell`, LIGGGHTS' and LAMMPS'
 #: orthogonal box under ``fix deform ... remap x``) and "sheared" (:class:`gransim.dem.sheared.
 #: ShearedCell`, LAMMPS' triclinic box under ``fix deform ... xy ... remap v``)
@@ -204,9 +209,10 @@ class Engine:
       :class:`~gransim.dem.sheared.ShearLoading`, ``fix deform ... xy ... remap v``);
     - **law** (``law=``): any registered contact law (:func:`gransim.contacts.laws.register_law`);
       None: the Hooke law of a :class:`DEMSettings` in the engine's arithmetic;
-    - **arithmetic** (``flavour=``, default ``settings.flavour``): "liggghts" or "lammps", whose
-      step order, rebuild rule and law arithmetic the engine reproduces bit for bit
-      (docs/lammps.md);
+    - **arithmetic** (``flavour=``, default ``settings.flavour``, :data:`ARITHMETICS`):
+      "liggghts" or "lammps", whose step order, rebuild rule and law arithmetic the engine
+      reproduces bit for bit (docs/lammps.md); or "yade", YADE's own iteration (its leapfrog,
+      collider, interaction container and Cundall and Strack's law, :mod:`gransim.dem.yade_cell`);
     - **ordering** (``order=``, :data:`ORDERS`): "code", the code's order bit for bit (the
       cell classes above; the orthogonal cell's list over numba threads with ``settings.mode``
       "parallel"), or "fast" (:mod:`gransim.dem.fast`: spatially sorted structure of arrays, a
@@ -234,6 +240,8 @@ class Engine:
         runs the serial loop). Fast order: its threads (None: 1; the results do not depend on them).
     check_dt : refuse a time step above :func:`stability_limit` of the law (at the largest overlap
         after the set-up for a law whose stiffness depends on it: Hertz).
+    cell_options : options of the cell's constructor (the yade cell: ``z``, the z size of YADE's
+        3D cell, m; default :func:`gransim.dem.yade_arithmetic.yade_cell_z`).
     box : optional box with its own origin, as a data file's ``xlo xhi ylo yhi`` (and ``xy``) lines:
         (lo, hi) or, sheared, (lo, hi, xy); the positions are taken as they are in that box (no
         translation, which would round them). hi - lo must equal the cell's side lengths (1e-12).
@@ -262,8 +270,11 @@ class Engine:
         cell: str = "orthogonal",
         flavour: str | None = None,
         order: str = "code",
+        cell_options: dict | None = None,
     ):
-        self._prepare(packing, settings, velocities, spins, threads, check_dt, box, law, cell, flavour, order)
+        self._prepare(
+            packing, settings, velocities, spins, threads, check_dt, box, law, cell, flavour, order, cell_options
+        )
         # the codes' ``run`` set-up: wrap, build (springs zero), forces without spring increment
         self._rebuild(carry=False)
         self._forces(update=False)
@@ -286,6 +297,7 @@ class Engine:
         cell: str = "orthogonal",
         flavour: str | None = None,
         order: str = "code",
+        cell_options: dict | None = None,
     ) -> Engine:
         """The engine at a checkpoint (``arrays`` of :meth:`state_arrays` at ``step``) without the
         run set-up of a new engine (its list build and force evaluation, which :meth:`restore`
@@ -293,12 +305,14 @@ class Engine:
         arguments as for the constructor (the packing, settings, law, cell and ordering of the
         engine that wrote the checkpoint)."""
         eng = cls.__new__(cls)
-        eng._prepare(packing, settings, None, None, threads, check_dt, box, law, cell, flavour, order)
+        eng._prepare(packing, settings, None, None, threads, check_dt, box, law, cell, flavour, order, cell_options)
         eng.restore(arrays, step)
         eng._check_time_step_now()
         return eng
 
-    def _prepare(self, packing, settings, velocities, spins, threads, check_dt, box, law, cell, flavour, order):
+    def _prepare(
+        self, packing, settings, velocities, spins, threads, check_dt, box, law, cell, flavour, order, cell_options
+    ):
         """Everything of the constructor but the run set-up: the inputs checked, the law, the
         cell's state (:attr:`cell_ops`) with the given positions, velocities and spins."""
         check_choice(cell, "cell", CELLS)
@@ -308,8 +322,8 @@ class Engine:
         if not isinstance(settings, (DEMSettings, Integration)):
             raise InputError(f"settings: expected a DEMSettings or an Integration, got {type(settings).__name__}")
         flavour = settings.flavour if flavour is None else flavour
-        check_choice(flavour, "flavour", FLAVOURS)
-        ops = _cell_class(cell, order)
+        check_choice(flavour, "flavour", ARITHMETICS)
+        ops = _cell_class(cell, order, flavour)
         ops.check(packing, settings, flavour)
         self.packing = packing
         self.settings = settings
@@ -329,7 +343,7 @@ class Engine:
         self._build_step = 0
         self._failed = ""  # why a rebuild failed (the engine has no list then), or ""
         self._run_drive = None  # the loading of the current run (start_run)
-        self.cell_ops = ops(self, box, threads, x, v, w)
+        self.cell_ops = ops(self, box, threads, x, v, w, **(cell_options or {}))
 
     # ------------------------------------------------------------------ the law
     def _set_law(self, packing: Packing, settings, law, flavour: str, check_dt: bool) -> None:
@@ -337,6 +351,20 @@ class Engine:
         loops need of its registration (history width, flip signs, disk cache), its time step
         checked (:func:`check_time_step`, at zero overlap: :meth:`_check_time_step_now` checks a
         law whose stiffness grows with the overlap once the state is set up)."""
+        if flavour == "yade":
+            # the yade arithmetic runs its own law, Cundall and Strack's in YADE's arithmetic
+            # (gransim.dem.yade_cell, settings checked by its cell): its time step is that of
+            # the undamped Hooke law of the same stiffnesses
+            if law is not None:
+                raise InputError("law: the yade arithmetic runs Cundall and Strack's law of the settings (law=None)")
+            if check_dt:
+                check_time_step(packing, settings.dt, settings.hooke_law("lammps"))
+            self.law = None
+            self._check_dt = False
+            self._width = 2
+            self._flip = np.array([-1.0, -1.0])
+            self._no_cache = False
+            return
         if law is None:
             if not isinstance(settings, DEMSettings):
                 raise InputError("law: an engine with Integration settings needs its contact law (law=...)")
@@ -391,6 +419,9 @@ class Engine:
         d = x_i - x_j, f the force on i, over the area of the side lengths ``L`` (2,) (default: the
         current box). Not symmetric out of equilibrium; [0, 1] = sum d_x f_y is the codes'
         ``compute pressure`` component 4 (xy)."""
+        own = getattr(self.cell_ops, "stress_tensor", None)
+        if L is None and own is not None:  # a cell with its code's own stress (the yade cell)
+            return own(self)
         if L is None:
             L = self.box_lengths
         inv = 1.0 / (L[0] * L[1])
@@ -490,6 +521,8 @@ class Engine:
                 )
             elif status == 3:
                 raise SimulationError(f"step {self.step + 1}: {ops.collapse_message(self)}")
+            elif status > 3:
+                raise SimulationError(f"step {self.step + 1}: {ops.failure_message(self, status, bad)}")
             elif k == 0 and done < nsteps:  # pragma: no cover - the block always moves or stops
                 raise SimulationError(f"step {self.step + 1}: no progress")
         series = ops.result(self, out, step_start)
@@ -1045,9 +1078,15 @@ class OrthogonalCell(CodeOrderCell):
 ORDERS = ("code", "fast")
 
 
-def _cell_class(cell: str, order: str):
-    """The class of :attr:`Engine.cell_ops` for ``cell`` and ``order`` (imported on first use:
-    each holds its own jitted kernels)."""
+def _cell_class(cell: str, order: str, flavour: str):
+    """The class of :attr:`Engine.cell_ops` for ``cell``, ``order`` and ``flavour`` (imported on
+    first use: each holds its own jitted kernels)."""
+    if flavour == "yade":
+        if order != "code":
+            raise InputError("order: the yade arithmetic runs in YADE's own order (order='code')")
+        from .yade_cell import YadeOrthogonalCell, YadeShearedCell  # noqa: PLC0415 - start-up: its kernels
+
+        return YadeOrthogonalCell if cell == "orthogonal" else YadeShearedCell
     if order == "fast":
         from .fast import FastOrthogonalCell, FastShearedCell  # noqa: PLC0415 - start-up: the fast kernels
 

@@ -8,9 +8,9 @@ first order. This module runs that iteration natively for 2D disks (spheres with
 ``zXY``) with Cundall and Strack's law (:mod:`gransim.contacts.yade_cundall_strack`), on the
 loadings of the decks: the biaxial test (each axis fixed, at an engineering rate, or under the
 proportional stress servo) and periodic simple shear (``xy erate`` with y fixed or under the servo),
-as ``reference_runs/yade/dem_script.py`` drives YADE. :func:`yade_run` is the stepping driver;
-it is meant to become the one engine's ``yade`` plug-in (docs/yade.md, "The native yade
-arithmetic").
+as ``reference_runs/yade/dem_script.py`` drives YADE. The one engine steps it
+(``Engine(..., flavour="yade")``, :mod:`gransim.dem.yade_cell`); :func:`yade_run` records every
+step of such a run as YADE's script writes them (docs/yade.md, "The native yade arithmetic").
 
 One iteration k (``Scene::moveToNextTimeStep``, core/Scene.cpp:108-127), each step as in YADE's
 source (2023.02a, tag of the mirror ``Aoxi-git/Cementor``; file:line):
@@ -80,7 +80,6 @@ from ..contacts.yade_cundall_strack import (
     ERASED,
     FORCE,
     NO_CONTACT,
-    friction_tangent,
     scgeom_cundall_strack,
     spheres_touch,
 )
@@ -813,42 +812,11 @@ class YadeRun:
     z: float
 
 
-def _axis_spec(ctl, L0: float, dt: float):
-    if ctl.mode == "fixed":
-        return _FIXED, 0.0, 0.0
-    if ctl.mode == "rate":
-        return _RATE, ctl.rate * L0 * dt, 0.0  # the decks' literal c = rate L0 dt
-    return _SERVO, dt * ctl.gain, float(ctl.target)
-
-
-def _loading(loading, C, dt):
-    """(mode_x, a_x, b_x, mode_y, a_y, b_y, erate) of the script's control()."""
-    if isinstance(loading, Loading):
-        return (*_axis_spec(loading.x, C[0, 0], dt), *_axis_spec(loading.y, C[1, 1], dt), 0.0)
-    if isinstance(loading, ShearLoading):
-        if loading.xy != "erate" or loading.every != 1:
-            raise InputError(
-                f"loading: the yade arithmetic shears at a constant erate changed every step, got xy {loading.xy!r}, "
-                f"every {loading.every}"
-            )
-        y = (_SERVO, dt * loading.gain, float(loading.target)) if loading.y == "servo" else (_FIXED, 0.0, 0.0)
-        return (_FIXED, 0.0, 0.0, *y, float(loading.erate))
-    raise InputError(f"loading: expected a gransim.dem.Loading or ShearLoading, got {type(loading).__name__}")
-
-
-def _rate(mode, a, b, h, p, dt):
-    """axis_rate of the script (reference_runs/yade/dem_script.py), in its Python arithmetic."""
-    if mode == _FIXED:
-        return 0.0
-    if mode == _RATE:
-        return a / (dt * h)
-    return a * (p - b) / dt
-
-
 def yade_run(
     packing: Packing, settings: DEMSettings, loading, nsteps: int, velocities=None, spins=None, z=None
 ) -> YadeRun:
-    """Run ``nsteps`` steps in YADE's arithmetic and return every step 0..nsteps (:class:`YadeRun`).
+    """Run ``nsteps`` steps in YADE's arithmetic and return every step 0..nsteps (:class:`YadeRun`):
+    the one engine with ``flavour="yade"`` (:mod:`gransim.dem.yade_cell`), one step at a time.
 
     Parameters
     ----------
@@ -861,70 +829,22 @@ def yade_run(
     velocities, spins : initial (N, 2), (N,) (default 0). z : YADE's cell z size (default
         :func:`yade_cell_z`).
     """
+    from .engine import Engine  # noqa: PLC0415 - the engine imports this module's kernels through its cell
+
     nsteps = int(nsteps)
     if nsteps < 0:
         raise InputError(f"nsteps: expected an integer >= 0, got {nsteps}")
-    if settings.gamma_n != 0 or settings.gamma_t != 0:
-        raise InputError(
-            f"settings.gamma_n, gamma_t: the yade arithmetic runs Cundall and Strack's undamped law, got "
-            f"{settings.gamma_n!r}, {settings.gamma_t!r}"
-        )
-    C = np.asarray(packing.cell, float)
-    if C[0, 1] != 0.0 or C[1, 0] != 0.0:
-        raise InputError(f"packing.cell: the yade arithmetic starts from an orthogonal cell, got {C.tolist()}")
+    if not isinstance(loading, (Loading, ShearLoading)):
+        raise InputError(f"loading: expected a gransim.dem.Loading or ShearLoading, got {type(loading).__name__}")
+    cell = "sheared" if isinstance(loading, ShearLoading) else "orthogonal"
+    eng = Engine(
+        packing, settings, velocities, spins, check_dt=False, cell=cell, flavour="yade",
+        cell_options=None if z is None else {"z": float(z)},
+    )  # fmt: skip
+    control = eng.cell_ops.start_run(eng, loading, nsteps)[0]
+    eng._run_drive = eng.cell_ops.run
+    yb, yc, yq = eng.yb, eng.yc, eng.yq
     n = packing.n
-    dt = float(settings.dt)
-    z = yade_cell_z(packing.radii) if z is None else float(z)
-    mode_x, ax_, bx_, mode_y, ay_, by_, erate = _loading(loading, C, dt)
-    L0y = float(C[1, 1])
-    radius = np.array(packing.radii, float)
-    rho = float(packing.density)
-    mass = np.array([rho * math.pi * r * r for r in radius])  # the script: rho * math.pi * r * r
-    inertia = np.array([0.5 * m * r * r for m, r in zip(mass, radius)])  # 0.5 * m * r * r
-    pos = np.array(packing.positions, float).reshape(n, 2).copy()
-    vel = np.zeros((n, 2)) if velocities is None else np.array(velocities, float).reshape(n, 2).copy()
-    spin = np.zeros(n) if spins is None else np.array(spins, float).reshape(n).copy()
-    kn, ks, tan_phi = float(settings.kn), float(settings.kt), friction_tangent(settings.mu)
-    dt2 = dt * dt  # pow(dt, 2) (NewtonIntegrator.cpp:164), folded into dt * dt by GCC
-
-    # the cell: hSize set from Python (Cell::setHSize -> integrateAndUpdate(0))
-    H = C.copy()
-    L = np.zeros((2, 2))
-    nextL = np.zeros((2, 2))
-    Lprev = np.zeros((2, 2))
-    prevH = np.zeros((2, 2))
-    VP = np.zeros((2, 2))
-    size = np.zeros(3)
-    U = np.zeros((2, 2))
-    cos = np.zeros(3)
-    prev_size = np.full(3, np.nan)
-    # the collider
-    verlet = VERLET_FACTOR * float(radius.min())
-    ref_pos = np.full((n, 2), np.nan)
-    sweep = np.zeros(n)
-    last_update = np.zeros(n, np.int64)
-    aabb_min = np.zeros((n, 3))
-    aabb_max = np.zeros((n, 3))
-    m = 2 * n
-    bi = np.tile(np.repeat(np.arange(n, dtype=np.int64), 2), (3, 1))
-    bm = np.tile(np.array([True, False] * n), (3, 1))
-    bc = np.zeros((3, m))
-    bp = np.zeros((3, m), np.int64)
-    lo_idx = np.zeros(3, np.int64)
-    # the interactions
-    cap = min(n * (n - 1) // 2, 64 * n)
-    slot = np.full((n, n), -1, np.int64)
-    n_intr = np.zeros(1, np.int64)
-    i_id = np.zeros((cap, 2), np.int64)
-    i_cd = np.zeros((cap, 2), np.int64)
-    i_real = np.zeros(cap, np.bool_)
-    i_geom = np.zeros((cap, 8))
-    i_fs = np.zeros((cap, 2))
-    force = np.zeros((n, 2))
-    torque = np.zeros(n)
-    max_v2 = 0.0
-    first = True
-
     T = nsteps + 1
     out_cell = np.zeros((T, 2, 2))
     out_stress = np.zeros((T, 2, 2))
@@ -936,53 +856,26 @@ def yade_run(
     out_force = np.zeros((T, n, 2))
     out_torque = np.zeros((T, n))
     contacts = []
-    sig = np.zeros((2, 2))
     for k in range(T):
-        has_shear = _cell_update(H, z, L, dt, prevH, VP, size, U, cos)  # prologue
-        if first or max_v2 >= 1.0 or max_v2 == 0.0:  # InsertionSortCollider::isActivated
-            err, axis = _collide(
-                k, first, pos, radius, has_shear, U, cos, size, verlet, ref_pos, sweep, last_update, aabb_min,
-                aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, 0.0,
-            )  # fmt: skip
-            if err == _TOO_BIG:
-                raise RuntimeError(f"step {k}: a bound spans over half of the cell (YADE throws here too)")
-            if err == _FULL:
-                raise RuntimeError(f"step {k}: more than {cap} potential interactions")
-            if err == _TIE:
-                raise RuntimeError(
-                    f"step {k}: the initial sort of the bounds on axis {axis} reached libstdc++'s depth limit: its "
-                    "heap-sort branch is not reproduced"
-                )
-            first = False
-        _interactions(
-            pos, vel, spin, radius, H, VP, kn, ks, tan_phi, 0.0, 0.0, dt, False, n_intr, i_id, i_cd, i_real, i_geom,
-            i_fs, force, torque,
-        )  # fmt: skip
-        _stress(pos, H, z, n_intr, i_id, i_cd, i_real, i_geom, i_fs, sig)
-        # the script's control() (Python floats, reference_runs/yade/dem_script.py)
-        gxx = _rate(mode_x, ax_, bx_, H[0, 0], -sig[0, 0], dt)
-        gyy = _rate(mode_y, ay_, by_, H[1, 1], -sig[1, 1], dt)
-        gxy = erate * L0y / H[1, 1] if erate else 0.0
-        nextL[:] = ((gxx, gxy), (0.0, gyy))
-        real = np.flatnonzero(i_real[: n_intr[0]])
-        out_cell[k] = H
-        out_stress[k] = sig
-        out_grad[k] = nextL
+        if k:
+            eng.advance(1)
+        real = np.flatnonzero(yq.i_real[: yq.n_intr[0]])
+        out_cell[k] = yc.H
+        out_stress[k] = yc.sig
+        out_grad[k] = eng.cell_ops.vel_grad(eng, control)  # the script's control() of the frame
         out_nc[k] = len(real)
-        out_pos[k] = pos
-        out_vel[k] = vel
-        out_spin[k] = spin
-        out_force[k] = force
-        out_torque[k] = torque
+        out_pos[k] = yb.pos
+        out_vel[k] = yb.vel
+        out_spin[k] = yb.spin
+        out_force[k] = yb.force
+        out_torque[k] = yb.torque
         contacts.append(
-            (i_id[real].copy(), i_cd[real].copy(), i_geom[real, 3:5].copy(), i_fs[real].copy(), i_geom[real, 2].copy())
-        )
-        max_v2 = _newton(
-            pos, vel, spin, mass, inertia, force, torque, L, nextL, Lprev, size, prev_size, dt, dt2, ref_pos, sweep
-        )
+            (yq.i_id[real].copy(), yq.i_cd[real].copy(), yq.i_geom[real, 3:5].copy(), yq.i_fs[real].copy(),
+             yq.i_geom[real, 2].copy())
+        )  # fmt: skip
     return YadeRun(
         np.arange(T), out_cell, out_stress, out_grad, out_nc, out_pos, out_vel, out_spin, out_force, out_torque,
-        contacts, mass, inertia, z,
+        contacts, yb.mass.copy(), yb.inertia.copy(), eng.cell_ops.z,
     )  # fmt: skip
 
 

@@ -78,3 +78,57 @@ def test_the_fast_ordering_has_no_code_order_list_views(packing):
     assert eng.ea.shape == eng.eb.shape == (eng.xi.shape[0],)
     with pytest.raises(AttributeError, match="fast ordering keeps no such array"):
         eng.esx  # noqa: B018 - the view is the test
+
+
+# ---------------------------------------------------------------------------------------------- yade
+def _yade_case():
+    from reference_runs.decks.shear import wrapped_packing
+    from reference_runs.yade.dem import short_biaxial
+
+    p, s, ld, _ = short_biaxial()
+    return wrapped_packing(p), s, ld
+
+
+def test_the_yade_arithmetic_is_a_cell_of_the_engine_and_continues_from_a_checkpoint():
+    from gransim.dem.yade_arithmetic import yade_run
+
+    p, s, ld = _yade_case()
+    eng = Engine(p, s, flavour="yade")
+    assert eng.cell_kind == "orthogonal" and eng.order == "code"
+    eng.start_run(ld, 400)
+    first = eng.advance(150)
+    ck = eng.state_arrays()
+    rest = eng.advance(250)
+    again = Engine.from_checkpoint(p, s, ck, 150, flavour="yade")
+    out = again.advance(250)  # the run's control is in the checkpoint
+    for k in ("stress", "n_contacts", "kinetic_energy", "lengths"):
+        np.testing.assert_array_equal(out[k], rest[k], err_msg=k)
+    np.testing.assert_array_equal(again.x, eng.x)
+    # the recording driver (every frame as YADE's script writes it) is the same engine: its stress,
+    # compression positive, is -sig^T of YADE's getStress() with the same bits
+    run = yade_run(p, s, ld, 400)
+    np.testing.assert_array_equal(first["stress"], -np.swapaxes(run.stress[1:151], 1, 2))
+    np.testing.assert_array_equal(eng.x, run.positions[400])
+    assert eng.elastic_energy() > 0 and eng.contacts()["i"].size == run.n_contacts[400]
+
+
+def test_the_yade_arithmetic_refuses_what_it_does_not_run():
+    p, s, ld = _yade_case()
+    with pytest.raises(InputError, match="order"):
+        Engine(p, s, flavour="yade", order="fast")
+    with pytest.raises(InputError, match="undamped"):
+        Engine(p, DEMSettings(**{**s.to_dict(), "gamma_n": 1.0}), flavour="yade")
+    with pytest.raises(InputError, match="ShearLoading"):
+        Engine(p, s, flavour="yade", cell="sheared").start_run(ld, 10)
+    with pytest.raises(InputError, match="law"):
+        Engine(p, s, flavour="yade", law=s.hooke_law())
+
+
+def test_a_yade_run_that_blows_up_names_the_step():
+    from gransim.errors import SimulationError
+
+    p, s, ld = _yade_case()
+    eng = Engine(p, DEMSettings(**{**s.to_dict(), "dt": 1.2e-3}), flavour="yade", check_dt=False)  # 10x the limit
+    eng.start_run(ld, 5000)
+    with pytest.raises(SimulationError, match=r"step \d+: .*(kinetic energy|non-finite|bound)"):
+        eng.advance(5000)

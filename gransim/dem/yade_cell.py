@@ -1,0 +1,574 @@
+"""The ``yade`` arithmetic as the engine's cell (``Engine(..., flavour="yade")``): YADE 2023.02a's
+periodic iteration (:mod:`gransim.dem.yade_arithmetic`: its cell, collider, interaction container,
+Cundall and Strack's law and leapfrog, each to the bit) stepped by the one step loop of
+:class:`gransim.dem.engine.Engine`, with the engine's checks, views, energies and checkpoints.
+
+YADE's iteration k is: the cell's prologue, the collider when it is active, the interaction loop
+(forces), the script's ``PyRunner`` (``getStress`` and the loading's ``velGrad`` for the next
+step), ``NewtonIntegrator`` (yade_arithmetic module docstring). The engine's set-up is iteration
+0 up to the stress; an engine step k is the ``PyRunner``'s control of frame k-1, Newton, then
+iteration k up to its stress, so that the state after step k is YADE's frame k (the state the
+``PyRunner`` of step k sees: positions x_k, velocities v_(k-1/2) with the mean field, forces of
+step k). The same operations in the same order as YADE's: the control is a pure function of the
+stress and the cell of frame k-1, evaluated with the script's Python arithmetic (IEEE double
+operations in the same order, here compiled).
+
+The loadings are those of the YADE decks (``reference_runs/yade/dem_script.py``): the orthogonal
+cell under a :class:`~gransim.dem.settings.Loading` (each axis fixed, at an engineering rate
+c = rate L0 dt with L0 the side length at the start of the run, or under the proportional stress
+servo), the sheared cell under a :class:`~gransim.dem.sheared.ShearLoading` with ``xy erate``
+(every step; y fixed or under the servo). The law is Cundall and Strack's with the constant
+stiffnesses kn, kt and the friction mu of a :class:`~gransim.dem.settings.DEMSettings` whose
+dampings are 0 (YADE's decks are undamped); its time-step limit is that of the undamped Hooke law of
+the same stiffnesses.
+
+Stress: YADE's ``utils.getStress()`` (tension positive, sum F (x) b over det(hSize)), given by the
+engine compression positive, ``stress = -sig^T`` (its [0, 1] the xy virial component sum d_x f_y,
+as the other cells), with YADE's own bits.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+
+from .._numba import njit
+from ..contacts.yade_cundall_strack import friction_tangent
+from ..errors import InputError, SimulationError
+from ..geometry import Packing
+from .settings import DEMSettings, Loading
+from .sheared import ShearLoading
+from .yade_arithmetic import (
+    _FIXED,
+    _FULL,
+    _RATE,
+    _SERVO,
+    _TIE,
+    _TOO_BIG,
+    VERLET_FACTOR,
+    _cell_update,
+    _collide,
+    _interactions,
+    _newton,
+    _stress,
+    yade_cell_z,
+)
+
+#: the bodies: positions, velocities (N, 2), spins, forces, torques, masses, inertias, radii; the
+#: collider's reference positions, sweep lengths, last updates and bounds
+YadeBodies = namedtuple(
+    "YadeBodies",
+    ["pos", "vel", "spin", "force", "torque", "mass", "inertia", "radius", "ref_pos", "sweep", "last_update",
+     "aabb_min", "aabb_max"],
+)  # fmt: skip
+#: the cell: hSize, velGrad, nextVelGrad, prevVelGrad, prevHSize, velGrad prevHSize, the column
+#: sizes, the unshear matrix, the skew cosines, the previous sizes, the stress of the last frame
+#: (YADE's, (2, 2) N/m tension positive), ``misc`` = (z, maxVelocitySq, verletDist)
+YadeCellState = namedtuple(
+    "YadeCellState", ["H", "L", "nextL", "Lprev", "prevH", "VP", "size", "U", "cos", "prev_size", "sig", "misc"]
+)
+#: the collider's bounds and the interaction container (slot: ids -> position, n_intr (1,))
+YadeContainer = namedtuple(
+    "YadeContainer", ["bc", "bi", "bp", "bm", "lo_idx", "slot", "n_intr", "i_id", "i_cd", "i_real", "i_geom", "i_fs"]
+)
+
+#: columns of the block's per-step rows: YADE's stress (00, 01, 10, 11), real interactions, the sum
+#: of their penetrations, the kinetic energy, hSize (00, 01, 10, 11), the velGrad of the step
+#: (00, 01, 10, 11)
+OUT_COLUMNS = 19
+
+#: the checkpoint datasets of the yade cell: name -> (state object, field)
+CHECKPOINT = {
+    **{f"yade/{f}": ("bodies", f) for f in YadeBodies._fields if f not in ("mass", "inertia", "radius")},
+    **{f"yade/{f}": ("cell", f) for f in YadeCellState._fields},
+    **{f"yade/{f}": ("container", f) for f in YadeContainer._fields if f != "slot"},
+}
+
+
+@njit
+def control_rate(mode, a, b, h, p, dt):
+    """``axis_rate`` of the deck's script (reference_runs/yade/dem_script.py) in its Python
+    arithmetic: fixed 0; rate a / (dt h), a = rate L0 dt; servo a (p - b) / dt, a = dt gain,
+    b the target, p the stress (compression positive) (1/s)."""
+    if mode == _FIXED:
+        return 0.0
+    if mode == _RATE:
+        return a / (dt * h)
+    return a * (p - b) / dt
+
+
+@njit
+def control_grad(ctl, H, sig, dt, out):
+    """The velGrad (2, 2) the script sets after the stress ``sig`` of a frame with the cell ``H``:
+    ``ctl`` = (mode_x, a_x, b_x, mode_y, a_y, b_y, erate, L0y)."""
+    gxx = control_rate(int(ctl[0]), ctl[1], ctl[2], H[0, 0], -sig[0, 0], dt)
+    gyy = control_rate(int(ctl[3]), ctl[4], ctl[5], H[1, 1], -sig[1, 1], dt)
+    erate = ctl[6]
+    gxy = erate * ctl[7] / H[1, 1] if erate != 0.0 else 0.0
+    out[0, 0] = gxx
+    out[0, 1] = gxy
+    out[1, 0] = 0.0
+    out[1, 1] = gyy
+
+
+@njit
+def _iteration_rest(it, first, b, c, q, kn, ks, tan_phi, dt):
+    """Iteration ``it`` of YADE after Newton: prologue, the collider when active (``first``: its
+    initial sort), the interactions, the stress. Returns (error, axis) of the collider."""
+    z = c.misc[0]
+    has_shear = _cell_update(c.H, z, c.L, dt, c.prevH, c.VP, c.size, c.U, c.cos)
+    max_v2 = c.misc[1]
+    err, axis = 0, -1
+    if first or max_v2 >= 1.0 or max_v2 == 0.0:  # InsertionSortCollider::isActivated
+        err, axis = _collide(
+            it, first, b.pos, b.radius, has_shear, c.U, c.cos, c.size, c.misc[2], b.ref_pos, b.sweep, b.last_update,
+            b.aabb_min, b.aabb_max, q.bc, q.bi, q.bp, q.bm, q.lo_idx, q.slot, q.n_intr, q.i_id, q.i_cd, q.i_real,
+            q.i_geom, q.i_fs, 0.0,
+        )  # fmt: skip
+        if err != 0:
+            return err, axis
+    _interactions(
+        b.pos, b.vel, b.spin, b.radius, c.H, c.VP, kn, ks, tan_phi, 0.0, 0.0, dt, False, q.n_intr, q.i_id, q.i_cd,
+        q.i_real, q.i_geom, q.i_fs, b.force, b.torque,
+    )  # fmt: skip
+    _stress(b.pos, c.H, z, q.n_intr, q.i_id, q.i_cd, q.i_real, q.i_geom, q.i_fs, c.sig)
+    return 0, -1
+
+
+@njit
+def _row(b, c, q, out, s):
+    """The per-step row ``s`` of ``out`` (:data:`OUT_COLUMNS`) after a frame."""
+    out[s, 0] = c.sig[0, 0]
+    out[s, 1] = c.sig[0, 1]
+    out[s, 2] = c.sig[1, 0]
+    out[s, 3] = c.sig[1, 1]
+    nc = 0
+    pen = 0.0
+    for k in range(q.n_intr[0]):
+        if q.i_real[k]:
+            nc += 1
+            pen += q.i_geom[k, 2]
+    out[s, 4] = nc
+    out[s, 5] = pen
+    ke = 0.0
+    for i in range(b.pos.shape[0]):
+        ke += 0.5 * b.mass[i] * (b.vel[i, 0] * b.vel[i, 0] + b.vel[i, 1] * b.vel[i, 1])
+        ke += 0.5 * b.inertia[i] * b.spin[i] * b.spin[i]
+    out[s, 6] = ke
+    out[s, 7] = c.H[0, 0]
+    out[s, 8] = c.H[0, 1]
+    out[s, 9] = c.H[1, 0]
+    out[s, 10] = c.H[1, 1]
+    out[s, 11] = c.L[0, 0]
+    out[s, 12] = c.L[0, 1]
+    out[s, 13] = c.L[1, 0]
+    out[s, 14] = c.L[1, 1]
+
+
+@njit
+def yade_block(b, c, q, ctl, kn, ks, tan_phi, dt, dt2, step0, n, out):
+    """Up to ``n`` engine steps from frame ``step0`` (module docstring: the control of the last
+    frame, Newton, then the next iteration up to its stress), a row of ``out`` each. Returns
+    (steps done, status, index): status 0 done, 2 a non-finite position (index: the body), 4 a
+    bound spans over half of the cell, 5 the container is full, 6 the initial sort reached
+    libstdc++'s heap-sort branch (index: the axis)."""
+    for s in range(n):
+        control_grad(ctl, c.H, c.sig, dt, c.nextL)
+        c.misc[1] = _newton(
+            b.pos, b.vel, b.spin, b.mass, b.inertia, b.force, b.torque, c.L, c.nextL, c.Lprev, c.size, c.prev_size,
+            dt, dt2, b.ref_pos, b.sweep,
+        )  # fmt: skip
+        for i in range(b.pos.shape[0]):
+            if not (math.isfinite(b.pos[i, 0]) and math.isfinite(b.pos[i, 1])):
+                return s, 2, i
+        err, axis = _iteration_rest(step0 + s + 1, False, b, c, q, kn, ks, tan_phi, dt)
+        if err != 0:
+            return s, 3 + err, axis
+        _row(b, c, q, out, s)
+    return n, 0, -1
+
+
+class YadeCell:
+    """YADE's periodic cell for :class:`gransim.dem.engine.Engine` (module docstring). Its state on
+    the engine: ``yb`` (:data:`YadeBodies`), ``yc`` (:data:`YadeCellState`), ``yq``
+    (:data:`YadeContainer`), ``sc`` (the virial of the last frame in the engine's convention)."""
+
+    order = "code"
+
+    @staticmethod
+    def check(packing: Packing, settings, flavour: str) -> None:
+        if not isinstance(settings, DEMSettings):
+            raise InputError(
+                "settings: the yade arithmetic takes a DEMSettings (kn, kt, mu of Cundall and Strack's law), got "
+                f"{type(settings).__name__}"
+            )
+        if settings.gamma_n != 0 or settings.gamma_t != 0:
+            raise InputError(
+                f"settings.gamma_n, gamma_t: the yade arithmetic runs Cundall and Strack's undamped law, got "
+                f"{settings.gamma_n!r}, {settings.gamma_t!r}"
+            )
+        C = np.asarray(packing.cell, float)
+        if C[0, 1] != 0.0 or C[1, 0] != 0.0:
+            raise InputError(f"packing.cell: the yade arithmetic starts from an orthogonal cell, got {C.tolist()}")
+
+    @staticmethod
+    def check_size(packing: Packing, settings) -> None:
+        pass  # the collider stops on a bound over half of the cell (status 4), as YADE does
+
+    def __init__(self, eng, box, threads, x, v, w, z=None):
+        if box is not None:
+            raise InputError("box: the yade arithmetic's cell is the packing's, from the origin (box=None)")
+        if threads not in (None, 1):
+            raise InputError(f"threads: the yade arithmetic runs one thread, got {threads!r}")
+        p = eng.packing
+        n = p.n
+        s = eng.settings
+        self.z = yade_cell_z(p.radii) if z is None else float(z)
+        radius = np.array(p.radii, float)
+        rho = float(p.density)
+        mass = np.array([rho * math.pi * r * r for r in radius])  # the script: rho * math.pi * r * r
+        inertia = np.array([0.5 * m * r * r for m, r in zip(mass, radius)])  # 0.5 * m * r * r
+        self.kn, self.ks, self.tan_phi = float(s.kn), float(s.kt), friction_tangent(s.mu)
+        self.dt = float(s.dt)
+        self.dt2 = self.dt * self.dt  # pow(dt, 2) (NewtonIntegrator.cpp:164), folded into dt * dt by GCC
+        eng.yb = YadeBodies(
+            x.copy(), v.copy(), w.copy(), np.zeros((n, 2)), np.zeros(n), mass, inertia, radius,
+            np.full((n, 2), np.nan), np.zeros(n), np.zeros(n, np.int64), np.zeros((n, 3)), np.zeros((n, 3)),
+        )  # fmt: skip
+        C = np.asarray(p.cell, float)
+        misc = np.array([self.z, 0.0, VERLET_FACTOR * float(radius.min())])
+        eng.yc = YadeCellState(
+            C.copy(), np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)),
+            np.zeros(3), np.zeros((2, 2)), np.zeros(3), np.full(3, np.nan), np.zeros((2, 2)), misc,
+        )  # fmt: skip
+        m = 2 * n
+        cap = min(n * (n - 1) // 2, 64 * n)
+        eng.yq = YadeContainer(
+            np.zeros((3, m)), np.tile(np.repeat(np.arange(n, dtype=np.int64), 2), (3, 1)),
+            np.zeros((3, m), np.int64), np.tile(np.array([True, False] * n), (3, 1)), np.zeros(3, np.int64),
+            np.full((n, n), -1, np.int64), np.zeros(1, np.int64), np.zeros((cap, 2), np.int64),
+            np.zeros((cap, 2), np.int64), np.zeros(cap, np.bool_), np.zeros((cap, 8)), np.zeros((cap, 2)),
+        )  # fmt: skip
+        eng.sc = _Scratch(np.zeros(4))
+        self._set_up = False
+        self.run = None
+
+    # geometry: YADE's hSize
+    def matrix(self, eng) -> np.ndarray:
+        return eng.yc.H.copy()
+
+    def lengths(self, eng) -> np.ndarray:
+        H = eng.yc.H
+        return np.array([H[0, 0], H[1, 1]])
+
+    def lo(self, eng) -> np.ndarray:
+        return np.zeros(2)
+
+    def hi(self, eng) -> np.ndarray:
+        return self.lengths(eng)
+
+    # the set-up: iteration 0 up to its stress
+    def rebuild(self, eng, carry: bool):
+        pass  # YADE's collider runs inside the iteration
+
+    def forces(self, eng, update: bool):
+        if not self._set_up:
+            err, axis = _iteration_rest(0, True, eng.yb, eng.yc, eng.yq, self.kn, self.ks, self.tan_phi, self.dt)
+            if err:
+                raise SimulationError(f"step 0: {self.failure_message(eng, 3 + err, axis)}")
+            self._set_up = True
+        self._set_virial(eng)
+        return self._counts(eng)
+
+    def _counts(self, eng):
+        q = eng.yq
+        real = q.i_real[: q.n_intr[0]]
+        return float(real.sum()), float(q.i_geom[: q.n_intr[0], 2][real].sum())
+
+    def _set_virial(self, eng):
+        """The engine's virial (xx, yy, xy, yx: sum d_a f_b, N m) of YADE's stress of the frame."""
+        sig = eng.yc.sig
+        H = eng.yc.H
+        a = H[0, 0] * H[1, 1] - H[1, 0] * H[0, 1]
+        eng.sc.vir[:] = -a * np.array([sig[0, 0], sig[1, 1], sig[1, 0], sig[0, 1]])
+
+    def stress_tensor(self, eng) -> np.ndarray:
+        """YADE's getStress() of the last frame, compression positive: -sig^T (2, 2) N/m."""
+        return -eng.yc.sig.T.copy()
+
+    def touching(self, eng):
+        q = eng.yq
+        m = q.n_intr[0]
+        e = np.flatnonzero(q.i_real[:m])
+        return e, q.i_geom[e, 2].copy()
+
+    def budget_kinetic_energy(self, eng) -> float:
+        u = self.peculiar_velocities(eng)
+        b = eng.yb
+        return float(0.5 * np.sum(b.mass * np.einsum("ij,ij->i", u, u)) + 0.5 * np.sum(b.inertia * b.spin**2))
+
+    def peculiar_velocities(self, eng) -> np.ndarray:
+        """v - L x (m/s), (N, 2): the velocities without the cell's mean field (the velGrad of the
+        last step)."""
+        b = eng.yb
+        return b.vel - b.pos @ eng.yc.Lprev.T
+
+    def flow_kinetic_energy(self, eng) -> float:
+        u = eng.yb.pos @ eng.yc.Lprev.T
+        return float(0.5 * np.sum(eng.yb.mass * np.einsum("ij,ij->i", u, u)))
+
+    # the loading
+    LOADINGS = (Loading, ShearLoading)
+
+    def _control(self, eng, loading) -> np.ndarray:
+        """(mode_x, a_x, b_x, mode_y, a_y, b_y, erate, L0y) of the script's control() for ``loading``
+        from the current cell."""
+        H, dt = eng.yc.H, self.dt
+        if isinstance(loading, Loading) and self.kind == "orthogonal":
+
+            def axis(a, L0):
+                if a.mode == "fixed":
+                    return (_FIXED, 0.0, 0.0)
+                if a.mode == "rate":
+                    return (_RATE, a.rate * L0 * dt, 0.0)  # the decks' literal c = rate L0 dt
+                return (_SERVO, dt * a.gain, float(a.target))
+
+            return np.array([*axis(loading.x, H[0, 0]), *axis(loading.y, H[1, 1]), 0.0, H[1, 1]], float)
+        if isinstance(loading, ShearLoading) and self.kind == "sheared":
+            if loading.xy != "erate" or loading.every != 1 or loading.x_erate or loading.y == "erate":
+                raise InputError(
+                    "loading: the yade arithmetic shears at a constant xy erate changed every step, y fixed or "
+                    f"under the servo, got xy {loading.xy!r}, every {loading.every}, x_erate {loading.x_erate}, "
+                    f"y {loading.y!r}"
+                )
+            y = (_SERVO, dt * loading.gain, float(loading.target)) if loading.y == "servo" else (_FIXED, 0.0, 0.0)
+            return np.array([_FIXED, 0.0, 0.0, *y, float(loading.erate), H[1, 1]], float)
+        want = "a Loading" if self.kind == "orthogonal" else "a ShearLoading"
+        raise InputError(f"loading: the yade arithmetic's {self.kind} cell takes {want}, got {type(loading).__name__}")
+
+    def start_run(self, eng, loading, nsteps: int):
+        self.run = (self._control(eng, loading), eng.step + nsteps)
+        return self.run
+
+    def drive(self, eng, run, *args, **kwargs):
+        """(control, nsteps) of ``advance(nsteps)`` in the run of :meth:`start_run`, or of
+        ``advance(loading, nsteps)``."""
+        from .._validate import as_int  # noqa: PLC0415 - one use
+
+        if args and isinstance(args[0], self.LOADINGS):
+            loading, *rest = args
+            nsteps = rest[0] if rest else kwargs.get("nsteps", 1)
+            return self._control(eng, loading), as_int(nsteps, "nsteps", 0)
+        if run is None:
+            raise InputError("advance: call start_run(loading, nsteps) first, or advance(loading, nsteps)")
+        nsteps = args[0] if args else kwargs.get("nsteps")
+        nsteps = as_int(
+            nsteps, "nsteps", 0, run[1] - eng.step, note=f" (the run ends at step {run[1]}, now at step {eng.step})"
+        )
+        return run[0], nsteps
+
+    def vel_grad(self, eng, control) -> np.ndarray:
+        """The velGrad (2, 2) (1/s) the script sets at the current frame under ``control``."""
+        out = np.zeros((2, 2))
+        control_grad(control, eng.yc.H, eng.yc.sig, self.dt, out)
+        return out
+
+    # the block of steps
+    def series(self, nsteps: int) -> np.ndarray:
+        return np.zeros((nsteps, OUT_COLUMNS))
+
+    def box_state(self, eng):
+        return eng.yc.H.copy()
+
+    def block(self, eng, ctl, out, done: int, n: int, resume: bool):
+        return yade_block(
+            eng.yb, eng.yc, eng.yq, ctl, self.kn, self.ks, self.tan_phi, self.dt, self.dt2, eng.step, n, out[done:]
+        )
+
+    def check_divergence(self, eng, out, done: int, k: int, H_before):
+        """The divergence check (:meth:`gransim.dem.engine.Engine._check_energy`) after the k steps
+        from row ``done``: every step's kinetic energy finite; the one without the mean field at
+        the last step within the budget, which counts the kinetic energy of the mean field too;
+        the work of the cell per step A dt sig:L (YADE's stress, tension positive, the area of
+        the frame, its velGrad)."""
+        rows = out[done : done + k]
+        area = rows[:, 7] * rows[:, 10] - rows[:, 9] * rows[:, 8]
+        dw = area * self.dt * (rows[:, 0] * rows[:, 11] + rows[:, 1] * rows[:, 12] + rows[:, 2] * rows[:, 13]
+                               + rows[:, 3] * rows[:, 14])  # fmt: skip
+        ke = np.full(k, np.nan)
+        ke[-1] = self.budget_kinetic_energy(eng)
+        eng._check_energy(eng.step + 1, rows[:, 6], ke, dw, flow=self.flow_kinetic_energy(eng))
+
+    def failure_message(self, eng, status: int, index: int) -> str:
+        if status == 3 + _TOO_BIG:
+            return "a bound spans over half of the cell (YADE throws here too)"
+        if status == 3 + _FULL:
+            return f"more than {eng.yq.i_id.shape[0]} potential interactions"
+        if status == 3 + _TIE:
+            return (
+                f"the initial sort of the bounds on axis {index} reached libstdc++'s depth limit: its heap-sort "
+                "branch is not reproduced"
+            )
+        return f"the yade cell stopped (status {status})"
+
+    def collapse_message(self, eng) -> str:
+        return "the cell collapsed"
+
+    def result(self, eng, out: np.ndarray, first: int) -> dict:
+        n = out.shape[0]
+        self._set_virial(eng)
+        if n:
+            eng.n_contacts = round(float(out[-1, 4]))
+            eng.mean_overlap = float(out[-1, 5] / out[-1, 4]) if out[-1, 4] else 0.0
+        st = np.empty((n, 2, 2))
+        st[:, 0, 0] = -out[:, 0]
+        st[:, 0, 1] = -out[:, 2]
+        st[:, 1, 0] = -out[:, 1]
+        st[:, 1, 1] = -out[:, 3]
+        area = out[:, 7] * out[:, 10] - out[:, 9] * out[:, 8]
+        vir = -area[:, None] * out[:, [0, 3, 2, 1]]
+        cell = {
+            "lengths": out[:, [7, 10]].copy()
+            if self.kind == "orthogonal"
+            else np.stack([out[:, 7], out[:, 10], out[:, 8], np.zeros(n), out[:, 10]], axis=1)
+        }
+        return {
+            "step": np.arange(first + 1, first + n + 1),
+            "stress": st,
+            "virial": vir,
+            "n_contacts": np.rint(out[:, 4]).astype(np.int64),
+            "mean_overlap": np.divide(out[:, 5], out[:, 4], out=np.zeros(n), where=out[:, 4] > 0),
+            "kinetic_energy": out[:, 6].copy(),
+            **({"lengths": cell["lengths"]} if self.kind == "orthogonal" else {"box": cell["lengths"]}),
+        }
+
+    def particle(self, eng, i: int) -> int:
+        return int(i)
+
+    def largest_move(self, eng):
+        return 0, 0.0  # no neighbour list to outrun: YADE's collider follows the bodies
+
+    # views
+    VIEWS = {
+        "x": ("yb", "pos"), "v": ("yb", "vel"), "w": ("yb", "spin"), "f": ("yb", "force"), "t": ("yb", "torque"),
+        "m": ("yb", "mass"), "r": ("yb", "radius"),
+    }  # fmt: skip
+
+    def view(self, eng, name: str):
+        q = eng.yq
+        m = q.n_intr[0]
+        real = q.i_real[:m]
+        if name in self.VIEWS:
+            obj, field = self.VIEWS[name]
+            return getattr(getattr(eng, obj), field)
+        if name == "ea":
+            return q.i_id[:m, 0][real]
+        if name == "eb":
+            return q.i_id[:m, 1][real]
+        if name == "xi":
+            return q.i_fs[:m][real]
+        raise AttributeError(f"{name}: the yade arithmetic keeps no such array (contacts() gives its interactions)")
+
+    def contacts(self, eng) -> dict:
+        """The real interactions in YADE's container order: i, j (ids), shift (cellDist: l_ij = x_j
+        + H shift - x_i), force on j (F_n + F_s, N), overlap (penetrationDepth, m), shear force
+        (N) as ``shear_force`` and its spring ``tangential_spring`` = -F_s / ks (m), sliding (the
+        Coulomb cap reached: |F_s| = tan(phi) |F_n| to 1e-12)."""
+        q = eng.yq
+        m = q.n_intr[0]
+        e = np.flatnonzero(q.i_real[:m])
+        fn = q.i_geom[e, 3:5]
+        fs = q.i_fs[e]
+        ks = q.i_geom[e, 6]
+        cap = np.linalg.norm(fs, axis=1) >= (1.0 - 1e-12) * q.i_geom[e, 7] * np.linalg.norm(fn, axis=1)
+        return {
+            "i": q.i_id[e, 0].copy(),
+            "j": q.i_id[e, 1].copy(),
+            "shift": q.i_cd[e].copy(),
+            "force": fn + fs,
+            "overlap": q.i_geom[e, 2].copy(),
+            "tangential_spring": -fs / np.where(ks > 0, ks, 1.0)[:, None],
+            "shear_force": fs.copy(),
+            "sliding": cap & (np.linalg.norm(fs, axis=1) > 0),
+        }
+
+    def shifts(self, eng, e=slice(None)) -> np.ndarray:
+        q = eng.yq
+        m = q.n_intr[0]
+        return q.i_cd[:m][q.i_real[:m]][e].copy()
+
+    def elastic_energy(self, eng) -> float:
+        """Energy stored in the real interactions (J): |F_n|^2 / 2 kn + |F_s|^2 / 2 ks."""
+        q = eng.yq
+        m = q.n_intr[0]
+        e = np.flatnonzero(q.i_real[:m])
+        g = q.i_geom[e]
+        fn2 = g[:, 3] ** 2 + g[:, 4] ** 2
+        fs2 = np.einsum("ij,ij->i", q.i_fs[e], q.i_fs[e])
+        es = np.divide(fs2, 2.0 * g[:, 6], out=np.zeros_like(fs2), where=g[:, 6] > 0)
+        return float(np.sum(fn2 / (2.0 * g[:, 5])) + np.sum(es))
+
+    # checkpoints
+    def state_arrays(self, eng) -> dict:
+        """The bodies, the cell, the collider's bounds and the container (copies; the slot table is
+        derived from the ids), the set-up flag and the run's control."""
+        objs = {"bodies": eng.yb, "cell": eng.yc, "container": eng.yq}
+        out = {k: np.array(getattr(objs[o], f)) for k, (o, f) in CHECKPOINT.items()}
+        out["yade/set_up"] = np.array(self._set_up)
+        if self.run is not None:
+            out["yade/run_control"] = self.run[0].copy()
+            out["yade/run_end"] = np.array(self.run[1], np.int64)
+        return out
+
+    def restore(self, eng, arrays: dict, step: int) -> int:
+        objs = {"bodies": eng.yb, "cell": eng.yc, "container": eng.yq}
+        try:
+            for k, (o, f) in CHECKPOINT.items():
+                dst = getattr(objs[o], f)
+                src = np.asarray(arrays[k])
+                if f in ("i_id", "i_cd", "i_real", "i_geom", "i_fs") and src.shape[0] != dst.shape[0]:
+                    raise ValueError(f"{k}: {src.shape} for {dst.shape}")
+                dst[...] = src.reshape(dst.shape)
+        except KeyError as exc:
+            raise InputError(f"restore: the checkpoint lacks {exc.args[0]!r} (not a yade checkpoint?)") from None
+        except ValueError as exc:
+            raise InputError(f"restore: the checkpoint does not fit this engine: {exc}") from None
+        q = eng.yq
+        q.slot[:] = -1
+        m = q.n_intr[0]
+        q.slot[q.i_id[:m, 0], q.i_id[:m, 1]] = np.arange(m)
+        self._set_up = bool(arrays["yade/set_up"])
+        self.run = None
+        if "yade/run_control" in arrays:
+            self.run = (np.array(arrays["yade/run_control"], float), int(arrays["yade/run_end"]))
+        eng._run_drive = self.run
+        self._set_virial(eng)
+        return int(step)
+
+    def memory_bytes(self, eng) -> dict:
+        return {
+            "bodies": sum(a.nbytes for a in eng.yb),
+            "cell": sum(a.nbytes for a in eng.yc),
+            "container": sum(a.nbytes for a in eng.yq),
+        }
+
+
+#: the engine's ``sc`` of the yade cell: the virial only
+_Scratch = namedtuple("_Scratch", ["vir"])
+
+
+class YadeOrthogonalCell(YadeCell):
+    """YADE's cell under a :class:`~gransim.dem.settings.Loading` (the biaxial decks)."""
+
+    kind = "orthogonal"
+
+
+class YadeShearedCell(YadeCell):
+    """YADE's cell under a :class:`~gransim.dem.sheared.ShearLoading` (the simple-shear decks)."""
+
+    kind = "sheared"
+
+
+__all__ = ["OUT_COLUMNS", "YadeCell", "YadeOrthogonalCell", "YadeShearedCell", "control_grad", "yade_block"]
