@@ -1001,7 +1001,7 @@ def _run_locked(
     with open(job_dir / "stdout.txt", "wb") as out, open(job_dir / "stderr.txt", "wb") as err:
         # own session, marked, watched: no process of the job outlives this one, whatever ends it
         job = start_watched(
-            cmd, cwd=job_dir, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=eng.env(), private_tmp=True
+            cmd, cwd=job_dir, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=eng.env(np), private_tmp=True
         )
         proc = job.proc
         try:

@@ -40,11 +40,17 @@ def _commands(tmp_path: Path) -> dict:
     }
 
 
-def _env(tmp_path: Path) -> tuple[dict, Path]:
-    """The environment of the gransim process: its own TMPDIR, a short SIGTERM-to-SIGKILL grace."""
+#: the user's Open MPI setting that restores the singleton's ``orted`` for a serial job (by default a
+#: serial job runs as a lone singleton, reference_runs.engines.SERIAL_MPI_ENV: no ``orted``)
+WITH_ORTED = {"OMPI_MCA_ess_singleton_isolated": "0"}
+
+
+def _env(tmp_path: Path, extra: dict | None = None) -> tuple[dict, Path]:
+    """The environment of the gransim process: its own TMPDIR, a short SIGTERM-to-SIGKILL grace
+    (and ``extra``)."""
     tmp = tmp_path / "tmp"
     tmp.mkdir()
-    return {**os.environ, "TMPDIR": str(tmp), "GRANSIM_KILL_GRACE_S": "0.5"}, tmp
+    return {**os.environ, "TMPDIR": str(tmp), "GRANSIM_KILL_GRACE_S": "0.5", **(extra or {})}, tmp
 
 
 def _wait_for(cond, timeout: float, proc: subprocess.Popen) -> None:
@@ -137,8 +143,11 @@ run_job({job!r}, deck, files, np={np}, engine={engine!r}, progress=False, timeou
 """
 
 
-def _kill_a_running_job(tmp_path, engine: str, np: int, want: set) -> None:
-    env, tmp = _env(tmp_path)
+def _kill_a_running_job(tmp_path, engine: str, np: int, want: set, extra: dict | None = None, absent=()) -> list:
+    """Start a job that runs forever, wait for the processes named ``want``, SIGKILL its starter:
+    nothing of the job may be left. ``absent``: names that must not be among its processes (looked
+    for once ``want`` is there and again 1 s later). Returns the processes seen."""
+    env, tmp = _env(tmp_path, extra)
     script = _RUN_FOREVER.format(faults=str(FAULTS), engine=engine, job=str(tmp_path / "job"), np=np)
     proc = subprocess.Popen(
         [sys.executable, "-c", script], cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
@@ -146,19 +155,33 @@ def _kill_a_running_job(tmp_path, engine: str, np: int, want: set) -> None:
     try:
         _wait_for(lambda: want <= {n for _, n in _job_processes(tmp)}, 60, proc)
         seen = _job_processes(tmp)
+        if absent:
+            time.sleep(1.0)
+            seen = sorted(set(seen) | set(_job_processes(tmp)))
+            assert not {n for _, n in seen} & set(absent), seen
         _signal_and_wait(proc, signal.SIGKILL)
         assert _still_running(tmp) == [], f"alive after SIGKILL of their starter (of {seen})"
         assert _left_in(tmp) == []
     finally:
         for pid, _ in _job_processes(tmp):
             os.kill(pid, signal.SIGKILL)
+    return seen
 
 
 @pytest.mark.liggghts
 def test_sigkill_leaves_neither_liggghts_nor_its_orted(tmp_path):
-    """LIGGGHTS' MPI singleton forks ``orted`` into a session of its own: measured alive, reparented
-    to PID 1, after the starter was killed, before the watchdog."""
-    _kill_a_running_job(tmp_path, "liggghts", 1, {"liggghts", "orted"})
+    """LIGGGHTS' MPI singleton, with Open MPI's own settings (the user's), forks ``orted`` into a
+    session of its own: measured alive, reparented to PID 1, after the starter was killed, before
+    the watchdog."""
+    _kill_a_running_job(tmp_path, "liggghts", 1, {"liggghts", "orted"}, extra=WITH_ORTED)
+
+
+@pytest.mark.liggghts
+def test_a_serial_job_starts_no_orted_and_sigkill_leaves_nothing(tmp_path):
+    """By default a serial job is a lone MPI singleton (reference_runs.engines.SERIAL_MPI_ENV): no
+    ``orted`` beside LIGGGHTS, and nothing left after a SIGKILL of the starter."""
+    seen = _kill_a_running_job(tmp_path, "liggghts", 1, {"liggghts"}, absent=("orted",))
+    assert [n for _, n in seen] == ["liggghts"]
 
 
 def test_sigkill_leaves_no_mpirun_and_no_rank(tmp_path):
@@ -177,7 +200,7 @@ def test_sigterm_to_replay_leaves_neither_liggghts_nor_orted(tmp_path):
     text = (REPLAY_DATA / "in.deck_a").read_text().replace("run             500", "run 1000000000")
     (tmp_path / "in.long").write_text(text)
     shutil.copy(REPLAY_DATA / "disks_a.data", tmp_path / "disks_a.data")
-    env, tmp = _env(tmp_path)
+    env, tmp = _env(tmp_path, WITH_ORTED)
     argv = [sys.executable, "-m", "gransim", "replay", str(tmp_path / "in.long"), "-o", str(tmp_path / "out")]
     proc = subprocess.Popen(argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

@@ -271,3 +271,43 @@ def test_bench_reads_the_lammps_timing_table():
         "Other": 0.02199,
     }
     assert lammps_breakdown("Loop time of 1 on 1 procs for 1 steps with 1 atoms\n") == ({}, None)
+
+
+def test_a_serial_job_runs_as_a_lone_mpi_singleton_and_an_mpi_job_keeps_open_mpis_defaults(monkeypatch):
+    from reference_runs.engines import SERIAL_MPI_ENV
+
+    for key in SERIAL_MPI_ENV:
+        monkeypatch.delenv(key, raising=False)
+    for name in ("liggghts", "lammps"):
+        serial, mpi = get_engine(name).env(1), get_engine(name).env(2)
+        assert {k: serial.get(k) for k in SERIAL_MPI_ENV} == SERIAL_MPI_ENV
+        assert not set(SERIAL_MPI_ENV) & set(mpi)  # btl self alone would stop two ranks from talking
+    monkeypatch.setenv("OMPI_MCA_btl", "tcp,self")  # the user's own choice is kept
+    assert get_engine("lammps").env(1)["OMPI_MCA_btl"] == "tcp,self"
+
+
+def _timing_free(text: str) -> list:
+    """A log without the lines that hold wall times (they differ between any two runs)."""
+    words = ("time", "Time", "Performance", "CPU", "Pair ", "Neigh ", "Comm ", "Output ", "Modify ", "Other ")
+    return [ln for ln in text.splitlines() if not any(w in ln for w in words) and "|" not in ln]
+
+
+@needs_lmp
+def test_a_serial_jobs_outputs_are_the_same_without_the_serial_mpi_settings(tmp_path, monkeypatch):
+    """The stored biaxial-short LAMMPS deck (120 disks, 3000 steps, 7 dump frames) run with the serial
+    settings and with Open MPI's defaults: the dump byte for byte, the log but for its timings."""
+    import reference_runs.engines as engines
+
+    d = STORED / "biaxial-short-lammps"
+    deck, files = (d / "in.lammps").read_text(), {"data.biaxial": d / "data.biaxial"}
+    runs = {}
+    for label, settings in (("serial", engines.SERIAL_MPI_ENV), ("defaults", {})):
+        monkeypatch.setattr(engines, "SERIAL_MPI_ENV", settings)
+        for key in engines.SERIAL_MPI_ENV if settings else ():
+            monkeypatch.delenv(key, raising=False)
+        run_job(tmp_path / label, deck, files, outputs=["dump.atoms"], progress=False, engine="lammps")
+        runs[label] = tmp_path / label
+    a, b = runs["serial"], runs["defaults"]
+    assert (a / "dump.atoms").read_bytes() == (b / "dump.atoms").read_bytes()
+    assert (a / "dump.atoms").read_bytes().count(b"ITEM: TIMESTEP") == 7
+    assert _timing_free((a / "log.lammps").read_text()) == _timing_free((b / "log.lammps").read_text())
