@@ -346,16 +346,19 @@ class Case:
     prefetch: Callable[[Context], None] | None = None
     #: cancels what ``prefetch`` started and the case did not collect (a run that ends early)
     cancel: Callable[[], None] | None = None
+    #: ids of the cases whose runs this case reads (from their caches): it waits for their work, so
+    #: a run with a background pool makes it after them (validation.runner.execution_order)
+    uses: tuple[str, ...] = ()
 
 
 _REGISTRY: dict[str, Case] = {}
 
 
-def case(case_id: str, title: str, suites=SUITES, order: int = 100, prefetch=None, cancel=None):
-    """Register a validation case (decorator); ``prefetch``/``cancel``: :class:`Case`."""
+def case(case_id: str, title: str, suites=SUITES, order: int = 100, prefetch=None, cancel=None, uses=()):
+    """Register a validation case (decorator); ``prefetch``/``cancel``/``uses``: :class:`Case`."""
 
     def deco(func):
-        _REGISTRY[case_id] = Case(case_id, title, tuple(suites), func, order, prefetch, cancel)
+        _REGISTRY[case_id] = Case(case_id, title, tuple(suites), func, order, prefetch, cancel, tuple(uses))
         return func
 
     return deco

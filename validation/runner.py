@@ -100,21 +100,43 @@ def _run_cases(ctx, suite, only, log, timeout) -> tuple[bool, list[CaseResult]]:
     if int(ctx.jobs) >= 2 and any(c.prefetch is not None for c in cases):
         bg = ThreadPoolExecutor(max_workers=int(ctx.jobs) - 1, thread_name_prefix="validate-background")
         ctx = dataclasses.replace(ctx, background=bg)
+    run = execution_order(cases) if bg is not None else cases
     try:
-        _cases_loop(ctx, cases, log, out)
+        _cases_loop(ctx, run, log, out)
     finally:
         for c in cases:  # background work a case did not collect (a case that raised, a signal)
             if c.cancel is not None:
                 c.cancel()
         if bg is not None:
             bg.shutdown(wait=True, cancel_futures=True)
+    rank = {c.id: k for k, c in enumerate(cases)}  # the report in the suite's order
+    out = [res for _, res in sorted(zip((rank[c.id] for c in run), out), key=lambda p: p[0])]
     return _write_reports(ctx, suite, out, t_all, timeout, log)
+
+
+def execution_order(cases: list) -> list:
+    """The order in which a run with a background pool makes ``cases`` (given in the suite's order):
+    first every case that neither starts background work (``Case.prefetch``) nor reads the runs of
+    one that does (``Case.uses``, transitively), then those, each group in the suite's order.
+
+    The long runs of the second group start at the beginning of the run and take the background
+    pool's worker(s); the first group's cases run meanwhile on the other core. Had a short case come
+    after them (voidcell, slope, femxdem-short after biaxial-full and simple-shear in the default
+    suite), it would run alone at the end, with the pool idle. Each case's records are the same in
+    any order: a case that reads another's runs makes them through that case's cached functions."""
+    waits = {c.id for c in cases if c.prefetch is not None}
+    grew = True
+    while grew:
+        more = {c.id for c in cases if c.id not in waits and set(c.uses) & waits}
+        grew = bool(more)
+        waits |= more
+    return [c for c in cases if c.id not in waits] + [c for c in cases if c.id in waits]
 
 
 def _cases_loop(ctx, cases, log, out) -> None:
     # long background work first (biaxial-full's reference jobs and native runs, then simple-shear's
-    # long horizon, on the cores the cases before them leave idle); a prefetch that fails leaves
-    # the work to its case, which reports the error
+    # long horizon, on the core the other cases leave to it: execution_order); a prefetch that fails
+    # leaves the work to its case, which reports the error
     early = {}
     for c in cases:
         if c.prefetch is not None:

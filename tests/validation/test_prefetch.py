@@ -241,3 +241,49 @@ def test_runner_shares_one_background_pool_and_shuts_it_down(tmp_path, monkeypat
     seen.clear()
     runner._run_cases(_ctx(tmp_path, jobs=1), "default", None, lambda m: None, None)
     assert seen == [None, None], "one job at a time: no background pool"
+
+
+def test_cases_with_background_work_and_their_readers_run_last_and_report_in_the_suites_order(tmp_path, monkeypatch):
+    """The short cases run while the background pool makes the long runs (a short case after them
+    would run alone at the end); a case reading a prefetching case's runs (``uses``) waits with it.
+    The report keeps the suite's order. Without a background pool (one job) the suite's order."""
+    ran = []
+
+    def make(case_id):
+        def func(ctx):
+            ran.append(case_id)
+            return CaseResult(case_id, case_id, "")
+
+        return func
+
+    def pre(ctx):
+        pass
+
+    ids = ["packings", "full", "reader", "reader-of-reader", "slope"]
+    cases = [
+        core.Case("packings", "P", ("default",), make("packings"), 5),
+        core.Case("full", "F", ("default",), make("full"), 30, pre, None),
+        core.Case("reader", "R", ("default",), make("reader"), 40, uses=("full",)),
+        core.Case("reader-of-reader", "RR", ("default",), make("reader-of-reader"), 45, uses=("reader",)),
+        core.Case("slope", "S", ("default",), make("slope"), 50),
+    ]
+    assert [c.id for c in runner.execution_order(cases)] == ["packings", "slope", "full", "reader", "reader-of-reader"]
+    monkeypatch.setattr(runner, "registered_cases", lambda suite: cases)
+    _, out = runner._run_cases(_ctx(tmp_path), "default", None, lambda m: None, None)
+    assert ran == ["packings", "slope", "full", "reader", "reader-of-reader"]
+    assert [r.case for r in out] == ids
+    ran.clear()
+    _, out = runner._run_cases(_ctx(tmp_path, jobs=1), "default", None, lambda m: None, None)
+    assert ran == ids and [r.case for r in out] == ids
+
+
+def test_voidcell_reads_biaxial_fulls_runs_and_says_so():
+    """voidcell compares biaxial-full's snapshots (validation.cases.voidcell: full_runs), so it is
+    made after biaxial-full, whose runs start in the background."""
+    from validation.core import registered_cases
+
+    by_id = {c.id: c for c in registered_cases("default")}
+    assert by_id["voidcell"].uses == ("biaxial-full",) and by_id["biaxial-full"].prefetch is not None
+    order = [c.id for c in runner.execution_order(registered_cases("default"))]
+    assert order.index("voidcell") > order.index("biaxial-full")
+    assert order[-3:] == ["biaxial-full", "simple-shear", "voidcell"]

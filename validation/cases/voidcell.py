@@ -184,7 +184,12 @@ YADE_CELLS_REASON = (
 )
 
 
-@case("voidcell", "Void-cell measures (Kuhn) from native, LIGGGHTS and LAMMPS snapshots", order=40)
+@case(
+    "voidcell",
+    "Void-cell measures (Kuhn) from native, LIGGGHTS and LAMMPS snapshots",
+    order=40,
+    uses=("biaxial-full",),
+)
 def voidcell(ctx: Context) -> CaseResult:
     res = CaseResult(
         "voidcell",
