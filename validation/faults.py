@@ -30,6 +30,9 @@ _K = "tests/faults/test_children_die.py::"
 _H = "tests/faults/test_harness_options.py::"
 _L = "tests/faults/test_run_lifecycle.py::"
 _Y = "tests/faults/test_yade_faults.py::"
+_YI = "tests/faults/test_yade_impact_faults.py::"
+_YV = "tests/faults/test_yade_validation_faults.py::"
+_YC = "tests/validation/test_yade_columns.py::"
 _O = "tests/foundation/test_cli_options.py::"
 
 FAULT_KINDS: tuple[FaultKind, ...] = (
@@ -259,6 +262,53 @@ FAULT_KINDS: tuple[FaultKind, ...] = (
         "a YADE DEM run that hangs inside a step",
         "killed at its timeout, nothing left running or listening",
         _Y + "test_hung_yade_dem_run_is_killed_with_nothing_left_listening",
+    ),
+    FaultKind(
+        "a YADE impact output cut short, a frame or a particle missing, a NaN",
+        "refused as incomplete",
+        _YI + "test_damaged_impact_output_is_refused_as_incomplete",
+    ),
+    FaultKind(
+        "a YADE impact run that hangs inside a step",
+        "killed at its timeout, nothing left running or listening",
+        _YI + "test_hung_impact_job_is_killed_with_nothing_left_listening",
+    ),
+    # YADE inside a validation run (a fake yade on PATH)
+    FaultKind(
+        "YADE's outputs cut short during gransim validate",
+        "taylor-rve's YADE column fails: 'incomplete: expected 1 RVEs run by YADE, got 0', the job's "
+        "'cut short' named; nothing judged on what remains",
+        _YV + "test_a_yade_output_cut_short_is_an_incomplete_verdict",
+    ),
+    FaultKind(
+        "a YADE script that raises (exit 1)",
+        "the YADE column fails, quoting the exception",
+        _YV + "test_a_yade_script_that_fails_is_a_failing_verdict_quoting_the_error",
+    ),
+    FaultKind(
+        "YADE hangs during gransim validate, a grandchild ignoring SIGTERM and a TCP port open",
+        "killed at --timeout, the column says 'timed out', no process left, the port closed",
+        _YV + "test_a_hung_yade_job_is_killed_at_the_timeout_with_no_process_and_no_port_left",
+    ),
+    FaultKind(
+        "a particle missing from YADE's run of biaxial-short",
+        "case not run, naming 'frame of step 0 has 119 of 120 particles'",
+        _YV + "test_a_particle_missing_from_a_yade_run_stops_the_case_naming_it",
+    ),
+    FaultKind(
+        "a stored YADE output cut short (YADE absent)",
+        "the YADE column fails as incomplete (taylor-rve, voidcell, impacts)",
+        _YC + "test_taylor_rve_fails_on_a_cut_yade_output",
+    ),
+    FaultKind(
+        "the stored YADE run of biaxial-short cut short (YADE absent)",
+        "voidcell's YADE column fails: 'incomplete: expected 7 YADE frames, got 0'",
+        _YC + "test_voidcell_fails_on_a_cut_yade_output",
+    ),
+    FaultKind(
+        "a stored YADE impact output cut short (YADE absent)",
+        "that scene's YADE records fail as incomplete, the others pass",
+        _YC + "test_impacts_fail_on_a_cut_yade_output",
     ),
     # options
     FaultKind(

@@ -58,6 +58,15 @@ from ..runner import (
     start_watched,
 )
 
+#: the last line of a Python traceback: the exception a YADE script raised (``RuntimeError: ...``)
+EXCEPTION_LINE = re.compile(r"^[A-Za-z_][\w.]*(Error|Exception|Interrupt|Exit)\b.*")
+
+
+def _exception_line(stderr: list) -> str:
+    """The exception a script that raised names on stderr (the last line of its traceback), or ""."""
+    return next((ln.strip() for ln in reversed(stderr) if EXCEPTION_LINE.match(ln.strip())), "")
+
+
 #: the line the quiet module writes to stderr instead of starting YADE's servers
 QUIET_LINE = "gransim: YADE's TCP servers (python prompt, XML-RPC) not started"
 #: stderr lines of YADE's servers (yade/remote.py runServers): a job that shows one opened a port
@@ -276,7 +285,8 @@ def _run_locked(job_dir, eng, script_text, blobs, script_sha, input_sha, timeout
     if timed_out:
         problem, where = f"timed out after {timeout:g} s (killed)", tail()
     elif rc != 0:
-        problem, where = f"{eng.binary} exited with status {rc}", tail()
+        raised = _exception_line(stderr)
+        problem, where = f"{eng.binary} exited with status {rc}" + (f": {raised}" if raised else ""), tail()
     elif version is None:
         problem, where = f"incomplete: stdout.txt has no 'Welcome to Yade' line (is `{exe}` YADE?)", tail()
     elif servers:

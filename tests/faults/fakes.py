@@ -313,3 +313,98 @@ def assert_yade_gone(job_dir) -> None:
     if shutil.which("ss"):
         out = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True, timeout=30).stdout
         assert f"pid={pid}," not in out
+
+
+# ----------------------------------------------------------------------------- a fake ``yade``
+#: kinds of the fake ``yade`` (:func:`write_fake_yade`)
+YADE_KINDS = ("error", "hang", "cut", "drop-particle")
+#: kinds that run the real ``yade`` underneath
+YADE_REAL_KINDS = ("cut", "drop-particle")
+
+_YADE_SCRIPT = r"""#!{python}
+# fake yade, kind {kind!r} (tests/faults/fakes.py)
+import os, socket, subprocess, sys, time
+from pathlib import Path
+KIND, REAL, PIDS, PORT = {kind!r}, {real!r}, {pids!r}, {port!r}
+def rec(role, pid):
+    with open(PIDS, "a") as fh:
+        fh.write(f"{{role}} {{pid}}\n")
+rec("fake", os.getpid())
+args = sys.argv[1:]
+if args == ["--version"]:
+    print(f"Yade version: 2023.02a-fake-{{KIND}}")
+    sys.exit(0)
+def real_run():
+    p = subprocess.Popen([REAL, *args], stdout=subprocess.PIPE, text=True)
+    rec("real", p.pid)
+    for line in p.stdout:  # the banner marked, so a manifest of a fake run never reads like a real one
+        sys.stdout.write(line.replace("Welcome to Yade 2023.02a", f"Welcome to Yade 2023.02a-fake-{{KIND}}", 1))
+    return p.wait()
+if KIND == "error":
+    print(f"Welcome to Yade 2023.02a-fake-{{KIND}}")
+    print("Traceback (most recent call last):", file=sys.stderr)
+    print('  File "yade_job.py", line 1, in <module>', file=sys.stderr)
+    print("RuntimeError: fake failure (the fake yade of kind 'error')", file=sys.stderr)
+    sys.exit(1)
+if KIND == "hang":
+    print(f"Welcome to Yade 2023.02a-fake-{{KIND}}", flush=True)
+    server = socket.socket()  # a listening port, as YADE's own servers would open one
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+    Path(PORT).write_text(str(server.getsockname()[1]))
+    g = subprocess.Popen(["sh", "-c", "trap '' TERM; exec sleep 1000"])
+    rec("grandchild", g.pid)
+    time.sleep(1000)
+    sys.exit(0)
+rc = real_run()
+for out in Path(".").glob("*.out"):
+    lines = out.read_text().splitlines(keepends=True)
+    if KIND == "cut":
+        text = "".join(lines)
+        out.write_text(text[: len(text) // 2])
+    elif KIND == "drop-particle":
+        rows = [k for k, ln in enumerate(lines) if ln.startswith("P ")]
+        if len(rows) > 1:
+            del lines[rows[1]]  # the second particle of the first frame
+            out.write_text("".join(lines))
+sys.exit(rc)
+"""
+
+
+@dataclass(frozen=True)
+class FakeYade(FakeLiggghts):
+    """A fake ``yade``: as :class:`FakeLiggghts`, and ``port_file``, where the ``hang`` kind writes
+    the TCP port it listens on."""
+
+    port_file: Path = Path()
+
+    def port(self) -> int | None:
+        """The port the ``hang`` kind opened (None before it did)."""
+        try:
+            return int(self.port_file.read_text())
+        except (OSError, ValueError):
+            return None
+
+
+def write_fake_yade(bindir, kind: str, real: str | None = None) -> FakeYade:
+    """Write the fake ``yade`` of ``kind`` into ``bindir`` (created); ``real`` is the real binary,
+    needed by :data:`YADE_REAL_KINDS`.
+
+    Kinds: ``error`` (the banner, a Python traceback on stderr, exit 1: a script that raised);
+    ``hang`` (the banner, a TCP port listening on 127.0.0.1, a grandchild in its process group that
+    ignores SIGTERM, then sleeps forever); ``cut`` (the real run, then every ``*.out`` output of
+    the job cut to half its length: an output cut short); ``drop-particle`` (the real run, then the
+    second ``P`` row, a particle of the first frame, deleted from every ``*.out`` that has them).
+    Asked for ``--version`` it prints ``Yade version: 2023.02a-fake-<kind>``; the real runs' banner
+    reads ``Welcome to Yade 2023.02a-fake-<kind>``."""
+    if kind not in YADE_KINDS:
+        raise ValueError(f"unknown fake yade kind {kind!r}; choose one of {YADE_KINDS}")
+    if kind in YADE_REAL_KINDS and not real:
+        raise ValueError(f"fake yade kind {kind!r} needs the real yade binary")
+    bindir = Path(bindir)
+    bindir.mkdir(parents=True, exist_ok=True)
+    pids, port = bindir / "pids.txt", bindir / "port.txt"
+    path = bindir / "yade"
+    path.write_text(_YADE_SCRIPT.format(python=sys.executable, kind=kind, real=real, pids=str(pids), port=str(port)))
+    path.chmod(0o755)
+    return FakeYade(kind, path, pids, port)

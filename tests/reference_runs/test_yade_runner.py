@@ -125,9 +125,12 @@ def test_yade_failing_script_is_a_failed_job_and_leaves_no_process(tmp_path, sho
     with pytest.raises(ReferenceRunError, match="yade exited with status 1") as info:
         run_job(job, SCRIPT.format(tail="raise ValueError('broken script')"), engine="yade", outputs=["out.txt"])
     assert any("ValueError: broken script" in ln for ln in info.value.log_lines)
+    # the first line of the error, which the validation records quote, names the exception
+    assert str(info.value).splitlines()[0].endswith("yade exited with status 1: ValueError: broken script")
     _assert_nothing_left(job)
     m = read_manifest(job)
     assert m["status"] == "failed" and m["returncode"] == 1
+    assert m["error"] == "yade exited with status 1: ValueError: broken script"
 
 
 def test_yade_job_refuses_runs_and_mpi(tmp_path):
