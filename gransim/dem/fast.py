@@ -51,7 +51,6 @@ spring, or their pair has branches), which the code order runs (InputError names
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 
 import numpy as np
@@ -64,7 +63,7 @@ from . import fast_kernels as FK
 from . import kernels as K
 from . import sheared_kernels as SK
 from .engine import ENERGY_CHUNK, Engine, OrthogonalCell, _check_box
-from .sheared import _RUN_NUMBERS, ShearedCell, ShearLoading, _ShearRun
+from .sheared import ShearedCell, run_arrays, run_from_arrays
 from .sheared import _check_box as _check_sheared_box
 
 #: bands of bin rows wanted per list build (the chunks of the threaded loops; fixed by N, not by
@@ -554,10 +553,7 @@ class FastCell:
         c = self._kernel_cell(eng)
         if self._sheared:
             out.update({"box": eng.box, "box_hold": c.box_hold, "h_rate": eng.h_rate, "corners_hold": c.corners_hold})
-            if self.run is not None:  # the numbers of the run (as the code order's) and its loading
-                out["run"] = np.array(self.run[:_RUN_NUMBERS], np.float64)
-                text = json.dumps(self.run.loading.to_dict(), sort_keys=True)
-                out["run_loading_json"] = np.frombuffer(text.encode(), np.uint8)
+            out.update(run_arrays(self.run))  # the run's numbers and loading, as the code order's
         else:
             out.update({"box_lo": eng.lo, "box_hi": eng.hi, "box_lo_hold": c.lo_hold, "box_hi_hold": c.hi_hold})
         return {k: np.array(v) for k, v in out.items()}
@@ -611,14 +607,7 @@ class FastCell:
             c.box_hold[:] = np.asarray(got["box_hold"], np.float64).reshape(5)
             eng.h_rate[:] = np.asarray(got["h_rate"], np.float64).reshape(3)
             c.corners_hold[:] = np.asarray(got["corners_hold"], np.float64).reshape(8, 2)
-            self.run = None
-            if "run" in got:
-                r = np.asarray(got["run"], np.float64).reshape(_RUN_NUMBERS)
-                loading = arrays.get("loading")
-                if not isinstance(loading, ShearLoading):
-                    text = np.asarray(got["run_loading_json"], np.uint8).tobytes().decode()
-                    loading = ShearLoading(**json.loads(text))
-                self.run = _ShearRun(int(r[0]), int(r[1]), int(r[2]), *(float(v) for v in r[3:]), loading)
+            self.run = run_from_arrays(arrays)
         else:
             eng.lo[:] = np.asarray(got["box_lo"], np.float64).reshape(2)
             eng.hi[:] = np.asarray(got["box_hi"], np.float64).reshape(2)

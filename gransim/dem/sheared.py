@@ -431,7 +431,7 @@ class ShearedCell(CodeOrderCell):
         if vremap:
             for k, (lo, hi, (lo_stop, hi_stop)) in ((0, (b[0], b[2], xs)), (1, (b[1], b[3], ys))):
                 eng.h_rate[k] = (hi_stop - hi) / delt - (lo_stop - lo) / delt
-        self.run = _ShearRun(
+        self.run = ShearRun(
             begin, end, style, tilt_start, stop, float(b[1]), float(b[3]), float(b[3] - b[1]),
             float(b[0]), float(b[2]), loading,
         )  # fmt: skip
@@ -502,7 +502,7 @@ class ShearedCell(CodeOrderCell):
     def cell_arrays(self, eng) -> dict:
         """The box, its state at the last build, the image velocity jumps, the lamda coordinates, the
         touching flags of the entries and the run (begin, end, style, tilt start and stop, y lo and
-        hi and Ly at the start: :class:`_ShearRun`; its loading is the run file's)."""
+        hi and Ly at the start: :class:`ShearRun`; its loading is the run file's)."""
         out = {
             "box": eng.box,
             "box_hold": eng.box_hold,
@@ -511,9 +511,7 @@ class ShearedCell(CodeOrderCell):
             "corners_hold": eng.corners_hold,
             "neighbours/touch": eng.touch,
         }
-        if self.run is not None:
-            out["run"] = np.array(self.run[:_RUN_NUMBERS], np.float64)
-        return out
+        return {**out, **run_arrays(self.run)}
 
     def cell_restore(self, eng, arrays: dict):
         eng.box = np.array(arrays["box"], np.float64).reshape(5)
@@ -524,17 +522,11 @@ class ShearedCell(CodeOrderCell):
 
     def cell_restored(self, eng, arrays: dict):
         eng.touch = np.array(arrays["neighbours/touch"], np.bool_).reshape(eng.ea.size)
-        self.run = None
-        if "run" in arrays:
-            r = np.asarray(arrays["run"], np.float64).reshape(_RUN_NUMBERS)
-            loading = arrays.get("loading")
-            if not isinstance(loading, ShearLoading):
-                raise InputError("restore: a sheared checkpoint in a run needs its loading (arrays['loading'])")
-            self.run = _ShearRun(int(r[0]), int(r[1]), int(r[2]), *(float(v) for v in r[3:]), loading)
+        self.run = run_from_arrays(arrays)
         eng._run_drive = self.run
 
 
-class _ShearRun(NamedTuple):
+class ShearRun(NamedTuple):
     """The ``fix deform`` of one LAMMPS run: steps begin..end, the tilt style (sheared_kernels.XY_*),
     the tilt at the start and at the end (m), y lo and hi and Ly at the start (m), x lo and hi at
     the start (m), the loading."""
@@ -552,8 +544,34 @@ class _ShearRun(NamedTuple):
     loading: ShearLoading
 
 
-#: the numbers of a _ShearRun in a checkpoint's ``run`` dataset (all but the loading)
-_RUN_NUMBERS = 10
+#: the numbers of a ShearRun in a checkpoint's ``run`` dataset (all but the loading)
+RUN_NUMBERS = 10
+
+
+def run_arrays(run: ShearRun | None) -> dict:
+    """The checkpoint datasets of a sheared cell's run (none without a run): ``run`` (its
+    :data:`RUN_NUMBERS` numbers) and ``run_loading_json`` (its loading as JSON bytes, uint8)."""
+    if run is None:
+        return {}
+    text = json.dumps(run.loading.to_dict(), sort_keys=True)
+    return {
+        "run": np.array(run[:RUN_NUMBERS], np.float64),
+        "run_loading_json": np.frombuffer(text.encode(), np.uint8).copy(),
+    }
+
+
+def run_from_arrays(arrays: dict) -> ShearRun | None:
+    """Inverse of :func:`run_arrays` (None without ``run``); the loading is ``arrays["loading"]``
+    when given (a run file's), else the checkpoint's JSON."""
+    if "run" not in arrays:
+        return None
+    r = np.asarray(arrays["run"], np.float64).reshape(RUN_NUMBERS)
+    loading = arrays.get("loading")
+    if not isinstance(loading, ShearLoading):
+        if "run_loading_json" not in arrays:
+            raise InputError("restore: a sheared checkpoint in a run needs its loading (arrays['loading'])")
+        loading = ShearLoading(**json.loads(np.asarray(arrays["run_loading_json"], np.uint8).tobytes().decode()))
+    return ShearRun(int(r[0]), int(r[1]), int(r[2]), *(float(v) for v in r[3:]), loading)
 
 
 def _erate_stop(lo: float, hi: float, rate: float, delt: float):
@@ -562,7 +580,7 @@ def _erate_stop(lo: float, hi: float, rate: float, delt: float):
     return lo - 0.5 * delt * rate * (hi - lo), hi + 0.5 * delt * rate * (hi - lo)
 
 
-def deform_of(run: _ShearRun, dt: float):
+def deform_of(run: ShearRun, dt: float):
     """The :data:`gransim.dem.sheared_kernels.Deform` of a run begun by ``start_run`` with time
     step ``dt`` (s): what every ordering's step loop reads of the run's ``fix deform``."""
     ld = run.loading

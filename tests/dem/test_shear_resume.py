@@ -46,13 +46,18 @@ def test_restored_engine_continues_bit_for_bit(loading):
         np.testing.assert_array_equal(got, want)
 
 
-def test_restore_needs_the_loading_of_the_run():
+def test_a_checkpoint_carries_the_loading_of_its_run():
     p, s, _, _ = short_case("constant-volume")
     a = ShearEngine(p, s)
     a.start_run(SERVO, 50)
     a.advance(20)
+    ck = a.state_arrays()
+    b = ShearEngine(p, s)
+    b.restore(ck, 20)  # the loading from the checkpoint's JSON
+    np.testing.assert_array_equal(b.advance(30)["stress"], a.advance(30)["stress"])
+    ck.pop("run_loading_json")
     with pytest.raises(Exception, match="needs its loading"):
-        ShearEngine(p, s).restore(a.state_arrays(), 20)
+        ShearEngine(p, s).restore(ck, 20)
 
 
 def _file(path):

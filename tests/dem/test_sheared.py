@@ -296,7 +296,7 @@ def test_engine_rejects_bad_inputs():
     with pytest.raises(InputError, match=r"cell\[1, 0\] must be 0"):
         ShearEngine(p.replace(cell=np.array([[L, 0.0], [1e-3, p.cell[1, 1]]])), s)
     with pytest.raises(InputError, match="unknown flavour"):
-        ShearEngine(p, s, flavour="yade")
+        ShearEngine(p, s, flavour="pfc")
     with pytest.raises(InputError, match="settings.mode"):
         ShearEngine(p, DEMSettings(**{**s.to_dict(), "mode": "parallel"}))
     with pytest.raises(InputError, match="stability limit"):
