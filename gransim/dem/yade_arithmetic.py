@@ -734,50 +734,6 @@ def _stress(pos, H, z, n_intr, i_id, i_cd, i_real, i_geom, i_fs, out):
     out[1, 1] = z * (s11 / vol)
 
 
-@njit
-def _newton(pos, vel, spin, mass, inertia, force, torque, L, nextL, Lprev, size, prev_size, dt, dt2, ref_pos, sweep):
-    """NewtonIntegrator::action (pkg/dem/NewtonIntegrator.cpp:137-312), damping 0, no gravity,
-    blocked DOFs zXY, spherical bodies; returns maxVelocitySq."""
-    for i in range(2):  # :149-153 velGrad = nextVelGrad
-        for j in range(2):
-            L[i, j] = nextL[i, j]
-    d00 = L[0, 0] - Lprev[0, 0]  # :155
-    d01 = L[0, 1] - Lprev[0, 1]
-    d10 = L[1, 0] - Lprev[1, 0]
-    d11 = L[1, 1] - Lprev[1, 1]
-    dspin = -(0.5 * (d01 - d10))  # :156-157 dSpin_z = -R(0, 1)
-    if (prev_size[0] != size[0] or prev_size[1] != size[1] or prev_size[2] != size[2]) and not math.isnan(prev_size[0]):
-        e0 = prev_size[0] - size[0]
-        e1 = prev_size[1] - size[1]
-        e2 = prev_size[2] - size[2]
-        max_v2 = (e0 * e0 + e1 * e1 + e2 * e2) / dt2  # :164
-    else:
-        max_v2 = 0.0
-    for b in range(pos.shape[0]):
-        ax = force[b, 0] / mass[b]  # :58-61 (damping 0: :31-35 multiplies by 1)
-        ay = force[b, 1] / mass[b]
-        ax += Lprev[0, 0] * vel[b, 0] + Lprev[0, 1] * vel[b, 1]  # :262 prevVelGrad * vel
-        ay += Lprev[1, 0] * vel[b, 0] + Lprev[1, 1] * vel[b, 1]
-        vel[b, 0] += dt * ax  # :264
-        vel[b, 1] += dt * ay
-        spin[b] += dt * (torque[b] / inertia[b])  # :267-270
-        vel[b, 0] += d00 * pos[b, 0] + d01 * pos[b, 1]  # :320-323 dVelGrad * pos
-        vel[b, 1] += d10 * pos[b, 0] + d11 * pos[b, 1]
-        pos[b, 0] += vel[b, 0] * dt  # :324
-        pos[b, 1] += vel[b, 1] * dt
-        spin[b] += dspin  # :329
-        # :118-135 saveMaximaDisplacement
-        md = max(abs(pos[b, 0] - ref_pos[b, 0]), max(abs(pos[b, 1] - ref_pos[b, 1]), 0.0))
-        flag = 0.5 if (md == 0.0 or md < sweep[b]) else 2.0
-        max_v2 = max(max_v2, flag)
-    for i in range(3):  # :307-310
-        prev_size[i] = size[i]
-    for i in range(2):
-        for j in range(2):
-            Lprev[i, j] = L[i, j]
-    return max_v2
-
-
 # ----------------------------------------------------------------------------------------------
 # the driver
 
@@ -894,8 +850,9 @@ def _newton_damped(
     pos, vel, spin, mass, inertia, force, torque, L, nextL, changed, Lprev, size, prev_size, dt, dt2, ref_pos, sweep,
     damping,
 ):  # fmt: skip
-    """NewtonIntegrator::action (pkg/dem/NewtonIntegrator.cpp:137-312) with Cundall's non-viscous
-    damping ``damping`` (cundallDamp2nd, :30-34: a_i *= 1 - damping sign(a_i (v_i + dt/2 a_i)), on
+    """NewtonIntegrator::action (pkg/dem/NewtonIntegrator.cpp:137-312), no gravity, blocked DOFs
+    zXY, spherical bodies, with Cundall's non-viscous damping ``damping`` (0 in the decks: the
+    multiplier is then exactly 1, :31-35) (cundallDamp2nd, :30-34: a_i *= 1 - damping sign(a_i (v_i + dt/2 a_i)), on
     the fluctuation velocity v - prevVelGrad x (Cell.hpp:121, NewtonIntegrator.cpp:208) for the
     translation (:226) and on the spin for the rotation (:240)); ``changed`` (1,) is the cell's
     velGradChanged. Returns maxVelocitySq."""

@@ -51,7 +51,7 @@ from .yade_arithmetic import (
     _cell_update,
     _collide,
     _interactions,
-    _newton,
+    _newton_damped,
     _stress,
     yade_cell_z,
 )
@@ -65,9 +65,11 @@ YadeBodies = namedtuple(
 )  # fmt: skip
 #: the cell: hSize, velGrad, nextVelGrad, prevVelGrad, prevHSize, velGrad prevHSize, the column
 #: sizes, the unshear matrix, the skew cosines, the previous sizes, the stress of the last frame
-#: (YADE's, (2, 2) N/m tension positive), ``misc`` = (z, maxVelocitySq, verletDist)
+#: (YADE's, (2, 2) N/m tension positive), ``misc`` = (z, maxVelocitySq, verletDist), ``changed``
+#: (1,) velGradChanged
 YadeCellState = namedtuple(
-    "YadeCellState", ["H", "L", "nextL", "Lprev", "prevH", "VP", "size", "U", "cos", "prev_size", "sig", "misc"]
+    "YadeCellState",
+    ["H", "L", "nextL", "Lprev", "prevH", "VP", "size", "U", "cos", "prev_size", "sig", "misc", "changed"],
 )
 #: the collider's bounds and the interaction container (slot: ids -> position, n_intr (1,))
 YadeContainer = namedtuple(
@@ -175,10 +177,11 @@ def yade_block(b, c, q, ctl, kn, ks, tan_phi, dt, dt2, step0, n, out):
     bound spans over half of the cell, 5 the container is full, 6 the initial sort reached
     libstdc++'s heap-sort branch (index: the axis)."""
     for s in range(n):
-        control_grad(ctl, c.H, c.sig, dt, c.nextL)
-        c.misc[1] = _newton(
-            b.pos, b.vel, b.spin, b.mass, b.inertia, b.force, b.torque, c.L, c.nextL, c.Lprev, c.size, c.prev_size,
-            dt, dt2, b.ref_pos, b.sweep,
+        control_grad(ctl, c.H, c.sig, dt, c.nextL)  # Cell.velGrad set: nextVelGrad, velGradChanged
+        c.changed[0] = True
+        c.misc[1] = _newton_damped(
+            b.pos, b.vel, b.spin, b.mass, b.inertia, b.force, b.torque, c.L, c.nextL, c.changed, c.Lprev, c.size,
+            c.prev_size, dt, dt2, b.ref_pos, b.sweep, 0.0,
         )  # fmt: skip
         for i in range(b.pos.shape[0]):
             if not (math.isfinite(b.pos[i, 0]) and math.isfinite(b.pos[i, 1])):
@@ -242,6 +245,7 @@ class YadeCell:
         eng.yc = YadeCellState(
             C.copy(), np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)),
             np.zeros(3), np.zeros((2, 2)), np.zeros(3), np.full(3, np.nan), np.zeros((2, 2)), misc,
+            np.zeros(1, np.bool_),
         )  # fmt: skip
         m = 2 * n
         cap = min(n * (n - 1) // 2, 64 * n)
