@@ -497,149 +497,61 @@ HookeSdsLammps = namedtuple(
 )
 
 
-@njit(inline="always")
-def epsd2_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-    """Pair function of :class:`HookeEpsd2Liggghts`: hist[e] = (xi_x, xi_y, M_old)."""
-    fx, fy, ti, tj, s0, s1, m, sl, _, fn, _ = hooke_epsd2_liggghts(
-        delx,
-        dely,
-        rsq,
-        radi,
-        radj,
-        vix,
-        viy,
-        vjx,
-        vjy,
-        wi,
-        wj,
-        mi,
-        mj,
-        law.kn,
-        law.kt,
-        law.gamma_n,
-        law.gamma_t,
-        law.mu,
-        law.mu_r,
-        dt,
-        hist[e, 0],
-        hist[e, 1],
-        hist[e, 2],
-        update,
-    )
-    hist[e, 0] = s0
-    hist[e, 1] = s1
-    hist[e, 2] = m
-    return fx, fy, ti, tj, sl, fn
+def rolling_pair(core, n_params: int, width: int, split: bool = False):
+    """The pair function of a rolling law from its one-pair arithmetic ``core(delx, dely, rsq,
+    radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, p_1 .. p_n, dt, h_1 .. h_w, update) -> (fx, fy,
+    ti, tj, h_1 .. h_w, sliding, rolling, fn, tr)`` with p the law's ``n_params`` fields in the
+    order of ``core``'s parameters and h the entry's history of ``width`` columns (read from
+    ``hist[e]`` and written back). ``split``: the pair returns the rolling torque apart, (..., fn,
+    tr, -tr) (``LawSpec.split_torque``). One adapter for the four laws: (n_params, width) = (6, 3)
+    epsd2, (7, 3) epsd, (6, 2) cdt, (9, 4) sds; numba keeps only the branch of the law (constants
+    of the closure), as it inlines no call with ``*args``."""
+    if (n_params, width) not in ((6, 3), (7, 3), (6, 2), (9, 4)):
+        raise InputError(f"rolling_pair: (n_params, width) {(n_params, width)} is none of the rolling laws'")
+
+    @njit(inline="always")
+    def pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
+        if width == 2:
+            fx, fy, ti, tj, h0, h1, sl, _, fn, tr = core(
+                delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                law[0], law[1], law[2], law[3], law[4], law[5], dt, hist[e, 0], hist[e, 1], update,
+            )  # fmt: skip
+        elif width == 3 and n_params == 6:
+            fx, fy, ti, tj, h0, h1, h2, sl, _, fn, tr = core(
+                delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                law[0], law[1], law[2], law[3], law[4], law[5], dt, hist[e, 0], hist[e, 1], hist[e, 2], update,
+            )  # fmt: skip
+            hist[e, 2] = h2
+        elif width == 3:
+            fx, fy, ti, tj, h0, h1, h2, sl, _, fn, tr = core(
+                delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                law[0], law[1], law[2], law[3], law[4], law[5], law[6], dt, hist[e, 0], hist[e, 1], hist[e, 2], update,
+            )  # fmt: skip
+            hist[e, 2] = h2
+        else:
+            fx, fy, ti, tj, h0, h1, h2, h3, sl, _, fn, tr = core(
+                delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj,
+                law[0], law[1], law[2], law[3], law[4], law[5], law[6], law[7], law[8], dt,
+                hist[e, 0], hist[e, 1], hist[e, 2], hist[e, 3], update,
+            )  # fmt: skip
+            hist[e, 2] = h2
+            hist[e, 3] = h3
+        hist[e, 0] = h0
+        hist[e, 1] = h1
+        if split:
+            return fx, fy, ti, tj, sl, fn, tr, -tr
+        return fx, fy, ti, tj, sl, fn
+
+    return pair
 
 
-@njit(inline="always")
-def epsd_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-    """Pair function of :class:`HookeEpsdLiggghts`: hist[e] = (xi_x, xi_y, M_old)."""
-    fx, fy, ti, tj, s0, s1, m, sl, _, fn, _ = hooke_epsd_liggghts(
-        delx,
-        dely,
-        rsq,
-        radi,
-        radj,
-        vix,
-        viy,
-        vjx,
-        vjy,
-        wi,
-        wj,
-        mi,
-        mj,
-        law.kn,
-        law.kt,
-        law.gamma_n,
-        law.gamma_t,
-        law.mu,
-        law.mu_r,
-        law.eta_r,
-        dt,
-        hist[e, 0],
-        hist[e, 1],
-        hist[e, 2],
-        update,
-    )
-    hist[e, 0] = s0
-    hist[e, 1] = s1
-    hist[e, 2] = m
-    return fx, fy, ti, tj, sl, fn
-
-
-@njit(inline="always")
-def cdt_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-    """Pair function of :class:`HookeCdtLiggghts`: hist[e] = (xi_x, xi_y)."""
-    fx, fy, ti, tj, s0, s1, sl, _, fn, _ = hooke_cdt_liggghts(
-        delx,
-        dely,
-        rsq,
-        radi,
-        radj,
-        vix,
-        viy,
-        vjx,
-        vjy,
-        wi,
-        wj,
-        mi,
-        mj,
-        law.kn,
-        law.kt,
-        law.gamma_n,
-        law.gamma_t,
-        law.mu,
-        law.mu_r,
-        dt,
-        hist[e, 0],
-        hist[e, 1],
-        update,
-    )
-    hist[e, 0] = s0
-    hist[e, 1] = s1
-    return fx, fy, ti, tj, sl, fn
-
-
-@njit(inline="always")
-def sds_pair(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
-    """Pair function of :class:`HookeSdsLammps`: hist[e] = (xi_x, xi_y, psi_x, psi_y). Returns the
-    tangential and the rolling torques apart (``split_torque``: LAMMPS' order of accumulation)."""
-    fx, fy, ti, tj, s0, s1, p0, p1, sl, _, fn, tr = hooke_sds_parts(
-        delx,
-        dely,
-        rsq,
-        radi,
-        radj,
-        vix,
-        viy,
-        vjx,
-        vjy,
-        wi,
-        wj,
-        mi,
-        mj,
-        law.kn,
-        law.damp,
-        law.damping,
-        law.kt,
-        law.xgammat,
-        law.mu,
-        law.kroll,
-        law.gammaroll,
-        law.muroll,
-        dt,
-        hist[e, 0],
-        hist[e, 1],
-        hist[e, 2],
-        hist[e, 3],
-        update,
-    )
-    hist[e, 0] = s0
-    hist[e, 1] = s1
-    hist[e, 2] = p0
-    hist[e, 3] = p1
-    return fx, fy, ti, tj, sl, fn, tr, -tr
+#: pair functions of the rolling laws (:func:`rolling_pair`): hist[e] = (xi_x, xi_y, M_old) for
+#: epsd2 and epsd, (xi_x, xi_y) for cdt, (xi_x, xi_y, psi_x, psi_y) for sds, whose tangential and
+#: rolling torques are returned apart (``split_torque``: LAMMPS' order of accumulation)
+epsd2_pair = rolling_pair(hooke_epsd2_liggghts, 6, 3)
+epsd_pair = rolling_pair(hooke_epsd_liggghts, 7, 3)
+cdt_pair = rolling_pair(hooke_cdt_liggghts, 6, 2)
+sds_pair = rolling_pair(hooke_sds_parts, 9, 4, split=True)
 
 
 @njit(inline="always")
