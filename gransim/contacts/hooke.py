@@ -42,8 +42,9 @@ def hooke_liggghts(
     delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
 ):
     """LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history`` for one list entry, touching
-    or not, branch-free (:func:`hooke_select_liggghts` the block path of the SIMD force loops and
-    the fast path's law; :func:`hooke_history` the same with the code's branches;
+    or not, branch-free, the one copy of the law in LIGGGHTS' arithmetic (:func:`hooke_select_liggghts`
+    the block path of the SIMD force loops and the fast path's law; :func:`hooke_history` the
+    entry-by-entry loops' convention;
     surface_model_default.h, normal_model_hooke_stiffness.h, tangential_model_history.h).
 
     Written without a data-dependent jump: the branches of the code (contact, the sign test of
@@ -131,8 +132,12 @@ def hooke_liggghts(
     # `if (update_history)` (tangential_model_history.h:195-200); a set-up evaluation (a further
     # `run`) leaves every spring as it was
     capped = sl & nz & update
-    k0 = -ft1c / kt
-    k1 = -ft2c / kt
+    # the quotient of a select (the capped force where the spring is capped, 1.0 elsewhere, where
+    # the select below throws the quotient away): the same bits as -ft1c / kt. Written so, LLVM
+    # orders the SIMD block loop of gransim.dem.fast_kernels.forces_v differently (the same
+    # instructions) and it runs 1.24x faster (docs/performance.md, "Scheduling of the block loop")
+    k0 = -(ft1c if capped else 1.0) / kt
+    k1 = -(ft2c if capped else 1.0) / kt
     u0 = k0 if capped else u0
     u1 = k1 if capped else u1
     tor3 = enx * ft2 - eny * ft1
@@ -158,7 +163,7 @@ def hooke_lammps(
 ):
     """LAMMPS 29 Sep 2021 ``pair_style gran/hooke/history`` for one list entry, touching or not,
     branch-free as :func:`hooke_liggghts` (the same arguments; :func:`hooke_select_lammps` the
-    block path, :func:`hooke_history_lammps` the same with the code's branches).
+    block path, :func:`hooke_history_lammps` the entry-by-entry loops' convention).
 
     The law and the floating-point order are those of LAMMPS' ``PairGranHookeHistory::compute``
     (src/GRANULAR/pair_gran_hooke_history.cpp, docs/lammps.md) restricted to 2D (z components are
@@ -275,169 +280,30 @@ def hooke_select_lammps(
 def hooke_history(
     delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
 ):
-    """One touching pair: force on i, torques on i and j, updated tangential spring: the
-    arithmetic of :func:`hooke_liggghts` with the code's branches (the entry-by-entry loops; the
-    branch-free form computes both arms of every branch, which cost the sheared cell's loop about
-    10 %: bench.ab_dem --mode sheared). tests/dem/test_simd_bitwise.py holds the two forms equal
-    entry by entry.
-
-    Parameters
-    ----------
-    delx, dely : float, m. d = x_i - x_j (image of j).
-    rsq : float, m^2. |d|^2, must be < (r_i + r_j)^2 (the caller tests contact).
-    radi, radj : radii (m). vix, viy, vjx, vjy : velocities (m/s). wi, wj : spins (rad/s).
-    mi, mj : masses (kg).
-    kn, kt : normal / tangential stiffness (N/m).
-    gamman, gammat : mass-scaled damping rates (1/s): damping coefficient = m_eff gamma.
-    mu : Coulomb friction coefficient. dt : time step (s).
-    s0, s1 : stored tangential spring xi (m), frame of i.
-    update : bool. True in a time step (xi += v_t,rel dt, then projected on the tangent
-        plane); False in the set-up evaluation (LIGGGHTS ``run`` set-up: no increment).
-
-    Returns
-    -------
-    fx, fy : force on i (N). F = F_n n + F_t with F_n = kn delta - m_eff gamman v_n
-        (may be attractive: no force limit) and F_t = -kt xi - m_eff gammat v_t,rel, or, when
-        kt |xi| > mu |F_n| (strictly), F_t = -kt xi mu|F_n|/(kt|xi|) and, in a step (``update``),
-        xi = -F_t/kt.
-    ti, tj : torques on i and j (N m): -c_i (n x F_t)_z and -c_j (n x F_t)_z, c = r - delta/2
-        (the same sign on both, as LIGGGHTS applies them).
-    s0, s1 : updated spring (m).
-    sliding : bool, the Coulomb cap was active.
-    fn : normal force F_n (N).
-    """
-    r = math.sqrt(rsq)
-    rinv = 1.0 / r
-    enx = delx * rinv
-    eny = dely * rinv
-    meff = mi * mj / (mi + mj)
-    # relative velocity at the contact point (surface_model_default.h order)
-    vr1 = vix - vjx
-    vr2 = viy - vjy
-    vn = vr1 * enx + vr2 * eny
-    vt1 = vr1 - vn * enx
-    vt2 = vr2 - vn * eny
-    radsum = radi + radj
-    deltan = radsum - r
-    cri = radi - 0.5 * deltan
-    crj = radj - 0.5 * deltan
-    wr3 = (cri * wi + crj * wj) * rinv
-    vtr1 = vt1 + dely * wr3
-    vtr2 = vt2 - delx * wr3
-    # normal: elastic part (eq 5 of Meier et al.) + mass-scaled damping
-    fn = -(meff * gamman) * vn + force_magnitude(radsum - r, kn)
-    # tangential spring with history
-    if update:
-        s0 += vtr1 * dt
-        s1 += vtr2 * dt
-        rsht = s0 * enx + s1 * eny
-        s0 -= rsht * enx
-        s1 -= rsht * eny
-    shrmag = math.sqrt(s0 * s0 + s1 * s1)
-    ft1 = -(kt * s0)
-    ft2 = -(kt * s1)
-    ft_shear = kt * shrmag
-    ft_friction = mu * abs(fn)
-    sliding = False
-    if ft_shear > ft_friction:
-        sliding = True
-        if shrmag != 0.0:
-            ratio = ft_friction / ft_shear
-            ft1 *= ratio
-            ft2 *= ratio
-            if update:  # tangential_model_history.h:195-200: only in a step, not in a set-up
-                s0 = -ft1 / kt
-                s1 = -ft2 / kt
-        else:
-            ft1 = 0.0
-            ft2 = 0.0
-    else:
-        gt = meff * gammat
-        ft1 -= gt * vtr1
-        ft2 -= gt * vtr2
-    tor3 = enx * ft2 - eny * ft1
-    fx = fn * enx + ft1
-    fy = fn * eny + ft2
-    return fx, fy, -cri * tor3, -crj * tor3, s0, s1, sliding, fn
+    """One touching pair in LIGGGHTS' arithmetic, the convention of the entry-by-entry loops and
+    of the laws built on it (the rolling laws): :func:`hooke_liggghts`, the one copy of the law,
+    with its results as ``(fx, fy, ti, tj, s0, s1, sliding, fn)``: force on i (N), torques on i
+    and j (N m), the updated tangential spring (m, frame of i), sliding (the Coulomb cap active),
+    the normal force (N). The arguments are those of :func:`hooke_liggghts`; ``rsq`` must be below
+    (r_i + r_j)^2 (the caller tests contact). The branch-free form costs the sheared cell's
+    entry-by-entry loop about 10 % against a copy with the code's branches (bench.ab_dem --mode
+    sheared), the price of one copy of the arithmetic."""
+    _, fx, fy, ti, tj, u0, u1, sl, _, fn = hooke_liggghts(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+    )
+    return fx, fy, ti, tj, u0, u1, sl != 0.0, fn
 
 
 @njit(inline="always")
 def hooke_history_lammps(
     delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
 ):
-    """The same pair in LAMMPS' arithmetic: ``pair_style gran/hooke/history`` (29 Sep 2021), with
-    the code's branches (:func:`hooke_lammps` is the branch-free form, equal entry by entry).
-
-    The call signature and the returned tuple are those of :func:`hooke_history`; the law and the
-    floating-point order are those of LAMMPS' ``PairGranHookeHistory::compute``
-    (src/GRANULAR/pair_gran_hooke_history.cpp, docs/lammps.md) restricted to 2D (z components are
-    zero there and drop out exactly). What differs from LIGGGHTS' ``hooke/stiffness`` +
-    ``tangential history``:
-
-    * normal force per unit branch length: ccel = kn (r_i + r_j - r)/r - m_eff gamman (v.d)/r^2,
-      force d ccel, so F_n = ccel r (the same value up to round-off);
-    * relative tangential velocity with the full radii as lever arms:
-      v_t,rel = v_t + d x (r_i w_i + r_j w_j)/r (LIGGGHTS: r - delta/2);
-    * spring update xi += v_t,rel dt, |xi| taken *before* the projection
-      xi -= ((xi.d)/r^2) d;
-    * the Coulomb cap compares the whole tangential force, spring *and* damping,
-      F_t = -(kt xi + m_eff gammat v_t,rel), with mu |F_n|: when |F_t| > mu |F_n| (strictly) and
-      |xi| != 0, F_t is scaled by mu|F_n|/|F_t| and the spring set to
-      xi = (mu|F_n|/|F_t|)(xi + m_eff gammat v_t,rel/kt) - m_eff gammat v_t,rel/kt
-      (so that -(kt xi + m_eff gammat v_t,rel) is the capped force); |xi| = 0: F_t = 0;
-    * torques -r_i (d x F_t)_z/r on i and -r_j (d x F_t)_z/r on j (full radii, same sign).
-
-    A pair that does not touch has its spring reset to zero by LAMMPS (the caller does that,
-    :func:`gransim.dem.kernels._entry`); ``update`` False is LAMMPS' set-up evaluation
-    (``shearupdate = 0``: no increment and no projection; the cap still applies).
-
-    Parameters and returns: as :func:`hooke_history` (``fn`` = ccel r, N; ``sliding`` the cap was
-    active).
-    """
-    r = math.sqrt(rsq)
-    rinv = 1.0 / r
-    rsqinv = 1.0 / rsq
-    vr1 = vix - vjx
-    vr2 = viy - vjy
-    vnnr = vr1 * delx + vr2 * dely
-    vn1 = delx * vnnr * rsqinv
-    vn2 = dely * vnnr * rsqinv
-    vt1 = vr1 - vn1
-    vt2 = vr2 - vn2
-    wr3 = (radi * wi + radj * wj) * rinv
-    meff = mi * mj / (mi + mj)
-    damp = meff * gamman * vnnr * rsqinv
-    ccel = kn * ((radi + radj) - r) * rinv - damp
-    vtr1 = vt1 + dely * wr3  # vt1 - (delz wr2 - dely wr3), delz = wr2 = 0
-    vtr2 = vt2 - delx * wr3  # vt2 - (delx wr3 - delz wr1)
-    if update:
-        s0 += vtr1 * dt
-        s1 += vtr2 * dt
-    shrmag = math.sqrt(s0 * s0 + s1 * s1)
-    rsht = (s0 * delx + s1 * dely) * rsqinv
-    if update:
-        s0 -= rsht * delx
-        s1 -= rsht * dely
-    gt = meff * gammat
-    fs1 = -(kt * s0 + gt * vtr1)
-    fs2 = -(kt * s1 + gt * vtr2)
-    fs = math.sqrt(fs1 * fs1 + fs2 * fs2)
-    fn = mu * abs(ccel * r)
-    sliding = False
-    if fs > fn:
-        sliding = True
-        if shrmag != 0.0:
-            s0 = (fn / fs) * (s0 + gt * vtr1 / kt) - gt * vtr1 / kt
-            s1 = (fn / fs) * (s1 + gt * vtr2 / kt) - gt * vtr2 / kt
-            fs1 *= fn / fs
-            fs2 *= fn / fs
-        else:
-            fs1 = 0.0
-            fs2 = 0.0
-    fx = delx * ccel + fs1
-    fy = dely * ccel + fs2
-    tor3 = rinv * (delx * fs2 - dely * fs1)
-    return fx, fy, -(radi * tor3), -(radj * tor3), s0, s1, sliding, ccel * r
+    """One touching pair in LAMMPS' arithmetic (``pair_style gran/hooke/history``): :func:`hooke_lammps`,
+    the one copy of the law, with the results of :func:`hooke_history`."""
+    _, fx, fy, ti, tj, u0, u1, sl, _, fn = hooke_lammps(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, kn, kt, gamman, gammat, mu, dt, s0, s1, update
+    )
+    return fx, fy, ti, tj, u0, u1, sl != 0.0, fn
 
 
 #: LIGGGHTS 3.8.0 ``hooke/stiffness`` + ``tangential history`` (:func:`hooke_history`): kn, kt (N/m),
