@@ -455,7 +455,10 @@ def tangent_ab(hs, steps: int = 40, mesh=(1, 1), start=None, max_iter: int = 100
     cond = threading.Condition()
     pos = {"i": 0}
     done = set()
-    out = {n: {"h": h, "iterations": [], "q_kpa": [], "cpu_s": [], "stopped": ""} for n, h in zip(names, hs)}
+    out = {
+        n: {"h": h, "iterations": [], "q_kpa": [], "cpu_s": [], "dem_steps_per_step": [], "stopped": ""}
+        for n, h in zip(names, hs)
+    }
     counters = {}
 
     def advance():  # the next (step, tangent) whose tangent is still running; under cond
@@ -465,14 +468,17 @@ def tangent_ab(hs, steps: int = 40, mesh=(1, 1), start=None, max_iter: int = 100
         cond.notify_all()
 
     def runner(name, law):
-        points = gauss_points(law, spec.n_gauss, states=states)
         with cond:
             cond.wait_for(lambda: pos["i"] < len(order) and order[pos["i"]] == name)
-        c0 = [time.thread_time()]
+        c0 = [time.thread_time()]  # the first step counts the committed states' first response (a
+        n0 = [counters[name][1]]  # perturbation tangent: 8 calls a point), as a run's commit before it does
+        points = gauss_points(law, spec.n_gauss, states=states)
 
         def on_step(rec, pts):
             r = out[name]
             r["cpu_s"].append(time.thread_time() - c0[0])
+            r["dem_steps_per_step"].append(counters[name][1] - n0[0])
+            n0[0] = counters[name][1]
             r["iterations"].append(len(rec.errors))
             r["q_kpa"].append(rec.deviatoric_stress / 1e3)
             with cond:
@@ -510,6 +516,10 @@ def tangent_ab(hs, steps: int = 40, mesh=(1, 1), start=None, max_iter: int = 100
             f"{name}: {where}{len(its)} steps, {sum(its)} Newton iterations {its}, {r['calls']} RVE calls, "
             f"{r['dem_steps']} DEM steps, CPU {sum(r['cpu_s']):.1f} s; q {min(q, default=float('nan')):.1f}-"
             f"{max(q, default=float('nan')):.1f} kPa" + (f"; stopped: {r['stopped']}" if r["stopped"] else "")
+        )
+        log(
+            f"  per step: CPU (s) {[round(c, 1) for c in r['cpu_s']]}, DEM steps {r['dem_steps_per_step']}, "
+            f"q (kPa) {[round(v, 1) for v in q]}"
         )
     base = rows[0]
     for r in rows[1:]:
