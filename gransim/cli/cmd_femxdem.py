@@ -118,8 +118,9 @@ def register(subparsers) -> None:
                    help="load steps whose maps (deviatoric strain, void ratio, rotation), VTU and RVE pictures are "
                    "written (default: the last)")  # fmt: skip
     p.add_argument("--rve-pictures", default=None, metavar="G,G,...",
-                   help="--rve dem: Gauss points whose RVE is drawn at the field steps (disks coloured by rotation, "
-                   "force chains; default: the most strained point of each field step)")  # fmt: skip
+                   help="--rve dem, dem-lammps: Gauss points whose RVE is drawn at the field steps (disks coloured by "
+                   "rotation, which dem-lammps does not define; force chains; default: the most strained point of "
+                   "each field step)")  # fmt: skip
     add_options(p)
     p.set_defaults(func=handler)
 
@@ -230,9 +231,11 @@ def check_options(args) -> dict:
     field_steps = (steps,) if args.field_steps is None else _int_list(args.field_steps, "--field-steps", 1, steps)
     pictures = None
     if args.rve_pictures is not None:
-        if args.rve != "dem":
-            why = "the LAMMPS RVE's disks have no rotation to colour" if args.rve in DEM_RVES else "has no grains"
-            raise InputError(f"--rve-pictures: applies to --rve dem only ({args.rve}: {why})")
+        if args.rve not in DEM_RVES:
+            raise InputError(
+                f"--rve-pictures: applies to the DEM RVEs (--rve {', '.join(DEM_RVES)}); the stand-in {args.rve} "
+                "has no grains"
+            )
         pictures = _int_list(args.rve_pictures, "--rve-pictures", 0, nx * ny * gauss**2 - 1)
     check_executor_options(args.workers, args.scheduler)
     if args.packing is not None:

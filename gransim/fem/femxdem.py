@@ -215,11 +215,12 @@ def write_step(d: Path, params: dict, rec: BiaxialStep, law, points, states=None
         old.unlink()
 
 
-def field_record(rec: BiaxialStep, observables: dict, states, pictures) -> dict:
+def field_record(rec: BiaxialStep, observables: dict, states, pictures, law=None) -> dict:
     """The Gauss-point fields of field step ``rec`` (:mod:`gransim.fem.output_femxdem`):
     ``deviatoric_strain`` (G,), ``void_ratio`` and ``rotation`` (G,) when the law reports them (the
     DEM RVE), and ``pictures`` {Gauss point: RVE snapshot} of the points ``pictures`` (None: the
-    most strained point; the states of a stand-in give none)."""
+    most strained point; ``law.snapshot(state)`` where the law has it, the LAMMPS RVE's, else
+    :func:`gransim.fem.output_femxdem.rve_snapshot`; the states of a stand-in give none)."""
     from .output_femxdem import deviatoric_strain, rve_snapshot  # noqa: PLC0415 - start-up: numpy
 
     out = {"deviatoric_strain": deviatoric_strain(rec.strain)}
@@ -230,7 +231,10 @@ def field_record(rec: BiaxialStep, observables: dict, states, pictures) -> dict:
         pictures = (int(np.argmax(out["deviatoric_strain"])),)
     snaps = {}
     for g in pictures:
-        snap = rve_snapshot(states[g]) if states is not None else None
+        snap = None
+        if states is not None:
+            fn = getattr(law, "snapshot", None)  # a law that knows its grains (the LAMMPS RVE), else the state's
+            snap = fn(states[g]) if callable(fn) else rve_snapshot(states[g])
         if snap is not None:
             snaps[int(g)] = snap
     out["pictures"] = snaps
@@ -621,7 +625,7 @@ def run_femxdem(
         st = None
         if rec.step in field_steps:
             st = pts.states()
-            fields[rec.step] = field_record(rec, pts.observables(), st, rve_pictures)
+            fields[rec.step] = field_record(rec, pts.observables(), st, rve_pictures, law)
         if ck is not None:
             write_step(ck, params, rec, law, pts, states=st, fields=fields.get(rec.step))
         if stop_after is not None and rec.step >= stop_after:

@@ -202,7 +202,8 @@ class LammpsPointLaw:
 
     @staticmethod
     def _arrays(eng) -> dict:
-        out = {k: np.array(v) for k, v in eng.state_arrays().items() if k != "run"}
+        # without the run (``run``, ``run_loading_json``: gransim.dem.sheared.run_arrays): each update begins its own
+        out = {k: np.array(v) for k, v in eng.state_arrays().items() if k != "run" and not k.startswith("run_")}
         for v in out.values():
             v.flags.writeable = False
         return out
@@ -251,6 +252,29 @@ class LammpsPointLaw:
             "contacts": float(eng._touching()[0].size),
             "updates": float(state.updates),
         }
+
+    def snapshot(self, state: LammpsState) -> dict:
+        """What an RVE picture needs (:func:`gransim.fem.output_femxdem.plot_rve`): positions from
+        the box's lower corner (N, 2), radii, the cell ``hsize`` (2, 2) (columns the lattice
+        vectors), the touching pairs ``ids`` (M, 2) with their image shifts ``cell_dist`` (the
+        branch x_j + H s - x_i, YADE's convention) and the force on j split along the branch
+        (``normal_force``) and across it (``shear_force``), N, as LAMMPS' run set-up evaluates them
+        (on a throw-away engine). No ``rotation``: LAMMPS' disks carry no orientation."""
+        eng = self._engine(state)
+        ld, ns = self.rve.call(np.zeros((2, 2)))
+        eng.start_run(ld, ns)  # a run's set-up evaluates the contact forces (a restored engine holds none)
+        c = eng.contacts()
+        H = np.array(eng.cell, float)
+        x = np.array(eng.x, float) - np.asarray(eng.box, float)[:2]
+        l = eng.x[c["j"]] + c["shift"] @ H.T - eng.x[c["i"]]  # noqa: E741 - the branch vector of the paper
+        n = l / np.linalg.norm(l, axis=1)[:, None]
+        f = np.asarray(c["force"], float)
+        fn = np.einsum("ci,ci->c", f, n)[:, None] * n
+        return {
+            "positions": x, "radii": np.array(self.rve.packing.radii, float), "hsize": H,
+            "ids": np.stack([c["i"], c["j"]], axis=1).astype(np.int64), "cell_dist": np.asarray(c["shift"], np.int64),
+            "normal_force": fn, "shear_force": f - fn,
+        }  # fmt: skip
 
     @staticmethod
     def pack_states(states) -> dict:

@@ -162,8 +162,9 @@ def contact_segments(snap: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def plot_rve(path, snap: dict, title: str) -> Path:
-    """The RVE: disks coloured by their rotation (rad, one symmetric scale), the contact force chains
-    as lines between centres with widths proportional to the normal force, the periodic cell."""
+    """The RVE: disks coloured by their rotation (rad, one symmetric scale; in one colour when ``snap``
+    has none: the LAMMPS RVE), the contact force chains as lines between centres with widths
+    proportional to the normal force, the periodic cell."""
     import matplotlib  # noqa: PLC0415 - start-up: matplotlib
 
     matplotlib.use("Agg")
@@ -171,14 +172,17 @@ def plot_rve(path, snap: dict, title: str) -> Path:
     from matplotlib.collections import EllipseCollection, LineCollection  # noqa: PLC0415 - start-up: matplotlib
 
     xw, seg, fn = contact_segments(snap)
-    rot = snap["rotation"]
-    m = float(np.abs(rot).max()) or 1.0
+    rot = snap.get("rotation")
     fig, ax = plt.subplots(figsize=(6.2, 5.4))
     d = 2 * snap["radii"]
     ec = EllipseCollection(d, d, 0.0, units="xy", offsets=xw, offset_transform=ax.transData, cmap="RdBu_r",
                            edgecolors="0.4", linewidths=0.2)  # fmt: skip
-    ec.set_array(rot)
-    ec.set_clim(-m, m)
+    if rot is not None:
+        m = float(np.abs(rot).max()) or 1.0
+        ec.set_array(rot)
+        ec.set_clim(-m, m)
+    else:  # no rotation defined (the LAMMPS RVE): the disks in one colour
+        ec.set_facecolor("0.85")
     ax.add_collection(ec)
     fmax = float(fn.max()) if len(fn) else 1.0
     ax.add_collection(LineCollection(seg, linewidths=3.0 * fn / fmax, colors="k"))
@@ -189,8 +193,10 @@ def plot_rve(path, snap: dict, title: str) -> Path:
     ax.autoscale()
     ax.set_xticks([])
     ax.set_yticks([])
-    fig.colorbar(ec, ax=ax, shrink=0.8, label="disk rotation (rad)", format="%.2g")
-    ax.set_title(f"{title}\n{len(fn)} contacts; line width 3 pt x |f_n| / {fmax:.3g} N", fontsize=9)
+    if rot is not None:
+        fig.colorbar(ec, ax=ax, shrink=0.8, label="disk rotation (rad)", format="%.2g")
+    na = "" if rot is not None else "; disk rotation n/a (no orientation)"
+    ax.set_title(f"{title}\n{len(fn)} contacts; line width 3 pt x |f_n| / {fmax:.3g} N{na}", fontsize=9)
     fig.tight_layout()
     with atomic_path(path, suffix=".png") as tmp:
         fig.savefig(tmp, dpi=100)

@@ -130,6 +130,15 @@ class PerturbationTangent:
         fn = getattr(self.law, "observables", None)
         return fn(state) if callable(fn) else {}
 
+    def snapshot(self, state):
+        """The wrapped law's RVE picture data (:func:`gransim.fem.femxdem.field_record`)."""
+        fn = getattr(self.law, "snapshot", None)
+        if callable(fn):
+            return fn(state)
+        from .output_femxdem import rve_snapshot  # noqa: PLC0415 - start-up: numpy
+
+        return rve_snapshot(state)
+
     def pack_states(self, states) -> dict:
         return self.law.pack_states(states)
 

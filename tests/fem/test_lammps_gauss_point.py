@@ -208,6 +208,29 @@ def test_lammps_run_resumes_bit_for_bit_and_says_what_it_lacks(lammps_run, tmp_p
     report = (out / "report.md").read_text()
     assert "LAMMPS' arithmetic" in report and "rotation n/a (LAMMPS' disks carry no orientation)" in report
     assert (out / "maps_002.png").exists() and (out / "mesh_002.vtu").exists()
+    assert len(list(out.glob("rve_002_g*.png"))) == 1  # the most strained point's RVE, drawn without rotation
+
+
+def test_the_lammps_rve_picture_shows_its_touching_pairs(lammps_run):
+    """The picture's data (LammpsPointLaw.snapshot): every contact's branch x_j + H s - x_i joins two
+    touching disks (shorter than the sum of the radii, longer than 0.9 of it: a wrong image shift
+    gives a branch of a cell's length), the force splits into its parts along and across it."""
+    import h5py
+
+    from gransim.fem.output_femxdem import contact_segments
+
+    out, _ = lammps_run
+    with h5py.File(out / "femxdem.h5", "r") as f:
+        (name,) = list(f["fields/step_002/pictures"])
+        snap = {k: v[()] for k, v in f["fields/step_002/pictures"][name].items()}
+    assert "rotation" not in snap and len(snap["ids"]) > 100
+    _, seg, fn = contact_segments(snap)
+    branch = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1)
+    rsum = snap["radii"][snap["ids"][:, 0]] + snap["radii"][snap["ids"][:, 1]]
+    assert np.all(branch < rsum) and np.all(branch > 0.9 * rsum)
+    b = (seg[:, 1] - seg[:, 0]) / branch[:, None]
+    assert np.allclose(np.einsum("ci,ci->c", snap["shear_force"], b), 0, atol=1e-12 * fn.max())
+    assert fn.min() > 0 and np.any(np.abs(snap["shear_force"]) > 1e-6 * fn.max())  # friction carried
 
 
 def test_lammps_rve_options_are_checked_at_the_boundary(tmp_path):
@@ -220,9 +243,11 @@ def test_lammps_rve_options_are_checked_at_the_boundary(tmp_path):
                 resume=False, stop_after=None, workers=None, scheduler=None, field_steps=None, rve_pictures=None,
                 tangent=None, tangent_step=None)  # fmt: skip
     assert check_options(argparse.Namespace(**base))["spec"]["nx"] == 2
+    assert check_options(argparse.Namespace(**{**base, "rve_pictures": "3,0"}))["rve_pictures"] == (0, 3)
     for kw, msg in [
         ({"pressure": 2e5}, "--pressure: --rve dem-lammps's RVE was consolidated to 1e5 Pa"),
-        ({"rve_pictures": "0"}, "--rve-pictures: applies to --rve dem only"),
+        ({"rve_pictures": "32"}, "--rve-pictures"),
+        ({"rve": "j2", "rve_pictures": "0"}, "--rve-pictures: applies to the DEM RVEs"),
     ]:
         with pytest.raises(InputError, match=msg):
             check_options(argparse.Namespace(**{**base, **kw}))
