@@ -10,8 +10,9 @@ Gauss point's calls from its committed state.
 * a tangent evaluation leaves the committed state unchanged, bit for bit; a kept tangent is the one
   a writable copy recomputes; stress and states are the wrapped law's, bit for bit;
 * a run commits the states the single RVE replays, and its predictor uses the committed state's
-  own tangent; gransim femxdem --tangent perturbation resumes bit for bit, and a resume with
-  another tangent (or another h) is refused naming both.
+  own tangent; on a 2-worker LocalCluster it gives the in-process bits; gransim femxdem --tangent
+  perturbation resumes bit for bit, and a resume with another tangent (or another h) is refused
+  naming both.
 """
 
 from __future__ import annotations
@@ -197,3 +198,19 @@ def test_cli_tangent_option_resumes_and_refuses_another_tangent(perturbed_run, t
     ]:
         p = _gransim(*args, "--out", tmp_path / "bad")
         assert p.returncode == 2 and msg in p.stderr, (args, p.stderr[-2000:])
+
+
+def test_on_dask_the_perturbation_run_gives_the_same_bits(perturbed_run):
+    """The tangents are computed where the states live (each chunk's worker, at its commit), and the
+    run on a 2-worker LocalCluster in 2 chunks is the in-process run's bits."""
+    pytest.importorskip("distributed")
+    from gransim.parallel import make_executor
+
+    _, summary, _, _ = perturbed_run
+    with make_executor(workers=2) as ex:
+        dask = run_femxdem(BiaxialSpec(nx=1, ny=1, steps=2), rve="dem", executor=ex, tangent="perturbation")
+    assert "Dask" in dask["report"]
+    for a, b in zip(summary["steps"], dask["steps"], strict=True):
+        for key in ("x", "stress", "F", "errors", "residuals"):
+            assert np.array_equal(getattr(a, key), getattr(b, key)), key
+    assert [len(r.errors) for r in dask["steps"]] == [1, 2]  # the contact tangent needs 2 and 3
