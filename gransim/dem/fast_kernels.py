@@ -189,7 +189,7 @@ def forces_v(
                     c = 2 * (b - ne) + 1
                 i0 = cstart[c]
                 i1 = cstart[c + 1]
-                jmax = cstart[min(c + 2, nch)]
+                jmax = np.uint64(cstart[min(c + 2, nch)])
                 k = sp_start[c]
                 v0 = 0.0
                 v1 = 0.0
@@ -204,8 +204,8 @@ def forces_v(
                     for e_ in range(ea, eb):
                         e = np.uint64(e_)
                         q = np.uint64(e_ - ea)
-                        i = ni[e]
-                        j = nj[e]
+                        i = np.uint64(ni[e])
+                        j = np.uint64(nj[e])
                         cd = np.uint32(code[e])
                         sx = float(np.int32(cd % np.uint32(3)) - 1)
                         sy = float(np.int32(cd // np.uint32(3)) - 1)
@@ -233,14 +233,15 @@ def forces_v(
                         fxi = 0.0
                         fyi = 0.0
                         ti = 0.0
-                        for e in range(start[i], start[i + 1]):
-                            q = e - ea
+                        for e_ in range(start[i], start[i + 1]):
+                            e = np.uint64(e_)
+                            q = np.uint64(e_ - ea)
                             fxe = bfx[q]
                             fye = bfy[q]
                             fxi += fxe
                             fyi += fye
                             ti += bti[q]
-                            j = nj[e]
+                            j = np.uint64(nj[e])
                             if j < jmax:
                                 fx[j] -= fxe
                                 fy[j] -= fye

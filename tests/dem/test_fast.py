@@ -463,3 +463,6 @@ def test_the_force_kernel_is_compiled_to_simd_code(cell):
     assert re.search(r"\bvsqrtpd\b", asm), "the pair law is not vectorised (no packed square root)"
     assert re.search(r"\bvdivpd\b", asm)
     assert re.search(r"\bvgather[dq]pd\b", asm), "the partners' loads are not gathers"
+    # unsigned owner and partner indices: each gather takes base + 8 index; with the indices as
+    # read (int32) every gather computed its addresses with a wrap-around select (docs/performance.md)
+    assert not re.search(r"\bvgather[dq]pd\s+\(,", asm), "a gather computes its addresses (a signed index)"
