@@ -785,7 +785,7 @@ def yade_run(
     velocities, spins : initial (N, 2), (N,) (default 0). z : YADE's cell z size (default
         :func:`yade_cell_z`).
     """
-    from .engine import Engine  # noqa: PLC0415 - the engine imports this module's kernels through its cell
+    from .engine import Engine  # noqa: PLC0415 - cycle: engine -> yade_cell -> yade_arithmetic
 
     nsteps = int(nsteps)
     if nsteps < 0:

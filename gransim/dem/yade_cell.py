@@ -35,6 +35,7 @@ from collections import namedtuple
 import numpy as np
 
 from .._numba import njit
+from .._validate import as_int
 from ..contacts.yade_cundall_strack import friction_tangent
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
@@ -359,8 +360,6 @@ class YadeCell:
     def drive(self, eng, run, *args, **kwargs):
         """(control, nsteps) of ``advance(nsteps)`` in the run of :meth:`start_run`, or of
         ``advance(loading, nsteps)``."""
-        from .._validate import as_int  # noqa: PLC0415 - one use
-
         if args and isinstance(args[0], self.LOADINGS):
             loading, *rest = args
             nsteps = rest[0] if rest else kwargs.get("nsteps", 1)

@@ -123,7 +123,7 @@ def standin_law(rve: str, spec: BiaxialSpec, packing=None, packing_dir="results/
         return law, {"law": "DemRVE", "rve": PREPARED_RVE.name, "provenance": json.dumps(law.provenance)}
     if rve == "dem-lammps":
         from .dem_rve import PREPARED_RVE, load_rve_state  # noqa: PLC0415 - start-up: numba
-        from .lammps_rve import DAMPING_RATIO, STEPS_PER_CONTACT, LammpsPointLaw, LammpsRVE  # noqa: PLC0415
+        from .lammps_rve import DAMPING_RATIO, STEPS_PER_CONTACT, LammpsPointLaw, LammpsRVE  # noqa: PLC0415 - start-up: numba
 
         state, prov = load_rve_state()
         rv = LammpsRVE.guo_zhao(state)
