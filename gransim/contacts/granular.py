@@ -1,7 +1,8 @@
 """Pieces of LAMMPS' ``pair_style granular`` (29Sep2021, GRANULAR/pair_granular.cpp) shared by the
-laws written in its arithmetic: the normal damping prefactor of each ``damping`` model and the
-spring-dashpot-slider update of a history 2-vector (the tangential ``linear_history``/``mindlin``
-spring and the ``rolling sds`` displacement use the same steps, pair_granular.cpp:455-532, 553-617).
+laws written in its arithmetic: the contact's geometry and relative velocities, the normal damping
+prefactor of each ``damping`` model, the spring-dashpot-slider update of a history 2-vector (the
+tangential ``linear_history``/``mindlin`` spring and the ``rolling sds`` displacement use the same
+steps, pair_granular.cpp:455-532, 553-617) and the force and torques of the pair.
 
 Inline jitted functions: the calling laws (:mod:`gransim.contacts.hertz`,
 :mod:`gransim.contacts.rolling`) keep LAMMPS' floating-point order through them.
@@ -17,6 +18,47 @@ from .._numba import njit
 DAMPING_VELOCITY, DAMPING_MASS_VELOCITY, DAMPING_VISCOELASTIC, DAMPING_TSUJI = 0, 1, 2, 3
 #: pair_granular.cpp's EPSILON (a history vector is re-projected only above this share of the cap)
 EPSILON = 1e-10
+
+
+@njit(inline="always")
+def granular_geometry(delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj):
+    """The contact of one touching pair as ``PairGranular::compute`` forms it (pair_granular.cpp:
+    206-262, 2D): (nx, ny, vnnr, meff, Reff, delta, a, vtr1, vtr2) with n = d / r, vnnr = v_r.n,
+    m* = m_i m_j / (m_i + m_j), R* = r_i r_j / (r_i + r_j), delta = r_i + r_j - r,
+    a = sqrt(delta R*), v_tr = v_r - (v_r.n) n + n x (r_i w_i + r_j w_j) the relative tangential
+    velocity at the contact (pgr:455-466). Every value with LAMMPS' operations in its order (no
+    value depends on another's rounding through a shared sum)."""
+    r = math.sqrt(rsq)
+    rinv = 1.0 / r
+    nx = delx * rinv
+    ny = dely * rinv
+    vr1 = vix - vjx
+    vr2 = viy - vjy
+    vnnr = vr1 * nx + vr2 * ny
+    vn1 = nx * vnnr
+    vn2 = ny * vnnr
+    meff = mi * mj / (mi + mj)
+    radsum = radi + radj
+    Reff = radi * radj / radsum
+    delta = radsum - r
+    dR = delta * Reff
+    a = math.sqrt(dR)
+    vt1 = vr1 - vn1
+    vt2 = vr2 - vn2
+    wr3 = radi * wi + radj * wj
+    vtr1 = vt1 + ny * wr3  # vt1 - (nz wr2 - ny wr3)
+    vtr2 = vt2 - nx * wr3  # vt2 - (nx wr3 - nz wr1)
+    return nx, ny, vnnr, meff, Reff, delta, a, vtr1, vtr2
+
+
+@njit(inline="always")
+def granular_forces(nx, ny, Fntot, fs1, fs2, radi, radj, delta):
+    """(fx, fy, ti, tj): the force on i (normal plus tangential) and the tangential torques on i and
+    j, each with its lever arm r - delta/2 (pgr:640-664, 2D)."""
+    fx = nx * Fntot + fs1
+    fy = ny * Fntot + fs2
+    tor3 = nx * fs2 - ny * fs1
+    return fx, fy, -((radi - 0.5 * delta) * tor3), -((radj - 0.5 * delta) * tor3)
 
 
 @njit(inline="always")

@@ -68,6 +68,8 @@ from .granular import (  # noqa: F401
     DAMPING_VELOCITY,
     DAMPING_VISCOELASTIC,
     damp_normal,
+    granular_forces,
+    granular_geometry,
     spring_dashpot_slider,
 )
 from .laws import as_law_float, deck_float, lightest_pair_mass, register_law, spring_pair
@@ -315,33 +317,16 @@ def hertz_mindlin_granular_lammps(
     with damp = -sqrt(5) beta exactly in the real numbers (not bit for bit: other operations).
     Returns ``(fx, fy, ti, tj, s0, s1, sliding, fn)``, fn = F_ne + F_damp (N).
     """
-    r = math.sqrt(rsq)
-    rinv = 1.0 / r
-    nx = delx * rinv
-    ny = dely * rinv
-    vr1 = vix - vjx
-    vr2 = viy - vjy
-    vnnr = vr1 * nx + vr2 * ny
-    vn1 = nx * vnnr
-    vn2 = ny * vnnr
-    meff = mi * mj / (mi + mj)
-    radsum = radi + radj
-    Reff = radi * radj / radsum
-    delta = radsum - r
-    dR = delta * Reff
+    nx, ny, vnnr, meff, _, delta, a, vtr1, vtr2 = granular_geometry(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj
+    )
     knfac = E
     Fne = knfac * delta
-    a = math.sqrt(dR)
     Fne *= a
     knfac *= a
     damp_normal_prefactor = damp * damp_normal(damping, meff, a, knfac)
     Fdamp = -damp_normal_prefactor * vnnr
     Fntot = Fne + Fdamp
-    vt1 = vr1 - vn1
-    vt2 = vr2 - vn2
-    wr3 = radi * wi + radj * wj
-    vtr1 = vt1 + ny * wr3  # vt1 - (nz wr2 - ny wr3)
-    vtr2 = vt2 - nx * wr3  # vt2 - (nx wr3 - nz wr1)
     Fncrit = abs(Fntot)
     Fscrit = mu * Fncrit
     k_tangential = kt0
@@ -350,10 +335,8 @@ def hertz_mindlin_granular_lammps(
     s0, s1, fs1, fs2, sliding = spring_dashpot_slider(
         s0, s1, nx, ny, vtr1, vtr2, k_tangential, damp_tangential, Fscrit, dt, update
     )
-    fx = nx * Fntot + fs1
-    fy = ny * Fntot + fs2
-    tor3 = nx * fs2 - ny * fs1
-    return fx, fy, -((radi - 0.5 * delta) * tor3), -((radj - 0.5 * delta) * tor3), s0, s1, sliding, Fntot
+    fx, fy, ti, tj = granular_forces(nx, ny, Fntot, fs1, fs2, radi, radj, delta)
+    return fx, fy, ti, tj, s0, s1, sliding, Fntot
 
 
 def elastic_normal_force(delta, reff, yeff):

@@ -86,6 +86,8 @@ from .granular import (  # noqa: F401
     DAMPING_VELOCITY,
     DAMPING_VISCOELASTIC,
     damp_normal,
+    granular_forces,
+    granular_geometry,
     spring_dashpot_slider,
 )
 from .hooke import hooke_history, hooke_timescale, liggghts_hooke_lines
@@ -420,30 +422,13 @@ def hooke_sds_parts(
     the rolling torque on i, tr = R*(n x F_r)_z (j receives -tr): LAMMPS adds them to the
     particle's torque one after the other (the DEM loop does too: ``split_torque``).
     """
-    r = math.sqrt(rsq)
-    rinv = 1.0 / r
-    nx = delx * rinv
-    ny = dely * rinv
-    vr1 = vix - vjx
-    vr2 = viy - vjy
-    vnnr = vr1 * nx + vr2 * ny
-    vn1 = nx * vnnr
-    vn2 = ny * vnnr
-    meff = mi * mj / (mi + mj)
-    radsum = radi + radj
-    Reff = radi * radj / radsum
-    delta = radsum - r
-    dR = delta * Reff
+    nx, ny, vnnr, meff, Reff, delta, a, vtr1, vtr2 = granular_geometry(
+        delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj
+    )
     Fne = kn * delta
-    a = math.sqrt(dR)
     damp_normal_prefactor = damp * damp_normal(damping, meff, a, kn)
     Fdamp = -damp_normal_prefactor * vnnr
     Fntot = Fne + Fdamp
-    vt1 = vr1 - vn1
-    vt2 = vr2 - vn2
-    wr3 = radi * wi + radj * wj
-    vtr1 = vt1 + ny * wr3  # vt1 - (nz wr2 - ny wr3)
-    vtr2 = vt2 - nx * wr3  # vt2 - (nx wr3 - nz wr1)
     Fncrit = abs(Fntot)
     Fscrit = mu * Fncrit
     damp_tangential = xgammat * damp_normal_prefactor
@@ -456,12 +441,8 @@ def hooke_sds_parts(
     vrl2 = Reff * (relrot3 * nx)  # Reff*(relrot3*nx - relrot1*nz)
     Frcrit = muroll * Fncrit
     p0, p1, fr1, fr2, rolling = spring_dashpot_slider(p0, p1, nx, ny, vrl1, vrl2, kroll, gammaroll, Frcrit, dt, update)
-    fx = nx * Fntot + fs1
-    fy = ny * Fntot + fs2
-    tor3 = nx * fs2 - ny * fs1
+    fx, fy, ti, tj = granular_forces(nx, ny, Fntot, fs1, fs2, radi, radj, delta)
     torroll3 = Reff * (nx * fr2 - ny * fr1)
-    ti = -((radi - 0.5 * delta) * tor3)
-    tj = -((radj - 0.5 * delta) * tor3)
     return fx, fy, ti, tj, s0, s1, p0, p1, sliding, rolling, Fntot, torroll3
 
 
