@@ -6,7 +6,8 @@
     forces, not timed), advance WARM steps untimed (the first rebuilds: the steady state), then
     time ``advance`` of STEPS steps: the counterpart of the codes' ``Loop time`` of their second
     ``run``. MODE "serial"/"parallel": the bitwise :class:`~gransim.dem.DEMEngine`; "fast": the
-    fast path :class:`~gransim.dem.fast.FastEngine` on THREADS threads; "fast-sheared": the fast
+    fast path :class:`~gransim.dem.fast.FastEngine` on THREADS threads ("fast-lammps": in LAMMPS'
+    arithmetic, the sheared cell's); "fast-sheared": the fast
     path in the sheared cell of PACKING (bench.dem.sheared_assembly) under bench.dem.SHEAR_LOADING.
     Reports loop_s, contacts, rebuilds in the window, the process's peak RSS (VmHWM, KiB) and the
     engine's own array bytes.
@@ -46,6 +47,11 @@ from bench._memory import PeakSampler, own_peak_kib
 # 2-thread step collapse 10x on a shared machine, docs/performance.md.)
 
 
+#: the fast ordering's modes: the orthogonal cell in LIGGGHTS' or LAMMPS' arithmetic, the sheared
+#: cell (LAMMPS' arithmetic)
+FAST_MODES = ("fast", "fast-lammps", "fast-sheared")
+
+
 def _packing(path):
     # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
     import numpy as np
@@ -61,16 +67,18 @@ def _warm(mode: str, threads: int):
     from bench._deck import LOADING, SETTINGS, assembly
     from gransim.dem import DEMEngine, DEMSettings
 
-    if mode in ("fast", "fast-sheared"):
+    if mode in FAST_MODES:
         # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
         from gransim.dem import fast
 
         low, fast.MIN_PER_THREAD = fast.MIN_PER_THREAD, 0  # the threaded kernels too, on 110 disks
         try:
-            if mode == "fast":
-                fast.FastEngine(assembly(100), SETTINGS, threads=threads).advance(LOADING, 2)
-                return SETTINGS
             from bench.dem import SHEAR_LOADING, SHEAR_SETTINGS, sheared_assembly
+
+            if mode in ("fast", "fast-lammps"):  # LIGGGHTS' or LAMMPS' arithmetic (the sheared cell's)
+                s = SETTINGS if mode == "fast" else SHEAR_SETTINGS
+                fast.FastEngine(assembly(100), s, threads=threads).advance(LOADING, 2)
+                return s
 
             eng = fast.FastEngine(sheared_assembly(100), SHEAR_SETTINGS, threads=threads, cell="sheared")
             eng.start_run(SHEAR_LOADING, 2)
@@ -90,7 +98,7 @@ def native(path, steps: int, mode: str, threads: int, warm: int = 0) -> dict:
 
     s = _warm(mode, threads)
     p = _packing(path)
-    if mode == "fast":
+    if mode in ("fast", "fast-lammps"):
         # lazy: imports gransim (numpy, numba), which sets the OpenMP spin count at import
         from gransim.dem.fast import FastEngine
 
@@ -128,7 +136,7 @@ def native(path, steps: int, mode: str, threads: int, warm: int = 0) -> dict:
         "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
         "gomp_spincount": os.environ.get("GOMP_SPINCOUNT"),
     }
-    if mode in ("fast", "fast-sheared"):
+    if mode in FAST_MODES:
         out["engine_bytes"] = eng.memory_bytes()
         out["entries"] = eng.n_entries
     return out
