@@ -275,6 +275,15 @@ TOL_HERTZ = {
 BIT_POS, BIT_REL = 1e-10, 1e-8
 
 
+def _coulomb_excess(ft, cap) -> float:
+    """max over the frames of |F_t| / cap - 1 (cap = mu |F_n|): a frame without any force (0 / 0)
+    is within the bound, a tangential force without a normal one (x / 0) is an infinite excess."""
+    ft = np.abs(np.asarray(ft, float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where((ft == 0.0) & (cap == 0.0), 0.0, ft / cap)
+    return float(np.max(r)) - 1.0
+
+
 def tolerances(scene) -> dict:
     """The tolerance table of ``scene``: :data:`TOL_HERTZ` for a Hertz law, :data:`TOL` otherwise."""
     return TOL_HERTZ if hasattr(scene.law, "hertz") else TOL
@@ -943,7 +952,7 @@ def measure(frames: dict, scene: Scene, pairs, dt: float) -> list[dict]:
             f0, f1, f2 = -fn[kf - 1], -fn[kf], -fn[kf + 1]
             q["peak force"] = float(f1 - (f2 - f0) ** 2 / (8 * (f2 - 2 * f1 + f0)))
         mu = scene.law.mu
-        q["coulomb bound"] = float(np.max(np.abs(ft) / (mu * np.abs(fn)))) - 1.0 if mu > 0 else math.nan
+        q["coulomb bound"] = _coulomb_excess(ft, mu * np.abs(fn)) if mu > 0 else math.nan
         out.append(q)
     return out
 
@@ -1563,7 +1572,7 @@ def wall_measure(frames: dict, scene: WallScene, dt: float) -> list[dict]:
         ke = lambda vv, ww: 0.5 * m * float(vv @ vv) + 0.25 * m * R * R * ww * ww
         q["energy ratio"] = ke(v1, w1) / ke(v0, float(W[0, i]))
         fn, ft = F[a : b + 1, i, 1], F[a : b + 1, i, 0]
-        q["coulomb bound"] = float(np.max(np.abs(ft) / (MU_WALL * np.abs(fn)))) - 1.0
+        q["coulomb bound"] = _coulomb_excess(ft, MU_WALL * np.abs(fn))
         out.append(q)
     return out
 
