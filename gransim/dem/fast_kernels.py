@@ -1357,6 +1357,17 @@ def largest_move(x, y, xh, yh):
     return k, best
 
 
+@njit(inline="always")
+def _entry_gap(img, ni, nj, code, x, y, r, e):
+    """(|d|, r_i + r_j) of list entry ``e``, the image of j from the cell ``img`` (m)."""
+    i = ni[e]
+    j = nj[e]
+    xj, yj, _, _ = image(img, x[j], y[j], 0.0, 0.0, float(code[e] % 3) - 1.0, float(code[e] // 3) - 1.0)
+    dx = x[i] - xj
+    dy = y[i] - yj
+    return math.sqrt(dx * dx + dy * dy), r[i] + r[j]
+
+
 @njit
 def touching_entries(img, ni, nj, code, x, y, r):
     """The list entries whose disks touch (|d| < r_i + r_j, the image of j from the cell ``img``,
@@ -1364,24 +1375,14 @@ def touching_entries(img, ni, nj, code, x, y, r):
     (M,) temporaries (two passes: count, fill)."""
     k = 0
     for e in range(ni.shape[0]):
-        i = ni[e]
-        j = nj[e]
-        xj, yj, _, _ = image(img, x[j], y[j], 0.0, 0.0, float(code[e] % 3) - 1.0, float(code[e] // 3) - 1.0)
-        dx = x[i] - xj
-        dy = y[i] - yj
-        if math.sqrt(dx * dx + dy * dy) < r[i] + r[j]:
+        d, rs = _entry_gap(img, ni, nj, code, x, y, r, e)
+        if d < rs:
             k += 1
     idx = np.empty(k, np.int64)
     ov = np.empty(k)
     k = 0
     for e in range(ni.shape[0]):
-        i = ni[e]
-        j = nj[e]
-        xj, yj, _, _ = image(img, x[j], y[j], 0.0, 0.0, float(code[e] % 3) - 1.0, float(code[e] // 3) - 1.0)
-        dx = x[i] - xj
-        dy = y[i] - yj
-        d = math.sqrt(dx * dx + dy * dy)
-        rs = r[i] + r[j]
+        d, rs = _entry_gap(img, ni, nj, code, x, y, r, e)
         if d < rs:
             idx[k] = e
             ov[k] = rs - d
