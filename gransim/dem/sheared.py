@@ -502,7 +502,7 @@ class ShearedCell(CodeOrderCell):
     def cell_arrays(self, eng) -> dict:
         """The box, its state at the last build, the image velocity jumps, the lamda coordinates, the
         touching flags of the entries and the run (begin, end, style, tilt start and stop, y lo and
-        hi and Ly at the start: :class:`ShearRun`; its loading is the run file's)."""
+        hi and Ly at the start: :class:`ShearRun`, with its loading: :func:`run_arrays`)."""
         out = {
             "box": eng.box,
             "box_hold": eng.box_hold,

@@ -797,8 +797,9 @@ def yade_run(
         packing, settings, velocities, spins, check_dt=False, cell=cell, flavour="yade",
         cell_options=None if z is None else {"z": float(z)},
     )  # fmt: skip
-    control = eng.cell_ops.start_run(eng, loading, nsteps)[0]
-    eng._run_drive = eng.cell_ops.run
+    control = eng.cell_ops.control(eng, loading)  # the script's control(): the velGrad of each frame below
+    if nsteps:
+        eng.start_run(loading, nsteps)
     yb, yc, yq = eng.yb, eng.yc, eng.yq
     n = packing.n
     T = nsteps + 1

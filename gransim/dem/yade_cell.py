@@ -327,7 +327,7 @@ class YadeCell:
     # the loading
     LOADINGS = (Loading, ShearLoading)
 
-    def _control(self, eng, loading) -> np.ndarray:
+    def control(self, eng, loading) -> np.ndarray:
         """(mode_x, a_x, b_x, mode_y, a_y, b_y, erate, L0y) of the script's control() for ``loading``
         from the current cell."""
         H, dt = eng.yc.H, self.dt
@@ -354,7 +354,7 @@ class YadeCell:
         raise InputError(f"loading: the yade arithmetic's {self.kind} cell takes {want}, got {type(loading).__name__}")
 
     def start_run(self, eng, loading, nsteps: int):
-        self.run = (self._control(eng, loading), eng.step + nsteps)
+        self.run = (self.control(eng, loading), eng.step + nsteps)
         return self.run
 
     def drive(self, eng, run, *args, **kwargs):
@@ -363,7 +363,7 @@ class YadeCell:
         if args and isinstance(args[0], self.LOADINGS):
             loading, *rest = args
             nsteps = rest[0] if rest else kwargs.get("nsteps", 1)
-            return self._control(eng, loading), as_int(nsteps, "nsteps", 0)
+            return self.control(eng, loading), as_int(nsteps, "nsteps", 0)
         if run is None:
             raise InputError("advance: call start_run(loading, nsteps) first, or advance(loading, nsteps)")
         nsteps = args[0] if args else kwargs.get("nsteps")
