@@ -108,6 +108,17 @@ def _series(out: np.ndarray, first: int) -> dict:
     }
 
 
+def _checkpoint_array(arrays: dict, name: str, size: int) -> np.ndarray:
+    """The float64 dataset ``name`` of a fast-ordering checkpoint, flattened to ``size`` numbers;
+    InputError when it is missing or of another size."""
+    if name not in arrays:
+        raise InputError(f"restore: the checkpoint lacks {name!r} (not a fast-ordering checkpoint of this cell?)")
+    a = np.asarray(arrays[name], np.float64).reshape(-1)
+    if a.size != size:
+        raise InputError(f"restore: {name} has {a.size} numbers, expected {size}")
+    return a
+
+
 class FastCell:
     """The fast ordering's state and block of steps, for :class:`gransim.dem.engine.Engine`
     (module docstring). Its state on the engine: ``ps`` (:data:`fast_kernels.FastParticles`,
@@ -190,14 +201,6 @@ class FastCell:
     def _list(self, eng):
         return FK.FastList(eng._cstart, eng._start, eng._ni, eng._nj, eng._code, eng._hist[0], eng._hist[1])
 
-    def _image(self, eng):
-        """The image plug-in of the force loop for the current box."""
-        if self._sheared:
-            b = eng.box
-            hr = eng.h_rate
-            return (float(b[2] - b[0]), float(b[3] - b[1]), float(b[4]), float(hr[2]), float(hr[1]), float(hr[0]))
-        return (float(eng.hi[0] - eng.lo[0]), float(eng.hi[1] - eng.lo[1]))
-
     def forces(self, eng, update: bool):
         """The forces of the current state (``update`` False: the set-up evaluation of a run,
         springs not incremented): the virial on the engine; returns (contacts, overlap sum). (The images from
@@ -218,13 +221,6 @@ class FastCell:
         eng.virial[:] = tot[:4]
         return float(tot[4]), float(tot[5])
 
-    def _box_corners(self, eng):
-        """(lo (2,), hi (2,), xy) of the current box."""
-        if self._sheared:
-            b = eng.box
-            return b[0:2], b[2:4], float(b[4])
-        return eng.lo, eng.hi, 0.0
-
     def rebuild(self, eng, carry: bool):
         """Wrap (a sheared cell: with the Lees-Edwards velocity jump), sort by bin (state and
         history permuted), new list in place, springs handed over for the pairs that touch now (as
@@ -232,10 +228,7 @@ class FastCell:
         n = eng.n
         p = eng.ps
         lo, hi, xy = self._box_corners(eng)
-        if self._sheared:
-            bad = FK.wrap_tilted(p.x, p.y, p.vx, p.vy, eng.box, eng.h_rate, True)
-        else:
-            bad = FK.wrap(p.x, p.y, lo, hi)
+        bad = self._wrap(eng)
         if bad >= 0:
             raise SimulationError(
                 f"step {eng.step}: particle {int(eng.perm[bad])} lost (at "
@@ -342,16 +335,6 @@ class FastCell:
         eng._build_step = eng.step
         eng.n_rebuilds += 1
 
-    def _hold(self, eng):
-        """The box at this list build (the rebuild test measures the box's motion from it)."""
-        c = self._kernel_cell(eng)
-        if self._sheared:
-            c.box_hold[:] = eng.box
-            SK.box_corners(eng.box, c.corners_hold)
-        else:
-            c.lo_hold[:] = eng.lo
-            c.hi_hold[:] = eng.hi
-
     def _size_spill(self, eng):
         ns = int(eng._sp_start[-1])
         if eng._sp_j.size < ns:
@@ -442,10 +425,7 @@ class FastCell:
         """(kinetic energy relative to the cell's flow, kinetic energy of the flow) (J), one pass
         (:func:`fast_kernels.flow_energies`; the orthogonal cell has no flow)."""
         p = eng.ps
-        if self._sheared:
-            b, hr = eng.box, eng.h_rate
-            return FK.flow_energies(p.y, p.vx, p.vy, p.w, p.m, p.r, b[1], b[3] - b[1], hr[2], hr[1])
-        return FK.flow_energies(p.y, p.vx, p.vy, p.w, p.m, p.r, 0.0, 1.0, 0.0, 0.0)
+        return FK.flow_energies(p.y, p.vx, p.vy, p.w, p.m, p.r, *self._flow_field(eng))
 
     def budget_kinetic_energy(self, eng) -> float:
         """The kinetic energy the divergence check bounds (J): a sheared cell's relative to its
@@ -550,12 +530,7 @@ class FastCell:
                 "build_step": np.array(eng._build_step, np.int64),
             }
         )
-        c = self._kernel_cell(eng)
-        if self._sheared:
-            out.update({"box": eng.box, "box_hold": c.box_hold, "h_rate": eng.h_rate, "corners_hold": c.corners_hold})
-            out.update(run_arrays(self.run))  # the run's numbers and loading, as the code order's
-        else:
-            out.update({"box_lo": eng.lo, "box_hi": eng.hi, "box_lo_hold": c.lo_hold, "box_hi_hold": c.hi_hold})
+        out.update(self._box_arrays(eng))
         return {k: np.array(v) for k, v in out.items()}
 
     def restore(self, eng, arrays: dict, step: int) -> int:
@@ -601,21 +576,8 @@ class FastCell:
         eng._red = np.zeros((cstart.size - 1, 3))
         self._size_spill(eng)
         eng.n_entries = m
-        c = self._kernel_cell(eng)
-        if self._sheared:
-            eng.box[:] = np.asarray(got["box"], np.float64).reshape(5)
-            c.box_hold[:] = np.asarray(got["box_hold"], np.float64).reshape(5)
-            eng.h_rate[:] = np.asarray(got["h_rate"], np.float64).reshape(3)
-            c.corners_hold[:] = np.asarray(got["corners_hold"], np.float64).reshape(8, 2)
-            self.run = run_from_arrays(arrays)
-        else:
-            eng.lo[:] = np.asarray(got["box_lo"], np.float64).reshape(2)
-            eng.hi[:] = np.asarray(got["box_hi"], np.float64).reshape(2)
-            c.lo_hold[:] = np.asarray(got["box_lo_hold"], np.float64).reshape(2)
-            c.hi_hold[:] = np.asarray(got["box_hi_hold"], np.float64).reshape(2)
+        self._restore_box(eng, arrays)
         eng.virial[:] = virial
-        if self._sheared:
-            eng._run_drive = self.run
         return build_step
 
     def _orig(self, eng, *arrays) -> np.ndarray:
@@ -663,7 +625,6 @@ class FastOrthogonalCell(FastCell):
     drive = OrthogonalCell.drive
     _drive = OrthogonalCell._drive
     collapse_message = OrthogonalCell.collapse_message
-    _sheared = False
 
     def _init_box(self, eng, box):
         C = eng.packing.cell
@@ -672,6 +633,37 @@ class FastOrthogonalCell(FastCell):
 
     def _kernel_cell(self, eng):
         return eng.box
+
+    def _image(self, eng):
+        """The image plug-in of the force loop for the current box: (Lx, Ly)."""
+        return (float(eng.hi[0] - eng.lo[0]), float(eng.hi[1] - eng.lo[1]))
+
+    def _box_corners(self, eng):
+        """(lo (2,), hi (2,), xy) of the current box."""
+        return eng.lo, eng.hi, 0.0
+
+    def _wrap(self, eng):
+        """Domain::pbc per axis; a particle still outside (sorted index) or -1."""
+        p = eng.ps
+        return FK.wrap(p.x, p.y, eng.lo, eng.hi)
+
+    def _hold(self, eng):
+        """The box at this list build (the rebuild test measures the box's motion from it)."""
+        eng.box.lo_hold[:] = eng.lo
+        eng.box.hi_hold[:] = eng.hi
+
+    def _flow_field(self, eng):
+        """(y_lo, L_y, u_x rate, u_y rate) of :func:`fast_kernels.flow_energies`: no flow."""
+        return 0.0, 1.0, 0.0, 0.0
+
+    def _box_arrays(self, eng) -> dict:
+        b = eng.box
+        return {"box_lo": b.lo, "box_hi": b.hi, "box_lo_hold": b.lo_hold, "box_hi_hold": b.hi_hold}
+
+    def _restore_box(self, eng, arrays: dict):
+        b = eng.box
+        for name, a in (("box_lo", b.lo), ("box_hi", b.hi), ("box_lo_hold", b.lo_hold), ("box_hi_hold", b.hi_hold)):
+            a[:] = _checkpoint_array(arrays, name, 2)
 
     def box_state(self, eng):
         return self.lengths(eng).copy()
@@ -704,7 +696,6 @@ class FastShearedCell(FastCell):
     start_run = ShearedCell.start_run
     drive = ShearedCell.drive
     collapse_message = ShearedCell.collapse_message
-    _sheared = True
 
     def _init_box(self, eng, box):
         C = np.asarray(eng.packing.cell, np.float64)
@@ -716,6 +707,50 @@ class FastShearedCell(FastCell):
 
     def _kernel_cell(self, eng):
         return FK.ShearCell(eng.box, eng.box_hold, eng.h_rate, eng.corners_hold)
+
+    def _image(self, eng):
+        """The image plug-in of the force loop for the current box: (Lx, Ly, xy, and the velocity
+        jumps h_rate[5], h_rate[1], h_rate[0] of the images)."""
+        b = eng.box
+        hr = eng.h_rate
+        return (float(b[2] - b[0]), float(b[3] - b[1]), float(b[4]), float(hr[2]), float(hr[1]), float(hr[0]))
+
+    def _box_corners(self, eng):
+        """(lo (2,), hi (2,), xy) of the current box."""
+        b = eng.box
+        return b[0:2], b[2:4], float(b[4])
+
+    def _wrap(self, eng):
+        """Domain::pbc of the tilted box with the Lees-Edwards velocity jump; a particle still
+        outside (sorted index) or -1."""
+        p = eng.ps
+        return FK.wrap_tilted(p.x, p.y, p.vx, p.vy, eng.box, eng.h_rate, True)
+
+    def _hold(self, eng):
+        """The box and its 8 corners at this list build (LAMMPS' triclinic rebuild rule)."""
+        eng.box_hold[:] = eng.box
+        SK.box_corners(eng.box, eng.corners_hold)
+
+    def _flow_field(self, eng):
+        """(y_lo, L_y, u_x rate, u_y rate) of :func:`fast_kernels.flow_energies`: the cell's flow."""
+        b, hr = eng.box, eng.h_rate
+        return b[1], b[3] - b[1], hr[2], hr[1]
+
+    def _box_arrays(self, eng) -> dict:
+        """The box, its state at the last build, h_rate, the corners, and the run (the numbers
+        and the loading, as the code order's: :func:`gransim.dem.sheared.run_arrays`)."""
+        return {
+            "box": eng.box, "box_hold": eng.box_hold, "h_rate": eng.h_rate, "corners_hold": eng.corners_hold,
+            **run_arrays(self.run),
+        }  # fmt: skip
+
+    def _restore_box(self, eng, arrays: dict):
+        eng.box[:] = _checkpoint_array(arrays, "box", 5)
+        eng.box_hold[:] = _checkpoint_array(arrays, "box_hold", 5)
+        eng.h_rate[:] = _checkpoint_array(arrays, "h_rate", 3)
+        eng.corners_hold[:] = _checkpoint_array(arrays, "corners_hold", 16).reshape(8, 2)
+        self.run = run_from_arrays(arrays)
+        eng._run_drive = self.run
 
     def box_state(self, eng):
         return eng.box.copy()

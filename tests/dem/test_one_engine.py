@@ -73,6 +73,19 @@ def test_a_checkpoint_of_one_ordering_is_refused_by_the_other(packing):
         Engine.from_checkpoint(packing, S, ck, 0, order="fast")
 
 
+def test_a_fast_checkpoint_of_the_other_cell_is_refused(packing):
+    """A sheared cell's fast checkpoint has no orthogonal box (and the reverse): an InputError
+    naming the dataset, not a KeyError."""
+    sheared = make_engine(_sheared(packing), S, cell="sheared", order="fast")
+    sheared.start_run(SHEAR, 10)
+    with pytest.raises(InputError, match="box_lo"):
+        Engine.from_checkpoint(packing, S, sheared.state_arrays(), 0, order="fast")
+    cut = make_engine(_sheared(packing), S, cell="sheared", order="fast").state_arrays()
+    cut.pop("box_hold")
+    with pytest.raises(InputError, match="box_hold"):
+        Engine.from_checkpoint(_sheared(packing), S, cut, 0, cell="sheared", order="fast")
+
+
 def test_the_fast_ordering_has_no_code_order_list_views(packing):
     eng = make_engine(packing, S, order="fast")
     assert eng.ea.shape == eng.eb.shape == (eng.xi.shape[0],)
