@@ -269,3 +269,17 @@ def test_hertz_laws_refuse_the_other_code(tmp_path):
         HertzHistoryLammpsLaw(5e8, 0.3).deck_lines("liggghts")
     with pytest.raises(InputError, match="youngs_modulus"):
         HertzLiggghtsLaw(5e10, 0.3)
+
+
+def test_coulomb_excess_of_frames_without_normal_force():
+    """A frame with no force at all is within the Coulomb bound; a tangential force without a
+    normal one is an infinite excess, and its record fails."""
+    import numpy as np
+
+    from validation.cases.impacts import _coulomb_excess
+    from validation.core import compare
+
+    assert _coulomb_excess(np.array([0.0, 0.5]), np.array([0.0, 1.0])) == -0.5
+    bad = _coulomb_excess(np.array([0.1, 0.5]), np.array([0.0, 1.0]))
+    assert bad == np.inf
+    assert not compare("scene", "coulomb bound", "bound", bad, 1e-9, "exact cap").passed
