@@ -8,6 +8,8 @@ or inf value fails (:mod:`reference_runs.judge`). So a comparison on incomplete 
 
 Criteria:
 
+* :func:`analytic`: runs against closed forms or bounds (:class:`Bound`: an error at most its
+  tolerance, a rate at least its bound, or a figure for the reader), the worst over the runs.
 * :func:`step_for_step`: two runs of one deck at every step and dump, at the round-off bounds of
   :class:`StepBounds` (native in a code's arithmetic against that code).
 * :func:`explained_difference`: two codes that differ physically on the same deck; their
@@ -67,6 +69,91 @@ from .taylor_compare import PATH_NAMES, contact_records, expected_series, series
 def _max(a) -> float:
     """Largest entry, NaN for an empty array or any NaN (a comparison over nothing fails)."""
     return peak([a])
+
+
+# ====================================================================== analytic
+#: how :func:`analytic` judges a quantity: an error within its tolerance, a figure at least a bound
+#: (a convergence rate), or a figure shown for the reader
+ANALYTIC_RULES = ("at_most", "at_least", "info")
+
+
+@dataclass(frozen=True)
+class Bound:
+    """How :func:`analytic` judges one quantity.
+
+    tolerance : the bound on the value (NaN for ``info``).
+    reason : why the bound is what it is.
+    rule : ``"at_most"``: the value is an error against a closed form (or the excess over a bound)
+        and must not exceed ``tolerance``; ``"at_least"``: a figure that must reach ``tolerance`` (an
+        observed convergence order); ``"info"``: a figure for the reader, no verdict.
+    """
+
+    tolerance: float
+    reason: str
+    rule: str = "at_most"
+
+    def __post_init__(self):
+        if self.rule not in ANALYTIC_RULES:
+            raise ValueError(f"Bound.rule: expected one of {ANALYTIC_RULES}, got {self.rule!r}")
+
+
+def _worst(vals: list, rule: str) -> float:
+    """The worst of the runs' values: NaN or inf first, then the largest (``at_most``) or the
+    smallest (``at_least``); ``info``: the first run's."""
+    if not vals:
+        return math.nan
+    bad = [v for v in vals if not math.isfinite(v)]
+    if bad:
+        return bad[0]
+    if rule == "info":
+        return vals[0]
+    return max(vals) if rule == "at_most" else min(vals)
+
+
+def analytic(label: str, *runs, expected, values, bound, sides, names=None, metric=None) -> tuple[list, dict]:
+    """Runs against closed forms or bounds, each run answering the same checks.
+
+    expected : the ``(item, quantity)`` pairs every run must answer (item: an impact, a load
+        protocol; the records' label is ``<label>/<item>``, or ``<label>`` for item ``""``).
+    values : ``values(run) -> {(item, quantity): value}``: the run's error against the closed form
+        (or its excess over a bound), or the figure a bound is set on (an observed order).
+    bound : ``{quantity: Bound}``, or ``bound(item, quantity) -> Bound``.
+    names : the runs' names in the metrics (default: ``sides`` when it names every run).
+    metric : optional ``metric(item, quantity, {name: value}) -> str`` (what was computed, with the
+        closed form and each run's figure); default: the quantity and each run's value.
+
+    One record per expected pair, its value the worst over the runs (the largest error, the smallest
+    order; NaN or inf first). A pair that a run does not answer is NaN for it: the record fails,
+    its metric naming the run (a comparison over missing evidence never passes). Returns (records,
+    summary ``{(item, quantity): {name: value}}``)."""
+    if names is None:
+        names = tuple(sides) if len(sides) == len(runs) else tuple(f"run {i}" for i in range(len(runs)))
+    if len(names) != len(runs):
+        raise ValueError(f"analytic {label}: {len(names)} names for {len(runs)} runs")
+    got = [values(r) for r in runs]
+    recs, summary = [], {}
+    for item, quantity in expected:
+        b = bound[quantity] if isinstance(bound, dict) else bound(item, quantity)
+        vals = {n: float(g.get((item, quantity), math.nan)) for n, g in zip(names, got)}
+        missing = [n for n, g in zip(names, got) if (item, quantity) not in g]
+        summary[(item, quantity)] = vals
+        lab = f"{label}/{item}" if item else label
+        text = (
+            metric(item, quantity, vals)
+            if metric
+            else f"{quantity} ({', '.join(f'{n} {v:.6g}' for n, v in vals.items())})"
+        )
+        if missing:
+            text += f" [no answer from {', '.join(missing)}]"
+        v = _worst(list(vals.values()), b.rule)
+        if b.rule == "info":
+            recs.append(info(lab, quantity, text, v, b.reason))
+        elif b.rule == "at_most":
+            recs.append(compare(lab, quantity, text, v, b.tolerance, b.reason))
+        else:
+            ok = math.isfinite(v) and math.isfinite(b.tolerance) and v >= b.tolerance
+            recs.append(Record(lab, quantity, f"{text} (at least {b.tolerance:g})", v, b.tolerance, ok, b.reason))
+    return recs, summary
 
 
 # ====================================================================== step for step

@@ -9,6 +9,10 @@ comparison's reason. A run of a code that is not installed is not made: its stor
 for it where the case declares one (``Run.fallback``), else its comparisons are left out with a
 note, and a column left without any comparison is marked not applicable, saying why.
 
+A comparison of one run (a run against closed forms: :func:`validation.judges.analytic`) or of two
+runs of one code files its records outside the matrix, among the case's other checks, unless it
+names its column (``Comparison.pair``).
+
 So a case states what it compares, and adding a code adds its runs to the case's list: the
 comparisons and columns follow from the same rules (see validation/cases/biaxial.py, ``short_plan``).
 """
@@ -21,8 +25,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from .codes import NATIVE, code_label, pair_key
-from .core import CaseResult, Context, in_pair, stored_job_record
+from .core import PAIRS, CaseResult, Context, in_pair, stored_job_record
 from .judges import (
+    analytic,
     cell_lists,
     ensemble_cross,
     ensemble_envelope,
@@ -36,6 +41,7 @@ from .judges import (
 
 #: the judges a comparison can name (kind -> function(label, *runs, **params) -> (records, summary))
 JUDGES = {
+    "analytic": analytic,
     "step": step_for_step,
     "explained": explained_difference,
     "cells": cell_lists,
@@ -84,13 +90,17 @@ class Run:
 class Comparison:
     """One comparison of two (or more) runs by a shared judge.
 
-    kind : a key of :data:`JUDGES` (``step``, ``explained``, ``taylor_stress``, ...).
+    kind : a key of :data:`JUDGES` (``step``, ``explained``, ``analytic``, ...).
     label : the records' case label (``biaxial-short/stored-120/lammps``).
-    runs : keys of the runs, in the judge's order; the first two decide the matrix column.
+    runs : keys of the runs, in the judge's order (one run or more).
     reason : why this comparison's tolerances are what they are (the column's declared reason).
     params : the judge's keyword arguments (bounds, expected steps and frames, ...), or a callable
         returning them, called when the comparison is judged (after its runs are made: a D50 of a
         packing the runs generate).
+    pair : the matrix column its records go to: None (default) the column of the first two runs'
+        codes when they differ, else ``""``: outside the matrix, among the case's other checks (a
+        run against closed forms, two runs of one code); or a column named explicitly (a code's
+        run against closed forms whose evidence that code's column owes).
     """
 
     kind: str
@@ -98,10 +108,23 @@ class Comparison:
     runs: tuple[str, ...]
     reason: str
     params: dict | Callable[[], dict] = field(default_factory=dict)
+    pair: str | None = None
 
     def __post_init__(self):
         if self.kind not in JUDGES:
             raise ValueError(f"Comparison.kind: expected one of {tuple(JUDGES)}, got {self.kind!r}")
+        if not self.runs:
+            raise ValueError(f"comparison {self.label}: no run to judge")
+        if self.pair and self.pair not in PAIRS:
+            raise ValueError(f"Comparison.pair: expected one of {tuple(PAIRS)} or '', got {self.pair!r}")
+
+    def column(self, codes: tuple[str, ...]) -> str:
+        """The matrix column of the comparison, given its runs' codes (see ``pair``)."""
+        if self.pair is not None:
+            return self.pair
+        if len(codes) >= 2 and codes[0] != codes[1]:
+            return pair_key(codes[0], codes[1])
+        return ""
 
 
 def stored_job(job_dir) -> Callable[[str, object], list]:
@@ -157,12 +180,13 @@ def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[C
         if unknown:
             raise ValueError(f"comparison {c.label}: no run {unknown[0]!r} declared")
         c = dataclasses.replace(c, runs=tuple(stand_in.get(k, k) for k in c.runs))
-        pair = pair_key(by_key[c.runs[0]].code, by_key[c.runs[1]].code)
+        pair = c.column(tuple(by_key[k].code for k in c.runs))
         gone = [k for k in c.runs if k in missing]
         if gone:
             why = f"{code_label(by_key[gone[0]].code)} is not installed ({gone[0]} not made)"
             out.skipped[c.label] = why
-            pairs_left.setdefault(pair, why)
+            if pair:
+                pairs_left.setdefault(pair, why)
             continue
         for k in c.runs:
             if k not in out.runs:
@@ -176,10 +200,13 @@ def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[C
         if "pair" in inspect.signature(JUDGES[c.kind]).parameters:
             kw.setdefault("pair", pair)
         got, summary = JUDGES[c.kind](c.label, *(out.runs[k] for k in c.runs), **kw)
-        res.declare(pair, res.matrix.get(pair) or c.reason)
-        res.records += in_pair(recs + got, pair)
+        if pair:
+            res.declare(pair, res.matrix.get(pair) or c.reason)
+            res.records += in_pair(recs + got, pair)
+            pairs_made.add(pair)
+        else:
+            res.records += recs + got
         out.summaries[c.label] = summary
-        pairs_made.add(pair)
     for pair, why in pairs_left.items():
         if pair not in pairs_made:
             res.skip_pair(pair, f"{why}, and no stored output of it is compared")

@@ -9,6 +9,7 @@ a reference cut short and on a reference with a particle missing."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -236,3 +237,68 @@ print(json.dumps({{"ok": ok, "cells": cells, "header": header}}))
     }
     for label in ("native vs YADE", "LIGGGHTS vs YADE", "LAMMPS vs YADE"):
         assert label in doc["header"]
+
+
+def test_the_analytic_judge_takes_the_worst_run_and_fails_a_missing_answer():
+    from validation.judges import Bound, analytic
+
+    expected = [("a", "error"), ("a", "order"), ("", "norm")]
+    bound = {
+        "error": Bound(1e-3, "why e"),
+        "order": Bound(1.5, "why o", "at_least"),
+        "norm": Bound(math.nan, "i", "info"),
+    }
+
+    def values(run):
+        return run
+
+    good = {("a", "error"): 1e-4, ("a", "order"): 1.9, ("", "norm"): 1e-20}
+    other = {("a", "error"): 5e-4, ("a", "order"): 1.7, ("", "norm"): 1e-19}
+    recs, summary = analytic("c", good, other, expected=expected, values=values, bound=bound, sides=("n", "m"))
+    by_q = {r.quantity: r for r in recs}
+    assert by_q["error"].value == 5e-4 and by_q["error"].passed and by_q["error"].case == "c/a"
+    assert by_q["order"].value == 1.7 and by_q["order"].passed
+    assert by_q["norm"].kind == "info" and by_q["norm"].case == "c"
+    assert summary[("a", "error")] == {"n": 1e-4, "m": 5e-4}
+    # a run beyond the tolerance or below the rate fails
+    slow = {**other, ("a", "order"): 1.0}
+    recs, _ = analytic("c", good, slow, expected=expected, values=values, bound=bound, sides=("n", "m"))
+    assert [r.passed for r in recs if r.kind == "check"] == [True, False]
+    # a run that does not answer a pair: NaN, failing, named
+    cut = {("a", "order"): 1.9}
+    recs, _ = analytic("c", good, cut, expected=expected, values=values, bound=bound, sides=("n", "m"))
+    err = next(r for r in recs if r.quantity == "error")
+    assert not err.passed and "no answer from m" in err.metric
+    # an inf order is no pass either
+    recs, _ = analytic(
+        "c", {**good, ("a", "order"): math.inf}, expected=expected, values=values, bound=bound, sides=("n",)
+    )
+    assert not next(r for r in recs if r.quantity == "order").passed
+
+
+def test_a_one_run_comparison_files_outside_the_matrix_unless_it_names_a_column():
+    from validation.judges import Bound
+
+    res = CaseResult("c", "t", "d")
+    runs = [
+        Run("native", "native", "lammps", "native", lambda: {("", "e"): 0.0}),
+        Run("yade", "yade", "yade", "YADE now", lambda: {("", "e"): 2.0}),
+    ]
+    params = {"expected": [("", "e")], "values": lambda r: r, "bound": {"e": Bound(1.0, "r")}}
+    comps = [
+        Comparison("analytic", "c/native", ("native",), "closed form", params),
+        Comparison("analytic", "c/yade", ("yade",), "closed form, YADE", params, pair="native-yade"),
+    ]
+    evaluate(res, Context("quick", None, available=frozenset({"yade"})), runs, comps)
+    native, yade = res.records
+    assert native.pair == "" and native.passed
+    assert yade.pair == "native-yade" and not yade.passed and res.cell("native-yade")["state"] == "FAIL"
+    assert list(res.matrix) == ["native-yade"]
+    # YADE absent and no stored stand-in: its comparison is left out, its column not applicable
+    res = CaseResult("c", "t", "d")
+    runs[1] = dataclasses.replace(runs[1], live=True)
+    out = evaluate(res, Context("quick", None), runs, comps)
+    assert list(out.summaries) == ["c/native"] and "c/yade" in out.skipped
+    assert res.cell("native-yade")["state"] == "n/a"
+    with pytest.raises(ValueError, match="pair"):
+        Comparison("analytic", "c/x", ("native",), "r", params, pair="native-chute")
