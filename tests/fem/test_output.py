@@ -169,16 +169,25 @@ def test_cli_rejects_bad_input(capsys):
         setup_for("nonsense")
 
 
-def test_acceptance_records_of_a_completed_run(case):
-    from gransim.fem.run import acceptance_records
+def _judged(summary, protocol="service"):
+    """The slope case's records of one run (validation/cases/slope.py: its bounds, the shared
+    analytic judge) from the figures the run measured of itself."""
+    from gransim.fem.run import acceptance_figures
+    from validation.cases.slope import BOUNDS, CHECKED, REPORTED
+    from validation.judges import analytic
 
-    recs = acceptance_records({"service": case[1]})
-    checks = [r for r in recs if r["kind"] == "check"]
-    assert {r["quantity"] for r in checks} == {"newton", "small load", "patch test"}
-    assert all(r["pass"] for r in checks), checks
+    expected = [("", q) for q in (*REPORTED[protocol], *CHECKED)]
+    values = {("", q): v for q, v in acceptance_figures(summary).items()}
+    return analytic(f"slope/{protocol}", values, expected=expected, values=dict, bound=BOUNDS, sides=("native",))[0]
+
+
+def test_acceptance_figures_of_a_completed_run(case):
+    recs = _judged(case[1])
+    checks = [r for r in recs if r.kind == "check"]
+    assert {r.quantity for r in checks} == {"newton order", "small load", "patch test"}
+    assert all(r.passed for r in checks), checks
     # what only restates the run's own stopping rules is information, never a verdict
-    info = {r["metric"] for r in recs if r["kind"] == "info"}
-    assert info == {"completed (1 = yes)", "largest final relative energy norm"}
+    assert {r.quantity for r in recs if r.kind == "info"} == {"completed", "final energy norm"}
 
 
 class _WrongTangent:
@@ -198,18 +207,11 @@ def test_acceptance_checks_fail_for_an_inconsistent_tangent():
     """The same slope with a tangent 20% off: Newton loses its quadratic rate, the small-load
     solution no longer matches the linear one, so the checks fail (they are not a restatement of
     the solver's own convergence)."""
-    from gransim.fem.run import acceptance_records
-
     s = run_slope_case(
         "service", material=_WrongTangent(make_continuum("neo-hookean")), out=None, figures="none", geometry=SMALL_SLOPE
     )
-    bad = {
-        (r["quantity"], r["metric"][:20])
-        for r in acceptance_records({"service": s})
-        if r["kind"] == "check" and not r["pass"]
-    }
-    assert ("newton", "min over steps of th") in bad
-    assert any(q == "small load" for q, _ in bad), bad
+    bad = {r.quantity for r in _judged(s) if r.kind == "check" and not r.passed}
+    assert {"newton order", "small load"} <= bad, bad
 
 
 def test_cli_slope_end_to_end(tmp_path, capsys):
@@ -246,15 +248,20 @@ def test_acceptance_checks_fail_on_a_nan(case, where):
     error would have passed."""
     import copy
 
-    from gransim.fem.run import acceptance_records
-
     s = copy.deepcopy(case[1])
     if where == "order":
         step = next(st for st in s["result"].steps if len(st.energy_norms) >= 4)
         step.energy_norms[-1] = float("nan")  # the last observed order is NaN
-        quantity = "newton"
+        quantity = "newton order"
     else:
         s["patch_check"] = dict(s["patch_check"], **{where: float("nan")})
         quantity = "patch test"
-    rec = next(r for r in acceptance_records({"service": s}) if r["quantity"] == quantity and r["kind"] == "check")
-    assert not rec["pass"] and rec["value"] != rec["value"], rec
+    rec = next(r for r in _judged(s) if r.quantity == quantity)
+    assert not rec.passed and rec.value != rec.value, rec
+
+
+def test_a_run_without_its_linear_check_fails_the_small_load_check(case):
+    """A check that could not be made is a failure, never a pass on nothing."""
+    s = dict(case[1], linear_check=None, linear_check_error="singular tangent")
+    rec = next(r for r in _judged(s) if r.quantity == "small load")
+    assert not rec.passed
