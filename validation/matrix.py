@@ -25,7 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from .codes import NATIVE, code_label, pair_key
-from .core import PAIRS, CaseResult, Context, in_pair, stored_job_record
+from .core import PAIRS, CaseResult, Context, Record, in_pair, stored_job_record
 from .judges import (
     analytic,
     cell_lists,
@@ -97,6 +97,8 @@ class Comparison:
     params : the judge's keyword arguments (bounds, expected steps and frames, ...), or a callable
         returning them, called when the comparison is judged (after its runs are made: a D50 of a
         packing the runs generate).
+    view : optional ``view(run) -> object``: how the judge sees each run (the calls of an RVE as a
+        :class:`validation.dem_compare.Trajectory` for the step judge); None: the run itself.
     pair : the matrix column its records go to: None (default) the column of the first two runs'
         codes when they differ, else ``""``: outside the matrix, among the case's other checks (a
         run against closed forms, two runs of one code); or a column named explicitly (a code's
@@ -108,6 +110,7 @@ class Comparison:
     runs: tuple[str, ...]
     reason: str
     params: dict | Callable[[], dict] = field(default_factory=dict)
+    view: Callable[[object], object] | None = None
     pair: str | None = None
 
     def __post_init__(self):
@@ -125,6 +128,15 @@ class Comparison:
         if len(codes) >= 2 and codes[0] != codes[1]:
             return pair_key(codes[0], codes[1])
         return ""
+
+
+@dataclass(frozen=True)
+class Failed:
+    """What a run's ``make`` returns when its job failed or its output cannot be read (``why``, in
+    words): every comparison of that run then records failing evidence naming the run and why,
+    instead of a verdict, and the case goes on with its other comparisons."""
+
+    why: str
 
 
 def stored_job(job_dir) -> Callable[[str, object], list]:
@@ -160,8 +172,9 @@ def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[C
 
     A live run of a code not installed is not made: its stored stand-in (``Run.fallback``) is
     compared instead, or else its comparisons are left out (a note says which) and a column that
-    thereby has no comparison at all is marked not applicable. A run that raises (a job that
-    failed or timed out) raises out of here: the case did not run."""
+    thereby has no comparison at all is marked not applicable. A run whose ``make`` returns
+    :class:`Failed` gives each of its comparisons a failing evidence record; a run that raises
+    raises out of here: the case did not run."""
     by_key = {r.key: r for r in runs}
     if len(by_key) != len(runs):
         raise ValueError("Run.key: two runs of the case share a key")
@@ -192,6 +205,14 @@ def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[C
             if k not in out.runs:
                 out.runs[k] = by_key[k].make()
         recs = []
+        failed = [k for k in c.runs if isinstance(out.runs[k], Failed)]
+        if failed:
+            got = [
+                Record(c.label, "evidence", f"incomplete: {by_key[k].who} ({k}): {out.runs[k].why}", 1.0, 0.0, False)
+                for k in failed
+            ]
+            _file(res, pair, c.reason, got, pairs_made)
+            continue
         for k in c.runs:
             if by_key[k].verify is not None and k not in verified:
                 verified.add(k)
@@ -199,19 +220,17 @@ def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[C
         kw = {"sides": tuple(by_key[k].who for k in c.runs[:2]), **(c.params() if callable(c.params) else c.params)}
         if "pair" in inspect.signature(JUDGES[c.kind]).parameters:
             kw.setdefault("pair", pair)
-        got, summary = JUDGES[c.kind](c.label, *(out.runs[k] for k in c.runs), **kw)
-        if pair:
-            res.declare(pair, res.matrix.get(pair) or c.reason)
-            res.records += in_pair(recs + got, pair)
-            pairs_made.add(pair)
-        else:
-            res.records += recs + got
+        view = c.view or (lambda run: run)
+        got, summary = JUDGES[c.kind](c.label, *(view(out.runs[k]) for k in c.runs), **kw)
+        _file(res, pair, c.reason, recs + got, pairs_made)
         out.summaries[c.label] = summary
     for pair, why in pairs_left.items():
         if pair not in pairs_made:
             res.skip_pair(pair, f"{why}, and no stored output of it is compared")
     for r in runs:
-        if r.key in out.runs:
+        if r.key in out.runs and isinstance(out.runs[r.key], Failed):
+            status = f"failed: {out.runs[r.key].why}"
+        elif r.key in out.runs:
             status = "made"
         elif r.key in stand_in:
             status = f"not made ({code_label(r.code)} absent): {stand_in[r.key]} compared instead"
@@ -221,3 +240,14 @@ def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[C
             status = "not needed"
         res.runs.append((r.key, r.who, code_label(r.arithmetic) if r.arithmetic else "", r.source, status))
     return out
+
+
+def _file(res: CaseResult, pair: str, reason: str, records: list, pairs_made: set) -> None:
+    """File ``records`` in the matrix column ``pair`` (declared with ``reason``), or among the
+    case's other checks when ``pair`` is ``""``."""
+    if pair:
+        res.declare(pair, res.matrix.get(pair) or reason)
+        res.records += in_pair(records, pair)
+        pairs_made.add(pair)
+    else:
+        res.records += records

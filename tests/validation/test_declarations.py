@@ -302,3 +302,28 @@ def test_a_one_run_comparison_files_outside_the_matrix_unless_it_names_a_column(
     assert res.cell("native-yade")["state"] == "n/a"
     with pytest.raises(ValueError, match="pair"):
         Comparison("analytic", "c/x", ("native",), "r", params, pair="native-chute")
+
+
+def test_a_failed_run_gives_failing_evidence_and_a_view_is_what_the_judge_sees():
+    from validation.judges import Bound
+    from validation.matrix import Failed
+
+    params = {"expected": [("", "e")], "values": lambda r: r, "bound": {"e": Bound(1.0, "r")}}
+    runs = [
+        Run("native", "native", "lammps", "native", lambda: {("", "e"): 0.5}),
+        Run("lammps", "lammps", "lammps", "deck now", lambda: Failed("job killed at step 7"), live=True),
+        Run("wrapped", "native", "lammps", "native", lambda: [{("", "e"): 0.25}]),
+    ]
+    comps = [
+        Comparison("analytic", "c/lammps", ("lammps",), "closed form", params, pair="native-lammps"),
+        Comparison("analytic", "c/native", ("native",), "closed form", params),
+        Comparison("analytic", "c/wrapped", ("wrapped",), "closed form", params, view=lambda r: r[0]),
+    ]
+    res = CaseResult("c", "t", "d")
+    out = evaluate(res, Context("quick", None, lammps=True), runs, comps)
+    bad = [r for r in res.records if not r.passed]
+    assert len(bad) == 1 and bad[0].pair == "native-lammps" and bad[0].quantity == "evidence"
+    assert "incomplete: LAMMPS (lammps): job killed at step 7" == bad[0].metric
+    assert res.cell("native-lammps")["state"] == "FAIL" and not res.passed
+    assert "c/lammps" not in out.summaries and out.summaries["c/wrapped"][("", "e")] == {"native": 0.25}
+    assert ("lammps", "LAMMPS", "LAMMPS", "deck now", "failed: job killed at step 7") in res.runs
