@@ -10,6 +10,7 @@ Criteria:
 
 * :func:`analytic`: runs against closed forms or bounds (:class:`Bound`: an error at most its
   tolerance, a rate at least its bound, or a figure for the reader), the worst over the runs.
+* :func:`same_states`: two runs' states (an RVE's saved scenes) equal in every field, bit for bit.
 * :func:`step_for_step`: two runs of one deck at every step and dump, at the round-off bounds of
   :class:`StepBounds` (native in a code's arithmetic against that code).
 * :func:`explained_difference`: two codes that differ physically on the same deck; their
@@ -154,6 +155,52 @@ def analytic(label: str, *runs, expected, values, bound, sides, names=None, metr
             ok = math.isfinite(v) and math.isfinite(b.tolerance) and v >= b.tolerance
             recs.append(Record(lab, quantity, f"{text} (at least {b.tolerance:g})", v, b.tolerance, ok, b.reason))
     return recs, summary
+
+
+# ====================================================================== same states
+def differing(a, b, fields) -> list:
+    """The fields of two states that differ (shape or any bit; NaN equal to NaN)."""
+    bad = []
+    for f in fields:
+        x, y = np.asarray(getattr(a, f)), np.asarray(getattr(b, f))
+        if x.shape != y.shape or not np.array_equal(x, y, equal_nan=x.dtype.kind == "f"):
+            bad.append(f)
+    return bad
+
+
+def same_states(
+    label: str,
+    a,
+    b,
+    *,
+    fields,
+    quantity: str,
+    metric: str,
+    reason: str,
+    sides,
+    what: str = "states",
+    expected: int | None = None,
+) -> tuple[list, dict]:
+    """Two runs' states (a sequence of states each, or one state each) equal bit for bit in every
+    field of ``fields`` (attributes; NaN equal to NaN), state by state over the states both hold.
+
+    ``metric`` says what is compared; ``what`` names the states (``calls``); ``expected``: how many states each run
+    must hold (default: as many as ``a``). Value: the number of (state, field) pairs that differ,
+    the first named in the metric; NaN when the runs hold no common state (nothing compared fails),
+    and a failing evidence record when either holds fewer than expected. Returns (records,
+    summary: ``{"differing": [(state, [fields])]}``)."""
+    one = not isinstance(a, list | tuple)
+    sa, sb = ([a], [b]) if one else (list(a), list(b))
+    n = len(sa) if expected is None else int(expected)
+    recs = [] if one else [evidence(label, f"{side} {what}", n, min(len(s), n)) for side, s in zip(sides, (sa, sb))]
+    both = min(len(sa), len(sb), n)
+    bad = [(k, d) for k in range(both) if (d := differing(sa[k], sb[k], fields))]
+    first = f"; first: {what} {bad[0][0]}: {', '.join(bad[0][1][:4])}" if bad and not one else ""
+    if bad and one:
+        first = f": {', '.join(bad[0][1][:6])}"
+    value = float(sum(len(d) for _, d in bad)) if both else math.nan
+    recs.append(compare(label, quantity, f"{metric}{first}", value, 0.0, reason))
+    return recs, {"differing": bad}
 
 
 # ====================================================================== step for step

@@ -32,6 +32,7 @@ from .judges import (
     ensemble_cross,
     ensemble_envelope,
     explained_difference,
+    same_states,
     step_for_step,
     taylor_contacts,
     taylor_cross,
@@ -43,6 +44,7 @@ from .judges import (
 JUDGES = {
     "analytic": analytic,
     "step": step_for_step,
+    "same": same_states,
     "explained": explained_difference,
     "cells": cell_lists,
     "ensemble": ensemble_envelope,
@@ -218,8 +220,11 @@ def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[C
                 verified.add(k)
                 recs += by_key[k].verify(c.label, out.runs[k])
         kw = {"sides": tuple(by_key[k].who for k in c.runs[:2]), **(c.params() if callable(c.params) else c.params)}
-        if "pair" in inspect.signature(JUDGES[c.kind]).parameters:
+        takes = inspect.signature(JUDGES[c.kind]).parameters
+        if "pair" in takes:
             kw.setdefault("pair", pair)
+        if "reason" in takes:  # a judge that states why its tolerance is what it is: the comparison's reason
+            kw.setdefault("reason", c.reason)
         view = c.view or (lambda run: run)
         got, summary = JUDGES[c.kind](c.label, *(view(out.runs[k]) for k in c.runs), **kw)
         _file(res, pair, c.reason, recs + got, pairs_made)

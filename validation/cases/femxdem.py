@@ -20,6 +20,7 @@ a code absent, there is no evidence and the case says so.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import h5py
@@ -35,9 +36,10 @@ from reference_runs.errors import ReferenceRunError
 from reference_runs.femxdem.lammps_replay import replay_in_lammps
 from reference_runs.yade.rve import prepare_job, run_rve_job, state_of
 
-from ..core import CaseResult, Context, Record, case, compare, evidence, in_pair
+from ..core import CaseResult, Context, case
 from ..dem_compare import Trajectory
-from ..judges import StepBounds, step_for_step
+from ..judges import StepBounds, differing
+from ..matrix import Comparison, Failed, Run, evaluate
 
 CASE = "femxdem-short"
 TITLE = "FEM x DEM (Guo & Zhao): a Gauss point's strain history replayed in YADE, bit for bit"
@@ -99,12 +101,7 @@ def trajectory(states) -> Trajectory:
 
 def differing_fields(a, b) -> list:
     """The fields of two RVE states that differ (NaN equal to NaN: YADE's unsaved penetration)."""
-    bad = []
-    for f in RVE_STATE_FIELDS:
-        x, y = np.asarray(getattr(a, f)), np.asarray(getattr(b, f))
-        if x.shape != y.shape or not np.array_equal(x, y, equal_nan=x.dtype.kind == "f"):
-            bad.append(f)
-    return bad
+    return differing(a, b, RVE_STATE_FIELDS)
 
 
 def native_history(out, spec: BiaxialSpec = SPEC):
@@ -166,135 +163,148 @@ def lammps_available() -> bool:
     return LAMMPS.available()
 
 
-def lammps_side(res: CaseResult, ctx: Context, label: str, inc) -> None:
-    """The Gauss point's increments ``inc`` (K, 2, 2) on the LAMMPS RVE, natively and in LAMMPS."""
-    rve = LammpsRVE.guo_zhao()
-    native = rve.replay(inc)
-    if not lammps_available():
-        res.records.append(in_pair([evidence(label, "LAMMPS calls", list(range(len(native))), [])], "native-lammps")[0])
-        res.notes.append(f"LAMMPS is not installed: no evidence of the LAMMPS replay ({LAMMPS.install_hint})")
-        return
-    try:
-        ref = replay_in_lammps(ctx.work("reference", "femxdem-short-lammps"), rve, inc, ctx.job_timeout(400 * 1000))
-    except ReferenceRunError as exc:
-        first = str(exc).splitlines()[0]
-        failed = Record(label, "evidence", f"incomplete: LAMMPS job failed: {first}", 1.0, 0.0, False)
-        res.records.append(in_pair([failed], "native-lammps")[0])
-        return
-    recs, summary = step_for_step(
-        label, lammps_trajectory(native), lammps_trajectory(ref), d50=float(2 * np.median(rve.packing.radii)),
-        nsteps=len(native) - 1, dump_every=1, bounds=LAMMPS_BOUNDS, sides=("native", "LAMMPS"),
-    )  # fmt: skip
-    res.records += in_pair(recs, "native-lammps")
-    row = [label.rsplit("gp", 1)[-1], len(native) - 1, *(f"{summary[k]:.1e}" for k in ("x", "v", "w", "stress", "box"))]
-    res.tables.append(
-        (
-            "Native RVE in LAMMPS' arithmetic against LAMMPS after every call (round-off)",
-            ["Gauss point", "calls", "max|dx|/D50", "max|dv|/max|v|", "max|dw|/max|w|", "stress", "cell"],
-            [row],
-        )
-    )
+def plan(ctx: Context, replay) -> tuple[list, list, dict]:
+    """The runs and comparisons of the case, and what they share (``info``: the FE run's summary,
+    the Gauss point g, its committed state, filled when the FE run is made).
+
+    Runs: the native FE run (2 x 4 mesh, DEM RVEs in YADE's arithmetic), whose most strained Gauss
+    point's committed RVE is one run and whose strain history drives the others: a single native
+    RVE (YADE's arithmetic), YADE's replay (``replay``), the native LAMMPS RVE and LAMMPS' replay.
+    Comparisons: the Gauss point against the single RVE (every field); the single RVE against
+    YADE after every call (the step judge at zero tolerance, then every saved field) and YADE's
+    prepared RVE against the stored one; the native LAMMPS RVE against LAMMPS at round-off."""
+    out = ctx.work("femxdem-short", "native")
+    summary, g, committed = native_history(out)  # made first: its Gauss point chooses the history
+    info = {"summary": summary, "g": g, "committed": committed, "out": out}
+    lab = f"{CASE}/gp{g}"
+
+    def fe():
+        return info
+
+    def inc():
+        return np.asarray(committed.increments)
+
+    def yade():
+        try:
+            states, manifest = replay(ctx.work("reference", "femxdem-short"), inc(), ctx.job_timeout(PREPARE_PSTEPS))
+        except ReferenceRunError as exc:  # a failed job or an output cut short: missing evidence, named
+            return Failed(f"YADE job failed: {str(exc).splitlines()[0]}")
+        info["yade_version"] = manifest.get("engine_version")
+        return states
+
+    def lammps():
+        rve = LammpsRVE.guo_zhao()
+        try:
+            return replay_in_lammps(
+                ctx.work("reference", "femxdem-short-lammps"), rve, inc(), ctx.job_timeout(400 * 1000)
+            )
+        except ReferenceRunError as exc:
+            return Failed(f"LAMMPS job failed: {str(exc).splitlines()[0]}")
+
+    runs = [
+        Run("native/gauss-point", "native", "yade", "the committed RVE of the FE run's most strained Gauss point",
+            lambda: fe()["committed"].rve),
+        Run("native/rve", "native", "yade", "a single RVE driven by the Gauss point's increments",
+            lambda: native_calls(inc())),
+        Run("yade/rve", "yade", "yade", "prepareRVE.py, then simDEM.shear2D per increment, in YADE now", yade,
+            live=True),
+        Run("native/lammps-rve", "native", "lammps", "the LAMMPS RVE driven by the increments",
+            lambda: LammpsRVE.guo_zhao().replay(inc())),
+        Run("lammps/rve", "lammps", "lammps", "the LAMMPS RVE's deck, one run per increment, in LAMMPS now", lammps,
+            live=True),
+    ]  # fmt: skip
+
+    def calls():
+        return len(inc()) + 1
+
+    comps = [
+        Comparison(
+            "same", lab, ("native/gauss-point", "native/rve"),
+            "a Gauss point's RVE is a single RVE driven by its strain history (the FE run only chooses it)",
+            lambda: {"fields": RVE_STATE_FIELDS, "quantity": "gauss_point", "metric": "fields of the Gauss point's "
+                     "committed RVE that differ from a single RVE driven by its increments"},
+            view=lambda r: r[-1] if isinstance(r, list) else r,
+        ),
+        Comparison(
+            "same", lab, ("native/rve", "yade/rve"), REASON,
+            {"fields": RVE_STATE_FIELDS, "quantity": "prepared_rve", "metric": "fields of prepareRVE.py's RVE run now "
+             "that differ from the stored one"},
+            view=lambda r: r[0] if r else r,
+        ),
+        Comparison(
+            "step", lab, ("native/rve", "yade/rve"), REASON,
+            lambda: {"d50": float(2 * np.median(load_rve_state()[0].radii)), "nsteps": calls() - 1, "dump_every": 1,
+                     "bounds": BOUNDS},
+            view=trajectory,
+        ),
+        Comparison(
+            "same", lab, ("native/rve", "yade/rve"), REASON,
+            lambda: {"fields": RVE_STATE_FIELDS, "quantity": "saved_scene", "what": "calls", "expected": calls(),
+                     "metric": "calls whose saved scene differs in any field (positions ... shear forces, in "
+                     "container order), counted per field"},
+        ),
+        Comparison(
+            "step", lab, ("native/lammps-rve", "lammps/rve"), LAMMPS_REASON,
+            lambda: {"d50": float(2 * np.median(LammpsRVE.guo_zhao().packing.radii)), "nsteps": calls() - 1,
+                     "dump_every": 1, "bounds": LAMMPS_BOUNDS},
+            view=lammps_trajectory,
+        ),
+    ]  # fmt: skip
+    return runs, comps, info
 
 
-def judge(res: CaseResult, label: str, native: list, yade: list) -> dict:
-    """Records of the native calls against YADE's: the shared step-for-step judge at zero tolerance,
-    then every saved field of every call both hold."""
-    k = len(native) - 1
-    recs, summary = step_for_step(
-        label, trajectory(native), trajectory(yade), d50=float(2 * np.median(native[0].radii)), nsteps=k,
-        dump_every=1, bounds=BOUNDS, sides=("native", "YADE"),
-    )  # fmt: skip
-    res.records += recs
-    both = min(len(native), len(yade))
-    bad = [(c, differing_fields(native[c], yade[c])) for c in range(both)]
-    bad = [(c, f) for c, f in bad if f]
-    res.records.append(
-        compare(
-            label,
-            "saved_scene",
-            "calls whose saved scene differs in any field (positions ... shear forces, in container order)"
-            + (f"; first: call {bad[0][0]}: {', '.join(bad[0][1][:4])}" if bad else ""),
-            float(len(bad)) if both else float("nan"),
-            0.0,
-            REASON,
-        )
-    )
-    return summary
+def _table(res: CaseResult, pair: str, g: int, calls: int) -> list:
+    """The row of the step-for-step records in ``pair``: Gauss point, calls, the largest differences."""
+    by_q = {r.quantity: r.value for r in res.records if r.pair == pair}
+    return [g, calls, *(f"{by_q.get(q, float('nan')):.1e}" for q in ("position", "velocity", "spin", "stress", "box"))]
 
 
 @case(CASE, TITLE, suites=("default", "full"), order=60)
 def femxdem_short(ctx: Context, replay=yade_replay) -> CaseResult:
     """``replay(job_dir, increments, timeout) -> (states, manifest)``: YADE's side (tests swap it).
-    Every record that sets the native RVE against YADE is filed in the native vs YADE column; the
-    Gauss point against a single RVE (no code involved) stays among the other checks."""
-    res = _femxdem_short(ctx, replay)
-    res.records = [
-        r if r.quantity == "gauss_point" or r.pair == "native-lammps" else in_pair([r], "native-yade")[0]
-        for r in res.records
-    ]
-    return res
-
-
-def _femxdem_short(ctx: Context, replay) -> CaseResult:
+    The case needs both codes: one absent, there is no evidence of its replay and the case says so
+    (an error: it did not run what it is for)."""
     res = CaseResult(CASE, TITLE, __doc__.split("\n\n", 1)[1].replace("\n", " "))
-    res.declare("native-yade", REASON)
-    res.declare("native-lammps", LAMMPS_REASON)
     res.skip_code("liggghts", "no LIGGGHTS run: the Gauss point replays in YADE and LAMMPS (a LAMMPS sheared cell)")
     res.skip_code(
         "lammps", "the LAMMPS RVE has LAMMPS' Hooke law, YADE's its own: the two codes run different materials"
     )
-    out = ctx.work("femxdem-short", "native")
-    summary, g, committed = native_history(out)
+    have = {"yade": yade_available(), "lammps": lammps_available()}
+    avail = {c for c in ctx.available if c not in have} | {c for c, ok in have.items() if ok}
+    ctx = dataclasses.replace(ctx, lammps=have["lammps"], available=frozenset(avail))
+    runs, comps, info = plan(ctx, replay)
+    out = evaluate(res, ctx, runs, comps)
+    summary, g = info["summary"], info["g"]
     dev = summary["fields"][SPEC.steps]["deviatoric_strain"]
-    _figures(res, ctx, out)
+    _figures(res, ctx, info["out"])
     res.notes.append(
         f"2 x 4 Q8 mesh, {SPEC.steps} steps: q = "
         + ", ".join(f"{r.deviatoric_stress / 1e3:.2f} kPa" for r in summary["steps"])
         + f"; Newton iterations {[len(r.errors) for r in summary['steps']]}; replayed: Gauss point {g} "
         f"(deviatoric strain {dev[g]:.4g}, the largest of {dev.min():.4g} to {dev.max():.4g})."
     )
-    label = f"{CASE}/gp{g}"
-    inc = np.asarray(committed.increments)
-    native = native_calls(inc)
-    res.records.append(
-        compare(
-            label,
-            "gauss_point",
-            "fields of the Gauss point's committed RVE that differ from a single RVE driven by its increments",
-            float(len(differing_fields(native[-1], committed.rve))),
-            0.0,
-            "a Gauss point's RVE is a single RVE driven by its strain history (the FE run only chooses it)",
+    calls = len(info["committed"].increments)
+    if "lammps/rve" in out.runs:
+        res.tables.append(
+            (
+                "Native RVE in LAMMPS' arithmetic against LAMMPS after every call (round-off)",
+                ["Gauss point", "calls", "max|dx|/D50", "max|dv|/max|v|", "max|dw|/max|w|", "stress", "cell"],
+                [_table(res, "native-lammps", g, calls)],
+            )
         )
-    )
-    lammps_side(res, ctx, label, inc)
-    if not yade_available():
-        res.records.append(evidence(label, "YADE calls", list(range(len(native))), []))
-        res.error = f"YADE is not installed: no evidence (no stored replay of this history; {YADE.install_hint})"
-        return res
-    try:
-        yade, manifest = replay(ctx.work("reference", "femxdem-short"), inc, ctx.job_timeout(PREPARE_PSTEPS))
-    except ReferenceRunError as exc:  # a failed job or an output cut short: missing evidence, named
-        first = str(exc).splitlines()[0]
-        res.records.append(Record(label, "evidence", f"incomplete: YADE job failed: {first}", 1.0, 0.0, False))
-        return res
-    res.records.append(evidence(label, "YADE calls", list(range(len(native))), list(range(len(yade)))))
-    res.records.append(
-        compare(
-            label,
-            "prepared_rve",
-            "fields of prepareRVE.py's RVE run now that differ from the stored one",
-            float(len(differing_fields(yade[0], native[0]))) if yade else float("nan"),
-            0.0,
-            "the native run starts from the stored RVE (gransim/fem/data/guo_zhao_rve.h5): YADE must give it again",
+    if "yade/rve" in out.runs:
+        res.notes.append(f"YADE: {info.get('yade_version')}; {calls} calls replayed.")
+        res.tables.append(
+            (
+                "Native RVE against YADE after every call (0 = bitwise equal)",
+                ["Gauss point", "calls", "max|dx|/D50", "max|dv|/max|v|", "max|dw|/max|w|", "stress", "cell"],
+                [_table(res, "native-yade", g, calls)],
+            )
         )
-    )
-    s = judge(res, label, native, yade)
-    res.notes.append(f"YADE: {manifest.get('engine_version')}; {len(yade) - 1} calls replayed.")
-    res.tables.append(
-        (
-            "Native RVE against YADE after every call (0 = bitwise equal)",
-            ["Gauss point", "calls", "max|dx|/D50", "max|dv|/max|v|", "max|dw|/max|w|", "stress", "cell"],
-            [[g, len(native) - 1, *(f"{s[k]:.1e}" for k in ("x", "v", "w", "stress", "box"))]],
-        )
-    )
+    absent = [(c, e) for c, e in (("yade", YADE), ("lammps", LAMMPS)) if not have[c]]
+    if absent:
+        why = [f"{e.label} is not installed: no evidence of its replay (no stored replay of this history; "
+               f"{e.install_hint})" for _, e in absent]  # fmt: skip
+        res.notes += why
+        res.error = "; ".join(why)
     return res
