@@ -327,3 +327,27 @@ def test_a_failed_run_gives_failing_evidence_and_a_view_is_what_the_judge_sees()
     assert res.cell("native-lammps")["state"] == "FAIL" and not res.passed
     assert "c/lammps" not in out.summaries and out.summaries["c/wrapped"][("", "e")] == {"native": 0.25}
     assert ("lammps", "LAMMPS", "LAMMPS", "deck now", "failed: job killed at step 7") in res.runs
+
+
+def test_same_states_counts_differing_fields_and_fails_a_run_cut_short():
+    from types import SimpleNamespace as S
+
+    from validation.judges import same_states
+
+    def st(k):
+        return S(x=np.arange(3.0) + k, f=np.array([np.nan, 1.0]))
+
+    a = [st(0), st(1), st(2)]
+    kw = {"fields": ("x", "f"), "quantity": "scene", "metric": "m", "reason": "r", "sides": ("native", "YADE")}
+    recs, _ = same_states("c", a, [st(0), st(1), st(2)], what="calls", **kw)
+    assert all(r.passed for r in recs) and recs[-1].value == 0.0  # NaN equal to NaN
+    b = [st(0), st(1), S(x=np.nextafter(a[2].x, 9.0), f=a[2].f)]
+    recs, summary = same_states("c", a, b, what="calls", **kw)
+    assert not recs[-1].passed and recs[-1].value == 1.0 and "first: calls 2: x" in recs[-1].metric
+    assert summary["differing"] == [(2, ["x"])]
+    recs, _ = same_states("c", a, a[:2], what="calls", **kw)  # YADE's last call missing
+    assert [r.passed for r in recs] == [True, False, True] and "YADE calls" in recs[1].metric
+    recs, _ = same_states("c", a, [], what="calls", **kw)  # nothing in common: NaN, fails
+    assert not recs[-1].passed
+    recs, _ = same_states("c", st(0), S(x=np.arange(2.0), f=st(0).f), **kw)  # one state each: a shape differs
+    assert len(recs) == 1 and not recs[0].passed and recs[0].metric.endswith(": x")
