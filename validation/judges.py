@@ -10,9 +10,14 @@ Criteria:
 
 * :func:`analytic`: runs against closed forms or bounds (:class:`Bound`: an error at most its
   tolerance, a rate at least its bound, or a figure for the reader), the worst over the runs.
+* :func:`final_state`: two runs' ends (positions modulo the box and box), a long replay's only evidence.
 * :func:`same_states`: two runs' states (an RVE's saved scenes) equal in every field, bit for bit.
 * :func:`step_for_step`: two runs of one deck at every step and dump, at the round-off bounds of
   :class:`StepBounds` (native in a code's arithmetic against that code).
+* :func:`frame_for_frame`: runs seen at their frames only (impacts), every frame present on each,
+  and two runs' per-particle columns at the bounds of :class:`FrameBound`.
+* :func:`explained_measures`: two codes' measured answers to the same closed-form checks; their
+  difference must equal the native flavours' (the analytic form of :func:`explained_difference`).
 * :func:`explained_difference`: two codes that differ physically on the same deck; their
   difference must equal the difference of the two native flavours (each equal to its code), and
   the raw difference is shown with the words of :func:`validation.codes.why_they_differ`.
@@ -28,6 +33,8 @@ Criteria:
 * :func:`taylor_stress`, :func:`taylor_contacts`, :func:`taylor_cross`: Taylor states (no dynamics)
   of gransim and of a code, and of two codes, at round-off: the stress of every state, the contacts
   two-sided.
+* :func:`equilibria`: two states at rest of one energy (a DEM run at rest, a Newton minimiser):
+  their stresses within what their residual forces leave.
 """
 
 from __future__ import annotations
@@ -111,7 +118,9 @@ def _worst(vals: list, rule: str) -> float:
     return max(vals) if rule == "at_most" else min(vals)
 
 
-def analytic(label: str, *runs, expected, values, bound, sides, names=None, metric=None) -> tuple[list, dict]:
+def analytic(
+    label: str, *runs, expected, values, bound, sides, names=None, metric=None, figure=None
+) -> tuple[list, dict]:
     """Runs against closed forms or bounds, each run answering the same checks.
 
     expected : the ``(item, quantity)`` pairs every run must answer (item: an impact, a load
@@ -122,9 +131,12 @@ def analytic(label: str, *runs, expected, values, bound, sides, names=None, metr
     names : the runs' names in the metrics (default: ``sides`` when it names every run).
     metric : optional ``metric(item, quantity, {name: value}) -> str`` (what was computed, with the
         closed form and each run's figure); default: the quantity and each run's value.
+    figure : optional ``figure(item, quantity, {name: value}) -> float``: the record's value made
+        from the runs' values together (an observed order log2(e(dt)/e(dt/2)) from the errors of a
+        run at dt and one at dt/2); default: the worst.
 
     One record per expected pair, its value the worst over the runs (the largest error, the smallest
-    order; NaN or inf first). A pair that a run does not answer is NaN for it: the record fails,
+    order; NaN or inf first), or ``figure`` of them. A pair that a run does not answer is NaN for it: the record fails,
     its metric naming the run (a comparison over missing evidence never passes). Returns (records,
     summary ``{(item, quantity): {name: value}}``)."""
     if names is None:
@@ -146,7 +158,7 @@ def analytic(label: str, *runs, expected, values, bound, sides, names=None, metr
         )
         if missing:
             text += f" [no answer from {', '.join(missing)}]"
-        v = _worst(list(vals.values()), b.rule)
+        v = figure(item, quantity, vals) if figure else _worst(list(vals.values()), b.rule)
         if b.rule == "info":
             recs.append(info(lab, quantity, text, v, b.reason))
         elif b.rule == "at_most":
@@ -201,6 +213,51 @@ def same_states(
     value = float(sum(len(d) for _, d in bad)) if both else math.nan
     recs.append(compare(label, quantity, f"{metric}{first}", value, 0.0, reason))
     return recs, {"differing": bad}
+
+
+# ====================================================================== final state
+def final_state(
+    label: str,
+    a,
+    b,
+    *,
+    step: int,
+    d50: float,
+    position_tol: float,
+    box_tol: float,
+    reason: str,
+    sides,
+    evidence_of=(None, None),
+    position_metric: str = "max|dx|/D50 modulo the box",
+    box_metric: str = "max|dL|/D50",
+) -> tuple[list, dict]:
+    """Two runs' states at their last step ``step``: positions modulo the box and box lengths, over
+    D50 (a long run replayed, where only the end is kept: any difference in the last bit would have
+    grown by chaos, so the ends must agree to their rounding).
+
+    ``a``, ``b``: :class:`validation.dem_compare.Trajectory` (a saved packing: one frame, its cell as
+    lengths). ``evidence_of``: per side, ``(expected series steps, expected frames)`` checked by
+    :func:`validation.dem_compare.trajectory_evidence`, or None for a side that is a saved state
+    (then only its frame at ``step`` is required). On incomplete evidence no verdict is taken (the
+    failing evidence records stand alone). Returns (records, summary: x, box)."""
+    recs = []
+    for who, tr, ev in zip(sides, (a, b), evidence_of):
+        if ev is None:
+            have = [step] if step in tr.frames and len(tr.frames[step].get("x", ())) else []
+            recs.append(evidence(label, f"{who} state at step {step}", [step], have))
+        else:
+            recs += trajectory_evidence(label, who, tr, *ev)
+    if not all(r.passed for r in recs):
+        return recs, {"x": math.nan, "box": math.nan}
+    xa, xb = np.asarray(a.frames[step]["x"]), np.asarray(b.frames[step]["x"])
+    La, Lb = np.asarray(a.lengths[-1], float), np.asarray(b.lengths[-1], float)
+    dx = position_difference(xa, xb, Lb) / d50 if xa.shape == xb.shape else math.nan
+    dl = float(np.abs(La - Lb).max()) / d50
+    recs += [
+        compare(label, "position", position_metric, dx, position_tol, reason),
+        compare(label, "box", box_metric, dl, box_tol, reason),
+    ]
+    return recs, {"x": dx, "box": dl}
 
 
 # ====================================================================== step for step
@@ -841,6 +898,58 @@ def taylor_yade(label: str, material, runs: dict, *, expected_rves, expected_ks,
     return recs, {"rows": rows, "versions": sorted(versions)}
 
 
+# ====================================================================== equilibria
+def equilibria(
+    label: str,
+    a,
+    b,
+    *,
+    sides,
+    metric: str,
+    reason: str,
+    amplification: float,
+    roundoff: float,
+    names=None,
+    record_evidence: bool = False,
+) -> tuple[list, dict]:
+    """Two states at rest of one energy (a DEM run at rest, a Newton minimiser) compared by their
+    stresses, within what their residual forces leave.
+
+    Each side is an object with ``sigma`` ((2, 2) Cauchy stress, N/m in 2D, tension positive) and
+    ``rho`` (max over disks of |net contact force| / mean contact force); None, or ``sigma`` None,
+    when the side's evidence is incomplete. Both sides minimise the same energy up to their residual
+    forces r, and a residual r moves the stress by the linear response B^T H^-1 r (H the Hessian over
+    the periodic fluctuations, B the mixed derivative: Miehe & Dettmar 2004, "A framework for
+    micro-macro transitions in periodic particle aggregates of granular materials", sections 3-4),
+    so the stresses must agree within ``amplification * (rho_a + rho_b) + roundoff``.
+
+    Value: max |sigma_a - sigma_b| / max |sigma_b| over the components (``b`` the reference; the
+    largest component scales, sigma_xy passing through zero). A missing side is a failing
+    ``evidence`` record naming it, and no stress is judged on what remains; a NaN or inf in a stress
+    or a residual fails the stress record (named). ``names``: the two sides' names in the records
+    (default ``sides``; they must differ). ``record_evidence``: the evidence is recorded when complete
+    too (a column that holds no other record of its runs' evidence, two codes' runs whose own
+    evidence is filed in their native columns). Returns (records, summary: ``value``, ``tolerance``,
+    ``sigma`` and ``rho`` (per side, in order), ``missing`` (the names of the sides missing))."""
+    names = tuple(sides) if names is None else tuple(names)
+    if len(names) != 2 or names[0] == names[1]:
+        raise ValueError(f"equilibria {label}: two distinct side names expected, got {names!r}")
+    states = (a, b)
+    present = [n for n, s in zip(names, states) if s is not None and getattr(s, "sigma", None) is not None]
+    missing = [n for n in names if n not in present]
+    ev = evidence(label, "equilibria at rest", list(names), present)
+    if missing:
+        return [ev], {"value": math.nan, "tolerance": math.nan, "sigma": (), "rho": (), "missing": missing}
+    sa, sb = (np.asarray(s.sigma, float) for s in states)
+    ra, rb = (float(s.rho) for s in states)
+    scale = float(np.abs(sb).max()) or 1.0
+    value = float(np.abs(sa - sb).max()) / scale
+    tol = amplification * (ra + rb) + roundoff
+    rec = compare(label, "stress", metric, value, tol, reason, inputs={names[0]: sa, names[1]: sb})
+    summary = {"value": value, "tolerance": tol, "sigma": (sa, sb), "rho": (ra, rb), "missing": []}
+    return ([ev] if record_evidence else []) + [rec], summary
+
+
 # ====================================================================== void cells
 ALPHA_TOL = 1e-6
 ALPHA_REASON = (
@@ -1117,3 +1226,134 @@ def ensemble_cross(
         )
     )
     return recs, {}
+
+
+# ====================================================================== frame for frame
+@dataclass(frozen=True)
+class FrameBound:
+    """One per-particle quantity of :func:`frame_for_frame`.
+
+    key : the frame column (``x``, ``v``, ``w``, ``f``, ``t``).
+    quantity, metric : the record's names; ``metric`` may name ``{a}``, ``{b}`` (the two sides) and
+        ``{n}`` (the number of frames compared).
+    tolerance : the bound on max |a - b| / scale over the frames and particles.
+    reason : why the bound is what it is.
+    scale : a length (m) or a speed (m/s) the difference is divided by; None: the largest |b| over
+        the frames compared (1 when that is 0), i.e. a relative difference.
+    """
+
+    key: str
+    quantity: str
+    metric: str
+    tolerance: float
+    reason: str
+    scale: float | None = None
+
+
+def frame_for_frame(label: str, *runs, frames, bounds=(), sides) -> tuple[list, dict]:
+    """Runs seen at their frames only (positions, velocities, spins, forces, torques every dump; no
+    stress series), frame by frame.
+
+    Evidence first: every frame of ``frames`` (expected steps) present and whole on each run
+    (:func:`validation.dem_compare.trajectory_evidence`). Then, for two runs ``a`` and ``b`` (the
+    reference), each quantity of ``bounds`` (:class:`FrameBound`) over the expected frames both hold
+    with the same particle count; none in common is NaN (fails). With one run only its evidence is
+    recorded (a code's run whose column owes its evidence, judged against closed forms elsewhere).
+    Returns (records, summary ``{quantity: value, "frames": compared}``)."""
+    if len(runs) not in (1, 2) or len(sides) < len(runs):
+        raise ValueError(f"frame_for_frame {label}: one or two runs, each named in sides")
+    recs = []
+    for who, tr in zip(sides, runs):
+        recs += trajectory_evidence(label, who, tr, None, frames)
+    summary = {"frames": 0}
+    if len(runs) == 1:
+        return recs, summary
+    a, b = runs
+    common = [
+        int(s) for s in frames if s in a.frames and s in b.frames and len(a.frames[s]["x"]) == len(b.frames[s]["x"])
+    ]
+    summary["frames"] = len(common)
+    for fb in bounds:
+        if common:
+            scale = fb.scale if fb.scale is not None else (peak(np.abs(b.frames[s][fb.key]) for s in common) or 1.0)
+            value = peak(np.abs(a.frames[s][fb.key] - b.frames[s][fb.key]) for s in common) / scale  # NaN stays NaN
+        else:
+            value = math.nan
+        summary[fb.quantity] = value
+        metric = fb.metric.format(a=sides[0], b=sides[1], n=len(common))
+        recs.append(compare(label, fb.quantity, metric, value, fb.tolerance, fb.reason))
+    return recs, summary
+
+
+# ====================================================================== explained measures
+def explained_measures(
+    label: str,
+    a,
+    b,
+    nat_a,
+    nat_b,
+    *,
+    expected,
+    values,
+    tolerance: float,
+    reason: str,
+    sides,
+    absolute=(),
+    agree=None,
+    why: str = "",
+    pair: str = "",
+) -> tuple[list, dict]:
+    """Two codes' answers to the same closed-form checks, their laws differing: measures (a contact
+    time, a restitution, an exit slip of each impact) rather than trajectories, the analytic form of
+    :func:`explained_difference`.
+
+    expected : the ``(item, quantity)`` pairs each run answers; values : ``values(run) -> {(item,
+    quantity): measured value}``. Per quantity, over its items (A, B the codes' values, nA, nB the
+    native runs' in the two codes' arithmetic):
+
+    * the raw difference max |A - B| / |A| (absolute for the quantities of ``absolute``: slips and
+      spins that pass through zero), shown for the reader with ``why`` (default: the words of
+      :func:`validation.codes.why_they_differ` for ``pair``);
+    * the check that it is the two laws' difference and nothing else: max |(A - B) - (nA - nB)| / |A|
+      at most ``tolerance`` (``reason``);
+    * for the quantities of ``agree`` (``{quantity: Bound}``: both codes lie within the same
+      analytic tolerance, so they differ by at most twice it), max |A - B| within the bound.
+
+    A missing answer is NaN (the check fails). Returns (records, summary ``{quantity: {"raw",
+    "unexplained"}}``)."""
+    na, nb = sides
+    got = [values(r) for r in (a, b, nat_a, nat_b)]
+    quantities = list(dict.fromkeys(q for _, q in expected))
+    why = why or why_they_differ(pair)
+    recs, summary = [], {}
+    for q in quantities:
+        items = [it for it, qq in expected if qq == q]
+        arr = np.array([[float(g.get((it, q), math.nan)) for g in got] for it in items], float).reshape(-1, 4)
+        big = np.maximum(np.abs(arr[:, 0]), 1e-300)
+        scale = np.ones_like(big) if q in absolute else big
+        d = np.abs(arr[:, 0] - arr[:, 1]) / scale
+        u = np.abs((arr[:, 0] - arr[:, 1]) - (arr[:, 2] - arr[:, 3])) / big
+        raw = float(np.max(d)) if d.size and np.all(np.isfinite(d)) else math.nan
+        un = float(np.max(u)) if u.size and np.all(np.isfinite(u)) else math.nan
+        summary[q] = {"raw": raw, "unexplained": un}
+        recs += [
+            info(
+                label,
+                f"{q}: {na} - {nb}",
+                "raw max difference (" + ("absolute" if q in absolute else "relative") + f" over {len(items)} items)",
+                raw,
+                why,
+            ),
+            compare(
+                label,
+                f"{q}: difference explained by the native flavours",
+                f"max |({na} - {nb}) - (native {na.lower()} - native {nb.lower()})| / |value|",
+                un,
+                tolerance,
+                reason,
+            ),
+        ]
+        if agree and q in agree:
+            recs.append(compare(label, f"{q}: {na} vs {nb}", f"max |{na} - {nb}| over items", raw, agree[q].tolerance,
+                                agree[q].reason))  # fmt: skip
+    return recs, summary

@@ -31,7 +31,11 @@ from .judges import (
     cell_lists,
     ensemble_cross,
     ensemble_envelope,
+    equilibria,
     explained_difference,
+    explained_measures,
+    frame_for_frame,
+    final_state,
     same_states,
     step_for_step,
     taylor_contacts,
@@ -45,7 +49,10 @@ JUDGES = {
     "analytic": analytic,
     "step": step_for_step,
     "same": same_states,
+    "final": final_state,
     "explained": explained_difference,
+    "measures": explained_measures,
+    "frames": frame_for_frame,
     "cells": cell_lists,
     "ensemble": ensemble_envelope,
     "ensemble_cross": ensemble_cross,
@@ -53,6 +60,7 @@ JUDGES = {
     "taylor_contacts": taylor_contacts,
     "taylor_cross": taylor_cross,
     "taylor_yade": taylor_yade,
+    "equilibria": equilibria,
 }
 
 

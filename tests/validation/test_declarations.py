@@ -351,3 +351,83 @@ def test_same_states_counts_differing_fields_and_fails_a_run_cut_short():
     assert not recs[-1].passed
     recs, _ = same_states("c", st(0), S(x=np.arange(2.0), f=st(0).f), **kw)  # one state each: a shape differs
     assert len(recs) == 1 and not recs[0].passed and recs[0].metric.endswith(": x")
+
+
+def test_the_equilibria_judge_holds_two_stresses_at_rest_to_their_residuals_and_fails_a_missing_side():
+    from types import SimpleNamespace
+
+    from validation.judges import equilibria
+
+    ref = np.array([[-2.0, 0.25], [0.25, -3.0]])  # max |sigma| = 3: the scale
+    bump = np.array([[0.0, 0.0], [0.0, 1.0]])
+
+    def side(d, rho=1e-6):
+        return SimpleNamespace(sigma=ref + d * bump, rho=rho)
+
+    kw = {"sides": ("native", "LAMMPS"), "metric": "m", "reason": "r", "amplification": 10.0, "roundoff": 1e-12}
+    # tolerance 10 (1e-6 + 2e-6) + 1e-12 = 3.0000001e-5 of max |sigma_b|
+    recs, s = equilibria("c", side(3 * 2.9e-5), side(0.0, 2e-6), **kw)
+    (rec,) = recs
+    assert rec.quantity == "stress" and rec.passed
+    assert rec.value == pytest.approx(2.9e-5, rel=1e-9) and rec.tolerance == pytest.approx(3.0000001e-5, rel=1e-12)
+    assert s["missing"] == [] and s["rho"] == (1e-6, 2e-6)
+    recs, _ = equilibria("c", side(3 * 3.1e-5), side(0.0, 2e-6), **kw)
+    assert not recs[0].passed and recs[0].value == pytest.approx(3.1e-5, rel=1e-9)
+    # the residuals set the tolerance: the same difference passes between two less balanced states
+    recs, _ = equilibria("c", side(3 * 3.1e-5, 2e-6), side(0.0, 2e-6), **kw)
+    assert recs[0].passed
+    # a missing side (None, or no stress): failing evidence naming it, and no stress judged
+    for gone in (None, SimpleNamespace(sigma=None, rho=1e-6)):
+        recs, s = equilibria("c", side(0.0), gone, **kw)
+        (ev,) = recs
+        assert ev.quantity == "evidence" and not ev.passed and "(missing: LAMMPS)" in ev.metric
+        assert s["missing"] == ["LAMMPS"] and math.isnan(s["value"])
+    # a NaN in a stress or a residual fails the stress record
+    nan = side(0.0)
+    nan.sigma[0, 1] = np.nan
+    assert not equilibria("c", side(0.0), nan, **kw)[0][0].passed
+    assert not equilibria("c", side(0.0, np.nan), side(0.0), **kw)[0][0].passed
+    # complete evidence recorded on request (a column without its runs' own evidence)
+    recs, _ = equilibria("c", side(0.0), side(0.0), record_evidence=True, **kw)
+    assert [r.quantity for r in recs] == ["evidence", "stress"] and all(r.passed for r in recs)
+    assert recs[0].metric == "complete: 2 of 2 equilibria at rest"
+    with pytest.raises(ValueError, match="distinct"):
+        equilibria("c", side(0.0), side(0.0), **{**kw, "sides": ("native", "native")})
+    # a declared comparison of a native run and a code's run lands in their column
+    res = CaseResult("c", "t", "d")
+    runs = [
+        Run("n", "native", "lammps", "native", lambda: side(0.0)),
+        Run("l", "lammps", "lammps", "s", lambda: side(1.0)),
+    ]
+    params = {k: kw[k] for k in ("metric", "amplification", "roundoff")}
+    evaluate(res, Context("quick", None), runs, [Comparison("equilibria", "c/x", ("n", "l"), "why", params)])
+    (rec,) = res.records
+    assert (
+        rec.pair == "native-lammps"
+        and not rec.passed
+        and rec.reason == "why"
+        and res.matrix == {"native-lammps": "why"}
+    )
+
+
+def test_final_state_judges_the_ends_and_takes_no_verdict_on_a_run_cut_short():
+    from validation.judges import final_state
+
+    rng = np.random.default_rng(3)
+    x = rng.uniform(0, 1, (5, 2))
+    L = np.ones((1, 2))
+    saved = Trajectory(np.array([10]), np.zeros((1, 3)), L, {10: {"x": x}})
+    full = _traj(n=5, steps=10, dump=10)
+    fr = dict(full.frames)
+    fr[10] = {**fr[10], "x": x + np.array([1.0, 0.0])}  # the same positions one box further
+    run = dataclasses.replace(full, frames=fr)
+    kw = {"step": 10, "d50": 0.1, "position_tol": 1e-12, "box_tol": 0.0, "reason": "r", "sides": ("file", "LIGGGHTS")}
+    ev = (None, (np.arange(11), [0, 10]))
+    recs, s = final_state("c", saved, run, evidence_of=ev, **kw)
+    assert all(r.passed for r in recs) and s["x"] < 1e-14 and s["box"] == 0.0  # the wrap's rounding only
+    fr[10] = {**fr[10], "x": fr[10]["x"] + 1e-9}
+    recs, _ = final_state("c", saved, dataclasses.replace(full, frames=fr), evidence_of=ev, **kw)
+    assert [r.quantity for r in recs if not r.passed] == ["position"]
+    cut = _traj(n=5, steps=10, dump=10, drop_steps=3)  # the log and the last dump cut short
+    recs, s = final_state("c", saved, cut, evidence_of=ev, **kw)
+    assert {r.quantity for r in recs} == {"evidence"} and not all(r.passed for r in recs) and math.isnan(s["x"])

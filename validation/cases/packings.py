@@ -25,6 +25,7 @@ contacts by the brute-force O(N^2) periodic search, forces by the linear law wri
 from __future__ import annotations
 
 import dataclasses
+import functools
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -36,16 +37,18 @@ from gransim.io import load_packing
 from reference_runs.parsers import parse_log
 from reference_runs.runner import LOG_NAME
 
-from ..core import CaseResult, Context, case, compare, in_pair, peak
+from ..codes import NATIVE
+from ..core import CaseResult, Context, case, peak
 from ..dem_compare import (
+    Trajectory,
     expected_frames,
     expected_steps,
-    position_difference,
     run_liggghts_job,
     run_native,
     run_reference_job,
-    trajectory_evidence,
 )
+from ..judges import Bound
+from ..matrix import Comparison, Run, evaluate
 
 REPLAY_REASON = (
     "the native engine, in that code's arithmetic, follows the code bit for bit (biaxial-short); "
@@ -73,6 +76,215 @@ def _sieve_error(p) -> tuple[float, float]:
     return float(err), float(100.0 * a.max() / a.sum())
 
 
+#: the assemblies the default suite regenerates to check the files it uses (the full suite: all 16)
+REGENERATED_DEFAULT = ("rve-70-1", "rve-350-2")
+
+#: the bounds of the file checks (the sieve curve's bound is each sample's own: its largest grain)
+BOUNDS = {
+    "force balance": Bound(1.001e-3, "the generator's stop criterion (force_tol 1e-3, max norm)"),
+    "mean overlap": Bound(0.02, "overlap_tol of the request"),
+    "servo pressure": Bound(0.015, "trace of the Love stress from normal forces only; servo stops at 1 % per axis"),
+    "mean indentation": Bound(KUHN_PAPER["indentation_d50"], "Kuhn (1997): on average less than 0.02 % of D50"),
+    "void ratio": Bound(
+        KUHN_VOID_TOL,
+        "Kuhn (1997): e = 0.189, 'near 0.189' asked; seeds 1-4 of the protocol give 0.189-0.196",
+    ),
+}
+METRICS = {
+    "sieve curve": "max |sample - curve| over apertures (pp)",
+    "force balance": "max |net force| / mean contact force",
+    "mean overlap": "|<eps>/d_mean / 2.7e-4 - 1|",
+    "servo pressure": "|p_normal / p_target - 1|",
+    "mean indentation": "<eps> / D50",
+    "void ratio": "|e - 0.189|",
+}
+SIEVE_REASON = "one grain: the area share of the largest disk"
+REGENERATED_REASON = (
+    "the generator is deterministic (fixed seed, fixed summation order), so the file the other cases read must "
+    "be what it makes, bit for bit"
+)
+LIGGGHTS_WRAP_REASON = (
+    "the engine matches LIGGGHTS bit for bit; only the final wrap into the cell rounds (4 ulp of L); the box is "
+    "the same double in both codes"
+)
+
+
+def measure(p) -> dict:
+    """What the case checks of a saved packing ``p``, computed from the file alone (brute-force
+    contacts, the linear law in numpy): ``figures`` {(item, quantity): value} for the analytic judge,
+    ``sieve_bound``, the statistics and contacts the table and figure show, and ``check`` (the table's
+    balance column)."""
+    s = packing_stats(p)
+    seen = _contacts(p)
+    i, j, branch, dist, eps = seen
+    err, bound = _sieve_error(p)
+    fig = {("", "sieve curve"): err}
+    if p.metadata.get("dem") is None:  # an RVE of make_packing (FIRE, frictionless)
+        n = branch / dist[:, None]
+        F = np.zeros((p.n, 2))
+        np.add.at(F, i, -eps[:, None] * n)  # k_n = 1: force = overlap (the ratio does not depend on k_n)
+        np.add.at(F, j, eps[:, None] * n)
+        residual = float(np.max(np.linalg.norm(F, axis=1)) / eps.mean())
+        fig[("", "force balance")] = residual
+        fig[("", "mean overlap")] = abs(eps.mean() / (2.0 * p.radii.mean()) / RVE_MEAN_OVERLAP - 1.0)
+        check = f"{residual:.2e}"
+    else:  # Kuhn's assembly (a frictional DEM compaction under the servo)
+        kn = p.metadata["dem"]["kn"]
+        target = p.metadata["pressure_over_kn"] * kn
+        pressure = float(np.sum(dist * kn * eps) / (2.0 * p.area))
+        fig[("", "servo pressure")] = abs(pressure / target - 1.0)
+        fig[("", "mean indentation")] = s["mean_overlap_d50"]
+        fig[("", "void ratio")] = abs(s["void_ratio"] - KUHN_PAPER["void_ratio"])
+        check = f"p/p0 - 1 = {pressure / target - 1.0:+.2e}"
+    return {
+        "packing": p, "stats": s, "contacts": seen, "figures": fig, "sieve": err, "sieve_bound": bound, "check": check
+    }  # fmt: skip
+
+
+def _state(p) -> Trajectory:
+    """A saved packing as a run's last state (one frame at the compaction's last step)."""
+    nsteps = compaction_run(p)[3]
+    L = np.diag(p.cell)
+    return Trajectory(np.array([nsteps]), np.zeros((1, 3)), L[None, :], {nsteps: {"x": p.positions}})
+
+
+def plan(ctx: Context, paths: dict, notes: list) -> tuple[list, list, dict]:
+    """The runs of the case and their comparisons (``notes``: what the replays report).
+
+    Runs: every standard packing as saved (the file the other cases read); the ones
+    :data:`REGENERATED_DEFAULT` names (all in the full suite) made again by the generator; for each
+    assembly of a DEM compaction (Kuhn's), the compaction replayed by LIGGGHTS from the same gas,
+    and by LAMMPS beside the native engine in LAMMPS' arithmetic. Comparisons: each file against
+    its targets (analytic), each regenerated packing against its file (every field, bit for bit),
+    LIGGGHTS' end of the compaction against the file, the native end against LAMMPS'."""
+    measured = {}
+
+    def saved(name):
+        def make():
+            if name not in measured:
+                measured[name] = measure(load_packing(paths[name]))
+            return measured[name]
+
+        return make
+
+    regen = list(paths) if ctx.suite == "full" else [n for n in REGENERATED_DEFAULT if n in paths]
+    runs, comps = [], []
+    for name in paths:
+        runs.append(Run(f"file/{name}", NATIVE, "", f"the saved packing {paths[name].name}", saved(name)))
+        expected = [("", q) for q in ("sieve curve", *(
+            ("force balance", "mean overlap") if name.startswith("rve-")
+            else ("servo pressure", "mean indentation", "void ratio")))]  # fmt: skip
+        comps.append(
+            Comparison(
+                "analytic", f"packings/{name}", (f"file/{name}",), "the assemblies against their own targets",
+                lambda name=name, expected=expected: {
+                    "expected": expected,
+                    "values": lambda m: m["figures"],
+                    "bound": {**BOUNDS, "sieve curve": Bound(measured[name]["sieve_bound"], SIEVE_REASON)},
+                    "metric": lambda item, quantity, vals: METRICS[quantity],
+                },
+            )
+        )  # fmt: skip
+        if name in regen:
+            runs.append(Run(f"regenerated/{name}", NATIVE, "", "made again by the generator now",
+                            lambda name=name: generation.build_standard(name)))  # fmt: skip
+            comps.append(
+                Comparison(
+                    "same", f"packings/{name}", (f"regenerated/{name}", f"file/{name}"), REGENERATED_REASON,
+                    {"fields": ("positions", "radii", "cell"), "quantity": "regenerated",
+                     "metric": "fields (positions, radii, cell) of the packing made now that differ from the file in "
+                     "use (shipped or cached)"},
+                    view=lambda r: r["packing"] if isinstance(r, dict) else r,
+                )
+            )  # fmt: skip
+        if not name.startswith("rve-"):
+            r, c = _replay_plan(ctx, name, saved(name), notes)
+            runs += r
+            comps += c
+    return runs, comps, measured
+
+
+def _replay_plan(ctx: Context, name: str, saved, notes: list) -> tuple[list, list]:
+    """The compaction of DEM assembly ``name`` replayed: LIGGGHTS from the same gas against the file
+    (which the native engine made in LIGGGHTS' arithmetic), and LAMMPS against the native engine in
+    LAMMPS' arithmetic (the LAMMPS job runs beside the native run)."""
+    gas_of = functools.cache(lambda: compaction_run(saved()["packing"]))
+    pool: dict = {}
+
+    def thermo():
+        return max(gas_of()[3] // 100, 1)
+
+    def liggghts():
+        gas, dem, loading, nsteps = gas_of()
+        job = ctx.work("reference", "packings", name)
+        lig, man = run_liggghts_job(job, gas, dem, loading, nsteps, dump_every=nsteps, thermo_every=thermo(),
+                                    timeout=ctx.job_timeout(gas.n * nsteps))  # fmt: skip
+        if nsteps not in lig.frames:
+            return lig
+        run = parse_log(job / LOG_NAME).runs[-1]
+        lo = np.array([run["xlo"][-1], run["ylo"][-1]])  # the packing is the final state shifted to the origin
+        frames = {**lig.frames, nsteps: {**lig.frames[nsteps], "x": lig.frames[nsteps]["x"] - lo}}
+        secs = float(man.get("elapsed_s", 0.0))
+        notes.append(f"{name}: LIGGGHTS 3.8.0 replayed the {nsteps}-step compaction from the same gas in {secs:.1f} "
+                     f"s (job {job}; 0.0 s: an identical job was reused).")  # fmt: skip
+        return dataclasses.replace(lig, frames=frames)
+
+    def lammps_job():
+        gas, dem, loading, nsteps = gas_of()
+        dem = dataclasses.replace(dem, flavour="lammps")
+        job = ctx.work("reference", "packings", f"{name}-lammps")
+        return job, run_reference_job(job, gas, dem, loading, nsteps, dump_every=nsteps, thermo_every=thermo(),
+                                      timeout=ctx.job_timeout(gas.n * nsteps), engine="lammps")  # fmt: skip
+
+    def native():
+        gas, dem, loading, nsteps = gas_of()
+        if ctx.has("lammps"):  # LAMMPS runs beside the native engine
+            ex = ThreadPoolExecutor(max_workers=1)
+            pool["lammps"] = ex.submit(lammps_job)
+            ex.shutdown(wait=False)
+        dem = dataclasses.replace(dem, flavour="lammps")
+        nat = run_native(gas, dem, loading, nsteps, nsteps, thermo_every=thermo())
+        pool["native_s"] = nat.elapsed
+        return nat
+
+    def lammps():
+        fut = pool.pop("lammps", None)
+        job, (lmp, man) = fut.result() if fut is not None else lammps_job()
+        notes.append(f"{name}: LAMMPS replayed the {gas_of()[3]}-step compaction from the same gas in "
+                     f"{float(man.get('elapsed_s', 0.0)):.1f} s (job {job}; 0.0 s: an identical job was reused), the "
+                     f"native engine in LAMMPS' arithmetic in {pool.get('native_s', 0.0):.1f} s.")  # fmt: skip
+        return lmp
+
+    def series():
+        n = gas_of()[3]
+        return (expected_steps(n, thermo()), expected_frames(n, n))
+
+    d50 = lambda: saved()["packing"].d50  # noqa: E731
+    runs = [
+        Run(f"liggghts/{name}", "liggghts", "liggghts", "the compaction replayed by LIGGGHTS now", liggghts, live=True),
+        Run(f"native-lammps/{name}", NATIVE, "lammps", "the compaction by the native engine in LAMMPS' arithmetic",
+            native),
+        Run(f"lammps/{name}", "lammps", "lammps", "the compaction replayed by LAMMPS now", lammps, live=True),
+    ]  # fmt: skip
+    comps = [
+        Comparison(
+            "final", f"packings/{name}/liggghts", (f"file/{name}", f"liggghts/{name}"),
+            "LIGGGHTS replays the compaction that made Kuhn's assembly: " + REPLAY_REASON,
+            lambda: {"step": gas_of()[3], "d50": d50(), "evidence_of": (None, series()),
+                     "position_tol": 4 * float(np.spacing(np.diag(saved()["packing"].cell).max())) / d50(),
+                     "box_tol": 0.0, "reason": LIGGGHTS_WRAP_REASON},
+            view=lambda r: _state(r["packing"]) if isinstance(r, dict) else r,
+        ),
+        Comparison(
+            "final", f"packings/{name}/lammps", (f"native-lammps/{name}", f"lammps/{name}"),
+            "LAMMPS replays the same compaction beside the native engine in LAMMPS' arithmetic: " + REPLAY_REASON,
+            lambda: {"step": gas_of()[3], "d50": d50(), "evidence_of": (series(), series()), "position_tol": 1e-10,
+                     "box_tol": 1e-10},
+        ),
+    ]  # fmt: skip
+    return runs, comps
+
+
 @case(
     "packings", "Packings: the 15 RVEs and Kuhn's assembly against their targets", suites=("default", "full"), order=5
 )
@@ -87,119 +299,16 @@ def packings(ctx: Context) -> CaseResult:
         "the sieve curve of every sample.",
     )
     paths = generation.standard_packings(ctx.results / "packings")
-    _regenerated(ctx, res, paths)
-    rows = []
-    packs, seen = {}, {}  # loaded packings and their contacts, reused by the figure
-    for name, path in paths.items():
-        p = load_packing(path)
-        s = packing_stats(p)
-        packs[name], seen[name] = p, _contacts(p)
-        i, j, branch, dist, eps = seen[name]
-        err, bound = _sieve_error(p)
-        res.records.append(
-            compare(
-                f"packings/{name}",
-                "sieve curve",
-                "max |sample - curve| over apertures (pp)",
-                err,
-                bound,
-                "one grain: the area share of the largest disk",
-            )
-        )
-        if name.startswith("rve-"):
-            n = branch / dist[:, None]
-            F = np.zeros((p.n, 2))
-            np.add.at(F, i, -eps[:, None] * n)  # k_n = 1: force = overlap (the ratio does not depend on k_n)
-            np.add.at(F, j, eps[:, None] * n)
-            residual = float(np.max(np.linalg.norm(F, axis=1)) / eps.mean())
-            res.records.append(
-                compare(
-                    f"packings/{name}",
-                    "force balance",
-                    "max |net force| / mean contact force",
-                    residual,
-                    1.001e-3,
-                    "the generator's stop criterion (force_tol 1e-3, max norm)",
-                )
-            )
-            rel = abs(eps.mean() / (2.0 * p.radii.mean()) / RVE_MEAN_OVERLAP - 1.0)
-            res.records.append(
-                compare(
-                    f"packings/{name}",
-                    "mean overlap",
-                    "|<eps>/d_mean / 2.7e-4 - 1|",
-                    rel,
-                    0.02,
-                    "overlap_tol of the request",
-                )
-            )
-            check = f"{residual:.2e}"
-        else:
-            kn = p.metadata["dem"]["kn"]
-            target = p.metadata["pressure_over_kn"] * kn
-            pressure = float(np.sum(dist * kn * eps) / (2.0 * p.area))
-            res.records.append(
-                compare(
-                    f"packings/{name}",
-                    "servo pressure",
-                    "|p_normal / p_target - 1|",
-                    abs(pressure / target - 1.0),
-                    0.015,
-                    "trace of the Love stress from normal forces only; servo stops at 1 % per axis",
-                )
-            )
-            res.records.append(
-                compare(
-                    f"packings/{name}",
-                    "mean indentation",
-                    "<eps> / D50",
-                    s["mean_overlap_d50"],
-                    KUHN_PAPER["indentation_d50"],
-                    "Kuhn (1997): on average less than 0.02 % of D50",
-                )
-            )
-            res.records.append(
-                compare(
-                    f"packings/{name}",
-                    "void ratio",
-                    "|e - 0.189|",
-                    abs(s["void_ratio"] - KUHN_PAPER["void_ratio"]),
-                    KUHN_VOID_TOL,
-                    "Kuhn (1997): e = 0.189, 'near 0.189' asked; seeds 1-4 of the protocol give 0.189-0.196",
-                )
-            )
-            check = f"p/p0 - 1 = {pressure / target - 1.0:+.2e}"
-            if ctx.liggghts:
-                res.declare(
-                    "native-liggghts", "LIGGGHTS replays the compaction that made Kuhn's assembly: " + REPLAY_REASON
-                )
-                res.records += in_pair(_liggghts_replay(ctx, name, p, res), "native-liggghts")
-            else:
-                res.notes.append(f"{name}: LIGGGHTS is absent: the compaction is not replayed by it.")
-            if ctx.lammps:
-                res.declare(
-                    "native-lammps",
-                    "LAMMPS replays the same compaction beside the native engine in "
-                    "LAMMPS' arithmetic: " + REPLAY_REASON,
-                )
-                res.records += in_pair(_lammps_replay(ctx, name, p, res), "native-lammps")
-            else:
-                res.notes.append(f"{name}: LAMMPS is absent: the compaction is not replayed by it.")
-        rows.append(
-            [
-                name,
-                p.n,
-                f"{s['solid_fraction']:.4f}",
-                f"{s['void_ratio']:.4f}",
-                f"{s['coordination']:.3f}",
-                f"{s['coordination_nonrattler']:.3f}",
-                f"{100 * s['rattler_fraction']:.1f}",
-                f"{100 * s['mean_overlap_d50']:.4f}",
-                f"{s['fabric_anisotropy']:.3f}",
-                f"{err:.2f}",
-                check,
-            ]
-        )
+    notes: list = []
+    runs, comps, measured = plan(ctx, paths, notes)
+    evaluate(res, ctx, runs, comps)
+    res.notes += notes
+    regen = [r[0].split("/", 1)[1] for r in res.runs if r[0].startswith("regenerated/")]
+    res.notes.append(
+        f"Regenerated and compared bit for bit with the files in use: {', '.join(regen)}"
+        + ("" if ctx.suite == "full" else " (the full suite regenerates all 16)")
+        + "."
+    )
     for pair in ("native-liggghts", "native-lammps"):
         res.skip_pair(
             pair,
@@ -219,6 +328,25 @@ def packings(ctx: Context) -> CaseResult:
         "different (equally valid) packings by chaos; the codes are set against each "
         "other on the same start in biaxial-short, biaxial-full and voidcell",
     )
+    rows = []
+    for name in paths:
+        m = measured[name]
+        s = m["stats"]
+        rows.append(
+            [
+                name,
+                m["packing"].n,
+                f"{s['solid_fraction']:.4f}",
+                f"{s['void_ratio']:.4f}",
+                f"{s['coordination']:.3f}",
+                f"{s['coordination_nonrattler']:.3f}",
+                f"{100 * s['rattler_fraction']:.1f}",
+                f"{100 * s['mean_overlap_d50']:.4f}",
+                f"{s['fabric_anisotropy']:.3f}",
+                f"{m['sieve']:.2f}",
+                m["check"],
+            ]
+        )
     rows.append(
         [
             "Kuhn (1997), paper",
@@ -256,149 +384,11 @@ def packings(ctx: Context) -> CaseResult:
     shown = [n for n in ("kuhn-1002", "rve-700-1") if n in paths] or list(paths)[:1]
     res.figures.append(
         (
-            _figure(ctx, {n: (packs[n], seen[n]) for n in shown}),
+            _figure(ctx, {n: (measured[n]["packing"], measured[n]["contacts"]) for n in shown}),
             f"{' and '.join(shown)}: disks and contact forces (line width proportional to the normal force)",
         )
     )
     return res
-
-
-#: the assemblies the default suite regenerates to check the files it uses (the full suite: all 16)
-REGENERATED_DEFAULT = ("rve-70-1", "rve-350-2")
-
-
-def _regenerated(ctx: Context, res: CaseResult, paths: dict) -> None:
-    """Regenerate some standard assemblies and compare them with the files every case reads.
-
-    A missing file is copied from the copies shipped with the package (``standard_packings``), so
-    the generator must be shown to make them: positions, radii and cell equal bit for bit.
-    """
-    names = list(paths) if ctx.suite == "full" else [n for n in REGENERATED_DEFAULT if n in paths]
-    for name in names:
-        have, fresh = load_packing(paths[name]), generation.build_standard(name)
-        same_shape = all(getattr(have, f).shape == getattr(fresh, f).shape for f in ("positions", "radii", "cell"))
-        if same_shape:
-            d50 = float(np.median(2.0 * fresh.radii))
-            diff = peak(np.abs(getattr(have, f) - getattr(fresh, f)) / d50 for f in ("positions", "radii", "cell"))
-        else:
-            diff = float("inf")
-        res.records.append(
-            compare(
-                f"packings/{name}",
-                "regenerated by the generator vs the file in use (shipped or cached)",
-                "max |difference| of positions, radii and cell / D50",
-                diff,
-                0.0,
-                "the generator is deterministic (fixed seed, fixed summation order), so the file the "
-                "other cases read must be what it makes, bit for bit",
-            )
-        )
-    res.notes.append(
-        f"Regenerated and compared bit for bit with the files in use: {', '.join(names)}"
-        + ("" if ctx.suite == "full" else " (the full suite regenerates all 16)")
-        + "."
-    )
-
-
-def _liggghts_replay(ctx: Context, name: str, p, res: CaseResult) -> list:
-    """LIGGGHTS runs the compaction that made ``p`` from the same gas; final positions and box compared."""
-    gas, dem, loading, nsteps = compaction_run(p)
-    job = ctx.work("reference", "packings", name)
-    thermo = max(nsteps // 100, 1)
-    lig, man = run_liggghts_job(
-        job, gas, dem, loading, nsteps, dump_every=nsteps, thermo_every=thermo, timeout=ctx.job_timeout(gas.n * nsteps)
-    )
-    ev = trajectory_evidence(
-        f"packings/{name}",
-        "LIGGGHTS replay",
-        lig,
-        [s for s in expected_steps(nsteps, thermo)],
-        expected_frames(nsteps, nsteps),
-    )
-    if not all(r.passed for r in ev):
-        return ev
-    run = parse_log(job / LOG_NAME).runs[-1]
-    lo = np.array([run["xlo"][-1], run["ylo"][-1]])
-    L = lig.lengths[-1]
-    x = lig.frames[nsteps]["x"] - lo  # the packing is the final state shifted to the origin, wrapped
-    tol = 4 * float(np.spacing(L.max()))
-    res.notes.append(
-        f"{name}: LIGGGHTS 3.8.0 replayed the {nsteps}-step compaction from the same gas in "
-        f"{float(man.get('elapsed_s', 0.0)):.1f} s (job {job}; 0.0 s: an identical job was reused)."
-    )
-    return ev + [
-        compare(
-            f"packings/{name}",
-            "LIGGGHTS replay: position",
-            "max|dx| (m) modulo the box",
-            position_difference(x, p.positions, L),
-            tol,
-            "the engine matches LIGGGHTS bit for bit; only the final wrap into the cell rounds (4 ulp of L)",
-        ),
-        compare(
-            f"packings/{name}",
-            "LIGGGHTS replay: box",
-            "max|dL| (m)",
-            float(np.abs(L - np.diag(p.cell)).max()),
-            0.0,
-            "the box is the same double in both codes",
-        ),
-    ]
-
-
-def _lammps_replay(ctx: Context, name: str, p, res: CaseResult) -> list:
-    """LAMMPS runs the compaction that made ``p`` from the same gas while the native engine runs it
-    in LAMMPS' arithmetic (``flavour="lammps"``); final positions and box compared. (The packing file
-    itself was made in LIGGGHTS' arithmetic: :func:`_liggghts_replay` checks it.)"""
-    gas, dem, loading, nsteps = compaction_run(p)
-    dem = dataclasses.replace(dem, flavour="lammps")
-    job = ctx.work("reference", "packings", f"{name}-lammps")
-    thermo = max(nsteps // 100, 1)
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        fut = pool.submit(
-            run_reference_job,
-            job,
-            gas,
-            dem,
-            loading,
-            nsteps,
-            dump_every=nsteps,
-            thermo_every=thermo,
-            timeout=ctx.job_timeout(gas.n * nsteps),
-            engine="lammps",
-        )
-        nat = run_native(gas, dem, loading, nsteps, nsteps, thermo_every=thermo)
-        lmp, man = fut.result()
-    exp_s, exp_f = expected_steps(nsteps, thermo), expected_frames(nsteps, nsteps)
-    ev = trajectory_evidence(f"packings/{name}", "LAMMPS replay", lmp, exp_s, exp_f) + trajectory_evidence(
-        f"packings/{name}", "native replay (lammps)", nat, exp_s, exp_f
-    )
-    if not all(r.passed for r in ev):
-        return ev
-    L = lmp.lengths[-1]
-    res.notes.append(
-        f"{name}: LAMMPS replayed the {nsteps}-step compaction from the same gas in "
-        f"{float(man.get('elapsed_s', 0.0)):.1f} s (job {job}; 0.0 s: an identical job was reused), the "
-        f"native engine in LAMMPS' arithmetic in {nat.elapsed:.1f} s."
-    )
-    return ev + [
-        compare(
-            f"packings/{name}",
-            "LAMMPS replay: position",
-            "max|dx|/D50 modulo the box, native (lammps) vs LAMMPS",
-            position_difference(nat.frames[nsteps]["x"], lmp.frames[nsteps]["x"], L) / p.d50,
-            1e-10,
-            REPLAY_REASON,
-        ),
-        compare(
-            f"packings/{name}",
-            "LAMMPS replay: box",
-            "max|dL|/D50, native (lammps) vs LAMMPS",
-            float(np.abs(L - nat.lengths[-1]).max()) / p.d50,
-            1e-10,
-            REPLAY_REASON,
-        ),
-    ]
 
 
 def _figure(ctx: Context, shown: dict):
