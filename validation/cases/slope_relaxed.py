@@ -21,11 +21,15 @@ protocol's limit search on the reduced mesh).
 
 from __future__ import annotations
 
+import functools
 import html
 
 import numpy as np
 
-from ..core import PAIRS, CaseResult, Context, Record, case, peak
+from ..codes import NATIVE
+from ..core import PAIRS, CaseResult, Context, case, peak
+from ..judges import Bound
+from ..matrix import Comparison, Run, evaluate
 
 
 def lattice_packing():
@@ -41,18 +45,136 @@ def lattice_packing():
     return Packing(positions=x, radii=np.full(len(x), 0.5 * a * 1.0005), cell=np.diag([nx * a, ny * h]))
 
 
-def _rec(case_, quantity, metric, value, tol, passed, note, kind="check"):
-    return Record(case_, quantity, metric, float(value), float(tol), bool(passed), note, kind=kind)
+def plan(ctx: Context, outs: dict) -> tuple[list, list]:
+    """The runs of the case and their comparisons (``outs`` collects what the report shows: the
+    full-mesh figures per RVE kind, the reduced runs' summaries and the comparison of the slopes).
 
-
-@case("slope-relaxed", "FE2 slope: Taylor vs relaxed RVE", suites=("full",), order=51)
-def slope_relaxed(ctx: Context) -> CaseResult:
+    Runs (all native): per RVE kind on the full mesh, its shear stiffness checked against the
+    energy and the stability of the slope's reference state; per kind and protocol the reduced
+    slope; the comparison of the four reduced slopes (``gransim slope-compare``). Comparisons: each
+    against its closed forms and bounds with the shared analytic judge."""
     from gransim.fem.compare import QUADRATIC, compare_slopes, final_order
     from gransim.fem.mesh import SlopeGeometry
     from gransim.fem.run import default_rve_packing, run_slope_case
     from gransim.fem.stability import mean_overlap_strain, reference_stability, rve_shear_stiffness
     from gransim.io import save_packing
 
+    packing = functools.cache(lambda: default_rve_packing(ctx.results / "packings"))
+    work = ctx.work("slope-relaxed")
+    lat = work / "lattice.h5"
+
+    def full(kind):
+        def make():
+            mu, st = rve_shear_stiffness(packing(), kind), reference_stability(packing(), kind)
+            outs[("full", kind)] = (mu, st)
+            outs["overlap"] = mean_overlap_strain(packing())
+            return {
+                ("", "RVE shear stiffness"): mu["relative_difference"],
+                ("", "shear modulus"): mu["tangent"],
+                ("", "reference state"): float(st["n_negative"]),
+            }
+
+        return make
+
+    def reduced(kind, protocol):
+        def make():
+            if not lat.exists():
+                save_packing(lat, lattice_packing())
+            out = work / f"{kind}-{protocol}"
+            s = run_slope_case(protocol, packing=str(lat), out=out, figures="none",
+                               geometry=SlopeGeometry(columns=10, rows=5), rve=kind, load_steps=4)  # fmt: skip
+            outs[(kind, protocol)] = (s, out / "slope.h5")
+            lam = s["result"].limit["last_converged_load"][1] if s["result"].limit else 1.0
+            fig = {("", "limit load"): float(lam)}
+            orders = {st.step: final_order(st.energy_norms) for st in s["result"].steps}
+            judged = {k: v for k, v in orders.items() if np.isfinite(v)}
+            fig[("", "newton order")] = min(judged.values()) if judged else float("nan")
+            outs[("orders", kind, protocol)] = (judged, orders)
+            return fig
+
+        return make
+
+    def compared():
+        for k in reduced_keys:  # the four slopes first (each made once)
+            comparison_runs[k]()
+        order = (("taylor", "service"), ("relaxed", "service"), ("taylor", "paper"), ("relaxed", "paper"))
+        paths = [outs[key][1] for key in order]
+        cmp = compare_slopes(paths, work / "compare", packing=lat)
+        outs["compare"] = cmp
+        return {("", "RVE pictures"): peak(cmp["replay_errors"].values())}  # NaN when none or any is NaN
+
+    runs, comps = [], []
+    for kind in ("taylor", "relaxed"):
+        runs.append(Run(f"full/{kind}", NATIVE, "", f"the most uniform 700-disk RVE, {kind}, on the full mesh",
+                        full(kind)))  # fmt: skip
+        comps.append(Comparison(
+            "analytic", f"slope-relaxed/full/{kind}", (f"full/{kind}",), REASON,
+            {"expected": [("", "RVE shear stiffness"), ("", "shear modulus"), ("", "reference state")],
+             "values": dict, "bound": FULL_BOUNDS, "metric": lambda item, quantity, vals: FULL_METRICS[quantity]},
+        ))  # fmt: skip
+    comparison_runs, reduced_keys = {}, []
+    for protocol in ("service", "paper"):
+        for kind in ("taylor", "relaxed"):
+            key = f"reduced/{kind}-{protocol}"
+            comparison_runs[key] = functools.cache(reduced(kind, protocol))
+            reduced_keys.append(key)
+            runs.append(Run(key, NATIVE, "", f"the reduced slope, {kind} RVE, {protocol} protocol",
+                            comparison_runs[key]))  # fmt: skip
+            expected = [("", "limit load")] + ([("", "newton order")] if kind == "relaxed" else [])
+            comps.append(Comparison(
+                "analytic", f"slope-relaxed/{key}", (key,), REASON,
+                {"expected": expected, "values": dict,
+                 "bound": {"limit load": Bound(float("nan"), "reported", "info"),
+                           "newton order": Bound(QUADRATIC, NEWTON_REASON, "at_least")},
+                 "metric": lambda item, quantity, vals, kind=kind, protocol=protocol: _reduced_metric(
+                     quantity, outs.get(("orders", kind, protocol)))},
+            ))  # fmt: skip
+    runs.append(Run("reduced/compare", NATIVE, "", "gransim slope-compare of the four reduced slopes", compared))
+    comps.append(Comparison(
+        "analytic", "slope-relaxed/reduced/compare", ("reduced/compare",), REASON,
+        {"expected": [("", "RVE pictures")], "values": dict, "bound": {"RVE pictures": Bound(1e-10, PICTURES_REASON)},
+         "metric": lambda item, quantity, vals: "max relative |sigma(replayed RVE) - sigma(stored)|"},
+    ))  # fmt: skip
+    return runs, comps
+
+
+REASON = "no DEM code solves this problem: checks against the energy and Newton's rate"
+FULL_BOUNDS = {
+    "RVE shear stiffness": Bound(
+        1e-2,
+        "independent check of the tangent in pure shear: the energy's central second difference needs no tangent; "
+        "grazing contacts give ~5e-4 for Taylor, a tangent a few percent off fails",
+    ),
+    "shear modulus": Bound(float("nan"), "reported", "info"),
+    "reference state": Bound(
+        float("nan"), "reported: the linear dead-load solution's figures are in the notes", "info"
+    ),
+}
+FULL_METRICS = {
+    "RVE shear stiffness": "|D:A:D - second difference of W| / |D:A:D| at F = 1, g = 1e-6",
+    "shear modulus": "mu = D:A:D at F = 1 (N/m)",
+    "reference state": "negative eigenvalues of K(0) of the slope",
+}
+NEWTON_REASON = (
+    "a consistent tangent gives order 2 in the last iterations; the relaxed RVE's condensed tangent must show it too"
+)
+PICTURES_REASON = "the drawn RVEs are the run's: Taylor from F, relaxed by replaying the checkpoint's committed F"
+
+
+def _reduced_metric(quantity: str, orders) -> str:
+    if quantity == "limit load":
+        return "last converged footing fraction"
+    judged, all_steps = orders if orders else ({}, {})
+    where = min(judged, key=judged.get) if judged else None
+    return (
+        "min over steps of the final observed order (best of the last two, norms above 1e-24)"
+        + (f"; lowest in step {where}" if where is not None else "; no step to judge")
+        + f" ({len(judged)} of {len(all_steps)} steps judged)"
+    )
+
+
+@case("slope-relaxed", "FE2 slope: Taylor vs relaxed RVE", suites=("full",), order=51)
+def slope_relaxed(ctx: Context) -> CaseResult:
     res = CaseResult(
         "slope-relaxed",
         "FE2 slope: Taylor vs relaxed RVE",
@@ -62,50 +184,17 @@ def slope_relaxed(ctx: Context) -> CaseResult:
         "state). Reduced mesh with a lattice RVE: the comparison, limit loads and Newton's rate.",
     )
     for pair in PAIRS:
-        res.skip_pair(pair, "no DEM code solves this problem: checks against the energy and Newton's rate")
-
-    # -- 1. full mesh, standard RVE ---------------------------------------------------------
-    packing = default_rve_packing(ctx.results / "packings")
-    ov = mean_overlap_strain(packing)
-    stab = {}
-    for kind in ("taylor", "relaxed"):
-        mu = rve_shear_stiffness(packing, kind)
-        st = reference_stability(packing, kind)
-        stab[kind] = (mu, st)
-        res.records += [
-            _rec(
-                f"slope-relaxed/full/{kind}",
-                "RVE shear stiffness",
-                "|D:A:D - second difference of W| / |D:A:D| at F = 1, g = 1e-6",
-                mu["relative_difference"],
-                1e-2,
-                mu["relative_difference"] <= 1e-2,
-                "independent check of the tangent in pure shear: the energy's central second difference "
-                "needs no tangent; grazing contacts give ~5e-4 for Taylor, a tangent a few percent off fails",
-            ),
-            _rec(
-                f"slope-relaxed/full/{kind}",
-                "RVE shear stiffness",
-                "mu = D:A:D at F = 1 (N/m)",
-                mu["tangent"],
-                float("nan"),
-                True,
-                f"reported; pressure {mu['pressure']:.4g} N/m, mean overlap strain {ov:.3g}",
-                kind="info",
-            ),
-            _rec(
-                f"slope-relaxed/full/{kind}",
-                "reference state",
-                f"negative eigenvalues of K(0) ({st['n_unknowns']} unknowns)",
-                st["n_negative"],
-                float("nan"),
-                True,
-                f"reported; linear dead-load solution: max |u| {st['max_displacement']:.3g} m, shear strain "
-                f"(Mohr radius) median {st['shear_median']:.3g}, max {st['shear_max']:.3g}",
-                kind="info",
-            ),
-        ]
-    (mt, st_t), (mr, st_r) = stab["taylor"], stab["relaxed"]
+        res.skip_pair(pair, REASON)
+    outs: dict = {}
+    evaluate(res, ctx, *plan(ctx, outs))
+    (mt, st_t), (mr, st_r) = outs[("full", "taylor")], outs[("full", "relaxed")]
+    for kind, (mu, st) in (("taylor", (mt, st_t)), ("relaxed", (mr, st_r))):
+        res.notes.append(
+            f"{kind}: pressure {mu['pressure']:.4g} N/m; K(0) has {st['n_unknowns']} unknowns; linear dead-load "
+            f"solution: max |u| {st['max_displacement']:.3g} m, shear strain (Mohr radius) median "
+            f"{st['shear_median']:.3g}, max {st['shear_max']:.3g}"
+        )
+    ov = outs["overlap"]
     res.notes.append(
         "<p>Full mesh, the most uniform 700-disk RVE (mean overlap strain "
         f"{ov:.3g}): shear stiffness mu = D:A:D at F = 1 Taylor {mt['tangent']:.4g} N/m, relaxed "
@@ -116,36 +205,7 @@ def slope_relaxed(ctx: Context) -> CaseResult:
         "pressure is at the jamming point: under the dead load its RVEs must rearrange far beyond their "
         "overlap strain, and the relaxed slope stops in step 1 (docs/slope.md: the full run).</p>"
     )
-
-    # -- 2. reduced mesh, lattice RVE ---------------------------------------------------------
-    work = ctx.work("slope-relaxed")
-    lat = work / "lattice.h5"
-    save_packing(lat, lattice_packing())
-    paths, summaries = {}, {}
-    for protocol in ("service", "paper"):
-        for kind in ("taylor", "relaxed"):
-            out = work / f"{kind}-{protocol}"
-            s = run_slope_case(
-                protocol,
-                packing=str(lat),
-                out=out,
-                figures="none",
-                geometry=SlopeGeometry(columns=10, rows=5),
-                rve=kind,
-                load_steps=4,
-            )
-            paths[(kind, protocol)] = out / "slope.h5"
-            summaries[(kind, protocol)] = s
-    cmp = compare_slopes(
-        [
-            paths[("taylor", "service")],
-            paths[("relaxed", "service")],
-            paths[("taylor", "paper")],
-            paths[("relaxed", "paper")],
-        ],
-        work / "compare",
-        packing=lat,
-    )
+    cmp = outs["compare"]
     for key, cap in (
         ("load_settlement", "reduced slope (10 x 5, lattice RVE): load-settlement, Taylor and relaxed, both protocols"),
         (
@@ -158,41 +218,4 @@ def slope_relaxed(ctx: Context) -> CaseResult:
         if src is not None and src.exists():
             res.add_figure(ctx.copy_figure(src, f"slope_relaxed_{src.name}"), cap, headline=(key == "map"))
     res.notes.append(f"<pre>{html.escape(cmp['markdown'])}</pre>")
-    for (kind, protocol), s in summaries.items():
-        name = f"slope-relaxed/reduced/{kind}-{protocol}"
-        lam = s["result"].limit["last_converged_load"][1] if s["result"].limit else 1.0
-        res.records.append(
-            _rec(name, "limit load", "last converged footing fraction", lam, float("nan"), True, "reported", "info")
-        )
-        if kind != "relaxed":
-            continue
-        orders = {st.step: final_order(st.energy_norms) for st in s["result"].steps}
-        judged = {k: v for k, v in orders.items() if np.isfinite(v)}
-        worst = min(judged.values()) if judged else float("nan")
-        where = min(judged, key=judged.get) if judged else None
-        res.records.append(
-            _rec(
-                name,
-                "newton",
-                "min over steps of the final observed order (best of the last two, norms above 1e-24)"
-                + (f"; lowest in step {where}" if where is not None else "; no step to judge"),
-                worst,
-                QUADRATIC,
-                bool(judged) and worst >= QUADRATIC,
-                "a consistent tangent gives order 2 in the last iterations; the relaxed RVE's condensed tangent "
-                f"must show it too ({len(judged)} of {len(orders)} steps judged)",
-            )
-        )
-    worst_replay = peak(cmp["replay_errors"].values())  # NaN when none or any is NaN
-    res.records.append(
-        _rec(
-            "slope-relaxed/reduced/compare",
-            "RVE pictures",
-            "max relative |sigma(replayed RVE) - sigma(stored)|",
-            worst_replay,
-            1e-10,
-            bool(np.isfinite(worst_replay) and worst_replay <= 1e-10),
-            "the drawn RVEs are the run's: Taylor from F, relaxed by replaying the checkpoint's committed F",
-        )
-    )
     return res
