@@ -25,6 +25,8 @@ Criteria:
   one criterion of biaxial-full, biaxial-laws and simple-shear).
 * :func:`band`: a curve (or a statistic along it) within a multiple of the band its perturbed runs
   span around the reference.
+* :func:`chaos_envelope`: a run against a reference and the reference's perturbed runs, all made
+  by the case (evidence of each, then :func:`envelope`).
 * :func:`ensemble_envelope`, :func:`ensemble_cross`: a long loading, native against a code's
   :class:`Ensemble` (evidence of every run, then :func:`envelope` and :func:`band`), and two codes'
   references within the sum of their bands.
@@ -1081,6 +1083,39 @@ class CurveCheck:
     quantity: str
     metric: str
     reason: str
+
+
+def chaos_envelope(
+    label: str,
+    nat,
+    ref,
+    *members,
+    member_names,
+    nsteps: int,
+    dump_every: int,
+    d50: float,
+    rule: EnvelopeRule,
+    sides,
+    cell: str = "orthogonal",
+    run_name: str = "native",
+    reference_name: str = "code order",
+) -> tuple[list, dict]:
+    """A run (``run_name``) against a reference (``reference_name``) and the reference's own
+    perturbed runs (``members``, named by ``member_names``), all made by the case: the evidence of
+    every run (every step of ``nsteps`` in the series, a frame every ``dump_every`` steps), then,
+    only on complete evidence, :func:`envelope` by ``rule``. Returns (records, summary: complete, div, sdiv)."""
+    steps, frames = expected_steps(nsteps), expected_frames(nsteps, dump_every)
+    named = ((run_name, nat), (reference_name, ref), *zip(member_names, members))
+    recs = []
+    for who, tr in named:
+        recs += trajectory_evidence(label, who, tr, steps, frames)
+    if not all(r.passed for r in recs):  # no envelope verdict on incomplete evidence (it fails)
+        return recs, {"complete": False}
+    got, div, sdiv = envelope(
+        label, reference_name, nat, ref, dict(zip(member_names, members)), frames=frames, steps=steps, d50=d50,
+        rule=rule, cell=cell,
+    )  # fmt: skip
+    return recs + got, {"complete": True, "div": div, "sdiv": sdiv}
 
 
 def ensemble_envelope(

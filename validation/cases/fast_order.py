@@ -32,10 +32,11 @@ from reference_runs.decks.biaxial import short_case as biaxial_short
 from reference_runs.decks.shear import short_case as shear_short
 from reference_runs.decks.shear import wrapped_packing
 
-from ..codes import CODES
+from ..codes import CODES, NATIVE
 from ..core import CaseResult, Context, case
-from ..dem_compare import Trajectory, expected_frames, expected_steps, trajectory_evidence
-from ..judges import ENVELOPE_FACTOR, EnvelopeRule, envelope
+from ..dem_compare import Trajectory
+from ..judges import ENVELOPE_FACTOR, EnvelopeRule
+from ..matrix import Comparison, Run, evaluate
 
 CASE = "fast-order"
 TITLE = "The fast ordering against the code's order, within the code order's own chaos envelope (both cells)"
@@ -99,34 +100,51 @@ def cases():
     return [("orthogonal", p, s, ld, "orthogonal"), ("sheared", wrapped_packing(q), t, sld, "sheared")]
 
 
+def plan() -> tuple[list, list]:
+    """Per cell: the code order's run, two perturbed runs of it (its envelope) and the fast run on 2
+    threads, all native; the fast run judged against the code order's envelope (``envelope``)."""
+    runs, comps = [], []
+    for name, p, s, ld, cell in cases():
+        members = [(f"x[{k}, {ax}] {'+' if sign > 0 else '-'}1e-15", k, ax, sign)
+                   for k, ax, sign in ((7, 0, 1.0), (p.n // 2, 1, -1.0))]  # fmt: skip
+        runs += [
+            Run(f"{name}/code", NATIVE, s.flavour, f"{cell} cell, code order",
+                lambda p=p, s=s, ld=ld, cell=cell: run(p, s, ld, cell, "code")),
+            *(Run(f"{name}/{m}", NATIVE, s.flavour, f"{cell} cell, code order, {m}",
+                  lambda p=p, s=s, ld=ld, cell=cell, k=k, ax=ax, sign=sign: run(_perturbed(p, k, ax, sign), s, ld,
+                                                                                cell, "code"))
+              for m, k, ax, sign in members),
+            Run(f"{name}/fast", NATIVE, s.flavour, f"{cell} cell, fast order, 2 threads",
+                lambda p=p, s=s, ld=ld, cell=cell: run(p, s, ld, cell, "fast", threads=2)),
+        ]  # fmt: skip
+        comps.append(
+            Comparison(
+                "envelope", f"{CASE}/{name}", (f"{name}/fast", f"{name}/code", *(f"{name}/{m[0]}" for m in members)),
+                REASON,
+                {"member_names": [m[0] for m in members], "nsteps": NSTEPS, "dump_every": DUMP_EVERY,
+                 "d50": float(2 * np.median(p.radii)), "rule": RULE, "cell": cell, "run_name": "fast order"},
+            )
+        )  # fmt: skip
+    return runs, comps
+
+
 @case(CASE, TITLE, suites=("full",), order=36)
 def fast_order(ctx: Context) -> CaseResult:
     res = CaseResult(CASE, TITLE, __doc__.split("\n\n", 1)[1].replace("\n", " "))
     for code in CODES:
         res.skip_code(code, "no code runs: the fast ordering is judged against the code's order, natively")
+    runs, comps = plan()
+    out = evaluate(res, ctx, runs, comps)
     rows = []
-    for name, p, s, ld, cell in cases():
-        label = f"{CASE}/{name}"
-        ref = run(p, s, ld, cell, "code")
-        members = {
-            f"x[{k}, {ax}] {'+' if sign > 0 else '-'}1e-15": run(_perturbed(p, k, ax, sign), s, ld, cell, "code")
-            for k, ax, sign in ((7, 0, 1.0), (p.n // 2, 1, -1.0))
-        }
-        fast = run(p, s, ld, cell, "fast", threads=2)
-        steps, frames = expected_steps(NSTEPS), expected_frames(NSTEPS, DUMP_EVERY)
-        ev = []
-        for who, tr in (("code order", ref), ("fast order", fast), *members.items()):
-            ev += trajectory_evidence(label, who, tr, steps, frames)
-        res.records += ev
-        if not all(r.passed for r in ev):  # no envelope verdict on incomplete evidence (it fails)
+    for c in comps:
+        sm = out.summaries.get(c.label)
+        if not sm or not sm["complete"]:
             continue
-        d50 = float(2 * np.median(p.radii))
-        recs, div, sdiv = envelope(
-            label, "code order", fast, ref, members, frames=frames, steps=steps, d50=d50, rule=RULE, cell=cell
-        )
-        res.records += recs
+        div, sdiv = sm["div"], sm["sdiv"]
         me = "native vs code order"
         env = np.max([div[k][1] for k in div if k != me], axis=0)
+        name = c.label.split("/", 1)[1]
+        ref, fast = out.runs[c.runs[1]], out.runs[c.runs[0]]
         rows.append(
             [name, NSTEPS, f"{div[me][1].max():.2e}", f"{env.max():.2e}", f"{sdiv[me][1].max():.2e}",
              f"{ref.elapsed:.2f}", f"{fast.elapsed:.2f}"]
