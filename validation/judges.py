@@ -1096,15 +1096,17 @@ def chaos_envelope(
     d50: float,
     rule: EnvelopeRule,
     sides,
+    thermo_every: int = 1,
     cell: str = "orthogonal",
     run_name: str = "native",
     reference_name: str = "code order",
 ) -> tuple[list, dict]:
     """A run (``run_name``) against a reference (``reference_name``) and the reference's own
     perturbed runs (``members``, named by ``member_names``), all made by the case: the evidence of
-    every run (every step of ``nsteps`` in the series, a frame every ``dump_every`` steps), then,
-    only on complete evidence, :func:`envelope` by ``rule``. Returns (records, summary: complete, div, sdiv)."""
-    steps, frames = expected_steps(nsteps), expected_frames(nsteps, dump_every)
+    every run (every ``thermo_every``-th step of ``nsteps`` in the series, a frame every
+    ``dump_every`` steps), then, only on complete evidence, :func:`envelope` by ``rule``. Returns
+    (records, summary: complete, div, sdiv)."""
+    steps, frames = expected_steps(nsteps, thermo_every), expected_frames(nsteps, dump_every)
     named = ((run_name, nat), (reference_name, ref), *zip(member_names, members))
     recs = []
     for who, tr in named:

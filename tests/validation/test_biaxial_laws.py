@@ -4,6 +4,7 @@ without running a code (the case itself runs under ``gransim validate --suite fu
 from __future__ import annotations
 
 import math
+import shutil
 
 import pytest
 
@@ -92,3 +93,54 @@ def test_every_law_writes_its_own_deck(tmp_path, setup):
         deck, files = B.write_job_deck(d, jobs[(name, "reference")], loading, 20, None, None, 10, 1)
         assert marks[name] in deck.read_text(), name
         assert files
+
+
+@pytest.mark.skipif(not (shutil.which("liggghts") and shutil.which("lmp")), reason="LIGGGHTS and LAMMPS needed")
+def test_the_case_declares_each_law_against_its_codes_envelope(tmp_path, monkeypatch, setup):
+    """The case on a 36-disk lattice, 600 steps, two laws (one per code): each native run within its
+    code's envelope in its column; LAMMPS absent, its column is not applicable and LIGGGHTS' still
+    judged; a member job cut short (its dump without the last frame) fails as incomplete evidence
+    with no envelope verdict."""
+    import numpy as np
+
+    from gransim.dem import AxisControl, Loading
+
+    pk, dem, bi = setup
+    servo = AxisControl("servo", target=bi.confining, gain=bi.servo_gain)
+    start = {
+        "packing": pk, "settings": dem, "biaxial": bi, "nsteps": 600,
+        "loading": Loading(x=servo, y=AxisControl("rate", rate=-bi.strain_rate)),
+        "velocities": np.zeros((pk.n, 2)), "spins": np.zeros(pk.n),
+    }  # fmt: skip
+    monkeypatch.setattr(B, "common_start", lambda ctx: start)
+    real_table = B.law_table
+    monkeypatch.setattr(
+        B,
+        "law_table",
+        lambda p, d: {k: v for k, v in real_table(p, d).items() if k in ("hooke-liggghts", "hooke-lammps")},
+    )
+    monkeypatch.setattr(B, "FULL_DUMP_EVERY", 200)
+    monkeypatch.setattr(B, "FULL_THERMO_EVERY", 10)
+    ctx = Context("full", tmp_path / "results", liggghts=True, lammps=True)
+    res = B.biaxial_laws(ctx)
+    assert res.passed, [(r.case, r.quantity, r.metric) for r in res.checks if not r.passed]
+    assert res.cell("native-liggghts")["state"] == "pass" and res.cell("native-lammps")["state"] == "pass"
+    judged = {(r.case, r.quantity) for r in res.checks if r.tolerance == B.FULL_RULE.factor}
+    assert judged == {(f"biaxial-laws/hooke-{c}", q) for c in ("liggghts", "lammps") for q in ("position", "stress")}
+
+    res = B.biaxial_laws(Context("full", tmp_path / "results", liggghts=True, lammps=False))
+    assert res.cell("native-lammps")["state"] == "n/a" and res.cell("native-liggghts")["state"] == "pass"
+
+    real_job = B.run_code_job
+
+    def cut(job, *a, **k):
+        tr, man = real_job(job, *a, **k)
+        if "perturbed" in str(job["job_dir"]) and job["engine"] == "liggghts":
+            tr = type(tr)(tr.steps, tr.stress, tr.lengths, {s: f for s, f in tr.frames.items() if s < 600})
+        return tr, man
+
+    monkeypatch.setattr(B, "run_code_job", cut)
+    res = B.biaxial_laws(ctx)
+    bad = [r for r in res.checks if not r.passed]
+    assert bad and {r.quantity for r in bad} == {"evidence"} and all("liggghts" in r.case for r in bad)
+    assert not any(r.case == "biaxial-laws/hooke-liggghts" and r.tolerance == B.FULL_RULE.factor for r in res.records)

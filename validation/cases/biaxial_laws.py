@@ -44,11 +44,13 @@ from gransim.dem import default_settings as dem_defaults
 from gransim.dem.biaxial import PAPER_INDENTATION
 from gransim.geometry import Packing
 from reference_runs.decks.biaxial import write_biaxial_deck
+from reference_runs.errors import ReferenceRunError
 from reference_runs.runner import run_job
 
-from ..core import CaseResult, Context, case, evidence, in_pair, info
-from ..dem_compare import Trajectory, _frame, expected_frames, expected_steps, read_reference, trajectory_evidence
-from ..judges import envelope
+from ..codes import NATIVE
+from ..core import CaseResult, Context, case
+from ..dem_compare import Trajectory, _frame, read_reference
+from ..matrix import Comparison, Failed, Run, evaluate
 from .biaxial import (
     FULL_CONSOLIDATION_STEPS,
     FULL_DUMP_EVERY,
@@ -290,6 +292,58 @@ def common_start(ctx: Context) -> dict:
     }
 
 
+def plan(ctx: Context, c: dict, pool, manifests: dict) -> tuple[list, list]:
+    """The runs of the case and their comparisons, from the common start ``c``
+    (:func:`common_start`): per law, the native run in its code's arithmetic, the code's serial
+    reference and its :data:`PERTURB` members (live runs: the jobs of the codes installed are
+    submitted to ``pool`` at once, so they run beside the native runs; ``manifests`` collects their
+    manifests); the native run judged against the code's own envelope (``envelope``)."""
+    pk, dem = c["packing"], c["settings"]
+    table = law_table(pk, dem)
+    every = dataclasses.replace(ctx, liggghts=True, lammps=True)  # every law's jobs, made only where installed
+    jobs = law_jobs(every, pk, dem, table)
+    te, de, n = FULL_THERMO_EVERY, FULL_DUMP_EVERY, c["nsteps"]
+    to = ctx.job_timeout(pk.n * n)
+    fut = {
+        k: pool.submit(run_code_job, j, c["loading"], n, de, c["velocities"], c["spins"], te, to)
+        for k, j in jobs.items()
+        if ctx.has(j["engine"])
+    }
+
+    def code_run(key):
+        def make():
+            try:
+                tr, man = fut[key].result()
+            except ReferenceRunError as exc:
+                return Failed(f"{key[1]} job failed: {str(exc).splitlines()[0]}")
+            manifests[key] = man
+            return tr
+
+        return make
+
+    runs, comps = [], []
+    members = [m[0] for m in PERTURB]
+    for name in table:
+        code = law_code(name)
+        ref = jobs[(name, "reference")]
+        runs.append(Run(f"{name}/native", NATIVE, code, f"{name}, native in {code}'s arithmetic",
+                        lambda ref=ref: run_native_law(pk, ref["settings"], ref["law"], c["loading"], n, de,
+                                                       c["velocities"], c["spins"], te)))  # fmt: skip
+        for label in ("reference", *members):
+            runs.append(Run(f"{name}/{label}", code, code, f"{name}, {code} {label}", code_run((name, label)),
+                            live=True))  # fmt: skip
+        comps.append(
+            Comparison(
+                "envelope", f"biaxial-laws/{name}", (f"{name}/native", f"{name}/reference",
+                                                     *(f"{name}/{m}" for m in members)),
+                f"each {code} law: native within 10x the code's envelope",
+                {"member_names": members, "nsteps": n, "dump_every": de, "thermo_every": te, "d50": pk.d50,
+                 "rule": FULL_RULE, "run_name": f"native ({code})", "reference_name": f"{code} reference"},
+            )
+        )  # fmt: skip
+    return runs, comps
+
+
 @case(
     "biaxial-laws",
     "Biaxial test on the Kuhn assembly with each contact law: native vs its code's envelope",
@@ -307,83 +361,35 @@ def biaxial_laws(ctx: Context) -> CaseResult:
         "times the code's own round-off envelope (two runs with one coordinate moved by 1e-15), "
         "positions at every dump and stress at every thermo row.",
     )
-    c = common_start(ctx)
-    pk, dem = c["packing"], c["settings"]
-    table = law_table(pk, dem)
-    for code in ("liggghts", "lammps"):
-        if any(law_code(n) == code for n in table):
-            if ctx.liggghts if code == "liggghts" else ctx.lammps:
-                res.declare(f"native-{code}", f"each {code} law: native within 10x the code's envelope")
-            else:
-                res.skip_pair(
-                    f"native-{code}",
-                    f"{code} not installed (no stored outputs for this full-suite case)",
-                )
     res.skip_pair(
         "liggghts-lammps",
         "each law is one code's: no cross-code pair (Hooke is compared in biaxial-full)",
     )
-    jobs = law_jobs(ctx, pk, dem, table)
-    te, de, n = FULL_THERMO_EVERY, FULL_DUMP_EVERY, c["nsteps"]
-    to = ctx.job_timeout(pk.n * n)
-    exp_s, exp_f = expected_steps(n, te), expected_frames(n, de)
+    res.skip_code("yade", "no YADE run: the laws are LIGGGHTS' and LAMMPS' (Hooke against YADE: biaxial-short)")
+    c = common_start(ctx)
+    table = law_table(c["packing"], c["settings"])
+    manifests: dict = {}
     with ThreadPoolExecutor(max_workers=max(int(ctx.jobs), 1)) as pool:
-        fut = {
-            k: pool.submit(run_code_job, j, c["loading"], n, de, c["velocities"], c["spins"], te, to)
-            for k, j in jobs.items()
-        }
-        nat = {}
-        for name in table:
-            j = jobs.get((name, "reference"))
-            if j is not None:
-                nat[name] = run_native_law(
-                    pk,
-                    j["settings"],
-                    j["law"],
-                    c["loading"],
-                    n,
-                    de,
-                    c["velocities"],
-                    c["spins"],
-                    te,
-                )
-        done = {k: f.result() for k, f in fut.items()}
+        runs, comps = plan(ctx, c, pool, manifests)
+        try:
+            out = evaluate(res, ctx, runs, comps)
+        finally:  # a case that stops early leaves no job queued (the running ones end with the pool)
+            pool.shutdown(wait=False, cancel_futures=True)
     rows = []
     for name in table:
         code = law_code(name)
-        if (name, "reference") not in jobs:
+        sm = out.summaries.get(f"biaxial-laws/{name}")
+        if sm is None:
             continue
-        lab = f"biaxial-laws/{name}"
-        ref, man = done[(name, "reference")]
-        ens = {lab_: done[(name, lab_)][0] for (nm, lab_) in jobs if nm == name and lab_ != "reference"}
-        recs = [
-            *trajectory_evidence(lab, f"{code} reference", ref, exp_s, exp_f),
-            *trajectory_evidence(lab, f"native ({code})", nat[name], exp_s, exp_f),
-        ]
-        want = [m[0] for m in PERTURB]
-        recs.append(evidence(lab, f"perturbed {code} runs (the envelope)", want, list(ens)))
-        for k, t in ens.items():
-            recs += trajectory_evidence(f"{lab}/{k}", code, t, exp_s, exp_f)
-        if all(r.passed for r in recs):  # no envelope verdict on incomplete evidence
-            env, _, _ = envelope(lab, code, nat[name], ref, ens, frames=exp_f, steps=exp_s, d50=pk.d50, rule=FULL_RULE)
-        else:
-            env = []
+        man = manifests.get((name, "reference"), {})
+        res.notes.append(f"{name}: {table[name]} ({man.get('engine_version')}; parameters of law_table)")
+        if not sm["complete"]:
             res.notes.append(f"<b>Incomplete evidence</b> ({name}): no envelope verdict on what remains.")
-        recs += env
-        recs.append(
-            info(
-                lab,
-                "law",
-                f"{name}: {table[name]}",
-                math.nan,
-                f"{man.get('engine_version')}; parameters of law_table",
-            )
-        )
-        res.records += in_pair(recs, f"native-{code}")
+        env = [r for r in res.records if r.case == f"biaxial-laws/{name}" and r.tolerance == FULL_RULE.factor]
         rows.append(
-            [name, code, f"{nat[name].elapsed:.1f}", f"{float(man.get('elapsed_s', 0.0)):.1f}"]
+            [name, code, f"{out.runs[f'{name}/native'].elapsed:.1f}", f"{float(man.get('elapsed_s', 0.0)):.1f}"]
             + ([f"{r.value:.3g}" for r in env] or ["incomplete", "incomplete"])
-        )
+        )  # fmt: skip
     res.tables.append(
         (
             "Each law: run times (s) and the native divergence over the code's envelope",
