@@ -50,6 +50,12 @@ def _rve_of(label):
     return R.RVE_NAME if label.split("/")[1] == R.RVE_NAME else "lattice"
 
 
+def _state_of(label):
+    """The state of a record label: relaxation/<state>/... (lattice) or relaxation/rve-70-1/<state>/..."""
+    parts = label.split("/")
+    return parts[2] if parts[1] == R.RVE_NAME else parts[1]
+
+
 def test_stored_runs_pass_and_tell_relaxed_from_taylor(tmp_path):
     res = R.relaxation(_ctx(tmp_path))
     assert res.passed, [r for r in res.checks if not r.passed]
@@ -62,7 +68,7 @@ def test_stored_runs_pass_and_tell_relaxed_from_taylor(tmp_path):
         # the affine stress is decades outside every tolerance: a check that passes saw relaxed fluctuations
         assert all(r.tolerance < 1e-3 * taylor for r in stress)
         cases = [r.case for r in res.checks if r.pair == "native-lammps" and _rve_of(r.case) == rve]
-        assert {c.split("/")[-3] for c in cases} == set(states)
+        assert {_state_of(c) for c in cases} == set(states)
     # rve-70-1 is the standard RVE, with rattlers: the DEM's free disks are reported, the disks in contact rest
     assert any(r.quantity == "evidence" and "shipped standard RVE rve-70-1" in r.metric for r in res.checks)
     free = [r for r in res.records if r.quantity == "free_disks"]
@@ -117,6 +123,8 @@ def test_cut_stored_output_is_incomplete(tmp_path, monkeypatch, job, name):
     pair = "native-" + job.split("-")[0]
     bad = _failing(res, "evidence", pair)
     assert bad and all("incomplete" in r.metric for r in bad)
+    # the stored job's check against its deck names the cut file too
+    assert any("incomplete stored job" in r.metric and name in r.metric for r in bad)
     # no verdict on the stress of the cut job rests on what was left
     assert not [r for r in res.checks if r.quantity == "stress" and f"/{job.split('-')[0]}/stored" in r.case]
 
@@ -239,4 +247,29 @@ def test_network_kinetic_energy_is_that_of_the_disks_in_contact_in_their_centre_
     # the free disks' energy is theirs, in the lab frame
     assert free == pytest.approx(
         0.5 * np.sum(m[~c] * (v[~c] ** 2).sum(axis=1)) + 0.25 * np.sum((m * p.radii**2 * w**2)[~c])
+    )
+
+
+def test_a_live_job_that_fails_is_failing_evidence_naming_it_and_the_case_goes_on(tmp_path, monkeypatch):
+    from gransim.errors import GransimError
+
+    _only(monkeypatch, "iso")
+
+    def broken(job, *args, **kw):
+        raise GransimError(f"lmp exited with status 1 in {job}")
+
+    monkeypatch.setattr(R, "run_relaxation_job", broken)
+    res = R.relaxation(Context("default", tmp_path / "results", liggghts=False, lammps=True))
+    assert res.error is None
+    bad = [r for r in res.checks if not r.passed]
+    # every comparison of the live run (at rest, vs Newton, vs native) says why it has no verdict
+    assert {r.case for r in bad} == {f"relaxation/iso/lammps/live{s}" for s in ("", "/vs-newton", "/vs-native")}
+    assert all(r.quantity == "evidence" and r.pair == "native-lammps" for r in bad)
+    assert all("live LAMMPS job failed: lmp exited with status 1" in r.metric for r in bad)
+    # the stored jobs are still judged, and pass
+    stored = [r for r in res.checks if "/stored" in r.case and r.quantity == "stress"]
+    assert stored and all(r.passed for r in stored)
+    # the report's run table says the run failed, and why
+    assert any(
+        r[0] == "relaxation/iso/lammps/live" and r[4].startswith("failed: live LAMMPS job failed") for r in res.runs
     )

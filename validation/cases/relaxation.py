@@ -18,6 +18,12 @@ orthogonal periodic box) and LAMMPS 29 Sep 2021 (compression, and simple shear i
 triclinic box), from the stored jobs ``reference_runs/stored/relaxation-lattice-8x8`` and
 ``reference_runs/stored/relaxation-rve-70-1`` and, when the binaries are installed, live.
 
+Each side is a run of the case and shared judges compare them (:func:`plan`): every DEM run at rest and
+Newton's equilibrium against their bounds (:func:`validation.judges.analytic`), and every two equilibria's
+stresses within what their residual forces leave (:func:`validation.judges.equilibria`): native vs Newton,
+each code vs Newton and vs the native run in its arithmetic, Newton warm-started from the DEM vs Newton
+from w = 0 (the same minimum), and LIGGGHTS vs LAMMPS.
+
 Two RVEs: a jammed 8 x 8 perturbed lattice without rattlers (0.2-0.3% compression, simple shear
 2e-3) and the standard random RVE rve-70-1 of Meier, Steinmann & Kuhl (2007, "Towards completeness:
 a multiscale approach of confined particulate systems", section 4), with its rattlers (0.1%
@@ -26,6 +32,10 @@ counts: :mod:`reference_runs.decks.relaxation`.
 """
 
 from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -61,19 +71,11 @@ from reference_runs.decks.relaxation import (
     state_F,
 )
 
-from ..core import (
-    CaseResult,
-    Context,
-    Record,
-    case,
-    compare,
-    evidence,
-    in_pair,
-    info,
-    stored_dir,
-    stored_job_record,
-)
+from ..codes import NATIVE, pair_key
+from ..core import CaseResult, Context, Record, case, stored_dir, stored_job_record
 from ..dem_compare import expected_steps, read_reference, run_native, trajectory_evidence
+from ..judges import Bound
+from ..matrix import Comparison, Failed, Outcome, Run, evaluate, stored_job
 from .shear import read_lammps_shear, run_native_shear
 
 CASE = "relaxation"
@@ -208,6 +210,56 @@ def _rel(a, b) -> float:
     return float(np.abs(np.asarray(a) - np.asarray(b)).max()) / scale
 
 
+# ---------------------------------------------------------------------------------------- runs
+@dataclass(frozen=True)
+class AtRest:
+    """The end of one DEM relaxation, as the judges read it (a complete run: one whose series or
+    final frame is missing, whose output cannot be read or whose job failed is a
+    :class:`validation.matrix.Failed`).
+
+    label : the run's record label (its evidence and its at-rest checks).
+    who : the side's name in the metrics (``native (lammps flavour)``, ``LAMMPS``).
+    evidence : the run's evidence records (every series step and the final frame present).
+    nsteps : the final step.
+    sigma : (2, 2) virial stress the run printed at ``nsteps``, N/m, tension positive.
+    rho : max |net force on a disk| / mean contact force at the final positions, recomputed with the
+        potential's law (:func:`balance`).
+    ke : kinetic energy of the disks in contact (their centre-of-mass frame) / elastic energy.
+    ke_free : kinetic energy of the disks without contact / elastic energy.
+    n_contact, n_free : the disks with and without a contact.
+    w : (N, 2) periodic fluctuation of the final positions, m (:func:`fluctuation`).
+    """
+
+    label: str
+    who: str
+    evidence: tuple
+    nsteps: int
+    sigma: np.ndarray
+    rho: float
+    ke: float
+    ke_free: float
+    n_contact: int
+    n_free: int
+    w: np.ndarray
+
+
+@dataclass(frozen=True)
+class Minimum:
+    """A minimiser of the relaxed material at F (:class:`gransim.rve.relaxed.RelaxedMaterial`).
+
+    sigma : (2, 2) relaxed Cauchy stress P F^T / det F, N/m, tension positive.
+    rho : max |net force| / mean contact force over all disks, rattlers included (:func:`balance`).
+    energy : W_rel, J.
+    n_rattlers, n_held : rattlers, and those of them held with their forces.
+    """
+
+    sigma: np.ndarray
+    rho: float
+    energy: float
+    n_rattlers: int
+    n_held: int
+
+
 def _native(packing, F, engine: str, v):
     """Native DEM relaxation of one state of variant ``v`` in ``engine``'s flavour: a Trajectory
     (stress compression positive) with frames at 0 and ``v.nsteps``."""
@@ -225,59 +277,195 @@ def _read(job_dir, kind: str):
     return read_lammps_shear(job_dir / "log.lammps", job_dir / DUMP)
 
 
-def _side(label: str, who: str, packing, q, tr, F, nsteps: int, thermo_every: int) -> tuple[list, dict | None]:
-    """Evidence and at-rest records of one DEM run; its final state (or None when incomplete):
-    sigma (tension positive), rho, network KE/U, fluctuation w."""
-    recs = trajectory_evidence(label, who, tr, expected_steps(nsteps, thermo_every), [0, nsteps])
-    if not all(r.passed for r in recs):
-        return recs, None
-    i = int(np.flatnonzero(tr.steps == nsteps)[0])
+def _at_rest(label: str, who: str, packing, q, tr, F, v) -> AtRest | Failed:
+    """The final state of trajectory ``tr`` of deformed state ``q``: every series step and the final
+    frame must be present (else :class:`Failed`, naming what is missing)."""
+    recs = trajectory_evidence(label, who, tr, expected_steps(v.nsteps, v.thermo_every), [0, v.nsteps])
+    missing = [r.metric for r in recs if not r.passed]
+    if missing:
+        return Failed("; ".join(missing))
+    i = int(np.flatnonzero(tr.steps == v.nsteps)[0])
     xx, yy, xy = tr.stress[i]
-    sigma = cauchy_from_pressure(xx, yy, xy)
-    fr = tr.frames[nsteps]
+    fr = tr.frames[v.nsteps]
     b = balance(packing, fr["x"], q.cell)
     ke_net, ke_free = network_kinetic_energy(packing, fr["v"], fr["w"], b["in_contact"])
-    ratio = ke_net / b["energy"] if b["energy"] > 0 else float("inf")
-    recs.append(
-        compare(
-            label,
-            "at_rest",
-            f"{who}: kinetic energy of the {int(b['in_contact'].sum())} disks in contact (their centre-of-mass "
-            f"frame) / elastic energy at step {nsteps} (not at rest if above)",
-            ratio,
-            KE_REST,
-            REST_REASON,
-        )
+    n_contact = int(b["in_contact"].sum())
+    return AtRest(
+        label,
+        who,
+        tuple(recs),
+        v.nsteps,
+        cauchy_from_pressure(xx, yy, xy),
+        b["rho"],
+        ke_net / b["energy"] if b["energy"] > 0 else float("inf"),
+        ke_free / b["energy"] if b["energy"] > 0 else float("inf"),
+        n_contact,
+        packing.n - n_contact,
+        fluctuation(packing.positions, F, fr["x"], q.cell),
     )
-    n_free = int(packing.n - b["in_contact"].sum())
-    if n_free:
-        recs.append(
-            info(
-                label,
-                "free_disks",
-                f"{who}: kinetic energy of the {n_free} disks without contact / elastic energy at step {nsteps}",
-                ke_free / b["energy"] if b["energy"] > 0 else float("inf"),
-                FREE_REASON,
-            )
-        )
-    recs.append(
-        compare(
-            label,
-            "force_balance",
-            f"{who}: max |net force| / mean contact force at step {nsteps}",
-            b["rho"],
-            RHO_REST,
-            REST_REASON,
-        )
-    )
-    w = fluctuation(packing.positions, F, fr["x"], q.cell)
-    return recs, {"sigma": sigma, "rho": b["rho"], "ke": ratio, "w": w, "love": b["sigma"]}
 
 
-def _stress_record(label, what, a, b, rho_a, rho_b, reason=TOL_REASON) -> tuple[Record, float, float]:
-    d = _rel(a["sigma"] if isinstance(a, dict) else a, b)
-    tol = C_RESIDUAL * (rho_a + rho_b) + ROUNDOFF
-    return compare(label, "stress", what, d, tol, reason), d, tol
+def _native_run(label: str, packing, F, engine: str, v) -> AtRest | Failed:
+    tr, q = _native(packing, F, engine, v)
+    return _at_rest(label, f"native ({engine} flavour)", packing, q, tr, F, v)
+
+
+def _code_run(label: str, engine: str, packing, F, v, job_dir) -> AtRest | Failed:
+    """A code's job read from ``job_dir`` (stored, or run now)."""
+    q, kind = deformed_state(packing, F)
+    try:
+        tr = _read(job_dir, kind)
+    except (GransimError, OSError, ValueError, KeyError, IndexError) as exc:
+        return Failed(f"unreadable {CODE[engine]} output: {exc}")
+    return _at_rest(label, CODE[engine], packing, q, tr, F, v)
+
+
+def _stored_run(label: str, engine: str, packing, F, v, job_dir) -> AtRest | Failed:
+    """A code's stored job; when it cannot be judged, why names the job's check against its deck too
+    (:func:`validation.core.stored_job_record`: what of its deck's runs, steps and frames is missing)."""
+    run = _code_run(label, engine, packing, F, v, job_dir)
+    if isinstance(run, Failed):
+        check = stored_job_record(label, job_dir)
+        if not check.passed:
+            return Failed(f"{run.why}; {check.metric}")
+    return run
+
+
+def _live_run(ctx: Context, label: str, engine: str, name: str, packing, F, v) -> AtRest | Failed:
+    """The code's relaxation of state ``name`` run now (reused when a complete job is there)."""
+    job = ctx.work("reference", v.stored_case, f"{engine}-{name}")
+    try:
+        run_relaxation_job(
+            job,
+            packing,
+            F,
+            relaxation_settings(packing, KN, flavour=engine, damping_ratio=v.damping_ratio),
+            v.nsteps,
+            engine,
+            ctx.job_timeout(packing.n * v.nsteps),
+            v.thermo_every,
+        )
+    except GransimError as exc:
+        return Failed(f"live {CODE[engine]} job failed: {exc}")
+    return _code_run(label, engine, packing, F, v, job)
+
+
+def _minimum(mat, packing, F, start=None) -> Minimum:
+    """Newton's minimiser at F from w = 0, or from the fluctuation ``start`` (N, 2)."""
+    r = mat(F) if start is None else mat(F, start=start)
+    b = balance(packing, packing.positions @ F.T + r.fluctuation, F @ packing.cell)
+    return Minimum(np.asarray(r.cauchy), b["rho"], float(r.energy), int(np.sum(r.rattlers)), int(r.n_held))
+
+
+def _warm(mat, packing, F, native) -> Minimum | Failed:
+    """Newton warm-started from the final fluctuation of the native DEM run ``native()``."""
+    nat = native()
+    if isinstance(nat, Failed):
+        return Failed(f"its start, the native DEM run, failed: {nat.why}")
+    return _minimum(mat, packing, F, nat.w)
+
+
+def _own_evidence(_label: str, run) -> list:
+    """The ``verify`` of a DEM run: its evidence records (under the run's own label)."""
+    return list(run.evidence)
+
+
+def _stored_evidence(job_dir):
+    """The ``verify`` of a stored job: the job against its deck, then the run's evidence."""
+    check = stored_job(job_dir)
+
+    def verify(_label: str, run) -> list:
+        return check(run.label, run) + list(run.evidence)
+
+    return verify
+
+
+# ------------------------------------------------------------------------------- the judges' terms
+REST_BOUNDS = {
+    "at_rest": Bound(KE_REST, REST_REASON),
+    "free_disks": Bound(math.nan, FREE_REASON, "info"),
+    "force_balance": Bound(RHO_REST, REST_REASON),
+}
+TAYLOR_REASON = (
+    "the affine (Taylor) stress at the same F; a DEM check passing at a tolerance far below this shows that the "
+    "fluctuations were relaxed"
+)
+NEWTON_BOUNDS = {
+    "equilibrium": Bound(RHO_NEWTON, NEWTON_REASON),
+    "taylor_vs_relaxed": Bound(math.nan, TAYLOR_REASON, "info"),
+}
+ENERGY_BOUNDS = {"energy": Bound(math.nan, MINIMUM_REASON, "info")}
+
+
+def _rest_values(run: AtRest) -> dict:
+    got = {("", "at_rest"): run.ke, ("", "force_balance"): run.rho}
+    if run.n_free:
+        got[("", "free_disks")] = run.ke_free
+    return got
+
+
+def _rest_params(make):
+    """The ``analytic`` terms of a DEM run at rest (``make``: the run's cached make): the kinetic
+    energy of the disks in contact and the force residual within their bounds, the free disks'
+    kinetic energy (rattlers; information) where there are any."""
+
+    def params() -> dict:
+        st = make()
+        texts = {
+            "at_rest": f"{st.who}: kinetic energy of the {st.n_contact} disks in contact (their centre-of-mass "
+            f"frame) / elastic energy at step {st.nsteps} (not at rest if above)",
+            "free_disks": f"{st.who}: kinetic energy of the {st.n_free} disks without contact / elastic energy at "
+            f"step {st.nsteps}",
+            "force_balance": f"{st.who}: max |net force| / mean contact force at step {st.nsteps}",
+        }
+        expected = [("", "at_rest")] + ([("", "free_disks")] if st.n_free else []) + [("", "force_balance")]
+        return {"expected": expected, "values": _rest_values, "bound": REST_BOUNDS, "metric": lambda i, q, v: texts[q]}
+
+    return params
+
+
+def _newton_params(make, taylor, F, n: int):
+    """The ``analytic`` terms of Newton's minimiser from w = 0: an equilibrium of every disk, and how
+    far the affine (Taylor) stress lies from it (information)."""
+
+    def params() -> dict:
+        m = make()
+        t = taylor.evaluate(F[None]).cauchy[0]
+        texts = {
+            "equilibrium": f"Newton from w = 0: max |net force| / mean contact force over all {n} disks "
+            f"({m.n_rattlers} rattlers, {m.n_held} of them held)",
+            "taylor_vs_relaxed": "max|sigma_Taylor - sigma_relaxed| / max|sigma_relaxed| (what the checks tell apart)",
+        }
+        return {
+            "expected": [("", "equilibrium"), ("", "taylor_vs_relaxed")],
+            "values": lambda r: {("", "equilibrium"): r.rho, ("", "taylor_vs_relaxed"): _rel(t, r.sigma)},
+            "bound": NEWTON_BOUNDS,
+            "metric": lambda i, q, v: texts[q],
+        }
+
+    return params
+
+
+def _energy_params(newton) -> dict:
+    """The ``analytic`` figure of a warm-started minimiser: its energy against Newton's from w = 0."""
+    return {
+        "expected": [("", "energy")],
+        "values": lambda warm: {("", "energy"): warm.energy / newton().energy - 1.0},
+        "bound": ENERGY_BOUNDS,
+        "metric": lambda i, q, v: (
+            "W_rel from the DEM state / W_rel from w = 0 - 1 (negative: the DEM found a lower minimum)"
+        ),
+    }
+
+
+def _equilibria(metric: str, names=None, **kw) -> dict:
+    """The ``equilibria`` terms: the case's amplification of the residuals and round-off."""
+    return {"metric": metric, "names": names, "amplification": C_RESIDUAL, "roundoff": ROUNDOFF, **kw}
+
+
+def _labels(v) -> tuple[str, str]:
+    """The label prefix of variant ``v`` (``relaxation``, ``relaxation/rve-70-1``) and its tag in the table."""
+    return (CASE, "") if v.key == "lattice" else (f"{CASE}/{v.key}", f"{v.key}/")
 
 
 def _variants() -> list:
@@ -302,12 +490,178 @@ def _variants() -> list:
     return out
 
 
+# ------------------------------------------------------------------------------------ the plan
+def plan(ctx: Context, v, packing) -> tuple[list, list]:
+    """The runs and comparisons of variant ``v`` (its RVE ``packing`` read from its stored case).
+
+    Runs, per state: Newton from w = 0 (``<state>/newton``); per code that runs the state, the native
+    DEM in that code's arithmetic (``<state>/native-<code>``), Newton warm-started from its final
+    fluctuation (``.../newton-warm``), the code's stored job (``<state>/<code>/stored``, verified
+    against its deck) and its live run (``<state>/<code>/live``, when installed; no stand-in: the
+    stored job is compared in any case). Comparisons: Newton's equilibrium and its distance from
+    Taylor (``analytic``); every DEM run at rest (``analytic``, the code's in its native column);
+    the stresses of two equilibria (``equilibria``): native vs Newton (``/vs-newton``), warm Newton
+    vs Newton (same minimum), each code's run vs Newton (``/vs-newton``) and vs the native run in its
+    arithmetic (``/vs-native``), and the two codes' runs (``<state>/cross/<stored|live>``).
+    Labels are prefixed ``relaxation/`` (lattice) or ``relaxation/<rve>/``."""
+    pre, _ = _labels(v)
+    d = stored_dir(v.stored_case)
+    mat = relaxed_material(packing)
+    taylor = TaylorMaterial(packing, KN)
+    runs, comps = [], []
+    for i, name in enumerate(v.states):
+        F = state_F(name, v.states)
+        lab = f"{pre}/{name}"
+        newton_key = f"{lab}/newton"
+        newton = functools.cache(functools.partial(_minimum, mat, packing, F))
+        same = None
+        if i == 0 and v.key != "lattice":  # the stored RVE is the standard one: evidence filed once
+
+            def same(_label, _run, pre=pre, name=v.key):
+                return [_same_rve_record(pre, packing, name)]
+
+        runs.append(Run(newton_key, NATIVE, "", "Newton from w = 0 (the relaxed material)", newton, verify=same))
+        comps.append(
+            Comparison(
+                "analytic", newton_key, (newton_key,), NEWTON_REASON, _newton_params(newton, taylor, F, packing.n)
+            )
+        )
+        for engine, code in CODE.items():
+            if name not in v.engine_states[engine]:
+                continue
+            column = pair_key(NATIVE, engine)
+            nat_key, warm_key = f"{lab}/native-{engine}", f"{lab}/native-{engine}/newton-warm"
+            native = functools.cache(functools.partial(_native_run, nat_key, packing, F, engine, v))
+            runs += [
+                Run(
+                    nat_key,
+                    NATIVE,
+                    engine,
+                    f"native DEM, {code} arithmetic, {v.nsteps} steps",
+                    native,
+                    verify=_own_evidence,
+                ),
+                Run(
+                    warm_key,
+                    NATIVE,
+                    "",
+                    f"Newton from the final fluctuation of {nat_key}",
+                    functools.partial(_warm, mat, packing, F, native),
+                ),
+            ]
+            comps += [
+                Comparison("analytic", nat_key, (nat_key,), REST_REASON, _rest_params(native)),
+                Comparison(
+                    "equilibria",
+                    f"{nat_key}/vs-newton",
+                    (nat_key, newton_key),
+                    TOL_REASON,
+                    _equilibria("native DEM at rest vs Newton (w = 0): max_rel_diff", ("native DEM", "Newton")),
+                ),
+                Comparison(
+                    "equilibria",
+                    warm_key,
+                    (warm_key, newton_key),
+                    MINIMUM_REASON,
+                    _equilibria(
+                        "Newton from the DEM state vs Newton from w = 0 (same minimum): max_rel_diff",
+                        ("Newton from the DEM state", "Newton"),
+                    ),
+                ),
+                Comparison("analytic", f"{warm_key}/energy", (warm_key,), MINIMUM_REASON, _energy_params(newton)),
+            ]
+            for how in ("stored", "live"):
+                key = f"{lab}/{engine}/{how}"
+                stored = f"stored {v.stored_case}/{engine}-{name}"
+                if how == "stored":
+                    job = d / f"{engine}-{name}"
+                    make = functools.cache(functools.partial(_stored_run, key, engine, packing, F, v, job))
+                    runs.append(
+                        Run(
+                            key,
+                            engine,
+                            engine,
+                            stored,
+                            make,
+                            verify=_stored_evidence(job),
+                        )
+                    )
+                else:
+                    make = functools.cache(functools.partial(_live_run, ctx, key, engine, name, packing, F, v))
+                    runs.append(
+                        Run(
+                            key,
+                            engine,
+                            engine,
+                            f"{code} deck run now; {stored} is compared in any case",
+                            make,
+                            live=True,
+                            verify=_own_evidence,
+                        )
+                    )
+                comps += [
+                    Comparison("analytic", key, (key,), TOL_REASON, _rest_params(make), pair=column),
+                    Comparison(
+                        "equilibria",
+                        f"{key}/vs-newton",
+                        (key, newton_key),
+                        TOL_REASON,
+                        _equilibria(f"{code} at rest vs relaxed (Newton, w = 0): max_rel_diff", (code, "Newton")),
+                    ),
+                    Comparison(
+                        "equilibria",
+                        f"{key}/vs-native",
+                        (key, nat_key),
+                        TOL_REASON,
+                        _equilibria(
+                            f"{code} at rest vs native DEM ({engine} flavour) at rest: max_rel_diff",
+                            (code, "native DEM"),
+                        ),
+                    ),
+                ]
+        # every two codes that run the state: stored against stored, live against live (both installed)
+        both = [e for e in CODE if name in v.engine_states[e]]
+        for j, a in enumerate(both):
+            for b in both[j + 1 :]:
+                for how in ("stored", "live"):
+                    comps.append(
+                        Comparison(
+                            "equilibria",
+                            f"{lab}/cross/{how}",
+                            (f"{lab}/{a}/{how}", f"{lab}/{b}/{how}"),
+                            CROSS_REASON,
+                            _equilibria(f"{CODE[a]} vs {CODE[b]} at rest: max_rel_diff", record_evidence=True),
+                        )
+                    )
+    return runs, comps
+
+
 @case("relaxation", TITLE, suites=("default", "full"), order=12)
 def relaxation(ctx: Context) -> CaseResult:
     res = CaseResult(CASE, TITLE, __doc__.split("\n\n", 1)[1].replace("\n", " "))
-    res.declare("native-liggghts", TOL_REASON)
-    res.declare("native-lammps", TOL_REASON)
-    res.declare("liggghts-lammps", CROSS_REASON)
+    runs, comps, made = [], [], []
+    for v in _variants():
+        d = stored_dir(v.stored_case)
+        try:
+            packing = load_packing(d / "packing.h5")
+        except (GransimError, OSError) as exc:
+            res.records.append(
+                Record(
+                    _labels(v)[0],
+                    "evidence",
+                    f"incomplete: the RVE {d / 'packing.h5'} is unreadable: {exc}",
+                    1.0,
+                    0.0,
+                    False,
+                    EVIDENCE_REASON,
+                )
+            )
+            continue
+        r, c = plan(ctx, v, packing)
+        runs += r
+        comps += c
+        made.append((v, packing))
+    out = evaluate(res, ctx, runs, comps)
     res.skip_code(
         "yade",
         "no YADE run: the DEM sides relax with contact damping (ratio 8, the decks' mass-scaled dashpot), which YADE "
@@ -316,15 +670,9 @@ def relaxation(ctx: Context) -> CaseResult:
     )
     header = ["state", "side", "sigma_xx", "sigma_yy", "sigma_xy", "rho", "KE/U", "vs relaxed", "tolerance"]
     rows: list = []
-    cross: list = []
-    pairs: dict = {"native-liggghts": [], "native-lammps": []}
-    others: list = []
-    for v in _variants():
-        _run_variant(ctx, res, v, rows, cross, pairs, others)
-    for pair, recs in pairs.items():
-        res.records += in_pair(recs, pair)
-    res.records += others
-    res.records += in_pair(cross, "liggghts-lammps")
+    for v, packing in made:
+        rows += _rows(out, v)
+        res.notes.append(_note(out, v, packing))
     res.tables.append(
         (
             "Stress at rest per state and side (tension positive, N/m), relative residual rho, kinetic energy of "
@@ -337,214 +685,41 @@ def relaxation(ctx: Context) -> CaseResult:
     return res
 
 
-def _run_variant(ctx: Context, res: CaseResult, v, rows: list, cross: list, pairs: dict, others: list) -> None:
-    """Newton, native DEM and both codes on every state of variant ``v``; records appended to
-    ``res.records`` (Newton), ``pairs`` (code records per matrix pair), ``others`` (native vs Newton),
-    ``cross`` (LIGGGHTS vs LAMMPS); table rows to ``rows``. Labels: ``relaxation/<state>/...`` on the
-    lattice, ``relaxation/<rve>/<state>/...`` on the standard RVE."""
-    pre = CASE if v.key == "lattice" else f"{CASE}/{v.key}"
-    tag = "" if v.key == "lattice" else f"{v.key}/"
-    d = stored_dir(v.stored_case)
-    try:
-        packing = load_packing(d / "packing.h5")
-    except (GransimError, OSError) as exc:
-        res.records.append(
-            Record(
-                pre,
-                "evidence",
-                f"incomplete: the RVE {d / 'packing.h5'} is unreadable: {exc}",
-                1.0,
-                0.0,
-                False,
-                EVIDENCE_REASON,
-            )
-        )
-        return
-    if v.key != "lattice":
-        res.records.append(_same_rve_record(pre, packing, v.key))
-    mat = relaxed_material(packing)
-    taylor = TaylorMaterial(packing, KN)
-    X = packing.positions
-
-    # Newton from w = 0 at every state: the relaxed material's answer
-    newton = {}
+def _rows(out: Outcome, v) -> list:
+    """The table rows of variant ``v``: Newton's state per state, then per code and state the native
+    run and the code's runs that came to a verdict against Newton (their stress, rho, KE/U, and the
+    difference from Newton's stress with its tolerance)."""
+    pre, tag = _labels(v)
+    rows = []
     for name in v.states:
-        F = state_F(name, v.states)
-        r = mat(F)
-        b = balance(packing, X @ F.T + r.fluctuation, F @ packing.cell)
-        newton[name] = {"r": r, "rho": b["rho"], "sigma": np.asarray(r.cauchy)}
-        res.records.append(
-            compare(
-                f"{pre}/{name}/newton",
-                "equilibrium",
-                f"Newton from w = 0: max |net force| / mean contact force over all {packing.n} disks "
-                f"({int(np.sum(r.rattlers))} rattlers, {int(r.n_held)} of them held)",
-                b["rho"],
-                RHO_NEWTON,
-                NEWTON_REASON,
+        m = out.runs.get(f"{pre}/{name}/newton")
+        if isinstance(m, Minimum):
+            rows.append(
+                [tag + name, "relaxed (Newton, w = 0)", m.sigma[0, 0], m.sigma[1, 1], m.sigma[0, 1], m.rho, "", "", ""]
             )
-        )
-        t = taylor.evaluate(F[None]).cauchy[0]
-        res.records.append(
-            info(
-                f"{pre}/{name}/newton",
-                "taylor_vs_relaxed",
-                "max|sigma_Taylor - sigma_relaxed| / max|sigma_relaxed| (what the checks tell apart)",
-                _rel(t, r.cauchy),
-                "the affine (Taylor) stress at the same F; a DEM check passing at a tolerance far below this "
-                "shows that the fluctuations were relaxed",
-            )
-        )
-
-    for name in v.states:
-        n = newton[name]
-        s = n["sigma"]
-        rows.append([tag + name, "relaxed (Newton, w = 0)", s[0, 0], s[1, 1], s[0, 1], n["rho"], "", "", ""])
-
-    finals: dict = {}  # (side, state) -> final state dict
-    for engine in ("liggghts", "lammps"):
-        code = CODE[engine]
-        recs, other = pairs[f"native-{engine}"], others
+    for engine, code in CODE.items():
         for name in v.engine_states[engine]:
-            F = state_F(name, v.states)
-            nw = newton[name]
-            # native DEM in this code's flavour
-            tr, q = _native(packing, F, engine, v)
-            lab = f"{pre}/{name}/native-{engine}"
-            r_ev, nat = _side(lab, f"native ({engine} flavour)", packing, q, tr, F, v.nsteps, v.thermo_every)
-            other += r_ev
-            if nat is not None:
-                finals[(f"native-{engine}", name)] = nat
-                rec, dd, tol = _stress_record(
-                    lab,
-                    "native DEM at rest vs Newton (w = 0): max_rel_diff",
-                    nat,
-                    nw["sigma"],
-                    nat["rho"],
-                    nw["rho"],
-                )
-                other.append(rec)
-                rows.append([tag + name, f"native DEM ({engine})", *_row(nat), dd, tol])
-                # Newton warm-started from the DEM's fluctuation: which minimum did the DEM find?
-                warm = mat(F, start=nat["w"])
-                bw = balance(packing, X @ F.T + warm.fluctuation, F @ packing.cell)
-                rec, dd, tol = _stress_record(
-                    lab,
-                    "Newton from the DEM state vs Newton from w = 0 (same minimum): max_rel_diff",
-                    np.asarray(warm.cauchy),
-                    nw["sigma"],
-                    bw["rho"],
-                    nw["rho"],
-                    MINIMUM_REASON,
-                )
-                other.append(rec)
-                other.append(
-                    info(
-                        lab,
-                        "energy",
-                        "W_rel from the DEM state / W_rel from w = 0 - 1 (negative: the DEM found a lower minimum)",
-                        warm.energy / nw["r"].energy - 1.0,
-                        MINIMUM_REASON,
-                    )
-                )
-            # the code: stored job, and a live run when installed
-            runs = [("stored", d / f"{engine}-{name}")]
-            if getattr(ctx, engine):
-                job = ctx.work("reference", v.stored_case, f"{engine}-{name}")
-                try:
-                    run_relaxation_job(
-                        job,
-                        packing,
-                        F,
-                        relaxation_settings(packing, KN, flavour=engine, damping_ratio=v.damping_ratio),
-                        v.nsteps,
-                        engine,
-                        ctx.job_timeout(packing.n * v.nsteps),
-                        v.thermo_every,
-                    )
-                except GransimError as exc:
-                    recs.append(
-                        Record(
-                            f"{pre}/{name}/{engine}/live",
-                            "evidence",
-                            f"live {code} job failed: {exc}",
-                            1.0,
-                            0.0,
-                            False,
-                            EVIDENCE_REASON,
-                        )
-                    )
-                else:
-                    runs.append(("live", job))
-            else:
-                res.notes.append(f"{code} is absent: {tag}{name} is compared with its stored run only.")
-            for how, jd in runs:
-                lab = f"{pre}/{name}/{engine}/{how}"
-                if how == "stored":
-                    recs.append(stored_job_record(lab, jd))
-                try:
-                    ctr = _read(jd, deformed_state(packing, F)[1])
-                except (GransimError, OSError, ValueError, KeyError, IndexError) as exc:
-                    recs.append(
-                        Record(
-                            lab,
-                            "evidence",
-                            f"incomplete: unreadable {code} output: {exc}",
-                            1.0,
-                            0.0,
-                            False,
-                            EVIDENCE_REASON,
-                        )
-                    )
+            lab = f"{pre}/{name}"
+            sides = [(f"{lab}/native-{engine}", f"native DEM ({engine})")]
+            sides += [(f"{lab}/{engine}/{how}", f"{code} ({how})") for how in ("stored", "live")]
+            for key, side in sides:
+                vs, rest = out.summaries.get(f"{key}/vs-newton"), out.summaries.get(key)
+                if not vs or vs["missing"] or not rest:
                     continue
-                r_ev, fin = _side(lab, code, packing, q, ctr, F, v.nsteps, v.thermo_every)
-                recs += r_ev
-                if fin is None:
-                    continue
-                finals[(f"{engine}-{how}", name)] = fin
-                rec, dd, tol = _stress_record(
-                    lab,
-                    f"{code} at rest vs relaxed (Newton, w = 0): max_rel_diff",
-                    fin,
-                    nw["sigma"],
-                    fin["rho"],
-                    nw["rho"],
+                (ke,) = rest[("", "at_rest")].values()
+                s = vs["sigma"][0]
+                rows.append(
+                    [tag + name, side, s[0, 0], s[1, 1], s[0, 1], vs["rho"][0], ke, vs["value"], vs["tolerance"]]
                 )
-                recs.append(rec)
-                rows.append([tag + name, f"{code} ({how})", *_row(fin), dd, tol])
-                if nat is not None:
-                    rec, _, _ = _stress_record(
-                        lab,
-                        f"{code} at rest vs native DEM ({engine} flavour) at rest: max_rel_diff",
-                        fin,
-                        nat["sigma"],
-                        fin["rho"],
-                        nat["rho"],
-                    )
-                    recs.append(rec)
-    # LIGGGHTS vs LAMMPS on the states both ran (stored, and live when both ran live)
-    for how in ("stored", "live"):
-        for name in v.engine_states["liggghts"]:
-            a, b = finals.get((f"liggghts-{how}", name)), finals.get((f"lammps-{how}", name))
-            if how == "live" and (a is None or b is None) and not (ctx.liggghts and ctx.lammps):
-                continue
-            lab = f"{pre}/{name}/cross/{how}"
-            cross.append(
-                evidence(
-                    lab,
-                    "codes at rest",
-                    ["LIGGGHTS", "LAMMPS"],
-                    [c for c, fin in (("LIGGGHTS", a), ("LAMMPS", b)) if fin],
-                )
-            )
-            if a is not None and b is not None:
-                cross.append(
-                    _stress_record(
-                        lab, "LIGGGHTS vs LAMMPS at rest: max_rel_diff", a, b["sigma"], a["rho"], b["rho"], CROSS_REASON
-                    )[0]
-                )
-    n_ratt = sorted({int(np.sum(newton[k]["r"].rattlers)) for k in v.states})
-    res.notes.append(
+    return rows
+
+
+def _note(out: Outcome, v, packing) -> str:
+    """What variant ``v`` ran: its RVE, Newton's rattlers, stiffness, steps, damping and states."""
+    pre, _ = _labels(v)
+    mins = [out.runs.get(f"{pre}/{k}/newton") for k in v.states]
+    n_ratt = sorted({m.n_rattlers for m in mins if isinstance(m, Minimum)})
+    return (
         f"RVE {v.key}: {v.stored_case}/packing.h5 ({packing.n} disks; Newton's rattlers per state: "
         f"{', '.join(map(str, n_ratt))}); kn = E_n = {KN:.3g} N/m; {v.nsteps} steps per relaxation, damping ratio "
         f"{v.damping_ratio:g} (normal contacts only). States: "
@@ -586,9 +761,14 @@ def _same_rve_record(label: str, packing, name: str) -> Record:
     )
 
 
-def _row(fin) -> list:
-    s = fin["sigma"]
-    return [s[0, 0], s[1, 1], s[0, 1], fin["rho"], fin["ke"]]
-
-
-__all__ = ["balance", "fluctuation", "kinetic_energy", "network_kinetic_energy", "relaxation", "relaxed_material"]
+__all__ = [
+    "AtRest",
+    "Minimum",
+    "balance",
+    "fluctuation",
+    "kinetic_energy",
+    "network_kinetic_energy",
+    "plan",
+    "relaxation",
+    "relaxed_material",
+]
