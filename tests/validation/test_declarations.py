@@ -431,3 +431,101 @@ def test_final_state_judges_the_ends_and_takes_no_verdict_on_a_run_cut_short():
     cut = _traj(n=5, steps=10, dump=10, drop_steps=3)  # the log and the last dump cut short
     recs, s = final_state("c", saved, cut, evidence_of=ev, **kw)
     assert {r.quantity for r in recs} == {"evidence"} and not all(r.passed for r in recs) and math.isnan(s["x"])
+
+
+def test_frame_for_frame_judges_every_frame_and_fails_a_missing_one():
+    """Runs seen at their frames only (the impacts): equal runs pass with 0; a velocity 1e-6 off fails
+    its relative bound with that value; a frame missing on one side is failing evidence naming the
+    step; no frame in common is NaN (fails); one run alone records its evidence only."""
+    from validation.judges import FrameBound, frame_for_frame
+
+    bounds = (
+        FrameBound("x", "positions", "max |dx|/D over {n} frames ({a} vs {b})", 1e-10, "p", 0.1),
+        FrameBound("v", "velocities", "max |dv|/max|v| ({a} vs {b})", 1e-8, "v"),
+    )
+    frames, sides = [0, 5, 10], ("native", "LAMMPS")
+    a = _traj()
+    recs, s = frame_for_frame("c/x", a, _traj(), frames=frames, bounds=bounds, sides=sides)
+    assert all(r.passed for r in recs) and s == {"frames": 3, "positions": 0.0, "velocities": 0.0}
+    assert [r.metric for r in recs if r.quantity == "positions"] == ["max |dx|/D over 3 frames (native vs LAMMPS)"]
+    off = _traj()
+    off.frames[5]["v"] = off.frames[5]["v"] * (1 + 1e-6)
+    recs, s = frame_for_frame("c/x", a, off, frames=frames, bounds=bounds, sides=sides)
+    (bad,) = [r for r in recs if not r.passed]
+    top = max(float(np.abs(off.frames[k]["v"]).max()) for k in frames)  # relative to the largest |v| of b
+    assert bad.quantity == "velocities"
+    assert s["velocities"] == pytest.approx(1e-6 * float(np.abs(a.frames[5]["v"]).max()) / top, rel=1e-6)
+    cut = _traj()
+    del cut.frames[5]
+    recs, s = frame_for_frame("c/x", a, cut, frames=frames, bounds=bounds, sides=sides)
+    assert [r.metric for r in recs if not r.passed] == ["incomplete: expected 3 LAMMPS frames, got 2 (missing: 5)"]
+    assert s["frames"] == 2
+    empty = Trajectory(np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 2)), {})
+    recs, s = frame_for_frame("c/x", a, empty, frames=frames, bounds=bounds, sides=sides)
+    assert {r.quantity for r in recs if not r.passed} == {"evidence", "positions", "velocities"}
+    assert math.isnan(s["positions"])
+    recs, _ = frame_for_frame("c/x", cut, frames=frames, bounds=bounds, sides=("LIGGGHTS",))
+    assert [(r.quantity, r.passed) for r in recs] == [("evidence", False)]
+
+
+def test_explained_measures_passes_a_law_difference_and_fails_any_other():
+    """Two codes' answers per (impact, quantity): a difference that equals the native flavours' is
+    explained (0) and within twice the analytic bound; the same difference with equal native runs is
+    not (1e-4 > 1e-9); a missing answer is NaN (fails); slips are compared absolutely."""
+    from validation.judges import Bound, explained_measures
+
+    a = {("i1", "t"): 1.0, ("i2", "t"): 2.0, ("i1", "slip"): 0.0, ("i2", "slip"): 1e-6}
+    b = {k: v * (1 + 1e-4) + (3e-9 if k[1] == "slip" else 0.0) for k, v in a.items()}
+    kw = {
+        "expected": list(a),
+        "values": lambda r: r,
+        "tolerance": 1e-9,
+        "reason": "r",
+        "sides": ("LIGGGHTS", "LAMMPS"),
+        "absolute": ("slip",),
+        "agree": {"t": Bound(2e-3, "twice")},
+        "why": "w",
+    }
+    recs, s = explained_measures("c/cross", a, b, a, b, **kw)
+    assert all(r.passed for r in recs) and s["t"] == {"raw": pytest.approx(1e-4), "unexplained": 0.0}
+    assert [r.quantity for r in recs] == [
+        "t: LIGGGHTS - LAMMPS",
+        "t: difference explained by the native flavours",
+        "t: LIGGGHTS vs LAMMPS",
+        "slip: LIGGGHTS - LAMMPS",
+        "slip: difference explained by the native flavours",
+    ]
+    assert s["slip"]["raw"] == pytest.approx(3e-9 + 1e-10, rel=1e-6)  # absolute, not relative to 0
+    recs, s = explained_measures("c/cross", a, b, a, a, **kw)
+    bad = {r.quantity for r in recs if not r.passed}
+    assert bad == {
+        "t: difference explained by the native flavours",
+        "slip: difference explained by the native flavours",
+    }
+    assert s["t"]["unexplained"] == pytest.approx(1e-4)
+    cut = {k: v for k, v in b.items() if k != ("i2", "t")}
+    recs, s = explained_measures("c/cross", a, cut, a, b, **kw)
+    assert math.isnan(s["t"]["unexplained"]) and not all(r.passed for r in recs if r.quantity.startswith("t:"))
+
+
+def test_the_analytic_judge_makes_one_figure_of_several_runs():
+    """An observed time-step order: the errors of a run at dt and at dt/2 give log2 of their ratio
+    (the record's value; the summary keeps both errors); a run without an answer makes it NaN."""
+    from validation.judges import Bound, analytic
+
+    def order(item, q, vals):
+        e1, e2 = vals.values()
+        return math.log2(e1 / e2)
+
+    kw = {
+        "expected": [("", "t: order")],
+        "values": lambda r: r,
+        "bound": {"t: order": Bound(math.nan, "figure", "info")},
+        "sides": ("dt", "dt/2"),
+        "figure": order,
+    }
+    recs, s = analytic("c", {("", "t: order"): 4e-3}, {("", "t: order"): 1e-3}, **kw)
+    assert recs[0].kind == "info" and recs[0].value == pytest.approx(2.0)
+    assert s[("", "t: order")] == {"dt": 4e-3, "dt/2": 1e-3}
+    recs, _ = analytic("c", {("", "t: order"): 4e-3}, {}, **kw)
+    assert math.isnan(recs[0].value) and "no answer from dt/2" in recs[0].metric

@@ -283,3 +283,43 @@ def test_coulomb_excess_of_frames_without_normal_force():
     bad = _coulomb_excess(np.array([0.1, 0.5]), np.array([0.0, 1.0]))
     assert bad == np.inf
     assert not compare("scene", "coulomb bound", "bound", bad, 1e-9, "exact cap").passed
+
+
+def test_a_code_output_missing_one_frame_fails_its_evidence(tmp_path, monkeypatch):
+    """LIGGGHTS' stored dump of normal-z0 with the frame of one step cut out of its middle: the frame
+    evidence of native vs LIGGGHTS fails naming that step (besides the stored job's own check), the
+    column and the case fail; the frames that remain are still compared (0: bit for bit)."""
+    from reference_runs import store
+
+    _only(monkeypatch, "normal-z0")
+    dest = tmp_path / "stored"
+    for code in I.CODES:
+        shutil.copytree(store.STORED / f"impacts-{code}" / "normal-z0", dest / f"impacts-{code}" / "normal-z0")
+    dump = dest / "impacts-liggghts" / "normal-z0" / "dump.atoms"
+    blocks = dump.read_text().split("ITEM: TIMESTEP\n")[1:]
+    gone = int(blocks[40].split("\n", 1)[0])
+    dump.write_text("".join("ITEM: TIMESTEP\n" + b for k, b in enumerate(blocks) if k != 40))
+    monkeypatch.setattr(store, "STORED", dest)
+    res = I.impacts(_ctx(tmp_path))
+    n = len(blocks)
+    bad = [r for r in _failed(res, "evidence") if r.pair == "native-liggghts"]
+    assert f"incomplete: expected {n} LIGGGHTS frames, got {n - 1} (missing: {gone})" in [r.metric for r in bad]
+    assert res.cell("native-liggghts")["state"] == "FAIL" and not res.passed
+    pos = [r for r in res.checks if r.case == "impacts/normal-z0/liggghts" and r.quantity == "positions"]
+    assert pos[0].value == 0.0 and f"over {n - 1} frames" in pos[0].metric
+    assert res.cell("native-lammps")["state"] == "pass"
+
+
+def test_absent_codes_are_stood_in_for_by_their_stored_runs(tmp_path, monkeypatch):
+    """Without LIGGGHTS, LAMMPS and YADE every live run of a scene is replaced by its stored output
+    (the run table says so), and every column of the three codes is still judged."""
+    _only(monkeypatch, "normal-z0")
+    res = I.impacts(_ctx(tmp_path))
+    status = {key: st for key, _, _, _, st in res.runs}
+    for code in ("liggghts", "lammps", "yade"):
+        assert status[f"normal-z0/{code}"].endswith(f"normal-z0/{code}/stored compared instead")
+        assert status[f"normal-z0/{code}/stored"] == "made"
+    assert status["native/normal-z0/liggghts/dt2"] == "made"  # the time-step order: the first code's arithmetic
+    for pair in ("native-liggghts", "native-lammps", "native-yade", "liggghts-lammps"):
+        assert res.cell(pair)["state"] == "pass", pair
+    assert res.not_applicable.keys() == {"liggghts-yade", "lammps-yade"}
