@@ -70,8 +70,13 @@ from .._numba import njit
 from .._validate import as_positive_float
 from ..errors import InputError
 
-#: the codes whose arithmetic a law follows (its ``code``; the engine's ``flavour``)
-CODES = ("liggghts", "lammps")
+#: the codes whose arithmetic a law follows (its ``code``; the engine's ``flavour``): LIGGGHTS' and
+#: LAMMPS' laws are pair functions of the engine's list loops (:data:`PAIR_CODES`); YADE's law runs
+#: in YADE's own interaction loop, the yade cell's (gransim.contacts.yade_cundall_strack)
+CODES = ("liggghts", "lammps", "yade")
+#: the codes whose laws are pair functions (a ``pair`` registered): any cell of LIGGGHTS' and
+#: LAMMPS' arithmetic runs them, and their decks are the codes' ``pair_style`` lines
+PAIR_CODES = ("liggghts", "lammps")
 
 
 @dataclass(frozen=True)
@@ -81,7 +86,8 @@ class LawSpec:
     Attributes
     ----------
     params : the namedtuple class of the law's parameters (its numba type selects the law).
-    pair : jitted pair function (module docstring for its arguments and result).
+    pair : jitted pair function (module docstring for its arguments and result); None for a law
+        whose kernel is its code's own interaction loop (YADE's).
     width : columns of the per-contact history array (0: a law without history).
     apart : jitted ``apart(law, hist, e)`` for an entry that does not touch, or None (keep).
     flip : (width,) signs of the history seen from the other particle: a new list entry (a, b)
@@ -104,7 +110,7 @@ class LawSpec:
     select : optional jitted branch-free twin of ``pair`` (module docstring): the force loops of
         the orthogonal cell run it over blocks of entries as SIMD code, bit for bit ``pair``.
     name, code, required, optional, build, description : a law usable by name (:func:`make_law`):
-        its name, its code ("liggghts" or "lammps"), parameter names, defaults of the optional
+        its name, its code (:data:`CODES`), parameter names, defaults of the optional
         ones, ``build(**params) -> law`` (checks the values), one line of description.
     timescale : ``timescale(law, packing, overlap) -> (contact time (s), damping ratio)`` for the
         time-step check (:func:`stable_time_step`); None: the law sets no limit.
@@ -112,7 +118,7 @@ class LawSpec:
     """
 
     params: type
-    pair: Callable
+    pair: Callable | None
     width: int
     apart: Callable | None
     flip: tuple
@@ -136,7 +142,7 @@ _NAMES: dict[str, LawSpec] = {}
 
 def register_law(
     params: type,
-    pair: Callable,
+    pair: Callable | None,
     width: int,
     *,
     apart: Callable | None = None,
@@ -157,7 +163,9 @@ def register_law(
     """Register ``params`` (a namedtuple class of floats) with its jitted ``pair`` function and
     what else the law declares (:class:`LawSpec`; ``flip`` defaults to -1 for every column).
 
-    A law with a ``name`` needs its ``code`` and ``build``. Registering the same class (or name)
+    A law with a ``name`` needs its ``code`` and ``build``. ``pair`` None: a law whose kernel is
+    its code's own interaction loop, not a pair function (YADE's, :data:`CODES`); the engine runs
+    it only in its code's arithmetic. Registering the same class (or name)
     again replaces its entry (a module reloaded); raises InputError for a class that is not a
     namedtuple, a bad width/flip, a ``select`` on a law whose history is not 2 wide, or a named
     law without code or build.
@@ -173,6 +181,8 @@ def register_law(
         raise InputError(f"register_law: flip must hold {width} signs (+1 or -1), got {flip!r}")
     if select is not None and width != 2:
         raise InputError(f"register_law: a select function needs a history of width 2 (the spring), got {width}")
+    if pair is None and code in PAIR_CODES:
+        raise InputError(f"register_law: a {code} law needs its pair function, got None")
     if name is not None and (code not in CODES or build is None):
         raise InputError(f"register_law: law {name!r} needs its code (one of {', '.join(CODES)}) and a build function")
     spec = LawSpec(
@@ -232,8 +242,11 @@ def law_spec(law) -> LawSpec:
 
 
 def _spec_of_type(ty) -> LawSpec | None:
+    """The spec of a law's numba type, None for another type or a law without a pair function
+    (the overloads below then do not apply)."""
     cls = getattr(ty, "instance_class", None)
-    return _REGISTRY.get(cls)
+    spec = _REGISTRY.get(cls)
+    return spec if spec is not None and spec.pair is not None else None
 
 
 def pair_force(law, hist, e, delx, dely, rsq, radi, radj, vix, viy, vjx, vjy, wi, wj, mi, mj, dt, update):
@@ -461,9 +474,12 @@ def _named() -> dict[str, LawSpec]:
     return {k: _NAMES[k] for k in sorted(_NAMES, key=key)}
 
 
-def law_names() -> tuple[str, ...]:
-    """Names :func:`make_law` knows (in the order their modules registered them)."""
-    return tuple(_named())
+def law_names(codes: tuple = PAIR_CODES) -> tuple[str, ...]:
+    """Names :func:`make_law` knows of laws in the arithmetic of ``codes`` (default
+    :data:`PAIR_CODES`: the pair laws of LIGGGHTS and LAMMPS, which the list loops, the decks and
+    the biaxial laws' validation run; ``CODES`` adds YADE's), in the order their modules
+    registered them."""
+    return tuple(k for k, spec in _named().items() if spec.code in codes)
 
 
 def _entry(name) -> LawSpec:
@@ -475,7 +491,8 @@ def _entry(name) -> LawSpec:
 
 
 def law_code(name: str) -> str:
-    """ "liggghts" or "lammps": whose arithmetic the law ``name`` follows (its DEMSettings.flavour)."""
+    """ "liggghts", "lammps" or "yade": whose arithmetic the law ``name`` follows (the engine's
+    ``flavour``)."""
     return _entry(name).code
 
 
@@ -560,6 +577,7 @@ def lightest_pair_mass(packing) -> float:
 
 __all__ = [
     "CODES",
+    "PAIR_CODES",
     "as_law_float",
     "LawSpec",
     "deck_float",

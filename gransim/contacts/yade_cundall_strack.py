@@ -46,14 +46,23 @@ for baseline x86-64: its libraries (libyade.so, libpkg_dem.so, libpkg_common.so)
 instruction (``objdump -d | grep -c vfmadd`` is 0 for each), so no ``a*b + c`` is fused; numba,
 with ``fastmath=False`` (gransim/_numba.py), does not fuse either.
 
+The law is a registered contact law (:func:`gransim.contacts.laws.register_law`), named
+``cundall-strack-yade``, of the code "yade" (:class:`YadeCundallStrack`, :func:`yade_law`), which
+``DEMSettings.hooke_law("yade")`` returns and ``Engine(..., flavour="yade")`` runs.
+
 Units: m, s, kg, N. Arrays and scalars are float64.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
+
+import numpy as np
 
 from .._numba import njit
+from ..errors import InputError
+from .laws import as_law_float, lightest_pair_mass, register_law
 
 #: what :func:`scgeom_cundall_strack` reports about an interaction
 NO_CONTACT = 0  # a non-real interaction whose spheres do not touch: Ig2 returns false, nothing changes
@@ -205,4 +214,114 @@ def scgeom_cundall_strack(
     return FORCE, nx, ny, pen, fnx, fny, fsx, fsy, fx, fy, t1, t2
 
 
-__all__ = ["ERASED", "FORCE", "NO_CONTACT", "friction_tangent", "scgeom_cundall_strack", "spheres_touch"]
+# ------------------------------------------------------------------ the registered law
+
+#: YADE 2023.02a's elastic-frictional law of spheres (this module's :func:`scgeom_cundall_strack`
+#: in the interaction loop of :func:`gransim.dem.yade_arithmetic._interactions`): the physics
+#: ``Ip2_FrictMat_FrictMat_FrictPhys`` makes when an interaction becomes real, and the geometry
+#: functor's flag.
+#:
+#: - ``kn``, ``ks`` (N/m): the constant stiffnesses of ``kn = MatchMaker(algo='val', val=kn)``,
+#:   ``ks = MatchMaker(algo='val', val=ks)`` (the decks of reference_runs/yade/dem_script.py), used
+#:   when ``young`` is 0;
+#: - ``young`` (Pa), ``poisson`` (-): when ``young`` > 0, the radius-dependent stiffnesses of the
+#:   material (Guo & Zhao's RVE, ``FrictMat(young, poisson)`` without MatchMaker): kn = 2 (E r_1)
+#:   (E r_2)/(E r_1 + E r_2), ks the same with (E r_i) nu (pkg/dem/FrictPhys.cpp:13-44; r_i the
+#:   radii, ScGeom.hpp:108), made once per interaction and kept with it;
+#: - ``friction_angle`` (rad): the material's ``frictionAngle``; an interaction holds
+#:   tan(min(phi_1, phi_2)) = tan(friction_angle) (FrictPhys.cpp:39-41; ``setContactFriction``
+#:   sets the same, preprocessing/dem/Shop_02.cpp:867-886);
+#: - ``avoid_granular_ratcheting`` (bool): ``Ig2_Sphere_Sphere_ScGeom.avoidGranularRatcheting``
+#:   (True, YADE's default and Guo & Zhao's; the decks set False), the relative velocity of
+#:   :func:`scgeom_cundall_strack` (``agr``).
+#:
+#: What of the registry this law does not use: its kernel is YADE's interaction loop over the
+#: interaction container (creation order, stored normal and shear force per interaction, the
+#: physics made on creation), which the yade cell of the engine runs
+#: (:mod:`gransim.dem.yade_cell`), not a pair function of the list loops; so it registers no
+#: ``pair`` (another arithmetic refuses it, naming the law), no history width (the container holds
+#: the normal and shear force), no ``energy`` (the yade cell's ``elastic_energy`` sums
+#: |F_n|^2 / 2 kn + |F_s|^2 / 2 ks over its container) and no deck lines (YADE's jobs run constant
+#: scripts that read the law's parameters from their ``input.json``, reference_runs/yade).
+YadeCundallStrack = namedtuple(
+    "YadeCundallStrack", ["kn", "ks", "friction_angle", "young", "poisson", "avoid_granular_ratcheting"]
+)
+
+#: the law's name in the registry (:func:`gransim.contacts.laws.make_law`)
+LAW_NAME = "cundall-strack-yade"
+
+
+def yade_law(
+    friction_angle, kn=0.0, ks=0.0, young=0.0, poisson=0.0, avoid_granular_ratcheting=True
+) -> YadeCundallStrack:
+    """The :class:`YadeCundallStrack` law with checked parameters: either constant stiffnesses
+    (``kn`` > 0, ``ks`` >= 0, ``young`` = ``poisson`` = 0) or the material's radius-dependent ones
+    (``young`` > 0, ``poisson`` >= 0, ``kn`` = ``ks`` = 0); InputError naming the law and the
+    parameter otherwise. ``friction_angle`` (rad) in [0, pi/2)."""
+    name = LAW_NAME
+    phi = as_law_float(name, "friction_angle", friction_angle)
+    if not phi < 0.5 * math.pi:
+        raise InputError(f"law {name}: friction_angle must be below pi/2 rad, got {phi!r}")
+    kn = as_law_float(name, "kn", kn)
+    ks = as_law_float(name, "ks", ks)
+    young = as_law_float(name, "young", young)
+    poisson = as_law_float(name, "poisson", poisson)
+    if young > 0.0 and (kn or ks):
+        raise InputError(
+            f"law {name}: give either kn, ks (MatchMaker's constants) or young, poisson (the material's "
+            f"radius-dependent stiffnesses), got kn {kn!r}, ks {ks!r} and young {young!r}"
+        )
+    if young == 0.0 and (kn == 0.0 or poisson):
+        raise InputError(
+            f"law {name}: constant stiffnesses need kn > 0 (and no poisson), radius-dependent ones young > 0; got "
+            f"kn {kn!r}, young {young!r}, poisson {poisson!r}"
+        )
+    if not isinstance(avoid_granular_ratcheting, (bool, np.bool_)):
+        raise InputError(
+            f"law {name}: avoid_granular_ratcheting must be True or False, got {avoid_granular_ratcheting!r}"
+        )
+    return YadeCundallStrack(kn, ks, phi, young, poisson, bool(avoid_granular_ratcheting))
+
+
+def yade_timescale(law, packing, overlap=0.0):
+    """(contact time, damping ratio 0) of the two lightest disks of ``packing`` (m_eff = m_1 m_2
+    /(m_1 + m_2)) for the law: pi sqrt(m_eff / k) (s), k = max(kn, ks) of the constant
+    stiffnesses, or of the radius-dependent ones of those two disks (2 E r_1 r_2 / (r_1 + r_2),
+    times max(1, poisson)). The law is undamped (Cundall's non-viscous damping is the
+    integrator's, NewtonIntegrator.damping, not the law's): damping ratio 0."""
+    meff = lightest_pair_mass(packing)
+    if law.young > 0.0:
+        r = np.sort(np.asarray(packing.radii, float))[:2]
+        kn = 2.0 * law.young * r[0] * r[1] / (r[0] + r[1])
+        k = kn * max(1.0, law.poisson)
+    else:
+        k = max(law.kn, law.ks)
+    return float(np.pi * np.sqrt(meff / k)), 0.0
+
+
+register_law(
+    YadeCundallStrack,
+    None,
+    0,
+    name=LAW_NAME,
+    code="yade",
+    required=("friction_angle",),
+    optional={"kn": 0.0, "ks": 0.0, "young": 0.0, "poisson": 0.0, "avoid_granular_ratcheting": True},
+    build=lambda **p: yade_law(**p),
+    description="YADE Ip2_FrictMat_FrictMat_FrictPhys + Law2_ScGeom_FrictPhys_CundallStrack",
+    timescale=yade_timescale,
+)
+
+
+__all__ = [
+    "ERASED",
+    "FORCE",
+    "LAW_NAME",
+    "NO_CONTACT",
+    "YadeCundallStrack",
+    "friction_tangent",
+    "scgeom_cundall_strack",
+    "spheres_touch",
+    "yade_law",
+    "yade_timescale",
+]

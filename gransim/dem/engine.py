@@ -28,7 +28,7 @@ import numpy as np
 
 from .._numba import check_threads, disk_cache_off, num_threads
 from .._validate import as_int, check_choice
-from ..contacts.laws import elastic_energy, flip_signs, law_spec, time_scale
+from ..contacts.laws import elastic_energy, flip_signs, law_names, law_spec, time_scale
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from . import kernels as K
@@ -207,8 +207,11 @@ class Engine:
       PrescribedBox`, LIGGGHTS' and LAMMPS' ``fix deform ... remap x``; module docstring) or
       "sheared" (:class:`gransim.dem.sheared.ShearedCell`: LAMMPS' triclinic box under
       :class:`~gransim.dem.sheared.ShearLoading`, ``fix deform ... xy ... remap v``);
-    - **law** (``law=``): any registered contact law (:func:`gransim.contacts.laws.register_law`);
-      None: the Hooke law of a :class:`DEMSettings` in the engine's arithmetic;
+    - **law** (``law=``): any registered contact law (:func:`gransim.contacts.laws.register_law`)
+      of a pair function, or, with ``flavour="yade"``, YADE's Cundall-Strack law
+      (:mod:`gransim.contacts.yade_cundall_strack`, run by the yade cell's interaction loop);
+      None: the Hooke law of a :class:`DEMSettings` in the engine's arithmetic
+      (:meth:`DEMSettings.hooke_law`);
     - **arithmetic** (``flavour=``, default ``settings.flavour``, :data:`ARITHMETICS`):
       "liggghts" or "lammps", whose step order, rebuild rule and law arithmetic the engine
       reproduces bit for bit (docs/lammps.md); or "yade", YADE's own iteration (its leapfrog,
@@ -330,7 +333,7 @@ class Engine:
         self.flavour = flavour
         self.order = order
         # the contact law (gransim.contacts.laws): the Hooke law of DEMSettings unless given
-        self._set_law(packing, settings, law, flavour, check_dt)
+        self._set_law(packing, settings, law, flavour, check_dt, ops)
         ops.check_size(packing, settings)
         n = packing.n
         x = _state_array(packing.positions, (n, 2), "positions", "m")
@@ -346,30 +349,30 @@ class Engine:
         self.cell_ops = ops(self, box, threads, x, v, w, **(cell_options or {}))
 
     # ------------------------------------------------------------------ the law
-    def _set_law(self, packing: Packing, settings, law, flavour: str, check_dt: bool) -> None:
-        """``law`` (None: the Hooke law of a :class:`DEMSettings` in ``flavour``) with what the
-        loops need of its registration (history width, flip signs, disk cache), its time step
-        checked (:func:`check_time_step`, at zero overlap: :meth:`_check_time_step_now` checks a
-        law whose stiffness grows with the overlap once the state is set up)."""
-        if flavour == "yade":
-            # the yade arithmetic runs its own law, Cundall and Strack's in YADE's arithmetic
-            # (gransim.dem.yade_cell, settings checked by its cell): its time step is that of
-            # the undamped Hooke law of the same stiffnesses
-            if law is not None:
-                raise InputError("law: the yade arithmetic runs Cundall and Strack's law of the settings (law=None)")
-            if check_dt:
-                check_time_step(packing, settings.dt, settings.hooke_law("lammps"))
-            self.law = None
-            self._check_dt = False
-            self._width = 2
-            self._flip = np.array([-1.0, -1.0])
-            self._no_cache = False
-            return
+    def _set_law(self, packing: Packing, settings, law, flavour: str, check_dt: bool, ops) -> None:
+        """``law`` (None: the Hooke law of a :class:`DEMSettings` in ``flavour``,
+        :meth:`DEMSettings.hooke_law`) with what the loops need of its registration (history width,
+        flip signs, disk cache), its time step checked (:func:`check_time_step`, at zero overlap:
+        :meth:`_check_time_step_now` checks a law whose stiffness grows with the overlap once the
+        state is set up). A cell that runs its code's own interaction loop (``ops.law_code``: the
+        yade cell) takes only that code's laws; the list loops take only laws with a pair function.
+        InputError naming the law otherwise."""
         if law is None:
             if not isinstance(settings, DEMSettings):
                 raise InputError("law: an engine with Integration settings needs its contact law (law=...)")
             law = settings.hooke_law(flavour)
         spec = law_spec(law)  # InputError for an unregistered law
+        own = getattr(ops, "law_code", None)
+        if own is not None and spec.code != own:
+            raise InputError(
+                f"law: the {flavour} arithmetic runs its own interaction loop with a {own} law "
+                f"({', '.join(law_names((own,)))}), got {type(law).__name__} (a {spec.code} law)"
+            )
+        if own is None and spec.pair is None:
+            raise InputError(
+                f"law: {type(law).__name__} is a {spec.code} law without a pair function (its kernel is "
+                f"{spec.code}'s interaction loop): run it with flavour='{spec.code}'"
+            )
         if check_dt:
             check_time_step(packing, settings.dt, law)
         self.law = law

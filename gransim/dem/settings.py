@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -105,10 +106,19 @@ class DEMSettings:
 
     def hooke_law(self, flavour: str | None = None):
         """The Hooke law of these stiffnesses, dampings and friction in the arithmetic of
-        ``flavour`` (default: :attr:`flavour`): the law ``hooke-liggghts`` or ``hooke-lammps``."""
+        ``flavour`` (default: :attr:`flavour`): the law ``hooke-liggghts`` or ``hooke-lammps``; for
+        "yade", YADE's Cundall-Strack law ``cundall-strack-yade`` with kn, ks = kt of
+        ``MatchMaker(algo='val')``, the friction angle atan(mu) and no ratcheting correction, as
+        YADE's decks make it (reference_runs/yade/dem_script.py; undamped: the yade cell refuses
+        gamma_n, gamma_t)."""
         from ..contacts.laws import make_law  # noqa: PLC0415 - start-up: the laws' numba kernels, on demand
 
         f = self.flavour if flavour is None else flavour
+        if f == "yade":
+            return make_law(
+                "cundall-strack-yade", kn=self.kn, ks=self.kt, friction_angle=math.atan(self.mu),
+                avoid_granular_ratcheting=False,
+            )  # fmt: skip
         return make_law(f"hooke-{f}", kn=self.kn, kt=self.kt, gamma_n=self.gamma_n, gamma_t=self.gamma_t, mu=self.mu)
 
     @classmethod

@@ -68,9 +68,7 @@ vectors as columns (m) plus the z size ``z`` of YADE's 3D cell (m).
 from __future__ import annotations
 
 import math
-import threading
 import weakref
-from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,7 +81,7 @@ from ..contacts.yade_cundall_strack import (
     scgeom_cundall_strack,
     spheres_touch,
 )
-from ..errors import InputError
+from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from .settings import DEMSettings, Loading
 from .sheared import ShearLoading
@@ -909,37 +907,6 @@ def _newton_damped(
     return max_v2
 
 
-@njit
-def _rve_first_collide(
-    it0, pos, radius, z, z_pos, H, L, dt, prevH, VP, size, U, cos, verlet, ref_pos, sweep, last_update, aabb_min,
-    aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs,
-):  # fmt: skip
-    """Step 0 of a scene just deserialised (Scene::moveToNextTimeStep, core/Scene.cpp:98-139) up
-    to its interaction loop: the cell update with the velGrad the scene was saved with, then the
-    collider's first run, which sorts the bound lists from scratch (they are not saved:
-    InsertionSortCollider.cpp:264-272; ``strideActive`` is not saved either, :217) and finds the
-    overlaps. Returns (error, axis).
-
-    Nothing here reads the call's strain increment (it reaches the cell through nextVelGrad, applied
-    by the integrator after this, NewtonIntegrator.cpp:149-153), so the result is the same for every
-    call from one saved scene: :func:`rve_run_rotation` keeps it for the Newton iterates of a load
-    step, which all start from the committed scene."""
-    m = bc.shape[1]
-    for a in range(3):  # the bound lists of a new collider, unsorted
-        lo_idx[a] = 0
-        for k in range(m):
-            bi[a, k] = k // 2
-            bm[a, k] = k % 2 == 0
-            bp[a, k] = 0
-            bc[a, k] = 0.0
-    has_shear = _cell_update(H, z, L, dt, prevH, VP, size, U, cos)
-    zc = _unsheared_z(H, size, z_pos)
-    return _collide(
-        it0, True, pos, radius, has_shear, U, cos, size, verlet, ref_pos, sweep, last_update, aabb_min, aabb_max, bc,
-        bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, zc,
-    )  # fmt: skip
-
-
 @njit(inline="always")
 def _unsheared_z(H, size, z_pos):
     """unshearPt(position).z = _unshearTrsf(2, 2) z (Eigen's 3 x 3 inverse: cofactor(2, 2) invdet)."""
@@ -948,51 +915,6 @@ def _unsheared_z(H, size, z_pos):
     b = H[0, 1] / size[1]
     d = H[1, 1] / size[1]
     return ((a * d - b * c) * (1.0 / (d * a + (-b) * c))) * z_pos
-
-
-@njit
-def _rve_steps(
-    it0, nsteps, pos, vel, spin, radius, mass, inertia, z, z_pos, H, L, nextL, changed, Lprev, prev_size, verlet,
-    ref_pos, sweep, last_update, young, poisson, tan_new, damping, dt, n_intr, slot, i_id, i_cd, i_real, i_geom, i_fs,
-    theta, prevH, VP, size, U, cos, aabb_min, aabb_max, bc, bi, bp, bm, lo_idx,
-):  # fmt: skip
-    """``nsteps`` iterations of a scene just deserialised, after :func:`_rve_first_collide` (step 0
-    goes on with its interaction loop). Returns (error, axis, step). ``prevH`` .. ``lo_idx``: the
-    cell's and the collider's arrays as :func:`_rve_first_collide` left them.
-
-    ``theta`` (N,) rad: each disk's rotation about z, to which every step adds spin dt with the spin
-    the step ends with, as NewtonIntegrator turns ``State::ori`` (leapfrogSphericalRotate,
-    pkg/dem/NewtonIntegrator.cpp:327-337, called at :282: angVel += dSpin at :329, then the rotation
-    by |angVel| dt about angVel / |angVel| at :330-335, i.e. by spin dt about z for a disk whose
-    x and y rotations are blocked). It is read by nothing else."""
-    n = pos.shape[0]
-    force = np.zeros((n, 2))
-    torque = np.zeros(n)
-    dt2 = dt * dt
-    max_v2 = 0.0
-    for k in range(nsteps):
-        it = it0 + k
-        if k > 0:
-            has_shear = _cell_update(H, z, L, dt, prevH, VP, size, U, cos)
-            if max_v2 >= 1.0 or max_v2 == 0.0:  # InsertionSortCollider::isActivated
-                zc = _unsheared_z(H, size, z_pos)
-                err, axis = _collide(
-                    it, False, pos, radius, has_shear, U, cos, size, verlet, ref_pos, sweep, last_update, aabb_min,
-                    aabb_max, bc, bi, bp, bm, lo_idx, slot, n_intr, i_id, i_cd, i_real, i_geom, i_fs, zc,
-                )  # fmt: skip
-                if err != _OK:
-                    return err, axis, k
-        _interactions(
-            pos, vel, spin, radius, H, VP, 0.0, 0.0, tan_new, young, poisson, dt, True, n_intr, i_id, i_cd, i_real,
-            i_geom, i_fs, force, torque,
-        )  # fmt: skip
-        max_v2 = _newton_damped(
-            pos, vel, spin, mass, inertia, force, torque, L, nextL, changed, Lprev, size, prev_size, dt, dt2, ref_pos,
-            sweep, damping,
-        )  # fmt: skip
-        for b in range(n):  # NewtonIntegrator.cpp:329-335: ori turned by the final spin of the step, times dt
-            theta[b] += spin[b] * dt
-    return _OK, -1, nsteps
 
 
 @dataclass(frozen=True, eq=False)
@@ -1091,263 +1013,40 @@ def rve_run_rotation(state: YadeRVEState, D, rotation=None):
     disk rotation"). Every other output is :func:`rve_run`'s, to the bit: the sum is read by
     nothing else.
 
-    The first collider run (:func:`_rve_first_collide`) does not depend on D: for a ``state`` whose
-    arrays are all read-only (the committed states of :mod:`gransim.fem.material_points`), its
-    result is kept as long as the state lives and restored by the next calls from it, the Newton
-    iterates of a load step (:func:`first_run`)."""
-    call = rve_call(state, D, rotation)
-    with _workspace(call.n, call.m0) as work:
-        err, axis = first_run(call, work)
-        k = 0
-        if err == _OK:
-            err, axis, k = _rve_steps(*call.kernel_args(work))
-        return rve_result(state, call, work, err, axis, k)
+    The call runs on the one engine (:mod:`gransim.dem.yade_cell`, the sheared yade cell): the
+    calling thread's engine loaded with ``state`` (its set-up: step 0's cell update, the
+    collider's first run and the interaction loop, none of which reads D), then
+    ``start_run(VelGradRun(D / (ns dt)), ns)`` and ``advance(ns)``, and the scene it saves. For a
+    ``state`` whose arrays are all read-only (the committed states of
+    :mod:`gransim.fem.material_points`) the set-up is kept as long as the state lives
+    (``_FIRST_RUNS``) and restored by the next calls from it, the Newton iterates of a load step.
+    Raises InputError for a D that is not finite or a rotation of another shape, SimulationError
+    naming the call and its step when the RVE diverges (a position not finite, a kinetic-energy
+    blow-up), a bound spans over half of the cell (YADE throws there too) or the interaction
+    container is full."""
+    from .yade_cell import VelGradRun, rve_engine  # noqa: PLC0415 - cycle: yade_cell -> yade_arithmetic
 
-
-#: the first collider run of a read-only saved scene: {YadeRVEState: _FirstRun}, dropped with the state
-_FIRST_RUNS = weakref.WeakKeyDictionary()
-
-
-@dataclass(frozen=True, eq=False)
-class _FirstRun:
-    """What :func:`_rve_first_collide` leaves: the cell (H, VP, size, U, cos), the bounds' saved
-    attributes (ref_pos, sweep, last_update), the sorted bound lists (bc, bi, bp, bm, lo_idx) and
-    the interaction container (its first ``n`` entries)."""
-
-    H: np.ndarray
-    VP: np.ndarray
-    size: np.ndarray
-    U: np.ndarray
-    cos: np.ndarray
-    ref_pos: np.ndarray
-    sweep: np.ndarray
-    last_update: np.ndarray
-    bc: np.ndarray
-    bi: np.ndarray
-    bp: np.ndarray
-    bm: np.ndarray
-    lo_idx: np.ndarray
-    i_id: np.ndarray
-    i_cd: np.ndarray
-    i_real: np.ndarray
-    i_geom: np.ndarray
-    i_fs: np.ndarray
-
-    @classmethod
-    def of(cls, call: RVECall, work: _Workspace) -> _FirstRun:
-        n = int(work.n_intr[0])
-        c = np.copy
-        return cls(
-            c(call.H), c(work.VP), c(work.size), c(work.U), c(work.cos), c(call.ref_pos), c(call.sweep),
-            c(call.last_update), c(work.bc), c(work.bi), c(work.bp), c(work.bm), c(work.lo_idx), work.i_id[:n].copy(),
-            work.i_cd[:n].copy(), work.i_real[:n].copy(), work.i_geom[:n].copy(), work.i_fs[:n].copy(),
-        )  # fmt: skip
-
-    def restore(self, call: RVECall, work: _Workspace) -> None:
-        call.H[...] = self.H
-        call.ref_pos[...] = self.ref_pos
-        call.sweep[...] = self.sweep
-        call.last_update[...] = self.last_update
-        for name in ("VP", "size", "U", "cos", "bc", "bi", "bp", "bm", "lo_idx"):
-            getattr(work, name)[...] = getattr(self, name)
-        n = len(self.i_id)
-        work.n_intr[0] = n
-        work.i_id[:n] = self.i_id
-        work.i_cd[:n] = self.i_cd
-        work.i_real[:n] = self.i_real
-        work.i_geom[:n] = self.i_geom
-        work.i_fs[:n] = self.i_fs
-        work.slot[self.i_id[:, 0], self.i_id[:, 1]] = np.arange(n)
-
-
-def _read_only(state: YadeRVEState) -> bool:
-    """Whether every array of ``state`` is read-only (then its first collider run can be kept)."""
-    for name in RVE_STATE_FIELDS:
-        v = getattr(state, name)
-        if isinstance(v, np.ndarray) and v.flags.writeable:
-            return False
-    return True
-
-
-def first_run(call: RVECall, work: _Workspace, keep: bool = True) -> tuple[int, int]:
-    """Step 0 up to its interaction loop (:func:`_rve_first_collide`) on ``call`` and ``work``,
-    restored from the kept result of an earlier call from the same read-only state when there is
-    one, else computed (and kept if ``keep`` and the state is read-only); (error, axis)."""
-    s = call.state
-    kept = _FIRST_RUNS.get(s) if keep else None
-    if kept is not None:
-        kept.restore(call, work)
-        return _OK, -1
-    err, axis = _rve_first_collide(*call.first_args(work))
-    if err == _OK and keep and _read_only(s):
-        _FIRST_RUNS[s] = _FirstRun.of(call, work)
-    return err, axis
-
-
-@dataclass(frozen=True, eq=False)
-class RVECall:
-    """One :func:`rve_run_rotation` call unpacked for :func:`_rve_first_collide` and
-    :func:`_rve_steps`: the mutable copies of the saved scene's per-disk and cell arrays (the new
-    state's, filled by the kernels), the step count ``ns`` and the new nextVelGrad ``rate`` =
-    D / (ns dt) (Matrix3 / float in minieigen: each entry divided). ``theta`` (N,) rad: the disks'
-    rotation, carried on. Split out so that the benchmark (bench/femxdem.py) times the kernels
-    apart from the packing around them."""
-
-    ns: int
-    n: int
-    m0: int
-    pos: np.ndarray
-    vel: np.ndarray
-    spin: np.ndarray
-    H: np.ndarray
-    L: np.ndarray
-    nextL: np.ndarray
-    changed: np.ndarray
-    Lprev: np.ndarray
-    prev_size: np.ndarray
-    ref_pos: np.ndarray
-    sweep: np.ndarray
-    last_update: np.ndarray
-    theta: np.ndarray
-    state: YadeRVEState
-
-    def first_args(self, work) -> tuple:
-        """The arguments of :func:`_rve_first_collide`, with the interaction container ``work``
-        (:class:`_Workspace`) loaded with the saved scene's real interactions."""
-        s = self.state
-        m0 = self.m0
-        work.n_intr[0] = m0
-        work.i_id[:m0] = s.ids
-        work.i_cd[:m0] = s.cell_dist
-        work.i_real[:m0] = True
-        g = work.i_geom
-        g[:m0, 0:2] = s.normal
-        g[:m0, 2] = 0.0
-        g[:m0, 3:5] = s.normal_force
-        g[:m0, 5] = s.kn
-        g[:m0, 6] = s.ks
-        g[:m0, 7] = s.tan_phi
-        work.i_fs[:m0] = s.shear_force
-        work.slot[s.ids[:, 0], s.ids[:, 1]] = np.arange(m0)
-        return (
-            int(s.iteration), self.pos, np.asarray(s.radii, float), float(s.z), float(s.z_pos), self.H, self.L,
-            float(s.dt), work.prevH, work.VP, work.size, work.U, work.cos, float(s.verlet), self.ref_pos, self.sweep,
-            self.last_update, work.aabb_min, work.aabb_max, work.bc, work.bi, work.bp, work.bm, work.lo_idx, work.slot,
-            work.n_intr, work.i_id, work.i_cd, work.i_real, work.i_geom, work.i_fs,
-        )  # fmt: skip
-
-    def kernel_args(self, work, nsteps=None) -> tuple:
-        """The arguments of :func:`_rve_steps` after :func:`first_run` (``nsteps``: default ``ns``)."""
-        s = self.state
-        return (
-            int(s.iteration), self.ns if nsteps is None else int(nsteps), self.pos, self.vel, self.spin,
-            np.asarray(s.radii, float), np.asarray(s.mass, float), np.asarray(s.inertia, float), float(s.z),
-            float(s.z_pos), self.H, self.L, self.nextL, self.changed, self.Lprev, self.prev_size, float(s.verlet),
-            self.ref_pos, self.sweep, self.last_update, float(s.young), float(s.poisson), math.tan(s.friction_angle),
-            float(s.damping), float(s.dt), work.n_intr, work.slot, work.i_id, work.i_cd, work.i_real, work.i_geom,
-            work.i_fs, self.theta, work.prevH, work.VP, work.size, work.U, work.cos, work.aabb_min, work.aabb_max,
-            work.bc, work.bi, work.bp, work.bm, work.lo_idx,
-        )  # fmt: skip
-
-
-def rve_call(state: YadeRVEState, D, rotation=None) -> RVECall:
-    """The checked inputs of one :func:`rve_run_rotation` call (:class:`RVECall`)."""
     D = np.asarray(D, dtype=float).reshape(2, 2)
     if not np.all(np.isfinite(D)):
         raise InputError(f"D: the strain increment must be finite, got {D.tolist()}")
     ns = n_steps_of(D)
-    s = state
-    n = s.n
-    theta = np.zeros(n) if rotation is None else np.array(rotation, float)
-    if theta.shape != (n,):
+    n = state.n
+    theta = None if rotation is None else np.asarray(rotation, float)
+    if theta is not None and theta.shape != (n,):
         raise InputError(f"rotation: one angle per disk ({n},) expected, got shape {theta.shape}")
-    return RVECall(
-        ns=ns, n=n, m0=len(s.kn), pos=np.array(s.positions, float), vel=np.array(s.velocities, float),
-        spin=np.array(s.spins, float), H=np.array(s.hsize, float), L=np.array(s.vel_grad, float),
-        nextL=D / (ns * s.dt), changed=np.ones(1, np.bool_), Lprev=np.array(s.newton_prev_vel_grad, float),
-        prev_size=np.array(s.prev_cell_size, float), ref_pos=np.array(s.bound_ref, float),
-        sweep=np.array(s.sweep, float), last_update=np.array(s.last_update, np.int64), theta=theta, state=s,
-    )  # fmt: skip
+    it0 = int(state.iteration)
+    try:
+        with rve_engine(state, theta) as eng:
+            eng.start_run(VelGradRun(D / (ns * state.dt)), ns)  # Matrix3 / float in minieigen: each entry
+            eng.advance(ns)
+            return eng.cell_ops.scene(eng), eng.yb.theta.copy()
+    except SimulationError as exc:
+        raise SimulationError(f"the RVE call from iteration {it0} ({ns} steps): {exc}") from None
 
 
-def rve_result(state: YadeRVEState, call: RVECall, work, err: int, axis: int, k: int):
-    """(new state, rotation) after :func:`_rve_steps` returned (err, axis, k) on ``call`` and the
-    container ``work``: the saved scene (``Omega().cell.velGrad = Zero``, simDEM.py:61: nextVelGrad
-    0, velGradChanged; then saved: the real interactions only, in container order)."""
-    s, ns = state, call.ns
-    if err == _TOO_BIG:
-        raise RuntimeError(f"step {k} of {ns}: a bound spans over half of the cell (YADE throws here too)")
-    if err == _FULL:
-        raise RuntimeError(f"step {k} of {ns}: more than {work.cap} potential interactions")
-    if err == _TIE:
-        raise RuntimeError(f"step {k} of {ns}: the initial sort on axis {axis} reached libstdc++'s depth limit")
-    pos, vel, H, prev_size = call.pos, call.vel, call.H, call.prev_size
-    if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
-        raise RuntimeError(f"the RVE diverged within {ns} steps (a position or velocity is not finite)")
-    real = np.flatnonzero(work.i_real[: work.n_intr[0]])
-    size = np.array([math.sqrt(H[0, 0] * H[0, 0] + H[1, 0] * H[1, 0]), math.sqrt(H[0, 1] * H[0, 1] + H[1, 1] * H[1, 1]),
-                     math.sqrt(s.z * s.z)])  # fmt: skip
-    if not np.array_equal(size, prev_size):
-        raise RuntimeError("the cell's size after the run is not NewtonIntegrator.prevCellSize")
-    g = work.i_geom[real]
-    new = YadeRVEState(
-        iteration=int(s.iteration) + ns, dt=s.dt, z=s.z, z_pos=s.z_pos, radii=s.radii, mass=s.mass,
-        inertia=s.inertia, positions=pos, velocities=vel, spins=call.spin, bound_ref=call.ref_pos, sweep=call.sweep,
-        last_update=call.last_update, hsize=H, vel_grad=call.L, next_vel_grad=np.zeros((2, 2)), vel_grad_changed=True,
-        newton_prev_vel_grad=call.Lprev, prev_cell_size=prev_size, verlet=s.verlet, damping=s.damping, young=s.young,
-        poisson=s.poisson, friction_angle=s.friction_angle, ids=work.i_id[real], cell_dist=work.i_cd[real],
-        normal=g[:, 0:2].copy(), kn=g[:, 5].copy(), ks=g[:, 6].copy(), tan_phi=g[:, 7].copy(),
-        normal_force=g[:, 3:5].copy(), shear_force=work.i_fs[real],
-    )  # fmt: skip
-    return new, call.theta
-
-
-class _Workspace:
-    """The interaction container of an RVE call (YADE's InteractionContainer with its body-pair
-    index): ``slot`` (N, N) the container position of the pair (id1 < id2) or -1, and the columns
-    ``i_id``, ``i_cd`` (cap, 2) int, ``i_real`` (cap,), ``i_geom`` (cap, 8), ``i_fs`` (cap, 2), the
-    first ``n_intr[0]`` in use; and the cell's and the collider's arrays of :func:`_rve_steps`.
-    Kept per thread and reused from call to call: allocating the 1.3 MB ``slot`` and the columns
-    afresh (fresh pages, zeroed by the kernel) cost about a tenth of a 100-step call of 400 disks.
-    Only ``slot`` needs resetting between calls (the rest is written before it is read);
-    :func:`_workspace` resets the entries a call used."""
-
-    def __init__(self, n: int, cap: int):
-        self.n, self.cap = n, cap
-        m = 2 * n
-        self.prevH, self.VP, self.U = np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2))
-        self.size, self.cos = np.zeros(3), np.zeros(3)
-        self.aabb_min, self.aabb_max = np.zeros((n, 3)), np.zeros((n, 3))
-        self.bc, self.bp = np.zeros((3, m)), np.zeros((3, m), np.int64)
-        self.bi, self.bm = np.zeros((3, m), np.int64), np.zeros((3, m), np.bool_)
-        self.lo_idx = np.zeros(3, np.int64)
-        self.slot = np.full((n, n), -1, np.int64)
-        self.n_intr = np.zeros(1, np.int64)
-        self.i_id = np.zeros((cap, 2), np.int64)
-        self.i_cd = np.zeros((cap, 2), np.int64)
-        self.i_real = np.zeros(cap, np.bool_)
-        self.i_geom = np.zeros((cap, 8))
-        self.i_fs = np.zeros((cap, 2))
-
-
-_LOCAL = threading.local()
-
-
-@contextmanager
-def _workspace(n: int, m0: int):
-    """The calling thread's :class:`_Workspace` for N disks and m0 saved interactions (made or grown
-    as needed: cap = max(min(N (N - 1) / 2, 16 N), m0 + 1)); its ``slot`` entries are reset after
-    the call, also when it fails (on a failure the workspace is dropped instead)."""
-    cap = max(min(n * (n - 1) // 2, 16 * n), m0 + 1)
-    work = getattr(_LOCAL, "work", None)
-    if work is None or work.n != n or work.cap < cap:
-        work = _Workspace(n, cap)
-    _LOCAL.work = None  # not shared with a nested call while in use
-    work.n_intr[0] = 0
-    yield work  # a failure propagates from here: the workspace is dropped
-    k = int(work.n_intr[0])
-    work.slot[work.i_id[:k, 0], work.i_id[:k, 1]] = -1
-    _LOCAL.work = work
+#: the set-up of a read-only saved scene (gransim.dem.yade_cell): {YadeRVEState: kept}, dropped
+#: with the state
+_FIRST_RUNS = weakref.WeakKeyDictionary()
 
 
 @njit

@@ -17,10 +17,39 @@ The loadings are those of the YADE decks (``reference_runs/yade/dem_script.py``)
 cell under a :class:`~gransim.dem.settings.Loading` (each axis fixed, at an engineering rate
 c = rate L0 dt with L0 the side length at the start of the run, or under the proportional stress
 servo), the sheared cell under a :class:`~gransim.dem.sheared.ShearLoading` with ``xy erate``
-(every step; y fixed or under the servo). The law is Cundall and Strack's with the constant
-stiffnesses kn, kt and the friction mu of a :class:`~gransim.dem.settings.DEMSettings` whose
-dampings are 0 (YADE's decks are undamped); its time-step limit is that of the undamped Hooke law of
-the same stiffnesses.
+(every step; y fixed or under the servo); and one call of Guo & Zhao's ``simDEM.shear2D`` on the
+sheared cell (:class:`VelGradRun`, below). The law is the engine's, the registered
+:class:`~gransim.contacts.yade_cundall_strack.YadeCundallStrack` (``DEMSettings.hooke_law("yade")``
+by default: the constant stiffnesses kn, kt and the friction angle atan(mu) of a
+:class:`~gransim.dem.settings.DEMSettings` whose dampings are 0, YADE's decks being undamped; or
+Guo & Zhao's radius-dependent stiffnesses); its time-step limit is the law's
+(:func:`~gransim.contacts.yade_cundall_strack.yade_timescale`). NewtonIntegrator's non-viscous
+damping is the cell's (``cell_options={"damping": ...}``, or the saved scene's).
+
+Guo & Zhao's RVE call (Guo & Zhao, "A coupled FEM/DEM approach for hierarchical multiscale
+modelling of granular media", IJNME 99, 2014; their ``simDEM.py``:53-62 on Debian's yade
+2023.02a): a scene deserialised (``Omega.stringToScene``), ``Cell.velGrad = D / (ns dt)``,
+``O.run(ns, True)``, ``Cell.velGrad = 0``, the scene serialised. The engine runs it as
+
+- the construction from the saved scene: ``Engine.from_checkpoint(..., arrays=``
+  :func:`scene_checkpoint` ``(state), step=state.iteration)`` loads a
+  :class:`~gransim.dem.yade_arithmetic.YadeRVEState` (YADE's serialised scene: no bound lists, only
+  the real interactions) and runs the set-up, iteration ``state.iteration`` up to its forces: the
+  cell's prologue with the velGrad the scene was saved with, the collider's first run (its initial
+  sort: the bound lists are not saved, InsertionSortCollider.cpp:264-272) and the interaction loop
+  (with no set-up that the scene overwrites, as :meth:`~gransim.dem.engine.Engine.from_checkpoint`).
+  The set-up does not read the call's D (it reaches the cell through nextVelGrad, applied by the
+  integrator after it, NewtonIntegrator.cpp:149-153): for a read-only scene it is kept while the
+  scene lives and restored by the next loads of it (the Newton iterates of a load step, which all
+  start from the committed scene);
+- ``start_run(VelGradRun(D / (ns dt)), ns)``: ``Cell.velGrad`` set from Python, i.e. nextVelGrad
+  and velGradChanged (core/Cell.hpp:138-142), applied by the first step's integrator;
+- ``advance(ns)``: ns engine steps, each NewtonIntegrator with the damping, the disks' rotation
+  theta += spin dt, then the next iteration up to its forces, except at the run's last step: the
+  scene is saved after that step's integrator, where ``O.run(ns, True)`` stops;
+- :meth:`YadeCell.scene`: the saved scene (``Cell.velGrad = 0`` after the run: nextVelGrad 0,
+  velGradChanged; the real interactions only, in container order). A run started on an engine
+  whose last run saved its scene loads that scene first, as the script's next call does.
 
 Stress: YADE's ``utils.getStress()`` (tension positive, sum F (x) b over det(hSize)), given by the
 engine compression positive, ``stress = -sig^T`` (its [0, 1] the xy virial component sum d_x f_y,
@@ -30,44 +59,55 @@ as the other cells), with YADE's own bits.
 from __future__ import annotations
 
 import math
+import threading
 from collections import namedtuple
+from contextlib import contextmanager
+from dataclasses import dataclass
 
 import numpy as np
 
 from .._numba import njit
 from .._validate import as_int
-from ..contacts.yade_cundall_strack import friction_tangent
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
-from .settings import DEMSettings, Loading
+from .settings import DEMSettings, Integration, Loading
 from .sheared import ShearLoading
 from .yade_arithmetic import (
+    _FIRST_RUNS,
     _FIXED,
     _FULL,
     _RATE,
     _SERVO,
     _TIE,
     _TOO_BIG,
+    RVE_STATE_FIELDS,
     VERLET_FACTOR,
+    YadeRVEState,
     _cell_update,
     _collide,
     _interactions,
     _newton_damped,
     _stress,
+    _unsheared_z,
     yade_cell_z,
 )
 
 #: the bodies: positions, velocities (N, 2), spins, forces, torques, masses, inertias, radii; the
 #: collider's reference positions, sweep lengths, last updates and bounds
+#: collider's reference positions, sweep lengths, last updates and bounds, and each disk's rotation
+#: ``theta`` (rad, counter-clockwise): spin dt summed by the steps of a :class:`VelGradRun`, as
+#: NewtonIntegrator turns ``State::ori`` (leapfrogSphericalRotate, pkg/dem/NewtonIntegrator.cpp:
+#: 327-337: by |angVel| dt about angVel with the spin the step ends with, i.e. spin dt about z for a
+#: disk whose x and y rotations are blocked); read by nothing else
 YadeBodies = namedtuple(
     "YadeBodies",
     ["pos", "vel", "spin", "force", "torque", "mass", "inertia", "radius", "ref_pos", "sweep", "last_update",
-     "aabb_min", "aabb_max"],
+     "aabb_min", "aabb_max", "theta"],
 )  # fmt: skip
 #: the cell: hSize, velGrad, nextVelGrad, prevVelGrad, prevHSize, velGrad prevHSize, the column
 #: sizes, the unshear matrix, the skew cosines, the previous sizes, the stress of the last frame
-#: (YADE's, (2, 2) N/m tension positive), ``misc`` = (z, maxVelocitySq, verletDist), ``changed``
-#: (1,) velGradChanged
+#: (YADE's, (2, 2) N/m tension positive), ``misc`` = (z, maxVelocitySq, verletDist,
+#: NewtonIntegrator.damping, the disks' z), ``changed`` (1,) velGradChanged
 YadeCellState = namedtuple(
     "YadeCellState",
     ["H", "L", "nextL", "Lprev", "prevH", "VP", "size", "U", "cos", "prev_size", "sig", "misc", "changed"],
@@ -116,27 +156,47 @@ def control_grad(ctl, H, sig, dt, out):
     out[1, 1] = gyy
 
 
+#: the law's parameters as the kernels read them (:func:`law_array`): kn, ks, tan(friction angle),
+#: young, poisson, avoidGranularRatcheting (1.0 or 0.0)
+LAW_KN, LAW_KS, LAW_TAN, LAW_YOUNG, LAW_POISSON, LAW_AGR = range(6)
+
+
+def law_array(law) -> np.ndarray:
+    """(6,) float64 of a :class:`~gransim.contacts.yade_cundall_strack.YadeCundallStrack` for the
+    kernels: kn, ks, tan(friction_angle) (``std::tan``, glibc's, as ``math.tan``: FrictPhys.cpp:
+    39-41), young, poisson, 1.0 if avoid_granular_ratcheting else 0.0."""
+    return np.array(
+        [law.kn, law.ks, math.tan(law.friction_angle), law.young, law.poisson,
+         1.0 if law.avoid_granular_ratcheting else 0.0],
+        float,
+    )  # fmt: skip
+
+
 @njit
-def _iteration_rest(it, first, b, c, q, kn, ks, tan_phi, dt):
+def _iteration_rest(it, first, b, c, q, lp, dt, stress):
     """Iteration ``it`` of YADE after Newton: prologue, the collider when active (``first``: its
-    initial sort), the interactions, the stress. Returns (error, axis) of the collider."""
+    initial sort), the interactions with the law ``lp`` (:func:`law_array`), the stress when
+    ``stress``. Returns (error, axis) of the collider."""
     z = c.misc[0]
     has_shear = _cell_update(c.H, z, c.L, dt, c.prevH, c.VP, c.size, c.U, c.cos)
     max_v2 = c.misc[1]
     err, axis = 0, -1
     if first or max_v2 >= 1.0 or max_v2 == 0.0:  # InsertionSortCollider::isActivated
+        zc = _unsheared_z(c.H, c.size, c.misc[4])  # +0.0 for disks at z = 0
         err, axis = _collide(
             it, first, b.pos, b.radius, has_shear, c.U, c.cos, c.size, c.misc[2], b.ref_pos, b.sweep, b.last_update,
             b.aabb_min, b.aabb_max, q.bc, q.bi, q.bp, q.bm, q.lo_idx, q.slot, q.n_intr, q.i_id, q.i_cd, q.i_real,
-            q.i_geom, q.i_fs, 0.0,
+            q.i_geom, q.i_fs, zc,
         )  # fmt: skip
         if err != 0:
             return err, axis
     _interactions(
-        b.pos, b.vel, b.spin, b.radius, c.H, c.VP, kn, ks, tan_phi, 0.0, 0.0, dt, False, q.n_intr, q.i_id, q.i_cd,
-        q.i_real, q.i_geom, q.i_fs, b.force, b.torque,
+        b.pos, b.vel, b.spin, b.radius, c.H, c.VP, lp[LAW_KN], lp[LAW_KS], lp[LAW_TAN], lp[LAW_YOUNG],
+        lp[LAW_POISSON], dt, lp[LAW_AGR] != 0.0, q.n_intr, q.i_id, q.i_cd, q.i_real, q.i_geom, q.i_fs, b.force,
+        b.torque,
     )  # fmt: skip
-    _stress(b.pos, c.H, z, q.n_intr, q.i_id, q.i_cd, q.i_real, q.i_geom, q.i_fs, c.sig)
+    if stress:
+        _stress(b.pos, c.H, z, q.n_intr, q.i_id, q.i_cd, q.i_real, q.i_geom, q.i_fs, c.sig)
     return 0, -1
 
 
@@ -171,7 +231,7 @@ def _row(b, c, q, out, s):
 
 
 @njit
-def yade_block(b, c, q, ctl, kn, ks, tan_phi, dt, dt2, step0, n, out):
+def yade_block(b, c, q, ctl, lp, dt, dt2, step0, n, out):
     """Up to ``n`` engine steps from frame ``step0`` (module docstring: the control of the last
     frame, Newton, then the next iteration up to its stress), a row of ``out`` each. Returns
     (steps done, status, index): status 0 done, 2 a non-finite position (index: the body), 4 a
@@ -182,16 +242,95 @@ def yade_block(b, c, q, ctl, kn, ks, tan_phi, dt, dt2, step0, n, out):
         c.changed[0] = True
         c.misc[1] = _newton_damped(
             b.pos, b.vel, b.spin, b.mass, b.inertia, b.force, b.torque, c.L, c.nextL, c.changed, c.Lprev, c.size,
-            c.prev_size, dt, dt2, b.ref_pos, b.sweep, 0.0,
+            c.prev_size, dt, dt2, b.ref_pos, b.sweep, c.misc[3],
         )  # fmt: skip
         for i in range(b.pos.shape[0]):
             if not (math.isfinite(b.pos[i, 0]) and math.isfinite(b.pos[i, 1])):
                 return s, 2, i
-        err, axis = _iteration_rest(step0 + s + 1, False, b, c, q, kn, ks, tan_phi, dt)
+        err, axis = _iteration_rest(step0 + s + 1, False, b, c, q, lp, dt, True)
         if err != 0:
             return s, 3 + err, axis
         _row(b, c, q, out, s)
     return n, 0, -1
+
+
+@njit
+def rve_block(b, c, q, lp, dt, dt2, step0, n, end, out):
+    """Up to ``n`` engine steps of a :class:`VelGradRun` from step ``step0`` of a run that ends at
+    step ``end`` (module docstring): NewtonIntegrator with the cell's damping, each disk's rotation
+    theta += spin dt (after the integrator, with the spin the step ends with), then the next
+    iteration up to its forces unless the step is the run's last. No per-step stress: the rows
+    of ``out`` (:data:`OUT_COLUMNS`) hold the cell and the velGrad of each step, and the last one
+    also YADE's getStress(), the real interactions, the penetrations and the kinetic energy at
+    the block's end (the others NaN). Returns (steps done, status, index) as :func:`yade_block`."""
+    nb = b.pos.shape[0]
+    for s in range(n):
+        c.misc[1] = _newton_damped(
+            b.pos, b.vel, b.spin, b.mass, b.inertia, b.force, b.torque, c.L, c.nextL, c.changed, c.Lprev, c.size,
+            c.prev_size, dt, dt2, b.ref_pos, b.sweep, c.misc[3],
+        )  # fmt: skip
+        for i in range(nb):  # NewtonIntegrator.cpp:329-335: ori turned by the step's final spin, times dt
+            b.theta[i] += b.spin[i] * dt
+        for i in range(nb):
+            if not (math.isfinite(b.pos[i, 0]) and math.isfinite(b.pos[i, 1])):
+                return s, 2, i
+        if step0 + s + 1 < end:
+            err, axis = _iteration_rest(step0 + s + 1, False, b, c, q, lp, dt, False)
+            if err != 0:
+                return s, 3 + err, axis
+        for k in range(7):
+            out[s, k] = np.nan
+        out[s, 7] = c.H[0, 0]
+        out[s, 8] = c.H[0, 1]
+        out[s, 9] = c.H[1, 0]
+        out[s, 10] = c.H[1, 1]
+        out[s, 11] = c.L[0, 0]
+        out[s, 12] = c.L[0, 1]
+        out[s, 13] = c.L[1, 0]
+        out[s, 14] = c.L[1, 1]
+    if n:
+        _stress(b.pos, c.H, c.misc[0], q.n_intr, q.i_id, q.i_cd, q.i_real, q.i_geom, q.i_fs, c.sig)
+        _row(b, c, q, out, n - 1)
+    return n, 0, -1
+
+
+@njit
+def _reset_bounds(bc, bi, bp, bm, lo_idx):
+    """The bound lists of a new collider, unsorted (a loaded scene has none: its first run sorts)."""
+    m = bc.shape[1]
+    for a in range(3):
+        lo_idx[a] = 0
+        for k in range(m):
+            bi[a, k] = k // 2
+            bm[a, k] = k % 2 == 0
+            bp[a, k] = 0
+            bc[a, k] = 0.0
+
+
+@dataclass(frozen=True)
+class VelGradRun:
+    """One call of Guo & Zhao's ``simDEM.shear2D`` as a run of the sheared yade cell
+    (``start_run(VelGradRun(vel_grad), ns)``, module docstring): ``Cell.velGrad = vel_grad`` set
+    from Python before the run (kept in nextVelGrad with velGradChanged, core/Cell.hpp:138-142,
+    applied by the first step's integrator; the first step's cell update uses the velGrad the cell
+    held), then ``O.run(ns, True)``: the run ends after its last step's integrator, where the
+    scene is saved (:meth:`YadeCell.scene`). ``vel_grad`` (2, 2) 1/s: D / (ns dt) for Guo & Zhao's
+    strain increment D."""
+
+    vel_grad: np.ndarray
+
+    def __post_init__(self):
+        try:
+            L = np.array(self.vel_grad, float).reshape(2, 2)
+        except (TypeError, ValueError):
+            raise InputError(f"vel_grad: expected a (2, 2) velocity gradient (1/s), got {self.vel_grad!r}") from None
+        if not np.all(np.isfinite(L)):
+            raise InputError(f"vel_grad: the velocity gradient must be finite, got {L.tolist()}")
+        object.__setattr__(self, "vel_grad", L)
+
+
+#: the control of a :class:`VelGradRun` on the engine: its step of the saved scene
+RVEControl = namedtuple("RVEControl", ["end"])
 
 
 class YadeCell:
@@ -200,28 +339,22 @@ class YadeCell:
     (:data:`YadeContainer`), ``sc`` (the virial of the last frame in the engine's convention)."""
 
     order = "code"
+    #: the engine gives this cell only laws of YADE's arithmetic (gransim.dem.engine.Engine._set_law)
+    law_code = "yade"
 
     @staticmethod
     def check(packing: Packing, settings, flavour: str) -> None:
-        if not isinstance(settings, DEMSettings):
-            raise InputError(
-                "settings: the yade arithmetic takes a DEMSettings (kn, kt, mu of Cundall and Strack's law), got "
-                f"{type(settings).__name__}"
-            )
-        if settings.gamma_n != 0 or settings.gamma_t != 0:
+        if isinstance(settings, DEMSettings) and (settings.gamma_n != 0 or settings.gamma_t != 0):
             raise InputError(
                 f"settings.gamma_n, gamma_t: the yade arithmetic runs Cundall and Strack's undamped law, got "
                 f"{settings.gamma_n!r}, {settings.gamma_t!r}"
             )
-        C = np.asarray(packing.cell, float)
-        if C[0, 1] != 0.0 or C[1, 0] != 0.0:
-            raise InputError(f"packing.cell: the yade arithmetic starts from an orthogonal cell, got {C.tolist()}")
 
     @staticmethod
     def check_size(packing: Packing, settings) -> None:
         pass  # the collider stops on a bound over half of the cell (status 4), as YADE does
 
-    def __init__(self, eng, box, threads, x, v, w, z=None):
+    def __init__(self, eng, box, threads, x, v, w, z=None, damping=0.0):
         if box is not None:
             raise InputError("box: the yade arithmetic's cell is the packing's, from the origin (box=None)")
         if threads not in (None, 1):
@@ -234,15 +367,19 @@ class YadeCell:
         rho = float(p.density)
         mass = np.array([rho * math.pi * r * r for r in radius])  # the script: rho * math.pi * r * r
         inertia = np.array([0.5 * m * r * r for m, r in zip(mass, radius)])  # 0.5 * m * r * r
-        self.kn, self.ks, self.tan_phi = float(s.kn), float(s.kt), friction_tangent(s.mu)
+        self.lp = law_array(eng.law)
+        damping = float(damping)
+        if not (0.0 <= damping < 1.0):
+            raise InputError(f"damping: NewtonIntegrator's non-viscous damping is in [0, 1), got {damping!r}")
         self.dt = float(s.dt)
         self.dt2 = self.dt * self.dt  # pow(dt, 2) (NewtonIntegrator.cpp:164), folded into dt * dt by GCC
         eng.yb = YadeBodies(
             x.copy(), v.copy(), w.copy(), np.zeros((n, 2)), np.zeros(n), mass, inertia, radius,
             np.full((n, 2), np.nan), np.zeros(n), np.zeros(n, np.int64), np.zeros((n, 3)), np.zeros((n, 3)),
+            np.zeros(n),
         )  # fmt: skip
         C = np.asarray(p.cell, float)
-        misc = np.array([self.z, 0.0, VERLET_FACTOR * float(radius.min())])
+        misc = np.array([self.z, 0.0, VERLET_FACTOR * float(radius.min()), damping, 0.0])
         eng.yc = YadeCellState(
             C.copy(), np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)),
             np.zeros(3), np.zeros((2, 2)), np.zeros(3), np.full(3, np.nan), np.zeros((2, 2)), misc,
@@ -259,6 +396,9 @@ class YadeCell:
         eng.sc = _Scratch(np.zeros(4))
         self._set_up = False
         self.run = None
+        self.saved = False  # the last run ended with its scene saved (a VelGradRun): the next run loads it
+        self._rve_rows = False  # the last block was a VelGradRun's (rve_block's rows)
+        self._scene = None  # the loaded scene's radii, mass, inertia (handed on by scene())
 
     # geometry: YADE's hSize
     def matrix(self, eng) -> np.ndarray:
@@ -280,12 +420,17 @@ class YadeCell:
 
     def forces(self, eng, update: bool):
         if not self._set_up:
-            err, axis = _iteration_rest(0, True, eng.yb, eng.yc, eng.yq, self.kn, self.ks, self.tan_phi, self.dt)
-            if err:
-                raise SimulationError(f"step 0: {self.failure_message(eng, 3 + err, axis)}")
-            self._set_up = True
+            self._set_up_iteration(eng, 0)
         self._set_virial(eng)
         return self._counts(eng)
+
+    def _set_up_iteration(self, eng, it: int) -> None:
+        """Iteration ``it`` up to its stress with the collider's initial sort (a new engine's set-up,
+        or a loaded scene's); SimulationError naming the step when the collider stops."""
+        err, axis = _iteration_rest(it, True, eng.yb, eng.yc, eng.yq, self.lp, self.dt, True)
+        if err:
+            raise SimulationError(f"step {it}: {self.failure_message(eng, 3 + err, axis)}")
+        self._set_up = True
 
     def _counts(self, eng):
         q = eng.yq
@@ -354,6 +499,17 @@ class YadeCell:
         raise InputError(f"loading: the yade arithmetic's {self.kind} cell takes {want}, got {type(loading).__name__}")
 
     def start_run(self, eng, loading, nsteps: int):
+        if self.saved:  # the script's next call loads the scene the last one saved
+            self._load_scene(eng, self.scene(eng), eng.yb.theta.copy(), eng.step)
+            eng.stress = eng.stress_tensor()
+        if isinstance(loading, VelGradRun):
+            if self.kind != "sheared":
+                raise InputError("loading: a VelGradRun (Guo & Zhao's call) runs on the sheared yade cell")
+            c = eng.yc
+            c.nextL[...] = loading.vel_grad  # Cell.velGrad set from Python: nextVelGrad, velGradChanged
+            c.changed[0] = True
+            self.run = (RVEControl(eng.step + nsteps), eng.step + nsteps)
+            return self.run
         self.run = (self.control(eng, loading), eng.step + nsteps)
         return self.run
 
@@ -386,9 +542,14 @@ class YadeCell:
         return eng.yc.H.copy()
 
     def block(self, eng, ctl, out, done: int, n: int, resume: bool):
-        return yade_block(
-            eng.yb, eng.yc, eng.yq, ctl, self.kn, self.ks, self.tan_phi, self.dt, self.dt2, eng.step, n, out[done:]
-        )
+        self._rve_rows = isinstance(ctl, RVEControl)
+        if self._rve_rows:
+            k, status, index = rve_block(
+                eng.yb, eng.yc, eng.yq, self.lp, self.dt, self.dt2, eng.step, n, ctl.end, out[done:]
+            )
+            self.saved = status == 0 and eng.step + k == ctl.end
+            return k, status, index
+        return yade_block(eng.yb, eng.yc, eng.yq, ctl, self.lp, self.dt, self.dt2, eng.step, n, out[done:])
 
     def check_divergence(self, eng, out, done: int, k: int, H_before):
         """The divergence check (:meth:`gransim.dem.engine.Engine._check_energy`) after the k steps
@@ -398,6 +559,17 @@ class YadeCell:
         the frame, its velGrad)."""
         rows = out[done : done + k]
         area = rows[:, 7] * rows[:, 10] - rows[:, 9] * rows[:, 8]
+        if self._rve_rows:
+            # a VelGradRun keeps no per-step stress: the work of each step with the stress at the
+            # block's end (its last row), the kinetic energy there only
+            sig = rows[-1, 0:4]
+            dw = area * self.dt * (sig[0] * rows[:, 11] + sig[1] * rows[:, 12] + sig[2] * rows[:, 13]
+                                   + sig[3] * rows[:, 14])  # fmt: skip
+            eng._check_energy(
+                eng.step + k, rows[-1:, 6], np.array([self.budget_kinetic_energy(eng)]), np.array([np.sum(dw)]),
+                flow=self.flow_kinetic_energy(eng),
+            )  # fmt: skip
+            return
         dw = area * self.dt * (rows[:, 0] * rows[:, 11] + rows[:, 1] * rows[:, 12] + rows[:, 2] * rows[:, 13]
                                + rows[:, 3] * rows[:, 14])  # fmt: skip
         ke = np.full(k, np.nan)
@@ -422,6 +594,17 @@ class YadeCell:
     def result(self, eng, out: np.ndarray, first: int) -> dict:
         n = out.shape[0]
         self._set_virial(eng)
+        if self._rve_rows:
+            # a VelGradRun: the cell and the velGrad of every step; its stress, contacts and kinetic
+            # energy at the end only (Engine.stress, n_contacts, mean_overlap)
+            if n:
+                eng.n_contacts = round(float(out[-1, 4]))
+                eng.mean_overlap = float(out[-1, 5] / out[-1, 4]) if out[-1, 4] else 0.0
+            return {
+                "step": np.arange(first + 1, first + n + 1),
+                "cell": out[:, 7:11].reshape(n, 2, 2).copy(),
+                "vel_grad": out[:, 11:15].reshape(n, 2, 2).copy(),
+            }
         if n:
             eng.n_contacts = round(float(out[-1, 4]))
             eng.mean_overlap = float(out[-1, 5] / out[-1, 4]) if out[-1, 4] else 0.0
@@ -520,12 +703,21 @@ class YadeCell:
         objs = {"bodies": eng.yb, "cell": eng.yc, "container": eng.yq}
         out = {k: np.array(getattr(objs[o], f)) for k, (o, f) in CHECKPOINT.items()}
         out["yade/set_up"] = np.array(self._set_up)
+        out["yade/scene_saved"] = np.array(self.saved)
         if self.run is not None:
-            out["yade/run_control"] = self.run[0].copy()
+            if isinstance(self.run[0], RVEControl):
+                out["yade/run_vel_grad_run"] = np.array(True)
+            else:
+                out["yade/run_control"] = self.run[0].copy()
             out["yade/run_end"] = np.array(self.run[1], np.int64)
         return out
 
     def restore(self, eng, arrays: dict, step: int) -> int:
+        """The engine's checkpoint (:meth:`state_arrays`), or YADE's saved scene
+        (:func:`scene_checkpoint`: loaded, then its set-up run or restored)."""
+        if "yade/scene" in arrays:
+            self._load_scene(eng, arrays["yade/scene"], arrays.get("yade/scene_rotation"), int(step))
+            return int(step)
         objs = {"bodies": eng.yb, "cell": eng.yc, "container": eng.yq}
         try:
             for k, (o, f) in CHECKPOINT.items():
@@ -543,12 +735,117 @@ class YadeCell:
         m = q.n_intr[0]
         q.slot[q.i_id[:m, 0], q.i_id[:m, 1]] = np.arange(m)
         self._set_up = bool(arrays["yade/set_up"])
+        self.saved = bool(arrays.get("yade/scene_saved", False))
         self.run = None
         if "yade/run_control" in arrays:
             self.run = (np.array(arrays["yade/run_control"], float), int(arrays["yade/run_end"]))
+        elif "yade/run_vel_grad_run" in arrays:
+            end = int(arrays["yade/run_end"])
+            self.run = (RVEControl(end), end)
         eng._run_drive = self.run
         self._set_virial(eng)
         return int(step)
+
+    # YADE's saved scene (Guo & Zhao's RVE between calls)
+    def _load_scene(self, eng, state: YadeRVEState, rotation, step: int) -> None:
+        """Load the saved scene ``state`` (what ``Omega.stringToScene`` restores: the bodies with their
+        bounds' refPos, sweepLength, lastUpdateIter; the cell; NewtonIntegrator's prevVelGrad,
+        prevCellSize, damping; the real interactions in container order; no bound lists) and run its
+        set-up, iteration ``state.iteration`` up to its forces (module docstring), or restore it when
+        kept for this read-only scene. ``rotation`` (N,) rad: the disks' rotations carried on (None:
+        0)."""
+        if not isinstance(state, YadeRVEState):
+            raise InputError(f"restore: yade/scene must be a YadeRVEState, got {type(state).__name__}")
+        b, c, q = eng.yb, eng.yc, eng.yq
+        n = b.pos.shape[0]
+        if state.n != n or not np.array_equal(state.radii, b.radius):
+            raise InputError(f"restore: the scene's {state.n} disks are not this engine's {n} (radii differ)")
+        law = eng.law
+        mat = (float(state.young), float(state.poisson), float(state.friction_angle))
+        if mat != (law.young, law.poisson, law.friction_angle) or float(state.dt) != self.dt:
+            raise InputError(
+                f"restore: the scene's material (young, poisson, friction angle) {mat} and dt {state.dt!r} are not "
+                f"the engine's law {(law.young, law.poisson, law.friction_angle)} and dt {self.dt!r}"
+            )
+        if int(step) != int(state.iteration):
+            raise InputError(f"restore: a saved scene is restored at its iteration {state.iteration}, got step {step}")
+        m0 = len(state.kn)
+        if m0 >= q.i_id.shape[0]:
+            raise InputError(f"restore: the scene's {m0} interactions exceed the container ({q.i_id.shape[0]})")
+        k = int(q.n_intr[0])  # the pair index of the last content cleared
+        q.slot[q.i_id[:k, 0], q.i_id[:k, 1]] = -1
+        b.pos[...] = state.positions
+        b.vel[...] = state.velocities
+        b.spin[...] = state.spins
+        b.mass[...] = state.mass
+        b.inertia[...] = state.inertia
+        b.ref_pos[...] = state.bound_ref
+        b.sweep[...] = state.sweep
+        b.last_update[...] = state.last_update
+        b.theta[...] = 0.0 if rotation is None else rotation
+        c.H[...] = state.hsize
+        c.L[...] = state.vel_grad
+        c.nextL[...] = state.next_vel_grad
+        c.changed[0] = bool(state.vel_grad_changed)
+        c.Lprev[...] = state.newton_prev_vel_grad
+        c.prev_size[...] = state.prev_cell_size
+        c.misc[:] = (state.z, 0.0, state.verlet, state.damping, state.z_pos)
+        self.z = float(state.z)
+        self._scene = (state.radii, state.mass, state.inertia)
+        kept = _FIRST_RUNS.get(state)
+        if kept is not None:
+            kept.restore(b, c, q)
+        else:
+            q.n_intr[0] = m0
+            q.i_id[:m0] = state.ids
+            q.i_cd[:m0] = state.cell_dist
+            q.i_real[:m0] = True
+            g = q.i_geom
+            g[:m0, 0:2] = state.normal
+            g[:m0, 2] = 0.0  # penetrationDepth: NaN in a loaded scene, recomputed before it is read
+            g[:m0, 3:5] = state.normal_force
+            g[:m0, 5] = state.kn
+            g[:m0, 6] = state.ks
+            g[:m0, 7] = state.tan_phi
+            q.i_fs[:m0] = state.shear_force
+            q.slot[state.ids[:, 0], state.ids[:, 1]] = np.arange(m0)
+            _reset_bounds(q.bc, q.bi, q.bp, q.bm, q.lo_idx)
+            self._set_up_iteration(eng, int(state.iteration))
+            if _read_only(state):
+                _FIRST_RUNS[state] = _SetUp.of(b, c, q)
+        self._set_up = True
+        self.saved = False
+        self.run = None
+        eng._run_drive = None
+        self._set_virial(eng)
+
+    def scene(self, eng) -> YadeRVEState:
+        """The scene a :class:`VelGradRun` saved at its end, as Guo & Zhao's script serialises it
+        after ``Cell.velGrad = 0`` (simDEM.py:61: nextVelGrad 0, velGradChanged): the real
+        interactions only, in container order (core/InteractionContainer.cpp:174-181). New arrays
+        (the radii, mass and inertia those of the loaded scene). InputError before a run saved it."""
+        if not self.saved:
+            raise InputError("scene: no saved scene (the engine's last run was not a VelGradRun that ended)")
+        b, c, q = eng.yb, eng.yc, eng.yq
+        H = c.H
+        size = np.array([math.sqrt(H[0, 0] * H[0, 0] + H[1, 0] * H[1, 0]),
+                         math.sqrt(H[0, 1] * H[0, 1] + H[1, 1] * H[1, 1]), math.sqrt(self.z * self.z)])  # fmt: skip
+        if not np.array_equal(size, c.prev_size):
+            raise SimulationError(f"step {eng.step}: the cell's size is not NewtonIntegrator.prevCellSize")
+        real = np.flatnonzero(q.i_real[: q.n_intr[0]])
+        g = q.i_geom[real]
+        radii, mass, inertia = self._scene or (b.radius.copy(), b.mass.copy(), b.inertia.copy())
+        law = eng.law
+        return YadeRVEState(
+            iteration=int(eng.step), dt=self.dt, z=self.z, z_pos=float(c.misc[4]), radii=radii, mass=mass,
+            inertia=inertia, positions=b.pos.copy(), velocities=b.vel.copy(), spins=b.spin.copy(),
+            bound_ref=b.ref_pos.copy(), sweep=b.sweep.copy(), last_update=b.last_update.copy(), hsize=H.copy(),
+            vel_grad=c.L.copy(), next_vel_grad=np.zeros((2, 2)), vel_grad_changed=True,
+            newton_prev_vel_grad=c.Lprev.copy(), prev_cell_size=c.prev_size.copy(), verlet=float(c.misc[2]),
+            damping=float(c.misc[3]), young=law.young, poisson=law.poisson, friction_angle=law.friction_angle,
+            ids=q.i_id[real], cell_dist=q.i_cd[real], normal=g[:, 0:2].copy(), kn=g[:, 5].copy(), ks=g[:, 6].copy(),
+            tan_phi=g[:, 7].copy(), normal_force=g[:, 3:5].copy(), shear_force=q.i_fs[real],
+        )  # fmt: skip
 
     def memory_bytes(self, eng) -> dict:
         return {
@@ -563,15 +860,152 @@ _Scratch = namedtuple("_Scratch", ["vir"])
 
 
 class YadeOrthogonalCell(YadeCell):
-    """YADE's cell under a :class:`~gransim.dem.settings.Loading` (the biaxial decks)."""
+    """YADE's cell under a :class:`~gransim.dem.settings.Loading` (the biaxial decks), from an
+    orthogonal packing cell."""
 
     kind = "orthogonal"
 
+    @staticmethod
+    def check(packing: Packing, settings, flavour: str) -> None:
+        YadeCell.check(packing, settings, flavour)
+        C = np.asarray(packing.cell, float)
+        if C[0, 1] != 0.0 or C[1, 0] != 0.0:
+            raise InputError(
+                f"packing.cell: the yade arithmetic's orthogonal cell starts from an orthogonal cell, got {C.tolist()}"
+            )
+
 
 class YadeShearedCell(YadeCell):
-    """YADE's cell under a :class:`~gransim.dem.sheared.ShearLoading` (the simple-shear decks)."""
+    """YADE's cell (any hSize) under a :class:`~gransim.dem.sheared.ShearLoading` (the simple-shear
+    decks) or a :class:`VelGradRun` (Guo & Zhao's call)."""
 
     kind = "sheared"
 
 
-__all__ = ["OUT_COLUMNS", "YadeCell", "YadeOrthogonalCell", "YadeShearedCell", "control_grad", "yade_block"]
+# ------------------------------------------------------------------------------ Guo & Zhao's RVE
+
+
+def _read_only(state: YadeRVEState) -> bool:
+    """Whether every array of ``state`` is read-only (then its set-up can be kept)."""
+    for name in RVE_STATE_FIELDS:
+        v = getattr(state, name)
+        if isinstance(v, np.ndarray) and v.flags.writeable:
+            return False
+    return True
+
+
+@dataclass(frozen=True, eq=False)
+class _SetUp:
+    """What a loaded scene's set-up (:meth:`YadeCell._load_scene`) writes: the bounds' ref_pos,
+    sweep, last_update, the forces and torques; the cell's H, prevH, VP, size, U, cos and stress;
+    the sorted bound lists and the interaction container (its first ``n`` entries)."""
+
+    bodies: tuple
+    cell: tuple
+    bounds: tuple
+    container: tuple
+
+    BODIES = ("ref_pos", "sweep", "last_update", "force", "torque")
+    CELL = ("H", "prevH", "VP", "size", "U", "cos", "sig")
+    BOUNDS = ("bc", "bi", "bp", "bm", "lo_idx")
+    CONTAINER = ("i_id", "i_cd", "i_real", "i_geom", "i_fs")
+
+    @classmethod
+    def of(cls, b, c, q) -> _SetUp:
+        n = int(q.n_intr[0])
+        return cls(
+            tuple(getattr(b, f).copy() for f in cls.BODIES), tuple(getattr(c, f).copy() for f in cls.CELL),
+            tuple(getattr(q, f).copy() for f in cls.BOUNDS), tuple(getattr(q, f)[:n].copy() for f in cls.CONTAINER),
+        )  # fmt: skip
+
+    def restore(self, b, c, q) -> None:
+        parts = ((b, self.BODIES, self.bodies), (c, self.CELL, self.cell), (q, self.BOUNDS, self.bounds))
+        for obj, names, vals in parts:
+            for f, v in zip(names, vals):
+                getattr(obj, f)[...] = v
+        n = len(self.container[0])
+        for f, v in zip(self.CONTAINER, self.container):
+            getattr(q, f)[:n] = v
+        q.n_intr[0] = n
+        ids = self.container[0]
+        q.slot[ids[:, 0], ids[:, 1]] = np.arange(n)
+
+
+def scene_checkpoint(state: YadeRVEState, rotation=None) -> dict:
+    """The checkpoint ``arrays`` of :meth:`gransim.dem.engine.Engine.from_checkpoint` (or
+    ``restore``) that load YADE's saved scene ``state`` into the sheared yade cell, at step
+    ``state.iteration``; ``rotation`` (N,) rad: the disks' rotations carried on (default 0)."""
+    return {"yade/scene": state, "yade/scene_rotation": rotation}
+
+
+def scene_law(state: YadeRVEState):
+    """The law of a saved scene's material: Guo & Zhao's radius-dependent stiffnesses (young,
+    poisson), its friction angle, ``avoidGranularRatcheting`` (prepareRVE.py keeps Ig2's default)."""
+    from ..contacts.yade_cundall_strack import yade_law  # noqa: PLC0415 - one import path for the law
+
+    return yade_law(state.friction_angle, young=state.young, poisson=state.poisson, avoid_granular_ratcheting=True)
+
+
+def scene_engine(state: YadeRVEState, rotation=None):
+    """A new engine (sheared yade cell) holding the saved scene ``state`` after its set-up
+    (:meth:`~gransim.dem.engine.Engine.from_checkpoint` with :func:`scene_checkpoint`). Its packing:
+    the scene's positions, radii and cell, the density of the first disk's mass. The time step is
+    YADE's (the scene's: 0.5 of YADE's P-wave step in prepareRVE.py), reproduced and not checked
+    against the engine's stability limit, which is stricter."""
+    from .engine import Engine  # noqa: PLC0415 - cycle: engine -> yade_cell
+
+    r = np.asarray(state.radii, float)
+    packing = Packing(
+        np.asarray(state.positions, float), r, np.asarray(state.hsize, float),
+        float(state.mass[0]) / (math.pi * r[0] * r[0]),
+    )  # fmt: skip
+    return Engine.from_checkpoint(
+        packing, Integration(dt=float(state.dt)), scene_checkpoint(state, rotation), int(state.iteration),
+        check_dt=False, law=scene_law(state), cell="sheared", flavour="yade", cell_options={"z": float(state.z)},
+    )  # fmt: skip
+
+
+_LOCAL = threading.local()
+
+
+@contextmanager
+def rve_engine(state: YadeRVEState, rotation=None):
+    """The calling thread's engine holding the saved scene ``state`` after its set-up: made once
+    per thread (:func:`scene_engine`) and restored with each scene of the same disks, material and
+    dt (allocating its arrays afresh, the 1.3 MB pair index among them, cost about a tenth of a
+    100-step call of 400 disks). Not shared with a nested call while in use; dropped when the call
+    fails."""
+    eng = getattr(_LOCAL, "engine", None)
+    _LOCAL.engine = None
+    if eng is not None:
+        law = eng.law
+        fits = (
+            eng.n == state.n and eng.cell_ops.dt == float(state.dt)
+            and (law.young, law.poisson, law.friction_angle)
+            == (float(state.young), float(state.poisson), float(state.friction_angle))
+            and np.array_equal(eng.yb.radius, state.radii)
+        )  # fmt: skip
+        if fits:
+            eng.restore(scene_checkpoint(state, rotation), int(state.iteration))
+        else:
+            eng = None
+    if eng is None:
+        eng = scene_engine(state, rotation)
+    yield eng  # a failure propagates from here: the engine is dropped
+    _LOCAL.engine = eng
+
+
+__all__ = [
+    "OUT_COLUMNS",
+    "VelGradRun",
+    "YadeCell",
+    "YadeOrthogonalCell",
+    "YadeShearedCell",
+    "control_grad",
+    "rve_block",
+    "rve_engine",
+    "scene_checkpoint",
+    "scene_engine",
+    "scene_law",
+    "yade_block",
+]
