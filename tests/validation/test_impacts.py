@@ -323,3 +323,26 @@ def test_absent_codes_are_stood_in_for_by_their_stored_runs(tmp_path, monkeypatc
     for pair in ("native-liggghts", "native-lammps", "native-yade", "liggghts-lammps"):
         assert res.cell(pair)["state"] == "pass", pair
     assert res.not_applicable.keys() == {"liggghts-yade", "lammps-yade"}
+
+
+def test_a_failed_yade_job_fails_its_evidence_and_gets_no_verdict(tmp_path, monkeypatch):
+    """YADE installed but its job fails: the native vs YADE column holds the failure (named) and the
+    missing frames, and YADE's run is not judged against the closed forms (no answers to judge); the
+    other columns are unaffected."""
+    from reference_runs.errors import ReferenceRunError
+    from validation import yade_runs
+
+    _only(monkeypatch, "normal-z0.35")
+
+    def boom(*a, **k):
+        raise ReferenceRunError("yade exited with status 1\nsecond line")
+
+    monkeypatch.setattr(yade_runs, "impact_live", boom)
+    ctx = Context("quick", tmp_path / "results", available=frozenset({"yade"}))
+    res = I.impacts(ctx)
+    bad = [r for r in res.checks if not r.passed]
+    assert {(r.case, r.pair) for r in bad} == {("impacts/normal-z0.35/yade", "native-yade")}
+    assert "incomplete: YADE job failed: yade exited with status 1" in [r.metric for r in bad]
+    assert any(r.metric.startswith("incomplete: expected 82 YADE frames, got 0") for r in bad)
+    assert not [r for r in res.records if r.case.endswith("/yade") and r.case.count("/") == 3]
+    assert res.cell("native-yade")["state"] == "FAIL" and res.cell("native-liggghts")["state"] == "pass"

@@ -2304,6 +2304,8 @@ def _answer_kind(sc, im, an, qn: str) -> str:
     src = _src(qn)
     if qn == "coulomb bound":
         return "bound mu |F_n|"
+    if qn == "energy gain":
+        return "bound KE'/KE 1"
     kind = (
         an.get("source", "analytic")
         if src in ("contact time", "peak overlap", "peak force", "restitution")
