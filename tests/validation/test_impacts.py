@@ -346,3 +346,17 @@ def test_a_failed_yade_job_fails_its_evidence_and_gets_no_verdict(tmp_path, monk
     assert any(r.metric.startswith("incomplete: expected 82 YADE frames, got 0") for r in bad)
     assert not [r for r in res.records if r.case.endswith("/yade") and r.case.count("/") == 3]
     assert res.cell("native-yade")["state"] == "FAIL" and res.cell("native-liggghts")["state"] == "pass"
+
+
+def test_the_columns_follow_the_laws_engines(tmp_path, monkeypatch):
+    """A scene whose law only LAMMPS has (gran/hertz/history) makes the native vs LAMMPS column (and
+    YADE's, which has an undamped Hertz law) and nothing of LIGGGHTS: its columns are not applicable,
+    saying so, and no column is left undeclared."""
+    from validation.core import PAIRS
+
+    _only(monkeypatch, "hertz-lammps")
+    res = I.impacts(_ctx(tmp_path))
+    assert res.passed and set(res.matrix) == {"native-lammps", "native-yade"}
+    assert "no scene of the quick suite has a law of LIGGGHTS" in res.not_applicable["native-liggghts"]
+    assert set(res.matrix) | set(res.not_applicable) == set(PAIRS)
+    assert not [r for r in res.checks if "liggghts" in r.pair]
