@@ -30,6 +30,8 @@ Criteria:
 * :func:`ensemble_envelope`, :func:`ensemble_cross`: a long loading, native against a code's
   :class:`Ensemble` (evidence of every run, then :func:`envelope` and :func:`band`), and two codes'
   references within the sum of their bands.
+* :func:`statistics_band`, :func:`statistics_cross`: statistics of the snapshots (void cells) of a run
+  within a code's band, and of two codes' references within the sum of their bands.
 * :func:`cell_lists`: Kuhn's void cells of two runs' snapshots, frame by frame: the same cell lists,
   alpha and w at round-off.
 * :func:`taylor_stress`, :func:`taylor_contacts`, :func:`taylor_cross`: Taylor states (no dynamics)
@@ -684,6 +686,81 @@ def band(
 
     width = peak(diff(m, reference) for m in members)
     return compare(label, quantity, metric, diff(native, reference), factor * width, reason)
+
+
+# ====================================================================== statistics of snapshots
+def statistics_band(
+    label: str,
+    nat,
+    ref,
+    *members,
+    frames,
+    statistics,
+    checks,
+    factor: float,
+    reason: str,
+    sides,
+    member_names=(),
+    diff=None,
+) -> tuple[list, dict]:
+    """Statistics of a run's snapshots against a code's: ``statistics(trajectory) -> (F, k)`` array
+    over the expected ``frames``; for each check ``(col, quantity)`` the run's column within
+    ``factor`` times the band of the code's perturbed runs (``members``) around its reference
+    (:func:`band`). First the evidence of every run (every expected frame); on incomplete evidence
+    no verdict. Returns (records, summary: complete, stats {name: array}, bands {quantity})."""
+    names = member_names or [f"member {i}" for i in range(len(members))]
+    named = [(sides[0], nat), (sides[1], ref), *((f"{sides[1]} {n}", t) for n, t in zip(names, members))]
+    recs = []
+    for who, tr in named:
+        recs += trajectory_evidence(label, who, tr, None, frames)
+    if not all(r.passed for r in recs):
+        return recs, {"complete": False}
+    st = {who: statistics(tr) for who, tr in named}
+    mem = [st[who] for who, _ in named[2:]]
+    bands = {}
+    for col, quantity in checks:
+        d = diff or (lambda x, y: float(np.abs(np.asarray(x, float) - np.asarray(y, float)).max()))
+        bands[quantity] = peak(d(m[:, col], st[sides[1]][:, col]) for m in mem)
+        recs.append(
+            band(
+                label,
+                quantity,
+                f"max over {len(frames)} frames |{sides[0]} - {sides[1]}|",
+                st[sides[0]][:, col],
+                st[sides[1]][:, col],
+                [m[:, col] for m in mem],
+                factor=factor,
+                reason=reason,
+                diff=diff,
+            )  # fmt: skip
+        )
+    return recs, {"complete": True, "stats": st, "bands": bands}
+
+
+def statistics_cross(
+    label: str, ref_a, ref_b, *members, n_a: int, frames, statistics, checks, reason: str, sides, diff=None
+) -> tuple[list, dict]:
+    """Two codes' references by their snapshots' statistics: each lies within its own band (the
+    largest deviation of a perturbed run from its reference: ``members``, the first ``n_a`` of
+    code a), so their columns must differ by at most the sum of the two bands. Evidence of every
+    run first; no verdict on incomplete evidence."""
+    na, nb = sides
+    runs = [(na, ref_a), (nb, ref_b), *((f"{na if i < n_a else nb} member {i}", t) for i, t in enumerate(members))]
+    recs = []
+    for who, tr in runs:
+        recs += trajectory_evidence(label, who, tr, None, frames)
+    both = int(n_a > 0) + int(n_a < len(members))
+    recs.append(evidence(label, "codes with perturbed runs (their bands)", 2, both))
+    if not all(r.passed for r in recs):
+        return recs, {"complete": False}
+    d = diff or (lambda x, y: float(np.abs(np.asarray(x, float) - np.asarray(y, float)).max()))
+    sa, sb = statistics(ref_a), statistics(ref_b)
+    ma, mb = [statistics(t) for t in members[:n_a]], [statistics(t) for t in members[n_a:]]
+    for col, quantity in checks:
+        width = peak(d(m[:, col], sa[:, col]) for m in ma) + peak(d(m[:, col], sb[:, col]) for m in mb)
+        recs.append(compare(label, quantity, f"max over {len(frames)} frames |{na} - {nb}|", d(sa[:, col], sb[:, col]),
+                            width, reason))  # fmt: skip
+    return recs, {"complete": True}
 
 
 # ====================================================================== Taylor states

@@ -529,3 +529,41 @@ def test_the_analytic_judge_makes_one_figure_of_several_runs():
     assert s[("", "t: order")] == {"dt": 4e-3, "dt/2": 1e-3}
     recs, _ = analytic("c", {("", "t: order"): 4e-3}, {}, **kw)
     assert math.isnan(recs[0].value) and "no answer from dt/2" in recs[0].metric
+
+
+def test_statistics_band_and_cross_judge_within_the_bands_and_need_every_run():
+    from validation.judges import statistics_band, statistics_cross
+
+    frames = [0, 5, 10]
+    runs = {k: _traj(n=4, steps=10, dump=5, seed=k) for k in range(6)}
+    level = {
+        0: 0.0,
+        1: 0.0,
+        2: 0.1,
+        3: -0.2,
+        4: 0.05,
+        5: 0.3,
+    }  # native, ref a, members a, ref b, ... statistics offsets
+
+    def stats(tr):
+        k = next(i for i, t in runs.items() if t is tr)
+        return np.full((len(frames), 2), level[k])
+
+    kw = {"frames": frames, "statistics": stats, "checks": ((0, "mean_alpha"),), "reason": "r"}
+    recs, s = statistics_band("c", runs[0], runs[1], runs[2], runs[3], factor=1.0, sides=("native", "L"), **kw)
+    band = [r for r in recs if r.quantity == "mean_alpha"]
+    assert s["complete"] and band[0].value == 0.0 and band[0].tolerance == pytest.approx(0.2) and band[0].passed
+    level[0] = 0.25  # the native statistic beyond the band
+    recs, _ = statistics_band("c", runs[0], runs[1], runs[2], runs[3], factor=1.0, sides=("native", "L"), **kw)
+    assert [r.quantity for r in recs if not r.passed] == ["mean_alpha"]
+    cut = _traj(n=4, steps=10, dump=5, seed=2, drop_steps=1)  # a member without its last frame
+    runs[2] = cut
+    recs, s = statistics_band("c", runs[0], runs[1], cut, runs[3], factor=1.0, sides=("native", "L"), **kw)
+    assert not s["complete"] and {r.quantity for r in recs if not r.passed} == {"evidence"}
+    runs[2] = _traj(n=4, steps=10, dump=5, seed=2)
+    # two codes: |0.0 - 0.05| within the sum of their bands (0.2 + 0.25), not without a member of b
+    recs, _ = statistics_cross("x", runs[1], runs[4], runs[2], runs[3], runs[5], n_a=2, sides=("L", "M"), **kw)
+    q = [r for r in recs if r.quantity == "mean_alpha"][0]
+    assert q.passed and q.value == pytest.approx(0.05) and q.tolerance == pytest.approx(0.2 + 0.25)
+    recs, s = statistics_cross("x", runs[1], runs[4], runs[2], runs[3], n_a=2, sides=("L", "M"), **kw)
+    assert not s["complete"] and not all(r.passed for r in recs)

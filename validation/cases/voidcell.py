@@ -20,7 +20,7 @@ from reference_runs.yade.dem import short_biaxial
 
 from .. import yade_runs
 from ..codes import CODES, NATIVE, pair_key
-from ..core import CaseResult, Context, case, compare, evidence, in_pair, info, peak, stored_dir
+from ..core import CaseResult, Context, case, in_pair, info, stored_dir
 from ..dem_compare import expected_frames, read_reference, run_native, snapshot, trajectory_evidence
 from ..judges import (  # noqa: F401 (cell_signature: the voidcell tests use it from here)
     LIST_REASON,
@@ -29,7 +29,7 @@ from ..judges import (  # noqa: F401 (cell_signature: the voidcell tests use it 
     compare_cell_frames,
     void_cells,
 )
-from ..matrix import Comparison, Run, evaluate
+from ..matrix import Comparison, Failed, Run, evaluate
 from .biaxial import (
     CODE,
     FULL_DUMP_EVERY,
@@ -184,6 +184,88 @@ YADE_CELLS_REASON = (
 )
 
 
+def kuhn_plan(ctx: Context, r: dict, frames) -> tuple[list, list, dict]:
+    """The Kuhn assembly's runs (biaxial-full's: :func:`validation.cases.biaxial.full_runs` ``r``):
+    per code, the native run in its arithmetic, the code's reference and its perturbed runs, each
+    expected member a run (a member missing is failing evidence); the comparisons: the cell lists of
+    the first :data:`SHORT_HORIZON` steps (``cells``), the statistics along the compression within
+    the code's band (``statistics``), and the two codes' references within the sum of their bands
+    (``statistics_cross``). Returns (runs, comparisons, the statistics of every run, filled as they
+    are computed: {name: (F, 6)})."""
+    pk, dem = r["packing"], r["settings"]
+    steps = [int(k) for k in frames]
+    st: dict = {}
+    cache: dict = {}
+
+    def stats(tr):
+        if id(tr) not in cache:
+            rows = []
+            for k in steps:
+                vc = void_cells(snapshot(tr, k, pk.radii, dem.dt))
+                rows.append([vc.mean_alpha, vc.fraction_nonpositive_alpha, vc.n_faces, vc.n_edges, vc.n_vertices,
+                             vc.coordination])  # fmt: skip
+            cache[id(tr)] = (tr, np.array(rows))
+        return cache[id(tr)][1]
+
+    def named(name, tr):
+        st[name] = stats(tr)
+        return st[name]
+
+    sides = {}
+    if "liggghts" in r:
+        sides["liggghts"] = (r["native"], r["liggghts"], r["ensemble"],
+                             r.get("expected_ensemble") or ensemble_labels(pk.n, ctx.suite == "full"))  # fmt: skip
+    if "lammps" in r:
+        lm = r["lammps"]
+        sides["lammps"] = (lm["native"], lm["reference"], lm["ensemble"],
+                           lm.get("expected_ensemble") or lammps_ensemble_labels(pk.n, ctx.suite))  # fmt: skip
+    runs, comps = [], []
+    checks = ((0, "mean_alpha"), (1, "fraction_alpha_le_0"))
+    early = [k for k in frames if k <= SHORT_HORIZON]
+    for engine in ("liggghts", "lammps"):
+        if engine not in sides:  # the code is absent: biaxial-full made no run of it (a note says so)
+            continue
+        nat, ref, ens, want = sides[engine]
+        code = CODE[engine]
+        runs += [
+            Run(f"kuhn-1002/native-{engine}", NATIVE, engine, "biaxial-full's native run",
+                lambda nat=nat: nat),
+            Run(f"kuhn-1002/{engine}", engine, engine, f"biaxial-full's {code} reference", lambda ref=ref: ref),
+            *(Run(f"kuhn-1002/{engine}/{m}", engine, engine, f"biaxial-full's {code} run {m}",
+                  lambda m=m, ens=ens: ens[m] if m in ens else Failed(f"the perturbed run {m} is missing"))
+              for m in want),
+        ]  # fmt: skip
+        lab = f"voidcell/kuhn-1002/{engine}"
+        comps += [
+            Comparison("cells", f"{lab}/first {SHORT_HORIZON} steps",
+                       (f"kuhn-1002/native-{engine}", f"kuhn-1002/{engine}"), STATS_REASON.replace("LIGGGHTS", code),
+                       {"frames": early, "radii": pk.radii, "dt": dem.dt, "snapshot": snapshot}),
+            Comparison("statistics", f"{lab}/full test", (f"kuhn-1002/native-{engine}", f"kuhn-1002/{engine}",
+                                                          *(f"kuhn-1002/{engine}/{m}" for m in want)),
+                       STATS_REASON.replace("LIGGGHTS", code),
+                       {"frames": frames, "checks": checks, "factor": 1.0, "member_names": list(want),
+                        "statistics": lambda tr, engine=engine, nat=nat, ref=ref, ens=ens: named(
+                            _stat_name(tr, engine, nat, ref, ens), tr)}),
+        ]  # fmt: skip
+    if len(sides) == 2:
+        wl, wm = sides["liggghts"][3], sides["lammps"][3]
+        comps.append(
+            Comparison("statistics_cross", "voidcell/kuhn-1002/cross", ("kuhn-1002/liggghts", "kuhn-1002/lammps",
+                       *(f"kuhn-1002/liggghts/{m}" for m in wl), *(f"kuhn-1002/lammps/{m}" for m in wm)),
+                       CROSS_STATS_REASON, {"n_a": len(wl), "frames": frames, "checks": checks, "statistics": stats})
+        )  # fmt: skip
+    return runs, comps, st
+
+
+def _stat_name(tr, engine: str, nat, ref, ens) -> str:
+    """The name a run's statistics carry in the figure: native (code), the code, or code member."""
+    if tr is nat:
+        return f"native ({engine})"
+    if tr is ref:
+        return CODE[engine]
+    return next((f"{CODE[engine]} {k}" for k, t in ens.items() if t is tr), CODE[engine])
+
+
 @case(
     "voidcell",
     "Void-cell measures (Kuhn) from native, LIGGGHTS and LAMMPS snapshots",
@@ -273,95 +355,25 @@ def voidcell(ctx: Context) -> CaseResult:
     pk, dem = r["packing"], r["settings"]
     frames = expected_frames(r["nsteps"], FULL_DUMP_EVERY)
     steps = [int(k) for k in frames]
-    sides = {}
-    if "liggghts" in r:
-        sides["liggghts"] = (
-            r["native"],
-            r["liggghts"],
-            r["ensemble"],
-            r.get("expected_ensemble") or ensemble_labels(pk.n, ctx.suite == "full"),
-        )
-    else:
-        res.notes.append("LIGGGHTS is absent: its Kuhn-assembly comparison is not made.")
-    if "lammps" in r:
-        lm = r["lammps"]
-        sides["lammps"] = (
-            lm["native"],
-            lm["reference"],
-            lm["ensemble"],
-            lm.get("expected_ensemble") or lammps_ensemble_labels(pk.n, ctx.suite),
-        )
-    else:
-        res.notes.append("LAMMPS is absent: its Kuhn-assembly comparison is not made.")
-
-    def stats(tr):
-        rows = []
-        for k in steps:
-            vc = void_cells(snapshot(tr, k, pk.radii, dem.dt))
-            rows.append(
-                [vc.mean_alpha, vc.fraction_nonpositive_alpha, vc.n_faces, vc.n_edges, vc.n_vertices, vc.coordination]
-            )
-        return np.array(rows)
-
-    st, bands, complete = {}, {}, {}
-    pair = {"liggghts": "native-liggghts", "lammps": "native-lammps"}
-    for engine, (nat, ref, ens, want) in sides.items():
-        code = CODE[engine]
-        lab = f"voidcell/kuhn-1002/{engine}"
-        recs = _evidence(lab, nat, ref, frames, code)
-        recs.append(evidence(lab, f"perturbed {code} runs (the statistics' band)", want, list(ens)))
-        for name, tr in ens.items():
-            recs += _evidence(f"{lab}/{name}", None, tr, frames, code)
-        res.records += in_pair(recs, pair[engine])
-        complete[engine] = all(x.passed for x in recs)
-        if not complete[engine]:
+    k_runs, k_comps, st = kuhn_plan(ctx, r, frames)
+    out = evaluate(res, ctx, k_runs, k_comps)
+    for c in k_comps:
+        sm = out.summaries.get(c.label)
+        if c.kind == "statistics" and sm is not None and not sm["complete"]:
             res.notes.append(
-                f"<b>Incomplete evidence</b> for the Kuhn assembly ({code}; records above): no statistics "
+                f"<b>Incomplete evidence</b> for the Kuhn assembly ({c.label}; records above): no statistics "
                 "are compared on what remains."
             )
-            continue
-        cmp = compare_cell_frames(nat, ref, [k for k in steps if k <= SHORT_HORIZON], pk.radii, dem.dt, snapshot)
-        recs = cell_records(f"{lab}/first {SHORT_HORIZON} steps", cmp)
-        st[f"native ({engine})"] = stats(nat)
-        st[code] = stats(ref)
-        pert = []
-        for name, tr in ens.items():
-            st[f"{code} {name}"] = stats(tr)
-            pert.append(f"{code} {name}")
-        bands[engine] = {}
-        for col, qty in ((0, "mean_alpha"), (1, "fraction_alpha_le_0")):
-            band = peak(np.abs(st[k][:, col] - st[code][:, col]) for k in pert)  # NaN stays NaN
-            bands[engine][qty] = band
-            diff = float(np.abs(st[f"native ({engine})"][:, col] - st[code][:, col]).max())
-            recs.append(
-                compare(
-                    f"{lab}/full test",
-                    qty,
-                    f"max over {len(steps)} frames |native - {code}|",
-                    diff,
-                    band,
-                    STATS_REASON.replace("LIGGGHTS", code),
-                )
-            )
-        res.records += in_pair(recs, pair[engine])
-    if len(bands) == 2:
-        recs = []
-        for col, qty in ((0, "mean_alpha"), (1, "fraction_alpha_le_0")):
-            band = bands["liggghts"][qty] + bands["lammps"][qty]
-            diff = float(np.abs(st["LIGGGHTS"][:, col] - st["LAMMPS"][:, col]).max())
-            recs.append(
-                compare(
-                    "voidcell/kuhn-1002/cross",
-                    qty,
-                    f"max over {len(steps)} frames |LIGGGHTS - LAMMPS|",
-                    diff,
-                    band,
-                    CROSS_STATS_REASON,
-                )
-            )
-        res.records += in_pair(recs, "liggghts-lammps")
+    sides = {e: True for e in ("liggghts", "lammps") if e in r}
+    for e in ("liggghts", "lammps"):
+        if e not in r:
+            res.notes.append(f"{CODE[e]} is absent: its Kuhn-assembly comparison is not made.")
+    complete = {
+        e: bool(out.summaries.get(f"voidcell/kuhn-1002/{e}/full test", {}).get("complete"))
+        for e in ("liggghts", "lammps")
+    }
     if "liggghts" in sides and complete.get("liggghts"):
-        nat, lig = sides["liggghts"][0], sides["liggghts"][1]
+        nat, lig = r["native"], r["liggghts"]
         strains = np.array([_strain(lig, k) for k in steps])
         rows = []
         pairs = []
