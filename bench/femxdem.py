@@ -10,14 +10,17 @@
    each call from the state the last one left, made read-only as a Gauss point's committed state.
    Per call, medians and minima (ms; CPU time of this process, and wall time for the first
    update): ``DemRVE.update`` (what a worker runs: the call, then the stress and tangent) as the
-   first Newton iterate of a load step runs it (the first collider run computed, then kept) and as
-   the later iterates run it (the first collider run restored: ``first_run``), and the parts of
-   ``rve_run_rotation``: the packing of the saved scene into the kernels' arrays (``rve_call`` +
-   ``RVECall.first_args``), the first collider run ``_rve_first_collide`` (the initial sort a
-   deserialised scene needs, then findOverlaps), the steps ``_rve_steps`` (one jitted call), and
-   the unpacking into the new state (``rve_result``); per DEM step = ``_rve_steps`` / ns, split
-   into the interaction loop and the integrator (each run 100 times in one compiled loop). Rates
-   in particle-steps/s: the call's (N ns / call time) and the steady state (N / per-step time).
+   first Newton iterate of a load step runs it (the set-up computed, then kept) and as the later
+   iterates run it (the set-up restored), and the parts of ``rve_run_rotation`` on the one engine
+   (:mod:`gransim.dem.yade_cell`): loading the saved scene into the thread's engine with its
+   set-up computed (``rve_engine``: ``Engine.restore`` of the scene, the container filled, step 0's
+   cell update, the collider's first run, i.e. the initial sort a deserialised scene needs and
+   findOverlaps, and the interaction loop), ``start_run(VelGradRun)``, ``advance(ns)`` (the
+   engine's step loop ``Engine._run``) of which the compiled steps (the cell's block, the kernel
+   ``rve_block``: one jitted call), and the saved scene (``YadeCell.scene``); per DEM step = the
+   kernel / ns, split into the interaction loop and the integrator (each run 100 times in one
+   compiled loop). Rates in particle-steps/s: the call's (N ns / call time) and the steady state
+   (N / per-step time).
 2. **A short run** ``run_femxdem`` (default the quick 2 x 4 mesh, 10 steps; ``--full``: the 8 x 16
    mesh of the full benchmark, ``--steps`` (default 2) load steps) on ``--workers`` Dask workers
    (0: in process), with its wall time split: **DEM** = the time in the point law's updates summed
@@ -85,6 +88,7 @@ def rve_call_split(calls: int = 60) -> dict:
     The parts are timed in CPU time (``time.process_time``: this process's, one thread), robust to
     the other processes of a shared machine; ``update`` also in wall time."""
     from gransim.dem import yade_arithmetic as ya
+    from gransim.dem.yade_cell import VelGradRun, rve_engine
     from gransim.fem.dem_rve import DemRVE
     from gransim.fem.material_points import freeze
 
@@ -93,32 +97,35 @@ def rve_call_split(calls: int = 60) -> dict:
     st = freeze(law.initial_state(0))
     eye = np.eye(2)
     law.update(eye + np.array(INCREMENTS[0]), st)  # compile or load the cache
-    names = ("update", "update_cpu", "update_kept", "update_kept_cpu", "run", "pack", "first", "kernel", "unpack")
+    names = ("update", "update_cpu", "update_kept", "update_kept_cpu", "run", "load", "start", "advance", "kernel",
+             "unpack")  # fmt: skip
     t = {k: [] for k in names}
     ns_all, contacts = [], []
     for i in range(calls):
         f = eye + np.array(INCREMENTS[i % len(INCREMENTS)])
         D = f - eye  # DemRVE.update's D, to the bit
         rve = st.rve
-        # the call in its parts, the first collider run computed (not kept)
+        ns = ya.n_steps_of(D)
+        # the call in its parts, the set-up computed (kept by it: dropped again below)
+        ya._FIRST_RUNS.pop(rve, None)
         t0 = clock()
-        call = ya.rve_call(rve, D, st.disk_rotation())
-        with ya._workspace(call.n, call.m0) as work:
-            args = call.first_args(work)
+        with rve_engine(rve, st.disk_rotation()) as eng:
             t1 = clock()
-            err, axis = ya._rve_first_collide(*args)
+            eng.start_run(VelGradRun(D / (ns * rve.dt)), ns)
             t2 = clock()
-            err, axis, k = ya._rve_steps(*call.kernel_args(work))
+            kernel = _timed_advance(eng, ns, clock)
             t3 = clock()
-            new, rot = ya.rve_result(rve, call, work, err, axis, k)
+            new, rot = eng.cell_ops.scene(eng), eng.yb.theta.copy()
         t4 = clock()
-        t["pack"].append(t1 - t0)
-        t["first"].append(t2 - t1)
-        t["kernel"].append(t3 - t2)
+        t["load"].append(t1 - t0)
+        t["start"].append(t2 - t1)
+        t["advance"].append(t3 - t2)
+        t["kernel"].append(kernel)
         t["unpack"].append(t4 - t3)
         t["run"].append(t4 - t0)
+        ya._FIRST_RUNS.pop(rve, None)
         # the worker's calls from the committed (read-only) state: the first iterate of a load step
-        # computes the first collider run and keeps it, the next iterates restore it
+        # computes the set-up and keeps it, the next iterates restore it
         for key in ("update", "update_kept"):
             t0, c0 = time.perf_counter(), clock()
             _, _, nxt = law.update(f, st)
@@ -126,7 +133,7 @@ def rve_call_split(calls: int = 60) -> dict:
             t[f"{key}_cpu"].append(clock() - c0)
             if not (np.array_equal(nxt.rve.positions, new.positions) and np.array_equal(nxt.disk_rotation(), rot)):
                 raise SystemExit("bench.femxdem: the split call differs from DemRVE.update (not the same computation)")
-        ns_all.append(call.ns)
+        ns_all.append(ns)
         contacts.append(len(nxt.rve.kn))
         st = freeze(nxt)
     n = st.rve.n
@@ -134,7 +141,6 @@ def rve_call_split(calls: int = 60) -> dict:
     ns = statistics.median(ns_all)
     per_step = out["kernel"]["median"] / ns
     out["per_step"] = per_step
-    out["first_collide"] = out["first"]["median"]
     out["n"] = n
     out["ns"] = ns
     out["contacts"] = statistics.median(contacts)
@@ -145,13 +151,35 @@ def rve_call_split(calls: int = 60) -> dict:
     return out
 
 
+def _timed_advance(eng, ns: int, clock) -> float:
+    """``eng.advance(ns)``, returning the time ``clock`` counted in the cell's compiled block (the
+    kernel; the rest of the step loop is the engine's Python around it)."""
+    ops = eng.cell_ops
+    block = type(ops).block
+    spent = [0.0]
+
+    def timed(*args):
+        c0 = clock()
+        out = block(ops, *args)
+        spent[0] += clock() - c0
+        return out
+
+    ops.block = timed  # this engine only, for this call
+    try:
+        eng.advance(ns)
+    finally:
+        del ops.block
+    return spent[0]
+
+
 def _step_split(rve, D, steps: int = 100) -> dict:
     """CPU time of one DEM step's two loops, each repeated ``steps`` times inside one compiled
-    loop (no dispatch per step) on the container of ``rve`` after 5 steps of ``D``: the
-    interaction loop ``_interactions`` (s), the damped integrator ``_newton_damped`` (s), and
-    the container's entries and real ones."""
+    loop (no dispatch per step) on the container of an engine holding ``rve`` after 5 steps of
+    ``D``: the interaction loop ``_interactions`` (s), the damped integrator ``_newton_damped``
+    (s), and the container's entries and real ones."""
     from gransim._numba import njit
     from gransim.dem import yade_arithmetic as ya
+    from gransim.dem.yade_cell import LAW_POISSON, LAW_TAN, LAW_YOUNG, VelGradRun, scene_engine
 
     @njit
     def interactions(k, pos, vel, spin, radius, H, VP, tan, young, poisson, dt, n_intr, ids, cd, real, geom, fs, f, t):
@@ -168,25 +196,23 @@ def _step_split(rve, D, steps: int = 100) -> dict:
                 pos, vel, spin, mass, inertia, f, t, L, nextL, changed, Lprev, size, prev, dt, dt * dt, ref, sweep, damp
             )
 
-    call = ya.rve_call(rve, D)
-    with ya._workspace(call.n, call.m0) as work:
-        ya.first_run(call, work, keep=False)
-        a = call.kernel_args(work, nsteps=5)
-        ya._rve_steps(*a)
-        (_, _, pos, vel, spin, radius, mass, inertia, _, _, H, L, nextL, changed, Lprev, prev, _, ref, sweep, _, young,
-         poisson, tan, damp, dt, n_intr, _, ids, cd, real, geom, fs, *_) = a  # fmt: skip
-        VP = L @ H  # a velocity gradient times the cell, as the cell update makes it
-        f, t = np.zeros((call.n, 2)), np.zeros(call.n)
-        out = {"entries": int(n_intr[0]), "real": int(np.sum(real[: n_intr[0]]))}
-        for name in ("interactions", "integrator", "interactions", "integrator"):  # the second pair counts
-            c0 = time.process_time()
-            if name == "interactions":
-                interactions(steps, pos, vel, spin, radius, H, VP, tan, young, poisson, dt, n_intr, ids, cd, real, geom,
-                             fs, f, t)  # fmt: skip
-            else:
-                integrator(steps, pos.copy(), vel.copy(), spin.copy(), mass, inertia, f, t, L.copy(), nextL.copy(),
-                           changed.copy(), Lprev.copy(), prev.copy(), prev.copy(), dt, ref, sweep, damp)  # fmt: skip
-            out[f"{name}_s"] = (time.process_time() - c0) / steps
+    eng = scene_engine(rve)
+    ns = ya.n_steps_of(D)
+    eng.start_run(VelGradRun(D / (ns * rve.dt)), ns)
+    eng.advance(5)
+    b, c, q, lp, dt = eng.yb, eng.yc, eng.yq, eng.cell_ops.lp, rve.dt
+    f, t = np.zeros((rve.n, 2)), np.zeros(rve.n)
+    out = {"entries": int(q.n_intr[0]), "real": int(np.sum(q.i_real[: q.n_intr[0]]))}
+    for name in ("interactions", "integrator", "interactions", "integrator"):  # the second pair counts
+        c0 = time.process_time()
+        if name == "interactions":
+            interactions(steps, b.pos, b.vel, b.spin, b.radius, c.H, c.VP, lp[LAW_TAN], lp[LAW_YOUNG], lp[LAW_POISSON],
+                         dt, q.n_intr, q.i_id, q.i_cd, q.i_real, q.i_geom, q.i_fs, f, t)  # fmt: skip
+        else:
+            integrator(steps, b.pos.copy(), b.vel.copy(), b.spin.copy(), b.mass, b.inertia, f, t, c.L.copy(),
+                       c.nextL.copy(), c.changed.copy(), c.Lprev.copy(), c.size.copy(), c.prev_size.copy(), dt,
+                       b.ref_pos, b.sweep, float(c.misc[3]))  # fmt: skip
+        out[f"{name}_s"] = (time.process_time() - c0) / steps
     return out
 
 
@@ -200,11 +226,12 @@ def show_split(r: dict, log=print) -> None:
         ("update", "DemRVE.update, first iterate, wall"),
         ("update_cpu", "DemRVE.update, first iterate"),
         ("update_kept_cpu", "DemRVE.update, later iterates"),
-        ("run", "rve_run_rotation, first run computed"),
-        ("pack", "  packing (rve_call, first_args)"),
-        ("first", "  first collider run (initial sort)"),
-        ("kernel", "  _rve_steps (ns steps)"),
-        ("unpack", "  unpacking (rve_result)"),
+        ("run", "rve_run_rotation, set-up computed"),
+        ("load", "  loading the scene, set-up (rve_engine)"),
+        ("start", "  start_run(VelGradRun)"),
+        ("advance", "  advance(ns): the engine's step loop"),
+        ("kernel", "    of which rve_block (ns steps)"),
+        ("unpack", "  the saved scene (YadeCell.scene)"),
     ):
         log(f"  {label:40s} {r[k]['median'] * ms:8.3f} ms  ({r[k]['min'] * ms:.3f})")
     log(f"  {'    per DEM step':40s} {r['per_step'] * 1e6:8.2f} us")
@@ -541,11 +568,11 @@ def run(quick: bool = False) -> list[dict]:
         {"name": "femxdem.rve_call", "value": r["update_cpu"]["median"] * 1e3, "unit": "ms CPU", "target": None,
          "note": f"DemRVE.update, a load step's first Newton iterate; {note}"},
         {"name": "femxdem.rve_call_later", "value": r["update_kept_cpu"]["median"] * 1e3, "unit": "ms CPU",
-         "target": None, "note": f"DemRVE.update, the later iterates (first collider run kept); {note}"},
+         "target": None, "note": f"DemRVE.update, the later iterates (the set-up kept); {note}"},
         {"name": "femxdem.rve_rate", "value": r["rate_call"] / 1e6, "unit": "M particle-steps/s", "target": None,
          "note": f"rve_run_rotation, CPU time; {note}"},
-        {"name": "femxdem.first_collide", "value": r["first_collide"] * 1e3, "unit": "ms", "target": None,
-         "note": note},
+        {"name": "femxdem.rve_setup", "value": r["load"]["median"] * 1e3, "unit": "ms CPU", "target": None,
+         "note": f"a saved scene loaded into the thread's engine with its set-up computed; {note}"},
     ]  # fmt: skip
     s = femxdem_split(1, 2, 2, 0)
     recs.append(

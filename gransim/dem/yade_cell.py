@@ -172,7 +172,7 @@ def law_array(law) -> np.ndarray:
     )  # fmt: skip
 
 
-@njit
+@njit(inline="always")
 def _iteration_rest(it, first, b, c, q, lp, dt, stress):
     """Iteration ``it`` of YADE after Newton: prologue, the collider when active (``first``: its
     initial sort), the interactions with the law ``lp`` (:func:`law_array`), the stress when
@@ -262,7 +262,9 @@ def rve_block(b, c, q, lp, dt, dt2, step0, n, end, out):
     iteration up to its forces unless the step is the run's last. No per-step stress: the rows
     of ``out`` (:data:`OUT_COLUMNS`) hold the cell and the velGrad of each step, and the last one
     also YADE's getStress(), the real interactions, the penetrations and the kinetic energy at
-    the block's end (the others NaN). Returns (steps done, status, index) as :func:`yade_block`."""
+    the block's end (the others NaN). Returns (steps done, status, index) as :func:`yade_block`;
+    the positions are checked finite at the block's end only (status 2 at its last step: a check
+    per step cost 2 % of a call, and a non-finite position stays non-finite)."""
     nb = b.pos.shape[0]
     for s in range(n):
         c.misc[1] = _newton_damped(
@@ -271,9 +273,6 @@ def rve_block(b, c, q, lp, dt, dt2, step0, n, end, out):
         )  # fmt: skip
         for i in range(nb):  # NewtonIntegrator.cpp:329-335: ori turned by the step's final spin, times dt
             b.theta[i] += b.spin[i] * dt
-        for i in range(nb):
-            if not (math.isfinite(b.pos[i, 0]) and math.isfinite(b.pos[i, 1])):
-                return s, 2, i
         if step0 + s + 1 < end:
             err, axis = _iteration_rest(step0 + s + 1, False, b, c, q, lp, dt, False)
             if err != 0:
@@ -288,10 +287,44 @@ def rve_block(b, c, q, lp, dt, dt2, step0, n, end, out):
         out[s, 12] = c.L[0, 1]
         out[s, 13] = c.L[1, 0]
         out[s, 14] = c.L[1, 1]
+    for i in range(nb):  # a non-finite position stays so (the collider meets no overlap with it)
+        if not (math.isfinite(b.pos[i, 0]) and math.isfinite(b.pos[i, 1])):
+            return n - 1, 2, i
     if n:
         _stress(b.pos, c.H, c.misc[0], q.n_intr, q.i_id, q.i_cd, q.i_real, q.i_geom, q.i_fs, c.sig)
         _row(b, c, q, out, n - 1)
     return n, 0, -1
+
+
+def _energies(b, c, q):
+    """:func:`_energy_sums` of the engine's state objects."""
+    return _energy_sums(b.pos, b.vel, b.spin, b.mass, b.inertia, c.Lprev, q.n_intr, q.i_real, q.i_geom, q.i_fs)
+
+
+@njit
+def _energy_sums(pos, vel, spin, mass, inertia, L, n_intr, i_real, i_geom, i_fs):
+    """(kinetic energy relative to the cell's mean field, elastic energy, kinetic energy of the mean
+    field) (J) of the state, one pass each (the divergence check's, called per block and per loaded
+    scene): 1/2 m |v - Lprev x|^2 + 1/2 I w^2 summed over the disks; |F_n|^2 / 2 kn + |F_s|^2 / 2 ks
+    over the real interactions (a zero ks stores nothing); 1/2 m |L x|^2, L = prevVelGrad. The
+    arrays as :data:`YadeBodies`, :data:`YadeContainer` (passed one by one: a call with the state's
+    namedtuples unboxes all their 38 arrays, 18 us)."""
+    ke = 0.0
+    flow = 0.0
+    for i in range(pos.shape[0]):
+        ux = L[0, 0] * pos[i, 0] + L[0, 1] * pos[i, 1]
+        uy = L[1, 0] * pos[i, 0] + L[1, 1] * pos[i, 1]
+        vx = vel[i, 0] - ux
+        vy = vel[i, 1] - uy
+        ke += 0.5 * mass[i] * (vx * vx + vy * vy) + 0.5 * inertia[i] * spin[i] * spin[i]
+        flow += 0.5 * mass[i] * (ux * ux + uy * uy)
+    el = 0.0
+    for k in range(n_intr[0]):
+        if i_real[k]:
+            el += (i_geom[k, 3] * i_geom[k, 3] + i_geom[k, 4] * i_geom[k, 4]) / (2.0 * i_geom[k, 5])
+            if i_geom[k, 6] > 0.0:
+                el += (i_fs[k, 0] * i_fs[k, 0] + i_fs[k, 1] * i_fs[k, 1]) / (2.0 * i_geom[k, 6])
+    return ke, el, flow
 
 
 @njit
@@ -455,9 +488,9 @@ class YadeCell:
         return e, q.i_geom[e, 2].copy()
 
     def budget_kinetic_energy(self, eng) -> float:
-        u = self.peculiar_velocities(eng)
-        b = eng.yb
-        return float(0.5 * np.sum(b.mass * np.einsum("ij,ij->i", u, u)) + 0.5 * np.sum(b.inertia * b.spin**2))
+        """Kinetic energy (J) of the velocities relative to the cell's mean field (the velGrad of
+        the last step) and of the spins (:func:`_energies`)."""
+        return _energies(eng.yb, eng.yc, eng.yq)[0]
 
     def peculiar_velocities(self, eng) -> np.ndarray:
         """v - L x (m/s), (N, 2): the velocities without the cell's mean field (the velGrad of the
@@ -466,8 +499,8 @@ class YadeCell:
         return b.vel - b.pos @ eng.yc.Lprev.T
 
     def flow_kinetic_energy(self, eng) -> float:
-        u = eng.yb.pos @ eng.yc.Lprev.T
-        return float(0.5 * np.sum(eng.yb.mass * np.einsum("ij,ij->i", u, u)))
+        """Kinetic energy (J) of the cell's mean field at the disks (:func:`_energies`)."""
+        return _energies(eng.yb, eng.yc, eng.yq)[2]
 
     # the loading
     LOADINGS = (Loading, ShearLoading)
@@ -686,15 +719,9 @@ class YadeCell:
         return q.i_cd[:m][q.i_real[:m]][e].copy()
 
     def elastic_energy(self, eng) -> float:
-        """Energy stored in the real interactions (J): |F_n|^2 / 2 kn + |F_s|^2 / 2 ks."""
-        q = eng.yq
-        m = q.n_intr[0]
-        e = np.flatnonzero(q.i_real[:m])
-        g = q.i_geom[e]
-        fn2 = g[:, 3] ** 2 + g[:, 4] ** 2
-        fs2 = np.einsum("ij,ij->i", q.i_fs[e], q.i_fs[e])
-        es = np.divide(fs2, 2.0 * g[:, 6], out=np.zeros_like(fs2), where=g[:, 6] > 0)
-        return float(np.sum(fn2 / (2.0 * g[:, 5])) + np.sum(es))
+        """Energy stored in the real interactions (J): |F_n|^2 / 2 kn + |F_s|^2 / 2 ks
+        (:func:`_energies`)."""
+        return _energies(eng.yb, eng.yc, eng.yq)[1]
 
     # checkpoints
     def state_arrays(self, eng) -> dict:

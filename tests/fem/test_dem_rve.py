@@ -13,7 +13,12 @@
   to the round-off of YADE's quaternions; a Gauss point's rotations are its single RVE's;
 * an update never writes into the committed state; a resumed run equals an uninterrupted one;
 * the first collider run kept from a read-only state gives the bits of a computed one, and a
-  writable state is never served a kept one.
+  writable state is never served a kept one;
+* the call is a run of the one engine (the sheared yade cell, gransim.dem.yade_cell): advanced in
+  any blocks, and chained on one engine through its saved scenes, it gives rve_run's bits; calls
+  from a read-only state reuse its set-up and leave it unchanged; a diverging call and a cell too
+  small for its bounds are SimulationErrors naming the call and the step; a scene of another
+  material and a call on the orthogonal cell are InputErrors.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from gransim.dem.yade_arithmetic import (
     rve_run_rotation,
     rve_stress_tangent,
 )
+from gransim.errors import InputError
 from gransim.fem.biaxial import BiaxialSpec
 from gransim.fem.dem_rve import DemRVE, load_rve_state
 from gransim.fem.femxdem import FemxdemInterrupted, run_femxdem
@@ -233,3 +239,81 @@ def test_b_a_gauss_points_history_replayed_in_yade_is_the_native_rve(one_element
         assert np.max(np.abs(yade - rot)) <= tol, (rec["call"], np.max(np.abs(yade - rot)), tol)
         assert np.max(np.abs(rot)) > 1e9 * tol  # the disks turned: the comparison has a scale
     assert same_state(rve, states[0].rve) == [] and np.array_equal(rot, states[0].rotation)
+
+
+# ----------------------------------------------------------------------------- the one engine
+D_A = np.array([[3e-4, 1e-4], [0.0, -1e-3]])
+D_B = np.array([[-5e-4, 2e-4], [-1e-4, 1.5e-3]])
+
+
+def test_the_engine_runs_a_call_in_any_blocks_and_chains_calls_through_saved_scenes():
+    """The sheared yade cell runs simDEM.shear2D: a call advanced in two blocks equals rve_run, and
+    a second run on the same engine loads the scene the first saved (a fresh collider sort), as the
+    script's next call does: rve_run of rve_run, to the bit."""
+    from gransim.dem.yade_cell import VelGradRun, scene_engine
+
+    st, _ = load_rve_state()
+    ref1 = rve_run(st, D_A)
+    ref2 = rve_run(ref1, D_B)
+    eng = scene_engine(st)
+    assert eng.step == st.iteration and eng.cell_kind == "sheared" and eng.law.young == st.young
+    with pytest.raises(InputError, match="no saved scene"):
+        eng.cell_ops.scene(eng)
+    ns = n_steps_of(D_A)
+    eng.start_run(VelGradRun(D_A / (ns * st.dt)), ns)
+    out = eng.advance(37)
+    assert out["cell"].shape == (37, 2, 2) and "stress" not in out  # no per-step stress in a call
+    eng.advance(ns - 37)
+    assert same_state(eng.cell_ops.scene(eng), ref1) == []
+    ns2 = n_steps_of(D_B)
+    eng.start_run(VelGradRun(D_B / (ns2 * st.dt)), ns2)
+    eng.advance(ns2)
+    assert same_state(eng.cell_ops.scene(eng), ref2) == []
+    assert same_state(ref1, ref2) != []  # the comparison can fail
+
+
+def test_calls_from_a_read_only_state_reuse_its_set_up_and_leave_it_unchanged():
+    from gransim.dem import yade_arithmetic as ya
+
+    state = freeze(dataclasses.replace(rve_run(load_rve_state()[0], D_B)))
+    copy = {f: np.array(getattr(state, f), copy=True) for f in RVE_STATE_FIELDS}
+    rot = np.linspace(0.0, 1e-3, state.n)
+    rot.flags.writeable = False
+    first, r1 = rve_run_rotation(state, D_A, rot)
+    assert state in ya._FIRST_RUNS  # kept by the first call, restored by the second
+    second, r2 = rve_run_rotation(state, D_A, rot)
+    assert same_state(first, second) == [] and np.array_equal(r1, r2)
+    assert all(np.array_equal(copy[k], np.asarray(getattr(state, k)), equal_nan=True) for k in copy)
+    assert np.array_equal(rot, np.linspace(0.0, 1e-3, state.n)) and not np.array_equal(r1, rot)
+
+
+def test_a_failing_call_is_a_simulation_error_naming_the_call_and_the_step():
+    from gransim.errors import SimulationError
+
+    st, _ = load_rve_state()
+    unstable = dataclasses.replace(st, dt=30 * st.dt)  # 30 times YADE's step: the integration blows up
+    diverged = r"RVE call from iteration 13810 \(100 steps\): step 13\d{3}: (kinetic energy blow-up|particle)"
+    with pytest.raises(SimulationError, match=diverged):
+        rve_run(unstable, D_A)
+    small = dataclasses.replace(st, hsize=0.1 * np.asarray(st.hsize))  # a 2 cm cell: bounds over its half
+    with pytest.raises(SimulationError, match=r"step 13810: a bound spans over half of the cell"):
+        rve_run(small, D_A)
+    assert same_state(rve_run(st, D_A), rve_run(st, D_A)) == []  # the thread's engine serves again
+
+
+def test_a_scene_of_another_material_or_a_call_on_the_orthogonal_cell_is_refused():
+    from gransim.dem.yade_cell import VelGradRun, scene_checkpoint, scene_engine
+
+    st, _ = load_rve_state()
+    eng = scene_engine(st)
+    with pytest.raises(InputError, match="material"):
+        eng.restore(scene_checkpoint(dataclasses.replace(st, young=2 * st.young)), st.iteration)
+    with pytest.raises(InputError, match="vel_grad"):
+        VelGradRun(np.array([[np.nan, 0.0], [0.0, 0.0]]))
+    from gransim.dem.engine import Engine
+    from reference_runs.decks.shear import wrapped_packing
+    from reference_runs.yade.dem import short_biaxial
+
+    p, s, _, _ = short_biaxial()
+    with pytest.raises(InputError, match="sheared yade cell"):
+        Engine(wrapped_packing(p), s, flavour="yade").start_run(VelGradRun(np.zeros((2, 2))), 10)
