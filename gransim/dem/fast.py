@@ -76,6 +76,11 @@ TARGET_BANDS = 64
 #: depend on it (the serial and the threaded kernels sum in the same order)
 MIN_PER_THREAD = 20000
 
+#: particles per chunk of the threaded loops over particles (the wrap at a list build): large
+#: enough that handing out chunks costs nothing beside the work, small enough that a descheduled
+#: thread holds back little
+PARTICLE_CHUNK = 4096
+
 #: growth factor of the list buffers when a build needs more room than they have
 GROWTH = 1.25
 
@@ -196,6 +201,12 @@ class FastCell:
         # the force kernel is a parallel one even when serial (fast_kernels.forces_v): one thread;
         # the kernels of a law of a test module or script stay out of the disk cache
         with num_threads(self._threads if self._parallel else 1), dynamic_chunks(1), disk_cache_off(eng._no_cache):
+            yield
+
+    @contextlib.contextmanager
+    def _particle_kernels(self):
+        # a loop over particles on the threads (the wrap), in chunks of PARTICLE_CHUNK particles
+        with num_threads(self._threads), dynamic_chunks(PARTICLE_CHUNK):
             yield
 
     def _list(self, eng):
@@ -645,6 +656,9 @@ class FastOrthogonalCell(FastCell):
     def _wrap(self, eng):
         """Domain::pbc per axis; a particle still outside (sorted index) or -1."""
         p = eng.ps
+        if self._parallel:
+            with self._particle_kernels():
+                return FK.wrap_parallel(p.x, p.y, eng.lo, eng.hi)
         return FK.wrap(p.x, p.y, eng.lo, eng.hi)
 
     def _hold(self, eng):
@@ -724,6 +738,9 @@ class FastShearedCell(FastCell):
         """Domain::pbc of the tilted box with the Lees-Edwards velocity jump; a particle still
         outside (sorted index) or -1."""
         p = eng.ps
+        if self._parallel:
+            with self._particle_kernels():
+                return FK.wrap_tilted_parallel(p.x, p.y, p.vx, p.vy, eng.box, eng.h_rate, True)
         return FK.wrap_tilted(p.x, p.y, p.vx, p.vy, eng.box, eng.h_rate, True)
 
     def _hold(self, eng):

@@ -708,23 +708,82 @@ def _bad(red, nch):
 
 
 # ----------------------------------------------------------------------------------- rebuild
+@njit(inline="always")
+def _wrap_axis(a, i, lo, hi, prd):
+    """Domain::pbc of particle ``i`` on one axis (x < lo: += L; x >= hi: -= L, then max(x, lo));
+    True when it is still outside after the wrap."""
+    if a[i] < lo:
+        a[i] += prd
+    if a[i] >= hi:
+        a[i] -= prd
+        a[i] = max(a[i], lo)
+    return a[i] < lo or a[i] >= hi
+
+
 @njit
 def wrap(x, y, lo, hi):
-    """Domain::pbc per axis (x < lo: += L; x >= hi: -= L, then max(x, lo)); returns a particle
-    still outside after one wrap (sorted index) or -1."""
-    bad = -1
-    for d in range(2):
-        a = x if d == 0 else y
-        prd = hi[d] - lo[d]
-        for i in range(a.shape[0]):
-            if a[i] < lo[d]:
-                a[i] += prd
-            if a[i] >= hi[d]:
-                a[i] -= prd
-                a[i] = max(a[i], lo[d])
-            if (a[i] < lo[d] or a[i] >= hi[d]) and bad < 0:
-                bad = i
-    return bad
+    """Domain::pbc per axis; returns a particle still outside after one wrap (sorted index: the
+    first outside along x, else the first along y) or -1."""
+    n = x.shape[0]
+    bx = n
+    by = n
+    px = hi[0] - lo[0]
+    py = hi[1] - lo[1]
+    for i in range(n):
+        if _wrap_axis(x, i, lo[0], hi[0], px):
+            bx = min(bx, i)
+        if _wrap_axis(y, i, lo[1], hi[1], py):
+            by = min(by, i)
+    return bx if bx < n else (by if by < n else -1)
+
+
+@pjit
+def wrap_parallel(x, y, lo, hi):
+    """:func:`wrap` with the particles spread over the threads: each particle's wrap is its own,
+    so the positions are the same bits, and the particle returned is the same."""
+    n = x.shape[0]
+    bx = n
+    by = n
+    px = hi[0] - lo[0]
+    py = hi[1] - lo[1]
+    for i in prange(n):
+        if _wrap_axis(x, i, lo[0], hi[0], px):
+            bx = min(bx, i)
+        if _wrap_axis(y, i, lo[1], hi[1], py):
+            by = min(by, i)
+    return bx if bx < n else (by if by < n else -1)
+
+
+@njit(inline="always")
+def _wrap_tilted_one(x, y, vx, vy, i, box, hr, vremap, Lx, Ly, xy, tl):
+    """Domain::pbc of particle ``i`` in the sheared cell (:func:`wrap_tilted`); True when it is
+    still outside after the wrap."""
+    lx = box[0]
+    ly = box[1]
+    if y[i] < ly:
+        y[i] += Ly
+        x[i] += xy
+        if vremap:
+            vx[i] += hr[2]
+            vy[i] += hr[1]
+    if y[i] >= box[3]:
+        y[i] -= Ly
+        y[i] = max(y[i], ly)
+        x[i] -= xy
+        if vremap:
+            vx[i] -= hr[2]
+            vy[i] -= hr[1]
+    off = (x[i] - lx) - tl * (y[i] - ly)
+    if off < 0.0:
+        x[i] += Lx
+        if vremap:
+            vx[i] += hr[0]
+    elif off >= Lx:
+        x[i] -= Lx
+        if vremap:
+            vx[i] -= hr[0]
+    off = (x[i] - lx) - tl * (y[i] - ly)
+    return not (0.0 <= off < Lx and ly <= y[i] < box[3])
 
 
 @njit
@@ -736,40 +795,30 @@ def wrap_tilted(x, y, vx, vy, box, hr, vremap):
     velocity by +/-h_rate[0], when its offset from the cell's left edge, (x - lo_x) - (xy/Ly)
     (y - lo_y), is outside [0, Lx). Returns
     a particle still outside after one wrap (sorted index) or -1."""
-    lx = box[0]
-    ly = box[1]
+    n = x.shape[0]
     Lx = box[2] - box[0]
     Ly = box[3] - box[1]
-    xy = box[4]
-    tl = xy / Ly
-    bad = -1
-    for i in range(x.shape[0]):
-        if y[i] < ly:
-            y[i] += Ly
-            x[i] += xy
-            if vremap:
-                vx[i] += hr[2]
-                vy[i] += hr[1]
-        if y[i] >= box[3]:
-            y[i] -= Ly
-            y[i] = max(y[i], ly)
-            x[i] -= xy
-            if vremap:
-                vx[i] -= hr[2]
-                vy[i] -= hr[1]
-        off = (x[i] - lx) - tl * (y[i] - ly)
-        if off < 0.0:
-            x[i] += Lx
-            if vremap:
-                vx[i] += hr[0]
-        elif off >= Lx:
-            x[i] -= Lx
-            if vremap:
-                vx[i] -= hr[0]
-        off = (x[i] - lx) - tl * (y[i] - ly)
-        if bad < 0 and not (0.0 <= off < Lx and ly <= y[i] < box[3]):
-            bad = i
-    return bad
+    tl = box[4] / Ly
+    bad = n
+    for i in range(n):
+        if _wrap_tilted_one(x, y, vx, vy, i, box, hr, vremap, Lx, Ly, box[4], tl):
+            bad = min(bad, i)
+    return bad if bad < n else -1
+
+
+@pjit
+def wrap_tilted_parallel(x, y, vx, vy, box, hr, vremap):
+    """:func:`wrap_tilted` with the particles spread over the threads (the same bits, the same
+    particle returned)."""
+    n = x.shape[0]
+    Lx = box[2] - box[0]
+    Ly = box[3] - box[1]
+    tl = box[4] / Ly
+    bad = n
+    for i in prange(n):
+        if _wrap_tilted_one(x, y, vx, vy, i, box, hr, vremap, Lx, Ly, box[4], tl):
+            bad = min(bad, i)
+    return bad if bad < n else -1
 
 
 @njit

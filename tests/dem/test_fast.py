@@ -466,3 +466,31 @@ def test_the_force_kernel_is_compiled_to_simd_code(cell):
     # unsigned owner and partner indices: each gather takes base + 8 index; with the indices as
     # read (int32) every gather computed its addresses with a wrap-around select (docs/performance.md)
     assert not re.search(r"\bvgather[dq]pd\s+\(,", asm), "a gather computes its addresses (a signed index)"
+
+
+def test_the_threaded_wrap_is_the_serial_wrap():
+    """Each particle's wrap is its own: on 2 threads the positions (and the sheared cell's
+    velocity jumps) are the same bits as the serial wrap, and the particle named as still outside
+    after one wrap is the same (the first along x, else along y; the first in the sheared cell)."""
+    from gransim._numba import dynamic_chunks, num_threads
+    from gransim.dem import fast_kernels as FK
+
+    rng = np.random.default_rng(11)
+    n = 50_000
+    lo, hi = np.array([0.1, -0.2]), np.array([1.3, 0.7])
+    for far in (None, (31_000, 1), (4_000, 0)):
+        x, y = rng.uniform(-0.2, 1.6, n), rng.uniform(-0.5, 1.0, n)
+        if far is not None:
+            (x, y)[far[1]][far[0]] = 9.0  # more than one period outside
+        a, b = (x.copy(), y.copy()), (x.copy(), y.copy())
+        with num_threads(2), dynamic_chunks(4096):
+            got = FK.wrap_parallel(*b, lo, hi)
+        assert got == FK.wrap(*a, lo, hi) == (-1 if far is None else far[0])
+        assert all(np.array_equal(u, w) for u, w in zip(a, b))
+        box, hr = np.array([0.1, -0.2, 1.3, 0.7, 0.35]), np.array([0.01, -0.02, 0.3])
+        st = [x.copy(), y.copy(), rng.normal(size=n), rng.normal(size=n)]
+        pt = [c.copy() for c in st]
+        with num_threads(2), dynamic_chunks(4096):
+            gp = FK.wrap_tilted_parallel(*pt, box, hr, True)
+        assert gp == FK.wrap_tilted(*st, box, hr, True)
+        assert all(np.array_equal(u, w) for u, w in zip(st, pt))
