@@ -702,15 +702,25 @@ def statistics_band(
     sides,
     member_names=(),
     diff=None,
+    without_frames: str = "",
 ) -> tuple[list, dict]:
     """Statistics of a run's snapshots against a code's: ``statistics(trajectory) -> (F, k)`` array
     over the expected ``frames``; for each check ``(col, quantity)`` the run's column within
     ``factor`` times the band of the code's perturbed runs (``members``) around its reference
-    (:func:`band`). First the evidence of every run (every expected frame); on incomplete evidence
-    no verdict. Returns (records, summary: complete, stats {name: array}, bands {quantity})."""
+    (:func:`band`). ``ref`` may be an :class:`Ensemble` (its reference and members). First the
+    evidence of every run (every expected frame, and every expected member of an ensemble); on
+    incomplete evidence no verdict. No frames at all (runs that keep none, a stored series): an
+    info record saying ``without_frames``, no verdict. Returns (records, summary: complete, stats
+    {name: array}, bands {quantity})."""
+    recs = []
+    if isinstance(ref, Ensemble):
+        recs.append(evidence(label, f"perturbed {sides[1]} runs (the band)", list(ref.expected), list(ref.members)))
+        members, member_names, ref = tuple(ref.members.values()), list(ref.members), ref.reference
+    if not len(frames):
+        recs.append(info(label, "statistics", "not compared: no frames", math.nan, without_frames))
+        return recs, {"complete": False}
     names = member_names or [f"member {i}" for i in range(len(members))]
     named = [(sides[0], nat), (sides[1], ref), *((f"{sides[1]} {n}", t) for n, t in zip(names, members))]
-    recs = []
     for who, tr in named:
         recs += trajectory_evidence(label, who, tr, None, frames)
     if not all(r.passed for r in recs):

@@ -176,6 +176,8 @@ class Outcome:
     skipped: dict = field(default_factory=dict)
     #: live run key -> the key of the stored run compared in its place (its code absent)
     stand_in: dict = field(default_factory=dict)
+    #: (label, kind) -> the judge's summary (comparisons of one label by different judges)
+    by_kind: dict = field(default_factory=dict)
 
     def run(self, key: str):
         """The run made for ``key``: the run itself, or the stored run that stood in for it."""
@@ -243,6 +245,7 @@ def evaluate(res: CaseResult, ctx: Context, runs: list[Run], comparisons: list[C
         got, summary = JUDGES[c.kind](c.label, *(view(out.runs[k]) for k in c.runs), **kw)
         _file(res, pair, c.reason, recs + got, pairs_made)
         out.summaries[c.label] = summary
+        out.by_kind[(c.label, c.kind)] = summary
     for pair, why in pairs_left.items():
         if pair not in pairs_made:
             res.skip_pair(pair, f"{why}, and no stored output of it is compared")

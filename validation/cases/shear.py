@@ -27,6 +27,7 @@ import datetime
 import functools
 import hashlib
 import json
+import math
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor, wait
@@ -64,8 +65,6 @@ from ..core import (
     Context,
     case,
     default_job_timeout,
-    in_pair,
-    info,
     stored_dir,
 )
 from ..dem_compare import (
@@ -78,11 +77,11 @@ from ..dem_compare import (
 from ..judges import (
     ENVELOPE_FACTOR,
     LIST_REASON,
+    Bound,
     CurveCheck,
     Ensemble,
     EnvelopeRule,
     StepBounds,
-    band,
     step_for_step,
     void_cells,
 )
@@ -972,6 +971,7 @@ def long_plan(ctx: Context) -> tuple[list, list]:
     s = long_setup(ctx)
     pk, n, p = s["packing"], s["nsteps"], s["loading"].target
     want = tuple(perturb_labels(pk.n, ctx.suite))
+    used: dict = {}  # "stored": the stored series stood in (no frames)
 
     def native():
         return long_runs(ctx)["native"]
@@ -983,6 +983,7 @@ def long_plan(ctx: Context) -> tuple[list, list]:
         )
 
     def stored():
+        used["stored"] = True
         z = load_stored_long()
         name = f"reference_runs/stored/{STORED_LONG}/{_stored_path().name}"
         if z is None:
@@ -1039,12 +1040,46 @@ def long_plan(ctx: Context) -> tuple[list, list]:
                 },
             )
         )
+
+        def frames():
+            return [] if used.get("stored") else [int(k) for k in expected_frames(n, LONG_DUMP_EVERY)]
+
+        def statistics(tr):
+            return cell_stats(tr, frames(), pk.radii, s["settings"].dt)
+
+        def profile(ens):
+            # remap v keeps the streaming velocity in the dumped v: its x profile has the slope of the flow
+            fr = ens.reference.frames[frames()[-1]]
+            return {("", "velocity_profile"): np.polyfit(fr["x"][:, 1], fr["v"][:, 0], 1)[0] / s["erate"]}
+
+        comps.append(
+            Comparison(
+                "statistics", f"{CASE}/kuhn-1002/voidcells", (f"native/kuhn-1002/{code}", f"kuhn-1002/{code}"),
+                MATRIX_REASON,
+                lambda: {"frames": frames(), "statistics": statistics, "factor": LONG_RULE.curve_factor,
+                         "checks": ((0, "mean_alpha"), (1, "fraction_alpha_le_0")), "reason": STATS_REASON,
+                         "diff": defined_diff, "without_frames": NO_FRAMES},
+            )
+        )  # fmt: skip
+        comps.append(
+            Comparison(
+                "analytic", f"{CASE}/kuhn-1002/voidcells", (f"kuhn-1002/{code}",), MATRIX_REASON,
+                lambda: {"expected": [("", "velocity_profile")] if frames() else [], "values": profile,
+                         "bound": {"velocity_profile": Bound(math.nan, PROFILE_REASON, "info")},
+                         "metric": lambda item, quantity, vals: "slope d v_x/d y of LAMMPS' last dump / erate"},
+                pair=f"native-{code}",
+            )
+        )  # fmt: skip
     return runs, comps
+
+
+NO_FRAMES = "the stored series keeps no positions: the long horizon's void cells are not made"
+PROFILE_REASON = "lab velocities (remap v): about 1 (the homogeneous shear flow); peculiar ones would give ~0"
 
 
 def _long(ctx: Context, res: CaseResult) -> None:
     s = long_setup(ctx)
-    pk, n, ld = s["packing"], s["nsteps"], s["loading"]
+    n, ld = s["nsteps"], s["loading"]
     p = ld.target
     res.notes.append(
         f"kuhn-1002: consolidation (native, biaxial-full's) within {100 * s['consolidation_error']:.2f}% "
@@ -1054,7 +1089,7 @@ def _long(ctx: Context, res: CaseResult) -> None:
     )
     runs, comps = long_plan(ctx)
     out = evaluate(res, ctx, runs, comps)
-    (c,) = comps
+    c = next(c for c in comps if c.kind == "ensemble")
     ens, nat = out.run(c.runs[1]), out.run(c.runs[0])
     if ens.stored:
         res.notes.append(
@@ -1077,7 +1112,7 @@ def _long(ctx: Context, res: CaseResult) -> None:
             "(records above); no envelope verdict is made on what remains."
         )
         return
-    ref, ens_runs, div, sdiv, cur = ens.reference, ens.members, sm["div"], sm["sdiv"], sm["curves"]
+    ref, div, sdiv, cur = ens.reference, sm["div"], sm["sdiv"], sm["curves"]
     frames = [] if ens.stored else [int(k) for k in expected_frames(n, LONG_DUMP_EVERY)]
     res.tables.append(
         (
@@ -1095,41 +1130,9 @@ def _long(ctx: Context, res: CaseResult) -> None:
             ],
         )
     )
-    if frames:
-        st = {
-            "native": cell_stats(nat, frames, pk.radii, s["settings"].dt),
-            "LAMMPS": cell_stats(ref, frames, pk.radii, s["settings"].dt),
-        }
-        for k, t in ens_runs.items():
-            st[f"LAMMPS {k}"] = cell_stats(t, frames, pk.radii, s["settings"].dt)
-        # a frame without cells is NaN on a side: it must be so on the other (defined_diff)
-        recs = [
-            band(
-                f"{CASE}/kuhn-1002/voidcells",
-                qty,
-                f"max over {len(frames)} frames |native - LAMMPS|",
-                st["native"][:, col],
-                st["LAMMPS"][:, col],
-                [st[f"LAMMPS {k}"][:, col] for k in ens_runs],
-                factor=LONG_RULE.curve_factor,
-                reason=STATS_REASON,
-                diff=defined_diff,
-            )
-            for col, qty in ((0, "mean_alpha"), (1, "fraction_alpha_le_0"))
-        ]
-        # remap v keeps the streaming velocity in the dumped v: its x profile has the slope of the flow
-        fr = ref.frames[frames[-1]]
-        slope = np.polyfit(fr["x"][:, 1], fr["v"][:, 0], 1)[0]
-        recs.append(
-            info(
-                f"{CASE}/kuhn-1002/voidcells",
-                "velocity_profile",
-                "slope d v_x/d y of LAMMPS' last dump / erate",
-                slope / s["erate"],
-                "lab velocities (remap v): about 1 (the homogeneous shear flow); peculiar ones would give ~0",
-            )
-        )
-        res.records += in_pair(recs, "native-lammps")
+    vc = out.by_kind.get((f"{CASE}/kuhn-1002/voidcells", "statistics"), {})
+    if frames and vc.get("complete"):
+        st = dict(vc["stats"])
         strains = (ref.lengths[ref.at(frames), 2] - ref.lengths[0, 2]) / ref.lengths[0, 1]
         res.figures.append(
             (
