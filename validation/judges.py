@@ -1129,14 +1129,21 @@ def cell_records(label: str, cmp: dict) -> list:
     ]
 
 
-def cell_lists(label: str, a, b, *, frames, radii, dt, snapshot, sides) -> tuple[list, dict]:
+def cell_lists(label: str, a, b, *, frames, radii, dt, snapshot, sides, as_info: str = "") -> tuple[list, dict]:
     """Kuhn's void cells of two runs, frame by frame: the evidence of every expected frame on both
-    sides, then :func:`cell_records` over the frames both hold (with their series step). Returns
-    (records, the :func:`compare_cell_frames` dict)."""
+    sides, then :func:`cell_records` over the frames both hold (with their series step); or, with
+    ``as_info`` (why the runs need not agree: two codes whose laws differ), only the number of
+    frames whose cell lists differ, an info record with that reason. Returns (records, the
+    :func:`compare_cell_frames` dict)."""
     recs = trajectory_evidence(label, sides[0], a, None, frames) + trajectory_evidence(label, sides[1], b, None, frames)
     sa, sb = {int(s) for s in a.steps}, {int(s) for s in b.steps}
     present = [int(k) for k in frames if k in a.frames and k in b.frames and int(k) in sa and int(k) in sb]
     cmp = compare_cell_frames(a, b, present, radii, dt, snapshot)
+    if as_info:
+        n = len(cmp["same"])
+        ndiff = sum(not x for x in cmp["same"]) if n else math.nan
+        what = f"frames with different cell lists, {sides[0]} vs {sides[1]} (of {n})"
+        return recs + [info(label, "cell_list", what, ndiff, as_info)], cmp
     return recs + cell_records(label, cmp), cmp
 
 
