@@ -166,6 +166,11 @@ def release_free_memory() -> None:
         _MALLOC_TRIM(0)
 
 
+#: the energy budget hands freed memory back only from this many particles: below, its gathered
+#: contact arrays are small and the trim of the heap costs more than they held (a 400-disk RVE
+#: call: every call restores the engine and resets the budget)
+TRIM_MIN_PARTICLES = 20_000
+
 #: contacts per call of the law's energy (:meth:`DEMEngine.elastic_energy`)
 ENERGY_CHUNK = 1 << 16
 
@@ -568,7 +573,8 @@ class Engine:
     def _reset_energy_budget(self):
         """Start of the energy balance of the divergence check: E0 = kinetic + elastic energy now."""
         e0 = self._budget_kinetic_energy() + self.elastic_energy()
-        release_free_memory()  # the gathered contact arrays of the energy
+        if self.n >= TRIM_MIN_PARTICLES:
+            release_free_memory()  # the gathered contact arrays of the energy
         self._energy0 = e0 if np.isfinite(e0) else np.inf  # a non-finite state is caught as NaN
         self._work = 0.0
 
