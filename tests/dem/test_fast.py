@@ -494,3 +494,49 @@ def test_the_threaded_wrap_is_the_serial_wrap():
             gp = FK.wrap_tilted_parallel(*pt, box, hr, True)
         assert gp == FK.wrap_tilted(*st, box, hr, True)
         assert all(np.array_equal(u, w) for u, w in zip(st, pt))
+
+
+def test_the_threaded_move_of_the_bands_is_the_serial_one():
+    """The banded build's regions (room for each band, some of it used) moved together on the
+    threads: the same entries in the same places and the same offsets as the serial move, for gaps
+    smaller than a band, larger than a band and empty bands."""
+    from gransim._numba import dynamic_chunks, num_threads
+    from gransim.dem import fast_kernels as FK
+
+    rng = np.random.default_rng(5)
+    for trial in range(6):
+        nb = 40
+        parts = rng.integers(0, 30, nb)  # particles per band
+        parts[rng.integers(0, nb, 3)] = 0
+        cstart = np.zeros(nb + 1, np.int32)
+        np.cumsum(parts, out=cstart[1:])
+        per = rng.integers(0, 5, cstart[-1])  # entries per particle
+        used = np.array([per[cstart[c] : cstart[c + 1]].sum() for c in range(nb)], np.int64)
+        cap = used + rng.integers(0, 200 if trial % 2 else 3, nb)  # slack: small or larger than a band
+        base = np.zeros(nb + 1, np.int64)
+        np.cumsum(cap, out=base[1:])
+        start = np.zeros(cstart[-1] + 1, np.int64)
+        for c in range(nb):  # start relative to the band's region, as pairs_banded leaves it
+            acc = 0
+            for i in range(cstart[c], cstart[c + 1]):
+                start[i] = acc
+                acc += per[i]
+        M = int(base[-1])
+        bufs = (rng.integers(0, 9999, M).astype(np.int32), rng.integers(0, 9999, M).astype(np.int32),
+                rng.integers(0, 255, M).astype(np.uint8), rng.normal(size=M), rng.normal(size=M))  # fmt: skip
+        a = [b.copy() for b in bufs]
+        sa = start.copy()
+        m = FK.close_gaps(cstart, base, used, sa, *a)
+        b = [x.copy() for x in bufs]
+        sb = start.copy()
+        off = np.zeros(nb + 1, np.int64)
+        np.cumsum(used, out=off[1:])
+        head = np.zeros(nb + 1, np.int64)
+        np.cumsum(np.minimum(base[:-1] - off[:-1], used), out=head[1:])
+        k = max(int(head[-1]), 1)
+        tmp = (np.zeros(k, np.int32), np.zeros(k, np.int32), np.zeros(k, np.uint8), np.zeros(k), np.zeros(k))
+        with num_threads(2), dynamic_chunks(1):
+            mb = FK.close_gaps_parallel(cstart, base, used, sb, *b, off, head, *tmp)
+        assert mb == m == used.sum()
+        assert np.array_equal(sa, sb)
+        assert all(np.array_equal(x[:m], y[:m]) for x, y in zip(a, b))
