@@ -159,7 +159,6 @@ class FastCell:
         self._threads = 1 if t is None else t
         n = eng.packing.n
         self._parallel = self._threads > 1 and n >= MIN_PER_THREAD * self._threads
-        self._gap_scratch = None  # the threaded build's scratch (_close_gaps)
         self._clamp = eng.flavour == "lammps"  # the rebuild rule of LAMMPS (kernels.rebuild_deltasq)
         self._cut = 2.0 * float(eng.packing.radii.max()) + eng.settings.skin
         self.run = None  # the fix deform of the current run (sheared cell: ShearedCell.start_run)
@@ -209,24 +208,6 @@ class FastCell:
         # a loop over particles on the threads (the wrap), in chunks of PARTICLE_CHUNK particles
         with num_threads(self._threads), dynamic_chunks(PARTICLE_CHUNK):
             yield
-
-    def _close_gaps(self, eng, base, used) -> int:
-        """The banded build's bands moved together on the threads (:func:`fast_kernels.close_gaps_parallel`,
-        its scratch: each band's entries that land in the regions before it, kept on the cell and
-        grown as needed); the list's entry count."""
-        off = np.zeros(base.size, np.int64)
-        np.cumsum(used, out=off[1:])
-        head = np.zeros(base.size, np.int64)
-        np.cumsum(np.minimum(base[:-1] - off[:-1], used), out=head[1:])
-        k = int(head[-1])
-        t = self._gap_scratch
-        if t is None or t[0].size < k:
-            cap = int(k * GROWTH) + 16
-            t = self._gap_scratch = (np.zeros(cap, np.int32), np.zeros(cap, np.int32), np.zeros(cap, np.uint8),
-                                     np.zeros(cap), np.zeros(cap))  # fmt: skip
-        with self._kernels(eng):
-            return int(FK.close_gaps_parallel(eng._cstart, base, used, eng._start, eng._ni, eng._nj, eng._code,
-                                              *eng._hist, off, head, *t))  # fmt: skip
 
     def _list(self, eng):
         return FK.FastList(eng._cstart, eng._start, eng._ni, eng._nj, eng._code, eng._hist[0], eng._hist[1])
@@ -347,7 +328,7 @@ class FastCell:
             with self._kernels(eng):
                 FK.pairs_banded(*args[:-2], eng._start, *tail(), base, used)
             if used.min() >= 0:
-                m = self._close_gaps(eng, base, used)
+                m = FK.close_gaps(eng._cstart, base, used, eng._start, eng._ni, eng._nj, eng._code, *eng._hist)
                 eng.n_banded_builds += 1
         if m < 0:
             with self._kernels(eng):
@@ -637,7 +618,7 @@ class FastCell:
         rest = sum(
             a.nbytes
             for a in (eng._order, eng._key, eng._tmpf, eng._tmpi, eng._cnt, eng._binstart, eng._sp_j, eng._sp_f)
-        ) + sum(a.nbytes for a in self._gap_scratch or ())
+        )
         return {"particles": part, "list": lst, "hand_over": hand, "scratch": rest}
 
 

@@ -1275,65 +1275,6 @@ def close_gaps(cstart, base, used, start, ni, nj, code, h0, h1):
     return off
 
 
-@njit(inline="always")
-def _move_entry(src, dst, ni, nj, code, h0, h1, ti, tj, tc, t0, t1, to_tmp, from_tmp):
-    """One list entry copied: buffer ``src`` -> buffer ``dst``, or ``src`` -> scratch ``dst``
-    (``to_tmp``), or scratch ``src`` -> buffer ``dst`` (``from_tmp``)."""
-    if to_tmp:
-        ti[dst] = ni[src]
-        tj[dst] = nj[src]
-        tc[dst] = code[src]
-        t0[dst] = h0[src]
-        t1[dst] = h1[src]
-    elif from_tmp:
-        ni[dst] = ti[src]
-        nj[dst] = tj[src]
-        code[dst] = tc[src]
-        h0[dst] = t0[src]
-        h1[dst] = t1[src]
-    else:
-        ni[dst] = ni[src]
-        nj[dst] = nj[src]
-        code[dst] = code[src]
-        h0[dst] = h0[src]
-        h1[dst] = h1[src]
-
-
-@pjit
-def close_gaps_parallel(cstart, base, used, start, ni, nj, code, h0, h1, off, head, ti, tj, tc, t0, t1):
-    """:func:`close_gaps` with the bands on the threads: the same list, entry for entry.
-
-    Band c's entries move down by its gap g_c = base[c] - off[c] (``off`` (C+1,) int64: where each
-    band's entries go, the prefix sums of ``used``; ``off[C]`` the total). Entry k goes from
-    base[c] + k to base[c] - g_c + k: for k >= g_c inside the band's own region (a forward copy
-    no other band touches), for k < g_c into the regions of the bands before it, which may still
-    hold their entries. So, in three parallel loops (each ends when every band has done): (1)
-    each band copies its first min(g_c, used[c]) entries into the scratch (``ti`` ... ``t1``, from
-    ``head[c]``, (C+1,) the prefix sums of those counts), (2) moves the rest within its region,
-    (3) writes the copied ones to their places, which by then hold nothing any band still reads
-    (every entry there was moved in (2) or copied in (1)). ``start`` made absolute per band."""
-    nch = cstart.shape[0] - 1
-    for c in prange(nch):
-        g = base[c] - off[c]
-        h = min(g, used[c])
-        for k in range(h):
-            _move_entry(base[c] + k, head[c] + k, ni, nj, code, h0, h1, ti, tj, tc, t0, t1, True, False)
-    for c in prange(nch):
-        g = base[c] - off[c]
-        if g > 0:
-            for k in range(g, used[c]):
-                _move_entry(base[c] + k, off[c] + k, ni, nj, code, h0, h1, ti, tj, tc, t0, t1, False, False)
-        for i in range(cstart[c], cstart[c + 1]):
-            start[i] += off[c]
-    for c in prange(nch):
-        g = base[c] - off[c]
-        h = min(g, used[c])
-        for k in range(h):
-            _move_entry(head[c] + k, off[c] + k, ni, nj, code, h0, h1, ti, tj, tc, t0, t1, False, True)
-    start[cstart[nch]] = off[nch]
-    return off[nch]
-
-
 @njit
 def _nonzero_springs(h0, h1):
     # over whole (sliced) arrays: the same loop written as range(e0, e1) over the full arrays
