@@ -68,6 +68,7 @@ import numpy as np
 
 from .._numba import njit
 from .._validate import as_int
+from ..contacts.yade_cundall_strack import yade_law
 from ..errors import InputError, SimulationError
 from ..geometry import Packing
 from .settings import DEMSettings, Integration, Loading
@@ -968,8 +969,6 @@ def scene_checkpoint(state: YadeRVEState, rotation=None) -> dict:
 def scene_law(state: YadeRVEState):
     """The law of a saved scene's material: Guo & Zhao's radius-dependent stiffnesses (young,
     poisson), its friction angle, ``avoidGranularRatcheting`` (prepareRVE.py keeps Ig2's default)."""
-    from ..contacts.yade_cundall_strack import yade_law  # noqa: PLC0415 - one import path for the law
-
     return yade_law(state.friction_angle, young=state.young, poisson=state.poisson, avoid_granular_ratcheting=True)
 
 
