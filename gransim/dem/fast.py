@@ -205,8 +205,9 @@ class FastCell:
 
     @contextlib.contextmanager
     def _particle_kernels(self):
-        # a loop over particles on the threads (the wrap), in chunks of PARTICLE_CHUNK particles
-        with num_threads(self._threads), dynamic_chunks(PARTICLE_CHUNK):
+        # a loop over particles (the wrap): on the threads in chunks of PARTICLE_CHUNK particles
+        # when threaded, else on one
+        with num_threads(self._threads if self._parallel else 1), dynamic_chunks(PARTICLE_CHUNK):
             yield
 
     def _list(self, eng):
@@ -656,10 +657,8 @@ class FastOrthogonalCell(FastCell):
     def _wrap(self, eng):
         """Domain::pbc per axis; a particle still outside (sorted index) or -1."""
         p = eng.ps
-        if self._parallel:
-            with self._particle_kernels():
-                return FK.wrap_parallel(p.x, p.y, eng.lo, eng.hi)
-        return FK.wrap(p.x, p.y, eng.lo, eng.hi)
+        with self._particle_kernels():
+            return FK.wrap(p.x, p.y, eng.lo, eng.hi)
 
     def _hold(self, eng):
         """The box at this list build (the rebuild test measures the box's motion from it)."""
@@ -738,10 +737,8 @@ class FastShearedCell(FastCell):
         """Domain::pbc of the tilted box with the Lees-Edwards velocity jump; a particle still
         outside (sorted index) or -1."""
         p = eng.ps
-        if self._parallel:
-            with self._particle_kernels():
-                return FK.wrap_tilted_parallel(p.x, p.y, p.vx, p.vy, eng.box, eng.h_rate, True)
-        return FK.wrap_tilted(p.x, p.y, p.vx, p.vy, eng.box, eng.h_rate, True)
+        with self._particle_kernels():
+            return FK.wrap_tilted(p.x, p.y, p.vx, p.vy, eng.box, eng.h_rate, True)
 
     def _hold(self, eng):
         """The box and its 8 corners at this list build (LAMMPS' triclinic rebuild rule)."""

@@ -720,27 +720,12 @@ def _wrap_axis(a, i, lo, hi, prd):
     return a[i] < lo or a[i] >= hi
 
 
-@njit
+@pjit
 def wrap(x, y, lo, hi):
     """Domain::pbc per axis; returns a particle still outside after one wrap (sorted index: the
-    first outside along x, else the first along y) or -1."""
-    n = x.shape[0]
-    bx = n
-    by = n
-    px = hi[0] - lo[0]
-    py = hi[1] - lo[1]
-    for i in range(n):
-        if _wrap_axis(x, i, lo[0], hi[0], px):
-            bx = min(bx, i)
-        if _wrap_axis(y, i, lo[1], hi[1], py):
-            by = min(by, i)
-    return bx if bx < n else (by if by < n else -1)
-
-
-@pjit
-def wrap_parallel(x, y, lo, hi):
-    """:func:`wrap` with the particles spread over the threads: each particle's wrap is its own,
-    so the positions are the same bits, and the particle returned is the same."""
+    first outside along x, else the first along y) or -1. The particles are spread over the
+    threads (one thread: in order): each particle's wrap is its own, so the positions and the
+    particle returned do not depend on the threads."""
     n = x.shape[0]
     bx = n
     by = n
@@ -786,7 +771,7 @@ def _wrap_tilted_one(x, y, vx, vy, i, box, hr, vremap, Lx, Ly, xy, tl):
     return not (0.0 <= off < Lx and ly <= y[i] < box[3])
 
 
-@njit
+@pjit
 def wrap_tilted(x, y, vx, vy, box, hr, vremap):
     """Domain::pbc of the sheared cell ``box`` (5,) = (lo_x, lo_y, hi_x, hi_y, xy) m: a particle
     below lo_y moves by a2 = (xy, Ly), above hi_y by -a2, with its velocity changed by
@@ -794,22 +779,8 @@ def wrap_tilted(x, y, vx, vy, box, hr, vremap):
     ``hr`` (3,) = (h_rate[0], h_rate[1], h_rate[5]) m/s); then along x by +/-a1 = (Lx, 0), its x
     velocity by +/-h_rate[0], when its offset from the cell's left edge, (x - lo_x) - (xy/Ly)
     (y - lo_y), is outside [0, Lx). Returns
-    a particle still outside after one wrap (sorted index) or -1."""
-    n = x.shape[0]
-    Lx = box[2] - box[0]
-    Ly = box[3] - box[1]
-    tl = box[4] / Ly
-    bad = n
-    for i in range(n):
-        if _wrap_tilted_one(x, y, vx, vy, i, box, hr, vremap, Lx, Ly, box[4], tl):
-            bad = min(bad, i)
-    return bad if bad < n else -1
-
-
-@pjit
-def wrap_tilted_parallel(x, y, vx, vy, box, hr, vremap):
-    """:func:`wrap_tilted` with the particles spread over the threads (the same bits, the same
-    particle returned)."""
+    a particle still outside after one wrap (sorted index) or -1. The particles are spread over
+    the threads (one thread: in order): the result does not depend on them."""
     n = x.shape[0]
     Lx = box[2] - box[0]
     Ly = box[3] - box[1]

@@ -201,6 +201,20 @@ def _iteration_rest(it, first, b, c, q, lp, dt, stress):
     return 0, -1
 
 
+@njit(inline="always")
+def _cell_columns(c, out, s):
+    """Row ``s`` of the block's rows: hSize (00, 01, 10, 11) and the step's velGrad (00, 01, 10, 11),
+    columns 7-14 of :data:`OUT_COLUMNS`."""
+    out[s, 7] = c.H[0, 0]
+    out[s, 8] = c.H[0, 1]
+    out[s, 9] = c.H[1, 0]
+    out[s, 10] = c.H[1, 1]
+    out[s, 11] = c.L[0, 0]
+    out[s, 12] = c.L[0, 1]
+    out[s, 13] = c.L[1, 0]
+    out[s, 14] = c.L[1, 1]
+
+
 @njit
 def _row(b, c, q, out, s):
     """The per-step row ``s`` of ``out`` (:data:`OUT_COLUMNS`) after a frame."""
@@ -221,14 +235,7 @@ def _row(b, c, q, out, s):
         ke += 0.5 * b.mass[i] * (b.vel[i, 0] * b.vel[i, 0] + b.vel[i, 1] * b.vel[i, 1])
         ke += 0.5 * b.inertia[i] * b.spin[i] * b.spin[i]
     out[s, 6] = ke
-    out[s, 7] = c.H[0, 0]
-    out[s, 8] = c.H[0, 1]
-    out[s, 9] = c.H[1, 0]
-    out[s, 10] = c.H[1, 1]
-    out[s, 11] = c.L[0, 0]
-    out[s, 12] = c.L[0, 1]
-    out[s, 13] = c.L[1, 0]
-    out[s, 14] = c.L[1, 1]
+    _cell_columns(c, out, s)
 
 
 @njit
@@ -280,14 +287,7 @@ def rve_block(b, c, q, lp, dt, dt2, step0, n, end, out):
                 return s, 3 + err, axis
         for k in range(7):
             out[s, k] = np.nan
-        out[s, 7] = c.H[0, 0]
-        out[s, 8] = c.H[0, 1]
-        out[s, 9] = c.H[1, 0]
-        out[s, 10] = c.H[1, 1]
-        out[s, 11] = c.L[0, 0]
-        out[s, 12] = c.L[0, 1]
-        out[s, 13] = c.L[1, 0]
-        out[s, 14] = c.L[1, 1]
+        _cell_columns(c, out, s)
     for i in range(nb):  # a non-finite position stays so (the collider meets no overlap with it)
         if not (math.isfinite(b.pos[i, 0]) and math.isfinite(b.pos[i, 1])):
             return n - 1, 2, i

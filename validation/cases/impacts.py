@@ -887,18 +887,7 @@ def measure(frames: dict, scene: Scene, pairs, dt: float) -> list[dict]:
     the largest sampled overlap), exit slip and spin, friction impulse m1 |dv1.t|, and the largest
     |F_t|/(mu |F_n|) - 1 over the contact frames. NaN where the contact did not start or end
     between frames."""
-    keys = (
-        "contact time",
-        "restitution",
-        "peak overlap",
-        "peak force",
-        "exit slip",
-        "w1'",
-        "friction impulse",
-        "coulomb bound",
-        "s0",
-        "energy ratio",
-    )
+    keys = MEASURED
     if len(frames) < 4:
         return [{k: math.nan for k in keys} for _ in scene.impacts]
     steps = np.array(sorted(frames))
@@ -1285,7 +1274,7 @@ def roll_layout(scene: RollScene, dt: float = DT):
 def roll_measure(frames: dict, scene: RollScene, cols, dt: float, ans: list) -> list[dict]:
     """Per column: the spin trajectory error, stop time and capped-phase deceleration (NaN when
     frames are missing)."""
-    keys = ("spin trajectory", "stop time", "deceleration", "w_end")
+    keys = ROLL_MEASURED
     out = []
     steps = np.array(sorted(frames))
     _p, _, _, nsteps, _ = roll_layout(scene, dt)
