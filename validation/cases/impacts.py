@@ -1513,16 +1513,7 @@ def wall_measure(frames: dict, scene: WallScene, dt: float) -> list[dict]:
     """Per disk: contact time (Hermite crossings of delta = r - y), restitution -vy'/vy, exit slip
     vx' + r w', exit spin, friction impulse m |dvx|, energy ratio KE'/KE (translation and spin),
     the largest |F_t|/(mu |F_n|) - 1 over the contact frames; NaN on missing frames."""
-    keys = (
-        "contact time",
-        "restitution",
-        "exit slip",
-        "w1'",
-        "friction impulse",
-        "energy ratio",
-        "coulomb bound",
-        "peak overlap",
-    )
+    keys = WALL_MEASURED
     _p, _, _, nsteps, _ = wall_layout(scene, dt)
     exp = list(range(0, nsteps + 1, round(EVERY * DT / dt)))
     if sorted(frames) != exp:
