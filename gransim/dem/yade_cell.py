@@ -855,24 +855,21 @@ class YadeCell:
         if not self.saved:
             raise InputError("scene: no saved scene (the engine's last run was not a VelGradRun that ended)")
         b, c, q = eng.yb, eng.yc, eng.yq
-        H = c.H
-        size = np.array([math.sqrt(H[0, 0] * H[0, 0] + H[1, 0] * H[1, 0]),
-                         math.sqrt(H[0, 1] * H[0, 1] + H[1, 1] * H[1, 1]), math.sqrt(self.z * self.z)])  # fmt: skip
-        if not np.array_equal(size, c.prev_size):
+        if not _size_is_prev_size(c.H, self.z, c.prev_size):
             raise SimulationError(f"step {eng.step}: the cell's size is not NewtonIntegrator.prevCellSize")
-        real = np.flatnonzero(q.i_real[: q.n_intr[0]])
-        g = q.i_geom[real]
+        ids, cd, normal, kn, ks, tan_phi, fn, fs = _saved_interactions(q.n_intr, q.i_id, q.i_cd, q.i_real, q.i_geom,
+                                                                       q.i_fs)  # fmt: skip
         radii, mass, inertia = self._scene or (b.radius.copy(), b.mass.copy(), b.inertia.copy())
         law = eng.law
+        misc = c.misc.tolist()
         return YadeRVEState(
-            iteration=int(eng.step), dt=self.dt, z=self.z, z_pos=float(c.misc[4]), radii=radii, mass=mass,
+            iteration=int(eng.step), dt=self.dt, z=self.z, z_pos=misc[4], radii=radii, mass=mass,
             inertia=inertia, positions=b.pos.copy(), velocities=b.vel.copy(), spins=b.spin.copy(),
-            bound_ref=b.ref_pos.copy(), sweep=b.sweep.copy(), last_update=b.last_update.copy(), hsize=H.copy(),
+            bound_ref=b.ref_pos.copy(), sweep=b.sweep.copy(), last_update=b.last_update.copy(), hsize=c.H.copy(),
             vel_grad=c.L.copy(), next_vel_grad=np.zeros((2, 2)), vel_grad_changed=True,
-            newton_prev_vel_grad=c.Lprev.copy(), prev_cell_size=c.prev_size.copy(), verlet=float(c.misc[2]),
-            damping=float(c.misc[3]), young=law.young, poisson=law.poisson, friction_angle=law.friction_angle,
-            ids=q.i_id[real], cell_dist=q.i_cd[real], normal=g[:, 0:2].copy(), kn=g[:, 5].copy(), ks=g[:, 6].copy(),
-            tan_phi=g[:, 7].copy(), normal_force=g[:, 3:5].copy(), shear_force=q.i_fs[real],
+            newton_prev_vel_grad=c.Lprev.copy(), prev_cell_size=c.prev_size.copy(), verlet=misc[2],
+            damping=misc[3], young=law.young, poisson=law.poisson, friction_angle=law.friction_angle,
+            ids=ids, cell_dist=cd, normal=normal, kn=kn, ks=ks, tan_phi=tan_phi, normal_force=fn, shear_force=fs,
         )  # fmt: skip
 
     def memory_bytes(self, eng) -> dict:
@@ -881,6 +878,51 @@ class YadeCell:
             "cell": sum(a.nbytes for a in eng.yc),
             "container": sum(a.nbytes for a in eng.yq),
         }
+
+
+@njit
+def _size_is_prev_size(H, z, prev_size):
+    """Whether the cell's column sizes (sqrt of each column's squares, and |z|) are
+    NewtonIntegrator's prevCellSize, bit for bit."""
+    return (
+        math.sqrt(H[0, 0] * H[0, 0] + H[1, 0] * H[1, 0]) == prev_size[0]
+        and math.sqrt(H[0, 1] * H[0, 1] + H[1, 1] * H[1, 1]) == prev_size[1]
+        and math.sqrt(z * z) == prev_size[2]
+    )
+
+
+@njit
+def _saved_interactions(n_intr, i_id, i_cd, i_real, i_geom, i_fs):
+    """The real interactions of the container, in container order, as a saved scene holds them
+    (core/InteractionContainer.cpp:174-181): ids, cellDist (M, 2); normal (M, 2); kn, ks,
+    tan(friction angle) (M,); normal and shear force (M, 2). New arrays."""
+    n = n_intr[0]
+    m = 0
+    for e in range(n):
+        if i_real[e]:
+            m += 1
+    ids = np.empty((m, 2), i_id.dtype)
+    cd = np.empty((m, 2), i_cd.dtype)
+    normal = np.empty((m, 2))
+    kn = np.empty(m)
+    ks = np.empty(m)
+    tan_phi = np.empty(m)
+    fn = np.empty((m, 2))
+    fs = np.empty((m, 2))
+    k = 0
+    for e in range(n):
+        if i_real[e]:
+            for a in range(2):
+                ids[k, a] = i_id[e, a]
+                cd[k, a] = i_cd[e, a]
+                normal[k, a] = i_geom[e, a]
+                fn[k, a] = i_geom[e, 3 + a]
+                fs[k, a] = i_fs[e, a]
+            kn[k] = i_geom[e, 5]
+            ks[k] = i_geom[e, 6]
+            tan_phi[k] = i_geom[e, 7]
+            k += 1
+    return ids, cd, normal, kn, ks, tan_phi, fn, fs
 
 
 #: the engine's ``sc`` of the yade cell: the virial only
