@@ -662,6 +662,17 @@ def envelope(
     return recs, div, sdiv
 
 
+def max_abs_diff(x, y) -> float:
+    """max |x - y| of two curves (NaN when either holds one)."""
+    return float(np.abs(np.asarray(x, float) - np.asarray(y, float)).max())
+
+
+def band_width(reference, members, diff=max_abs_diff) -> float:
+    """The band of an envelope around ``reference``: the largest ``diff`` of a member's curve from
+    it (NaN stays NaN)."""
+    return peak(diff(m, reference) for m in members)
+
+
 def band(
     label: str,
     quantity: str,
@@ -679,13 +690,10 @@ def band(
     deviation of a member's curve from the reference's (NaN stays NaN: fails). ``diff(a, b)``:
     the largest difference of two curves (default max |a - b|; the void-cell statistics use
     :func:`reference_runs.judge.defined_diff`, where NaN marks a frame without cells)."""
-    if diff is None:
-
-        def diff(x, y):
-            return float(np.abs(np.asarray(x, float) - np.asarray(y, float)).max())
-
-    width = peak(diff(m, reference) for m in members)
-    return compare(label, quantity, metric, diff(native, reference), factor * width, reason)
+    diff = diff or max_abs_diff
+    return compare(
+        label, quantity, metric, diff(native, reference), factor * band_width(reference, members, diff), reason
+    )
 
 
 # ====================================================================== statistics of snapshots
@@ -729,8 +737,7 @@ def statistics_band(
     mem = [st[who] for who, _ in named[2:]]
     bands = {}
     for col, quantity in checks:
-        d = diff or (lambda x, y: float(np.abs(np.asarray(x, float) - np.asarray(y, float)).max()))
-        bands[quantity] = peak(d(m[:, col], st[sides[1]][:, col]) for m in mem)
+        bands[quantity] = band_width(st[sides[1]][:, col], [m[:, col] for m in mem], diff or max_abs_diff)
         recs.append(
             band(
                 label,
@@ -763,11 +770,11 @@ def statistics_cross(
     recs.append(evidence(label, "codes with perturbed runs (their bands)", 2, both))
     if not all(r.passed for r in recs):
         return recs, {"complete": False}
-    d = diff or (lambda x, y: float(np.abs(np.asarray(x, float) - np.asarray(y, float)).max()))
+    d = diff or max_abs_diff
     sa, sb = statistics(ref_a), statistics(ref_b)
     ma, mb = [statistics(t) for t in members[:n_a]], [statistics(t) for t in members[n_a:]]
     for col, quantity in checks:
-        width = peak(d(m[:, col], sa[:, col]) for m in ma) + peak(d(m[:, col], sb[:, col]) for m in mb)
+        width = band_width(sa[:, col], [m[:, col] for m in ma], d) + band_width(sb[:, col], [m[:, col] for m in mb], d)
         recs.append(compare(label, quantity, f"max over {len(frames)} frames |{na} - {nb}|", d(sa[:, col], sb[:, col]),
                             width, reason))  # fmt: skip
     return recs, {"complete": True}
@@ -1278,7 +1285,7 @@ def ensemble_envelope(
     bands = {}
     for c in checks:
         members = [cur[f"{code} {k}"][c.col] for k in ens.members]
-        bands[c.quantity] = peak(np.abs(m - cur[code][c.col]) for m in members)  # NaN stays NaN
+        bands[c.quantity] = band_width(cur[code][c.col], members)  # NaN stays NaN
         recs.append(
             band(
                 f"{case_}/curve/{engine}",
@@ -1331,8 +1338,8 @@ def ensemble_cross(
 
     ca, cb = curves_of(at(a, ra)), curves_of(at(b, rb))
     for c in checks:
-        wa = peak(np.abs(curves_of(at(a, t))[c.col] - ca[c.col]) for t in a.members.values())
-        wb = peak(np.abs(curves_of(at(b, t))[c.col] - cb[c.col]) for t in b.members.values())
+        wa = band_width(ca[c.col], [curves_of(at(a, t))[c.col] for t in a.members.values()])
+        wb = band_width(cb[c.col], [curves_of(at(b, t))[c.col] for t in b.members.values()])
         recs.append(
             compare(
                 label,
