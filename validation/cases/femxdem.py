@@ -21,6 +21,7 @@ a code absent, there is no evidence and the case says so.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from pathlib import Path
 
 import h5py
@@ -165,7 +166,7 @@ def lammps_available() -> bool:
 
 def plan(ctx: Context, replay) -> tuple[list, list, dict]:
     """The runs and comparisons of the case, and what they share (``info``: the FE run's summary,
-    the Gauss point g, its committed state, filled when the FE run is made).
+    the Gauss point g, its committed state, its output directory; YADE's version once replayed).
 
     Runs: the native FE run (2 x 4 mesh, DEM RVEs in YADE's arithmetic), whose most strained Gauss
     point's committed RVE is one run and whose strain history drives the others: a single native
@@ -177,52 +178,45 @@ def plan(ctx: Context, replay) -> tuple[list, list, dict]:
     summary, g, committed = native_history(out)  # made first: its Gauss point chooses the history
     info = {"summary": summary, "g": g, "committed": committed, "out": out}
     lab = f"{CASE}/gp{g}"
-
-    def fe():
-        return info
-
-    def inc():
-        return np.asarray(committed.increments)
+    inc = np.asarray(committed.increments)
+    calls = len(inc) + 1
+    lammps_rve = functools.cache(LammpsRVE.guo_zhao)
 
     def yade():
         try:
-            states, manifest = replay(ctx.work("reference", "femxdem-short"), inc(), ctx.job_timeout(PREPARE_PSTEPS))
+            states, manifest = replay(ctx.work("reference", "femxdem-short"), inc, ctx.job_timeout(PREPARE_PSTEPS))
         except ReferenceRunError as exc:  # a failed job or an output cut short: missing evidence, named
             return Failed(f"YADE job failed: {str(exc).splitlines()[0]}")
         info["yade_version"] = manifest.get("engine_version")
         return states
 
     def lammps():
-        rve = LammpsRVE.guo_zhao()
         try:
             return replay_in_lammps(
-                ctx.work("reference", "femxdem-short-lammps"), rve, inc(), ctx.job_timeout(400 * 1000)
+                ctx.work("reference", "femxdem-short-lammps"), lammps_rve(), inc, ctx.job_timeout(400 * 1000)
             )
         except ReferenceRunError as exc:
             return Failed(f"LAMMPS job failed: {str(exc).splitlines()[0]}")
 
     runs = [
         Run("native/gauss-point", "native", "yade", "the committed RVE of the FE run's most strained Gauss point",
-            lambda: fe()["committed"].rve),
+            lambda: committed.rve),
         Run("native/rve", "native", "yade", "a single RVE driven by the Gauss point's increments",
-            lambda: native_calls(inc())),
+            lambda: native_calls(inc)),
         Run("yade/rve", "yade", "yade", "prepareRVE.py, then simDEM.shear2D per increment, in YADE now", yade,
             live=True),
         Run("native/lammps-rve", "native", "lammps", "the LAMMPS RVE driven by the increments",
-            lambda: LammpsRVE.guo_zhao().replay(inc())),
+            lambda: lammps_rve().replay(inc)),
         Run("lammps/rve", "lammps", "lammps", "the LAMMPS RVE's deck, one run per increment, in LAMMPS now", lammps,
             live=True),
     ]  # fmt: skip
-
-    def calls():
-        return len(inc()) + 1
 
     comps = [
         Comparison(
             "same", lab, ("native/gauss-point", "native/rve"),
             "a Gauss point's RVE is a single RVE driven by its strain history (the FE run only chooses it)",
-            lambda: {"fields": RVE_STATE_FIELDS, "quantity": "gauss_point", "metric": "fields of the Gauss point's "
-                     "committed RVE that differ from a single RVE driven by its increments"},
+            {"fields": RVE_STATE_FIELDS, "quantity": "gauss_point", "metric": "fields of the Gauss point's "
+             "committed RVE that differ from a single RVE driven by its increments"},
             view=lambda r: r[-1] if isinstance(r, list) else r,
         ),
         Comparison(
@@ -233,19 +227,19 @@ def plan(ctx: Context, replay) -> tuple[list, list, dict]:
         ),
         Comparison(
             "step", lab, ("native/rve", "yade/rve"), REASON,
-            lambda: {"d50": float(2 * np.median(load_rve_state()[0].radii)), "nsteps": calls() - 1, "dump_every": 1,
+            lambda: {"d50": float(2 * np.median(load_rve_state()[0].radii)), "nsteps": calls - 1, "dump_every": 1,
                      "bounds": BOUNDS},
             view=trajectory,
         ),
         Comparison(
             "same", lab, ("native/rve", "yade/rve"), REASON,
-            lambda: {"fields": RVE_STATE_FIELDS, "quantity": "saved_scene", "what": "calls", "expected": calls(),
-                     "metric": "calls whose saved scene differs in any field (positions ... shear forces, in "
-                     "container order), counted per field"},
+            {"fields": RVE_STATE_FIELDS, "quantity": "saved_scene", "what": "calls", "expected": calls,
+             "metric": "calls whose saved scene differs in any field (positions ... shear forces, in container "
+             "order), counted per field"},
         ),
         Comparison(
             "step", lab, ("native/lammps-rve", "lammps/rve"), LAMMPS_REASON,
-            lambda: {"d50": float(2 * np.median(LammpsRVE.guo_zhao().packing.radii)), "nsteps": calls() - 1,
+            lambda: {"d50": float(2 * np.median(lammps_rve().packing.radii)), "nsteps": calls - 1,
                      "dump_every": 1, "bounds": LAMMPS_BOUNDS},
             view=lammps_trajectory,
         ),
