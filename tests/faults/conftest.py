@@ -44,7 +44,6 @@ Tests marked ``@pytest.mark.liggghts`` are skipped when the real binary is not o
 
 from __future__ import annotations
 
-import os
 import shutil
 import sys
 from pathlib import Path
@@ -53,7 +52,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from fakes import REAL_KINDS, small_deck, small_lammps_deck, write_fake  # noqa: E402
+from fakes import REAL_KINDS, fakes_on_path, small_deck, small_lammps_deck, write_fake  # noqa: E402
 
 _REAL = shutil.which("liggghts")
 _REAL_LMP = shutil.which("lmp")
@@ -82,42 +81,22 @@ def real_liggghts():
 
 @pytest.fixture
 def fake_liggghts(tmp_path_factory, monkeypatch):
-    import reference_runs.runner as runner
+    def write(bindir, kind, real):
+        return write_fake(bindir, kind, real=real)
 
-    monkeypatch.setattr(runner, "KILL_GRACE_S", 0.5)
-    made = []
-
-    def make(kind: str):
-        if kind in REAL_KINDS and _REAL is None:
-            pytest.skip(f"fake liggghts kind {kind!r} needs the real liggghts binary")
-        fake = write_fake(tmp_path_factory.mktemp(f"fake-{kind}"), kind, real=_REAL)
-        monkeypatch.setenv("PATH", f"{fake.bindir}{os.pathsep}{os.environ.get('PATH', '')}")
-        made.append(fake)
-        return fake
-
-    yield make
-    for fake in made:
-        fake.kill_leftovers()
+    yield from fakes_on_path(
+        tmp_path_factory, monkeypatch, write, _REAL, REAL_KINDS, "liggghts", "apt-get install liggghts"
+    )
 
 
 @pytest.fixture
 def fake_lmp(tmp_path_factory, monkeypatch):
-    import reference_runs.runner as runner
+    def write(bindir, kind, real):
+        return write_fake(bindir, kind, real=real, engine="lammps")
 
-    monkeypatch.setattr(runner, "KILL_GRACE_S", 0.5)
-    made = []
-
-    def make(kind: str):
-        if kind in REAL_KINDS and _REAL_LMP is None:
-            pytest.skip(f"fake lmp kind {kind!r} needs the real lmp binary (apt-get install lammps)")
-        fake = write_fake(tmp_path_factory.mktemp(f"fake-lmp-{kind}"), kind, real=_REAL_LMP, engine="lammps")
-        monkeypatch.setenv("PATH", f"{fake.bindir}{os.pathsep}{os.environ.get('PATH', '')}")
-        made.append(fake)
-        return fake
-
-    yield make
-    for fake in made:
-        fake.kill_leftovers()
+    yield from fakes_on_path(
+        tmp_path_factory, monkeypatch, write, _REAL_LMP, REAL_KINDS, "lmp", "apt-get install lammps"
+    )
 
 
 @pytest.fixture

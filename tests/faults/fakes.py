@@ -40,17 +40,24 @@ KINDS = ("error", "silent", "hang", "truncate-log", "cut-dumps", "warning", "slo
 #: kinds that run the real binary underneath
 REAL_KINDS = ("truncate-log", "cut-dumps", "warning", "slow")
 
-_SCRIPT = r"""#!{python}
-# fake liggghts, kind {kind!r} (tests/faults/fakes.py)
-import os, subprocess, sys, time
-from pathlib import Path
-KIND, REAL, PIDS, ENGINE = {kind!r}, {real!r}, {pids!r}, {engine!r}
-def rec(role, pid):
+#: the lines every fake script runs first: ``rec(role, pid)`` appends ``<role> <pid>`` to its pid
+#: file, the fake records itself, ``args`` its arguments (a template piece: braces doubled)
+_RECORD = r"""def rec(role, pid):
     with open(PIDS, "a") as fh:
         fh.write(f"{{role}} {{pid}}\n")
 rec("fake", os.getpid())
 args = sys.argv[1:]
-def opt(name, default=None):
+"""
+
+_SCRIPT = (
+    r"""#!{python}
+# fake liggghts, kind {kind!r} (tests/faults/fakes.py)
+import os, subprocess, sys, time
+from pathlib import Path
+KIND, REAL, PIDS, ENGINE = {kind!r}, {real!r}, {pids!r}, {engine!r}
+"""
+    + _RECORD
+    + r"""def opt(name, default=None):
     for k, a in enumerate(args[:-1]):
         if a == name:
             return args[k + 1]
@@ -123,6 +130,33 @@ elif KIND == "warning":
     Path(log).write_text("\n".join(lines) + "\n")
 sys.exit(rc)
 """
+)
+
+
+def fakes_on_path(tmp_path_factory, monkeypatch, write, real, real_kinds, name: str, install: str):
+    """The generator behind the ``fake_<code>`` fixtures: yields ``make(kind)``, which writes the
+    fake ``name`` of that kind (``write(bindir, kind, real)``) into a fresh temporary directory,
+    puts it first on PATH and returns it; a kind of ``real_kinds`` skips the test when the real
+    binary ``real`` is absent (``install``: how to get it). The runner's SIGTERM-to-SIGKILL grace
+    is 0.5 s meanwhile; at teardown whatever a fake recorded and left running is killed."""
+    import pytest  # noqa: PLC0415 - only the fixtures need it
+
+    import reference_runs.runner as runner  # noqa: PLC0415 - only the fixtures need it
+
+    monkeypatch.setattr(runner, "KILL_GRACE_S", 0.5)
+    made = []
+
+    def make(kind: str):
+        if kind in real_kinds and real is None:
+            pytest.skip(f"fake {name} kind {kind!r} needs the real {name} binary ({install})")
+        fake = write(tmp_path_factory.mktemp(f"fake-{name}-{kind}"), kind, real)
+        monkeypatch.setenv("PATH", f"{fake.bindir}{os.pathsep}{os.environ.get('PATH', '')}")
+        made.append(fake)
+        return fake
+
+    yield make
+    for fake in made:
+        fake.kill_leftovers()
 
 
 def pid_alive(pid: int) -> bool:
@@ -321,17 +355,15 @@ YADE_KINDS = ("error", "hang", "cut", "drop-particle")
 #: kinds that run the real ``yade`` underneath
 YADE_REAL_KINDS = ("cut", "drop-particle")
 
-_YADE_SCRIPT = r"""#!{python}
+_YADE_SCRIPT = (
+    r"""#!{python}
 # fake yade, kind {kind!r} (tests/faults/fakes.py)
 import os, socket, subprocess, sys, time
 from pathlib import Path
 KIND, REAL, PIDS, PORT = {kind!r}, {real!r}, {pids!r}, {port!r}
-def rec(role, pid):
-    with open(PIDS, "a") as fh:
-        fh.write(f"{{role}} {{pid}}\n")
-rec("fake", os.getpid())
-args = sys.argv[1:]
-if args == ["--version"]:
+"""
+    + _RECORD
+    + r"""if args == ["--version"]:
     print(f"Yade version: 2023.02a-fake-{{KIND}}")
     sys.exit(0)
 def real_run():
@@ -369,6 +401,7 @@ for out in Path(".").glob("*.out"):
             out.write_text("".join(lines))
 sys.exit(rc)
 """
+)
 
 
 @dataclass(frozen=True)

@@ -11,9 +11,8 @@ import shutil
 import socket
 
 import pytest
-from fakes import write_fake_yade
+from fakes import YADE_REAL_KINDS, fakes_on_path, write_fake_yade
 
-import reference_runs.runner as runner
 import validation.runner as vrunner
 from validation.cases import taylor
 from validation.runner import run_validation
@@ -25,22 +24,15 @@ REAL_YADE = shutil.which("yade")
 def fake_yade(tmp_path_factory, monkeypatch):
     """``fake = fake_yade(kind)``: the fake first on PATH, LIGGGHTS and LAMMPS absent, the runner's
     SIGTERM-to-SIGKILL grace 0.5 s; at teardown whatever the fake left running is killed."""
-    monkeypatch.setattr(runner, "KILL_GRACE_S", 0.5)
     monkeypatch.setattr(vrunner, "liggghts_available", lambda: False)
     monkeypatch.setattr(vrunner, "lammps_available", lambda: False)
-    made = []
 
-    def make(kind):
-        if kind in ("cut", "drop-particle") and REAL_YADE is None:
-            pytest.skip(f"fake yade kind {kind!r} needs the real yade binary (apt-get install yade)")
-        fake = write_fake_yade(tmp_path_factory.mktemp(f"fake-yade-{kind}"), kind, real=REAL_YADE)
-        monkeypatch.setenv("PATH", f"{fake.bindir}:{__import__('os').environ.get('PATH', '')}")
-        made.append(fake)
-        return fake
+    def write(bindir, kind, real):
+        return write_fake_yade(bindir, kind, real=real)
 
-    yield make
-    for fake in made:
-        fake.kill_leftovers()
+    yield from fakes_on_path(
+        tmp_path_factory, monkeypatch, write, REAL_YADE, YADE_REAL_KINDS, "yade", "apt-get install yade"
+    )
 
 
 def _quiet(*a, **k):
