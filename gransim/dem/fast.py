@@ -179,6 +179,9 @@ class FastCell:
         eng._tmpi = np.zeros(n, np.int32)
         eng._cnt = np.zeros(n, np.int32)
         eng._start = np.zeros(n + 1, np.int32)
+        eng._stop = eng._start[1:]  # the end of each particle's entries: plain CSR ...
+        eng._stopbuf = np.zeros(n, np.int32)  # ... or, after a banded build, its own array
+        eng._gaps = None  # (base, used) of a banded build whose bands are not moved together yet
         eng._binstart = np.zeros(1, np.int32)
         # the list (capacity grows) and the hand-over table
         eng._ni = np.zeros(0, np.int32)
@@ -211,7 +214,18 @@ class FastCell:
             yield
 
     def _list(self, eng):
-        return FK.FastList(eng._cstart, eng._start, eng._ni, eng._nj, eng._code, eng._hist[0], eng._hist[1])
+        return FK.FastList(eng._cstart, eng._start, eng._stop, eng._ni, eng._nj, eng._code, *eng._hist)
+
+    def _flat(self, eng):
+        """The list as plain CSR (``_ni[:n_entries]`` etc. the whole list, ``start[N]`` its size)
+        for the readers of the whole list (contacts, energies, views, checkpoints): a banded
+        build leaves a gap after each band (:func:`fast_kernels.pairs_banded`), closed here, once
+        (the steps read the bands where they are). The entries and their order stay the same."""
+        if eng._gaps is not None:
+            base, used = eng._gaps
+            FK.close_gaps(eng._cstart, base, used, eng._start, eng._ni, eng._nj, eng._code, *eng._hist)
+            eng._stop = eng._start[1:]
+            eng._gaps = None
 
     def forces(self, eng, update: bool):
         """The forces of the current state (``update`` False: the set-up evaluation of a run,
@@ -223,7 +237,7 @@ class FastCell:
             a[:] = 0.0
         with self._kernels(eng):
             FK.forces_v(
-                self._parallel, eng._cstart, eng._start, eng._ni, eng._nj, eng._code, eng._hist[0],
+                self._parallel, eng._cstart, eng._start, eng._stop, eng._ni, eng._nj, eng._code, eng._hist[0],
                 eng._hist[1], p.x, p.y, p.vx, p.vy, p.w, p.r, p.m, p.fx, p.fy, p.t, self._image(eng), eng.law,
                 eng.settings.dt, update, eng._sp_start, *self._spill(eng), eng._acc,
             )  # fmt: skip
@@ -266,9 +280,10 @@ class FastCell:
             if self._parallel:
                 bcount = np.zeros(eng._cstart.size - 1, np.int64)
                 with self._kernels(eng):
-                    FK.history_counts(eng._cstart, eng._start, h0, h1, bcount)
+                    FK.history_counts(eng._cstart, eng._start, eng._stop, h0, h1, bcount)
                 k = int(bcount.sum())
             else:
+                self._flat(eng)
                 k = FK.count_history(eng._start, h0, h1, n)
             if eng._hj.size < k:
                 cap = int(k * GROWTH) + 16
@@ -276,16 +291,19 @@ class FastCell:
             h = (eng._hstart, eng._hj, eng._hh)
             if self._parallel:
                 with self._kernels(eng):
-                    FK.compact_history_banded(eng._cstart, eng._start, eng._nj, h0, h1, bcount, *h)
+                    FK.compact_history_banded(eng._cstart, eng._start, eng._stop, eng._nj, h0, h1, bcount, *h)
             else:
-                FK.compact_history(eng._start, eng._nj, h0, h1, n, *h)
+                FK.compact_history(eng._start, eng._stop, eng._nj, h0, h1, n, *h)
         else:
             eng._hstart[:] = 0
         # entries per particle of each band of the last list (the threaded build sizes its regions
         # with them: the first band also holds the pairs across the periodic y boundary)
         per_band = None
         if self._parallel and eng.n_entries:
-            per_band = np.diff(eng._start[eng._cstart]) / np.maximum(np.diff(eng._cstart), 1)
+            if eng._gaps is not None:
+                per_band = eng._gaps[1] / np.maximum(np.diff(eng._cstart), 1)
+            else:
+                per_band = np.diff(eng._start[eng._cstart]) / np.maximum(np.diff(eng._cstart), 1)
         o = eng._order
         # each array gathered into the scratch, which then takes its place (one pass, not a gather
         # and a copy back); serial also on threads: seven short parallel regions cost more than
@@ -312,13 +330,15 @@ class FastCell:
             return (eng._ni, eng._nj, eng._code, *eng._hist, sp_cnt, o, eng._hstart, eng._hj, eng._hh)
 
         m = -1
+        eng._stop, eng._gaps = eng._start[1:], None  # the old list is in the hand-over table
         if not self._parallel:  # one pass into the buffers as they are; -1: too small
             m = FK.pairs_direct(*args[:-2], eng._start, *tail())
         elif per_band is not None:
             # one pass per band on the threads, each band into a region sized from the last list's
             # entries per particle of that band (of the whole list when the bands changed) times
-            # BAND_SLACK plus BAND_PAD, then the bands moved together; a band that does not fit
-            # sends the whole build to the count and fill passes below
+            # BAND_SLACK plus BAND_PAD, the gap after its entries left in place (the steps read
+            # band by band; moving the bands together was 3% of the two-thread time at 1e5 disks);
+            # a band that does not fit sends the whole build to the count and fill passes below
             per = per_band if per_band.size == nb else np.full(nb, eng.n_entries / n)
             cap = (np.diff(eng._cstart) * (per * BAND_SLACK)).astype(np.int64) + BAND_PAD
             base = np.zeros(nb + 1, np.int64)
@@ -327,9 +347,11 @@ class FastCell:
                 self._grow(eng, int(base[-1] * GROWTH) + 16)
             used = np.zeros(nb, np.int64)
             with self._kernels(eng):
-                FK.pairs_banded(*args[:-2], eng._start, *tail(), base, used)
+                FK.pairs_banded(*args[:-2], eng._start, eng._stopbuf, *tail(), base, used)
             if used.min() >= 0:
-                m = FK.close_gaps(eng._cstart, base, used, eng._start, eng._ni, eng._nj, eng._code, *eng._hist)
+                m = int(used.sum())
+                eng._start[n] = base[nb - 1] + used[nb - 1]
+                eng._stop, eng._gaps = eng._stopbuf, (base, used)
                 eng.n_banded_builds += 1
         if m < 0:
             with self._kernels(eng):
@@ -419,6 +441,8 @@ class FastCell:
     }
 
     def view(self, eng, name: str):
+        if name in ("ea", "eb", "xi"):
+            self._flat(eng)
         try:
             return self.VIEWS[name](self, eng)
         except KeyError:
@@ -461,6 +485,7 @@ class FastCell:
     def touching(self, eng):
         """Entries of the touching pairs (each pair once) and their overlaps (m), the images from
         the current box (:func:`fast_kernels.touching_entries`)."""
+        self._flat(eng)
         m = eng.n_entries
         p = eng.ps
         return FK.touching_entries(self._image(eng), eng._ni[:m], eng._nj[:m], eng._code[:m], p.x, p.y, p.r)
@@ -489,6 +514,7 @@ class FastCell:
         evaluation), not the one applied in the last step as the code order stores it: the fast
         ordering keeps no per-entry forces (memory: 24 B a list entry); the elastic part is the
         same, the damping part differs by the velocity change of the last half step."""
+        self._flat(eng)
         m = eng.n_entries
         p = eng.ps
         f = np.zeros((m, 4))
@@ -524,6 +550,7 @@ class FastCell:
         the particles, their permutation, the list with its springs, the bands, the box and its
         value at the last build, the virial; a sheared cell also its h_rate, the corners at the
         build and its run (the fix deform's parameters, the loading as JSON bytes)."""
+        self._flat(eng)
         p = eng.ps
         m = eng.n_entries
         out = {f"sorted/{k}": getattr(p, k) for k in ("x", "y", "vx", "vy", "w", "fx", "fy", "t", "xh", "yh")}
@@ -584,6 +611,7 @@ class FastCell:
         eng._ni[:m], eng._nj[:m], eng._code[:m] = ni, nj, code
         eng._hist[0, :m], eng._hist[1, :m] = h0, h1
         eng._cstart, eng._start, eng._sp_start = cstart, start, sp_start
+        eng._stop, eng._gaps = start[1:], None
         eng._acc = np.zeros((cstart.size - 1, 6))
         eng._red = np.zeros((cstart.size - 1, 3))
         self._size_spill(eng)
@@ -615,6 +643,7 @@ class FastCell:
         """Bytes held by the engine's arrays: particles, list (capacity), hand-over table, rest."""
         part = sum(a.nbytes for a in eng.ps) + eng.perm.nbytes
         lst = eng._ni.nbytes + eng._nj.nbytes + eng._code.nbytes + eng._hist.nbytes + eng._start.nbytes
+        lst += eng._stopbuf.nbytes
         hand = eng._hj.nbytes + eng._hh.nbytes + eng._hstart.nbytes
         rest = sum(
             a.nbytes

@@ -2,10 +2,13 @@
 
 Layout (all structure-of-arrays, particles in *sorted* order, see :func:`bin_sort`):
 x, y, vx, vy, w, fx, fy, t, r, m (N,) float64; perm (N,) int32 the original index of each sorted
-particle. Half neighbour list, each pair once with i < j in the sorted order, CSR by i:
-start (N+1,) int32, nj (M,) int32, code (M,) uint8 the periodic image of j
-(code = (sx + 1) + 3 (sy + 1), image x_j + sx Lx, y_j + sy Ly), ni (M,) int32 the owner i of each
-entry (written by the list build, for the vectorised force loop), h0, h1 (M,) float64 the two
+particle. Half neighbour list, each pair once with i < j in the sorted order, by i: the entries of
+particle i are ``start[i]..stop[i]`` (start (N+1,), stop (N,) int32; a list built in one pass is
+plain CSR, stop = start[1:]; the threaded build leaves a gap after each band's entries, so stop
+of a band's last particle is not the next band's start, :func:`pairs_banded`), nj (M,) int32,
+code (M,) uint8 the periodic image of j (code = (sx + 1) + 3 (sy + 1), image x_j + sx Lx,
+y_j + sy Ly), ni (M,) int32 the owner i of each entry (written by the list build, for the
+vectorised force loop), h0, h1 (M,) float64 the two
 components of the tangential spring in the frame of i (m; two arrays, not one (M, 2): a strided
 pair of loads and stores stops LLVM's loop vectoriser).
 
@@ -112,6 +115,7 @@ def forces_v(
     parallel,
     cstart,
     start,
+    stop,
     ni,
     nj,
     code,
@@ -171,7 +175,7 @@ def forces_v(
             for b in range(nper):
                 c = 2 * h + colour if parallel else b
                 for ia in range(cstart[c], cstart[c + 1], SIMD_BLOCK):
-                    cap = max(cap, start[min(ia + SIMD_BLOCK, cstart[c + 1])] - start[ia])
+                    cap = max(cap, stop[min(ia + SIMD_BLOCK, cstart[c + 1]) - 1] - start[ia])
             bfx = np.empty(cap)
             bfy = np.empty(cap)
             bti = np.empty(cap)
@@ -200,7 +204,7 @@ def forces_v(
                 for ia in range(i0, i1, SIMD_BLOCK):
                     ib = min(ia + SIMD_BLOCK, i1)
                     ea = start[ia]
-                    eb = start[ib]
+                    eb = stop[ib - 1]
                     for e_ in range(ea, eb):
                         e = np.uint64(e_)
                         q = np.uint64(e_ - ea)
@@ -233,7 +237,7 @@ def forces_v(
                         fxi = 0.0
                         fyi = 0.0
                         ti = 0.0
-                        for e_ in range(start[i], start[i + 1]):
+                        for e_ in range(start[i], stop[i]):
                             e = np.uint64(e_)
                             q = np.uint64(e_ - ea)
                             fxe = bfx[q]
@@ -404,9 +408,9 @@ def integrate_v(
 #: vx, vy (m/s), w (rad/s), fx, fy (N), t (N m), m (kg), r (m), xh, yh (m) the positions at the
 #: last list build
 FastParticles = namedtuple("FastParticles", ["x", "y", "vx", "vy", "w", "fx", "fy", "t", "m", "r", "xh", "yh"])
-#: the half list (module docstring): cstart (C+1,) the bands, start (N+1,) CSR, ni, nj (M,) int32,
-#: code (M,) uint8, h0, h1 (M,) the spring (m)
-FastList = namedtuple("FastList", ["cstart", "start", "ni", "nj", "code", "h0", "h1"])
+#: the half list (module docstring): cstart (C+1,) the bands, start (N+1,), stop (N,) the entries
+#: of each particle, ni, nj (M,) int32, code (M,) uint8, h0, h1 (M,) the spring (m)
+FastList = namedtuple("FastList", ["cstart", "start", "stop", "ni", "nj", "code", "h0", "h1"])
 #: work arrays: sp_start (C+1,), sp_j, sp_f the spills (:func:`forces_v`), acc (C, 6), red (C, 3)
 FastScratch = namedtuple("FastScratch", ["sp_start", "sp_j", "sp_f", "acc", "red"])
 #: the orthogonal cell (:func:`run_steps`): lo, hi (2,) m now, lo_hold, hi_hold (2,) at the last
@@ -633,7 +637,7 @@ def run_steps(parallel, p, nl, cell, ctl, law, dt, skin, clamp, sc, out, step0, 
     index), 3 collapsed cell (or a tilt past Lx/2) at step step0 + completed + 1.
     """
     x, y, vx, vy, w, fx, fy, t, m, r, xh, yh = p
-    cstart, start, ni, nj, code, h0, h1 = nl
+    cstart, start, stop, ni, nj, code, h0, h1 = nl
     sp_start, sp_j, sp_f, acc, red = sc
     lo_old = np.zeros(2)
     hi_old = np.ones(2)
@@ -656,7 +660,7 @@ def run_steps(parallel, p, nl, cell, ctl, law, dt, skin, clamp, sc, out, step0, 
     while k < nsteps:
         step = step0 + k + 1
         forces_v(
-            parallel, cstart, start, ni, nj, code, h0, h1, x, y, vx, vy, w, r, m, fx, fy, t,
+            parallel, cstart, start, stop, ni, nj, code, h0, h1, x, y, vx, vy, w, r, m, fx, fy, t,
             cell_image(cell), law, dt, update, sp_start, sp_j, sp_f, acc,
         )  # fmt: skip
         for q in range(6):
@@ -849,11 +853,11 @@ def count_history(start, h0, h1, n):
 
 
 @njit
-def compact_history(start, nj, h0, h1, n, hstart, hj, hh):
+def compact_history(start, stop, nj, h0, h1, n, hstart, hj, hh):
     """The hand-over table: the entries of the current list whose spring is not zero, CSR by i
     (``hstart`` (N+1,) int32, ``hj`` int32, ``hh`` (K, 2)); returns K. Only these can pass a
     spring on (an entry with a zero spring hands over zero)."""
-    k = _compact_band(0, n, 0, start, nj, h0, h1, hstart, hj, hh)
+    k = _compact_band(0, n, 0, start, stop, nj, h0, h1, hstart, hj, hh)
     hstart[n] = k
     return k
 
@@ -1169,6 +1173,7 @@ def pairs_banded(
     nby,
     skin,
     start,
+    stop,
     ni,
     nj,
     code,
@@ -1185,14 +1190,16 @@ def pairs_banded(
     """The list in one pass per band with the bands spread over the threads (the threaded
     counterpart of :func:`pairs_direct`, which walks each stencil once where the count and fill
     passes of :func:`pairs_parallel` walk it twice): band c fills its own region
-    ``base[c]..base[c + 1]`` of the buffers (``base`` (C+1,) int64), ``start[i]`` relative to
-    ``base[c]``; ``used[c]`` (C,) int64 receives its entries, or -1 when the region is too small.
-    :func:`close_gaps` then moves the bands together: the list is that of :func:`pairs_direct`,
-    entry for entry."""
+    ``base[c]..base[c + 1]`` of the buffers (``base`` (C+1,) int64) and writes the ``start`` and
+    ``stop`` of its particles; ``used[c]`` (C,) int64 receives its entries, or -1 when the region
+    is too small (its starts and stops are then not written). When every band fits, the list is
+    that of :func:`pairs_direct` entry for entry, each band's entries moved up to its region with
+    a gap after them (the force loop and the hand-over read the bands as they are;
+    :func:`close_gaps` moves them together for the readers of the whole list)."""
     for c in prange(cstart.shape[0] - 1):
         b0 = base[c]
         b1 = base[c + 1]
-        used[c] = _band_pairs(
+        u = _band_pairs(
             c,
             2,
             0,
@@ -1220,13 +1227,24 @@ def pairs_banded(
             hj,
             hh,
         )
+        used[c] = u
+        if u >= 0:  # the band's starts were written from 0: from b0, and its stops
+            i0 = cstart[c]
+            i1 = cstart[c + 1]
+            for i in range(i0, i1):
+                start[i] += b0
+            for i in range(i0, i1 - 1):
+                stop[i] = start[i + 1]
+            if i1 > i0:
+                stop[i1 - 1] = b0 + u
 
 
 @njit
 def close_gaps(cstart, base, used, start, ni, nj, code, h0, h1):
-    """After :func:`pairs_banded`: each band's entries moved down to follow the previous band's
-    (a forward copy, the destination never above the source), ``start`` made absolute and
-    ``start[N]`` the total, which is returned."""
+    """The list of :func:`pairs_banded` (band c's entries at ``base[c]..base[c] + used[c]``)
+    made plain CSR: each band's entries moved down to follow the previous band's (a forward copy,
+    the destination never above the source), ``start`` moved with them and ``start[N]`` the
+    total, which is returned (the stops are then ``start[1:]``)."""
     nch = cstart.shape[0] - 1
     off = 0
     for c in range(nch):
@@ -1240,7 +1258,7 @@ def close_gaps(cstart, base, used, start, ni, nj, code, h0, h1):
                 h0[off + k] = h0[b0 + k]
                 h1[off + k] = h1[b0 + k]
         for i in range(cstart[c], cstart[c + 1]):
-            start[i] += off
+            start[i] += off - b0
         off += m
     start[cstart[nch]] = off
     return off
@@ -1258,17 +1276,20 @@ def _nonzero_springs(h0, h1):
 
 
 @pjit
-def history_counts(cstart, start, h0, h1, bcount):
+def history_counts(cstart, start, stop, h0, h1, bcount):
     """Per band of the current list, the entries whose spring is not zero (``bcount`` (C,) int64;
     their sum is :func:`count_history`), the bands on the threads."""
     for c in prange(cstart.shape[0] - 1):
-        e0 = start[cstart[c]]
-        e1 = start[cstart[c + 1]]
-        bcount[c] = _nonzero_springs(h0[e0:e1], h1[e0:e1])
+        if cstart[c + 1] > cstart[c]:
+            e0 = start[cstart[c]]
+            e1 = stop[cstart[c + 1] - 1]
+            bcount[c] = _nonzero_springs(h0[e0:e1], h1[e0:e1])
+        else:
+            bcount[c] = 0
 
 
 @pjit
-def compact_history_banded(cstart, start, nj, h0, h1, bcount, hstart, hj, hh):
+def compact_history_banded(cstart, start, stop, nj, h0, h1, bcount, hstart, hj, hh):
     """:func:`compact_history` with the bands on the threads (the same table, entry for entry):
     band c writes from the sum of the counts ``bcount`` of the bands before it."""
     nch = cstart.shape[0] - 1
@@ -1276,18 +1297,18 @@ def compact_history_banded(cstart, start, nj, h0, h1, bcount, hstart, hj, hh):
     for c in range(nch):
         off[c + 1] = off[c] + bcount[c]
     for c in prange(nch):
-        _compact_band(cstart[c], cstart[c + 1], off[c], start, nj, h0, h1, hstart, hj, hh)
+        _compact_band(cstart[c], cstart[c + 1], off[c], start, stop, nj, h0, h1, hstart, hj, hh)
     hstart[cstart[nch]] = off[nch]
     return off[nch]
 
 
 @njit
-def _compact_band(i0, i1, k, start, nj, h0, h1, hstart, hj, hh):
+def _compact_band(i0, i1, k, start, stop, nj, h0, h1, hstart, hj, hh):
     # the rows i0..i1 of the hand-over table from entry k on; returns the next free entry (a plain
     # kernel, also inside the parallel loop: see _nonzero_springs)
     for i in range(i0, i1):
         hstart[i] = k
-        for e in range(start[i], start[i + 1]):
+        for e in range(start[i], stop[i]):
             if h0[e] != 0.0 or h1[e] != 0.0:
                 hj[k] = nj[e]
                 hh[k, 0] = h0[e]
