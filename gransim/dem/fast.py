@@ -21,9 +21,10 @@ What is reordered, and what it changes:
 * one fused pass per step: second half step, box remap (per axis, or through lamda in the
   sheared cell with ``remap x``), first half step of the next step, position update, rebuild test
   and forces zeroed;
-* the list rebuilt in place into buffers that are reused and grown only when needed; at a
-  rebuild the old list survives only as the compact table of its non-zero springs (the
-  history hand-over);
+* the list rebuilt in place into buffers that are reused and grown only when needed (on threads
+  each band into its own region, the gaps between the regions left in place: the steps read the
+  list band by band); at a rebuild the old list survives only as the compact table of its non-zero
+  springs (the history hand-over);
 * threads: bands of bin rows, many more than the threads, handed out dynamically (numba's
   dynamic scheduling with chunk size 1, :func:`dynamic_chunks`), even bands then odd bands so no
   two threads write the same particle. Sums have a fixed order: the results are the same bit for
@@ -128,7 +129,8 @@ class FastCell:
     """The fast ordering's state and block of steps, for :class:`gransim.dem.engine.Engine`
     (module docstring). Its state on the engine: ``ps`` (:data:`fast_kernels.FastParticles`,
     sorted by bin), ``perm`` (sorted index -> particle), the list (``_cstart``, ``_start``,
-    ``_ni``, ``_nj``, ``_code``, ``_hist``: capacity grows), the hand-over table, the spill rows,
+    ``_stop``, ``_ni``, ``_nj``, ``_code``, ``_hist``: capacity grows; ``_gaps`` the regions of a
+    banded build, :meth:`_flat`), the hand-over table, the spill rows,
     ``sc`` (the virial), ``box`` (orthogonal: :data:`fast_kernels.OrthoCell`, lo, hi and their
     values at the last build; sheared: (lo_x, lo_y, hi_x, hi_y, xy) with ``box_hold``,
     ``h_rate``, ``corners_hold``). Its own: the threads (``threads`` 1 or more: the threaded
