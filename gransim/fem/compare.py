@@ -17,8 +17,9 @@ approach of confined particulate systems", eq 1: affine, an upper bound) against
   of every result, the energy-norm sequences with their observed orders).
 
 The relaxed fluctuation w of a marked Gauss point is not in ``slope.h5``: it is rebuilt by
-replaying that point's history (the run's checkpoint: every committed attempt's FE iterates, then
-the commit, exact; without the checkpoint, the F of each converged step from ``slope.h5``) through
+replaying that point's history (the relaxed reference RVE at F = 1 that every slope run commits
+first, then the run's checkpoint: every committed attempt's FE iterates, then the commit, exact;
+without the checkpoint, the F of each converged step from ``slope.h5``) through
 a fresh one-point :class:`gransim.rve.RelaxedMaterial` with the run's ``relaxed_start``, and the
 replayed Cauchy stress is checked against the stored one (reported in ``compare.md``).
 """
@@ -244,6 +245,10 @@ def rve_state(result: SlopeResult, step: int, g: int, packings: list) -> dict:
         # the run's start rule (runs before the parameter existed started from the committed state)
         rve = RelaxedMaterial(packing, kn, warm_start=p.get("relaxed_start", "committed"))
         seqs, source = committed_history(result, step, g)
+        # the run's first commit: its RVEs relaxed at F = 1 before the first load step (the relaxed
+        # reference RVE, gransim.fem.solver.Problem), the start of the first step's evaluations
+        rve.evaluate(np.eye(2)[None])
+        rve.commit()
         for seq in seqs:
             for Fc in seq:
                 rve.evaluate(Fc[None])

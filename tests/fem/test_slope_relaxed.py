@@ -222,3 +222,48 @@ def test_bad_relaxed_start_is_refused(capsys):
     assert rc == 2 and "--relaxed-start" in err and "committed" in err
     with pytest.raises(InputError, match="--relaxed-start"):
         make_material("taylor", rve="relaxed", relaxed_start="previous")
+
+
+def test_tangent_is_the_derivative_where_the_rve_equilibrium_is_not_a_minimum(tmp_path, monkeypatch):
+    """The reduced slope of the ``slope-relaxed`` validation case (10 x 5 mesh, the 30-disk
+    jittered lattice RVE, service protocol): in its last load step some Gauss points' RVEs end at
+    an equilibrium whose W_ww is not positive definite (``stable`` False: compressive contacts'
+    negative tangential stiffness). Their tangent must still be dP/dF of the states the material
+    returns from its committed start: central differences of P along a random dF at every FE
+    iterate of the step, each from the same committed history, agree with A:dF to 1e-6 at every
+    Gauss point whose contacts do not change within +-h. (With A from the shifted factorisation
+    the unstable points were off by up to 8e-3, and the FE Newton converged linearly.)"""
+    from gransim.fem.mesh import SlopeGeometry
+    from gransim.fem.run import run_slope_case
+    from gransim.io import save_packing
+    from gransim.rve import relaxed as RX
+    from validation.cases.slope_relaxed import lattice_packing
+
+    calls, checked, unstable = [0], [0], [0]
+    evaluate = RX.RelaxedMaterial.evaluate
+
+    def check(self, F, rve=None, cauchy=True):
+        b = evaluate(self, F, rve, cauchy)
+        calls[0] += 1
+        if len(self._committed) == len(F) and np.any(~b.stable) and calls[0] > 30:
+            dF = np.random.default_rng(calls[0]).normal(size=np.shape(F))
+            h = 1e-7
+            plus, minus = evaluate(self, F + h * dF, rve, cauchy), evaluate(self, F - h * dF, rve, cauchy)
+            num = (plus.piola - minus.piola) / (2 * h)
+            ana = np.einsum("giJkL,gkL->giJ", b.tangent, dF)
+            same = (plus.n_contacts == b.n_contacts) & (minus.n_contacts == b.n_contacts)
+            G = len(F)
+            err = np.linalg.norm((num - ana).reshape(G, -1), axis=1) / np.linalg.norm(ana.reshape(G, -1), axis=1)
+            bad = np.flatnonzero(same & (err > 1e-6))
+            assert bad.size == 0, (calls[0], bad, err[bad], b.stable[bad])
+            checked[0] += 1
+            unstable[0] += int(np.count_nonzero(~b.stable & same))
+            evaluate(self, F, rve, cauchy)  # the iterate's own trials again
+        return b
+
+    monkeypatch.setattr(RX.RelaxedMaterial, "evaluate", check)
+    save_packing(tmp_path / "lattice.h5", lattice_packing())
+    s = run_slope_case("service", packing=str(tmp_path / "lattice.h5"), out=tmp_path / "out", figures="none",
+                       geometry=SlopeGeometry(columns=10, rows=5), rve="relaxed", load_steps=4)  # fmt: skip
+    assert s["result"].steps and checked[0] >= 3, (checked, calls)
+    assert unstable[0] > 0  # the check saw equilibria that are not minima

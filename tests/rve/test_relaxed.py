@@ -331,3 +331,48 @@ def test_simple_shear_from_zero_finds_the_backbone_minimum(standard):
     assert abs(r.energy - warm.energy) <= 1e-10 * warm.energy
     assert _rel(r.piola, warm.piola) < 1e-12
     assert r.energy < 0.9 * TaylorMaterial(p, KN)(F).energy
+
+
+def test_condensation_solves_an_indefinite_w_ww_exactly():
+    """(W_ww)^-1 W_wF of the condensed tangent (R5): a positive definite W_ww through the block
+    LDL^T, an indefinite one (its LDL^T needs a shift) through the sparse LU of the unshifted matrix,
+    both equal to a dense solve; the block matrix equals the dense assembly of the blocks."""
+    from gransim.rve.relaxed import _LDL, _block_matrix, _condensation_solve
+
+    rng = np.random.default_rng(4)
+    nb = 12
+    pairs = [(i, j) for i in range(nb) for j in range(i + 1, nb) if rng.random() < 0.3]
+    pairs += [(0, 1), (0, 1)]  # a duplicate block adds
+    Ap = np.zeros(nb + 1, np.int64)
+    for _, j in pairs:
+        Ap[j + 1] += 1
+    Ap = np.cumsum(Ap)
+    Ai = np.empty(Ap[-1], np.int64)
+    Ax = np.empty((Ap[-1], 2, 2))
+    fill = Ap[:-1].copy()
+    dense = np.zeros((2 * nb, 2 * nb))
+    for i, j in pairs:
+        K = rng.normal(size=(2, 2))
+        K = K + K.T
+        Ai[fill[j]], Ax[fill[j]] = i, K
+        fill[j] += 1
+        dense[2 * i : 2 * i + 2, 2 * j : 2 * j + 2] += K
+        dense[2 * j : 2 * j + 2, 2 * i : 2 * i + 2] += K
+    B = rng.normal(size=(2 * nb, 4))
+    for shift, definite in ((20.0, True), (0.5, False)):
+        Hd = np.array([shift * np.eye(2) for _ in range(nb)])
+        W = dense + np.kron(np.eye(nb), shift * np.eye(2))
+        assert (np.linalg.eigvalsh(W).min() > 0) == definite
+        np.testing.assert_array_equal(_block_matrix(Hd, Ap, Ai, Ax).toarray(), W)
+        lu = _LDL(Hd, Ap, Ai, Ax)
+        assert lu.shifted == (not definite)
+        X = _condensation_solve(lu, Hd, Ap, Ai, Ax, B)
+        assert np.abs(X - np.linalg.solve(W, B)).max() <= 1e-10 * np.abs(X).max()
+        if not definite:  # the shifted factorisation's solve is another matrix's
+            assert np.abs(lu.solve(B) - X).max() > 1e-3 * np.abs(X).max()
+    # a singular W_ww (a zero mode: no unique equilibrium branch) keeps the shifted solve
+    Hd = np.ones((1, 2, 2))
+    no = (np.zeros(2, np.int64), np.zeros(0, np.int64), np.zeros((0, 2, 2)))
+    lu = _LDL(Hd, *no)
+    assert lu.shifted
+    np.testing.assert_array_equal(_condensation_solve(lu, Hd, *no, B[:2]), lu.solve(B[:2]))
