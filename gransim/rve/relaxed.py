@@ -39,8 +39,9 @@ only. Stress and tangent at the minimiser (Miehe & Dettmar's condensation):
     A = d^2 W_rel/dF dF = W_FF - W_Fw (W_ww)^-1 W_wF                                  (N/m) (R5)
 
 (R4) holds because W_w = 0 at w*; (R5) differentiates W_w(F, w*(F)) = 0:
-dw*/dF = -(W_ww)^-1 W_wF. Both use the same sparse LDL^T factorisation of W_ww at w* (Davis'
-up-looking algorithm on 2 x 2 blocks, numba, in a minimum-degree order of the candidate graph).
+dw*/dF = -(W_ww)^-1 W_wF. Both use the sparse LDL^T factorisation of W_ww at w* of the last Newton
+iterate (Davis' up-looking algorithm on 2 x 2 blocks, numba, in a minimum-degree order of the
+candidate graph) when W_ww is positive definite there, else a sparse LU of W_ww (below).
 ``A[i, J, k, L] = dP_iJ/dF_kL`` with index pairs (iJ) -> 2 i + J; A has the major symmetry (it is
 a Hessian; the computed A is not symmetrised, it is symmetric to the round-off of the solve).
 
@@ -99,8 +100,12 @@ about E_n eps ulp(c) per contact (the overlap eps = c - |l| cancels), ~1e-12 rel
 Newton step whose energy change is below that is taken without the Armijo test.
 Convergence: max |W_w| V <= max(force_tol * mean contact force, 8 eps_machine E_n c_max) over
 the backbone, and no rattler left with a net force above it. At the converged state the
-factorisation of the unshifted W_ww gives A; if it is not positive definite (a floppy or unstable
-network) ``stable`` is False and A uses the smallest shift that is.
+factorisation of the unshifted W_ww gives A; if it is not positive definite (an equilibrium that is
+not a strict minimum: compressive contacts' negative tangential stiffness) ``stable`` is False and
+A still condenses with W_ww itself, by a sparse LU with pivoting (SuperLU): (R5) needs W_ww only
+non-singular, and the shifted matrix of the Newton steps would give a tangent that is not dP/dF
+(measured: 1e-5 to 1e-2 off central differences, and a linear FE Newton; docs/slope.md). Only a
+singular W_ww (a zero mode, no unique branch w*(F)) keeps the smallest shift that is definite.
 
 Contact candidates (skin)
 -------------------------
