@@ -181,9 +181,8 @@ class FastCell:
         eng._tmpi = np.zeros(n, np.int32)
         eng._cnt = np.zeros(n, np.int32)
         eng._start = np.zeros(n + 1, np.int32)
-        eng._stop = eng._start[1:]  # the end of each particle's entries: plain CSR ...
-        eng._stopbuf = np.zeros(n, np.int32)  # ... or, after a banded build, its own array
-        eng._gaps = None  # (base, used) of a banded build whose bands are not moved together yet
+        eng._stopbuf = np.zeros(n, np.int32)  # the stops of a banded build (_plain: start[1:])
+        self._plain(eng)
         eng._binstart = np.zeros(1, np.int32)
         # the list (capacity grows) and the hand-over table
         eng._ni = np.zeros(0, np.int32)
@@ -218,6 +217,12 @@ class FastCell:
     def _list(self, eng):
         return FK.FastList(eng._cstart, eng._start, eng._stop, eng._ni, eng._nj, eng._code, *eng._hist)
 
+    @staticmethod
+    def _plain(eng):
+        """The list's stops those of plain CSR, ``start[1:]``, and no gaps (``_gaps`` (base, used) of
+        a banded build whose bands are not moved together)."""
+        eng._stop, eng._gaps = eng._start[1:], None
+
     def _flat(self, eng):
         """The list as plain CSR (``_ni[:n_entries]`` etc. the whole list, ``start[N]`` its size)
         for the readers of the whole list (contacts, energies, views, checkpoints): a banded
@@ -226,8 +231,7 @@ class FastCell:
         if eng._gaps is not None:
             base, used = eng._gaps
             FK.close_gaps(eng._cstart, base, used, eng._start, eng._ni, eng._nj, eng._code, *eng._hist)
-            eng._stop = eng._start[1:]
-            eng._gaps = None
+            self._plain(eng)
 
     def forces(self, eng, update: bool):
         """The forces of the current state (``update`` False: the set-up evaluation of a run,
@@ -302,10 +306,8 @@ class FastCell:
         # with them: the first band also holds the pairs across the periodic y boundary)
         per_band = None
         if self._parallel and eng.n_entries:
-            if eng._gaps is not None:
-                per_band = eng._gaps[1] / np.maximum(np.diff(eng._cstart), 1)
-            else:
-                per_band = np.diff(eng._start[eng._cstart]) / np.maximum(np.diff(eng._cstart), 1)
+            entries = eng._gaps[1] if eng._gaps is not None else np.diff(eng._start[eng._cstart])
+            per_band = entries / np.maximum(np.diff(eng._cstart), 1)
         o = eng._order
         # each array gathered into the scratch, which then takes its place (one pass, not a gather
         # and a copy back); serial also on threads: seven short parallel regions cost more than
@@ -332,7 +334,7 @@ class FastCell:
             return (eng._ni, eng._nj, eng._code, *eng._hist, sp_cnt, o, eng._hstart, eng._hj, eng._hh)
 
         m = -1
-        eng._stop, eng._gaps = eng._start[1:], None  # the old list is in the hand-over table
+        self._plain(eng)  # the old list is in the hand-over table
         if not self._parallel:  # one pass into the buffers as they are; -1: too small
             m = FK.pairs_direct(*args[:-2], eng._start, *tail())
         elif per_band is not None:
@@ -613,7 +615,7 @@ class FastCell:
         eng._ni[:m], eng._nj[:m], eng._code[:m] = ni, nj, code
         eng._hist[0, :m], eng._hist[1, :m] = h0, h1
         eng._cstart, eng._start, eng._sp_start = cstart, start, sp_start
-        eng._stop, eng._gaps = start[1:], None
+        self._plain(eng)
         eng._acc = np.zeros((cstart.size - 1, 6))
         eng._red = np.zeros((cstart.size - 1, 3))
         self._size_spill(eng)
