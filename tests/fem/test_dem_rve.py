@@ -45,6 +45,7 @@ from gransim.fem.biaxial import BiaxialSpec
 from gransim.fem.dem_rve import DemRVE, load_rve_state
 from gransim.fem.femxdem import FemxdemInterrupted, run_femxdem
 from gransim.fem.material_points import freeze
+from validation.judges import differing
 
 DATA = Path(__file__).parent / "data" / "yade_rve"
 HAVE_YADE = shutil.which("yade") is not None
@@ -53,12 +54,7 @@ EPS = np.finfo(float).eps
 
 def same_state(a, b) -> list:
     """Fields of two YadeRVEStates that differ (NaN equal to NaN)."""
-    bad = []
-    for f in RVE_STATE_FIELDS:
-        x, y = np.asarray(getattr(a, f)), np.asarray(getattr(b, f))
-        if x.shape != y.shape or not np.array_equal(x, y, equal_nan=x.dtype.kind == "f"):
-            bad.append(f)
-    return bad
+    return differing(a, b, RVE_STATE_FIELDS)
 
 
 def test_prepared_rve_is_guo_and_zhaos():
