@@ -36,6 +36,7 @@ checkpoint of a slope run (:mod:`gransim.fem.checkpoint`) restores the history t
 from __future__ import annotations
 
 import itertools
+import logging
 import os
 import time
 
@@ -349,7 +350,20 @@ class DaskExecutor:
         return f"Dask, {self.n_workers} workers on {where}"
 
     def close(self) -> None:
-        """Close the client and (when this executor started it) the LocalCluster."""
+        """Close the client and (when this executor started it) the LocalCluster.
+
+        The cluster's own processes are silenced first (the ``distributed`` loggers of the workers
+        and of this process to CRITICAL): the work is done or checkpointed, and ``distributed``
+        (2026.8) logs races of its own shutdown as errors with a traceback on the inherited stderr,
+        e.g. a worker's heartbeat in flight while its connection pool closes ("Failed to
+        communicate with scheduler during heartbeat", worker.py ``heartbeat``). An error of the
+        close itself still raises. An existing cluster (``--scheduler``) is left as it is."""
+        if self.cluster is not None:
+            try:
+                self.client.run(_silence_distributed, on_error="ignore")
+            except Exception:  # noqa: BLE001 - a worker already gone is closed below all the same
+                pass
+            _silence_distributed()
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
@@ -359,6 +373,14 @@ class DaskExecutor:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def _silence_distributed() -> None:
+    """Set every ``distributed`` logger of this process to CRITICAL (see :meth:`DaskExecutor.close`):
+    the package's and each of its modules' (its logging configuration gives some their own level)."""
+    names = [n for n in logging.root.manager.loggerDict if n == "distributed" or n.startswith("distributed.")]
+    for name in ["distributed", *names]:
+        logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
 def make_executor(workers=None, scheduler: str | None = None):
