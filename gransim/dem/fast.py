@@ -482,8 +482,10 @@ class FastCell:
         return self._orig(eng, eng.ps.vx - ux, eng.ps.vy - uy)
 
     def shifts(self, eng, e=slice(None)) -> np.ndarray:
-        """Image shifts s (K, 2) int64 of the entries ``e``: j's image at x_j + C s."""
-        c = eng._code[e].astype(np.int64)
+        """Image shifts s (K, 2) int64 of the entries ``e`` of the whole list (default all, in the
+        order of the ``ea``/``eb`` views): j's image at x_j + C s."""
+        self._flat(eng)
+        c = eng._code[: eng.n_entries][e].astype(np.int64)
         return np.stack((c % 3 - 1, c // 3 - 1), axis=1)
 
     def touching(self, eng):

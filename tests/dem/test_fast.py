@@ -321,6 +321,24 @@ def test_the_permutation_is_undone_exactly():
     assert not np.array_equal(fe.perm, np.arange(n))  # the particles really were re-sorted
 
 
+@pytest.mark.parametrize("threads", [1, 2])
+def test_entry_views_agree_with_each_other(threads, threaded_small):
+    """``ea``, ``eb``, ``xi`` and ``eshift`` describe the same entries, one row each, in the same
+    order, also right after a threaded build (a list with a gap after each band): every listed
+    pair's image lies within the list's reach, r_a + r_b + skin at the build plus the skin the two
+    may have moved since (each less than half of it)."""
+    p = lattice_packing(40, 40, seed=3, spread=0.1, compression=0.03)
+    fe = FastEngine(p, S, threads=threads)
+    advance(fe, 50)
+    assert (fe._gaps is not None) == (threads == 2)  # a threaded build leaves gaps; the views close them
+    s = fe.eshift  # first: each view must close the gaps itself
+    a, b = fe.ea, fe.eb
+    assert a.shape == b.shape == (fe.n_entries,) and s.shape == (fe.n_entries, 2) and fe.xi.shape[0] == fe.n_entries
+    d = np.linalg.norm(fe.x[b] + s * fe.box_lengths - fe.x[a], axis=1)
+    assert np.all(d < fe.r[a] + fe.r[b] + 2 * S.skin), d.max()
+    assert fe.n_contacts > 0
+
+
 def test_bad_input_is_refused():
     p = lattice_packing(10, 12)
     with pytest.raises(InputError, match="threads"):
