@@ -356,17 +356,23 @@ class DaskExecutor:
         and of this process to CRITICAL): the work is done or checkpointed, and ``distributed``
         (2026.8) logs races of its own shutdown as errors with a traceback on the inherited stderr,
         e.g. a worker's heartbeat in flight while its connection pool closes ("Failed to
-        communicate with scheduler during heartbeat", worker.py ``heartbeat``). An error of the
-        close itself still raises. An existing cluster (``--scheduler``) is left as it is."""
-        if self.cluster is not None:
-            try:
-                self.client.run(_silence_distributed, on_error="ignore")
-            except Exception:  # noqa: BLE001 - a worker already gone is closed below all the same
-                pass
-            _silence_distributed()
-        self.client.close()
-        if self.cluster is not None:
+        communicate with scheduler during heartbeat", worker.py ``heartbeat``). The levels of this
+        process are put back afterwards. An error of the close itself still raises. An existing
+        cluster (``--scheduler``) is left as it is."""
+        if self.cluster is None:
+            self.client.close()
+            return
+        try:
+            self.client.run(_silence_distributed, on_error="ignore")
+        except Exception:  # noqa: BLE001 - a worker already gone is closed below all the same
+            pass
+        levels = _silence_distributed()
+        try:
+            self.client.close()
             self.cluster.close()
+        finally:
+            for name, level in levels.items():
+                logging.getLogger(name).setLevel(level)
 
     def __enter__(self):
         return self
@@ -375,12 +381,15 @@ class DaskExecutor:
         self.close()
 
 
-def _silence_distributed() -> None:
+def _silence_distributed() -> dict:
     """Set every ``distributed`` logger of this process to CRITICAL (see :meth:`DaskExecutor.close`):
-    the package's and each of its modules' (its logging configuration gives some their own level)."""
-    names = [n for n in logging.root.manager.loggerDict if n == "distributed" or n.startswith("distributed.")]
-    for name in ["distributed", *names]:
+    the package's and each of its modules' (its logging configuration gives some their own level).
+    Returns their levels before ({name: level})."""
+    names = {"distributed", *(n for n in logging.root.manager.loggerDict if n.startswith("distributed."))}
+    levels = {name: logging.getLogger(name).level for name in names}
+    for name in names:
         logging.getLogger(name).setLevel(logging.CRITICAL)
+    return levels
 
 
 def make_executor(workers=None, scheduler: str | None = None):

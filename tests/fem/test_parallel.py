@@ -235,11 +235,16 @@ class LateError(WorkerPlugin):
     def teardown(self, worker):
         logging.getLogger("distributed.worker").error("an error logged while the worker closes")
 
+def levels():
+    return {n: logging.getLogger(n).level for n in logging.root.manager.loggerDict if n.startswith("distributed")}
+
 if __name__ == "__main__":
     ex = make_executor(workers=2)
     ex.client.register_plugin(LateError())
+    before = levels()
     ex.close()
-    print("closed")
+    after = levels()
+    print("closed" if all(after[n] == lv for n, lv in before.items()) else f"levels changed: {before} {after}")
 '''
 
 
@@ -248,7 +253,7 @@ def test_closing_the_local_cluster_prints_nothing(tmp_path):
     worker's heartbeat in flight at shutdown logged "Failed to communicate with scheduler during
     heartbeat" with a traceback under an interrupted ``gransim femxdem`` (here: an error logged by a
     plugin's teardown, in the worker's close, as that race does); without the silencing it prints
-    one line per worker."""
+    one line per worker. The driver's own logging levels are as they were after the close."""
     script = tmp_path / "close.py"
     script.write_text(CLOSE_SCRIPT)
     r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
